@@ -1,0 +1,1 @@
+"""Pure analysis functions: arrays in, numbers out. No devices, no files."""

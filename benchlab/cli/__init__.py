@@ -1,0 +1,1 @@
+"""The ``benchlab`` command line."""

@@ -1,0 +1,155 @@
+"""Atomic, lossless writes of frames and records.
+
+Every file benchlab writes goes through :func:`atomic_write_bytes`: the data is written to a
+temporary file in the same folder, flushed and fsync'd, then renamed over the target, so a
+crash leaves either the old file or the new one, never half of either.
+
+Frames are TIFF (uncompressed or zlib, both lossless) with their acquisition metadata as JSON
+in the ImageDescription tag, so a frame is self-describing without any sidecar.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import tifffile
+
+from benchlab.drivers.errors import BenchlabError
+
+#: Marks benchlab's metadata inside a TIFF ImageDescription.
+METADATA_FORMAT = "benchlab.frame"
+METADATA_VERSION = 1
+
+
+class FrameFileError(BenchlabError):
+    """A frame file is missing, corrupt or not what benchlab wrote."""
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # pragma: no cover - platforms without directory fds
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
+
+    With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);
+    raw frames use this so nothing already saved can be lost.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if overwrite:
+            os.replace(tmp, target)
+        else:
+            # link() fails if the target exists, which rename() would silently replace.
+            os.link(tmp, target)
+            tmp.unlink()
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(target.parent)
+    return target
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str, *, overwrite: bool = True) -> Path:
+    """Atomically write UTF-8 text (see :func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode("utf-8"), overwrite=overwrite)
+
+
+def atomic_write_json(path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True) -> Path:
+    """Atomically write ``obj`` as indented JSON (NaN is refused: it is not valid JSON)."""
+    text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default)
+    return atomic_write_text(path, text + "\n", overwrite=overwrite)
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def sha256_file(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file's bytes (used to prove raw frames are never modified)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> bytes:
+    """Encode a 2-D uint8/uint16 frame and its metadata as lossless TIFF bytes."""
+    arr = np.asarray(pixels)
+    if arr.ndim != 2:
+        raise ValueError(f"frame must be 2-D, got shape {arr.shape}")
+    if arr.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"frame dtype must be uint8 or uint16, got {arr.dtype}")
+    meta = {"format": METADATA_FORMAT, "version": METADATA_VERSION, **dict(metadata)}
+    description = json.dumps(meta, allow_nan=False, default=_json_default)
+    buf = io.BytesIO()
+    tifffile.imwrite(buf, arr, description=description, metadata=None, compression="zlib")
+    return buf.getvalue()
+
+
+def save_frame_tiff(
+    path: str | os.PathLike[str],
+    pixels: npt.NDArray[Any],
+    metadata: Mapping[str, Any],
+    *,
+    overwrite: bool = False,
+) -> Path:
+    """Save a frame losslessly and atomically; by default refuses to replace an existing file."""
+    return atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+
+
+def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+    """Load a frame written by :func:`save_frame_tiff`: ``(pixels, metadata)``.
+
+    Raises :class:`FrameFileError` naming the file when it is missing, unreadable, not 2-D,
+    or carries no benchlab metadata.
+    """
+    p = Path(path)
+    try:
+        with tifffile.TiffFile(p) as tif:
+            page = tif.pages.first
+            pixels = page.asarray()
+            description = page.description
+    except FileNotFoundError as exc:
+        raise FrameFileError(f"{p}: no such frame file") from exc
+    except Exception as exc:  # tifffile raises several types for corrupt data
+        raise FrameFileError(f"{p}: not a readable TIFF ({exc})") from exc
+    if pixels.ndim != 2:
+        raise FrameFileError(f"{p}: expected a 2-D monochrome frame, got shape {pixels.shape}")
+    try:
+        meta = json.loads(description)
+    except (TypeError, ValueError) as exc:
+        raise FrameFileError(f"{p}: ImageDescription is not benchlab JSON metadata") from exc
+    if not isinstance(meta, dict) or meta.get("format") != METADATA_FORMAT:
+        raise FrameFileError(f"{p}: TIFF has no benchlab frame metadata")
+    return pixels, meta

@@ -1,0 +1,1 @@
+"""Device drivers (bytes on the wire) and their firmware-level simulators."""

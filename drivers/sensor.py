@@ -1,0 +1,60 @@
+"""What a simulated camera asks a scene for, and the sensor model that turns light into codes.
+
+A *scene* is any callable ``scene(state) -> ndarray`` that returns the photo-electron rate
+(e-/ms per pixel, float, shape ``(state.height, state.width)``) reaching the sensor for the
+given :class:`AcquisitionState`. The camera simulator multiplies by exposure, adds shot and
+read noise, applies gain, clips at full well / ADC range and quantises to 12 bits (8-bit
+output is the 12-bit code shifted right by 4, as the MT9M001 delivers it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+#: Sensor constants of the simulated MT9M001 (MCE-B013-U): 1280 x 1024, 5.2 um pixels.
+SENSOR_WIDTH_PX = 1280
+SENSOR_HEIGHT_PX = 1024
+PIXEL_PITCH_UM = 5.2
+FULL_WELL_E = 20000.0
+READ_NOISE_E = 8.0
+ADC_BITS = 12
+#: Digital numbers (12-bit) per electron at unity gain: full well maps to full scale.
+DN12_PER_E = (2**ADC_BITS - 1) / FULL_WELL_E
+
+
+@dataclass(frozen=True)
+class AcquisitionState:
+    """The camera settings at the moment a frame is exposed.
+
+    ``bench`` carries whatever the bench assembly knows about the rest of the set-up
+    (stage position, LED currents, which target is mounted); the camera never reads it.
+    """
+
+    exposure_ms: float
+    gain: float
+    bits: int
+    width: int
+    height: int
+    time_s: float
+    frame_index: int
+    bench: Mapping[str, Any] = field(default_factory=dict)
+
+
+class Scene(Protocol):
+    """The light reaching the sensor, in photo-electrons per millisecond per pixel."""
+
+    def __call__(self, state: AcquisitionState) -> npt.NDArray[np.float64]: ...
+
+
+def rate_for_dn8(dn8: float | npt.ArrayLike, exposure_ms: float, gain: float = 1.0) -> Any:
+    """Electron rate (e-/ms) that yields the mean 8-bit code ``dn8`` at this exposure and gain.
+
+    Scenes use it to place their dark and bright levels where a test wants them.
+    """
+    dn12 = np.asarray(dn8, dtype=np.float64) * 16.0
+    return dn12 / (DN12_PER_E * gain * exposure_ms)
