@@ -1,0 +1,123 @@
+"""Atomic writes and lossless self-describing frames (benchlab.storage)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from benchlab.storage import (
+    FrameFileError,
+    atomic_write_bytes,
+    atomic_write_json,
+    encode_frame_tiff,
+    load_frame_tiff,
+    save_frame_tiff,
+    sha256_file,
+)
+
+
+def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path: Path) -> None:
+    target = tmp_path / "sub" / "a.bin"
+    atomic_write_bytes(target, b"first")
+    atomic_write_bytes(target, b"second")
+    assert target.read_bytes() == b"second"
+    assert sorted(p.name for p in target.parent.iterdir()) == ["a.bin"]
+
+
+def test_no_overwrite_refuses_and_keeps_existing(tmp_path: Path) -> None:
+    target = tmp_path / "frame.bin"
+    atomic_write_bytes(target, b"raw data")
+    with pytest.raises(FileExistsError):
+        atomic_write_bytes(target, b"other", overwrite=False)
+    assert target.read_bytes() == b"raw data"
+    assert [p.name for p in tmp_path.iterdir()] == ["frame.bin"]
+
+
+def test_crash_during_write_keeps_old_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    target = tmp_path / "r.json"
+    atomic_write_json(target, {"v": 1})
+
+    def boom(src: object, dst: object) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError, match="disk full"):
+        atomic_write_json(target, {"v": 2})
+    assert json.loads(target.read_text()) == {"v": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+def test_json_refuses_nan(tmp_path: Path) -> None:
+    with pytest.raises(ValueError):
+        atomic_write_json(tmp_path / "x.json", {"m": float("nan")})
+    assert not (tmp_path / "x.json").exists()
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    arrays(
+        dtype=st.sampled_from([np.uint8, np.uint16]),
+        shape=st.tuples(st.integers(1, 40), st.integers(1, 40)),
+    )
+)
+def test_frame_round_trip_is_lossless(tmp_path_factory: pytest.TempPathFactory, pixels: np.ndarray) -> None:
+    path = tmp_path_factory.mktemp("f") / "f.tiff"
+    save_frame_tiff(path, pixels, {"exposure_ms": 300.0, "gain": 1.0, "bits": 8})
+    back, meta = load_frame_tiff(path)
+    assert back.dtype == pixels.dtype
+    np.testing.assert_array_equal(back, pixels)
+    assert meta["exposure_ms"] == 300.0 and meta["format"] == "benchlab.frame"
+
+
+def test_12bit_full_frame_round_trip(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    pixels = rng.integers(0, 4096, size=(1024, 1280), dtype=np.uint16)
+    path = save_frame_tiff(tmp_path / "f.tiff", pixels, {"bits": 12})
+    back, meta = load_frame_tiff(path)
+    np.testing.assert_array_equal(back, pixels)
+    assert meta["bits"] == 12
+    assert len(sha256_file(path)) == 64
+
+
+def test_frame_save_never_overwrites(tmp_path: Path) -> None:
+    path = tmp_path / "f.tiff"
+    save_frame_tiff(path, np.zeros((4, 4), np.uint8), {"n": 1})
+    digest = sha256_file(path)
+    with pytest.raises(FileExistsError):
+        save_frame_tiff(path, np.ones((4, 4), np.uint8), {"n": 2})
+    assert sha256_file(path) == digest
+
+
+@pytest.mark.parametrize(
+    ("pixels", "message"),
+    [
+        (np.zeros((2, 2, 3), np.uint8), "2-D"),
+        (np.zeros((2, 2), np.float32), "uint8 or uint16"),
+    ],
+)
+def test_bad_frames_refused(pixels: np.ndarray, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        encode_frame_tiff(pixels, {})
+
+
+def test_load_errors_name_the_file(tmp_path: Path) -> None:
+    missing = tmp_path / "missing.tiff"
+    with pytest.raises(FrameFileError, match="missing.tiff"):
+        load_frame_tiff(missing)
+    garbage = tmp_path / "garbage.tiff"
+    garbage.write_bytes(b"II*\x00not a tiff at all")
+    with pytest.raises(FrameFileError, match="garbage.tiff"):
+        load_frame_tiff(garbage)
+    import tifffile
+
+    foreign = tmp_path / "foreign.tiff"
+    tifffile.imwrite(foreign, np.zeros((3, 3), np.uint8), description="hello")
+    with pytest.raises(FrameFileError, match="foreign.tiff: ImageDescription"):
+        load_frame_tiff(foreign)
