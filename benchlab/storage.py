@@ -45,7 +45,9 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True) -> Path:
+def atomic_write_bytes(
+    path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True
+) -> Path:
     """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
 
     With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);

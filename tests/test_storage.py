@@ -67,7 +67,9 @@ def test_json_refuses_nan(tmp_path: Path) -> None:
         shape=st.tuples(st.integers(1, 40), st.integers(1, 40)),
     )
 )
-def test_frame_round_trip_is_lossless(tmp_path_factory: pytest.TempPathFactory, pixels: np.ndarray) -> None:
+def test_frame_round_trip_is_lossless(
+    tmp_path_factory: pytest.TempPathFactory, pixels: np.ndarray
+) -> None:
     path = tmp_path_factory.mktemp("f") / "f.tiff"
     save_frame_tiff(path, pixels, {"exposure_ms": 300.0, "gain": 1.0, "bits": 8})
     back, meta = load_frame_tiff(path)
