@@ -1,0 +1,458 @@
+"""Driver for the Mightex SLC (Sirius) LED controller over RS232 ASCII (pyserial).
+
+Protocol facts: shared/docs/device-protocols.md section B. Line settings 9600 8N1, commands
+end in LF CR, replies are ``payload + " \\r\\n"``. Every exchange resets the input buffer first
+and drains stray bytes after the reply, the recipe that made the bench unit reliable.
+
+Safety: per-channel current ceilings are checked before anything is sent; every channel is
+switched off (``MODE ch 0``, read back with ``?MODE``) on close, on any exception inside the
+``with`` block, on Ctrl-C and at interpreter exit. Closing the port alone does not switch an
+SLC off, so this driver never relies on it.
+"""
+
+from __future__ import annotations
+
+import atexit
+import math
+import re
+import signal
+import threading
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import IntEnum
+from types import FrameType, TracebackType
+
+import serial
+from benchlab.drivers.errors import (
+    DeviceError,
+    DeviceLostError,
+    DeviceTimeoutError,
+    ProtocolError,
+    SafetyLimitError,
+    SettingOutOfRangeError,
+)
+
+BAUD = 9600
+COMMAND_END = b"\n\r"  # LF then CR - the order the SLC expects
+REPLY_END = b"\r\n"
+ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
+
+
+class SlcMode(IntEnum):
+    DISABLE = 0
+    NORMAL = 1
+    STROBE = 2
+    TRIGGER = 3
+
+
+# ---- exceptions: one per failure the wire can express, each naming the command -------------
+class SlcCommandError(ProtocolError):
+    """Base of SLC reply errors; ``command`` is the line that caused it."""
+
+    def __init__(self, command: str, message: str) -> None:
+        super().__init__(f"LED controller: {message} (command {command!r})")
+        self.command = command
+
+
+class SlcAckInsteadOfDataError(SlcCommandError):
+    """``##``: a query was acknowledged but no data came back."""
+
+
+class SlcExecutionError(SlcCommandError):
+    """``#!``: valid command, executed, but the controller reported an error."""
+
+
+class SlcArgumentError(SlcCommandError):
+    """``#?``: valid command, argument out of range (channel, mode or current)."""
+
+
+class SlcUnknownCommandError(SlcCommandError):
+    """``XXXX is not defined``: the firmware does not know this command."""
+
+
+class SlcBadReplyError(SlcCommandError):
+    """A reply that is garbled or carries impossible values."""
+
+
+class SlcNoReplyError(DeviceTimeoutError):
+    """Silence: nothing came back within the timeout."""
+
+    def __init__(self, command: str, timeout_s: float) -> None:
+        super().__init__(f"LED controller: no reply within {timeout_s:g} s (command {command!r})")
+        self.command = command
+
+
+@dataclass(frozen=True)
+class SlcDeviceInfo:
+    driver_version: str  # firmware ("Mightex LED Driver:3.1.8")
+    module: str  # e.g. "SLC-SA04-U/S"; "" when the firmware does not report it
+    serial: str
+
+
+# Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
+_DECI_MA_FAMILIES = ("FA", "FV", "XA", "XV")
+_NORMAL_MAX_MA = {"HA": 2000.0, "HV": 2000.0, "FA": 100.0, "FV": 100.0, "XA": 100.0, "XV": 100.0}
+_DEFAULT_NORMAL_MAX_MA = 1000.0
+_MAX_PROBE_CHANNELS = 16
+
+
+def parse_device_info(text: str) -> SlcDeviceInfo:
+    """Parse a DEVICEINFO line by keyword (field order and presence vary by firmware)."""
+
+    def field(key: str) -> str:
+        m = re.search(re.escape(key) + r"\s*(\S+)", text)
+        return m.group(1) if m else ""
+
+    info = SlcDeviceInfo(field("Driver:"), field("Module No.:"), field("Serial No.:"))
+    if not info.driver_version or not info.serial:
+        raise SlcBadReplyError("DEVICEINFO", f"unrecognised device info {text!r}")
+    return info
+
+
+def parse_current_reply(command: str, payload: str) -> tuple[int, int]:
+    """``?CURRENT`` payload -> (Imax, Iset) in wire units: the last two fields, whatever precede."""
+    tokens = payload.split()
+    try:
+        imax, iset = int(tokens[-2]), int(tokens[-1])
+    except (IndexError, ValueError):
+        raise SlcBadReplyError(command, f"cannot read currents from {payload!r}") from None
+    if imax < 0 or iset < 0 or iset > imax:
+        raise SlcBadReplyError(command, f"impossible currents Imax={imax} Iset={iset}")
+    return imax, iset
+
+
+class SlcController:
+    """One SLC controller on a serial port. Channels are 1-based, as on the wire."""
+
+    def __init__(
+        self, port: str, *, ceilings_ma: Mapping[int, float], timeout_s: float = 1.0
+    ) -> None:
+        for ch, limit in ceilings_ma.items():
+            if not (isinstance(limit, int | float) and math.isfinite(limit) and limit >= 0):
+                raise SettingOutOfRangeError(f"ceiling for channel {ch} must be >= 0 mA: {limit}")
+        self.port = port
+        self.ceilings_ma: dict[int, float] = {int(k): float(v) for k, v in ceilings_ma.items()}
+        self.timeout_s = timeout_s
+        self._ser: serial.Serial | None = None
+        self._info: SlcDeviceInfo | None = None
+        self._channel_count = 0
+        self._unit_ma = 1.0
+        self._normal_max_ma = _DEFAULT_NORMAL_MAX_MA
+        self._io_lock = threading.RLock()
+        self._busy = False
+        self._off_pending = False
+        self._prev_sigint: object = None
+        self._sigint_installed = False
+        self._atexit_cb: object = None
+
+    # ---- lifecycle -------------------------------------------------------------------------
+    def open(self) -> SlcController:
+        try:
+            self._ser = serial.Serial(
+                self.port, BAUD, bytesize=8, parity="N", stopbits=1,
+                timeout=self.timeout_s, write_timeout=self.timeout_s,
+            )
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
+        try:
+            self._echo_off()
+            self._info = parse_device_info(self._query_text("DEVICEINFO"))
+            self._configure_family(self._info.module)
+            self._channel_count = self._count_channels()
+            self._install_safety_hooks()
+            self.all_off()  # opening the driver must never leave light on from a previous user
+        except BaseException:
+            self._close_port()
+            raise
+        return self
+
+    def close(self) -> None:
+        """Switch every channel off (verified), then close the port."""
+        if self._ser is None:
+            return
+        try:
+            self.all_off()
+        finally:
+            self._remove_safety_hooks()
+            self._close_port()
+
+    def __enter__(self) -> SlcController:
+        return self.open() if self._ser is None else self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc is None:
+            self.close()
+            return
+        try:
+            self.close()
+        except DeviceError as off_exc:  # keep the original error; record that off failed too
+            exc.add_note(f"switching the LEDs off also failed: {off_exc}")
+
+    @property
+    def is_open(self) -> bool:
+        return self._ser is not None
+
+    @property
+    def device_info(self) -> SlcDeviceInfo:
+        if self._info is None:
+            raise DeviceError("LED controller is not open")
+        return self._info
+
+    @property
+    def channel_count(self) -> int:
+        return self._channel_count
+
+    # ---- channel commands ------------------------------------------------------------------
+    def set_mode(self, ch: int, mode: SlcMode | int) -> None:
+        """Select a channel's mode. NORMAL is only entered after its currents are verified."""
+        self._check_channel(ch)
+        mode = SlcMode(mode)
+        if mode in (SlcMode.STROBE, SlcMode.TRIGGER):
+            raise SettingOutOfRangeError(
+                f"LED channel {ch}: {mode.name} mode is not supported by this driver"
+            )
+        if mode is SlcMode.NORMAL:
+            # The controller may hold NORMAL currents set by someone else: check before lighting.
+            imax_ma, iset_ma = self.get_current(ch)
+            self._check_ceiling(ch, max(imax_ma, iset_ma))
+        self._command(f"MODE {ch} {int(mode)}")
+
+    def get_mode(self, ch: int) -> SlcMode:
+        self._check_channel(ch)
+        cmd = f"?MODE {ch}"
+        payload = self._query_data(cmd)
+        try:
+            return SlcMode(int(payload))
+        except ValueError:
+            raise SlcBadReplyError(cmd, f"unknown mode {payload!r}") from None
+
+    def set_normal(self, ch: int, imax_ma: float, iset_ma: float) -> None:
+        """Store NORMAL-mode ceiling and working current (both checked against the ceiling)."""
+        self._check_channel(ch)
+        self._check_ceiling(ch, imax_ma)
+        self._check_ceiling(ch, iset_ma)
+        if iset_ma > imax_ma:
+            raise SettingOutOfRangeError(
+                f"LED channel {ch}: Iset {iset_ma} mA above Imax {imax_ma} mA; nothing sent"
+            )
+        self._command(f"NORMAL {ch} {self._wire(imax_ma)} {self._wire(iset_ma)}")
+
+    def set_current(self, ch: int, iset_ma: float) -> None:
+        """Change the working current live (takes effect only in NORMAL mode)."""
+        self._check_channel(ch)
+        self._check_ceiling(ch, iset_ma)
+        self._command(f"CURRENT {ch} {self._wire(iset_ma)}")
+
+    def get_current(self, ch: int) -> tuple[float, float]:
+        """(Imax, Iset) of the NORMAL parameter set, in mA."""
+        self._check_channel(ch)
+        cmd = f"?CURRENT {ch}"
+        imax, iset = parse_current_reply(cmd, self._query_data(cmd))
+        return imax * self._unit_ma, iset * self._unit_ma
+
+    def on(self, ch: int, current_ma: float) -> None:
+        """Light channel ``ch`` at ``current_ma`` (NORMAL mode, Imax = the configured ceiling)."""
+        self._check_channel(ch)
+        self._check_ceiling(ch, current_ma)
+        ceiling_ma = min(self.ceilings_ma[ch], self._normal_max_ma)
+        self.set_normal(ch, ceiling_ma, current_ma)
+        self._command(f"MODE {ch} {int(SlcMode.NORMAL)}")
+
+    def off(self, ch: int) -> None:
+        self._check_channel(ch)
+        self._command(f"MODE {ch} {int(SlcMode.DISABLE)}")
+
+    def all_off(self) -> None:
+        """Disable every channel and read the modes back; raise if any channel may still be lit."""
+        failures: list[str] = []
+        with self._io_lock:
+            for ch in range(1, self._channel_count + 1):
+                try:
+                    self.off(ch)
+                    if self.get_mode(ch) is not SlcMode.DISABLE:
+                        failures.append(f"channel {ch} did not report DISABLE")
+                except DeviceLostError:
+                    raise DeviceLostError(
+                        "LED controller lost while switching off: outputs may still be lit; "
+                        "switch them off at the controller"
+                    ) from None
+                except DeviceError as exc:
+                    failures.append(f"channel {ch}: {exc}")
+            self._off_pending = False
+        if failures:
+            raise DeviceError("LED controller: could not confirm all off: " + "; ".join(failures))
+
+    # ---- checks ----------------------------------------------------------------------------
+    def _check_channel(self, ch: int) -> None:
+        if self._ser is None:
+            raise DeviceError("LED controller is not open")
+        if not (isinstance(ch, int) and 1 <= ch <= self._channel_count):
+            raise SettingOutOfRangeError(
+                f"LED channel {ch} does not exist (1..{self._channel_count}); nothing sent"
+            )
+
+    def _check_ceiling(self, ch: int, current_ma: float) -> None:
+        if not (isinstance(current_ma, int | float) and math.isfinite(current_ma)):
+            raise SettingOutOfRangeError(f"LED channel {ch}: current {current_ma!r} is not finite")
+        if current_ma < 0:
+            raise SettingOutOfRangeError(f"LED channel {ch}: negative current {current_ma} mA")
+        ceiling = self.ceilings_ma.get(ch)
+        if ceiling is None:
+            raise SafetyLimitError(f"LED channel {ch} has no configured ceiling; nothing sent")
+        limit = min(ceiling, self._normal_max_ma)
+        if current_ma > limit:
+            raise SafetyLimitError(
+                f"LED channel {ch}: {current_ma} mA exceeds the ceiling {limit} mA; nothing sent"
+            )
+
+    def _wire(self, current_ma: float) -> int:
+        # Round down so rounding can never push a value above its checked ceiling.
+        return math.floor(current_ma / self._unit_ma + 1e-9)
+
+    # ---- open helpers ----------------------------------------------------------------------
+    def _echo_off(self) -> None:
+        ser = self._port_or_raise()
+        try:
+            ser.reset_input_buffer()
+            ser.write(b"ECHOOFF" + COMMAND_END)
+            ser.timeout = min(self.timeout_s, ECHOOFF_SETTLE_S)
+            ser.read_until(REPLY_END)  # an ack may or may not come; either is fine
+            ser.timeout = self.timeout_s
+            ser.reset_input_buffer()
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
+
+    def _configure_family(self, module: str) -> None:
+        m = re.match(r"SLC-([A-Z]{2})\d\d", module.upper())
+        family = m.group(1) if m else ""
+        self._unit_ma = 0.1 if family in _DECI_MA_FAMILIES else 1.0
+        self._normal_max_ma = _NORMAL_MAX_MA.get(family, _DEFAULT_NORMAL_MAX_MA)
+
+    def _count_channels(self) -> int:
+        m = re.match(r"SLC-[A-Z]{2}(\d\d)", self._info.module.upper() if self._info else "")
+        if m and int(m.group(1)) > 0:
+            return int(m.group(1))
+        count = 0  # no module number: probe ?MODE n until the controller says "#?"
+        for ch in range(1, _MAX_PROBE_CHANNELS + 1):
+            try:
+                self._query_data(f"?MODE {ch}")
+            except SlcArgumentError:
+                break
+            count = ch
+        if count == 0:
+            raise SlcBadReplyError("?MODE 1", "controller reports no channels")
+        return count
+
+    # ---- wire ------------------------------------------------------------------------------
+    def _port_or_raise(self) -> serial.Serial:
+        if self._ser is None:
+            raise DeviceError("LED controller is not open")
+        return self._ser
+
+    def _exchange(self, command: str) -> str:
+        """Send one command, return the reply payload (stripped), with buffer hygiene."""
+        ser = self._port_or_raise()
+        with self._io_lock:
+            self._busy = True
+            try:
+                ser.reset_input_buffer()
+                ser.write(command.encode("ascii") + COMMAND_END)
+                raw = ser.read_until(REPLY_END)
+                if ser.in_waiting:
+                    ser.read(ser.in_waiting)  # drain strays after the terminator
+            except (serial.SerialException, OSError) as exc:
+                raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
+            except KeyboardInterrupt:
+                self._off_pending = True
+                raise
+            finally:
+                self._busy = False
+        if not raw:
+            raise SlcNoReplyError(command, self.timeout_s)
+        if not raw.endswith(REPLY_END):
+            raise SlcBadReplyError(command, f"unterminated reply {raw!r}")
+        try:
+            text = raw.decode("ascii").strip()
+        except UnicodeDecodeError:
+            raise SlcBadReplyError(command, f"non-ASCII reply {raw!r}") from None
+        if "is not defined" in text:
+            raise SlcUnknownCommandError(command, f"unknown command ({text})")
+        if text.startswith("#!"):
+            raise SlcExecutionError(command, "controller reported an execution error (#!)")
+        if text.startswith("#?"):
+            raise SlcArgumentError(command, "argument out of range (#?)")
+        return text
+
+    def _command(self, command: str) -> None:
+        text = self._exchange(command)
+        if text != "##":
+            raise SlcBadReplyError(command, f"expected '##', got {text!r}")
+
+    def _query_data(self, command: str) -> str:
+        text = self._exchange(command)
+        if text == "##":
+            raise SlcAckInsteadOfDataError(command, "acknowledged (##) but no data returned")
+        if not text.startswith("#") or len(text) < 2:
+            raise SlcBadReplyError(command, f"expected '#<data>', got {text!r}")
+        return text[1:].strip()
+
+    def _query_text(self, command: str) -> str:
+        text = self._exchange(command)
+        if text.startswith("#"):
+            raise SlcBadReplyError(command, f"expected a bare text line, got {text!r}")
+        return text
+
+    def _close_port(self) -> None:
+        ser, self._ser = self._ser, None
+        if ser is not None:
+            try:
+                ser.close()
+            except (serial.SerialException, OSError):
+                pass
+
+    # ---- Ctrl-C and interpreter exit -------------------------------------------------------
+    def _install_safety_hooks(self) -> None:
+        ref = weakref.ref(self)
+
+        def at_exit() -> None:
+            obj = ref()
+            if obj is not None and obj._ser is not None:
+                try:
+                    obj.close()
+                except DeviceError:
+                    pass
+
+        self._atexit_cb = at_exit
+        atexit.register(at_exit)
+        if threading.current_thread() is threading.main_thread():
+            self._prev_sigint = signal.getsignal(signal.SIGINT)
+            signal.signal(signal.SIGINT, self._on_sigint)
+            self._sigint_installed = True
+
+    def _remove_safety_hooks(self) -> None:
+        if self._atexit_cb is not None:
+            atexit.unregister(self._atexit_cb)  # type: ignore[arg-type]
+            self._atexit_cb = None
+        if self._sigint_installed and threading.current_thread() is threading.main_thread():
+            if signal.getsignal(signal.SIGINT) == self._on_sigint:
+                signal.signal(signal.SIGINT, self._prev_sigint)  # type: ignore[arg-type]
+            self._sigint_installed = False
+
+    def _on_sigint(self, signum: int, frame: FrameType | None) -> None:
+        # Between commands: switch off now. Mid-command: the interrupted exchange marks
+        # the off as pending and the context exit / close performs it.
+        if self._ser is not None and not self._busy:
+            try:
+                self.all_off()
+            except DeviceError:
+                pass
+        else:
+            self._off_pending = True
+        prev = self._prev_sigint
+        if callable(prev):
+            prev(signum, frame)
+        raise KeyboardInterrupt

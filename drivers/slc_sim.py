@@ -1,0 +1,249 @@
+"""Simulated Mightex SLC LED controller (fw 3.1.8 behaviour) on a pseudo-terminal.
+
+Speaks the RS232 ASCII protocol byte for byte (device-protocols.md section B): commands end in
+LF CR (CR LF and bare CR/LF are accepted too), every reply is ``payload + " \\r\\n"``.
+Quirks reproduced: ECHOOFF is not acknowledged (``echooff_ack=True`` gives the fw 3.1.8 ``##``),
+``?CURRENT`` answers with 12 fields (10 calibration values, then Imax and Iset), unknown verbs
+answer ``    VERB is not defined``, and output keeps running when the host closes the port.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from benchlab.drivers.pty_device import Clock, PtyDevice
+
+REPLY_END = b" \r\n"
+_LINE_SPLIT = re.compile(rb"\n\r|\r\n|\r|\n")
+# Ten leading calibration fields as seen on a bench unit (one negative); drivers must skip them.
+_CAL_FIELDS = "5 81 480 972 1468 1964 8 -72 8000 0"
+
+
+class SimMode(IntEnum):
+    DISABLE = 0
+    NORMAL = 1
+    STROBE = 2
+    TRIGGER = 3
+
+
+@dataclass
+class SimChannel:
+    mode: SimMode = SimMode.DISABLE
+    normal_imax: int = 20  # factory defaults (SDK): NORMAL Imax 20 / Iset 10
+    normal_iset: int = 10
+    strobe_imax: int = 20
+    strobe_repeat: int = 0
+    trigger_imax: int = 10
+    trigger_polarity: int = 0
+
+
+@dataclass
+class SlcFaults:
+    """One-shot fault injection; each counter is decremented as it fires."""
+
+    no_reply: int = 0  # ignore the next N commands entirely (silence)
+    garbage: bytes | None = None  # answer the next command with these bytes instead
+    drop_on_command: str | None = None  # drop the link when this verb arrives (before acting)
+    out_of_range: int = 0  # next N queries answer with impossible values
+    exec_error: int = 0  # next N commands execute but answer "#!"
+
+
+@dataclass
+class _Stored:
+    channels: list[SimChannel] = field(default_factory=list)
+
+
+class SimulatedSlc(PtyDevice):
+    """An SLC-xx0N controller: per-channel mode plus NORMAL / STROBE / TRIGGER parameter sets."""
+
+    name = "slc-sim"
+
+    def __init__(
+        self,
+        *,
+        channels: int = 4,
+        module: str = "SLC-SA04-U/S",
+        serial: str = "04-251013-011",
+        firmware: str = "3.1.8",
+        clock: Clock | None = None,
+        normal_max_ma: int = 1000,
+        pulsed_max_ma: int = 3500,
+        echooff_ack: bool = False,
+    ) -> None:
+        super().__init__(clock=clock)
+        self.channel_count = channels
+        self.module = module
+        self.serial = serial
+        self.firmware = firmware
+        self.normal_max_ma = normal_max_ma
+        self.pulsed_max_ma = pulsed_max_ma
+        self.echooff_ack = echooff_ack
+        self.faults = SlcFaults()
+        self.echo = False
+        self.channels = [SimChannel() for _ in range(channels)]
+        self._stored = _Stored([SimChannel() for _ in range(channels)])
+        self._rx = b""
+
+    # ---- physical state for scenes and tests ----------------------------------------------
+    def channel_output_ma(self, ch: int) -> float:
+        """Actual LED current on channel ``ch`` (1-based): Iset while in NORMAL, else 0."""
+        with self.lock:
+            c = self.channels[ch - 1]
+            return float(c.normal_iset) if c.mode == SimMode.NORMAL else 0.0
+
+    def host_lines(self) -> list[bytes]:
+        """Every command line the host sent, terminators included."""
+        return [b for who, b in self.transcript if who == "host"]
+
+    # ---- protocol --------------------------------------------------------------------------
+    def on_bytes(self, data: bytes) -> None:
+        self._rx += data
+        while True:
+            m = _LINE_SPLIT.search(self._rx)
+            if m is None:
+                return
+            line, raw = self._rx[: m.start()], self._rx[: m.end()]
+            self._rx = self._rx[m.end() :]
+            if not line.strip():
+                continue  # the second half of a split terminator, or a blank line
+            self.transcript.append(("host", raw))
+            if not self.connected:
+                return
+            self._handle_line(line.decode("ascii", errors="replace").strip())
+
+    def _reply(self, payload: str) -> None:
+        self.write(payload.encode("ascii") + REPLY_END)
+
+    def _handle_line(self, line: str) -> None:
+        words = line.split()
+        verb = words[0].upper()
+        f = self.faults
+        if f.drop_on_command is not None and verb == f.drop_on_command.upper():
+            f.drop_on_command = None
+            self.drop_connection()
+            return
+        if f.no_reply > 0:
+            f.no_reply -= 1
+            return
+        if f.garbage is not None:
+            junk, f.garbage = f.garbage, None
+            self.write(junk)
+            return
+        handler = getattr(self, "_cmd_" + verb.replace("?", "Q_"), None)
+        if handler is None:
+            self._reply(f"    {words[0]} is not defined")
+            return
+        try:
+            args = [int(w) for w in words[1:]]
+        except ValueError:
+            self._reply("#?")
+            return
+        reply = handler(args)
+        if reply == "##" and f.exec_error > 0:
+            f.exec_error -= 1
+            reply = "#!"
+        if reply is not None:
+            self._reply(reply)
+
+    def _chan(self, args: list[int], nargs: int) -> SimChannel | None:
+        if len(args) != nargs or not 1 <= args[0] <= self.channel_count:
+            return None
+        return self.channels[args[0] - 1]
+
+    def _take_out_of_range(self) -> bool:
+        if self.faults.out_of_range > 0:
+            self.faults.out_of_range -= 1
+            return True
+        return False
+
+    def _cmd_ECHOOFF(self, args: list[int]) -> str | None:
+        self.echo = False
+        return "##" if self.echooff_ack else None
+
+    def _cmd_ECHOON(self, args: list[int]) -> str | None:
+        self.echo = True  # character echo itself is not simulated
+        return "##"
+
+    def _cmd_DEVICEINFO(self, args: list[int]) -> str:
+        return (
+            f"Mightex LED Driver:{self.firmware} Device Module No.:{self.module} "
+            f"Device Serial No.:{self.serial}"
+        )
+
+    def _cmd_MODE(self, args: list[int]) -> str:
+        c = self._chan(args, 2)
+        if c is None or args[1] not in SimMode._value2member_map_:
+            return "#?"
+        c.mode = SimMode(args[1])
+        return "##"
+
+    def _cmd_Q_MODE(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        if c is None:
+            return "#?"
+        return "#7" if self._take_out_of_range() else f"#{int(c.mode)}"
+
+    def _cmd_NORMAL(self, args: list[int]) -> str:
+        c = self._chan(args, 3)
+        if c is None:
+            return "#?"
+        imax, iset = args[1], args[2]
+        # Iset > Imax is undocumented on hardware; the simulator rejects it as out of range.
+        if not (0 <= imax <= self.normal_max_ma and 0 <= iset <= imax):
+            return "#?"
+        c.normal_imax, c.normal_iset = imax, iset
+        return "##"
+
+    def _cmd_CURRENT(self, args: list[int]) -> str:
+        c = self._chan(args, 2)
+        if c is None or not 0 <= args[1] <= c.normal_imax:
+            return "#?"
+        c.normal_iset = args[1]
+        return "##"
+
+    def _cmd_Q_CURRENT(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        if c is None:
+            return "#?"
+        if self._take_out_of_range():
+            return f"#{_CAL_FIELDS} 1000 4000"  # Iset above Imax: impossible
+        return f"#{_CAL_FIELDS} {c.normal_imax} {c.normal_iset}"
+
+    def _cmd_STROBE(self, args: list[int]) -> str:
+        c = self._chan(args, 3)
+        if c is None or not 0 <= args[1] <= self.pulsed_max_ma or not 0 <= args[2] <= 99_999_999:
+            return "#?"
+        c.strobe_imax, c.strobe_repeat = args[1], args[2]
+        return "##"
+
+    def _cmd_Q_STROBE(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        return "#?" if c is None else f"#{c.strobe_imax} {c.strobe_repeat}"
+
+    def _cmd_TRIGGER(self, args: list[int]) -> str:
+        c = self._chan(args, 3)
+        if c is None:
+            return "#?"
+        # Bench quirk: never rejected; Imax clamped to the pulsed ceiling, polarity stored verbatim.
+        c.trigger_imax, c.trigger_polarity = min(args[1], self.pulsed_max_ma), args[2]
+        return "##"
+
+    def _cmd_Q_TRIGGER(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        return "#?" if c is None else f"#{c.trigger_imax} {c.trigger_polarity}"
+
+    def _cmd_STORE(self, args: list[int]) -> str:
+        self._stored.channels = [SimChannel(**vars(c)) for c in self.channels]
+        return "##"
+
+    def _cmd_RESET(self, args: list[int]) -> str:
+        # Soft reset: back to the stored state, each channel resuming its stored mode; echo off.
+        self.channels = [SimChannel(**vars(c)) for c in self._stored.channels]
+        self.echo = False
+        return "##"
+
+    def _cmd_RESTOREDEF(self, args: list[int]) -> str:
+        self.channels = [SimChannel() for _ in self.channels]  # volatile settings only
+        return "##"
