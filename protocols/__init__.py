@@ -1,1 +1,110 @@
-"""Measurement procedures: Table 4.10 MTF and section 4.4 relative radiometry."""
+"""Measurement procedures: Table 4.10 MTF and section 4.4 relative radiometry.
+
+Python API for scripted sessions (and for the TUI)
+==================================================
+
+Everything the ``benchlab run / resume / analyze SESSION`` commands do is these calls::
+
+    import threading
+    from benchlab.bench import Bench, BenchConfig
+    from benchlab.protocols import load_params, start_run, resume_run, reanalyze
+
+    params = load_params("mtf")                  # or load_params("mtf", "my-mtf.toml")
+    # -> MtfParams / RadiometryParams; raises ParamsError listing EVERY problem (file + field)
+
+    def prompt(step, message) -> bool:           # manual steps (thread the lens, roll pattern...)
+        return input(f"{message} [Enter/n] ") != "n"   # False aborts the run
+
+    def progress(done, total, step) -> None:     # before each step; step is None at the end
+        print(f"{done}/{total}", step.title if step else "done")
+
+    abort = threading.Event()                    # set() from any thread: abort at next check
+
+    with Bench.open(BenchConfig.load(None), simulate=True) as bench:   # safe_state on exit
+        runner = start_run("mtf", bench=bench, params=params, root="sessions",
+                           operator="ana", prompt=prompt, progress=progress, abort=abort,
+                           on_result=None, estimator=None)
+        runner.steps        # list[Step]: .id, .title, .kind, .table_step, .prompt (checklist)
+        runner.session.path # the session folder, created before any device command
+        outcome = runner.run()   # -> RunOutcome(session_path, results_path, tables, summary,
+                                 #                duration_s)
+
+* ``params`` may be a Params object, a path, or None (packaged defaults). Parameters are also
+  checked against the bench (LED current ceiling, stage travel) before anything moves.
+* ``runner.run()`` starts at the first incomplete step. It raises ``RunAborted`` (abort set or a
+  prompt declined) or ``StepFailed`` (``.step``, ``.cause``); the bench is already safe (LEDs
+  off, stage stopped) and the session resumable. **Retry** a failed step = call
+  ``runner.run()`` again. ``KeyboardInterrupt`` propagates after the bench is made safe.
+* ``on_result(step, mapping)``: optional; called after each acquisition with that frame's
+  partial results (e.g. ``{"element": "G2E4", "orientation": "sagittal", "modulation": 0.6}``)
+  so a UI can fill its tables as steps complete.
+* The back-focus step calls ``prompt`` with a message showing the current sharpness; a live
+  figure is available at any time from ``benchlab.analysis.focus.sharpness(pixels)`` on a frame
+  from ``bench.grab(exposure_ms=..., gain=...)`` (a UI polls that while the prompt is open).
+* Resume an interrupted session (Ctrl-C, crash, kill -9) - nothing acquired is repeated or lost::
+
+      with Bench.open(BenchConfig.from_session("sessions/mtf-..."), simulate=True) as bench:
+          outcome = resume_run("sessions/mtf-...", bench=bench, prompt=prompt,
+                               progress=progress, abort=abort).run()
+
+* Re-analyse saved frames into a new results version (frames verified by hash)::
+
+      results_dir = reanalyze("sessions/mtf-...", estimator="histogram")
+
+Results: ``outcome.tables`` maps table names (``table_4_11``, ``table_4_12``, ``table_4_13``,
+``table_4_15``; radiometry ``table_4_16``) to ``{"columns": [...], "rows": [{...}, ...]}``; the
+same tables are written as CSV + JSON under ``SESSION/results/vN/``. ``outcome.summary`` holds
+the estimator, timings and headline numbers.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from benchlab.protocols.engine import RunAborted, Runner, RunOutcome, Step, StepFailed
+from benchlab.protocols.params import (
+    MtfParams,
+    Params,
+    ParamsError,
+    RadiometryParams,
+    load_params,
+    parse_params,
+)
+
+__all__ = [
+    "MtfParams",
+    "Params",
+    "ParamsError",
+    "RadiometryParams",
+    "RunAborted",
+    "RunOutcome",
+    "Runner",
+    "Step",
+    "StepFailed",
+    "load_params",
+    "parse_params",
+    "reanalyze",
+    "resume_run",
+    "start_run",
+]
+
+
+def start_run(procedure: str, **kwargs: Any) -> Runner:
+    """Create a session and a runner for a fresh run (see the module docstring)."""
+    from benchlab.protocols.runs import start_run as _start
+
+    return _start(procedure, **kwargs)
+
+
+def resume_run(session_path: Any, **kwargs: Any) -> Runner:
+    """Reopen an interrupted session and return a runner that continues it."""
+    from benchlab.protocols.runs import resume_run as _resume
+
+    return _resume(session_path, **kwargs)
+
+
+def reanalyze(session_path: Any, estimator: str | None = None) -> Any:
+    """Re-analyse a session's saved frames into a new results version; returns its folder."""
+    from benchlab.protocols.runs import reanalyze as _reanalyze
+
+    return _reanalyze(session_path, estimator=estimator)

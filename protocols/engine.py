@@ -1,0 +1,298 @@
+"""The step engine: runs a procedure's steps against a bench, journalled in a session.
+
+A step is done when the session journal says so (``step_completed``); ``run()`` always starts at
+the first step not done, so a fresh run, a retry after a failed step and a resume after a crash
+are the same call. Frames are saved (flushed, atomic) by :meth:`StepContext.acquire` before the
+step is marked done, and a frame already on disk is read back instead of acquired again, so a
+crash between the two loses nothing and repeats nothing.
+
+The bench is put in its safe state (LEDs off, stage stopped) when ``run()`` leaves for any
+reason: normal end, a failed step, abort, Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+import numpy as np
+import numpy.typing as npt
+from benchlab.drivers.errors import BenchlabError
+
+from benchlab.storage import load_frame_tiff
+
+StepKind = Literal["setup", "manual", "focus", "acquire", "analysis"]
+
+
+class RunAborted(BenchlabError):
+    """The operator aborted the run (abort event set, or a prompt declined)."""
+
+
+class StepFailed(BenchlabError):
+    """A step raised; the session stays resumable and ``run()`` again retries the step."""
+
+    def __init__(self, step: Step, cause: BaseException) -> None:
+        self.step = step
+        self.cause = cause
+        super().__init__(f"step {step.id} ({step.title}) failed: {cause}")
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of a procedure.
+
+    ``action(ctx)`` does the work. ``restore(ctx)``, when set, re-establishes the physical
+    state the step left behind (camera settings, mounted target) and is replayed for completed
+    steps when a run resumes in a new process.
+    """
+
+    id: str
+    title: str
+    kind: StepKind
+    table_step: str
+    action: Callable[[StepContext], None]
+    prompt: str | None = None
+    restore: Callable[[StepContext], None] | None = None
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+
+PromptFn = Callable[[Step, str], bool]
+ProgressFn = Callable[[int, int, "Step | None"], None]
+ResultFn = Callable[[Step, Mapping[str, Any]], None]
+
+
+class Procedure(Protocol):
+    """What the engine needs from a procedure (see ``mtf.py`` / ``radiometry.py``)."""
+
+    name: str
+
+    def steps(self) -> list[Step]: ...
+
+    def analyze(self, session: Any, estimator: str | None) -> Path: ...
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What a finished run hands back."""
+
+    session_path: Path
+    results_path: Path
+    tables: Mapping[str, Any]
+    summary: Mapping[str, Any]
+    duration_s: float
+
+
+class StepContext:
+    """What a step's action may use: the bench, the session, prompts, abort checks, frames."""
+
+    def __init__(self, runner: Runner, step: Step) -> None:
+        self.runner = runner
+        self.step = step
+        self.bench = runner.bench
+        self.session = runner.session
+
+    def check_abort(self) -> None:
+        """Raise :class:`RunAborted` if the abort event is set."""
+        if self.runner.abort.is_set():
+            raise RunAborted(f"aborted at step {self.step.id}")
+
+    def ask(self, message: str) -> None:
+        """Ask the operator to do something; declining aborts the run."""
+        self.check_abort()
+        self.runner.session.log_event("prompt", step=self.step.id, message=message)
+        if not self.runner.prompt(self.step, message):
+            raise RunAborted(f"operator declined at step {self.step.id}")
+        self.check_abort()
+
+    def acquire(
+        self, name: str, *, exposure_ms: float, gain: float, extra: Mapping[str, Any] | None = None
+    ) -> npt.NDArray[Any]:
+        """Grab one frame and save it under this step, or return the one already saved.
+
+        The frame file is written and flushed before this returns, so analysis never runs on a
+        frame that is not on disk.
+        """
+        existing = self.runner.saved_frame_path(self.step.id, name)
+        if existing is not None:
+            pixels, _ = load_frame_tiff(existing)
+            self.runner.session.log_event("frame_reused", step=self.step.id, name=name)
+            return pixels
+        self.check_abort()
+        pixels, meta = self.bench.grab(exposure_ms=exposure_ms, gain=gain)
+        metadata = {**meta, "step": self.step.id, "name": name, **dict(extra or {})}
+        self.runner.session.save_frame(self.step.id, name, pixels, metadata)
+        return pixels
+
+    def report(self, data: Mapping[str, Any]) -> None:
+        """Hand a partial result (e.g. one ROI's modulation) to the UI."""
+        if self.runner.on_result is not None:
+            self.runner.on_result(self.step, data)
+
+
+def _never_prompted(step: Step, message: str) -> bool:
+    raise RunAborted(f"step {step.id} needs the operator ({message}) but no prompt was given")
+
+
+class Runner:
+    """Runs a procedure's steps in order on a bench, journalled in a session.
+
+    Parameters
+    ----------
+    procedure : Procedure
+        From :func:`benchlab.protocols.make_procedure`.
+    session : benchlab.session.Session
+        Fresh (``Session.create``) or reopened (``Session.open``) for resume.
+    bench : benchlab.bench.Bench
+        An open bench.
+    prompt : callable ``(step, message) -> bool``
+        Manual steps; ``False`` aborts.
+    progress : callable ``(done, total, step_or_None)``
+        Called before each step starts and once with ``None`` at the end.
+    abort : threading.Event
+        Set from any thread to abort at the next check.
+    on_result : callable ``(step, mapping)``, optional
+        Partial results as steps complete.
+    estimator : str, optional
+        Modulation estimator for the final analysis (default: params, then the library default).
+    """
+
+    def __init__(
+        self,
+        procedure: Procedure,
+        session: Any,
+        bench: Any,
+        *,
+        prompt: PromptFn | None = None,
+        progress: ProgressFn | None = None,
+        abort: threading.Event | None = None,
+        on_result: ResultFn | None = None,
+        estimator: str | None = None,
+    ) -> None:
+        self.procedure = procedure
+        self.session = session
+        self.bench = bench
+        self.prompt: PromptFn = prompt or _never_prompted
+        self.progress = progress
+        self.abort = abort or threading.Event()
+        self.on_result = on_result
+        self.estimator = estimator
+        self.steps: list[Step] = procedure.steps()
+        ids = [s.id for s in self.steps]
+        if len(set(ids)) != len(ids):  # pragma: no cover - a programming error in a procedure
+            raise ValueError(f"duplicate step ids in {procedure.name}")
+
+    # -- state ------------------------------------------------------------------------------
+    def completed(self) -> set[str]:
+        return set(self.session.completed_steps())
+
+    def pending(self) -> list[Step]:
+        """Steps not done yet, in order."""
+        done = self.completed()
+        return [s for s in self.steps if s.id not in done]
+
+    def saved_frame_path(self, step_id: str, name: str) -> Path | None:
+        frames = self.session.step_frames(step_id)
+        path = frames.get(name) if isinstance(frames, Mapping) else None
+        return Path(path) if path is not None else None
+
+    # -- running ----------------------------------------------------------------------------
+    def run(self) -> RunOutcome:
+        """Run (or resume, or retry) from the first incomplete step to the end.
+
+        Raises :class:`RunAborted` or :class:`StepFailed`; the session stays resumable and
+        the bench is left safe in every case.
+        """
+        t0 = time.perf_counter()
+        total = len(self.steps)
+        try:
+            done = self.completed()
+            if done:
+                self._restore(done)
+            for step in self.steps:
+                if step.id in done:
+                    continue
+                self._check_abort(step)
+                if self.progress is not None:
+                    self.progress(len(done), total, step)
+                self._run_step(step)
+                done.add(step.id)
+            if self.progress is not None:
+                self.progress(total, total, None)
+        except KeyboardInterrupt:
+            self.session.log_event("interrupted", reason="KeyboardInterrupt")
+            raise
+        finally:
+            self.bench.safe_state()
+        results = self.session.latest_results()
+        self.session.finish()
+        tables, summary = _read_results(results)
+        return RunOutcome(
+            session_path=Path(self.session.path), results_path=Path(results),
+            tables=tables, summary=summary, duration_s=time.perf_counter() - t0,
+        )
+
+    def _check_abort(self, step: Step) -> None:
+        if self.abort.is_set():
+            self.session.log_event("aborted", step=step.id)
+            raise RunAborted(f"aborted before step {step.id}")
+
+    def _run_step(self, step: Step) -> None:
+        ctx = StepContext(self, step)
+        self.session.log_event("step_started", step=step.id, title=step.title)
+        try:
+            step.action(ctx)
+        except RunAborted as exc:
+            self.bench.safe_state()
+            self.session.log_event("aborted", step=step.id, message=str(exc))
+            raise
+        except Exception as exc:
+            self.bench.safe_state()
+            self.session.log_event(
+                "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}"
+            )
+            raise StepFailed(step, exc) from exc
+        self.session.mark_step_completed(step.id)
+
+    def _restore(self, done: set[str]) -> None:
+        """Re-establish what completed steps left behind (a resume in a new process)."""
+        last_manual: Step | None = None
+        for step in self.steps:
+            if step.id not in done:
+                break
+            if step.restore is not None:
+                step.restore(StepContext(self, step))
+            if step.kind == "manual":
+                last_manual = step
+        if last_manual is not None and last_manual.prompt and self.pending():
+            ctx = StepContext(self, last_manual)
+            ctx.ask(f"Resuming: check the set-up is still as at '{last_manual.title}': "
+                    f"{last_manual.prompt}")
+        self.session.log_event("resumed", completed=sorted(done))
+
+
+def _read_results(results_dir: Path | str) -> tuple[dict[str, Any], dict[str, Any]]:
+    import json
+
+    folder = Path(results_dir)
+    tables: dict[str, Any] = {}
+    summary: dict[str, Any] = {}
+    for p in sorted(folder.glob("*.json")):
+        data = json.loads(p.read_text(encoding="utf-8"))
+        if p.stem == "summary":
+            summary = data
+        else:
+            tables[p.stem] = data
+    return tables, summary
+
+
+def frames_of(session: Any, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:
+    """Load every saved frame of the given steps: ``{step_id: {name: pixels}}``."""
+    out: dict[str, dict[str, npt.NDArray[Any]]] = {}
+    for sid in step_ids:
+        frames = session.step_frames(sid)
+        out[sid] = {name: np.asarray(load_frame_tiff(path)[0]) for name, path in frames.items()}
+    return out

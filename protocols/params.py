@@ -1,0 +1,373 @@
+"""Procedure parameters: TOML files checked in full before any device command.
+
+Every problem in a file is collected and reported at once, each naming the file and the dotted
+field (``radial.roi: row end 2000 is outside the 1024-row frame``), so a technician fixes a
+parameter file in one pass. Defaults ship as package data in ``protocols/defaults/``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from benchlab.drivers.errors import BenchlabError
+
+PROCEDURES = ("mtf", "radiometry")
+#: Camera limits checked here so a bad file fails before the camera is touched (MCE-B013-U).
+EXPOSURE_RANGE_MS = (0.05, 750.0)
+GAIN_RANGE = (0.25, 8.0)
+FRAME_SHAPE_PX = (1024, 1280)
+_ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
+
+
+class ParamsError(BenchlabError):
+    """A parameter file has one or more problems; the message lists every one."""
+
+    def __init__(self, source: str, problems: list[str]) -> None:
+        self.source = source
+        self.problems = list(problems)
+        lines = "\n".join(f"  {p}" for p in self.problems)
+        n = len(self.problems)
+        super().__init__(f"{source}: {n} problem{'s' if n != 1 else ''}:\n{lines}")
+
+
+@dataclass(frozen=True)
+class UsafElement:
+    """One USAF 1951 element, e.g. ``G2E4``."""
+
+    group: int
+    element: int
+
+    @property
+    def name(self) -> str:
+        return f"G{self.group}E{self.element}"
+
+    @classmethod
+    def parse(cls, text: str) -> UsafElement:
+        m = _ELEMENT_RE.match(text.strip().upper())
+        if not m:
+            raise ValueError(f"not a USAF element name like 'G2E4': {text!r}")
+        return cls(int(m.group(1)), int(m.group(2)))
+
+
+#: ROI as numpy slices: (row0, col0, row1, col1), 0-based, end-exclusive.
+Roi = tuple[int, int, int, int]
+
+
+@dataclass(frozen=True)
+class MtfParams:
+    """Parameters of the Table 4.10 procedure."""
+
+    exposure_ms: float = 300.0
+    gain: float = 1.0
+    bits: int = 8
+    focus_frames: int = 5
+    forward_magnification: float = 16.3
+    forward_elements: tuple[UsafElement, ...] = ()
+    forward_roi_overrides: Mapping[str, Roi] = field(default_factory=dict)
+    radial_magnification: float = 17.5
+    radial_frequencies_lp_per_mm: tuple[float, ...] = (0.5, 1, 2, 3, 4, 5, 6)
+    radial_roi: Roi = (249, 999, 290, 1050)
+    fov_threshold_dn: float = 8.0
+    estimator: str = ""
+    monte_carlo_file: str = ""
+    simulated_mtf_file: str = ""
+    raw: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RadiometryParams:
+    """Parameters of the section 4.4 relative radiometry."""
+
+    exposure_ms: float = 375.0
+    mask_gain: float = 5.0
+    measurement_gain: float = 1.0
+    bits: int = 8
+    led_channel: int = 1
+    led_current_ma: float = 20.0
+    positions_mm: tuple[float, ...] = (15.0, 18.0, 20.0, 25.0, 32.0)
+    stage_offset_mm: float = 0.0
+    simulated_irradiance_mw_per_mm2: tuple[float, ...] = (22.48, 21.21, 19.40, 14.34, 3.014)
+    mask_threshold_fraction: float = 0.5
+    raw: Mapping[str, Any] = field(default_factory=dict)
+
+    def stage_target_mm(self, position_mm: float) -> float:
+        """Stage coordinate that puts the LED at a field position."""
+        return position_mm + self.stage_offset_mm
+
+
+Params = MtfParams | RadiometryParams
+
+
+class _Checker:
+    """Reads typed values out of a nested mapping, collecting every problem."""
+
+    def __init__(self, data: Mapping[str, Any]) -> None:
+        self.data = data
+        self.problems: list[str] = []
+        self.seen: set[str] = set()
+
+    def _get(self, dotted: str, default: Any) -> tuple[bool, Any]:
+        self.seen.add(dotted)
+        node: Any = self.data
+        for part in dotted.split("."):
+            if not isinstance(node, Mapping) or part not in node:
+                return False, default
+            node = node[part]
+        return True, node
+
+    def fail(self, dotted: str, message: str) -> None:
+        self.problems.append(f"{dotted}: {message}")
+
+    def number(
+        self, dotted: str, default: float, lo: float | None = None, hi: float | None = None,
+        *, lo_open: bool = False,
+    ) -> float:
+        found, value = self._get(dotted, default)
+        if not found:
+            return default
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.fail(dotted, f"must be a number, got {value!r}")
+            return default
+        value = float(value)
+        if not math.isfinite(value):
+            self.fail(dotted, f"must be finite, got {value}")
+            return default
+        below = lo is not None and (value <= lo if lo_open else value < lo)
+        if below or (hi is not None and value > hi):
+            rng = f"{'>' if lo_open else '>='} {lo}" if hi is None else f"in [{lo}, {hi}]"
+            self.fail(dotted, f"must be {rng}, got {value:g}")
+            return default
+        return value
+
+    def integer(self, dotted: str, default: int, lo: int, hi: int) -> int:
+        found, value = self._get(dotted, default)
+        if not found:
+            return default
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(dotted, f"must be an integer, got {value!r}")
+            return default
+        if not lo <= value <= hi:
+            self.fail(dotted, f"must be in [{lo}, {hi}], got {value}")
+            return default
+        return value
+
+    def choice(self, dotted: str, default: Any, allowed: tuple[Any, ...]) -> Any:
+        found, value = self._get(dotted, default)
+        if found and value not in allowed:
+            self.fail(dotted, f"must be one of {', '.join(map(str, allowed))}; got {value!r}")
+            return default
+        return value
+
+    def string(self, dotted: str, default: str) -> str:
+        found, value = self._get(dotted, default)
+        if found and not isinstance(value, str):
+            self.fail(dotted, f"must be a string, got {value!r}")
+            return default
+        return value
+
+    def numbers(
+        self, dotted: str, default: tuple[float, ...], lo: float, hi: float,
+        *, lo_open: bool = False,
+    ) -> tuple[float, ...]:
+        found, value = self._get(dotted, default)
+        if not found:
+            return default
+        if not isinstance(value, list) or not value:
+            self.fail(dotted, f"must be a non-empty list of numbers, got {value!r}")
+            return default
+        out: list[float] = []
+        ok = True
+        for i, v in enumerate(value):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                self.fail(f"{dotted}[{i}]", f"must be a number, got {v!r}")
+                ok = False
+            elif (v <= lo if lo_open else v < lo) or v > hi:
+                self.fail(f"{dotted}[{i}]", f"must be in {'(' if lo_open else '['}{lo}, {hi}], "
+                          f"got {v:g}")
+                ok = False
+            else:
+                out.append(float(v))
+        if ok and len(set(out)) != len(out):
+            self.fail(dotted, "has duplicate values")
+            ok = False
+        return tuple(out) if ok else default
+
+    def roi(self, dotted: str, default: Roi, value: Any = None, found: bool | None = None) -> Roi:
+        if found is None:
+            found, value = self._get(dotted, default)
+        if not found:
+            return default
+        if (
+            not isinstance(value, list) or len(value) != 4
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+        ):
+            self.fail(dotted, f"must be 4 integers [row0, col0, row1, col1], got {value!r}")
+            return default
+        r0, c0, r1, c1 = value
+        rows, cols = FRAME_SHAPE_PX
+        bad = False
+        if not (0 <= r0 < r1 <= rows):
+            self.fail(dotted, f"rows {r0}..{r1} must satisfy 0 <= row0 < row1 <= {rows}")
+            bad = True
+        if not (0 <= c0 < c1 <= cols):
+            self.fail(dotted, f"columns {c0}..{c1} must satisfy 0 <= col0 < col1 <= {cols}")
+            bad = True
+        return default if bad else (r0, c0, r1, c1)
+
+    def unknown_keys(self) -> None:
+        """Flag keys nobody read (typos would otherwise be silently ignored)."""
+
+        def walk(node: Mapping[str, Any], prefix: str) -> None:
+            for key, value in node.items():
+                dotted = f"{prefix}{key}"
+                if dotted in self.seen:
+                    continue
+                nested = any(s.startswith(dotted + ".") for s in self.seen)
+                if isinstance(value, Mapping) and nested:
+                    walk(value, dotted + ".")
+                else:
+                    self.fail(dotted, "unknown parameter")
+
+        walk(self.data, "")
+
+
+def _check_mtf(c: _Checker) -> MtfParams:
+    d = MtfParams()
+    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
+    gain = c.number("camera.gain", d.gain, *GAIN_RANGE)
+    bits = c.choice("camera.bits", d.bits, (8, 12))
+    focus_frames = c.integer("focus.frames", d.focus_frames, 1, 1000)
+    fwd_mag = c.number("forward.magnification", d.forward_magnification, 0.0, 1000.0, lo_open=True)
+    elements: list[UsafElement] = []
+    found, names = c._get("forward.elements", None)
+    if not found:
+        names = [f"G{g}E{e}" for g, e in ((1, 5), (1, 6), (2, 1), (2, 2), (2, 3), (2, 4),
+                                          (2, 5), (2, 6), (3, 1))]
+    if not isinstance(names, list) or not names:
+        c.fail("forward.elements", f"must be a non-empty list of names like 'G2E4', got {names!r}")
+    else:
+        for i, name in enumerate(names):
+            try:
+                el = UsafElement.parse(str(name)) if isinstance(name, str) else None
+            except ValueError as exc:
+                c.fail(f"forward.elements[{i}]", str(exc))
+                continue
+            if el is None:
+                c.fail(f"forward.elements[{i}]", f"must be a string like 'G2E4', got {name!r}")
+            elif el in elements:
+                c.fail(f"forward.elements[{i}]", f"{el.name} is listed twice")
+            else:
+                elements.append(el)
+    overrides: dict[str, Roi] = {}
+    found, table = c._get("forward.roi", {})
+    if found:
+        if not isinstance(table, Mapping):
+            c.fail("forward.roi", "must be a table of element -> {sagittal, tangential} ROIs")
+        else:
+            for el_name, per in table.items():
+                base = f"forward.roi.{el_name}"
+                c.seen.add(base)
+                if not _ELEMENT_RE.match(str(el_name).upper()):
+                    c.fail(base, "not a USAF element name like 'G2E4'")
+                    continue
+                if not isinstance(per, Mapping):
+                    c.fail(base, "must be a table with sagittal and/or tangential ROIs")
+                    continue
+                for orient, box in per.items():
+                    key = f"{base}.{orient}"
+                    c.seen.add(key)
+                    if orient not in ("sagittal", "tangential"):
+                        c.fail(key, "orientation must be 'sagittal' or 'tangential'")
+                        continue
+                    roi = c.roi(key, (0, 0, 1, 1), box, True)
+                    overrides[f"{str(el_name).upper()}.{orient}"] = roi
+    rad_mag = c.number("radial.magnification", d.radial_magnification, 0.0, 1000.0, lo_open=True)
+    freqs = c.numbers("radial.frequencies_lp_per_mm", d.radial_frequencies_lp_per_mm, 0.0, 100.0,
+                      lo_open=True)
+    radial_roi = c.roi("radial.roi", d.radial_roi)
+    fov = c.number("analysis.fov_threshold_dn", d.fov_threshold_dn, 0.0, 65535.0)
+    estimator = c.string("analysis.estimator", d.estimator)
+    if estimator:
+        try:
+            from benchlab.analysis import ESTIMATORS  # type: ignore[attr-defined]
+        except ImportError:  # analysis layer not installed yet: checked when analysing
+            ESTIMATORS = None  # noqa: N806
+        if ESTIMATORS is not None and estimator not in ESTIMATORS:
+            c.fail("analysis.estimator", f"unknown estimator {estimator!r}; known: "
+                   f"{', '.join(sorted(ESTIMATORS))}")
+    mc_file = c.string("analysis.monte_carlo_file", d.monte_carlo_file)
+    sim_file = c.string("analysis.simulated_mtf_file", d.simulated_mtf_file)
+    return MtfParams(
+        exposure_ms=exposure, gain=gain, bits=bits, focus_frames=focus_frames,
+        forward_magnification=fwd_mag, forward_elements=tuple(elements),
+        forward_roi_overrides=overrides, radial_magnification=rad_mag,
+        radial_frequencies_lp_per_mm=freqs, radial_roi=radial_roi, fov_threshold_dn=fov,
+        estimator=estimator, monte_carlo_file=mc_file, simulated_mtf_file=sim_file,
+        raw=c.data,
+    )
+
+
+def _check_radiometry(c: _Checker) -> RadiometryParams:
+    d = RadiometryParams()
+    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
+    mask_gain = c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE)
+    meas_gain = c.number("camera.measurement_gain", d.measurement_gain, *GAIN_RANGE)
+    bits = c.choice("camera.bits", d.bits, (8, 12))
+    channel = c.integer("led.channel", d.led_channel, 1, 16)
+    current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
+    positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0)
+    offset = c.number("positions.stage_offset_mm", d.stage_offset_mm, -1000.0, 1000.0)
+    irr = c.numbers("analysis.simulated_irradiance_mw_per_mm2",
+                    d.simulated_irradiance_mw_per_mm2, 0.0, 1e9)
+    if len(irr) != len(positions):
+        c.fail("analysis.simulated_irradiance_mw_per_mm2",
+               f"has {len(irr)} values but positions.field_mm has {len(positions)}")
+    thr = c.number("analysis.mask_threshold_fraction", d.mask_threshold_fraction, 0.0, 1.0,
+                   lo_open=True)
+    return RadiometryParams(
+        exposure_ms=exposure, mask_gain=mask_gain, measurement_gain=meas_gain, bits=bits,
+        led_channel=channel, led_current_ma=current, positions_mm=positions,
+        stage_offset_mm=offset, simulated_irradiance_mw_per_mm2=irr,
+        mask_threshold_fraction=thr, raw=c.data,
+    )
+
+
+def default_params_path(procedure: str) -> Path:
+    """The packaged default parameter file of a procedure."""
+    return Path(str(resources.files("benchlab.protocols") / "defaults" / f"{procedure}.toml"))
+
+
+def parse_params(procedure: str, data: Mapping[str, Any], source: str = "<params>") -> Params:
+    """Validate a parsed parameter mapping; :class:`ParamsError` lists every problem."""
+    if procedure not in PROCEDURES:
+        raise ParamsError(source, [f"procedure: unknown procedure {procedure!r}; "
+                                   f"known: {', '.join(PROCEDURES)}"])
+    checker = _Checker(data)
+    checker.seen.add("procedure")
+    declared = data.get("procedure", procedure)
+    if declared != procedure:
+        checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
+    params: Params = _check_mtf(checker) if procedure == "mtf" else _check_radiometry(checker)
+    checker.unknown_keys()
+    if checker.problems:
+        raise ParamsError(source, checker.problems)
+    return params
+
+
+def load_params(procedure: str, path: str | Path | None = None) -> Params:
+    """Load and validate a procedure's parameters (``path=None``: the packaged defaults)."""
+    p = Path(path) if path is not None else default_params_path(procedure)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise ParamsError(str(p), ["file: no such parameter file"]) from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ParamsError(str(p), [f"file: not valid TOML ({exc})"]) from exc
+    return parse_params(procedure, data, str(p))
