@@ -1,0 +1,499 @@
+"""A measurement session: one folder that holds everything a run acquired and concluded.
+
+Layout::
+
+    <root>/<YYYYmmdd-HHMMSS>_<procedure>/
+        session.json      who, what, which devices, software version, parameters, start/end
+        events.jsonl      append-only journal, one JSON object per line, fsync'd per line
+        frames/           <step_id>__<name>.tiff, lossless, metadata inside, never overwritten
+        results/v<N>/     one CSV + JSON per table and summary.json; a re-analysis adds v<N+1>
+
+Every file is written atomically (:mod:`benchlab.storage`); frames are flushed to disk before
+:meth:`Session.save_frame` returns, so analysis never runs on a frame that could still be lost.
+The journal is the source of truth for resume: a step is done when its ``step_completed`` event
+is on disk. A ``kill -9`` can tear the journal's last line; readers skip it, and the next append
+terminates it and records a ``journal_repaired`` event so the damage stays visible.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import shutil
+import tempfile
+import threading
+from collections.abc import Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.drivers.errors import BenchlabError
+from benchlab.storage import (
+    FrameFileError,
+    atomic_write_json,
+    atomic_write_text,
+    load_frame_tiff,
+    save_frame_tiff,
+    sha256_file,
+)
+
+SESSION_FORMAT = "benchlab.session"
+SESSION_VERSION = 1
+SESSION_FILE = "session.json"
+EVENTS_FILE = "events.jsonl"
+FRAMES_DIR = "frames"
+RESULTS_DIR = "results"
+#: Step ids, frame names and table names become file names: keep them plain.
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+_VERSION_DIR = re.compile(r"^v(\d+)$")
+#: How a missing number (NaN) is written in results CSV files; JSON uses null.
+CSV_MISSING = "NA"
+
+
+class SessionError(BenchlabError):
+    """A session folder or one of its files is missing, corrupt or misused."""
+
+
+class FrameExistsError(SessionError):
+    """A frame with this step and name is already saved; frames are never overwritten."""
+
+
+def _now_iso() -> str:
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+def _check_name(kind: str, value: str) -> str:
+    if not isinstance(value, str) or not _SAFE_NAME.match(value) or "__" in value:
+        raise ValueError(
+            f"{kind} {value!r} must be letters, digits, '.', '_' or '-' "
+            "(no '__', not starting with a symbol)"
+        )
+    return value
+
+
+def _plain(obj: Any) -> Any:
+    """JSON-safe copy: NaN/inf -> None, tuples -> lists, numpy scalars -> Python."""
+    if isinstance(obj, Mapping):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+class Session:
+    """An open session folder. Create with :meth:`create`, reopen with :meth:`open`."""
+
+    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+        self.path = Path(path)
+        self._meta = meta
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ create / open
+    @classmethod
+    def create(
+        cls,
+        root: Path,
+        *,
+        procedure: str,
+        params: Mapping[str, Any],
+        operator: str,
+        devices: Mapping[str, Any],
+        software_version: str,
+        name: str | None = None,
+    ) -> Session:
+        """Create ``root/<timestamp>_<procedure>`` (or ``root/<name>``) with status "running".
+
+        A folder that already exists is never reused: a numeric suffix is added.
+        """
+        _check_name("procedure", procedure)
+        root = Path(root)
+        root.mkdir(parents=True, exist_ok=True)
+        started = datetime.now(UTC)
+        base = name if name is not None else f"{started:%Y%m%d-%H%M%S}_{procedure}"
+        _check_name("session name", base)
+        folder = root / base
+        n = 1
+        while True:
+            try:
+                folder.mkdir()
+                break
+            except FileExistsError:
+                n += 1
+                folder = root / f"{base}-{n}"
+        meta: dict[str, Any] = {
+            "format": SESSION_FORMAT,
+            "version": SESSION_VERSION,
+            "procedure": procedure,
+            "operator": operator,
+            "devices": _plain(devices),
+            "software_version": software_version,
+            "params": _plain(params),
+            "started_at": started.isoformat(timespec="microseconds"),
+            "finished_at": None,
+            "status": "running",
+        }
+        (folder / FRAMES_DIR).mkdir()
+        (folder / RESULTS_DIR).mkdir()
+        atomic_write_text(folder / EVENTS_FILE, "", overwrite=False)
+        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
+        session = cls(folder, meta)
+        session.log_event("session_created", procedure=procedure)
+        return session
+
+    @classmethod
+    def open(cls, path: Path) -> Session:
+        """Open an existing session folder.
+
+        Frames found on disk without a ``frame_saved`` event (a crash between the flush and the
+        journal line) are recorded with ``recovered=True`` so that nothing acquired is lost.
+
+        Raises
+        ------
+        SessionError
+            Naming ``session.json`` when it is missing, unreadable or not a benchlab session.
+        """
+        folder = Path(path)
+        meta_path = folder / SESSION_FILE
+        try:
+            text = meta_path.read_text(encoding="utf-8")
+        except FileNotFoundError as exc:
+            raise SessionError(f"{meta_path}: no session file (is {folder} a session?)") from exc
+        except OSError as exc:
+            raise SessionError(f"{meta_path}: cannot read ({exc})") from exc
+        try:
+            meta = json.loads(text)
+        except ValueError as exc:
+            raise SessionError(f"{meta_path}: corrupt session file ({exc})") from exc
+        if not isinstance(meta, dict) or meta.get("format") != SESSION_FORMAT:
+            raise SessionError(f"{meta_path}: not a benchlab session file")
+        for key in ("procedure", "params", "status", "started_at"):
+            if key not in meta:
+                raise SessionError(f"{meta_path}: session file lacks {key!r}")
+        session = cls(folder, meta)
+        session.events()  # fail now, naming the journal, if it is damaged beyond a torn tail
+        session._recover_orphan_frames()
+        return session
+
+    # ------------------------------------------------------------------ metadata
+    @property
+    def meta(self) -> dict[str, Any]:
+        """A copy of ``session.json``."""
+        return json.loads(json.dumps(self._meta))
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """The parameter snapshot the run was started with."""
+        return self.meta["params"]
+
+    @property
+    def procedure(self) -> str:
+        return str(self._meta["procedure"])
+
+    @property
+    def status(self) -> str:
+        return str(self._meta["status"])
+
+    @property
+    def frames_dir(self) -> Path:
+        return self.path / FRAMES_DIR
+
+    @property
+    def results_dir(self) -> Path:
+        return self.path / RESULTS_DIR
+
+    def update_meta(self, **fields: Any) -> None:
+        """Add or change top-level fields of ``session.json`` (atomic rewrite)."""
+        reserved = {"format", "version", "started_at"} & set(fields)
+        if reserved:
+            raise ValueError(f"cannot change {sorted(reserved)} of a session")
+        with self._lock:
+            new = {**self._meta, **_plain(fields)}
+            atomic_write_json(self.path / SESSION_FILE, new)
+            self._meta = new
+
+    def finish(self, status: str = "completed") -> None:
+        """Record the end of the run: status and ``finished_at`` in ``session.json``."""
+        self.log_event("session_finished", status=status)
+        self.update_meta(status=status, finished_at=_now_iso())
+
+    # ------------------------------------------------------------------ journal
+    @property
+    def events_path(self) -> Path:
+        return self.path / EVENTS_FILE
+
+    def log_event(self, kind: str, **data: Any) -> None:
+        """Append one event line to ``events.jsonl``, flushed and fsync'd before returning."""
+        record = {"time": _now_iso(), "kind": kind, **_plain(data)}
+        line = json.dumps(record, allow_nan=False) + "\n"
+        with self._lock:
+            fd = os.open(self.events_path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+            try:
+                torn = self._torn_tail_length(fd)
+                if torn:
+                    # Terminate the fragment a crash left so the new event gets its own line.
+                    repair = {"time": _now_iso(), "kind": "journal_repaired", "torn_bytes": torn}
+                    os.write(fd, b"\n" + (json.dumps(repair) + "\n").encode("utf-8"))
+                os.write(fd, line.encode("utf-8"))
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+
+    @staticmethod
+    def _torn_tail_length(fd: int) -> int:
+        """Bytes after the last newline (0 when the file ends cleanly)."""
+        size = os.fstat(fd).st_size
+        if size == 0:
+            return 0
+        chunk = min(size, 1 << 16)
+        tail = os.pread(fd, chunk, size - chunk)
+        if tail.endswith(b"\n"):
+            return 0
+        nl = tail.rfind(b"\n")
+        return len(tail) - (nl + 1)
+
+    def events(self) -> list[dict[str, Any]]:
+        """All journal events in order.
+
+        A torn last line (a crash mid-append) is skipped. A broken line in the middle is
+        accepted only when the next event is the ``journal_repaired`` that terminated it;
+        anything else raises :class:`SessionError` naming the file and line.
+        """
+        try:
+            raw = self.events_path.read_bytes()
+        except FileNotFoundError as exc:
+            raise SessionError(f"{self.events_path}: journal missing") from exc
+        lines = raw.split(b"\n")
+        out: list[dict[str, Any]] = []
+        pending_bad: int | None = None
+        for i, chunk in enumerate(lines):
+            if not chunk.strip():
+                continue
+            try:
+                rec = json.loads(chunk.decode("utf-8"))
+                if not isinstance(rec, dict) or "kind" not in rec:
+                    raise ValueError("not an event object")
+            except ValueError:
+                if pending_bad is not None:
+                    break
+                pending_bad = i + 1
+                continue
+            if pending_bad is not None:
+                if rec.get("kind") != "journal_repaired":
+                    break
+                pending_bad = None
+            out.append(rec)
+        else:
+            return out  # at most a torn final line was skipped
+        raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
+
+    # ------------------------------------------------------------------ frames
+    def frame_path(self, step_id: str, name: str) -> Path:
+        """Where the frame ``name`` of step ``step_id`` is (or would be) saved."""
+        _check_name("step id", step_id)
+        _check_name("frame name", name)
+        return self.frames_dir / f"{step_id}__{name}.tiff"
+
+    def save_frame(
+        self, step_id: str, name: str, pixels: npt.NDArray[Any], metadata: Mapping[str, Any]
+    ) -> Path:
+        """Save a raw frame losslessly, on disk and fsync'd before returning; journal its hash.
+
+        Raises
+        ------
+        FrameExistsError
+            If this step already saved a frame with this name; the saved one is untouched.
+        """
+        path = self.frame_path(step_id, name)
+        meta = {**_plain(metadata), "step_id": step_id, "frame_name": name}
+        try:
+            save_frame_tiff(path, pixels, meta, overwrite=False)
+        except FileExistsError as exc:
+            raise FrameExistsError(
+                f"{path}: frame already saved; frames are never overwritten"
+            ) from exc
+        self._record_frame(path, step_id, name)
+        return path
+
+    def _record_frame(self, path: Path, step_id: str, name: str, **extra: Any) -> None:
+        self.log_event(
+            "frame_saved",
+            step_id=step_id,
+            name=name,
+            file=path.relative_to(self.path).as_posix(),
+            sha256=sha256_file(path),
+            **extra,
+        )
+
+    def _frame_records(self) -> dict[str, dict[str, Any]]:
+        """``relative file -> frame_saved event`` (first record wins: it is the original hash)."""
+        recs: dict[str, dict[str, Any]] = {}
+        for ev in self.events():
+            if ev.get("kind") == "frame_saved" and "file" in ev:
+                recs.setdefault(str(ev["file"]), ev)
+        return recs
+
+    def _recover_orphan_frames(self) -> None:
+        known = self._frame_records()
+        if not self.frames_dir.is_dir():
+            return
+        for path in sorted(self.frames_dir.glob("*.tiff")):
+            rel = path.relative_to(self.path).as_posix()
+            if rel in known or "__" not in path.stem:
+                continue
+            step_id, name = path.stem.split("__", 1)
+            try:
+                load_frame_tiff(path)
+            except FrameFileError as exc:
+                self.log_event("frame_unreadable", file=rel, error=str(exc))
+                continue
+            self._record_frame(path, step_id, name, recovered=True)
+
+    def step_frames(self, step_id: str) -> dict[str, Path]:
+        """Frames saved by a step: ``name -> path``."""
+        return {
+            str(ev["name"]): self.path / str(ev["file"])
+            for ev in self._frame_records().values()
+            if ev.get("step_id") == step_id
+        }
+
+    def frames(self) -> dict[str, str]:
+        """Every recorded frame: relative file -> recorded sha256."""
+        return {f: str(ev["sha256"]) for f, ev in self._frame_records().items()}
+
+    def load_frame(self, step_id: str, name: str) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+        """Load a recorded frame after checking its hash against the journal.
+
+        Raises
+        ------
+        SessionError
+            If the frame was never recorded or its bytes changed since it was saved.
+        FrameFileError
+            If the file is unreadable.
+        """
+        path = self.frame_path(step_id, name)
+        rel = path.relative_to(self.path).as_posix()
+        rec = self._frame_records().get(rel)
+        if rec is None:
+            raise SessionError(f"{path}: no such frame recorded in {self.events_path}")
+        if not path.exists():
+            raise SessionError(f"{path}: recorded frame is missing")
+        if sha256_file(path) != rec["sha256"]:
+            raise SessionError(f"{path}: frame modified since it was saved (sha256 mismatch)")
+        return load_frame_tiff(path)
+
+    def verify_frames(self) -> list[str]:
+        """Relative paths of recorded frames that are missing or whose sha256 changed."""
+        bad = []
+        for rel, ev in sorted(self._frame_records().items()):
+            path = self.path / rel
+            if not path.is_file() or sha256_file(path) != ev["sha256"]:
+                bad.append(rel)
+        return bad
+
+    # ------------------------------------------------------------------ steps
+    def mark_step_completed(self, step_id: str, **summary: Any) -> None:
+        """Journal that a step finished; :meth:`completed_steps` then includes it."""
+        _check_name("step id", step_id)
+        self.log_event("step_completed", step_id=step_id, **summary)
+
+    def completed_steps(self) -> set[str]:
+        """Step ids with a ``step_completed`` event."""
+        return {
+            str(ev["step_id"])
+            for ev in self.events()
+            if ev.get("kind") == "step_completed" and "step_id" in ev
+        }
+
+    # ------------------------------------------------------------------ results
+    def result_versions(self) -> list[int]:
+        """Existing results versions, ascending."""
+        if not self.results_dir.is_dir():
+            return []
+        found = (_VERSION_DIR.match(p.name) for p in self.results_dir.iterdir() if p.is_dir())
+        return sorted(int(m.group(1)) for m in found if m)
+
+    def latest_results(self) -> Path | None:
+        """The newest ``results/v<N>`` folder, or None before the first analysis."""
+        versions = self.result_versions()
+        return self.results_dir / f"v{versions[-1]}" if versions else None
+
+    def write_results(
+        self,
+        tables: Mapping[str, list[dict[str, Any]]],
+        *,
+        summary: Mapping[str, Any],
+        estimator: str,
+    ) -> Path:
+        """Write a new results version: ``<table>.csv`` + ``<table>.json`` each, and summary.json.
+
+        The version folder is assembled under a temporary name and renamed into place, so a
+        crash never leaves a half-written version; existing versions are never touched.
+        NaN is written as ``null`` in JSON and ``NA`` in CSV.
+        """
+        for table in tables:
+            _check_name("table name", table)
+        self.results_dir.mkdir(exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=".v-", suffix=".tmp", dir=self.results_dir))
+        try:
+            for table, rows in tables.items():
+                plain_rows = [_plain(dict(r)) for r in rows]
+                atomic_write_json(tmp / f"{table}.json", plain_rows)
+                atomic_write_text(tmp / f"{table}.csv", _csv_text(plain_rows))
+            while True:
+                version = (self.result_versions() or [0])[-1] + 1
+                doc = {
+                    "version": version,
+                    "estimator": estimator,
+                    "created_at": _now_iso(),
+                    "tables": sorted(tables),
+                    "frames_sha256": self.frames(),
+                    "summary": _plain(summary),
+                }
+                atomic_write_json(tmp / "summary.json", doc)
+                target = self.results_dir / f"v{version}"
+                try:
+                    target.mkdir()  # claim the number; rename onto an empty dir is atomic
+                except FileExistsError:
+                    continue
+                os.replace(tmp, target)
+                break
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        self.log_event("results_written", version=version, estimator=estimator)
+        return target
+
+
+def _csv_text(rows: list[dict[str, Any]]) -> str:
+    columns: list[str] = []
+    for row in rows:
+        columns.extend(k for k in row if k not in columns)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(
+            {k: CSV_MISSING if row.get(k) is None else _csv_cell(row.get(k)) for k in columns}
+        )
+    return buf.getvalue()
+
+
+def _csv_cell(value: Any) -> Any:
+    if isinstance(value, dict | list):
+        return json.dumps(value)
+    return value
