@@ -1,9 +1,45 @@
-"""CLI commands of this group (filled in by the owning layer)."""
+"""``benchlab tui``: the technician's terminal UI (also what ``benchlab`` alone opens)."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
-    """Add this group's sub-commands."""
+    """Add the ``tui`` sub-command."""
+    parser = commands.add_parser(
+        "tui",
+        help="open the terminal UI (the default with no command)",
+        description=(
+            "Open the technician's terminal UI: devices, live view, the Table 4.10 MTF and "
+            "radiometry procedures, and saved sessions."
+        ),
+    )
+    parser.add_argument("--simulate", action="store_true", help="use the simulated bench")
+    parser.add_argument("--config", type=Path, default=None, help="bench configuration (TOML)")
+    parser.add_argument(
+        "--sessions", type=Path, default=Path("sessions"),
+        help="folder of saved sessions (default: ./sessions)",
+    )
+    parser.add_argument("--mtf-params", type=Path, default=None, help="MTF parameter file")
+    parser.add_argument(
+        "--radiometry-params", type=Path, default=None, help="radiometry parameter file"
+    )
+    parser.set_defaults(func=run_tui)
+
+
+def run_tui(args: argparse.Namespace) -> int:
+    from benchlab.tui.app import BenchlabApp
+
+    params = {
+        name: path
+        for name, path in (("mtf", args.mtf_params), ("radiometry", args.radiometry_params))
+        if path is not None
+    }
+    app = BenchlabApp(
+        simulate=args.simulate, config=args.config, sessions_dir=args.sessions,
+        params_files=params,
+    )
+    app.run()
+    return int(app.return_code or 0)

@@ -1,0 +1,163 @@
+"""The benchlab Textual application: one mode per job, the bench shared between them."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from textual import work
+from textual.app import App
+from textual.binding import Binding
+from textual.reactive import reactive
+from textual.worker import get_current_worker
+
+from benchlab.tui import services
+from benchlab.tui.devices import DevicesScreen
+from benchlab.tui.dialogs import ErrorDialog
+from benchlab.tui.live import LiveScreen
+from benchlab.tui.runner import RunScreen
+from benchlab.tui.sessions import SessionsScreen
+
+
+class BenchlabApp(App[None]):
+    """Devices, live view, procedure runner and sessions, keyboard first."""
+
+    TITLE = "benchlab"
+    CSS = """
+    Screen { layout: vertical; }
+    .panel { border: round $primary; padding: 0 1; height: auto; }
+    .panel-title { text-style: bold; }
+    .status { height: 1; background: $boost; padding: 0 1; }
+    """
+    MODES = {
+        "devices": DevicesScreen,
+        "live": LiveScreen,
+        "run": RunScreen,
+        "sessions": SessionsScreen,
+    }
+    DEFAULT_MODE = "devices"
+    BINDINGS = [
+        Binding("1", "switch_mode('devices')", "Devices"),
+        Binding("2", "switch_mode('live')", "Live"),
+        Binding("3", "switch_mode('run')", "Run"),
+        Binding("4", "switch_mode('sessions')", "Sessions"),
+        Binding("q", "quit", "Quit", priority=True),
+    ]
+
+    #: One line describing the bench connection ("connected (simulated)", "disconnected", ...).
+    bench_status: reactive[str] = reactive("disconnected")
+    #: True while a procedure runs (the live view then leaves the camera alone).
+    procedure_running: reactive[bool] = reactive(False)
+
+    def __init__(
+        self,
+        *,
+        simulate: bool = True,
+        config: Path | None = None,
+        sessions_dir: Path | None = None,
+        autoconnect: bool = True,
+        seed: int | None = None,
+        params_files: dict[str, Path] | None = None,
+    ) -> None:
+        super().__init__()
+        self.simulate = simulate
+        self.config_path = config
+        self.sessions_dir = Path(sessions_dir) if sessions_dir else Path("sessions")
+        self.autoconnect = autoconnect
+        self.seed = seed
+        #: Parameter file per procedure (``None``: the packaged defaults).
+        self.params_files: dict[str, Path | None] = dict(params_files or {})
+        self.bench: Any = None
+        #: Serialises device access between the live view, the devices panel and the runner.
+        self.device_lock = threading.RLock()
+        #: Set to stop a running procedure (abort key, quit).
+        self.abort_event = threading.Event()
+        self._activity = threading.Condition()
+        self._active_threads = 0
+
+    def on_mount(self) -> None:
+        self.sub_title = "simulated bench" if self.simulate else "bench"
+        if self.autoconnect:
+            self.connect_bench()
+
+    # -- the bench -------------------------------------------------------------------------
+
+    @work(thread=True, exclusive=True, group="bench", exit_on_error=False)
+    def connect_bench(self) -> None:
+        """Open the bench (devices) in a thread; errors become a dialog."""
+        if self.bench is not None:
+            return
+        self.call_from_thread(setattr, self, "bench_status", "connecting...")
+        try:
+            bench = services.open_bench(self.config_path, self.simulate, seed=self.seed)
+        except Exception as exc:  # noqa: BLE001 - shown to the operator in plain words
+            self.call_from_thread(setattr, self, "bench_status", "disconnected")
+            self.call_from_thread(self.show_error, "Could not connect the bench", exc)
+            return
+        if get_current_worker().is_cancelled:
+            services.close_bench(bench)
+            return
+        self.bench = bench
+        kind = "simulated" if self.simulate else "hardware"
+        self.call_from_thread(setattr, self, "bench_status", f"connected ({kind})")
+
+    @work(thread=True, exclusive=True, group="bench", exit_on_error=False)
+    def disconnect_bench(self) -> None:
+        """LEDs off, stage stopped, devices closed."""
+        if self.procedure_running:
+            self.call_from_thread(
+                self.notify, "Abort the running procedure first.", severity="warning"
+            )
+            return
+        self._close_bench()
+        self.call_from_thread(setattr, self, "bench_status", "disconnected")
+
+    def _close_bench(self) -> None:
+        with self.device_lock:
+            bench, self.bench = self.bench, None
+            if bench is not None:
+                try:
+                    services.close_bench(bench)
+                except Exception as exc:  # noqa: BLE001 - closing must not crash the UI
+                    self.log.error(f"closing the bench: {exc!r}")
+
+    @contextmanager
+    def device_activity(self) -> Iterator[None]:
+        """Wrap a thread worker's device work so quitting waits for it to wind down."""
+        with self._activity:
+            self._active_threads += 1
+        try:
+            yield
+        finally:
+            with self._activity:
+                self._active_threads -= 1
+                self._activity.notify_all()
+
+    def wait_for_device_threads(self, timeout_s: float = 15.0) -> bool:
+        """Block until no thread worker is inside :meth:`device_activity`."""
+        with self._activity:
+            return self._activity.wait_for(lambda: self._active_threads == 0, timeout_s)
+
+    async def resume_session(self, path: Path) -> None:
+        """Switch to the runner and continue ``path`` from its first incomplete step."""
+        await self.switch_mode("run")
+        screen = self.screen
+        if isinstance(screen, RunScreen):
+            screen.resume(path)
+
+    def show_error(self, title: str, exc: BaseException | str) -> None:
+        """A dialog with the error in plain words."""
+        text = exc if isinstance(exc, str) else services.plain_error(exc)
+        self.push_screen(ErrorDialog(title, text))
+
+    async def action_quit(self) -> None:
+        """Stop every worker, leave the bench safe (LEDs off, stage stopped), exit."""
+        self.abort_event.set()
+        self.workers.cancel_all()
+        await asyncio.to_thread(self.wait_for_device_threads)
+        await asyncio.to_thread(self._close_bench)
+        self.exit()

@@ -1,0 +1,115 @@
+"""Devices panel: what is connected, its identity and state, connect / disconnect."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Grid
+from textual.screen import Screen
+from textual.widgets import Footer, Header, Static
+from textual.worker import get_current_worker
+
+from benchlab.tui import services
+
+REFRESH_S = 1.0
+
+
+def format_rows(rows: list[tuple[str, str]]) -> str:
+    """``label  value`` lines, labels aligned."""
+    if not rows:
+        return "[dim]not connected[/dim]"
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+class DevicesScreen(Screen[None]):
+    """Camera, LED controller and stage: identity, state, errors in plain words."""
+
+    DEFAULT_CSS = """
+    DevicesScreen #bench-status { height: auto; padding: 0 1; background: $boost; }
+    DevicesScreen Grid { grid-size: 3; grid-gutter: 0 1; height: 1fr; }
+    DevicesScreen .device { border: round $primary; padding: 0 1; height: 100%; }
+    """
+    BINDINGS = [
+        Binding("c", "connect", "Connect"),
+        Binding("x", "disconnect", "Disconnect"),
+        Binding("h", "home", "Home stage"),
+        Binding("o", "safe", "LEDs off"),
+    ]
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static("", id="bench-status")
+        with Grid():
+            yield Static("", id="camera", classes="device")
+            yield Static("", id="leds", classes="device")
+            yield Static("", id="stage", classes="device")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        for wid, title in (("camera", "camera"), ("leds", "LED controller"), ("stage", "stage")):
+            self.query_one(f"#{wid}").border_title = title
+        self.watch(self.app, "bench_status", self._on_bench_status)
+        self.set_interval(REFRESH_S, self._poll)
+        self._poll()
+
+    def _on_bench_status(self, status: str) -> None:
+        self.query_one("#bench-status", Static).update(f"bench: [b]{status}[/b]")
+        self._poll()
+
+    def _poll(self) -> None:
+        if self.app.screen is self:
+            self._read_devices()
+
+    @work(thread=True, exclusive=True, group="devices", exit_on_error=False)
+    def _read_devices(self) -> None:
+        app: Any = self.app
+        bench = app.bench
+        if bench is None:
+            info: dict[str, list[tuple[str, str]]] = {"camera": [], "leds": [], "stage": []}
+        else:
+            with app.device_activity():
+                if app.procedure_running:  # the runner owns the devices: show cached identity
+                    info = services.describe_devices(bench, live=False)
+                else:
+                    with app.device_lock:
+                        info = services.describe_devices(bench, live=True)
+        if not get_current_worker().is_cancelled:
+            app.call_from_thread(self._show, info)
+
+    def _show(self, info: dict[str, list[tuple[str, str]]]) -> None:
+        for key in ("camera", "leds", "stage"):
+            self.query_one(f"#{key}", Static).update(format_rows(info.get(key, [])))
+
+    def action_connect(self) -> None:
+        self.app.connect_bench()  # type: ignore[attr-defined]
+
+    def action_disconnect(self) -> None:
+        self.app.disconnect_bench()  # type: ignore[attr-defined]
+
+    def action_safe(self) -> None:
+        self._device_action("safe")
+
+    def action_home(self) -> None:
+        self._device_action("home")
+
+    @work(thread=True, group="device-action", exit_on_error=False)
+    def _device_action(self, what: str) -> None:
+        app: Any = self.app
+        if app.bench is None:
+            app.call_from_thread(self.notify, "The bench is not connected.", severity="warning")
+            return
+        if app.procedure_running:
+            app.call_from_thread(self.notify, "A procedure is running.", severity="warning")
+            return
+        try:
+            with app.device_activity(), app.device_lock:
+                message = services.device_action(app.bench, what)
+        except Exception as exc:  # noqa: BLE001 - shown in plain words
+            app.call_from_thread(app.show_error, "Device command failed", exc)
+            return
+        app.call_from_thread(self.notify, message)
+        app.call_from_thread(self._poll)

@@ -1,0 +1,86 @@
+"""Modal dialogs: operator prompts for manual steps and plain-words error messages."""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Button, Label, Static
+
+DIALOG_CSS = """
+PromptDialog, ErrorDialog { align: center middle; }
+PromptDialog > Vertical, ErrorDialog > Vertical {
+    width: 70; max-width: 95%; height: auto; max-height: 90%;
+    border: thick $accent; background: $surface; padding: 1 2;
+}
+ErrorDialog > Vertical { border: thick $error; }
+PromptDialog .title, ErrorDialog .title { text-style: bold; margin-bottom: 1; }
+PromptDialog #live-figure { color: $success; text-style: bold; margin-top: 1; }
+PromptDialog Horizontal { height: auto; margin-top: 1; align-horizontal: right; }
+PromptDialog Button, ErrorDialog Button { margin-left: 2; }
+"""
+
+
+class PromptDialog(ModalScreen[bool]):
+    """A manual step: the operator does something on the bench, then confirms (or aborts).
+
+    Dismisses with ``True`` (done) or ``False`` (abort the run).
+    """
+
+    DEFAULT_CSS = DIALOG_CSS
+    BINDINGS = [
+        Binding("y,enter", "confirm", "Done"),
+        Binding("escape,a", "cancel", "Abort run"),
+    ]
+
+    def __init__(self, title: str, message: str) -> None:
+        super().__init__()
+        self._title = title
+        self._message = message
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(self._title, classes="title")
+            yield Static(self._message, id="prompt-text")
+            yield Static("", id="live-figure")
+            with Horizontal():
+                yield Button("Done [y]", variant="primary", id="done")
+                yield Button("Abort run [a]", variant="error", id="abort")
+
+    def set_live_figure(self, text: str) -> None:
+        """Show a live number (e.g. the sharpness while adjusting back focus)."""
+        self.query_one("#live-figure", Static).update(text)
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(event.button.id == "done")
+
+    def action_confirm(self) -> None:
+        self.dismiss(True)
+
+    def action_cancel(self) -> None:
+        self.dismiss(False)
+
+
+class ErrorDialog(ModalScreen[None]):
+    """An error the operator must acknowledge (device lost, bad parameter file, disk full)."""
+
+    DEFAULT_CSS = DIALOG_CSS
+    BINDINGS = [Binding("escape,enter,y", "close", "Close")]
+
+    def __init__(self, title: str, message: str) -> None:
+        super().__init__()
+        self._title = title
+        self._message = message
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(self._title, classes="title")
+            yield Static(self._message, id="error-text")
+            yield Button("Close [enter]", variant="error", id="close")
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(None)
+
+    def action_close(self) -> None:
+        self.dismiss(None)

@@ -1,0 +1,213 @@
+"""Live view: the camera image with the ROI, its histogram and the focusing figures."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.reactive import reactive
+from textual.screen import Screen
+from textual.timer import Timer
+from textual.widgets import Footer, Header, Static
+from textual.worker import get_current_worker
+
+from benchlab.tui import services
+from benchlab.tui.widgets import FrameView, Roi, RoiHistogram
+
+#: Exposure steps offered by the e / E keys, ms.
+EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500.0, 1000.0)
+#: Gain steps offered by the g / G keys.
+GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
+#: How often the screen takes the newest frame from the acquisition thread.
+DISPLAY_INTERVAL_S = 1 / 15
+#: Cap on the acquisition loop so it never hogs the interpreter.
+MAX_GRAB_RATE_HZ = 25.0
+ROI_STEP_PX = 16
+
+
+def _step(values: tuple[float, ...], current: float, direction: int) -> float:
+    """The next value of ``values`` above (``direction`` 1) or below (-1) ``current``."""
+    if direction > 0:
+        return next((v for v in values if v > current + 1e-9), values[-1])
+    return next((v for v in reversed(values) if v < current - 1e-9), values[0])
+
+
+class LiveScreen(Screen[None]):
+    """Continuous acquisition while this screen is shown; the newest frame wins."""
+
+    DEFAULT_CSS = """
+    LiveScreen #live-body { height: 1fr; }
+    LiveScreen #frame { width: 2fr; border: round $primary; }
+    LiveScreen #side { width: 1fr; min-width: 30; }
+    LiveScreen #readout { height: auto; border: round $primary; padding: 0 1; }
+    LiveScreen #histogram { height: 1fr; min-height: 5; max-height: 14; border: round $primary; }
+    """
+    BINDINGS = [
+        Binding("up", "move(-1, 0)", "ROI", key_display="\u2190\u2191\u2193\u2192"),
+        Binding("down", "move(1, 0)", "ROI down", show=False),
+        Binding("left", "move(0, -1)", "ROI left", show=False),
+        Binding("right", "move(0, 1)", "ROI right", show=False),
+        Binding("plus,equals_sign", "resize(1)", "Grow", key_display="+"),
+        Binding("minus", "resize(-1)", "Shrink", key_display="-"),
+        Binding("e", "exposure(-1)", "Exp-"),
+        Binding("E", "exposure(1)", "Exp+"),
+        Binding("g", "gain(-1)", "Gain-"),
+        Binding("G", "gain(1)", "Gain+"),
+        Binding("m", "estimator", "Method"),
+        Binding("o", "orientation", "Orient."),
+    ]
+
+    exposure_ms: reactive[float] = reactive(50.0)
+    gain: reactive[float] = reactive(1.0)
+    roi: reactive[Roi] = reactive(Roi(448, 576, 128, 128))
+    estimator: reactive[str] = reactive("")
+    orientation: reactive[str] = reactive("sagittal")
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._latest: services.LiveReading | None = None
+        self._latest_lock = threading.Lock()
+        self._shown_index = -1
+        self._timer: Timer | None = None
+        self._display_times: deque[float] = deque(maxlen=30)
+        self._frame_shape: tuple[int, int] = (1024, 1280)
+        self.frames_displayed = 0
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal(id="live-body"):
+            yield FrameView(id="frame")
+            with Vertical(id="side"):
+                yield Static("waiting for the camera...", id="readout")
+                yield RoiHistogram(id="histogram")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#frame").border_title = "camera"
+        self.query_one("#histogram").border_title = "ROI histogram (D dark, B bright)"
+        self.query_one("#readout").border_title = "ROI"
+        if not self.estimator:
+            self.estimator = services.default_estimator()
+
+    # -- acquisition runs only while the screen is visible ----------------------------------
+
+    def on_screen_resume(self) -> None:
+        self._timer = self.set_interval(DISPLAY_INTERVAL_S, self._show_latest)
+        self._acquire()
+
+    def on_screen_suspend(self) -> None:
+        if self._timer is not None:
+            self._timer.stop()
+            self._timer = None
+        self.workers.cancel_group(self, "live")
+
+    @work(thread=True, exclusive=True, group="live", exit_on_error=False)
+    def _acquire(self) -> None:
+        worker = get_current_worker()
+        app = self.app
+        index = 0
+        with app.device_activity():  # type: ignore[attr-defined]
+            while not worker.is_cancelled:
+                bench = app.bench  # type: ignore[attr-defined]
+                if bench is None or app.procedure_running:  # type: ignore[attr-defined]
+                    time.sleep(0.1)
+                    continue
+                started = time.monotonic()
+                settings = (self.exposure_ms, self.gain)
+                try:
+                    with app.device_lock:  # type: ignore[attr-defined]
+                        frame = services.grab(bench, *settings)
+                    reading = services.live_reading(
+                        frame, self.roi, self.estimator, self.orientation, index, *settings
+                    )
+                except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
+                    if not worker.is_cancelled:
+                        app.call_from_thread(self._live_error, exc)
+                    for _ in range(10):
+                        if worker.is_cancelled:
+                            break
+                    time.sleep(0.1)
+                    continue
+                with self._latest_lock:
+                    self._latest = reading
+                index += 1
+                spare = 1.0 / MAX_GRAB_RATE_HZ - (time.monotonic() - started)
+                if spare > 0:
+                    time.sleep(spare)
+
+    def _live_error(self, exc: BaseException) -> None:
+        self.notify(services.plain_error(exc), title="Live view", severity="error", timeout=3)
+
+    def _show_latest(self) -> None:
+        with self._latest_lock:
+            reading = self._latest
+        if reading is None or reading.index == self._shown_index:
+            return
+        self._shown_index = reading.index
+        self._frame_shape = reading.frame_shape
+        self.frames_displayed += 1
+        now = time.monotonic()
+        self._display_times.append(now)
+        self.query_one(FrameView).show(reading.preview, reading.preview_roi, reading.max_code)
+        self.query_one(RoiHistogram).show(
+            reading.roi_pixels, reading.max_code, reading.dark, reading.bright
+        )
+        self.query_one("#readout", Static).update(self._readout_text(reading))
+
+    @property
+    def display_rate_hz(self) -> float:
+        """Frames shown per second over the last (up to) 30 updates."""
+        if len(self._display_times) < 2:
+            return 0.0
+        span = self._display_times[-1] - self._display_times[0]
+        return (len(self._display_times) - 1) / span if span > 0 else 0.0
+
+    def _readout_text(self, r: services.LiveReading) -> str:
+        def num(value: float | None, fmt: str) -> str:
+            return "n/a" if value is None else format(value, fmt)
+
+        mod = num(r.modulation, ".3f") if r.resolved else "not resolved"
+        clipped = num(None if r.clipped_fraction is None else 100 * r.clipped_fraction, ".2f")
+        lines = [
+            f"{r.roi.label()}",
+            f"exposure {r.exposure_ms:g} ms  gain {r.gain:g}",
+            f"method {self.estimator}  {self.orientation}",
+            f"modulation [b]{mod}[/b]",
+            f"dark {num(r.dark, '.1f')}  bright {num(r.bright, '.1f')}",
+            f"clipped {clipped} %",
+            f"sharpness [b]{num(r.sharpness, '.4g')}[/b]",
+            f"frame {r.index}  view {self.display_rate_hz:.1f} Hz",
+        ]
+        if r.note:
+            lines.append(f"[yellow]{r.note}[/yellow]")
+        return "\n".join(lines)
+
+    # -- keys -------------------------------------------------------------------------------
+
+    def action_move(self, d_row: int, d_col: int) -> None:
+        self.roi = self.roi.moved(d_row * ROI_STEP_PX, d_col * ROI_STEP_PX, self._frame_shape)
+
+    def action_resize(self, direction: int) -> None:
+        step = 2 * ROI_STEP_PX * direction
+        self.roi = self.roi.resized(step, step, self._frame_shape)
+
+    def action_exposure(self, direction: int) -> None:
+        self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)
+
+    def action_gain(self, direction: int) -> None:
+        self.gain = _step(GAINS, self.gain, direction)
+
+    def action_estimator(self) -> None:
+        names = services.estimator_names()
+        if names:
+            i = names.index(self.estimator) if self.estimator in names else -1
+            self.estimator = names[(i + 1) % len(names)]
+            self.notify(f"estimator: {self.estimator}", timeout=1.5)
+
+    def action_orientation(self) -> None:
+        self.orientation = "tangential" if self.orientation == "sagittal" else "sagittal"

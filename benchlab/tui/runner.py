@@ -1,0 +1,391 @@
+"""Procedure runner: the Table 4.10 checklist or the radiometry positions, run step by step."""
+
+from __future__ import annotations
+
+import concurrent.futures
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.reactive import reactive
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.worker import get_current_worker
+
+from benchlab.tui import services
+from benchlab.tui.dialogs import PromptDialog
+
+PROCEDURES = ("mtf", "radiometry")
+STATUS_MARK = {
+    "pending": "  ",
+    "running": "\u25b6 ",
+    "done": "\u2714 ",
+    "failed": "\u2718 ",
+    "aborted": "\u25a0 ",
+}
+
+
+def _format_value(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
+    """Split a partial result into (what, numbers): text fields, then numeric ones."""
+    what = [str(v) for v in data.values() if isinstance(v, str)]
+    numbers = [
+        f"{k} {_format_value(v)}"
+        for k, v in data.items()
+        if isinstance(v, int | float) and not isinstance(v, bool)
+    ]
+    flags = [k for k, v in data.items() if v is True]
+    return " ".join(what), "  ".join(numbers + flags)
+
+
+class RunScreen(Screen[None]):
+    """Choose a procedure, start it, answer its prompts, watch results fill in."""
+
+    DEFAULT_CSS = """
+    RunScreen #run-status { height: auto; padding: 0 1; background: $boost; }
+    RunScreen #run-body { height: 1fr; }
+    RunScreen #steps { width: 1fr; border: round $primary; }
+    RunScreen #results { width: 1fr; border: round $primary; }
+    RunScreen #progress { height: 1; padding: 0 1; }
+    RunScreen #progress Bar { width: 1fr; }
+    RunScreen DataTable > .datatable--cursor { background: $accent 40%; }
+    """
+    BINDINGS = [
+        Binding("p", "procedure", "Procedure"),
+        Binding("s", "start", "Start"),
+        Binding("a", "abort", "Abort"),
+        Binding("t", "retry", "Retry"),
+        Binding("v", "next_table", "Table"),
+    ]
+
+    procedure: reactive[str] = reactive("mtf")
+    #: idle | running | done | failed | aborted
+    state: reactive[str] = reactive("idle")
+    message: reactive[str] = reactive("")
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.runner: Any = None
+        self.outcome: Any = None
+        self.session_path: Path | None = None
+        self.step_status: dict[str, str] = {}
+        self._step_ids: list[str] = []
+        self._tables: list[tuple[str, Mapping[str, Any]]] = []
+        self._table_index = 0
+        self._prompt: PromptDialog | None = None
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static("", id="run-status")
+        with Horizontal(id="run-body"):
+            yield DataTable(id="steps", cursor_type="row", zebra_stripes=False)
+            with Vertical(id="results"):
+                yield DataTable(id="results-table", cursor_type="row")
+        yield ProgressBar(id="progress", show_eta=False)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        steps = self.query_one("#steps", DataTable)
+        steps.add_columns("", "step", "what")
+        steps.border_title = "checklist"
+        self.query_one("#results").border_title = "results"
+        self._reset_results()
+        self._refresh_status()
+        self._load_checklist()
+
+    # -- status -----------------------------------------------------------------------------
+
+    def watch_state(self) -> None:
+        self._refresh_status()
+
+    def watch_message(self) -> None:
+        self._refresh_status()
+
+    def watch_procedure(self) -> None:
+        self._refresh_status()
+
+    def _refresh_status(self) -> None:
+        if not self.is_mounted:
+            return
+        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)"}
+        params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
+        where = f"  session {self.session_path.name}" if self.session_path else ""
+        text = (
+            f"[b]{label.get(self.procedure, self.procedure)}[/b]  "
+            f"params {params or 'defaults'}  [b]{self.state}[/b]{where}"
+        )
+        if self.message:
+            text += f"\n{self.message}"
+        self.query_one("#run-status", Static).update(text)
+
+    # -- checklist --------------------------------------------------------------------------
+
+    @work(thread=True, exclusive=True, group="checklist", exit_on_error=False)
+    def _load_checklist(self) -> None:
+        """Show the chosen procedure's steps (from its parameters) before a run starts."""
+        procedure = self.procedure
+        try:
+            steps = services.procedure_checklist(
+                procedure, self.app.params_files.get(procedure)  # type: ignore[attr-defined]
+            )
+        except Exception as exc:  # noqa: BLE001 - parameter problems shown in plain words
+            self.app.call_from_thread(self._checklist_error, exc)
+            return
+        self.app.call_from_thread(self._show_steps, steps, set())
+
+    def _checklist_error(self, exc: BaseException) -> None:
+        self.message = f"[red]{services.plain_error(exc)}[/red]"
+
+    def _show_steps(self, steps: list[Any], done: set[str]) -> None:
+        table = self.query_one("#steps", DataTable)
+        table.clear()
+        self._step_ids = [s.id for s in steps]
+        self.step_status = {s.id: ("done" if s.id in done else "pending") for s in steps}
+        for step in steps:
+            table.add_row(
+                STATUS_MARK[self.step_status[step.id]], step.table_step or step.id, step.title,
+                key=step.id,
+            )
+        progress = self.query_one(ProgressBar)
+        progress.update(total=max(1, len(steps)), progress=len(done))
+
+    def _set_step(self, step_id: str, status: str) -> None:
+        if step_id not in self.step_status:
+            return
+        self.step_status[step_id] = status
+        table = self.query_one("#steps", DataTable)
+        row = self._step_ids.index(step_id)
+        table.update_cell_at((row, 0), STATUS_MARK[status])
+        if status == "running":
+            table.move_cursor(row=row)
+
+    # -- results ----------------------------------------------------------------------------
+
+    def _reset_results(self) -> None:
+        table = self.query_one("#results-table", DataTable)
+        table.clear(columns=True)
+        table.add_columns("step", "item", "result")
+        self._tables = []
+        self._table_index = 0
+        self.query_one("#results").border_title = "results"
+
+    def _add_result(self, step_id: str, data: Mapping[str, Any]) -> None:
+        what, numbers = result_row(data)
+        table = self.query_one("#results-table", DataTable)
+        table.add_row(step_id, what, numbers)
+        table.move_cursor(row=table.row_count - 1)
+
+    def _show_table(self) -> None:
+        if not self._tables:
+            return
+        name, data = self._tables[self._table_index % len(self._tables)]
+        table = self.query_one("#results-table", DataTable)
+        table.clear(columns=True)
+        columns = list(data.get("columns") or [])
+        rows = list(data.get("rows") or [])
+        if not columns and rows:
+            columns = list(rows[0].keys())
+        table.add_columns(*columns)
+        for row in rows:
+            table.add_row(*(_format_value(row.get(c, "")) for c in columns))
+        self.query_one("#results").border_title = (
+            f"{name} ({self._table_index % len(self._tables) + 1}/{len(self._tables)}, v: next)"
+        )
+
+    # -- keys -------------------------------------------------------------------------------
+
+    def action_procedure(self) -> None:
+        if self.state == "running":
+            self.notify("A procedure is running.", severity="warning")
+            return
+        i = PROCEDURES.index(self.procedure)
+        self.procedure = PROCEDURES[(i + 1) % len(PROCEDURES)]
+        self._forget_run()
+        self._load_checklist()
+
+    def _forget_run(self) -> None:
+        self.runner = None
+        self.outcome = None
+        self.session_path = None
+        self.state = "idle"
+        self.message = ""
+        self._reset_results()
+
+    def action_start(self) -> None:
+        if self.state == "running":
+            return
+        if self.app.bench is None:  # type: ignore[attr-defined]
+            self.notify("Connect the bench first (Devices, c).", severity="error")
+            return
+        if self.state in ("done", "aborted", "failed"):
+            self._forget_run()
+        self._launch(resume=None)
+
+    def action_retry(self) -> None:
+        if self.state not in ("failed", "aborted") or self.runner is None:
+            self.notify("Nothing to retry.", severity="warning")
+            return
+        self._launch(resume=None)
+
+    def action_abort(self) -> None:
+        if self.state != "running":
+            return
+        self.app.abort_event.set()  # type: ignore[attr-defined]
+        self.message = "aborting: LEDs off, stage stopped..."
+
+    def action_next_table(self) -> None:
+        if self._tables:
+            self._table_index += 1
+            self._show_table()
+
+    def resume(self, session_path: Path) -> None:
+        """Continue an interrupted session from its first incomplete step."""
+        if self.state == "running":
+            self.notify("A procedure is running.", severity="warning")
+            return
+        self._forget_run()
+        self._launch(resume=Path(session_path))
+
+    # -- the run, in a thread ---------------------------------------------------------------
+
+    def _launch(self, resume: Path | None) -> None:
+        app: Any = self.app
+        app.abort_event.clear()
+        app.procedure_running = True
+        self.state = "running"
+        self.message = ""
+        self._run(resume)
+
+    @work(thread=True, exclusive=True, group="run", exit_on_error=False)
+    def _run(self, resume: Path | None) -> None:
+        app: Any = self.app
+        call = app.call_from_thread
+        with app.device_activity():
+            try:
+                with app.device_lock:  # the live view is out of the camera from here on
+                    pass
+                if self.runner is None:
+                    self.runner = services.make_runner(
+                        procedure=self.procedure,
+                        resume=resume,
+                        bench=app.bench,
+                        params=app.params_files.get(self.procedure),
+                        root=app.sessions_dir,
+                        prompt=self._prompt_operator,
+                        progress=self._progress,
+                        abort=app.abort_event,
+                        on_result=self._on_result,
+                    )
+                    call(self._started, self.runner)
+                self.outcome = self.runner.run()
+            except Exception as exc:  # noqa: BLE001 - every ending is shown to the operator
+                call(self._ended, exc)
+            else:
+                call(self._ended, None)
+            finally:
+                call(setattr, app, "procedure_running", False)
+
+    def _started(self, runner: Any) -> None:
+        self.session_path = Path(runner.session.path)
+        if resume_proc := getattr(runner.session, "procedure", None):
+            self.set_reactive(RunScreen.procedure, resume_proc)
+        self._show_steps(runner.steps, set(runner.completed()))
+        self._refresh_status()
+
+    def _ended(self, exc: BaseException | None) -> None:
+        running = [s for s, st in self.step_status.items() if st == "running"]
+        if exc is None:
+            for sid in running:
+                self._set_step(sid, "done")
+            self.state = "done"
+            self.message = "[green]Run complete; results saved in the session.[/green]"
+            outcome = self.outcome
+            self._tables = list((outcome.tables or {}).items()) if outcome else []
+            self._table_index = 0
+            self._show_table()
+            return
+        kind = services.run_ending(exc)
+        if kind == "aborted":
+            for sid in running:
+                self._set_step(sid, "aborted")
+            self.state = "aborted"
+            self.message = (
+                "[yellow]Aborted: LEDs off, stage stopped. The session can be resumed "
+                "(t: retry from the first incomplete step).[/yellow]"
+            )
+        elif kind == "failed":
+            for sid in running:
+                self._set_step(sid, "failed")
+            self.state = "failed"
+            cause = getattr(exc, "cause", exc)
+            self.message = f"[red]{services.plain_error(cause)}[/red]\n t: retry the step"
+            self.app.show_error("A step failed", cause)  # type: ignore[attr-defined]
+        else:
+            self.state = "failed" if self.runner is not None else "idle"
+            self.message = f"[red]{services.plain_error(exc)}[/red]"
+            self.app.show_error("The run could not continue", exc)  # type: ignore[attr-defined]
+
+    # callbacks from the runner thread ------------------------------------------------------
+
+    def _progress(self, done: int, total: int, step: Any) -> None:
+        self.app.call_from_thread(self._on_progress, done, total, step.id if step else None)
+
+    def _on_progress(self, done: int, total: int, step_id: str | None) -> None:
+        for sid, status in self.step_status.items():
+            if status == "running":
+                self._set_step(sid, "done")
+        if step_id is not None:
+            self._set_step(step_id, "running")
+        self.query_one(ProgressBar).update(total=max(1, total), progress=done)
+
+    def _on_result(self, step: Any, data: Mapping[str, Any]) -> None:
+        self.app.call_from_thread(self._add_result, step.id, dict(data))
+
+    def _prompt_operator(self, step: Any, message: str) -> bool:
+        """Show a manual step and wait for the operator; polls abort and the live figure."""
+        app: Any = self.app
+        answer: concurrent.futures.Future[bool] = concurrent.futures.Future()
+        dialog = PromptDialog(f"Step {step.table_step or step.id}: {step.title}", message)
+
+        def show() -> None:
+            self._prompt = dialog
+            app.push_screen(dialog, callback=lambda ok: answer.set_result(bool(ok)))
+
+        app.call_from_thread(show)
+        worker = get_current_worker()
+        try:
+            while True:
+                try:
+                    return answer.result(timeout=0.25)
+                except concurrent.futures.TimeoutError:
+                    pass
+                if app.abort_event.is_set() or worker.is_cancelled:
+                    app.call_from_thread(self._close_prompt, dialog)
+                    return False
+                if step.kind == "focus":
+                    self._update_focus_figure(dialog)
+        finally:
+            self._prompt = None
+
+    def _close_prompt(self, dialog: PromptDialog) -> None:
+        if dialog.is_attached and self.app.screen is dialog:
+            dialog.dismiss(False)
+
+    def _update_focus_figure(self, dialog: PromptDialog) -> None:
+        app: Any = self.app
+        try:
+            value = services.focus_sharpness(app.bench, self.runner)
+        except Exception as exc:  # noqa: BLE001 - a figure, not a reason to stop the run
+            text = f"sharpness: unavailable ({services.plain_error(exc)})"
+        else:
+            text = f"sharpness now: {value:.4g}  (turn the back focus to maximise it)"
+        app.call_from_thread(dialog.set_live_figure, text)

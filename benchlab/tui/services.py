@@ -1,0 +1,354 @@
+"""The UI's only door into the layers below: bench, camera, analysis, procedures, sessions.
+
+Every function here is a thin call into the same code the command line uses; the UI keeps no
+measurement logic of its own. Functions that block (device I/O, analysis, disk) are meant to
+be called from thread workers.
+"""
+
+from __future__ import annotations
+
+import errno
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.drivers import errors
+from benchlab.tui.widgets import Roi
+
+
+def plain_error(exc: BaseException) -> str:
+    """Explain ``exc`` to a technician in plain words (one or a few lines)."""
+    detail = str(exc) or exc.__class__.__name__
+    if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
+        return (
+            "The disk is full; nothing more could be saved. Free some space, then resume.\n"
+            f"{detail}"
+        )
+    if isinstance(exc, errors.DeviceNotFoundError):
+        return f"A device was not found. Check that it is plugged in and powered.\n{detail}"
+    if isinstance(exc, errors.DeviceLostError):
+        return f"The connection to a device was lost. Check its cable and power.\n{detail}"
+    if isinstance(exc, errors.DeviceTimeoutError):
+        return f"A device did not answer in time.\n{detail}"
+    if isinstance(exc, errors.SafetyLimitError):
+        return f"Refused: that would exceed a safety limit. Nothing was sent.\n{detail}"
+    if isinstance(exc, errors.SettingOutOfRangeError):
+        return f"That setting is out of range. Nothing was sent.\n{detail}"
+    if isinstance(exc, errors.ProtocolError):
+        return f"A device gave an unexpected reply.\n{detail}"
+    if isinstance(exc, FileNotFoundError):
+        return f"File not found: {exc.filename or detail}"
+    if isinstance(exc, errors.BenchlabError):
+        return detail
+    return f"{exc.__class__.__name__}: {detail}"
+
+
+@dataclass(frozen=True)
+class LiveReading:
+    """What the live view shows for one frame."""
+
+    index: int
+    preview: npt.NDArray[np.float32]
+    frame_shape: tuple[int, int]
+    roi: Roi
+    preview_roi: Roi
+    roi_pixels: npt.NDArray[np.generic]
+    max_code: float
+    dark: float | None
+    bright: float | None
+    modulation: float | None
+    resolved: bool
+    clipped_fraction: float | None
+    sharpness: float | None
+    exposure_ms: float
+    gain: float
+    note: str = ""
+
+
+def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDArray[np.float32]:
+    """A small float copy of a frame for display (area-averaged)."""
+    import cv2
+
+    rows, cols = pixels.shape[:2]
+    scale = min(1.0, max_side / max(rows, cols))
+    img = np.asarray(pixels, dtype=np.float32)
+    if scale >= 1.0:
+        return img
+    size = (max(1, int(cols * scale)), max(1, int(rows * scale)))
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+
+
+# -- the bench -------------------------------------------------------------------------------
+
+
+def open_bench(config: Path | None, simulate: bool, seed: int | None = None) -> Any:
+    """Open every configured device (or the simulated bench), like the CLI does."""
+    from benchlab.bench import Bench, BenchConfig
+
+    cfg = BenchConfig.load(config)
+    if seed is not None:
+        try:
+            return Bench.open(cfg, simulate=simulate, seed=seed)
+        except TypeError:
+            pass
+    return Bench.open(cfg, simulate=simulate)
+
+
+def close_bench(bench: Any) -> None:
+    """LEDs off, stage stopped, devices closed."""
+    try:
+        bench.safe_state()
+    finally:
+        close = getattr(bench, "close", None)
+        if callable(close):
+            close()
+        else:
+            bench.__exit__(None, None, None)
+
+
+def safe_state(bench: Any) -> None:
+    bench.safe_state()
+
+
+def grab(bench: Any, exposure_ms: float, gain: float) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+    """One frame at these settings: ``(pixels, metadata)``."""
+    pixels, meta = bench.grab(exposure_ms=exposure_ms, gain=gain)
+    return np.asarray(pixels), dict(meta or {})
+
+
+def max_code_of(pixels: npt.NDArray[Any], meta: Mapping[str, Any]) -> float:
+    """Full-scale code of a frame: from its bit depth, else from its dtype."""
+    bits = meta.get("bits")
+    if isinstance(bits, int) and bits > 0:
+        if pixels.dtype == np.uint16 and bits == 12 and int(pixels.max(initial=0)) > 4095:
+            return 65535.0
+        return float(2**bits - 1)
+    if pixels.dtype == np.uint8:
+        return 255.0
+    return float(max(4095, int(pixels.max(initial=0))))
+
+
+# -- analysis for the live view ---------------------------------------------------------------
+
+
+def estimator_names() -> list[str]:
+    from benchlab.analysis.estimators import ESTIMATORS
+
+    return list(ESTIMATORS)
+
+
+def default_estimator() -> str:
+    try:
+        from benchlab.analysis.estimators import DEFAULT_ESTIMATOR
+    except ImportError:  # pragma: no cover - analysis layer not installed
+        return ""
+    return DEFAULT_ESTIMATOR
+
+
+def live_reading(
+    frame: tuple[npt.NDArray[Any], Mapping[str, Any]],
+    roi: Roi,
+    estimator: str,
+    orientation: str,
+    index: int,
+    exposure_ms: float,
+    gain: float,
+) -> LiveReading:
+    """Everything the live view shows about one frame (runs in the acquisition thread)."""
+    from benchlab.analysis.estimators import estimate_modulation
+    from benchlab.analysis.focus import sharpness
+
+    pixels, meta = frame
+    rows, cols = pixels.shape[:2]
+    roi = roi.moved(0, 0, (rows, cols))
+    roi_pixels = roi.slice(pixels)
+    max_code = max_code_of(pixels, meta)
+    preview = preview_of(pixels)
+    sy, sx = preview.shape[0] / rows, preview.shape[1] / cols
+    preview_roi = Roi(
+        int(roi.row * sy), int(roi.col * sx),
+        max(1, int(roi.height * sy)), max(1, int(roi.width * sx)),
+    )
+    note = ""
+    dark = bright = modulation = clipped = None
+    resolved = False
+    try:
+        result = estimate_modulation(
+            roi_pixels, estimator=estimator, orientation=orientation, max_code=max_code
+        )
+        modulation, resolved = result.modulation, result.resolved
+        clipped = result.diagnostics.clipped_fraction
+        dark, bright = result.dark, result.bright
+        if result.warnings:
+            note = result.warnings[0]
+    except ValueError as exc:
+        note = str(exc)
+    focus: float | None
+    try:
+        focus = sharpness(pixels, (roi.row, roi.col, roi.row + roi.height, roi.col + roi.width))
+    except ValueError:
+        focus = None
+    if clipped is None:
+        clipped = float(np.mean(roi_pixels >= max_code)) if roi_pixels.size else None
+    return LiveReading(
+        index=index, preview=preview, frame_shape=(rows, cols), roi=roi,
+        preview_roi=preview_roi, roi_pixels=roi_pixels, max_code=max_code, dark=dark,
+        bright=bright, modulation=modulation, resolved=resolved, clipped_fraction=clipped,
+        sharpness=focus, exposure_ms=exposure_ms, gain=gain, note=note,
+    )
+
+
+# -- procedures ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ChecklistStep:
+    """A step as the checklist shows it before a run exists."""
+
+    id: str
+    title: str
+    table_step: str
+    kind: str = ""
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+
+def procedure_checklist(procedure: str, params_file: Path | None) -> list[Any]:
+    """The steps a run of ``procedure`` would take with these parameters (validated)."""
+    from benchlab.protocols import load_params
+    from benchlab.protocols.runs import make_procedure
+
+    params = load_params(procedure, params_file)
+    return list(make_procedure(procedure, params).steps())
+
+
+def make_runner(
+    *,
+    procedure: str,
+    resume: Path | None,
+    bench: Any,
+    params: Path | None,
+    root: Path,
+    prompt: Callable[[Any, str], bool],
+    progress: Callable[[int, int, Any], None],
+    abort: threading.Event,
+    on_result: Callable[[Any, Mapping[str, Any]], None],
+    estimator: str | None = None,
+    operator: str = "technician",
+) -> Any:
+    """A runner for a fresh run, or for resuming the session at ``resume``."""
+    from benchlab.protocols import load_params, resume_run, start_run
+
+    if resume is not None:
+        return resume_run(
+            resume, bench=bench, prompt=prompt, progress=progress, abort=abort,
+            on_result=on_result,
+        )
+    return start_run(
+        procedure, bench=bench, params=load_params(procedure, params), root=root,
+        operator=operator, prompt=prompt, progress=progress, abort=abort, on_result=on_result,
+        estimator=estimator,
+    )
+
+
+def run_ending(exc: BaseException) -> str:
+    """``"aborted"``, ``"failed"`` (a step failed: retry it) or ``"error"``."""
+    from benchlab.protocols import RunAborted, StepFailed
+
+    if isinstance(exc, RunAborted):
+        return "aborted"
+    if isinstance(exc, StepFailed):
+        return "failed"
+    return "error"
+
+
+def focus_sharpness(bench: Any, runner: Any) -> float:
+    """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
+    from benchlab.analysis.focus import sharpness
+
+    params = getattr(getattr(runner, "procedure", None), "params", None)
+    exposure = float(getattr(params, "exposure_ms", 300.0))
+    gain = float(getattr(params, "gain", 1.0))
+    pixels, _ = grab(bench, exposure, gain)
+    return sharpness(pixels)
+
+
+# -- sessions --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """One line of the sessions browser."""
+
+    path: Path
+    procedure: str
+    status: str
+    started_at: str
+    operator: str
+    steps_done: int
+    result_versions: int
+    error: str = ""
+
+
+def list_sessions(root: Path) -> list[SessionSummary]:
+    """Every session folder under ``root``, newest first; unreadable ones say why."""
+    from benchlab.session import Session
+
+    out: list[SessionSummary] = []
+    if not root.is_dir():
+        return out
+    for folder in sorted(root.iterdir(), reverse=True):
+        if not (folder / "session.json").exists():
+            continue
+        try:
+            s = Session.open(folder)
+            meta = s.meta
+            out.append(SessionSummary(
+                path=folder, procedure=s.procedure, status=s.status,
+                started_at=str(meta.get("started_at", ""))[:19].replace("T", " "),
+                operator=str(meta.get("operator", "")),
+                steps_done=len(s.completed_steps()), result_versions=len(s.result_versions()),
+            ))
+        except Exception as exc:  # noqa: BLE001 - a damaged session is listed, not fatal
+            out.append(SessionSummary(folder, "?", "unreadable", "", "", 0, 0, plain_error(exc)))
+    return out
+
+
+def session_tables(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The latest results version of a session: ``(tables, summary)`` (empty if none)."""
+    import json
+
+    from benchlab.session import Session
+
+    s = Session.open(path)
+    latest = s.latest_results()
+    tables: dict[str, Any] = {}
+    summary: dict[str, Any] = {}
+    if latest is None:
+        return tables, summary
+    for p in sorted(Path(latest).glob("*.json")):
+        data = json.loads(p.read_text(encoding="utf-8"))
+        if p.stem == "summary":
+            summary = data
+        elif isinstance(data, dict):
+            tables[p.stem] = data
+    return tables, summary
+
+
+def reanalyse(path: Path, estimator: str | None) -> Path:
+    """A new results version from the saved frames (frames are never modified)."""
+    from benchlab.protocols import reanalyze
+
+    return Path(reanalyze(path, estimator=estimator))
+
+
+def write_report(path: Path) -> Path:
+    """The session's HTML report (same as ``benchlab report SESSION``)."""
+    from benchlab.report import write_report as _write
+
+    return Path(_write(path))

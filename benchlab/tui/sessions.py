@@ -1,0 +1,242 @@
+"""Sessions browser: list, open, re-analyse with another estimator, write report, resume."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.reactive import reactive
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Static
+
+from benchlab.tui import services
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return "" if value is None else str(value)
+
+
+class SessionsScreen(Screen[None]):
+    """Saved sessions under the sessions folder."""
+
+    DEFAULT_CSS = """
+    SessionsScreen #sessions-status { height: auto; padding: 0 1; background: $boost; }
+    SessionsScreen #sessions-body { height: 1fr; }
+    SessionsScreen #session-list { width: 1fr; border: round $primary; }
+    SessionsScreen #session-detail { width: 1fr; border: round $primary; }
+    SessionsScreen #session-info { height: auto; }
+    SessionsScreen #session-table { height: 1fr; }
+    """
+    BINDINGS = [
+        Binding("enter", "open", "Open", show=True),
+        Binding("m", "estimator", "Method"),
+        Binding("n", "reanalyse", "Re-analyse"),
+        Binding("w", "report", "Report"),
+        Binding("u", "resume", "Resume"),
+        Binding("v", "next_table", "Table"),
+        Binding("R", "reload", "Reload"),
+    ]
+
+    estimator: reactive[str] = reactive("")
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sessions: list[services.SessionSummary] = []
+        self.opened: Path | None = None
+        self._tables: list[tuple[str, dict[str, Any]]] = []
+        self._table_index = 0
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static("", id="sessions-status")
+        with Horizontal(id="sessions-body"):
+            yield DataTable(id="session-list", cursor_type="row")
+            with Vertical(id="session-detail"):
+                yield Static("[dim]Enter: open the selected session[/dim]", id="session-info")
+                yield DataTable(id="session-table", cursor_type="row")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one("#session-list", DataTable)
+        table.add_columns("session", "procedure", "status", "steps", "results")
+        table.border_title = "sessions"
+        self.query_one("#session-detail").border_title = "session"
+        if not self.estimator:
+            self.estimator = services.default_estimator()
+
+    def on_screen_resume(self) -> None:
+        self.action_reload()
+
+    def watch_estimator(self) -> None:
+        self._status()
+
+    def _status(self, extra: str = "") -> None:
+        if not self.is_mounted:
+            return
+        root = self.app.sessions_dir  # type: ignore[attr-defined]
+        text = f"folder [b]{root}[/b]  re-analysis method [b]{self.estimator or 'default'}[/b]"
+        if extra:
+            text += f"\n{extra}"
+        self.query_one("#sessions-status", Static).update(text)
+
+    # -- listing ----------------------------------------------------------------------------
+
+    def action_reload(self) -> None:
+        self._load()
+
+    @work(thread=True, exclusive=True, group="sessions-list", exit_on_error=False)
+    def _load(self) -> None:
+        app: Any = self.app
+        try:
+            found = services.list_sessions(Path(app.sessions_dir))
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Could not list sessions", exc)
+            return
+        app.call_from_thread(self._show_list, found)
+
+    def _show_list(self, found: list[services.SessionSummary]) -> None:
+        self.sessions = found
+        table = self.query_one("#session-list", DataTable)
+        table.clear()
+        for s in found:
+            table.add_row(
+                s.path.name, s.procedure, s.status, str(s.steps_done),
+                f"v{s.result_versions}" if s.result_versions else "-", key=str(s.path),
+            )
+        self._status(f"{len(found)} session(s)")
+
+    def _selected(self) -> Path | None:
+        table = self.query_one("#session-list", DataTable)
+        if not self.sessions or table.cursor_row < 0 or table.cursor_row >= len(self.sessions):
+            self.notify("No session selected.", severity="warning")
+            return None
+        return self.sessions[table.cursor_row].path
+
+    # -- open -------------------------------------------------------------------------------
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        if event.data_table.id == "session-list":
+            self.action_open()
+
+    def action_open(self) -> None:
+        path = self._selected()
+        if path is not None:
+            self._open(path)
+
+    @work(thread=True, exclusive=True, group="sessions-open", exit_on_error=False)
+    def _open(self, path: Path) -> None:
+        app: Any = self.app
+        try:
+            tables, summary = services.session_tables(path)
+            info = next((s for s in services.list_sessions(path.parent) if s.path == path), None)
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, f"Could not open {path.name}", exc)
+            return
+        app.call_from_thread(self._show_session, path, info, tables, summary)
+
+    def _show_session(
+        self,
+        path: Path,
+        info: services.SessionSummary | None,
+        tables: dict[str, Any],
+        summary: dict[str, Any],
+    ) -> None:
+        self.opened = path
+        lines = [f"[b]{path.name}[/b]"]
+        if info is not None:
+            lines.append(
+                f"{info.procedure}  {info.status}  started {info.started_at}  "
+                f"operator {info.operator}  steps done {info.steps_done}  "
+                f"results v{info.result_versions}"
+            )
+            if info.error:
+                lines.append(f"[red]{info.error}[/red]")
+        if summary.get("estimator"):
+            lines.append(f"estimator {summary['estimator']}")
+        if not tables:
+            lines.append("[dim]no results yet (u: resume the run)[/dim]")
+        self.query_one("#session-info", Static).update("\n".join(lines))
+        self._tables = list(tables.items())
+        self._table_index = 0
+        self._show_table()
+
+    def _show_table(self) -> None:
+        table = self.query_one("#session-table", DataTable)
+        table.clear(columns=True)
+        if not self._tables:
+            return
+        name, data = self._tables[self._table_index % len(self._tables)]
+        rows = list(data.get("rows") or [])
+        columns = list(data.get("columns") or (rows[0].keys() if rows else []))
+        table.add_columns(*columns)
+        for row in rows:
+            table.add_row(*(_fmt(row.get(c)) for c in columns))
+        self.query_one("#session-detail").border_title = (
+            f"{name} ({self._table_index % len(self._tables) + 1}/{len(self._tables)})"
+        )
+
+    def action_next_table(self) -> None:
+        if self._tables:
+            self._table_index += 1
+            self._show_table()
+
+    # -- actions ----------------------------------------------------------------------------
+
+    def action_estimator(self) -> None:
+        names = services.estimator_names()
+        i = names.index(self.estimator) if self.estimator in names else -1
+        self.estimator = names[(i + 1) % len(names)]
+
+    def action_reanalyse(self) -> None:
+        path = self.opened or self._selected()
+        if path is not None:
+            self._status(f"re-analysing {path.name} with {self.estimator}...")
+            self._reanalyse(path, self.estimator)
+
+    @work(thread=True, exclusive=True, group="sessions-analyse", exit_on_error=False)
+    def _reanalyse(self, path: Path, estimator: str) -> None:
+        app: Any = self.app
+        try:
+            out = services.reanalyse(path, estimator or None)
+        except Exception as exc:  # noqa: BLE001 - frames untouched; shown in plain words
+            app.call_from_thread(app.show_error, "Re-analysis failed", exc)
+            return
+        app.call_from_thread(self.notify, f"New results: {out.name} ({estimator})")
+        app.call_from_thread(self._after_change, path)
+
+    def _after_change(self, path: Path) -> None:
+        self._load()
+        self._open(path)
+
+    def action_report(self) -> None:
+        path = self.opened or self._selected()
+        if path is not None:
+            self._status(f"writing the report of {path.name}...")
+            self._report(path)
+
+    @work(thread=True, exclusive=True, group="sessions-report", exit_on_error=False)
+    def _report(self, path: Path) -> None:
+        app: Any = self.app
+        try:
+            out = services.write_report(path)
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Report failed", exc)
+            return
+        app.call_from_thread(self._status, f"report written: {out}")
+        app.call_from_thread(self.notify, f"Report written: {out}")
+
+    async def action_resume(self) -> None:
+        path = self.opened or self._selected()
+        if path is None:
+            return
+        app: Any = self.app
+        if app.bench is None:
+            self.notify("Connect the bench first (Devices, c).", severity="error")
+            return
+        await app.resume_session(path)

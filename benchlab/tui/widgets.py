@@ -1,0 +1,236 @@
+"""Display widgets: a camera frame in half-block characters and an ROI histogram."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+from rich.color import Color
+from rich.segment import Segment
+from rich.style import Style
+from rich.text import Text
+from textual.strip import Strip
+from textual.widget import Widget
+
+UPPER_HALF = "\u2580"
+ROI_RGB = (255, 200, 0)
+BARS = " \u2581\u2582\u2583\u2584\u2585\u2586\u2587\u2588"
+
+
+@dataclass(frozen=True)
+class Roi:
+    """A rectangle in frame pixels, numpy convention: top-left ``(row, col)`` and size."""
+
+    row: int
+    col: int
+    height: int
+    width: int
+
+    def moved(self, d_row: int, d_col: int, frame_shape: tuple[int, int]) -> Roi:
+        """Shifted by ``(d_row, d_col)``, kept inside a frame of ``frame_shape``."""
+        rows, cols = frame_shape
+        row = min(max(0, self.row + d_row), max(0, rows - self.height))
+        col = min(max(0, self.col + d_col), max(0, cols - self.width))
+        return Roi(row, col, self.height, self.width)
+
+    def resized(self, d_height: int, d_width: int, frame_shape: tuple[int, int]) -> Roi:
+        """Grown (or shrunk) about its centre by ``(d_height, d_width)``; at least 8 px."""
+        rows, cols = frame_shape
+        height = min(max(8, self.height + d_height), rows)
+        width = min(max(8, self.width + d_width), cols)
+        row = self.row - (height - self.height) // 2
+        col = self.col - (width - self.width) // 2
+        return Roi(row, col, height, width).moved(0, 0, frame_shape)
+
+    def slice(self, pixels: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
+        """The ROI's pixels of ``pixels``."""
+        return pixels[self.row : self.row + self.height, self.col : self.col + self.width]
+
+    def label(self) -> str:
+        return f"ROI (r{self.row}, c{self.col}) {self.width}x{self.height}"
+
+
+@lru_cache(maxsize=8192)
+def _cell_style(top: tuple[int, int, int], bottom: tuple[int, int, int]) -> Style:
+    return Style(color=Color.from_rgb(*top), bgcolor=Color.from_rgb(*bottom))
+
+
+def to_display_rgb(
+    pixels: npt.NDArray[np.generic], cells: tuple[int, int], roi: Roi | None, max_code: float
+) -> npt.NDArray[np.uint8]:
+    """Downscale ``pixels`` to fit ``cells`` (columns, rows) of half-blocks; RGB with the ROI.
+
+    Returns an ``(2 * rows', cols', 3)`` uint8 array (aspect ratio kept, so it may be smaller
+    than the cell grid).
+    """
+    cols, rows = cells
+    frame_rows, frame_cols = pixels.shape[:2]
+    if cols < 1 or rows < 1 or frame_rows < 1 or frame_cols < 1:
+        return np.zeros((0, 0, 3), np.uint8)
+    scale = min(cols / frame_cols, 2 * rows / frame_rows)
+    out_cols = max(1, int(frame_cols * scale))
+    out_rows = max(2, int(frame_rows * scale) // 2 * 2)
+    gray = np.asarray(pixels, dtype=np.float32) * (255.0 / max(max_code, 1.0))
+    small = cv2.resize(gray, (out_cols, out_rows), interpolation=cv2.INTER_AREA)
+    small8 = np.clip(small, 0, 255).astype(np.uint8) & 0xFC  # fewer distinct styles
+    rgb = np.repeat(small8[:, :, None], 3, axis=2)
+    if roi is not None:
+        sy, sx = out_rows / frame_rows, out_cols / frame_cols
+        r0 = min(out_rows - 1, int(roi.row * sy))
+        r1 = min(out_rows - 1, max(r0, int((roi.row + roi.height) * sy) - 1))
+        c0 = min(out_cols - 1, int(roi.col * sx))
+        c1 = min(out_cols - 1, max(c0, int((roi.col + roi.width) * sx) - 1))
+        rgb[r0, c0 : c1 + 1] = ROI_RGB
+        rgb[r1, c0 : c1 + 1] = ROI_RGB
+        rgb[r0 : r1 + 1, c0] = ROI_RGB
+        rgb[r0 : r1 + 1, c1] = ROI_RGB
+    return rgb
+
+
+def rgb_to_strips(rgb: npt.NDArray[np.uint8]) -> list[Strip]:
+    """One :class:`Strip` per pair of image rows (upper half-block: fg = top, bg = bottom)."""
+    strips: list[Strip] = []
+    for y in range(0, rgb.shape[0] - 1, 2):
+        top_row = [tuple(int(v) for v in px) for px in rgb[y]]
+        bottom_row = [tuple(int(v) for v in px) for px in rgb[y + 1]]
+        segments: list[Segment] = []
+        run = 0
+        prev: tuple[tuple[int, ...], tuple[int, ...]] | None = None
+        for top, bottom in zip(top_row, bottom_row, strict=True):
+            key = (top, bottom)
+            if key != prev and prev is not None:
+                segments.append(Segment(UPPER_HALF * run, _cell_style(*prev)))  # type: ignore[arg-type]
+                run = 0
+            prev = key
+            run += 1
+        if prev is not None:
+            segments.append(Segment(UPPER_HALF * run, _cell_style(*prev)))  # type: ignore[arg-type]
+        strips.append(Strip(segments, rgb.shape[1]))
+    return strips
+
+
+class FrameView(Widget):
+    """The latest camera frame, downscaled into half-block characters, with the ROI drawn."""
+
+    DEFAULT_CSS = """
+    FrameView { width: 1fr; height: 1fr; min-height: 4; }
+    """
+
+    def __init__(self, *, id: str | None = None, classes: str | None = None) -> None:
+        super().__init__(id=id, classes=classes)
+        self._pixels: npt.NDArray[np.generic] | None = None
+        self._roi: Roi | None = None
+        self._max_code = 255.0
+        self._strips: list[Strip] | None = None
+        self._strips_size: tuple[int, int] = (0, 0)
+        self.frames_shown = 0
+
+    def show(self, pixels: npt.NDArray[np.generic], roi: Roi | None, max_code: float) -> None:
+        """Display ``pixels`` (any size) with ``roi`` marked; codes scale to ``max_code``."""
+        self._pixels = pixels
+        self._roi = roi
+        self._max_code = max_code
+        self._strips = None
+        self.frames_shown += 1
+        self.refresh()
+
+    def clear(self) -> None:
+        self._pixels = None
+        self._strips = None
+        self.refresh()
+
+    def _ensure_strips(self) -> list[Strip]:
+        size = (self.size.width, self.size.height)
+        if self._strips is None or self._strips_size != size:
+            if self._pixels is None:
+                self._strips = []
+            else:
+                rgb = to_display_rgb(self._pixels, size, self._roi, self._max_code)
+                self._strips = rgb_to_strips(rgb)
+            self._strips_size = size
+        return self._strips
+
+    def render_line(self, y: int) -> Strip:
+        strips = self._ensure_strips()
+        width = self.size.width
+        if y < len(strips):
+            strip = strips[y]
+            pad = max(0, width - strip.cell_length) // 2
+            return Strip([Segment(" " * pad), *strip._segments]).crop(0, width)
+        if not strips and y == self.size.height // 2:
+            return Strip([Segment("no camera image".center(width), Style(dim=True))])
+        return Strip.blank(width)
+
+
+class RoiHistogram(Widget):
+    """Histogram of the ROI's gray codes with the dark and bright levels marked."""
+
+    DEFAULT_CSS = """
+    RoiHistogram { height: 7; width: 1fr; }
+    """
+
+    def __init__(self, *, id: str | None = None, classes: str | None = None) -> None:
+        super().__init__(id=id, classes=classes)
+        self._counts: npt.NDArray[np.float64] | None = None
+        self._max_code = 255.0
+        self._dark: float | None = None
+        self._bright: float | None = None
+
+    def show(
+        self,
+        roi_pixels: npt.NDArray[np.generic],
+        max_code: float,
+        dark: float | None,
+        bright: float | None,
+    ) -> None:
+        """Histogram ``roi_pixels`` over ``[0, max_code]``; mark ``dark`` / ``bright``."""
+        bins = max(8, self.size.width or 64)
+        counts, _ = np.histogram(
+            np.asarray(roi_pixels, dtype=np.float64), bins=bins, range=(0.0, max_code + 1.0)
+        )
+        self._counts = counts.astype(np.float64)
+        self._max_code = max_code
+        self._dark, self._bright = dark, bright
+        self.refresh()
+
+    def _column(self, level: float | None, width: int) -> int | None:
+        if level is None or not np.isfinite(level):
+            return None
+        return int(min(width - 1, max(0, level / (self._max_code + 1.0) * width)))
+
+    def render(self) -> Text:
+        width, height = max(1, self.size.width), max(2, self.size.height)
+        if self._counts is None or self._counts.sum() == 0:
+            return Text("no histogram", style="dim")
+        counts = self._counts
+        if len(counts) != width:  # re-bin to the widget width
+            edges = np.linspace(0, len(counts), width + 1).astype(int)
+            counts = np.array([counts[a:b].sum() if b > a else 0 for a, b in zip(edges[:-1],
+                                                                                  edges[1:],
+                                                                                  strict=True)])
+        peak = counts.max() or 1.0
+        plot_rows = height - 1
+        levels = np.sqrt(counts / peak) * plot_rows * 8  # sqrt: show small populations
+        dark_col, bright_col = self._column(self._dark, width), self._column(self._bright, width)
+        text = Text()
+        for row in range(plot_rows):
+            base = (plot_rows - 1 - row) * 8
+            for col in range(width):
+                fill = int(min(8, max(0, levels[col] - base)))
+                style = "cyan"
+                if col == dark_col:
+                    style = "bold blue"
+                elif col == bright_col:
+                    style = "bold yellow"
+                text.append(BARS[fill], style=style)
+            text.append("\n")
+        axis = [" "] * width
+        if dark_col is not None:
+            axis[dark_col] = "D"
+        if bright_col is not None:
+            axis[bright_col] = "B"
+        text.append("".join(axis), style="bold")
+        return text
