@@ -68,7 +68,7 @@ class PtyDevice:
         self._slave_fd: int | None = None
         self._port: str | None = None
         self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        self._stop_event = threading.Event()
         self.connected = False
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -90,14 +90,14 @@ class PtyDevice:
         self._master_fd, self._slave_fd = master, slave
         self._port = os.ttyname(slave)  # we keep the slave open so re-opens never see EIO
         self.connected = True
-        self._stop.clear()
+        self._stop_event.clear()
         self._thread = threading.Thread(target=self._serve, name=self.name, daemon=True)
         self._thread.start()
         return self._port
 
     def stop(self) -> None:
         """Stop serving and close the pseudo-terminal."""
-        self._stop.set()
+        self._stop_event.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
         self._thread = None
@@ -107,7 +107,7 @@ class PtyDevice:
         """Fault: the link vanishes (cable pulled). The driver's next read/write fails."""
         with self.lock:
             self.connected = False
-        self._stop.set()
+        self._stop_event.set()
         self._close_fds()
 
     def __enter__(self) -> PtyDevice:
@@ -145,7 +145,7 @@ class PtyDevice:
             view = view[n:]
 
     def _serve(self) -> None:
-        while not self._stop.is_set():
+        while not self._stop_event.is_set():
             fd = self._master_fd
             if fd is None:
                 return
