@@ -1,0 +1,178 @@
+"""The simulated bench's world: which target is mounted, and the scene the camera then sees.
+
+Targets (the set-ups of Table 4.10 and section 4.4):
+
+- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`);
+- ``("radial", lp_per_mm, "sagittal" | "tangential")`` - a rolled radial pattern
+  (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
+- ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
+  ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
+- ``"dark"`` - nothing lit (lens cap on).
+
+``state.bench["target"]``, when present, overrides the mounted target for that exposure, so a
+bench assembly can keep the target in the state it already passes to the camera.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.drivers.sensor import AcquisitionState
+from benchlab.scenes.led import LedScene
+from benchlab.scenes.radial import RadialScene
+from benchlab.scenes.usaf import UsafScene
+
+FloatArray = npt.NDArray[np.float64]
+Target = tuple[Any, ...]
+TARGET_KINDS = ("usaf", "radial", "led", "dark")
+
+
+def parse_target(target: object) -> Target:
+    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)`` or
+    ``("radial", lp_per_mm, orientation)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the spec when it is not one of the accepted forms.
+    """
+    spec: object = target
+    if isinstance(spec, str) and ":" in spec:
+        spec = spec.split(":")
+    if isinstance(spec, str):
+        if spec in ("usaf", "led", "dark"):
+            return (spec,)
+        raise ValueError(f"unknown target {target!r}; expected one of {TARGET_KINDS}")
+    if isinstance(spec, list | tuple) and len(spec) == 3 and spec[0] == "radial":
+        try:
+            lp = float(spec[1])
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"radial target {target!r}: frequency is not a number") from exc
+        if not lp > 0:
+            raise ValueError(f"radial target {target!r}: frequency must be > 0 lp/mm")
+        if spec[2] not in ("sagittal", "tangential"):
+            raise ValueError(f"radial target {target!r}: orientation must be sagittal/tangential")
+        return ("radial", lp, str(spec[2]))
+    if isinstance(spec, list | tuple) and len(spec) == 1:
+        return parse_target(spec[0])
+    raise ValueError(
+        f"unknown target {target!r}; expected 'usaf', 'led', 'dark' or "
+        "('radial', lp_per_mm, 'sagittal'|'tangential')"
+    )
+
+
+class SimWorld:
+    """What sits in front of the simulated camera; callable as a :class:`Scene`.
+
+    Parameters
+    ----------
+    target
+        The target mounted at start.
+    usaf, radial, led
+        Scene parameters. ``radial`` is a template whose frequency and orientation are replaced
+        per mounted pattern.
+    led_channel
+        Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
+    led_position_mm
+        Where the LED is when ``state.bench`` has no stage position (positioned by hand).
+    """
+
+    def __init__(
+        self,
+        target: object = "dark",
+        *,
+        usaf: UsafScene | None = None,
+        radial: RadialScene | None = None,
+        led: LedScene | None = None,
+        led_channel: int | str | None = None,
+        led_position_mm: float | None = None,
+    ) -> None:
+        self.usaf = usaf if usaf is not None else UsafScene()
+        self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
+        self.led = led if led is not None else LedScene()
+        self.led_channel = led_channel
+        self.led_position_mm = led_position_mm
+        self._radial: dict[tuple[float, str], RadialScene] = {}
+        self._lock = threading.Lock()
+        self._target = parse_target(target)
+
+    @property
+    def target(self) -> Target:
+        """The mounted target (normalised)."""
+        return self._target
+
+    @target.setter
+    def target(self, value: object) -> None:
+        self._target = parse_target(value)
+
+    def mount(self, target: object) -> None:
+        """Mount a target (same as assigning :attr:`target`)."""
+        self.target = target
+
+    def radial_scene(self, lp_per_mm: float, orientation: str) -> RadialScene:
+        """The (cached) radial scene for a pattern."""
+        key = (float(lp_per_mm), orientation)
+        with self._lock:
+            scene = self._radial.get(key)
+            if scene is None:
+                scene = dataclasses.replace(
+                    self.radial_template, object_lp_per_mm=key[0], orientation=orientation
+                )
+                self._radial[key] = scene
+        return scene
+
+    def scene_for(self, target: object) -> UsafScene | RadialScene | LedScene | None:
+        """The scene object of a target (None for ``"dark"``)."""
+        spec = parse_target(target)
+        if spec[0] == "usaf":
+            return self.usaf
+        if spec[0] == "radial":
+            return self.radial_scene(spec[1], spec[2])
+        if spec[0] == "led":
+            return self.led
+        return None
+
+    def led_current_ma(self, bench: Mapping[str, Any]) -> float:
+        """LED drive current from the bench state (0 when absent or switched off)."""
+        if bench.get("led_on") is False:
+            return 0.0
+        current = bench.get("led_current_ma", 0.0)
+        if isinstance(current, Mapping):
+            if self.led_channel is not None:
+                value = current.get(self.led_channel, current.get(str(self.led_channel), 0.0))
+                return float(value or 0.0)
+            return float(sum(float(v or 0.0) for v in current.values()))
+        if isinstance(current, list | tuple):
+            if self.led_channel is not None:
+                return float(current[int(self.led_channel)])
+            return float(sum(current))
+        return float(current or 0.0)
+
+    def stage_position_mm(self, bench: Mapping[str, Any]) -> float:
+        """LED position: the stage's, else the hand-set one, else mid-range."""
+        pos = bench.get("stage_position_mm")
+        if pos is None:
+            pos = self.led_position_mm
+        if pos is None:
+            pos = sum(self.led.position_range_mm) / 2.0
+        return float(pos)
+
+    def __call__(self, state: AcquisitionState) -> FloatArray:
+        """Electron-rate image (e-/ms) of whatever is mounted, for this acquisition state."""
+        bench = state.bench or {}
+        spec = parse_target(bench["target"]) if bench.get("target") is not None else self._target
+        if spec[0] == "dark":
+            return np.zeros((state.height, state.width))
+        if spec[0] == "led":
+            return self.led.render(
+                self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width
+            ).copy()
+        scene = self.scene_for(spec)
+        assert scene is not None
+        return scene(state)
