@@ -15,9 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 
-def sharpness(
-    pixels: npt.NDArray[Any], roi: tuple[int, int, int, int] | None = None
-) -> float:
+def sharpness(pixels: npt.NDArray[Any], roi: tuple[int, int, int, int] | None = None) -> float:
     """Variance of the Laplacian of a frame (or of ``roi`` = row0, col0, row1, col1).
 
     Parameters

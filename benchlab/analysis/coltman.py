@@ -1,0 +1,143 @@
+"""Bar (square-wave) contrast to sine-wave MTF: Coltman's series (JOSA 44:468, 1954).
+
+- Forward: ``CTF(f) = 4/pi * sum_{k odd} (-1)^((k-1)/2) MTF(k f) / k``.
+- Inverse: ``MTF(f) = pi/4 * sum_{k odd} B_k CTF(k f) / k`` with ``B_k = 0`` when k has a
+  repeated prime factor, else ``(-1)^m (-1)^((k-1)/2)`` (m = number of prime factors):
+  +1, +1/3, -1/5, +1/7, 0, +1/11, -1/13, -1/15, -1/17, +1/19, +1/21 for k = 1..21.
+
+Valid for a linear, shift-invariant system, linear (radiometric) gray levels and a long 50 %-duty
+square wave. The series needs CTF at 3f, 5f, ...: where ``k f`` is above the cutoff ``f_c``
+(MTF = 0 there) the term is exactly zero, so **for f > f_c / 3 the relation is exactly
+MTF = (pi/4) CTF**. Harmonics below the cutoff but beyond the measured range (or above Nyquist,
+where bars alias) are truncated - an assumption that MTF there is small, reported per point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+
+def _prime_factors(k: int) -> list[int]:
+    out, d = [], 2
+    while d * d <= k:
+        while k % d == 0:
+            out.append(d)
+            k //= d
+        d += 1
+    if k > 1:
+        out.append(k)
+    return out
+
+
+def coltman_coefficient(k: int) -> int:
+    """Coltman's ``B_k`` for odd ``k >= 1`` (0, +1 or -1)."""
+    if k < 1 or k % 2 == 0:
+        raise ValueError(f"Coltman coefficients exist for odd k >= 1, got {k}")
+    factors = _prime_factors(k)
+    if len(set(factors)) != len(factors):
+        return 0
+    return (-1) ** len(factors) * (-1) ** ((k - 1) // 2)
+
+
+@dataclass(frozen=True)
+class CtfToMtf:
+    """MTF from bar contrast, point by point.
+
+    Attributes
+    ----------
+    freqs_lp_per_mm, ctf, mtf : ndarray
+        Input frequencies and CTF, and the sine-wave MTF.
+    method : tuple of str
+        ``"pi/4"`` (f above f_c/3: exact), ``"coltman"`` (every needed harmonic measured or
+        above cutoff), or ``"truncated"`` (some harmonic below cutoff was not measured and was
+        taken as 0).
+    """
+
+    freqs_lp_per_mm: npt.NDArray[np.float64]
+    ctf: npt.NDArray[np.float64]
+    mtf: npt.NDArray[np.float64]
+    method: tuple[str, ...]
+
+
+def ctf_to_mtf(
+    freqs_lp_per_mm: npt.ArrayLike,
+    ctf: npt.ArrayLike,
+    *,
+    cutoff_lp_per_mm: float | None = None,
+    max_harmonic: int = 21,
+) -> CtfToMtf:
+    """Sine-wave MTF from bar contrast measured at several frequencies (Coltman's inverse).
+
+    Parameters
+    ----------
+    freqs_lp_per_mm : array_like
+        Frequencies where the CTF was measured (any order; duplicates not allowed), lp/mm.
+    ctf : array_like
+        Bar contrast (Eq. 2.9 modulation divided by the target's own modulation) at those
+        frequencies.
+    cutoff_lp_per_mm : float, optional
+        Frequency above which the MTF is zero (optics cutoff, or Nyquist if you accept that
+        assumption); ``CTF(k f)`` there is 0 exactly. ``None``: only measured harmonics count.
+    max_harmonic : int
+        Highest odd harmonic of the series.
+
+    Returns
+    -------
+    CtfToMtf
+        MTF at each input frequency with the method used.
+    """
+    f = np.asarray(freqs_lp_per_mm, dtype=np.float64).ravel()
+    c = np.asarray(ctf, dtype=np.float64).ravel()
+    if f.size != c.size or f.size == 0:
+        raise ValueError("need equally many frequencies and CTF values (at least one)")
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(c))) or np.any(f <= 0):
+        raise ValueError("frequencies must be positive and all values finite")
+    order = np.argsort(f)
+    fs, cs = f[order], c[order]
+    if np.any(np.diff(fs) == 0):
+        raise ValueError("duplicate frequencies")
+    f_max = float(fs[-1])
+    mtf = np.empty_like(f)
+    methods: list[str] = []
+    for i, fi in enumerate(f):
+        total = 0.0
+        method = "coltman"
+        if cutoff_lp_per_mm is not None and 3 * fi > cutoff_lp_per_mm:
+            method = "pi/4"
+        for k in range(1, max_harmonic + 1, 2):
+            b = coltman_coefficient(k)
+            if b == 0:
+                continue
+            fk = k * fi
+            if cutoff_lp_per_mm is not None and fk > cutoff_lp_per_mm:
+                continue
+            if fk <= f_max * (1 + 1e-9):
+                total += b * float(np.interp(fk, fs, cs)) / k
+            elif method == "coltman":
+                method = "truncated"
+        mtf[i] = math.pi / 4 * total
+        methods.append(method)
+    return CtfToMtf(f, c, mtf, tuple(methods))
+
+
+def mtf_to_ctf(
+    mtf_at: object, freqs_lp_per_mm: npt.ArrayLike, max_harmonic: int = 101
+) -> npt.NDArray[np.float64]:
+    """Coltman's forward series: CTF from a callable MTF(f) (vectorised), for checks."""
+    f = np.asarray(freqs_lp_per_mm, dtype=np.float64)
+    total = np.zeros_like(f)
+    for k in range(1, max_harmonic + 1, 2):
+        total += (-1) ** ((k - 1) // 2) * np.asarray(mtf_at(k * f)) / k  # type: ignore[operator]
+    return 4 / math.pi * total
+
+
+def mtf_from_fundamental(fundamental_modulation: float, object_modulation: float = 1.0) -> float:
+    """Sine-wave MTF from the fundamental of a long square-wave target: the fundamental of a
+    bar pattern of modulation M is (4/pi) M, so MTF = (pi/4) fundamental / M (Sitter 1995)."""
+    if object_modulation <= 0:
+        raise ValueError(f"object modulation must be positive, got {object_modulation}")
+    return math.pi / 4 * fundamental_modulation / object_modulation

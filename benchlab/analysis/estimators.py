@@ -1,0 +1,383 @@
+"""Modulation estimators beside the histogram peaks, the registry, and the public entry points.
+
+- ``histogram`` - :mod:`benchlab.analysis.histogram` (the thesis's method, automated).
+- ``sinefit`` - least-squares fit of a harmonic series at the known bar frequency (refined
+  within +-5 %, or found from the profile's spectrum when not given) to the bar profile (the ROI
+  averaged along the bars), with a linear shading term. Harmonics are fitted up to Nyquist and
+  kept only when significant; the Eq. 2.9 modulation is read from the fitted waveform's
+  maximum and minimum, and the fundamental alone gives ``fundamental_modulation``
+  (Sitter et al., Appl. Opt. 34(4):746, 1995; measurement-notes 3.4).
+- ``variance`` - variance minus noise (Droege & Morin, Med. Phys. 1982): the signal variance
+  ``var(ROI) - sigma_noise^2`` with a crest factor from the noise-corrected kurtosis
+  (square wave 1, sine sqrt(2)) gives the half peak-to-valley amplitude.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.histogram import histogram_peak, manual_peaks
+from benchlab.analysis.result import (
+    NYQUIST_CYCLES_PER_PX,
+    ModulationResult,
+    eq29_modulation,
+    unresolved,
+)
+from benchlab.analysis.roi import PreparedROI, prepare_roi
+
+#: Significance (in standard errors) for the fundamental to count as resolved.
+FUNDAMENTAL_Z = 5.0
+#: Harmonics closer than this to Nyquist (cycles/px) are left out of the fit.
+NYQUIST_MARGIN = 0.05
+#: Significance for a higher harmonic to enter the waveform.
+HARMONIC_Z = 3.0
+#: Highest harmonic fitted.
+MAX_HARMONIC = 15
+#: Significance of the signal variance for the variance estimator.
+VARIANCE_Z = 5.0
+
+
+def bar_profile(prep: PreparedROI) -> npt.NDArray[np.float64]:
+    """Mean of the ROI along the bars: the 1-D intensity profile across them."""
+    return prep.pixels.mean(axis=1 - prep.axis)
+
+
+def _fold_alias(f: float) -> float:
+    """Apparent frequency of ``f`` cycles/px after sampling: |f - round(f)|."""
+    return abs(f - round(f))
+
+
+def _find_frequency(profile: npt.NDArray[np.float64]) -> float | None:
+    """Strongest spectral peak of the detrended profile (cycles/px), at least one period."""
+    n = profile.size
+    if n < 4:
+        return None
+    x = np.arange(n, dtype=np.float64)
+    resid = profile - np.polyval(np.polyfit(x, profile, 1), x)
+    nfft = 1 << int(math.ceil(math.log2(n * 8)))
+    spec = np.abs(np.fft.rfft(resid * np.hanning(n), nfft))
+    freqs = np.fft.rfftfreq(nfft)
+    ok = freqs >= 1.0 / n
+    if not np.any(ok):
+        return None
+    return float(freqs[ok][int(np.argmax(spec[ok]))])
+
+
+def _refine_frequency(profile: npt.NDArray[np.float64], f0: float, span: float) -> float:
+    """Frequency within ``f0*(1 +- span)`` with the largest fundamental power (grid + parabola)."""
+    n = profile.size
+    if n * f0 < 2.0 or f0 >= NYQUIST_CYCLES_PER_PX - 1e-9:
+        return f0
+    x = np.arange(n, dtype=np.float64)
+    p = profile - profile.mean()
+    grid = f0 * (1.0 + np.linspace(-span, span, 41))
+    grid = grid[(grid > 0) & (grid < NYQUIST_CYCLES_PER_PX)]
+    power = np.abs(np.exp(-2j * np.pi * np.outer(grid, x)) @ p)
+    i = int(np.argmax(power))
+    if 0 < i < grid.size - 1:
+        den = power[i - 1] - 2 * power[i] + power[i + 1]
+        if den < 0:
+            return float(grid[i] + 0.5 * (power[i - 1] - power[i + 1]) / den * (grid[1] - grid[0]))
+    return float(grid[i])
+
+
+def sine_fit(prep: PreparedROI) -> ModulationResult:
+    """Least-squares harmonic fit at the bar frequency; see the module docstring.
+
+    Needs at least one bar period in the ROI and a frequency below Nyquist after aliasing;
+    otherwise "not resolved" with the reason in ``warnings``.
+    """
+    name = "sinefit"
+    warnings = list(prep.warnings)
+    profile = bar_profile(prep)
+    n = profile.size
+    f_given = prep.freq_cycles_per_px
+    if f_given == 0:
+        return unresolved(name, prep.diagnostics(), warnings)
+    if n < 4:
+        warnings.append(f"only {n} samples across the bars: cannot fit a period")
+        return unresolved(name, prep.diagnostics(), warnings)
+    if f_given is None:
+        f = _find_frequency(profile)
+        if f is None:
+            return unresolved(name, prep.diagnostics(), warnings)
+        f = _refine_frequency(profile, f, 0.02)
+    else:
+        f = _fold_alias(f_given) if f_given > NYQUIST_CYCLES_PER_PX else f_given
+        if f * n < 1.0:
+            warnings.append(f"less than one bar period in {n} px at {f:.4f} cycles/px: cannot fit")
+            return unresolved(name, prep.diagnostics(), warnings)
+        f = _refine_frequency(profile, f, 0.05)
+    x = np.arange(n, dtype=np.float64)
+    x_c = x - x.mean()
+    # Harmonics within 0.05 cycles/px of Nyquist are not identifiable from the samples.
+    k_max = max(1, min(MAX_HARMONIC, int((NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
+    while True:
+        cols = [np.ones(n), x_c / max(n, 1)]
+        for k in range(1, k_max + 1):
+            cols.append(np.cos(2 * np.pi * k * f * x))
+            cols.append(np.sin(2 * np.pi * k * f * x))
+        design = np.stack(cols, axis=1)
+        if n - design.shape[1] >= 2 or k_max == 1:
+            break
+        k_max -= 1
+    coef, _, rank, _ = np.linalg.lstsq(design, profile, rcond=1e-2)
+    dof = n - rank
+    resid = profile - design @ coef
+    if dof >= 1:
+        sigma_prof = math.sqrt(float(resid @ resid) / dof)
+    else:
+        sigma_prof = 0.0
+    # Never trust a residual below the noise expected from the pixels averaged per sample.
+    per_sample = prep.noise_sigma / math.sqrt(prep.pixels.shape[1 - prep.axis])
+    sigma_prof = max(sigma_prof, per_sample)
+    se_amp = sigma_prof * math.sqrt(2.0 / n)
+    mean = float(coef[0])
+    amps = np.hypot(coef[2::2], coef[3::2])
+    diag = prep.diagnostics()
+    diag = diag.__class__(**{**diag.__dict__, "px_per_period": 1.0 / f, "freq_cycles_per_px": f})
+    if mean <= 0:
+        warnings.append("mean gray level <= 0: contrast undefined")
+        return unresolved(name, diag, warnings)
+    fundamental = float(amps[0]) / mean
+    if amps[0] <= FUNDAMENTAL_Z * se_amp:
+        warnings.append(
+            f"fundamental amplitude {amps[0]:.3g} within {FUNDAMENTAL_Z:g} standard errors "
+            f"({se_amp:.3g}) of zero: bars not resolved"
+        )
+        return unresolved(name, diag, warnings)
+    keep = amps > HARMONIC_Z * se_amp
+    keep[0] = True
+    phase = np.linspace(0.0, 1.0 / f, 512, endpoint=False)
+    wave = np.full_like(phase, mean)
+    for k in np.nonzero(keep)[0]:
+        wave += coef[2 + 2 * k] * np.cos(2 * np.pi * (k + 1) * f * phase)
+        wave += coef[3 + 2 * k] * np.sin(2 * np.pi * (k + 1) * f * phase)
+    dark, bright = float(wave.min()), float(wave.max())
+    if dark + bright <= 0:
+        warnings.append("fitted dark + bright <= 0: contrast undefined")
+        return unresolved(name, diag, warnings)
+    modulation = eq29_modulation(dark, bright)
+    if modulation > 1.0:
+        warnings.append("fitted dark level below zero: modulation clipped to 1")
+        modulation = 1.0
+    sd = math.sqrt(int(keep.sum())) * se_amp / mean
+    return ModulationResult(
+        estimator=name,
+        dark=dark,
+        bright=bright,
+        modulation=float(modulation),
+        resolved=True,
+        diagnostics=diag,
+        uncertainty=sd,
+        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
+        fundamental_modulation=fundamental,
+        warnings=tuple(warnings),
+    )
+
+
+def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
+    """Signal variance above the noise, turned into a half peak-to-valley amplitude by the crest
+    factor implied by the noise-corrected kurtosis; see the module docstring."""
+    name = "variance"
+    warnings = list(prep.warnings)
+    values = prep.pixels.ravel()
+    n = values.size
+    diag = prep.diagnostics()
+    if n < 2:
+        warnings.append("one pixel: no variance")
+        return unresolved(name, diag, warnings)
+    mean = float(values.mean())
+    centred = values - mean
+    c2 = centred * centred
+    var = float(c2.mean())
+    m4 = float((c2 * c2).mean())
+    noise2 = prep.noise_sigma**2
+    signal2 = var - noise2
+    # Standard error of var - noise^2 under "no signal": sample variance plus a MAD-based noise
+    # estimate (37 % efficient) - or none when the noise was given.
+    n_noise = max(n, 2)
+    se = noise2 * math.sqrt(2.0 / n + (0.0 if prep.noise_given else 2.0 / (0.37 * n_noise)))
+    if signal2 <= VARIANCE_Z * se or signal2 <= 0:
+        warnings.append("ROI variance not significantly above the noise: bars not resolved")
+        return unresolved(name, diag, warnings)
+    if mean <= 0:
+        warnings.append("mean gray level <= 0: contrast undefined")
+        return unresolved(name, diag, warnings)
+    m4_signal = m4 - 6.0 * noise2 * signal2 - 3.0 * noise2 * noise2
+    kurt = m4_signal / (signal2 * signal2)
+    crest = math.sqrt(min(max(2.0 * kurt - 1.0, 1.0), 2.0))
+    half = crest * math.sqrt(signal2)
+    dark, bright = mean - half, mean + half
+    modulation = half / mean
+    if modulation > 1.0:
+        warnings.append("estimated dark level below zero: modulation clipped to 1")
+        modulation = 1.0
+    sd = crest / mean * (se + noise2 * math.sqrt(2.0 / n)) / (2.0 * math.sqrt(signal2))
+    return ModulationResult(
+        estimator=name,
+        dark=dark,
+        bright=bright,
+        modulation=float(modulation),
+        resolved=True,
+        diagnostics=diag,
+        uncertainty=sd,
+        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
+        warnings=tuple(warnings),
+    )
+
+
+PreparedEstimator = Callable[[PreparedROI], ModulationResult]
+_PREPARED: dict[str, PreparedEstimator] = {
+    "histogram": histogram_peak,
+    "sinefit": sine_fit,
+    "variance": variance_minus_noise,
+}
+
+
+def _public(name: str) -> Callable[..., ModulationResult]:
+    def estimator(
+        roi: npt.ArrayLike,
+        *,
+        freq_cycles_per_px: float | None = None,
+        orientation: str | None = None,
+        max_code: float | None = None,
+        noise_sigma: float | None = None,
+    ) -> ModulationResult:
+        prep = prepare_roi(
+            roi,
+            freq_cycles_per_px=freq_cycles_per_px,
+            orientation=orientation,
+            max_code=max_code,
+            noise_sigma=noise_sigma,
+        )
+        return _PREPARED[name](prep)
+
+    estimator.__name__ = name
+    estimator.__doc__ = f"Estimator ``{name}`` on a raw ROI (see :func:`estimate_modulation`)."
+    return estimator
+
+
+#: Name -> ``fn(roi, *, freq_cycles_per_px, orientation, max_code, noise_sigma)``.
+ESTIMATORS: dict[str, Callable[..., ModulationResult]] = {n: _public(n) for n in _PREPARED}
+#: Chosen from ``benchlab benchmark analysis`` (see the README).
+DEFAULT_ESTIMATOR = "sinefit"
+#: Disagreement between estimators (modulation units) above which a warning is added.
+DISAGREEMENT_TOLERANCE = 0.05
+
+
+def estimate_modulation(
+    roi: npt.ArrayLike,
+    *,
+    estimator: str = DEFAULT_ESTIMATOR,
+    freq_cycles_per_px: float | None = None,
+    orientation: str | None = None,
+    peaks: tuple[float, float] | None = None,
+    max_code: float | None = None,
+    noise_sigma: float | None = None,
+    bootstrap: int = 0,
+    seed: int | None = 0,
+) -> ModulationResult:
+    """Eq. 2.9 bar modulation of one ROI.
+
+    Parameters
+    ----------
+    roi : array_like
+        2-D gray levels (rows, cols), any integer or float dtype; or a 3-D stack
+        (frames, rows, cols) which is averaged (noise then comes from the frame-to-frame spread).
+    estimator : str
+        A key of :data:`ESTIMATORS`: ``"histogram"``, ``"sinefit"`` or ``"variance"``.
+    freq_cycles_per_px : float, optional
+        Bar frequency on the sensor in cycles/pixel (``frequency.cycles_per_px``). Above 0.5 the
+        result is flagged ``aliased``; 0.35-0.5 ``phase_sensitive``; 0 gives "not resolved" for
+        ``sinefit``. ``None``: ``sinefit`` finds it from the profile.
+    orientation : str, optional
+        Direction in which the intensity varies: ``"horizontal"`` (along columns, vertical bars),
+        ``"vertical"`` (along rows), or the forward-view aliases ``"sagittal"`` (= horizontal)
+        and ``"tangential"`` (= vertical); ``None`` detects it. See :mod:`benchlab.analysis.roi`.
+    peaks : (float, float), optional
+        Manual dark and bright levels: overrides every estimator (``estimator="manual"``).
+    max_code : float, optional
+        Saturation code; inferred for integer data (255, 4095, 65520, 65535).
+    noise_sigma : float, optional
+        Known per-pixel noise (gray units); estimated from the ROI otherwise.
+    bootstrap : int
+        If > 0, replace the analytic uncertainty by a bootstrap over lines along the bars with
+        this many resamples (:func:`benchlab.analysis.uncertainty.bootstrap_result`).
+    seed : int, optional
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    ModulationResult
+        Never NaN; "not resolved" is modulation 0 with ``dark = bright = None``.
+
+    Raises
+    ------
+    ValueError
+        Unknown estimator, empty / non-finite ROI, bad frequency, orientation or noise.
+    """
+    if peaks is None and estimator not in _PREPARED:
+        raise ValueError(f"unknown estimator {estimator!r}; choose one of {sorted(_PREPARED)}")
+    prep = prepare_roi(
+        roi,
+        freq_cycles_per_px=freq_cycles_per_px,
+        orientation=orientation,
+        max_code=max_code,
+        noise_sigma=noise_sigma,
+    )
+    if peaks is not None:
+        if len(peaks) != 2:
+            raise ValueError(f"peaks must be (dark, bright), got {peaks!r}")
+        return manual_peaks(prep, (float(peaks[0]), float(peaks[1])))
+    result = _PREPARED[estimator](prep)
+    if bootstrap > 0:
+        from benchlab.analysis.uncertainty import bootstrap_result
+
+        result = bootstrap_result(prep, result, _PREPARED[estimator], bootstrap, seed)
+    return result
+
+
+def compare_estimators(
+    roi: npt.ArrayLike,
+    *,
+    estimators: tuple[str, ...] | None = None,
+    freq_cycles_per_px: float | None = None,
+    orientation: str | None = None,
+    max_code: float | None = None,
+    noise_sigma: float | None = None,
+    tolerance: float = DISAGREEMENT_TOLERANCE,
+) -> dict[str, ModulationResult]:
+    """Run several estimators on one ROI and record how far apart they are.
+
+    Every result gets ``diagnostics.disagreement`` = the largest |difference| in modulation
+    between any two estimators (counting "not resolved" as 0), and a warning when it exceeds
+    ``tolerance``. Estimators agree for wide bars and split near the resolution limit - the
+    split is itself a diagnostic (measurement-notes section 7.2).
+    """
+    names = estimators or tuple(_PREPARED)
+    unknown = [n for n in names if n not in _PREPARED]
+    if unknown:
+        raise ValueError(f"unknown estimator(s) {unknown}; choose from {sorted(_PREPARED)}")
+    prep = prepare_roi(
+        roi,
+        freq_cycles_per_px=freq_cycles_per_px,
+        orientation=orientation,
+        max_code=max_code,
+        noise_sigma=noise_sigma,
+    )
+    results = {n: _PREPARED[n](prep) for n in names}
+    mods = [r.modulation for r in results.values()]
+    spread = float(max(mods) - min(mods)) if mods else 0.0
+    out: dict[str, ModulationResult] = {}
+    for n, r in results.items():
+        diag = r.diagnostics.__class__(**{**r.diagnostics.__dict__, "disagreement": spread})
+        warns = r.warnings
+        if spread > tolerance:
+            warns = (*warns, f"estimators disagree by {spread:.3f} (> {tolerance:g})")
+        out[n] = r.with_updates(diagnostics=diag, warnings=warns)
+    return out

@@ -1,0 +1,271 @@
+"""Common preparation of a region of interest before any estimator runs.
+
+Orientation convention (used by every estimator and by :mod:`benchlab.analysis.geometry`):
+``orientation`` names the direction in which the **intensity varies** (the testing direction,
+perpendicular to the bars).
+
+- ``"horizontal"`` - intensity varies along the columns (x, numpy axis 1): the bars are
+  vertical stripes; the bar profile is the mean over rows.
+- ``"vertical"`` - intensity varies along the rows (y, numpy axis 0): horizontal stripes.
+- ``"sagittal"`` / ``"tangential"`` - the thesis's forward-view convention (Table 4.11 note):
+  sagittal = horizontal, tangential = vertical. For radial-view ROIs, resolve the direction with
+  :func:`benchlab.analysis.geometry.roi_orientation_relative_to_centre` first.
+- ``None`` - detected from the data (the axis whose mean profile varies most).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.result import (
+    CLIPPED_FRACTION_LIMIT,
+    NYQUIST_CYCLES_PER_PX,
+    PHASE_SENSITIVE_CYCLES_PER_PX,
+    Diagnostics,
+)
+
+ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
+#: Normal-consistency factor of the median absolute deviation.
+MAD_TO_SIGMA = 1.4826
+
+
+@dataclass(frozen=True)
+class PreparedROI:
+    """A validated ROI with the facts every estimator needs."""
+
+    pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
+    axis: int  # numpy axis along which the intensity varies
+    integer_valued: bool
+    code_step: float
+    noise_sigma: float
+    noise_given: bool
+    max_code: float | None
+    clipped_fraction: float
+    freq_cycles_per_px: float | None
+    n_frames: int
+    warnings: tuple[str, ...]
+
+    @property
+    def n_pixels(self) -> int:
+        return int(self.pixels.size)
+
+    @property
+    def aliased(self) -> bool:
+        f = self.freq_cycles_per_px
+        return f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
+
+    @property
+    def phase_sensitive(self) -> bool:
+        f = self.freq_cycles_per_px
+        return f is not None and PHASE_SENSITIVE_CYCLES_PER_PX <= f <= NYQUIST_CYCLES_PER_PX + 1e-12
+
+    def diagnostics(self, **extra: object) -> Diagnostics:
+        f = self.freq_cycles_per_px
+        return Diagnostics(
+            n_pixels=self.n_pixels,
+            px_per_period=(1.0 / f) if f else None,
+            freq_cycles_per_px=f,
+            clipped_fraction=self.clipped_fraction,
+            noise_sigma=self.noise_sigma,
+            aliased=self.aliased,
+            phase_sensitive=self.phase_sensitive,
+            code_step=self.code_step if self.integer_valued else None,
+            n_frames=self.n_frames,
+            **extra,  # type: ignore[arg-type]
+        )
+
+
+def orientation_axis(orientation: str | None) -> int | None:
+    """Numpy axis along which intensity varies for an orientation name (``None`` if auto)."""
+    if orientation is None:
+        return None
+    key = orientation.strip().lower()
+    if key not in ORIENTATION_AXIS:
+        raise ValueError(
+            f"orientation must be one of {sorted(ORIENTATION_AXIS)} or None, got {orientation!r}"
+        )
+    return ORIENTATION_AXIS[key]
+
+
+def infer_max_code(roi: npt.NDArray[np.generic], code_step: float) -> float | None:
+    """Saturation code for integer data: 255 (uint8), 4095 (12-bit in 16), 65520 (MSB-aligned
+    12-bit) or 65535; ``None`` for float data."""
+    if roi.dtype == np.uint8:
+        return 255.0
+    if np.issubdtype(roi.dtype, np.integer):
+        if code_step == 16 and roi.max() > 4095:
+            return 65520.0
+        if roi.max() <= 4095:
+            return 4095.0
+        return 65535.0
+    return None
+
+
+def detect_code_step(values: npt.NDArray[np.generic]) -> float:
+    """Greatest common spacing of integer codes (1 for ordinary data, 16 for 12-bit data stored
+    MSB-aligned in 16 bits); 1 when fewer than two distinct values."""
+    ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
+    if ints.dtype.kind == "u":
+        ints = ints.astype(np.int64)
+    step = int(np.gcd.reduce(ints - ints.min()))
+    return float(max(step, 1))
+
+
+def _diff_sigma(img: npt.NDArray[np.float64], ax: int) -> float:
+    """Noise sigma from neighbour differences along ``ax``: RMS difference / sqrt(2), then once
+    more over the differences within 4 sigma (drops bar ends, edges and hot pixels)."""
+    d = (img[1:, :] - img[:-1, :]) if ax == 0 else (img[:, 1:] - img[:, :-1])
+    d = d.ravel()
+    rms2 = float(d @ d) / d.size
+    if rms2 == 0.0:
+        return 0.0
+    if float(np.abs(d).max()) ** 2 > 16.0 * rms2:
+        kept = d[d * d <= 16.0 * rms2]
+        rms2 = float(kept @ kept) / kept.size if kept.size else rms2
+    # A 4-sigma-clipped Gaussian keeps 99.99 % of its variance: no correction needed.
+    return math.sqrt(rms2 / 2.0)
+
+
+def robust_noise_sigma(img: npt.NDArray[np.float64], axis: int | None) -> float:
+    """Per-pixel noise from differences of neighbours **along the bars** (where the scene is
+    flat). With ``axis`` unknown, the smaller of both directions; a single line across the bars
+    falls back to differences across them (edges are clipped out). 0.0 without any pair."""
+    along = [1 - axis] if axis is not None else [0, 1]
+    estimates = [_diff_sigma(img, ax) for ax in along if img.shape[ax] >= 2]
+    if not estimates and axis is not None and img.shape[axis] >= 2:
+        estimates.append(_diff_sigma(img, axis))
+    return min(estimates) if estimates else 0.0
+
+
+def detect_axis(img: npt.NDArray[np.float64]) -> int:
+    """Axis along which the mean profile varies most (the testing direction)."""
+    if img.shape[0] < 2:
+        return 1
+    if img.shape[1] < 2:
+        return 0
+    v_cols = float(np.var(img.mean(axis=0)))  # profile along axis 1
+    v_rows = float(np.var(img.mean(axis=1)))  # profile along axis 0
+    return 1 if v_cols >= v_rows else 0
+
+
+def prepare_roi(
+    roi: npt.ArrayLike,
+    *,
+    freq_cycles_per_px: float | None = None,
+    orientation: str | None = None,
+    max_code: float | None = None,
+    noise_sigma: float | None = None,
+) -> PreparedROI:
+    """Validate a ROI (2-D, or a 3-D stack of frames averaged along axis 0) and measure what all
+    estimators share.
+
+    Raises
+    ------
+    ValueError
+        Empty ROI, wrong number of dimensions, non-finite pixels, negative or non-finite
+        frequency / noise, unknown orientation.
+    """
+    arr = np.asarray(roi)
+    if arr.dtype == bool:
+        arr = arr.astype(np.uint8)
+    if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
+        raise ValueError(f"ROI must hold numbers, got dtype {arr.dtype}")
+    if arr.ndim not in (2, 3):
+        raise ValueError(
+            f"ROI must be 2-D (rows, cols) or 3-D (frames, rows, cols), got {arr.shape}"
+        )
+    if arr.size == 0:
+        raise ValueError(f"ROI is empty (shape {arr.shape})")
+    if np.issubdtype(arr.dtype, np.floating) and not np.all(np.isfinite(arr)):
+        raise ValueError("ROI contains NaN or infinite pixels")
+    if freq_cycles_per_px is not None:
+        if not math.isfinite(freq_cycles_per_px) or freq_cycles_per_px < 0:
+            raise ValueError(
+                f"frequency must be finite and >= 0 cycles/px, got {freq_cycles_per_px}"
+            )
+    if noise_sigma is not None and (not math.isfinite(noise_sigma) or noise_sigma < 0):
+        raise ValueError(f"noise_sigma must be finite and >= 0, got {noise_sigma}")
+    if max_code is not None and (not math.isfinite(max_code) or max_code <= 0):
+        raise ValueError(f"max_code must be positive, got {max_code}")
+    axis = orientation_axis(orientation)
+    warnings: list[str] = []
+
+    raw = arr
+    stack = arr.astype(np.float64, copy=False)
+    n_frames = 1
+    temporal_sigma: float | None = None
+    if stack.ndim == 3:
+        n_frames = stack.shape[0]
+        if n_frames >= 2:
+            temporal_sigma = float(np.sqrt(np.mean(np.var(stack, axis=0, ddof=1))))
+        img = stack.mean(axis=0)
+    else:
+        img = stack
+
+    is_int_dtype = raw.dtype.kind in "ui"
+    integer_valued = is_int_dtype or bool(
+        np.all(raw == np.round(raw)) and np.abs(raw).max() < 2**53
+    )
+    values = raw.ravel()
+    code_step = detect_code_step(values) if integer_valued else 0.0
+    if max_code is None:
+        max_code_f = infer_max_code(raw, code_step) if is_int_dtype else None
+    else:
+        max_code_f = float(max_code)
+    clipped = 0.0
+    if max_code_f is not None:
+        clipped = float(np.count_nonzero(raw >= max_code_f) / raw.size)
+        if clipped > CLIPPED_FRACTION_LIMIT:
+            warnings.append(
+                f"{100 * clipped:.1f}% of pixels clipped at code {max_code_f:g}: "
+                "the bright level (and the modulation) reads low"
+            )
+    if n_frames > 1:
+        integer_valued = bool(np.all(img == np.round(img)))
+        code_step = code_step if integer_valued else 0.0
+
+    if axis is None:
+        axis = detect_axis(img)
+    if noise_sigma is not None:
+        sigma = float(noise_sigma)
+        given = True
+    elif temporal_sigma is not None:
+        sigma = temporal_sigma / math.sqrt(n_frames)
+        given = False
+    else:
+        sigma = robust_noise_sigma(img, axis)
+        given = False
+    if not given and integer_valued:
+        sigma = max(sigma, (code_step or 1.0) / math.sqrt(12.0))
+
+    f = freq_cycles_per_px
+    if f is not None:
+        if f > NYQUIST_CYCLES_PER_PX + 1e-12:
+            warnings.append(
+                f"{f:.3f} cycles/px is above Nyquist (0.5): aliased, exclude from comparisons"
+            )
+        elif f >= PHASE_SENSITIVE_CYCLES_PER_PX:
+            warnings.append(
+                f"{f:.3f} cycles/px is near Nyquist: the reading depends on sampling phase"
+            )
+        elif f == 0:
+            warnings.append("zero frequency: no bar period to analyse")
+    if img.size < 100:
+        warnings.append(f"only {img.size} pixels: sparse histogram, noisy modulation")
+    return PreparedROI(
+        pixels=img,
+        axis=axis,
+        integer_valued=integer_valued,
+        code_step=code_step,
+        noise_sigma=sigma,
+        noise_given=given,
+        max_code=max_code_f,
+        clipped_fraction=clipped,
+        freq_cycles_per_px=f,
+        n_frames=n_frames,
+        warnings=tuple(warnings),
+    )
