@@ -52,9 +52,10 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
       results_dir = reanalyze("sessions/mtf-...", estimator="histogram")
 
 Results: ``outcome.tables`` maps table names (``table_4_11``, ``table_4_12``, ``table_4_13``,
-``table_4_15``; radiometry ``table_4_16``) to ``{"columns": [...], "rows": [{...}, ...]}``; the
-same tables are written as CSV + JSON under ``SESSION/results/vN/``. ``outcome.summary`` holds
-the estimator, timings and headline numbers.
+``table_4_15``; radiometry ``table_4_16``) to lists of row dicts (one dict per table row); the
+same tables are written as CSV + JSON under ``SESSION/results/vN/`` (``Session.write_results``).
+``outcome.summary`` is that version's ``summary.json`` (version, estimator, frame hashes, and
+``summary`` with the headline numbers).
 """
 
 from __future__ import annotations

@@ -275,6 +275,7 @@ class Runner:
 
 
 def _read_results(results_dir: Path | str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``name -> rows``) and the summary of one ``results/vN`` folder."""
     import json
 
     folder = Path(results_dir)

@@ -1,0 +1,390 @@
+"""The bench: which devices are open, and the one place that puts them in a safe state.
+
+``Bench.open(config, simulate=...)`` is a context manager. On the real bench it opens the
+Mightex camera (USB), the SLC LED controller and the APT stage (serial ports from the config).
+Simulated, it builds the simulated world (scenes), a firmware-level camera on a pyusb backend
+and the LED controller and stage simulators on real pseudo-terminals, and connects the *same
+drivers* to them, so every procedure runs through the real code paths.
+
+Safety: :meth:`Bench.safe_state` (every LED channel off, stage stopped) runs on every way out
+of the context - normal end, exception, Ctrl-C - before the devices are closed; the drivers'
+own exit hooks repeat it if the process dies in between.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import tomllib
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.protocols.params import ParamsError, _Checker
+
+#: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
+Z8_COUNTS_PER_MM = 34554.96
+#: Simulated seconds per wall second on the simulated bench: stage moves take milliseconds.
+SIM_TIME_SCALE = 2000.0
+
+
+class BenchConfigError(ParamsError):
+    """A bench configuration file has problems (all listed)."""
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    serial: str | None = None
+    pid: int | None = None
+    model: str | None = None
+
+
+@dataclass(frozen=True)
+class LedConfig:
+    port: str | None = None
+    channel: int = 1
+    ceilings_ma: Mapping[int, float] = field(default_factory=lambda: {1: 50.0})
+
+
+@dataclass(frozen=True)
+class StageConfig:
+    port: str | None = None
+    counts_per_mm: float = Z8_COUNTS_PER_MM
+    travel_mm: tuple[float, float] = (0.0, 50.0)
+    velocity_mm_s: float = 2.0
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """Bench wiring from a TOML file; every section optional.
+
+    ``led`` / ``stage`` are ``None`` when the bench has no such device (the procedures then
+    prompt the operator instead).
+    """
+
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    led: LedConfig | None = None
+    stage: StageConfig | None = None
+    source: str = "<defaults>"
+
+    @property
+    def has_stage(self) -> bool:
+        return self.stage is not None
+
+    @property
+    def stage_travel_mm(self) -> tuple[float, float] | None:
+        return self.stage.travel_mm if self.stage is not None else None
+
+    def led_ceiling_ma(self, channel: int) -> float | None:
+        if self.led is None:
+            return None
+        return self.led.ceilings_ma.get(channel)
+
+    # -- (de)serialisation ----------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"camera": {k: v for k, v in vars(self.camera).items()
+                                          if v is not None}}
+        if self.led is not None:
+            out["led"] = {"channel": self.led.channel,
+                          "ceiling_ma": {str(k): v for k, v in self.led.ceilings_ma.items()}}
+            if self.led.port:
+                out["led"]["port"] = self.led.port
+        if self.stage is not None:
+            out["stage"] = {"counts_per_mm": self.stage.counts_per_mm,
+                            "travel_mm": list(self.stage.travel_mm),
+                            "velocity_mm_s": self.stage.velocity_mm_s}
+            if self.stage.port:
+                out["stage"]["port"] = self.stage.port
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "<bench config>") -> BenchConfig:
+        """Validate a parsed configuration; :class:`BenchConfigError` lists every problem."""
+        c = _Checker(data)
+        cam = CameraConfig(
+            serial=c.string("camera.serial", "") or None,
+            pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
+            model=c.string("camera.model", "") or None,
+        )
+        led = None
+        found, _ = c._get("led", None)
+        if found:
+            ceilings: dict[int, float] = {}
+            f2, table = c._get("led.ceiling_ma", {1: 50.0})
+            if f2 and not isinstance(table, Mapping):
+                c.fail("led.ceiling_ma", "must be a table: channel number -> mA")
+            elif f2:
+                for key in table:
+                    dotted = f"led.ceiling_ma.{key}"
+                    if not str(key).isdigit() or not 1 <= int(key) <= 16:
+                        c.seen.add(dotted)
+                        c.fail(dotted, "channel must be a number 1..16")
+                        continue
+                    ceilings[int(key)] = c.number(dotted, 0.0, 0.0, 5000.0)
+            else:
+                ceilings = {1: 50.0}
+            led = LedConfig(port=c.string("led.port", "") or None,
+                            channel=c.integer("led.channel", 1, 1, 16), ceilings_ma=ceilings)
+        stage = None
+        found, _ = c._get("stage", None)
+        if found:
+            travel = c.numbers("stage.travel_mm", (0.0, 50.0), -1000.0, 1000.0)
+            if len(travel) != 2 or travel[0] >= travel[1]:
+                c.fail("stage.travel_mm", f"must be [low, high] with low < high, got {travel}")
+                travel = (0.0, 50.0)
+            stage = StageConfig(
+                port=c.string("stage.port", "") or None,
+                counts_per_mm=c.number("stage.counts_per_mm", Z8_COUNTS_PER_MM, 0.0, 1e9,
+                                       lo_open=True),
+                travel_mm=(travel[0], travel[1]),
+                velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
+            )
+        c.unknown_keys()
+        if c.problems:
+            raise BenchConfigError(source, c.problems)
+        return cls(camera=cam, led=led, stage=stage, source=source)
+
+    @classmethod
+    def load(cls, path: str | Path | None, *, simulate: bool = False) -> BenchConfig:
+        """Read a bench TOML file; ``None`` = the packaged simulated bench (``simulate``) or an
+        empty configuration (camera only)."""
+        if path is None:
+            if not simulate:
+                return cls()
+            path = Path(str(resources.files("benchlab.protocols") / "defaults"
+                            / "bench-simulated.toml"))
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError as exc:
+            raise BenchConfigError(str(p), ["file: no such bench configuration"]) from exc
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise BenchConfigError(str(p), [f"file: not valid TOML ({exc})"]) from exc
+        return cls.from_dict(data, str(p))
+
+
+class BenchError(BenchlabError):
+    """The bench cannot do what was asked (e.g. no LED controller configured)."""
+
+
+class Bench:
+    """Open devices of one bench. Create with :meth:`open`."""
+
+    def __init__(self, config: BenchConfig, *, simulated: bool) -> None:
+        self.config = config
+        self.simulated = simulated
+        self.camera: Any = None
+        self.led: Any = None
+        self.stage: Any = None
+        #: Simulated bench only: the world, and the simulators (for tests and scenes).
+        self.world: Any = None
+        self.sim_camera: Any = None
+        self.sim_led: Any = None
+        self.sim_stage: Any = None
+        self._mounted: Any = None
+        self._camera_settings: dict[str, Any] = {}
+
+    # -- lifecycle ------------------------------------------------------------------------------
+    @classmethod
+    @contextlib.contextmanager
+    def open(
+        cls, config: BenchConfig | None = None, *, simulate: bool = False, seed: int | None = 0
+    ) -> Iterator[Bench]:
+        """Open every configured device (or its simulator); safe state on every way out."""
+        cfg = config if config is not None else BenchConfig.load(None, simulate=simulate)
+        bench = cls(cfg, simulated=simulate)
+        with contextlib.ExitStack() as stack:
+            if simulate:
+                from benchlab.bench_sim import open_simulated
+
+                open_simulated(bench, stack, seed=seed)
+            else:
+                _open_real(bench, stack)
+            try:
+                yield bench
+            finally:
+                bench.safe_state()
+
+    def safe_state(self) -> None:
+        """Every LED channel off and the stage stopped; tries both even if one fails."""
+        errors: list[str] = []
+        if self.led is not None:
+            try:
+                self.led.all_off()
+            except DeviceError as exc:
+                errors.append(f"LEDs: {exc}")
+        if self.stage is not None:
+            try:
+                self.stage.stop(immediate=True)
+            except DeviceError as exc:
+                errors.append(f"stage: {exc}")
+        if errors:
+            raise BenchError("could not reach the safe state: " + "; ".join(errors))
+
+    # -- identities -----------------------------------------------------------------------------
+    def identities(self) -> dict[str, Any]:
+        """Device identities (model, serial, firmware) for ``session.json``."""
+        out: dict[str, Any] = {"simulated": self.simulated}
+        if self.camera is not None:
+            info = self.camera.info
+            out["camera"] = {"model": getattr(info, "model", None),
+                             "serial": getattr(info, "serial", None),
+                             "firmware": str(getattr(info, "firmware", ""))}
+        if self.led is not None:
+            info = self.led.device_info
+            out["led"] = {"model": info.module, "serial": info.serial,
+                          "firmware": info.driver_version, "port": self.led.port}
+        if self.stage is not None:
+            hw = self.stage.info
+            out["stage"] = {"model": hw.model, "serial": str(hw.serial),
+                            "firmware": hw.firmware_str, "port": self.stage.port}
+        return out
+
+    # -- camera ---------------------------------------------------------------------------------
+    def configure_camera(self, *, bits: int = 8) -> dict[str, Any]:
+        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation)."""
+        self.camera.configure(width=1280, height=1024, bits=bits, mode="normal")
+        self._camera_settings = {"mode": "normal (continuous)", "width": 1280, "height": 1024,
+                                 "decimation": "off", "bits": bits}
+        return dict(self._camera_settings)
+
+    def grab(self, *, exposure_ms: float, gain: float) -> tuple[Any, dict[str, Any]]:
+        """One frame at these settings: ``(pixels, metadata)``."""
+        self.camera.set_exposure_ms(exposure_ms)
+        self.camera.set_gain(gain)
+        frame = self.camera.grab()
+        meta = dict(frame.meta.to_dict())
+        meta.update({"requested_exposure_ms": exposure_ms, "requested_gain": gain,
+                     "bench": self.state(), "simulated": self.simulated})
+        return frame.pixels, meta
+
+    # -- LED and stage --------------------------------------------------------------------------
+    @property
+    def has_stage(self) -> bool:
+        return self.stage is not None
+
+    def led_on(self, channel: int, current_ma: float) -> None:
+        if self.led is None:
+            raise BenchError("no LED controller configured ([led] in the bench file)")
+        self.led.on(channel, current_ma)
+
+    def led_off(self, channel: int) -> None:
+        if self.led is not None:
+            self.led.off(channel)
+
+    def home_stage(self) -> None:
+        if self.stage is not None and not self.stage.is_homed:
+            self.stage.home()
+
+    def move_stage_mm(self, position_mm: float) -> None:
+        if self.stage is None:
+            raise BenchError("no stage configured ([stage] in the bench file)")
+        self.stage.move_to_mm(position_mm, wait=True)
+
+    # -- the mounted target ---------------------------------------------------------------------
+    def mount(self, target: Any) -> None:
+        """A manual set-up step was confirmed: on the simulated bench, mount ``target`` in the
+        world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record."""
+        self._mounted = target
+        if self.world is not None:
+            self.world.mount(target)
+
+    @property
+    def mounted(self) -> Any:
+        return self._mounted
+
+    def state(self) -> dict[str, Any]:
+        """What the bench knows about itself right now (frame metadata, scenes)."""
+        st: dict[str, Any] = {"target": _plain_target(self._mounted)}
+        if self.sim_led is not None:
+            st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
+                                    for ch in range(1, self.sim_led.channel_count + 1)}
+        if self.sim_stage is not None:
+            st["stage_position_mm"] = self.sim_stage.position_mm
+        elif self.stage is not None:
+            with contextlib.suppress(DeviceError):
+                st["stage_position_mm"] = self.stage.position_mm
+        return st
+
+
+def _plain_target(target: Any) -> Any:
+    return list(target) if isinstance(target, tuple) else target
+
+
+def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
+    from benchlab.drivers.mightex import MightexCamera
+
+    cfg = bench.config
+    bench.camera = stack.enter_context(
+        MightexCamera.open(serial=cfg.camera.serial, pid=cfg.camera.pid)
+    )
+    if cfg.led is not None:
+        if not cfg.led.port:
+            raise BenchError(f"{cfg.source}: led.port is required on the real bench")
+        from benchlab.drivers.slc import SlcController
+
+        bench.led = stack.enter_context(SlcController(cfg.led.port,
+                                                      ceilings_ma=cfg.led.ceilings_ma))
+    if cfg.stage is not None:
+        if not cfg.stage.port:
+            raise BenchError(f"{cfg.source}: stage.port is required on the real bench")
+        from benchlab.drivers.apt import AptStage
+
+        bench.stage = stack.enter_context(AptStage(
+            cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
+            travel_mm=cfg.stage.travel_mm,
+        ))
+
+
+def open_simulated(bench: Bench, stack: contextlib.ExitStack, *, seed: int | None = 0) -> None:
+    """Build the simulated bench: world + camera firmware on a pyusb backend + SLC and APT
+    simulators on pseudo-terminals, with the real drivers connected to them."""
+    from benchlab.drivers.apt import AptStage
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.slc import SlcController
+    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.scenes.world import SimWorld
+
+    cfg = bench.config
+    bench.world = SimWorld("dark", led_channel=cfg.led.channel if cfg.led else None)
+    if cfg.led is not None:
+        sim_led = SimulatedSlc(channels=max(4, max(cfg.led.ceilings_ma, default=1)))
+        sim_led.start()
+        stack.callback(sim_led.stop)
+        bench.sim_led = sim_led
+        bench.led = stack.enter_context(
+            SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma)
+        )
+    if cfg.stage is not None:
+        sim_stage = SimulatedAptStage(
+            counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+            velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=SIM_TIME_SCALE,
+        )
+        sim_stage.start()
+        stack.callback(sim_stage.stop)
+        bench.sim_stage = sim_stage
+        bench.stage = stack.enter_context(AptStage(
+            sim_stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+        ))
+    bench.sim_camera = SimulatedCamera(
+        scene=bench.world, serial=cfg.camera.serial or "SIM-13001", bench_state=bench.state,
+        **_camera_seed(seed),
+    )
+    backend = SimCameraBackend([bench.sim_camera])
+    bench.camera = stack.enter_context(
+        MightexCamera.open(serial=cfg.camera.serial, backend=backend, pid=cfg.camera.pid)
+    )
+
+
+def _camera_seed(seed: int | None) -> dict[str, Any]:
+    """Noise seed for the simulated camera, if its firmware model takes one."""
+    import inspect
+
+    from benchlab.drivers.mightex_sim import SimulatedCamera
+
+    params = inspect.signature(SimulatedCamera).parameters
+    return {"seed": seed} if "seed" in params and seed is not None else {}

@@ -1,0 +1,155 @@
+"""Starting, resuming and re-analysing runs: sessions + procedures + the bench."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from benchlab.drivers.errors import BenchlabError
+from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
+from benchlab.protocols.mtf import MtfProcedure
+from benchlab.protocols.params import (
+    MtfParams,
+    Params,
+    ParamsError,
+    RadiometryParams,
+    load_params,
+    parse_params,
+)
+from benchlab.protocols.radiometry import RadiometryProcedure
+
+from benchlab import __version__
+from benchlab.session import Session
+
+#: Key of the bench configuration inside the session's parameter snapshot.
+BENCH_KEY = "bench"
+
+
+class FramesModifiedError(BenchlabError):
+    """Saved frames no longer match the hashes journalled when they were acquired."""
+
+
+def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure:
+    """The procedure object for a parameter set."""
+    if isinstance(params, MtfParams):
+        return MtfProcedure(params)
+    return RadiometryProcedure(params)
+
+
+def check_against_bench(params: Params, bench_config: Any, source: str) -> None:
+    """Parameters that the bench could not honour (LED ceiling, stage travel), all at once."""
+    if not isinstance(params, RadiometryParams) or bench_config is None:
+        return
+    problems: list[str] = []
+    ceiling = bench_config.led_ceiling_ma(params.led_channel)
+    if ceiling is None:
+        problems.append(f"led.channel: channel {params.led_channel} has no current ceiling "
+                        "in the bench configuration")
+    elif params.led_current_ma > ceiling:
+        problems.append(f"led.current_ma: {params.led_current_ma:g} mA exceeds the bench "
+                        f"ceiling {ceiling:g} mA of channel {params.led_channel}")
+    travel = bench_config.stage_travel_mm
+    if bench_config.has_stage and travel is not None:
+        lo, hi = travel
+        for i, pos in enumerate(params.positions_mm):
+            target = params.stage_target_mm(pos)
+            if not lo <= target <= hi:
+                problems.append(f"positions.field_mm[{i}]: stage target {target:g} mm is "
+                                f"outside the travel {lo:g}..{hi:g} mm")
+    if problems:
+        raise ParamsError(source, problems)
+
+
+def _resolve_params(procedure: str, params: Params | str | Path | None) -> tuple[Params, str]:
+    if params is None or isinstance(params, str | Path):
+        source = str(params) if params is not None else f"default {procedure}.toml"
+        return load_params(procedure, params), source
+    expected = MtfParams if procedure == "mtf" else RadiometryParams
+    if not isinstance(params, expected):
+        raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
+                                       f"{procedure!r}"])
+    return params, "<params>"
+
+
+def start_run(
+    procedure: str,
+    *,
+    bench: Any,
+    params: Params | str | Path | None = None,
+    root: str | Path = "sessions",
+    operator: str = "",
+    prompt: PromptFn | None = None,
+    progress: ProgressFn | None = None,
+    abort: threading.Event | None = None,
+    on_result: ResultFn | None = None,
+    estimator: str | None = None,
+) -> Runner:
+    """Validate everything, create the session folder, return a runner (nothing moved yet)."""
+    resolved, source = _resolve_params(procedure, params)
+    check_against_bench(resolved, bench.config, source)
+    snapshot = {**dict(resolved.raw), "procedure": procedure,
+                BENCH_KEY: bench.config.to_dict()}
+    session = Session.create(
+        Path(root), procedure=procedure, params=snapshot, operator=operator,
+        devices=bench.identities(), software_version=__version__,
+    )
+    session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
+                      params_source=source)
+    return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
+                  abort=abort, on_result=on_result, estimator=estimator)
+
+
+def session_params(session: Session) -> Params:
+    """The validated parameter snapshot a session was started with."""
+    snap = {k: v for k, v in session.params.items() if k != BENCH_KEY}
+    return parse_params(session.procedure, snap, str(session.path / "session.json"))
+
+
+def resume_run(
+    session_path: str | Path,
+    *,
+    bench: Any,
+    prompt: PromptFn | None = None,
+    progress: ProgressFn | None = None,
+    abort: threading.Event | None = None,
+    on_result: ResultFn | None = None,
+    estimator: str | None = None,
+) -> Runner:
+    """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
+    session = Session.open(Path(session_path))
+    params = session_params(session)
+    bad = session.verify_frames()
+    if bad:
+        raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
+                                  f"{', '.join(bad)}")
+    session.update_meta(status="running")
+    session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
+    return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
+                  abort=abort, on_result=on_result, estimator=estimator)
+
+
+def bench_config_of(session_path: str | Path) -> Mapping[str, Any]:
+    """The bench configuration snapshot stored in a session (for ``BenchConfig.from_dict``)."""
+    session = Session.open(Path(session_path))
+    return dict(session.params.get(BENCH_KEY) or {})
+
+
+def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
+    """Analyse a session's saved frames again into a new results version.
+
+    Frame hashes are checked against the journal before and after: raw frames are only read.
+    """
+    session = Session.open(Path(session_path))
+    bad = session.verify_frames()
+    if bad:
+        raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
+                                  f"{', '.join(bad)}")
+    before = session.frames()
+    params = session_params(session)
+    session.log_event("reanalysis_started", estimator=estimator)
+    out = make_procedure(params).analyze(session, estimator)
+    if session.verify_frames() or session.frames() != before:
+        raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
+    return out
