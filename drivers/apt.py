@@ -115,6 +115,26 @@ class VelocityParams:
     acceleration_mm_s2: float
 
 
+def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
+    """Ask a cube for HW_GET_INFO only (no enable, no updates): safe for device listings."""
+    frames = FrameReader(dests={HOST}, sources={UNIT, 0x11, *range(0x21, 0x2B)})
+    try:
+        with serial.Serial(port, BAUD, rtscts=True, timeout=READ_POLL_S,
+                           write_timeout=timeout_s) as ser:
+            ser.reset_input_buffer()
+            ser.write(short(Msg.HW_REQ_INFO).pack())
+            deadline = time.monotonic() + timeout_s
+            while time.monotonic() < deadline:
+                for msg in frames.feed(ser.read(max(1, ser.in_waiting))):
+                    if msg.msg_id == Msg.HW_GET_INFO and msg.data:
+                        return HwInfo.unpack(msg.data)
+    except (serial.SerialException, OSError) as exc:
+        raise DeviceLostError(f"stage: cannot query {port}: {exc}") from exc
+    except ValueError as exc:
+        raise AptBadReplyError(f"stage: bad HW_GET_INFO reply from {port}: {exc}") from None
+    raise AptNoReplyError(f"stage: no HW_GET_INFO reply from {port} within {timeout_s:g} s")
+
+
 class AptStage:
     """One single-axis APT stage on a serial port; positions in mm, limits from configuration."""
 
@@ -398,6 +418,7 @@ class AptStage:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""
         seq = self._send(short(Msg.MOT_MOVE_STOP, CHAN1,
                                STOP_IMMEDIATE if immediate else STOP_PROFILED))
+        self._move_seq = None  # a waiter in another thread still sees MOVE_STOPPED and raises
         if not wait:
             return
         decel_s = self._vel.max_velocity_mm_s / max(self._vel.acceleration_mm_s2, 1e-9)

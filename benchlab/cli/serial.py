@@ -1,9 +1,268 @@
-"""CLI commands of this group (filled in by the owning layer)."""
+"""Serial bench devices on the command line: ``led``, ``stage``, ``simulate``.
+
+``--simulate`` starts a simulator on a pseudo-terminal inside the command and talks to it
+through the real driver, so the same code path runs as on the bench. ``benchlab simulate``
+keeps both simulators up for other programs until Ctrl-C.
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import statistics
+import sys
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from benchlab.drivers.apt import AptStage, query_info
+from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
+from benchlab.drivers.apt_sim import SimulatedAptStage
+from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.drivers.slc import SlcController
+from benchlab.drivers.slc_sim import SimulatedSlc
+
+DEFAULT_CEILING_MA = 100.0
+CLI_SIM_TIME_SCALE = 20.0  # one-shot --simulate commands should not make people wait
+APT_USB_IDS = {(0x0403, 0xFAF0)}  # Thorlabs APT cubes (FTDI with Thorlabs PID)
+
+
+# ---- helpers ---------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _port_for(args: argparse.Namespace, kind: str) -> Iterator[str]:
+    """Yield the port to use: a fresh simulator's pty with --simulate, else --port."""
+    if not args.simulate:
+        if not args.port:
+            raise BenchlabError(f"{kind}: give --port PATH (or --simulate)")
+        yield args.port
+        return
+    sim: SimulatedSlc | SimulatedAptStage
+    if kind == "led":
+        sim = SimulatedSlc()
+    else:
+        lo, hi = args.travel_mm
+        sim = SimulatedAptStage(travel_mm=(lo, hi), counts_per_mm=args.counts_per_mm,
+                                time_scale=CLI_SIM_TIME_SCALE, homed=True)
+    port = sim.start()
+    print(f"(simulated {kind} on {port})", file=sys.stderr)
+    try:
+        yield port
+    finally:
+        sim.stop()
+
+
+def _wait_for_interrupt(hold_s: float | None) -> None:
+    deadline = None if hold_s is None else time.monotonic() + hold_s
+    while deadline is None or time.monotonic() < deadline:
+        time.sleep(0.1 if deadline is None else max(0.0, min(0.1, deadline - time.monotonic())))
+
+
+# ---- led -------------------------------------------------------------------------------------
+def _cmd_led(args: argparse.Namespace) -> int:
+    ceilings = {args.channel: args.ceiling_ma}
+    with _port_for(args, "led") as port, SlcController(port, ceilings_ma=ceilings) as slc:
+        if args.off:
+            slc.off(args.channel)
+            print(f"led channel {args.channel} off")
+            return 0
+        if args.current_ma is None:
+            raise BenchlabError("led --on needs --current-ma")
+        slc.on(args.channel, args.current_ma)
+        imax_ma, iset_ma = slc.get_current(args.channel)
+        held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
+        print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
+              f"held {held}; all channels switch off on exit", flush=True)
+        try:
+            _wait_for_interrupt(args.for_s)
+        except KeyboardInterrupt:
+            pass  # the driver's SIGINT hook has already switched off; close() verifies
+    print(f"led channel {args.channel} off")
+    return 0
+
+
+# ---- stage -----------------------------------------------------------------------------------
+def _cmd_stage(args: argparse.Namespace) -> int:
+    lo, hi = args.travel_mm
+    with _port_for(args, "stage") as port, AptStage(
+        port, counts_per_mm=args.counts_per_mm, travel_mm=(lo, hi),
+        allow_unhomed=args.allow_unhomed,
+    ) as stage:
+        if args.action == "home":
+            stage.home()
+        elif args.action == "move":
+            if args.position_mm is None:
+                raise BenchlabError("stage move needs a position in mm")
+            if args.relative:
+                stage.move_by_mm(args.position_mm)
+            else:
+                stage.move_to_mm(args.position_mm)
+        elif args.action == "identify":
+            stage.identify()
+        status = stage.status
+        info = stage.info
+        print(f"stage {info.model} {info.serial}: position {status.position_mm:.4f} mm, "
+              f"homed {'yes' if status.is_homed else 'no'}")
+    return 0
+
+
+# ---- simulate --------------------------------------------------------------------------------
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    lo, hi = args.travel_mm
+    led = SimulatedSlc(channels=args.channels, module=f"SLC-SA{args.channels:02d}-U/S")
+    stage = SimulatedAptStage(travel_mm=(lo, hi), time_scale=args.time_scale, homed=args.homed,
+                              counts_per_mm=args.counts_per_mm,
+                              initial_position_mm=args.initial_position_mm)
+    try:
+        print(f"led {led.start()}")
+        print(f"stage {stage.start()}", flush=True)
+        _wait_for_interrupt(args.for_s)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        led.stop()
+        stage.stop()
+    return 0
+
+
+# ---- device listing (used by `benchlab devices`) ----------------------------------------------
+def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
+    """Serial bench devices as dicts with keys kind, model, serial, firmware, port.
+
+    ``simulate=True`` starts both simulators on pseudo-terminals and identifies them through
+    the real drivers (the ports are gone once this returns). On hardware, APT cubes are found
+    by USB id and asked for HW_GET_INFO only; other USB-serial ports are listed as
+    ``kind="serial"`` without probing, since writing to an unknown instrument is unsafe.
+    """
+    if simulate:
+        return _list_simulated()
+    from serial.tools import list_ports
+
+    out: list[dict[str, Any]] = []
+    for p in sorted(list_ports.comports(), key=lambda p: p.device):
+        if p.vid is None:
+            continue
+        entry: dict[str, Any] = {"kind": "serial", "model": p.description or "",
+                                 "serial": p.serial_number or "", "firmware": "",
+                                 "port": p.device}
+        if (p.vid, p.pid) in APT_USB_IDS:
+            try:
+                info = query_info(p.device)
+                entry.update(kind="stage", model=info.model, serial=str(info.serial),
+                             firmware=info.firmware_str)
+            except DeviceError:
+                entry["kind"] = "stage"
+        out.append(entry)
+    return out
+
+
+def _list_simulated() -> list[dict[str, Any]]:
+    led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0))
+    try:
+        led_port, stage_port = led.start(), stage.start()
+        with SlcController(led_port, ceilings_ma={}) as slc:
+            li = slc.device_info
+        with AptStage(stage_port, travel_mm=(0.0, 50.0), updates=False) as apt:
+            si = apt.info
+    finally:
+        led.stop()
+        stage.stop()
+    return [
+        {"kind": "led", "model": li.module, "serial": li.serial, "firmware": li.driver_version,
+         "port": led_port},
+        {"kind": "stage", "model": si.model, "serial": str(si.serial),
+         "firmware": si.firmware_str, "port": stage_port},
+    ]
+
+
+# ---- benchmark -------------------------------------------------------------------------------
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    n = args.repeat
+    rows: list[tuple[str, list[float]]] = []
+    led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True,
+                                                    time_scale=100.0)
+    try:
+        with SlcController(led.start(), ceilings_ma={1: 100.0}) as slc:
+            rows.append(("SLC ?CURRENT round trip", _timed(lambda: slc.get_current(1), n)))
+            rows.append(("SLC on() NORMAL+MODE", _timed(lambda: slc.on(1, 50.0), n)))
+        with AptStage(stage.start(), travel_mm=(0.0, 50.0)) as apt:
+            rows.append(("APT position request", _timed(lambda: apt.position_mm, n)))
+            targets = iter([15.0, 32.0] * n)
+            rows.append(("APT 17 mm move, x100 time",
+                         _timed(lambda: apt.move_to_mm(next(targets)), min(n, 10))))
+    finally:
+        led.stop()
+        stage.stop()
+    print(f"{'operation':30s} {'n':>5s} {'median ms':>10s} {'max ms':>10s}")
+    for name, times in rows:
+        print(f"{name:30s} {len(times):5d} {statistics.median(times) * 1e3:10.3f} "
+              f"{max(times) * 1e3:10.3f}")
+    return 0
+
+
+def _timed(fn: Any, n: int) -> list[float]:
+    out = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+# ---- registration ----------------------------------------------------------------------------
+def _add_stage_geometry(p: argparse.ArgumentParser, default_hi: float) -> None:
+    p.add_argument("--travel-mm", nargs=2, type=float, metavar=("LOW", "HIGH"),
+                   default=(0.0, default_hi), help=f"soft travel limits (default 0 {default_hi:g})")
+    p.add_argument("--counts-per-mm", type=float, default=Z8_COUNTS_PER_MM,
+                   help=f"encoder counts per mm (Z8: {Z8_COUNTS_PER_MM}; alternative 34304)")
 
 
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
-    """Add this group's sub-commands."""
+    """Add ``led``, ``stage``, ``simulate`` and ``benchmark serial``."""
+    led = commands.add_parser(
+        "led", help="switch an LED channel of the Mightex SLC on or off",
+        description="Switch one SLC channel on (held until Ctrl-C or --for-s, then every "
+                    "channel is switched off) or off.")
+    led.add_argument("--port", help="serial port of the SLC (e.g. /dev/ttyUSB0)")
+    led.add_argument("--simulate", action="store_true", help="use a built-in simulated SLC")
+    led.add_argument("--channel", type=int, default=1, help="channel, 1-based (default 1)")
+    led.add_argument("--current-ma", type=float, help="working current in mA (with --on)")
+    led.add_argument("--ceiling-ma", type=float, default=DEFAULT_CEILING_MA,
+                     help=f"refuse currents above this (default {DEFAULT_CEILING_MA:g} mA)")
+    led.add_argument("--for-s", type=float, help="with --on: hold this long, then switch off")
+    onoff = led.add_mutually_exclusive_group(required=True)
+    onoff.add_argument("--on", action="store_true", help="switch on at --current-ma")
+    onoff.add_argument("--off", action="store_true", help="switch off")
+    led.set_defaults(func=_cmd_led)
+
+    stage = commands.add_parser(
+        "stage", help="home, move or read the Thorlabs APT stage",
+        description="Home, move (absolute, or --relative) or read the position of a "
+                    "KDC101/TDC001 stage with a Z8 actuator. Prints the final position.")
+    stage.add_argument("action", choices=["home", "move", "where", "identify"])
+    stage.add_argument("position_mm", nargs="?", type=float, help="target for move, in mm")
+    stage.add_argument("--port", help="serial port of the cube (e.g. /dev/ttyUSB1)")
+    stage.add_argument("--simulate", action="store_true",
+                       help="use a built-in simulated stage (starts homed)")
+    stage.add_argument("--relative", action="store_true", help="move by MM instead of to MM")
+    stage.add_argument("--allow-unhomed", action="store_true", help="allow moves before homing")
+    _add_stage_geometry(stage, 25.0)
+    stage.set_defaults(func=_cmd_stage)
+
+    sim = commands.add_parser(
+        "simulate", help="serve a simulated LED controller and stage on pseudo-terminals",
+        description="Start the simulated SLC and APT stage, print 'led PATH' and "
+                    "'stage PATH', and serve until Ctrl-C.")
+    sim.add_argument("--time-scale", type=float, default=1.0,
+                     help="simulated seconds per wall second for stage motion (default 1)")
+    sim.add_argument("--channels", type=int, default=4, help="LED channels (default 4)")
+    sim.add_argument("--homed", action="store_true", help="start the stage already homed")
+    sim.add_argument("--initial-position-mm", type=float, default=0.0)
+    sim.add_argument("--for-s", type=float, help="serve this long instead of until Ctrl-C")
+    _add_stage_geometry(sim, 50.0)
+    sim.set_defaults(func=_cmd_simulate)
+
+    bench = benchmarks.add_parser(
+        "serial", help="round-trip times of the serial drivers against their simulators",
+        description="Time SLC and APT exchanges over pseudo-terminals and print a table.")
+    bench.add_argument("--repeat", type=int, default=100)
+    bench.set_defaults(func=_cmd_benchmark)
