@@ -60,7 +60,7 @@ class BenchlabApp(App[None]):
         config: Path | None = None,
         sessions_dir: Path | None = None,
         autoconnect: bool = True,
-        seed: int | None = None,
+        seed: int | None = 0,
         params_files: dict[str, Path] | None = None,
     ) -> None:
         super().__init__()
@@ -72,6 +72,7 @@ class BenchlabApp(App[None]):
         #: Parameter file per procedure (``None``: the packaged defaults).
         self.params_files: dict[str, Path | None] = dict(params_files or {})
         self.bench: Any = None
+        self._opened: services.OpenedBench | None = None
         #: Serialises device access between the live view, the devices panel and the runner.
         self.device_lock = threading.RLock()
         #: Set to stop a running procedure (abort key, quit).
@@ -92,16 +93,17 @@ class BenchlabApp(App[None]):
         if self.bench is not None:
             return
         self.call_from_thread(setattr, self, "bench_status", "connecting...")
-        try:
-            bench = services.open_bench(self.config_path, self.simulate, seed=self.seed)
-        except Exception as exc:  # noqa: BLE001 - shown to the operator in plain words
-            self.call_from_thread(setattr, self, "bench_status", "disconnected")
-            self.call_from_thread(self.show_error, "Could not connect the bench", exc)
-            return
-        if get_current_worker().is_cancelled:
-            services.close_bench(bench)
-            return
-        self.bench = bench
+        with self.device_activity():
+            try:
+                opened = services.open_bench(self.config_path, self.simulate, seed=self.seed)
+            except Exception as exc:  # noqa: BLE001 - shown to the operator in plain words
+                self.call_from_thread(setattr, self, "bench_status", "disconnected")
+                self.call_from_thread(self.show_error, "Could not connect the bench", exc)
+                return
+            if get_current_worker().is_cancelled:
+                opened.close()
+                return
+            self._opened, self.bench = opened, opened.bench
         kind = "simulated" if self.simulate else "hardware"
         self.call_from_thread(setattr, self, "bench_status", f"connected ({kind})")
 
@@ -118,10 +120,10 @@ class BenchlabApp(App[None]):
 
     def _close_bench(self) -> None:
         with self.device_lock:
-            bench, self.bench = self.bench, None
-            if bench is not None:
+            opened, self._opened, self.bench = self._opened, None, None
+            if opened is not None:
                 try:
-                    services.close_bench(bench)
+                    opened.close()
                 except Exception as exc:  # noqa: BLE001 - closing must not crash the UI
                     self.log.error(f"closing the bench: {exc!r}")
 

@@ -190,10 +190,7 @@ class RunScreen(Screen[None]):
         name, data = self._tables[self._table_index % len(self._tables)]
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
-        columns = list(data.get("columns") or [])
-        rows = list(data.get("rows") or [])
-        if not columns and rows:
-            columns = list(rows[0].keys())
+        columns, rows = services.table_rows(data)
         table.add_columns(*columns)
         for row in rows:
             table.add_row(*(_format_value(row.get(c, "")) for c in columns))

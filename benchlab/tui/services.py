@@ -87,33 +87,99 @@ def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDAr
 # -- the bench -------------------------------------------------------------------------------
 
 
-def open_bench(config: Path | None, simulate: bool, seed: int | None = None) -> Any:
-    """Open every configured device (or the simulated bench), like the CLI does."""
+class OpenedBench:
+    """An open bench and the context that closes it (safe state first)."""
+
+    def __init__(self, bench: Any, context: Any) -> None:
+        self.bench = bench
+        self._context = context
+
+    def close(self) -> None:
+        """Safe state (LEDs off, stage stopped), then every device closed."""
+        self._context.__exit__(None, None, None)
+
+
+def open_bench(config: Path | None, simulate: bool, seed: int | None = 0) -> OpenedBench:
+    """Open every configured device (or the simulated bench), exactly like the CLI does."""
     from benchlab.bench import Bench, BenchConfig
 
-    cfg = BenchConfig.load(config)
-    if seed is not None:
-        try:
-            return Bench.open(cfg, simulate=simulate, seed=seed)
-        except TypeError:
-            pass
-    return Bench.open(cfg, simulate=simulate)
-
-
-def close_bench(bench: Any) -> None:
-    """LEDs off, stage stopped, devices closed."""
-    try:
-        bench.safe_state()
-    finally:
-        close = getattr(bench, "close", None)
-        if callable(close):
-            close()
-        else:
-            bench.__exit__(None, None, None)
+    cfg = BenchConfig.load(config, simulate=simulate)
+    context = Bench.open(cfg, simulate=simulate, seed=seed)
+    bench = context.__enter__()
+    return OpenedBench(bench, context)
 
 
 def safe_state(bench: Any) -> None:
+    """Every LED channel off, stage stopped."""
     bench.safe_state()
+
+
+def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str, str]]]:
+    """Label/value rows per device; ``live`` also reads LED currents and the stage position.
+
+    Read errors are shown in the rows, in plain words, instead of raising.
+    """
+    ids = bench.identities()
+    out: dict[str, list[tuple[str, str]]] = {"camera": [], "leds": [], "stage": []}
+    kind = "simulated" if ids.get("simulated") else "hardware"
+    for key, name in (("camera", "camera"), ("led", "leds"), ("stage", "stage")):
+        ident = ids.get(key)
+        if not ident:
+            out[name] = [("status", "not configured")]
+            continue
+        out[name] = [
+            ("model", str(ident.get("model") or "?")),
+            ("serial", str(ident.get("serial") or "?")),
+            ("firmware", str(ident.get("firmware") or "?")),
+        ]
+        if ident.get("port"):
+            out[name].append(("port", f"{ident['port']} ({kind})"))
+    if bench.camera is not None:
+        settings = getattr(bench, "_camera_settings", {}) or {}
+        if settings:
+            out["camera"].append(("mode", f"{settings.get('width')}x{settings.get('height')} "
+                                          f"{settings.get('bits')}-bit"))
+    if not live:
+        return out
+    if bench.led is not None:
+        try:
+            for ch in range(1, bench.led.channel_count + 1):
+                mode = bench.led.get_mode(ch)
+                imax, iset = bench.led.get_current(ch)
+                ceiling = bench.config.led_ceiling_ma(ch)
+                limit = f", ceiling {ceiling:g}" if ceiling is not None else ""
+                out["leds"].append(
+                    (f"channel {ch}", f"{mode.name.lower()}  {iset:g} mA (max {imax:g}{limit})")
+                )
+        except Exception as exc:  # noqa: BLE001 - shown in the panel
+            out["leds"].append(("error", plain_error(exc)))
+    if bench.stage is not None:
+        try:
+            status = bench.stage.status()
+            out["stage"].extend([
+                ("position", f"{bench.stage.position_mm:.3f} mm"),
+                ("homed", "yes" if status.is_homed else "no"),
+                ("moving", "yes" if status.is_moving else "no"),
+            ])
+            travel = bench.config.stage_travel_mm
+            if travel is not None:
+                out["stage"].append(("travel", f"{travel[0]:g} .. {travel[1]:g} mm"))
+        except Exception as exc:  # noqa: BLE001 - shown in the panel
+            out["stage"].append(("error", plain_error(exc)))
+    return out
+
+
+def device_action(bench: Any, what: str) -> str:
+    """``"safe"``: LEDs off and stage stopped; ``"home"``: home the stage. Returns a message."""
+    if what == "safe":
+        bench.safe_state()
+        return "All LEDs off, stage stopped."
+    if what == "home":
+        if not bench.has_stage:
+            return "No stage configured."
+        bench.home_stage()
+        return "Stage homed."
+    raise ValueError(f"unknown device action {what!r}")
 
 
 def grab(bench: Any, exposure_ms: float, gain: float) -> tuple[npt.NDArray[Any], dict[str, Any]]:
@@ -224,7 +290,7 @@ def procedure_checklist(procedure: str, params_file: Path | None) -> list[Any]:
     from benchlab.protocols.runs import make_procedure
 
     params = load_params(procedure, params_file)
-    return list(make_procedure(procedure, params).steps())
+    return list(make_procedure(params).steps())
 
 
 def make_runner(
@@ -335,9 +401,25 @@ def session_tables(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
         data = json.loads(p.read_text(encoding="utf-8"))
         if p.stem == "summary":
             summary = data
-        elif isinstance(data, dict):
+        else:
             tables[p.stem] = data
     return tables, summary
+
+
+def table_rows(data: Any) -> tuple[list[str], list[Mapping[str, Any]]]:
+    """Columns and rows of a results table (``{"columns", "rows"}`` or a list of rows)."""
+    if isinstance(data, Mapping):
+        rows = [r for r in data.get("rows") or [] if isinstance(r, Mapping)]
+        columns = [str(c) for c in data.get("columns") or []]
+    elif isinstance(data, list):
+        rows = [r for r in data if isinstance(r, Mapping)]
+        columns = []
+    else:
+        rows, columns = [], []
+    if not columns:
+        for row in rows:
+            columns.extend(str(k) for k in row if str(k) not in columns)
+    return columns, rows
 
 
 def reanalyse(path: Path, estimator: str | None) -> Path:

@@ -172,8 +172,7 @@ class SessionsScreen(Screen[None]):
         if not self._tables:
             return
         name, data = self._tables[self._table_index % len(self._tables)]
-        rows = list(data.get("rows") or [])
-        columns = list(data.get("columns") or (rows[0].keys() if rows else []))
+        columns, rows = services.table_rows(data)
         table.add_columns(*columns)
         for row in rows:
             table.add_row(*(_fmt(row.get(c)) for c in columns))
