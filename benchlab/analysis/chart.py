@@ -56,8 +56,10 @@ FORWARD_DISC_RADIUS_PX = 250.0
 #: of the frame (row 560.5 + 545 > 1023), the clipping the thesis zero-padded around.
 ANNULUS_INNER_RADIUS_PX = 300.0
 ANNULUS_OUTER_RADIUS_PX = 545.0
-#: The common radial ROI: thesis rows 250-290, cols 1000-1050 (1-based, inclusive).
-RADIAL_ROI_BOX: Box = (249, 999, 290, 1050)
+#: The common radial ROI: the thesis's rectangle with vertices rows 250/290, cols 1000/1050 is
+#: 40 x 50 px with centroid (270.5, 1025.5) 1-based (Table 4.13), i.e. 0-based rows 250-289,
+#: cols 1000-1049.
+RADIAL_ROI_BOX: Box = (250, 1000, 290, 1050)
 #: Gap between an element's tangential and sagittal bar sets, in bar widths (centre to centre the
 #: two sets are 9 bar widths apart, as the thesis's ROI centroids show).
 SET_GAP_BAR_WIDTHS = 4.0
@@ -80,6 +82,9 @@ THESIS_ELEMENT_CENTRES_MM: Mapping[tuple[int, int], tuple[float, float]] = {
         (3, 1): (94.5, -56.5),
     }.items()
 }
+#: Elements whose sagittal set is left of the tangential one (the chart mirrors its groups;
+#: Table 4.13's centroids show which); in the others the sagittal set is on the right.
+THESIS_SAGITTAL_LEFT: frozenset[tuple[int, int]] = frozenset({(1, 5), (1, 6), (2, 1), (3, 1)})
 
 
 @dataclass(frozen=True)
@@ -98,6 +103,8 @@ class ChartLayout:
         Sensor pixel pitch.
     element_centres_mm
         ``(group, element) -> (x_mm, y_mm)`` element centres on the chart, relative to the origin.
+    sagittal_left
+        Elements whose sagittal (vertical-bar) set is left of their tangential set.
     """
 
     origin_rc: tuple[float, float] = IMAGE_CENTRE_RC
@@ -107,6 +114,7 @@ class ChartLayout:
     element_centres_mm: Mapping[tuple[int, int], tuple[float, float]] = field(
         default_factory=lambda: dict(THESIS_ELEMENT_CENTRES_MM)
     )
+    sagittal_left: frozenset[tuple[int, int]] = THESIS_SAGITTAL_LEFT
 
     def __hash__(self) -> int:  # the mapping field is not hashable by itself
         return hash(
@@ -116,6 +124,7 @@ class ChartLayout:
                 self.magnification,
                 self.pixel_pitch_um,
                 tuple(sorted(self.element_centres_mm.items())),
+                self.sagittal_left,
             )
         )
 
@@ -200,8 +209,9 @@ def usaf_bar_group(
 ) -> BarGroup:
     """Geometry of one bar set of a USAF element under ``layout``.
 
-    The tangential set (horizontal bars) lies left of the element centre and the sagittal set
-    (vertical bars) right of it, each 5 bar widths square, their centres 9 bar widths apart.
+    The two sets sit side by side on the element's row, each 5 bar widths square, their centres
+    9 bar widths apart; the sagittal (vertical-bar) set is on the right unless the element is in
+    ``layout.sagittal_left``.
 
     Raises
     ------
@@ -218,6 +228,8 @@ def usaf_bar_group(
     w = layout.object_mm_to_px(usaf_bar_width_mm(group, element))
     half_offset = (5.0 + SET_GAP_BAR_WIDTHS) * w / 2.0
     side = 1.0 if orientation == "sagittal" else -1.0
+    if (group, element) in layout.sagittal_left:
+        side = -side
     cr = layout.origin_rc[0] + layout.object_mm_to_px(y_mm)
     cc = layout.origin_rc[1] + layout.object_mm_to_px(x_mm) + side * half_offset
     top, left, bottom, right = cr - 2.5 * w, cc - 2.5 * w, cr + 2.5 * w, cc + 2.5 * w
