@@ -1,9 +1,197 @@
-"""CLI commands of this group (filled in by the owning layer)."""
+"""``benchlab run``, ``resume``, ``report`` and re-analysis of a session folder."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+from benchlab.drivers.errors import BenchlabError
+
+
+class _Progress:
+    """A one-line progress bar on a terminal; one plain line per step otherwise."""
+
+    def __init__(self, stream: TextIO, width: int = 30) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.width = width
+
+    def __call__(self, done: int, total: int, step: Any) -> None:
+        title = step.title if step is not None else "done"
+        if self.tty:
+            filled = int(self.width * done / max(total, 1))
+            bar = "#" * filled + "-" * (self.width - filled)
+            self.stream.write(f"\r[{bar}] {done}/{total} {title[:50]:<50}")
+            if step is None:
+                self.stream.write("\n")
+        else:
+            self.stream.write(f"[{done}/{total}] {title}\n")
+        self.stream.flush()
+
+    def line(self, text: str) -> None:
+        if self.tty:
+            self.stream.write("\r" + " " * (self.width + 60) + "\r")
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+
+def _prompter(yes: bool, progress: _Progress) -> Any:
+    def prompt(step: Any, message: str) -> bool:
+        if yes:
+            progress.line(f"  {step.id}: {message} [--yes]")
+            return True
+        if not sys.stdin.isatty():
+            raise BenchlabError(f"step {step.id} needs the operator ({message}); "
+                                "run on a terminal or pass --yes")
+        progress.line(f"  {step.id}: {message}")
+        answer = input("  Done? [Y/n] ").strip().lower()
+        return answer in ("", "y", "yes")
+
+    return prompt
+
+
+def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO) -> None:
+    from benchlab.report_tables import TABLE_VIEWS, format_table
+
+    for name, rows in tables.items():
+        view = TABLE_VIEWS.get(name)
+        if view is None or not rows:
+            continue
+        out.write(f"\n{view.title}\n{format_table(rows, view.columns)}\n")
+
+
+def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
+    from benchlab.bench import Bench, BenchConfig
+    from benchlab.protocols import RunAborted, StepFailed
+    from benchlab.protocols.runs import bench_config_of, resume_run, start_run
+
+    progress = _Progress(sys.stderr)
+    if resume:
+        session_path = Path(args.session)
+        if args.config:
+            config = BenchConfig.load(args.config, simulate=args.simulate)
+        else:
+            config = BenchConfig.from_dict(bench_config_of(session_path),
+                                           f"{session_path}/session.json")
+    else:
+        config = BenchConfig.load(args.config, simulate=args.simulate)
+        if not args.simulate and args.config is None:
+            raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+    t0 = time.perf_counter()
+    runner = None
+    try:
+        with Bench.open(config, simulate=args.simulate) as bench:
+            kwargs = dict(bench=bench, prompt=_prompter(args.yes, progress), progress=progress,
+                          estimator=getattr(args, "estimator", None))
+            if resume:
+                runner = resume_run(session_path, **kwargs)
+            else:
+                from benchlab.protocols.params import load_params
+
+                params = load_params(args.procedure, args.params)
+                runner = start_run(args.procedure, params=params, root=args.out,
+                                   operator=args.operator, **kwargs)
+            progress.line(f"session: {runner.session.path}")
+            outcome = runner.run()
+    except (StepFailed, RunAborted) as exc:
+        progress.line(f"benchlab: {exc}")
+        if runner is not None:
+            progress.line(f"bench left safe; continue with: benchlab resume {runner.session.path}"
+                          + (" --simulate" if args.simulate else ""))
+        return 1
+    except KeyboardInterrupt:
+        if runner is not None:
+            progress.line(f"interrupted; bench left safe; continue with: benchlab resume "
+                          f"{runner.session.path}" + (" --simulate" if args.simulate else ""))
+        raise
+    elapsed = time.perf_counter() - t0
+    _print_tables(outcome.tables, sys.stdout)
+    print(f"\nsession: {outcome.session_path}")
+    print(f"results: {outcome.results_path}")
+    print(f"wall time: {elapsed:.1f} s")
+    return 0
+
+
+def run_command(args: argparse.Namespace) -> int:
+    return _run_or_resume(args, resume=False)
+
+
+def resume_command(args: argparse.Namespace) -> int:
+    return _run_or_resume(args, resume=True)
+
+
+def analyze_session_command(args: argparse.Namespace) -> int:
+    """Re-analyse a session folder (``args.target``) into a new results version."""
+    from benchlab.protocols.runs import reanalyze
+    from benchlab.report_tables import read_results
+
+    target = next(
+        (getattr(args, a) for a in ("target", "session", "image", "path")
+         if getattr(args, a, None)),
+        None,
+    )
+    if target is None:
+        raise BenchlabError("analyze: no session folder given")
+    t0 = time.perf_counter()
+    out = reanalyze(Path(target), estimator=getattr(args, "estimator", None))
+    elapsed = time.perf_counter() - t0
+    tables, _ = read_results(out)
+    if getattr(args, "json", False):
+        import json
+
+        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed}))
+        return 0
+    _print_tables(tables, sys.stdout)
+    print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
+    return 0
+
+
+def report_command(args: argparse.Namespace) -> int:
+    from benchlab.report import write_report
+
+    out = write_report(Path(args.session), Path(args.out) if args.out else None)
+    print(f"report: {out}")
+    return 0
 
 
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
-    """Add this group's sub-commands."""
+    """Add ``run``, ``resume`` and ``report``."""
+    run = commands.add_parser(
+        "run", help="run a procedure (Table 4.10 MTF or section 4.4 radiometry)",
+        description="Run a measurement procedure into a new session folder, with a progress "
+        "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
+    )
+    run.add_argument("procedure", choices=("mtf", "radiometry"))
+    run.add_argument("--simulate", action="store_true", help="use the simulated bench")
+    run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel)")
+    run.add_argument("--params", help="procedure parameter TOML (default: packaged)")
+    run.add_argument("--yes", action="store_true", help="confirm every manual step")
+    run.add_argument("--out", default="sessions", help="folder for sessions (default sessions)")
+    run.add_argument("--operator", default="", help="operator name for session.json")
+    run.add_argument("--estimator", help="modulation estimator (default: params / library)")
+    run.set_defaults(func=run_command)
+
+    res = commands.add_parser(
+        "resume", help="continue an interrupted session from its first incomplete step",
+        description="Continue an interrupted run (Ctrl-C, crash, kill -9) from the first "
+        "incomplete step; nothing acquired is repeated or lost.",
+    )
+    res.add_argument("session", help="session folder")
+    res.add_argument("--simulate", action="store_true", help="use the simulated bench")
+    res.add_argument("--config", help="bench configuration TOML (default: the session's)")
+    res.add_argument("--yes", action="store_true", help="confirm every manual step")
+    res.add_argument("--estimator", help="modulation estimator for the final analysis")
+    res.set_defaults(func=resume_command)
+
+    rep = commands.add_parser(
+        "report", help="write a self-contained HTML report of a session",
+        description="Write an HTML report: tables, measured vs simulated MTF per view and "
+        "orientation, the radiometry fall-off, frames with their ROIs drawn.",
+    )
+    rep.add_argument("session", help="session folder")
+    rep.add_argument("--out", help="output file (default SESSION/report.html)")
+    rep.set_defaults(func=report_command)
