@@ -25,6 +25,11 @@ from dataclasses import dataclass
 from types import TracebackType
 
 import serial
+
+try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - non-POSIX
+    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.apt_protocol import (
     CHAN1,
     DISABLE,
@@ -57,6 +62,7 @@ from benchlab.drivers.errors import (
     SettingOutOfRangeError,
 )
 
+_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
 KEEPALIVE_PERIOD_S = 0.9  # the cube wants 0x0492 at least once a second while updates flow
@@ -128,7 +134,7 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
                 for msg in frames.feed(ser.read(max(1, ser.in_waiting))):
                     if msg.msg_id == Msg.HW_GET_INFO and msg.data:
                         return HwInfo.unpack(msg.data)
-    except (serial.SerialException, OSError) as exc:
+    except _IO_ERRORS as exc:
         raise DeviceLostError(f"stage: cannot query {port}: {exc}") from exc
     except ValueError as exc:
         raise AptBadReplyError(f"stage: bad HW_GET_INFO reply from {port}: {exc}") from None
@@ -192,7 +198,7 @@ class AptStage:
                                       write_timeout=self.timeout_s)
             self._ser.reset_input_buffer()
             self._ser.reset_output_buffer()
-        except (serial.SerialException, OSError) as exc:
+        except _IO_ERRORS as exc:
             self._ser = None
             raise DeviceLostError(f"stage: cannot open {self.port}: {exc}") from exc
         self._closing.clear()
@@ -272,7 +278,7 @@ class AptStage:
         if ser is not None:
             try:
                 ser.close()
-            except (serial.SerialException, OSError):
+            except _IO_ERRORS:
                 pass
 
     # ---- identity and state -----------------------------------------------------------------
@@ -497,7 +503,7 @@ class AptStage:
         with self._write_lock:
             try:
                 ser.write(msg.pack())
-            except (serial.SerialException, OSError) as exc:
+            except _IO_ERRORS as exc:
                 raise DeviceLostError(f"stage lost while sending {msg.name}: {exc}") from exc
         return seq
 
@@ -525,7 +531,7 @@ class AptStage:
         while ser is not None and not self._closing.is_set():
             try:
                 data = ser.read(max(1, ser.in_waiting))
-            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+            except (*_IO_ERRORS, TypeError, AttributeError) as exc:
                 if not self._closing.is_set():
                     with self._cond:
                         self._lost = exc

@@ -163,6 +163,7 @@ class SimulatedAptStage(PtyDevice):
         self._motion: _Motion | None = None
         self._held_limit_bits = StatusBits(0)
         self._updates = False
+        self.update_min_wall_s = UPDATE_MIN_WALL_S
         self._unacked = 0
         self._last_update_sim_s = -math.inf
         self._last_update_wall_s = -math.inf
@@ -335,7 +336,7 @@ class SimulatedAptStage(PtyDevice):
             return
         wall = time.monotonic()
         if (now_s - self._last_update_sim_s >= UPDATE_PERIOD_S
-                and wall - self._last_update_wall_s >= UPDATE_MIN_WALL_S):
+                and wall - self._last_update_wall_s >= self.update_min_wall_s):
             self._last_update_sim_s, self._last_update_wall_s = now_s, wall
             self._unacked += 1
             self._reply_long(Msg.MOT_GET_DCSTATUSUPDATE, self._status(now_s).pack())

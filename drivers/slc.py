@@ -24,6 +24,11 @@ from enum import IntEnum
 from types import FrameType, TracebackType
 
 import serial
+
+try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - non-POSIX
+    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.errors import (
     DeviceError,
     DeviceLostError,
@@ -33,6 +38,7 @@ from benchlab.drivers.errors import (
     SettingOutOfRangeError,
 )
 
+_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 9600
 COMMAND_END = b"\n\r"  # LF then CR - the order the SLC expects
 REPLY_END = b"\r\n"
@@ -153,7 +159,7 @@ class SlcController:
                 self.port, BAUD, bytesize=8, parity="N", stopbits=1,
                 timeout=self.timeout_s, write_timeout=self.timeout_s,
             )
-        except (serial.SerialException, OSError) as exc:
+        except _IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
             self._echo_off()
@@ -323,7 +329,7 @@ class SlcController:
             ser.read_until(REPLY_END)  # an ack may or may not come; either is fine
             ser.timeout = self.timeout_s
             ser.reset_input_buffer()
-        except (serial.SerialException, OSError) as exc:
+        except _IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
     def _configure_family(self, module: str) -> None:
@@ -364,7 +370,7 @@ class SlcController:
                 raw = ser.read_until(REPLY_END)
                 if ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
-            except (serial.SerialException, OSError) as exc:
+            except _IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
                 self._off_pending = True
@@ -411,7 +417,7 @@ class SlcController:
         if ser is not None:
             try:
                 ser.close()
-            except (serial.SerialException, OSError):
+            except _IO_ERRORS:
                 pass
 
     # ---- Ctrl-C and interpreter exit -------------------------------------------------------

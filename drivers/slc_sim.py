@@ -48,6 +48,7 @@ class SlcFaults:
     drop_on_command: str | None = None  # drop the link when this verb arrives (before acting)
     out_of_range: int = 0  # next N queries answer with impossible values
     exec_error: int = 0  # next N commands execute but answer "#!"
+    undefined: set[str] = field(default_factory=set)  # verbs this "firmware" does not know
 
 
 @dataclass
@@ -132,7 +133,7 @@ class SimulatedSlc(PtyDevice):
             self.write(junk)
             return
         handler = getattr(self, "_cmd_" + verb.replace("?", "Q_"), None)
-        if handler is None:
+        if handler is None or verb in {v.upper() for v in f.undefined}:
             self._reply(f"    {words[0]} is not defined")
             return
         try:
@@ -167,10 +168,8 @@ class SimulatedSlc(PtyDevice):
         return "##"
 
     def _cmd_DEVICEINFO(self, args: list[int]) -> str:
-        return (
-            f"Mightex LED Driver:{self.firmware} Device Module No.:{self.module} "
-            f"Device Serial No.:{self.serial}"
-        )
+        module = f"Device Module No.:{self.module} " if self.module else ""  # old fw: absent
+        return f"Mightex LED Driver:{self.firmware} {module}Device Serial No.:{self.serial}"
 
     def _cmd_MODE(self, args: list[int]) -> str:
         c = self._chan(args, 2)
