@@ -190,16 +190,19 @@ class Bench:
     @classmethod
     @contextlib.contextmanager
     def open(
-        cls, config: BenchConfig | None = None, *, simulate: bool = False, seed: int | None = 0
+        cls, config: BenchConfig | None = None, *, simulate: bool = False, seed: int | None = 0,
+        noise: bool = True,
     ) -> Iterator[Bench]:
-        """Open every configured device (or its simulator); safe state on every way out."""
+        """Open every configured device (or its simulator); safe state on every way out.
+
+        ``seed`` and ``noise`` apply to the simulated camera only (``noise=False``: exact,
+        noise-free frames).
+        """
         cfg = config if config is not None else BenchConfig.load(None, simulate=simulate)
         bench = cls(cfg, simulated=simulate)
         with contextlib.ExitStack() as stack:
             if simulate:
-                from benchlab.bench_sim import open_simulated
-
-                open_simulated(bench, stack, seed=seed)
+                open_simulated(bench, stack, seed=seed, noise=noise)
             else:
                 _open_real(bench, stack)
             try:
@@ -338,7 +341,9 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
         ))
 
 
-def open_simulated(bench: Bench, stack: contextlib.ExitStack, *, seed: int | None = 0) -> None:
+def open_simulated(
+    bench: Bench, stack: contextlib.ExitStack, *, seed: int | None = 0, noise: bool = True
+) -> None:
     """Build the simulated bench: world + camera firmware on a pyusb backend + SLC and APT
     simulators on pseudo-terminals, with the real drivers connected to them."""
     from benchlab.drivers.apt import AptStage
@@ -370,21 +375,12 @@ def open_simulated(bench: Bench, stack: contextlib.ExitStack, *, seed: int | Non
         bench.stage = stack.enter_context(AptStage(
             sim_stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
         ))
+    cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}
     bench.sim_camera = SimulatedCamera(
-        scene=bench.world, serial=cfg.camera.serial or "SIM-13001", bench_state=bench.state,
-        **_camera_seed(seed),
+        bench.world, serial=cfg.camera.serial or "SIM-130001", seed=seed, noise=noise,
+        bench_state=bench.state, **cam_kwargs,
     )
     backend = SimCameraBackend([bench.sim_camera])
     bench.camera = stack.enter_context(
         MightexCamera.open(serial=cfg.camera.serial, backend=backend, pid=cfg.camera.pid)
     )
-
-
-def _camera_seed(seed: int | None) -> dict[str, Any]:
-    """Noise seed for the simulated camera, if its firmware model takes one."""
-    import inspect
-
-    from benchlab.drivers.mightex_sim import SimulatedCamera
-
-    params = inspect.signature(SimulatedCamera).parameters
-    return {"seed": seed} if "seed" in params and seed is not None else {}

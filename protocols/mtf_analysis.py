@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
+from scipy import ndimage
 
 from benchlab.analysis import chart
 from benchlab.analysis.estimators import DEFAULT_ESTIMATOR, estimate_modulation
@@ -112,13 +113,15 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
 ]:
     """Optical centre from the radial frames' field-of-view mask (section 4.3.3).
 
-    The lit annulus of every radial frame together traces the field-of-view circle; its
-    centre is the optical axis. Falls back to the chart's nominal centre when no mask exists.
+    The lit annulus of every radial frame together traces the field-of-view circle; with its
+    hole (the forward disc) filled, the circle's centre is the optical axis (a circle fit when
+    the frame edge clips it). Falls back to the chart's nominal centre when no mask exists.
     """
     if radial_frames:
         mask = np.zeros(radial_frames[0].shape, dtype=bool)
         for px in radial_frames:
             mask |= px > threshold_dn
+        mask = ndimage.binary_fill_holes(mask)
         try:
             circle = fov_centre(mask)
             return circle.centre_rc, circle.method

@@ -73,7 +73,7 @@ class MtfParams:
     forward_roi_overrides: Mapping[str, Roi] = field(default_factory=dict)
     radial_magnification: float = 17.5
     radial_frequencies_lp_per_mm: tuple[float, ...] = (0.5, 1, 2, 3, 4, 5, 6)
-    radial_roi: Roi = (249, 999, 290, 1050)
+    radial_roi: Roi = (250, 1000, 290, 1050)
     fov_threshold_dn: float = 8.0
     estimator: str = ""
     monte_carlo_file: str = ""

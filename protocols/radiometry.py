@@ -31,17 +31,19 @@ def position_step_id(position_mm: float) -> str:
     return f"position-{position_mm:g}"
 
 
+def mask_of(mask_frame: npt.NDArray[Any], threshold_fraction: float) -> npt.NDArray[np.bool_]:
+    """LED mask: pixels of the high-gain frame above ``threshold_fraction`` of the way from its
+    median (the dark background) to its peak; the largest blob only."""
+    img = np.asarray(mask_frame, dtype=np.float64)
+    background, peak = float(np.median(img)), float(img.max())
+    return led_mask(img, threshold=background + threshold_fraction * (peak - background))
+
+
 def reading(
     mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any], threshold_fraction: float
 ) -> tuple[float, int]:
-    """Mean gray of the measurement frame inside the LED mask, and the mask's pixel count.
-
-    The mask is every pixel of the high-gain frame above ``threshold_fraction`` of the way from
-    its median (background) to its peak.
-    """
-    img = np.asarray(mask_frame, dtype=np.float64)
-    background, peak = float(np.median(img)), float(img.max())
-    mask = led_mask(img, threshold=background + threshold_fraction * (peak - background))
+    """Mean gray of the measurement frame inside the LED mask, and the mask's pixel count."""
+    mask = mask_of(mask_frame, threshold_fraction)
     return mean_in_mask(measurement_frame, mask), int(mask.sum())
 
 

@@ -1,0 +1,110 @@
+"""How each results table is shown: titles, columns, number formats (text and HTML)."""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+Column = tuple[str, str, str]  # (key, header, format: "", ".3f", ...)
+
+
+@dataclass(frozen=True)
+class TableView:
+    title: str
+    columns: tuple[Column, ...]
+
+
+_S_T = tuple(
+    col
+    for o, short in (("sagittal", "S"), ("tangential", "T"))
+    for col in ((f"{o}_dark", f"{short} dark", ".1f"), (f"{o}_bright", f"{short} bright", ".1f"),
+                (f"{o}_modulation", f"{short} mod.", ".3f"))
+)
+
+TABLE_VIEWS: dict[str, TableView] = {
+    "table_4_11": TableView(
+        "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9)",
+        (("element", "element", ""), ("image_lp_per_mm", "image lp/mm", ".3f"), *_S_T,
+         ("aliased", "aliased", "")),
+    ),
+    "table_4_12": TableView(
+        "Table 4.12 - radial view, modulation (Eq. 2.9)",
+        (("object_lp_per_mm", "object lp/mm", "g"), ("image_lp_per_mm", "image lp/mm", ".2f"),
+         *_S_T, ("aliased", "aliased", "")),
+    ),
+    "table_4_13": TableView(
+        "Tables 4.13-4.14 - image height and nearest simulated field point",
+        (("view", "view", ""), ("test", "test", ""), ("roi_centroid_row", "row", ".1f"),
+         ("roi_centroid_col", "col", ".1f"), ("image_height_px", "height px", ".2f"),
+         ("image_height_mm", "height mm", ".3f"), ("nearest_field_deg", "field deg", "g"),
+         ("nearest_field_height_mm", "field mm", ".2f")),
+    ),
+    "table_4_15": TableView(
+        "Table 4.15 - averaged MTF (Eq. 4.2) against the Monte Carlo prediction",
+        (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
+         ("measured_freq_lp_per_mm", "measured lp/mm", ".3f"),
+         ("sagittal_modulation", "S", ".3f"), ("tangential_modulation", "T", ".3f"),
+         ("averaged_modulation", "avg", ".3f"), ("p90", "90%>", ".2f"), ("p50", "50%>", ".2f"),
+         ("p10", "10%>", ".2f"), ("verdict", "verdict", "")),
+    ),
+    "table_4_16": TableView(
+        "Table 4.16 - relative radiometry",
+        (("position_mm", "position mm", "g"), ("simulated_mw_per_mm2", "sim. mW/mm2", ".3f"),
+         ("measured_mean_gray", "mean gray", ".2f"),
+         ("simulated_normalised", "sim. norm.", ".2f"),
+         ("measured_normalised", "meas. norm.", ".2f"), ("difference", "difference", "+.2f"),
+         ("mask_pixels", "mask px", "")),
+    ),
+}
+
+
+def cell(value: Any, fmt: str) -> str:
+    """One table cell as text; missing numbers are shown as N/A, never as NaN."""
+    if value is None:
+        return "N/A"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if fmt and isinstance(value, int | float):
+        return format(value, fmt)
+    if isinstance(value, list):
+        return json.dumps(value)
+    return str(value)
+
+
+def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
+    """A plain-text table with aligned columns."""
+    header = [h for _, h, _ in columns]
+    body = [[cell(r.get(k), f) for k, _, f in columns] for r in rows]
+    widths = [max(len(x) for x in col) for col in zip(header, *body, strict=False)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in body]
+    return "\n".join(lines)
+
+
+def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
+    """An HTML table (escaped)."""
+    head = "".join(f"<th>{html.escape(h)}</th>" for _, h, _ in columns)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(cell(r.get(k), f))}</td>" for k, _, f in columns)
+        + "</tr>"
+        for r in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def read_results(folder: str | Path) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
+    """Tables (``name -> rows``) and ``summary.json`` of one ``results/vN`` folder."""
+    path = Path(folder)
+    tables: dict[str, list[dict[str, Any]]] = {}
+    summary: dict[str, Any] = {}
+    for p in sorted(path.glob("*.json")):
+        data = json.loads(p.read_text(encoding="utf-8"))
+        if p.stem == "summary":
+            summary = data
+        else:
+            tables[p.stem] = data
+    return tables, summary
