@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.drivers.errors import BenchlabError, DeviceError
-from benchlab.protocols.params import ParamsError, _Checker
+from benchlab.protocols.params import BenchLimits, ParamsError, _Checker
 
 #: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
 Z8_COUNTS_PER_MM = 34554.96
@@ -81,6 +81,13 @@ class BenchConfig:
         if self.led is None:
             return None
         return self.led.ceilings_ma.get(channel)
+
+    def limits(self) -> BenchLimits:
+        """What procedure parameters are checked against before a run."""
+        return BenchLimits(
+            led_ceilings_ma=dict(self.led.ceilings_ma) if self.led is not None else None,
+            stage_travel_mm=self.stage.travel_mm if self.stage is not None else None,
+        )
 
     # -- (de)serialisation ----------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

@@ -105,6 +105,18 @@ class RadiometryParams:
 Params = MtfParams | RadiometryParams
 
 
+@dataclass(frozen=True)
+class BenchLimits:
+    """What the bench allows, so parameters are checked against it with everything else.
+
+    ``led_ceilings_ma`` is ``None`` when the bench has no LED controller configured;
+    ``stage_travel_mm`` is ``None`` without a stage (positions are then set by hand).
+    """
+
+    led_ceilings_ma: Mapping[int, float] | None = None
+    stage_travel_mm: tuple[float, float] | None = None
+
+
 class _Checker:
     """Reads typed values out of a nested mapping, collecting every problem."""
 
@@ -314,7 +326,28 @@ def _check_mtf(c: _Checker) -> MtfParams:
     )
 
 
-def _check_radiometry(c: _Checker) -> RadiometryParams:
+def _check_bench(
+    c: _Checker, limits: BenchLimits, channel: int, current_ma: float,
+    positions: tuple[float, ...], offset_mm: float,
+) -> None:
+    """LED ceiling and stage travel of the bench this run will use."""
+    if limits.led_ceilings_ma is not None:
+        ceiling = limits.led_ceilings_ma.get(channel)
+        if ceiling is None:
+            c.fail("led.channel", f"channel {channel} has no current ceiling in the bench "
+                   "configuration")
+        elif current_ma > ceiling:
+            c.fail("led.current_ma", f"{current_ma:g} mA exceeds the bench ceiling "
+                   f"{ceiling:g} mA of channel {channel}")
+    if limits.stage_travel_mm is not None:
+        lo, hi = limits.stage_travel_mm
+        for i, pos in enumerate(positions):
+            if not lo <= pos + offset_mm <= hi:
+                c.fail(f"positions.field_mm[{i}]", f"stage target {pos + offset_mm:g} mm is "
+                       f"outside the travel {lo:g}..{hi:g} mm")
+
+
+def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
     exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
     mask_gain = c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE)
@@ -331,6 +364,8 @@ def _check_radiometry(c: _Checker) -> RadiometryParams:
                f"has {len(irr)} values but positions.field_mm has {len(positions)}")
     thr = c.number("analysis.mask_threshold_fraction", d.mask_threshold_fraction, 0.0, 1.0,
                    lo_open=True)
+    if limits is not None:
+        _check_bench(c, limits, channel, current, positions, offset)
     return RadiometryParams(
         exposure_ms=exposure, mask_gain=mask_gain, measurement_gain=meas_gain, bits=bits,
         led_channel=channel, led_current_ma=current, positions_mm=positions,
@@ -344,7 +379,10 @@ def default_params_path(procedure: str) -> Path:
     return Path(str(resources.files("benchlab.protocols") / "defaults" / f"{procedure}.toml"))
 
 
-def parse_params(procedure: str, data: Mapping[str, Any], source: str = "<params>") -> Params:
+def parse_params(
+    procedure: str, data: Mapping[str, Any], source: str = "<params>",
+    limits: BenchLimits | None = None,
+) -> Params:
     """Validate a parsed parameter mapping; :class:`ParamsError` lists every problem."""
     if procedure not in PROCEDURES:
         raise ParamsError(source, [f"procedure: unknown procedure {procedure!r}; "
@@ -354,15 +392,21 @@ def parse_params(procedure: str, data: Mapping[str, Any], source: str = "<params
     declared = data.get("procedure", procedure)
     if declared != procedure:
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
-    params: Params = _check_mtf(checker) if procedure == "mtf" else _check_radiometry(checker)
+    params: Params = (_check_mtf(checker) if procedure == "mtf"
+                      else _check_radiometry(checker, limits))
     checker.unknown_keys()
     if checker.problems:
         raise ParamsError(source, checker.problems)
     return params
 
 
-def load_params(procedure: str, path: str | Path | None = None) -> Params:
-    """Load and validate a procedure's parameters (``path=None``: the packaged defaults)."""
+def load_params(
+    procedure: str, path: str | Path | None = None, limits: BenchLimits | None = None
+) -> Params:
+    """Load and validate a procedure's parameters (``path=None``: the packaged defaults).
+
+    With ``limits`` the values are also checked against the bench (LED ceiling, travel).
+    """
     p = Path(path) if path is not None else default_params_path(procedure)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
@@ -370,4 +414,4 @@ def load_params(procedure: str, path: str | Path | None = None) -> Params:
         raise ParamsError(str(p), ["file: no such parameter file"]) from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParamsError(str(p), [f"file: not valid TOML ({exc})"]) from exc
-    return parse_params(procedure, data, str(p))
+    return parse_params(procedure, data, str(p), limits)

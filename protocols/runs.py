@@ -11,6 +11,7 @@ from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
 from benchlab.protocols.mtf import MtfProcedure
 from benchlab.protocols.params import (
+    BenchLimits,
     MtfParams,
     Params,
     ParamsError,
@@ -38,39 +39,18 @@ def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure:
     return RadiometryProcedure(params)
 
 
-def check_against_bench(params: Params, bench_config: Any, source: str) -> None:
-    """Parameters that the bench could not honour (LED ceiling, stage travel), all at once."""
-    if not isinstance(params, RadiometryParams) or bench_config is None:
-        return
-    problems: list[str] = []
-    ceiling = bench_config.led_ceiling_ma(params.led_channel)
-    if ceiling is None:
-        problems.append(f"led.channel: channel {params.led_channel} has no current ceiling "
-                        "in the bench configuration")
-    elif params.led_current_ma > ceiling:
-        problems.append(f"led.current_ma: {params.led_current_ma:g} mA exceeds the bench "
-                        f"ceiling {ceiling:g} mA of channel {params.led_channel}")
-    travel = bench_config.stage_travel_mm
-    if bench_config.has_stage and travel is not None:
-        lo, hi = travel
-        for i, pos in enumerate(params.positions_mm):
-            target = params.stage_target_mm(pos)
-            if not lo <= target <= hi:
-                problems.append(f"positions.field_mm[{i}]: stage target {target:g} mm is "
-                                f"outside the travel {lo:g}..{hi:g} mm")
-    if problems:
-        raise ParamsError(source, problems)
-
-
-def _resolve_params(procedure: str, params: Params | str | Path | None) -> tuple[Params, str]:
+def _resolve_params(
+    procedure: str, params: Params | str | Path | None, limits: BenchLimits | None
+) -> tuple[Params, str]:
+    """Validate the parameters in full, bench limits included, before anything is touched."""
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
-        return load_params(procedure, params), source
+        return load_params(procedure, params, limits), source
     expected = MtfParams if procedure == "mtf" else RadiometryParams
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])
-    return params, "<params>"
+    return parse_params(procedure, params.raw, "<params>", limits), "<params>"
 
 
 def start_run(
@@ -87,8 +67,7 @@ def start_run(
     estimator: str | None = None,
 ) -> Runner:
     """Validate everything, create the session folder, return a runner (nothing moved yet)."""
-    resolved, source = _resolve_params(procedure, params)
-    check_against_bench(resolved, bench.config, source)
+    resolved, source = _resolve_params(procedure, params, bench.config.limits())
     snapshot = {**dict(resolved.raw), "procedure": procedure,
                 BENCH_KEY: bench.config.to_dict()}
     session = Session.create(

@@ -81,6 +81,12 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         config = BenchConfig.load(args.config, simulate=args.simulate)
         if not args.simulate and args.config is None:
             raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+    params = None
+    if not resume:
+        from benchlab.protocols.params import load_params
+
+        # Every parameter problem, bench limits included, is reported before a device is opened.
+        params = load_params(args.procedure, args.params, config.limits())
     t0 = time.perf_counter()
     runner = None
     try:
@@ -90,9 +96,6 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
             if resume:
                 runner = resume_run(session_path, **kwargs)
             else:
-                from benchlab.protocols.params import load_params
-
-                params = load_params(args.procedure, args.params)
                 runner = start_run(args.procedure, params=params, root=args.out,
                                    operator=args.operator, **kwargs)
             progress.line(f"session: {runner.session.path}")
