@@ -26,6 +26,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     parser.add_argument(
         "--radiometry-params", type=Path, default=None, help="radiometry parameter file"
     )
+    parser.add_argument("--operator", default="", help="operator name for session.json")
     parser.set_defaults(func=run_tui)
 
 
@@ -39,7 +40,7 @@ def run_tui(args: argparse.Namespace) -> int:
     }
     app = BenchlabApp(
         simulate=args.simulate, config=args.config, sessions_dir=args.sessions,
-        params_files=params,
+        params_files=params, operator=args.operator,
     )
     app.run()
     return int(app.return_code or 0)

@@ -62,6 +62,7 @@ class BenchlabApp(App[None]):
         autoconnect: bool = True,
         seed: int | None = 0,
         params_files: dict[str, Path] | None = None,
+        operator: str = "",
     ) -> None:
         super().__init__()
         self.simulate = simulate
@@ -71,6 +72,8 @@ class BenchlabApp(App[None]):
         self.seed = seed
         #: Parameter file per procedure (``None``: the packaged defaults).
         self.params_files: dict[str, Path | None] = dict(params_files or {})
+        #: Recorded in ``session.json`` of every run started here.
+        self.operator = operator
         self.bench: Any = None
         self._opened: services.OpenedBench | None = None
         #: Serialises device access between the live view, the devices panel and the runner.
@@ -155,6 +158,14 @@ class BenchlabApp(App[None]):
         """A dialog with the error in plain words."""
         text = exc if isinstance(exc, str) else services.plain_error(exc)
         self.push_screen(ErrorDialog(title, text))
+
+    def on_unmount(self) -> None:
+        """Whatever way the app ends: stop the runner, leave the bench safe and closed."""
+        self.abort_event.set()
+        self.workers.cancel_all()
+        if self.bench is not None:
+            self.wait_for_device_threads(timeout_s=10.0)
+            self._close_bench()
 
     async def action_quit(self) -> None:
         """Stop every worker, leave the bench safe (LEDs off, stage stopped), exit."""

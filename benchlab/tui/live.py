@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from typing import Any
 
 from textual import work
 from textual.app import ComposeResult
@@ -26,8 +27,13 @@ GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 #: How often the screen takes the newest frame from the acquisition thread.
 DISPLAY_INTERVAL_S = 1 / 15
 #: Cap on the acquisition loop so it never hogs the interpreter.
-MAX_GRAB_RATE_HZ = 25.0
-ROI_STEP_PX = 16
+MAX_GRAB_RATE_HZ = 16.0
+#: Orientations the o key cycles through ("auto": the analysis detects it).
+ORIENTATIONS = ("auto", "sagittal", "tangential")
+#: Targets the t key mounts on the simulated bench (a real bench's target is set by hand).
+SIM_TARGETS: tuple[object, ...] = (
+    "usaf", ("radial", 2.0, "sagittal"), ("radial", 2.0, "tangential"), "led", "dark",
+)
 
 
 def _step(values: tuple[float, ...], current: float, direction: int) -> float:
@@ -60,13 +66,18 @@ class LiveScreen(Screen[None]):
         Binding("G", "gain(1)", "Gain+"),
         Binding("m", "estimator", "Method"),
         Binding("o", "orientation", "Orient."),
+        Binding("z", "zoom", "Zoom"),
+        Binding("t", "target", "Target (sim)"),
     ]
 
-    exposure_ms: reactive[float] = reactive(50.0)
+    exposure_ms: reactive[float] = reactive(300.0)
     gain: reactive[float] = reactive(1.0)
-    roi: reactive[Roi] = reactive(Roi(448, 576, 128, 128))
+    #: Default ROI: one bar set of the forward-view USAF chart (move it with the arrows).
+    roi: reactive[Roi] = reactive(Roi(596, 518, 20, 14))
     estimator: reactive[str] = reactive("")
-    orientation: reactive[str] = reactive("sagittal")
+    orientation: reactive[str] = reactive("auto")
+    #: Show the ROI's surroundings instead of the whole frame.
+    zoom: reactive[bool] = reactive(False)
 
     def __init__(self) -> None:
         super().__init__()
@@ -117,13 +128,18 @@ class LiveScreen(Screen[None]):
                 if bench is None or app.procedure_running:  # type: ignore[attr-defined]
                     time.sleep(0.1)
                     continue
+                if bench.simulated and bench.mounted is None:
+                    with app.device_lock:  # type: ignore[attr-defined]
+                        services.mount_target(bench, SIM_TARGETS[0])
                 started = time.monotonic()
                 settings = (self.exposure_ms, self.gain)
                 try:
                     with app.device_lock:  # type: ignore[attr-defined]
                         frame = services.grab(bench, *settings)
+                    orientation = None if self.orientation == "auto" else self.orientation
                     reading = services.live_reading(
-                        frame, self.roi, self.estimator, self.orientation, index, *settings
+                        frame, self.roi, self.estimator, orientation, index, *settings,
+                        zoom=self.zoom,
                     )
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
@@ -176,7 +192,7 @@ class LiveScreen(Screen[None]):
         lines = [
             f"{r.roi.label()}",
             f"exposure {r.exposure_ms:g} ms  gain {r.gain:g}",
-            f"method {self.estimator}  {self.orientation}",
+            f"method {self.estimator}  {self.orientation}{'  zoom' if self.zoom else ''}",
             f"modulation [b]{mod}[/b]",
             f"dark {num(r.dark, '.1f')}  bright {num(r.bright, '.1f')}",
             f"clipped {clipped} %",
@@ -190,11 +206,40 @@ class LiveScreen(Screen[None]):
     # -- keys -------------------------------------------------------------------------------
 
     def action_move(self, d_row: int, d_col: int) -> None:
-        self.roi = self.roi.moved(d_row * ROI_STEP_PX, d_col * ROI_STEP_PX, self._frame_shape)
+        step = max(2, min(self.roi.height, self.roi.width) // 4)
+        self.roi = self.roi.moved(d_row * step, d_col * step, self._frame_shape)
 
     def action_resize(self, direction: int) -> None:
-        step = 2 * ROI_STEP_PX * direction
-        self.roi = self.roi.resized(step, step, self._frame_shape)
+        d_h = direction * max(2, self.roi.height // 4)
+        d_w = direction * max(2, self.roi.width // 4)
+        self.roi = self.roi.resized(d_h, d_w, self._frame_shape)
+
+    def action_zoom(self) -> None:
+        self.zoom = not self.zoom
+
+    def action_target(self) -> None:
+        self._mount_next_target()
+
+    @work(thread=True, group="live-target", exit_on_error=False)
+    def _mount_next_target(self) -> None:
+        app: Any = self.app
+        bench = app.bench
+        if bench is None or not bench.simulated or app.procedure_running:
+            app.call_from_thread(
+                self.notify, "Targets are mounted by hand on a real bench.", severity="warning"
+            )
+            return
+        current = services.plain_target(bench.mounted)
+        names = [services.plain_target(t) for t in SIM_TARGETS]
+        nxt = SIM_TARGETS[(names.index(current) + 1) % len(SIM_TARGETS)] if current in names \
+            else SIM_TARGETS[0]
+        try:
+            with app.device_lock:
+                services.mount_target(bench, nxt)
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Could not mount the target", exc)
+            return
+        app.call_from_thread(self.notify, f"simulated target: {services.plain_target(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)
@@ -210,4 +255,5 @@ class LiveScreen(Screen[None]):
             self.notify(f"estimator: {self.estimator}", timeout=1.5)
 
     def action_orientation(self) -> None:
-        self.orientation = "tangential" if self.orientation == "sagittal" else "sagittal"
+        i = ORIENTATIONS.index(self.orientation) if self.orientation in ORIENTATIONS else -1
+        self.orientation = ORIENTATIONS[(i + 1) % len(ORIENTATIONS)]

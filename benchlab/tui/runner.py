@@ -121,7 +121,8 @@ class RunScreen(Screen[None]):
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (
             f"[b]{label.get(self.procedure, self.procedure)}[/b]  "
-            f"params {params or 'defaults'}  [b]{self.state}[/b]{where}"
+            f"params {Path(params).name if params else 'defaults'}  "
+            f"[b]{self.state}[/b]{where}"
         )
         if self.message:
             text += f"\n{self.message}"
@@ -281,6 +282,7 @@ class RunScreen(Screen[None]):
                         progress=self._progress,
                         abort=app.abort_event,
                         on_result=self._on_result,
+                        operator=app.operator,
                     )
                     call(self._started, self.runner)
                 self.outcome = self.runner.run()

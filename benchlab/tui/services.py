@@ -132,8 +132,9 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
             ("serial", str(ident.get("serial") or "?")),
             ("firmware", str(ident.get("firmware") or "?")),
         ]
-        if ident.get("port"):
-            out[name].append(("port", f"{ident['port']} ({kind})"))
+        if ident.get("port"):  # simulated ports are pseudo-terminals: name the kind only
+            port = "pseudo-terminal" if kind == "simulated" else str(ident["port"])
+            out[name].append(("port", f"{port} ({kind})"))
     if bench.camera is not None:
         settings = getattr(bench, "_camera_settings", {}) or {}
         if settings:
@@ -155,7 +156,7 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
             out["leds"].append(("error", plain_error(exc)))
     if bench.stage is not None:
         try:
-            status = bench.stage.status()
+            status = bench.stage.status
             out["stage"].extend([
                 ("position", f"{bench.stage.position_mm:.3f} mm"),
                 ("homed", "yes" if status.is_homed else "no"),
@@ -217,14 +218,26 @@ def default_estimator() -> str:
     return DEFAULT_ESTIMATOR
 
 
+def plain_target(target: Any) -> Any:
+    """A mounted target as plain data (tuples become lists) for comparison and display."""
+    return list(target) if isinstance(target, tuple) else target
+
+
+def mount_target(bench: Any, target: Any) -> None:
+    """Mount a target in the simulated world (what a manual set-up step does)."""
+    bench.mount(target)
+
+
 def live_reading(
     frame: tuple[npt.NDArray[Any], Mapping[str, Any]],
     roi: Roi,
     estimator: str,
-    orientation: str,
+    orientation: str | None,
     index: int,
     exposure_ms: float,
     gain: float,
+    *,
+    zoom: bool = False,
 ) -> LiveReading:
     """Everything the live view shows about one frame (runs in the acquisition thread)."""
     from benchlab.analysis.estimators import estimate_modulation
@@ -235,11 +248,18 @@ def live_reading(
     roi = roi.moved(0, 0, (rows, cols))
     roi_pixels = roi.slice(pixels)
     max_code = max_code_of(pixels, meta)
-    preview = preview_of(pixels)
-    sy, sx = preview.shape[0] / rows, preview.shape[1] / cols
+    shown, origin = pixels, (0, 0)
+    if zoom:  # the ROI with a margin of twice its size on every side
+        margin = max(16, 2 * max(roi.height, roi.width))
+        r0, c0 = max(0, roi.row - margin), max(0, roi.col - margin)
+        r1 = min(rows, roi.row + roi.height + margin)
+        c1 = min(cols, roi.col + roi.width + margin)
+        shown, origin = pixels[r0:r1, c0:c1], (r0, c0)
+    preview = preview_of(shown)
+    sy, sx = preview.shape[0] / shown.shape[0], preview.shape[1] / shown.shape[1]
     preview_roi = Roi(
-        int(roi.row * sy), int(roi.col * sx),
-        max(1, int(roi.height * sy)), max(1, int(roi.width * sx)),
+        int((roi.row - origin[0]) * sy), int((roi.col - origin[1]) * sx),
+        max(1, round(roi.height * sy)), max(1, round(roi.width * sx)),
     )
     note = ""
     dark = bright = modulation = clipped = None
@@ -305,7 +325,7 @@ def make_runner(
     abort: threading.Event,
     on_result: Callable[[Any, Mapping[str, Any]], None],
     estimator: str | None = None,
-    operator: str = "technician",
+    operator: str = "",
 ) -> Any:
     """A runner for a fresh run, or for resuming the session at ``resume``."""
     from benchlab.protocols import load_params, resume_run, start_run

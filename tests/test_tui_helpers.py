@@ -1,0 +1,69 @@
+"""Shared helpers of the TUI tests (collected by pytest, but holds no tests)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from textual.pilot import Pilot
+
+from benchlab.tui.app import BenchlabApp
+from benchlab.tui.dialogs import PromptDialog
+
+MTF_PARAMS = """\
+procedure = "mtf"
+[focus]
+frames = 1
+[forward]
+elements = ["G2E1", "G2E4"]
+[radial]
+frequencies_lp_per_mm = [1, 4]
+"""
+
+RADIOMETRY_PARAMS = """\
+procedure = "radiometry"
+[positions]
+field_mm = [15, 25]
+[analysis]
+simulated_irradiance_mw_per_mm2 = [22.48, 14.34]
+"""
+
+
+def make_app(tmp_path: Path, **params: str) -> BenchlabApp:
+    """A simulated-bench app with small parameter files written under ``tmp_path``."""
+    files = {}
+    for name, text in params.items():
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text, encoding="utf-8")
+        files[name] = path
+    return BenchlabApp(simulate=True, sessions_dir=tmp_path / "sessions", params_files=files)
+
+
+async def wait_until(
+    pilot: Pilot[None],
+    condition: Callable[[], bool],
+    *,
+    timeout_s: float = 90.0,
+    answer_prompts: bool = False,
+    what: str = "condition",
+) -> int:
+    """Pause the pilot until ``condition()``; optionally confirm manual-step prompts.
+
+    Returns how many prompts were confirmed. The timeout is only a guard against hangs.
+    """
+    answered = 0
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if answer_prompts and isinstance(pilot.app.screen, PromptDialog):
+            await pilot.press("y")
+            answered += 1
+        await pilot.pause(0.05)
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+    return answered
+
+
+async def connected(pilot: Pilot[None]) -> None:
+    app = pilot.app
+    await wait_until(pilot, lambda: app.bench is not None, what="bench connected")  # type: ignore[attr-defined]

@@ -1,0 +1,83 @@
+"""Complete simulated MTF and radiometry runs through the UI, then the session on disk."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from test_tui_helpers import MTF_PARAMS, RADIOMETRY_PARAMS, connected, make_app, wait_until
+from textual.widgets import DataTable
+
+from benchlab.session import Session
+from benchlab.tui.runner import STATUS_MARK, RunScreen
+
+
+def _results_json(session: Session, table: str) -> list[dict]:
+    latest = session.latest_results()
+    assert latest is not None
+    data = json.loads((Path(latest) / f"{table}.json").read_text(encoding="utf-8"))
+    return data["rows"] if isinstance(data, dict) else data
+
+
+@pytest.mark.asyncio
+async def test_mtf_run_through_the_ui_writes_a_complete_session(tmp_path: Path) -> None:
+    app = make_app(tmp_path, mtf=MTF_PARAMS)
+    async with app.run_test(size=(100, 32)) as pilot:
+        await connected(pilot)
+        await pilot.press("3")
+        screen = app.screen
+        assert isinstance(screen, RunScreen)
+        await wait_until(pilot, lambda: len(screen.step_status) > 0, what="checklist")
+        # setup, thread, focus, forward, radial-setup, 2 x 2 x (roll, acquire), analysis
+        assert len(screen.step_status) == 14
+        await pilot.press("s")
+        prompts = await wait_until(
+            pilot, lambda: screen.state != "running", answer_prompts=True, what="run end"
+        )
+        assert screen.state == "done", screen.message
+        assert prompts == 8  # setup, thread, focus, radial set-up, four rolls
+        assert set(screen.step_status.values()) == {"done"}
+        steps = screen.query_one("#steps", DataTable)
+        assert all(steps.get_cell_at((r, 0)) == STATUS_MARK["done"] for r in range(14))
+
+        session = Session.open(screen.session_path)
+        assert session.status == "completed"
+        assert session.completed_steps() == set(screen.step_status)
+        assert len(list(session.frames_dir.glob("*.tiff"))) == 5  # forward + 4 radial
+        forward = _results_json(session, "table_4_11")
+        assert {str(r.get("element")) for r in forward} >= {"G2E1", "G2E4"}
+        radial = _results_json(session, "table_4_12")
+        assert len(radial) >= 2
+        # what the UI shows at the end is the table on disk
+        shown = screen.query_one("#results-table", DataTable)
+        assert shown.row_count == len(forward)
+        first = [str(c) for c in shown.get_row_at(0)]
+        assert first[0] == str(list(forward[0].values())[0])
+
+
+@pytest.mark.asyncio
+async def test_radiometry_run_through_the_ui(tmp_path: Path) -> None:
+    app = make_app(tmp_path, radiometry=RADIOMETRY_PARAMS)
+    async with app.run_test(size=(100, 32)) as pilot:
+        await connected(pilot)
+        await pilot.press("3", "p")
+        screen = app.screen
+        assert isinstance(screen, RunScreen) and screen.procedure == "radiometry"
+        await wait_until(pilot, lambda: len(screen.step_status) == 4, what="checklist")
+        await pilot.press("s")
+        prompts = await wait_until(
+            pilot, lambda: screen.state != "running", answer_prompts=True, what="run end"
+        )
+        assert screen.state == "done", screen.message
+        assert prompts == 1
+        session = Session.open(screen.session_path)
+        assert session.status == "completed"
+        rows = _results_json(session, "table_4_16")
+        assert [r["position_mm"] for r in rows] == [15, 25]
+        assert rows[0]["measured_normalised"] == pytest.approx(1.0)
+        assert 0 < rows[1]["measured_normalised"] < 1.0  # fall-off towards the edge
+        bench = app.bench
+        assert all(bench.sim_led.channel_output_ma(ch) == 0
+                   for ch in range(1, bench.sim_led.channel_count + 1))
+        assert bench.sim_stage.position_mm == pytest.approx(25.0, abs=0.01)
