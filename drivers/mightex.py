@@ -209,13 +209,24 @@ class MightexCamera:
         p.spec_for(model)  # refuse an unknown model before touching USB
         devices = _find_devices(backend, pid)
         seen = []
+        errors = []
         for dev in devices:
-            cam = cls._from_device(dev, configure=False, model=model, backend=backend)
+            try:
+                cam = cls._from_device(dev, configure=False, model=model, backend=backend)
+            except DeviceError as exc:  # busy or unreadable: maybe another camera matches
+                errors.append(f"usb {dev.bus}:{dev.address}: {exc}")
+                continue
             if serial is None or cam.info.serial == serial:
-                cam._apply_all()
+                try:
+                    cam._apply_all()
+                except BaseException:
+                    cam.close()
+                    raise
                 return cam
             seen.append(cam.info.serial)
             cam.close()
+        if errors and serial is None:
+            raise DeviceError("camera found but could not be opened: " + "; ".join(errors))
         pid_text = f"0x{DEFAULT_PID if pid is None else pid:04X}"
         if serial is None:
             raise DeviceNotFoundError(

@@ -192,7 +192,7 @@ class SimulatedCamera:
         self._replies: deque[bytes] = deque()
         self._outgoing: deque[_Frame] = deque()
         self._transfer: memoryview | None = None
-        self._pending_triggers: list[float] = []
+        self._pending_triggers: list[tuple[float, int]] = []  # (ready time, trigger count)
         self._trigger_count = 0
         self._frame_index = 0
         self._next_ready = self._t0 + self.period_s
@@ -215,10 +215,10 @@ class SimulatedCamera:
             self._catch_up()
             return len(self._fifo)
 
-    def _capture(self, ready_s: float, triggered: bool) -> None:
+    def _capture(self, ready_s: float, triggered: bool, trigger_count: int = 0) -> None:
         bench = dict(self.bench_state()) if self.bench_state is not None else {}
         frame = _Frame(self.settings, ready_s, self._frame_index, triggered,
-                       self._trigger_count, self.scene, bench)
+                       trigger_count, self.scene, bench)
         self._frame_index += 1
         if len(self._fifo) >= self.settings.buffer_count:
             self._fifo.popleft()  # ring buffer: the oldest frame is overwritten
@@ -237,13 +237,14 @@ class SimulatedCamera:
                 self._capture(self._next_ready, triggered=False)
                 self._next_ready += period
         else:
-            while self._pending_triggers and self._pending_triggers[0] <= now:
-                self._capture(self._pending_triggers.pop(0), triggered=True)
+            while self._pending_triggers and self._pending_triggers[0][0] <= now:
+                ready_s, count = self._pending_triggers.pop(0)
+                self._capture(ready_s, triggered=True, trigger_count=count)
 
     def _next_event_s(self) -> float | None:
         if self.settings.mode == 0:
             return self._next_ready
-        return self._pending_triggers[0] if self._pending_triggers else None
+        return self._pending_triggers[0][0] if self._pending_triggers else None
 
     def _restart_exposure(self) -> None:
         self._next_ready = self.clock.now() + self.period_s
@@ -326,8 +327,8 @@ class SimulatedCamera:
             if s.mode == 1:
                 self._trigger_count += 1
                 exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
-                self._pending_triggers.append(
-                    self.clock.now() + (exposure_ms + self._readout_ms()) / 1e3)
+                ready_s = self.clock.now() + (exposure_ms + self._readout_ms()) / 1e3
+                self._pending_triggers.append((ready_s, self._trigger_count))
         elif cmd == p.CMD_RESET and args == b"\x01":
             self._power_on()
         elif cmd == p.CMD_WORK_MODE and len(args) == 2:

@@ -93,7 +93,7 @@ class SensorModel:
         electrons = np.clip(rate * state.exposure_ms, 0.0, None)
         dn_per_e = DN12_PER_E * state.gain
         # Pixels saturate at the full well (before gain) or the ADC range, whichever first.
-        self._ceiling = float(min(math.floor(FULL_WELL_E * dn_per_e), _ADC_MAX))
+        self._ceiling = float(min(math.floor(FULL_WELL_E * dn_per_e + 1e-6), _ADC_MAX))
         mean = electrons * dn_per_e
         self._exact = np.clip(np.floor(mean + 0.5), 0, self._ceiling).astype(np.uint16).ravel()
         self._mean = (mean + 0.5).astype(np.float32).ravel()
