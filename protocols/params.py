@@ -239,12 +239,10 @@ class _Checker:
         def walk(node: Mapping[str, Any], prefix: str) -> None:
             for key, value in node.items():
                 dotted = f"{prefix}{key}"
-                if dotted in self.seen:
-                    continue
                 nested = any(s.startswith(dotted + ".") for s in self.seen)
                 if isinstance(value, Mapping) and nested:
                     walk(value, dotted + ".")
-                else:
+                elif dotted not in self.seen:
                     self.fail(dotted, "unknown parameter")
 
         walk(self.data, "")
