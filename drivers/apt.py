@@ -182,6 +182,7 @@ class AptStage:
         self._closing = threading.Event()
         self._lost: BaseException | None = None
         self._last_keepalive = -math.inf
+        self._updates_started = False  # keep-alives only matter once updates were requested
         self._info: HwInfo | None = None
         self._bits = StatusBits(0)
         self._vel = VelocityParams(2.0, 1.5)
@@ -203,6 +204,7 @@ class AptStage:
             raise DeviceLostError(f"stage: cannot open {self.port}: {exc}") from exc
         self._closing.clear()
         self._lost = None
+        self._updates_started = False
         self._reader = threading.Thread(target=self._read_loop, name="apt-reader", daemon=True)
         self._reader.start()
         try:
@@ -216,6 +218,7 @@ class AptStage:
             self._vel = self.get_velocity_params()
             if self.updates:
                 self._send(short(Msg.HW_START_UPDATEMSGS))
+                self._updates_started = True
             self.status  # noqa: B018 - reads homed state into the cache
             ref = weakref.ref(self)
 
@@ -239,6 +242,7 @@ class AptStage:
             if self._lost is None:
                 self.stop(immediate=True)
                 self._send(short(Msg.HW_STOP_UPDATEMSGS))
+                self._updates_started = False
                 self._send(short(Msg.HW_DISCONNECT))
         finally:
             if self._atexit_cb is not None:
@@ -552,7 +556,7 @@ class AptStage:
             elif msg.msg_id in (Msg.HW_RESPONSE, Msg.HW_RICHRESPONSE):
                 self.device_errors.append(msg)
             self._cond.notify_all()
-        if msg.msg_id == Msg.MOT_GET_DCSTATUSUPDATE:
+        if msg.msg_id == Msg.MOT_GET_DCSTATUSUPDATE and self._updates_started:
             now = time.monotonic()
             if now - self._last_keepalive >= KEEPALIVE_PERIOD_S:
                 self._last_keepalive = now

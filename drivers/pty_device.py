@@ -58,6 +58,7 @@ class PtyDevice:
     """Base class: serve a byte protocol on a pseudo-terminal from a background thread."""
 
     poll_interval_s = 0.005  # tick period and read-poll granularity (wall time)
+    write_stall_s = 0.5  # drop output the host has not read for this long (wall time)
     name = "pty-device"
 
     def __init__(self, *, clock: Clock | None = None, time_scale: float = 1.0) -> None:
@@ -131,6 +132,7 @@ class PtyDevice:
         if log:
             self.transcript.append(("dev", data))
         view = memoryview(data)
+        give_up = time.monotonic() + self.write_stall_s
         while view:
             fd = self._master_fd
             if fd is None:
@@ -138,6 +140,9 @@ class PtyDevice:
             try:
                 n = os.write(fd, view)
             except BlockingIOError:
+                # Nobody is reading: like a UART FIFO, overflow is lost rather than blocking.
+                if time.monotonic() > give_up:
+                    return
                 select.select([], [fd], [], self.poll_interval_s)
                 continue
             except OSError:

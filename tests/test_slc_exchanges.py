@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-
 from benchlab.drivers.errors import SafetyLimitError, SettingOutOfRangeError
 from benchlab.drivers.slc import (
     SlcController,
@@ -196,3 +195,18 @@ def test_simulator_answers_unknown_and_out_of_range_like_firmware(sim: Simulated
                            (b"STORE", b"## \r\n")]:
             ser.write(cmd + b"\n\r")
             assert ser.read_until(b"\r\n") == reply
+
+
+def test_session_matches_recorded_transcript(sim: SimulatedSlc) -> None:
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "fixtures" / "serial" / "slc_open_close.txt"
+    expected = []
+    for line in path.read_text().splitlines():
+        if line[:2] in ("> ", "< "):
+            data = line[2:].replace("\\n", "\n").replace("\\r", "\r").encode()
+            expected.append(("host" if line[0] == ">" else "dev", data))
+    with SlcController(sim.port, ceilings_ma=CEILINGS) as c:
+        c.on(1, 50)
+        assert c.get_current(1) == (100.0, 50.0)
+    assert sim.transcript == expected

@@ -10,7 +10,6 @@ import time
 from collections.abc import Iterator
 
 import pytest
-
 from benchlab.drivers.errors import DeviceLostError, DeviceTimeoutError
 from benchlab.drivers.slc import (
     SlcAckInsteadOfDataError,
