@@ -8,8 +8,9 @@
   maximum and minimum, and the fundamental alone gives ``fundamental_modulation``
   (Sitter et al., Appl. Opt. 34(4):746, 1995; measurement-notes 3.4).
 - ``variance`` - variance minus noise (Droege & Morin, Med. Phys. 1982): the signal variance
-  ``var(ROI) - sigma_noise^2`` with a crest factor from the noise-corrected kurtosis
-  (square wave 1, sine sqrt(2)) gives the half peak-to-valley amplitude.
+  ``var(ROI) - sigma_noise^2`` times a crest factor gives the half peak-to-valley amplitude. The
+  crest factor comes from the noise-corrected kurtosis through a table of Gaussian-blurred square
+  waves (sharp bars: kurtosis 1, crest 1; sine: 1.5, sqrt(2)).
 """
 
 from __future__ import annotations
@@ -67,22 +68,66 @@ def _find_frequency(profile: npt.NDArray[np.float64]) -> float | None:
     return float(freqs[ok][int(np.argmax(spec[ok]))])
 
 
-def _refine_frequency(profile: npt.NDArray[np.float64], f0: float, span: float) -> float:
-    """Frequency within ``f0*(1 +- span)`` with the largest fundamental power (grid + parabola)."""
-    n = profile.size
-    if n * f0 < 2.0 or f0 >= NYQUIST_CYCLES_PER_PX - 1e-9:
-        return f0
+def _design(n: int, f: float, k_max: int) -> npt.NDArray[np.float64]:
+    """Columns: mean, linear shading, then cos/sin of harmonics 1..k_max at ``f`` cycles/px."""
     x = np.arange(n, dtype=np.float64)
-    p = profile - profile.mean()
-    grid = f0 * (1.0 + np.linspace(-span, span, 41))
-    grid = grid[(grid > 0) & (grid < NYQUIST_CYCLES_PER_PX)]
-    power = np.abs(np.exp(-2j * np.pi * np.outer(grid, x)) @ p)
-    i = int(np.argmax(power))
-    if 0 < i < grid.size - 1:
-        den = power[i - 1] - 2 * power[i] + power[i + 1]
-        if den < 0:
-            return float(grid[i] + 0.5 * (power[i - 1] - power[i + 1]) / den * (grid[1] - grid[0]))
-    return float(grid[i])
+    arg = 2 * np.pi * f * np.outer(x, np.arange(1, k_max + 1))
+    design = np.empty((n, 2 + 2 * k_max))
+    design[:, 0] = 1.0
+    design[:, 1] = (x - x.mean()) / n
+    design[:, 2::2] = np.cos(arg)
+    design[:, 3::2] = np.sin(arg)
+    return design
+
+
+def _harmonics(f: float) -> int:
+    """Harmonics fitted at ``f``: those at least ``NYQUIST_MARGIN`` below Nyquist (>= 1)."""
+    return max(1, min(MAX_HARMONIC, int((NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
+
+
+def _rss_batch(
+    profile: npt.NDArray[np.float64], freqs: npt.NDArray[np.float64], k_max: int
+) -> npt.NDArray[np.float64]:
+    """Residual sum of squares of the harmonic model at each of ``freqs`` (one batched solve)."""
+    n = profile.size
+    x = np.arange(n, dtype=np.float64)
+    ks = np.arange(1, k_max + 1, dtype=np.float64)
+    arg = (2 * np.pi) * freqs[:, None, None] * x[None, :, None] * ks[None, None, :]
+    design = np.empty((freqs.size, n, 2 + 2 * k_max))
+    design[:, :, 0] = 1.0
+    design[:, :, 1] = (x - x.mean()) / n
+    design[:, :, 2::2] = np.cos(arg)
+    design[:, :, 3::2] = np.sin(arg)
+    design_t = design.transpose(0, 2, 1)
+    gram = design_t @ design
+    rhs = design_t @ profile
+    try:
+        coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        coef = np.stack([np.linalg.lstsq(d, profile, rcond=1e-2)[0] for d in design])
+    resid = profile[None, :] - (design @ coef[..., None])[..., 0]
+    return (resid * resid).sum(axis=1)
+
+
+def _refine_frequency(profile: npt.NDArray[np.float64], f0: float, span: float) -> float:
+    """Frequency within ``f0 * (1 +- span)`` minimising the residual of the harmonic model
+    (up to 3 harmonics): a coarse grid, a fine grid around its best point, then a parabola.
+    Returns ``f0`` when fewer than two periods fit or the search would reach Nyquist."""
+    n = profile.size
+    if n * f0 < 2.0 or f0 * (1 + span) >= NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN:
+        return f0
+    k_max = min(_harmonics(f0 * (1 + span)), 3, max(1, (n - 4) // 2))
+    grid = np.linspace(f0 * (1 - span), f0 * (1 + span), 21)
+    best = int(np.argmin(_rss_batch(profile, grid, k_max)))
+    step = grid[1] - grid[0]
+    fine = np.linspace(grid[best] - step, grid[best] + step, 21)
+    rss = _rss_batch(profile, fine, k_max)
+    i = int(np.argmin(rss))
+    if 0 < i < fine.size - 1:
+        den = rss[i - 1] - 2 * rss[i] + rss[i + 1]
+        if den > 0:
+            return float(fine[i] + 0.5 * (rss[i - 1] - rss[i + 1]) / den * (fine[1] - fine[0]))
+    return float(fine[i])
 
 
 def sine_fit(prep: PreparedROI) -> ModulationResult:
@@ -112,19 +157,10 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
             warnings.append(f"less than one bar period in {n} px at {f:.4f} cycles/px: cannot fit")
             return unresolved(name, prep.diagnostics(), warnings)
         f = _refine_frequency(profile, f, 0.05)
-    x = np.arange(n, dtype=np.float64)
-    x_c = x - x.mean()
-    # Harmonics within 0.05 cycles/px of Nyquist are not identifiable from the samples.
-    k_max = max(1, min(MAX_HARMONIC, int((NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
-    while True:
-        cols = [np.ones(n), x_c / max(n, 1)]
-        for k in range(1, k_max + 1):
-            cols.append(np.cos(2 * np.pi * k * f * x))
-            cols.append(np.sin(2 * np.pi * k * f * x))
-        design = np.stack(cols, axis=1)
-        if n - design.shape[1] >= 2 or k_max == 1:
-            break
+    k_max = _harmonics(f)
+    while k_max > 1 and n - (2 + 2 * k_max) < 2:
         k_max -= 1
+    design = _design(n, f, k_max)
     coef, _, rank, _ = np.linalg.lstsq(design, profile, rcond=1e-2)
     dof = n - rank
     resid = profile - design @ coef
@@ -152,11 +188,10 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
         return unresolved(name, diag, warnings)
     keep = amps > HARMONIC_Z * se_amp
     keep[0] = True
-    phase = np.linspace(0.0, 1.0 / f, 512, endpoint=False)
-    wave = np.full_like(phase, mean)
-    for k in np.nonzero(keep)[0]:
-        wave += coef[2 + 2 * k] * np.cos(2 * np.pi * (k + 1) * f * phase)
-        wave += coef[3 + 2 * k] * np.sin(2 * np.pi * (k + 1) * f * phase)
+    phase = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+    kept = np.nonzero(keep)[0]
+    arg = np.outer(phase, kept + 1.0)
+    wave = mean + np.cos(arg) @ coef[2 + 2 * kept] + np.sin(arg) @ coef[3 + 2 * kept]
     dark, bright = float(wave.min()), float(wave.max())
     if dark + bright <= 0:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
@@ -178,6 +213,28 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
         fundamental_modulation=fundamental,
         warnings=tuple(warnings),
     )
+
+
+def _crest_table() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Kurtosis -> crest factor (half peak-to-valley / RMS) of Gaussian-blurred 50 %-duty
+    square waves, from sharp (1, 1) to fully blurred = sine (1.5, sqrt 2)."""
+    x = np.linspace(0.0, 1.0, 2048, endpoint=False)
+    k = np.arange(1, 200, 2, dtype=np.float64)
+    basis = np.sin(2 * np.pi * np.outer(x, k)) / k
+    kurts, crests = [1.0], [1.0]
+    for blur in np.linspace(0.01, 0.2, 40):  # PSF sigma in periods
+        w = basis @ np.exp(-2 * (np.pi * blur * k) ** 2)
+        w -= w.mean()
+        var = float(np.mean(w**2))
+        kurts.append(float(np.mean(w**4)) / var**2)
+        crests.append(float(w.max() - w.min()) / 2.0 / math.sqrt(var))
+    kurts.append(1.5)
+    crests.append(math.sqrt(2.0))
+    order = np.argsort(kurts)
+    return np.asarray(kurts)[order], np.asarray(crests)[order]
+
+
+_CREST_KURTOSIS, _CREST_FACTOR = _crest_table()
 
 
 def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
@@ -210,7 +267,7 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
         return unresolved(name, diag, warnings)
     m4_signal = m4 - 6.0 * noise2 * signal2 - 3.0 * noise2 * noise2
     kurt = m4_signal / (signal2 * signal2)
-    crest = math.sqrt(min(max(2.0 * kurt - 1.0, 1.0), 2.0))
+    crest = float(np.interp(kurt, _CREST_KURTOSIS, _CREST_FACTOR))
     half = crest * math.sqrt(signal2)
     dark, bright = mean - half, mean + half
     modulation = half / mean

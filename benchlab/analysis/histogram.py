@@ -6,11 +6,11 @@ technician would read the histogram.
    (averaged frames) uses bins of a third of the noise sigma.
 2. The histogram is smoothed with a Gaussian whose width comes from the data: Silverman's rule
    applied to the per-pixel noise (one mode = one noise Gaussian), never below ~one code.
-3. Peaks are found with :func:`scipy.signal.find_peaks`; of the clear ones (prominence at least
-   a fifth of the most prominent) the darkest and the brightest are the dark and bright
-   levels. A bimodality test follows: the valley between them must be clearly lower than the
-   smaller peak, each side must hold a real share of the pixels, and the peaks must be more
-   than two noise sigmas apart (two equal Gaussian modes merge below 2 sigma).
+3. Local maxima are ranked by :func:`scipy.signal.peak_prominences`; of the clear ones
+   (prominence at least a fifth of the most prominent) the darkest and the brightest are the
+   dark and bright levels. A bimodality test follows: the valley between them must be clearly
+   lower than the smaller peak, each side must hold a real share of the pixels, and the peaks
+   must be more than two noise sigmas apart (two equal Gaussian modes merge below 2 sigma).
 4. Otherwise the answer is the thesis's N/A: not resolved, modulation 0, no levels - never a
    confident number from a single mode.
 
@@ -21,10 +21,11 @@ unimodal histograms, mode bias).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import find_peaks, peak_prominences
+from scipy.signal import peak_prominences
 
 from benchlab.analysis.result import ModulationResult, eq29_modulation, unresolved
 from benchlab.analysis.roi import PreparedROI
@@ -63,8 +64,7 @@ def smoothed_histogram(
         Bins of padding on each side.
     """
     values = prep.pixels.ravel()
-    vmin = float(values.min())
-    vmax = float(values.max())
+    vmin, vmax = prep.vmin, prep.vmax
     if prep.integer_valued:
         width = prep.code_step or 1.0
     else:
@@ -74,18 +74,29 @@ def smoothed_histogram(
         width = (vmax - vmin) / (MAX_BINS - 1)
         n_bins = MAX_BINS
     if prep.integer_valued and width == 1.0:
-        idx = (values - vmin).astype(np.intp)
+        idx = (values - vmin).astype(np.intp)  # exact: values are integers
     else:
         idx = np.rint((values - vmin) / width).astype(np.intp)
     counts = np.bincount(idx, minlength=n_bins).astype(np.float64)
     n_half = max(values.size / 2.0, 1.0)
     sigma_gray = 1.06 * prep.noise_sigma * n_half ** (-0.2)
     sigma_bins = max(sigma_gray / width, 0.7)
+    sigma_bins = round(sigma_bins, 2)  # a cached kernel per 0.01 bin
+    kernel = _kernel(sigma_bins)
+    pad = (kernel.size - 1) // 2
+    # "full" convolution pads ``pad`` zero bins on each side: edge peaks stay detectable.
+    smooth = np.convolve(counts, kernel, mode="full")
+    return smooth, vmin, width, sigma_bins * width, pad
+
+
+@lru_cache(maxsize=512)
+def _kernel(sigma_bins: float) -> npt.NDArray[np.float64]:
+    """Normalised Gaussian kernel, +-(3 sigma + 1) bins."""
     pad = int(math.ceil(3 * sigma_bins)) + 1
     kernel = np.exp(-0.5 * (np.arange(-pad, pad + 1) / sigma_bins) ** 2)
-    # "full" convolution pads ``pad`` zero bins on each side: edge peaks stay detectable.
-    smooth = np.convolve(counts, kernel / kernel.sum(), mode="full")
-    return smooth, vmin, width, sigma_bins * width, pad
+    kernel /= kernel.sum()
+    kernel.setflags(write=False)
+    return kernel
 
 
 def _refine(y: npt.NDArray[np.float64], i: int) -> float:
@@ -95,6 +106,15 @@ def _refine(y: npt.NDArray[np.float64], i: int) -> float:
         if den < 0:
             return i + 0.5 * (y[i - 1] - y[i + 1]) / den
     return float(i)
+
+
+def _local_maxima(y: npt.NDArray[np.float64], min_height: float) -> npt.NDArray[np.intp]:
+    """Indices of strict-left / non-strict-right local maxima at least ``min_height`` high
+    (the smoothed histogram is zero-padded, so no peak sits on the ends). Equivalent to
+    :func:`scipy.signal.find_peaks` with ``height`` for plateau-free data, at a fifth of the
+    call overhead - this estimator has a 100 us budget."""
+    mid = y[1:-1]
+    return np.flatnonzero((mid > y[:-2]) & (mid >= y[2:]) & (mid >= min_height)) + 1
 
 
 def histogram_peak(prep: PreparedROI) -> ModulationResult:
@@ -113,11 +133,11 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
     """
     warnings = list(prep.warnings)
     values = prep.pixels.ravel()
-    if float(values.max()) == float(values.min()):
+    if prep.vmax == prep.vmin:
         warnings.append("single-valued ROI: one gray level, no bars")
         return unresolved(NAME, prep.diagnostics(), warnings)
     smooth, origin, width, smoothing, pad = smoothed_histogram(prep)
-    peaks, _ = find_peaks(smooth, height=smooth.max() * MIN_PEAK_HEIGHT)
+    peaks = _local_maxima(smooth, smooth.max() * MIN_PEAK_HEIGHT)
     base = {"smoothing_codes": smoothing}
     if peaks.size >= 2:
         prominence = peak_prominences(smooth, peaks)[0]

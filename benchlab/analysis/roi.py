@@ -39,12 +39,14 @@ class PreparedROI:
 
     pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
     axis: int  # numpy axis along which the intensity varies
-    integer_valued: bool
+    integer_valued: bool  # values lie on a grid of ``code_step`` (integer codes or their means)
     code_step: float
     noise_sigma: float
     noise_given: bool
     max_code: float | None
     clipped_fraction: float
+    vmin: float  # of ``pixels``
+    vmax: float
     freq_cycles_per_px: float | None
     n_frames: int
     warnings: tuple[str, ...]
@@ -91,15 +93,18 @@ def orientation_axis(orientation: str | None) -> int | None:
     return ORIENTATION_AXIS[key]
 
 
-def infer_max_code(roi: npt.NDArray[np.generic], code_step: float) -> float | None:
+def infer_max_code(
+    roi: npt.NDArray[np.generic], code_step: float, roi_max: float | None = None
+) -> float | None:
     """Saturation code for integer data: 255 (uint8), 4095 (12-bit in 16), 65520 (MSB-aligned
     12-bit) or 65535; ``None`` for float data."""
     if roi.dtype == np.uint8:
         return 255.0
-    if np.issubdtype(roi.dtype, np.integer):
-        if code_step == 16 and roi.max() > 4095:
+    if roi.dtype.kind in "ui":
+        top = float(roi.max()) if roi_max is None else roi_max
+        if code_step == 16 and top > 4095:
             return 65520.0
-        if roi.max() <= 4095:
+        if top <= 4095:
             return 4095.0
         return 65535.0
     return None
@@ -111,6 +116,9 @@ def detect_code_step(values: npt.NDArray[np.generic]) -> float:
     ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
     if ints.dtype.kind == "u":
         ints = ints.astype(np.int64)
+    odd = np.bitwise_and(ints, 1)
+    if odd.any() and not odd.all():  # odd and even codes present: spacing 1
+        return 1.0
     step = int(np.gcd.reduce(ints - ints.min()))
     return float(max(step, 1))
 
@@ -172,7 +180,8 @@ def prepare_roi(
     arr = np.asarray(roi)
     if arr.dtype == bool:
         arr = arr.astype(np.uint8)
-    if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
+    kind = arr.dtype.kind
+    if kind not in "uif":
         raise ValueError(f"ROI must hold numbers, got dtype {arr.dtype}")
     if arr.ndim not in (2, 3):
         raise ValueError(
@@ -180,7 +189,7 @@ def prepare_roi(
         )
     if arr.size == 0:
         raise ValueError(f"ROI is empty (shape {arr.shape})")
-    if np.issubdtype(arr.dtype, np.floating) and not np.all(np.isfinite(arr)):
+    if kind == "f" and not np.isfinite(arr).all():
         raise ValueError("ROI contains NaN or infinite pixels")
     if freq_cycles_per_px is not None:
         if not math.isfinite(freq_cycles_per_px) or freq_cycles_per_px < 0:
@@ -211,22 +220,25 @@ def prepare_roi(
         np.all(raw == np.round(raw)) and np.abs(raw).max() < 2**53
     )
     values = raw.ravel()
+    raw_max = float(values.max())
     code_step = detect_code_step(values) if integer_valued else 0.0
     if max_code is None:
-        max_code_f = infer_max_code(raw, code_step) if is_int_dtype else None
+        max_code_f = infer_max_code(raw, code_step, raw_max) if is_int_dtype else None
     else:
         max_code_f = float(max_code)
     clipped = 0.0
     if max_code_f is not None:
-        clipped = float(np.count_nonzero(raw >= max_code_f) / raw.size)
+        clipped = (
+            float(np.count_nonzero(raw >= max_code_f) / raw.size) if raw_max >= max_code_f else 0.0
+        )
         if clipped > CLIPPED_FRACTION_LIMIT:
             warnings.append(
                 f"{100 * clipped:.1f}% of pixels clipped at code {max_code_f:g}: "
                 "the bright level (and the modulation) reads low"
             )
-    if n_frames > 1:
-        integer_valued = bool(np.all(img == np.round(img)))
-        code_step = code_step if integer_valued else 0.0
+    if n_frames > 1 and integer_valued:
+        # The mean of n frames on a grid of ``code_step`` lies on a grid of code_step / n.
+        code_step = code_step / n_frames
 
     if axis is None:
         axis = detect_axis(img)
@@ -265,6 +277,8 @@ def prepare_roi(
         noise_given=given,
         max_code=max_code_f,
         clipped_fraction=clipped,
+        vmin=float(img.min()),
+        vmax=float(img.max()) if n_frames > 1 else raw_max,
         freq_cycles_per_px=f,
         n_frames=n_frames,
         warnings=tuple(warnings),
