@@ -157,7 +157,8 @@ class LedScene:
         return _render(self, position, current, state.height, state.width).copy()
 
 
-@functools.lru_cache(maxsize=16)
+# Small caches: each entry is a full frame (10 MB); a re-render costs ~25 ms.
+@functools.lru_cache(maxsize=6)
 def _shape(scene: LedScene, position_mm: float, height: int, width: int) -> FloatArray:
     out = np.zeros((height, width))
     cr, cc = scene.centre_rc(position_mm)
@@ -187,7 +188,7 @@ def _shape(scene: LedScene, position_mm: float, height: int, width: int) -> Floa
     return out
 
 
-@functools.lru_cache(maxsize=32)
+@functools.lru_cache(maxsize=6)
 def _render(
     scene: LedScene, position_mm: float, current_ma: float, height: int, width: int
 ) -> FloatArray:

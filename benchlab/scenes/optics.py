@@ -111,15 +111,17 @@ def blurred_square_wave(
     u_arr = np.asarray(u, dtype=np.float64)
     s = np.maximum(np.asarray(sigma, dtype=np.float64), _MIN_SIGMA_PX)
     s_max, s_min = float(np.max(s)), float(np.min(s))
-    k_reach = math.ceil(6.0 * s_max / period) + 1
-    erf_terms = 2 * (2 * k_reach + 1)
+    # Bright intervals [n p, n p + p/2] within 6 sigma of [0, p) matter (t = u mod p).
+    reach = 6.0 * s_max / period
+    n_lo, n_hi = -math.floor(reach + 0.5), math.floor(reach + 1.0)
+    erf_terms = 2 * (n_hi - n_lo + 1)
     # Highest odd harmonic whose damping exp(-2 pi^2 s^2 k^2 / p^2) is above 1e-8.
     k_max = math.sqrt(math.log(1e8) / (2.0 * math.pi**2)) * period / s_min
     fourier_terms = int(k_max // 2) + 1
     if erf_terms <= fourier_terms:
         t = np.mod(u_arr, period)
         out = np.zeros(np.broadcast(t, s).shape)
-        for n in range(-k_reach, k_reach + 1):
+        for n in range(n_lo, n_hi + 1):
             start = n * period
             out += ndtr((t - start) / s) - ndtr((t - start - period / 2.0) / s)
         return out

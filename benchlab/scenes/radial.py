@@ -180,35 +180,39 @@ class RadialScene:
 
 
 @functools.lru_cache(maxsize=4)
-def _polar_grid(
-    centre_rc: tuple[float, float], height: int, width: int
-) -> tuple[FloatArray, FloatArray]:
-    rows = np.arange(height, dtype=np.float64)[:, None] - centre_rc[0]
-    cols = np.arange(width, dtype=np.float64)[None, :] - centre_rc[1]
+def _annulus(
+    circles: RadialLayout, edge_sigma_px: float, height: int, width: int
+) -> tuple[npt.NDArray[np.intp], FloatArray, FloatArray, FloatArray]:
+    """Flat indices, radius, angle and edge envelope of the pixels the annulus can light."""
+    cr, cc = circles.centre_rc
+    rows = np.arange(height, dtype=np.float64)[:, None] - cr
+    cols = np.arange(width, dtype=np.float64)[None, :] - cc
     radius = np.hypot(rows, cols)
-    theta = np.arctan2(rows, cols)
-    radius.setflags(write=False)
-    theta.setflags(write=False)
-    return radius, theta
+    reach = 6.0 * edge_sigma_px
+    inside = (radius > circles.annulus_inner_radius_px - reach) & (
+        radius < circles.annulus_outer_radius_px + reach
+    )
+    index = np.flatnonzero(inside)
+    r = radius.ravel()[index]
+    theta = np.arctan2(np.broadcast_to(rows, radius.shape), np.broadcast_to(cols, radius.shape))
+    envelope = ndtr((r - circles.annulus_inner_radius_px) / edge_sigma_px) * ndtr(
+        (circles.annulus_outer_radius_px - r) / edge_sigma_px
+    )
+    parts = (index, r, theta.ravel()[index], envelope)
+    for part in parts:
+        part.setflags(write=False)
+    return parts
 
 
 @functools.lru_cache(maxsize=16)
 def _render(scene: RadialScene, height: int, width: int) -> FloatArray:
-    circles = scene.circles
-    radius, theta = _polar_grid(circles.centre_rc, height, width)
-    img = np.zeros((height, width))
-    reach = 6.0 * scene.edge_sigma_px
-    inside = (radius > circles.annulus_inner_radius_px - reach) & (
-        radius < circles.annulus_outer_radius_px + reach
-    )
-    r = radius[inside]
-    # Angle from the reference direction in (-pi, pi]: the roll's seam is opposite the ROI.
-    dtheta = np.angle(np.exp(1j * (theta[inside] - scene._theta_ref())))
-    envelope = ndtr((r - circles.annulus_inner_radius_px) / scene.edge_sigma_px) * ndtr(
-        (circles.annulus_outer_radius_px - r) / scene.edge_sigma_px
-    )
+    index, r, theta, envelope = _annulus(scene.circles, scene.edge_sigma_px, height, width)
+    # Angle from the reference direction in [-pi, pi): the roll's seam is opposite the ROI.
+    dtheta = np.mod(theta - scene._theta_ref() + np.pi, 2.0 * np.pi) - np.pi
     bright_fraction = scene._pattern(r, dtheta)
     depth = scene.bright_rate - scene.dark_rate
-    img[inside] = envelope * (scene.dark_rate + depth * bright_fraction)
+    img = np.zeros(height * width)
+    img[index] = envelope * (scene.dark_rate + depth * bright_fraction)
+    img = img.reshape(height, width)
     img.setflags(write=False)
     return img
