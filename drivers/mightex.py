@@ -134,8 +134,6 @@ def _usb_errors(what: str) -> Iterator[None]:
                 "drivers/data/99-benchlab-mightex.rules and join the plugdev group"
             ) from exc
         raise DeviceError(f"USB error ({what}): {exc}") from exc
-    except ValueError as exc:  # pyusb raises ValueError for invalid/closed handles
-        raise DeviceLostError(f"camera handle no longer valid ({what}): {exc}") from exc
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
