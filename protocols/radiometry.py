@@ -75,14 +75,15 @@ class RadiometryProcedure:
         return steps
 
     def _restore(self, ctx: StepContext) -> None:
+        """Camera settings, LED mounted, stage homed (a resumed run may meet a fresh stage)."""
         ctx.bench.configure_camera(bits=self.params.bits)
         ctx.bench.mount(LED_TARGET)
+        if ctx.bench.has_stage:
+            ctx.bench.home_stage()
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")
         self._restore(ctx)
-        if ctx.bench.has_stage:
-            ctx.bench.home_stage()
 
     def _position(self, pos: float) -> Any:
         def action(ctx: StepContext) -> None:
