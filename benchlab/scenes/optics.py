@@ -54,11 +54,15 @@ class BlurProfile:
 
     def sagittal_px(self, image_height_mm: float | FloatArray) -> FloatArray:
         """Sagittal blur width(s), px, at the given image height(s)."""
-        return np.interp(image_height_mm, self.image_height_mm, self.sigma_sagittal_px)
+        return np.asarray(
+            np.interp(image_height_mm, self.image_height_mm, self.sigma_sagittal_px), np.float64
+        )
 
     def tangential_px(self, image_height_mm: float | FloatArray) -> FloatArray:
         """Tangential blur width(s), px, at the given image height(s)."""
-        return np.interp(image_height_mm, self.image_height_mm, self.sigma_tangential_px)
+        return np.asarray(
+            np.interp(image_height_mm, self.image_height_mm, self.sigma_tangential_px), np.float64
+        )
 
     @classmethod
     def uniform(cls, sigma_sagittal_px: float, sigma_tangential_px: float) -> BlurProfile:

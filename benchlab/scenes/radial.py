@@ -211,8 +211,8 @@ def _render(scene: RadialScene, height: int, width: int) -> FloatArray:
     dtheta = np.mod(theta - scene._theta_ref() + np.pi, 2.0 * np.pi) - np.pi
     bright_fraction = scene._pattern(r, dtheta)
     depth = scene.bright_rate - scene.dark_rate
-    img = np.zeros(height * width)
-    img[index] = envelope * (scene.dark_rate + depth * bright_fraction)
-    img = img.reshape(height, width)
+    flat = np.zeros(height * width)
+    flat[index] = envelope * (scene.dark_rate + depth * bright_fraction)
+    img: FloatArray = flat.reshape(height, width)
     img.setflags(write=False)
     return img

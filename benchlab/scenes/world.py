@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.chart import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
@@ -117,12 +118,15 @@ class SimWorld:
 
     def radial_scene(self, lp_per_mm: float, orientation: str) -> RadialScene:
         """The (cached) radial scene for a pattern."""
-        key = (float(lp_per_mm), orientation)
+        if orientation not in ("sagittal", "tangential"):
+            raise ValueError(f"orientation must be 'sagittal' or 'tangential', got {orientation!r}")
+        orient: Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+        key = (float(lp_per_mm), orient)
         with self._lock:
             scene = self._radial.get(key)
             if scene is None:
                 scene = dataclasses.replace(
-                    self.radial_template, object_lp_per_mm=key[0], orientation=orientation
+                    self.radial_template, object_lp_per_mm=key[0], orientation=orient
                 )
                 self._radial[key] = scene
         return scene
