@@ -65,7 +65,7 @@ class SimulatedSlc(PtyDevice):
         self,
         *,
         channels: int = 4,
-        module: str = "SLC-SA04-U/S",
+        module: str | None = None,
         serial: str = "04-251013-011",
         firmware: str = "3.1.8",
         clock: Clock | None = None,
@@ -75,7 +75,8 @@ class SimulatedSlc(PtyDevice):
     ) -> None:
         super().__init__(clock=clock)
         self.channel_count = channels
-        self.module = module
+        # Default module number matches the channel count ("SLC-SA04-U/S" for 4 channels).
+        self.module = module if module is not None else f"SLC-SA{channels:02d}-U/S"
         self.serial = serial
         self.firmware = firmware
         self.normal_max_ma = normal_max_ma

@@ -108,7 +108,7 @@ def _cmd_stage(args: argparse.Namespace) -> int:
 # ---- simulate --------------------------------------------------------------------------------
 def _cmd_simulate(args: argparse.Namespace) -> int:
     lo, hi = args.travel_mm
-    led = SimulatedSlc(channels=args.channels, module=f"SLC-SA{args.channels:02d}-U/S")
+    led = SimulatedSlc(channels=args.channels)
     stage = SimulatedAptStage(travel_mm=(lo, hi), time_scale=args.time_scale, homed=args.homed,
                               counts_per_mm=args.counts_per_mm,
                               initial_position_mm=args.initial_position_mm)

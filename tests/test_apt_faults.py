@@ -1,0 +1,209 @@
+"""APT safety rules and injected faults: right exception, stage stopped afterwards."""
+
+from __future__ import annotations
+
+import _thread
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+import serial
+from benchlab.drivers.apt import (
+    AptBadReplyError,
+    AptLimitSwitchError,
+    AptNoReplyError,
+    AptNotHomedError,
+    AptStage,
+)
+from benchlab.drivers.apt_protocol import Msg, short
+from benchlab.drivers.apt_sim import UNACKED_UPDATE_LIMIT, SimulatedAptStage
+from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
+from benchlab.drivers.pty_device import ManualClock
+
+pytestmark = pytest.mark.timeout(30)
+H = bytes.fromhex
+STOP_IMMEDIATE = H("650401015001")
+
+
+def received(sim: SimulatedAptStage, prefix_hex: str) -> None:
+    deadline = time.monotonic() + 5
+    while not any(b.startswith(H(prefix_hex)) for b in sim.host_messages()):
+        assert time.monotonic() < deadline
+        time.sleep(0.001)
+    with sim.lock:
+        pass
+
+
+@pytest.fixture
+def clock() -> ManualClock:
+    return ManualClock()
+
+
+@pytest.fixture
+def sim(clock: ManualClock) -> Iterator[SimulatedAptStage]:
+    s = SimulatedAptStage(clock=clock, travel_mm=(0.0, 50.0), homed=True)
+    s.start()
+    yield s
+    s.stop()
+
+
+def _open(sim: SimulatedAptStage, **kw) -> AptStage:
+    kw.setdefault("travel_mm", (0.0, 50.0))
+    return AptStage(sim.port, timeout_s=0.5, updates=False, **kw).open()
+
+
+def test_no_reply_names_the_request(sim: SimulatedAptStage) -> None:
+    with _open(sim) as st:
+        sim.faults.no_reply = 1
+        with pytest.raises(AptNoReplyError, match="MOT_REQ_POSCOUNTER"):
+            st.position_mm  # noqa: B018
+        assert st.position_mm == 0.0  # the link is still usable afterwards
+    assert not sim.moving
+
+
+def test_garbage_before_a_reply_is_skipped(sim: SimulatedAptStage, clock: ManualClock) -> None:
+    junk = b"\xde\xad\xbe\xef\x00\x11garbage\x81"
+    with _open(sim) as st:
+        st.move_to_mm(5.0, wait=False)
+        received(sim, "5304")
+        clock.advance(10)
+        st.wait_for_move()
+        sim.faults.garbage = junk
+        assert st.position_mm == pytest.approx(5.0, abs=1e-4)
+        assert st.dropped_bytes == len(junk)
+
+
+def test_out_of_range_reply(sim: SimulatedAptStage) -> None:
+    with _open(sim) as st:
+        sim.faults.out_of_range = 1
+        with pytest.raises(AptBadReplyError, match="impossible"):
+            st.position_mm  # noqa: B018
+        sim.faults.out_of_range = 1
+        with pytest.raises(AptBadReplyError):
+            st.status  # noqa: B018
+
+
+def test_limit_switch_mid_move(sim: SimulatedAptStage, clock: ManualClock) -> None:
+    sim.faults.limit_at_mm = 12.0
+    with _open(sim) as st:
+        st.move_to_mm(20.0, wait=False)
+        received(sim, "5304")
+        clock.advance(30)
+        with pytest.raises(AptLimitSwitchError, match="limit switch hit at 12.0000 mm"):
+            st.wait_for_move()
+        assert not st.status.is_moving
+    assert not sim.moving and sim.position_mm == pytest.approx(12.0)
+
+
+def test_physical_end_of_travel_trips_the_limit_switch(clock: ManualClock) -> None:
+    sim = SimulatedAptStage(clock=clock, travel_mm=(0.0, 25.0), homed=True)  # a Z825...
+    sim.start()
+    try:
+        with _open(sim, travel_mm=(0.0, 50.0)) as st:  # ...configured as an MTS50 by mistake
+            st.move_to_mm(30.0, wait=False)
+            received(sim, "5304")
+            clock.advance(60)
+            with pytest.raises(AptLimitSwitchError):
+                st.wait_for_move()
+            assert st.status.at_forward_limit
+        assert sim.position_mm == pytest.approx(25.0) and not sim.moving
+    finally:
+        sim.stop()
+
+
+def test_dropped_connection_mid_move(sim: SimulatedAptStage, clock: ManualClock) -> None:
+    with pytest.raises(DeviceLostError) as info:
+        with _open(sim) as st:
+            st.move_to_mm(10.0, wait=False)
+            received(sim, "5304")
+            sim.drop_connection()
+            st.wait_for_move(timeout_s=5)
+    assert "could not be stopped" in " ".join(getattr(info.value, "__notes__", []))
+    # The cube finishes its profiled move on its own, as a real KDC101 does.
+    clock.advance(30)
+    assert not sim.moving and sim.position_mm == pytest.approx(10.0, abs=1e-4)
+
+
+def test_move_timeout_stops_the_stage(sim: SimulatedAptStage, clock: ManualClock) -> None:
+    with _open(sim) as st:
+        clock.advance(0)  # simulated time stands still: the move never completes
+        with pytest.raises(AptNoReplyError, match="completion"):
+            st.move_to_mm(20.0, timeout_s=0.2)
+        received(sim, "650401")
+        assert sim.host_messages()[-1] == STOP_IMMEDIATE
+        assert not sim.moving
+
+
+def test_exception_in_context_stops_the_stage(sim: SimulatedAptStage) -> None:
+    with pytest.raises(RuntimeError):
+        with _open(sim) as st:
+            st.move_to_mm(20.0, wait=False)
+            raise RuntimeError("procedure failed")
+    assert not sim.moving
+    assert STOP_IMMEDIATE in sim.host_messages()
+
+
+def test_ctrl_c_while_waiting_stops_the_stage(sim: SimulatedAptStage) -> None:
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("needs the main thread")
+    with _open(sim) as st:
+        timer = threading.Timer(0.1, _thread.interrupt_main)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            st.move_to_mm(20.0, timeout_s=10)
+        timer.join()
+        received(sim, "650401")
+        assert not sim.moving
+
+
+def test_moves_refused_before_homing_unless_allowed(clock: ManualClock) -> None:
+    sim = SimulatedAptStage(clock=clock, travel_mm=(0.0, 50.0), initial_position_mm=30.0)
+    sim.start()
+    try:
+        with _open(sim) as st:
+            sent = len(sim.host_messages())
+            with pytest.raises(AptNotHomedError):
+                st.move_to_mm(5.0)
+            with pytest.raises(AptNotHomedError):
+                st.move_by_mm(1.0)
+            assert len(sim.host_messages()) == sent
+        with _open(sim, allow_unhomed=True) as st:
+            st.move_by_mm(2.0, wait=False)
+            received(sim, "4804")
+            clock.advance(10)
+            st.wait_for_move()
+            assert st.position_mm == pytest.approx(2.0, abs=1e-4)
+        assert sim.position_mm == pytest.approx(32.0, abs=1e-4)
+    finally:
+        sim.stop()
+
+
+def test_travel_limits_checked_before_sending(sim: SimulatedAptStage) -> None:
+    with _open(sim, travel_mm=(0.0, 25.0)) as st:
+        sent = len(sim.host_messages())
+        for bad in (25.0001, -0.0001, float("nan"), float("inf")):
+            with pytest.raises((SafetyLimitError, ValueError)):
+                st.move_to_mm(bad)
+        with pytest.raises(SafetyLimitError):
+            st.move_by_mm(-0.5)  # from 0 mm
+        assert sim.host_messages()[sent:] == [H("110401005001")]  # only the position read
+
+
+def test_updates_stop_after_fifty_without_keepalive() -> None:
+    sim = SimulatedAptStage(time_scale=1000.0, travel_mm=(0.0, 50.0), homed=True)
+    sim.update_min_wall_s = 0.0
+    sim.start()
+    try:
+        with serial.Serial(sim.port, 115200, timeout=0.3) as ser:
+            ser.write(short(Msg.HW_START_UPDATEMSGS).pack())
+            data = b""
+            while chunk := ser.read(4096):  # until the cube falls silent
+                data += chunk
+            assert len(data) == UNACKED_UPDATE_LIMIT * 20
+            assert data[:6] == H("91040e008150")
+            ser.write(short(Msg.MOT_ACK_DCSTATUSUPDATE).pack())
+            assert ser.read(20)[:6] == H("91040e008150")  # flowing again
+            ser.write(short(Msg.HW_STOP_UPDATEMSGS).pack())
+    finally:
+        sim.stop()
