@@ -1,0 +1,101 @@
+"""The command line end to end: run, kill -9 mid-run, resume, analyze SESSION, report."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from test_protocol_helpers import MTF_SMALL, RAD_SMALL, events, only_session
+
+from benchlab.cli.main import main
+from benchlab.scenes.world import SimWorld
+from benchlab.session import Session
+
+
+def _completed(session: Path) -> int:
+    try:
+        return sum(1 for e in events(session) if e["kind"] == "step_completed")
+    except (OSError, ValueError):
+        return 0
+
+
+def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
+    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "mtf", "--simulate", "--yes",
+           "--out", str(tmp_path)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
+            if sessions and _completed(sessions[0]) >= 10:
+                break
+            assert proc.poll() is None, "the run ended before it could be killed"
+            time.sleep(0.01)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    path = only_session(tmp_path)
+    session = Session.open(path)
+    assert session.latest_results() is None and session.status == "running"
+    before = session.frames()
+    assert before and session.verify_frames() == []
+
+    assert main(["resume", str(path), "--simulate", "--yes"]) == 0
+    session = Session.open(path)
+    assert session.status == "completed"
+    evs = events(path)
+    done = Counter(e["step_id"] for e in evs if e["kind"] == "step_completed")
+    assert len(done) == 34 and max(done.values()) == 1
+    saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
+    assert len(saved) == 15 and max(saved.values()) == 1
+    assert {k: v for k, v in session.frames().items() if k in before} == before
+    rows = json.loads((path / "results" / "v1" / "table_4_12.json").read_text())
+    world = SimWorld()
+    for row in rows[:3]:  # the well-sampled frequencies, as in the uninterrupted run
+        f = row["object_lp_per_mm"]
+        for o in ("sagittal", "tangential"):
+            truth = world.radial_scene(f, o).truth_modulation()
+            assert row[f"{o}_modulation"] == pytest.approx(truth, abs=0.05)
+
+
+def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "mtf", "--simulate", "--yes", "--out", str(tmp_path),
+                 "--params", str(MTF_SMALL), "--operator", "ana"]) == 0
+    out = capsys.readouterr()
+    assert "Table 4.11" in out.out and "Table 4.12" in out.out and "wall time" in out.out
+    assert "[--yes]" in out.err  # the manual prompts were shown and answered
+    path = only_session(tmp_path)
+    assert Session.open(path).meta["operator"] == "ana"
+    assert main(["analyze", str(path), "--estimator", "sinefit"]) == 0
+    assert "frames verified unchanged" in capsys.readouterr().out
+    assert main(["report", str(path), "--out", str(tmp_path / "r.html")]) == 0
+    text = (tmp_path / "r.html").read_text()
+    assert "Table 4.11" in text and "data:image/png;base64," in text
+
+
+def test_radiometry_command_and_resume_of_a_finished_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", "radiometry", "--simulate", "--yes", "--out", str(tmp_path),
+                 "--params", str(RAD_SMALL)]) == 0
+    assert "Table 4.16" in capsys.readouterr().out
+    path = only_session(tmp_path)
+    assert main(["resume", str(path), "--simulate", "--yes"]) == 0  # nothing left to do
+    assert [p.name for p in (path / "results").iterdir()] == ["v1"]
+
+
+def test_manual_prompt_without_terminal_or_yes_is_a_clean_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(sys.stdin, "isatty", lambda: False, raising=False)
+    assert main(["run", "mtf", "--simulate", "--out", str(tmp_path),
+                 "--params", str(MTF_SMALL)]) == 1
+    err = capsys.readouterr().err
+    assert "pass --yes" in err and "benchlab resume" in err
