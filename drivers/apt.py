@@ -358,20 +358,20 @@ class AptStage:
         """Home (drive to the reverse limit and zero the counter) and wait until homed."""
         seq = self._send(short(Msg.MOT_MOVE_HOME, CHAN1))
         self._move_seq, self._move_target_mm = seq, self.travel_mm[0]
+        # Unhomed, the carriage may be anywhere: allow two spans (out and back off the switch).
         span = self.travel_mm[1] - self.travel_mm[0]
-        self.wait_for_move(timeout_s if timeout_s is not None else self._travel_timeout(span))
+        self.wait_for_move(timeout_s if timeout_s is not None else self._travel_timeout(2 * span))
 
     def move_to_mm(self, position_mm: float, *, wait: bool = True,
                    timeout_s: float | None = None) -> None:
         """Absolute move; limits and homing are checked before anything is sent."""
         counts = self._target_counts(position_mm)
         self._check_homed()
-        distance = abs(position_mm - self._last_position_mm())
         seq = self._send(long(Msg.MOT_MOVE_ABSOLUTE, pack_position(counts)))
         self._move_seq, self._move_target_mm = seq, position_mm
         if wait:
-            self.wait_for_move(timeout_s if timeout_s is not None
-                               else self._travel_timeout(distance))
+            # Default timeout assumes the longest possible move: the start may be unknown.
+            self.wait_for_move(timeout_s)
 
     def move_by_mm(self, distance_mm: float, *, wait: bool = True,
                    timeout_s: float | None = None) -> None:
@@ -390,8 +390,7 @@ class AptStage:
         self._move_seq = seq
         self._move_target_mm = self.units.mm(start_counts + delta_counts)
         if wait:
-            self.wait_for_move(timeout_s if timeout_s is not None
-                               else self._travel_timeout(abs(distance_mm)))
+            self.wait_for_move(timeout_s)
 
     def wait_for_move(self, timeout_s: float | None = None) -> AptStatus | None:
         """Wait for the outstanding move/home to end; raise unless it completed normally."""
@@ -437,6 +436,7 @@ class AptStage:
                        "MOT_MOVE_STOP")
 
     def _safe_stop(self) -> None:
+        """Best-effort immediate stop that never raises (used on error paths)."""
         try:
             if self._ser is not None and self._lost is None:
                 self._send(short(Msg.MOT_MOVE_STOP, CHAN1, STOP_IMMEDIATE))
@@ -481,13 +481,6 @@ class AptStage:
             raise AptBadReplyError(f"stage: short status payload in {msg.name}") from None
         return AptStatus(self._mm_checked(st.position_counts, msg.name), st.velocity_raw,
                          st.bits)
-
-    def _last_position_mm(self) -> float:
-        with self._cond:
-            for _, msg in reversed(self._log):
-                if msg.msg_id in _STATUS_IDS and msg.data:
-                    return self.units.mm(DcStatus.unpack(msg.data).position_counts)
-        return self.travel_mm[0]
 
     def _travel_timeout(self, distance_mm: float) -> float:
         v, a = self._vel.max_velocity_mm_s, self._vel.acceleration_mm_s2

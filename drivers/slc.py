@@ -459,6 +459,8 @@ class SlcController:
         else:
             self._off_pending = True
         prev = self._prev_sigint
+        if prev == signal.SIG_IGN:
+            return
         if callable(prev):
-            prev(signum, frame)
+            prev(signum, frame)  # default_int_handler raises KeyboardInterrupt itself
         raise KeyboardInterrupt
