@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import array
 import errno
+import functools
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -116,6 +118,21 @@ class _Settings:
     frame_time_counts: int = 1  # shortest: run as fast as exposure and readout allow
 
 
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _locked(method: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Serialise a public method: a UI thread and a worker may share one camera."""
+
+    @functools.wraps(method)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with args[0]._lock:  # type: ignore[attr-defined]
+            return method(*args, **kwargs)
+
+    return wrapper
+
+
 @contextmanager
 def _usb_errors(what: str) -> Iterator[None]:
     """Translate pyusb exceptions into benchlab errors (timeout, lost device, other)."""
@@ -185,6 +202,7 @@ class MightexCamera:
         #: Frames read and dropped because they carried older settings (diagnostics).
         self.discarded_frames = 0
         self._sleep: Callable[[float], None] = time.sleep
+        self._lock = threading.RLock()
 
     # ------------------------------------------------------------------ opening
 
@@ -275,6 +293,7 @@ class MightexCamera:
                 last = exc
         raise DeviceTimeoutError("camera did not answer the firmware query 3 times") from last
 
+    @_locked
     def reopen(self) -> None:
         """Reconnect to the same serial number (after a lost device) and restore all settings."""
         settings = self._settings
@@ -365,6 +384,7 @@ class MightexCamera:
                 "exposure_ms": self.exposure_ms, "gain": self.gain,
                 "frame_time_ms": self.frame_time_ms}
 
+    @_locked
     def configure(self, *, width: int = 1280, height: int = 1024, bits: int = 8,
                   mode: str = "normal", bin_code: int = 0, buffer_count: int = 4) -> None:
         """Set work mode, bit depth, geometry, bin code and buffer depth; flush old frames.
@@ -381,18 +401,21 @@ class MightexCamera:
         self._send(p.encode_resolution(width, height, bin_code, buffer_count))
         self.clear_buffer()
 
+    @_locked
     def set_exposure_ms(self, exposure_ms: float) -> None:
         """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
         counts = p.exposure_counts(exposure_ms, self._spec)
         self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
         self._settings.exposure_counts = counts
 
+    @_locked
     def set_gain(self, gain: float) -> None:
         """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
         raw = p.gain_raw(gain, self._spec)
         self._send(p.encode_gain(raw))
         self._settings.gain_raw = raw
 
+    @_locked
     def set_frame_time_ms(self, frame_time_ms: float) -> None:
         """Free-running frame period in normal mode (model unit: 0.1 or 0.05 ms)."""
         counts = p.frame_time_counts(frame_time_ms, self._spec)
@@ -407,18 +430,22 @@ class MightexCamera:
         self._send(p.encode_frame_time(s.frame_time_counts))
         self._send(p.encode_gain(s.gain_raw))
 
+    @_locked
     def firmware_version(self) -> str:
         return "{}.{}.{}".format(*p.decode_firmware(
             self._query(p.encode_firmware_query(), "firmware version", 3)))
 
+    @_locked
     def device_info(self) -> p.DeviceInfo:
         return p.decode_device_info(
             self._query(p.encode_device_info_query(), "device info", p.DEVICE_INFO_BYTES))
 
+    @_locked
     def buffer_status(self) -> p.BufferStatus:
         """Frames waiting in the camera and the geometry of the oldest one (command 0x33)."""
         return p.decode_buffer_status(self._query(p.encode_query_buffer(), "buffer query", 6))
 
+    @_locked
     def clear_buffer(self) -> int:
         """Discard every frame waiting in the camera; returns how many there were."""
         n = self.buffer_status().frames
@@ -426,10 +453,12 @@ class MightexCamera:
             self._send(p.encode_clear_buffer(n))
         return n
 
+    @_locked
     def software_trigger(self) -> None:
         """Expose one frame now (trigger mode only; ignored by the camera otherwise)."""
         self._send(p.encode_soft_trigger())
 
+    @_locked
     def reset(self) -> None:
         """Reset the camera firmware, then restore this driver's settings."""
         self._send(p.encode_reset())
@@ -442,8 +471,11 @@ class MightexCamera:
         s = self._settings
         return p.FrameLayout(s.width, s.height, s.bits)
 
-    def grab(self, timeout_s: float = 5.0) -> Frame:
+    @_locked
+    def grab(self, timeout_s: float | None = None) -> Frame:
         """The next frame acquired with the current settings.
+
+        ``timeout_s`` defaults to twice the frame period plus 5 s.
 
         Frames left in the camera from an older configuration (other geometry, exposure or
         gain, told apart by the 0x33 reply and the frame trailer) are discarded.
@@ -455,8 +487,10 @@ class MightexCamera:
         DeviceLostError, ProtocolError
             Unplugged mid-transfer; short, oversize or inconsistent frame.
         """
-        deadline = time.monotonic() + timeout_s
         s = self._settings
+        if timeout_s is None:
+            timeout_s = 2 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
+        deadline = time.monotonic() + timeout_s
         discards = 0
         while True:
             status = self.buffer_status()
