@@ -198,18 +198,18 @@ class Bench:
     @contextlib.contextmanager
     def open(
         cls, config: BenchConfig | None = None, *, simulate: bool = False, seed: int | None = 0,
-        noise: bool = True,
+        noise: bool = True, time_scale: float = SIM_TIME_SCALE,
     ) -> Iterator[Bench]:
         """Open every configured device (or its simulator); safe state on every way out.
 
         ``seed`` and ``noise`` apply to the simulated camera only (``noise=False``: exact,
-        noise-free frames).
+        noise-free frames); ``time_scale`` is the simulated stage's seconds per wall second.
         """
         cfg = config if config is not None else BenchConfig.load(None, simulate=simulate)
         bench = cls(cfg, simulated=simulate)
         with contextlib.ExitStack() as stack:
             if simulate:
-                open_simulated(bench, stack, seed=seed, noise=noise)
+                open_simulated(bench, stack, seed=seed, noise=noise, time_scale=time_scale)
             else:
                 _open_real(bench, stack)
             try:
@@ -301,6 +301,11 @@ class Bench:
         if self.world is not None:
             self.world.mount(target)
 
+    def place_led_by_hand(self, position_mm: float) -> None:
+        """The operator moved the LED (no stage): the simulated world follows."""
+        if self.world is not None:
+            self.world.led_position_mm = position_mm
+
     @property
     def mounted(self) -> Any:
         return self._mounted
@@ -327,19 +332,19 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
     from benchlab.drivers.mightex import MightexCamera
 
     cfg = bench.config
+    missing = [f"{name}.port" for name, dev in (("led", cfg.led), ("stage", cfg.stage))
+               if dev is not None and not dev.port]
+    if missing:
+        raise BenchError(f"{cfg.source}: {', '.join(missing)} required on the real bench")
     bench.camera = stack.enter_context(
         MightexCamera.open(serial=cfg.camera.serial, pid=cfg.camera.pid)
     )
-    if cfg.led is not None:
-        if not cfg.led.port:
-            raise BenchError(f"{cfg.source}: led.port is required on the real bench")
+    if cfg.led is not None and cfg.led.port:
         from benchlab.drivers.slc import SlcController
 
         bench.led = stack.enter_context(SlcController(cfg.led.port,
                                                       ceilings_ma=cfg.led.ceilings_ma))
-    if cfg.stage is not None:
-        if not cfg.stage.port:
-            raise BenchError(f"{cfg.source}: stage.port is required on the real bench")
+    if cfg.stage is not None and cfg.stage.port:
         from benchlab.drivers.apt import AptStage
 
         bench.stage = stack.enter_context(AptStage(
@@ -349,7 +354,8 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
 
 
 def open_simulated(
-    bench: Bench, stack: contextlib.ExitStack, *, seed: int | None = 0, noise: bool = True
+    bench: Bench, stack: contextlib.ExitStack, *, seed: int | None = 0, noise: bool = True,
+    time_scale: float = SIM_TIME_SCALE,
 ) -> None:
     """Build the simulated bench: world + camera firmware on a pyusb backend + SLC and APT
     simulators on pseudo-terminals, with the real drivers connected to them."""
@@ -374,7 +380,7 @@ def open_simulated(
     if cfg.stage is not None:
         sim_stage = SimulatedAptStage(
             counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
-            velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=SIM_TIME_SCALE,
+            velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=time_scale,
         )
         sim_stage.start()
         stack.callback(sim_stage.stop)

@@ -94,6 +94,7 @@ class RadiometryProcedure:
                 ctx.bench.move_stage_mm(target)
             else:
                 ctx.ask(f"Move the LED to field position {pos:g} mm.")
+                ctx.bench.place_led_by_hand(pos)
             extra = {"position_mm": pos, "stage_mm": target, "led_channel": p.led_channel,
                      "led_current_ma": p.led_current_ma}
             ctx.check_abort()
