@@ -147,3 +147,15 @@ def test_open_unplugged_camera_is_not_found() -> None:
     sim.unplug()
     with pytest.raises(DeviceNotFoundError, match="no Mightex camera found"):
         MightexCamera.open(backend=SimCameraBackend([sim]))
+
+
+def test_wake_up_retries_a_silent_camera_and_lists_a_dead_one() -> None:
+    sim = SimulatedCamera(noise=False)
+    backend = SimCameraBackend([sim])
+    sim.faults.drop_replies = 1  # first firmware query after power-up goes unanswered
+    with MightexCamera.open(backend=backend) as cam:
+        assert cam.info.firmware == "1.0.6"
+    sim.faults.drop_replies = 3
+    [info] = find_cameras(backend=backend)
+    assert (info.serial, info.pid, info.address) == ("?", 0x0428, 2)
+    assert "did not answer the firmware query 3 times" in (info.error or "")
