@@ -1,0 +1,79 @@
+"""The HTML report and the simulated MTF curves it draws."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+from benchlab.protocols import start_run
+from test_protocol_helpers import MTF_SMALL, RAD_SMALL, run_sim
+
+from benchlab.bench import Bench, BenchConfig
+from benchlab.report import ReportError, render_report, write_report
+from benchlab.report_curves import (
+    default_curves_path,
+    gaussian_mtf,
+    load_curves,
+    simulated_curves_toml,
+)
+from benchlab.session import Session
+
+
+def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Path) -> None:
+    outcome = run_sim("mtf", tmp_path, MTF_SMALL)
+    hashes = Session.open(outcome.session_path).frames()
+    out = write_report(outcome.session_path)
+    assert out == outcome.session_path / "report.html"
+    text = out.read_text()
+    for title in ("Table 4.11", "Table 4.12", "Tables 4.13-4.14", "Table 4.15",
+                  "Measured vs simulated MTF", "Frames with ROIs", "G1E5", "SIM-130001"):
+        assert title in text
+    assert text.count("data:image/png;base64,") == 3  # MTF curves, forward ROIs, radial ROIs
+    visible = re.sub(r"base64,[^']*'", "", text)
+    assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
+    assert "src='http" not in text and "<script" not in text  # nothing fetched from outside
+    assert Session.open(outcome.session_path).frames() == hashes
+    assert Session.open(outcome.session_path).verify_frames() == []
+
+
+def test_radiometry_report_has_the_fall_off(tmp_path: Path) -> None:
+    outcome = run_sim("radiometry", tmp_path, RAD_SMALL)
+    text = render_report(outcome.session_path)
+    assert "Table 4.16" in text and "fig. 4.21" in text
+    assert text.count("data:image/png;base64,") == 2  # fall-off, frames with masks
+
+
+def test_report_of_a_session_without_results_says_so(tmp_path: Path) -> None:
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        runner = start_run("mtf", bench=bench, params=MTF_SMALL, root=tmp_path)
+    with pytest.raises(ReportError, match="no results yet"):
+        write_report(runner.session.path)
+
+
+def test_shipped_curves_are_the_simulated_optics() -> None:
+    assert default_curves_path().read_text() == simulated_curves_toml()
+    curves = load_curves()
+    assert len(curves) == 16  # 8 field points x S/T
+    radial_t = next(c for c in curves if c.view == "radial" and c.field_angle_deg == -30
+                    and c.direction == "T")
+    radial_s = next(c for c in curves if c.view == "radial" and c.field_angle_deg == -30
+                    and c.direction == "S")
+    assert radial_t.at(35.0) < radial_s.at(35.0)  # tangential worse, as in the thesis
+    assert gaussian_mtf(0.0, 0.0) == 1.0
+    nu = 50 * 5.2e-3
+    assert gaussian_mtf(1.0, 50.0) == pytest.approx(
+        math.exp(-2 * math.pi**2 * (1 + 1 / 12) * nu**2))
+
+
+def test_a_csv_curve_file_from_the_params_is_used(tmp_path: Path) -> None:
+    csv = tmp_path / "zemax.csv"
+    csv.write_text("view,field_angle_deg,direction,freq_lp_per_mm,mtf\n"
+                   "forward,0,S,0,1.0\nforward,0,S,100,0.5\n")
+    params = tmp_path / "mtf.toml"
+    params.write_text(MTF_SMALL.read_text().replace(
+        'estimator = "histogram"', f'estimator = "histogram"\nsimulated_mtf_file = "{csv}"'))
+    outcome = run_sim("mtf", tmp_path / "s", params)
+    assert [c.view for c in load_curves(csv)] == ["forward"]
+    assert "No simulated curves" not in render_report(outcome.session_path)
