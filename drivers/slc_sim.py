@@ -10,7 +10,7 @@ answer ``    VERB is not defined``, and output keeps running when the host close
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 
 from benchlab.drivers.pty_device import Clock, PtyDevice
@@ -37,6 +37,10 @@ class SimChannel:
     strobe_repeat: int = 0
     trigger_imax: int = 10
     trigger_polarity: int = 0
+    # Profiles: step -> (Iset mA, Tset us); bench default after RESTOREDEF for TRIGGER.
+    strobe_profile: dict[int, tuple[int, int]] = field(default_factory=dict)
+    trigger_profile: dict[int, tuple[int, int]] = field(
+        default_factory=lambda: {0: (10, 20), 1: (0, 0)})
 
 
 @dataclass
@@ -54,6 +58,15 @@ class SlcFaults:
 @dataclass
 class _Stored:
     channels: list[SimChannel] = field(default_factory=list)
+
+
+def _copy(c: SimChannel) -> SimChannel:
+    return replace(c, strobe_profile=dict(c.strobe_profile),
+                   trigger_profile=dict(c.trigger_profile))
+
+
+MAX_PROFILE_STEP = 127
+MAX_TSET_US = 99_999_999
 
 
 class SimulatedSlc(PtyDevice):
@@ -235,15 +248,52 @@ class SimulatedSlc(PtyDevice):
         return "#?" if c is None else f"#{c.trigger_imax} {c.trigger_polarity}"
 
     def _cmd_STORE(self, args: list[int]) -> str:
-        self._stored.channels = [SimChannel(**vars(c)) for c in self.channels]
+        self._stored.channels = [_copy(c) for c in self.channels]
         return "##"
 
     def _cmd_RESET(self, args: list[int]) -> str:
         # Soft reset: back to the stored state, each channel resuming its stored mode; echo off.
-        self.channels = [SimChannel(**vars(c)) for c in self._stored.channels]
+        self.channels = [_copy(c) for c in self._stored.channels]
         self.echo = False
         return "##"
 
     def _cmd_RESTOREDEF(self, args: list[int]) -> str:
         self.channels = [SimChannel() for _ in self.channels]  # volatile settings only
         return "##"
+
+    def _profile_reply(self, profile: dict[int, tuple[int, int]]) -> str:
+        # Multi-line: "#I0 T0 \r\n", "I1 T1 \r\n", ... up to and including the first "0 0".
+        lines: list[str] = []
+        for step in sorted(profile):
+            i_ma, t_us = profile[step]
+            lines.append(f"{i_ma} {t_us}")
+            if (i_ma, t_us) == (0, 0):
+                break
+        if not lines or lines[-1] != "0 0":
+            lines.append("0 0")
+        return "#" + " \r\n".join(lines)
+
+    def _cmd_STRP(self, args: list[int]) -> str:
+        c = self._chan(args, 4)
+        if c is None or not 0 <= args[1] <= MAX_PROFILE_STEP or not 0 <= args[2] <= c.strobe_imax:
+            return "#?"
+        if not 0 <= args[3] <= MAX_TSET_US:
+            return "#?"
+        c.strobe_profile[args[1]] = (args[2], args[3])
+        return "##"
+
+    def _cmd_Q_STRP(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        return "#?" if c is None else self._profile_reply(c.strobe_profile)
+
+    def _cmd_TRIGP(self, args: list[int]) -> str:
+        c = self._chan(args, 4)
+        if c is None:
+            return "#?"
+        # Bench quirk: never rejected; step current clamped to the TRIGGER Imax at write time.
+        c.trigger_profile[args[1]] = (min(args[2], c.trigger_imax), args[3])
+        return "##"
+
+    def _cmd_Q_TRIGP(self, args: list[int]) -> str:
+        c = self._chan(args, 1)
+        return "#?" if c is None else self._profile_reply(c.trigger_profile)

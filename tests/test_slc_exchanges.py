@@ -210,3 +210,18 @@ def test_session_matches_recorded_transcript(sim: SimulatedSlc) -> None:
         c.on(1, 50)
         assert c.get_current(1) == (100.0, 50.0)
     assert sim.transcript == expected
+
+
+def test_simulator_profiles_are_multi_line(sim: SimulatedSlc) -> None:
+    import serial
+
+    with serial.Serial(sim.port, 9600, timeout=1) as ser:
+        ser.write(b"?TRIGP 1\n\r")
+        assert ser.read_until(b"0 0 \r\n") == b"#10 20 \r\n0 0 \r\n"  # RESTOREDEF default
+        for cmd in (b"STROBE 1 500 3", b"STRP 1 0 400 1000", b"STRP 1 1 0 0", b"TRIGP 2 0 99 5"):
+            ser.write(cmd + b"\n\r")
+            assert ser.read_until(b"\r\n") == b"## \r\n"
+        ser.write(b"?STRP 1\n\r")
+        assert ser.read_until(b"0 0 \r\n") == b"#400 1000 \r\n0 0 \r\n"
+        ser.write(b"?TRIGP 2\n\r")  # 99 mA clamped to the TRIGGER Imax of 10 mA
+        assert ser.read_until(b"0 0 \r\n") == b"#10 5 \r\n0 0 \r\n"
