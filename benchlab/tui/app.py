@@ -27,6 +27,7 @@ class BenchlabApp(App[None]):
     """Devices, live view, procedure runner and sessions, keyboard first."""
 
     TITLE = "benchlab"
+    ENABLE_COMMAND_PALETTE = False
     CSS = """
     Screen { layout: vertical; }
     .panel { border: round $primary; padding: 0 1; height: auto; }
@@ -41,11 +42,12 @@ class BenchlabApp(App[None]):
     }
     DEFAULT_MODE = "devices"
     BINDINGS = [
-        Binding("1", "switch_mode('devices')", "Devices"),
-        Binding("2", "switch_mode('live')", "Live"),
-        Binding("3", "switch_mode('run')", "Run"),
-        Binding("4", "switch_mode('sessions')", "Sessions"),
-        Binding("q", "quit", "Quit", priority=True),
+        # shown in each screen's mode bar rather than the footer (which keeps the screen's keys)
+        Binding("1", "switch_mode('devices')", "Devices", show=False),
+        Binding("2", "switch_mode('live')", "Live", show=False),
+        Binding("3", "switch_mode('run')", "Run", show=False),
+        Binding("4", "switch_mode('sessions')", "Sessions", show=False),
+        Binding("q", "quit", "Quit", priority=True, show=False),
     ]
 
     #: One line describing the bench connection ("connected (simulated)", "disconnected", ...).

@@ -9,10 +9,11 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Grid
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Static
+from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.widgets import ModeBar
 
 REFRESH_S = 1.0
 
@@ -30,8 +31,11 @@ class DevicesScreen(Screen[None]):
 
     DEFAULT_CSS = """
     DevicesScreen #bench-status { height: auto; padding: 0 1; background: $boost; }
-    DevicesScreen Grid { grid-size: 3; grid-gutter: 0 1; height: 1fr; }
+    DevicesScreen Grid { grid-size: 2 2; grid-columns: 1fr 1fr; height: 1fr; }
     DevicesScreen .device { border: round $primary; padding: 0 1; height: 100%; }
+    DevicesScreen Grid { grid-rows: auto 1fr; }
+    DevicesScreen #camera { height: auto; }
+    DevicesScreen #leds { row-span: 2; }
     """
     BINDINGS = [
         Binding("c", "connect", "Connect"),
@@ -41,13 +45,13 @@ class DevicesScreen(Screen[None]):
     ]
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield ModeBar("devices")
         yield Static("", id="bench-status")
         with Grid():
             yield Static("", id="camera", classes="device")
             yield Static("", id="leds", classes="device")
             yield Static("", id="stage", classes="device")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         for wid, title in (("camera", "camera"), ("leds", "LED controller"), ("stage", "stage")):

@@ -14,11 +14,11 @@ from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
 from textual.timer import Timer
-from textual.widgets import Footer, Header, Static
+from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
-from benchlab.tui.widgets import FrameView, Roi, RoiHistogram
+from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
 EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500.0, 1000.0)
@@ -58,16 +58,16 @@ class LiveScreen(Screen[None]):
         Binding("down", "move(1, 0)", "ROI down", show=False),
         Binding("left", "move(0, -1)", "ROI left", show=False),
         Binding("right", "move(0, 1)", "ROI right", show=False),
-        Binding("plus,equals_sign", "resize(1)", "Grow", key_display="+"),
-        Binding("minus", "resize(-1)", "Shrink", key_display="-"),
-        Binding("e", "exposure(-1)", "Exp-"),
-        Binding("E", "exposure(1)", "Exp+"),
-        Binding("g", "gain(-1)", "Gain-"),
-        Binding("G", "gain(1)", "Gain+"),
+        Binding("plus,equals_sign", "resize(1)", "Size", key_display="+-"),
+        Binding("minus", "resize(-1)", "Shrink", show=False),
+        Binding("E", "exposure(1)", "Exposure", key_display="eE"),
+        Binding("e", "exposure(-1)", "Exposure-", show=False),
+        Binding("G", "gain(1)", "Gain", key_display="gG"),
+        Binding("g", "gain(-1)", "Gain-", show=False),
         Binding("m", "estimator", "Method"),
-        Binding("o", "orientation", "Orient."),
+        Binding("o", "orientation", "Orient"),
         Binding("z", "zoom", "Zoom"),
-        Binding("t", "target", "Target (sim)"),
+        Binding("t", "target", "Target"),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)
@@ -90,17 +90,17 @@ class LiveScreen(Screen[None]):
         self.frames_displayed = 0
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield ModeBar("live")
         with Horizontal(id="live-body"):
             yield FrameView(id="frame")
             with Vertical(id="side"):
                 yield Static("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         self.query_one("#frame").border_title = "camera"
-        self.query_one("#histogram").border_title = "ROI histogram (D dark, B bright)"
+        self.query_one("#histogram").border_title = "histogram: D dark, B bright"
         self.query_one("#readout").border_title = "ROI"
         if not self.estimator:
             self.estimator = services.default_estimator()

@@ -13,11 +13,12 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
 from benchlab.tui.dialogs import PromptDialog
+from benchlab.tui.widgets import ModeBar
 
 PROCEDURES = ("mtf", "radiometry")
 STATUS_MARK = {
@@ -27,6 +28,12 @@ STATUS_MARK = {
     "failed": "\u2718 ",
     "aborted": "\u25a0 ",
 }
+
+
+def short_step_label(label: str) -> str:
+    """``"Table 4.10 step 6 (step 8)"`` -> ``"6 (8)"``; ``"section 4.4"`` -> ``"§4.4"``."""
+    return (label.replace("Table 4.10 step ", "").replace("(step ", "(")
+            .replace("section ", "§"))
 
 
 def _format_value(value: Any) -> str:
@@ -53,8 +60,9 @@ class RunScreen(Screen[None]):
     DEFAULT_CSS = """
     RunScreen #run-status { height: auto; padding: 0 1; background: $boost; }
     RunScreen #run-body { height: 1fr; }
-    RunScreen #steps { width: 1fr; border: round $primary; }
-    RunScreen #results { width: 1fr; border: round $primary; }
+    RunScreen #steps { width: 3fr; height: 1fr; border: round $primary; }
+    RunScreen #results { width: 2fr; height: 1fr; border: round $primary; }
+    RunScreen #results-table { height: 1fr; }
     RunScreen #progress { height: 1; padding: 0 1; }
     RunScreen #progress Bar { width: 1fr; }
     RunScreen DataTable > .datatable--cursor { background: $accent 40%; }
@@ -84,22 +92,22 @@ class RunScreen(Screen[None]):
         self._prompt: PromptDialog | None = None
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield ModeBar("run")
         yield Static("", id="run-status")
         with Horizontal(id="run-body"):
             yield DataTable(id="steps", cursor_type="row", zebra_stripes=False)
             with Vertical(id="results"):
                 yield DataTable(id="results-table", cursor_type="row")
         yield ProgressBar(id="progress", show_eta=False)
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         steps = self.query_one("#steps", DataTable)
         steps.add_columns("", "step", "what")
-        steps.border_title = "checklist"
+        steps.border_title = "checklist (Table 4.10 steps)"
         self.query_one("#results").border_title = "results"
         self._reset_results()
-        self._refresh_status()
+        self.call_after_refresh(self._refresh_status)
         self._load_checklist()
 
     # -- status -----------------------------------------------------------------------------
@@ -153,7 +161,8 @@ class RunScreen(Screen[None]):
         self.step_status = {s.id: ("done" if s.id in done else "pending") for s in steps}
         for step in steps:
             table.add_row(
-                STATUS_MARK[self.step_status[step.id]], step.table_step or step.id, step.title,
+                STATUS_MARK[self.step_status[step.id]],
+                short_step_label(step.table_step or step.id), step.title,
                 key=step.id,
             )
         progress = self.query_one(ProgressBar)

@@ -133,8 +133,8 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
             ("firmware", str(ident.get("firmware") or "?")),
         ]
         if ident.get("port"):  # simulated ports are pseudo-terminals: name the kind only
-            port = "pseudo-terminal" if kind == "simulated" else str(ident["port"])
-            out[name].append(("port", f"{port} ({kind})"))
+            port = "simulated (pty)" if kind == "simulated" else str(ident["port"])
+            out[name].append(("port", port))
     if bench.camera is not None:
         settings = getattr(bench, "_camera_settings", {}) or {}
         if settings:
@@ -148,9 +148,10 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
                 mode = bench.led.get_mode(ch)
                 imax, iset = bench.led.get_current(ch)
                 ceiling = bench.config.led_ceiling_ma(ch)
-                limit = f", ceiling {ceiling:g}" if ceiling is not None else ""
+                limit = f"  limit {ceiling:g}" if ceiling is not None else ""
+                state = "ON " if mode.name != "DISABLE" else "off"
                 out["leds"].append(
-                    (f"channel {ch}", f"{mode.name.lower()}  {iset:g} mA (max {imax:g}{limit})")
+                    (f"ch {ch}", f"{state} {iset:g} mA  max {imax:g}{limit}")
                 )
         except Exception as exc:  # noqa: BLE001 - shown in the panel
             out["leds"].append(("error", plain_error(exc)))

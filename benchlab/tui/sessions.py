@@ -11,9 +11,10 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Static
+from textual.widgets import DataTable, Footer, Static
 
 from benchlab.tui import services
+from benchlab.tui.widgets import ModeBar
 
 
 def _fmt(value: Any) -> str:
@@ -28,7 +29,7 @@ class SessionsScreen(Screen[None]):
     DEFAULT_CSS = """
     SessionsScreen #sessions-status { height: auto; padding: 0 1; background: $boost; }
     SessionsScreen #sessions-body { height: 1fr; }
-    SessionsScreen #session-list { width: 1fr; border: round $primary; }
+    SessionsScreen #session-list { width: 1fr; height: 1fr; border: round $primary; }
     SessionsScreen #session-detail { width: 1fr; border: round $primary; }
     SessionsScreen #session-info { height: auto; }
     SessionsScreen #session-table { height: 1fr; }
@@ -53,14 +54,14 @@ class SessionsScreen(Screen[None]):
         self._table_index = 0
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield ModeBar("sessions")
         yield Static("", id="sessions-status")
         with Horizontal(id="sessions-body"):
             yield DataTable(id="session-list", cursor_type="row")
             with Vertical(id="session-detail"):
                 yield Static("[dim]Enter: open the selected session[/dim]", id="session-info")
                 yield DataTable(id="session-table", cursor_type="row")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         table = self.query_one("#session-list", DataTable)
@@ -69,6 +70,7 @@ class SessionsScreen(Screen[None]):
         self.query_one("#session-detail").border_title = "session"
         if not self.estimator:
             self.estimator = services.default_estimator()
+        self.call_after_refresh(self._status)
 
     def on_screen_resume(self) -> None:
         self.action_reload()

@@ -234,3 +234,29 @@ class RoiHistogram(Widget):
             axis[bright_col] = "B"
         text.append("".join(axis), style="bold")
         return text
+
+
+class ModeBar(Widget):
+    """One line at the top: the four screens with their keys (current one highlighted)."""
+
+    DEFAULT_CSS = """
+    ModeBar { height: 1; width: 1fr; background: $panel; }
+    """
+    MODES = (("1", "devices", "Devices"), ("2", "live", "Live"), ("3", "run", "Run"),
+             ("4", "sessions", "Sessions"))
+
+    def __init__(self, current: str, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self.current = current
+
+    def render(self) -> Text:
+        text = Text(" benchlab ", style="bold")
+        for key, mode, label in self.MODES:
+            style = "reverse bold" if mode == self.current else ""
+            text.append(" ")
+            text.append(f" {key} {label} ", style=style)
+        simulated = getattr(self.app, "simulate", False)
+        text.append("   q Quit", style="dim")
+        if simulated:
+            text.append("   simulated", style="italic")
+        return text

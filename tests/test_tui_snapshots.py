@@ -1,0 +1,37 @@
+"""A few pinned snapshots of the TUI on the seeded simulated bench (no clocks on screen)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from test_tui_helpers import MTF_PARAMS, make_app, wait_until
+from textual.pilot import Pilot
+from textual.widgets import Static
+
+from benchlab.tui.runner import RunScreen
+
+
+def test_devices_panel_80x24(snap_compare, tmp_path: Path) -> None:  # noqa: ANN001
+    app = make_app(tmp_path)
+
+    async def ready(pilot: Pilot[None]) -> None:
+        await wait_until(pilot, lambda: app.bench is not None, what="bench")
+        stage = app.screen.query_one("#stage", Static)
+        await wait_until(pilot, lambda: "position" in str(stage.render()), what="stage row")
+        await pilot.pause()
+
+    assert snap_compare(app, terminal_size=(80, 24), run_before=ready)
+
+
+def test_mtf_checklist_120x36(snap_compare, tmp_path: Path) -> None:  # noqa: ANN001
+    app = make_app(tmp_path, mtf=MTF_PARAMS)
+
+    async def ready(pilot: Pilot[None]) -> None:
+        await wait_until(pilot, lambda: app.bench is not None, what="bench")
+        await pilot.press("3")
+        screen = app.screen
+        assert isinstance(screen, RunScreen)
+        await wait_until(pilot, lambda: len(screen.step_status) == 14, what="checklist")
+        await pilot.pause()
+
+    assert snap_compare(app, terminal_size=(120, 36), run_before=ready)

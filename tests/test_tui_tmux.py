@@ -1,0 +1,73 @@
+"""Smoke test: the real ``benchlab --simulate`` program in tmux; read its screen, quit."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+TMUX = shutil.which("tmux")
+BENCHLAB = Path(sys.executable).with_name("benchlab")
+
+pytestmark = pytest.mark.skipif(
+    TMUX is None or not BENCHLAB.exists(), reason="needs tmux and the benchlab console script"
+)
+
+
+def _tmux(*args: str) -> str:
+    assert TMUX is not None
+    return subprocess.run(
+        [TMUX, *args], capture_output=True, text=True, timeout=30, check=False
+    ).stdout
+
+
+def _wait_for_screen(session: str, predicate, timeout_s: float = 60.0) -> str:  # noqa: ANN001
+    deadline = time.monotonic() + timeout_s
+    screen = ""
+    while time.monotonic() < deadline:
+        screen = _tmux("capture-pane", "-p", "-t", session)
+        if predicate(screen):
+            return screen
+        time.sleep(0.3)
+    raise AssertionError(f"screen never matched; last screen:\n{screen}")
+
+
+def _alive(session: str) -> bool:
+    assert TMUX is not None
+    return subprocess.run([TMUX, "has-session", "-t", session], capture_output=True,
+                          timeout=30, check=False).returncode == 0
+
+
+def test_benchlab_simulate_runs_in_tmux_and_quits(tmp_path: Path) -> None:
+    session = f"benchlab-smoke-{uuid.uuid4().hex[:8]}"
+    done = tmp_path / "exit-status"
+    command = (
+        f"cd {tmp_path} && TERM=xterm-256color {BENCHLAB} --simulate; echo $? > {done}; "
+        "sleep 30"
+    )
+    _tmux("new-session", "-d", "-x", "100", "-y", "30", "-s", session, command)
+    try:
+        screen = _wait_for_screen(
+            session, lambda s: "bench: connected" in s and "position" in s
+        )
+        lines = screen.splitlines()
+        assert len(lines) >= 29 and any("benchlab" in line for line in lines[:2])
+        assert "bench: connected (simulated)" in screen
+        assert "SIM-130001" in screen  # the simulated camera's serial number
+        assert "homed" in screen and "Quit" in screen
+        _tmux("send-keys", "-t", session, "2")  # live view
+        _wait_for_screen(session, lambda s: "modulation" in s and "sharpness" in s)
+        _tmux("send-keys", "-t", session, "q")
+        deadline = time.monotonic() + 30
+        while not done.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert done.exists(), "benchlab did not exit after q"
+        assert done.read_text().strip() == "0"
+    finally:
+        if _alive(session):
+            _tmux("kill-session", "-t", session)
