@@ -207,3 +207,10 @@ def test_updates_stop_after_fifty_without_keepalive() -> None:
             ser.write(short(Msg.HW_STOP_UPDATEMSGS).pack())
     finally:
         sim.stop()
+
+
+def test_stop_when_idle_tolerates_a_silent_cube(sim: SimulatedAptStage) -> None:
+    with _open(sim) as st:
+        sim.faults.no_reply = 1  # the stop is swallowed: no MOVE_STOPPED comes back
+        st.stop(immediate=True, timeout_s=0.2)  # idle per the status bits: not an error
+        assert sim.host_messages()[-1] == H("900401005001")
