@@ -108,9 +108,14 @@ def benchmark_cases(quick: bool = False, seed: int = 0) -> list[BarCase]:
     return cases
 
 
-def run_benchmark(quick: bool = False, seed: int = 0) -> list[EstimatorScore]:
-    """Score every estimator of :data:`ESTIMATORS` over :func:`benchmark_cases`."""
+def run_benchmark(
+    quick: bool = False, seed: int = 0, max_cases: int | None = None
+) -> list[EstimatorScore]:
+    """Score every estimator of :data:`ESTIMATORS` over :func:`benchmark_cases` (an evenly
+    spaced subset of ``max_cases`` when given)."""
     cases = benchmark_cases(quick, seed)
+    if max_cases is not None and max_cases < len(cases):
+        cases = [cases[i] for i in np.linspace(0, len(cases) - 1, max_cases).astype(int)]
     rng = np.random.default_rng(seed + 1)
     tallies = {name: _Tally() for name in ESTIMATORS}
     for case in cases:

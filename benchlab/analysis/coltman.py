@@ -68,7 +68,7 @@ def ctf_to_mtf(
     ctf: npt.ArrayLike,
     *,
     cutoff_lp_per_mm: float | None = None,
-    max_harmonic: int = 21,
+    max_harmonic: int = 99,
 ) -> CtfToMtf:
     """Sine-wave MTF from bar contrast measured at several frequencies (Coltman's inverse).
 
@@ -81,7 +81,8 @@ def ctf_to_mtf(
         frequencies.
     cutoff_lp_per_mm : float, optional
         Frequency above which the MTF is zero (optics cutoff, or Nyquist if you accept that
-        assumption); ``CTF(k f)`` there is 0 exactly. ``None``: only measured harmonics count.
+        assumption); ``CTF(k f)`` there is 0 exactly. ``None``: the highest measured frequency
+        is taken as the cutoff (the usual truncation assumption).
     max_harmonic : int
         Highest odd harmonic of the series.
 
@@ -101,24 +102,24 @@ def ctf_to_mtf(
     if np.any(np.diff(fs) == 0):
         raise ValueError("duplicate frequencies")
     f_max = float(fs[-1])
+    # Above ``limit`` the MTF is taken as zero: the cutoff when given, else the measured range.
+    limit = f_max if cutoff_lp_per_mm is None else float(cutoff_lp_per_mm)
     mtf = np.empty_like(f)
     methods: list[str] = []
     for i, fi in enumerate(f):
         total = 0.0
-        method = "coltman"
-        if cutoff_lp_per_mm is not None and 3 * fi > cutoff_lp_per_mm:
-            method = "pi/4"
+        method = "pi/4" if 3 * fi > limit else "coltman"
         for k in range(1, max_harmonic + 1, 2):
             b = coltman_coefficient(k)
-            if b == 0:
-                continue
             fk = k * fi
-            if cutoff_lp_per_mm is not None and fk > cutoff_lp_per_mm:
+            if b == 0 or fk > limit * (1 + 1e-12):
                 continue
             if fk <= f_max * (1 + 1e-9):
                 total += b * float(np.interp(fk, fs, cs)) / k
-            elif method == "coltman":
-                method = "truncated"
+            else:
+                method = "truncated"  # needed below the cutoff but not measured
+        if method == "coltman" and (max_harmonic + 2 - max_harmonic % 2) * fi <= limit:
+            method = "truncated"  # the series stopped at max_harmonic inside the range
         mtf[i] = math.pi / 4 * total
         methods.append(method)
     return CtfToMtf(f, c, mtf, tuple(methods))
