@@ -214,3 +214,19 @@ def test_stop_when_idle_tolerates_a_silent_cube(sim: SimulatedAptStage) -> None:
         sim.faults.no_reply = 1  # the stop is swallowed: no MOVE_STOPPED comes back
         st.stop(immediate=True, timeout_s=0.2)  # idle per the status bits: not an error
         assert sim.host_messages()[-1] == H("900401005001")
+
+
+def test_unsolicited_messages_before_a_reply_are_routed(sim: SimulatedAptStage) -> None:
+    from benchlab.drivers.apt_protocol import HOST, UNIT, DcStatus, StatusBits, long
+
+    unsolicited = (
+        short(Msg.MOT_MOVE_HOMED, 1, dest=HOST, source=UNIT).pack()
+        + long(Msg.MOT_GET_DCSTATUSUPDATE, DcStatus(0, 0, 0, StatusBits.ENABLED).pack(),
+               dest=HOST, source=UNIT).pack()
+    )
+    with _open(sim) as st:
+        assert st.is_homed
+        sim.faults.garbage = unsolicited  # emitted between our request and its reply
+        assert st.position_mm == 0.0
+        assert st.dropped_bytes == 0  # valid frames, routed rather than discarded
+        assert not st.is_homed  # the unsolicited status (saying 'not homed') was applied
