@@ -10,7 +10,7 @@ from benchlab.drivers.sensor import AcquisitionState
 from scipy.ndimage import map_coordinates
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX, RadialLayout, box_centroid
-from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene
+from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene, radial_truth_table
 
 H, W = 1024, 1280
 CIRCLES = RadialLayout()
@@ -127,3 +127,12 @@ def test_call_returns_a_copy_and_invalid_patterns_are_refused() -> None:
         RadialScene(1.0, "diagonal")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="frequency"):
         RadialScene(0.0, "sagittal")
+
+
+def test_truth_table_lists_every_pattern() -> None:
+    rows = radial_truth_table()
+    assert len(rows) == 14
+    for row in rows:
+        scene = RadialScene(row["object_lp_per_mm"], row["orientation"])  # type: ignore[arg-type]
+        assert row["modulation"] == pytest.approx(scene.truth_modulation())
+        assert row["px_per_period"] == pytest.approx(scene.px_per_period)

@@ -156,3 +156,13 @@ def test_render_is_cached_per_geometry() -> None:
     assert UsafScene().render(H, W) is a  # equal parameters share the cache
     b = UsafScene(bright_dn8=150.0).render(H, W)
     assert b is not a and b.max() < a.max()
+
+
+def test_truth_table_lists_every_bar_set() -> None:
+    scene = UsafScene()
+    rows = scene.truth_table()
+    assert [r["label"] for r in rows][:2] == ["G1E5S", "G1E5T"] and len(rows) == 18
+    for row in rows:
+        args = (row["group"], row["element"], row["orientation"])
+        assert row["modulation"] == pytest.approx(scene.truth_modulation(*args))  # type: ignore[arg-type]
+        assert row["box"] == scene.bar_group(*args).box  # type: ignore[arg-type]

@@ -7,7 +7,7 @@ geometry: the irradiance does not depend on exposure or gain, which the camera a
 
 from benchlab.scenes.led import LedFalloff, LedScene
 from benchlab.scenes.optics import FORWARD_BLUR, RADIAL_BLUR, BlurProfile
-from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene
+from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene, radial_truth_table
 from benchlab.scenes.usaf import UsafScene
 from benchlab.scenes.world import SimWorld, parse_target
 
@@ -22,4 +22,5 @@ __all__ = [
     "SimWorld",
     "UsafScene",
     "parse_target",
+    "radial_truth_table",
 ]

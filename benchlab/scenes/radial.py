@@ -19,6 +19,7 @@ varies continuously with image height and needs no resampling.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass, field
@@ -177,6 +178,31 @@ class RadialScene:
     def render(self, height: int, width: int) -> FloatArray:
         """The cached, read-only electron-rate image."""
         return _render(self, height, width)
+
+
+def radial_truth_table(
+    template: RadialScene | None = None,
+    frequencies_lp_per_mm: tuple[float, ...] = RADIAL_TARGETS_LP_PER_MM,
+) -> list[dict[str, object]]:
+    """Noise-free truth at the reference point for every pattern (Table 4.12 layout)."""
+    base = template if template is not None else RadialScene(1.0, "sagittal")
+    rows: list[dict[str, object]] = []
+    for orientation in ("sagittal", "tangential"):
+        for lp in frequencies_lp_per_mm:
+            scene = dataclasses.replace(base, object_lp_per_mm=lp, orientation=orientation)
+            dark, bright = scene.truth_levels_dn8()
+            rows.append(
+                {
+                    "orientation": orientation,
+                    "object_lp_per_mm": lp,
+                    "image_lp_per_mm": scene.image_lp_per_mm,
+                    "px_per_period": scene.px_per_period,
+                    "dark_dn8": dark,
+                    "bright_dn8": bright,
+                    "modulation": (bright - dark) / (bright + dark),
+                }
+            )
+    return rows
 
 
 @functools.lru_cache(maxsize=4)

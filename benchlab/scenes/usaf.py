@@ -128,6 +128,29 @@ class UsafScene:
         dark, bright = self.truth_levels(group, element, orientation)
         return (bright - dark) / (bright + dark)
 
+    def truth_table(self) -> list[dict[str, object]]:
+        """Noise-free truth of every bar set on the chart (Table 4.11 layout), coarse to fine."""
+        rows: list[dict[str, object]] = []
+        for g, e in self.layout.elements:
+            for orientation in ("sagittal", "tangential"):
+                bars = self.bar_group(g, e, orientation)  # type: ignore[arg-type]
+                dark, bright = self.truth_levels_dn8(g, e, orientation)  # type: ignore[arg-type]
+                rows.append(
+                    {
+                        "label": bars.label,
+                        "group": g,
+                        "element": e,
+                        "orientation": orientation,
+                        "image_lp_per_mm": bars.image_lp_per_mm,
+                        "image_height_mm": bars.image_height_mm,
+                        "box": bars.box,
+                        "dark_dn8": dark,
+                        "bright_dn8": bright,
+                        "modulation": (bright - dark) / (bright + dark),
+                    }
+                )
+        return rows
+
     def _disc(self, rows: FloatArray, cols: FloatArray) -> FloatArray:
         cr, cc = self.circles.centre_rc
         radius = np.hypot(rows - cr, cols - cc)
