@@ -150,18 +150,15 @@ def _mtf_frames(session: Session, tables: dict[str, list[dict[str, Any]]]) -> st
         parts.append(_png(fig))
     radial_rows = tables.get("table_4_12", [])
     shown = 0
-    fig = None
-    for r in radial_rows:
-        for orient in ("sagittal", "tangential"):
-            sid = f"radial-{r['object_lp_per_mm']:g}-{orient}"
-            if "radial" not in session.step_frames(sid):
-                continue
-            if fig is None:
-                n = sum(1 for _ in radial_rows) * 2
-                ncols = 4
-                nrows = max(1, -(-n // ncols))
-                fig, axes = plt.subplots(nrows, ncols, figsize=(12, 3 * nrows))
-                flat = np.atleast_1d(axes).ravel()
+    frames = [(r, orient, f"radial-{r['object_lp_per_mm']:g}-{orient}")
+              for r in radial_rows for orient in ("sagittal", "tangential")]
+    frames = [f for f in frames if "radial" in session.step_frames(f[2])]
+    if frames:
+        ncols = 4
+        nrows = max(1, -(-len(frames) // ncols))
+        fig, axes = plt.subplots(nrows, ncols, figsize=(12, 3 * nrows))
+        flat = np.atleast_1d(axes).ravel()
+        for r, orient, sid in frames:
             px, meta = session.load_frame(sid, "radial")
             ax = flat[shown]
             roi = meta.get("roi") or _radial_roi(session)
@@ -172,7 +169,6 @@ def _mtf_frames(session: Session, tables: dict[str, list[dict[str, Any]]]) -> st
                 ax.set_xlim(c0 - 60, c1 + 60)
                 ax.set_ylim(r1 + 60, r0 - 60)
             shown += 1
-    if fig is not None:
         for ax in flat[shown:]:
             ax.axis("off")
         fig.suptitle("radial frames around the common ROI (yellow)")

@@ -50,7 +50,8 @@ def forward_roi(params: MtfParams, el: UsafElement, orientation: str) -> Roi:
     override = params.forward_roi_overrides.get(f"{el.name}.{orientation}")
     if override is not None:
         return override
-    return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orientation).box
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orient).box
 
 
 def _measure(

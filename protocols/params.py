@@ -305,11 +305,9 @@ def _check_mtf(c: _Checker) -> MtfParams:
     fov = c.number("analysis.fov_threshold_dn", d.fov_threshold_dn, 0.0, 65535.0)
     estimator = c.string("analysis.estimator", d.estimator)
     if estimator:
-        try:
-            from benchlab.analysis import ESTIMATORS  # type: ignore[attr-defined]
-        except ImportError:  # analysis layer not installed yet: checked when analysing
-            ESTIMATORS = None  # noqa: N806
-        if ESTIMATORS is not None and estimator not in ESTIMATORS:
+        from benchlab.analysis.estimators import ESTIMATORS
+
+        if estimator not in ESTIMATORS:
             c.fail("analysis.estimator", f"unknown estimator {estimator!r}; known: "
                    f"{', '.join(sorted(ESTIMATORS))}")
     mc_file = c.string("analysis.monte_carlo_file", d.monte_carlo_file)
