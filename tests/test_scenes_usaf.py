@@ -166,3 +166,15 @@ def test_truth_table_lists_every_bar_set() -> None:
         args = (row["group"], row["element"], row["orientation"])
         assert row["modulation"] == pytest.approx(scene.truth_modulation(*args))  # type: ignore[arg-type]
         assert row["box"] == scene.bar_group(*args).box  # type: ignore[arg-type]
+
+
+def test_defocus_from_the_bench_state_blurs_the_bars() -> None:
+    scene = UsafScene()
+    sharp = scene(_state())
+    blurred = scene(_state(defocus_px=1.5))
+    box = scene.bar_group(2, 2, "sagittal").box
+    r0, c0, r1, c1 = box
+    assert np.ptp(blurred[r0:r1, c0:c1]) < 0.5 * np.ptp(sharp[r0:r1, c0:c1])
+    soft = UsafScene(defocus_px=1.5)
+    assert soft.truth_modulation(2, 2, "sagittal") < 0.5 * scene.truth_modulation(2, 2, "sagittal")
+    assert np.array_equal(blurred, soft.render(H, W))

@@ -9,7 +9,9 @@ disc minus each blurred bar; the truth values use the same formulas.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +44,10 @@ class UsafScene:
         The acquisition those levels refer to; the scene returns rates, so other settings scale.
     disc_edge_sigma_px
         Softness of the disc edge.
+    defocus_px
+        Extra isotropic Gaussian blur (added in quadrature) for a back focus away from best;
+        ``state.bench["defocus_px"]`` overrides it per exposure, so the focus step (Table 4.10,
+        step 3) has something to maximise on the simulated bench.
     """
 
     layout: ChartLayout = field(default_factory=ChartLayout)
@@ -52,6 +58,7 @@ class UsafScene:
     reference_exposure_ms: float = 300.0
     reference_gain: float = 1.0
     disc_edge_sigma_px: float = 1.5
+    defocus_px: float = 0.0
 
     @property
     def dark_rate(self) -> float:
@@ -70,11 +77,19 @@ class UsafScene:
     def sigmas_px(self, bars: BarGroup) -> tuple[float, float]:
         """Blur widths ``(along rows, along columns)`` applied to a bar set, px."""
         h = bars.image_height_mm
-        return float(self.blur.tangential_px(h)), float(self.blur.sagittal_px(h))
+        extra = self.defocus_px**2
+        return (
+            math.sqrt(float(self.blur.tangential_px(h)) ** 2 + extra),
+            math.sqrt(float(self.blur.sagittal_px(h)) ** 2 + extra),
+        )
 
     def __call__(self, state: AcquisitionState) -> FloatArray:
         """Electron-rate image (e-/ms) for the camera simulator (a fresh copy each call)."""
-        return _render(self, state.height, state.width).copy()
+        scene = self
+        defocus = (state.bench or {}).get("defocus_px")
+        if defocus is not None and float(defocus) != self.defocus_px:
+            scene = dataclasses.replace(self, defocus_px=abs(float(defocus)))
+        return _render(scene, state.height, state.width).copy()
 
     def render(self, height: int, width: int) -> FloatArray:
         """The cached, read-only electron-rate image of a ``height x width`` frame."""
@@ -154,7 +169,8 @@ class UsafScene:
     def _disc(self, rows: FloatArray, cols: FloatArray) -> FloatArray:
         cr, cc = self.circles.centre_rc
         radius = np.hypot(rows - cr, cols - cc)
-        return ndtr((self.circles.disc_radius_px - radius) / self.disc_edge_sigma_px)
+        edge = math.hypot(self.disc_edge_sigma_px, self.defocus_px)
+        return ndtr((self.circles.disc_radius_px - radius) / edge)
 
 
 @functools.lru_cache(maxsize=8)
