@@ -6,11 +6,11 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Label, Static
+from textual.widgets import Button, Input, Label, Static
 
 DIALOG_CSS = """
-PromptDialog, ErrorDialog { align: center middle; }
-PromptDialog > Vertical, ErrorDialog > Vertical {
+PromptDialog, ErrorDialog, InputDialog { align: center middle; }
+PromptDialog > Vertical, ErrorDialog > Vertical, InputDialog > Vertical {
     width: 70; max-width: 95%; height: auto; max-height: 90%;
     border: thick $accent; background: $surface; padding: 1 2;
 }
@@ -42,7 +42,7 @@ class PromptDialog(ModalScreen[bool]):
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label(self._title, classes="title")
-            yield Static(self._message, id="prompt-text")
+            yield Static(self._message, id="prompt-text", markup=False)
             yield Static("", id="live-figure")
             with Horizontal():
                 yield Button("Done [y]", variant="primary", id="done")
@@ -76,11 +76,36 @@ class ErrorDialog(ModalScreen[None]):
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label(self._title, classes="title")
-            yield Static(self._message, id="error-text")
+            yield Static(self._message, id="error-text", markup=False)
             yield Button("Close [enter]", variant="error", id="close")
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         self.dismiss(None)
 
     def action_close(self) -> None:
+        self.dismiss(None)
+
+
+class InputDialog(ModalScreen["str | None"]):
+    """Ask for one line of text (a file path); Enter accepts, Escape cancels (``None``)."""
+
+    DEFAULT_CSS = DIALOG_CSS
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, title: str, hint: str, value: str = "") -> None:
+        super().__init__()
+        self._title = title
+        self._hint = hint
+        self._value = value
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(self._title, classes="title")
+            yield Static(self._hint)
+            yield Input(value=self._value, id="value")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        self.dismiss(event.value.strip())
+
+    def action_cancel(self) -> None:
         self.dismiss(None)

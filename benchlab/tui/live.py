@@ -7,6 +7,7 @@ import time
 from collections import deque
 from typing import Any
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -200,7 +201,7 @@ class LiveScreen(Screen[None]):
             f"frame {r.index}  view {self.display_rate_hz:.1f} Hz",
         ]
         if r.note:
-            lines.append(f"[yellow]{r.note}[/yellow]")
+            lines.append(f"[yellow]{escape(r.note)}[/yellow]")
         return "\n".join(lines)
 
     # -- keys -------------------------------------------------------------------------------

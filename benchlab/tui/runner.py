@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -17,7 +18,7 @@ from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
-from benchlab.tui.dialogs import PromptDialog
+from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.widgets import ModeBar
 
 PROCEDURES = ("mtf", "radiometry")
@@ -69,6 +70,7 @@ class RunScreen(Screen[None]):
     """
     BINDINGS = [
         Binding("p", "procedure", "Procedure"),
+        Binding("f", "params_file", "Params"),
         Binding("s", "start", "Start"),
         Binding("a", "abort", "Abort"),
         Binding("t", "retry", "Retry"),
@@ -149,10 +151,16 @@ class RunScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001 - parameter problems shown in plain words
             self.app.call_from_thread(self._checklist_error, exc)
             return
-        self.app.call_from_thread(self._show_steps, steps, set())
+        self.app.call_from_thread(self._checklist_loaded, steps)
+
+    def _checklist_loaded(self, steps: list[Any]) -> None:
+        self.message = ""
+        self._show_steps(steps, set())
 
     def _checklist_error(self, exc: BaseException) -> None:
-        self.message = f"[red]{services.plain_error(exc)}[/red]"
+        self.query_one("#steps", DataTable).clear()
+        self.step_status = {}
+        self.message = f"[red]{escape(services.plain_error(exc))}[/red]"
 
     def _show_steps(self, steps: list[Any], done: set[str]) -> None:
         table = self.query_one("#steps", DataTable)
@@ -216,6 +224,29 @@ class RunScreen(Screen[None]):
             return
         i = PROCEDURES.index(self.procedure)
         self.procedure = PROCEDURES[(i + 1) % len(PROCEDURES)]
+        self._forget_run()
+        self._load_checklist()
+
+    def action_params_file(self) -> None:
+        if self.state == "running":
+            self.notify("A procedure is running.", severity="warning")
+            return
+        app: Any = self.app
+        current = app.params_files.get(self.procedure)
+        self.app.push_screen(
+            InputDialog(
+                f"Parameter file for {self.procedure}",
+                "A TOML file (empty: the packaged defaults). Enter to load, Escape to cancel.",
+                str(current or ""),
+            ),
+            self._set_params_file,
+        )
+
+    def _set_params_file(self, value: str | None) -> None:
+        if value is None:
+            return
+        app: Any = self.app
+        app.params_files[self.procedure] = Path(value).expanduser() if value else None
         self._forget_run()
         self._load_checklist()
 
@@ -335,11 +366,11 @@ class RunScreen(Screen[None]):
                 self._set_step(sid, "failed")
             self.state = "failed"
             cause = getattr(exc, "cause", exc)
-            self.message = f"[red]{services.plain_error(cause)}[/red]\n t: retry the step"
+            self.message = f"[red]{escape(services.plain_error(cause))}[/red]\n t: retry the step"
             self.app.show_error("A step failed", cause)  # type: ignore[attr-defined]
         else:
             self.state = "failed" if self.runner is not None else "idle"
-            self.message = f"[red]{services.plain_error(exc)}[/red]"
+            self.message = f"[red]{escape(services.plain_error(exc))}[/red]"
             self.app.show_error("The run could not continue", exc)  # type: ignore[attr-defined]
 
     # callbacks from the runner thread ------------------------------------------------------

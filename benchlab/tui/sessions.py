@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -158,7 +159,7 @@ class SessionsScreen(Screen[None]):
                 f"results v{info.result_versions}"
             )
             if info.error:
-                lines.append(f"[red]{info.error}[/red]")
+                lines.append(f"[red]{escape(info.error)}[/red]")
         if summary.get("estimator"):
             lines.append(f"estimator {summary['estimator']}")
         if not tables:
