@@ -202,18 +202,22 @@ class Session:
 
     @property
     def procedure(self) -> str:
+        """Procedure name ("mtf", "radiometry")."""
         return str(self._meta["procedure"])
 
     @property
     def status(self) -> str:
+        """ "running", "completed", or whatever :meth:`finish` recorded."""
         return str(self._meta["status"])
 
     @property
     def frames_dir(self) -> Path:
+        """The raw frames folder."""
         return self.path / FRAMES_DIR
 
     @property
     def results_dir(self) -> Path:
+        """The folder holding ``v1``, ``v2``, ... result versions."""
         return self.path / RESULTS_DIR
 
     def update_meta(self, **fields: Any) -> None:
@@ -234,6 +238,7 @@ class Session:
     # ------------------------------------------------------------------ journal
     @property
     def events_path(self) -> Path:
+        """The append-only journal."""
         return self.path / EVENTS_FILE
 
     def log_event(self, kind: str, **data: Any) -> None:
