@@ -207,7 +207,7 @@ class Session:
 
     @property
     def status(self) -> str:
-        """ "running", "completed", or whatever :meth:`finish` recorded."""
+        """Run status: "running", "completed", or whatever :meth:`finish` recorded."""
         return str(self._meta["status"])
 
     @property
