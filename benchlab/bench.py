@@ -154,6 +154,15 @@ class BenchConfig:
         return cls(camera=cam, led=led, stage=stage, source=source)
 
     @classmethod
+    def from_session(cls, session_path: str | Path) -> BenchConfig:
+        """The bench configuration a session was run with (its ``session.json`` snapshot)."""
+        from benchlab.session import Session
+
+        session = Session.open(Path(session_path))
+        return cls.from_dict(dict(session.params.get("bench") or {}),
+                             f"{session.path / 'session.json'}: bench")
+
+    @classmethod
     def load(cls, path: str | Path | None, *, simulate: bool = False) -> BenchConfig:
         """Read a bench TOML file; ``None`` = the packaged simulated bench (``simulate``) or an
         empty configuration (camera only)."""

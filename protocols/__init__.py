@@ -20,7 +20,10 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
 
     abort = threading.Event()                    # set() from any thread: abort at next check
 
-    with Bench.open(BenchConfig.load(None), simulate=True) as bench:   # safe_state on exit
+    config = BenchConfig.load(None, simulate=True)   # or BenchConfig.load("bench.toml")
+    with Bench.open(config, simulate=True) as bench:  # safe_state (LEDs off, stage stopped)
+        # simulated bench only: seed=0, noise=True, time_scale=2000.0 (stage sim speed-up);
+        # bench.world / bench.sim_led / bench.sim_stage / bench.sim_camera are the simulators
         runner = start_run("mtf", bench=bench, params=params, root="sessions",
                            operator="ana", prompt=prompt, progress=progress, abort=abort,
                            on_result=None, estimator=None)
@@ -30,7 +33,8 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
                                  #                duration_s)
 
 * ``params`` may be a Params object, a path, or None (packaged defaults). Parameters are also
-  checked against the bench (LED current ceiling, stage travel) before anything moves.
+  checked against the bench (LED current ceiling, stage travel) before anything moves; to check
+  a file before opening any device: ``load_params("radiometry", path, config.limits())``.
 * ``runner.run()`` starts at the first incomplete step. It raises ``RunAborted`` (abort set or a
   prompt declined) or ``StepFailed`` (``.step``, ``.cause``); the bench is already safe (LEDs
   off, stage stopped) and the session resumable. **Retry** a failed step = call
@@ -43,13 +47,15 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
   from ``bench.grab(exposure_ms=..., gain=...)`` (a UI polls that while the prompt is open).
 * Resume an interrupted session (Ctrl-C, crash, kill -9) - nothing acquired is repeated or lost::
 
-      with Bench.open(BenchConfig.from_session("sessions/mtf-..."), simulate=True) as bench:
-          outcome = resume_run("sessions/mtf-...", bench=bench, prompt=prompt,
+      with Bench.open(BenchConfig.from_session("sessions/2026..._mtf"), simulate=True) as bench:
+          outcome = resume_run("sessions/2026..._mtf", bench=bench, prompt=prompt,
                                progress=progress, abort=abort).run()
 
 * Re-analyse saved frames into a new results version (frames verified by hash)::
 
-      results_dir = reanalyze("sessions/mtf-...", estimator="histogram")
+      results_dir = reanalyze("sessions/2026..._mtf", estimator="histogram")
+
+* HTML report: ``benchlab.report.write_report(session_path, out=None)`` -> path.
 
 Results: ``outcome.tables`` maps table names (``table_4_11``, ``table_4_12``, ``table_4_13``,
 ``table_4_15``; radiometry ``table_4_16``) to lists of row dicts (one dict per table row); the

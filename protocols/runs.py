@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -107,12 +106,6 @@ def resume_run(
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
-
-
-def bench_config_of(session_path: str | Path) -> Mapping[str, Any]:
-    """The bench configuration snapshot stored in a session (for ``BenchConfig.from_dict``)."""
-    session = Session.open(Path(session_path))
-    return dict(session.params.get(BENCH_KEY) or {})
 
 
 def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:

@@ -67,7 +67,7 @@ def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols import RunAborted, StepFailed
-    from benchlab.protocols.runs import bench_config_of, resume_run, start_run
+    from benchlab.protocols.runs import resume_run, start_run
 
     progress = _Progress(sys.stderr)
     if resume:
@@ -75,8 +75,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         if args.config:
             config = BenchConfig.load(args.config, simulate=args.simulate)
         else:
-            config = BenchConfig.from_dict(bench_config_of(session_path),
-                                           f"{session_path}/session.json")
+            config = BenchConfig.from_session(session_path)
     else:
         config = BenchConfig.load(args.config, simulate=args.simulate)
         if not args.simulate and args.config is None:
