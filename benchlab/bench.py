@@ -269,10 +269,20 @@ class Bench:
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
 
-    def grab(self, *, exposure_ms: float, gain: float) -> tuple[Any, dict[str, Any]]:
-        """One frame at these settings: ``(pixels, metadata)``."""
+    def grab(
+        self, *, exposure_ms: float, gain: float, fresh: bool = True
+    ) -> tuple[Any, dict[str, Any]]:
+        """One frame at these settings: ``(pixels, metadata)``.
+
+        ``fresh``: the frame is exposed wholly after this call - the buffer is cleared and the
+        frame that was already being exposed is dropped - so it shows the set-up as it is now
+        (a target just mounted, the LED just switched on), not a frame from before the change.
+        """
         self.camera.set_exposure_ms(exposure_ms)
         self.camera.set_gain(gain)
+        if fresh:
+            self.camera.clear_buffer()
+            self.camera.grab()  # exposure had started before the call: drop it
         frame = self.camera.grab()
         meta = dict(frame.meta.to_dict())
         meta.update({"requested_exposure_ms": exposure_ms, "requested_gain": gain,
