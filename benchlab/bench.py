@@ -370,6 +370,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
             travel_mm=cfg.stage.travel_mm,
         ))
+        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
 
 
 def open_simulated(
@@ -407,6 +408,7 @@ def open_simulated(
         bench.stage = stack.enter_context(AptStage(
             sim_stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
         ))
+        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
     cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}
     bench.sim_camera = SimulatedCamera(
         bench.world, serial=cfg.camera.serial or "SIM-130001", seed=seed, noise=noise,
@@ -416,3 +418,9 @@ def open_simulated(
     bench.camera = stack.enter_context(
         MightexCamera.open(serial=cfg.camera.serial, backend=backend, pid=cfg.camera.pid)
     )
+
+
+def _set_velocity(stage: Any, velocity_mm_s: float) -> None:
+    """The configured move velocity, keeping the controller's acceleration."""
+    current = stage.get_velocity_params()
+    stage.set_velocity_params(velocity_mm_s, current.acceleration_mm_s2)

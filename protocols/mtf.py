@@ -70,6 +70,7 @@ class MtfProcedure:
                 "focus", "Adjust back focus for the sharpest chart", "focus", "Table 4.10 step 3",
                 self._focus, prompt="Adjust back focus until the USAF chart is as sharp as "
                 "possible (maximise the sharpness figure); confirm at best focus.",
+                info={"exposure_ms": p.exposure_ms, "gain": p.gain},
             ),
             Step(
                 "forward", "Acquire the forward-view image", "acquire", "Table 4.10 step 4",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -39,7 +40,35 @@ class _Progress:
         self.stream.flush()
 
 
-def _prompter(yes: bool, progress: _Progress) -> Any:
+def _live_sharpness(bench: Any, step: Any, stream: TextIO) -> str:
+    """Back-focus step on a terminal: show the sharpness of fresh frames until Enter."""
+    from benchlab.analysis.focus import sharpness
+
+    answer: list[str] = []
+    done = threading.Event()
+
+    def read() -> None:
+        try:
+            answer.append(input())
+        except EOFError:
+            answer.append("n")
+        done.set()
+
+    threading.Thread(target=read, daemon=True, name="focus-input").start()
+    best = 0.0
+    while not done.is_set():
+        pixels, _ = bench.grab(exposure_ms=step.info.get("exposure_ms", 300.0),
+                               gain=step.info.get("gain", 1.0), fresh=False)
+        now = sharpness(pixels)
+        best = max(best, now)
+        stream.write(f"\r  sharpness {now:10.1f}   best {best:10.1f}   [Enter at best focus] ")
+        stream.flush()
+        done.wait(0.1)  # display pacing only; the camera delivers frames at its own rate
+    stream.write("\n")
+    return answer[0] if answer else ""
+
+
+def _prompter(yes: bool, progress: _Progress, bench: Any) -> Any:
     def prompt(step: Any, message: str) -> bool:
         if yes:
             progress.line(f"  {step.id}: {message} [--yes]")
@@ -48,7 +77,10 @@ def _prompter(yes: bool, progress: _Progress) -> Any:
             raise BenchlabError(f"step {step.id} needs the operator ({message}); "
                                 "run on a terminal or pass --yes")
         progress.line(f"  {step.id}: {message}")
-        answer = input("  Done? [Y/n] ").strip().lower()
+        if step.kind == "focus":
+            answer = _live_sharpness(bench, step, progress.stream).strip().lower()
+        else:
+            answer = input("  Done? [Y/n] ").strip().lower()
         return answer in ("", "y", "yes")
 
     return prompt
@@ -90,7 +122,8 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     runner = None
     try:
         with Bench.open(config, simulate=args.simulate) as bench:
-            kwargs = dict(bench=bench, prompt=_prompter(args.yes, progress), progress=progress,
+            kwargs = dict(bench=bench, prompt=_prompter(args.yes, progress, bench),
+                          progress=progress,
                           estimator=getattr(args, "estimator", None))
             if resume:
                 runner = resume_run(session_path, **kwargs)
