@@ -28,7 +28,7 @@ GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 #: How often the screen takes the newest frame from the acquisition thread.
 DISPLAY_INTERVAL_S = 1 / 15
 #: Cap on the acquisition loop so it never hogs the interpreter.
-MAX_GRAB_RATE_HZ = 16.0
+MAX_GRAB_RATE_HZ = 20.0
 #: Orientations the o key cycles through ("auto": the analysis detects it).
 ORIENTATIONS = ("auto", "sagittal", "tangential")
 #: Targets the t key mounts on the simulated bench (a real bench's target is set by hand).

@@ -12,6 +12,7 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.coordinate import Coordinate
 from textual.reactive import reactive
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, ProgressBar, Static
@@ -182,7 +183,7 @@ class RunScreen(Screen[None]):
         self.step_status[step_id] = status
         table = self.query_one("#steps", DataTable)
         row = self._step_ids.index(step_id)
-        table.update_cell_at((row, 0), STATUS_MARK[status])
+        table.update_cell_at(Coordinate(row, 0), STATUS_MARK[status])
         if status == "running":
             table.move_cursor(row=row)
 

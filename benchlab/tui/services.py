@@ -80,7 +80,10 @@ def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDAr
     if scale >= 1.0:
         return img
     size = (max(1, int(cols * scale)), max(1, int(rows * scale)))
-    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+    small: npt.NDArray[np.float32] = np.asarray(
+        cv2.resize(img, size, interpolation=cv2.INTER_AREA), dtype=np.float32
+    )
+    return small
 
 
 
@@ -282,7 +285,8 @@ def live_reading(
     except ValueError:
         focus = None
     if clipped is None:
-        clipped = float(np.mean(roi_pixels >= max_code)) if roi_pixels.size else None
+        values = np.asarray(roi_pixels, dtype=np.float64)
+        clipped = float(np.mean(values >= max_code)) if values.size else None
     return LiveReading(
         index=index, preview=preview, frame_shape=(rows, cols), roi=roi,
         preview_roi=preview_roi, roi_pixels=roi_pixels, max_code=max_code, dark=dark,

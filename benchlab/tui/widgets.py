@@ -53,9 +53,13 @@ class Roi:
         return f"ROI (r{self.row}, c{self.col}) {self.width}x{self.height}"
 
 
-@lru_cache(maxsize=8192)
-def _cell_style(top: tuple[int, int, int], bottom: tuple[int, int, int]) -> Style:
-    return Style(color=Color.from_rgb(*top), bgcolor=Color.from_rgb(*bottom))
+@lru_cache(maxsize=16384)
+def _cell_style(top: int, bottom: int) -> Style:
+    """Style of a half-block cell from packed ``0xRRGGBB`` colours (fg = top, bg = bottom)."""
+    return Style(
+        color=Color.from_rgb((top >> 16) & 255, (top >> 8) & 255, top & 255),
+        bgcolor=Color.from_rgb((bottom >> 16) & 255, (bottom >> 8) & 255, bottom & 255),
+    )
 
 
 def to_display_rgb(
@@ -75,7 +79,7 @@ def to_display_rgb(
     out_rows = max(2, int(frame_rows * scale) // 2 * 2)
     gray = np.asarray(pixels, dtype=np.float32) * (255.0 / max(max_code, 1.0))
     small = cv2.resize(gray, (out_cols, out_rows), interpolation=cv2.INTER_AREA)
-    small8 = np.clip(small, 0, 255).astype(np.uint8) & 0xFC  # fewer distinct styles
+    small8 = np.clip(small, 0, 255).astype(np.uint8) & 0xF8  # 32 levels: fewer styles, longer runs
     rgb = np.repeat(small8[:, :, None], 3, axis=2)
     if roi is not None:
         sy, sx = out_rows / frame_rows, out_cols / frame_cols
@@ -91,24 +95,27 @@ def to_display_rgb(
 
 
 def rgb_to_strips(rgb: npt.NDArray[np.uint8]) -> list[Strip]:
-    """One :class:`Strip` per pair of image rows (upper half-block: fg = top, bg = bottom)."""
+    """One :class:`Strip` per pair of image rows (upper half-block: fg = top, bg = bottom).
+
+    Runs of identical cells become one segment; the work per cell is vectorised, so the
+    Python loop only visits runs.
+    """
+    packed = (
+        (rgb[..., 0].astype(np.int64) << 16) | (rgb[..., 1].astype(np.int64) << 8) | rgb[..., 2]
+    )
+    width = rgb.shape[1]
     strips: list[Strip] = []
     for y in range(0, rgb.shape[0] - 1, 2):
-        top_row = [tuple(int(v) for v in px) for px in rgb[y]]
-        bottom_row = [tuple(int(v) for v in px) for px in rgb[y + 1]]
-        segments: list[Segment] = []
-        run = 0
-        prev: tuple[tuple[int, ...], tuple[int, ...]] | None = None
-        for top, bottom in zip(top_row, bottom_row, strict=True):
-            key = (top, bottom)
-            if key != prev and prev is not None:
-                segments.append(Segment(UPPER_HALF * run, _cell_style(*prev)))  # type: ignore[arg-type]
-                run = 0
-            prev = key
-            run += 1
-        if prev is not None:
-            segments.append(Segment(UPPER_HALF * run, _cell_style(*prev)))  # type: ignore[arg-type]
-        strips.append(Strip(segments, rgb.shape[1]))
+        top, bottom = packed[y], packed[y + 1]
+        change = (top[1:] != top[:-1]) | (bottom[1:] != bottom[:-1])
+        starts = np.concatenate(([0], np.flatnonzero(change) + 1))
+        lengths = np.diff(np.concatenate((starts, [width]))).tolist()
+        tops, bottoms = top[starts].tolist(), bottom[starts].tolist()
+        segments = [
+            Segment(UPPER_HALF * n, _cell_style(t, b))
+            for n, t, b in zip(lengths, tops, bottoms, strict=True)
+        ]
+        strips.append(Strip(segments, width))
     return strips
 
 
