@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import errno
+
 import numpy as np
 import pytest
+from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
+from benchlab.protocols import ParamsError
 from textual.app import App, ComposeResult
 
+from benchlab.tui.services import plain_error
 from benchlab.tui.widgets import (
     ROI_RGB,
     UPPER_HALF,
@@ -77,3 +82,14 @@ async def test_widgets_render_a_frame_and_a_marked_histogram() -> None:
         # the tallest bars are at the two peaks
         top = text[0]
         assert top[axis.index("D")] != " " and top[axis.index("B")] != " "
+
+
+def test_errors_are_explained_in_plain_words() -> None:
+    full = plain_error(OSError(errno.ENOSPC, "No space left on device"))
+    assert full.startswith("The disk is full") and "resume" in full
+    lost = plain_error(DeviceLostError("LED controller: port closed"))
+    assert lost.startswith("The connection to a device was lost")
+    assert "LED controller: port closed" in lost
+    assert plain_error(SafetyLimitError("60 mA > 50 mA")).startswith("Refused")
+    problems = plain_error(ParamsError("mtf.toml", ["camera.gain: must be > 0", "radial: bad"]))
+    assert "camera.gain" in problems and "radial: bad" in problems and "2 problems" in problems

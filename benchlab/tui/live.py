@@ -89,6 +89,9 @@ class LiveScreen(Screen[None]):
         self._display_times: deque[float] = deque(maxlen=30)
         self._frame_shape: tuple[int, int] = (1024, 1280)
         self.frames_displayed = 0
+        self._last_error = ""
+        self._last_error_at = 0.0
+        self._idle_reason = ""
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
@@ -122,7 +125,7 @@ class LiveScreen(Screen[None]):
     def _acquire(self) -> None:
         worker = get_current_worker()
         app = self.app
-        index = 0
+        index = self._shown_index + 1  # frame numbers never repeat across restarts
         with app.device_activity():  # type: ignore[attr-defined]
             while not worker.is_cancelled:
                 bench = app.bench  # type: ignore[attr-defined]
@@ -158,11 +161,35 @@ class LiveScreen(Screen[None]):
                     time.sleep(spare)
 
     def _live_error(self, exc: BaseException) -> None:
-        self.notify(services.plain_error(exc), title="Live view", severity="error", timeout=3)
+        """Notify once per distinct problem (at most every 5 s), not once per failed frame."""
+        text = services.plain_error(exc)
+        now = time.monotonic()
+        if text != self._last_error or now - self._last_error_at > 5.0:
+            self._last_error, self._last_error_at = text, now
+            self.notify(text, title="Live view", severity="error", timeout=4)
+        self.query_one("#readout", Static).update(f"[red]{escape(text)}[/red]")
+
+    def _show_idle(self) -> None:
+        app: Any = self.app
+        if app.bench is None:
+            why = "bench not connected (Devices: c)"
+        elif app.procedure_running:
+            why = "a procedure is using the camera; live view paused"
+        else:
+            return
+        if self._idle_reason != why:
+            self._idle_reason = why
+            self.query_one(FrameView).clear()
+            self.query_one("#readout", Static).update(f"[dim]{why}[/dim]")
 
     def _show_latest(self) -> None:
         with self._latest_lock:
             reading = self._latest
+        app: Any = self.app
+        if app.bench is None or app.procedure_running:
+            self._show_idle()
+            return
+        self._idle_reason = ""
         if reading is None or reading.index == self._shown_index:
             return
         self._shown_index = reading.index

@@ -44,16 +44,36 @@ def _format_value(value: Any) -> str:
     return str(value)
 
 
+#: What a partial result is mainly about, in order of preference: (key, label).
+PRIMARY_RESULTS = (("modulation", "M"), ("measured_mean_gray", "gray"), ("sharpness", "sharpness"))
+
+
 def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
-    """Split a partial result into (what, numbers): text fields, then numeric ones."""
-    what = [str(v) for v in data.values() if isinstance(v, str)]
+    """A partial result as (what, value): e.g. ("G2E4 sagittal", "M 0.612")."""
+    what: list[str] = []
+    if "element" in data:
+        what.append(str(data["element"]))
+    if "freq_lp_per_mm" in data:
+        what.append(f"{_format_value(data['freq_lp_per_mm'])} lp/mm")
+    if "orientation" in data:
+        what.append(str(data["orientation"]))
+    if "position_mm" in data:
+        what.append(f"{_format_value(data['position_mm'])} mm")
+    for key, label in PRIMARY_RESULTS:
+        if key in data:
+            if key == "modulation" and data.get("resolved") is False:
+                return " ".join(what), "not resolved"
+            value = data[key]
+            text = f"{label} {value:.3f}" if isinstance(value, float) else f"{label} {value}"
+            if key == "sharpness" and "best" in data:
+                text += f" (best {_format_value(data['best'])})"
+            return " ".join(what), text
     numbers = [
         f"{k} {_format_value(v)}"
         for k, v in data.items()
         if isinstance(v, int | float) and not isinstance(v, bool)
     ]
-    flags = [k for k, v in data.items() if v is True]
-    return " ".join(what), "  ".join(numbers + flags)
+    return " ".join(what), "  ".join(numbers)
 
 
 class RunScreen(Screen[None]):
@@ -192,15 +212,15 @@ class RunScreen(Screen[None]):
     def _reset_results(self) -> None:
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
-        table.add_columns("step", "item", "result")
+        table.add_columns("step", "what", "result")
         self._tables = []
         self._table_index = 0
         self.query_one("#results").border_title = "results"
 
-    def _add_result(self, step_id: str, data: Mapping[str, Any]) -> None:
+    def _add_result(self, step_label: str, data: Mapping[str, Any]) -> None:
         what, numbers = result_row(data)
         table = self.query_one("#results-table", DataTable)
-        table.add_row(step_id, what, numbers)
+        table.add_row(step_label, what, numbers)
         table.move_cursor(row=table.row_count - 1)
 
     def _show_table(self) -> None:
@@ -388,7 +408,8 @@ class RunScreen(Screen[None]):
         self.query_one(ProgressBar).update(total=max(1, total), progress=done)
 
     def _on_result(self, step: Any, data: Mapping[str, Any]) -> None:
-        self.app.call_from_thread(self._add_result, step.id, dict(data))
+        label = short_step_label(step.table_step or step.id)
+        self.app.call_from_thread(self._add_result, label, dict(data))
 
     def _prompt_operator(self, step: Any, message: str) -> bool:
         """Show a manual step and wait for the operator; polls abort and the live figure."""
