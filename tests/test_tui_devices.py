@@ -1,0 +1,48 @@
+"""Devices panel: identities and state, LEDs off, homing, disconnect and reconnect."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from test_tui_helpers import connected, make_app, wait_until
+from textual.widgets import Static
+
+from benchlab.tui.devices import DevicesScreen
+
+
+def _panel(screen: DevicesScreen, wid: str) -> str:
+    return str(screen.query_one(f"#{wid}", Static).render())
+
+
+@pytest.mark.asyncio
+async def test_devices_panel_shows_state_and_controls_the_bench(tmp_path: Path) -> None:
+    app = make_app(tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await connected(pilot)
+        screen = app.screen
+        assert isinstance(screen, DevicesScreen)
+        await wait_until(pilot, lambda: "position" in _panel(screen, "stage"), what="stage")
+        assert "SIM-130001" in _panel(screen, "camera") and "1.0.6" in _panel(screen, "camera")
+        assert "homed     no" in _panel(screen, "stage")
+        leds = _panel(screen, "leds")
+        assert "ch 1      off" in leds and "limit 50" in leds
+
+        bench = app.bench
+        bench.led_on(1, 20.0)  # e.g. left on by a script
+        await wait_until(pilot, lambda: "ch 1      ON" in _panel(screen, "leds"), what="LED on")
+        await pilot.press("o")
+        await wait_until(pilot, lambda: bench.sim_led.channel_output_ma(1) == 0, what="off")
+        await wait_until(pilot, lambda: "ch 1      off" in _panel(screen, "leds"), what="shown")
+
+        await pilot.press("h")
+        await wait_until(pilot, lambda: "homed     yes" in _panel(screen, "stage"), what="home")
+
+        await pilot.press("x")
+        await wait_until(pilot, lambda: app.bench is None, what="disconnect")
+        await wait_until(pilot, lambda: "not connected" in _panel(screen, "camera"),
+                         what="panels cleared")
+        assert "disconnected" in str(screen.query_one("#bench-status", Static).render())
+        await pilot.press("c")
+        await connected(pilot)
+        await wait_until(pilot, lambda: "SIM-130001" in _panel(screen, "camera"), what="again")
