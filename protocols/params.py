@@ -304,11 +304,11 @@ def _check_mtf(c: _Checker) -> MtfParams:
     radial_roi = c.roi("radial.roi", d.radial_roi)
     fov = c.number("analysis.fov_threshold_dn", d.fov_threshold_dn, 0.0, 65535.0)
     estimator = c.string("analysis.estimator", d.estimator)
-    if estimator:
+    if estimator and estimator != "auto":
         from benchlab.analysis.estimators import ESTIMATORS
 
         if estimator not in ESTIMATORS:
-            c.fail("analysis.estimator", f"unknown estimator {estimator!r}; known: "
+            c.fail("analysis.estimator", f"unknown estimator {estimator!r}; known: auto, "
                    f"{', '.join(sorted(ESTIMATORS))}")
     mc_file = c.string("analysis.monte_carlo_file", d.monte_carlo_file)
     sim_file = c.string("analysis.simulated_mtf_file", d.simulated_mtf_file)

@@ -72,12 +72,19 @@ def test_forward_view_against_truth(full_run: RunOutcome) -> None:
     rows = {r["element"]: r for r in _rows(full_run, "table_4_11")}
     assert list(rows) == ["G1E5", "G1E6", "G2E1", "G2E2", "G2E3", "G2E4", "G2E5", "G2E6",
                           "G3E1"]
-    for orient in ("sagittal", "tangential"):
-        assert rows["G1E5"][f"{orient}_modulation"] == pytest.approx(
-            usaf.truth_modulation(1, 5, orient), abs=0.06)
-        for name, row in rows.items():
-            g, e = int(name[1]), int(name[3])
-            assert row[f"{orient}_modulation"] <= usaf.truth_modulation(g, e, orient) + 0.05
+    errors = []
+    for name, row in rows.items():
+        g, e = int(name[1]), int(name[3])
+        for orient in ("sagittal", "tangential"):
+            truth = usaf.truth_modulation(g, e, orient)
+            # Sampling and noise only ever lose contrast (beyond noise).
+            assert row[f"{orient}_modulation"] <= truth + 0.05
+            if row["image_lp_per_mm"] <= 75.0:  # >= 2.6 px per period
+                errors.append(abs(row[f"{orient}_modulation"] - truth))
+    # The ROIs are the bar sets themselves, 7-10 px square (as in the thesis): a few
+    # hundredths of noise and sampling error each, not more.
+    assert len(errors) == 8
+    assert max(errors) < 0.13 and sum(errors) / len(errors) < 0.08
     assert [r["aliased"] for r in rows.values()] == [False] * 6 + [True] * 3
 
 
