@@ -31,6 +31,19 @@ class FramesModifiedError(BenchlabError):
     """Saved frames no longer match the hashes journalled when they were acquired."""
 
 
+class UnknownEstimatorError(BenchlabError):
+    """An estimator name that the analysis library does not know."""
+
+
+def check_estimator(name: str | None) -> None:
+    """Refuse an unknown estimator before anything runs."""
+    from benchlab.analysis.estimators import ESTIMATORS
+
+    if name is not None and name != "auto" and name not in ESTIMATORS:
+        raise UnknownEstimatorError(
+            f"unknown estimator {name!r}; choose auto, {', '.join(sorted(ESTIMATORS))}")
+
+
 def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure:
     """The procedure object for a parameter set."""
     if isinstance(params, MtfParams):
@@ -66,6 +79,7 @@ def start_run(
     estimator: str | None = None,
 ) -> Runner:
     """Validate everything, create the session folder, return a runner (nothing moved yet)."""
+    check_estimator(estimator)
     resolved, source = _resolve_params(procedure, params, bench.config.limits())
     snapshot = {**dict(resolved.raw), "procedure": procedure,
                 BENCH_KEY: bench.config.to_dict()}
@@ -96,6 +110,7 @@ def resume_run(
     estimator: str | None = None,
 ) -> Runner:
     """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
+    check_estimator(estimator)
     session = Session.open(Path(session_path))
     params = session_params(session)
     bad = session.verify_frames()
@@ -113,6 +128,7 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     """
+    check_estimator(estimator)
     session = Session.open(Path(session_path))
     bad = session.verify_frames()
     if bad:

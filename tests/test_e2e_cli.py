@@ -99,3 +99,12 @@ def test_manual_prompt_without_terminal_or_yes_is_a_clean_error(
                  "--params", str(MTF_SMALL)]) == 1
     err = capsys.readouterr().err
     assert "pass --yes" in err and "benchlab resume" in err
+
+
+def test_unknown_estimator_is_a_clean_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", "radiometry", "--simulate", "--yes", "--out", str(tmp_path),
+                 "--params", str(RAD_SMALL), "--estimator", "guesswork"]) == 1
+    assert "unknown estimator 'guesswork'" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())

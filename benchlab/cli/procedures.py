@@ -99,7 +99,7 @@ def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols import RunAborted, StepFailed
-    from benchlab.protocols.runs import resume_run, start_run
+    from benchlab.protocols.runs import check_estimator, resume_run, start_run
 
     progress = _Progress(sys.stderr)
     if resume:
@@ -112,6 +112,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         config = BenchConfig.load(args.config, simulate=args.simulate)
         if not args.simulate and args.config is None:
             raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+    check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
         from benchlab.protocols.params import load_params
