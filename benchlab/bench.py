@@ -14,6 +14,7 @@ own exit hooks repeat it if the process dies in between.
 from __future__ import annotations
 
 import contextlib
+import threading
 import tomllib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -307,10 +308,30 @@ class Bench:
         if self.stage is not None and not self.stage.is_homed:
             self.stage.home()
 
-    def move_stage_mm(self, position_mm: float) -> None:
+    def move_stage_mm(self, position_mm: float, abort: threading.Event | None = None) -> None:
+        """Move and wait; when ``abort`` is set meanwhile, the stage is stopped at once (the
+        move then ends with the driver's interrupted-move error)."""
         if self.stage is None:
             raise BenchError("no stage configured ([stage] in the bench file)")
-        self.stage.move_to_mm(position_mm, wait=True)
+        if abort is None:
+            self.stage.move_to_mm(position_mm, wait=True)
+            return
+        finished = threading.Event()
+
+        def watch() -> None:
+            while not finished.wait(0.02):
+                if abort.is_set():
+                    with contextlib.suppress(DeviceError):
+                        self.stage.stop(immediate=True, wait=False)
+                    return
+
+        watcher = threading.Thread(target=watch, name="stage-abort-watch", daemon=True)
+        watcher.start()
+        try:
+            self.stage.move_to_mm(position_mm, wait=True)
+        finally:
+            finished.set()
+            watcher.join()
 
     # -- the mounted target ---------------------------------------------------------------------
     def mount(self, target: Any) -> None:
@@ -355,9 +376,9 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
                if dev is not None and not dev.port]
     if missing:
         raise BenchError(f"{cfg.source}: {', '.join(missing)} required on the real bench")
-    bench.camera = stack.enter_context(
-        MightexCamera.open(serial=cfg.camera.serial, pid=cfg.camera.pid)
-    )
+    bench.camera = stack.enter_context(MightexCamera.open(
+        serial=cfg.camera.serial, pid=cfg.camera.pid, model=cfg.camera.model or "MCE-B013-U",
+    ))
     if cfg.led is not None and cfg.led.port:
         from benchlab.drivers.slc import SlcController
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from benchlab.drivers.errors import DeviceError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams
 
@@ -91,7 +92,11 @@ class RadiometryProcedure:
             target = p.stage_target_mm(pos)
             if ctx.bench.has_stage:
                 ctx.check_abort()
-                ctx.bench.move_stage_mm(target)
+                try:
+                    ctx.bench.move_stage_mm(target, abort=ctx.runner.abort)
+                except DeviceError:
+                    ctx.check_abort()  # stopped by the abort key: an abort, not a fault
+                    raise
             else:
                 ctx.ask(f"Move the LED to field position {pos:g} mm.")
                 ctx.bench.place_led_by_hand(pos)

@@ -3,12 +3,13 @@ and device faults mid-run that leave a safe bench and a resumable session."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Any
 
 import pytest
 from benchlab.drivers.errors import DeviceError
-from benchlab.protocols import StepFailed, resume_run, start_run
+from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
 from benchlab.protocols.radiometry import mask_of
 from test_protocol_helpers import RAD_SMALL, events, run_sim, tables_of, yes
 
@@ -124,3 +125,21 @@ def test_retry_after_fault_in_the_same_process(tmp_path: Path) -> None:
         _safe(bench)
     _check_truth(outcome.session_path, outcome.tables["table_4_16"])
     assert tables_of(outcome.results_path)["table_4_16"] == outcome.tables["table_4_16"]
+
+
+def test_abort_during_a_stage_move_stops_it(tmp_path: Path) -> None:
+    abort = threading.Event()
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True,
+                    time_scale=5.0) as bench:
+        def progress(done: int, total: int, step: Any) -> None:
+            if step is not None and step.id == "position-25":
+                threading.Timer(0.3, abort.set).start()  # the abort key, mid-move
+
+        runner = start_run("radiometry", bench=bench, params=RAD_SMALL, root=tmp_path,
+                           prompt=yes, progress=progress, abort=abort)
+        with pytest.raises(RunAborted):
+            runner.run()
+        _safe(bench)
+        position = bench.sim_stage.position_mm
+        assert 18.0 <= position < 25.0  # stopped on the way (18 -> 25 mm: ~1 s at 5x)
+    assert "position-25" not in Session.open(runner.session.path).completed_steps()
