@@ -62,7 +62,7 @@ async def test_abort_key_leaves_leds_off_and_stage_stopped_then_retry_completes(
         assert not bench.stage.status.is_moving
         assert "LEDs off" in screen.message
         session = Session.open(screen.session_path)
-        assert session.status == "running"  # not finished: resumable
+        assert session.status != "completed"  # not finished: resumable
         kinds = [e.get("kind") or e.get("event") for e in session.events()]
         assert "aborted" in kinds
         done = session.completed_steps()
@@ -80,3 +80,35 @@ async def test_abort_key_leaves_leds_off_and_stage_stopped_then_retry_completes(
         assert len(list(session.frames_dir.glob("*.tiff"))) == 6
         table = screen.query_one("#results-table", DataTable)
         assert table.row_count == 3
+
+
+@pytest.mark.asyncio
+async def test_quit_mid_run_stops_workers_and_leaves_the_bench_safe(tmp_path: Path) -> None:
+    app = make_app(tmp_path, radiometry=PARAMS)
+    async with app.run_test(size=(100, 32)) as pilot:
+        await connected(pilot)
+        bench = app.bench
+        in_position = threading.Event()
+        real_grab = bench.grab
+
+        def grab(**kwargs: Any) -> Any:
+            frame = real_grab(**kwargs)
+            in_position.set()  # first mask frame taken, LED lit
+            app.abort_event.wait(30)
+            return frame
+
+        bench.grab = grab
+        await pilot.press("3", "p")
+        screen = app.screen
+        assert isinstance(screen, RunScreen)
+        await wait_until(pilot, lambda: len(screen.step_status) == 5, what="checklist")
+        await pilot.press("s")
+        await wait_until(pilot, in_position.is_set, answer_prompts=True, what="LED on")
+        assert bench.sim_led.channel_output_ma(1) > 0
+        await pilot.press("q")
+        await wait_until(pilot, lambda: app.bench is None, what="bench closed")
+    assert app._active_threads == 0  # every device thread wound down before the bench closed
+    assert bench.sim_led.channel_output_ma(1) == 0
+    assert not any(w.is_running for w in app.workers)
+    session = Session.open(screen.session_path)
+    assert session.status != "completed" and "setup" in session.completed_steps()

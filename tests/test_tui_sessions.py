@@ -52,7 +52,9 @@ async def test_interrupted_run_resumed_reanalysed_and_reported(tmp_path: Path) -
         assert isinstance(sessions, SessionsScreen)
         await wait_until(pilot, lambda: len(sessions.sessions) == 1, what="listing")
         listing = sessions.query_one("#session-list", DataTable)
-        assert [str(c) for c in listing.get_row_at(0)][:3] == [path.name, "mtf", "running"]
+        row = [str(c) for c in listing.get_row_at(0)]
+        assert row[:2] == [path.name, "mtf"] and row[2] != "completed"
+        assert row[2] == Session.open(path).status  # what the store says (aborted)
 
         await pilot.press("u")  # resume: back to the runner, from "thread"
         await wait_until(pilot, lambda: app.screen is run and run.state != "running",
