@@ -214,6 +214,11 @@ def estimator_names() -> list[str]:
     return list(ESTIMATORS)
 
 
+def reanalysis_estimators() -> list[str]:
+    """Estimators a session can be re-analysed with: ``"auto"`` (per view) and the library's."""
+    return ["auto", *estimator_names()]
+
+
 def default_estimator() -> str:
     try:
         from benchlab.analysis.estimators import DEFAULT_ESTIMATOR

@@ -70,7 +70,7 @@ class SessionsScreen(Screen[None]):
         table.border_title = "sessions"
         self.query_one("#session-detail").border_title = "session"
         if not self.estimator:
-            self.estimator = services.default_estimator()
+            self.estimator = "auto"
         self.call_after_refresh(self._status)
 
     def on_screen_resume(self) -> None:
@@ -191,7 +191,7 @@ class SessionsScreen(Screen[None]):
     # -- actions ----------------------------------------------------------------------------
 
     def action_estimator(self) -> None:
-        names = services.estimator_names()
+        names = services.reanalysis_estimators()
         i = names.index(self.estimator) if self.estimator in names else -1
         self.estimator = names[(i + 1) % len(names)]
 
