@@ -22,7 +22,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.protocols.params import BenchLimits, ParamsError, _Checker
 
 #: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
@@ -202,6 +202,7 @@ class Bench:
         self.sim_stage: Any = None
         self._mounted: Any = None
         self._camera_settings: dict[str, Any] = {}
+        self._camera_lost = False
 
     # -- lifecycle ------------------------------------------------------------------------------
     @classmethod
@@ -226,6 +227,13 @@ class Bench:
                 yield bench
             finally:
                 bench.safe_state()
+
+    def recover(self) -> None:
+        """Before retrying a failed step: reconnect a camera that was lost (unplugged and
+        plugged back in); raises ``DeviceNotFoundError`` while it is still missing."""
+        if self._camera_lost:
+            self.camera.reopen()
+            self._camera_lost = False
 
     def safe_state(self) -> None:
         """Every LED channel off and the stage stopped; tries both even if one fails."""
@@ -279,12 +287,16 @@ class Bench:
         frame that was already being exposed is dropped - so it shows the set-up as it is now
         (a target just mounted, the LED just switched on), not a frame from before the change.
         """
-        self.camera.set_exposure_ms(exposure_ms)
-        self.camera.set_gain(gain)
-        if fresh:
-            self.camera.clear_buffer()
-            self.camera.grab()  # exposure had started before the call: drop it
-        frame = self.camera.grab()
+        try:
+            self.camera.set_exposure_ms(exposure_ms)
+            self.camera.set_gain(gain)
+            if fresh:
+                self.camera.clear_buffer()
+                self.camera.grab()  # exposure had started before the call: drop it
+            frame = self.camera.grab()
+        except DeviceLostError:
+            self._camera_lost = True
+            raise
         meta = dict(frame.meta.to_dict())
         meta.update({"requested_exposure_ms": exposure_ms, "requested_gain": gain,
                      "bench": self.state(), "simulated": self.simulated})

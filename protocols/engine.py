@@ -181,6 +181,7 @@ class Runner:
         self.on_result = on_result
         self.estimator = estimator
         self.steps: list[Step] = procedure.steps()
+        self._restored = False
         ids = [s.id for s in self.steps]
         if len(set(ids)) != len(ids):  # pragma: no cover - a programming error in a procedure
             raise ValueError(f"duplicate step ids in {procedure.name}")
@@ -210,8 +211,11 @@ class Runner:
         total = len(self.steps)
         try:
             done = self.completed()
-            if done:
-                self._restore(done)
+            if done and not self._restored:
+                self._restore(done)  # a new process (resume)
+            elif self._restored and hasattr(self.bench, "recover"):
+                self._recover()  # a retry: reconnect what the failure lost
+            self._restored = True
             for step in self.steps:
                 if step.id in done:
                     continue
@@ -224,6 +228,13 @@ class Runner:
                 self.progress(total, total, None)
         except KeyboardInterrupt:
             self.session.log_event("interrupted", reason="KeyboardInterrupt")
+            self.session.update_meta(status="interrupted")
+            raise
+        except RunAborted:
+            self.session.update_meta(status="aborted")
+            raise
+        except StepFailed:
+            self.session.update_meta(status="failed")
             raise
         finally:
             self.bench.safe_state()
@@ -234,6 +245,15 @@ class Runner:
             session_path=Path(self.session.path), results_path=Path(results),
             tables=tables, summary=summary, duration_s=time.perf_counter() - t0,
         )
+
+    def _recover(self) -> None:
+        try:
+            self.bench.recover()
+        except BenchlabError as exc:
+            step = (self.pending() or self.steps)[0]
+            self.session.log_event("step_failed", step=step.id,
+                                   error=f"{type(exc).__name__}: {exc}")
+            raise StepFailed(step, exc) from exc
 
     def _check_abort(self, step: Step) -> None:
         if self.abort.is_set():

@@ -143,3 +143,25 @@ def test_abort_during_a_stage_move_stops_it(tmp_path: Path) -> None:
         position = bench.sim_stage.position_mm
         assert 18.0 <= position < 25.0  # stopped on the way (18 -> 25 mm: ~1 s at 5x)
     assert "position-25" not in Session.open(runner.session.path).completed_steps()
+
+
+def test_retry_after_the_camera_is_plugged_back_in(tmp_path: Path) -> None:
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        fired: list[str] = []
+
+        def progress(done: int, total: int, step: Any) -> None:
+            if step is not None and step.id == "position-18" and not fired:
+                fired.append(step.id)
+                bench.sim_camera.faults.unplug_mid_frame = True
+
+        runner = start_run("radiometry", bench=bench, params=RAD_SMALL, root=tmp_path,
+                           prompt=yes, progress=progress)
+        with pytest.raises(StepFailed):
+            runner.run()
+        _safe(bench)
+        with pytest.raises(StepFailed):
+            runner.run()  # still unplugged: the retry fails cleanly too
+        bench.sim_camera.replug()
+        outcome = runner.run()
+        _safe(bench)
+    _check_truth(outcome.session_path, outcome.tables["table_4_16"])

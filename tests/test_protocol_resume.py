@@ -54,6 +54,7 @@ def test_exception_at_a_step_then_resume(tmp_path: Path, reference: dict[str, An
         return True
 
     path = _interrupt(tmp_path, StepFailed, prompt=prompt)
+    assert Session.open(path).status == "failed"
     evs = events(path)
     assert any(e["kind"] == "step_failed" and e["step"] == "roll-2-sagittal" for e in evs)
     before = Session.open(path).frames()
@@ -72,7 +73,7 @@ def test_ctrl_c_then_resume(tmp_path: Path, reference: dict[str, Any]) -> None:
 
     path = _interrupt(tmp_path, KeyboardInterrupt, prompt=prompt)
     assert any(e["kind"] == "interrupted" for e in events(path))
-    assert Session.open(path).status == "running"
+    assert Session.open(path).status == "interrupted"
     outcome = _resume(path)
     assert tables_of(outcome.results_path) == reference
     _check_nothing_repeated(path)
