@@ -7,10 +7,11 @@
   kept only when significant; the Eq. 2.9 modulation is read from the fitted waveform's
   maximum and minimum, and the fundamental alone gives ``fundamental_modulation``
   (Sitter et al., Appl. Opt. 34(4):746, 1995; measurement-notes 3.4).
-- ``variance`` - variance minus noise (Droege & Morin, Med. Phys. 1982): the signal variance
-  ``var(ROI) - sigma_noise^2`` times a crest factor gives the half peak-to-valley amplitude. The
-  crest factor comes from the noise-corrected kurtosis through a table of Gaussian-blurred square
-  waves (sharp bars: kurtosis 1, crest 1; sine: 1.5, sqrt(2)).
+- ``variance`` - variance minus noise (Droege & Morin, Med. Phys. 1982), over a whole number of
+  bar periods when the frequency is known: the signal variance ``var(ROI - shading along the
+  bars) - sigma_noise^2`` times a crest factor gives the half peak-to-valley amplitude. The
+  crest factor comes from the noise-corrected kurtosis through a table of Gaussian-blurred
+  square waves (sharp bars: kurtosis 1, crest 1; sine: 1.5, sqrt(2)); it assumes 50 % duty.
 """
 
 from __future__ import annotations
@@ -237,19 +238,51 @@ def _crest_table() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
 _CREST_KURTOSIS, _CREST_FACTOR = _crest_table()
 
 
+def _whole_periods(prep: PreparedROI) -> npt.NDArray[np.float64]:
+    """The ROI cut to a whole number of bar periods across the bars (centred), when the
+    frequency is known and at least one period fits: a partial period biases the mean and the
+    variance (the dark and bright shares differ)."""
+    f = prep.freq_cycles_per_px
+    length = prep.pixels.shape[prep.axis]
+    if not f or f > NYQUIST_CYCLES_PER_PX or length * f < 1.0:
+        return prep.pixels
+    keep = int(round(math.floor(length * f + 1e-9) / f))
+    keep = min(max(keep, 1), length)
+    start = (length - keep) // 2
+    if prep.axis == 1:
+        return prep.pixels[:, start : start + keep]
+    return prep.pixels[start : start + keep, :]
+
+
+def _remove_along_bar_slope(img: npt.NDArray[np.float64], axis: int) -> npt.NDArray[np.float64]:
+    """``img`` minus its mean and its least-squares slope **along the bars** (perpendicular to
+    ``axis``), where the scene is flat: shading there is variance that is not bar contrast. (A
+    slope across the bars cannot be removed this way: a periodic signal correlates with it.)"""
+    along = 1 - axis
+    n = img.shape[along]
+    centred = img - float(img.mean())
+    if n < 2:
+        return centred
+    t = np.arange(n, dtype=np.float64) - (n - 1) / 2
+    per_line = img.mean(axis=axis)  # mean of each line along ``along``
+    slope = float(t @ per_line) / float(t @ t)
+    return centred - slope * (t[:, None] if along == 0 else t[None, :])
+
+
 def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
     """Signal variance above the noise, turned into a half peak-to-valley amplitude by the crest
     factor implied by the noise-corrected kurtosis; see the module docstring."""
     name = "variance"
     warnings = list(prep.warnings)
-    values = prep.pixels.ravel()
+    region = _whole_periods(prep)
+    values = _remove_along_bar_slope(region, prep.axis).ravel()
     n = values.size
     diag = prep.diagnostics()
     if n < 2:
         warnings.append("one pixel: no variance")
         return unresolved(name, diag, warnings)
-    mean = float(values.mean())
-    centred = values - mean
+    mean = float(region.mean())
+    centred = values
     c2 = centred * centred
     var = float(c2.mean())
     m4 = float((c2 * c2).mean())

@@ -33,9 +33,9 @@ ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential":
 MAD_TO_SIGMA = 1.4826
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class PreparedROI:
-    """A validated ROI with the facts every estimator needs."""
+    """A validated ROI with the facts every estimator needs (internal; treat as read-only)."""
 
     pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
     axis: int  # numpy axis along which the intensity varies
@@ -178,9 +178,10 @@ def prepare_roi(
         frequency / noise, unknown orientation.
     """
     arr = np.asarray(roi)
-    if arr.dtype == bool:
-        arr = arr.astype(np.uint8)
     kind = arr.dtype.kind
+    if kind == "b":
+        arr = arr.astype(np.uint8)
+        kind = "u"
     if kind not in "uif":
         raise ValueError(f"ROI must hold numbers, got dtype {arr.dtype}")
     if arr.ndim not in (2, 3):
