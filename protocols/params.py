@@ -411,3 +411,47 @@ def load_params(
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParamsError(str(p), [f"file: not valid TOML ({exc})"]) from exc
     return parse_params(procedure, data, str(p), limits)
+
+
+def params_to_dict(params: Params) -> dict[str, Any]:
+    """The effective parameters (defaults filled in) in the parameter file's layout.
+
+    This is what a session records, so a resume or re-analysis never depends on defaults that a
+    later benchlab version may have changed; ``parse_params`` reads it back unchanged.
+    """
+    if isinstance(params, MtfParams):
+        rois: dict[str, dict[str, list[int]]] = {}
+        for key, box in params.forward_roi_overrides.items():
+            el, orient = key.split(".")
+            rois.setdefault(el, {})[orient] = list(box)
+        forward: dict[str, Any] = {
+            "magnification": params.forward_magnification,
+            "elements": [e.name for e in params.forward_elements],
+        }
+        if rois:
+            forward["roi"] = rois
+        return {
+            "procedure": "mtf",
+            "camera": {"exposure_ms": params.exposure_ms, "gain": params.gain,
+                       "bits": params.bits},
+            "focus": {"frames": params.focus_frames},
+            "forward": forward,
+            "radial": {"magnification": params.radial_magnification,
+                       "frequencies_lp_per_mm": list(params.radial_frequencies_lp_per_mm),
+                       "roi": list(params.radial_roi)},
+            "analysis": {"estimator": params.estimator,
+                         "fov_threshold_dn": params.fov_threshold_dn,
+                         "monte_carlo_file": params.monte_carlo_file,
+                         "simulated_mtf_file": params.simulated_mtf_file},
+        }
+    return {
+        "procedure": "radiometry",
+        "camera": {"exposure_ms": params.exposure_ms, "mask_gain": params.mask_gain,
+                   "measurement_gain": params.measurement_gain, "bits": params.bits},
+        "led": {"channel": params.led_channel, "current_ma": params.led_current_ma},
+        "positions": {"field_mm": list(params.positions_mm),
+                      "stage_offset_mm": params.stage_offset_mm},
+        "analysis": {"simulated_irradiance_mw_per_mm2":
+                     list(params.simulated_irradiance_mw_per_mm2),
+                     "mask_threshold_fraction": params.mask_threshold_fraction},
+    }

@@ -16,6 +16,7 @@ from benchlab.protocols.params import (
     ParamsError,
     RadiometryParams,
     load_params,
+    params_to_dict,
     parse_params,
 )
 from benchlab.protocols.radiometry import RadiometryProcedure
@@ -81,8 +82,7 @@ def start_run(
     """Validate everything, create the session folder, return a runner (nothing moved yet)."""
     check_estimator(estimator)
     resolved, source = _resolve_params(procedure, params, bench.config.limits())
-    snapshot = {**dict(resolved.raw), "procedure": procedure,
-                BENCH_KEY: bench.config.to_dict()}
+    snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
         devices=bench.identities(), software_version=__version__,

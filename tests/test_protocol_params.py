@@ -97,3 +97,18 @@ def test_bench_config_problems_are_all_listed(tmp_path: Path) -> None:
     fields = sorted(p.split(":")[0] for p in info.value.problems)
     assert fields == sorted(["led.channel", "led.ceiling_ma.x", "led.ceiling_ma.1",
                              "stage.travel_mm", "stage.speed"])
+
+
+def test_effective_parameters_round_trip_through_the_session_snapshot(tmp_path: Path) -> None:
+    from benchlab.protocols.params import params_to_dict
+
+    custom = tmp_path / "mtf.toml"
+    custom.write_text('procedure = "mtf"\n[forward.roi.G2E4]\nsagittal = [600, 600, 610, 610]\n')
+    for procedure, path in (("mtf", custom), ("mtf", None), ("radiometry", RAD_SMALL)):
+        params = load_params(procedure, path)
+        snap = params_to_dict(params)
+        again = parse_params(procedure, snap)
+        assert params_to_dict(again) == snap
+        assert {k: v for k, v in vars(again).items() if k != "raw"} == {
+            k: v for k, v in vars(params).items() if k != "raw"}
+    assert params_to_dict(load_params("mtf", custom))["camera"]["exposure_ms"] == 300.0
