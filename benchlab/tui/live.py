@@ -74,7 +74,7 @@ class LiveScreen(Screen[None]):
     exposure_ms: reactive[float] = reactive(300.0)
     gain: reactive[float] = reactive(1.0)
     #: Default ROI: one bar set of the forward-view USAF chart (move it with the arrows).
-    roi: reactive[Roi] = reactive(Roi(596, 518, 20, 14))
+    roi: reactive[Roi] = reactive(Roi(598, 521, 10, 12))
     estimator: reactive[str] = reactive("")
     orientation: reactive[str] = reactive("auto")
     #: Show the ROI's surroundings instead of the whole frame.
@@ -104,7 +104,7 @@ class LiveScreen(Screen[None]):
 
     def on_mount(self) -> None:
         self.query_one("#frame").border_title = "camera"
-        self.query_one("#histogram").border_title = "histogram: D dark, B bright"
+        self.query_one("#histogram").border_title = "histogram peaks: D dark, B bright"
         self.query_one("#readout").border_title = "ROI"
         if not self.estimator:
             self.estimator = services.default_estimator()
@@ -198,9 +198,7 @@ class LiveScreen(Screen[None]):
         now = time.monotonic()
         self._display_times.append(now)
         self.query_one(FrameView).show(reading.preview, reading.preview_roi, reading.max_code)
-        self.query_one(RoiHistogram).show(
-            reading.roi_pixels, reading.max_code, reading.dark, reading.bright
-        )
+        self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
 
     @property

@@ -68,6 +68,8 @@ class LiveReading:
     exposure_ms: float
     gain: float
     note: str = ""
+    #: Dark and bright peaks of the ROI histogram (marked on the histogram widget).
+    peaks: tuple[float | None, float | None] = (None, None)
 
 
 def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDArray[np.float32]:
@@ -284,6 +286,7 @@ def live_reading(
             note = result.warnings[0]
     except ValueError as exc:
         note = str(exc)
+    peaks = (dark, bright) if estimator == "histogram" else histogram_peaks(roi_pixels, max_code)
     focus: float | None
     try:
         focus = sharpness(pixels, (roi.row, roi.col, roi.row + roi.height, roi.col + roi.width))
@@ -296,8 +299,21 @@ def live_reading(
         index=index, preview=preview, frame_shape=(rows, cols), roi=roi,
         preview_roi=preview_roi, roi_pixels=roi_pixels, max_code=max_code, dark=dark,
         bright=bright, modulation=modulation, resolved=resolved, clipped_fraction=clipped,
-        sharpness=focus, exposure_ms=exposure_ms, gain=gain, note=note,
+        sharpness=focus, exposure_ms=exposure_ms, gain=gain, note=note, peaks=peaks,
     )
+
+
+def histogram_peaks(
+    roi_pixels: npt.NDArray[Any], max_code: float
+) -> tuple[float | None, float | None]:
+    """Dark and bright histogram peaks of the ROI (the histogram estimator's reading)."""
+    from benchlab.analysis.estimators import estimate_modulation
+
+    try:
+        result = estimate_modulation(roi_pixels, estimator="histogram", max_code=max_code)
+    except ValueError:
+        return None, None
+    return result.dark, result.bright
 
 
 # -- procedures ------------------------------------------------------------------------------
