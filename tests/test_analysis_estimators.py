@@ -199,3 +199,31 @@ def test_unknown_names_are_clear_errors() -> None:
         estimate_modulation(roi, estimator="eyeball")
     with pytest.raises(ValueError, match="orientation"):
         estimate_modulation(roi, orientation="diagonal")
+
+
+def test_histogram_looks_past_shading_bumps() -> None:
+    """A 20 % illumination ramp spreads each plateau into a bumpy hump; the smoothing widens
+    until the two humps read as two peaks (a technician's reading), not "unimodal"."""
+    roi, case = bar_roi(
+        17, shape=(100, 128), px_per_period=32.0, noise_sigma=0.5, duty=0.4, shading=0.2
+    )
+    r = estimate_modulation(roi, estimator="histogram")
+    assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.05)
+    assert r.diagnostics.smoothing_codes is not None and r.diagnostics.smoothing_codes > 1.0
+
+
+@pytest.mark.parametrize("duty", [0.4, 0.6])
+def test_sinefit_handles_uneven_duty(duty: float) -> None:
+    """Printed lines come out thicker or thinner (thesis appendix C): even harmonics fit it."""
+    roi, case = bar_roi(18, shape=(40, 64), px_per_period=16.0, noise_sigma=1.0, duty=duty)
+    r = estimate_modulation(roi, estimator="sinefit", freq_cycles_per_px=1 / 16)
+    assert r.modulation == pytest.approx(case.truth, abs=0.015)
+
+
+def test_variance_uses_whole_periods() -> None:
+    """32 px bars in a 50 px ROI: a partial period would skew mean and variance."""
+    roi, case = bar_roi(19, shape=(40, 50), px_per_period=32.0, noise_sigma=1.0, phase=0.3)
+    r = estimate_modulation(
+        roi, estimator="variance", freq_cycles_per_px=1 / 32, orientation="horizontal"
+    )
+    assert r.modulation == pytest.approx(case.truth, abs=0.02)
