@@ -39,6 +39,10 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
   prompt declined) or ``StepFailed`` (``.step``, ``.cause``); the bench is already safe (LEDs
   off, stage stopped) and the session resumable. **Retry** a failed step = call
   ``runner.run()`` again. ``KeyboardInterrupt`` propagates after the bench is made safe.
+* ``estimator``: ``None`` = the parameter file's (default ``"auto"``: forward view with the
+  analysis library's default fit, radial view with histogram peaks, whose bars run obliquely
+  through the ROI), or ``"histogram"``, ``"sinefit"``, ``"variance"`` for both views.
+* A retry first calls ``bench.recover()`` (reconnects a camera that was unplugged and is back).
 * ``on_result(step, mapping)``: optional; called after each acquisition with that frame's
   partial results (e.g. ``{"element": "G2E4", "orientation": "sagittal", "modulation": 0.6}``)
   so a UI can fill its tables as steps complete.
