@@ -138,7 +138,15 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
     peaks = _peaks(smooth, float(smooth.max()) * MIN_PEAK_HEIGHT)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
-    if len(peaks) >= 2:
+    if len(peaks) == 2:
+        # Two peaks in a zero-padded histogram: the higher one's prominence is its height, the
+        # lower one's is its height above the valley between them; equal peaks both keep their
+        # full height (all as scipy.signal.peak_prominences).
+        h_a, h_b = smooth.item(peaks[0]), smooth.item(peaks[1])
+        valley2 = float(smooth[peaks[0] : peaks[1] + 1].min())
+        if h_a != h_b and min(h_a, h_b) - valley2 < max(h_a, h_b) * MIN_RELATIVE_PROMINENCE:
+            peaks = [peaks[0] if h_a >= h_b else peaks[1]]
+    elif len(peaks) > 2:
         prominence = peak_prominences(smooth, peaks)[0]
         keep = prominence >= prominence.max() * MIN_RELATIVE_PROMINENCE
         peaks = [p for p, k in zip(peaks, keep.tolist(), strict=True) if k]
