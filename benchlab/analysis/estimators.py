@@ -295,10 +295,12 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
         warnings.append("one pixel: no variance")
         return unresolved(name, diag, warnings)
     mean = float(region.mean())
-    centred = values
-    c2 = centred * centred
-    var = float(c2.mean())
-    m4 = float((c2 * c2).mean())
+    var = float(values @ values) / n
+    if not var > 0.0:
+        warnings.append("no variance in the ROI: bars not resolved")
+        return unresolved(name, diag, warnings)
+    z2 = values * values / var  # standardised: the moments stay O(1) at any gray scale
+    m4_ratio = float(z2 @ z2) / n  # m4 / var^2
     noise2 = prep.noise_sigma**2
     signal2 = var - noise2
     # Standard error of var - noise^2 under "no signal": sample variance plus a MAD-based noise
@@ -311,8 +313,8 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
     if mean <= 0:
         warnings.append("mean gray level <= 0: contrast undefined")
         return unresolved(name, diag, warnings)
-    m4_signal = m4 - 6.0 * noise2 * signal2 - 3.0 * noise2 * noise2
-    kurt = m4_signal / (signal2 * signal2)
+    r_noise, r_signal = noise2 / var, signal2 / var
+    kurt = (m4_ratio - 6.0 * r_noise * r_signal - 3.0 * r_noise * r_noise) / (r_signal * r_signal)
     crest = float(np.interp(kurt, _CREST_KURTOSIS, _CREST_FACTOR))
     half = crest * math.sqrt(signal2)
     dark, bright = mean - half, mean + half
