@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -43,4 +44,10 @@ def run_tui(args: argparse.Namespace) -> int:
         params_files=params, operator=args.operator,
     )
     app.run()
+    if app.close_error is not None:
+        from benchlab.tui.services import plain_error
+
+        print(f"benchlab: error while closing the bench: {plain_error(app.close_error)}",
+              file=sys.stderr)
+        return 1
     return int(app.return_code or 0)

@@ -84,6 +84,8 @@ class BenchlabApp(App[None]):
         self.abort_event = threading.Event()
         self._activity = threading.Condition()
         self._active_threads = 0
+        #: Set when closing the bench failed (e.g. LEDs not confirmed off); the CLI reports it.
+        self.close_error: BaseException | None = None
 
     def on_mount(self) -> None:
         self.sub_title = "simulated bench" if self.simulate else "bench"
@@ -120,17 +122,24 @@ class BenchlabApp(App[None]):
                 self.notify, "Abort the running procedure first.", severity="warning"
             )
             return
-        self._close_bench()
+        error = self._close_bench()
         self.call_from_thread(setattr, self, "bench_status", "disconnected")
+        if error is not None:
+            self.call_from_thread(self.show_error, "The bench may not be safe", error)
 
-    def _close_bench(self) -> None:
+    def _close_bench(self) -> BaseException | None:
+        """Safe state and close; an error is kept in :attr:`close_error` and returned."""
         with self.device_lock:
             opened, self._opened, self.bench = self._opened, None, None
-            if opened is not None:
-                try:
-                    opened.close()
-                except Exception as exc:  # noqa: BLE001 - closing must not crash the UI
-                    self.log.error(f"closing the bench: {exc!r}")
+            if opened is None:
+                return None
+            try:
+                opened.close()
+            except Exception as exc:  # noqa: BLE001 - closing must not crash the UI
+                self.log.error(f"closing the bench: {exc!r}")
+                self.close_error = exc
+                return exc
+            return None
 
     @contextmanager
     def device_activity(self) -> Iterator[None]:
