@@ -6,9 +6,11 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
@@ -53,13 +55,59 @@ def radial_step_id(freq_lp_per_mm: float, orientation: str) -> str:
     return f"radial-{freq_lp_per_mm:g}-{orientation}"
 
 
-def forward_roi(params: MtfParams, el: UsafElement, orientation: str) -> Roi:
-    """ROI of one bar set: the technician's override, else located on the chart layout."""
+#: How far (px) the imaged chart may sit from its nominal layout and still be found.
+CHART_SEARCH_PX = 24
+_MARGIN_PX = 4
+
+
+def _bar_group(el: UsafElement, orientation: str) -> chart.BarGroup:
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orient)
+
+
+def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> tuple[int, int]:
+    """Offset (rows, cols) of the imaged USAF chart from its nominal layout, in whole pixels.
+
+    The bars of the configured elements, drawn dark on a bright ground at their nominal
+    places, are matched against the frame (normalised cross-correlation) within
+    +-``CHART_SEARCH_PX``: a chart mounted a little off position still gets its ROIs on the bars.
+    """
+    groups = [_bar_group(el, o) for el in params.forward_elements for o in ORIENTATIONS]
+    top = math.floor(min(g.extent[0] for g in groups)) - _MARGIN_PX
+    left = math.floor(min(g.extent[1] for g in groups)) - _MARGIN_PX
+    bottom = math.ceil(max(g.extent[2] for g in groups)) + _MARGIN_PX
+    right = math.ceil(max(g.extent[3] for g in groups)) + _MARGIN_PX
+    rows = np.arange(top, bottom + 1, dtype=np.float64)[:, None]
+    cols = np.arange(left, right + 1, dtype=np.float64)[None, :]
+    template = np.ones((rows.size, cols.size), dtype=np.float32)
+    for g in groups:
+        for b_top, b_left, b_bottom, b_right in g.bars:
+            inside = (rows >= b_top) & (rows < b_bottom) & (cols >= b_left) & (cols < b_right)
+            template[inside] = 0.0
+    s = CHART_SEARCH_PX
+    r0, c0 = top - s, left - s
+    r1, c1 = bottom + 1 + s, right + 1 + s
+    if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
+        return (0, 0)
+    crop = np.ascontiguousarray(pixels[r0:r1, c0:c1], dtype=np.float32)
+    if float(crop.std()) == 0.0:
+        return (0, 0)
+    score = cv2.matchTemplate(crop, template, cv2.TM_CCOEFF_NORMED)
+    dr, dc = np.unravel_index(int(np.argmax(score)), score.shape)
+    return (int(dr) - s, int(dc) - s)
+
+
+def forward_roi(
+    params: MtfParams, el: UsafElement, orientation: str, offset: tuple[int, int] = (0, 0)
+) -> Roi:
+    """ROI of one bar set: the technician's override, else the bar set located on the chart
+    (nominal layout shifted by the chart's measured ``offset``)."""
     override = params.forward_roi_overrides.get(f"{el.name}.{orientation}")
     if override is not None:
         return override
-    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
-    return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orient).box
+    r0, c0, r1, c1 = _bar_group(el, orientation).box
+    dr, dc = offset
+    return (r0 + dr, c0 + dc, r1 + dr, c1 + dc)
 
 
 def _measure(
@@ -91,15 +139,17 @@ def analyze_forward_frame(
 ) -> list[dict[str, Any]]:
     """One row per element and orientation (what a UI shows while the run goes on)."""
     est = DEFAULT_ESTIMATOR if estimator in (None, "", AUTO) else estimator
+    offset = locate_chart(pixels, params)
     rows = []
     for el in params.forward_elements:
         f_img = image_frequency_lp_per_mm(usaf_frequency_lp_per_mm(el.group, el.element),
                                           params.forward_magnification)
         for orient in ORIENTATIONS:
-            roi = forward_roi(params, el, orient)
+            roi = forward_roi(params, el, orient, offset)
             res = _measure(pixels, roi, estimator=est, freq_lp_per_mm=f_img, orientation=orient)
             rows.append({"view": "forward", "element": el.name, "orientation": orient,
                          "image_lp_per_mm": f_img, "roi": list(roi),
+                         "chart_offset_px": list(offset),
                          **_cells(res)})
     return rows
 
@@ -163,6 +213,7 @@ def analyze_mtf(
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
+    per: dict[tuple[str, str], dict[str, Any]] = {}
     if forward is not None:
         per = {(r["element"], r["orientation"]): r
                for r in analyze_forward_frame(forward, params, est)}
@@ -210,6 +261,8 @@ def analyze_mtf(
         "radial_estimator": RADIAL_AUTO_ESTIMATOR if est == AUTO else est,
         "image_centre_rc": list(centre),
         "image_centre_method": centre_method,
+        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None
+        and per else None,
         "nyquist_lp_per_mm": nyq,
         "frames_analysed": (forward is not None) + len(radial),
     }

@@ -137,3 +137,33 @@ def test_reanalysis_refuses_modified_frames(tmp_path: Path) -> None:
     with pytest.raises(FramesModifiedError, match=frame.name):
         reanalyze(outcome.session_path)
     assert [p.name for p in (outcome.session_path / "results").iterdir()] == ["v1"]
+
+
+def test_rois_follow_a_chart_mounted_off_position(tmp_path: Path) -> None:
+    import dataclasses
+
+    from benchlab.protocols import start_run
+    from benchlab.protocols.mtf_analysis import forward_roi
+    from benchlab.protocols.params import load_params
+    from test_protocol_helpers import MTF_SMALL, yes
+
+    from benchlab.analysis.chart import ChartLayout
+    from benchlab.bench import Bench, BenchConfig
+
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        shifted = ChartLayout(origin_rc=(IMAGE_CENTRE_RC[0] + 6, IMAGE_CENTRE_RC[1] - 9))
+        bench.world.usaf = dataclasses.replace(bench.world.usaf, layout=shifted)
+        outcome = start_run("mtf", bench=bench, params=MTF_SMALL, root=tmp_path,
+                            prompt=yes).run()
+    assert outcome.summary["summary"]["chart_offset_px"] == [6, -9]
+    params = load_params("mtf", MTF_SMALL)
+    usaf = UsafScene(layout=shifted)
+    for row, el in zip(outcome.tables["table_4_11"], params.forward_elements, strict=True):
+        nominal = forward_roi(params, el, "sagittal")
+        assert row["sagittal_roi"] == [nominal[0] + 6, nominal[1] - 9, nominal[2] + 6,
+                                       nominal[3] - 9]
+        for orient in ("sagittal", "tangential"):
+            truth = usaf.truth_modulation(el.group, el.element, orient)
+            assert row[f"{orient}_resolved"]  # on the bars, not beside them
+            if el.name == "G1E5":  # 3.7 px per period; finer ones are phase-sensitive
+                assert row[f"{orient}_modulation"] == pytest.approx(truth, abs=0.1)
