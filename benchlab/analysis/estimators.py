@@ -369,7 +369,9 @@ def _public(name: str) -> Callable[..., ModulationResult]:
 
 #: Name -> ``fn(roi, *, freq_cycles_per_px, orientation, max_code, noise_sigma)``.
 ESTIMATORS: dict[str, Callable[..., ModulationResult]] = {n: _public(n) for n in _PREPARED}
-#: Chosen from ``benchlab benchmark analysis`` (see the README).
+#: Chosen from ``benchlab benchmark analysis``: the smallest RMSE at SNR >= 20 (0.012 against
+#: 0.030 for the histogram peaks and 0.061 for variance-minus-noise, which assumes 50 % duty),
+#: no false "resolved" calls, and it keeps working down to 2.2 px per period.
 DEFAULT_ESTIMATOR = "sinefit"
 #: Disagreement between estimators (modulation units) above which a warning is added.
 DISAGREEMENT_TOLERANCE = 0.05

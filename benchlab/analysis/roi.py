@@ -114,11 +114,10 @@ def detect_code_step(values: npt.NDArray[np.generic]) -> float:
     """Greatest common spacing of integer codes (1 for ordinary data, 16 for 12-bit data stored
     MSB-aligned in 16 bits); 1 when fewer than two distinct values."""
     ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
-    if ints.dtype.kind == "u":
-        ints = ints.astype(np.int64)
     odd = np.bitwise_and(ints, 1)
     if odd.any() and not odd.all():  # odd and even codes present: spacing 1
         return 1.0
+    ints = ints.astype(np.int64)
     step = int(np.gcd.reduce(ints - ints.min()))
     return float(max(step, 1))
 
