@@ -230,6 +230,13 @@ def render_report(session_path: str | Path) -> str:
     out.append("<table>" + "".join(f"<tr><th>{esc(str(k))}</th><td style='text-align:left'>"
                                    f"{esc(str(v))}</td></tr>" for k, v in ident) + "</table>")
     out.append("<h2>Results</h2>")
+    summ = doc.get("summary") or {}
+    notes = [f"{k.replace('_', ' ')}: {v}" for k, v in summ.items()
+             if k in ("forward_estimator", "radial_estimator", "image_centre_rc",
+                      "image_centre_method", "chart_offset_px") and v is not None]
+    if notes:
+        out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
+                   "(row, col); the thesis quotes 1-based ones.</p>")
     for name, rows in tables.items():
         view = TABLE_VIEWS.get(name)
         if view is not None and rows:
