@@ -108,3 +108,31 @@ def test_unknown_estimator_is_a_clean_error(
                  "--params", str(RAD_SMALL), "--estimator", "guesswork"]) == 1
     assert "unknown estimator 'guesswork'" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_real_ctrl_c_mid_radiometry_then_resume(tmp_path: Path) -> None:
+    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "radiometry", "--simulate", "--yes",
+           "--out", str(tmp_path)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
+            if sessions and _completed(sessions[0]) >= 2:
+                break
+            assert proc.poll() is None, "the run ended before it could be interrupted"
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert "benchlab resume" in err
+    path = only_session(tmp_path)
+    assert Session.open(path).status == "interrupted"
+    assert main(["resume", str(path), "--simulate", "--yes"]) == 0
+    session = Session.open(path)
+    assert session.status == "completed" and session.verify_frames() == []
+    saved = Counter(e["file"] for e in events(path) if e["kind"] == "frame_saved")
+    assert len(saved) == 10 and max(saved.values()) == 1
