@@ -1,6 +1,6 @@
 """Speed/accuracy benchmark of the modulation estimators on synthetic bar ROIs with known truth.
 
-Cases span PSF sigma (0.5 or 1 px), illumination shading (none or a 20 % ramp), bar duty (half
+Cases span PSF sigma (0.25, 0.5 or 1 px), illumination shading (none or a 20 % ramp), bar duty (half
 the cases 0.4 or 0.6 bright: printed lines come out thicker or thinner), noise level, ROI size
 (12 x 12, 40 x 50, 100 x 128), pixels per period (32 down to 2.2, near Nyquist), saturation
 (1.6x over-exposure), bit depth (8-bit; 12-bit MSB-aligned in 16) and frames averaged (1, 4),
@@ -78,7 +78,7 @@ def benchmark_cases(quick: bool = False, seed: int = 0) -> list[BarCase]:
                     px_per_period=period,
                     modulation=0.6,
                     mean=100.0,
-                    psf_sigma_px=float(rng.choice([0.5, 1.0])),
+                    psf_sigma_px=float(rng.choice([0.25, 0.5, 1.0])),
                     noise_sigma=noise,
                     phase=float(rng.uniform()),
                     orientation="horizontal" if rng.uniform() < 0.5 else "vertical",

@@ -38,6 +38,9 @@ NYQUIST_MARGIN = 0.05
 #: Gibbs correction (Lanczos sigma factors) only for series this long: with fewer harmonics it
 #: would cost more resolution than the overshoot it removes (benchmark: 8 px periods).
 LANCZOS_MIN_HARMONICS = 6
+#: Relative strength k A_k / A_1 of the last fitted harmonics above which the bars count as
+#: sharper than the sampling (1 for an ideal square wave).
+SHARP_HARMONIC_RATIO = 0.25
 #: Significance for a higher harmonic to enter the waveform.
 HARMONIC_Z = 3.0
 #: Highest harmonic fitted.
@@ -195,9 +198,18 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
     phase = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
     kept = np.nonzero(keep)[0]
     weights = np.ones(kept.size)
-    if k_max >= LANCZOS_MIN_HARMONICS and keep[-1]:
-        # The series is cut while the last harmonic still carries signal (sharp bars): Lanczos
-        # sigma factors remove the Gibbs overshoot that would read as extra contrast.
+    # Truncated with signal left in the last harmonics: the bars are sharper than the samples
+    # can describe (harmonics above Nyquist alias back into the fit).
+    # A sharp square wave has harmonics A_k ~ A_1 / k; blur makes them fall much faster.
+    # With only two harmonics below Nyquist a significant second one is the third aliased back
+    # (even harmonics vanish at 50 % duty), so any significant one counts.
+    top = [k for k in range(max(1, k_max - 2), k_max) if keep[k]]  # last two, 0-based
+    sharp = any((k + 1) * amps[k] >= SHARP_HARMONIC_RATIO * amps[0] for k in top) or (
+        k_max == 2 and bool(top)
+    )
+    if sharp and k_max >= LANCZOS_MIN_HARMONICS:
+        # The series is cut while its last harmonics still carry signal (sharp bars): Lanczos
+        # sigma factors remove most of the Gibbs overshoot that would read as extra contrast.
         weights = np.sinc((kept + 1.0) / (k_max + 1.0))
         warnings.append("sharp bars: harmonic series truncated at Nyquist (Lanczos-smoothed)")
     arg = np.outer(phase, kept + 1.0)
@@ -207,6 +219,12 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
         + np.sin(arg) @ (weights * coef[3 + 2 * kept])
     )
     dark, bright = float(wave.min()), float(wave.max())
+    if sharp:
+        # Sharp bars put many samples on the plateaus: the levels cannot lie beyond the
+        # (line-averaged) profile's own extremes, whatever overshoot the series keeps.
+        detrended = profile - coef[1] * design[:, 1]
+        dark = max(dark, float(detrended.min()))
+        bright = min(bright, float(detrended.max()))
     if dark + bright <= 0:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
         return unresolved(name, diag, warnings)
