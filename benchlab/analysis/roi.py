@@ -114,8 +114,11 @@ def detect_code_step(values: npt.NDArray[np.generic]) -> float:
     """Greatest common spacing of integer codes (1 for ordinary data, 16 for 12-bit data stored
     MSB-aligned in 16 bits); 1 when fewer than two distinct values."""
     ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
+    head = np.bitwise_and(ints[:64], 1)  # odd and even codes among the first few: spacing 1
+    if head.any() and not head.all():
+        return 1.0
     odd = np.bitwise_and(ints, 1)
-    if odd.any() and not odd.all():  # odd and even codes present: spacing 1
+    if odd.any() and not odd.all():
         return 1.0
     ints = ints.astype(np.int64)
     step = int(np.gcd.reduce(ints - ints.min()))
