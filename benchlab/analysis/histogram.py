@@ -114,7 +114,7 @@ def _peaks(y: npt.NDArray[np.float64], min_height: float) -> list[int]:
     """Local maxima at least ``min_height`` high, flat tops included (their middle bin), like
     :func:`scipy.signal.find_peaks` with ``height`` - in a handful of array operations, since
     this estimator has a 100 us budget and the candidates are few."""
-    d = np.diff(y)
+    d = y[1:] - y[:-1]
     candidates = (np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0)) + 1).tolist()
     values = y.tolist()
     peaks = []
@@ -135,9 +135,14 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
     warnings = list(prep.warnings)
     values = prep.pixels.ravel()
     smooth, origin, width, smoothing, pad = smoothed_histogram(prep, scale)
-    peaks = _peaks(smooth, float(smooth.max()) * MIN_PEAK_HEIGHT)
+    top = float(smooth.max())
+    peaks = _peaks(smooth, top * MIN_PEAK_HEIGHT)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
+    # The highest peak's prominence is its height (zero padding), and no peak's prominence
+    # exceeds its height: peaks lower than the prominence threshold can go straight away.
+    heights = smooth[peaks].tolist() if peaks else []
+    peaks = [p for p, h in zip(peaks, heights, strict=True) if h >= top * MIN_RELATIVE_PROMINENCE]
     if len(peaks) == 2:
         # Two peaks in a zero-padded histogram: the higher one's prominence is its height, the
         # lower one's is its height above the valley between them; equal peaks both keep their
