@@ -30,6 +30,17 @@ METADATA_FORMAT = "benchlab.frame"
 METADATA_VERSION = 1
 
 
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+#: mkstemp creates files 0600; saved data must follow the umask like any other file so that
+#: analysts in the bench group can read the technician's frames.
+_FILE_MODE = 0o666 & ~_current_umask()
+
+
 class FrameFileError(BenchlabError):
     """A frame file is missing, corrupt or not what benchlab wrote."""
 
@@ -58,6 +69,7 @@ def atomic_write_bytes(
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     tmp = Path(tmp_name)
     try:
+        os.fchmod(fd, _FILE_MODE)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()

@@ -31,6 +31,21 @@ def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path: Path) -> None:
     assert sorted(p.name for p in target.parent.iterdir()) == ["a.bin"]
 
 
+def test_written_files_follow_the_umask(tmp_path: Path) -> None:
+    old = os.umask(0o022)
+    try:
+        import importlib
+
+        import benchlab.storage as storage
+
+        importlib.reload(storage)
+        path = storage.atomic_write_bytes(tmp_path / "f.bin", b"x")
+    finally:
+        os.umask(old)
+        importlib.reload(storage)
+    assert path.stat().st_mode & 0o777 == 0o644
+
+
 def test_no_overwrite_refuses_and_keeps_existing(tmp_path: Path) -> None:
     target = tmp_path / "frame.bin"
     atomic_write_bytes(target, b"raw data")
