@@ -32,18 +32,11 @@ def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path: Path) -> None:
 
 
 def test_written_files_follow_the_umask(tmp_path: Path) -> None:
-    old = os.umask(0o022)
-    try:
-        import importlib
-
-        import benchlab.storage as storage
-
-        importlib.reload(storage)
-        path = storage.atomic_write_bytes(tmp_path / "f.bin", b"x")
-    finally:
-        os.umask(old)
-        importlib.reload(storage)
-    assert path.stat().st_mode & 0o777 == 0o644
+    mask = os.umask(0)
+    os.umask(mask)
+    path = atomic_write_bytes(tmp_path / "f.bin", b"x")
+    assert path.stat().st_mode & 0o777 == 0o666 & ~mask
+    assert path.stat().st_mode & 0o444 == 0o444 & ~mask  # readable by the group, not only 0600
 
 
 def test_no_overwrite_refuses_and_keeps_existing(tmp_path: Path) -> None:
