@@ -123,3 +123,28 @@ def test_field_of_view_circle_is_clipped_by_the_frame() -> None:
     assert not chart.RadialLayout(
         centre_rc=(511.5, 639.5), annulus_outer_radius_px=400
     ).fov_clipped()
+
+
+def test_measurement_roi_keeps_the_bar_profile_and_drops_the_bar_ends() -> None:
+    for g in chart.usaf_bar_groups():
+        r0, c0, r1, c1 = g.roi
+        br0, bc0, br1, bc1 = g.box
+        top, left, bottom, right = g.extent
+        m = chart.ROI_END_MARGIN_PX
+        assert r1 > r0 and c1 > c0
+        if g.orientation == "sagittal":  # vertical bars: every column across, rows trimmed
+            assert (c0, c1) == (bc0, bc1)
+            if r1 - r0 > 1:
+                assert r0 - 0.5 >= top + m and r1 - 0.5 <= bottom - m
+        else:
+            assert (r0, r1) == (br0, br1)
+            if c1 - c0 > 1:
+                assert c0 - 0.5 >= left + m and c1 - 0.5 <= right - m
+    # G2E1 S: bar ends at rows 600.81 and 608.19, so rows 601 and 608 straddle them
+    g = chart.usaf_bar_group(chart.ChartLayout(), 2, 1, "sagittal")
+    assert g.box == (601, 584, 609, 591) and g.roi == (602, 584, 608, 591)
+
+
+def test_measurement_roi_is_never_empty() -> None:
+    assert chart.bar_set_roi((10.2, 20.1, 10.4, 20.3), "sagittal") == (10, 20, 11, 21)
+    assert chart.bar_set_roi((10.2, 20.1, 10.4, 20.3), "tangential") == (10, 20, 11, 21)

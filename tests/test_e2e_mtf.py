@@ -72,19 +72,29 @@ def test_forward_view_against_truth(full_run: RunOutcome) -> None:
     rows = {r["element"]: r for r in _rows(full_run, "table_4_11")}
     assert list(rows) == ["G1E5", "G1E6", "G2E1", "G2E2", "G2E3", "G2E4", "G2E5", "G2E6",
                           "G3E1"]
-    errors = []
+    errors: dict[str, float] = {}
     for name, row in rows.items():
         g, e = int(name[1]), int(name[3])
+        f_px = row["image_lp_per_mm"] * 0.0052  # cycles per pixel
         for orient in ("sagittal", "tangential"):
             truth = usaf.truth_modulation(g, e, orient)
-            # Sampling and noise only ever lose contrast (beyond noise).
-            assert row[f"{orient}_modulation"] <= truth + 0.05
-            if row["image_lp_per_mm"] <= 75.0:  # >= 2.6 px per period
-                errors.append(abs(row[f"{orient}_modulation"] - truth))
-    # The ROIs are the bar sets themselves, 7-10 px square (as in the thesis): a few
-    # hundredths of noise and sampling error each, not more.
-    assert len(errors) == 8
-    assert max(errors) < 0.13 and sum(errors) / len(errors) < 0.08
+            measured = row[f"{orient}_modulation"]
+            warnings = row[f"{orient}_warnings"]
+            if f_px > 0.5:  # G2E5-G3E1: aliased, flagged and excluded from comparisons
+                assert row["aliased"] and "aliased" in warnings
+                continue
+            assert not row["aliased"]
+            if f_px >= 0.35:  # G2E2-G2E4: flagged phase-sensitive
+                assert "near Nyquist" in warnings
+            errors[f"{name}{orient[0].upper()}"] = measured - truth
+    # The ROIs are the bar sets without the pixels straddling the bar ends (7-10 px square). What
+    # is left: the sine fit's fundamental-only reading at 1/6-1/3 cycles/px (the third harmonic
+    # is above Nyquist), which over-reads G1E5 S by ~0.06, then noise and sampling phase.
+    assert len(errors) == 12
+    assert all(abs(err) <= 0.07 for err in errors.values()), errors
+    assert sum(abs(err) for err in errors.values()) / len(errors) < 0.03, errors
+    fine = {k: v for k, v in errors.items() if not k.startswith("G1E5")}
+    assert all(abs(err) <= 0.05 for err in fine.values()), errors
     assert [r["aliased"] for r in rows.values()] == [False] * 6 + [True] * 3
 
 

@@ -60,6 +60,10 @@ ANNULUS_OUTER_RADIUS_PX = 545.0
 #: 40 x 50 px with centroid (270.5, 1025.5) 1-based (Table 4.13), i.e. 0-based rows 250-289,
 #: cols 1000-1049.
 RADIAL_ROI_BOX: Box = (250, 1000, 290, 1050)
+#: How far (px) the measurement ROI of a bar set keeps each pixel's aperture inside the ends of
+#: the bars (see :func:`bar_set_roi`): the forward blur is 0.12-0.70 px, so a pixel flush with a
+#: bar end still reads some of the bright ground beyond it.
+ROI_END_MARGIN_PX = 0.25
 #: Gap between an element's tangential and sagittal bar sets, in bar widths (centre to centre the
 #: two sets are 9 bar widths apart, as the thesis's ROI centroids show).
 SET_GAP_BAR_WIDTHS = 4.0
@@ -143,8 +147,9 @@ class BarGroup:
     """One set of three bars of a USAF element, as imaged.
 
     ``bars`` are the dark bars as continuous rectangles ``(top, left, bottom, right)`` in pixel
-    coordinates; ``extent`` is the 5 x 5 bar-width square they fill; ``box`` is the ROI: every
-    pixel whose centre lies inside ``extent`` (at least one pixel).
+    coordinates; ``extent`` is the 5 x 5 bar-width square they fill; ``box`` is every pixel whose
+    centre lies inside ``extent`` (at least one pixel); ``roi`` is the measurement ROI
+    (:func:`bar_set_roi`): ``box`` without the pixels that straddle the ends of the bars.
     """
 
     group: int
@@ -167,6 +172,11 @@ class BarGroup:
         return f"G{self.group}E{self.element}{self.orientation[0].upper()}"
 
     @property
+    def roi(self) -> Box:
+        """Measurement ROI of the set (:func:`bar_set_roi` of ``extent``)."""
+        return bar_set_roi(self.extent, self.orientation)
+
+    @property
     def varies_along_axis(self) -> int:
         """numpy axis along which intensity varies: 1 for sagittal, 0 for tangential."""
         return 1 if self.orientation == "sagittal" else 0
@@ -186,6 +196,39 @@ def pixel_box(extent: tuple[float, float, float, float]) -> Box:
     if c1 <= c0:
         c0 = round((left + right) / 2)
         c1 = c0 + 1
+    return (r0, c0, r1, c1)
+
+
+def bar_set_roi(
+    extent: tuple[float, float, float, float],
+    orientation: Orientation,
+    margin_px: float = ROI_END_MARGIN_PX,
+) -> Box:
+    """Measurement ROI of a bar set filling the continuous ``extent`` (top, left, bottom, right).
+
+    Across the bars (the direction the intensity varies): every pixel whose centre lies inside
+    the extent, as :func:`pixel_box` - the outer bars' edges are part of the bar pattern. Along
+    the bars: only pixels whose whole aperture lies at least ``margin_px`` inside the bar ends.
+    A pixel that straddles a bar end reads bar and bright ground at once, lifting the dark
+    level and lowering the bright one. On the forward view's 7-10 px bar sets one such row (or
+    column) at each end is 2 of 7-10 lines of the averaged bar profile, and the modulation
+    read from it falls by up to 0.12 (G2E2, 0.38 cycles/px). Never empty: a bar shorter than a
+    pixel plus the margins keeps the line nearest its middle.
+    """
+    top, left, bottom, right = extent
+
+    def inner(a: float, b: float) -> tuple[int, int]:
+        lo, hi = math.ceil(a + margin_px + 0.5), math.floor(b - margin_px - 0.5)
+        if hi < lo:
+            lo = round((a + b) / 2)
+            hi = lo
+        return lo, hi + 1
+
+    r0, c0, r1, c1 = pixel_box(extent)
+    if orientation == "sagittal":  # vertical bars: along the bars = along rows
+        r0, r1 = inner(top, bottom)
+    else:
+        c0, c1 = inner(left, right)
     return (r0, c0, r1, c1)
 
 

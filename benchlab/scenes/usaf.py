@@ -114,7 +114,11 @@ class UsafScene:
         """Noise-free ``(dark, bright)`` rates (e-/ms) of a bar set as imaged.
 
         Dark = the blurred, pixel-integrated profile at the centre of the middle bar; bright =
-        at the centre of the spaces either side of it, both at mid bar length.
+        at the centre of the spaces either side of it, both at mid bar length. That is the
+        best sampling phase (a pixel centred on the bar and on the spaces): the pre-sampling
+        bar contrast. A frame at a non-integer period samples other phases; near Nyquist its
+        reading depends on that phase (the estimators flag it), and a measurement ROI must keep
+        off the bar ends (:func:`benchlab.analysis.chart.bar_set_roi`).
         """
         bars = self.bar_group(group, element, orientation)
         cr, cc = bars.centre_rc
