@@ -25,7 +25,6 @@ from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import peak_prominences
 
 from benchlab.analysis.result import ModulationResult, eq29_modulation, unresolved
 from benchlab.analysis.roi import PreparedROI
@@ -64,6 +63,15 @@ def smoothed_histogram(
     pad : int
         Bins of padding on each side.
     """
+    counts, width, _ = _binned(prep)
+    smooth, smoothing, pad = _smoothed(prep, counts, width, scale)
+    return smooth, prep.vmin, width, smoothing, pad
+
+
+def _binned(prep: PreparedROI) -> tuple[npt.NDArray[np.intp], float, bool]:
+    """Counts per bin (the first bin centred on ``prep.vmin``), the bin width, and whether
+    every pixel lies exactly on its bin centre (integer codes: then the counts up to a bin are
+    exactly the pixels at or below its centre)."""
     values = prep.pixels.ravel()
     vmin, vmax = prep.vmin, prep.vmax
     if prep.integer_valued:
@@ -74,20 +82,39 @@ def smoothed_histogram(
     if n_bins > MAX_BINS:
         width = (vmax - vmin) / (MAX_BINS - 1)
         n_bins = MAX_BINS
+    # Single-frame integer data sits on the grid vmin + k * code_step exactly (the mean of
+    # several frames only approximately, e.g. thirds).
+    exact = prep.integer_valued and prep.n_frames == 1 and width == prep.code_step
     if prep.integer_valued and width == 1.0:
-        idx = (values - vmin).astype(np.intp)  # exact: values are integers
+        idx = values.astype(np.intp)  # exact: values are integers
+        idx -= int(vmin)
     else:
-        idx = np.rint((values - vmin) / width).astype(np.intp)
-    counts = np.bincount(idx, minlength=n_bins)
-    n_half = max(values.size / 2.0, 1.0)
+        scaled = values - vmin
+        scaled /= width
+        idx = np.rint(scaled, out=scaled).astype(np.intp)
+    return np.bincount(idx, minlength=n_bins), width, exact
+
+
+def _smoothed(
+    prep: PreparedROI, counts: npt.NDArray[np.intp], width: float, scale: float
+) -> tuple[npt.NDArray[np.float64], float, int]:
+    """``counts`` smoothed by ``scale`` times the noise-based Gaussian: the padded smooth
+    histogram, the sigma in gray units and the padding (bins on each side)."""
+    n_half = max(prep.pixels.size / 2.0, 1.0)
     sigma_gray = 1.06 * prep.noise_sigma * n_half ** (-0.2)
     sigma_bins = max(scale * sigma_gray / width, 0.7 * scale)
     sigma_bins = round(sigma_bins, 2)  # a cached kernel per 0.01 bin
     kernel = _kernel(sigma_bins)
     pad = (kernel.size - 1) // 2
-    # "full" convolution pads ``pad`` zero bins on each side: edge peaks stay detectable.
-    smooth = np.convolve(counts, kernel, mode="full")
-    return smooth, vmin, width, sigma_bins * width, pad
+    # "full" convolution pads ``pad`` zero bins on each side: edge peaks stay detectable. The
+    # kernel is symmetric, so correlating is convolving - and np.correlate skips
+    # np.convolve's Python overhead; its result is bit-identical only while the data are at
+    # least as long as the kernel (np.convolve swaps the operands otherwise).
+    if counts.size >= kernel.size:
+        smooth = np.correlate(counts, kernel, "full")
+    else:
+        smooth = np.convolve(counts, kernel, mode="full")
+    return smooth, sigma_bins * width, pad
 
 
 @lru_cache(maxsize=512)
@@ -103,46 +130,111 @@ def _kernel(sigma_bins: float) -> npt.NDArray[np.float64]:
 def _refine(y: npt.NDArray[np.float64], i: int) -> float:
     """Sub-bin peak position by a parabola through three bins."""
     if 0 < i < y.size - 1:
-        left, mid, right = y[i - 1 : i + 2].tolist()
+        left, mid, right = y.item(i - 1), y.item(i), y.item(i + 1)
         den = left - 2 * mid + right
         if den < 0:
             return i + 0.5 * (left - right) / den
     return float(i)
 
 
+def _find_peaks(y: npt.NDArray[np.float64], min_height: float) -> tuple[list[int], list[float]]:
+    """Local maxima at least ``min_height`` high and their heights, flat tops included (their
+    middle bin), like :func:`scipy.signal.find_peaks` with ``height`` - in a handful of array
+    operations, since this estimator has a 100 us budget and the candidates are few."""
+    up = (y[1:] - y[:-1]) > 0
+    # Bin i rises from i - 1, does not rise to i + 1, and is high enough.
+    starts = np.nonzero((up[:-1] > up[1:]) & (y[1:-1] >= min_height))[0].tolist()
+    peaks: list[int] = []
+    heights: list[float] = []
+    item = y.item
+    for k in starts:
+        i = k + 1
+        h = item(i)
+        if item(i + 1) < h:  # a single-bin top
+            peaks.append(i)
+            heights.append(h)
+            continue
+        # A flat top: it is a peak only if the first different bin after it is lower.
+        differ = np.flatnonzero(y[i + 1 :] != h)
+        if differ.size:
+            j = i + 1 + int(differ[0])
+            if item(j) < h:
+                peaks.append((i + j - 1) // 2)  # middle of a flat top, as find_peaks
+                heights.append(h)
+    return peaks, heights
+
+
 def _peaks(y: npt.NDArray[np.float64], min_height: float) -> list[int]:
     """Local maxima at least ``min_height`` high, flat tops included (their middle bin), like
-    :func:`scipy.signal.find_peaks` with ``height`` - in a handful of array operations, since
-    this estimator has a 100 us budget and the candidates are few."""
-    d = y[1:] - y[:-1]
-    candidates = (np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0)) + 1).tolist()
-    values = y.tolist()
-    peaks = []
-    for i in candidates:
-        if values[i] < min_height:
-            continue
-        j = i + 1
-        while j < len(values) and values[j] == values[i]:
-            j += 1
-        if j < len(values) and values[j] < values[i]:  # falls after the (flat) top
-            peaks.append((i + j - 1) // 2)  # middle of a flat top, as find_peaks
-    return peaks
+    :func:`scipy.signal.find_peaks` with ``height`` (see :func:`_find_peaks`)."""
+    return _find_peaks(y, min_height)[0]
 
 
-def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
-    """One reading at one smoothing; also whether more smoothing could help (two or more
-    local maxima, or a unimodal verdict from noise bumps)."""
+def _prominences(y: npt.NDArray[np.float64], peaks: list[int], heights: list[float]) -> list[float]:
+    """:func:`scipy.signal.peak_prominences` of ``peaks`` (no window), exactly, when
+    ``peaks`` are *all* the local maxima of ``y`` at least as high as the lowest of them.
+
+    Then no bin between two neighbouring peaks rises above both, so the walk away from a peak
+    (scipy's algorithm: on until a higher bin) always passes the lowest bin between it and the
+    next peak. A peak's reference level is therefore the higher of two minima, each taken over
+    whole gaps between peaks: on each side, up to and including the gap before the first
+    higher peak (or the edge of ``y``).
+    """
+    # Minimum of y over [0, p0), [p0, p1), ..., [p_last, end]; gaps[g] (between peak g - 1
+    # and peak g; 0 = head, m = tail) closed by the peak after it.
+    gaps = np.minimum.reduceat(y, [0, *peaks]).tolist()
+    m = len(peaks)
+    for g in range(m):
+        if heights[g] < gaps[g]:
+            gaps[g] = heights[g]
+    # Walking left from peak k: the minimum over the gaps back to the previous higher peak
+    # (or the head), from a stack of the peaks not yet passed (heights decreasing); then the
+    # same walking right.
+    left: list[float] = []
+    stack: list[tuple[float, float]] = []  # (height, its walk minimum)
+    for k in range(m):
+        h, low = heights[k], gaps[k]
+        while stack and stack[-1][0] <= h:
+            passed = stack.pop()[1]
+            if passed < low:
+                low = passed
+        stack.append((h, low))
+        left.append(low)
+    out = [0.0] * m
+    stack = []
+    for k in range(m - 1, -1, -1):
+        h, low = heights[k], gaps[k + 1]
+        while stack and stack[-1][0] <= h:
+            passed = stack.pop()[1]
+            if passed < low:
+                low = passed
+        stack.append((h, low))
+        out[k] = h - (left[k] if left[k] > low else low)
+    return out
+
+
+def _read(
+    prep: PreparedROI, binned: tuple[npt.NDArray[np.intp], float, bool], scale: float
+) -> tuple[ModulationResult, bool]:
+    """One reading at one smoothing of the histogram ``binned`` (from :func:`_binned`); also
+    whether more smoothing could help (two or more local maxima, or a unimodal verdict from
+    noise bumps)."""
     warnings = list(prep.warnings)
     values = prep.pixels.ravel()
-    smooth, origin, width, smoothing, pad = smoothed_histogram(prep, scale)
+    counts, width, exact = binned
+    origin = prep.vmin
+    smooth, smoothing, pad = _smoothed(prep, counts, width, scale)
     top = float(smooth.max())
-    peaks = _peaks(smooth, top * MIN_PEAK_HEIGHT)
+    peaks, heights = _find_peaks(smooth, top * MIN_PEAK_HEIGHT)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
     # The highest peak's prominence is its height (zero padding), and no peak's prominence
     # exceeds its height: peaks lower than the prominence threshold can go straight away.
-    heights = smooth[peaks].tolist() if peaks else []
-    peaks = [p for p, h in zip(peaks, heights, strict=True) if h >= top * MIN_RELATIVE_PROMINENCE]
+    clear = top * MIN_RELATIVE_PROMINENCE
+    if heights and min(heights) < clear:
+        kept = [(p, h) for p, h in zip(peaks, heights, strict=True) if h >= clear]
+        peaks = [p for p, _ in kept]
+        heights = [h for _, h in kept]
     if len(peaks) == 2:
         # Two peaks in a zero-padded histogram: the higher one's prominence is its height, the
         # lower one's is its height above the valley between them; equal peaks both keep their
@@ -152,9 +244,10 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
         if h_a != h_b and min(h_a, h_b) - valley2 < max(h_a, h_b) * MIN_RELATIVE_PROMINENCE:
             peaks = [peaks[0] if h_a >= h_b else peaks[1]]
     elif len(peaks) > 2:
-        prominence = peak_prominences(smooth, peaks)[0]
-        keep = prominence >= prominence.max() * MIN_RELATIVE_PROMINENCE
-        peaks = [p for p, k in zip(peaks, keep.tolist(), strict=True) if k]
+        # Every local maximum at least as high as the lowest kept peak is kept: exact.
+        prominence = _prominences(smooth, peaks, heights)
+        threshold = max(prominence) * MIN_RELATIVE_PROMINENCE
+        peaks = [p for p, pr in zip(peaks, prominence, strict=True) if pr >= threshold]
     if len(peaks) < 2:
         warnings.append("histogram unimodal: dark and bright peaks cannot be told apart")
         return unresolved(NAME, prep.diagnostics(bimodality=0.0, **base), warnings), many
@@ -169,7 +262,10 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
     sigma = max(prep.noise_sigma, 1e-12)
     separation = (x_bright - x_dark) / sigma
     split_value = origin + (valley_pos - pad) * width
-    n_low = int(np.count_nonzero(values <= split_value + 1e-9 * width))
+    if exact:  # pixels at or below the valley's bin centre = counts up to that bin
+        n_low = int(counts[: max(valley_pos - pad + 1, 0)].sum())
+    else:
+        n_low = int(np.count_nonzero(values <= split_value + 1e-9 * width))
     side_fraction = min(n_low, values.size - n_low) / values.size
     diag = prep.diagnostics(bimodality=bimodality, separation_sigma=min(separation, 1e9), **base)
     reasons = []
@@ -192,10 +288,7 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
     # Analytic standard uncertainty of each mode: noise over sqrt(pixels in the mode), inflated
     # by n^(1/5) for a KDE mode (slower than a mean), never below the bin quantisation.
     n_hi = values.size - n_low
-    sd_levels = [
-        max(sigma * math.sqrt(1.0 / max(n, 1)) * max(n, 1) ** 0.2, width / math.sqrt(12.0))
-        for n in (n_low, n_hi)
-    ]
+    sd_levels = [_mode_sd(sigma, n_low, width), _mode_sd(sigma, n_hi, width)]
     total = x_bright + x_dark
     dm_dd = -2.0 * x_bright / total**2
     dm_db = 2.0 * x_dark / total**2
@@ -212,6 +305,12 @@ def _read(prep: PreparedROI, scale: float) -> tuple[ModulationResult, bool]:
         warnings=tuple(warnings),
     )
     return result, False
+
+
+def _mode_sd(sigma: float, n: int, width: float) -> float:
+    """Standard uncertainty of a mode of ``n`` pixels (see :func:`_read`)."""
+    n = n if n > 1 else 1
+    return max(sigma * math.sqrt(1.0 / n) * n**0.2, width / math.sqrt(12.0))
 
 
 def histogram_peak(prep: PreparedROI) -> ModulationResult:
@@ -237,13 +336,14 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
     if prep.vmax == prep.vmin:
         warnings = [*prep.warnings, "single-valued ROI: one gray level, no bars"]
         return unresolved(NAME, prep.diagnostics(), warnings)
-    first, retry = _read(prep, 1.0)
+    binned = _binned(prep)
+    first, retry = _read(prep, binned, 1.0)
     if first.resolved or not retry:
         return first
     base = max(prep.noise_sigma, 1e-12)
     scale = 2.0
     while scale * base <= (prep.vmax - prep.vmin) / 8.0:
-        result, retry = _read(prep, scale)
+        result, retry = _read(prep, binned, scale)
         if result.resolved:
             return result
         if not retry:

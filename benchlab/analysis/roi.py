@@ -67,14 +67,16 @@ class PreparedROI:
 
     def diagnostics(self, **extra: object) -> Diagnostics:
         f = self.freq_cycles_per_px
+        # ``aliased`` and ``phase_sensitive`` inlined (this runs once per estimate).
+        aliased = f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
         return Diagnostics(
-            n_pixels=self.n_pixels,
+            n_pixels=self.pixels.size,
             px_per_period=(1.0 / f) if f else None,
             freq_cycles_per_px=f,
             clipped_fraction=self.clipped_fraction,
             noise_sigma=self.noise_sigma,
-            aliased=self.aliased,
-            phase_sensitive=self.phase_sensitive,
+            aliased=aliased,
+            phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
             code_step=self.code_step if self.integer_valued else None,
             n_frames=self.n_frames,
             **extra,  # type: ignore[arg-type]
@@ -114,11 +116,12 @@ def detect_code_step(values: npt.NDArray[np.generic]) -> float:
     """Greatest common spacing of integer codes (1 for ordinary data, 16 for 12-bit data stored
     MSB-aligned in 16 bits); 1 when fewer than two distinct values."""
     ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
-    head = np.bitwise_and(ints[:64], 1)  # odd and even codes among the first few: spacing 1
-    if head.any() and not head.all():
+    head = ints[:64]  # odd and even codes among the first few: spacing 1
+    n_odd = np.count_nonzero(np.bitwise_and(head, 1))
+    if 0 < n_odd < head.size:
         return 1.0
-    odd = np.bitwise_and(ints, 1)
-    if odd.any() and not odd.all():
+    n_odd = np.count_nonzero(np.bitwise_and(ints, 1))
+    if 0 < n_odd < ints.size:
         return 1.0
     ints = ints.astype(np.int64)
     step = int(np.gcd.reduce(ints - ints.min()))
