@@ -127,3 +127,14 @@ def test_histogram_peak_identical_to_straightforward_path(
     slow = [histogram_peak(p) for p in preps]
     assert fast == slow
     assert sum(r.resolved for r in fast) > 50  # the comparison covers real readings
+
+
+@settings(max_examples=300, deadline=None)
+@given(y=arrays(np.float64, st.integers(1, 40), elements=st.sampled_from([0.0, 1.0, 2.0, 3.0])))
+def test_rises_maximum_is_the_array_maximum(y: np.ndarray) -> None:
+    """The maximum read off the candidate tops is max(y), ends and plateaus included."""
+    from benchlab.analysis.histogram import _rises
+
+    starts, heights, top = _rises(y)
+    assert top == float(y.max())
+    assert heights == [float(y[i]) for i in starts]

@@ -137,19 +137,38 @@ def _refine(y: npt.NDArray[np.float64], i: int) -> float:
     return float(i)
 
 
-def _find_peaks(y: npt.NDArray[np.float64], min_height: float) -> tuple[list[int], list[float]]:
+#: Bins where a rise ends (candidate tops, flat or not), their heights, and the maximum of y.
+Rises = tuple[list[int], list[float], float]
+
+
+def _rises(y: npt.NDArray[np.float64]) -> Rises:
+    """Bins ``i`` with ``y[i - 1] < y[i] >= y[i + 1]`` (where a peak or a flat top starts),
+    their heights, and ``max(y)`` - read off the candidates when the maximum is not at an end
+    of ``y`` (then the first bin of its plateau is a candidate), which saves a pass over y."""
+    up = (y[1:] - y[:-1]) > 0
+    starts = np.nonzero(up[:-1] > up[1:])[0].tolist()
+    item = y.item
+    heights = [item(k + 1) for k in starts]
+    top = max(heights) if heights else -math.inf
+    if not heights or item(0) >= top or item(-1) >= top:
+        top = float(y.max())
+    return [k + 1 for k in starts], heights, top
+
+
+def _find_peaks(
+    y: npt.NDArray[np.float64], min_height: float, rises: Rises | None = None
+) -> tuple[list[int], list[float]]:
     """Local maxima at least ``min_height`` high and their heights, flat tops included (their
     middle bin), like :func:`scipy.signal.find_peaks` with ``height`` - in a handful of array
-    operations, since this estimator has a 100 us budget and the candidates are few."""
-    up = (y[1:] - y[:-1]) > 0
-    # Bin i rises from i - 1, does not rise to i + 1, and is high enough.
-    starts = np.nonzero((up[:-1] > up[1:]) & (y[1:-1] >= min_height))[0].tolist()
+    operations, since this estimator has a 100 us budget and the candidates are few.
+    ``rises``: :func:`_rises` of ``y`` if already known."""
+    starts, candidate_heights, _ = rises if rises is not None else _rises(y)
     peaks: list[int] = []
     heights: list[float] = []
     item = y.item
-    for k in starts:
-        i = k + 1
-        h = item(i)
+    for i, h in zip(starts, candidate_heights, strict=True):
+        if h < min_height:
+            continue
         if item(i + 1) < h:  # a single-bin top
             peaks.append(i)
             heights.append(h)
@@ -224,8 +243,9 @@ def _read(
     counts, width, exact = binned
     origin = prep.vmin
     smooth, smoothing, pad = _smoothed(prep, counts, width, scale)
-    top = float(smooth.max())
-    peaks, heights = _find_peaks(smooth, top * MIN_PEAK_HEIGHT)
+    rises = _rises(smooth)
+    top = rises[2]
+    peaks, heights = _find_peaks(smooth, top * MIN_PEAK_HEIGHT, rises)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
     # The highest peak's prominence is its height (zero padding), and no peak's prominence

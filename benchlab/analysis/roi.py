@@ -136,7 +136,8 @@ def _diff_sigma(img: npt.NDArray[np.float64], ax: int) -> float:
     rms2 = float(d @ d) / d.size
     if rms2 == 0.0:
         return 0.0
-    if float(np.abs(d).max()) ** 2 > 16.0 * rms2:
+    # In place: |d| has the same squares, so the clipped sum below is unchanged.
+    if float(np.abs(d, out=d).max()) ** 2 > 16.0 * rms2:
         kept = d[d * d <= 16.0 * rms2]
         rms2 = float(kept @ kept) / kept.size if kept.size else rms2
     # A 4-sigma-clipped Gaussian keeps 99.99 % of its variance: no correction needed.
@@ -283,7 +284,7 @@ def prepare_roi(
         noise_given=given,
         max_code=max_code_f,
         clipped_fraction=clipped,
-        vmin=float(img.min()),
+        vmin=float(img.min()) if n_frames > 1 else float(values.min()),  # raw: less to read
         vmax=float(img.max()) if n_frames > 1 else raw_max,
         freq_cycles_per_px=f,
         n_frames=n_frames,
