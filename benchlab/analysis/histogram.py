@@ -6,7 +6,8 @@ technician would read the histogram.
    (averaged frames) uses bins of a third of the noise sigma.
 2. The histogram is smoothed with a Gaussian whose width comes from the data: Silverman's rule
    applied to the per-pixel noise (one mode = one noise Gaussian), never below ~one code.
-3. Local maxima are ranked by :func:`scipy.signal.peak_prominences`; of the clear ones
+3. Local maxima are ranked by prominence (exactly :func:`scipy.signal.peak_prominences`,
+   computed in-house for speed); of the clear ones
    (prominence at least a fifth of the most prominent) the darkest and the brightest are the
    dark and bright levels. A bimodality test follows: the valley between them must be clearly
    lower than the smaller peak, each side must hold a real share of the pixels, and the peaks
@@ -308,7 +309,12 @@ def _read(
     # Analytic standard uncertainty of each mode: noise over sqrt(pixels in the mode), inflated
     # by n^(1/5) for a KDE mode (slower than a mean), never below the bin quantisation.
     n_hi = values.size - n_low
-    sd_levels = [_mode_sd(sigma, n_low, width), _mode_sd(sigma, n_hi, width)]
+    floor = width / math.sqrt(12.0)
+    n_a, n_b = (n_low if n_low > 1 else 1), (n_hi if n_hi > 1 else 1)
+    sd_levels = [
+        max(sigma * math.sqrt(1.0 / n_a) * n_a**0.2, floor),
+        max(sigma * math.sqrt(1.0 / n_b) * n_b**0.2, floor),
+    ]
     total = x_bright + x_dark
     dm_dd = -2.0 * x_bright / total**2
     dm_db = 2.0 * x_dark / total**2
@@ -325,12 +331,6 @@ def _read(
         warnings=tuple(warnings),
     )
     return result, False
-
-
-def _mode_sd(sigma: float, n: int, width: float) -> float:
-    """Standard uncertainty of a mode of ``n`` pixels (see :func:`_read`)."""
-    n = n if n > 1 else 1
-    return max(sigma * math.sqrt(1.0 / n) * n**0.2, width / math.sqrt(12.0))
 
 
 def histogram_peak(prep: PreparedROI) -> ModulationResult:
