@@ -14,6 +14,7 @@ from benchlab.analysis import (
     ModulationResult,
     compare_estimators,
     estimate_modulation,
+    estimators,
 )
 from benchlab.analysis.synthetic import BarCase, bar_roi, render, true_modulation
 
@@ -246,3 +247,73 @@ def test_sinefit_sharp_bars_in_a_short_roi() -> None:
     )
     assert r.modulation == pytest.approx(case.truth, abs=0.01)
     assert any("sharp bars" in w for w in r.warnings)
+
+
+def _sinefit_errors(f: float, n: int) -> np.ndarray:
+    """sinefit minus truth on near-square bars (PSF sigma 0.3 px) at 8 sampling phases."""
+    errs = []
+    for i, phase in enumerate(np.linspace(0.0, 1.0, 8, endpoint=False)):
+        roi, case = bar_roi(
+            30 + i,
+            shape=(20, n),
+            px_per_period=1 / f,
+            psf_sigma_px=0.3,
+            noise_sigma=1.0,
+            phase=float(phase),
+        )
+        r = estimate_modulation(
+            roi, estimator="sinefit", freq_cycles_per_px=f, orientation="horizontal"
+        )
+        errs.append(r.modulation - case.truth)
+    return np.asarray(errs)
+
+
+@pytest.mark.parametrize("f", [0.23, 0.27, 0.29, 0.31])
+def test_sinefit_aliased_third_harmonic_removes_square_wave_over_read(
+    f: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Between ~0.225 and 1/3 cycles/px only the fundamental fits below Nyquist; alone it
+    over-reads square-ish bars by up to (4/pi) sinc(f). The 3rd harmonic, fitted at its alias
+    |3f - 1|, brings the reading back to the truth."""
+    with_third = _sinefit_errors(f, 40)
+    monkeypatch.setattr(estimators, "ALIASED_THIRD_MIN_SEPARATION", math.inf)
+    fundamental_only = _sinefit_errors(f, 40)
+    assert np.mean(fundamental_only) > 0.002  # the over-read being fixed
+    assert np.mean(np.abs(with_third)) < 0.5 * np.mean(np.abs(fundamental_only))
+    assert np.max(np.abs(with_third)) < 0.005
+
+
+@pytest.mark.parametrize(
+    ("f", "n"),
+    [
+        (0.2, 40),  # two harmonics fit below Nyquist: the 2nd absorbs the aliased 3rd
+        (0.25, 40),  # alias |3f - 1| = f: indistinguishable from the fundamental
+        (0.252, 40),  # alias 0.32 / n from f
+        (0.32, 12),  # alias 0.04 = 0.48 / n from 0 (mean and shading)
+        (0.33, 40),  # above 1/3 - 0.01
+    ],
+)
+def test_sinefit_aliased_third_harmonic_guard_leaves_fit_unchanged(
+    f: float, n: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert estimators._harmonic_orders(f, n, estimators._harmonics(f)).size <= 2
+    if estimators._harmonics(f) == 1:
+        assert list(estimators._harmonic_orders(f, n, 1)) == [1.0]
+    roi, _ = bar_roi(41, shape=(20, n), px_per_period=1 / f, psf_sigma_px=0.3, noise_sigma=1.0)
+    kwargs = {"estimator": "sinefit", "freq_cycles_per_px": f, "orientation": "horizontal"}
+    before = estimate_modulation(roi, **kwargs)  # type: ignore[arg-type]
+    monkeypatch.setattr(estimators, "ALIASED_THIRD_MIN_SEPARATION", math.inf)
+    after = estimate_modulation(roi, **kwargs)  # type: ignore[arg-type]
+    assert (before.modulation, before.dark, before.bright) == (
+        after.modulation,
+        after.dark,
+        after.bright,
+    )
+
+
+def test_harmonic_orders_adds_the_aliased_third_only_where_it_is_separable() -> None:
+    assert list(estimators._harmonic_orders(0.27, 40, 1)) == [1.0, 3.0]
+    assert list(estimators._harmonic_orders(0.27, 10, 1)) == [1.0, 3.0]  # 0.76 / n from f
+    assert list(estimators._harmonic_orders(0.27, 7, 1)) == [1.0]  # too few samples
+    assert list(estimators._harmonic_orders(0.25, 40, 1)) == [1.0]
+    assert list(estimators._harmonic_orders(0.1, 40, 4)) == [1.0, 2.0, 3.0, 4.0]

@@ -87,14 +87,13 @@ def test_forward_view_against_truth(full_run: RunOutcome) -> None:
             if f_px >= 0.35:  # G2E2-G2E4: flagged phase-sensitive
                 assert "near Nyquist" in warnings
             errors[f"{name}{orient[0].upper()}"] = measured - truth
-    # The ROIs are the bar sets without the pixels straddling the bar ends (7-10 px square). What
-    # is left: the sine fit's fundamental-only reading at 1/6-1/3 cycles/px (the third harmonic
-    # is above Nyquist), which over-reads G1E5 S by ~0.06, then noise and sampling phase.
+    # The ROIs are the bar sets without the pixels straddling the bar ends (7-10 px square).
+    # G1E5 / G1E6 (0.27-0.30 cycles/px) would be over-read by a fundamental-only fit (the 3rd
+    # harmonic is above Nyquist; G1E5 S by ~0.06): the sine fit adds it at its alias. What is
+    # left is noise and sampling phase (all within 0.03 on this run).
     assert len(errors) == 12
-    assert all(abs(err) <= 0.07 for err in errors.values()), errors
-    assert sum(abs(err) for err in errors.values()) / len(errors) < 0.03, errors
-    fine = {k: v for k, v in errors.items() if not k.startswith("G1E5")}
-    assert all(abs(err) <= 0.05 for err in fine.values()), errors
+    assert all(abs(err) <= 0.05 for err in errors.values()), errors
+    assert sum(abs(err) for err in errors.values()) / len(errors) < 0.02, errors
     assert [r["aliased"] for r in rows.values()] == [False] * 6 + [True] * 3
 
 

@@ -6,7 +6,10 @@
   averaged along the bars), with a linear shading term. Harmonics are fitted up to Nyquist and
   kept only when significant; the Eq. 2.9 modulation is read from the fitted waveform's
   maximum and minimum, and the fundamental alone gives ``fundamental_modulation``
-  (Sitter et al., Appl. Opt. 34(4):746, 1995; measurement-notes 3.4).
+  (Sitter et al., Appl. Opt. 34(4):746, 1995; measurement-notes 3.4). Between ~0.225 and 1/3
+  cycles/px only the fundamental fits below Nyquist, and for square-ish bars it alone
+  over-reads the contrast by up to (4/pi) sinc(f); there the 3rd harmonic is fitted at its
+  alias |3f - 1| (see :func:`_harmonic_orders`).
 - ``variance`` - variance minus noise (Droege & Morin, Med. Phys. 1982), over a whole number of
   bar periods when the frequency is known: the signal variance ``var(ROI - shading along the
   bars) - sigma_noise^2`` times a crest factor gives the half peak-to-valley amplitude. The
@@ -45,6 +48,16 @@ SHARP_HARMONIC_RATIO = 0.25
 HARMONIC_Z = 3.0
 #: Highest harmonic fitted.
 MAX_HARMONIC = 15
+#: The aliased 3rd harmonic is fitted only below this frequency (cycles/px): towards 1/3 its
+#: alias |3f - 1| runs into the mean and the shading term.
+ALIASED_THIRD_MAX_F = 1.0 / 3.0 - 0.01
+#: ... and only when its alias is at least this many Rayleigh steps (1/n cycles/px, n = profile
+#: length) from the fundamental and from 0 (at f = 1/4 the alias *is* the fundamental; near 0
+#: it is the mean and shading). 0.7 rather than 1: the forward-view USAF elements G1E5 / G1E6
+#: (7-10 px ROIs) sit at 0.72-0.74 steps; on blurred to pixel-sharp synthetic bars at
+#: 0.226-0.323 cycles/px, 7-24 px, 0.7 cuts the RMSE from 0.039 to 0.033 (1.0: 0.035) and
+#: 0.5 starts to mistake noise for the harmonic near 0 (one error grew by 0.10).
+ALIASED_THIRD_MIN_SEPARATION = 0.7
 #: Significance of the signal variance for the variance estimator.
 VARIANCE_Z = 5.0
 
@@ -75,11 +88,12 @@ def _find_frequency(profile: npt.NDArray[np.float64]) -> float | None:
     return float(freqs[ok][int(np.argmax(spec[ok]))])
 
 
-def _design(n: int, f: float, k_max: int) -> npt.NDArray[np.float64]:
-    """Columns: mean, linear shading, then cos/sin of harmonics 1..k_max at ``f`` cycles/px."""
+def _design(n: int, f: float, orders: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Columns: mean, linear shading, then cos/sin of the harmonics ``orders`` of ``f``
+    cycles/px (a harmonic above Nyquist is, at whole pixels, identical to its alias)."""
     x = np.arange(n, dtype=np.float64)
-    arg = 2 * np.pi * f * np.outer(x, np.arange(1, k_max + 1))
-    design = np.empty((n, 2 + 2 * k_max))
+    arg = 2 * np.pi * f * np.outer(x, orders)
+    design = np.empty((n, 2 + 2 * orders.size))
     design[:, 0] = 1.0
     design[:, 1] = (x - x.mean()) / n
     design[:, 2::2] = np.cos(arg)
@@ -90,6 +104,46 @@ def _design(n: int, f: float, k_max: int) -> npt.NDArray[np.float64]:
 def _harmonics(f: float) -> int:
     """Harmonics fitted at ``f``: those at least ``NYQUIST_MARGIN`` below Nyquist (>= 1)."""
     return max(1, min(MAX_HARMONIC, int((NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
+
+
+def _harmonic_orders(f: float, n: int, k_max: int) -> npt.NDArray[np.float64]:
+    """Harmonic numbers fitted at ``f`` cycles/px on an ``n``-sample profile.
+
+    Parameters
+    ----------
+    f : float
+        Refined bar frequency (cycles/px), below Nyquist.
+    n : int
+        Profile length (samples across the bars).
+    k_max : int
+        Harmonics ``1..k_max`` that fit below Nyquist (:func:`_harmonics`, already reduced so
+        the fit keeps at least two degrees of freedom).
+
+    Returns
+    -------
+    ndarray
+        ``1..k_max``; or ``[1, 3]`` when only the fundamental fits (``k_max == 1``) and
+        ``f < ALIASED_THIRD_MAX_F``, the alias ``a = |3f - 1|`` of the 3rd harmonic lies at
+        least ``ALIASED_THIRD_MIN_SEPARATION / n`` from ``f`` and from 0, and the profile
+        still leaves two degrees of freedom with two more columns.
+
+    Notes
+    -----
+    Sampled at whole pixels, ``cos(2 pi 3f x) = cos(2 pi (3f - 1) x)``: the 3rd harmonic is
+    in the samples, at its alias. Fitting the fundamental alone there (about 0.225-1/3
+    cycles/px) over-reads square-ish bars by up to ``(4/pi) sinc(f)`` (~1.1 at 0.27 c/px), with
+    a fitted dark level below every sample. With the 3rd harmonic the waveform reaches the
+    plateaus, and the sharp-bar check holds it to the profile's extremes. Near ``f = 1/4`` the
+    alias coincides with the fundamental and near 1/3 with the mean / shading, so it cannot be
+    told apart there and the fit stays fundamental-only. (At ``k_max == 2``, 1/6-0.225
+    cycles/px, the alias of the 3rd is already close to the 2nd harmonic, which absorbs it.)
+    """
+    if k_max == 1 and f < ALIASED_THIRD_MAX_F and n - 6 >= 2:
+        alias = abs(3.0 * f - 1.0)
+        sep = ALIASED_THIRD_MIN_SEPARATION / n
+        if abs(alias - f) >= sep and alias >= sep:
+            return np.array([1.0, 3.0])
+    return np.arange(1, k_max + 1, dtype=np.float64)
 
 
 def _rss_batch(
@@ -140,8 +194,26 @@ def _refine_frequency(profile: npt.NDArray[np.float64], f0: float, span: float) 
 def sine_fit(prep: PreparedROI) -> ModulationResult:
     """Least-squares harmonic fit at the bar frequency; see the module docstring.
 
-    Needs at least one bar period in the ROI and a frequency below Nyquist after aliasing;
-    otherwise "not resolved" with the reason in ``warnings``.
+    Parameters
+    ----------
+    prep : PreparedROI
+        The prepared ROI (:func:`benchlab.analysis.roi.prepare_roi`).
+
+    Returns
+    -------
+    ModulationResult
+        Needs at least one bar period in the ROI and a frequency below Nyquist after aliasing;
+        otherwise "not resolved" with the reason in ``warnings``.
+
+    Notes
+    -----
+    Harmonics ``1..k`` at least ``NYQUIST_MARGIN`` below Nyquist are fitted. Where that is the
+    fundamental alone (about 0.225 to 1/3 - 0.01 cycles/px) the 3rd harmonic is also fitted,
+    at its alias ``|3f - 1|`` (identical at whole pixels), provided the alias is at least
+    ``ALIASED_THIRD_MIN_SEPARATION / n`` cycles/px from ``f`` and from 0: without it a
+    square-ish bar profile reads ~(4/pi) sinc(f) too high (fitted dark level below every
+    sample). A significant aliased 3rd marks the bars as sharp, so the levels are held to the
+    profile's extremes. See :func:`_harmonic_orders`.
     """
     name = "sinefit"
     warnings = list(prep.warnings)
@@ -167,7 +239,9 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
     k_max = _harmonics(f)
     while k_max > 1 and n - (2 + 2 * k_max) < 2:
         k_max -= 1
-    design = _design(n, f, k_max)
+    orders = _harmonic_orders(f, n, k_max)
+    aliased_third = orders.size > k_max
+    design = _design(n, f, orders)
     coef, _, rank, _ = np.linalg.lstsq(design, profile, rcond=1e-2)
     dof = n - rank
     resid = profile - design @ coef
@@ -203,16 +277,17 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
     # A sharp square wave has harmonics A_k ~ A_1 / k; blur makes them fall much faster.
     # With only two harmonics below Nyquist a significant second one is the third aliased back
     # (even harmonics vanish at 50 % duty), so any significant one counts.
-    top = [k for k in range(max(1, k_max - 2), k_max) if keep[k]]  # last two, 0-based
-    sharp = any((k + 1) * amps[k] >= SHARP_HARMONIC_RATIO * amps[0] for k in top) or (
-        k_max == 2 and bool(top)
+    # The aliased 3rd harmonic (k_max == 1, see _harmonic_orders) is read the same way.
+    top = [k for k in range(max(1, orders.size - 2), orders.size) if keep[k]]  # last two, 0-based
+    sharp = any(orders[k] * amps[k] >= SHARP_HARMONIC_RATIO * amps[0] for k in top) or (
+        (k_max == 2 or aliased_third) and bool(top)
     )
     if sharp and k_max >= LANCZOS_MIN_HARMONICS:
         # The series is cut while its last harmonics still carry signal (sharp bars): Lanczos
         # sigma factors remove most of the Gibbs overshoot that would read as extra contrast.
         weights = np.sinc((kept + 1.0) / (k_max + 1.0))
         warnings.append("sharp bars: harmonic series truncated at Nyquist (Lanczos-smoothed)")
-    arg = np.outer(phase, kept + 1.0)
+    arg = np.outer(phase, orders[kept])
     wave = (
         mean
         + np.cos(arg) @ (weights * coef[2 + 2 * kept])
