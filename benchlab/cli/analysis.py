@@ -52,9 +52,10 @@ def read_image(path: Path) -> npt.NDArray[Any]:
         else:
             import cv2
 
-            pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-            if pixels is None:
+            decoded = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+            if decoded is None:
                 raise ValueError("OpenCV could not decode it")
+            pixels = decoded
     except Exception as exc:  # readers raise many types for corrupt files
         raise AnalysisInputError(f"{path}: not a readable image ({exc})") from exc
     pixels = np.asarray(pixels)
