@@ -26,8 +26,8 @@ from matplotlib.patches import Rectangle  # noqa: E402
 from benchlab.analysis.frequency import nyquist_lp_per_mm  # noqa: E402
 from benchlab.drivers.errors import BenchlabError  # noqa: E402
 from benchlab.report_curves import load_curves  # noqa: E402
-from benchlab.report_tables import TABLE_VIEWS, html_table, read_results  # noqa: E402
-from benchlab.session import Session  # noqa: E402
+from benchlab.report_tables import TABLE_VIEWS, html_table  # noqa: E402
+from benchlab.session import Session, read_results  # noqa: E402
 
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}

@@ -6,7 +6,6 @@ import html
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 Column = tuple[str, str, str]  # (key, header, format: "", ".3f", ...)
@@ -94,17 +93,3 @@ def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> 
         for r in rows
     )
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def read_results(folder: str | Path) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
-    """Tables (``name -> rows``) and ``summary.json`` of one ``results/vN`` folder."""
-    path = Path(folder)
-    tables: dict[str, list[dict[str, Any]]] = {}
-    summary: dict[str, Any] = {}
-    for p in sorted(path.glob("*.json")):
-        data = json.loads(p.read_text(encoding="utf-8"))
-        if p.stem == "summary":
-            summary = data
-        else:
-            tables[p.stem] = data
-    return tables, summary

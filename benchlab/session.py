@@ -484,6 +484,25 @@ class Session:
         return target
 
 
+def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``name -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+
+    Raises :class:`SessionError` naming the file when a JSON file is unreadable.
+    """
+    tables: dict[str, Any] = {}
+    summary: dict[str, Any] = {}
+    for p in sorted(Path(folder).glob("*.json")):
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise SessionError(f"{p}: unreadable results file ({exc})") from exc
+        if p.stem == "summary":
+            summary = data
+        else:
+            tables[p.stem] = data
+    return tables, summary
+
+
 def _csv_text(rows: list[dict[str, Any]]) -> str:
     columns: list[str] = []
     for row in rows:

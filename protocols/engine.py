@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 
+from benchlab.session import read_results
 from benchlab.storage import load_frame_tiff
 
 StepKind = Literal["setup", "manual", "focus", "acquire", "analysis"]
@@ -240,7 +241,7 @@ class Runner:
             self.bench.safe_state()
         results = self.session.latest_results()
         self.session.finish()
-        tables, summary = _read_results(results)
+        tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),
             tables=tables, summary=summary, duration_s=time.perf_counter() - t0,
@@ -292,22 +293,6 @@ class Runner:
             ctx.ask(f"Resuming: check the set-up is still as at '{last_manual.title}': "
                     f"{last_manual.prompt}")
         self.session.log_event("resumed", completed=sorted(done))
-
-
-def _read_results(results_dir: Path | str) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Tables (``name -> rows``) and the summary of one ``results/vN`` folder."""
-    import json
-
-    folder = Path(results_dir)
-    tables: dict[str, Any] = {}
-    summary: dict[str, Any] = {}
-    for p in sorted(folder.glob("*.json")):
-        data = json.loads(p.read_text(encoding="utf-8"))
-        if p.stem == "summary":
-            summary = data
-        else:
-            tables[p.stem] = data
-    return tables, summary
 
 
 def frames_of(session: Any, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:

@@ -163,7 +163,7 @@ def resume_command(args: argparse.Namespace) -> int:
 def analyze_session_command(args: argparse.Namespace) -> int:
     """Re-analyse a session folder (``args.target``) into a new results version."""
     from benchlab.protocols.runs import reanalyze
-    from benchlab.report_tables import read_results
+    from benchlab.session import read_results
 
     target = next(
         (getattr(args, a) for a in ("target", "session", "image", "path")
