@@ -30,6 +30,7 @@ from benchlab.analysis.result import (
     NYQUIST_CYCLES_PER_PX,
     ModulationResult,
     eq29_modulation,
+    resolved,
     unresolved,
 )
 from benchlab.analysis.roi import PreparedROI, prepare_roi
@@ -308,18 +309,7 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
         warnings.append("fitted dark level below zero: modulation clipped to 1")
         modulation = 1.0
     sd = math.sqrt(int(keep.sum())) * se_amp / mean
-    return ModulationResult(
-        estimator=name,
-        dark=dark,
-        bright=bright,
-        modulation=float(modulation),
-        resolved=True,
-        diagnostics=diag,
-        uncertainty=sd,
-        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
-        fundamental_modulation=fundamental,
-        warnings=tuple(warnings),
-    )
+    return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 
 
 def _crest_table() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
@@ -416,17 +406,7 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
         warnings.append("estimated dark level below zero: modulation clipped to 1")
         modulation = 1.0
     sd = crest / mean * (se + noise2 * math.sqrt(2.0 / n)) / (2.0 * math.sqrt(signal2))
-    return ModulationResult(
-        estimator=name,
-        dark=dark,
-        bright=bright,
-        modulation=float(modulation),
-        resolved=True,
-        diagnostics=diag,
-        uncertainty=sd,
-        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
-        warnings=tuple(warnings),
-    )
+    return resolved(name, dark, bright, modulation, diag, sd, warnings)
 
 
 PreparedEstimator = Callable[[PreparedROI], ModulationResult]

@@ -27,7 +27,7 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.result import ModulationResult, eq29_modulation, unresolved
+from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
 NAME = "histogram"
@@ -318,17 +318,7 @@ def _read(
     dm_dd = -2.0 * x_bright / total**2
     dm_db = 2.0 * x_dark / total**2
     sd = math.hypot(dm_dd * sd_levels[0], dm_db * sd_levels[1])
-    result = ModulationResult(
-        estimator=NAME,
-        dark=x_dark,
-        bright=x_bright,
-        modulation=float(modulation),
-        resolved=True,
-        diagnostics=diag,
-        uncertainty=sd,
-        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
-        warnings=tuple(warnings),
-    )
+    result = resolved(NAME, x_dark, x_bright, modulation, diag, sd, warnings)
     return result, False
 
 

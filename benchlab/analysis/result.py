@@ -198,3 +198,28 @@ def unresolved(
         interval=(0.0, 0.0),
         warnings=tuple(warnings),
     )
+
+
+def resolved(
+    estimator: str,
+    dark: float,
+    bright: float,
+    modulation: float,
+    diagnostics: Diagnostics,
+    sd: float,
+    warnings: tuple[str, ...] | list[str] = (),
+    fundamental_modulation: float | None = None,
+) -> ModulationResult:
+    """A resolved reading with a 1-sigma uncertainty ``sd`` and its 95 % interval in [0, 1]."""
+    return ModulationResult(
+        estimator=estimator,
+        dark=dark,
+        bright=bright,
+        modulation=float(modulation),
+        resolved=True,
+        diagnostics=diagnostics,
+        uncertainty=sd,
+        interval=(max(0.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
+        fundamental_modulation=fundamental_modulation,
+        warnings=tuple(warnings),
+    )
