@@ -14,15 +14,12 @@ interrupted (timeout, Ctrl-C) and at interpreter exit.
 
 from __future__ import annotations
 
-import atexit
 import collections
 import math
 import threading
 import time
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import TracebackType
 
 import serial
 
@@ -61,6 +58,7 @@ from benchlab.drivers.errors import (
     SafetyLimitError,
     SettingOutOfRangeError,
 )
+from benchlab.drivers.safety import SafeInstrument
 
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 115200
@@ -141,8 +139,10 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     raise AptNoReplyError(f"stage: no HW_GET_INFO reply from {port} within {timeout_s:g} s")
 
 
-class AptStage:
+class AptStage(SafeInstrument):
     """One single-axis APT stage on a serial port; positions in mm, limits from configuration."""
+
+    SAFE_ACTION = "stopping the stage"
 
     def __init__(
         self,
@@ -188,7 +188,6 @@ class AptStage:
         self._vel = VelocityParams(2.0, 1.5)
         self._move_seq: int | None = None  # seq before the outstanding move/home was sent
         self._move_target_mm: float | None = None
-        self._atexit_cb: Callable[[], None] | None = None
         self.device_errors: list[Message] = []  # HW_RESPONSE / HW_RICHRESPONSE seen
 
     # ---- lifecycle --------------------------------------------------------------------------
@@ -220,15 +219,7 @@ class AptStage:
                 self._send(short(Msg.HW_START_UPDATEMSGS))
                 self._updates_started = True
             self.status  # noqa: B018 - reads homed state into the cache
-            ref = weakref.ref(self)
-
-            def at_exit() -> None:
-                obj = ref()
-                if obj is not None:
-                    obj._safe_close()
-
-            self._atexit_cb = at_exit
-            atexit.register(at_exit)
+            self._register_atexit()
         except BaseException:
             self._shutdown_port()
             raise
@@ -245,33 +236,14 @@ class AptStage:
                 self._updates_started = False
                 self._send(short(Msg.HW_DISCONNECT))
         finally:
-            if self._atexit_cb is not None:
-                atexit.unregister(self._atexit_cb)
-                self._atexit_cb = None
+            self._unregister_atexit()
             self._shutdown_port()
         if self._lost is not None:
             raise DeviceLostError(f"stage: connection lost ({self._lost}); it could not be stopped")
 
-    def __enter__(self) -> AptStage:
-        return self.open() if self._ser is None else self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc is None:
-            self.close()
-            return
-        try:
-            self.close()
-        except DeviceError as stop_exc:  # keep the original error, note the failed stop
-            exc.add_note(f"stopping the stage also failed: {stop_exc}")
-
-    def _safe_close(self) -> None:
-        try:
-            self.close()
-        except DeviceError:
-            pass
+    @property
+    def is_open(self) -> bool:
+        return self._ser is not None
 
     def _shutdown_port(self) -> None:
         self._closing.set()

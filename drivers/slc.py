@@ -12,16 +12,14 @@ SLC off, so this driver never relies on it.
 
 from __future__ import annotations
 
-import atexit
 import math
 import re
 import signal
 import threading
-import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
-from types import FrameType, TracebackType
+from types import FrameType
 
 import serial
 
@@ -37,6 +35,7 @@ from benchlab.drivers.errors import (
     SafetyLimitError,
     SettingOutOfRangeError,
 )
+from benchlab.drivers.safety import SafeInstrument
 
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 9600
@@ -128,8 +127,10 @@ def parse_current_reply(command: str, payload: str) -> tuple[int, int]:
     return imax, iset
 
 
-class SlcController:
+class SlcController(SafeInstrument):
     """One SLC controller on a serial port. Channels are 1-based, as on the wire."""
+
+    SAFE_ACTION = "switching the LEDs off"
 
     def __init__(
         self, port: str, *, ceilings_ma: Mapping[int, float], timeout_s: float = 1.0
@@ -150,7 +151,6 @@ class SlcController:
         self._off_pending = False
         self._prev_sigint: object = None
         self._sigint_installed = False
-        self._atexit_cb: object = None
 
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
@@ -182,21 +182,6 @@ class SlcController:
         finally:
             self._remove_safety_hooks()
             self._close_port()
-
-    def __enter__(self) -> SlcController:
-        return self.open() if self._ser is None else self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc is None:
-            self.close()
-            return
-        try:
-            self.close()
-        except DeviceError as off_exc:  # keep the original error; record that off failed too
-            exc.add_note(f"switching the LEDs off also failed: {off_exc}")
 
     @property
     def is_open(self) -> bool:
@@ -422,27 +407,14 @@ class SlcController:
 
     # ---- Ctrl-C and interpreter exit -------------------------------------------------------
     def _install_safety_hooks(self) -> None:
-        ref = weakref.ref(self)
-
-        def at_exit() -> None:
-            obj = ref()
-            if obj is not None and obj._ser is not None:
-                try:
-                    obj.close()
-                except DeviceError:
-                    pass
-
-        self._atexit_cb = at_exit
-        atexit.register(at_exit)
+        self._register_atexit()
         if threading.current_thread() is threading.main_thread():
             self._prev_sigint = signal.getsignal(signal.SIGINT)
             signal.signal(signal.SIGINT, self._on_sigint)
             self._sigint_installed = True
 
     def _remove_safety_hooks(self) -> None:
-        if self._atexit_cb is not None:
-            atexit.unregister(self._atexit_cb)  # type: ignore[arg-type]
-            self._atexit_cb = None
+        self._unregister_atexit()
         if self._sigint_installed and threading.current_thread() is threading.main_thread():
             if signal.getsignal(signal.SIGINT) == self._on_sigint:
                 signal.signal(signal.SIGINT, self._prev_sigint)  # type: ignore[arg-type]
