@@ -7,9 +7,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from textual.pilot import Pilot
+from textual.widgets import Static
 
 from benchlab.tui.app import BenchlabApp
-from benchlab.tui.dialogs import PromptDialog
+from benchlab.tui.dialogs import ErrorDialog, PromptDialog
 
 MTF_PARAMS = """\
 procedure = "mtf"
@@ -65,5 +66,13 @@ async def wait_until(
 
 
 async def connected(pilot: Pilot[None]) -> None:
+    """Wait for the simulated bench; fail at once, with its text, if connecting failed."""
     app = pilot.app
-    await wait_until(pilot, lambda: app.bench is not None, what="bench connected")  # type: ignore[attr-defined]
+
+    def ready() -> bool:
+        if isinstance(app.screen, ErrorDialog):
+            text = app.screen.query_one("#error-text", Static).render()
+            raise AssertionError(f"the bench did not connect: {text}")
+        return app.bench is not None  # type: ignore[attr-defined]
+
+    await wait_until(pilot, ready, what="bench connected")
