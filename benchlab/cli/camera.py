@@ -95,12 +95,37 @@ def _cmd_devices(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- snap
 
 
+#: Scenes ``snap --simulate`` can show: the two simple ones, or a target of the simulated bench.
+SNAP_SCENES_HELP = (
+    "bars (32 px period test target), flat, or a bench target: usaf, led, dark, "
+    "radial:LP_PER_MM:sagittal|tangential (e.g. radial:4:sagittal)"
+)
+
+
+def simulated_snap_scene(name: str) -> Any:
+    """The scene for ``snap --simulate --scene NAME``; a clear error names a bad NAME."""
+    if name == "bars":
+        return bar_target_scene()
+    if name == "flat":
+        return flat_field_scene()
+    from benchlab.scenes.world import SimWorld  # the bench scenes are only needed here
+
+    try:
+        # An LED with no stage sits at 20 mm and no controller: light it as the procedure does.
+        world = SimWorld(name, led_position_mm=20.0)
+    except ValueError as exc:
+        raise BenchlabError(f"--scene {name}: {exc}; choose {SNAP_SCENES_HELP}") from exc
+    return lambda state: world(
+        type(state)(**{**state.__dict__, "bench": {"led_current_ma": 20.0, **state.bench}})
+    )
+
+
 def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: str | None = None,
-         pid: int | None = None, simulate: bool = False) -> dict[str, Any]:
+         pid: int | None = None, simulate: bool = False, scene: str = "bars") -> dict[str, Any]:
     """Grab one frame and save it as lossless TIFF with its metadata; returns the metadata."""
     if out.exists():
         raise BenchlabError(f"{out} already exists; frames are never overwritten")
-    backend = _sim_backend(pid, bar_target_scene()) if simulate else None
+    backend = _sim_backend(pid, simulated_snap_scene(scene)) if simulate else None
     with MightexCamera.open(serial, backend=backend, pid=pid) as cam:
         cam.configure(bits=bits)
         cam.set_exposure_ms(exposure_ms)
@@ -124,7 +149,7 @@ def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: s
 
 def _cmd_snap(args: argparse.Namespace) -> int:
     meta = snap(Path(args.out), exposure_ms=args.exposure_ms, gain=args.gain, bits=args.bits,
-                serial=args.serial, pid=args.pid, simulate=args.simulate)
+                serial=args.serial, pid=args.pid, simulate=args.simulate, scene=args.scene)
     cam = meta["camera"]
     print(f"saved {args.out}: {meta['width']}x{meta['height']} {meta['bits']}-bit, exposure "
           f"{meta['exposure_ms']:g} ms, gain {meta['gain']:g}x, {cam['model']} {cam['serial']} "
@@ -215,7 +240,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                     "(frame settings, camera model/serial/firmware, benchlab version).")
     snap_p.add_argument("out", metavar="OUT.tiff", help="output file (never overwritten)")
     snap_p.add_argument("--simulate", action="store_true",
-                        help="use the simulated camera (bar target)")
+                        help="use the simulated camera (see --scene)")
+    snap_p.add_argument("--scene", default="bars",
+                        help=f"what the simulated camera sees: {SNAP_SCENES_HELP}")
     snap_p.add_argument("--exposure-ms", type=float, required=True,
                         help="exposure in ms (0.05 ms steps)")
     snap_p.add_argument("--gain", type=float, required=True,
