@@ -18,6 +18,7 @@ import select
 import threading
 import time
 import tty
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 Clock = Callable[[], float]
@@ -54,7 +55,7 @@ class ScaledClock:
         return (time.monotonic() - self._t0) * self.time_scale
 
 
-class PtyDevice:
+class PtyDevice(ABC):
     """Base class: serve a byte protocol on a pseudo-terminal from a background thread."""
 
     poll_interval_s = 0.005  # tick period and read-poll granularity (wall time)
@@ -169,8 +170,9 @@ class PtyDevice:
                 self.on_tick(self.clock())
 
     # ---- subclass hooks -------------------------------------------------------------------
-    def on_bytes(self, data: bytes) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def on_bytes(self, data: bytes) -> None:
+        """Handle bytes the host wrote (each simulator parses its own protocol here)."""
 
-    def on_tick(self, now_s: float) -> None:
+    def on_tick(self, now_s: float) -> None:  # noqa: B027 - optional hook, no-op by default
         """Called every poll interval with the simulated time in seconds."""
