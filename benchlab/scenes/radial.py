@@ -34,6 +34,7 @@ from benchlab.analysis.frequency import (
     image_frequency_lp_per_mm,
     px_per_period,
 )
+from benchlab.analysis.result import eq29_modulation
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import (
     PIXEL_APERTURE_VAR_PX2,
@@ -169,7 +170,7 @@ class RadialScene:
         """Eq. 2.9 modulation of the noise-free imaged pattern at ``point_rc`` (default the
         reference point, i.e. the radial ROI centroid)."""
         dark, bright = self.truth_levels(point_rc)
-        return (bright - dark) / (bright + dark)
+        return eq29_modulation(dark, bright)
 
     def __call__(self, state: AcquisitionState) -> FloatArray:
         """Electron-rate image (e-/ms) for the camera simulator (a fresh copy each call)."""
@@ -199,7 +200,7 @@ def radial_truth_table(
                     "px_per_period": scene.px_per_period,
                     "dark_dn8": dark,
                     "bright_dn8": bright,
-                    "modulation": (bright - dark) / (bright + dark),
+                    "modulation": eq29_modulation(dark, bright),
                 }
             )
     return rows

@@ -19,6 +19,7 @@ import numpy.typing as npt
 from scipy.special import ndtr
 
 from benchlab.analysis.chart import BarGroup, ChartLayout, Orientation, RadialLayout, usaf_bar_group
+from benchlab.analysis.result import eq29_modulation
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
 
@@ -145,7 +146,7 @@ class UsafScene:
     def truth_modulation(self, group: int, element: int, orientation: Orientation) -> float:
         """Eq. 2.9 modulation ``(bright - dark) / (bright + dark)`` of the noise-free imaged set."""
         dark, bright = self.truth_levels(group, element, orientation)
-        return (bright - dark) / (bright + dark)
+        return eq29_modulation(dark, bright)
 
     def truth_table(self) -> list[dict[str, object]]:
         """Noise-free truth of every bar set on the chart (Table 4.11 layout), coarse to fine."""
@@ -165,7 +166,7 @@ class UsafScene:
                         "box": bars.box,
                         "dark_dn8": dark,
                         "bright_dn8": bright,
-                        "modulation": (bright - dark) / (bright + dark),
+                        "modulation": eq29_modulation(dark, bright),
                     }
                 )
         return rows
