@@ -17,7 +17,7 @@ from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from scipy import ndimage
 
 from benchlab.analysis import chart
-from benchlab.analysis.estimators import DEFAULT_ESTIMATOR, estimate_modulation
+from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
     cycles_per_px,
     image_frequency_lp_per_mm,
@@ -40,11 +40,9 @@ RADIAL_FRAME = "radial"
 ORIENTATIONS = ("sagittal", "tangential")
 #: Probability columns of the Monte Carlo table (Table 4.15): P(averaged MTF > value).
 MC_LEVELS = ("p90", "p80", "p50", "p20", "p10")
-#: "auto": per view. Forward bars are horizontal or vertical, where the fit-based library
-#: default is the most accurate on these small ROIs; radial bars run obliquely through the
-#: common ROI, which only the orientation-free histogram-peak estimator handles.
-AUTO = "auto"
-RADIAL_AUTO_ESTIMATOR = "histogram"
+#: "auto" is the library's one default (:data:`benchlab.analysis.estimators.DEFAULT_ESTIMATOR`)
+#: in both views: it measures the bar direction itself, so the oblique spokes and rings of the
+#: radial view need no other estimator.
 #: A measured frequency is compared with a Monte Carlo row within this relative distance (the
 #: thesis paired 73.2 with 70, 35 with 30 and 52.5 with 60 lp/mm: at most 17 % apart).
 MC_MATCH_FRACTION = 0.2
@@ -141,7 +139,7 @@ def analyze_forward_frame(
     pixels: npt.NDArray[Any], params: MtfParams, estimator: str | None
 ) -> list[dict[str, Any]]:
     """One row per element and orientation (what a UI shows while the run goes on)."""
-    est = DEFAULT_ESTIMATOR if estimator in (None, "", AUTO) else estimator
+    est = resolve_estimator(estimator)
     offset = locate_chart(pixels, params)
     rows = []
     for el in params.forward_elements:
@@ -162,7 +160,7 @@ def analyze_radial_frame(
     estimator: str | None,
 ) -> dict[str, Any]:
     """Modulation of one radial frame in the common radial ROI."""
-    est = RADIAL_AUTO_ESTIMATOR if estimator in (None, "", AUTO) else estimator
+    est = resolve_estimator(estimator)
     f_img = image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
     res = _measure(pixels, params.radial_roi, estimator=est, freq_lp_per_mm=f_img,
                    orientation=None)
@@ -260,8 +258,8 @@ def analyze_mtf(
     summary = {
         "procedure": "mtf",
         "estimator": est,
-        "forward_estimator": DEFAULT_ESTIMATOR if est == AUTO else est,
-        "radial_estimator": RADIAL_AUTO_ESTIMATOR if est == AUTO else est,
+        "forward_estimator": resolve_estimator(est),
+        "radial_estimator": resolve_estimator(est),
         "image_centre_rc": list(centre),
         "image_centre_method": centre_method,
         "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.histogram import histogram_peak, manual_peaks
-from benchlab.analysis.profilefit import profile_fit
+from benchlab.analysis.profilefit import _model_sd, profile_fit
 from benchlab.analysis.result import (
     NYQUIST_CYCLES_PER_PX,
     ModulationResult,
@@ -418,9 +418,42 @@ def _aliased(name: str, prep: PreparedROI) -> ModulationResult:
 
 
 PreparedEstimator = Callable[[PreparedROI], ModulationResult]
+#: Largest gap (cycles) between the bar phases of the lines across axis-aligned bars above which
+#: the square-wave model is underdetermined (a few clusters of phases, e.g. 8 lines at 2.95 px
+#: per period) and the harmonic series at the given frequency is fitted instead.
+MAX_PHASE_GAP = 0.2
+
+
+def _phase_gap(prep: PreparedROI) -> float:
+    """Largest gap between the phases of the lines across the bars (given orientation and
+    frequency; 1 when unknown)."""
+    f = prep.freq_cycles_per_px
+    if not f or not prep.orientation_given:
+        return 1.0
+    n = prep.pixels.shape[prep.axis]
+    phases = np.sort(np.mod(f * np.arange(n), 1.0))
+    return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
+
+
+def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
+    """``profilefit``; on axis-aligned bars sampled at only a few clusters of phases (tiny ROIs
+    near Nyquist) the harmonic series of ``sinefit`` at the given frequency, relabelled, with
+    the same model and sampling-phase term in its uncertainty."""
+    name = "profilefit-fast" if fast else "profilefit"
+    if _phase_gap(prep) > MAX_PHASE_GAP and prep.pixels.size < 100:
+        r = sine_fit(prep)
+        warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
+        if not r.resolved:
+            return r.with_updates(estimator=name, warnings=warns)
+        sd = math.hypot(r.uncertainty, _model_sd(r.modulation, _phase_gap(prep), 8))
+        return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
+                        r.diagnostics, sd, warns, r.fundamental_modulation)
+    return profile_fit(prep, fast)
+
+
 _PREPARED: dict[str, PreparedEstimator] = {
-    "profilefit": profile_fit,
-    "profilefit-fast": lambda prep: profile_fit(prep, fast=True),
+    "profilefit": _profilefit,
+    "profilefit-fast": lambda prep: _profilefit(prep, fast=True),
     "histogram": histogram_peak,
     "sinefit": sine_fit,
     "variance": variance_minus_noise,

@@ -38,6 +38,7 @@ from benchlab.analysis.bargeometry import (
     frequency_disagreement,
     measure_geometry,
     phase_map,
+    refine_by_folding,
 )
 from benchlab.analysis.projection import across_coordinate, bin_profile
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
@@ -63,6 +64,12 @@ SHADING_PRIOR = 0.5
 #: Relative model uncertainty of the contrast (PSF shape, duty and shading not exactly as
 #: modelled), calibrated on ``benchlab benchmark analysis``.
 MODEL_REL_SD = 0.01
+#: Direction and frequency are refined by folding on ROIs spanning fewer periods than this
+#: (or narrower than 16 px), where the spectral peak is biased.
+FOLD_REFINE_PERIODS = 6.0
+#: Below this many pixels the given frequency and orientation are used as they are (a few
+#: dozen pixels cannot overrule the chart's design).
+PRIORS_RULE_PIXELS = 100
 #: Angle disagreement (deg) with a given axis orientation tolerated before a warning.
 ANGLE_TOLERANCE_DEG = 2.0
 _GRID_N = 256
@@ -239,7 +246,7 @@ class _Fit:
                     improved = True
                     break
                 lam *= 8
-            if not improved or rel < 1e-5:
+            if not improved or rel < 1e-4:
                 break
         jtj = jac.T @ jac
         if not self.fit_duty:
@@ -306,7 +313,14 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     geom = _apply_priors(prep, geom, warnings)
     f, theta = geom.freq_cycles_per_px, geom.theta_rad
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
-    if span * f < 1.0 and not f_prior:
+    if not fast and (span * f < FOLD_REFINE_PERIODS or min(rows, cols) < 16):
+        axis_fixed = prep.orientation_given and (math.sin(2 * theta) == 0.0 or abs(
+            math.sin(2 * theta)) < 1e-12)
+        if not axis_fixed:
+            fixed_f = bool(f_prior) and span * f_prior < 2.0
+            geom = refine_by_folding(img, geom, fix_freq=fixed_f)
+            f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    if span * f < 1.0:
         warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
         return unresolved(name, prep.diagnostics(), warnings)
 
@@ -319,6 +333,13 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     width = 1.0 / n_bins
     prof = bin_profile(w, img, width)
     filled = prof.filled
+    # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
+    # bar angle (neighbour differences along an image axis do).
+    sq = bin_profile(w, img * img, width).mean[filled]
+    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
+    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
+    if prep.noise_given or scale_noise <= 0:
+        scale_noise = prep.noise_sigma
     y = prof.mean[filled]
     count = prof.count[filled].astype(np.float64)
     wb = bin_profile(w, w, width).mean[filled]
@@ -340,7 +361,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     model = _Model(wb, f, theta, n_harm, w_var)
     period = 1.0 / f
     fitter = _Fit(
-        model, y, count, ub, vb, n_lin, prior_scale=max(prep.noise_sigma, 1e-9),
+        model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
         fit_duty=fit_duty, sigma_max=period,
     )
     starts = tuple(t * period for t in (0.0, 0.04, 0.1, 0.2, 0.35))
@@ -356,7 +377,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     for j, t in enumerate((v.ravel(), u.ravel())[: (n_lin - 2) // 2]):
         pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
     resid = img.ravel() - pred
-    n_params = n_lin + 1 + (2 if fit_duty else 1)
+    # Levels, shading, phase, blur (and duty), and the direction and frequency found.
+    n_params = n_lin + 2 + (2 if fit_duty else 1)
     dof = max(n - n_params, 1)
     noise = math.sqrt(float((resid * resid).sum()) / dof)
     if prep.integer_valued:
@@ -372,8 +394,11 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     a1 = abs(params[1]) * 2.0 * math.sin(math.pi * params[-2]) / math.pi * float(
         math.exp(-2.0 * (math.pi * params[-1] * f) ** 2) * model.footprint[0]
     )
-    # Significance of the fitted fundamental against the noise of n pixels.
-    z = a1 / (noise * math.sqrt(2.0 / n)) if noise > 0 else (math.inf if a1 > 0 else 0.0)
+    # Significance of the fundamental against the noise of n pixels: the fitted one, and the
+    # one of the ROI with its mean and plane removed (a shading ramp is not bars).
+    se_a1 = noise * math.sqrt(2.0 / n)
+    a1_test = min(a1, geom.amplitude)
+    z = a1_test / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
     diag = prep.diagnostics()
     diag = replace(
         diag,
@@ -390,8 +415,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     )
     if not z >= RESOLVED_Z:
         warnings.append(
-            f"bar fundamental {a1:.3g} within {RESOLVED_Z:g} standard errors "
-            f"({noise * math.sqrt(2.0 / n):.3g}) of zero: bars not resolved"
+            f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
+            f"({se_a1:.3g}) of zero: bars not resolved"
         )
         return unresolved(name, diag, warnings)
     # Levels never beyond the samples.
@@ -435,7 +460,7 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
         diff = abs((geom.theta_rad - axis_theta + math.pi / 2) % math.pi - math.pi / 2)
         tol = max(3.0 * geom.theta_sd_rad, math.radians(ANGLE_TOLERANCE_DEG))
         significant = geom.amplitude > 6.0 * prep.noise_sigma * math.sqrt(2.0 / prep.n_pixels)
-        if diff > tol and significant:
+        if diff > tol and significant and prep.n_pixels >= PRIORS_RULE_PIXELS:
             warnings.append(
                 f"measured bar direction {math.degrees(geom.theta_rad):.1f} deg disagrees with "
                 f"the given orientation ({math.degrees(axis_theta) % 180:.0f} deg); the "
@@ -452,6 +477,10 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
             # Under two periods the data cannot pin the period down: the prior rules.
             return replace(geom, freq_cycles_per_px=f_prior)
         message = frequency_disagreement(geom, f_prior)
-        if message:
+        if message and prep.n_pixels >= PRIORS_RULE_PIXELS:
             warnings.append(message)
+        else:
+            # Consistent with the given frequency, which is known better (chart design and
+            # magnification) than a period measured over a few periods.
+            geom = replace(geom, freq_cycles_per_px=f_prior)
     return geom

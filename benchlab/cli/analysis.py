@@ -145,6 +145,12 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
         ("clipped", f"{100 * d.clipped_fraction:.2f}%"),
         ("aliased / phase-sensitive", f"{d.aliased} / {d.phase_sensitive}"),
     ]
+    if d.bar_angle_deg is not None:
+        rows.append(("bar angle (deg)", f"{d.bar_angle_deg:.2f} +- {d.bar_angle_sd_deg or 0:.2f}"))
+    if d.uncertainty_model is not None:
+        rows.append(
+            ("uncertainty noise / model", f"{d.uncertainty_noise or 0:.4f} / {d.uncertainty_model:.4f}")
+        )
     if d.bimodality is not None:
         rows.append(("histogram valley depth", f"{d.bimodality:.2f}"))
     if d.disagreement is not None:
@@ -170,9 +176,10 @@ def analyze_command(args: argparse.Namespace) -> int:
         raise AnalysisInputError(f"{target}: a folder without session.json; give an image file")
     pixels = read_image(target)
     roi = parse_roi(args.roi, pixels.shape, target)
-    if args.estimator is not None and args.estimator not in ESTIMATORS:
+    if args.estimator is not None and args.estimator != "auto" and args.estimator not in ESTIMATORS:
         raise AnalysisInputError(
-            f"--estimator {args.estimator!r} unknown; choose one of {', '.join(sorted(ESTIMATORS))}"
+            f"--estimator {args.estimator!r} unknown; choose auto or one of "
+            f"{', '.join(sorted(ESTIMATORS))}"
         )
     freq = None
     if args.freq is not None:
@@ -187,9 +194,9 @@ def analyze_command(args: argparse.Namespace) -> int:
         if args.all_estimators:
             results = compare_estimators(region, **kwargs)
         else:
-            from benchlab.analysis import DEFAULT_ESTIMATOR
+            from benchlab.analysis.estimators import resolve_estimator
 
-            name = args.estimator or DEFAULT_ESTIMATOR
+            name = resolve_estimator(args.estimator)
             results = {
                 name: estimate_modulation(
                     region, estimator=name, peaks=peaks, bootstrap=args.bootstrap, **kwargs
@@ -260,7 +267,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         help="region: rows R0..R1 and columns C0..C1, 0-based, end-exclusive (numpy slices)",
     )
     p.add_argument(
-        "--estimator", metavar="NAME", help="histogram, sinefit or variance (default: sinefit)"
+        "--estimator",
+        metavar="NAME",
+        help="auto (default: profilefit), profilefit, profilefit-fast, histogram, sinefit or "
+        "variance",
     )
     p.add_argument(
         "--peaks", metavar="DARK,BRIGHT", help="use these dark and bright gray levels (manual)"
@@ -269,13 +279,16 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--freq",
         type=float,
         metavar="LP_PER_MM",
-        help="bar frequency on the sensor, lp/mm (5.2 um pixels; Nyquist 96.15)",
+        help="bar frequency on the sensor, lp/mm (5.2 um pixels; Nyquist 96.15): a prior the "
+        "measured period is checked against; above Nyquist the result is 'not resolved "
+        "(aliased)'",
     )
     p.add_argument(
         "--orientation",
         choices=ORIENTATION_CHOICES,
         help="direction the intensity varies: horizontal (= sagittal, forward view) or "
-        "vertical (= tangential); detected when omitted",
+        "vertical (= tangential); a prior checked against the measured direction (any angle) "
+        "when omitted",
     )
     p.add_argument(
         "--all-estimators", action="store_true", help="run every estimator and compare them"
