@@ -13,8 +13,9 @@ Definitions:
 - truth: Eq. 2.9 contrast of the noiseless, blurred, pixel-integrated continuous profile.
 - *measurable*: truth >= 0.05, SNR >= 5, period >= 2.2 px, unclipped, at least one period across
   the ROI. Errors are over measurable cases, "not resolved" counted as 0 (what a report prints).
-- wrong res: flat, below-noise (bars whose amplitude over the whole ROI's noise,
-  ``SNR sqrt(n / 2)``, is under 1.5) or aliased (period < 2 px) cases called resolved.
+- wrong res: flat, below-noise (bars whose fundamental over the noise of the whole ROI,
+  ``amplitude / (noise sqrt(2 / n))``, is 0.3-1.5) or aliased (period < 2 px) cases called
+  resolved.
 - wrong unres: measurable cases called "not resolved".
 - cover: share of measurable resolved readings whose 95 % interval holds the truth.
 - us: median wall time per call in the accuracy run (worker processes on a shared machine).
@@ -103,11 +104,14 @@ def benchmark_cases(n_cases: int = 1500, seed: int = 0) -> list[Case]:
             noise = bar.mean / float(rng.uniform(5.0, 200.0))
             bar = replace(bar, noise_sigma=noise)
         elif kind == "below-noise":
-            # Bars whose fundamental is below the noise of the whole ROI (amplitude z-score
-            # over all its pixels under 1.5): no estimator can know they are there.
+            # Realistic noise (mean / 10-50) and bars whose fundamental is below the noise of
+            # the whole ROI (amplitude over noise * sqrt(2 / n) of 0.3-1.5): no estimator can
+            # know they are there.
             n_px = bar.shape[0] * bar.shape[1]
-            snr = float(rng.uniform(0.2, 1.5)) * math.sqrt(2.0 / n_px)
-            bar = _with_snr(replace(bar, modulation=0.1), snr, float(rng.uniform()))
+            noise = bar.mean / float(rng.uniform(10.0, 50.0))
+            amp = float(rng.uniform(0.3, 1.5)) * noise * math.sqrt(2.0 / n_px)
+            bar = replace(bar, modulation=min(amp / bar.mean * 1.3, 0.5), noise_sigma=noise)
+            snr = bar.snr
         else:
             snr = float(np.exp(rng.uniform(math.log(5.0), math.log(200.0))))
             bar = _with_snr(bar, snr, float(rng.uniform()))

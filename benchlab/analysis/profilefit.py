@@ -40,7 +40,7 @@ from benchlab.analysis.bargeometry import (
     phase_map,
     refine_by_folding,
 )
-from benchlab.analysis.projection import across_coordinate, bin_profile
+from benchlab.analysis.projection import across_coordinate, bin_profiles
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -213,42 +213,75 @@ class _Fit:
         assert best is not None
         return best
 
+    def _projected(self, nl: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, float]:
+        """Variable projection: the linear parameters solved exactly at the nonlinear ones
+        ``nl = (delta, duty, sigma)``; the residual and its Jacobian in ``nl`` with the linear
+        parameters' column space projected out (Kaufman), and the cost."""
+        n_lin, sw = self.n_lin, self.sw
+        s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
+        assert ds is not None
+        m, n_shade = s.size, n_lin - 2
+        xa = np.zeros((m + n_shade, n_lin))
+        xa[:m] = self.design(s) * sw[:, None]
+        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        ya = np.zeros(m + n_shade)
+        ya[:m] = self.y * sw
+        gram = xa.T @ xa
+        gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
+        try:
+            lin = np.linalg.solve(gram, xa.T @ ya)
+        except np.linalg.LinAlgError:
+            lin = np.linalg.lstsq(xa, ya, rcond=None)[0]
+        r = ya - xa @ lin
+        slope = lin[1] + sum(lin[3 + 2 * j] * t for j, t in enumerate(self.extra))
+        jac = np.zeros((m + n_shade, 3))
+        jac[:m] = -(sw * slope)[:, None] * ds
+        try:
+            jac -= xa @ np.linalg.solve(gram, xa.T @ jac)
+        except np.linalg.LinAlgError:
+            jac -= xa @ np.linalg.lstsq(xa, jac, rcond=None)[0]
+        prior_r = self.prior_scale * (nl[1] - 0.5) / DUTY_PRIOR_SD
+        r = np.append(r, prior_r)
+        jac = np.vstack([jac, [0.0, self.prior_scale / DUTY_PRIOR_SD, 0.0]])
+        if not self.fit_duty:
+            jac[:, 1] = 0.0
+        return np.concatenate([lin, nl]), r, jac, float(r @ r)
+
     def run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
-        """Fitted parameters and ``J^T J`` (for the covariance)."""
+        """Fitted parameters and ``J^T J`` of all of them (for the covariance)."""
         params = self.start(sigmas)
-        r, jac = self.residuals(params)
-        cost = float(r @ r)
-        lam = 1e-3
+        nl = params[-3:].copy()
+        params, r, jac, cost = self._projected(nl)
+        lam = 1e-2
+        tiny = np.array([1e-5, 1e-5, 1e-5 * self.sigma_max])
         for _ in range(max_iter):
             jtj = jac.T @ jac
-            grad = jac.T @ r
             scale = np.diag(jtj).copy()
             scale[scale <= 0] = 1.0
-            improved, rel = False, 0.0
-            for _ in range(6):
-                try:
-                    step = np.linalg.solve(jtj + lam * np.diag(scale), -grad)
-                except np.linalg.LinAlgError:
-                    lam *= 10
-                    continue
-                trial = params + step
-                trial[-3] = min(max(trial[-3], -0.5), 0.5)
-                trial[-2] = min(max(trial[-2], DUTY_BOUNDS[0]), DUTY_BOUNDS[1])
-                if not self.fit_duty:
-                    trial[-2] = 0.5
-                trial[-1] = min(max(trial[-1], 0.0), self.sigma_max)
-                r_t, jac_t = self.residuals(trial)
-                cost_t = float(r_t @ r_t)
-                if cost_t < cost:
-                    rel = (cost - cost_t) / max(cost, 1e-300)
-                    params, r, jac, cost = trial, r_t, jac_t, cost_t
-                    lam = max(lam / 5, 1e-7)
-                    improved = True
-                    break
-                lam *= 8
-            if not improved or rel < 1e-4:
+            try:
+                step = np.linalg.solve(jtj + lam * np.diag(scale), -(jac.T @ r))
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            if np.all(np.abs(step) < tiny):
                 break
-        jtj = jac.T @ jac
+            trial = nl + step
+            trial[0] = min(max(trial[0], -0.5), 0.5)
+            trial[1] = min(max(trial[1], DUTY_BOUNDS[0]), DUTY_BOUNDS[1])
+            if not self.fit_duty:
+                trial[1] = 0.5
+            trial[2] = min(max(trial[2], 0.0), self.sigma_max)
+            p_t, r_t, jac_t, cost_t = self._projected(trial)
+            if cost_t < cost:
+                rel = (cost - cost_t) / max(cost, 1e-300)
+                nl, params, r, jac, cost = trial, p_t, r_t, jac_t, cost_t
+                lam = max(lam / 10, 1e-9)
+                if rel < 1e-6:
+                    break
+            else:
+                lam *= 10
+        _, jac_full = self.residuals(params)
+        jtj = jac_full.T @ jac_full
         if not self.fit_duty:
             jtj[:, -2] = 0.0
             jtj[-2, :] = 0.0
@@ -331,21 +364,23 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     v = across_coordinate((rows, cols), theta + math.pi / 2) / half
     n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
     width = 1.0 / n_bins
-    prof = bin_profile(w, img, width)
+    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
+        w, [img, img * img, w, w * w, u, v], width
+    )
     filled = prof.filled
     # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
     # bar angle (neighbour differences along an image axis do).
-    sq = bin_profile(w, img * img, width).mean[filled]
+    sq = sq_prof.mean[filled]
     within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
     scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
     if prep.noise_given or scale_noise <= 0:
         scale_noise = prep.noise_sigma
     y = prof.mean[filled]
     count = prof.count[filled].astype(np.float64)
-    wb = bin_profile(w, w, width).mean[filled]
-    w_var = np.maximum(bin_profile(w, w * w, width).mean[filled] - wb * wb, 0.0)
-    ub = bin_profile(w, u, width).mean[filled]
-    vb = bin_profile(w, v, width).mean[filled]
+    wb = w_prof.mean[filled]
+    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
+    ub = u_prof.mean[filled]
+    vb = v_prof.mean[filled]
     n_f = int(y.size)
     if n_f < 3:
         warnings.append(f"only {n_f} distinct bar phases sampled: cannot fit the profile")
@@ -419,9 +454,11 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f"({se_a1:.3g}) of zero: bars not resolved"
         )
         return unresolved(name, diag, warnings)
-    # Levels never beyond the samples.
-    dark = max(dark, prep.vmin)
-    bright = min(bright, prep.vmax)
+    # Levels never beyond the samples by more than the model itself says the sampled phases
+    # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
+    at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    dark = max(dark, prep.vmin - (float(at_bins.min()) - dark) - 2.0 * noise)
+    bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
     if bright + dark <= 0 or bright <= dark:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
         return unresolved(name, diag, warnings)
