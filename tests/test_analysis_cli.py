@@ -40,7 +40,7 @@ def test_analyze_8bit_images(tmp_path: Path, bars, capsys, suffix: str) -> None:
     else:
         cv2.imwrite(str(path), img)
     out = run_json(capsys, str(path), "--roi", ROI, "--freq", f"{1000 / 16 / 5.2}")
-    assert out["resolved"] is True and out["estimator"] == "sinefit"
+    assert out["resolved"] is True and out["estimator"] == "profilefit"  # auto
     assert out["modulation"] == pytest.approx(truth, abs=0.01)
     assert out["diagnostics"]["n_pixels"] == 2000
     assert out["roi"] == [50, 60, 90, 110]
@@ -54,7 +54,8 @@ def test_analyze_16bit_and_estimators(tmp_path: Path, bars, capsys) -> None:
     assert out["estimator"] == "histogram" and out["diagnostics"]["code_step"] == 256.0
     assert out["modulation"] == pytest.approx(truth, abs=0.03)
     both = run_json(capsys, str(path), "--roi", ROI, "--all-estimators")
-    assert set(both["estimators"]) == {"histogram", "sinefit", "variance"}
+    assert set(both["estimators"]) == {"profilefit", "profilefit-fast", "histogram", "sinefit",
+                                       "variance"}
 
 
 def test_analyze_manual_peaks_and_unresolved(tmp_path: Path, capsys) -> None:
@@ -141,5 +142,5 @@ def test_benchmark_table_on_a_small_grid() -> None:
     assert overall["profilefit"].n_negative == 8
     assert overall["profilefit"].rmse < 0.1
     table = format_table(scores)
-    for word in ("bias", "RMSE", "<=.03", "wrong res", "cover95", "oblique", "ROI 5x5"):
+    for word in ("bias", "RMSE", "<=.03", "wrong res", "cover95", "oblique", "period 8-20"):
         assert word in table

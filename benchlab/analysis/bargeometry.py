@@ -308,7 +308,7 @@ def refine_by_folding(img: FloatArray, geom: BarGeometry, fix_freq: bool) -> Bar
     by its own side lobes and by the opposite peak; folding uses the bar edges themselves."""
     n_bins = int(min(32, max(8, img.size // 8)))
     resid = img - float(img.mean())
-    rows, cols = img.shape
+    start = geom
     f = geom.freq_cycles_per_px
     h_theta = min(max(2.0 * geom.theta_sd_rad, math.radians(0.2)), math.radians(2.0))
     steps: list[tuple[str, float]] = [("theta", h_theta)]
@@ -329,6 +329,8 @@ def refine_by_folding(img: FloatArray, geom: BarGeometry, fix_freq: bool) -> Bar
             new = base + (best - 2 + offset) * h
             geom = replace(geom, **{("theta_rad" if name == "theta" else
                                      "freq_cycles_per_px"): new})
+    if _fold_contrast(resid, geom, n_bins) <= 1.001 * _fold_contrast(resid, start, n_bins):
+        return start  # no clear gain: the spectral estimate stands
     # The phase at the centre for the refined direction and frequency.
     kx, ky = geom.k_xy
     value = dft_at(detrend(img), kx, ky)

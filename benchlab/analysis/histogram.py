@@ -297,7 +297,13 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
     if prep.vmax == prep.vmin:
         warnings = [*prep.warnings, "single-valued ROI: one gray level, no bars"]
         return unresolved(NAME, prep.diagnostics(), warnings)
-    prep = _bar_centres(prep)
+    n_roi = prep.n_pixels
+    result = _histogram_peak(_bar_centres(prep))
+    return result.with_updates(diagnostics=replace(result.diagnostics, n_pixels=n_roi))
+
+
+def _histogram_peak(prep: PreparedROI) -> ModulationResult:
+    """:func:`histogram_peak` on the selected pixels."""
     if prep.vmax == prep.vmin:
         warnings = [*prep.warnings, "one gray level at the bar and space centres: no bars"]
         return unresolved(NAME, prep.diagnostics(), warnings)

@@ -64,8 +64,8 @@ SHADING_PRIOR = 0.5
 #: Relative model uncertainty of the contrast (PSF shape, duty and shading not exactly as
 #: modelled), calibrated on ``benchlab benchmark analysis``.
 MODEL_REL_SD = 0.01
-#: Direction and frequency are refined by folding on ROIs spanning fewer periods than this
-#: (or narrower than 16 px), where the spectral peak is biased.
+#: Direction and frequency are refined by folding on ROIs narrower than 16 px spanning fewer
+#: periods than this, where the spectral peak is biased by its side lobes.
 FOLD_REFINE_PERIODS = 6.0
 #: Below this many pixels the given frequency and orientation are used as they are (a few
 #: dozen pixels cannot overrule the chart's design).
@@ -282,10 +282,10 @@ class _Fit:
                 lam *= 10
         _, jac_full = self.residuals(params)
         jtj = jac_full.T @ jac_full
-        if not self.fit_duty:
+        if not self.fit_duty:  # the duty is fixed: no variance
             jtj[:, -2] = 0.0
             jtj[-2, :] = 0.0
-            jtj[-2, -2] = 1.0
+            jtj[-2, -2] = 1e30 * (float(np.abs(jtj).max()) + 1.0)
         return params, jtj
 
     def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray]:
@@ -346,7 +346,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     geom = _apply_priors(prep, geom, warnings)
     f, theta = geom.freq_cycles_per_px, geom.theta_rad
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
-    if not fast and (span * f < FOLD_REFINE_PERIODS or min(rows, cols) < 16):
+    if not fast and span * f < FOLD_REFINE_PERIODS and min(rows, cols) < 16:
         axis_fixed = prep.orientation_given and (math.sin(2 * theta) == 0.0 or abs(
             math.sin(2 * theta)) < 1e-12)
         if not axis_fixed:
