@@ -425,11 +425,11 @@ MAX_PHASE_GAP = 0.2
 
 
 def _phase_gap(prep: PreparedROI) -> float:
-    """Largest gap between the phases of the lines across the bars (given orientation and
-    frequency; 1 when unknown)."""
+    """Largest gap between the phases of the lines across axis-aligned bars (given orientation
+    and frequency); 0 when either is unknown (the bars are then found at any angle)."""
     f = prep.freq_cycles_per_px
     if not f or not prep.orientation_given:
-        return 1.0
+        return 0.0
     n = prep.pixels.shape[prep.axis]
     phases = np.sort(np.mod(f * np.arange(n), 1.0))
     return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
