@@ -157,7 +157,7 @@ def resample(table: RayTraceTable, step_mm: float = GRID_STEP_MM) -> ResampledTa
     if not hi > lo:
         raise RayTraceError(f"{table.source}: the depths share no image radii ({lo} > {hi} mm)")
     n = max(2, int(math.floor((hi - lo) / step_mm)) + 1)
-    rho = lo + step_mm * np.arange(n)
+    rho: FloatArray = lo + step_mm * np.arange(n, dtype=np.float64)
     rho[-1] = min(rho[-1], hi)
     z = np.empty((table.n_depths, n))
     for i in range(table.n_depths):

@@ -121,8 +121,9 @@ class CardScene:
         """Card coordinates -> (image azimuth rad, axial z mm) on the cylinder."""
         x = np.asarray(x_mm, dtype=np.float64)
         y = np.asarray(y_mm, dtype=np.float64)
-        phi = self.centre_azimuth_rad + (x - self.card_width_mm / 2.0) / self.object_radius_mm
-        z = self.card_centre_z_mm + (y - self.card_height_mm / 2.0)
+        phi: FloatArray = self.centre_azimuth_rad + (x - self.card_width_mm / 2.0) / (
+            self.object_radius_mm)
+        z: FloatArray = self.card_centre_z_mm + (y - self.card_height_mm / 2.0)
         return phi, z
 
     def text_blocks(self) -> tuple[Rect, ...]:

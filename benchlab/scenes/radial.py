@@ -48,7 +48,7 @@ from benchlab.analysis.raytrace import (
 )
 from benchlab.analysis.result import eq29_modulation
 from benchlab.analysis.viewsynth import CylinderMap, cylinder_map
-from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState, rate_for_dn8
+from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import (
     PIXEL_APERTURE_VAR_PX2,
     RADIAL_BLUR,
