@@ -113,7 +113,9 @@ class CardScene:
         """Flat truth: x of the lines along the axis and y of the lines around, card mm."""
         nx = int(math.floor(self.card_width_mm / self.grid_pitch_mm + 1e-9))
         ny = int(math.floor(self.card_height_mm / self.grid_pitch_mm + 1e-9))
-        return (np.arange(nx + 1) * self.grid_pitch_mm, np.arange(ny + 1) * self.grid_pitch_mm)
+        pitch = self.grid_pitch_mm
+        return (np.arange(nx + 1, dtype=np.float64) * pitch,
+                np.arange(ny + 1, dtype=np.float64) * pitch)
 
     def card_to_object(self, x_mm: npt.ArrayLike, y_mm: npt.ArrayLike) -> tuple[
         FloatArray, FloatArray
