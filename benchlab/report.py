@@ -255,6 +255,9 @@ def render_report(session_path: str | Path) -> str:
         out.append("<h2>Radiometric fall-off (fig. 4.21)</h2>" + _radiometry_figure(rows))
         out.append("<h2>Measurement frames with LED masks</h2>"
                    + _radiometry_frames(session, rows))
+    from benchlab.report_unwrap import render_unwrap_section  # benchlab unwrap SESSION
+
+    out.append(render_unwrap_section(results, tables, doc.get("summary") or {}))
     out.append("<h2>Parameters</h2><pre>" + esc(json.dumps(meta.get("params"), indent=2))
                + "</pre></body></html>")
     return "".join(out)

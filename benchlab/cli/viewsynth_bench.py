@@ -88,8 +88,8 @@ def card_figures(table: RayTraceTable, object_radius_mm: float = REFERENCE_OBJEC
     rows = (maps.meta["z_top_mm"] - z) * PX_PER_MM
     # Leave out the samples where a crossing line (within 1 mm) darkens the window.
     row_idx, col_idx = np.arange(maps.shape[0]), np.arange(maps.shape[1])
-    near_rows = (np.abs(row_idx[:, None] - rows[None, :]) <= PX_PER_MM).any(axis=1)
-    near_cols = (np.abs(col_idx[:, None] - cols[None, :]) <= PX_PER_MM).any(axis=1)
+    near_rows = np.asarray((np.abs(row_idx[:, None] - rows[None, :]) <= PX_PER_MM).any(axis=1))
+    near_cols = np.asarray((np.abs(col_idx[:, None] - cols[None, :]) <= PX_PER_MM).any(axis=1))
     half = 0.5 * PX_PER_MM
     along = [find_line(view, maps.valid, c, axis=1, half_window_px=half, skip=near_rows)
              for c in cols]
