@@ -228,7 +228,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     p.add_argument("target", metavar="FRAME|SESSION", help="raw frame or session folder")
     _view_options(p)
     p.add_argument("--azimuth-deg", default="0:360", metavar="START:END",
-                   help="azimuth range, degrees from +column towards +row (default 0:360)")
+                   help="azimuth range, degrees from +column towards +row (default 0:360; a "
+                   "negative start needs '=': --azimuth-deg=-90:90)")
     p.add_argument("--px-per-mm", type=float, default=20.0,
                    help="output pixels per object mm (default 20)")
     p.add_argument("--out", help="output TIFF (default FRAME.unwrap.tiff next to the frame)")
