@@ -119,7 +119,7 @@ class SimWorld:
         self.led_position_mm = led_position_mm
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
-        self._target = parse_target(target)
+        self._target = self._checked(target)
 
     @property
     def target(self) -> Target:
@@ -128,7 +128,14 @@ class SimWorld:
 
     @target.setter
     def target(self, value: object) -> None:
-        self._target = parse_target(value)
+        self._target = self._checked(value)
+
+    def _checked(self, target: object) -> Target:
+        """Parse a target; a card off the ray-trace table is refused here, not at exposure."""
+        spec = parse_target(target)
+        if spec[0] == "card":
+            self.card_scene(spec[1])
+        return spec
 
     def mount(self, target: object) -> None:
         """Mount a target (same as assigning :attr:`target`)."""
