@@ -53,6 +53,6 @@ class UnwrapPreview:
             return dataclasses.replace(reading, note=f"unwrap: {exc}")
         return dataclasses.replace(
             reading, preview=preview_of(view, max_side=640),
-            note=reading.note or f"unwrapped at {self.object_radius_mm:g} mm "
-            f"(centre {self.centre_method})",
+            note=f"unwrapped at {self.object_radius_mm:g} mm (centre {self.centre_method})"
+            + (f"; ROI: {reading.note}" if reading.note else ""),
         )
