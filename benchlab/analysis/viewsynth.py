@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -264,7 +264,6 @@ class ViewMaps:
     map_row: npt.NDArray[np.float32]
     valid: BoolArray
     meta: dict[str, Any]
-    _fixed: tuple[Any, Any] | None = field(default=None, repr=False)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -273,14 +272,6 @@ class ViewMaps:
     @property
     def valid_fraction(self) -> float:
         return float(self.valid.mean()) if self.valid.size else 0.0
-
-    def fixed_point(self) -> tuple[Any, Any]:
-        """The maps in OpenCV's fixed-point form (faster remap; 1/32 px steps)."""
-        if self._fixed is None:
-            import cv2
-
-            self._fixed = cv2.convertMaps(self.map_col, self.map_row, cv2.CV_16SC2)
-        return self._fixed
 
 
 def _finish(
@@ -476,9 +467,9 @@ def apply_maps(
         raise ValueError(f"frame shape {arr.shape} differs from the maps' {expected}")
     if arr.dtype not in (np.uint8, np.uint16, np.float32):
         arr = arr.astype(np.float32)
-    m1, m2 = maps.fixed_point()
-    out = cv2.remap(arr, m1, m2, flags[interpolation], borderMode=cv2.BORDER_CONSTANT,
-                    borderValue=0)
+    # Float maps: measured faster here than OpenCV's fixed-point CV_16SC2 form (and exact).
+    out = cv2.remap(arr, maps.map_col, maps.map_row, flags[interpolation],
+                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     if interpolation in ("cubic", "lanczos"):  # wider kernels reach past the valid edge
         out[~maps.valid] = 0
     return np.asarray(out)
