@@ -29,7 +29,7 @@ def _png(fig: Figure) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    return (f"<img alt='figure' src='data:image/png;base64,"
+    return (f"<img class='plot' alt='figure' src='data:image/png;base64,"
             f"{base64.b64encode(buf.getvalue()).decode()}'>")
 
 
@@ -87,8 +87,7 @@ def render_unwrap_section(results_dir: Path, tables: dict[str, list[dict[str, An
         return ""
     esc = html.escape
     info = summary.get("unwrap") or {}
-    out = ["<h2>Unwrapped radial view (thesis 5.2)</h2>",
-           "<p class='note'>" + esc(
+    out = ["<p class='note'>" + esc(
                f"Estimated orthographic view at {info.get('object_radius_mm')} mm from the axis"
                f"{' (EXTRAPOLATED beyond the table)' if info.get('extrapolated') else ''}, "
                f"{info.get('px_per_mm')} px/mm, centre {info.get('centre_rc')} "
