@@ -180,3 +180,21 @@ def test_unwrap_session_adds_a_results_version_frames_untouched(
     page = render_report(session.path)
     assert "Unwrapped radial view" in page and "Effective viewpoint" in page
     assert page.count("data:image/png") >= len(radial_frames) + 1
+
+
+def test_no_centre_and_no_radial_frames_are_clear_errors(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dark = tmp_path / "dark.tiff"
+    save_frame_tiff(dark, np.zeros((1024, 1280), np.uint8), {})
+    assert main(["unwrap", str(dark)]) == 1
+    assert "cannot find the optical centre" in capsys.readouterr().err
+    assert main(["unwrap", str(dark), "--centre", "560.5,646", "--px-per-mm", "4"]) == 0
+    session = Session.create(tmp_path / "s", procedure="mtf", params={}, operator="t",
+                             devices={}, software_version="test")
+    session.save_frame("forward", "forward", np.zeros((64, 64), np.uint8),
+                       {"bench": {"target": "usaf"}})
+    assert main(["unwrap", str(session.path)]) == 1
+    assert "no radial frames to unwrap" in capsys.readouterr().err
+    assert Session.open(session.path).result_versions() == []
+    assert main(["unwrap", str(tmp_path)]) == 1  # a folder that is not a session
+    assert "not a session" in capsys.readouterr().err

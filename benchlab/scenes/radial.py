@@ -115,8 +115,8 @@ def cylinder_pixels(
         arc_mm_per_px=object_radius_mm / np.maximum(r, 1.0),
         envelope=envelope,
     )
-    for arr in dataclasses.astuple(parts):
-        arr.setflags(write=False)
+    for f in dataclasses.fields(parts):
+        getattr(parts, f.name).setflags(write=False)
     return parts
 
 
