@@ -47,8 +47,8 @@ def test_cylinder_map_at_between_and_outside_the_depths() -> None:
     res = TABLE.resampled
     at = cylinder_map(TABLE, 19.88)
     assert np.allclose(at.z_mm, res.z_mm[4]) and not at.extrapolated
-    mid = cylinder_map(TABLE, 20.38)  # halfway between depths 6 and 7
-    assert np.allclose(mid.z_mm, (res.z_mm[4] + res.z_mm[5]) / 2)
+    mid = cylinder_map(TABLE, 20.38)  # halfway between depths 6 and 7: straight lines of sight
+    assert np.allclose(mid.z_mm, (res.z_mm[4] + res.z_mm[5]) / 2, atol=1e-9)
     edge = cylinder_map(TABLE, 24.88)  # the last depth itself is inside
     assert np.allclose(edge.z_mm, res.z_mm[-1])
     for outside in (15.0, 26.0):
@@ -187,3 +187,24 @@ def test_table_that_is_not_invertible_at_a_depth_is_refused() -> None:
     table = parse_raytrace_csv(text, "fold.csv")
     with pytest.raises(RayTraceError, match="not monotonic in image radius at 16.88 mm"):
         cylinder_map(table, 16.88)
+
+
+def test_curved_lines_of_sight_are_followed_between_depths() -> None:
+    """Lines of sight bent as z = a + b R + c R^2: the spline across depths finds the point on
+    the curve at any radius; straight-line interpolation between depths would miss it."""
+    radii = np.arange(15.88, 25.0, 1.0)
+    rho = np.linspace(1.5, 2.9, 12)
+    lines = []
+    for r in radii:
+        z = -6.4 + r * (2.0 - 0.8 * rho) + 0.01 * (r - 15.0) ** 2
+        lines += [f"{r - 13.88:.2f},{r:.2f},{zz:.9f},{rr:.6f}\n"
+                  for zz, rr in zip(z, rho, strict=True)]
+    table = parse_raytrace_csv("depth_mm,object_radius_mm,object_z_mm,image_radius_mm\n"
+                               + "".join(lines), "curved.csv")
+    r = 20.38
+    cyl = cylinder_map(table, r)
+    probe = np.array([1.7, 2.2, 2.6])
+    want = -6.4 + r * (2.0 - 0.8 * probe) + 0.01 * (r - 15.0) ** 2
+    assert np.allclose(cyl.axial_mm(probe), want, atol=1e-4)
+    linear_error = 0.01 * 0.25  # c * (dR/2)^2 halfway between depths 1 mm apart
+    assert linear_error > 10 * np.max(np.abs(cyl.axial_mm(probe) - want))

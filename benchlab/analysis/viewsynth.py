@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.interpolate import CubicSpline
 
 from benchlab.analysis.raytrace import (
     OPERATIONAL_IMAGE_RADIUS_MM,
@@ -95,10 +96,12 @@ def cylinder_map(
 ) -> CylinderMap:
     """The table at a cylinder of radius ``object_radius_mm`` (mm from the axis).
 
-    Between two depths of the table each equal-image-radius group is interpolated linearly in
-    radius, exact for straight lines of sight. Outside the table's depths the two nearest depths
-    are extrapolated only when ``allow_extrapolation`` (and the result says so). A table with
-    one depth can only be used at that depth.
+    Between the table's depths each equal-image-radius group (one line of sight) is
+    interpolated over object radius with a cubic spline: exact for the straight lines of a
+    single viewpoint, and it follows curved lines of sight where the viewpoint spreads (the
+    thesis's fig. 5.4b fallback); with fewer than four depths, linearly. Outside the table's
+    depths the two nearest depths are extrapolated linearly only when ``allow_extrapolation``
+    (and the result says so). A table with one depth can only be used at that depth.
 
     Raises
     ------
@@ -128,9 +131,12 @@ def cylinder_map(
                     f"({table.source}); allow extrapolation to use it anyway"
                 )
             extrapolated = True
-        k = int(np.clip(np.searchsorted(radii, r) - 1, 0, radii.size - 2))
-        w = (r - radii[k]) / (radii[k + 1] - radii[k])
-        z = (1.0 - w) * res.z_mm[k] + w * res.z_mm[k + 1]
+        if extrapolated or radii.size < 4:
+            k = int(np.clip(np.searchsorted(radii, r) - 1, 0, radii.size - 2))
+            w = (r - radii[k]) / (radii[k + 1] - radii[k])
+            z = (1.0 - w) * res.z_mm[k] + w * res.z_mm[k + 1]
+        else:  # follows curved lines of sight; exact (not-a-knot) for straight ones
+            z = np.asarray(CubicSpline(radii, res.z_mm, axis=0)(r), dtype=np.float64)
     steps = np.diff(z)
     if not (np.all(steps > 0) or np.all(steps < 0)):
         raise RayTraceError(
