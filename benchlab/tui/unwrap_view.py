@@ -45,14 +45,15 @@ class UnwrapPreview:
                                      px_per_mm=LIVE_PX_PER_MM)
         return self._maps
 
-    def apply(self, reading: LiveReading, pixels: npt.NDArray[Any]) -> LiveReading:
+    def apply(self, reading: LiveReading, pixels: npt.NDArray[Any],
+              max_side: int = 640) -> LiveReading:
         """The reading with its preview replaced by the unwrapped frame (a note on failure)."""
         try:
             view = apply_maps(np.asarray(pixels), self.maps_for(pixels))
         except (ValueError, OSError) as exc:
             return dataclasses.replace(reading, note=f"unwrap: {exc}")
         return dataclasses.replace(
-            reading, preview=preview_of(view, max_side=640),
+            reading, preview=preview_of(view, max_side=max_side),
             note=f"unwrapped at {self.object_radius_mm:g} mm (centre {self.centre_method})"
             + (f"; ROI: {reading.note}" if reading.note else ""),
         )
