@@ -19,6 +19,8 @@ from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE, GraphicsFrameView
+from benchlab.tui.unwrap_view import UnwrapPreview
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -26,9 +28,9 @@ EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500
 #: Gain steps offered by the g / G keys.
 GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 #: How often the screen takes the newest frame from the acquisition thread.
-DISPLAY_INTERVAL_S = 1 / 15
+DISPLAY_INTERVAL_S = 1 / 20
 #: Cap on the acquisition loop so it never hogs the interpreter.
-MAX_GRAB_RATE_HZ = 20.0
+MAX_GRAB_RATE_HZ = 25.0
 #: Orientations the o key cycles through ("auto": the analysis detects it).
 ORIENTATIONS = ("auto", "sagittal", "tangential")
 #: Targets the t key mounts on the simulated bench (a real bench's target is set by hand).
@@ -69,6 +71,7 @@ class LiveScreen(Screen[None]):
         Binding("o", "orientation", "Orient"),
         Binding("z", "zoom", "Zoom"),
         Binding("t", "target", "Target"),
+        Binding("u", "unwrap", "Unwrap"),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)
@@ -79,6 +82,8 @@ class LiveScreen(Screen[None]):
     orientation: reactive[str] = reactive("auto")
     #: Show the ROI's surroundings instead of the whole frame.
     zoom: reactive[bool] = reactive(False)
+    #: Show the radial annulus unwrapped (estimated orthographic view, thesis 5.2).
+    unwrapped: reactive[bool] = reactive(False)
 
     def __init__(self) -> None:
         super().__init__()
@@ -92,11 +97,18 @@ class LiveScreen(Screen[None]):
         self._last_error = ""
         self._last_error_at = 0.0
         self._idle_reason = ""
+        graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
+        self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
+        self._unwrap = UnwrapPreview()
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
         with Horizontal(id="live-body"):
-            yield FrameView(id="frame")
+            protocol = getattr(self.app, "image_protocol", "halfblock")
+            if protocol in ("kitty", "sixel"):
+                yield GraphicsFrameView(protocol, id="frame")
+            else:
+                yield FrameView(id="frame")
             with Vertical(id="side"):
                 yield Static("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
@@ -143,8 +155,10 @@ class LiveScreen(Screen[None]):
                     orientation = None if self.orientation == "auto" else self.orientation
                     reading = services.live_reading(
                         frame, self.roi, self.estimator, orientation, index, *settings,
-                        zoom=self.zoom,
+                        zoom=self.zoom, preview_max_side=self._preview_side,
                     )
+                    if self.unwrapped:
+                        reading = self._unwrap.apply(reading, frame[0], self._preview_side)
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
                         app.call_from_thread(self._live_error, exc)
@@ -197,7 +211,8 @@ class LiveScreen(Screen[None]):
         self.frames_displayed += 1
         now = time.monotonic()
         self._display_times.append(now)
-        self.query_one(FrameView).show(reading.preview, reading.preview_roi, reading.max_code)
+        roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
+        self.query_one(FrameView).show(reading.preview, roi, reading.max_code)
         self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
 
@@ -243,6 +258,11 @@ class LiveScreen(Screen[None]):
     def action_zoom(self) -> None:
         self.zoom = not self.zoom
 
+    def action_unwrap(self) -> None:
+        self.unwrapped = not self.unwrapped
+        self._unwrap.reset()
+        self.query_one("#frame").border_title = "camera, unwrapped" if self.unwrapped else "camera"
+
     def action_target(self) -> None:
         self._mount_next_target()
 
@@ -265,7 +285,7 @@ class LiveScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not mount the target", exc)
             return
-        app.call_from_thread(self.notify, f"simulated target: {services.plain_target(nxt)}")
+        app.call_from_thread(self.notify, f"simulated target: {services.target_words(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)
