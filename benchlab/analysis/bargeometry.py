@@ -130,7 +130,9 @@ def refine_peak(
     """Refine a spectral peak: a 3x3 grid of direct DFTs at ``step`` around it, a parabola on
     each axis of the log magnitude, repeated with half the step."""
     for _ in range(iterations):
-        grid = _dft_grid(img, kx + step * np.arange(-1, 2), ky + step * np.arange(-1, 2))
+        offsets = step * np.arange(-1, 2, dtype=np.float64)
+        grid = _dft_grid(img, np.asarray(kx + offsets, np.float64),
+                         np.asarray(ky + offsets, np.float64))
         mag = np.log(np.abs(grid) + 1e-300)
         j, i = np.unravel_index(int(np.argmax(mag)), mag.shape)
         if (i, j) != (1, 1):  # the peak moved: recentre before interpolating
@@ -228,10 +230,10 @@ def measure_geometry(
     # Cramer-Rao-like spreads for one sinusoid in white noise.
     snr = amplitude / max(noise_sigma, 1e-12)
     y, x = _centred_grid((rows, cols))
-    s_u = math.sqrt((float((x * x).mean()) * math.cos(theta) ** 2
-                     + float((y * y).mean()) * math.sin(theta) ** 2))
-    s_v = math.sqrt((float((x * x).mean()) * math.sin(theta) ** 2
-                     + float((y * y).mean()) * math.cos(theta) ** 2))
+    s_u = math.sqrt(float((x * x).mean()) * math.cos(theta) ** 2
+                     + float((y * y).mean()) * math.sin(theta) ** 2)
+    s_v = math.sqrt(float((x * x).mean()) * math.sin(theta) ** 2
+                     + float((y * y).mean()) * math.cos(theta) ** 2)
     base = 1.0 / (math.pi * max(snr, 1e-12) * math.sqrt(2.0 * n))
     freq_sd = base / max(s_u, 0.5)
     theta_sd = base / max(s_v, 0.5) / f

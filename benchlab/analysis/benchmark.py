@@ -215,9 +215,10 @@ def score(cases: list[Case], rows: list[tuple[int, str, float, bool, float, floa
     out = []
     for name in names:
         for b in order:
-            d = acc.get((name, b))
-            if d is None or not d["err"]:
+            got = acc.get((name, b))
+            if got is None or not got["err"]:
                 continue
+            d = got
             e = np.asarray(d["err"])
             out.append(Score(
                 estimator=name, bucket=b, n=e.size, bias=float(e.mean()),

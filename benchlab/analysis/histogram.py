@@ -186,7 +186,9 @@ def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[in
                                                                   strict=True)]
     cum = np.concatenate([[0.0], np.cumsum(smooth)])
     edges = [0, *[c + 1 for c in cuts], smooth.size]
-    modes = [[p, float(cum[edges[i + 1]] - cum[edges[i]])] for i, p in enumerate(peaks)]
+    modes: list[tuple[int, float]] = [
+        (p, float(cum[edges[i + 1]] - cum[edges[i]])) for i, p in enumerate(peaks)
+    ]
     valleys = [float(smooth[c]) for c in cuts]
     while len(modes) > 1:
         light = min(range(len(modes)), key=lambda i: modes[i][1])
@@ -200,7 +202,7 @@ def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[in
         mass = modes[light][1] + modes[j][1]
         peak = modes[keep][0]
         lo = min(light, j)
-        modes[lo : lo + 2] = [[peak, mass]]
+        modes[lo : lo + 2] = [(peak, mass)]
         del valleys[lo]
     return [int(m[0]) for m in modes if m[1] >= MIN_MODE_FRACTION * total]
 

@@ -203,7 +203,7 @@ class _Fit:
         ysw = np.concatenate([ysw, np.zeros(n_shade)])
         for sigma in sigmas:
             nl = np.array([0.0, 0.5, sigma])
-            s, _ = self.model.eval(*nl, derivatives=False)
+            s, _ = self.model.eval(0.0, 0.5, sigma, derivatives=False)
             x = np.vstack([self.design(s) * sw, ridge])
             lin = np.linalg.lstsq(x, ysw, rcond=None)[0]
             r = ysw - x @ lin

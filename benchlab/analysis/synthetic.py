@@ -116,7 +116,8 @@ class BarCase:
     @property
     def noise_at_mean(self) -> float:
         """Total per-frame noise sigma (gray units) at the mean level."""
-        shot2 = self.mean * self.exposure_scale / self.electrons_per_dn if self.electrons_per_dn else 0
+        epd = self.electrons_per_dn
+        shot2 = self.mean * self.exposure_scale / epd if epd else 0.0
         return math.sqrt(self.noise_sigma**2 + shot2)
 
     @property

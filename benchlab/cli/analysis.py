@@ -148,9 +148,8 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
     if d.bar_angle_deg is not None:
         rows.append(("bar angle (deg)", f"{d.bar_angle_deg:.2f} +- {d.bar_angle_sd_deg or 0:.2f}"))
     if d.uncertainty_model is not None:
-        rows.append(
-            ("uncertainty noise / model", f"{d.uncertainty_noise or 0:.4f} / {d.uncertainty_model:.4f}")
-        )
+        parts = f"{d.uncertainty_noise or 0:.4f} / {d.uncertainty_model:.4f}"
+        rows.append(("uncertainty noise / model", parts))
     if d.bimodality is not None:
         rows.append(("histogram valley depth", f"{d.bimodality:.2f}"))
     if d.disagreement is not None:
