@@ -33,6 +33,8 @@ FFT_CROP_PX = 128
 PRIOR_BAND = (0.6, 1.6)
 #: Phase curvature smaller than this at the ROI corners (cycles) is ignored.
 CURVATURE_MIN_CYCLES = 0.05
+#: A peak outside the prior's band wins when this many times stronger than the band's best.
+WIDE_PEAK_RATIO = 1.3
 #: Relative frequency disagreement always tolerated (the USAF magnification is nominal).
 FREQ_TOLERANCE = 0.03
 
@@ -147,9 +149,9 @@ def refine_peak(
 
 def _fft_peak(
     img: FloatArray, f_lo: float, f_hi: float
-) -> tuple[float, float] | None:
-    """Strongest peak of the zero-padded 2-D spectrum with ``f_lo <= |k| <= f_hi`` (half plane
-    kx >= 0); ``None`` when no bin qualifies."""
+) -> tuple[float, float, float] | None:
+    """Strongest peak ``(kx, ky, magnitude)`` of the zero-padded 2-D spectrum with
+    ``f_lo <= |k| <= f_hi`` (half plane kx >= 0); ``None`` when no bin qualifies."""
     rows, cols = img.shape
     r0, c0 = max(0, (rows - FFT_CROP_PX) // 2), max(0, (cols - FFT_CROP_PX) // 2)
     crop = img[r0 : r0 + FFT_CROP_PX, c0 : c0 + FFT_CROP_PX]
@@ -164,7 +166,7 @@ def _fft_peak(
         return None
     spec = np.where(ok, spec, -1.0)
     j, i = np.unravel_index(int(np.argmax(spec)), spec.shape)
-    return float(kx[0, i]), float(ky[j, 0])
+    return float(kx[0, i]), float(ky[j, 0]), float(spec[j, i])
 
 
 def measure_geometry(
@@ -201,14 +203,27 @@ def measure_geometry(
     else:
         f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
     peak = _fft_peak(resid, f_lo, f_hi)
+    if freq_prior:
+        # The prior is a cross-check, not a cage: a fundamental several times stronger than
+        # anything in the band (a wrong magnification puts a harmonic there) wins, and the
+        # disagreement is reported by the caller.
+        wide = _fft_peak(resid, 0.7 / max(rows, cols), 0.5 * math.sqrt(2))
+        # A band maximum on the band's edge is the skirt of a peak outside it.
+        on_edge = peak is not None and min(
+            abs(math.hypot(peak[0], peak[1]) - f_lo), abs(math.hypot(peak[0], peak[1]) - f_hi)
+        ) < 1.0 / max(rows, cols)
+        if wide is not None and (
+            peak is None or wide[2] > WIDE_PEAK_RATIO * peak[2] or (on_edge and wide[2] > peak[2])
+        ):
+            peak = wide
     if peak is None:
         if not freq_prior:
             return None
-        peak = (freq_prior, 0.0) if cols >= rows else (0.0, freq_prior)
+        peak = (freq_prior, 0.0, 0.0) if cols >= rows else (0.0, freq_prior, 0.0)
     step = 0.5 / max(rows, cols)
     kx, ky = refine_peak(resid, peak[0], peak[1], step)
     f = math.hypot(kx, ky)
-    if freq_prior and not (f_lo <= f <= f_hi):
+    if freq_prior and not (f_lo <= f <= f_hi) and f_lo <= math.hypot(peak[0], peak[1]) <= f_hi:
         # The refinement walked out of the band (noise): keep the prior's magnitude.
         scale = freq_prior / max(f, 1e-12)
         kx, ky, f = kx * scale, ky * scale, freq_prior

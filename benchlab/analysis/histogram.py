@@ -53,6 +53,8 @@ MIN_SEPARATION_SIGMA = 2.0
 MIN_MODE_FRACTION = 0.04
 #: Pixels within this many cycles of a bar or space centre make the histogram.
 PHASE_WINDOW = 0.1
+#: Fewer centre pixels than this: the window is widened (tiny ROIs).
+MIN_CENTRE_PIXELS = 48
 #: Phase bins for the noise estimate (scatter about the phase-binned profile).
 NOISE_BINS = 32
 #: Largest number of histogram bins (float data is re-binned coarser beyond this).
@@ -366,12 +368,15 @@ def _bar_centres(prep: PreparedROI) -> PreparedROI:
     if prep.noise_given:
         noise = prep.noise_sigma
     w = np.asarray(phi - np.floor(phi + 0.5))  # -0.5..0.5, bright-bar centres at 0
-    near = np.abs(w) <= PHASE_WINDOW
-    near |= np.abs(np.abs(w) - 0.5) <= PHASE_WINDOW
     u = np.abs(across_coordinate((rows, cols), theta))
     half = float(u.max())
-    if half * f >= 1.0:  # at least two periods: drop the half period at each end
-        near &= u <= half - 0.5 / f
+    inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
+    dist = np.minimum(np.abs(w), np.abs(np.abs(w) - 0.5))  # cycles from a bar or space centre
+    near = inner & (dist <= PHASE_WINDOW)
+    if np.count_nonzero(near) < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
+        near = inner & (dist <= 2 * PHASE_WINDOW)
+        if np.count_nonzero(near) < MIN_CENTRE_PIXELS:
+            near = inner
     values = img[near]
     if values.size < 8 or float(values.max()) == float(values.min()):
         return replace(prep, noise_sigma=noise if not prep.noise_given else prep.noise_sigma)
