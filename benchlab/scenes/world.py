@@ -2,7 +2,9 @@
 
 Targets (the set-ups of Table 4.10 and section 4.4):
 
-- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`);
+- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`) and, in the
+  empty part of the disc, the slanted-edge target (:class:`EdgeScene`);
+- ``"edge"`` - the forward view with the slanted-edge target alone;
 - ``("radial", lp_per_mm, "sagittal" | "tangential")`` - a rolled radial pattern
   (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
 - ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
@@ -25,17 +27,18 @@ import numpy.typing as npt
 
 from benchlab.analysis.chart import Orientation
 from benchlab.drivers.sensor import AcquisitionState
+from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "radial", "led", "dark")
+TARGET_KINDS = ("usaf", "edge", "radial", "led", "dark")
 
 
 def parse_target(target: object) -> Target:
-    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)`` or
+    """Normalise a target spec to ``("usaf",)``, ``("edge",)``, ``("led",)``, ``("dark",)`` or
     ``("radial", lp_per_mm, orientation)``.
 
     Raises
@@ -47,7 +50,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "led", "dark"):
+        if spec in ("usaf", "edge", "led", "dark"):
             return (spec,)
         raise ValueError(f"unknown target {target!r}; expected one of {TARGET_KINDS}")
     if isinstance(spec, list | tuple) and len(spec) == 3 and spec[0] == "radial":
@@ -63,7 +66,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
-        f"unknown target {target!r}; expected 'usaf', 'led', 'dark' or "
+        f"unknown target {target!r}; expected 'usaf', 'edge', 'led', 'dark' or "
         "('radial', lp_per_mm, 'sagittal'|'tangential')"
     )
 
@@ -75,8 +78,8 @@ class SimWorld:
     ----------
     target
         The target mounted at start.
-    usaf, radial, led
-        Scene parameters. ``radial`` is a template whose frequency and orientation are replaced
+    usaf, radial, led, edges
+        Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a template whose frequency and orientation are replaced
         per mounted pattern.
     led_channel
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
@@ -93,8 +96,10 @@ class SimWorld:
         led: LedScene | None = None,
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
+        edges: EdgeScene | None = None,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
+        self.edges = edges if edges is not None else EdgeScene()
         self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
         self.led = led if led is not None else LedScene()
         self.led_channel = led_channel
@@ -131,11 +136,15 @@ class SimWorld:
                 self._radial[key] = scene
         return scene
 
-    def scene_for(self, target: object) -> UsafScene | RadialScene | LedScene | None:
-        """The scene object of a target (None for ``"dark"``)."""
+    def scene_for(
+        self, target: object
+    ) -> UsafScene | EdgeScene | RadialScene | LedScene | None:
+        """The scene object of a target (None for ``"dark"``; the chart's for ``"usaf"``)."""
         spec = parse_target(target)
         if spec[0] == "usaf":
             return self.usaf
+        if spec[0] == "edge":
+            return self.edges
         if spec[0] == "radial":
             return self.radial_scene(spec[1], spec[2])
         if spec[0] == "led":
@@ -179,4 +188,8 @@ class SimWorld:
             ).copy()
         scene = self.scene_for(spec)
         assert scene is not None
-        return scene(state)
+        img = scene(state)
+        if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
+            img -= self.edges.darkening(state)
+            np.maximum(img, 0.0, out=img)
+        return img
