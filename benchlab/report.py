@@ -94,6 +94,16 @@ def _mtf_figure(tables: dict[str, list[dict[str, Any]]], curves_path: str) -> st
     return note + _png(fig)
 
 
+def _sfr_section(tables: dict[str, list[dict[str, Any]]], curves_path: str) -> str:
+    from benchlab.report_sfr import render_sfr_section
+
+    try:
+        curves = load_curves(curves_path or None)
+    except (OSError, ValueError):
+        curves = []
+    return render_sfr_section(tables, curves, _png)
+
+
 # -- radiometry ---------------------------------------------------------------------------------
 def _radiometry_figure(rows: list[dict[str, Any]]) -> str:
     fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -249,6 +259,7 @@ def render_report(session_path: str | Path) -> str:
                    "beyond Nyquist are aliased.</p>")
         curves_file = str(session.params.get("analysis", {}).get("simulated_mtf_file", ""))
         out.append(_mtf_figure(tables, curves_file))
+        out.append(_sfr_section(tables, curves_file))
         out.append("<h2>Frames with ROIs</h2>" + _mtf_frames(session, tables))
     else:
         rows = tables.get("table_4_16", [])
