@@ -1,7 +1,7 @@
 """The report's slanted-edge section: edge MTF against the simulated MTF (sine against sine) and
 the bar readings converted through Coltman, with agreement or disagreement flagged.
 
-Reads the ``edge_sfr``, ``edge_sfr_curves`` and ``edge_vs_bars`` tables the MTF procedure
+Reads the ``table_sfr_edges``, ``table_sfr_curves`` and ``table_sfr_vs_bars`` tables the MTF procedure
 writes (:mod:`benchlab.protocols.mtf_edges`); sessions analysed before they existed get a note
 instead. Plots are returned as HTML ``<img>`` strings by the caller's ``png`` function.
 """
@@ -42,8 +42,8 @@ _COLOURS = {"E0": "tab:blue", "E1": "tab:green", "E2": "tab:purple"}
 
 
 def _figure(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> Figure:
-    curves = tables.get("edge_sfr_curves", [])
-    checks = tables.get("edge_vs_bars", [])
+    curves = tables.get("table_sfr_curves", [])
+    checks = tables.get("table_sfr_vs_bars", [])
     nyq = nyquist_lp_per_mm()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for ax, orientation, d in ((axes[0], "sagittal", "S"), (axes[1], "tangential", "T")):
@@ -89,13 +89,13 @@ def render_sfr_section(
 ) -> str:
     """The HTML of the section (heading, note, figure, the two tables)."""
     out = ["<h2>Slanted-edge MTF vs simulated MTF and bars (ISO 12233 e-SFR)</h2>"]
-    edges = tables.get("edge_sfr")
+    edges = tables.get("table_sfr_edges")
     if edges is None:
         out.append("<p class='note'>No slanted-edge tables in these results (analysed before "
                    "edge analysis existed): run <code>benchlab analyze SESSION</code> to add "
                    "them.</p>")
         return "".join(out)
-    checks = tables.get("edge_vs_bars", [])
+    checks = tables.get("table_sfr_vs_bars", [])
     n_bad = sum(1 for r in checks if r["verdict"] != "agree")
     clean = sum(1 for r in edges if r["status"] == "ok")
     summary = (f"{clean} of {len(edges)} edges clean; "

@@ -3,11 +3,11 @@ simulated MTF (sine-wave) vs the bar readings converted through Coltman.
 
 Tables (written with the Table 4.10 results):
 
-- ``edge_sfr``: one row per nominal edge of the slanted-edge target
+- ``table_sfr_edges``: one row per nominal edge of the slanted-edge target
   (:mod:`benchlab.analysis.edge_target`): status (``ok`` or why no clean edge is there),
   angle, MTF50, MTF at Nyquist, plateau levels, image height and nearest field point;
-- ``edge_sfr_curves``: each clean edge's MTF (with its bootstrap 1-sigma) every 4 lp/mm;
-- ``edge_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
+- ``table_sfr_curves``: each clean edge's MTF (with its bootstrap 1-sigma) every 4 lp/mm;
+- ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
   chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
   -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
   orientation nearest in image height and the simulated MTF at the bar set's image height
@@ -64,7 +64,7 @@ def measure_edges(
 def edge_tables(
     measured: Sequence[tuple[EdgeSpec, SfrResult | str]], centre_rc: tuple[float, float]
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """``(edge_sfr, edge_sfr_curves)`` rows."""
+    """``(table_sfr_edges, table_sfr_curves)`` rows."""
     rows: list[dict[str, Any]] = []
     curves: list[dict[str, Any]] = []
     grid_lp = np.arange(0.0, 2 * nyquist_lp_per_mm() + 1e-9, CURVE_STEP_LP_PER_MM)
@@ -182,5 +182,5 @@ def forward_edge_tables(
         curves = load_curves(simulated_mtf_file or None)
     except (OSError, ValueError):
         curves = []  # the comparison still runs; the simulated column stays empty
-    return {"edge_sfr": rows, "edge_sfr_curves": curve_rows,
-            "edge_vs_bars": edge_vs_bars(t411, measured, curves, centre_rc)}
+    return {"table_sfr_edges": rows, "table_sfr_curves": curve_rows,
+            "table_sfr_vs_bars": edge_vs_bars(t411, measured, curves, centre_rc)}

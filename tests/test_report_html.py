@@ -30,7 +30,9 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     for title in ("Table 4.11", "Table 4.12", "Tables 4.13-4.14", "Table 4.15",
                   "Measured vs simulated MTF", "Frames with ROIs", "G1E5", "SIM-130001"):
         assert title in text
-    assert text.count("data:image/png;base64,") == 3  # MTF curves, forward ROIs, radial ROIs
+    # MTF curves, slanted-edge MTF, forward ROIs, radial ROIs
+    assert text.count("data:image/png;base64,") == 4
+    assert "Slanted-edge MTF" in text and "bar readings compared" in text
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
     assert "src='http" not in text and "<script" not in text  # nothing fetched from outside

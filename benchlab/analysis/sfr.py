@@ -308,7 +308,7 @@ class _Samples:
 
     u: FloatArray  # mean position of the pixels in each filled bin, px from the edge
     esf: FloatArray  # mean value in each filled bin
-    box_width_px: float  # equivalent box width of the in-bin spread, sqrt(12 var)
+    spread_var: FloatArray  # variance of the pixel positions within each bin, px^2
     empty_core_fraction: float  # empty bins within the core (coarse pixel lattice)
 
 
@@ -350,9 +350,8 @@ def _esf_samples(
     empty = float(np.mean(~filled[sl][core])) if np.any(core) else 0.0
     p, e = pos[sl][keep], prof.mean[sl][keep]
     var = np.clip(sq[sl][keep] - p * p, 0.0, None)
-    core_k = np.abs(p) <= core_half_px
-    box = math.sqrt(12.0 * float(np.mean(var[core_k] if np.any(core_k) else var)))
-    return _Samples(np.asarray(p, np.float64), np.asarray(e, np.float64), box, empty)
+    return _Samples(np.asarray(p, np.float64), np.asarray(e, np.float64),
+                    np.asarray(var, np.float64), empty)
 
 
 #: Frequency grid of the MTF, cycles/px along the normal.
@@ -370,8 +369,10 @@ def _mtf_from_samples(
     LSF: the ESF increments between neighbouring samples, at their midpoints (a 2-point
     difference over each gap ``h``), windowed; its DFT at the midpoints, normalised at zero
     frequency. Corrections: the 2-point difference passes ``sinc(f h)`` (averaged over the
-    gaps with the LSF as weight) and the in-bin averaging a box, ``sinc(f b)``; the total
-    correction is capped at :data:`MAX_DERIVATIVE_CORRECTION`.
+    gaps with the LSF as weight) and the in-bin averaging a box, ``sinc(f b)`` with
+    ``b = sqrt(12 var)`` from the LSF-weighted spread of the pixel positions within the bins
+    (1/4 px when the phases are dense, less where the pixel lattice leaves one position per
+    bin); the total correction is capped at :data:`MAX_DERIVATIVE_CORRECTION`.
     """
     de = np.diff(s.esf)
     h = np.diff(s.u)
@@ -394,7 +395,13 @@ def _mtf_from_samples(
     gaps, which = np.unique(np.round(h[inside], 4), return_inverse=True)
     weight = np.bincount(which.ravel(), weights=np.abs(lsf[inside]), minlength=gaps.size)
     gap_response = (np.sinc(np.outer(f, gaps)) @ weight) / max(float(weight.sum()), 1e-300)
-    response = gap_response * np.sinc(f * s.box_width_px)
+    # Each sample's weight: the LSF on the increments either side of it.
+    w_inc = np.abs(lsf)
+    w_sample = np.zeros(s.u.size)
+    w_sample[:-1] += 0.5 * w_inc
+    w_sample[1:] += 0.5 * w_inc
+    var_eff = float(np.sum(w_sample * s.spread_var) / max(float(w_sample.sum()), 1e-300))
+    response = gap_response * np.sinc(f * math.sqrt(12.0 * var_eff))
     correction = np.minimum(1.0 / np.maximum(response, 1e-12), MAX_DERIVATIVE_CORRECTION)
     return np.asarray(mtf * correction, np.float64), lsf, mid, truncated
 

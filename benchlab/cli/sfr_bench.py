@@ -21,7 +21,7 @@ BARS_EDGE_TOL = 0.05
 class BenchCheck:
     bits: int
     edge_rows: list[dict[str, Any]]  # label, orientation, max |edge - truth| to Nyquist, ...
-    bar_rows: list[dict[str, Any]]  # the procedure's edge_vs_bars rows
+    bar_rows: list[dict[str, Any]]  # the procedure's table_sfr_vs_bars rows
 
 
 def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
@@ -48,12 +48,12 @@ def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
     scene = EdgeScene()  # what the simulated bench's world shows by default
     specs = {e.label: e for e in scene.edges()}
     edge_rows = []
-    for row in tables.get("edge_sfr", []):
+    for row in tables.get("table_sfr_edges", []):
         if row["status"] != "ok":
             edge_rows.append({"edge": row["edge"], "orientation": row["orientation"],
                               "status": row["status"], "max_err": None})
             continue
-        pts = [r for r in tables["edge_sfr_curves"]
+        pts = [r for r in tables["table_sfr_curves"]
                if r["edge"] == row["edge"] and r["freq_cycles_per_px"] <= NYQUIST + 1e-9]
         f = np.array([r["freq_cycles_per_px"] for r in pts])
         m = np.array([r["mtf"] for r in pts])
@@ -65,7 +65,7 @@ def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
                           "mtf_nyquist": row["mtf_nyquist"],
                           "truth_mtf_nyquist": float(scene.truth_mtf(specs[row["edge"]],
                                                                      [NYQUIST])[0])})
-    return BenchCheck(bits, edge_rows, list(tables.get("edge_vs_bars", [])))
+    return BenchCheck(bits, edge_rows, list(tables.get("table_sfr_vs_bars", [])))
 
 
 def format_bench_check(checks: list[BenchCheck]) -> str:
