@@ -1,9 +1,9 @@
 """The report's slanted-edge section: edge MTF against the simulated MTF (sine against sine) and
 the bar readings converted through Coltman, with agreement or disagreement flagged.
 
-Reads the ``table_sfr_edges``, ``table_sfr_curves`` and ``table_sfr_vs_bars`` tables the MTF procedure
-writes (:mod:`benchlab.protocols.mtf_edges`); sessions analysed before they existed get a note
-instead. Plots are returned as HTML ``<img>`` strings by the caller's ``png`` function.
+Reads the ``table_sfr_edges``, ``table_sfr_curves`` and ``table_sfr_vs_bars`` tables the MTF
+procedure writes (:mod:`benchlab.protocols.mtf_edges`); sessions analysed before they existed get
+a note instead. Plots are returned as HTML ``<img>`` strings by the caller's ``png`` function.
 """
 
 from __future__ import annotations

@@ -11,16 +11,19 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
    dropped.
 3. ESF: every pixel is projected onto the edge normal with the shared projection
    (:mod:`benchlab.analysis.projection`, the one the oblique bar estimators use) and averaged in
-   1/4-px bins (4x oversampling). A curved fit shifts each row by its bend before binning.
-   Empty bins (angles near 45 deg or atan(1/2) put the pixel centres on a coarse lattice) are
-   interpolated from their neighbours, with a warning.
-4. LSF: 3-tap central difference of the ESF, multiplied by a Tukey window centred on the LSF
-   whose flat top covers the LSF core (several 10-90 % rise distances) so the window barely
-   touches the signal while it cuts the noise of the plateaus.
-5. MTF: ``|DFT|`` normalised at zero frequency, divided by the transfer function of the
-   central difference (``sinc(2 f d)`` for bin width ``d``, correction capped at 10 as ISO
-   12233 does) and of the 1/4-px bin average (``sinc(f d)``). Frequencies are cycles per pixel
-   *along the edge normal*, so no cos(angle) rescaling is needed.
+   1/4-px bins (4x oversampling), each bin's mean placed at the mean position of its pixels.
+   A curved fit shifts each row by its bend before binning. Angles near 45 deg or atan(1/2)
+   put the pixel centres on a lattice coarser than the bins: empty bins are skipped (the
+   samples keep their true spacing) and a warning is given.
+4. LSF: the difference of neighbouring ESF samples at their midpoints, multiplied by a Tukey
+   window centred on the LSF whose flat top covers the LSF core (1.5 10-90 % rise distances +
+   1.5 px) so the window barely touches the signal while it cuts the plateaus' noise.
+5. MTF: ``|DFT|`` at the midpoints (a regular grid when the phases are dense; the lattice's
+   own spacing otherwise), normalised at zero frequency and divided by the transfer function
+   of the difference (``sinc(f h)`` for gap ``h``) and of the in-bin averaging (``sinc(f b)``,
+   ``b`` from the spread of the pixel positions in the bins, 1/4 px when dense); the correction
+   is capped at 10, as ISO 12233 caps its derivative correction. Frequencies are cycles per
+   pixel *along the edge normal*, so no cos(angle) rescaling is needed.
 6. MTF50 (first crossing of 0.5), MTF at chosen frequencies and at Nyquist (0.5 cycles/px).
    Uncertainty: bootstrap over rows (the edge fit kept), 1-sigma per frequency and for MTF50.
 
@@ -56,12 +59,15 @@ MIN_EDGE_ROWS = 10
 WARN_EDGE_ROWS = 35
 #: Eq. 2.9 contrast between the ESF plateaus below which a warning is given (sfrmat: 20 %).
 LOW_CONTRAST = 0.2
-#: The edge step must exceed this many noise sigmas, else "no edge" (noise only).
+#: "No edge" (noise only): the ROI's 2-98 % gray-level spread must exceed this many noise
+#: sigmas (an edge at SNR 10 spreads ~13 sigma, pure noise ~4) ...
+NOISE_SPREAD_RATIO = 8.0
+#: ... and the ESF step this many standard errors of a plateau mean (noise / sqrt(rows)).
 MIN_STEP_NOISE_RATIO = 6.0
 #: Clipped pixels: any is warned about; above this fraction the edge is refused (sfrmat flags
 #: more than 0.5 %: clipping steepens the ESF and lifts the MTF).
 CLIP_REFUSE_FRACTION = 0.005
-#: Empty ESF bins (interpolated) in the LSF core above this fraction give a warning.
+#: Empty ESF bins in the LSF core (a coarse pixel lattice) above this fraction: a warning.
 EMPTY_BIN_WARN_FRACTION = 0.05
 #: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
 FIT_RMS_WARN_PX = 1.0
@@ -481,9 +487,9 @@ def measure_sfr(
 
     reasons: list[str] = []
     warnings: list[str] = []
-    if spread <= MIN_STEP_NOISE_RATIO * noise or spread == 0.0:
+    if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
         raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
-                          f"{MIN_STEP_NOISE_RATIO:g} x the noise {noise:.3g} (noise only?)"])
+                          f"{NOISE_SPREAD_RATIO:g} x the noise {noise:.3g} (noise only?)"])
     if n_rows < MIN_EDGE_ROWS:
         reasons.append(f"edge only {n_rows} px long (< {MIN_EDGE_ROWS} px)")
     if clipped > CLIP_REFUSE_FRACTION:
@@ -494,7 +500,8 @@ def measure_sfr(
 
     # 2. Edge location: polarity from the mean profile, then per-row centroids.
     mean_prof = work.mean(axis=0)
-    step = float(np.mean(mean_prof[-max(1, n_cols // 5):]) - np.mean(mean_prof[: max(1, n_cols // 5)]))
+    fifth = max(1, n_cols // 5)
+    step = float(np.mean(mean_prof[-fifth:]) - np.mean(mean_prof[:fifth]))
     polarity = 1.0 if step >= 0 else -1.0
     deriv = polarity * np.diff(work, axis=1)
     dm = np.clip(polarity * np.diff(mean_prof), 0.0, None)
@@ -524,6 +531,18 @@ def measure_sfr(
     rms = float(np.sqrt(np.mean(residual**2)))
     fit = EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms, int(keep.sum()))
     angle = math.degrees(math.atan(abs(slope)))
+
+    # 3. ESF by projection onto the normal (first: whether there is an edge at all).
+    u = _work_u(work.shape, coeffs, r_mid, polarity)
+    rise_guess = rise if math.isfinite(rise) else 4.0
+    flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, 3.0)
+    samples = _esf_samples(u, work, bin_width_px, flat_half)
+    k = max(1, samples.esf.size // 8)
+    lo_level, hi_level = float(np.mean(samples.esf[:k])), float(np.mean(samples.esf[-k:]))
+    dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
+    step_abs = abs(hi_level - lo_level)
+    if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
+        raise SfrRefused([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"])
     if angle < MIN_ANGLE_DEG:
         reasons.append(f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} deg): "
                        "too few sample phases; tilt the edge 2-10 deg")
@@ -532,20 +551,8 @@ def measure_sfr(
                        f"{n_rows * abs(slope):.2f} px (< 1 px, one phase cycle)")
     if reasons:
         raise SfrRefused(reasons)
-
-    # 3. ESF by projection onto the normal.
-    u = _work_u(work.shape, coeffs, r_mid, polarity)
-    rise_guess = rise if math.isfinite(rise) else 4.0
-    flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, 3.0)
-    samples = _esf_samples(u, work, bin_width_px, flat_half)
     freqs = FREQS_CYCLES_PER_PX.copy()
     mtf, lsf_w, _, truncated = _mtf_from_samples(samples, flat_half)
-    k = max(1, samples.esf.size // 8)
-    lo_level, hi_level = float(np.mean(samples.esf[:k])), float(np.mean(samples.esf[-k:]))
-    dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
-    step_abs = abs(hi_level - lo_level)
-    if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
-        raise SfrRefused([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"])
     contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
 
     # 4. Bootstrap over rows (edge fit kept).
@@ -579,10 +586,10 @@ def measure_sfr(
         warnings.append(f"low contrast {contrast:.2f} (< {LOW_CONTRAST:g}): noisy, and sensitive "
                         "to any offset or non-linearity")
     if samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
-        warnings.append(f"{100 * samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins near the "
-                        f"edge were empty (angle {angle:.1f} deg puts the pixel centres on a "
-                        "coarse lattice, e.g. 45 deg or atan 1/2): interpolated, MTF near "
-                        "Nyquist less reliable")
+        warnings.append(f"{100 * samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
+                        f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
+                        "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
+                        "MTF near Nyquist less reliable (aliasing)")
     if truncated:
         warnings.append("ESF truncated: the ROI is narrow for this blur (widen it across the "
                         "edge); the MTF at low frequency may be off")

@@ -79,8 +79,8 @@ class SimWorld:
     target
         The target mounted at start.
     usaf, radial, led, edges
-        Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a template whose frequency and orientation are replaced
-        per mounted pattern.
+        Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a
+        template whose frequency and orientation are replaced per mounted pattern.
     led_channel
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
     led_position_mm
