@@ -10,9 +10,9 @@ Tables (written with the Table 4.10 results):
 - ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
   chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
   -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
-  orientation nearest in image height and the simulated MTF at the bar set's image height
-  (interpolated between the field points' curves), with a verdict (agreement within
-  :data:`AGREEMENT_TOLERANCE`).
+  orientation at the bar set's image height (interpolated between the two edges bracketing it)
+  and the simulated MTF there (interpolated between the field points' curves), with a verdict
+  (agreement within :data:`AGREEMENT_TOLERANCE`).
 """
 
 from __future__ import annotations
@@ -116,6 +116,29 @@ def _simulated(curves: Sequence[SimulatedCurve], orientation: str, height_mm: fl
     return float(np.interp(height_mm, [h for h, _ in pts], [m for _, m in pts]))
 
 
+def _edge_at_height(
+    edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float, f_cycles_per_px: float,
+    centre_rc: tuple[float, float],
+) -> tuple[str, float, float | None]:
+    """Edge MTF (and 1-sigma) at a frequency for an image height: interpolated linearly in
+    height between the two edges bracketing it (the blur changes with height), else the
+    nearest edge. Returns ``(edge label(s), mtf, sigma)``."""
+    pts = sorted(
+        ((image_height_mm(centre_rc, roi_centroid(s.roi)), s.label,
+          float(r.mtf_at(f_cycles_per_px)), r.sigma_at(f_cycles_per_px)) for s, r in edges),
+        key=lambda p: p[0],
+    )
+    below = [p for p in pts if p[0] <= height_mm]
+    above = [p for p in pts if p[0] > height_mm]
+    if below and above:
+        (h0, l0, m0, s0), (h1, l1, m1, s1) = below[-1], above[0]
+        w = (height_mm - h0) / (h1 - h0)
+        sig = None if s0 is None or s1 is None else float((1 - w) * s0 + w * s1)
+        return f"{l0}+{l1}", (1 - w) * m0 + w * m1, sig
+    _, label, m, s = min(pts, key=lambda p: abs(p[0] - height_mm))
+    return label, m, None if s is None else float(s)
+
+
 def edge_vs_bars(
     t411: Sequence[dict[str, Any]],
     measured: Sequence[tuple[EdgeSpec, SfrResult | str]],
@@ -144,11 +167,7 @@ def edge_vs_bars(
         conv = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=nyq)
         for r, h, f_lp, c, m_bar, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
                                              strict=True):
-            spec, res = min(edges, key=lambda e: abs(
-                image_height_mm(centre_rc, roi_centroid(e[0].roi)) - h))
-            f_c = cycles_per_px(f_lp)
-            m_edge = float(res.mtf_at(f_c))
-            sig = res.sigma_at(f_c)
+            label, m_edge, sig = _edge_at_height(edges, h, cycles_per_px(f_lp), centre_rc)
             m_sim = _simulated(curves, orientation, h, f_lp)
             problems = []
             if abs(m_bar - m_edge) > AGREEMENT_TOLERANCE:
@@ -161,7 +180,7 @@ def edge_vs_bars(
                 "bar_modulation": r[f"{orientation}_modulation"],
                 "object_modulation": round(object_mod, 5), "contrast_from_edge": ref_spec.label,
                 "ctf": round(c, 5), "bar_mtf_coltman": round(float(m_bar), 5),
-                "coltman_method": how, "edge": spec.label, "edge_mtf": round(m_edge, 5),
+                "coltman_method": how, "edge": label, "edge_mtf": round(m_edge, 5),
                 "edge_mtf_sigma": None if sig is None else round(float(sig), 5),
                 "simulated_mtf": None if m_sim is None else round(m_sim, 5),
                 "verdict": "agree" if not problems else "DISAGREE: " + ", ".join(problems),

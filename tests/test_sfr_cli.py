@@ -93,9 +93,9 @@ def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 def test_accuracy_table_has_every_bucket_and_a_verdict() -> None:
     buckets = run_accuracy(cases_per_cell=1, seed=3)
-    assert len(buckets) == 25 and all(b.cases == 2 for b in buckets)
+    assert len(buckets) == 30 and all(b.cases == 2 for b in buckets)
     text = format_accuracy(buckets)
-    assert text.count("\n") == 26 and "buckets with SNR >= 20" in text
+    assert text.count("\n") == 31 and "buckets with SNR 20-500" in text
     best = next(b for b in buckets if b.sigma_px == 1.0 and b.snr == 500.0)
     assert best.mtf50_within == 1.0 and best.mtf_within == 1.0
 
