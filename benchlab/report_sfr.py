@@ -3,13 +3,13 @@ the bar readings converted through Coltman, with agreement or disagreement flagg
 
 Reads the ``table_sfr_edges``, ``table_sfr_curves`` and ``table_sfr_vs_bars`` tables the MTF
 procedure writes (:mod:`benchlab.protocols.mtf_edges`); sessions analysed before they existed get
-a note instead. Plots are returned as HTML ``<img>`` strings by the caller's ``png`` function.
+a note instead.
 """
 
 from __future__ import annotations
 
 import html
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import matplotlib
@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from benchlab.analysis.frequency import nyquist_lp_per_mm  # noqa: E402
+from benchlab.report_html import figure_img  # noqa: E402
 from benchlab.report_tables import Column, html_table  # noqa: E402
 
 Rows = Sequence[Mapping[str, Any]]
@@ -84,11 +85,9 @@ def _figure(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> Figure:
     return fig
 
 
-def render_sfr_section(
-    tables: Mapping[str, Rows], simulated: Sequence[Any], png: Callable[[Figure], str]
-) -> str:
-    """The HTML of the section (heading, note, figure, the two tables)."""
-    out = ["<h2>Slanted-edge MTF vs simulated MTF and bars (ISO 12233 e-SFR)</h2>"]
+def render_sfr_section(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> str:
+    """The HTML body of the section (note, figure, the two tables)."""
+    out: list[str] = []
     edges = tables.get("table_sfr_edges")
     if edges is None:
         out.append("<p class='note'>No slanted-edge tables in these results (analysed before "
@@ -110,7 +109,8 @@ def render_sfr_section(
         "cross disagrees with the edge (or the edge with the simulation) by more than 0.05. "
         f"{html.escape(summary)}.</p>"
     )
-    out.append(png(_figure(tables, simulated)))
+    out.append(figure_img(_figure(tables, simulated), "slanted-edge MTF against simulated MTF "
+                          "and Coltman-converted bars"))
     out.append("<h3>Edges</h3>" + html_table(edges, EDGE_COLUMNS))
     if checks:
         out.append("<h3>Bars (Coltman) vs edge vs simulated</h3>"
