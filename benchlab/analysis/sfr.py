@@ -16,7 +16,7 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
    put the pixel centres on a lattice coarser than the bins: empty bins are skipped (the
    samples keep their true spacing) and a warning is given.
 4. LSF: the difference of neighbouring ESF samples at their midpoints, multiplied by a Tukey
-   window centred on the LSF whose flat top covers the LSF core (1.5 10-90 % rise distances +
+   window centred on the LSF whose flat top covers the LSF core (1.2 10-90 % rise distances +
    1.5 px) so the window barely touches the signal while it cuts the plateaus' noise.
 5. MTF: ``|DFT|`` at the midpoints (a regular grid when the phases are dense; the lattice's
    own spacing otherwise), normalised at zero frequency and divided by the transfer function
@@ -77,10 +77,13 @@ MAX_DERIVATIVE_CORRECTION = 10.0
 MAX_FREQ_CYCLES_PER_PX = 1.0
 NYQUIST_CYCLES_PER_PX = 0.5
 #: LSF window: flat over +-(FLAT_RISES x the 10-90 % rise + FLAT_EXTRA_PX), cosine taper to
-#: twice that. A Gaussian LSF (rise 2.56 sigma) keeps > 99.9 % of its area under the flat top;
-#: a wider window only adds plateau noise.
-FLAT_RISES = 1.5
+#: TAPER_FACTOR times that. A Gaussian LSF (rise 2.56 sigma) has > 99.7 % of its area under the
+#: flat top (+-3.1 sigma + 1.5 px); a wider window only adds plateau noise (tuned on the
+#: benchmark: the MTF noise near Nyquist grows as the square root of the window width).
+FLAT_RISES = 1.2
 FLAT_EXTRA_PX = 1.5
+#: The taper ends at this multiple of the flat half-width.
+TAPER_FACTOR = 1.5
 
 
 class SfrRefused(ValueError):
@@ -386,7 +389,7 @@ def _mtf_from_samples(
     pos = np.clip(de, 0.0, None)
     centre = float(np.sum(mid * pos) / np.sum(pos)) if np.sum(pos) > 0 else 0.0
     half_data = min(centre - float(s.u[0]), float(s.u[-1]) - centre)
-    total = min(half_data, 2.0 * flat_half_px)
+    total = min(half_data, TAPER_FACTOR * flat_half_px)
     truncated = half_data < flat_half_px
     flat = min(flat_half_px, 0.8 * total)
     win = _tukey(mid - centre, flat, total)
