@@ -35,8 +35,12 @@ def test_sfr_text_and_json_on_the_simulated_edge_target(
     assert main(["sfr", str(edge_frame), "--roi", _roi("E0R"), "--bootstrap", "20"]) == 0
     text = capsys.readouterr().out
     assert "MTF50" in text and "lp/mm" in text and "96.15" in text and "warning" not in text
-    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--json"]) == 0
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--json",
+                 "--freq", "48.08,96.15"]) == 0
     doc = json.loads(capsys.readouterr().out)
+    at = doc["mtf_at"]
+    assert [r["freq_cycles_per_px"] for r in at] == pytest.approx([0.25, 0.5], abs=1e-4)
+    assert at[1]["mtf"] == pytest.approx(doc["mtf_nyquist"], abs=2e-3)
     assert doc["direction"] == "vertical" and doc["warnings"] == []
     assert 0.4 < doc["mtf50_cycles_per_px"] < 0.7
     assert doc["mtf50_lp_per_mm"] == pytest.approx(doc["mtf50_cycles_per_px"] * 1000 / 5.2)
@@ -72,6 +76,8 @@ def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(
     assert "pixel axis" in capsys.readouterr().err
     assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 1
     assert "R1" in capsys.readouterr().err
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--freq", "300"]) == 1
+    assert "--freq 300 is outside" in capsys.readouterr().err
     assert main(["sfr", str(tmp_path / "missing.tiff"), "--roi", "0,0,5,5"]) == 1
     assert "no such file" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:

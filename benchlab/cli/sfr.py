@@ -74,7 +74,35 @@ def _plot(result: Any, out: Path, title: str) -> None:
         raise BenchlabError(f"cannot write {out}: {exc.strerror or exc}") from exc
 
 
-def _text(result: Any, path: Path, roi: tuple[int, int, int, int]) -> str:
+def _parse_freqs(text: str | None) -> list[float]:
+    """``--freq A,B,...`` (lp/mm on the sensor), each >= 0 and at most 2x Nyquist."""
+    if not text:
+        return []
+    out = []
+    top = _lp_per_mm(1.0)
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            raise AnalysisInputError(f"--freq must be numbers in lp/mm, got {part!r}") from None
+        if not 0.0 <= value <= top:
+            raise AnalysisInputError(f"--freq {part} is outside 0..{top:.2f} lp/mm (1 cycle/px)")
+        out.append(value)
+    return out
+
+
+def _at_freqs(result: Any, freqs_lp: list[float]) -> list[dict[str, Any]]:
+    cyc = np.asarray(freqs_lp, dtype=np.float64) / _lp_per_mm(1.0)
+    mtf = result.mtf_at(cyc)
+    sig = result.sigma_at(cyc)
+    return [{"freq_lp_per_mm": f, "freq_cycles_per_px": round(float(c), 6),
+             "mtf": round(float(m), 6), "mtf_sigma": None if sig is None else round(float(s), 6)}
+            for f, c, m, s in zip(freqs_lp, cyc, mtf, sig if sig is not None else mtf,
+                                  strict=True)]
+
+
+def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
+          chosen: list[dict[str, Any]]) -> str:
     m50 = result.mtf50_cycles_per_px
     sig = result.sigma_at(np.asarray(TABLE_FREQS))
     m50_txt = "N/A (stays above 0.5)" if m50 is None else (
@@ -97,6 +125,10 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int]) -> str:
     for i, (f, m) in enumerate(zip(TABLE_FREQS, result.mtf_at(TABLE_FREQS), strict=True)):
         s = "" if sig is None else f"{sig[i]:.4f}"
         lines.append(f"{f:>9.2f}  {_lp_per_mm(f):>7.2f}  {m:>6.4f}  {s:>7}")
+    for row in chosen:
+        s = "" if row["mtf_sigma"] is None else f" +- {row['mtf_sigma']:.4f}"
+        lines.append(f"MTF at {row['freq_lp_per_mm']:g} lp/mm ({row['freq_cycles_per_px']:.4f} "
+                     f"cycles/px): {row['mtf']:.4f}{s}")
     lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines)
 
@@ -114,6 +146,7 @@ def sfr_command(args: argparse.Namespace) -> int:
             raise AnalysisInputError(f"--plot {plot} already exists; not overwritten")
     if args.bootstrap < 0:
         raise AnalysisInputError(f"--bootstrap must be >= 0, got {args.bootstrap}")
+    freqs = _parse_freqs(args.freq)
     pixels = read_image(path)
     roi = parse_roi(args.roi, pixels.shape, path)
     r0, c0, r1, c1 = roi
@@ -140,10 +173,11 @@ def sfr_command(args: argparse.Namespace) -> int:
             else _lp_per_mm(result.mtf50_cycles_per_px),
             "freqs_lp_per_mm": [round(_lp_per_mm(f), 4) for f in payload["freqs_cycles_per_px"]],
             "plot": str(plot) if plot is not None else None,
+            "mtf_at": _at_freqs(result, freqs),
         })
         print(json.dumps(payload, allow_nan=False))
         return 0
-    print(_text(result, path, roi))
+    print(_text(result, path, roi, _at_freqs(result, freqs)))
     if plot is not None:
         print(f"plot: {plot}")
     return 0
@@ -195,6 +229,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     p.add_argument("image", metavar="IMAGE", help="image file (TIFF, PNG or BMP)")
     p.add_argument("--roi", metavar="R0,C0,R1,C1", required=True,
                    help="region: rows R0..R1 and columns C0..C1, 0-based, end-exclusive")
+    p.add_argument("--freq", metavar="LP_PER_MM[,...]",
+                   help="also report the MTF at these sensor frequencies (lp/mm, comma-separated)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
     p.add_argument("--bootstrap", type=int, default=100, metavar="N",
