@@ -97,3 +97,15 @@ def test_frame_without_the_edge_target_reports_why_and_compares_nothing() -> Non
     assert tables["table_sfr_curves"] == [] and tables["table_sfr_vs_bars"] == []
     off = measure_edges(pixels[:300, :300])
     assert all(isinstance(res, str) and "off the" in res for _, res in off)
+
+
+def test_report_section_counts_disagreements_and_notes_old_results(forward: np.ndarray) -> None:
+    from benchlab.report_sfr import render_sfr_section
+
+    assert "analysed before edge analysis existed" in render_sfr_section({}, [])
+    t411 = _t411(forward)
+    t411[0]["sagittal_modulation"] -= 0.2
+    tables = forward_edge_tables(forward, t411, IMAGE_CENTRE_RC)
+    html = render_sfr_section(tables, load_curves(None))
+    assert "12 of 12 edges clean; 12 bar readings compared, 1 DISAGREE" in html
+    assert html.count("<table>") == 2 and "class='plot'" in html
