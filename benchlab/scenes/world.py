@@ -93,7 +93,7 @@ class SimWorld:
     ----------
     target
         The target mounted at start.
-    usaf, radial, led, edges
+    usaf, radial, card, led, edges
         Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a
         template whose frequency and orientation are replaced per mounted pattern.
     led_channel
