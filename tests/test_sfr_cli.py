@@ -11,7 +11,7 @@ import pytest
 import tifffile
 
 from benchlab.analysis.edge_target import edge_specs
-from benchlab.analysis.sfr_benchmark import format_accuracy, run_accuracy
+from benchlab.analysis.sfr_benchmark import format_accuracy, run_accuracy, run_extremes
 from benchlab.analysis.sfr_synthetic import synthetic_edge
 from benchlab.cli.main import main
 
@@ -111,3 +111,13 @@ def test_benchmark_sfr_is_registered(capsys: pytest.CaptureFixture[str]) -> None
         main(["benchmark", "sfr", "--help"])
     assert exc.value.code == 0
     assert "Coltman" in capsys.readouterr().out
+
+
+def test_benchmark_extremes_refuse_or_measure_as_the_issue_asks() -> None:
+    got = dict(run_extremes())
+    assert got["0 deg edge"].startswith("refused:") and "pixel axis" in got["0 deg edge"]
+    assert got["45 deg edge"].startswith("measured") and "coarse lattice" in got["45 deg edge"]
+    assert "clipped" in got["clipped edge (bright side 1.3x full scale)"]
+    assert got["clipped edge (bright side 1.3x full scale)"].startswith("refused:")
+    assert "short edge" in got["20-row edge, 8 deg"]
+    assert got["noise only"].startswith("refused: no edge")

@@ -185,7 +185,12 @@ def sfr_command(args: argparse.Namespace) -> int:
 
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark sfr [--quick]``."""
-    from benchlab.analysis.sfr_benchmark import format_accuracy, run_accuracy, run_speed
+    from benchlab.analysis.sfr_benchmark import (
+        format_accuracy,
+        run_accuracy,
+        run_extremes,
+        run_speed,
+    )
 
     t0 = time.perf_counter()
     cases = 6 if args.quick else 25
@@ -193,6 +198,9 @@ def benchmark_command(args: argparse.Namespace) -> int:
     print(f"synthetic slanted edges: 100 x 100 px, angle uniform 2-40 deg, levels 0.2/0.8 FS, "
           f"{cases} cases per bit depth (8, 12) per bucket; SNR = edge step / noise sigma")
     print(format_accuracy(buckets))
+    print("\nextremes:")
+    for name, outcome in run_extremes(args.seed + 2):
+        print(f"  {name}: {outcome}")
     sys.stdout.flush()
     repeats = 50 if args.quick else 300
     fast = run_speed(repeats)
