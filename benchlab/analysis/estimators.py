@@ -418,12 +418,6 @@ def _aliased(name: str, prep: PreparedROI) -> ModulationResult:
 
 
 PreparedEstimator = Callable[[PreparedROI], ModulationResult]
-#: Largest gap (cycles) between the bar phases of the lines across axis-aligned bars above which
-#: the square-wave model is underdetermined (a few clusters of phases, e.g. 8 lines at 2.95 px
-#: per period) and the harmonic series at the given frequency is fitted instead.
-MAX_PHASE_GAP = 0.2
-
-
 def _phase_gap(prep: PreparedROI) -> float:
     """Largest gap between the phases of the lines across axis-aligned bars (given orientation
     and frequency); 0 when either is unknown (the bars are then found at any angle)."""
@@ -435,12 +429,18 @@ def _phase_gap(prep: PreparedROI) -> float:
     return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
 
 
+#: Below this many pixels, on axis-aligned bars of given frequency (the forward view's USAF
+#: elements, 3 x 5 to 9 x 10 px), the square-wave model has more freedom than the few lines
+#: across the bars can pin down; the harmonic series of ``sinefit`` is fitted instead.
+TINY_ROI_PIXELS = 100
+
+
 def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
-    """``profilefit``; on axis-aligned bars sampled at only a few clusters of phases (tiny ROIs
-    near Nyquist) the harmonic series of ``sinefit`` at the given frequency, relabelled, with
-    the same model and sampling-phase term in its uncertainty."""
+    """``profilefit``; on tiny ROIs of axis-aligned bars of given frequency, the harmonic
+    series of ``sinefit`` along the axis, relabelled, with the model and sampling-phase term
+    (largest gap between the lines' bar phases) in its uncertainty."""
     name = "profilefit-fast" if fast else "profilefit"
-    if _phase_gap(prep) > MAX_PHASE_GAP and prep.pixels.size < 100:
+    if prep.orientation_given and prep.freq_cycles_per_px and prep.pixels.size < TINY_ROI_PIXELS:
         r = sine_fit(prep)
         warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
         if not r.resolved:
