@@ -255,8 +255,7 @@ def find_chart(
     best: tuple[tuple[int, float], Polarity, ChartPose, int, float, FloatArray, int] | None = None
     for pol in (("positive", "negative") if polarity is None else (polarity,)):
         work = img if pol == "positive" else float(np.percentile(img, 99.9)) - img
-        ground, darkness, lit_level = _darkness(work, kernel)
-        cands = _candidates(darkness)
+        cands = _candidates(_darkness(work, kernel))
         fit = _fit_pose(cands, model, lay, scale_range)
         if fit is None:
             continue
@@ -301,19 +300,17 @@ def _as_frame(pixels: npt.ArrayLike) -> npt.NDArray[np.float32]:
     return out
 
 
-def _darkness(
-    work: npt.NDArray[np.float32], kernel: int
-) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], float]:
-    """Local ground (closing), relative darkness against it (0 outside the lit field)."""
+def _darkness(work: npt.NDArray[np.float32], kernel: int) -> npt.NDArray[np.float32]:
+    """Relative darkness against the local ground (a closing); 0 outside the lit field."""
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
     ground = cv2.morphologyEx(work, cv2.MORPH_CLOSE, k)
     lit_level = float(np.percentile(ground, 99.0))
     if lit_level <= 0:
-        return ground, np.zeros_like(work), lit_level
+        return np.zeros_like(work)
     floor = LIT_FRACTION * lit_level
-    darkness = (ground - work) / np.maximum(ground, floor)
+    darkness = np.asarray((ground - work) / np.maximum(ground, floor), dtype=np.float32)
     darkness[ground < floor] = 0.0
-    return ground, darkness, lit_level
+    return darkness
 
 
 def _lit_ground(img: npt.NDArray[np.float32], pol: Polarity, kernel: int) -> FloatArray:
@@ -367,7 +364,9 @@ def _candidates(darkness: npt.NDArray[np.float32]) -> _Candidates:
     along = ddx * np.cos(t)[:, None] + ddy * np.sin(t)[:, None]
     dang = np.abs((ang[None, :] - ang[:, None] + 90.0) % 180.0 - 90.0)
     ratio = ln[None, :] / ln[:, None]
-    similar = (dang < SET_ANGLE_TOL_DEG) & (ratio < SET_LENGTH_RATIO) & (ratio > 1 / SET_LENGTH_RATIO)
+    similar = (
+        (dang < SET_ANGLE_TOL_DEG) & (ratio < SET_LENGTH_RATIO) & (ratio > 1 / SET_LENGTH_RATIO)
+    )
     spacing = 2.0 * w_est[:, None]
     near_line = np.abs(along) < 0.5 * w_est[:, None]
     plus = similar & near_line & (np.abs(across - spacing) < 0.6 * w_est[:, None])
@@ -398,7 +397,9 @@ def _model(layout: ChartLayout) -> dict[str, Any]:
         for o in ("sagittal", "tangential"):
             b = usaf_bar_group(layout, g, e, o)  # type: ignore[arg-type]
             keys.append((g, e, o))
-            centres.append((b.centre_rc[0] - layout.origin_rc[0], b.centre_rc[1] - layout.origin_rc[1]))
+            centres.append(
+                (b.centre_rc[0] - layout.origin_rc[0], b.centre_rc[1] - layout.origin_rc[1])
+            )
             widths.append(b.bar_width_px)
             angles.append(90.0 if o == "sagittal" else 0.0)  # bar long axis
     return {"keys": keys, "centre": np.array(centres), "width": np.array(widths),
@@ -426,7 +427,11 @@ def _match(
     d = np.linalg.norm(pos[:, :, None, :] - cands.centre_rc[None, None, :, :], axis=-1)
     dw = np.abs(np.log(cands.width_px[None, None, :] / wid[:, :, None]))
     da = np.abs((cands.angle_deg[None, None, :] - ang[:, :, None] + 90.0) % 180.0 - 90.0)
-    ok = (d < dist_widths * wid[:, :, None] + 0.75) & (dw < MATCH_LOG_WIDTH) & (da < MATCH_ANGLE_DEG)
+    ok = (
+        (d < dist_widths * wid[:, :, None] + 0.75)
+        & (dw < MATCH_LOG_WIDTH)
+        & (da < MATCH_ANGLE_DEG)
+    )
     d_ok = np.where(ok, d, np.inf)
     which = np.argmin(d_ok, axis=2)
     best = np.take_along_axis(d_ok, which[:, :, None], axis=2)[:, :, 0]
@@ -441,8 +446,8 @@ def _fit_pose(
     if cands.n < 2:
         return None
     origin = layout.origin_rc
-    ci, si = np.meshgrid(np.arange(cands.n), np.arange(len(model["keys"])), indexing="ij")
-    ci, si = ci.ravel(), si.ravel()
+    grid_c, grid_s = np.meshgrid(np.arange(cands.n), np.arange(len(model["keys"])), indexing="ij")
+    ci, si = grid_c.ravel(), grid_s.ravel()
     k = cands.width_px[ci] / model["width"][si]
     keep = (k >= scale_range[0]) & (k <= scale_range[1])
     ci, si, k = ci[keep], si[keep], k[keep]

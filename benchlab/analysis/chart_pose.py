@@ -53,7 +53,7 @@ class ChartPose:
         return self.offset_rc == (0.0, 0.0) and self.scale == 1.0 and self.rotation_deg == 0.0
 
     def apply(self, point_rc: Point, origin_rc: Point) -> Point:
-        """Image position of a nominal point ``point_rc`` for a chart whose origin is ``origin_rc``."""
+        """Image position of the nominal point ``point_rc`` of a chart with origin ``origin_rc``."""
         phi = math.radians(self.rotation_deg)
         dy, dx = point_rc[0] - origin_rc[0], point_rc[1] - origin_rc[1]
         x = self.scale * (dx * math.cos(phi) - dy * math.sin(phi))
@@ -96,9 +96,9 @@ class PosedBarSet:
         """Dark bars as ``(centre_rc, half_length, half_width)``, long axis at ``theta + 90``."""
         t = math.radians(self.theta_deg)
         w = self.bar_width_px
+        cr, cc = self.centre_rc
         return [
-            ((self.centre_rc[0] + k * 2 * w * math.sin(t), self.centre_rc[1] + k * 2 * w * math.cos(t)),
-             2.5 * w, 0.5 * w)
+            ((cr + k * 2 * w * math.sin(t), cc + k * 2 * w * math.cos(t)), 2.5 * w, 0.5 * w)
             for k in (-1, 0, 1)
         ]
 
