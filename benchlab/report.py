@@ -250,6 +250,12 @@ def render_report(session_path: str | Path) -> str:
         curves_file = str(session.params.get("analysis", {}).get("simulated_mtf_file", ""))
         out.append(_mtf_figure(tables, curves_file))
         out.append("<h2>Frames with ROIs</h2>" + _mtf_frames(session, tables))
+        if "forward" in session.step_frames("forward"):
+            from benchlab.report_chart import forward_chart_section
+
+            mag = float(session.params.get("forward", {}).get("magnification", 16.3))
+            out.append("<h2>The USAF chart as found</h2>"
+                       + forward_chart_section(session.load_frame("forward", "forward")[0], mag))
     else:
         rows = tables.get("table_4_16", [])
         out.append("<h2>Radiometric fall-off (fig. 4.21)</h2>" + _radiometry_figure(rows))

@@ -565,16 +565,20 @@ def _confirm(
     filled = prof.count > 0
     u, v, n = prof.u_px[filled], prof.mean[filled], prof.count[filled].astype(np.float64)
     sign = -1.0 if pol == "positive" else 1.0
-    best_r, best_w = -1.0, posed.bar_width_px
-    for wt in posed.bar_width_px * np.linspace(0.85, 1.15, 13):
+    trials = posed.bar_width_px * np.linspace(0.85, 1.15, 13)
+    scores = np.full(trials.size, -1.0)
+    for i, wt in enumerate(trials):
         inside = np.abs(u) <= 2.5 * wt
-        if inside.sum() < 4:
-            continue
-        m = sign * np.cos(np.pi * u[inside] / wt)
-        r = _weighted_corr(v[inside], m, n[inside])
-        if r > best_r:
-            best_r, best_w = r, float(wt)
-    return max(0.0, best_r), 2.0 * best_w
+        if inside.sum() >= 4:
+            scores[i] = _weighted_corr(v[inside], sign * np.cos(np.pi * u[inside] / wt), n[inside])
+    i = int(np.argmax(scores))
+    best_w = float(trials[i])
+    if 0 < i < trials.size - 1:  # parabola through the peak and its neighbours
+        y0, y1, y2 = scores[i - 1], scores[i], scores[i + 1]
+        curv = y0 - 2 * y1 + y2
+        if curv < 0:
+            best_w += 0.5 * (y0 - y2) / curv * float(trials[1] - trials[0])
+    return max(0.0, float(scores[i])), 2.0 * best_w
 
 
 def _weighted_corr(a: FloatArray, b: FloatArray, wgt: FloatArray) -> float:

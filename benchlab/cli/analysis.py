@@ -166,6 +166,10 @@ def analyze_command(args: argparse.Namespace) -> int:
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.frequency import cycles_per_px
 
+    if getattr(args, "chart", None):
+        from benchlab.cli.chart import analyze_chart_command
+
+        return analyze_chart_command(args)
     if target.is_dir():
         raise AnalysisInputError(f"{target}: a folder without session.json; give an image file")
     pixels = read_image(target)
@@ -268,6 +272,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--bootstrap", type=int, default=0, metavar="N", help="bootstrap uncertainty, N resamples"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--chart", metavar="KIND",
+        help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
+        "found element (Table 4.11 layout) instead of one --roi",
+    )
     p.set_defaults(func=analyze_command)
 
     b = benchmarks.add_parser(

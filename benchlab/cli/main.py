@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "benchlab.cli.camera",  # devices, snap, benchmark camera
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
+    "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
     "benchlab.cli.tui",  # tui (and the no-argument default)
 )

@@ -362,3 +362,51 @@ def _rotated_bar(
         along - half_len, sig_along, p, q
     )
     return np.asarray(f_across * f_along, dtype=np.float64)
+
+
+#: Knobs of a ``usaf:...`` scene spec (``snap --simulate --scene``) and what they set.
+USAF_SPEC_KNOBS = {
+    "dx": "chart offset along columns, px (right +)",
+    "dy": "chart offset along rows, px (down +)",
+    "scale": "image scale vs the nominal magnification (> 0)",
+    "rot": "rotation, deg (clockwise on screen +)",
+    "vignetting": "fractional fall-off at the disc edge, 0 <= v < 1",
+    "negative": "1 = negative target (bright bars on a dark ground)",
+}
+
+
+def usaf_scene_from_spec(spec: str) -> UsafScene:
+    """A posed USAF scene from ``usaf`` or ``usaf:dx=..,dy=..,scale=..,rot=..[,vignetting=..]
+    [,negative=1]`` (every knob optional; see :data:`USAF_SPEC_KNOBS`).
+
+    Raises
+    ------
+    ValueError
+        Naming the knob that is unknown, not a number or out of range.
+    """
+    head, _, rest = spec.partition(":")
+    if head != "usaf":
+        raise ValueError(f"not a usaf scene spec: {spec!r}")
+    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0}
+    for item in filter(None, (p.strip() for p in rest.split(","))):
+        key, eq, text = item.partition("=")
+        key = key.strip()
+        if key not in USAF_SPEC_KNOBS:
+            raise ValueError(f"usaf knob {key!r} unknown; use {', '.join(USAF_SPEC_KNOBS)}")
+        if not eq:
+            raise ValueError(f"usaf knob {key!r} needs a value ({key}=NUMBER)")
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(f"usaf knob {key}={text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise ValueError(f"usaf knob {key}={text!r} is not finite")
+        values[key] = value
+    if values["scale"] <= 0:
+        raise ValueError(f"usaf knob scale={values['scale']:g} must be > 0")
+    if not 0.0 <= values["vignetting"] < 1.0:
+        raise ValueError(f"usaf knob vignetting={values['vignetting']:g} must be in [0, 1)")
+    if values["negative"] not in (0.0, 1.0):
+        raise ValueError("usaf knob negative must be 0 or 1")
+    pose = ChartPose((values["dy"], values["dx"]), values["scale"], values["rot"])
+    return UsafScene(pose=pose, vignetting=values["vignetting"], negative=values["negative"] == 1.0)
