@@ -186,9 +186,8 @@ def test_noise_free_bar_sets_read_their_truth_in_the_measurement_roi() -> None:
     """The measurement ROI of every non-aliased bar set, on the noise-free render, reads the
     truth (best-phase centre-bar Eq. 2.9) within 0.06 with the sine fit; the bar-set box with
     the pixels straddling the bar ends read up to 0.12 low."""
-    from benchlab.analysis.estimators import estimate_modulation
-
     from benchlab.analysis.chart import THESIS_ELEMENT_CENTRES_MM
+    from benchlab.analysis.estimators import estimate_modulation
 
     scene = UsafScene()
     img = scene.render(H, W)
