@@ -336,7 +336,7 @@ class LiveScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not mount the target", exc)
             return
-        app.call_from_thread(self.notify, f"simulated target: {services.plain_target(nxt)}")
+        app.call_from_thread(self.notify, f"simulated target: {services.target_words(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)
