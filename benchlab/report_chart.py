@@ -93,4 +93,5 @@ def forward_chart_section(pixels: npt.NDArray[Any], magnification: float) -> str
     if fit.warnings:
         note += " Warning: " + html.escape("; ".join(fit.warnings)) + "."
     data = base64.b64encode(chart_png(pixels, fit)).decode("ascii")
-    return note + "</p><img class='plot' alt='found chart' src='data:image/png;base64," + data + "'>"
+    return (note + "</p><img class='plot' alt='found chart' src='data:image/png;base64,"
+            + data + "'>")
