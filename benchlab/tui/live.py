@@ -105,6 +105,8 @@ class LiveScreen(Screen[None]):
         self._chart_at = 0.0
         self._chart_note = ""
         self._picked = -1
+        self._chart_lock = threading.Lock()
+        self._chart_gen = 0  # bumped by the c key: a fit started before it is dropped
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
@@ -180,15 +182,16 @@ class LiveScreen(Screen[None]):
         from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
 
         self._chart_at = time.monotonic()
+        gen = self._chart_gen
         try:
             fit = find_chart(pixels)
+            p = fit.pose
+            note = f"{len(fit.found)} found, scale {p.scale:.3f}, rot {p.rotation_deg:+.1f} deg"
         except (ChartNotFoundError, ValueError) as exc:
-            self.chart_fit, self._chart_note = None, str(exc).split(":")[0]
-            return
-        p = fit.pose
-        self.chart_fit = fit
-        self._chart_note = (f"{len(fit.found)} found, scale {p.scale:.3f}, "
-                            f"rot {p.rotation_deg:+.1f} deg")
+            fit, note = None, str(exc).split(":")[0]
+        with self._chart_lock:
+            if gen == self._chart_gen and self.chart:
+                self.chart_fit, self._chart_note = fit, note
 
     def _live_error(self, exc: BaseException) -> None:
         """Notify once per distinct problem (at most every 5 s), not once per failed frame."""
@@ -280,10 +283,12 @@ class LiveScreen(Screen[None]):
         self.zoom = not self.zoom
 
     def action_chart(self) -> None:
-        self.chart = not self.chart
-        self._chart_at, self._chart_note, self._picked = 0.0, "", -1
-        if not self.chart:
+        with self._chart_lock:
+            self._chart_gen += 1
+            self.chart = not self.chart
+            self._chart_at, self._chart_note, self._picked = 0.0, "", -1
             self.chart_fit = None
+        if not self.chart:
             self.query_one(ChartFrameView).set_overlay([], self._frame_shape)
         self.notify("chart overlay " + ("on: [ ] or a click picks an element" if self.chart
                                         else "off"), timeout=1.5)
