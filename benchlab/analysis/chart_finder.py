@@ -313,7 +313,7 @@ def _darkness(work: npt.NDArray[np.float32], kernel: int) -> npt.NDArray[np.floa
     return darkness
 
 
-def _high_level(ground: npt.NDArray[np.float32]) -> float:
+def _high_level(ground: npt.NDArray[Any]) -> float:
     """The lit level: 99th percentile of the (smooth) ground, from every 4th pixel."""
     return float(np.percentile(ground[::4, ::4], 99.0))
 
