@@ -98,3 +98,15 @@ def test_help_texts() -> None:
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 0
+
+
+def test_benchmark_chart_scores_a_frame(capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.chart_benchmark import run_chart_benchmark
+
+    s = run_chart_benchmark(frames=2, seed=1)
+    assert s["frames_without_chart"] == 0 and s["imaged_sets"] > 40
+    assert s["found_share_wide"] == 1.0 and s["wrongly_labelled"] == 0
+    assert s["centre_err_median_px"] < 0.1
+    assert main(["benchmark", "chart", "--frames", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "found + correctly labelled" in out and "finder time per frame" in out
