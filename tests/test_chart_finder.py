@@ -202,3 +202,14 @@ def test_fit_to_dict_is_json_ready() -> None:
     g1e5 = next(e for e in d["elements"] if e["label"] == "G1E5S")
     assert g1e5["object_lp_per_mm"] == pytest.approx(2 ** (1 + 4 / 6))
     assert g1e5["image_lp_per_mm"] == pytest.approx(2 ** (1 + 4 / 6) * 16.3 / 1.05, rel=2e-3)
+
+
+def test_thesis_elements_alone_are_enough() -> None:
+    """A chart model of only the thesis's G1E5-G3E1 (bars 0.7-1.9 px at 16.3x): the three
+    coarsest elements' sets still give the pose."""
+    layout = chart.ChartLayout(element_centres_mm=dict(chart.THESIS_ELEMENT_CENTRES_MM),
+                               sagittal_left=chart.THESIS_SAGITTAL_LEFT)
+    scene = UsafScene(layout=layout, pose=ChartPose((5.0, -7.0), 1.0, 0.0))
+    fit = find_chart(frame(scene, seed=10), layout)
+    assert fit.pose.offset_rc == pytest.approx((5.0, -7.0), abs=0.15)
+    assert {e.label for e in fit.found} >= {"G1E5S", "G1E5T", "G2E1S", "G2E4T"}
