@@ -48,3 +48,17 @@ def test_pick_element_takes_the_set_under_the_point() -> None:
     g0 = fit.element(0, 1, "sagittal")
     assert pick_element(fit, g0.posed.centre_rc) is g0
     assert pick_element(fit, (5.0, 5.0)) is None  # far from every set
+
+
+def test_graphics_view_draws_the_overlay_too() -> None:
+    import numpy as np
+
+    from benchlab.tui.chart_overlay import FOUND_RGB, ChartGraphicsFrameView, set_overlay
+
+    view = ChartGraphicsFrameView("kitty")
+    preview = np.full((256, 320), 100, np.uint8)  # a 1024 x 1280 frame shown at 1/4
+    set_overlay(view, [(400, 500, 440, 560)], (1024, 1280))
+    view.show(preview, None, 255.0)
+    assert view.last_rgb is not None
+    assert tuple(view.last_rgb[100, 130]) == FOUND_RGB  # top edge at row 400 / 4
+    assert tuple(view.last_rgb[105, 130]) == (100, 100, 100)  # inside: untouched

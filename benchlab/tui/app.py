@@ -65,8 +65,12 @@ class BenchlabApp(App[None]):
         seed: int | None = 0,
         params_files: dict[str, Path] | None = None,
         operator: str = "",
+        image_protocol: str = "halfblock",
     ) -> None:
         super().__init__()
+        #: How the live view draws frames: "kitty" / "sixel" (real pixels) or "halfblock";
+        #: chosen before the app starts (:func:`benchlab.tui.pixels.choose_image_protocol`).
+        self.image_protocol = image_protocol
         self.simulate = simulate
         self.config_path = config
         self.sessions_dir = Path(sessions_dir) if sessions_dir else Path("sessions")

@@ -19,7 +19,14 @@ from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
-from benchlab.tui.chart_overlay import ChartFrameView, pick_element, roi_of
+from benchlab.tui.chart_overlay import (
+    ChartFrameView,
+    ChartGraphicsFrameView,
+    pick_element,
+    roi_of,
+    set_overlay,
+)
+from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -27,9 +34,9 @@ EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500
 #: Gain steps offered by the g / G keys.
 GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 #: How often the screen takes the newest frame from the acquisition thread.
-DISPLAY_INTERVAL_S = 1 / 15
+DISPLAY_INTERVAL_S = 1 / 20
 #: Cap on the acquisition loop so it never hogs the interpreter.
-MAX_GRAB_RATE_HZ = 20.0
+MAX_GRAB_RATE_HZ = 25.0
 #: Orientations the o key cycles through ("auto": the analysis detects it).
 ORIENTATIONS = ("auto", "sagittal", "tangential")
 #: Targets the t key mounts on the simulated bench (a real bench's target is set by hand).
@@ -101,6 +108,8 @@ class LiveScreen(Screen[None]):
         self._last_error = ""
         self._last_error_at = 0.0
         self._idle_reason = ""
+        graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
+        self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
         self.chart_fit: Any = None  # the latest ChartFit (None: off or not found)
         self._chart_at = 0.0
         self._chart_note = ""
@@ -111,7 +120,11 @@ class LiveScreen(Screen[None]):
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
         with Horizontal(id="live-body"):
-            yield ChartFrameView(id="frame")
+            protocol = getattr(self.app, "image_protocol", "halfblock")
+            if protocol in ("kitty", "sixel"):
+                yield ChartGraphicsFrameView(protocol, id="frame")
+            else:
+                yield ChartFrameView(id="frame")
             with Vertical(id="side"):
                 yield Static("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
@@ -158,7 +171,7 @@ class LiveScreen(Screen[None]):
                     orientation = None if self.orientation == "auto" else self.orientation
                     reading = services.live_reading(
                         frame, self.roi, self.estimator, orientation, index, *settings,
-                        zoom=self.zoom,
+                        zoom=self.zoom, preview_max_side=self._preview_side,
                     )
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
@@ -230,10 +243,10 @@ class LiveScreen(Screen[None]):
         self.frames_displayed += 1
         now = time.monotonic()
         self._display_times.append(now)
-        view = self.query_one(ChartFrameView)
+        view = self.query_one("#frame", FrameView)
         fit = self.chart_fit if self.chart and not self.zoom else None
-        view.set_overlay([el.roi for el in fit.found] if fit is not None else [],
-                         reading.frame_shape)
+        set_overlay(view, [el.roi for el in fit.found] if fit is not None else [],
+                    reading.frame_shape)
         view.show(reading.preview, reading.preview_roi, reading.max_code)
         self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
@@ -289,7 +302,7 @@ class LiveScreen(Screen[None]):
             self._chart_at, self._chart_note, self._picked = 0.0, "", -1
             self.chart_fit = None
         if not self.chart:
-            self.query_one(ChartFrameView).set_overlay([], self._frame_shape)
+            set_overlay(self.query_one("#frame", FrameView), [], self._frame_shape)
         self.notify("chart overlay " + ("on: [ ] or a click picks an element" if self.chart
                                         else "off"), timeout=1.5)
 
@@ -310,8 +323,9 @@ class LiveScreen(Screen[None]):
     def on_click(self, event: events.Click) -> None:
         """A click on the frame picks the found element under it (chart overlay on)."""
         fit = self.chart_fit
-        view = self.query_one(ChartFrameView)
-        if not self.chart or fit is None or self.zoom or event.widget is not view:
+        view = self.query_one("#frame", FrameView)
+        if (not self.chart or fit is None or self.zoom or event.widget is not view
+                or not isinstance(view, ChartFrameView)):  # image views: keys only
             return
         point = view.cell_to_frame(event.x, event.y)
         el = pick_element(fit, point) if point is not None else None

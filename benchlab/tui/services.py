@@ -249,8 +249,10 @@ def live_reading(
     gain: float,
     *,
     zoom: bool = False,
+    preview_max_side: int = 320,
 ) -> LiveReading:
-    """Everything the live view shows about one frame (runs in the acquisition thread)."""
+    """Everything the live view shows about one frame (runs in the acquisition thread);
+    the preview's longest side is at most ``preview_max_side`` pixels."""
     from benchlab.analysis.estimators import estimate_modulation
     from benchlab.analysis.focus import sharpness
 
@@ -266,7 +268,7 @@ def live_reading(
         r1 = min(rows, roi.row + roi.height + margin)
         c1 = min(cols, roi.col + roi.width + margin)
         shown, origin = pixels[r0:r1, c0:c1], (r0, c0)
-    preview = preview_of(shown)
+    preview = preview_of(shown, preview_max_side)
     sy, sx = preview.shape[0] / shown.shape[0], preview.shape[1] / shown.shape[1]
     preview_roi = Roi(
         int((roi.row - origin[0]) * sy), int((roi.col - origin[1]) * sx),
