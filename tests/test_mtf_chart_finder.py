@@ -11,7 +11,7 @@ import pytest
 from benchlab.protocols import start_run
 from benchlab.protocols.mtf_analysis import analyze_forward_frame
 from benchlab.protocols.params import load_params
-from test_protocol_helpers import MTF_SMALL, yes
+from test_protocol_helpers import MTF_SMALL, events, yes
 
 from benchlab.analysis.chart_pose import ChartPose
 from benchlab.bench import Bench, BenchConfig
@@ -37,6 +37,9 @@ def test_rotated_scaled_chart_gets_its_rois_and_the_report_shows_it(tmp_path: Pa
             truth = scene.bar_set(el.group, el.element, orient)  # type: ignore[arg-type]
             assert np.abs(np.subtract(row[f"{orient}_roi"], truth.roi)).max() <= 1
             assert row[f"{orient}_resolved"]  # on the bars, not beside them
+    located = [e for e in events(outcome.session_path) if e["kind"] == "chart_located"]
+    assert len(located) == 1 and located[0]["offset_px"] == [14, -22]
+    assert "implied magnification" in located[0]["chart"]["warnings"][0]  # 16.3 / 1.15
     html = render_report(outcome.session_path)
     assert "The USAF chart as found" in html and "rotation +9.0" in html
 
