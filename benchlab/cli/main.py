@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
     "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
 )
 

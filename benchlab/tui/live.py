@@ -27,6 +27,7 @@ from benchlab.tui.chart_overlay import (
     set_overlay,
 )
 from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
+from benchlab.tui.unwrap_view import UnwrapPreview
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -83,6 +84,7 @@ class LiveScreen(Screen[None]):
         Binding("c", "chart", "Chart"),
         Binding("right_square_bracket", "pick(1)", "Pick", key_display="[]"),
         Binding("left_square_bracket", "pick(-1)", "Pick prev", show=False),
+        Binding("u", "unwrap", "Unwrap"),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)
@@ -95,6 +97,8 @@ class LiveScreen(Screen[None]):
     zoom: reactive[bool] = reactive(False)
     #: Find the USAF chart and draw its found elements (c); [ ] or a click picks one as ROI.
     chart: reactive[bool] = reactive(False)
+    #: Show the radial annulus unwrapped (estimated orthographic view, thesis 5.2).
+    unwrapped: reactive[bool] = reactive(False)
 
     def __init__(self) -> None:
         super().__init__()
@@ -116,6 +120,7 @@ class LiveScreen(Screen[None]):
         self._picked = -1
         self._chart_lock = threading.Lock()
         self._chart_gen = 0  # bumped by the c key: a fit started before it is dropped
+        self._unwrap = UnwrapPreview()
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
@@ -173,6 +178,8 @@ class LiveScreen(Screen[None]):
                         frame, self.roi, self.estimator, orientation, index, *settings,
                         zoom=self.zoom, preview_max_side=self._preview_side,
                     )
+                    if self.unwrapped:
+                        reading = self._unwrap.apply(reading, frame[0], self._preview_side)
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
                         app.call_from_thread(self._live_error, exc)
@@ -244,10 +251,11 @@ class LiveScreen(Screen[None]):
         now = time.monotonic()
         self._display_times.append(now)
         view = self.query_one("#frame", FrameView)
-        fit = self.chart_fit if self.chart and not self.zoom else None
+        fit = self.chart_fit if self.chart and not self.zoom and not self.unwrapped else None
         set_overlay(view, [el.roi for el in fit.found] if fit is not None else [],
                     reading.frame_shape)
-        view.show(reading.preview, reading.preview_roi, reading.max_code)
+        roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
+        view.show(reading.preview, roi, reading.max_code)
         self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
 
@@ -324,7 +332,8 @@ class LiveScreen(Screen[None]):
         """A click on the frame picks the found element under it (chart overlay on)."""
         fit = self.chart_fit
         view = self.query_one("#frame", FrameView)
-        if (not self.chart or fit is None or self.zoom or event.widget is not view
+        if (not self.chart or fit is None or self.zoom or self.unwrapped
+                or event.widget is not view
                 or not isinstance(view, ChartFrameView)):  # image views: keys only
             return
         point = view.cell_to_frame(event.x, event.y)
@@ -332,6 +341,10 @@ class LiveScreen(Screen[None]):
         if el is not None:
             self._picked = fit.found.index(el)
             self._use_element(el)
+    def action_unwrap(self) -> None:
+        self.unwrapped = not self.unwrapped
+        self._unwrap.reset()
+        self.query_one("#frame").border_title = "camera, unwrapped" if self.unwrapped else "camera"
 
     def action_target(self) -> None:
         self._mount_next_target()
