@@ -81,6 +81,8 @@ def test_no_chart_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "no chart found" in capsys.readouterr().err
     assert main(["analyze", str(flat), "--chart", "siemens"]) == 1
     assert "--chart 'siemens' unknown" in capsys.readouterr().err
+    assert main(["analyze", str(flat), "--chart", "usaf", "--roi", "0,0,10,10"]) == 1
+    assert "--roi does not apply with --chart" in capsys.readouterr().err
     assert main(["find-chart", str(tmp_path / "missing.tiff")]) == 1
     assert "no such file" in capsys.readouterr().err
 

@@ -143,6 +143,10 @@ def analyze_chart_command(args: argparse.Namespace) -> int:
     path = Path(args.target)
     if path.is_dir():
         raise AnalysisInputError(f"{path}: --chart needs an image file, not a folder")
+    for option in ("roi", "peaks", "freq", "orientation"):
+        if getattr(args, option, None) is not None:
+            raise AnalysisInputError(f"--{option} does not apply with --chart: every found "
+                                     "element has its own ROI, frequency and orientation")
     pixels, fit = locate(path)
     try:
         rows = measure_chart(pixels, fit, args.estimator)
