@@ -116,6 +116,13 @@ def test_rotation_45_degrees() -> None:
     fit = find_chart(frame(scene, seed=4))
     assert_matches(fit, scene)
     assert len(fit.found) >= 24
+    # at 45 deg the box inscribed in a G2E3 set (1.3 px bars) is 3 x 3 px: too small
+    small = {e.label: e.reason for e in fit.rejected if (e.reason or "").startswith("too small")}
+    assert "G2E3S" in small and "G1E1S" not in small
+    for label in small:
+        r0, c0, r1, c1 = fit.element(int(label[1]), int(label[3]),
+                                     "sagittal" if label[4] == "S" else "tangential").roi
+        assert min(r1 - r0, c1 - c0) < 4
 
 
 def test_negative_target() -> None:
