@@ -50,7 +50,7 @@ def test_find_chart_table_and_plot(posed_frame: Path, tmp_path: Path,
     pose = re.match(r"chart: offset \((\S+), (\S+)\) px .* scale (\S+), rotation (\S+) deg", out)
     assert pose is not None
     assert [float(v) for v in pose.groups()] == pytest.approx([-20, 30, 1.2, 8], abs=0.2)
-    assert "G0E1S   found" in out and "above Nyquist" in out
+    assert "G0E2S   found" in out and "above Nyquist" in out and "clipped by the FOV" in out
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and plot.stat().st_size > 20_000
 
 

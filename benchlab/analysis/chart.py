@@ -91,20 +91,21 @@ THESIS_ELEMENT_CENTRES_MM: Mapping[tuple[int, int], tuple[float, float]] = {
 THESIS_SAGITTAL_LEFT: frozenset[tuple[int, int]] = frozenset({(1, 5), (1, 6), (2, 1), (3, 1)})
 #: The chart's coarser elements around the thesis's (the R3L3S1N chart has every group; the
 #: thesis measured G1E5-G3E1 only): group 1 continues its column below G1E5, elements growing
-#: downwards as in group 2; group 0 is a column of its own right of group 2, below the
-#: slanted-edge squares (:mod:`benchlab.analysis.edge_target`) and clear of their ROIs. Centres as
-#: (row, col) px offsets from the chart origin at the nominal magnification, like the thesis's,
-#: consecutive elements 7.5-8 mean bar widths apart. Their 2-6 px bars (at 16.3x) give the chart
-#: finder (:mod:`benchlab.analysis.chart_finder`) separable three-bar sets at any pose.
+#: downwards as in group 2; group 0 is a column of its own right of group 2, as far below the
+#: slanted-edge squares (:mod:`benchlab.analysis.edge_target`) as the thesis's elements. Centres
+#: as (row, col) px offsets from the chart origin at the nominal magnification, like the
+#: thesis's, consecutive elements 6.5-8 mean bar widths apart. Their 2-6 px bars (at 16.3x)
+#: give the chart finder (:mod:`benchlab.analysis.chart_finder`) separable three-bar sets at
+#: any pose.
 COARSE_ELEMENT_CENTRES_MM: Mapping[tuple[int, int], tuple[float, float]] = {
     (g, e): (dc * _PX_TO_OBJECT_MM, dr * _PX_TO_OBJECT_MM)
     for (g, e), (dr, dc) in {
-        (0, 1): (190.0, 55.0),
-        (0, 2): (148.0, 55.0),
-        (0, 3): (111.0, 55.0),
-        (0, 4): (78.0, 55.0),
-        (0, 5): (48.0, 55.0),
-        (0, 6): (22.0, 55.0),
+        (0, 1): (190.9, 55.0),
+        (0, 2): (154.6, 55.0),
+        (0, 3): (122.3, 55.0),
+        (0, 4): (93.5, 55.0),
+        (0, 5): (67.8, 55.0),
+        (0, 6): (45.0, 55.0),
         (1, 1): (135.0, -110.0),
         (1, 2): (113.0, -110.0),
         (1, 3): (93.5, -110.0),
