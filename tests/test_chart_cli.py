@@ -105,10 +105,11 @@ def test_help_texts() -> None:
 def test_benchmark_chart_scores_a_frame(capsys: pytest.CaptureFixture[str]) -> None:
     from benchlab.chart_benchmark import run_chart_benchmark
 
-    s = run_chart_benchmark(frames=2, seed=1)
+    s = run_chart_benchmark(frames=2, seed=1, control_frames=1)
     assert s["frames_without_chart"] == 0 and s["imaged_sets"] > 40
     assert s["found_share_wide"] == 1.0 and s["wrongly_labelled"] == 0
     assert s["centre_err_median_px"] < 0.1
-    assert main(["benchmark", "chart", "--frames", "1"]) == 0
+    assert s["control_modulation_n"] > 20
+    assert main(["benchmark", "chart", "--frames", "1", "--control", "0"]) == 0
     out = capsys.readouterr().out
     assert "found + correctly labelled" in out and "finder time per frame" in out

@@ -169,9 +169,11 @@ def _benchmark_command(args: argparse.Namespace) -> int:
     from benchlab.chart_benchmark import format_benchmark, run_chart_benchmark
 
     t0 = time.perf_counter()
-    summary = run_chart_benchmark(frames=args.frames, seed=args.seed)
+    summary = run_chart_benchmark(frames=args.frames, seed=args.seed,
+                                  control_frames=args.control)
     print(format_benchmark(summary))
-    print(f"\n{args.frames} frames, seed {args.seed}, {time.perf_counter() - t0:.1f} s")
+    print(f"\n{args.frames} + {args.control} control frames, seed {args.seed}, "
+          f"{time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -203,4 +205,6 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     b.add_argument("--frames", type=int, default=40, help="random poses (default 40)")
     b.add_argument("--seed", type=int, default=0, help="random seed")
+    b.add_argument("--control", type=int, default=8,
+                   help="extra poses at rotation 0 scoring the modulation alone (default 8)")
     b.set_defaults(func=_benchmark_command)
