@@ -272,6 +272,10 @@ def format_benchmark(s: dict[str, Any]) -> str:
         ("modulation error median |d|", f"{s['modulation_median_abs']:.4f}", ""),
         ("  same ROIs, histogram estimator, within",
          f"{100 * s['modulation_histogram_within']:.1f} %", "(reference)"),
+        (f"  control: {s.get('control_frames', 0)} more poses at rotation 0 "
+         f"({s.get('control_modulation_n', 0)})",
+         f"{100 * s.get('control_modulation_within', math.nan):.1f} %",
+         "(bars on the pixel axes)"),
         ("finder time per frame median / max", f"{s['time_median_s']:.3f} / "
          f"{s['time_max_s']:.3f} s", "<= 0.5 s"),
         ("finder CPU time per frame median / max", f"{s['cpu_median_s']:.3f} / "

@@ -113,3 +113,4 @@ def test_benchmark_chart_scores_a_frame(capsys: pytest.CaptureFixture[str]) -> N
     assert main(["benchmark", "chart", "--frames", "1", "--control", "0"]) == 0
     out = capsys.readouterr().out
     assert "found + correctly labelled" in out and "finder time per frame" in out
+    assert "control: 0 more poses at rotation 0" in out
