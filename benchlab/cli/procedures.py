@@ -197,11 +197,12 @@ def report_command(args: argparse.Namespace) -> int:
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add ``run``, ``resume`` and ``report``."""
     run = commands.add_parser(
-        "run", help="run a procedure (Table 4.10 MTF or section 4.4 radiometry)",
+        "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry or the camera "
+        "characterisation)",
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry"))
+    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel)")
     run.add_argument("--params", help="procedure parameter TOML (default: packaged)")

@@ -7,6 +7,8 @@ Targets (the set-ups of Table 4.10 and section 4.4):
   (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
 - ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
   ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
+- ``"flat"`` - uniform illumination (diffuser, lens off) lit by the LED: every pixel gets
+  ``flat_e_per_ms_per_ma`` x the LED current (camera characterisation, EMVA 1288 set-up);
 - ``"dark"`` - nothing lit (lens cap on).
 
 ``state.bench["target"]``, when present, overrides the mounted target for that exposure, so a
@@ -31,7 +33,7 @@ from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "radial", "led", "dark")
+TARGET_KINDS = ("usaf", "radial", "led", "flat", "dark")
 
 
 def parse_target(target: object) -> Target:
@@ -47,7 +49,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "led", "dark"):
+        if spec in ("usaf", "led", "flat", "dark"):
             return (spec,)
         raise ValueError(f"unknown target {target!r}; expected one of {TARGET_KINDS}")
     if isinstance(spec, list | tuple) and len(spec) == 3 and spec[0] == "radial":
@@ -63,7 +65,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
-        f"unknown target {target!r}; expected 'usaf', 'led', 'dark' or "
+        f"unknown target {target!r}; expected 'usaf', 'led', 'flat', 'dark' or "
         "('radial', lp_per_mm, 'sagittal'|'tangential')"
     )
 
@@ -82,6 +84,9 @@ class SimWorld:
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
     led_position_mm
         Where the LED is when ``state.bench`` has no stage position (positioned by hand).
+    flat_e_per_ms_per_ma
+        Electron rate per pixel per mA of LED current on the ``"flat"`` target (linear in the
+        current, so a current sweep is an irradiance sweep).
     """
 
     def __init__(
@@ -93,12 +98,14 @@ class SimWorld:
         led: LedScene | None = None,
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
+        flat_e_per_ms_per_ma: float = 20.0,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
         self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
         self.led = led if led is not None else LedScene()
         self.led_channel = led_channel
         self.led_position_mm = led_position_mm
+        self.flat_e_per_ms_per_ma = float(flat_e_per_ms_per_ma)
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
         self._target = parse_target(target)
@@ -132,7 +139,7 @@ class SimWorld:
         return scene
 
     def scene_for(self, target: object) -> UsafScene | RadialScene | LedScene | None:
-        """The scene object of a target (None for ``"dark"``)."""
+        """The scene object of a target (None for ``"dark"`` and ``"flat"``)."""
         spec = parse_target(target)
         if spec[0] == "usaf":
             return self.usaf
@@ -140,7 +147,7 @@ class SimWorld:
             return self.radial_scene(spec[1], spec[2])
         if spec[0] == "led":
             return self.led
-        return None
+        return None  # dark, flat: drawn directly by __call__
 
     def led_current_ma(self, bench: Mapping[str, Any]) -> float:
         """LED drive current from the bench state (0 when absent or switched off)."""
@@ -173,6 +180,9 @@ class SimWorld:
         spec = parse_target(bench["target"]) if bench.get("target") is not None else self._target
         if spec[0] == "dark":
             return np.zeros((state.height, state.width))
+        if spec[0] == "flat":
+            rate = self.flat_e_per_ms_per_ma * self.led_current_ma(bench)
+            return np.full((state.height, state.width), rate)
         if spec[0] == "led":
             return self.led.render(
                 self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width

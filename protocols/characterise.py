@@ -1,0 +1,178 @@
+"""Camera characterisation on the bench (EMVA 1288-style photon transfer) as steps.
+
+Steps: [setup] uniform illumination of the sensor (manual), camera geometry, the flat target
+(simulated bench: the sensor truth of ``[simulator]``); per (gain, bits) [sweep-gG-bB]: a probe
+doubles the exposure until the frame saturates, then the exposure sweep (two lit frames and two
+dark frames per step) and the L-frame lit / dark stacks for DSNU / PRNU; then [analysis]: the
+figures per gain, the results tables and the response calibration for the bench configuration.
+
+The LED is switched off in a ``finally`` around every lit pair, so a fault or an abort never
+leaves it lit (and the runner's safe state repeats the off). Every decision of the sweep (the
+probe's saturation exposure) is derived from saved frames, so a resumed run rebuilds the same
+exposure list and reuses every frame already on disk.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from benchlab.protocols.characterise_analysis import (
+    TRUTH_EVENT,
+    analyze_characterise,
+    config_step_id,
+)
+from benchlab.protocols.characterise_calibration import write_calibration
+from benchlab.protocols.characterise_params import CharacteriseParams
+from benchlab.protocols.engine import Step, StepContext
+
+FLAT_TARGET = "flat"
+EXPOSURE_STEP_MS = 0.05
+SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (diffuser or "
+                "back-lit flat target, lens off or defocused), lit by the LED; room dark. Dark "
+                "frames are taken with the LED off.")
+
+
+def _round_exposure(t_ms: float, max_ms: float) -> float:
+    return float(min(max(round(t_ms / EXPOSURE_STEP_MS) * EXPOSURE_STEP_MS, EXPOSURE_STEP_MS),
+                     max_ms))
+
+
+def sweep_exposures(params: CharacteriseParams, t_sat_ms: float) -> list[float]:
+    """The exposure list for a saturation exposure ``t_sat_ms``: log-spaced near dark, even in
+    the middle, dense around saturation and beyond; rounded to the camera's 0.05 ms steps."""
+    p = params
+    lo = max(EXPOSURE_STEP_MS, min(0.05 * t_sat_ms, p.probe_start_ms) / 4)
+    log_part = np.geomspace(lo, max(0.05 * t_sat_ms, lo * 1.01), p.log_steps)
+    lin_part = np.linspace(0.08 * t_sat_ms, 0.85 * t_sat_ms, p.linear_steps)
+    near = np.linspace(0.87 * t_sat_ms, p.beyond_saturation * t_sat_ms, p.near_saturation_steps)
+    all_t = {_round_exposure(float(t), p.max_exposure_ms)
+             for t in np.concatenate([log_part, lin_part, near])}
+    return sorted(all_t)
+
+
+def probe_saturation(
+    grab: Callable[[str, float, bool], npt.NDArray[Any]], params: CharacteriseParams, bits: int,
+) -> tuple[float, bool]:
+    """Exposure at which the lit frame saturates: double from ``probe_start_ms`` until the
+    median stops rising (< 3 % for a doubling) or reaches the top code, then extrapolate the
+    last clearly unsaturated probe linearly to the saturated level.
+
+    ``grab(name, exposure_ms, lit)`` returns a saved frame. Returns ``(t_sat_ms, found)``;
+    ``found`` is False when even ``max_exposure_ms`` did not saturate.
+    """
+    top = (1 << bits) - 1
+    dark = float(np.median(grab("probe-dark", params.probe_start_ms, False)))
+    t = params.probe_start_ms
+    history: list[tuple[float, float]] = []
+    for i in range(40):
+        level = float(np.median(grab(f"probe-{i:02d}", t, True)))
+        history.append((t, level))
+        rising = len(history) < 2 or level > history[-2][1] + 0.03 * (history[-2][1] - dark)
+        if level >= top or not rising:
+            break
+        if t >= params.max_exposure_ms:
+            return params.max_exposure_ms, False
+        t = min(2.0 * t, params.max_exposure_ms)
+    sat_level = history[-1][1]
+    below = [(tt, lv) for tt, lv in history if lv - dark < 0.9 * (sat_level - dark)]
+    if not below or below[-1][1] <= dark:
+        return history[-1][0], True
+    t_ok, level_ok = below[-1]
+    return t_ok * (sat_level - dark) / (level_ok - dark), True
+
+
+class CharacteriseProcedure:
+    """The camera characterisation for one parameter set."""
+
+    name = "characterise"
+
+    def __init__(self, params: CharacteriseParams) -> None:
+        self.params = params
+
+    def steps(self) -> list[Step]:
+        p = self.params
+        steps = [Step("setup", "Characterisation set-up: uniform illumination", "manual",
+                      "EMVA 1288 set-up", self._setup, prompt=SETUP_PROMPT,
+                      restore=self._restore)]
+        for gain, bits in p.configs:
+            steps.append(Step(
+                config_step_id(gain, bits), f"Gain {gain:g}, {bits}-bit: exposure sweep and "
+                "stacks", "acquire", "EMVA 1288 photon transfer", self._sweep(gain, bits),
+                info={"gain": gain, "bits": bits},
+            ))
+        steps.append(Step("analysis", "Analyse: photon transfer, DSNU/PRNU, calibration",
+                          "analysis", "EMVA 1288", self._analysis))
+        return steps
+
+    def _restore(self, ctx: StepContext) -> None:
+        """The flat target mounted and, on the simulated bench, the configured sensor truth."""
+        ctx.bench.mount(FLAT_TARGET)
+        sim = getattr(ctx.bench, "sim_camera", None)
+        if sim is not None:
+            truth = self.params.sensor_truth()
+            sim.sensor.truth = truth
+            ctx.session.log_event(TRUTH_EVENT, truth=truth.to_dict(),
+                                  flat_e_per_ms_per_ma=ctx.bench.world.flat_e_per_ms_per_ma)
+
+    def _setup(self, ctx: StepContext) -> None:
+        ctx.ask(ctx.step.prompt or "")
+        self._restore(ctx)
+
+    def _sweep(self, gain: float, bits: int) -> Callable[[StepContext], None]:
+        def action(ctx: StepContext) -> None:
+            p = self.params
+            ctx.bench.configure_camera(bits=bits, width=p.width, height=p.height)
+            extra = {"gain": gain, "bits": bits, "led_channel": p.led_channel,
+                     "led_current_ma": p.led_current_ma}
+
+            def grab(name: str, exposure_ms: float, lit: bool) -> npt.NDArray[Any]:
+                return self._frames(ctx, [name], exposure_ms, gain, lit, extra)[0]
+
+            t_sat, found = probe_saturation(grab, p, bits)
+            exposures = sweep_exposures(p, t_sat)
+            ctx.report({"gain": gain, "bits": bits, "saturation_exposure_ms": t_sat,
+                        "probe_saturated": found, "steps": len(exposures)})
+            for i, t in enumerate(exposures):
+                self._frames(ctx, [f"e{i:03d}-lit-a", f"e{i:03d}-lit-b"], t, gain, True,
+                             {**extra, "sweep_index": i})
+                self._frames(ctx, [f"e{i:03d}-dark-a", f"e{i:03d}-dark-b"], t, gain, False,
+                             {**extra, "sweep_index": i})
+            t_stack = _round_exposure(p.stack_fraction * t_sat, p.max_exposure_ms)
+            n = p.stack_frames
+            self._frames(ctx, [f"stack-lit-{k:03d}" for k in range(n)], t_stack, gain, True,
+                         {**extra, "stack": "lit"})
+            self._frames(ctx, [f"stack-dark-{k:03d}" for k in range(n)], t_stack, gain, False,
+                         {**extra, "stack": "dark"})
+
+        return action
+
+    def _frames(self, ctx: StepContext, names: list[str], exposure_ms: float, gain: float,
+                lit: bool, extra: dict[str, Any]) -> list[npt.NDArray[Any]]:
+        """Acquire (or reuse) frames at one exposure, the LED on only around lit frames."""
+        p = self.params
+        meta = {**extra, "exposure_ms": exposure_ms, "lit": lit}
+        missing = any(ctx.runner.saved_frame_path(ctx.step.id, n) is None for n in names)
+        if lit and missing:
+            ctx.check_abort()
+            ctx.bench.led_on(p.led_channel, p.led_current_ma)
+        try:
+            return [ctx.acquire(n, exposure_ms=exposure_ms, gain=gain, extra=meta)
+                    for n in names]
+        finally:
+            if lit and missing:
+                ctx.bench.led_off(p.led_channel)
+
+    def _analysis(self, ctx: StepContext) -> None:
+        out = self.analyze(ctx.session, ctx.runner.estimator)
+        calib = write_calibration(ctx.session, out, ctx.bench.config)
+        ctx.session.log_event("response_calibration_written", **calib)
+        ctx.report({"response_calibration": calib})
+
+    def analyze(self, session: Any, estimator: str | None) -> Path:
+        tables, summary = analyze_characterise(session, self.params)
+        return Path(session.write_results(tables, summary=summary, estimator="photon-transfer"))
+

@@ -1,0 +1,149 @@
+"""Characterisation analysis of a session's saved frames (offline, re-runnable).
+
+Tables: ``characterisation`` (one row per gain and bit depth, the issue's keys),
+``photon_transfer`` (one row per exposure step: the curves the report plots), and on the simulated
+bench ``simulator_truth`` (the same keys, from the sensor truth the run used).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from benchlab.drivers.mightex_sim_sensor import SensorTruth
+from benchlab.protocols.characterise_params import CharacteriseParams
+from benchlab.protocols.characterise_truth import truth_for
+from benchlab.protocols.engine import frames_of
+
+from benchlab.analysis.photon_transfer import (
+    PhotonTransferResult,
+    SweepPoint,
+    native_codes,
+    pair_statistics,
+    photon_transfer,
+    response_curve,
+    spatial_nonuniformity,
+)
+
+_SWEEP_NAME = re.compile(r"^e(\d{3})-(lit|dark)-([ab])$")
+#: Journal event recording the simulated sensor truth at set-up.
+TRUTH_EVENT = "simulator_truth"
+
+
+def config_step_id(gain: float, bits: int) -> str:
+    """Step id of one configuration's sweep, e.g. ``sweep-g1-b12``."""
+    return f"sweep-g{gain:g}-b{bits}"
+
+
+def _stats_for(
+    frames: Mapping[str, npt.NDArray[Any]], metas: Mapping[str, Mapping[str, Any]], bits: int,
+) -> tuple[list[SweepPoint], PhotonTransferResult | None, Any, list[float]]:
+    lit = np.stack([native_codes(frames[n], bits) for n in sorted(frames)
+                    if n.startswith("stack-lit-")])
+    dark = np.stack([native_codes(frames[n], bits) for n in sorted(frames)
+                     if n.startswith("stack-dark-")])
+    spatial, defects = spatial_nonuniformity(lit, dark)
+    valid = ~defects
+    steps: dict[int, dict[str, npt.NDArray[Any]]] = {}
+    for name, pixels in frames.items():
+        m = _SWEEP_NAME.match(name)
+        if m:
+            steps.setdefault(int(m.group(1)), {})[f"{m.group(2)}-{m.group(3)}"] = pixels
+    points: list[SweepPoint] = []
+    exposures: list[float] = []
+    for i in sorted(steps):
+        s = steps[i]
+        if len(s) != 4:
+            raise ValueError(f"sweep step e{i:03d} has {len(s)} of its 4 frames")
+        t = float(metas[f"e{i:03d}-lit-a"]["exposure_ms"])
+        mean, var = pair_statistics(native_codes(s["lit-a"], bits),
+                                    native_codes(s["lit-b"], bits), valid)
+        dmean, dvar = pair_statistics(native_codes(s["dark-a"], bits),
+                                      native_codes(s["dark-b"], bits), valid)
+        points.append(SweepPoint(t, mean, var, dmean, dvar))
+        exposures.append(t)
+    return points, None, spatial, exposures
+
+
+def _frame_metas(session: Any, step_id: str) -> dict[str, dict[str, Any]]:
+    """Per-frame acquisition metadata (exposure) from the TIFF descriptions."""
+    from benchlab.storage import load_frame_tiff
+
+    return {name: load_frame_tiff(path)[1] for name, path in session.step_frames(step_id).items()
+            if name.startswith("e") and name.endswith("-lit-a")}
+
+
+def simulator_truth_record(session: Any) -> Mapping[str, Any] | None:
+    """The sensor truth journalled at set-up on the simulated bench (None on the real bench)."""
+    found = None
+    for ev in session.events():
+        if ev.get("kind") == TRUTH_EVENT:
+            found = ev
+    return found
+
+
+def analyze_characterise(
+    session: Any, params: CharacteriseParams
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
+    """Tables and summary of a characterisation session (see the module docstring)."""
+    sim = simulator_truth_record(session)
+    truth = SensorTruth.from_mapping(sim["truth"]) if sim is not None else None
+    rows: list[dict[str, Any]] = []
+    curve_rows: list[dict[str, Any]] = []
+    truth_rows: list[dict[str, Any]] = []
+    per_config: list[dict[str, Any]] = []
+    curves: list[dict[str, Any]] = []
+    for gain, bits in params.configs:
+        sid = config_step_id(gain, bits)
+        frames = frames_of(session, [sid])[sid]
+        metas = _frame_metas(session, sid)
+        points, _, spatial, exposures = _stats_for(frames, metas, bits)
+        result = photon_transfer(points, spatial=spatial)
+        measured = result.measured()
+        row = {"gain": gain, "bits": bits, **measured,
+               "warnings": "; ".join(result.warnings)}
+        rows.append(row)
+        entry: dict[str, Any] = {"gain": gain, "bits": bits, "measured": measured,
+                                 "warnings": list(result.warnings)}
+        for i, pt in enumerate(sorted(points, key=lambda q: q.exposure_quantity)):
+            curve_rows.append({
+                "gain": gain, "bits": bits, "exposure_ms": pt.exposure_ms,
+                "mean_dn": pt.mean_dn, "dark_mean_dn": pt.dark_mean_dn,
+                "variance_dn2": pt.variance_dn2, "dark_variance_dn2": pt.dark_variance_dn2,
+                "signal_dn": pt.signal_dn, "signal_variance_dn2": pt.signal_variance_dn2,
+                "in_k_fit": i in result.k_fit_indices,
+                "in_linearity_range": i in result.linearity_indices,
+                "linearity_deviation_pct": result.deviation_pct[i],
+                "saturation_step": i == result.saturation_index,
+            })
+        try:
+            curve = response_curve(points, result, gain=gain, bits=bits,
+                                   reference_range=params.reference_range)
+            curves.append({"gain": gain, "bits": bits, "black_level_dn": curve.black_level_dn,
+                           "measured_dn": list(curve.measured_dn),
+                           "linear_dn": list(curve.linear_dn)})
+        except ValueError as exc:
+            entry["warnings"].append(f"no response curve: {exc}")
+        if truth is not None and sim is not None:
+            rate = float(sim.get("flat_e_per_ms_per_ma", 0.0)) * params.led_current_ma
+            t_row = truth_for(truth, gain=gain, bits=bits, width=params.width,
+                              height=params.height, rate_e_per_ms=rate, exposures_ms=exposures)
+            truth_rows.append({"gain": gain, "bits": bits, **t_row})
+            entry["simulator_truth"] = t_row
+        per_config.append(entry)
+    tables: dict[str, list[dict[str, Any]]] = {"characterisation": rows,
+                                               "photon_transfer": curve_rows}
+    summary: dict[str, Any] = {
+        "procedure": "characterise", "configs": per_config, "response_curves": curves,
+        "width": params.width, "height": params.height,
+        "led_current_ma": params.led_current_ma,
+    }
+    if truth_rows:
+        tables["simulator_truth"] = truth_rows
+        summary["simulator"] = {"truth": truth.to_dict() if truth else None,
+                                "flat_e_per_ms_per_ma": sim.get("flat_e_per_ms_per_ma")
+                                if sim else None}
+    return tables, summary
