@@ -92,6 +92,7 @@ class CharacteriseProcedure:
 
     def __init__(self, params: CharacteriseParams) -> None:
         self.params = params
+        self._saved: dict[str, Any] = {}
 
     def steps(self) -> list[Step]:
         p = self.params
@@ -126,6 +127,8 @@ class CharacteriseProcedure:
         def action(ctx: StepContext) -> None:
             p = self.params
             ctx.bench.configure_camera(bits=bits, width=p.width, height=p.height)
+            # Frames this step saved before (a resume): read once, not per frame.
+            self._saved = dict(ctx.session.step_frames(ctx.step.id))
             extra = {"gain": gain, "bits": bits, "led_channel": p.led_channel,
                      "led_current_ma": p.led_current_ma}
 
@@ -155,16 +158,27 @@ class CharacteriseProcedure:
         """Acquire (or reuse) frames at one exposure, the LED on only around lit frames."""
         p = self.params
         meta = {**extra, "exposure_ms": exposure_ms, "lit": lit}
-        missing = any(ctx.runner.saved_frame_path(ctx.step.id, n) is None for n in names)
+        missing = [n for n in names if n not in self._saved]
         if lit and missing:
             ctx.check_abort()
             ctx.bench.led_on(p.led_channel, p.led_current_ma)
         try:
-            return [ctx.acquire(n, exposure_ms=exposure_ms, gain=gain, extra=meta)
-                    for n in names]
+            return [self._acquire(ctx, n, exposure_ms, gain, meta) for n in names]
         finally:
             if lit and missing:
                 ctx.bench.led_off(p.led_channel)
+
+    def _acquire(self, ctx: StepContext, name: str, exposure_ms: float, gain: float,
+                 meta: dict[str, Any]) -> npt.NDArray[Any]:
+        """``ctx.acquire`` without its per-frame journal scan: a sweep saves ~200 frames per
+        step, and the saved set was read once when the step started."""
+        if name in self._saved:
+            return ctx.acquire(name, exposure_ms=exposure_ms, gain=gain, extra=meta)  # reuse
+        ctx.check_abort()
+        pixels, frame_meta = ctx.bench.grab(exposure_ms=exposure_ms, gain=gain)
+        metadata = {**frame_meta, "step": ctx.step.id, "name": name, **meta}
+        ctx.session.save_frame(ctx.step.id, name, pixels, metadata)
+        return pixels
 
     def _analysis(self, ctx: StepContext) -> None:
         out = self.analyze(ctx.session, ctx.runner.estimator)

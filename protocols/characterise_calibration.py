@@ -14,14 +14,14 @@ from __future__ import annotations
 import json
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from benchlab.drivers.errors import BenchlabError
 
-from benchlab.analysis.photon_transfer import ResponseCurve
+from benchlab.analysis.photon_transfer import ResponseCurve, linearise
 from benchlab.storage import atomic_write_json, atomic_write_text, sha256_file
 
 FORMAT = "benchlab-response-calibration"
@@ -148,3 +148,16 @@ def linearisation_record(doc: Mapping[str, Any], gain: float, bits: int) -> dict
     """What a result records about the linearisation it used."""
     return {"file": doc.get("path"), "sha256": doc.get("sha256"), "version": doc.get("version"),
             "gain": gain, "bits": bits}
+
+
+def session_linearisation(
+    session: Any, gain: float, bits: int
+) -> tuple[Callable[[Any], Any], dict[str, Any] | None]:
+    """``(linearise_fn, record)`` for a session: the calibration its bench snapshot references,
+    or the identity and None when there is none."""
+    ref = ((session.params.get("bench") or {}).get("camera") or {}).get("response_calibration")
+    if not ref:
+        return (lambda pixels: pixels), None
+    doc = load_calibration(ref)
+    curve = curve_for(doc, gain, bits)
+    return (lambda pixels: linearise(pixels, curve)), linearisation_record(doc, gain, bits)

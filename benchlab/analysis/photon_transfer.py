@@ -38,6 +38,9 @@ FloatArray = npt.NDArray[np.float64]
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
 #: EMVA reference implementation floor of the temporal dark variance, DN^2.
 DARK_VAR_FLOOR_DN2 = 0.24
+#: EMVA set-up rule: the temporal dark noise should be at least 1 DN; below it quantisation
+#: biases the dark statistics (read noise, DSNU) and they are flagged as not resolved.
+MIN_DARK_NOISE_DN = 1.0
 #: K is fitted up to this fraction of saturation; linearity between these fractions.
 K_FIT_MAX_FRACTION = 0.7
 LINEARITY_RANGE = (0.05, 0.95)
@@ -292,11 +295,15 @@ def photon_transfer(
         _, s2_dark, _ = _fit_line(t, dark_var)
     else:
         s2_dark = float(np.mean(dark_var))
-    resolved = s2_dark >= DARK_VAR_FLOOR_DN2
-    if not resolved:
+    resolved = s2_dark >= MIN_DARK_NOISE_DN**2
+    if s2_dark < DARK_VAR_FLOOR_DN2:
         warnings.append(f"temporal dark variance {max(s2_dark, 0.0):.3g} DN^2 is below the "
                         f"quantisation limit ({DARK_VAR_FLOOR_DN2} DN^2): read noise is an upper "
                         "bound (raise the gain or use more bits)")
+    elif not resolved:
+        warnings.append(f"temporal dark noise {math.sqrt(s2_dark):.3g} DN is below "
+                        f"{MIN_DARK_NOISE_DN:g} DN (EMVA set-up rule): read noise and DSNU are "
+                        "biased by quantisation")
     s2_dark = max(s2_dark, DARK_VAR_FLOOR_DN2)
     read_dn = math.sqrt(s2_dark)
     read_e = math.sqrt(s2_dark - QUANTISATION_VAR_DN2) / k
