@@ -19,8 +19,9 @@ from benchlab.protocols.characterise_truth import truth_for
 from benchlab.protocols.engine import frames_of
 
 from benchlab.analysis.photon_transfer import (
-    PhotonTransferResult,
+    SpatialResult,
     SweepPoint,
+    msb_aligned,
     native_codes,
     pair_statistics,
     photon_transfer,
@@ -38,34 +39,37 @@ def config_step_id(gain: float, bits: int) -> str:
     return f"sweep-g{gain:g}-b{bits}"
 
 
-def _stats_for(
+def sweep_statistics(
     frames: Mapping[str, npt.NDArray[Any]], metas: Mapping[str, Mapping[str, Any]], bits: int,
-) -> tuple[list[SweepPoint], PhotonTransferResult | None, Any, list[float]]:
-    lit = np.stack([native_codes(frames[n], bits) for n in sorted(frames)
-                    if n.startswith("stack-lit-")])
-    dark = np.stack([native_codes(frames[n], bits) for n in sorted(frames)
-                     if n.startswith("stack-dark-")])
+) -> tuple[list[SweepPoint], SpatialResult, list[float], bool]:
+    """Per-step statistics of one configuration's frames (defect pixels excluded), the
+    spatial result, the exposures and whether the codes were MSB-aligned."""
+    aligned = msb_aligned(list(frames.values()), bits)
+
+    def codes(name: str) -> npt.NDArray[np.float64]:
+        return native_codes(frames[name], bits, aligned)
+
+    lit = np.stack([codes(n) for n in sorted(frames) if n.startswith("stack-lit-")])
+    dark = np.stack([codes(n) for n in sorted(frames) if n.startswith("stack-dark-")])
     spatial, defects = spatial_nonuniformity(lit, dark)
     valid = ~defects
-    steps: dict[int, dict[str, npt.NDArray[Any]]] = {}
-    for name, pixels in frames.items():
+    steps: dict[int, set[str]] = {}
+    for name in frames:
         m = _SWEEP_NAME.match(name)
         if m:
-            steps.setdefault(int(m.group(1)), {})[f"{m.group(2)}-{m.group(3)}"] = pixels
+            steps.setdefault(int(m.group(1)), set()).add(name)
     points: list[SweepPoint] = []
     exposures: list[float] = []
     for i in sorted(steps):
-        s = steps[i]
-        if len(s) != 4:
-            raise ValueError(f"sweep step e{i:03d} has {len(s)} of its 4 frames")
-        t = float(metas[f"e{i:03d}-lit-a"]["exposure_ms"])
-        mean, var = pair_statistics(native_codes(s["lit-a"], bits),
-                                    native_codes(s["lit-b"], bits), valid)
-        dmean, dvar = pair_statistics(native_codes(s["dark-a"], bits),
-                                      native_codes(s["dark-b"], bits), valid)
+        if len(steps[i]) != 4:
+            raise ValueError(f"sweep step e{i:03d} has {len(steps[i])} of its 4 frames")
+        e = f"e{i:03d}"
+        t = float(metas[f"{e}-lit-a"]["exposure_ms"])
+        mean, var = pair_statistics(codes(f"{e}-lit-a"), codes(f"{e}-lit-b"), valid)
+        dmean, dvar = pair_statistics(codes(f"{e}-dark-a"), codes(f"{e}-dark-b"), valid)
         points.append(SweepPoint(t, mean, var, dmean, dvar))
         exposures.append(t)
-    return points, None, spatial, exposures
+    return points, spatial, exposures, aligned
 
 
 def _frame_metas(session: Any, step_id: str) -> dict[str, dict[str, Any]]:
@@ -100,9 +104,9 @@ def analyze_characterise(
         sid = config_step_id(gain, bits)
         frames = frames_of(session, [sid])[sid]
         metas = _frame_metas(session, sid)
-        points, _, spatial, exposures = _stats_for(frames, metas, bits)
+        points, spatial, exposures, aligned = sweep_statistics(frames, metas, bits)
         result = photon_transfer(points, spatial=spatial)
-        measured = result.measured()
+        measured = {**result.measured(), "msb_aligned": aligned}
         row = {"gain": gain, "bits": bits, **measured,
                "warnings": "; ".join(result.warnings)}
         rows.append(row)

@@ -48,9 +48,28 @@ LINEARITY_RANGE = (0.05, 0.95)
 DEFECT_SIGMAS = 8.0
 
 
-def native_codes(pixels: npt.ArrayLike, bits: int) -> FloatArray:
-    """Frame as float DN of its native bit depth; 12-bit data stored MSB-aligned in 16-bit words
-    (every code a multiple of 16, some above 4095) are shifted back down.
+def msb_aligned(frames: Sequence[npt.ArrayLike], bits: int) -> bool:
+    """Whether a set of frames holds ``bits``-bit codes MSB-aligned in 16-bit words: some code
+    exceeds the bit depth and every code is a multiple of ``2**(16 - bits)``.
+
+    Decide on the whole set (a sweep always has bright frames): a dark MSB-aligned frame alone
+    can look like plain codes.
+    """
+    step = 1 << (16 - bits)
+    over = False
+    for f in frames:
+        arr = np.asarray(f)
+        if arr.dtype.kind not in "ui" or np.any(arr.astype(np.int64) % step):
+            return False
+        over |= bool(arr.size and int(arr.max()) > (1 << bits) - 1)
+    return over
+
+
+def native_codes(pixels: npt.ArrayLike, bits: int, aligned: bool | None = None) -> FloatArray:
+    """Frame as float DN of its native bit depth.
+
+    ``aligned``: the codes are MSB-aligned in 16-bit words (see :func:`msb_aligned`) and are
+    shifted down; ``None`` decides from this frame alone.
 
     Raises
     ------
@@ -58,15 +77,15 @@ def native_codes(pixels: npt.ArrayLike, bits: int) -> FloatArray:
         If codes exceed the bit depth and are not MSB-aligned.
     """
     arr = np.asarray(pixels)
-    top = (1 << bits) - 1
+    if aligned is None:
+        aligned = msb_aligned([arr], bits)
+    if aligned:
+        return arr.astype(np.float64) / float(1 << (16 - bits))
     peak = int(arr.max()) if arr.size else 0
-    if peak <= top:
-        return arr.astype(np.float64)
-    shift = 16 - bits
-    aligned = not np.any(arr.astype(np.int64) % (1 << shift))
-    if arr.dtype.kind in "ui" and peak < (1 << 16) and aligned:
-        return arr.astype(np.float64) / float(1 << shift)
-    raise ValueError(f"codes up to {peak} do not fit {bits} bits and are not MSB-aligned 16-bit")
+    if peak > (1 << bits) - 1:
+        raise ValueError(f"codes up to {peak} do not fit {bits} bits and are not MSB-aligned "
+                         "16-bit")
+    return arr.astype(np.float64)
 
 
 def pair_statistics(
