@@ -250,6 +250,10 @@ def render_report(session_path: str | Path) -> str:
         curves_file = str(session.params.get("analysis", {}).get("simulated_mtf_file", ""))
         out.append(_mtf_figure(tables, curves_file))
         out.append("<h2>Frames with ROIs</h2>" + _mtf_frames(session, tables))
+    elif meta["procedure"] == "characterise":
+        from benchlab.report_characterise import characterise_html
+
+        out.append(characterise_html(tables, summ, _png))
     else:
         rows = tables.get("table_4_16", [])
         out.append("<h2>Radiometric fall-off (fig. 4.21)</h2>" + _radiometry_figure(rows))

@@ -14,7 +14,8 @@ exposure list and reuses every frame already on disk.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -110,14 +111,26 @@ class CharacteriseProcedure:
         return steps
 
     def _restore(self, ctx: StepContext) -> None:
-        """The flat target mounted and, on the simulated bench, the configured sensor truth."""
+        """The flat target mounted; on the simulated bench, the sensor truth journalled."""
         ctx.bench.mount(FLAT_TARGET)
-        sim = getattr(ctx.bench, "sim_camera", None)
-        if sim is not None:
-            truth = self.params.sensor_truth()
-            sim.sensor.truth = truth
-            ctx.session.log_event(TRUTH_EVENT, truth=truth.to_dict(),
+        if getattr(ctx.bench, "sim_camera", None) is not None:
+            ctx.session.log_event(TRUTH_EVENT, truth=self.params.sensor_truth().to_dict(),
                                   flat_e_per_ms_per_ma=ctx.bench.world.flat_e_per_ms_per_ma)
+
+    @contextlib.contextmanager
+    def _simulated_sensor(self, ctx: StepContext) -> Iterator[None]:
+        """The simulated camera has the ``[simulator]`` truth while a sweep runs, and its own
+        again afterwards (later runs on the same simulated bench are unaffected)."""
+        sim = getattr(ctx.bench, "sim_camera", None)
+        if sim is None:
+            yield
+            return
+        previous = sim.sensor.truth
+        sim.sensor.truth = self.params.sensor_truth()
+        try:
+            yield
+        finally:
+            sim.sensor.truth = previous
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")
@@ -125,6 +138,10 @@ class CharacteriseProcedure:
 
     def _sweep(self, gain: float, bits: int) -> Callable[[StepContext], None]:
         def action(ctx: StepContext) -> None:
+            with self._simulated_sensor(ctx):
+                sweep(ctx)
+
+        def sweep(ctx: StepContext) -> None:
             p = self.params
             ctx.bench.configure_camera(bits=bits, width=p.width, height=p.height)
             # Frames this step saved before (a resume): read once, not per frame.

@@ -72,6 +72,12 @@ def sweep_statistics(
     return points, spatial, exposures, aligned
 
 
+def _le_columns(le: Any) -> dict[str, float | None]:
+    """Linearity error min / max as separate columns (CSV readers, table views)."""
+    lo, hi = le if le is not None else (None, None)
+    return {"linearity_error_min_pct": lo, "linearity_error_max_pct": hi}
+
+
 def _frame_metas(session: Any, step_id: str) -> dict[str, dict[str, Any]]:
     """Per-frame acquisition metadata (exposure) from the TIFF descriptions."""
     from benchlab.storage import load_frame_tiff
@@ -106,7 +112,8 @@ def analyze_characterise(
         metas = _frame_metas(session, sid)
         points, spatial, exposures, aligned = sweep_statistics(frames, metas, bits)
         result = photon_transfer(points, spatial=spatial)
-        measured = {**result.measured(), "msb_aligned": aligned}
+        measured = {**result.measured(), "msb_aligned": aligned,
+                    **_le_columns(result.linearity_error_pct)}
         row = {"gain": gain, "bits": bits, **measured,
                "warnings": "; ".join(result.warnings)}
         rows.append(row)
@@ -135,6 +142,7 @@ def analyze_characterise(
             rate = float(sim.get("flat_e_per_ms_per_ma", 0.0)) * params.led_current_ma
             t_row = truth_for(truth, gain=gain, bits=bits, width=params.width,
                               height=params.height, rate_e_per_ms=rate, exposures_ms=exposures)
+            t_row.update(_le_columns(t_row["linearity_error_pct"]))
             truth_rows.append({"gain": gain, "bits": bits, **t_row})
             entry["simulator_truth"] = t_row
         per_config.append(entry)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from benchlab.drivers.mightex_sim_sensor import SensorTruth
 from benchlab.protocols import ParamsError, RunAborted, load_params, reanalyze, resume_run
 from benchlab.protocols.characterise import sweep_exposures
 from benchlab.protocols.characterise_calibration import (
@@ -154,6 +155,7 @@ def test_abort_mid_sweep_leaves_led_off_and_resume_finishes(tmp_path: Path, tiny
     with Bench.open(config, simulate=True) as bench:
         outcome = resume_run(session, bench=bench, prompt=yes).run()
         assert all(bench.sim_led.channel_output_ma(ch) == 0.0 for ch in range(1, 5))
+        assert bench.sim_camera.sensor.truth == SensorTruth()  # the bench's own sensor again
     reused = [e for e in events(Path(session)) if e["kind"] == "frame_reused"]
     assert len(reused) == probes  # the probe frames were read back, not taken again
     assert outcome.tables["characterisation"][0]["saturation_dn"] > 0

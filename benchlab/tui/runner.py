@@ -22,7 +22,7 @@ from benchlab.tui import services
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.widgets import ModeBar
 
-PROCEDURES = ("mtf", "radiometry")
+PROCEDURES = ("mtf", "radiometry", "characterise")
 STATUS_MARK = {
     "pending": "  ",
     "running": "\u25b6 ",
@@ -147,7 +147,8 @@ class RunScreen(Screen[None]):
     def _refresh_status(self) -> None:
         if not self.is_mounted:
             return
-        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)"}
+        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
+                 "characterise": "Camera characterisation (EMVA 1288)"}
         params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (
