@@ -197,3 +197,20 @@ def test_radiometry_records_and_applies_the_calibration(run: Any, tmp_path: Path
         assert b["measured_mean_gray"] == pytest.approx(a["measured_mean_gray"], rel=0.01)
     assert json.loads((Path(cal.session_path) / "session.json").read_text())["params"]["bench"][
         "camera"]["response_calibration"] == record["file"]
+
+
+def test_analyze_linearise_records_the_calibration(run: Any,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    session = Path(run.session_path)
+    frame = session / "frames" / "sweep-g1-b8__e010-lit-a.tiff"
+    bench_file = session.parent / "calibration" / "bench-v1.toml"
+    argv = ["analyze", str(frame), "--roi", "0,0,32,32", "--peaks", "10,100", "--json"]
+    assert main([*argv, "--linearise", str(bench_file)]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["linearised"]["file"].endswith("response-v1.json")
+    assert (payload["linearised"]["gain"], payload["linearised"]["bits"]) == (1.0, 8)
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["linearised"] is None
+    assert main([*argv, "--linearise", str(session / "nope.json")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("benchlab: error:") and "nope.json" in err
