@@ -207,3 +207,23 @@ class CharacteriseProcedure:
         tables, summary = analyze_characterise(session, self.params)
         return Path(session.write_results(tables, summary=summary, estimator="photon-transfer"))
 
+
+
+def run_notes(session_path: Path, results_summary: Any) -> list[str]:
+    """What the operator should read after a run: warnings per configuration and where the
+    response calibration went (and how to use it)."""
+    from benchlab.session import Session
+
+    lines = []
+    for cfg in results_summary.get("summary", {}).get("configs", []):
+        for w in cfg.get("warnings", []):
+            lines.append(f"warning (gain {cfg['gain']:g}, {cfg['bits']}-bit): {w}")
+    written = [e for e in Session.open(Path(session_path)).events()
+               if e.get("kind") == "response_calibration_written"]
+    if written:
+        w = written[-1]
+        lines.append(f"response calibration: {w['file']}")
+        if w.get("bench_config"):
+            lines.append(f"referenced by bench configuration: {w['bench_config']} (radiometry "
+                         "runs with it are linearised; analyze --linearise FILE for frames)")
+    return lines

@@ -146,6 +146,10 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    if outcome.summary.get("summary", {}).get("procedure") == "characterise":
+        from benchlab.protocols.characterise import run_notes
+
+        print("\n" + "\n".join(run_notes(outcome.session_path, outcome.summary)))
     print(f"\nsession: {outcome.session_path}")
     print(f"results: {outcome.results_path}")
     print(f"wall time: {elapsed:.1f} s")
