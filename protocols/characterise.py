@@ -37,53 +37,69 @@ SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (di
                 "frames are taken with the LED off.")
 
 
-def _round_exposure(t_ms: float, max_ms: float) -> float:
-    return float(min(max(round(t_ms / EXPOSURE_STEP_MS) * EXPOSURE_STEP_MS, EXPOSURE_STEP_MS),
-                     max_ms))
+CURRENT_STEP_MA = 0.1
+
+
+def _round_to(value: float, step: float, maximum: float) -> float:
+    return float(min(max(round(value / step) * step, step), maximum))
+
+
+def sweep_points(params: CharacteriseParams, x_sat: float) -> list[float]:
+    """The swept values (exposure ms, or LED mA with ``vary = "led_current"``) for a
+    saturating value ``x_sat``: log-spaced near dark, even in the middle, dense around
+    saturation and beyond; rounded to the camera's 0.05 ms (or 0.1 mA) steps."""
+    p = params
+    step, start, maximum = _sweep_axis(p)
+    lo = max(step, min(0.05 * x_sat, start) / 4)
+    log_part = np.geomspace(lo, max(0.05 * x_sat, lo * 1.01), p.log_steps)
+    lin_part = np.linspace(0.08 * x_sat, 0.85 * x_sat, p.linear_steps)
+    near = np.linspace(0.87 * x_sat, p.beyond_saturation * x_sat, p.near_saturation_steps)
+    return sorted({_round_to(float(x), step, maximum)
+                   for x in np.concatenate([log_part, lin_part, near])})
 
 
 def sweep_exposures(params: CharacteriseParams, t_sat_ms: float) -> list[float]:
-    """The exposure list for a saturation exposure ``t_sat_ms``: log-spaced near dark, even in
-    the middle, dense around saturation and beyond; rounded to the camera's 0.05 ms steps."""
-    p = params
-    lo = max(EXPOSURE_STEP_MS, min(0.05 * t_sat_ms, p.probe_start_ms) / 4)
-    log_part = np.geomspace(lo, max(0.05 * t_sat_ms, lo * 1.01), p.log_steps)
-    lin_part = np.linspace(0.08 * t_sat_ms, 0.85 * t_sat_ms, p.linear_steps)
-    near = np.linspace(0.87 * t_sat_ms, p.beyond_saturation * t_sat_ms, p.near_saturation_steps)
-    all_t = {_round_exposure(float(t), p.max_exposure_ms)
-             for t in np.concatenate([log_part, lin_part, near])}
-    return sorted(all_t)
+    """:func:`sweep_points` of an exposure sweep."""
+    return sweep_points(params, t_sat_ms)
+
+
+def _sweep_axis(p: CharacteriseParams) -> tuple[float, float, float]:
+    """(rounding step, probe start, maximum) of the swept quantity."""
+    if p.vary == "led_current":
+        return CURRENT_STEP_MA, p.probe_start_ma, p.led_current_ma
+    return EXPOSURE_STEP_MS, p.probe_start_ms, p.max_exposure_ms
 
 
 def probe_saturation(
     grab: Callable[[str, float, bool], npt.NDArray[Any]], params: CharacteriseParams, bits: int,
 ) -> tuple[float, bool]:
-    """Exposure at which the lit frame saturates: double from ``probe_start_ms`` until the
-    median stops rising (< 3 % for a doubling) or reaches the top code, then extrapolate the
-    last clearly unsaturated probe linearly to the saturated level.
+    """Value of the swept quantity at which the lit frame saturates: double it from the probe
+    start until the median stops rising (< 3 % for a doubling) or reaches the top code, then
+    extrapolate the last clearly unsaturated probe linearly to the saturated level.
 
-    ``grab(name, exposure_ms, lit)`` returns a saved frame. Returns ``(t_sat_ms, found)``;
-    ``found`` is False when even ``max_exposure_ms`` did not saturate.
+    ``grab(name, value, lit)`` returns a saved frame. Returns ``(x_sat, found)``; ``found`` is
+    False when even the maximum (exposure or LED current) did not saturate.
     """
+    _, start, maximum = _sweep_axis(params)
     top = (1 << bits) - 1
-    dark = float(np.median(grab("probe-dark", params.probe_start_ms, False)))
-    t = params.probe_start_ms
+    dark = float(np.median(grab("probe-dark", start, False)))
+    x = start
     history: list[tuple[float, float]] = []
     for i in range(40):
-        level = float(np.median(grab(f"probe-{i:02d}", t, True)))
-        history.append((t, level))
+        level = float(np.median(grab(f"probe-{i:02d}", x, True)))
+        history.append((x, level))
         rising = len(history) < 2 or level > history[-2][1] + 0.03 * (history[-2][1] - dark)
         if level >= top or not rising:
             break
-        if t >= params.max_exposure_ms:
-            return params.max_exposure_ms, False
-        t = min(2.0 * t, params.max_exposure_ms)
+        if x >= maximum:
+            return maximum, False
+        x = min(2.0 * x, maximum)
     sat_level = history[-1][1]
-    below = [(tt, lv) for tt, lv in history if lv - dark < 0.9 * (sat_level - dark)]
+    below = [(xx, lv) for xx, lv in history if lv - dark < 0.9 * (sat_level - dark)]
     if not below or below[-1][1] <= dark:
         return history[-1][0], True
-    t_ok, level_ok = below[-1]
-    return t_ok * (sat_level - dark) / (level_ok - dark), True
+    x_ok, level_ok = below[-1]
+    return x_ok * (sat_level - dark) / (level_ok - dark), True
 
 
 class CharacteriseProcedure:
@@ -147,38 +163,43 @@ class CharacteriseProcedure:
             # Frames this step saved before (a resume): read once, not per frame.
             self._saved = dict(ctx.session.step_frames(ctx.step.id))
             extra = {"gain": gain, "bits": bits, "led_channel": p.led_channel,
-                     "led_current_ma": p.led_current_ma}
+                     "vary": p.vary}
+            by_current = p.vary == "led_current"
 
-            def grab(name: str, exposure_ms: float, lit: bool) -> npt.NDArray[Any]:
-                return self._frames(ctx, [name], exposure_ms, gain, lit, extra)[0]
+            def frames(names: list[str], x: float, lit: bool,
+                       more: dict[str, Any]) -> list[npt.NDArray[Any]]:
+                exposure = p.exposure_ms if by_current else x
+                current = x if by_current else p.led_current_ma
+                return self._frames(ctx, names, exposure, gain, lit, current,
+                                    {**extra, **more})
 
-            t_sat, found = probe_saturation(grab, p, bits)
-            exposures = sweep_exposures(p, t_sat)
-            ctx.report({"gain": gain, "bits": bits, "saturation_exposure_ms": t_sat,
-                        "probe_saturated": found, "steps": len(exposures)})
-            for i, t in enumerate(exposures):
-                self._frames(ctx, [f"e{i:03d}-lit-a", f"e{i:03d}-lit-b"], t, gain, True,
-                             {**extra, "sweep_index": i})
-                self._frames(ctx, [f"e{i:03d}-dark-a", f"e{i:03d}-dark-b"], t, gain, False,
-                             {**extra, "sweep_index": i})
-            t_stack = _round_exposure(p.stack_fraction * t_sat, p.max_exposure_ms)
+            x_sat, found = probe_saturation(
+                lambda name, x, lit: frames([name], x, lit, {})[0], p, bits)
+            values = sweep_points(p, x_sat)
+            ctx.report({"gain": gain, "bits": bits, "vary": p.vary,
+                        "saturation_exposure_ms" if not by_current else "saturation_current_ma":
+                        x_sat, "probe_saturated": found, "steps": len(values)})
+            for i, x in enumerate(values):
+                frames([f"e{i:03d}-lit-a", f"e{i:03d}-lit-b"], x, True, {"sweep_index": i})
+                frames([f"e{i:03d}-dark-a", f"e{i:03d}-dark-b"], x, False, {"sweep_index": i})
+            step, _, maximum = _sweep_axis(p)
+            x_stack = _round_to(p.stack_fraction * x_sat, step, maximum)
             n = p.stack_frames
-            self._frames(ctx, [f"stack-lit-{k:03d}" for k in range(n)], t_stack, gain, True,
-                         {**extra, "stack": "lit"})
-            self._frames(ctx, [f"stack-dark-{k:03d}" for k in range(n)], t_stack, gain, False,
-                         {**extra, "stack": "dark"})
+            frames([f"stack-lit-{k:03d}" for k in range(n)], x_stack, True, {"stack": "lit"})
+            frames([f"stack-dark-{k:03d}" for k in range(n)], x_stack, False, {"stack": "dark"})
 
         return action
 
     def _frames(self, ctx: StepContext, names: list[str], exposure_ms: float, gain: float,
-                lit: bool, extra: dict[str, Any]) -> list[npt.NDArray[Any]]:
-        """Acquire (or reuse) frames at one exposure, the LED on only around lit frames."""
+                lit: bool, current_ma: float, extra: dict[str, Any]) -> list[npt.NDArray[Any]]:
+        """Acquire (or reuse) frames at one setting, the LED on only around lit frames."""
         p = self.params
-        meta = {**extra, "exposure_ms": exposure_ms, "lit": lit}
+        meta = {**extra, "exposure_ms": exposure_ms, "lit": lit,
+                "led_current_ma": current_ma if lit else 0.0}
         missing = [n for n in names if n not in self._saved]
         if lit and missing:
             ctx.check_abort()
-            ctx.bench.led_on(p.led_channel, p.led_current_ma)
+            ctx.bench.led_on(p.led_channel, current_ma)
         try:
             return [self._acquire(ctx, n, exposure_ms, gain, meta) for n in names]
         finally:

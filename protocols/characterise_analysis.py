@@ -64,12 +64,23 @@ def sweep_statistics(
         if len(steps[i]) != 4:
             raise ValueError(f"sweep step e{i:03d} has {len(steps[i])} of its 4 frames")
         e = f"e{i:03d}"
-        t = float(metas[f"{e}-lit-a"]["exposure_ms"])
+        meta = metas[f"{e}-lit-a"]
+        t = float(meta["exposure_ms"])
         mean, var = pair_statistics(codes(f"{e}-lit-a"), codes(f"{e}-lit-b"), valid)
         dmean, dvar = pair_statistics(codes(f"{e}-dark-a"), codes(f"{e}-dark-b"), valid)
-        points.append(SweepPoint(t, mean, var, dmean, dvar))
+        points.append(SweepPoint(t, mean, var, dmean, dvar, irradiance=_current_ma(meta)))
         exposures.append(t)
     return points, spatial, exposures, aligned
+
+
+def _current_ma(meta: Mapping[str, Any]) -> float:
+    """Relative irradiance of a lit frame: the LED current the controller reported in the
+    bench state (the simulated bench: after the driver's rounding), else the requested one."""
+    state = (meta.get("bench") or {}).get("led_current_ma")
+    channel = str(meta.get("led_channel", 1))
+    if isinstance(state, Mapping) and state.get(channel) is not None:
+        return float(state[channel])
+    return float(meta.get("led_current_ma") or 1.0)
 
 
 def _le_columns(le: Any) -> dict[str, float | None]:
@@ -139,9 +150,10 @@ def analyze_characterise(
         except ValueError as exc:
             entry["warnings"].append(f"no response curve: {exc}")
         if truth is not None and sim is not None:
-            rate = float(sim.get("flat_e_per_ms_per_ma", 0.0)) * params.led_current_ma
+            per_ma = float(sim.get("flat_e_per_ms_per_ma", 0.0))
             t_row = truth_for(truth, gain=gain, bits=bits, width=params.width,
-                              height=params.height, rate_e_per_ms=rate, exposures_ms=exposures)
+                              height=params.height, exposures_ms=exposures,
+                              light_e=[per_ma * p.exposure_quantity for p in points])
             t_row.update(_le_columns(t_row["linearity_error_pct"]))
             truth_rows.append({"gain": gain, "bits": bits, **t_row})
             entry["simulator_truth"] = t_row

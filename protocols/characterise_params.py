@@ -26,6 +26,11 @@ class CharacteriseParams:
     of ``t_sat``, ``linear_steps`` up to 85 % and ``near_saturation_steps`` from 87 % to
     ``beyond_saturation`` x ``t_sat``; at each, two lit frames and two dark frames. Then
     ``stack_frames`` lit and dark frames at ``stack_fraction`` x ``t_sat`` for DSNU / PRNU.
+
+    ``vary = "led_current"`` sweeps the LED current instead (0.1 mA steps up to
+    ``led_current_ma``) at the fixed ``exposure_ms``: the exposure quantity is then current x
+    exposure, which assumes the LED's output is proportional to its current, and the dark
+    current is not measured (one exposure).
     """
 
     gains: tuple[float, ...] = (1.0, 4.0)
@@ -40,6 +45,9 @@ class CharacteriseParams:
     beyond_saturation: float = 1.15
     max_exposure_ms: float = 750.0
     probe_start_ms: float = 0.5
+    vary: str = "exposure"
+    exposure_ms: float = 40.0
+    probe_start_ma: float = 0.5
     stack_frames: int = 16
     stack_fraction: float = 0.5
     reference_range: tuple[float, float] = (0.05, 0.4)
@@ -92,6 +100,11 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
     probe = c.number("sweep.probe_start_ms", d.probe_start_ms, *_EXPOSURE_RANGE_MS)
     if probe > max_exp:
         c.fail("sweep.probe_start_ms", f"{probe:g} ms is above sweep.max_exposure_ms {max_exp:g}")
+    vary = c.choice("sweep.vary", d.vary, ("exposure", "led_current"))
+    fixed_exposure = c.number("sweep.exposure_ms", d.exposure_ms, *_EXPOSURE_RANGE_MS)
+    probe_ma = c.number("sweep.probe_start_ma", d.probe_start_ma, 0.1, 5000.0)
+    if vary == "led_current" and probe_ma > current:
+        c.fail("sweep.probe_start_ma", f"{probe_ma:g} mA is above led.current_ma {current:g}")
     stack = c.integer("spatial.stack_frames", d.stack_frames, 2, 400)
     stack_fraction = c.number("spatial.stack_fraction", d.stack_fraction, 0.05, 0.9)
     ref = c.numbers("calibration.reference_range", d.reference_range, 0.0, 1.0)
@@ -119,7 +132,8 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
         gains=gains, bits=bits, width=width, height=height, led_channel=channel,
         led_current_ma=current, log_steps=log_steps, linear_steps=linear_steps,
         near_saturation_steps=near_sat, beyond_saturation=beyond, max_exposure_ms=max_exp,
-        probe_start_ms=probe, stack_frames=stack, stack_fraction=stack_fraction,
+        probe_start_ms=probe, vary=vary, exposure_ms=fixed_exposure, probe_start_ma=probe_ma,
+        stack_frames=stack, stack_fraction=stack_fraction,
         reference_range=(ref[0], ref[1]), simulator=simulator, raw=c.data,
     )
 
@@ -134,7 +148,9 @@ def characterise_to_dict(p: CharacteriseParams) -> dict[str, Any]:
         "sweep": {"log_steps": p.log_steps, "linear_steps": p.linear_steps,
                   "near_saturation_steps": p.near_saturation_steps,
                   "beyond_saturation": p.beyond_saturation,
-                  "max_exposure_ms": p.max_exposure_ms, "probe_start_ms": p.probe_start_ms},
+                  "max_exposure_ms": p.max_exposure_ms, "probe_start_ms": p.probe_start_ms,
+                  "vary": p.vary, "exposure_ms": p.exposure_ms,
+                  "probe_start_ma": p.probe_start_ma},
         "spatial": {"stack_frames": p.stack_frames, "stack_fraction": p.stack_fraction},
         "calibration": {"reference_range": list(p.reference_range)},
         "simulator": dict(p.simulator),

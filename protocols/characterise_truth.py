@@ -58,9 +58,13 @@ def expected_signal(truth: SensorTruth, gain: float, electrons: Any) -> tuple[An
 
 def truth_for(
     truth: SensorTruth, *, gain: float, bits: int, width: int, height: int,
-    rate_e_per_ms: float | None = None, exposures_ms: Sequence[float] = (),
+    exposures_ms: Sequence[float] = (), light_e: Sequence[float] = (),
 ) -> dict[str, Any]:
-    """The truth of one configuration in the result keys (DN at the frame's bit depth)."""
+    """The truth of one configuration in the result keys (DN at the frame's bit depth).
+
+    ``exposures_ms`` and ``light_e`` (mean light electrons per pixel) of the sweep's steps give
+    the linearity error; without them it is None.
+    """
     scale = 1.0 if bits == 12 else 1.0 / 16.0
     k12 = truth.dn12_per_e * gain
     k = k12 * scale
@@ -88,15 +92,17 @@ def truth_for(
         "hot_pixels": int(hot.sum()),
         "linearity_error_pct": None,
     }
-    if rate_e_per_ms is not None and len(exposures_ms) >= 3:
-        t = np.asarray(sorted(exposures_ms), dtype=np.float64)
+    if len(exposures_ms) >= 3 and len(light_e) == len(exposures_ms):
+        order = np.argsort(light_e)
+        t = np.asarray(exposures_ms, dtype=np.float64)[order]
+        light = np.asarray(light_e, dtype=np.float64)[order]
         dark_e = truth.dark_current_e_per_s * t / 1e3
-        lit, _ = expected_signal(truth, gain, rate_e_per_ms * t + dark_e)
+        lit, _ = expected_signal(truth, gain, light + dark_e)
         unlit, _ = expected_signal(truth, gain, dark_e)
         y = lit - unlit
         lo, hi = LINEARITY_RANGE
         idx = np.flatnonzero((y >= lo * sat12) & (y <= hi * sat12))
         if idx.size >= 2:
-            _, _, dev = linearity_deviation(t, y, idx)
+            _, _, dev = linearity_deviation(light, y, idx)
             out["linearity_error_pct"] = [float(dev[idx].min()), float(dev[idx].max())]
     return out

@@ -214,3 +214,17 @@ def test_analyze_linearise_records_the_calibration(run: Any,
     assert main([*argv, "--linearise", str(session / "nope.json")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("benchlab: error:") and "nope.json" in err
+
+
+def test_led_current_sweep_option(tmp_path: Path) -> None:
+    params = tmp_path / "current.toml"
+    params.write_text(TINY.replace("[sweep]", '[led]\ncurrent_ma = 50.0\n[sweep]\n'
+                                   'vary = "led_current"\nexposure_ms = 40.0')
+                      + "[simulator]\ndark_offset_dn12 = 64.0\n")
+    out = run_sim("characterise", tmp_path / "s", params)
+    row = out.tables["characterisation"][0]
+    assert row["dark_current_e_per_s"] is None and "no dark current" in row["warnings"]
+    assert row["system_gain_dn_per_e"] == pytest.approx(0.20475, rel=0.03)
+    curve = out.tables["photon_transfer"]
+    assert {r["exposure_ms"] for r in curve} == {40.0}  # one exposure, the current swept
+    assert len({r["signal_dn"] > 100 for r in curve}) == 2

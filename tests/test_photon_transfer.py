@@ -69,8 +69,9 @@ def test_compressed_sensor_linearity_error_matches_truth() -> None:
     truth = dataclasses.replace(TRUTH, compression_at_full_well=0.05, compression_knee=0.3)
     sweep = make_sweep(truth, size=64)
     points, r = analyse(sweep)
-    t = truth_for(truth, gain=1.0, bits=12, width=64, height=64, rate_e_per_ms=400.0,
-                  exposures_ms=sweep.exposures_ms)
+    t = truth_for(truth, gain=1.0, bits=12, width=64, height=64,
+                  exposures_ms=sweep.exposures_ms,
+                  light_e=[400.0 * x for x in sweep.exposures_ms])
     assert t["linearity_error_pct"][0] < -1.0  # the truth is clearly non-linear
     for m, tv in zip(r.linearity_error_pct, t["linearity_error_pct"], strict=True):
         assert m == pytest.approx(tv, abs=0.2)

@@ -160,8 +160,8 @@ class PhotonTransferResult:
     saturation_e: float | None
     saturation_reached: bool
     linearity_error_pct: tuple[float, float]
-    dark_current_e_per_s: float
-    dark_current_uncertainty_e_per_s: float
+    dark_current_e_per_s: float | None
+    dark_current_uncertainty_e_per_s: float | None
     black_level_dn: float
     linear_slope_dn_per_unit: float
     linear_offset_dn: float
@@ -328,6 +328,12 @@ def photon_transfer(
     read_e = math.sqrt(s2_dark - QUANTISATION_VAR_DN2) / k
 
     dc_slope, black, dc_se = _fit_line(t, dark_mu)
+    dark_current: float | None = dc_slope * 1e3 / k
+    dark_current_se: float | None = dc_se * 1e3 / k
+    if np.unique(t).size < 2:
+        dark_current = dark_current_se = None
+        warnings.append("one exposure time only (irradiance sweep): no dark current, and the "
+                        "read noise includes the dark current's shot noise at that exposure")
 
     lo, hi = LINEARITY_RANGE
     lin_idx = np.flatnonzero((y >= lo * top) & (y <= hi * top) & (np.arange(y.size) <= i_sat))
@@ -348,8 +354,8 @@ def photon_transfer(
         saturation_e=(y_sat / k) if y_sat is not None else None,
         saturation_reached=reached,
         linearity_error_pct=le,
-        dark_current_e_per_s=dc_slope * 1e3 / k,
-        dark_current_uncertainty_e_per_s=dc_se * 1e3 / k,
+        dark_current_e_per_s=dark_current,
+        dark_current_uncertainty_e_per_s=dark_current_se,
         black_level_dn=black,
         linear_slope_dn_per_unit=a,
         linear_offset_dn=b,
