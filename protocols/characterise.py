@@ -118,8 +118,9 @@ class CharacteriseProcedure:
                       restore=self._restore)]
         for gain, bits in p.configs:
             steps.append(Step(
-                config_step_id(gain, bits), f"Gain {gain:g}, {bits}-bit: exposure sweep and "
-                "stacks", "acquire", "EMVA 1288 photon transfer", self._sweep(gain, bits),
+                config_step_id(gain, bits), f"Gain {gain:g}, {bits}-bit: "
+                f"{'LED current' if p.vary == 'led_current' else 'exposure'} sweep and stacks",
+                "acquire", "EMVA 1288 photon transfer", self._sweep(gain, bits),
                 info={"gain": gain, "bits": bits},
             ))
         steps.append(Step("analysis", "Analyse: photon transfer, DSNU/PRNU, calibration",

@@ -42,8 +42,10 @@ def _error(key: str, measured: Any, truth: Any) -> float | None:
     return abs(measured / truth - 1.0) if truth else None
 
 
-def figures_rows(summary: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """One row per configuration and quantity: measured, truth, error, tolerance, pass."""
+def figures_rows(summary: Mapping[str, Any], skip: tuple[str, ...] = ()
+                 ) -> list[dict[str, Any]]:
+    """One row per configuration and quantity: measured, truth, error, tolerance, pass
+    (None: not judged - the ``skip`` quantities, and dark statistics below 1 DN)."""
     rows = []
     for cfg in summary["summary"]["configs"]:
         truth = cfg.get("simulator_truth") or {}
@@ -53,6 +55,7 @@ def figures_rows(summary: Mapping[str, Any]) -> list[dict[str, Any]]:
             # statistics (read noise, DSNU), so those figures are not judged.
             applicable = key not in ("read_noise_e", "dsnu_dn") or bool(
                 cfg["measured"]["read_noise_resolved"])
+            applicable &= key not in skip
             rows.append({"gain": cfg["gain"], "bits": cfg["bits"], "quantity": key,
                          "measured": cfg["measured"].get(key), "truth": truth.get(key),
                          "error": err, "tolerance": tol, "kind": kind,
@@ -105,9 +108,9 @@ def run_benchmark(root: Path | None = None) -> dict[str, Any]:
 
     with tempfile.TemporaryDirectory(prefix="benchlab-char-") as tmp:
         base = Path(root) if root is not None else Path(tmp)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         linear_run = _run("characterise", base / "linear")
-        wall_s = time.perf_counter() - t0
+        wall_s, cpu_s = time.perf_counter() - t0, time.process_time() - c0
         rows = figures_rows(linear_run.summary)
 
         default = load_params("characterise")
@@ -116,7 +119,10 @@ def run_benchmark(root: Path | None = None) -> dict[str, Any]:
         raw = {**raw, "camera": {**raw["camera"], "gains": [1.0]}, "simulator": nl_truth}
         nl_params = parse_params("characterise", raw)
         nl_run = _run("characterise", base / "nonlinear", params=nl_params)
-        nl_rows = figures_rows(nl_run.summary)
+        # The photon transfer assumes a linear response up to 70 % of saturation; this camera
+        # compresses from 30 %, so K (and read noise in e-) are biased by design: shown, not
+        # judged.
+        nl_rows = figures_rows(nl_run.summary, skip=("system_gain_dn_per_e", "read_noise_e"))
         calib_bench = next((base / "nonlinear" / "calibration").glob("bench-v*.toml"))
 
         rad = params_to_dict(load_params("radiometry"))
@@ -141,7 +147,7 @@ def run_benchmark(root: Path | None = None) -> dict[str, Any]:
                 "nonlinear_norm_error": n["measured_normalised"] - r["measured_normalised"],
                 "linearised_norm_error": c["measured_normalised"] - r["measured_normalised"],
             })
-        return {"rows": rows, "nonlinear_rows": nl_rows, "wall_s": wall_s,
+        return {"rows": rows, "nonlinear_rows": nl_rows, "wall_s": wall_s, "cpu_s": cpu_s,
                 "radiometry": comparison,
                 "linearised": cal.summary["summary"].get("linearised"),
                 "frames": len(linear_run.summary.get("frames_sha256", {}))}
@@ -154,12 +160,17 @@ def format_benchmark(out: Mapping[str, Any]) -> str:
         "Part 1 - packaged procedure, linear simulated camera (measured vs simulator_truth)",
         format_figures(out["rows"]),
         f"procedure wall time: {out['wall_s']:.1f} s for {out['frames']} frames "
-        f"(target <= 30 s)  {'yes' if out['wall_s'] <= 30 else 'NO'}",
+        f"(target <= 30 s)  {'yes' if out['wall_s'] <= 30 else 'NO'}; CPU time of this "
+        f"process {out['cpu_s']:.1f} s (the rest is waiting, mostly on fsync)",
+        "n/a: dark noise below 1 DN (EMVA set-up rule), read noise and DSNU biased by "
+        "quantisation",
         "",
         "Part 2 - non-linear simulated camera "
         f"(compression {NONLINEAR['compression_at_full_well']:.0%} at full well from "
         f"{NONLINEAR['compression_knee']:.0%})",
         format_figures(out["nonlinear_rows"]),
+        "n/a for K and read noise: the photon transfer assumes linearity up to 70 % of "
+        "saturation; this camera compresses from 30 %, biasing K by design",
         "",
         f"radiometry at {RADIOMETRY_EXPOSURE_MS:g} ms: mean gray in the LED mask vs the linear "
         "camera",

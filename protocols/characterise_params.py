@@ -40,7 +40,7 @@ class CharacteriseParams:
     led_channel: int = 1
     led_current_ma: float = 20.0
     log_steps: int = 6
-    linear_steps: int = 22
+    linear_steps: int = 18
     near_saturation_steps: int = 14
     beyond_saturation: float = 1.15
     max_exposure_ms: float = 750.0
@@ -48,7 +48,7 @@ class CharacteriseParams:
     vary: str = "exposure"
     exposure_ms: float = 40.0
     probe_start_ma: float = 0.5
-    stack_frames: int = 16
+    stack_frames: int = 8
     stack_fraction: float = 0.5
     reference_range: tuple[float, float] = (0.05, 0.4)
     simulator: Mapping[str, Any] = field(default_factory=dict)
