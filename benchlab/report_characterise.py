@@ -5,16 +5,16 @@ the response calibration written."""
 from __future__ import annotations
 
 import html
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
 
-Png = Callable[[Figure], str]
+from benchlab.report_html import figure_img  # noqa: E402
+
 Rows = Sequence[Mapping[str, Any]]
 
 
@@ -29,7 +29,7 @@ def _label(key: tuple[float, int]) -> str:
     return f"gain {key[0]:g}, {key[1]}-bit"
 
 
-def photon_transfer_figure(curve: Rows, results: Rows, png: Png) -> str:
+def photon_transfer_figure(curve: Rows, results: Rows) -> str:
     """Signal variance against signal (log-log), points in the K fit filled, the fitted line."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
     k_of = {(float(r["gain"]), int(r["bits"])): r.get("system_gain_dn_per_e") for r in results}
@@ -52,10 +52,11 @@ def photon_transfer_figure(curve: Rows, results: Rows, png: Png) -> str:
     ax.set_title("Photon transfer (filled: K fit; line: slope K; dotted: saturation)")
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    return png(fig)
+    fig.tight_layout()
+    return figure_img(fig, "photon transfer curve")
 
 
-def linearity_figure(curve: Rows, png: Png) -> str:
+def linearity_figure(curve: Rows) -> str:
     """Relative deviation from the EMVA line (%) against signal; the 5-95 % range filled."""
     fig, ax = plt.subplots(figsize=(7, 4))
     for key, pts in _by_config(curve).items():
@@ -73,10 +74,11 @@ def linearity_figure(curve: Rows, png: Png) -> str:
     ax.set_title("Linearity deviation over the EMVA range (5-95 % of saturation)")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    return png(fig)
+    fig.tight_layout()
+    return figure_img(fig, "linearity deviation")
 
 
-def dark_signal_figure(curve: Rows, png: Png) -> str:
+def dark_signal_figure(curve: Rows) -> str:
     """Dark mean and dark temporal variance against exposure."""
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.6))
     for key, pts in _by_config(curve).items():
@@ -93,11 +95,11 @@ def dark_signal_figure(curve: Rows, png: Png) -> str:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    return png(fig)
+    return figure_img(fig, "dark signal and dark noise")
 
 
-def characterise_html(tables: Mapping[str, Rows], summary: Mapping[str, Any], png: Png) -> str:
-    """The characterisation sections of the report."""
+def characterise_html(tables: Mapping[str, Rows], summary: Mapping[str, Any]) -> str:
+    """The characterisation section of the report (warnings, three plots, a note)."""
     esc = html.escape
     curve = tables.get("photon_transfer", [])
     results = tables.get("characterisation", [])
@@ -105,12 +107,12 @@ def characterise_html(tables: Mapping[str, Rows], summary: Mapping[str, Any], pn
     warnings = [f"{_label((float(c['gain']), int(c['bits'])))}: {w}"
                 for c in summary.get("configs", []) for w in c.get("warnings", [])]
     if warnings:
-        out.append("<h2>Warnings</h2><ul>" + "".join(f"<li>{esc(w)}</li>" for w in warnings)
-                   + "</ul>")
+        items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
+        out.append(f"<h3>Warnings</h3><ul class='warnings'>{items}</ul>")
     if curve:
-        out.append("<h2>Photon transfer</h2>" + photon_transfer_figure(curve, results, png))
-        out.append("<h2>Linearity deviation</h2>" + linearity_figure(curve, png))
-        out.append("<h2>Dark signal</h2>" + dark_signal_figure(curve, png))
+        out.append("<h3>Photon transfer</h3>" + photon_transfer_figure(curve, results))
+        out.append("<h3>Linearity deviation</h3>" + linearity_figure(curve))
+        out.append("<h3>Dark signal</h3>" + dark_signal_figure(curve))
     out.append("<p class='note'>EMVA 1288 linear model: K is the slope of temporal variance "
                "against signal up to 70 % of saturation; saturation is the step of peak "
                "variance; linearity error over 5-95 % of saturation; DSNU / PRNU from averaged "
