@@ -228,3 +228,14 @@ def test_led_current_sweep_option(tmp_path: Path) -> None:
     curve = out.tables["photon_transfer"]
     assert {r["exposure_ms"] for r in curve} == {40.0}  # one exposure, the current swept
     assert len({r["signal_dn"] > 100 for r in curve}) == 2
+
+
+def test_report_renders_the_characterisation(run: Any) -> None:
+    from benchlab.report import render_report
+
+    page = render_report(run.session_path)
+    assert "Camera characterisation (EMVA 1288)" in page
+    assert "Simulator truth (same keys)" in page
+    for alt in ("photon transfer curve", "linearity deviation", "dark signal and dark noise"):
+        assert f"alt='{alt}'" in page
+    assert "quantisation" in page  # the 8-bit warning is shown
