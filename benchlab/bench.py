@@ -283,7 +283,7 @@ class Bench:
     def configure_camera(self, *, bits: int = 8, width: int = 1280,
                          height: int = 1024) -> dict[str, Any]:
         """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
-        a smaller frame is asked for (the characterisation reads a 256 x 256 region)."""
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
         self.camera.configure(width=width, height=height, bits=bits, mode="normal")
         self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}

@@ -35,8 +35,8 @@ class CharacteriseParams:
 
     gains: tuple[float, ...] = (1.0, 4.0)
     bits: tuple[int, ...] = (12, 8)
-    width: int = 256
-    height: int = 256
+    width: int = 128
+    height: int = 128
     led_channel: int = 1
     led_current_ma: float = 20.0
     log_steps: int = 6
