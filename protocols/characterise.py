@@ -32,12 +32,10 @@ from benchlab.protocols.engine import Step, StepContext
 
 FLAT_TARGET = "flat"
 EXPOSURE_STEP_MS = 0.05
+CURRENT_STEP_MA = 0.1
 SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (diffuser or "
                 "back-lit flat target, lens off or defocused), lit by the LED; room dark. Dark "
                 "frames are taken with the LED off.")
-
-
-CURRENT_STEP_MA = 0.1
 
 
 def _round_to(value: float, step: float, maximum: float) -> float:
@@ -195,8 +193,8 @@ class CharacteriseProcedure:
                 lit: bool, current_ma: float, extra: dict[str, Any]) -> list[npt.NDArray[Any]]:
         """Acquire (or reuse) frames at one setting, the LED on only around lit frames."""
         p = self.params
-        meta = {**extra, "exposure_ms": exposure_ms, "lit": lit,
-                "led_current_ma": current_ma if lit else 0.0}
+        # The frame's own metadata carries the exposure the camera used (``exposure_ms``).
+        meta = {**extra, "lit": lit, "led_current_ma": current_ma if lit else 0.0}
         missing = [n for n in names if n not in self._saved]
         if lit and missing:
             ctx.check_abort()
@@ -228,7 +226,6 @@ class CharacteriseProcedure:
     def analyze(self, session: Any, estimator: str | None) -> Path:
         tables, summary = analyze_characterise(session, self.params)
         return Path(session.write_results(tables, summary=summary, estimator="photon-transfer"))
-
 
 
 def run_notes(session_path: Path, results_summary: Any) -> list[str]:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -171,7 +171,6 @@ class PhotonTransferResult:
     saturation_index: int | None
     warnings: tuple[str, ...] = ()
     spatial: SpatialResult | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def measured(self) -> dict[str, Any]:
         """The issue's result keys (plus uncertainties and flags)."""
