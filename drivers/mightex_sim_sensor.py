@@ -126,6 +126,18 @@ class SensorTruth:
         u = np.clip(e / self.full_well_e - knee, 0.0, None) / (1.0 - knee)
         return np.clip(1.0 - 2.0 * self.compression_at_full_well * u / (1.0 - knee), 0.0, None)
 
+    def output_variance_e2(self, electrons: Any) -> Any:
+        """Temporal variance at the output, in electrons^2 before the gain: shot + read noise,
+        scaled through the compression. With compression on, a pixel at full well holds exactly
+        the full well (the excess spills), so only the read noise remains."""
+        e = np.asarray(electrons, dtype=np.float64)
+        var = e + self.read_noise_e**2
+        if self.compression_at_full_well == 0:
+            return var
+        held = np.minimum(e, self.full_well_e)
+        var = (held + self.read_noise_e**2) * self.response_slope(held) ** 2
+        return np.where(e >= self.full_well_e, self.read_noise_e**2, var)
+
     def ceiling_dn12(self, gain: float) -> float:
         """The code a saturated pixel reads (12-bit): full well or ADC range, lower first."""
         full = self.dark_offset_dn12 + float(self.response_e(self.full_well_e)) * (
@@ -252,9 +264,7 @@ class SensorModel:
         mean = offset + t.response_e(held) * dn_per_e
         self._exact = np.clip(np.floor(mean + 0.5), 0, self._ceiling).astype(np.uint16).ravel()
         self._mean = np.broadcast_to(mean + 0.5, rate.shape).astype(np.float32).ravel()
-        sigma = np.sqrt(electrons + t.read_noise_e**2) * dn_per_e
-        if t.compression_at_full_well:
-            sigma = sigma * t.response_slope(held)
+        sigma = np.sqrt(t.output_variance_e2(electrons)) * dn_per_e
         self._sigma = np.broadcast_to(sigma, rate.shape).astype(np.float32).ravel()
         self._key = key
 

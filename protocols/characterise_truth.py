@@ -49,7 +49,7 @@ def expected_signal(truth: SensorTruth, gain: float, electrons: Any) -> tuple[An
         e = e0 * max(1.0 + truth.prnu_fraction * z, 0.0)
         held = np.minimum(e, truth.full_well_e)
         mu = truth.dark_offset_dn12 + truth.response_e(held) * k
-        sd = np.sqrt(e + truth.read_noise_e**2) * k * truth.response_slope(held)
+        sd = np.sqrt(truth.output_variance_e2(e)) * k
         m, v = _clipped(mu, np.maximum(sd, 1e-9), ceiling)
         mean += w * m
         var += w * v

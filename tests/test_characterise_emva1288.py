@@ -10,19 +10,27 @@ Where the methods differ (and why the tolerances are not zero):
   saturation; emva1288 uses every pixel, benchlab leaves out defect pixels (none here), and
   emva1288 corrects each pair's variance for the frames' mean difference - tiny here.
 * Temporal dark noise: both take the intercept of the dark variance against exposure time.
-* Saturation: both the step of peak variance; emva1288 searches backwards from the brightest
-  step, benchlab takes the global maximum, so they can differ by a step near a flat peak.
+* Saturation: emva1288 takes the step of peak variance (searching backwards from the brightest
+  step) - benchlab finds the same step - and benchlab then refines it with a parabola through
+  the neighbouring steps (:func:`saturation_vertex`), so its value can differ from the
+  reference's by up to a few %: the test checks the same step, and that the refined value is
+  within 2 % of the truth and no farther from it than the step's.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from benchlab.protocols.characterise_truth import truth_for
 from emva1288.process import routines
 from emva1288.process.data import Data1288
 from emva1288.process.results import Results1288
 from ptc_frames import RATE_E_PER_MS, TRUTH, make_sweep
 from test_photon_transfer import analyse
+
+
+def _points(sweep):
+    return analyse(sweep)[0]
 
 
 @pytest.fixture
@@ -61,6 +69,14 @@ def test_k_dark_noise_and_saturation_agree_with_emva1288(numpy2_alias: None, gai
     assert ours.read_noise_dn == pytest.approx(ref.sigma_y_dark, rel=0.02)
     y = ref.temporal["u_y"] - ref.temporal["u_ydark"]
     ref_sat_dn = float(y[ref.index_u_ysat])
-    assert ours.saturation_dn == pytest.approx(ref_sat_dn, rel=0.01)
+    # Same definition (the step of peak variance): the same step.
+    points = sorted(_points(sweep), key=lambda p: p.exposure_ms)
+    assert ours.saturation_index is not None
+    assert points[ours.saturation_index].signal_dn == pytest.approx(ref_sat_dn, rel=0.01)
+    # benchlab's refined value is at least as close to the truth (the standard's definition
+    # evaluated on the noise-free sensor model) as the raw step.
+    truth = truth_for(TRUTH, gain=gain, bits=12, width=64, height=64)["saturation_dn"]
+    assert ours.saturation_dn == pytest.approx(truth, rel=0.02)
+    assert abs(ours.saturation_dn - truth) <= abs(ref_sat_dn - truth) + 0.005 * truth
     # Both against the truth, so agreement is not agreement on a wrong value.
     assert ref.K == pytest.approx(TRUTH.dn12_per_e * gain, rel=0.02)

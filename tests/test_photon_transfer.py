@@ -18,6 +18,7 @@ from benchlab.analysis.photon_transfer import (
     pair_statistics,
     photon_transfer,
     response_curve,
+    saturation_vertex,
     spatial_nonuniformity,
 )
 
@@ -73,6 +74,8 @@ def test_compressed_sensor_linearity_error_matches_truth() -> None:
                   exposures_ms=sweep.exposures_ms,
                   light_e=[400.0 * x for x in sweep.exposures_ms])
     assert t["linearity_error_pct"][0] < -1.0  # the truth is clearly non-linear
+    # A flat variance peak: the refined saturation still matches the standard's definition.
+    assert r.saturation_dn == pytest.approx(t["saturation_dn"], rel=0.02)
     for m, tv in zip(r.linearity_error_pct, t["linearity_error_pct"], strict=True):
         assert m == pytest.approx(tv, abs=0.2)
     # The response curve undoes the compression: linearised step means lie on one line.
@@ -171,3 +174,13 @@ def test_sensor_truth_defaults_keep_the_plain_model() -> None:
         SensorTruth.from_mapping({"gain": 2.0})
     with pytest.raises(ValueError, match="finite and >= 0"):
         SensorTruth(read_noise_e=-1.0)
+
+
+def test_saturation_vertex_refines_a_flat_peak_and_keeps_a_sharp_one() -> None:
+    signal = np.arange(10, dtype=float) * 100.0
+    flat = 1000.0 - 0.001 * (signal - 640.0) ** 2  # vertex at 640, between steps
+    flat[7] += 3.0  # noise makes step 7 the highest
+    assert int(np.argmax(flat)) == 7
+    assert saturation_vertex(signal, flat, 7) == pytest.approx(640.0, abs=5.0)
+    sharp = np.array([1.0, 2.0, 3.0, 10.0, 0.5, 0.1])
+    assert saturation_vertex(signal[:6], sharp, 3) == 300.0  # no neighbours within 10 %

@@ -8,7 +8,8 @@ bright and L dark frames for the spatial non-uniformity. The definitions follow 
 * mean ``mu_y`` = mean of both frames; temporal variance ``s2_y = var(A - B) / 2``;
 * system gain K = slope of ``s2_y - s2_y.dark`` against ``mu_y - mu_y.dark``, fitted through
   the origin up to 70 % of saturation;
-* saturation = the step where the temporal variance peaks (``mu_y.sat - mu_y.dark``);
+* saturation = the signal ``mu_y.sat - mu_y.dark`` where the temporal variance peaks (the peak
+  step, refined by a parabola through its neighbours: :func:`saturation_vertex`);
 * temporal dark noise ``s_y.dark`` = intercept of the dark variance against exposure (dark
   current shot noise removed), not below 0.24 DN^2 (quantisation-limited); read noise in
   electrons ``sqrt(s2_y.dark - 1/12) / K``;
@@ -232,6 +233,30 @@ def saturation_index(variance_dn2: Sequence[float]) -> tuple[int, bool]:
     return i, bool(after.size and after.min() < 0.7 * v[i])
 
 
+def saturation_vertex(signal_dn: FloatArray, variance_dn2: FloatArray, i_peak: int) -> float:
+    """Signal at the variance peak, refined: the vertex of a parabola through the contiguous
+    steps around the peak step - below it those within 10 % of the peak variance, above it
+    those within 3 % (the clipping side falls steeply) - clamped to their signal range.
+
+    EMVA 1288 takes the peak step itself; when the peak is flat (a compressive response) the
+    temporal noise of each variance estimate can move that step by several steps, and the
+    parabola through its neighbours is less sensitive to it (and to the step spacing). With
+    fewer than 3 such steps, the peak step.
+    """
+    peak = variance_dn2[i_peak]
+    lo = hi = i_peak
+    while lo > 0 and variance_dn2[lo - 1] >= 0.9 * peak:
+        lo -= 1
+    while hi < signal_dn.size - 1 and variance_dn2[hi + 1] >= 0.97 * peak:
+        hi += 1
+    if hi - lo < 2:
+        return float(signal_dn[i_peak])
+    x, yv = signal_dn[lo:hi + 1], variance_dn2[lo:hi + 1]
+    a, b, _ = np.polyfit(x, yv, 2)
+    vertex = -b / (2 * a) if a < 0 else float(x[-1])
+    return float(np.clip(vertex, x.min(), x.max()))
+
+
 def linearity_deviation(
     exposure_quantity: FloatArray, signal_dn: FloatArray, fit_idx: npt.NDArray[np.intp]
 ) -> tuple[float, float, FloatArray]:
@@ -288,8 +313,8 @@ def photon_transfer(
 
     i_sat, reached = saturation_index([p.variance_dn2 for p in pts])
     if reached:
-        y_sat: float | None = float(y[i_sat])
-        top = float(y[i_sat])
+        top = saturation_vertex(y, v, i_sat)
+        y_sat: float | None = top
     else:
         y_sat = None
         top = float(np.max(y))
