@@ -239,3 +239,14 @@ def test_report_renders_the_characterisation(run: Any) -> None:
     for alt in ("photon transfer curve", "linearity deviation", "dark signal and dark noise"):
         assert f"alt='{alt}'" in page
     assert "quantisation" in page  # the 8-bit warning is shown
+
+
+def test_sweep_capped_below_saturation_says_so(tmp_path: Path) -> None:
+    params = tmp_path / "short.toml"
+    params.write_text(TINY.replace("[sweep]", "[sweep]\nmax_exposure_ms = 20.0"))
+    out = run_sim("characterise", tmp_path / "s", params)
+    row = out.tables["characterisation"][0]
+    assert row["saturation_dn"] is None and row["saturation_e"] is None
+    assert row["saturation_reached"] is False
+    assert "never reached saturation" in row["warnings"]
+    assert row["system_gain_dn_per_e"] == pytest.approx(0.20475, rel=0.05)
