@@ -40,8 +40,8 @@ class CharacteriseParams:
     led_channel: int = 1
     led_current_ma: float = 20.0
     log_steps: int = 6
-    linear_steps: int = 18
-    near_saturation_steps: int = 14
+    linear_steps: int = 14
+    near_saturation_steps: int = 10
     beyond_saturation: float = 1.15
     max_exposure_ms: float = 750.0
     probe_start_ms: float = 0.5
