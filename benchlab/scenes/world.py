@@ -2,9 +2,13 @@
 
 Targets (the set-ups of Table 4.10 and section 4.4):
 
-- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`);
+- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`) and, in the
+  empty part of the disc, the slanted-edge target (:class:`EdgeScene`);
+- ``"edge"`` - the forward view with the slanted-edge target alone;
 - ``("radial", lp_per_mm, "sagittal" | "tangential")`` - a rolled radial pattern
   (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
+- ``"card"`` or ``("card", radius_mm)`` - a flat grid-and-text card rolled onto the cylinder
+  ``radius_mm`` from the axis (default 19.88; :class:`CardScene`); also ``"card:19.88"``;
 - ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
   ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
 - ``"flat"`` - uniform illumination (diffuser, lens off) lit by the LED: every pixel gets
@@ -27,18 +31,20 @@ import numpy.typing as npt
 
 from benchlab.analysis.chart import Orientation
 from benchlab.drivers.sensor import AcquisitionState
+from benchlab.scenes.card import CardScene
+from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "radial", "led", "flat", "dark")
+TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark")
 
 
 def parse_target(target: object) -> Target:
-    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)`` or
-    ``("radial", lp_per_mm, orientation)``.
+    """Normalise a target spec to ``("usaf",)``, ``("edge",)``, ``("led",)``, ``("dark",)``,
+    ``("radial", lp_per_mm, orientation)`` or ``("card", radius_mm)``.
 
     Raises
     ------
@@ -49,8 +55,10 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "led", "flat", "dark"):
+        if spec in ("usaf", "edge", "led", "flat", "dark"):
             return (spec,)
+        if spec == "card":
+            return ("card", None)
         raise ValueError(f"unknown target {target!r}; expected one of {TARGET_KINDS}")
     if isinstance(spec, list | tuple) and len(spec) == 3 and spec[0] == "radial":
         try:
@@ -62,11 +70,21 @@ def parse_target(target: object) -> Target:
         if spec[2] not in ("sagittal", "tangential"):
             raise ValueError(f"radial target {target!r}: orientation must be sagittal/tangential")
         return ("radial", lp, str(spec[2]))
+    if isinstance(spec, list | tuple) and len(spec) == 2 and spec[0] == "card":
+        if spec[1] is None:
+            return ("card", None)
+        try:
+            radius = float(spec[1])
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"card target {target!r}: radius is not a number (mm)") from exc
+        if not radius > 0:
+            raise ValueError(f"card target {target!r}: radius must be > 0 mm")
+        return ("card", radius)
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
-        f"unknown target {target!r}; expected 'usaf', 'led', 'flat', 'dark' or "
-        "('radial', lp_per_mm, 'sagittal'|'tangential')"
+        f"unknown target {target!r}; expected 'usaf', 'edge', 'led', 'flat', 'dark' or "
+        "('radial', lp_per_mm, 'sagittal'|'tangential') or 'card[:RADIUS_MM]'"
     )
 
 
@@ -77,9 +95,9 @@ class SimWorld:
     ----------
     target
         The target mounted at start.
-    usaf, radial, led
-        Scene parameters. ``radial`` is a template whose frequency and orientation are replaced
-        per mounted pattern.
+    usaf, radial, card, led, edges
+        Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a
+        template whose frequency and orientation are replaced per mounted pattern.
     led_channel
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
     led_position_mm
@@ -95,20 +113,25 @@ class SimWorld:
         *,
         usaf: UsafScene | None = None,
         radial: RadialScene | None = None,
+        card: CardScene | None = None,
         led: LedScene | None = None,
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
+        edges: EdgeScene | None = None,
         flat_e_per_ms_per_ma: float = 20.0,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
+        self.edges = edges if edges is not None else EdgeScene()
         self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
+        self.card_template = card if card is not None else CardScene()
+        self._cards: dict[float, CardScene] = {}
         self.led = led if led is not None else LedScene()
         self.led_channel = led_channel
         self.led_position_mm = led_position_mm
         self.flat_e_per_ms_per_ma = float(flat_e_per_ms_per_ma)
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
-        self._target = parse_target(target)
+        self._target = self._checked(target)
 
     @property
     def target(self) -> Target:
@@ -117,7 +140,14 @@ class SimWorld:
 
     @target.setter
     def target(self, value: object) -> None:
-        self._target = parse_target(value)
+        self._target = self._checked(value)
+
+    def _checked(self, target: object) -> Target:
+        """Parse a target; a card off the ray-trace table is refused here, not at exposure."""
+        spec = parse_target(target)
+        if spec[0] == "card":
+            self.card_scene(spec[1])
+        return spec
 
     def mount(self, target: object) -> None:
         """Mount a target (same as assigning :attr:`target`)."""
@@ -138,11 +168,39 @@ class SimWorld:
                 self._radial[key] = scene
         return scene
 
-    def scene_for(self, target: object) -> UsafScene | RadialScene | LedScene | None:
-        """The scene object of a target (None for ``"dark"`` and ``"flat"``)."""
+    def card_scene(self, radius_mm: float | None) -> CardScene:
+        """The (cached) card scene at a radius (None: the template's).
+
+        Raises
+        ------
+        ValueError
+            When the radius is outside the ray-trace table.
+        """
+        if radius_mm is None:
+            return self.card_template
+        key = float(radius_mm)
+        with self._lock:
+            scene = self._cards.get(key)
+            if scene is None:
+                try:
+                    scene = dataclasses.replace(self.card_template, object_radius_mm=key)
+                except ValueError as exc:  # RayTraceError: off the table
+                    raise ValueError(f"card at {key:g} mm: {exc}") from exc
+                self._cards[key] = scene
+        return scene
+
+    def scene_for(
+        self, target: object
+    ) -> UsafScene | EdgeScene | RadialScene | CardScene | LedScene | None:
+        """The scene object of a target (None for ``"dark"`` and ``"flat"``; the chart's for
+        ``"usaf"``)."""
         spec = parse_target(target)
+        if spec[0] == "card":
+            return self.card_scene(spec[1])
         if spec[0] == "usaf":
             return self.usaf
+        if spec[0] == "edge":
+            return self.edges
         if spec[0] == "radial":
             return self.radial_scene(spec[1], spec[2])
         if spec[0] == "led":
@@ -189,4 +247,8 @@ class SimWorld:
             ).copy()
         scene = self.scene_for(spec)
         assert scene is not None
-        return scene(state)
+        img = scene(state)
+        if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
+            img -= self.edges.darkening(state)
+            np.maximum(img, 0.0, out=img)
+        return img
