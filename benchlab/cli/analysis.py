@@ -162,6 +162,10 @@ def analyze_command(args: argparse.Namespace) -> int:
     if target.is_dir() and (target / "session.json").is_file():
         from benchlab.cli.procedures import analyze_session_command
 
+        if getattr(args, "linearise", None):
+            raise AnalysisInputError(f"{target}: --linearise applies to one image; a session "
+                                     "uses the calibration its bench configuration references")
+
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.frequency import cycles_per_px
