@@ -329,6 +329,12 @@ def _chart(ctx: ReportContext) -> str:
     return forward_chart_section(frame[0], mag)
 
 
+def _characterise(ctx: ReportContext) -> str:
+    from benchlab.report_characterise import characterise_html
+
+    return characterise_html(ctx.tables, ctx.summary)
+
+
 def _unwrapped(ctx: ReportContext) -> str:
     from benchlab.report_unwrap import render_unwrap_section  # after benchlab unwrap SESSION
 
@@ -349,6 +355,8 @@ SECTIONS: list[Section] = [
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
+    Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),
+            "characterisation"),
     Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]
