@@ -14,6 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from benchlab import __version__
+from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
 COMMAND_MODULES = (
@@ -47,24 +48,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Options that belong to ``benchlab`` itself, not to the terminal UI.
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version"}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; exit status 0, 1 (runtime error), 2 (usage error) or 128 + signal.
+
+    SIGINT, SIGTERM and SIGHUP all stop the command the same way (:mod:`benchlab.drivers.
+    shutdown`): LEDs off, stage stopped, a running session journalled as interrupted.
+    """
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    if not args_list or args_list == ["--simulate"]:
-        args_list = ["tui", *args_list]
+    if not args_list or (args_list[0].startswith("-") and args_list[0] not in _TOP_LEVEL_OPTIONS):
+        args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
         return 2
-    try:
-        return int(func(args) or 0)
-    except BenchlabError as exc:
-        print(f"benchlab: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("benchlab: interrupted", file=sys.stderr)
-        return 130
+    with shutdown.handling_signals():
+        try:
+            return int(func(args) or 0)
+        except BenchlabError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt as exc:
+            print(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); bench left safe",
+                  file=sys.stderr)
+            return shutdown.exit_status(exc)
 
 
 if __name__ == "__main__":
