@@ -217,7 +217,11 @@ def render_report(session_path: str | Path) -> str:
     out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>benchlab report "
            f"{esc(session.path.name)}</title><style>{_CSS}</style></head><body>",
            f"<h1>benchlab - {esc(meta['procedure'])} session {esc(session.path.name)}</h1>"]
-    ident = [("operator", meta.get("operator") or "-"), ("status", meta.get("status")),
+    status = session.status  # "interrupted" when its writer died, whatever the file says
+    if doc.get("partial"):
+        status += (f" - results PARTIAL ({doc.get('steps_done')} of {doc.get('steps_total')} "
+                   "steps done)")
+    ident = [("operator", meta.get("operator") or "-"), ("status", status),
              ("started", meta.get("started_at")), ("finished", meta.get("finished_at") or "-"),
              ("software", meta.get("software_version")),
              ("results", f"{results.name} (estimator {doc.get('estimator')}, "

@@ -207,8 +207,16 @@ class Runner:
         """Run (or resume, or retry) from the first incomplete step to the end.
 
         Raises :class:`RunAborted` or :class:`StepFailed`; the session stays resumable and
-        the bench is left safe in every case.
+        the bench is left safe in every case. The session's owner lock is held while this
+        runs (``SessionBusyError`` if another process holds it) and released after.
         """
+        self.session.hold()
+        try:
+            return self._run_held()
+        finally:
+            self.session.release()
+
+    def _run_held(self) -> RunOutcome:
         t0 = time.perf_counter()
         total = len(self.steps)
         try:
