@@ -113,6 +113,38 @@ _META_TYPES: dict[str, type | tuple[type, ...]] = {
 _TYPE_WORDS: dict[type | tuple[type, ...], str] = {str: "a string", dict: "a table (object)"}
 
 
+def check_sessions_root(root: str | os.PathLike[str]) -> Path:
+    """The folder that receives new session folders, made ready or refused in plain words.
+
+    Only the last level is created: a missing parent is most likely a typo, and silently
+    creating ``/data/sesions/...`` would hide it.
+
+    Raises
+    ------
+    SessionError
+        Naming the folder: it is a file, its parent is missing, or it is not writable.
+    """
+    folder = Path(root)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"{folder}: is a file, not a folder for sessions")
+    if not folder.exists():
+        parent = folder.parent
+        if not parent.is_dir():
+            raise SessionError(f"{folder}: parent folder {parent} does not exist (only the "
+                               "last level is created; check the path for a typo)")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise SessionError(f"{folder}: cannot create the sessions folder "
+                               f"({(exc.strerror or str(exc)).lower()})") from exc
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SessionError(f"{folder}: sessions folder is not writable (read-only or no "
+                           "permission); nothing was written")
+    return folder
+
+
 def _now_iso() -> str:
     return datetime.now(UTC).isoformat(timespec="microseconds")
 
@@ -172,8 +204,7 @@ class Session:
         A folder that already exists is never reused: a numeric suffix is added.
         """
         _check_name("procedure", procedure)
-        root = Path(root)
-        root.mkdir(parents=True, exist_ok=True)
+        root = check_sessions_root(root)
         started = datetime.now(UTC)
         base = name if name is not None else f"{started:%Y%m%d-%H%M%S}_{procedure}"
         _check_name("session name", base)
@@ -186,6 +217,9 @@ class Session:
             except FileExistsError:
                 n += 1
                 folder = root / f"{base}-{n}"
+            except OSError as exc:
+                raise SessionError(f"{folder}: cannot create the session folder "
+                                   f"({(exc.strerror or str(exc)).lower()})") from exc
         meta: dict[str, Any] = {
             "format": SESSION_FORMAT,
             "version": SESSION_VERSION,

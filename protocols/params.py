@@ -16,13 +16,28 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from benchlab.drivers import mightex_protocol as camera
 from benchlab.drivers.errors import BenchlabError
 
 PROCEDURES = ("mtf", "radiometry")
-#: Camera limits checked here so a bad file fails before the camera is touched (MCE-B013-U).
-EXPOSURE_RANGE_MS = (0.05, 750.0)
-GAIN_RANGE = (0.25, 8.0)
-FRAME_SHAPE_PX = (1024, 1280)
+#: The bench camera. Its limits are the driver's (one source of truth), checked here so a bad
+#: file fails before the camera is touched.
+CAMERA_SPEC = camera.SPECS["MCE-B013-U"]
+EXPOSURE_RANGE_MS = (camera.EXPOSURE_STEP_MS, CAMERA_SPEC.exposure_max_ms)
+GAIN_RANGE = (CAMERA_SPEC.gain_raw_min / camera.GAIN_RAW_PER_UNITY,
+              CAMERA_SPEC.gain_raw_max / camera.GAIN_RAW_PER_UNITY)
+FRAME_SHAPE_PX = (CAMERA_SPEC.max_height, CAMERA_SPEC.max_width)
+
+
+def camera_exposure_ms(exposure_ms: float) -> float:
+    """The exposure the camera applies for a requested one (its 0.05 ms step): what a session
+    records, e.g. 300.03 -> 300.05."""
+    return round(camera.exposure_counts(exposure_ms, CAMERA_SPEC) * camera.EXPOSURE_STEP_MS, 6)
+
+
+def camera_gain(gain: float) -> float:
+    """The gain the camera applies for a requested one (its 1/8 step)."""
+    return camera.gain_raw(gain, CAMERA_SPEC) / camera.GAIN_RAW_PER_UNITY
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
 
 
@@ -250,8 +265,9 @@ class _Checker:
 
 def _check_mtf(c: _Checker) -> MtfParams:
     d = MtfParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    gain = c.number("camera.gain", d.gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     focus_frames = c.integer("focus.frames", d.focus_frames, 1, 1000)
     fwd_mag = c.number("forward.magnification", d.forward_magnification, 0.0, 1000.0, lo_open=True)
@@ -345,9 +361,11 @@ def _check_bench(
 
 def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    mask_gain = c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE)
-    meas_gain = c.number("camera.measurement_gain", d.measurement_gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    mask_gain = camera_gain(c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE))
+    meas_gain = camera_gain(c.number("camera.measurement_gain", d.measurement_gain,
+                                     *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)

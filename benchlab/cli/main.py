@@ -9,11 +9,13 @@ Each command group lives in its own module exposing ``register(commands, benchma
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
 from collections.abc import Sequence
 
 from benchlab import __version__
+from benchlab.cli import UsageError
 from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
@@ -48,6 +50,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def plain_os_error(exc: OSError) -> str:
+    """``/data/x: permission denied (read-only?)`` rather than a traceback."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    hint = {errno.EACCES: " (no permission to write there?)",
+            errno.EROFS: " (read-only file system)",
+            errno.EEXIST: " (already exists; nothing was overwritten)",
+            errno.ENOSPC: " (disk full)"}.get(exc.errno or 0, "")
+    name = exc.filename if exc.filename is not None else ""
+    return f"{name}: {what.lower()}{hint}" if name else f"{what}{hint}"
+
+
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
 _TOP_LEVEL_OPTIONS = {"-h", "--help", "--version"}
 
@@ -70,8 +83,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     with shutdown.handling_signals():
         try:
             return int(func(args) or 0)
+        except UsageError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 2
         except BenchlabError as exc:
             print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
+        except OSError as exc:  # a file the command was pointed at: say which, plainly
+            print(f"benchlab: error: {plain_os_error(exc)}", file=sys.stderr)
             return 1
         except KeyboardInterrupt as exc:
             print(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); bench left safe",

@@ -116,6 +116,9 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         config = BenchConfig.load(args.config, simulate=args.simulate)
         if not args.simulate and args.config is None:
             raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+        from benchlab.session import check_sessions_root
+
+        check_sessions_root(args.out)  # before any device is opened
     check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
