@@ -1,0 +1,61 @@
+"""The shared stop-signal mechanism (benchlab.drivers.shutdown), in-process."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+from benchlab.drivers import shutdown
+
+
+class _Lamp:
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def _on_stop_signal(self) -> None:
+        self.calls += 1
+
+
+def test_sigterm_raises_stopped_with_its_exit_status() -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    lamp = _Lamp()
+    with shutdown.handling_signals():
+        shutdown.watch(lamp)
+        with pytest.raises(shutdown.Stopped) as info:
+            os.kill(os.getpid(), signal.SIGTERM)  # handled before os.kill returns
+        shutdown.unwatch(lamp)
+    assert isinstance(info.value, KeyboardInterrupt)  # every Ctrl-C path handles it
+    assert info.value.exit_status == 143 and info.value.signal_name == "SIGTERM"
+    assert shutdown.interrupt_reason(info.value) == "SIGTERM"
+    assert lamp.calls == 1  # instruments act first
+    assert signal.getsignal(signal.SIGTERM) == before  # handlers restored
+
+
+def test_second_signal_while_stopping_is_ignored(capsys: pytest.CaptureFixture[str]) -> None:
+    seen: list[int] = []
+    with shutdown.handling_signals(on_signal=seen.append):
+        os.kill(os.getpid(), signal.SIGHUP)
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert shutdown.received() == signal.SIGHUP
+    assert seen == [signal.SIGHUP]
+    assert "SIGTERM ignored: already stopping" in capsys.readouterr().err
+
+
+def test_bare_keyboard_interrupt_is_130() -> None:
+    assert shutdown.exit_status(KeyboardInterrupt()) == 130
+    assert shutdown.interrupt_reason(KeyboardInterrupt()) == "KeyboardInterrupt"
+
+
+def test_watching_installs_default_handlers_and_unwatching_restores_them() -> None:
+    previous = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    try:
+        lamp = _Lamp()
+        shutdown.watch(lamp)  # a script using a driver directly, no CLI around it
+        try:
+            assert signal.getsignal(signal.SIGHUP) is shutdown._handle
+        finally:
+            shutdown.unwatch(lamp)
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGHUP, previous)
