@@ -318,7 +318,10 @@ class Session:
     def __del__(self) -> None:
         fd = getattr(self, "_owner_fd", None)
         if fd is not None:
-            os.close(fd)
+            try:
+                os.close(fd)
+            except (OSError, TypeError):  # TypeError: os already torn down at exit
+                pass
 
     @property
     def held(self) -> bool:

@@ -62,10 +62,12 @@ def atomic_write_bytes(
     """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
 
     With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);
-    raw frames use this so nothing already saved can be lost.
+    raw frames use this so nothing already saved can be lost. The target's folder is created
+    if missing, but not its parents (``FileNotFoundError``).
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    # Only the last folder level is created: a missing parent is more likely a typo.
+    target.parent.mkdir(exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     tmp = Path(tmp_name)
     try:

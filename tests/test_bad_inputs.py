@@ -307,3 +307,15 @@ def test_readme_documents_exit_statuses() -> None:
     text = README.read_text(encoding="utf-8")
     assert "usage errors exit 2" in text and "runtime errors exit 1" in text
     assert "128 + the signal number" in text
+
+
+def test_report_out_creates_only_the_last_level(
+    done_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    deep = tmp_path / "typo" / "reports" / "r.html"
+    assert main(["report", str(done_session), "--out", str(deep)]) == 1
+    assert capsys.readouterr().err.startswith("benchlab: error: ")
+    assert not (tmp_path / "typo").exists()
+    one = tmp_path / "reports" / "r.html"
+    assert main(["report", str(done_session), "--out", str(one)]) == 0
+    assert one.is_file()
