@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -89,6 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         except BenchlabError as exc:
             print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
+        except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 1
         except OSError as exc:  # a file the command was pointed at: say which, plainly
             print(f"benchlab: error: {plain_os_error(exc)}", file=sys.stderr)
