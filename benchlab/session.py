@@ -294,8 +294,9 @@ class Session:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise SessionError(f"{path}: cannot open the session's owner lock "
-                               f"({exc.strerror or exc})") from exc
+            raise SessionError(f"{path}: cannot take the session's owner lock "
+                               f"({(exc.strerror or str(exc)).lower()}); is the session "
+                               "folder read-only?") from exc
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
