@@ -158,3 +158,36 @@ def test_resume_removes_temporary_files_of_a_killed_write(
     removed = [e for e in events if e["kind"] == "temporary_files_removed"]
     assert removed == [{**removed[0], "files": ["frames/.position-25__frame.tiff.k1ll3d.tmp"]}]
     assert Session.open(path).status == "completed"
+
+
+@pytest.mark.asyncio
+async def test_tui_lists_a_dead_writer_s_session_as_interrupted_with_partial_results(
+    killed_session: Path, tmp_path: Path
+) -> None:
+    from textual.widgets import DataTable, Static
+
+    from benchlab.tui.app import BenchlabApp
+    from benchlab.tui.sessions import SessionsScreen
+
+    root = tmp_path / "sessions"
+    root.mkdir()
+    path = _copy(killed_session, root)
+    assert main(["analyze", str(path)]) == 0
+    app = BenchlabApp(simulate=True, sessions_dir=root, autoconnect=False)
+    async with app.run_test(size=(110, 32)) as pilot:
+        await pilot.press("4")
+        screen = app.screen
+        assert isinstance(screen, SessionsScreen)
+        for _ in range(200):
+            if len(screen.sessions) == 1:
+                break
+            await pilot.pause(0.05)
+        row = [str(c) for c in screen.query_one("#session-list", DataTable).get_row_at(0)]
+        assert row[:3] == [path.name, "radiometry", "interrupted"]
+        await pilot.press("enter")
+        info = screen.query_one("#session-info", Static)
+        for _ in range(200):
+            if "PARTIAL results" in str(info.render()):
+                break
+            await pilot.pause(0.05)
+        assert "PARTIAL results: the session was interrupted" in str(info.render())
