@@ -12,8 +12,10 @@ Here all three are handled the same way:
    ``except KeyboardInterrupt`` / ``finally`` / ``with`` already written for Ctrl-C runs:
    LEDs off, stage stopped, the session journalled as interrupted.
 
-A second signal while the first is being handled is ignored (and said so on stderr), so the
-clean-up it started cannot itself be interrupted half-way; SIGKILL remains the hard stop.
+A repeated signal within :data:`REPEAT_GRACE_S` of the one being handled is ignored (and said
+so on stderr), so a double Ctrl-C cannot cut short the clean-up the first one started. Later
+ones act again: Python can lose an exception raised while a finaliser or a garbage-collector
+callback runs, and a stop signal must never be swallowed for good. SIGKILL stays the hard stop.
 The exit status is ``128 + signal number`` (130, 143, 129), as shells report it.
 
 Python runs signal handlers in the main thread only, so :func:`install` is a no-op elsewhere.
@@ -22,9 +24,11 @@ Python runs signal handlers in the main thread only, so :func:`install` is a no-
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import sys
 import threading
+import time
 import weakref
 from collections.abc import Callable, Iterator
 from types import FrameType
@@ -32,6 +36,8 @@ from typing import Protocol
 
 #: The signals that stop a benchlab program cleanly.
 STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: Seconds after a stop signal during which a repeated one is ignored (clean-up time).
+REPEAT_GRACE_S = 5.0
 
 
 class Stopped(KeyboardInterrupt):
@@ -85,6 +91,7 @@ class _State:
         self.on_signal: Callable[[int], None] | None = None
         self.previous: dict[int, object] = {}
         self.received: int | None = None
+        self.acted_at = -math.inf  # time.monotonic() of the last signal acted on
         self.depth = 0
         #: Signals whose handler :func:`install_default` set (restored when nothing is watched).
         self.defaulted: set[int] = set()
@@ -108,6 +115,7 @@ def unwatch(instrument: _Watched) -> None:
         _state.watched.discard(instrument)
         idle = len(_state.watched) == 0
     if idle and _state.depth == 0 and _in_main_thread():
+        _state.acted_at = -math.inf
         for signum in sorted(_state.defaulted):
             if signal.getsignal(signum) is _handle:
                 signal.signal(signum, signal.default_int_handler if signum == signal.SIGINT
@@ -122,17 +130,19 @@ def received() -> int | None:
 
 
 def _handle(signum: int, frame: FrameType | None) -> None:
-    first = _state.received is None
+    now = time.monotonic()
+    repeat = _state.received is not None and now - _state.acted_at < REPEAT_GRACE_S
     _state.received = _state.received or signum
     for instrument in list(_state.watched):
         try:
             instrument._on_stop_signal()
         except Exception:  # noqa: BLE001 - the unwinding below closes it properly
             pass
-    if not first:
+    if repeat:
         print(f"benchlab: {signal_name(signum)} ignored: already stopping, making the bench "
               "safe", file=sys.stderr, flush=True)
         return
+    _state.acted_at = now
     if _state.on_signal is not None:
         _state.on_signal(signum)
         return
@@ -178,6 +188,7 @@ def handling_signals(on_signal: Callable[[int], None] | None = None) -> Iterator
     outer_callback = _state.on_signal
     if _state.depth == 0:
         _state.received = None
+        _state.acted_at = -math.inf
     _state.depth += 1
     _state.on_signal = on_signal
     for sig in STOP_SIGNALS:

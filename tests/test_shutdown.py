@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 
@@ -22,8 +23,12 @@ def test_sigterm_raises_stopped_with_its_exit_status() -> None:
     lamp = _Lamp()
     with shutdown.handling_signals():
         shutdown.watch(lamp)
-        with pytest.raises(shutdown.Stopped) as info:
-            os.kill(os.getpid(), signal.SIGTERM)  # handled before os.kill returns
+        gc.disable()  # a handler's exception raised inside a gc callback would be lost
+        try:
+            with pytest.raises(shutdown.Stopped) as info:
+                os.kill(os.getpid(), signal.SIGTERM)  # handled before os.kill returns
+        finally:
+            gc.enable()
         shutdown.unwatch(lamp)
     assert isinstance(info.value, KeyboardInterrupt)  # every Ctrl-C path handles it
     assert info.value.exit_status == 143 and info.value.signal_name == "SIGTERM"
@@ -59,3 +64,17 @@ def test_watching_installs_default_handlers_and_unwatching_restores_them() -> No
         assert signal.getsignal(signal.SIGHUP) == signal.SIG_DFL
     finally:
         signal.signal(signal.SIGHUP, previous)
+
+
+def test_a_signal_after_the_grace_period_acts_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """If the first stop was swallowed (raised inside a finaliser), a later signal works."""
+    seen: list[int] = []
+    clock = [1000.0]
+    monkeypatch.setattr(shutdown.time, "monotonic", lambda: clock[0])
+    with shutdown.handling_signals(on_signal=seen.append):
+        os.kill(os.getpid(), signal.SIGTERM)
+        clock[0] += shutdown.REPEAT_GRACE_S / 2
+        os.kill(os.getpid(), signal.SIGTERM)  # within the grace period: ignored
+        clock[0] += shutdown.REPEAT_GRACE_S
+        os.kill(os.getpid(), signal.SIGHUP)  # later: acts again
+    assert seen == [signal.SIGTERM, signal.SIGHUP]

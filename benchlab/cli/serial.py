@@ -81,9 +81,13 @@ def _cmd_led(args: argparse.Namespace) -> int:
         slc.on(args.channel, args.current_ma)
         imax_ma, iset_ma = slc.get_current(args.channel)
         held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
-        print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
-              f"held {held}; all channels switch off on exit", flush=True)
-        _wait_for_interrupt(args.for_s)  # the stop-signal hook switches off; close() verifies
+        try:  # the stop-signal hook switches off at once; close() verifies
+            print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
+                  f"held {held}; all channels switch off on exit", flush=True)
+            _wait_for_interrupt(args.for_s)
+        except shutdown.Stopped as exc:
+            if exc.signum != signal.SIGINT:  # Ctrl-C ends the hold; TERM / HUP stop the command
+                raise
     print(f"led channel {args.channel} off")
     return 0
 
