@@ -147,6 +147,9 @@ class SlcController(SafeInstrument):
         self._io_lock = threading.RLock()
         self._busy = False
         self._off_pending = False
+        #: An exchange was interrupted (Ctrl-C, SIGTERM) after its command went out: its late
+        #: reply must be read before the next command's, or it would be taken for that one.
+        self._late_reply = False
 
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
@@ -346,6 +349,9 @@ class SlcController(SafeInstrument):
         with self._io_lock:
             self._busy = True
             try:
+                if self._late_reply:
+                    self._late_reply = False
+                    ser.read_until(REPLY_END)  # at most timeout_s; usually already there
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
@@ -355,6 +361,7 @@ class SlcController(SafeInstrument):
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
                 self._off_pending = True
+                self._late_reply = True
                 raise
             finally:
                 self._busy = False

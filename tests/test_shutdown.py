@@ -78,3 +78,46 @@ def test_a_signal_after_the_grace_period_acts_again(monkeypatch: pytest.MonkeyPa
         clock[0] += shutdown.REPEAT_GRACE_S
         os.kill(os.getpid(), signal.SIGHUP)  # later: acts again
     assert seen == [signal.SIGTERM, signal.SIGHUP]
+
+
+class _SlowPort:
+    """A serial port whose replies arrive only when read: after ``reset_input_buffer``, as a
+    late reply to an interrupted command does on a real line."""
+
+    def __init__(self) -> None:
+        self.pending: list[bytes] = []
+        self.arrived = b""
+        self.in_waiting = 0
+        self.interrupt_next_read = False
+
+    def reset_input_buffer(self) -> None:
+        self.arrived = b""
+
+    def write(self, data: bytes) -> int:
+        self.pending.append(b"#1\r\n" if data.startswith(b"?MODE") else b"##\r\n")
+        return len(data)
+
+    def read_until(self, end: bytes) -> bytes:
+        if self.interrupt_next_read:
+            self.interrupt_next_read = False
+            raise shutdown.Stopped(signal.SIGTERM)  # the signal lands while waiting
+        self.arrived += b"".join(self.pending)
+        self.pending.clear()
+        line, sep, rest = self.arrived.partition(end)
+        self.arrived = rest
+        return line + sep
+
+    def close(self) -> None: ...
+
+
+def test_slc_late_reply_of_an_interrupted_command_is_not_taken_for_the_next() -> None:
+    from benchlab.drivers.slc import SlcController, SlcMode
+
+    slc = SlcController("fake", ceilings_ma={1: 50.0})
+    port = _SlowPort()
+    slc._ser = port  # type: ignore[assignment]
+    slc._channel_count = 1
+    port.interrupt_next_read = True
+    with pytest.raises(shutdown.Stopped):
+        slc.off(1)  # "MODE 1 0" went out; its "##" comes after the interrupt
+    assert slc.get_mode(1) is SlcMode.NORMAL  # the "#1" it asked for, not the late "##"

@@ -48,12 +48,24 @@ def _benchlab(*args: str, **kw: object) -> subprocess.Popen[str]:
                             text=True, **kw)  # type: ignore[call-overload]
 
 
+class _Status(int):
+    """An exit status that shows the program's stderr when an assertion on it fails."""
+
+    stderr = ""
+
+    def __repr__(self) -> str:
+        return f"{int(self)} (stderr: {self.stderr[-1500:]!r})"
+
+
 def _stopped_within(proc: subprocess.Popen[str], timeout_s: float = 30.0) -> int:
     try:
-        return proc.wait(timeout=timeout_s)
+        _, err = proc.communicate(timeout=timeout_s)
     finally:
         if proc.poll() is None:
             proc.kill()
+    status = _Status(proc.returncode)
+    status.stderr = err or ""
+    return status
 
 
 def _stage_still(stage: SimulatedAptStage) -> bool:
