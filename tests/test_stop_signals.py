@@ -194,7 +194,7 @@ def test_run_radiometry_stage_moving_then_sigterm(
     _assert_interrupted(out, signal.SIGTERM)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: s.name)
+@pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_run_mtf_signal_mid_run(
     tmp_path: Path, led: SimulatedSlc, stage: SimulatedAptStage, sig: signal.Signals
 ) -> None:
