@@ -14,30 +14,22 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
-from benchlab.drivers import mightex_protocol as camera
 from benchlab.drivers.errors import BenchlabError
+from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
+    CAMERA_SPEC,
+    EXPOSURE_RANGE_MS,
+    FRAME_SHAPE_PX,
+    GAIN_RANGE,
+    camera_exposure_ms,
+    camera_gain,
+)
+from benchlab.protocols.characterise_params import CharacteriseParams
 
-PROCEDURES = ("mtf", "radiometry")
-#: The bench camera. Its limits are the driver's (one source of truth), checked here so a bad
-#: file fails before the camera is touched.
-CAMERA_SPEC = camera.SPECS["MCE-B013-U"]
-EXPOSURE_RANGE_MS = (camera.EXPOSURE_STEP_MS, CAMERA_SPEC.exposure_max_ms)
-GAIN_RANGE = (CAMERA_SPEC.gain_raw_min / camera.GAIN_RAW_PER_UNITY,
-              CAMERA_SPEC.gain_raw_max / camera.GAIN_RAW_PER_UNITY)
-FRAME_SHAPE_PX = (CAMERA_SPEC.max_height, CAMERA_SPEC.max_width)
-
-
-def camera_exposure_ms(exposure_ms: float) -> float:
-    """The exposure the camera applies for a requested one (its 0.05 ms step): what a session
-    records, e.g. 300.03 -> 300.05."""
-    return round(camera.exposure_counts(exposure_ms, CAMERA_SPEC) * camera.EXPOSURE_STEP_MS, 6)
-
-
-def camera_gain(gain: float) -> float:
-    """The gain the camera applies for a requested one (its 1/8 step)."""
-    return camera.gain_raw(gain, CAMERA_SPEC) / camera.GAIN_RAW_PER_UNITY
+PROCEDURES = ("mtf", "radiometry", "characterise")
+__all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
+           "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
 
 
@@ -117,7 +109,7 @@ class RadiometryParams:
         return position_mm + self.stage_offset_mm
 
 
-Params = MtfParams | RadiometryParams
+Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
 
 
 @dataclass(frozen=True)
@@ -406,8 +398,14 @@ def parse_params(
     declared = data.get("procedure", procedure)
     if declared != procedure:
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
-    params: Params = (_check_mtf(checker) if procedure == "mtf"
-                      else _check_radiometry(checker, limits))
+    params: Params
+    if procedure == "characterise":
+        from benchlab.protocols.characterise_params import check_characterise
+
+        params = check_characterise(checker, limits)
+    else:
+        params = (_check_mtf(checker) if procedure == "mtf"
+                  else _check_radiometry(checker, limits))
     checker.unknown_keys()
     if checker.problems:
         raise ParamsError(source, checker.problems)
@@ -437,6 +435,10 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     This is what a session records, so a resume or re-analysis never depends on defaults that a
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
+    if not isinstance(params, MtfParams | RadiometryParams):
+        from benchlab.protocols.characterise_params import characterise_to_dict
+
+        return characterise_to_dict(params)
     if isinstance(params, MtfParams):
         rois: dict[str, dict[str, list[int]]] = {}
         for key, box in params.forward_roi_overrides.items():

@@ -276,6 +276,10 @@ def test_help_and_version_are_still_benchlab_s(capsys: pytest.CaptureFixture[str
 
 # ---- camera limits: one source of truth; what the camera applies is recorded ----------------
 def test_params_use_the_driver_s_camera_limits() -> None:
+    from benchlab.protocols import characterise_params
+
+    assert characterise_params._EXPOSURE_RANGE_MS == params_mod.EXPOSURE_RANGE_MS
+    assert characterise_params._GAIN_RANGE == params_mod.GAIN_RANGE
     spec = mightex_protocol.SPECS["MCE-B013-U"]
     assert params_mod.EXPOSURE_RANGE_MS == (mightex_protocol.EXPOSURE_STEP_MS,
                                             spec.exposure_max_ms)
