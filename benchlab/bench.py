@@ -379,12 +379,24 @@ class Bench:
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}
+        elif self.simulated and self.led is not None and self.config.led is not None:
+            st["led_current_ma"] = _led_output_ma(self.led, self.config.led.channel)
         if self.sim_stage is not None:
             st["stage_position_mm"] = self.sim_stage.position_mm
         elif self.stage is not None:
             with contextlib.suppress(DeviceError):
                 st["stage_position_mm"] = self.stage.position_mm
         return st
+
+
+def _led_output_ma(led: Any, channel: int) -> dict[str, float]:
+    """The simulated camera's view of an LED on an external controller: asked over the wire."""
+    from benchlab.drivers.slc import SlcMode
+
+    with contextlib.suppress(DeviceError):
+        if led.get_mode(channel) is SlcMode.NORMAL:
+            return {str(channel): float(led.get_current(channel)[1])}
+    return {str(channel): 0.0}
 
 
 def _plain_target(target: Any) -> Any:
@@ -433,7 +445,11 @@ def open_simulated(
 
     cfg = bench.config
     bench.world = SimWorld("dark", led_channel=cfg.led.channel if cfg.led else None)
-    if cfg.led is not None:
+    if cfg.led is not None and cfg.led.port:
+        # A serial simulator (or device) outside this process, e.g. `benchlab simulate`.
+        bench.led = stack.enter_context(SlcController(cfg.led.port,
+                                                      ceilings_ma=cfg.led.ceilings_ma))
+    elif cfg.led is not None:
         sim_led = SimulatedSlc(channels=max(4, max(cfg.led.ceilings_ma, default=1)))
         sim_led.start()
         stack.callback(sim_led.stop)
@@ -441,7 +457,12 @@ def open_simulated(
         bench.led = stack.enter_context(
             SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma)
         )
-    if cfg.stage is not None:
+    if cfg.stage is not None and cfg.stage.port:
+        bench.stage = stack.enter_context(AptStage(
+            cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+        ))
+        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
+    elif cfg.stage is not None:
         sim_stage = SimulatedAptStage(
             counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
             velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=time_scale,

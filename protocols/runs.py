@@ -24,7 +24,7 @@ from benchlab.protocols.params import (
 from benchlab.protocols.radiometry import RadiometryProcedure
 
 from benchlab import __version__
-from benchlab.session import Session
+from benchlab.session import Session, SessionError
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -32,6 +32,10 @@ BENCH_KEY = "bench"
 
 class FramesModifiedError(BenchlabError):
     """Saved frames no longer match the hashes journalled when they were acquired."""
+
+
+class SessionCompleteError(SessionError):
+    """``resume`` of a session that already completed: there is nothing to do."""
 
 
 class UnknownEstimatorError(BenchlabError):
@@ -117,11 +121,16 @@ def resume_run(
     """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    if session.status == "completed":
+        raise SessionCompleteError(f"{session.path}: session is complete; nothing to resume")
     params = session_params(session)
+    session.hold()  # SessionBusyError naming the live process that writes it
     bad = session.verify_frames()
     if bad:
+        session.release()
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
+    session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
@@ -135,6 +144,20 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
     """
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    status = session.status  # before holding: a dead writer's "running" is "interrupted"
+    session.hold()  # a live run (or another analysis) writing it is named and refused
+    try:
+        if status != "completed":
+            steps = make_procedure(session_params(session)).steps()
+            done = session.completed_steps()
+            session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
+                                         len(steps))
+        return _reanalyze_held(session, estimator)
+    finally:
+        session.release()
+
+
+def _reanalyze_held(session: Session, estimator: str | None) -> Path:
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
