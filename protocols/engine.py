@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 
+from benchlab.catalog import record_session
 from benchlab.session import read_results
 from benchlab.storage import load_frame_tiff
 
@@ -210,6 +211,7 @@ class Runner:
         """
         t0 = time.perf_counter()
         total = len(self.steps)
+        all_done = False
         try:
             done = self.completed()
             if done and not self._restored:
@@ -227,6 +229,7 @@ class Runner:
                 done.add(step.id)
             if self.progress is not None:
                 self.progress(total, total, None)
+            all_done = True
         except KeyboardInterrupt:
             self.session.log_event("interrupted", reason="KeyboardInterrupt")
             self.session.update_meta(status="interrupted")
@@ -239,8 +242,11 @@ class Runner:
             raise
         finally:
             self.bench.safe_state()
+            if not all_done:
+                record_session(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         self.session.finish()
+        record_session(self.session.path)
         tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),
