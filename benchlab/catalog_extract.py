@@ -96,11 +96,12 @@ def read_session_record(path: Path, *, all_versions: bool = True) -> SessionReco
     except (OSError, ValueError, KeyError, SessionError) as exc:
         return SessionRecord(id=folder.name, path=str(folder), procedure="?",
                              status="unreadable", error=f"{meta_path}: {exc}")
+    devices = meta.get("devices")
     record = SessionRecord(
         id=folder.name, path=str(folder), procedure=str(meta.get("procedure", "?")),
         status=status, operator=str(meta.get("operator") or ""),
         sample=str(meta.get("sample") or ""),
-        devices=meta.get("devices") if isinstance(meta.get("devices"), dict) else {},
+        devices=devices if isinstance(devices, dict) else {},
         started_at=str(meta.get("started_at") or ""), finished_at=meta.get("finished_at"),
         software_version=str(meta.get("software_version") or ""),
         report="report.html" if (folder / "report.html").is_file() else "",

@@ -262,9 +262,8 @@ def render_report(session_path: str | Path) -> str:
 
 def write_report(session_path: str | Path, out: str | Path | None = None) -> Path:
     """Write the HTML report (default ``SESSION/report.html``); returns its path."""
-    from benchlab.storage import atomic_write_text
-
     from benchlab.catalog import record_session
+    from benchlab.storage import atomic_write_text
 
     target = Path(out) if out is not None else Path(session_path) / "report.html"
     written = atomic_write_text(target, render_report(session_path))
