@@ -18,8 +18,7 @@ from __future__ import annotations
 import json
 import logging
 import sqlite3
-import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -156,6 +155,15 @@ class Catalog:
             record = read_session_record(folder)
             self._store(conn, record)
         return record
+
+    def store(self, records: Iterable[SessionRecord]) -> int:
+        """Store already-read records in one transaction (bulk loads, benchmarks)."""
+        n = 0
+        with self._write() as conn:
+            for record in records:
+                self._store(conn, record)
+                n += 1
+        return n
 
     def forget(self, session_id: str) -> None:
         """Drop a session's rows (its folder is gone)."""
@@ -368,16 +376,6 @@ def record_session(session_path: str | Path) -> bool:
     except Exception as exc:  # noqa: BLE001 - the folders stay the truth; reindex repairs
         log.warning("catalogue not updated for %s: %s", folder, exc)
         return False
-
-
-def time_query(catalog: Catalog, fn: str, repeats: int, **kwargs: Any) -> Sequence[float]:
-    """Seconds of ``repeats`` calls of ``catalog.<fn>(**kwargs)`` (for the benchmark)."""
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        getattr(catalog, fn)(**kwargs)
-        out.append(time.perf_counter() - t0)
-    return out
 
 
 __all__ = ["CATALOG_FILE", "SCHEMA_VERSION", "Catalog", "CatalogError", "TrendPoint",

@@ -51,6 +51,8 @@ class BatchItem:
     #: when nothing accumulates per session.
     worker_peak_kib: int = 0
     worker_pid: int = 0
+    #: CPU seconds the worker spent on this session (independent of other load).
+    cpu_seconds: float = 0.0
 
 
 @dataclass
@@ -91,11 +93,12 @@ def analyse_one(path: str, estimator: str | None = None) -> BatchItem:
     from benchlab.protocols.runs import reanalyze
 
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
 
     def item(outcome: Outcome, reason: str = "", results: str = "") -> BatchItem:
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         return BatchItem(path, outcome, reason, results, time.perf_counter() - t0, peak,
-                         os.getpid())
+                         os.getpid(), time.process_time() - cpu0)
 
     folder = Path(path)
     if not (folder / SESSION_FILE).is_file():

@@ -93,3 +93,37 @@ def batch_command(args: argparse.Namespace) -> int:
           f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
           f"{report.executor} (frames verified unchanged)")
     return 1 if report.failed else 0
+
+
+def benchmark_batch_command(args: argparse.Namespace) -> int:
+    """``benchlab benchmark batch``: N fabricated sessions re-analysed on every core."""
+    from benchlab.cli.batch_bench import run_batch_benchmark
+
+    def say(text: str) -> None:
+        print(text, file=sys.stderr, flush=True)
+
+    print(run_batch_benchmark(n_sessions=args.sessions, jobs=args.jobs, source=args.source,
+                              workdir=args.workdir, link_frames=not args.copy_frames,
+                              fsync_repeats=args.fsync_repeats, say=say))
+    return 0
+
+
+def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
+    """Add ``benchmark batch`` (the batch options of ``analyze`` are added with it)."""
+    b = benchmarks.add_parser(
+        "batch", help="batch re-analysis of many sessions: time, per-session cost, memory",
+        description="Fabricate N sessions by copying one real simulated MTF run (or --source), "
+        "rebuild their catalogue, re-analyse them all on a process pool, and compare the "
+        "results fsync policies; prints wall time, per-session cost, the extrapolation to "
+        "10,000 sessions and the workers' peak memory across the batch.",
+    )
+    b.add_argument("--sessions", type=int, default=200, help="sessions to fabricate (200)")
+    b.add_argument("--jobs", type=int, metavar="N", help="worker processes (default: all cores)")
+    b.add_argument("--source", metavar="SESSION", help="session folder to copy (default: one "
+                   "simulated MTF run made for the benchmark)")
+    b.add_argument("--workdir", metavar="DIR", help="where to fabricate (default: temp folder)")
+    b.add_argument("--copy-frames", action="store_true",
+                   help="copy the frames instead of hard-linking them")
+    b.add_argument("--fsync-repeats", type=int, default=20, metavar="N",
+                   help="re-analyses per fsync policy for the comparison (0: skip)")
+    b.set_defaults(func=benchmark_batch_command)

@@ -21,6 +21,8 @@ COMMAND_MODULES = (
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
+    "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
     "benchlab.cli.tui",  # tui (and the no-argument default)
 )
 
