@@ -6,11 +6,11 @@ import json
 from pathlib import Path
 
 import pytest
+from benchlab.protocols.batch import BatchError, run_batch
+from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session, results_files
 
 from benchlab.cli.main import main
-from benchlab.protocols.batch import BatchError, run_batch
-from benchlab.protocols.runs import reanalyze
 from benchlab.storage import sha256_file
 
 

@@ -10,15 +10,15 @@ import sys
 from pathlib import Path
 
 import pytest
+from benchlab.protocols.batch import run_batch
+from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session
 from test_protocol_helpers import MTF_SMALL
 
 import benchlab.session as session_mod
-from benchlab.catalog import CATALOG_FILE, Catalog, CatalogError, record_session
+from benchlab.catalog import CATALOG_FILE, Catalog, record_session
 from benchlab.catalog_schema import SCHEMA_VERSION, migrate
 from benchlab.cli.main import main
-from benchlab.protocols.batch import run_batch
-from benchlab.protocols.runs import reanalyze
 
 
 @pytest.fixture(scope="module")
