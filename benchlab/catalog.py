@@ -40,6 +40,10 @@ ORIENTATION_ALIASES = {
     "t": "tangential", "tangential": "tangential", "vertical": "tangential",
     "a": "averaged", "averaged": "averaged", "avg": "averaged", "": "",
 }
+#: Columns of a listing (everything but the devices' JSON).
+_LIST_COLUMNS = ("s.id, s.path, s.procedure, s.status, s.operator, s.sample, s.serials, "
+                 "s.started_at, s.finished_at, s.software_version, s.results_version, "
+                 "s.estimator, s.report, s.error, s.indexed_at")
 SORT_COLUMNS = ("started_at", "id", "procedure", "status", "sample", "operator",
                 "results_version")
 
@@ -86,6 +90,7 @@ def _connect(path: Path) -> sqlite3.Connection:
     # WAL + NORMAL: a committed transaction survives a process crash; a power cut may lose
     # the last ones, which reindex restores from the folders (the catalogue is a cache).
     conn.execute("PRAGMA synchronous = NORMAL")
+    conn.execute("PRAGMA cache_size = -32768")  # 32 MiB: a 10,000-session trend stays cached
     return conn
 
 
@@ -222,17 +227,28 @@ class Catalog:
         sort: str = "started_at",
         descending: bool = True,
         limit: int | None = None,
+        devices: bool = False,
     ) -> list[dict[str, Any]]:
-        """Sessions matching every given filter, sorted (newest first by default)."""
+        """Sessions matching every given filter, sorted (newest first by default).
+
+        ``devices=True`` adds each session's ``devices`` (identities; slower on big lists).
+        """
         if sort not in SORT_COLUMNS:
             raise CatalogError(f"cannot sort by {sort!r}; choose {', '.join(SORT_COLUMNS)}")
         where, args = _session_filters(procedure, since, sample, status)
-        sql = (f"SELECT * FROM sessions s {where} ORDER BY s.{sort} "
+        columns = "*" if devices else _LIST_COLUMNS
+        sql = (f"SELECT {columns} FROM sessions s {where} ORDER BY s.{sort} "
                f"{'DESC' if descending else 'ASC'}, s.id")
         if limit is not None:
             sql += " LIMIT ?"
             args.append(int(limit))
-        return [_session_dict(row) for row in self.conn.execute(sql, args)]
+        cursor = self.conn.execute(sql, args)
+        names = [d[0] for d in cursor.description]
+        rows = [dict(zip(names, row, strict=True)) for row in cursor]
+        if devices:
+            for row in rows:
+                row["devices"] = json.loads(row.pop("devices_json") or "{}")
+        return rows
 
     def show(self, session_id: str) -> dict[str, Any]:
         """One session with its results versions and the figures of its latest version."""
@@ -303,7 +319,9 @@ class Catalog:
             sql += " AND f.freq_lp_per_mm BETWEEN ? AND ?"
             args += [lo, hi]
         sql += " ORDER BY s.started_at, s.id"
-        points = [TrendPoint(*row) for row in self.conn.execute(sql, args)]
+        cursor = self.conn.cursor()
+        cursor.row_factory = None  # plain tuples: 10,000 points without per-row objects
+        points = [TrendPoint(*row) for row in cursor.execute(sql, args)]
         if freq_lp_per_mm is None:
             return points
         best: dict[str, TrendPoint] = {}

@@ -43,7 +43,7 @@ class ResultsVersion:
 
 @dataclass
 class SessionRecord:
-    """One ``sessions`` row plus its results versions and figures."""
+    """One ``sessions`` row plus its results versions and the key figures of the latest."""
 
     id: str
     path: str
@@ -78,7 +78,7 @@ def is_session_folder(path: Path) -> bool:
     return (path / SESSION_FILE).is_file()
 
 
-def read_session_record(path: Path, *, all_versions: bool = True) -> SessionRecord:
+def read_session_record(path: Path) -> SessionRecord:
     """The catalogue record of the session folder ``path``.
 
     A folder whose ``session.json`` is unreadable still gets a record (status ``unreadable``,
@@ -106,16 +106,19 @@ def read_session_record(path: Path, *, all_versions: bool = True) -> SessionReco
         software_version=str(meta.get("software_version") or ""),
         report="report.html" if (folder / "report.html").is_file() else "",
     )
-    wanted = versions if all_versions else versions[-1:]
-    for version in wanted:
+    for version in versions:
+        folder_v = session.results_dir / f"v{version}"
         try:
-            tables, summary = read_results(session.results_dir / f"v{version}")
-        except SessionError as exc:
-            record.error = str(exc)
+            if version == versions[-1]:  # key figures: of the latest version only
+                tables, summary = read_results(folder_v)
+                record.figures.extend(figures_of(version, tables))
+            else:
+                summary = json.loads((folder_v / "summary.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError, SessionError) as exc:
+            record.error = f"{folder_v}: {exc}"
             continue
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))
-        record.figures.extend(figures_of(version, tables))
     return record
 
 

@@ -70,7 +70,7 @@ def reindex_command(args: argparse.Namespace) -> int:
 def list_command(args: argparse.Namespace) -> int:
     with Catalog.open(args.root) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
-                                limit=args.limit)
+                                limit=args.limit, devices=args.json)
     if args.json:
         print(json.dumps(rows))
     elif args.csv:
