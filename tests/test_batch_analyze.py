@@ -90,6 +90,8 @@ def test_bad_batch_inputs_are_clean_errors(
     source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     a = copy_session(source, tmp_path / "a")
+    assert main(["analyze"]) == 2  # usage: nothing to analyse
+    assert "needs an image, a session folder, or --all ROOT" in capsys.readouterr().err
     assert main(["analyze", str(a), str(a), "--jobs", "0"]) == 1
     assert "--jobs must be >= 1" in capsys.readouterr().err
     assert main(["analyze", "--all", str(tmp_path / "nowhere")]) == 1

@@ -138,6 +138,9 @@ def test_bad_queries_are_clean_errors(source: Path, tmp_path: Path,
     with pytest.raises(SystemExit) as exc:
         main(["sessions", "trend", "--root", str(root)])  # --view is required: usage
     assert exc.value.code == 2
+    assert main(["sessions", "list", "--root", str(tmp_path / "nowhere")]) == 1
+    assert "no such sessions folder" in capsys.readouterr().err
+    assert not (tmp_path / "nowhere").exists()
 
 
 def test_deleted_or_corrupt_or_newer_catalogue_is_rebuilt(source: Path, tmp_path: Path) -> None:

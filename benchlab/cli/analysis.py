@@ -163,7 +163,9 @@ def analyze_command(args: argparse.Namespace) -> int:
     if batch_requested(args):
         return batch_command(args)
     if not args.target:
-        raise AnalysisInputError("analyze needs an image, a session folder, or --all ROOT")
+        print("benchlab: error: analyze needs an image, a session folder, or --all ROOT",
+              file=sys.stderr)
+        return 2
     args.target = args.target[0] if isinstance(args.target, list) else args.target
     target = Path(args.target)
     if target.is_dir() and (target / "session.json").is_file():

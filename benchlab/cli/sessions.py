@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from benchlab.catalog import Catalog, TrendPoint
+from benchlab.catalog import Catalog, CatalogError, TrendPoint
 
 LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
                 "results_version", "estimator", "serials")
@@ -54,6 +54,13 @@ def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: s
         atomic_write_text(target, buf.getvalue())
 
 
+def _open(args: argparse.Namespace) -> Catalog:
+    root = Path(args.root)
+    if not root.is_dir():
+        raise CatalogError(f"{root}: no such sessions folder (--root)")
+    return Catalog.open(root)
+
+
 def _filters(args: argparse.Namespace) -> dict[str, Any]:
     return {"procedure": args.procedure, "since": args.since, "sample": args.sample,
             "status": args.status}
@@ -61,14 +68,14 @@ def _filters(args: argparse.Namespace) -> dict[str, Any]:
 
 def reindex_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    with Catalog.open(args.root) as catalog:
+    with _open(args) as catalog:
         n = catalog.reindex()
     print(f"{catalog.path}: {n} sessions indexed in {time.perf_counter() - t0:.2f} s")
     return 0
 
 
 def list_command(args: argparse.Namespace) -> int:
-    with Catalog.open(args.root) as catalog:
+    with _open(args) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
                                 limit=args.limit, devices=args.json)
     if args.json:
@@ -81,7 +88,7 @@ def list_command(args: argparse.Namespace) -> int:
 
 
 def show_command(args: argparse.Namespace) -> int:
-    with Catalog.open(args.root) as catalog:
+    with _open(args) as catalog:
         info = catalog.show(args.id)
     if args.json:
         print(json.dumps(info))
@@ -133,7 +140,7 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
 
 
 def trend_command(args: argparse.Namespace) -> int:
-    with Catalog.open(args.root) as catalog:
+    with _open(args) as catalog:
         points = catalog.trend(view=args.view, element=args.element,
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
                                quantity=args.quantity, **_filters(args))
