@@ -30,6 +30,8 @@ from benchlab.drivers.errors import BenchlabError
 from benchlab.session import SESSION_FILE, Session
 
 Outcome = Literal["analysed", "skipped", "failed"]
+#: How long to try reaching a dask scheduler before giving up.
+SCHEDULER_TIMEOUT_S = 10.0
 #: Modules a forkserver worker imports once, before it takes any session.
 _PRELOAD = ["benchlab.protocols.runs", "benchlab.protocols.mtf", "benchlab.protocols.radiometry"]
 
@@ -142,8 +144,8 @@ def _executor(jobs: int, scheduler: str | None) -> Iterator[tuple[cf.Executor, s
         raise BatchError("--scheduler needs the dask extra: pip install 'benchlab[dask]'") \
             from exc
     try:
-        client = Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError) as exc:
+        client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except (OSError, TimeoutError, ValueError) as exc:
         raise BatchError(f"--scheduler {scheduler}: cannot connect ({exc})") from exc
     try:
         n = len(client.scheduler_info().get("workers", {}))

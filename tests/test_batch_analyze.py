@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from benchlab.protocols import batch
 from benchlab.protocols.batch import BatchError, run_batch
 from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session, results_files
@@ -87,7 +88,8 @@ def test_named_sessions_json_and_a_non_session(
 
 
 def test_bad_batch_inputs_are_clean_errors(
-    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     a = copy_session(source, tmp_path / "a")
     assert main(["analyze"]) == 2  # usage: nothing to analyse
@@ -105,8 +107,9 @@ def test_bad_batch_inputs_are_clean_errors(
     assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 1
     assert "unknown estimator" in capsys.readouterr().err
     assert sorted(p.name for p in (a / "results").iterdir()) == ["v1"]  # nothing written
-    with pytest.raises(BatchError):
-        run_batch([a], scheduler="tcp://127.0.0.1:1")
+    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT_S", 0.5)
+    with pytest.raises(BatchError, match="cannot connect"):
+        run_batch([a], scheduler="tcp://127.0.0.1:1")  # nothing listens there
 
 
 def test_dask_scheduler_runs_the_same_analysis(source: Path, tmp_path: Path) -> None:

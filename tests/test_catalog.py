@@ -208,7 +208,7 @@ def test_concurrent_runs_write_while_a_batch_reads(source: Path, tmp_path: Path)
     v = len(list((source / "results").iterdir()))  # results versions of every copy
     Catalog.open(root).close()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    writer = subprocess.Popen([sys.executable, "-c", _WRITER, str(source), str(root), "12"],
+    writer = subprocess.Popen([sys.executable, "-c", _WRITER, str(source), str(root), "8"],
                               env=env)
     run = subprocess.Popen([sys.executable, "-m", "benchlab.cli.main", "run", "mtf",
                             "--simulate", "--yes", "--out", str(root), "--params",
@@ -223,7 +223,7 @@ def test_concurrent_runs_write_while_a_batch_reads(source: Path, tmp_path: Path)
     assert writer.wait(timeout=120) == 0 and run.wait(timeout=120) == 0
     assert [i.outcome for i in report.items] == ["analysed"] * 4 and len(seen) == 4
     folders = sorted(p.name for p in root.iterdir() if (p / "session.json").is_file())
-    assert len(folders) == 4 + 12 + 1
+    assert len(folders) == 4 + 8 + 1
     with Catalog.open(root) as cat:
         assert cat.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
         rows = {r["id"]: r for r in cat.sessions()}
