@@ -106,8 +106,10 @@ def run_batch_benchmark(
             src = Path(source)
             how = f"--source {src}"
         else:
-            src = make_source_session(tmp / "source")
-            how = f"one simulated MTF run ({time.perf_counter() - t0:.1f} s)"
+            with _count_fsyncs() as run_fsyncs:
+                src = make_source_session(tmp / "source")
+            how = (f"one simulated MTF run ({time.perf_counter() - t0:.1f} s, "
+                   f"{run_fsyncs[0]} fsyncs)")
         say(f"source session: {how}")
         root = tmp / "sessions"
         t0 = time.perf_counter()
