@@ -215,7 +215,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="One key figure across sessions, oldest first, from each session's latest "
         "results version: e.g. --view forward --element G2E2 --orientation S, or --view "
         "forward --freq 70 (Table 4.15's averaged modulation; with --orientation S/T the "
-        "element nearest 70 lp/mm within 20 %%).",
+        "element nearest 70 lp/mm within 20 %).",
     )
     _add_filters(t)
     t.add_argument("--view", required=True,
