@@ -262,3 +262,25 @@ def test_results_are_fsynced_once_per_version_with_the_same_bytes(
     assert calls == []
     s.log_event("step_completed", step_id="x")  # resume depends on these: fsync'd
     assert len(calls) == 1
+
+
+def test_figures_of_every_known_table_and_any_other() -> None:
+    from benchlab.catalog_extract import figures_of
+
+    tables = {
+        "table_4_15": [{"view": "radial", "mc_freq_lp_per_mm": 60.0, "averaged_modulation": 0.35,
+                        "verdict": "exceeds the 80 % threshold (0.27)"}],
+        "table_4_16": [{"position_mm": 15.0, "measured_normalised": 1.0, "difference": 0.0,
+                        "measured_mean_gray": 180.5}],
+        "table_4_13": [{"view": "forward", "image_height_mm": 0.69}],  # geometry: not a figure
+        "characterisation": [{"quantity": "gain", "value": 0.42, "ok": True, "n": float("nan")}],
+    }
+    got = {(f.view, f.element, f.orientation, f.quantity): (f.value, f.text)
+           for f in figures_of(3, tables)}
+    assert got == {
+        ("radial", "", "averaged", "modulation"): (0.35, "exceeds the 80 % threshold (0.27)"),
+        ("radiometry", "15mm", "", "measured_normalised"): (1.0, ""),
+        ("radiometry", "15mm", "", "difference"): (0.0, ""),
+        ("radiometry", "15mm", "", "measured_mean_gray"): (180.5, ""),
+        ("characterisation", "gain", "", "value"): (0.42, ""),  # booleans and NaN left out
+    }
