@@ -20,10 +20,9 @@ import logging
 import sqlite3
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from benchlab.catalog_extract import SessionRecord, is_session_folder, read_session_record
 from benchlab.catalog_schema import SCHEMA_VERSION, CatalogSchemaError, migrate
@@ -54,9 +53,9 @@ class CatalogError(BenchlabError):
     """A catalogue query that cannot be answered (bad option, unknown session)."""
 
 
-@dataclass(frozen=True)
-class TrendPoint:
-    """One session's value of the selected figure (its latest results version)."""
+class TrendPoint(NamedTuple):
+    """One session's value of the selected figure (its latest results version); a named
+    tuple because a trend over 10,000 sessions builds 10,000 of them."""
 
     session_id: str
     started_at: str
@@ -321,7 +320,7 @@ class Catalog:
         sql += " ORDER BY s.started_at, s.id"
         cursor = self.conn.cursor()
         cursor.row_factory = None  # plain tuples: 10,000 points without per-row objects
-        points = [TrendPoint(*row) for row in cursor.execute(sql, args)]
+        points = [TrendPoint._make(row) for row in cursor.execute(sql, args)]
         if freq_lp_per_mm is None:
             return points
         best: dict[str, TrendPoint] = {}

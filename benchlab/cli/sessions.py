@@ -144,7 +144,7 @@ def trend_command(args: argparse.Namespace) -> int:
         points = catalog.trend(view=args.view, element=args.element,
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
                                quantity=args.quantity, **_filters(args))
-    rows = [vars(p) for p in points]
+    rows = [p._asdict() for p in points]
     what = " ".join(x for x in (args.view, args.element or "",
                                 f"{args.freq:g} lp/mm" if args.freq else "",
                                 args.orientation or "", args.quantity) if x)
