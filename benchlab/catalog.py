@@ -122,9 +122,13 @@ class Catalog:
                 raise
         except (sqlite3.DatabaseError, CatalogSchemaError) as exc:
             log.warning("%s: %s; rebuilding it from the session folders", path, exc)
-            _remove_catalog_files(path)
-            conn = _connect(path)
-            migrate(conn)
+            try:
+                _remove_catalog_files(path)
+                conn = _connect(path)
+                migrate(conn)
+            except (sqlite3.Error, OSError) as again:
+                raise CatalogError(f"{path}: cannot open or rebuild the catalogue ({again})") \
+                    from exc
             fresh = True
         catalog = cls(root, conn)
         if fresh:

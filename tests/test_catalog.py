@@ -165,6 +165,17 @@ def test_deleted_or_corrupt_or_newer_catalogue_is_rebuilt(source: Path, tmp_path
         assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
 
 
+def test_a_catalogue_that_cannot_be_rebuilt_is_a_clean_error(
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = tmp_path / "root"
+    s0 = copy_session(source, root / "s0")
+    (root / CATALOG_FILE).mkdir()  # in the way: neither a database nor removable as a file
+    assert main(["sessions", "list", "--root", str(root)]) == 1
+    assert "cannot open or rebuild the catalogue" in capsys.readouterr().err
+    assert record_session(s0) is False  # a run or an analysis is never stopped by it
+
+
 def test_older_schema_is_migrated_keeping_its_rows(source: Path, tmp_path: Path) -> None:
     root = tmp_path / "root"
     copy_session(source, root / "s0", sample="LENS-9")
