@@ -176,7 +176,8 @@ def run_batch(
     from benchlab.protocols.runs import check_estimator
 
     check_estimator(estimator)
-    paths = [str(Path(s)) for s in sessions]
+    # A session named twice is analysed once (two workers would race for one folder).
+    paths = list(dict.fromkeys(str(Path(s)) for s in sessions))
     if not paths:
         raise BatchError("no sessions to analyse")
     if jobs is not None and jobs < 1:

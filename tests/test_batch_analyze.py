@@ -11,6 +11,7 @@ from benchlab.protocols.batch import BatchError, run_batch
 from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session, results_files
 
+from benchlab.cli import batch as cli_batch
 from benchlab.cli.main import main
 from benchlab.storage import sha256_file
 
@@ -74,17 +75,26 @@ def test_a_failing_session_mid_batch_does_not_stop_the_others(
 
 
 def test_named_sessions_json_and_a_non_session(
-    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     a = copy_session(source, tmp_path / "a")
     plain = tmp_path / "plain"
     plain.mkdir()
-    assert main(["analyze", str(a), str(plain), "--json", "--jobs", "1"]) == 0
+    assert main(["analyze", str(a), str(plain), str(a), "--json", "--jobs", "1"]) == 0
     doc = json.loads(capsys.readouterr().out)
+    assert len(doc["sessions"]) == 2  # a session named twice is analysed once
     assert (doc["analysed"], doc["skipped"], doc["failed"]) == (1, 1, 0)
     outcomes = {Path(s["session"]).name: s for s in doc["sessions"]}
     assert outcomes["plain"]["reason"].startswith("not a session folder")
     assert outcomes["a"]["worker_peak_kib"] > 0 and outcomes["a"]["cpu_seconds"] > 0
+
+    monkeypatch.setattr(cli_batch, "MAX_LISTED_ANALYSED", 1)  # a big batch: skips listed only
+    assert main(["analyze", str(a), str(plain), "--jobs", "1"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[:2] for line in lines[1:] if line.strip()][0] == ["plain", "skipped"]
+    assert not any(line.startswith("a ") for line in lines)
+    assert "2 sessions: 1 analysed, 1 skipped, 0 failed" in lines[-1]
 
 
 def test_bad_batch_inputs_are_clean_errors(

@@ -14,6 +14,8 @@ from typing import Any, TextIO
 
 from benchlab.drivers.errors import BenchlabError
 
+#: Above this many sessions the summary lists only the skipped and failed ones (--json: all).
+MAX_LISTED_ANALYSED = 50
 #: Image-only options of ``analyze``; a batch of sessions takes only --estimator.
 _IMAGE_OPTIONS = ("roi", "peaks", "freq", "orientation", "bootstrap")
 
@@ -84,11 +86,14 @@ def batch_command(args: argparse.Namespace) -> int:
         }))
         return 1 if report.failed else 0
     rows = list(summary_rows(report))
-    width = max(len(r[0]) for r in rows)
-    print(f"{'session':<{width}}  {'outcome':<8}  detail")
-    for name, outcome, detail in rows:
-        print(f"{name:<{width}}  {outcome:<8}  {detail}")
     n = len(report.items)
+    if n > MAX_LISTED_ANALYSED:  # every failure and skip, but not 10,000 "analysed" lines
+        rows = [r for r in rows if r[1] != "analysed"]
+    if rows:
+        width = max(len(r[0]) for r in rows)
+        print(f"{'session':<{width}}  {'outcome':<8}  detail")
+        for name, outcome, detail in rows:
+            print(f"{name:<{width}}  {outcome:<8}  {detail}")
     print(f"\n{n} sessions: {report.count('analysed')} analysed, {report.count('skipped')} "
           f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
           f"{report.executor} (frames verified unchanged)")
