@@ -13,6 +13,7 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
+from benchlab.protocols.mtf_edges import forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from scipy import ndimage
 
@@ -257,6 +258,8 @@ def analyze_mtf(
 
     t415 = _monte_carlo_rows(t411, t412, params)
     tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
+    if forward is not None:  # slanted-edge MTF where a clean edge exists (issue 16)
+        tables.update(forward_edge_tables(forward, t411, centre, params.simulated_mtf_file))
     summary = {
         "procedure": "mtf",
         "estimator": est,

@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "benchlab.cli.camera",  # devices, snap, benchmark camera
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
+    "benchlab.cli.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
     "benchlab.cli.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
     "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
