@@ -18,6 +18,10 @@ from typing import Any
 from benchlab.session import SESSION_FILE, SESSION_FORMAT, Session, SessionError, read_results
 
 ORIENTATIONS = ("sagittal", "tangential")
+#: Tables with no figure of merit: image heights (4.13), sampled SFR curves.
+_NOT_FIGURES = frozenset({"table_4_13", "table_sfr_curves"})
+#: A table of another kind with more rows than this is a curve, not key figures.
+MAX_GENERIC_ROWS = 100
 
 
 @dataclass(frozen=True)
@@ -143,7 +147,21 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
                 element = f"{_num(r.get('position_mm')) or 0:g}mm"
                 for q in ("measured_normalised", "difference", "measured_mean_gray"):
                     yield Figure(version, "radiometry", element, "", None, q, _num(r.get(q)))
-        elif name != "table_4_13":  # 4.13 (image heights) is geometry, not a figure of merit
+        elif name == "table_sfr_edges":  # slanted-edge SFR per edge
+            for r in rows:
+                for q in ("mtf50_lp_per_mm", "mtf_nyquist", "contrast"):
+                    yield Figure(version, "sfr", str(r.get("edge", "")),
+                                 str(r.get("orientation", "")), None, q, _num(r.get(q)),
+                                 str(r.get("status", "")))
+        elif name == "table_sfr_vs_bars":  # edge SFR against the bars, per element
+            for r in rows:
+                for q in ("edge_mtf", "bar_mtf_coltman"):
+                    yield Figure(version, "sfr_vs_bars", str(r.get("element", "")),
+                                 str(r.get("orientation", "")), _num(r.get("image_lp_per_mm")),
+                                 q, _num(r.get(q)), str(r.get("verdict", "")))
+        elif name in _NOT_FIGURES or len(rows) > MAX_GENERIC_ROWS:
+            continue  # geometry or whole curves: not figures of merit
+        else:
             yield from _generic_table(version, name, rows)
 
 

@@ -285,6 +285,13 @@ def test_figures_of_every_known_table_and_any_other() -> None:
                         "measured_mean_gray": 180.5}],
         "table_4_13": [{"view": "forward", "image_height_mm": 0.69}],  # geometry: not a figure
         "characterisation": [{"quantity": "gain", "value": 0.42, "ok": True, "n": float("nan")}],
+        "table_sfr_edges": [{"edge": "E0R", "orientation": "sagittal", "status": "ok",
+                             "mtf50_lp_per_mm": 103.1, "mtf_nyquist": 0.55, "contrast": 0.81}],
+        "table_sfr_vs_bars": [{"element": "G1E5", "orientation": "sagittal", "edge_mtf": 0.82,
+                               "image_lp_per_mm": 51.7, "bar_mtf_coltman": 0.77,
+                               "verdict": "agree"}],
+        "table_sfr_curves": [{"edge": "E0R", "freq_lp_per_mm": 0.0, "mtf": 1.0}],
+        "some_curve": [{"x": float(i), "y": 1.0} for i in range(101)],  # too long: a curve
     }
     got = {(f.view, f.element, f.orientation, f.quantity): (f.value, f.text)
            for f in figures_of(3, tables)}
@@ -294,4 +301,9 @@ def test_figures_of_every_known_table_and_any_other() -> None:
         ("radiometry", "15mm", "", "difference"): (0.0, ""),
         ("radiometry", "15mm", "", "measured_mean_gray"): (180.5, ""),
         ("characterisation", "gain", "", "value"): (0.42, ""),  # booleans and NaN left out
+        ("sfr", "E0R", "sagittal", "mtf50_lp_per_mm"): (103.1, "ok"),
+        ("sfr", "E0R", "sagittal", "mtf_nyquist"): (0.55, "ok"),
+        ("sfr", "E0R", "sagittal", "contrast"): (0.81, "ok"),
+        ("sfr_vs_bars", "G1E5", "sagittal", "edge_mtf"): (0.82, "agree"),
+        ("sfr_vs_bars", "G1E5", "sagittal", "bar_mtf_coltman"): (0.77, "agree"),
     }
