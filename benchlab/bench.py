@@ -14,6 +14,7 @@ own exit hooks repeat it if the process dies in between.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 import tomllib
 from collections.abc import Iterator, Mapping
@@ -40,6 +41,8 @@ class CameraConfig:
     serial: str | None = None
     pid: int | None = None
     model: str | None = None
+    #: Response calibration file (``benchlab run characterise``), absolute once loaded.
+    response_calibration: str | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,7 @@ class BenchConfig:
             serial=c.string("camera.serial", "") or None,
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
+            response_calibration=c.string("camera.response_calibration", "") or None,
         )
         led = None
         found, _ = c._get("led", None)
@@ -179,7 +183,12 @@ class BenchConfig:
             raise BenchConfigError(str(p), ["file: no such bench configuration"]) from exc
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise BenchConfigError(str(p), [f"file: not valid TOML ({exc})"]) from exc
-        return cls.from_dict(data, str(p))
+        cfg = cls.from_dict(data, str(p))
+        calib = cfg.camera.response_calibration
+        if calib is not None and not Path(calib).is_absolute():  # relative to the bench file
+            cam = dataclasses.replace(cfg.camera, response_calibration=str(p.parent / calib))
+            cfg = dataclasses.replace(cfg, camera=cam)
+        return cfg
 
 
 class BenchError(BenchlabError):
@@ -271,10 +280,12 @@ class Bench:
         return out
 
     # -- camera ---------------------------------------------------------------------------------
-    def configure_camera(self, *, bits: int = 8) -> dict[str, Any]:
-        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation)."""
-        self.camera.configure(width=1280, height=1024, bits=bits, mode="normal")
-        self._camera_settings = {"mode": "normal (continuous)", "width": 1280, "height": 1024,
+    def configure_camera(self, *, bits: int = 8, width: int = 1280,
+                         height: int = 1024) -> dict[str, Any]:
+        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
+        self.camera.configure(width=width, height=height, bits=bits, mode="normal")
+        self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
 
