@@ -24,6 +24,7 @@ import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 
+from benchlab.catalog import record_session
 from benchlab.session import read_results
 from benchlab.storage import load_frame_tiff
 
@@ -219,6 +220,7 @@ class Runner:
     def _run_held(self) -> RunOutcome:
         t0 = time.perf_counter()
         total = len(self.steps)
+        all_done = False
         try:
             done = self.completed()
             if done and not self._restored:
@@ -236,6 +238,7 @@ class Runner:
                 done.add(step.id)
             if self.progress is not None:
                 self.progress(total, total, None)
+            all_done = True
         except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (drivers.shutdown)
             self.session.log_event("interrupted", reason=interrupt_reason(exc))
             self.session.update_meta(status="interrupted")
@@ -251,8 +254,11 @@ class Runner:
             raise
         finally:
             self.bench.safe_state()
+            if not all_done:
+                record_session(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         self.session.finish()
+        record_session(self.session.path)
         tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),

@@ -137,7 +137,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                 runner = resume_run(session_path, **kwargs)
             else:
                 runner = start_run(args.procedure, params=params, root=args.out,
-                                   operator=args.operator, **kwargs)
+                                   operator=args.operator, sample=args.sample, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
     except (StepFailed, RunAborted) as exc:
@@ -296,6 +296,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     run.add_argument("--yes", action="store_true", help="confirm every manual step")
     run.add_argument("--out", default="sessions", help="folder for sessions (default sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
+    run.add_argument("--sample", default="", metavar="ID",
+                     help="lens or sample under test (the catalogue groups trends by it)")
     run.add_argument("--estimator", help="modulation estimator (default: params / library)")
     run.set_defaults(func=run_command)
 
