@@ -14,6 +14,7 @@ own exit hooks repeat it if the process dies in between.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 import tomllib
 from collections.abc import Iterator, Mapping
@@ -40,6 +41,8 @@ class CameraConfig:
     serial: str | None = None
     pid: int | None = None
     model: str | None = None
+    #: Response calibration file (``benchlab run characterise``), absolute once loaded.
+    response_calibration: str | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,7 @@ class BenchConfig:
             serial=c.string("camera.serial", "") or None,
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
+            response_calibration=c.string("camera.response_calibration", "") or None,
         )
         led = None
         found, _ = c._get("led", None)
@@ -179,7 +183,12 @@ class BenchConfig:
             raise BenchConfigError(str(p), ["file: no such bench configuration"]) from exc
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise BenchConfigError(str(p), [f"file: not valid TOML ({exc})"]) from exc
-        return cls.from_dict(data, str(p))
+        cfg = cls.from_dict(data, str(p))
+        calib = cfg.camera.response_calibration
+        if calib is not None and not Path(calib).is_absolute():  # relative to the bench file
+            cam = dataclasses.replace(cfg.camera, response_calibration=str(p.parent / calib))
+            cfg = dataclasses.replace(cfg, camera=cam)
+        return cfg
 
 
 class BenchError(BenchlabError):
@@ -271,10 +280,12 @@ class Bench:
         return out
 
     # -- camera ---------------------------------------------------------------------------------
-    def configure_camera(self, *, bits: int = 8) -> dict[str, Any]:
-        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation)."""
-        self.camera.configure(width=1280, height=1024, bits=bits, mode="normal")
-        self._camera_settings = {"mode": "normal (continuous)", "width": 1280, "height": 1024,
+    def configure_camera(self, *, bits: int = 8, width: int = 1280,
+                         height: int = 1024) -> dict[str, Any]:
+        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
+        self.camera.configure(width=width, height=height, bits=bits, mode="normal")
+        self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
 
@@ -368,12 +379,24 @@ class Bench:
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}
+        elif self.simulated and self.led is not None and self.config.led is not None:
+            st["led_current_ma"] = _led_output_ma(self.led, self.config.led.channel)
         if self.sim_stage is not None:
             st["stage_position_mm"] = self.sim_stage.position_mm
         elif self.stage is not None:
             with contextlib.suppress(DeviceError):
                 st["stage_position_mm"] = self.stage.position_mm
         return st
+
+
+def _led_output_ma(led: Any, channel: int) -> dict[str, float]:
+    """The simulated camera's view of an LED on an external controller: asked over the wire."""
+    from benchlab.drivers.slc import SlcMode
+
+    with contextlib.suppress(DeviceError):
+        if led.get_mode(channel) is SlcMode.NORMAL:
+            return {str(channel): float(led.get_current(channel)[1])}
+    return {str(channel): 0.0}
 
 
 def _plain_target(target: Any) -> Any:
@@ -422,7 +445,11 @@ def open_simulated(
 
     cfg = bench.config
     bench.world = SimWorld("dark", led_channel=cfg.led.channel if cfg.led else None)
-    if cfg.led is not None:
+    if cfg.led is not None and cfg.led.port:
+        # A serial simulator (or device) outside this process, e.g. `benchlab simulate`.
+        bench.led = stack.enter_context(SlcController(cfg.led.port,
+                                                      ceilings_ma=cfg.led.ceilings_ma))
+    elif cfg.led is not None:
         sim_led = SimulatedSlc(channels=max(4, max(cfg.led.ceilings_ma, default=1)))
         sim_led.start()
         stack.callback(sim_led.stop)
@@ -430,7 +457,12 @@ def open_simulated(
         bench.led = stack.enter_context(
             SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma)
         )
-    if cfg.stage is not None:
+    if cfg.stage is not None and cfg.stage.port:
+        bench.stage = stack.enter_context(AptStage(
+            cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+        ))
+        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
+    elif cfg.stage is not None:
         sim_stage = SimulatedAptStage(
             counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
             velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=time_scale,

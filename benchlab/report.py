@@ -98,8 +98,12 @@ class Section:
 # -- identity, tables, parameters ---------------------------------------------------------------
 def _identity(ctx: ReportContext) -> str:
     meta = ctx.session.meta
+    status = ctx.session.status  # "interrupted" when its writer died, whatever the file says
+    if ctx.doc.get("partial"):
+        status += (f" - results PARTIAL ({ctx.doc.get('steps_done')} of "
+                   f"{ctx.doc.get('steps_total')} steps done)")
     rows: list[tuple[str, Any]] = [
-        ("operator", meta.get("operator") or "-"), ("status", meta.get("status")),
+        ("operator", meta.get("operator") or "-"), ("status", status),
         ("started", local_time(meta.get("started_at"))),
         ("finished", local_time(meta.get("finished_at"))),
         ("software", meta.get("software_version")),
@@ -319,6 +323,22 @@ def _radiometry_frames(ctx: ReportContext) -> str:
     return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
 
 
+def _chart(ctx: ReportContext) -> str:
+    frame = ctx.frame("forward", "forward")
+    if frame is None:
+        return ""
+    from benchlab.report_chart import forward_chart_section
+
+    mag = float(ctx.session.params.get("forward", {}).get("magnification", 16.3))
+    return forward_chart_section(frame[0], mag)
+
+
+def _characterise(ctx: ReportContext) -> str:
+    from benchlab.report_characterise import characterise_html
+
+    return characterise_html(ctx.tables, ctx.summary)
+
+
 def _unwrapped(ctx: ReportContext) -> str:
     from benchlab.report_unwrap import render_unwrap_section  # after benchlab unwrap SESSION
 
@@ -335,9 +355,12 @@ SECTIONS: list[Section] = [
     Section("Slanted-edge MTF vs simulated MTF and bars (ISO 12233 e-SFR)", _sfr, ("mtf",),
             "sfr"),
     Section("Frames with ROIs", _mtf_frames, ("mtf",), "frames"),
+    Section("The USAF chart as found", _chart, ("mtf",), "chart"),
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
+    Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),
+            "characterisation"),
     Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]
@@ -376,7 +399,10 @@ def render_report(session_path: str | Path,
 
 def write_report(session_path: str | Path, out: str | Path | None = None) -> Path:
     """Write the HTML report (default ``SESSION/report.html``); returns its path."""
+    from benchlab.catalog import record_session
     from benchlab.storage import atomic_write_text
 
     target = Path(out) if out is not None else Path(session_path) / "report.html"
-    return atomic_write_text(target, render_report(session_path))
+    written = atomic_write_text(target, render_report(session_path))
+    record_session(Path(session_path))
+    return written

@@ -18,12 +18,15 @@ terminates it and records a ``journal_repaired`` event so the damage stays visib
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import json
 import math
 import os
 import re
 import shutil
+import socket
+import sys
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -39,6 +42,8 @@ from benchlab.storage import (
     FrameFileError,
     atomic_write_json,
     atomic_write_text,
+    fsync_dir,
+    fsync_tree,
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
@@ -50,11 +55,18 @@ SESSION_FILE = "session.json"
 EVENTS_FILE = "events.jsonl"
 FRAMES_DIR = "frames"
 RESULTS_DIR = "results"
+#: Held (``flock``) by the one process writing the session; the kernel drops it when that
+#: process dies, so a session can never stay "running" for a dead process.
+OWNER_FILE = "owner.lock"
 #: Step ids, frame names and table names become file names: keep them plain.
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
+#: fsync policy of a results version: "per-version" (files written, then flushed together
+#: once before the rename) or "per-file" (each file and its folder fsync'd as it is written,
+#: the old behaviour; ``benchlab benchmark batch --fsync per-file`` measures it).
+RESULTS_FSYNC = "per-version"
 
 
 class SessionError(BenchlabError):
@@ -63,6 +75,80 @@ class SessionError(BenchlabError):
 
 class FrameExistsError(SessionError):
     """A frame with this step and name is already saved; frames are never overwritten."""
+
+
+class SessionBusyError(SessionError):
+    """Another live process is writing this session (its owner lock is held)."""
+
+
+def session_holder(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """Who holds the session's owner lock right now (``pid``, ``host``, ``since``,
+    ``command``), or ``None`` when no live process does."""
+    path = Path(folder) / OWNER_FILE
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None  # no lock file: written before locks existed, or never run
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                record = json.loads(os.pread(fd, 4096, 0).decode("utf-8") or "{}")
+            except ValueError:
+                record = {}
+            return record if isinstance(record, dict) else {}
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+def describe_holder(holder: Mapping[str, Any]) -> str:
+    """``"pid 4242 on bench-pc (benchlab run mtf, since ...)"`` for error messages."""
+    text = f"pid {holder.get('pid', '?')} on {holder.get('host', '?')}"
+    extra = ", ".join(str(v) for v in (holder.get("command"), holder.get("since") and
+                                        f"since {holder['since']}") if v)
+    return f"{text} ({extra})" if extra else text
+
+
+#: Fields session.json must have, with their JSON types (a wrong type is named, not a crash).
+_META_TYPES: dict[str, type | tuple[type, ...]] = {
+    "procedure": str, "params": dict, "status": str, "started_at": str,
+}
+_TYPE_WORDS: dict[type | tuple[type, ...], str] = {str: "a string", dict: "a table (object)"}
+
+
+def check_sessions_root(root: str | os.PathLike[str]) -> Path:
+    """The folder that receives new session folders, made ready or refused in plain words.
+
+    Only the last level is created: a missing parent is most likely a typo, and silently
+    creating ``/data/sesions/...`` would hide it.
+
+    Raises
+    ------
+    SessionError
+        Naming the folder: it is a file, its parent is missing, or it is not writable.
+    """
+    folder = Path(root)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"{folder}: is a file, not a folder for sessions")
+    if not folder.exists():
+        parent = folder.parent
+        if not parent.is_dir():
+            raise SessionError(f"{folder}: parent folder {parent} does not exist (only the "
+                               "last level is created; check the path for a typo)")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise SessionError(f"{folder}: cannot create the sessions folder "
+                               f"({(exc.strerror or str(exc)).lower()})") from exc
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SessionError(f"{folder}: sessions folder is not writable (read-only or no "
+                           "permission); nothing was written")
+    return folder
 
 
 def _now_iso() -> str:
@@ -102,6 +188,9 @@ class Session:
         self.path = Path(path)
         self._meta = meta
         self._lock = threading.Lock()
+        self._owner_fd: int | None = None
+        #: Set by :meth:`mark_results_partial`: written into every new results version.
+        self._partial: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -115,14 +204,17 @@ class Session:
         devices: Mapping[str, Any],
         software_version: str,
         name: str | None = None,
+        sample: str = "",
     ) -> Session:
         """Create ``root/<timestamp>_<procedure>`` (or ``root/<name>``) with status "running".
+
+        ``sample`` identifies the lens or sample under test (optional; the catalogue's trends
+        across prototypes group by it).
 
         A folder that already exists is never reused: a numeric suffix is added.
         """
         _check_name("procedure", procedure)
-        root = Path(root)
-        root.mkdir(parents=True, exist_ok=True)
+        root = check_sessions_root(root)
         started = datetime.now(UTC)
         base = name if name is not None else f"{started:%Y%m%d-%H%M%S}_{procedure}"
         _check_name("session name", base)
@@ -135,11 +227,15 @@ class Session:
             except FileExistsError:
                 n += 1
                 folder = root / f"{base}-{n}"
+            except OSError as exc:
+                raise SessionError(f"{folder}: cannot create the session folder "
+                                   f"({(exc.strerror or str(exc)).lower()})") from exc
         meta: dict[str, Any] = {
             "format": SESSION_FORMAT,
             "version": SESSION_VERSION,
             "procedure": procedure,
             "operator": operator,
+            "sample": sample,
             "devices": _plain(devices),
             "software_version": software_version,
             "params": _plain(params),
@@ -150,8 +246,9 @@ class Session:
         (folder / FRAMES_DIR).mkdir()
         (folder / RESULTS_DIR).mkdir()
         atomic_write_text(folder / EVENTS_FILE, "", overwrite=False)
-        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
         session = cls(folder, meta)
+        session.hold()  # before session.json exists, so nobody ever sees it running unowned
+        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
         session.log_event("session_created", procedure=procedure)
         return session
 
@@ -181,13 +278,90 @@ class Session:
             raise SessionError(f"{meta_path}: corrupt session file ({exc})") from exc
         if not isinstance(meta, dict) or meta.get("format") != SESSION_FORMAT:
             raise SessionError(f"{meta_path}: not a benchlab session file")
-        for key in ("procedure", "params", "status", "started_at"):
+        for key, kind in _META_TYPES.items():
             if key not in meta:
                 raise SessionError(f"{meta_path}: session file lacks {key!r}")
+            if not isinstance(meta[key], kind):
+                raise SessionError(f"{meta_path}: field {key!r} must be {_TYPE_WORDS[kind]}, "
+                                   f"got {type(meta[key]).__name__} {meta[key]!r:.60}")
         session = cls(folder, meta)
         session.events()  # fail now, naming the journal, if it is damaged beyond a torn tail
-        session._recover_orphan_frames()
+        if session_holder(folder) is None:  # a live writer's frames are its own business
+            session._recover_orphan_frames()
         return session
+
+    # ------------------------------------------------------------------ ownership
+    def hold(self, command: str | None = None) -> None:
+        """Become the one process that writes this session (until :meth:`release` or exit).
+
+        Raises
+        ------
+        SessionBusyError
+            Naming the holder (pid, host, command) when another live process holds it.
+        """
+        if self._owner_fd is not None:
+            return
+        path = self.path / OWNER_FILE
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise SessionError(f"{path}: cannot take the session's owner lock "
+                               f"({(exc.strerror or str(exc)).lower()}); is the session "
+                               "folder read-only?") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = session_holder(self.path) or {}
+            os.close(fd)
+            raise SessionBusyError(f"{self.path}: session is in use by {describe_holder(holder)}"
+                                   "; wait for it to end or stop that process") from None
+        record = {"pid": os.getpid(), "host": socket.gethostname(), "since": _now_iso(),
+                  "command": command or " ".join(["benchlab", *sys.argv[1:3]])}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(record) + "\n").encode("utf-8"), 0)
+        self._owner_fd = fd
+
+    def release(self) -> None:
+        """Stop being the session's writer (the lock also goes when the process ends)."""
+        fd, self._owner_fd = self._owner_fd, None
+        if fd is not None:
+            os.close(fd)  # closing drops the flock
+
+    def __del__(self) -> None:
+        fd = getattr(self, "_owner_fd", None)
+        if fd is not None:
+            try:
+                os.close(fd)
+            except (OSError, TypeError):  # TypeError: os already torn down at exit
+                pass
+
+    @property
+    def held(self) -> bool:
+        """Whether this object holds the session's owner lock."""
+        return self._owner_fd is not None
+
+    def remove_temporary_files(self) -> list[str]:
+        """Delete what a kill in the middle of an atomic write left behind (``.*.tmp`` files
+        beside frames and results, ``.v-*.tmp`` result folders) - never a real frame - and
+        journal them. Only the holder may do this."""
+        if not self.held:
+            raise SessionError(f"{self.path}: only the session's writer removes temporary files")
+        removed: list[str] = []
+        for folder in (self.path, self.frames_dir, self.results_dir):
+            if not folder.is_dir():
+                continue
+            for p in sorted(folder.glob(".*.tmp")):
+                rel = p.relative_to(self.path).as_posix()
+                if p.is_dir() and folder == self.results_dir and p.name.startswith(".v-"):
+                    shutil.rmtree(p)
+                elif p.is_file() and not p.is_symlink():
+                    p.unlink()
+                else:
+                    continue
+                removed.append(rel)
+        if removed:
+            self.log_event("temporary_files_removed", files=removed)
+        return removed
 
     # ------------------------------------------------------------------ metadata
     @property
@@ -207,8 +381,15 @@ class Session:
 
     @property
     def status(self) -> str:
-        """Run status: "running", "completed", or whatever :meth:`finish` recorded."""
-        return str(self._meta["status"])
+        """Run status: "running", "completed", "interrupted", "aborted", "failed".
+
+        A session recorded as "running" whose writer is gone (kill -9, power loss: nobody
+        holds its owner lock) is "interrupted" - which it is.
+        """
+        recorded = str(self._meta["status"])
+        if recorded == "running" and not self.held and session_holder(self.path) is None:
+            return "interrupted"
+        return recorded
 
     @property
     def frames_dir(self) -> Path:
@@ -241,8 +422,13 @@ class Session:
         """The append-only journal."""
         return self.path / EVENTS_FILE
 
-    def log_event(self, kind: str, **data: Any) -> None:
-        """Append one event line to ``events.jsonl``, flushed and fsync'd before returning."""
+    def log_event(self, kind: str, *, durable: bool = True, **data: Any) -> None:
+        """Append one event line to ``events.jsonl``, flushed and fsync'd before returning.
+
+        ``durable=False`` skips the fsync, for events that resume does not depend on (a
+        re-analysis started, a results version written): the next durable event, or the
+        page cache's own write-back, carries them to disk.
+        """
         record = {"time": _now_iso(), "kind": kind, **_plain(data)}
         line = json.dumps(record, allow_nan=False) + "\n"
         with self._lock:
@@ -254,7 +440,8 @@ class Session:
                     repair = {"time": _now_iso(), "kind": "journal_repaired", "torn_bytes": torn}
                     os.write(fd, b"\n" + (json.dumps(repair) + "\n").encode("utf-8"))
                 os.write(fd, line.encode("utf-8"))
-                os.fsync(fd)
+                if durable:
+                    os.fsync(fd)
             finally:
                 os.close(fd)
 
@@ -425,6 +612,12 @@ class Session:
         }
 
     # ------------------------------------------------------------------ results
+    def mark_results_partial(self, status: str, steps_done: int, steps_total: int) -> None:
+        """Results written from now on come from an incomplete session: ``summary.json`` says
+        ``"partial": true`` with the session status and the steps done."""
+        self._partial = {"partial": True, "session_status": status,
+                         "steps_done": steps_done, "steps_total": steps_total}
+
     def result_versions(self) -> list[int]:
         """Existing results versions, ascending."""
         if not self.results_dir.is_dir():
@@ -448,8 +641,12 @@ class Session:
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
-        NaN is written as ``null`` in JSON and ``NA`` in CSV.
+        NaN is written as ``null`` in JSON and ``NA`` in CSV. With :data:`RESULTS_FSYNC`
+        ``"per-version"`` the files are flushed together, once, just before the rename
+        (instead of a file and directory fsync per file); either way the version is on disk
+        before this returns.
         """
+        per_file = RESULTS_FSYNC == "per-file"
         for table in tables:
             _check_name("table name", table)
         self.results_dir.mkdir(exist_ok=True)
@@ -457,8 +654,8 @@ class Session:
         try:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
-                atomic_write_json(tmp / f"{table}.json", plain_rows)
-                atomic_write_text(tmp / f"{table}.csv", _csv_text(plain_rows))
+                atomic_write_json(tmp / f"{table}.json", plain_rows, durable=per_file)
+                atomic_write_text(tmp / f"{table}.csv", _csv_text(plain_rows), durable=per_file)
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {
@@ -468,19 +665,24 @@ class Session:
                     "tables": sorted(tables),
                     "frames_sha256": self.frames(),
                     "summary": _plain(summary),
+                    **(self._partial or {"partial": False}),
                 }
-                atomic_write_json(tmp / "summary.json", doc)
+                atomic_write_json(tmp / "summary.json", doc, durable=per_file)
+                if not per_file:
+                    fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:
                     target.mkdir()  # claim the number; rename onto an empty dir is atomic
                 except FileExistsError:
                     continue
                 os.replace(tmp, target)
+                fsync_dir(self.results_dir)  # the rename itself
                 break
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-        self.log_event("results_written", version=version, estimator=estimator)
+        # Not fsync'd: the version is already durable and resume does not read this line.
+        self.log_event("results_written", durable=False, version=version, estimator=estimator)
         return target
 
 

@@ -57,15 +57,19 @@ def _fsync_dir(folder: Path) -> None:
 
 
 def atomic_write_bytes(
-    path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True
+    path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True, durable: bool = True
 ) -> Path:
     """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
 
     With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);
-    raw frames use this so nothing already saved can be lost.
+    raw frames use this so nothing already saved can be lost. The target's folder is created
+    if missing, but not its parents (``FileNotFoundError``). ``durable=False`` skips the
+    fsyncs: only for files inside a folder that is made durable as a whole afterwards
+    (:func:`fsync_tree`) before it is renamed into place.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    # Only the last folder level is created: a missing parent is more likely a typo.
+    target.parent.mkdir(exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     tmp = Path(tmp_name)
     try:
@@ -73,7 +77,8 @@ def atomic_write_bytes(
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         if overwrite:
             os.replace(tmp, target)
         else:
@@ -83,19 +88,50 @@ def atomic_write_bytes(
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    _fsync_dir(target.parent)
+    if durable:
+        _fsync_dir(target.parent)
     return target
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str, *, overwrite: bool = True) -> Path:
+def fsync_dir(folder: str | os.PathLike[str]) -> None:
+    """Make a folder's entries (a rename into it) durable."""
+    _fsync_dir(Path(folder))
+
+
+def fsync_tree(folder: str | os.PathLike[str]) -> int:
+    """Flush every file directly in ``folder``, then the folder itself, in one pass.
+
+    One durability barrier for a set of files written with ``durable=False`` (a results
+    version): the data are written back together instead of one file at a time with a
+    directory sync after each. Returns the number of fsync calls made.
+    """
+    base = Path(folder)
+    calls = 0
+    for entry in sorted(base.iterdir()):
+        if entry.is_file():
+            fd = os.open(entry, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            calls += 1
+    _fsync_dir(base)
+    return calls + 1
+
+
+def atomic_write_text(
+    path: str | os.PathLike[str], text: str, *, overwrite: bool = True, durable: bool = True
+) -> Path:
     """Atomically write UTF-8 text (see :func:`atomic_write_bytes`)."""
-    return atomic_write_bytes(path, text.encode("utf-8"), overwrite=overwrite)
+    return atomic_write_bytes(path, text.encode("utf-8"), overwrite=overwrite, durable=durable)
 
 
-def atomic_write_json(path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True) -> Path:
+def atomic_write_json(
+    path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True, durable: bool = True
+) -> Path:
     """Atomically write ``obj`` as indented JSON (NaN is refused: it is not valid JSON)."""
     text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default)
-    return atomic_write_text(path, text + "\n", overwrite=overwrite)
+    return atomic_write_text(path, text + "\n", overwrite=overwrite, durable=durable)
 
 
 def _json_default(obj: Any) -> Any:
@@ -140,6 +176,75 @@ def save_frame_tiff(
 ) -> Path:
     """Save a frame losslessly and atomically; by default refuses to replace an existing file."""
     return atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+
+
+def check_bit_depth(path: str | os.PathLike[str], pixels: npt.NDArray[Any],
+                    metadata: Mapping[str, Any]) -> None:
+    """Refuse a frame whose codes its own ``bits`` metadata rules out (12-bit data above
+    4095, say): analysing it would use the wrong saturation level and noise model.
+
+    Raises
+    ------
+    FrameFileError
+        Naming the file, the metadata value and the largest code found.
+    """
+    bits = metadata.get("bits")
+    if bits is None:
+        return
+    if isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 16:
+        raise FrameFileError(f"{path}: metadata field 'bits' must be an integer 1..16, "
+                             f"got {bits!r}")
+    arr = np.asarray(pixels)
+    if arr.size == 0 or not np.issubdtype(arr.dtype, np.integer):
+        return
+    top = int(arr.max())
+    if top > (1 << bits) - 1:
+        raise FrameFileError(f"{path}: metadata says {bits}-bit but the frame holds codes up to "
+                             f"{top} (> {(1 << bits) - 1})")
+
+
+def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
+    """The pixels of any monochrome TIFF for analysis (a multi-page TIFF gives a stack).
+
+    A colour TIFF (RGB samples; grey stored as three equal channels is accepted) is refused
+    instead of being read as a stack of 3-pixel-wide frames, and a benchlab frame's codes
+    are checked against its ``bits`` metadata (:func:`check_bit_depth`).
+
+    Raises
+    ------
+    FrameFileError
+        Missing, unreadable or colour file, or codes its metadata rules out, naming it.
+    """
+    p = Path(path)
+    try:
+        with tifffile.TiffFile(p) as tif:
+            page = tif.pages.first
+            samples = int(page.samplesperpixel)
+            colour = page.photometric in (tifffile.PHOTOMETRIC.RGB,
+                                          tifffile.PHOTOMETRIC.PALETTE,
+                                          tifffile.PHOTOMETRIC.YCBCR)
+            pixels = np.asarray(tif.asarray())
+            description = page.description
+    except FileNotFoundError as exc:
+        raise FrameFileError(f"{p}: no such file") from exc
+    except Exception as exc:  # tifffile raises several types for corrupt data
+        raise FrameFileError(f"{p}: not a readable TIFF ({exc})") from exc
+    if samples > 1 or colour:
+        if samples >= 3 and pixels.shape[-1] == samples:
+            rgb = pixels[..., :3]
+            if np.all(rgb == rgb[..., :1]):
+                pixels = rgb[..., 0]
+                samples, colour = 1, False
+        if samples > 1 or colour:
+            raise FrameFileError(f"{p}: colour TIFF ({samples} samples per pixel); benchlab "
+                                 "analyses monochrome frames")
+    try:
+        meta = json.loads(description) if description else None
+    except ValueError:
+        meta = None
+    if isinstance(meta, dict) and meta.get("format") == METADATA_FORMAT:
+        check_bit_depth(p, pixels, meta)
+    return pixels
 
 
 def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dict[str, Any]]:

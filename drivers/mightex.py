@@ -352,7 +352,7 @@ class MightexCamera:
             with _usb_errors(what):
                 reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
             return p.decode_reply(reply, what, expected_len)
-        except (DeviceTimeoutError, ProtocolError):
+        except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
             self._resync_replies = True
             raise
 

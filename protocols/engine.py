@@ -22,7 +22,9 @@ from typing import Any, Literal, Protocol
 import numpy as np
 import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 
+from benchlab.catalog import record_session
 from benchlab.session import read_results
 from benchlab.storage import load_frame_tiff
 
@@ -206,10 +208,19 @@ class Runner:
         """Run (or resume, or retry) from the first incomplete step to the end.
 
         Raises :class:`RunAborted` or :class:`StepFailed`; the session stays resumable and
-        the bench is left safe in every case.
+        the bench is left safe in every case. The session's owner lock is held while this
+        runs (``SessionBusyError`` if another process holds it) and released after.
         """
+        self.session.hold()
+        try:
+            return self._run_held()
+        finally:
+            self.session.release()
+
+    def _run_held(self) -> RunOutcome:
         t0 = time.perf_counter()
         total = len(self.steps)
+        all_done = False
         try:
             done = self.completed()
             if done and not self._restored:
@@ -227,20 +238,27 @@ class Runner:
                 done.add(step.id)
             if self.progress is not None:
                 self.progress(total, total, None)
-        except KeyboardInterrupt:
-            self.session.log_event("interrupted", reason="KeyboardInterrupt")
+            all_done = True
+        except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (drivers.shutdown)
+            self.session.log_event("interrupted", reason=interrupt_reason(exc))
             self.session.update_meta(status="interrupted")
             raise
         except RunAborted:
-            self.session.update_meta(status="aborted")
+            stop_signal = received()  # the UI aborted the run because the process is stopping
+            if stop_signal is not None:
+                self.session.log_event("interrupted", reason=signal_name(stop_signal))
+            self.session.update_meta(status="aborted" if stop_signal is None else "interrupted")
             raise
         except StepFailed:
             self.session.update_meta(status="failed")
             raise
         finally:
             self.bench.safe_state()
+            if not all_done:
+                record_session(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         self.session.finish()
+        record_session(self.session.path)
         tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),

@@ -14,15 +14,22 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
+    CAMERA_SPEC,
+    EXPOSURE_RANGE_MS,
+    FRAME_SHAPE_PX,
+    GAIN_RANGE,
+    camera_exposure_ms,
+    camera_gain,
+)
+from benchlab.protocols.characterise_params import CharacteriseParams
 
-PROCEDURES = ("mtf", "radiometry")
-#: Camera limits checked here so a bad file fails before the camera is touched (MCE-B013-U).
-EXPOSURE_RANGE_MS = (0.05, 750.0)
-GAIN_RANGE = (0.25, 8.0)
-FRAME_SHAPE_PX = (1024, 1280)
+PROCEDURES = ("mtf", "radiometry", "characterise")
+__all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
+           "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
 
 
@@ -102,7 +109,7 @@ class RadiometryParams:
         return position_mm + self.stage_offset_mm
 
 
-Params = MtfParams | RadiometryParams
+Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
 
 
 @dataclass(frozen=True)
@@ -250,8 +257,9 @@ class _Checker:
 
 def _check_mtf(c: _Checker) -> MtfParams:
     d = MtfParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    gain = c.number("camera.gain", d.gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     focus_frames = c.integer("focus.frames", d.focus_frames, 1, 1000)
     fwd_mag = c.number("forward.magnification", d.forward_magnification, 0.0, 1000.0, lo_open=True)
@@ -345,9 +353,11 @@ def _check_bench(
 
 def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    mask_gain = c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE)
-    meas_gain = c.number("camera.measurement_gain", d.measurement_gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    mask_gain = camera_gain(c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE))
+    meas_gain = camera_gain(c.number("camera.measurement_gain", d.measurement_gain,
+                                     *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
@@ -388,8 +398,14 @@ def parse_params(
     declared = data.get("procedure", procedure)
     if declared != procedure:
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
-    params: Params = (_check_mtf(checker) if procedure == "mtf"
-                      else _check_radiometry(checker, limits))
+    params: Params
+    if procedure == "characterise":
+        from benchlab.protocols.characterise_params import check_characterise
+
+        params = check_characterise(checker, limits)
+    else:
+        params = (_check_mtf(checker) if procedure == "mtf"
+                  else _check_radiometry(checker, limits))
     checker.unknown_keys()
     if checker.problems:
         raise ParamsError(source, checker.problems)
@@ -419,6 +435,10 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     This is what a session records, so a resume or re-analysis never depends on defaults that a
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
+    if not isinstance(params, MtfParams | RadiometryParams):
+        from benchlab.protocols.characterise_params import characterise_to_dict
+
+        return characterise_to_dict(params)
     if isinstance(params, MtfParams):
         rois: dict[str, dict[str, list[int]]] = {}
         for key, box in params.forward_roi_overrides.items():

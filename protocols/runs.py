@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.protocols.characterise import CharacteriseProcedure
+from benchlab.protocols.characterise_params import CharacteriseParams
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
 from benchlab.protocols.mtf import MtfProcedure
 from benchlab.protocols.params import (
@@ -22,7 +24,8 @@ from benchlab.protocols.params import (
 from benchlab.protocols.radiometry import RadiometryProcedure
 
 from benchlab import __version__
-from benchlab.session import Session
+from benchlab.catalog import record_session
+from benchlab.session import Session, SessionError
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -30,6 +33,10 @@ BENCH_KEY = "bench"
 
 class FramesModifiedError(BenchlabError):
     """Saved frames no longer match the hashes journalled when they were acquired."""
+
+
+class SessionCompleteError(SessionError):
+    """``resume`` of a session that already completed: there is nothing to do."""
 
 
 class UnknownEstimatorError(BenchlabError):
@@ -45,8 +52,10 @@ def check_estimator(name: str | None) -> None:
             f"unknown estimator {name!r}; choose auto, {', '.join(sorted(ESTIMATORS))}")
 
 
-def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure:
+def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | CharacteriseProcedure:
     """The procedure object for a parameter set."""
+    if isinstance(params, CharacteriseParams):
+        return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
         return MtfProcedure(params)
     return RadiometryProcedure(params)
@@ -59,7 +68,8 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
-    expected = MtfParams if procedure == "mtf" else RadiometryParams
+    expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
+                                                                        RadiometryParams)
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])
@@ -73,6 +83,7 @@ def start_run(
     params: Params | str | Path | None = None,
     root: str | Path = "sessions",
     operator: str = "",
+    sample: str = "",
     prompt: PromptFn | None = None,
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,
@@ -85,10 +96,11 @@ def start_run(
     snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
-        devices=bench.identities(), software_version=__version__,
+        devices=bench.identities(), software_version=__version__, sample=sample,
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
+    record_session(session.path)
     return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -112,13 +124,19 @@ def resume_run(
     """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    if session.status == "completed":
+        raise SessionCompleteError(f"{session.path}: session is complete; nothing to resume")
     params = session_params(session)
+    session.hold()  # SessionBusyError naming the live process that writes it
     bad = session.verify_frames()
     if bad:
+        session.release()
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
+    session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
+    record_session(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -130,14 +148,29 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
     """
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    status = session.status  # before holding: a dead writer's "running" is "interrupted"
+    session.hold()  # a live run (or another analysis) writing it is named and refused
+    try:
+        if status != "completed":
+            steps = make_procedure(session_params(session)).steps()
+            done = session.completed_steps()
+            session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
+                                         len(steps))
+        return _reanalyze_held(session, estimator)
+    finally:
+        session.release()
+
+
+def _reanalyze_held(session: Session, estimator: str | None) -> Path:
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     before = session.frames()
     params = session_params(session)
-    session.log_event("reanalysis_started", estimator=estimator)
+    session.log_event("reanalysis_started", durable=False, estimator=estimator)
     out = make_procedure(params).analyze(session, estimator)
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
+    record_session(session.path)
     return out

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.cli import UsageError
 from benchlab.drivers.errors import BenchlabError
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".bmp")
@@ -46,9 +47,9 @@ def read_image(path: Path) -> npt.NDArray[Any]:
         )
     try:
         if suffix in (".tif", ".tiff"):
-            import tifffile
+            from benchlab.storage import read_tiff_pixels
 
-            pixels = tifffile.imread(path)
+            pixels = read_tiff_pixels(path)  # refuses colour and contradicted bit depth
         else:
             import cv2
 
@@ -56,6 +57,8 @@ def read_image(path: Path) -> npt.NDArray[Any]:
             if decoded is None:
                 raise ValueError("OpenCV could not decode it")
             pixels = decoded
+    except BenchlabError:
+        raise
     except Exception as exc:  # readers raise many types for corrupt files
         raise AnalysisInputError(f"{path}: not a readable image ({exc})") from exc
     pixels = np.asarray(pixels)
@@ -160,31 +163,63 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
     return "\n".join(lines)
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Values that cannot be meant are usage errors (exit 2), never silently ignored."""
+    if args.freq is not None and not (np.isfinite(args.freq) and args.freq > 0):
+        raise UsageError(f"--freq must be a bar frequency > 0 lp/mm, got {args.freq:g}")
+    if args.bootstrap is not None and args.bootstrap < 1:
+        raise UsageError(f"--bootstrap must be a number of resamples >= 1, got {args.bootstrap}")
+
+
 def analyze_command(args: argparse.Namespace) -> int:
     """``benchlab analyze TARGET``: a session folder goes to the procedures layer; an image has
-    one ROI analysed."""
+    one ROI analysed; several session folders (or ``--all ROOT``) go to the batch."""
+    from benchlab.cli.batch import batch_command, batch_requested
+
+    if batch_requested(args):
+        return batch_command(args)
+    if not args.target:
+        print("benchlab: error: analyze needs an image, a session folder, or --all ROOT",
+              file=sys.stderr)
+        return 2
+    args.target = args.target[0] if isinstance(args.target, list) else args.target
     target = Path(args.target)
+    _check_options(args)
     if target.is_dir() and (target / "session.json").is_file():
+        image_only = [opt for opt, value in (
+            ("--roi", args.roi), ("--freq", args.freq), ("--peaks", args.peaks),
+            ("--orientation", args.orientation), ("--bootstrap", args.bootstrap),
+            ("--all-estimators", args.all_estimators or None)) if value is not None]
+        if image_only:
+            raise UsageError(f"{', '.join(image_only)}: for one image only; a session folder "
+                             f"({target}) is re-analysed with its own ROIs (only --estimator)")
         from benchlab.cli.procedures import analyze_session_command
+
+        if getattr(args, "linearise", None):
+            raise AnalysisInputError(f"{target}: --linearise applies to one image; a session "
+                                     "uses the calibration its bench configuration references")
 
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.frequency import cycles_per_px
 
+    if getattr(args, "chart", None):
+        from benchlab.cli.chart import analyze_chart_command
+
+        return analyze_chart_command(args)
     if target.is_dir():
         raise AnalysisInputError(f"{target}: a folder without session.json; give an image file")
     pixels = read_image(target)
+    linearised = None
+    if getattr(args, "linearise", None):
+        pixels, linearised = _linearise(pixels, target, Path(args.linearise))
     roi = parse_roi(args.roi, pixels.shape, target)
     if args.estimator is not None and args.estimator != "auto" and args.estimator not in ESTIMATORS:
         raise AnalysisInputError(
             f"--estimator {args.estimator!r} unknown; choose auto or one of "
             f"{', '.join(sorted(ESTIMATORS))}"
         )
-    freq = None
-    if args.freq is not None:
-        if not np.isfinite(args.freq) or args.freq < 0:
-            raise AnalysisInputError(f"--freq must be >= 0 lp/mm, got {args.freq}")
-        freq = cycles_per_px(args.freq)
+    freq = cycles_per_px(args.freq) if args.freq is not None else None
     peaks = parse_pair(args.peaks, "--peaks") if args.peaks else None
     r0, c0, r1, c1 = roi
     region = pixels[..., r0:r1, c0:c1]
@@ -198,7 +233,8 @@ def analyze_command(args: argparse.Namespace) -> int:
             name = resolve_estimator(args.estimator)
             results = {
                 name: estimate_modulation(
-                    region, estimator=name, peaks=peaks, bootstrap=args.bootstrap, **kwargs
+                    region, estimator=name, peaks=peaks, bootstrap=args.bootstrap or 0,
+                    **kwargs
                 )
             }
     except ValueError as exc:
@@ -209,11 +245,43 @@ def analyze_command(args: argparse.Namespace) -> int:
             payload = next(iter(results.values())).to_dict()
         else:
             payload = {"estimators": {k: r.to_dict() for k, r in results.items()}}
-        payload.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq})
+        payload.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq,
+                        "linearised": linearised})
         print(json.dumps(payload, allow_nan=False))
         return 0
     print("\n\n".join(_format_result(r, target, roi) for r in results.values()))
+    if linearised is not None:
+        print(f"linearised with {linearised['file']} (v{linearised['version']}, gain "
+              f"{linearised['gain']:g}, {linearised['bits']}-bit curve)")
     return 0
+
+
+def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
+               ) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+    """``--linearise``: the frame through the response calibration of its gain and bit depth
+    (gain from the frame's benchlab metadata, else 1; 8-bit for uint8 files, else 12-bit)."""
+    from benchlab.analysis.photon_transfer import linearise, native_codes
+    from benchlab.protocols.characterise_calibration import (
+        curve_for,
+        linearisation_record,
+        load_calibration,
+    )
+
+    gain = 1.0
+    if target.suffix.lower() in (".tif", ".tiff"):
+        from benchlab.storage import load_frame_tiff
+
+        try:
+            gain = float(load_frame_tiff(target)[1].get("gain", 1.0))
+        except Exception:  # noqa: BLE001 - a plain TIFF without benchlab metadata
+            gain = 1.0
+    bits = 8 if pixels.dtype == np.uint8 else 12
+    doc = load_calibration(calib)
+    try:
+        codes = native_codes(pixels, bits)
+    except ValueError as exc:
+        raise AnalysisInputError(f"{target}: {exc}") from exc
+    return linearise(codes, curve_for(doc, gain, bits)), linearisation_record(doc, gain, bits)
 
 
 def benchmark_command(args: argparse.Namespace) -> int:
@@ -256,10 +324,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description=(
             "Measure the Eq. 2.9 bar modulation of one region of an 8- or 16-bit TIFF/PNG/BMP "
             "image. Given a session folder (with session.json) instead, re-analyse the whole "
-            "session (only --estimator applies)."
+            "session (only --estimator applies); several folders or --all ROOT re-analyse "
+            "them in parallel with a summary table (exit 1 if any failed)."
         ),
     )
-    p.add_argument("target", metavar="TARGET", help="image file, or a session folder")
+    p.add_argument("target", metavar="TARGET", nargs="*",
+                   help="image file, or one or more session folders")
     p.add_argument(
         "--roi",
         metavar="R0,C0,R1,C1",
@@ -293,9 +363,23 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--all-estimators", action="store_true", help="run every estimator and compare them"
     )
     p.add_argument(
-        "--bootstrap", type=int, default=0, metavar="N", help="bootstrap uncertainty, N resamples"
+        "--bootstrap", type=int, default=None, metavar="N",
+        help="bootstrap uncertainty, N >= 1 resamples (default: none)"
+    )
+    p.add_argument(
+        "--linearise", metavar="CALIBRATION",
+        help="linearise the frame first with a response calibration (benchlab run "
+        "characterise): response-vN.json or a bench TOML referencing one; recorded in --json",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--chart", metavar="KIND",
+        help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
+        "found element (Table 4.11 layout) instead of one --roi",
+    )
+    from benchlab.cli.batch import add_batch_arguments
+
+    add_batch_arguments(p)
     p.set_defaults(func=analyze_command)
 
     b = benchmarks.add_parser(

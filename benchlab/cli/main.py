@@ -9,21 +9,29 @@ Each command group lives in its own module exposing ``register(commands, benchma
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
 from benchlab import __version__
+from benchlab.cli import UsageError
+from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
 COMMAND_MODULES = (
     "benchlab.cli.camera",  # devices, snap, benchmark camera
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
+    "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
     "benchlab.cli.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
+    "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
     "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
+    "benchlab.cli.soak",  # benchmark soak
 )
 
 
@@ -49,24 +57,55 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def plain_os_error(exc: OSError) -> str:
+    """``/data/x: permission denied (read-only?)`` rather than a traceback."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    hint = {errno.EACCES: " (no permission to write there?)",
+            errno.EROFS: " (read-only file system)",
+            errno.EEXIST: " (already exists; nothing was overwritten)",
+            errno.ENOSPC: " (disk full)"}.get(exc.errno or 0, "")
+    name = exc.filename if exc.filename is not None else ""
+    return f"{name}: {what.lower()}{hint}" if name else f"{what}{hint}"
+
+
+#: Options that belong to ``benchlab`` itself, not to the terminal UI.
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version"}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; exit status 0, 1 (runtime error), 2 (usage error) or 128 + signal.
+
+    SIGINT, SIGTERM and SIGHUP all stop the command the same way (:mod:`benchlab.drivers.
+    shutdown`): LEDs off, stage stopped, a running session journalled as interrupted.
+    """
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    if not args_list or args_list == ["--simulate"]:
-        args_list = ["tui", *args_list]
+    if not args_list or (args_list[0].startswith("-") and args_list[0] not in _TOP_LEVEL_OPTIONS):
+        args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
         return 2
-    try:
-        return int(func(args) or 0)
-    except BenchlabError as exc:
-        print(f"benchlab: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("benchlab: interrupted", file=sys.stderr)
-        return 130
+    with shutdown.handling_signals():
+        try:
+            return int(func(args) or 0)
+        except UsageError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 2
+        except BenchlabError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
+        except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 1
+        except OSError as exc:  # a file the command was pointed at: say which, plainly
+            print(f"benchlab: error: {plain_os_error(exc)}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt as exc:
+            print(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); bench left safe",
+                  file=sys.stderr)
+            return shutdown.exit_status(exc)
 
 
 if __name__ == "__main__":

@@ -86,14 +86,16 @@ def _prompter(yes: bool, progress: _Progress, bench: Any) -> Any:
     return prompt
 
 
-def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO) -> None:
+def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO,
+                  partial: bool = False) -> None:
     from benchlab.report_tables import TABLE_VIEWS, format_table
 
+    mark = " [PARTIAL: session incomplete]" if partial else ""
     for name, rows in tables.items():
         view = TABLE_VIEWS.get(name)
         if view is None or not rows:
             continue
-        out.write(f"\n{view.title}\n{format_table(rows, view.columns)}\n")
+        out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
 
 
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
@@ -104,6 +106,8 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     progress = _Progress(sys.stderr)
     if resume:
         session_path = Path(args.session)
+        if _resume_preflight(session_path):
+            return 0
         if args.config:
             config = BenchConfig.load(args.config, simulate=args.simulate)
         else:
@@ -112,6 +116,9 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         config = BenchConfig.load(args.config, simulate=args.simulate)
         if not args.simulate and args.config is None:
             raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+        from benchlab.session import check_sessions_root
+
+        check_sessions_root(args.out)  # before any device is opened
     check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
@@ -130,7 +137,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                 runner = resume_run(session_path, **kwargs)
             else:
                 runner = start_run(args.procedure, params=params, root=args.out,
-                                   operator=args.operator, **kwargs)
+                                   operator=args.operator, sample=args.sample, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
     except (StepFailed, RunAborted) as exc:
@@ -146,10 +153,31 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    if outcome.summary.get("summary", {}).get("procedure") == "characterise":
+        from benchlab.protocols.characterise import run_notes
+
+        print("\n" + "\n".join(run_notes(outcome.session_path, outcome.summary)))
     print(f"\nsession: {outcome.session_path}")
     print(f"results: {outcome.results_path}")
     print(f"wall time: {elapsed:.1f} s")
     return 0
+
+
+def _resume_preflight(session_path: Path) -> bool:
+    """Before any device is opened: True (nothing to do) for a completed session; a session
+    another live process writes is refused, naming it (opening the bench would switch its
+    LEDs off under it)."""
+    from benchlab.session import Session, SessionBusyError, describe_holder, session_holder
+
+    session = Session.open(session_path)
+    if session.status == "completed":
+        print(f"{session.path}: session is complete; nothing to resume (unchanged)")
+        return True
+    holder = session_holder(session_path)
+    if holder is not None:
+        raise SessionBusyError(f"{session.path}: session is in use by {describe_holder(holder)}"
+                               "; wait for it to end or stop that process")
+    return False
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -175,13 +203,21 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = reanalyze(Path(target), estimator=getattr(args, "estimator", None))
     elapsed = time.perf_counter() - t0
-    tables, _ = read_results(out)
+    tables, summary = read_results(out)
+    partial = bool(summary.get("partial"))
+    note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
+            f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
     if getattr(args, "json", False):
         import json
 
-        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed}))
+        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
+                          "partial": partial}))
+        if partial:
+            print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
-    _print_tables(tables, sys.stdout)
+    _print_tables(tables, sys.stdout, partial=partial)
+    if partial:
+        print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
     return 0
 
@@ -191,6 +227,21 @@ def report_command(args: argparse.Namespace) -> int:
 
     out = write_report(Path(args.session), Path(args.out) if args.out else None)
     print(f"report: {out}")
+    return 0
+
+
+def benchmark_characterise_command(args: argparse.Namespace) -> int:
+    """``benchlab benchmark characterise``: the characterisation figures (simulated bench)."""
+    from benchlab.protocols.characterise_benchmark import (
+        all_pass,
+        format_benchmark,
+        run_benchmark,
+    )
+
+    out = run_benchmark(Path(args.keep) if args.keep else None)
+    print(format_benchmark(out))
+    print("\nall figures within the issue's tolerances" if all_pass(out)
+          else "\nsome figures are outside the issue's tolerances")
     return 0
 
 
@@ -233,17 +284,20 @@ def benchmark_report_command(args: argparse.Namespace) -> int:
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add ``run``, ``resume``, ``report`` and ``benchmark report``."""
     run = commands.add_parser(
-        "run", help="run a procedure (Table 4.10 MTF or section 4.4 radiometry)",
+        "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry or the camera "
+        "characterisation)",
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry"))
+    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel)")
     run.add_argument("--params", help="procedure parameter TOML (default: packaged)")
     run.add_argument("--yes", action="store_true", help="confirm every manual step")
     run.add_argument("--out", default="sessions", help="folder for sessions (default sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
+    run.add_argument("--sample", default="", metavar="ID",
+                     help="lens or sample under test (the catalogue groups trends by it)")
     run.add_argument("--estimator", help="modulation estimator (default: params / library)")
     run.set_defaults(func=run_command)
 
@@ -270,6 +324,17 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     rep.add_argument("session", help="session folder")
     rep.add_argument("--out", help="output file (default SESSION/report.html)")
     rep.set_defaults(func=report_command)
+
+    bch = benchmarks.add_parser(
+        "characterise", help="camera characterisation figures on the simulated bench",
+        description="Run the characterisation on the simulated bench and compare K, read "
+        "noise, saturation, linearity error, DSNU and PRNU with the simulator's truth (issue "
+        "tolerances); then characterise a non-linear simulated camera and show radiometry "
+        "readings without and with the response calibration against the linear camera. "
+        "About 30 s.",
+    )
+    bch.add_argument("--keep", metavar="DIR", help="keep the sessions in DIR (default: temporary)")
+    bch.set_defaults(func=benchmark_characterise_command)
 
     brep = benchmarks.add_parser(
         "report", help="seconds to render an HTML report, per section",
