@@ -220,6 +220,24 @@ class Catalog:
         )
 
     # ------------------------------------------------------------------ reading
+    def refresh_running(self) -> int:
+        """Re-read the folders of rows that say "running": a writer that died (kill -9, power
+        loss) never updated its row, and the folder's owner lock now says "interrupted".
+        Returns how many rows changed."""
+        from benchlab.session import Session
+
+        changed = 0
+        rows = self.conn.execute("SELECT path FROM sessions WHERE status = 'running'").fetchall()
+        for (path,) in rows:
+            try:
+                truth = Session.open(Path(path)).status
+            except Exception:  # noqa: BLE001 - a folder gone or unreadable: reindex says why
+                continue
+            if truth != "running":
+                self.record(path)
+                changed += 1
+        return changed
+
     def sessions(
         self,
         *,
@@ -238,6 +256,7 @@ class Catalog:
         """
         if sort not in SORT_COLUMNS:
             raise CatalogError(f"cannot sort by {sort!r}; choose {', '.join(SORT_COLUMNS)}")
+        self.refresh_running()
         where, args = _session_filters(procedure, since, sample, status)
         columns = "*" if devices else _LIST_COLUMNS
         sql = (f"SELECT {columns} FROM sessions s {where} ORDER BY s.{sort} "
@@ -255,6 +274,7 @@ class Catalog:
 
     def show(self, session_id: str) -> dict[str, Any]:
         """One session with its results versions and the figures of its latest version."""
+        self.refresh_running()
         row = self.conn.execute("SELECT * FROM sessions WHERE id = ?", (session_id,)).fetchone()
         if row is None:
             raise CatalogError(f"no session {session_id!r} in {self.path} "
