@@ -307,7 +307,15 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
         warnings = [*prep.warnings, "single-valued ROI: one gray level, no bars"]
         return unresolved(NAME, prep.diagnostics(), warnings)
     n_roi = prep.n_pixels
-    result = _histogram_peak(_bar_centres(prep))
+    centres = _bar_centres(prep)
+    result = _histogram_peak(centres)
+    if not result.resolved and centres is not prep:
+        # The phase did not locate the bars (e.g. a chart rotated against the given
+        # orientation): the whole ROI's histogram, as the thesis read it.
+        whole = _histogram_peak(prep)
+        if whole.resolved:
+            result = whole.with_updates(warnings=(
+                *whole.warnings, "bar phase not found: levels from the whole ROI"))
     return result.with_updates(diagnostics=replace(result.diagnostics, n_pixels=n_roi))
 
 
