@@ -19,6 +19,7 @@ from benchlab.analysis import chart
 from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
 from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
+    azimuthal_image_frequency_lp_per_mm,
     cycles_per_px,
     image_frequency_lp_per_mm,
     nyquist_lp_per_mm,
@@ -177,17 +178,33 @@ def _chart_info(fit: ChartFit | None) -> dict[str, Any] | None:
                               "rejected", "warnings")}
 
 
+def radial_image_lp_per_mm(freq_lp_per_mm: float, orientation: str, params: MtfParams,
+                           centre: tuple[float, float]) -> float:
+    """Image frequency of a radial pattern at the radial ROI: Eq. 4.1's axial magnification for
+    tangential bars (rings); object radius / image radius for sagittal bars (spokes), the
+    rotational symmetry's azimuthal magnification."""
+    if orientation != "sagittal":
+        return image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
+    r_mm = image_height_mm(centre, roi_centroid(params.radial_roi))
+    return azimuthal_image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_object_radius_mm,
+                                               r_mm)
+
+
 def analyze_radial_frame(
     pixels: npt.NDArray[Any], freq_lp_per_mm: float, orientation: str, params: MtfParams,
-    estimator: str | None,
+    estimator: str | None, centre: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
-    """Modulation of one radial frame in the common radial ROI."""
+    """Modulation of one radial frame in the common radial ROI. ``centre`` (row, col) is the
+    image centre; by default it is found from this frame's field of view."""
     est = resolve_estimator(estimator)
-    f_img = image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
+    if centre is None:
+        centre = _centre([pixels], params.fov_threshold_dn)[0]
+    f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
     res = _measure(pixels, params.radial_roi, estimator=est, freq_lp_per_mm=f_img,
                    orientation=None)
     return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
-            "image_lp_per_mm": f_img, "roi": list(params.radial_roi), **_cells(res)}
+            "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
+            "roi": list(params.radial_roi), **_cells(res)}
 
 
 def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple[
@@ -260,7 +277,12 @@ def analyze_mtf(
     t412: list[dict[str, Any]] = []
     for f in params.radial_frequencies_lp_per_mm:
         f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
-        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq}
+        # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
+        # sagittal spokes image at the azimuthal magnification, in their own columns.
+        f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
+        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+               "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
+               "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
         for orient in ORIENTATIONS:
             px = radial.get((f, orient))
             if px is None:
@@ -268,7 +290,7 @@ def analyze_mtf(
                             ("dark", "bright", "modulation", "resolved", "uncertainty")})
                 row[f"{orient}_warnings"] = "frame missing"
                 continue
-            r = analyze_radial_frame(px, f, orient, params, est)
+            r = analyze_radial_frame(px, f, orient, params, est, centre)
             row.update({f"{orient}_{k}": r[k] for k in
                         ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
         t412.append(row)
