@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 import usb.core
 import usb.util
+
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.errors import (
     DeviceError,

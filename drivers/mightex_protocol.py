@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+
 from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
 
 VENDOR_ID = 0x04B4

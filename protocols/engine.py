@@ -21,8 +21,8 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
-from benchlab.drivers.errors import BenchlabError
 
+from benchlab.drivers.errors import BenchlabError
 from benchlab.session import read_results
 from benchlab.storage import load_frame_tiff
 

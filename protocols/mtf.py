@@ -22,6 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from benchlab.analysis.focus import sharpness
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf_analysis import (
     FORWARD_FRAME,
@@ -31,8 +32,6 @@ from benchlab.protocols.mtf_analysis import (
     radial_step_id,
 )
 from benchlab.protocols.params import MtfParams
-
-from benchlab.analysis.focus import sharpness
 
 FORWARD_TARGET = "usaf"
 DARK_TARGET = "dark"

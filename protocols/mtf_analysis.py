@@ -13,7 +13,6 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
-from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from scipy import ndimage
 
 from benchlab.analysis import chart
@@ -33,6 +32,7 @@ from benchlab.analysis.geometry import (
 )
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import optional_float, read_table, thesis_fixture_path
+from benchlab.protocols.params import MtfParams, Roi, UsafElement
 
 FORWARD_STEP = "forward"
 FORWARD_FRAME = "forward"

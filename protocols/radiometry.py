@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
+from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
 from benchlab.drivers.errors import DeviceError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams
-
-from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
 
 LED_TARGET = "led"
 MASK_FRAME = "mask"

@@ -6,6 +6,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from benchlab import __version__
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
 from benchlab.protocols.mtf import MtfProcedure
@@ -20,8 +21,6 @@ from benchlab.protocols.params import (
     parse_params,
 )
 from benchlab.protocols.radiometry import RadiometryProcedure
-
-from benchlab import __version__
 from benchlab.session import Session
 
 #: Key of the bench configuration inside the session's parameter snapshot.

@@ -7,9 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from benchlab.protocols import RunOutcome, start_run
-
 from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import RunOutcome, start_run
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures" / "params"
 MTF_SMALL = FIXTURES / "mtf-small.toml"
