@@ -58,7 +58,7 @@ from benchlab.drivers.errors import (
     SafetyLimitError,
     SettingOutOfRangeError,
 )
-from benchlab.drivers.safety import SafeInstrument
+from benchlab.drivers.interfaces import DeviceIdentity, LinearStage
 
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 115200
@@ -139,7 +139,7 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     raise AptNoReplyError(f"stage: no HW_GET_INFO reply from {port} within {timeout_s:g} s")
 
 
-class AptStage(SafeInstrument):
+class AptStage(LinearStage):
     """One single-axis APT stage on a serial port; positions in mm, limits from configuration."""
 
     SAFE_ACTION = "stopping the stage"
@@ -163,7 +163,7 @@ class AptStage(SafeInstrument):
             raise SettingOutOfRangeError(f"counts_per_mm must be > 0: {counts_per_mm}")
         self.port = port
         self.units = Units(counts_per_mm)
-        self.travel_mm = (lo, hi)
+        self._travel_mm = (lo, hi)
         # Limits in counts, rounded inwards, so rounding can never step outside the travel.
         self._lo_counts = math.ceil(lo * counts_per_mm - 1e-6)
         self._hi_counts = math.floor(hi * counts_per_mm + 1e-6)
@@ -265,6 +265,23 @@ class AptStage(SafeInstrument):
         return self._info
 
     @property
+    def identity(self) -> DeviceIdentity:
+        info = self.info
+        return DeviceIdentity(info.model, str(info.serial), info.firmware_str, self.port)
+
+    @property
+    def travel_mm(self) -> tuple[float, float]:
+        return self._travel_mm
+
+    @property
+    def is_moving(self) -> bool:
+        return self.status.is_moving
+
+    @property
+    def velocity_mm_s(self) -> float:
+        return self._vel.max_velocity_mm_s
+
+    @property
     def dropped_bytes(self) -> int:
         """Garbage bytes skipped while resynchronising."""
         return self._frames.dropped_bytes
@@ -325,8 +342,12 @@ class AptStage(SafeInstrument):
         self._send(long(Msg.MOT_SET_VELPARAMS, raw.pack()))
         self._vel = VelocityParams(max_velocity_mm_s, acceleration_mm_s2)
 
+    def _do_set_velocity_mm_s(self, velocity_mm_s: float) -> None:
+        """Keeps the controller's acceleration."""
+        self.set_velocity_params(velocity_mm_s, self.get_velocity_params().acceleration_mm_s2)
+
     # ---- motion -----------------------------------------------------------------------------
-    def home(self, timeout_s: float | None = None) -> None:
+    def _do_home(self, timeout_s: float | None) -> None:
         """Home (drive to the reverse limit and zero the counter) and wait until homed."""
         seq = self._send(short(Msg.MOT_MOVE_HOME, CHAN1))
         self._move_seq, self._move_target_mm = seq, self.travel_mm[0]
@@ -334,9 +355,9 @@ class AptStage(SafeInstrument):
         span = self.travel_mm[1] - self.travel_mm[0]
         self.wait_for_move(timeout_s if timeout_s is not None else self._travel_timeout(2 * span))
 
-    def move_to_mm(self, position_mm: float, *, wait: bool = True,
-                   timeout_s: float | None = None) -> None:
-        """Absolute move; limits and homing are checked before anything is sent."""
+    def _do_move_to_mm(self, position_mm: float, *, wait: bool,
+                       timeout_s: float | None) -> None:
+        """Absolute move; limits (in counts, after rounding) and homing checked first."""
         counts = self._target_counts(position_mm)
         self._check_homed()
         seq = self._send(long(Msg.MOT_MOVE_ABSOLUTE, pack_position(counts)))
@@ -394,8 +415,7 @@ class AptStage(SafeInstrument):
                 f"{self._move_target_mm} mm")
         return status
 
-    def stop(self, *, immediate: bool = True, wait: bool = True,
-             timeout_s: float | None = None) -> None:
+    def _do_stop(self, *, immediate: bool, wait: bool, timeout_s: float | None) -> None:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""
         seq = self._send(short(Msg.MOT_MOVE_STOP, CHAN1,
                                STOP_IMMEDIATE if immediate else STOP_PROFILED))

@@ -26,7 +26,6 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Any, ParamSpec, TypeVar
 
-import numpy as np
 import numpy.typing as npt
 import usb.core
 import usb.util
@@ -38,7 +37,9 @@ from benchlab.drivers.errors import (
     DeviceNotFoundError,
     DeviceTimeoutError,
     ProtocolError,
+    SettingOutOfRangeError,
 )
+from benchlab.drivers.interfaces import Camera, DeviceIdentity, Frame
 
 __all__ = [
     "CameraInfo", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
@@ -96,14 +97,6 @@ class FrameMeta:
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dictionary (plain ints, floats, bools and strings)."""
         return asdict(self)
-
-
-@dataclass(frozen=True)
-class Frame:
-    """Pixels (``(height, width)``, uint8 or uint16 0..4095) and their metadata."""
-
-    pixels: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
-    meta: FrameMeta
 
 
 @dataclass
@@ -189,8 +182,10 @@ def find_cameras(backend: Any = None, pid: int | None = None) -> list[CameraInfo
     return infos
 
 
-class MightexCamera:
-    """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block."""
+class MightexCamera(Camera):
+    """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block.
+
+    Frames are :class:`~benchlab.drivers.interfaces.Frame` with :class:`FrameMeta`."""
 
     def __init__(self, dev: usb.core.Device, spec: p.CameraSpec, info: CameraInfo,
                  backend: Any) -> None:
@@ -360,6 +355,10 @@ class MightexCamera:
     # ------------------------------------------------------------------ settings
 
     @property
+    def identity(self) -> DeviceIdentity:
+        return DeviceIdentity(self.info.model, self.info.serial, self.info.firmware)
+
+    @property
     def spec(self) -> p.CameraSpec:
         return self._spec
 
@@ -386,13 +385,17 @@ class MightexCamera:
                 "frame_time_ms": self.frame_time_ms}
 
     @_locked
-    def configure(self, *, width: int = 1280, height: int = 1024, bits: int = 8,
-                  mode: str = "normal", bin_code: int = 0, buffer_count: int = 4) -> None:
+    def _do_configure(self, *, width: int, height: int, bits: int, mode: str,
+                      bin_code: int = 0, buffer_count: int = 4, **unknown: int) -> None:
         """Set work mode, bit depth, geometry, bin code and buffer depth; flush old frames.
 
-        Raises ``SettingOutOfRangeError`` (nothing sent) for values the model refuses:
-        width/height multiples of 4 in 8..1280 x 8..1024, bits 8 or 12, buffer 1..24.
+        Options: ``bin_code`` (0 = no decimation) and ``buffer_count`` (frames the camera
+        buffers). Raises ``SettingOutOfRangeError`` (nothing sent) for values the model
+        refuses: width/height multiples of 4 in 8..1280 x 8..1024, bits 8 or 12, buffer 1..24.
         """
+        if unknown:
+            raise SettingOutOfRangeError(
+                f"camera: unknown option(s) {', '.join(sorted(unknown))}; nothing sent")
         p.check_geometry(self._spec, width=width, height=height, bits=bits, mode=mode,
                          bin_code=bin_code, buffer_count=buffer_count)
         s = self._settings
@@ -403,14 +406,14 @@ class MightexCamera:
         self.clear_buffer()
 
     @_locked
-    def set_exposure_ms(self, exposure_ms: float) -> None:
+    def _do_set_exposure_ms(self, exposure_ms: float) -> None:
         """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
         counts = p.exposure_counts(exposure_ms, self._spec)
         self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
         self._settings.exposure_counts = counts
 
     @_locked
-    def set_gain(self, gain: float) -> None:
+    def _do_set_gain(self, gain: float) -> None:
         """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
         raw = p.gain_raw(gain, self._spec)
         self._send(p.encode_gain(raw))
@@ -473,7 +476,7 @@ class MightexCamera:
         return p.FrameLayout(s.width, s.height, s.bits)
 
     @_locked
-    def grab(self, timeout_s: float | None = None) -> Frame:
+    def _do_grab(self, timeout_s: float | None) -> Frame:
         """The next frame acquired with the current settings.
 
         ``timeout_s`` defaults to twice the frame period plus 5 s.

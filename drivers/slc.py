@@ -32,10 +32,9 @@ from benchlab.drivers.errors import (
     DeviceLostError,
     DeviceTimeoutError,
     ProtocolError,
-    SafetyLimitError,
     SettingOutOfRangeError,
 )
-from benchlab.drivers.safety import SafeInstrument
+from benchlab.drivers.interfaces import DeviceIdentity, LightSource
 
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 9600
@@ -127,10 +126,11 @@ def parse_current_reply(command: str, payload: str) -> tuple[int, int]:
     return imax, iset
 
 
-class SlcController(SafeInstrument):
+class SlcController(LightSource):
     """One SLC controller on a serial port. Channels are 1-based, as on the wire."""
 
     SAFE_ACTION = "switching the LEDs off"
+    NAME = "LED controller"
 
     def __init__(
         self, port: str, *, ceilings_ma: Mapping[int, float], timeout_s: float = 1.0
@@ -139,7 +139,7 @@ class SlcController(SafeInstrument):
             if not (isinstance(limit, int | float) and math.isfinite(limit) and limit >= 0):
                 raise SettingOutOfRangeError(f"ceiling for channel {ch} must be >= 0 mA: {limit}")
         self.port = port
-        self.ceilings_ma: dict[int, float] = {int(k): float(v) for k, v in ceilings_ma.items()}
+        self._ceilings_ma: dict[int, float] = {int(k): float(v) for k, v in ceilings_ma.items()}
         self.timeout_s = timeout_s
         self._ser: serial.Serial | None = None
         self._info: SlcDeviceInfo | None = None
@@ -194,8 +194,22 @@ class SlcController(SafeInstrument):
         return self._info
 
     @property
+    def identity(self) -> DeviceIdentity:
+        info = self.device_info
+        return DeviceIdentity(info.module, info.serial, info.driver_version, self.port)
+
+    @property
     def channel_count(self) -> int:
         return self._channel_count
+
+    @property
+    def ceilings_ma(self) -> Mapping[int, float]:
+        return self._ceilings_ma
+
+    def ceiling_ma(self, ch: int) -> float | None:
+        """The configured ceiling, capped by what the controller family can drive."""
+        ceiling = self._ceilings_ma.get(ch)
+        return None if ceiling is None else min(ceiling, self._normal_max_ma)
 
     # ---- channel commands ------------------------------------------------------------------
     def set_mode(self, ch: int, mode: SlcMode | int) -> None:
@@ -209,7 +223,7 @@ class SlcController(SafeInstrument):
         if mode is SlcMode.NORMAL:
             # The controller may hold NORMAL currents set by someone else: check before lighting.
             imax_ma, iset_ma = self.get_current(ch)
-            self._check_ceiling(ch, max(imax_ma, iset_ma))
+            self._check_current(ch, max(imax_ma, iset_ma))
         self._command(f"MODE {ch} {int(mode)}")
 
     def get_mode(self, ch: int) -> SlcMode:
@@ -224,8 +238,8 @@ class SlcController(SafeInstrument):
     def set_normal(self, ch: int, imax_ma: float, iset_ma: float) -> None:
         """Store NORMAL-mode ceiling and working current (both checked against the ceiling)."""
         self._check_channel(ch)
-        self._check_ceiling(ch, imax_ma)
-        self._check_ceiling(ch, iset_ma)
+        self._check_current(ch, imax_ma)
+        self._check_current(ch, iset_ma)
         if iset_ma > imax_ma:
             raise SettingOutOfRangeError(
                 f"LED channel {ch}: Iset {iset_ma} mA above Imax {imax_ma} mA; nothing sent"
@@ -235,7 +249,7 @@ class SlcController(SafeInstrument):
     def set_current(self, ch: int, iset_ma: float) -> None:
         """Change the working current live (takes effect only in NORMAL mode)."""
         self._check_channel(ch)
-        self._check_ceiling(ch, iset_ma)
+        self._check_current(ch, iset_ma)
         self._command(f"CURRENT {ch} {self._wire(iset_ma)}")
 
     def get_current(self, ch: int) -> tuple[float, float]:
@@ -245,17 +259,21 @@ class SlcController(SafeInstrument):
         imax, iset = parse_current_reply(cmd, self._query_data(cmd))
         return imax * self._unit_ma, iset * self._unit_ma
 
-    def on(self, ch: int, current_ma: float) -> None:
-        """Light channel ``ch`` at ``current_ma`` (NORMAL mode, Imax = the configured ceiling)."""
-        self._check_channel(ch)
-        self._check_ceiling(ch, current_ma)
-        ceiling_ma = min(self.ceilings_ma[ch], self._normal_max_ma)
+    def _do_on(self, ch: int, current_ma: float) -> None:
+        """NORMAL mode at ``current_ma``, Imax = the configured ceiling."""
+        ceiling_ma = self.ceiling_ma(ch)
+        assert ceiling_ma is not None  # checked by on()
         self.set_normal(ch, ceiling_ma, current_ma)
         self._command(f"MODE {ch} {int(SlcMode.NORMAL)}")
 
-    def off(self, ch: int) -> None:
-        self._check_channel(ch)
+    def _do_off(self, ch: int) -> None:
         self._command(f"MODE {ch} {int(SlcMode.DISABLE)}")
+
+    def _do_is_on(self, ch: int) -> bool:
+        return self.get_mode(ch) is not SlcMode.DISABLE
+
+    def _do_current_ma(self, ch: int) -> float:
+        return self.get_current(ch)[1]
 
     def all_off(self) -> None:
         """Disable every channel and read the modes back; raise if any channel may still be lit."""
@@ -277,29 +295,7 @@ class SlcController(SafeInstrument):
         if failures:
             raise DeviceError("LED controller: could not confirm all off: " + "; ".join(failures))
 
-    # ---- checks ----------------------------------------------------------------------------
-    def _check_channel(self, ch: int) -> None:
-        if self._ser is None:
-            raise DeviceError("LED controller is not open")
-        if not (isinstance(ch, int) and 1 <= ch <= self._channel_count):
-            raise SettingOutOfRangeError(
-                f"LED channel {ch} does not exist (1..{self._channel_count}); nothing sent"
-            )
-
-    def _check_ceiling(self, ch: int, current_ma: float) -> None:
-        if not (isinstance(current_ma, int | float) and math.isfinite(current_ma)):
-            raise SettingOutOfRangeError(f"LED channel {ch}: current {current_ma!r} is not finite")
-        if current_ma < 0:
-            raise SettingOutOfRangeError(f"LED channel {ch}: negative current {current_ma} mA")
-        ceiling = self.ceilings_ma.get(ch)
-        if ceiling is None:
-            raise SafetyLimitError(f"LED channel {ch} has no configured ceiling; nothing sent")
-        limit = min(ceiling, self._normal_max_ma)
-        if current_ma > limit:
-            raise SafetyLimitError(
-                f"LED channel {ch}: {current_ma} mA exceeds the ceiling {limit} mA; nothing sent"
-            )
-
+    # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
         # Round down so rounding can never push a value above its checked ceiling.
         return math.floor(current_ma / self._unit_ma + 1e-9)

@@ -17,14 +17,17 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
-from benchlab.session import read_results
+from benchlab.session import Session, read_results
 from benchlab.storage import load_frame_tiff
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 StepKind = Literal["setup", "manual", "focus", "acquire", "analysis"]
 
@@ -73,7 +76,7 @@ class Procedure(Protocol):
 
     def steps(self) -> list[Step]: ...
 
-    def analyze(self, session: Any, estimator: str | None) -> Path: ...
+    def analyze(self, session: Session, estimator: str | None) -> Path: ...
 
 
 @dataclass(frozen=True)
@@ -164,8 +167,8 @@ class Runner:
     def __init__(
         self,
         procedure: Procedure,
-        session: Any,
-        bench: Any,
+        session: Session,
+        bench: Bench,
         *,
         prompt: PromptFn | None = None,
         progress: ProgressFn | None = None,
@@ -240,6 +243,8 @@ class Runner:
         finally:
             self.bench.safe_state()
         results = self.session.latest_results()
+        if results is None:  # every procedure ends with an analysis step that writes them
+            raise BenchlabError(f"{self.procedure.name}: the run ended without results")
         self.session.finish()
         tables, summary = read_results(results)
         return RunOutcome(
@@ -295,7 +300,7 @@ class Runner:
         self.session.log_event("resumed", completed=sorted(done))
 
 
-def frames_of(session: Any, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:
+def frames_of(session: Session, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:
     """Load every saved frame of the given steps: ``{step_id: {name: pixels}}``."""
     out: dict[str, dict[str, npt.NDArray[Any]]] = {}
     for sid in step_ids:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from benchlab import __version__
 from benchlab.drivers.errors import BenchlabError
@@ -22,6 +22,9 @@ from benchlab.protocols.params import (
 )
 from benchlab.protocols.radiometry import RadiometryProcedure
 from benchlab.session import Session
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -68,7 +71,7 @@ def _resolve_params(
 def start_run(
     procedure: str,
     *,
-    bench: Any,
+    bench: Bench,
     params: Params | str | Path | None = None,
     root: str | Path = "sessions",
     operator: str = "",
@@ -101,7 +104,7 @@ def session_params(session: Session) -> Params:
 def resume_run(
     session_path: str | Path,
     *,
-    bench: Any,
+    bench: Bench,
     prompt: PromptFn | None = None,
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,

@@ -8,9 +8,12 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.drivers.errors import BenchlabError
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 
 class _Progress:
@@ -40,7 +43,7 @@ class _Progress:
         self.stream.flush()
 
 
-def _live_sharpness(bench: Any, step: Any, stream: TextIO) -> str:
+def _live_sharpness(bench: Bench, step: Any, stream: TextIO) -> str:
     """Back-focus step on a terminal: show the sharpness of fresh frames until Enter."""
     from benchlab.analysis.focus import sharpness
 
@@ -68,7 +71,7 @@ def _live_sharpness(bench: Any, step: Any, stream: TextIO) -> str:
     return answer[0] if answer else ""
 
 
-def _prompter(yes: bool, progress: _Progress, bench: Any) -> Any:
+def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
     def prompt(step: Any, message: str) -> bool:
         if yes:
             progress.line(f"  {step.id}: {message} [--yes]")

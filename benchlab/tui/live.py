@@ -18,6 +18,7 @@ from textual.timer import Timer
 from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
+from benchlab.bench import plain_target
 from benchlab.tui import services
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
@@ -255,8 +256,8 @@ class LiveScreen(Screen[None]):
                 self.notify, "Targets are mounted by hand on a real bench.", severity="warning"
             )
             return
-        current = services.plain_target(bench.mounted)
-        names = [services.plain_target(t) for t in SIM_TARGETS]
+        current = plain_target(bench.mounted)
+        names = [plain_target(t) for t in SIM_TARGETS]
         nxt = SIM_TARGETS[(names.index(current) + 1) % len(SIM_TARGETS)] if current in names \
             else SIM_TARGETS[0]
         try:
@@ -265,7 +266,7 @@ class LiveScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not mount the target", exc)
             return
-        app.call_from_thread(self.notify, f"simulated target: {services.plain_target(nxt)}")
+        app.call_from_thread(self.notify, f"simulated target: {plain_target(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)
