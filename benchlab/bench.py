@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from benchlab.drivers.mightex_sim import SimulatedCamera
     from benchlab.drivers.slc_sim import SimulatedSlc
     from benchlab.scenes.world import SimWorld
-from benchlab.protocols.params import BenchLimits, ParamsError, _Checker
+from benchlab.checks import BenchLimits, ParamsError, TableChecker
 
 #: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
 Z8_COUNTS_PER_MM = 34554.96
@@ -120,17 +120,17 @@ class BenchConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<bench config>") -> BenchConfig:
         """Validate a parsed configuration; :class:`BenchConfigError` lists every problem."""
-        c = _Checker(data)
+        c = TableChecker(data)
         cam = CameraConfig(
             serial=c.string("camera.serial", "") or None,
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
         )
         led = None
-        found, _ = c._get("led", None)
+        found, _ = c.get("led", None)
         if found:
             ceilings: dict[int, float] = {}
-            f2, table = c._get("led.ceiling_ma", {1: 50.0})
+            f2, table = c.get("led.ceiling_ma", {1: 50.0})
             if f2 and not isinstance(table, Mapping):
                 c.fail("led.ceiling_ma", "must be a table: channel number -> mA")
             elif f2:
@@ -146,7 +146,7 @@ class BenchConfig:
             led = LedConfig(port=c.string("led.port", "") or None,
                             channel=c.integer("led.channel", 1, 1, 16), ceilings_ma=ceilings)
         stage = None
-        found, _ = c._get("stage", None)
+        found, _ = c.get("stage", None)
         if found:
             travel = c.numbers("stage.travel_mm", (0.0, 50.0), -1000.0, 1000.0)
             if len(travel) != 2 or travel[0] >= travel[1]:

@@ -444,7 +444,9 @@ class Session:
         summary: Mapping[str, Any],
         estimator: str,
     ) -> Path:
-        """Write a new results version: ``<table>.csv`` + ``<table>.json`` each, and summary.json.
+        """Write a new results version: ``<file>.csv`` + ``<file>.json`` per table (file names
+        from :data:`RESULT_FILE_STEMS`, e.g. ``forward_view_modulation`` for ``table_4_11``),
+        and summary.json (which maps each table label to its file).
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
@@ -457,8 +459,9 @@ class Session:
         try:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
-                atomic_write_json(tmp / f"{table}.json", plain_rows)
-                atomic_write_text(tmp / f"{table}.csv", _csv_text(plain_rows))
+                stem = result_file_stem(table)
+                atomic_write_json(tmp / f"{stem}.json", plain_rows)
+                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows))
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {
@@ -466,6 +469,7 @@ class Session:
                     "estimator": estimator,
                     "created_at": _now_iso(),
                     "tables": sorted(tables),
+                    "table_files": {t: result_file_stem(t) for t in sorted(tables)},
                     "frames_sha256": self.frames(),
                     "summary": _plain(summary),
                 }
@@ -484,9 +488,28 @@ class Session:
         return target
 
 
-def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Tables (``name -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+#: Result files are named after what they hold; the thesis table stays the table's label
+#: (the key in ``tables``, the report's caption). Labels not listed are their own file names.
+RESULT_FILE_STEMS: dict[str, str] = {
+    "table_4_11": "forward_view_modulation",
+    "table_4_12": "radial_view_modulation",
+    "table_4_13": "image_heights_field_points",
+    "table_4_15": "averaged_mtf_vs_monte_carlo",
+    "table_4_16": "relative_radiometry",
+}
+_LABEL_OF_FILE = {stem: label for label, stem in RESULT_FILE_STEMS.items()}
 
+
+def result_file_stem(label: str) -> str:
+    """The file name (without ``.csv`` / ``.json``) a results table is written under."""
+    return RESULT_FILE_STEMS.get(label, label)
+
+
+def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+
+    Reads both the descriptive file names and the older thesis-table file names
+    (``table_4_11.json``), so sessions written before the rename still load.
     Raises :class:`SessionError` naming the file when a JSON file is unreadable.
     """
     tables: dict[str, Any] = {}
@@ -499,7 +522,7 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
         if p.stem == "summary":
             summary = data
         else:
-            tables[p.stem] = data
+            tables[_LABEL_OF_FILE.get(p.stem, p.stem)] = data
     return tables, summary
 
 

@@ -428,23 +428,12 @@ def list_sessions(root: Path) -> list[SessionSummary]:
 
 def session_tables(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """The latest results version of a session: ``(tables, summary)`` (empty if none)."""
-    import json
+    from benchlab.session import Session, read_results
 
-    from benchlab.session import Session
-
-    s = Session.open(path)
-    latest = s.latest_results()
-    tables: dict[str, Any] = {}
-    summary: dict[str, Any] = {}
+    latest = Session.open(path).latest_results()
     if latest is None:
-        return tables, summary
-    for p in sorted(Path(latest).glob("*.json")):
-        data = json.loads(p.read_text(encoding="utf-8"))
-        if p.stem == "summary":
-            summary = data
-        else:
-            tables[p.stem] = data
-    return tables, summary
+        return {}, {}
+    return read_results(latest)
 
 
 def table_rows(data: Any) -> tuple[list[str], list[Mapping[str, Any]]]:
