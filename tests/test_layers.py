@@ -1,4 +1,5 @@
-"""Imports point down only: tui/cli -> protocols -> session/bench -> scenes -> analysis -> drivers."""
+"""Imports point down only: tui/cli -> protocols -> session/bench -> scenes -> analysis
+-> drivers."""
 
 from __future__ import annotations
 
