@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, LightSource, LinearStage
 
@@ -35,8 +36,6 @@ if TYPE_CHECKING:
     from benchlab.scenes.world import SimWorld
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
 
-#: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
-Z8_COUNTS_PER_MM = 34554.96
 #: Simulated seconds per wall second on the simulated bench: stage moves take milliseconds.
 SIM_TIME_SCALE = 2000.0
 

@@ -23,10 +23,6 @@ from dataclasses import dataclass
 
 import serial
 
-try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
-    from termios import error as _TermiosError
-except ImportError:  # pragma: no cover - non-POSIX
-    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.apt_protocol import (
     CHAN1,
     DISABLE,
@@ -59,8 +55,8 @@ from benchlab.drivers.errors import (
     SettingOutOfRangeError,
 )
 from benchlab.drivers.interfaces import DeviceIdentity, LinearStage
+from benchlab.drivers.serial_port import IO_ERRORS, open_serial
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
 KEEPALIVE_PERIOD_S = 0.9  # the cube wants 0x0492 at least once a second while updates flow
@@ -123,8 +119,8 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     """Ask a cube for HW_GET_INFO only (no enable, no updates): safe for device listings."""
     frames = FrameReader(dests={HOST}, sources={UNIT, 0x11, *range(0x21, 0x2B)})
     try:
-        with serial.Serial(port, BAUD, rtscts=True, timeout=READ_POLL_S,
-                           write_timeout=timeout_s) as ser:
+        with open_serial(port, BAUD, rtscts=True, timeout=READ_POLL_S,
+                         write_timeout=timeout_s) as ser:
             ser.reset_input_buffer()
             ser.write(short(Msg.HW_REQ_INFO).pack())
             deadline = time.monotonic() + timeout_s
@@ -132,7 +128,7 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
                 for msg in frames.feed(ser.read(max(1, ser.in_waiting))):
                     if msg.msg_id == Msg.HW_GET_INFO and msg.data:
                         return HwInfo.unpack(msg.data)
-    except _IO_ERRORS as exc:
+    except IO_ERRORS as exc:
         raise DeviceLostError(f"stage: cannot query {port}: {exc}") from exc
     except ValueError as exc:
         raise AptBadReplyError(f"stage: bad HW_GET_INFO reply from {port}: {exc}") from None
@@ -193,12 +189,12 @@ class AptStage(LinearStage):
     # ---- lifecycle --------------------------------------------------------------------------
     def open(self) -> AptStage:
         try:
-            self._ser = serial.Serial(self.port, BAUD, bytesize=8, parity="N", stopbits=1,
-                                      rtscts=True, timeout=READ_POLL_S,
-                                      write_timeout=self.timeout_s)
+            self._ser = open_serial(self.port, BAUD, bytesize=8, parity="N", stopbits=1,
+                                    rtscts=True, timeout=READ_POLL_S,
+                                    write_timeout=self.timeout_s)
             self._ser.reset_input_buffer()
             self._ser.reset_output_buffer()
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             self._ser = None
             raise DeviceLostError(f"stage: cannot open {self.port}: {exc}") from exc
         self._closing.clear()
@@ -254,7 +250,7 @@ class AptStage(LinearStage):
         if ser is not None:
             try:
                 ser.close()
-            except _IO_ERRORS:
+            except IO_ERRORS:
                 pass
 
     # ---- identity and state -----------------------------------------------------------------
@@ -497,7 +493,7 @@ class AptStage(LinearStage):
         with self._write_lock:
             try:
                 ser.write(msg.pack())
-            except _IO_ERRORS as exc:
+            except IO_ERRORS as exc:
                 raise DeviceLostError(f"stage lost while sending {msg.name}: {exc}") from exc
         return seq
 
@@ -525,7 +521,7 @@ class AptStage(LinearStage):
         while ser is not None and not self._closing.is_set():
             try:
                 data = ser.read(max(1, ser.in_waiting))
-            except (*_IO_ERRORS, TypeError, AttributeError) as exc:
+            except (*IO_ERRORS, TypeError, AttributeError) as exc:
                 if not self._closing.is_set():
                     with self._cond:
                         self._lost = exc

@@ -22,6 +22,7 @@ from benchlab.drivers.apt_protocol import (
     HOST,
     STOP_IMMEDIATE,
     UNIT,
+    Z8_COUNTS_PER_MM,
     DcStatus,
     FrameReader,
     HwInfo,
@@ -133,7 +134,7 @@ class SimulatedAptStage(PtyDevice):
     def __init__(
         self,
         *,
-        counts_per_mm: float = 34554.96,
+        counts_per_mm: float = Z8_COUNTS_PER_MM,
         travel_mm: tuple[float, float] = (0.0, 25.0),
         velocity_mm_s: float = 2.0,
         clock: Clock | None = None,

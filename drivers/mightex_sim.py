@@ -38,6 +38,7 @@ from benchlab.drivers.mightex_sim_sensor import (
 )
 from benchlab.drivers.mightex_sim_usb import DeviceUnplugged, SimCameraBackend
 from benchlab.drivers.sensor import AcquisitionState, Scene
+from benchlab.drivers.sim_clock import ManualClock
 
 __all__ = [
     "BarTargetScene", "CameraFaults", "Clock", "FlatFieldScene", "ManualClock", "RealTimeClock",
@@ -73,13 +74,6 @@ class VirtualClock:
     def wait_until(self, t_s: float) -> bool:
         self._t = max(self._t, t_s)
         return True
-
-
-class ManualClock(VirtualClock):
-    """Like :class:`VirtualClock` but only :meth:`advance` moves it (tests own the time)."""
-
-    def wait_until(self, t_s: float) -> bool:
-        return False
 
 
 class RealTimeClock:

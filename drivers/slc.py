@@ -17,81 +17,45 @@ import re
 import signal
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass
-from enum import IntEnum
 from types import FrameType
 
 import serial
 
-try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
-    from termios import error as _TermiosError
-except ImportError:  # pragma: no cover - non-POSIX
-    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.errors import (
     DeviceError,
     DeviceLostError,
-    DeviceTimeoutError,
-    ProtocolError,
     SettingOutOfRangeError,
 )
 from benchlab.drivers.interfaces import DeviceIdentity, LightSource
+from benchlab.drivers.serial_port import IO_ERRORS, open_serial
+from benchlab.drivers.slc_protocol import (
+    ACK,
+    ARGUMENT_ERROR,
+    BAUD,
+    COMMAND_END,
+    EXECUTION_ERROR,
+    REPLY_END,
+    UNDEFINED,
+    SlcAckInsteadOfDataError,
+    SlcArgumentError,
+    SlcBadReplyError,
+    SlcCommandError,
+    SlcDeviceInfo,
+    SlcExecutionError,
+    SlcMode,
+    SlcNoReplyError,
+    SlcUnknownCommandError,
+    parse_current_reply,
+    parse_device_info,
+)
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
-BAUD = 9600
-COMMAND_END = b"\n\r"  # LF then CR - the order the SLC expects
-REPLY_END = b"\r\n"
+__all__ = [  # the protocol names are re-exported: callers keep importing them from here
+    "SlcAckInsteadOfDataError", "SlcArgumentError", "SlcBadReplyError", "SlcCommandError",
+    "SlcController", "SlcDeviceInfo", "SlcExecutionError", "SlcMode", "SlcNoReplyError",
+    "SlcUnknownCommandError", "parse_current_reply", "parse_device_info",
+]
+
 ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
-
-
-class SlcMode(IntEnum):
-    DISABLE = 0
-    NORMAL = 1
-    STROBE = 2
-    TRIGGER = 3
-
-
-# ---- exceptions: one per failure the wire can express, each naming the command -------------
-class SlcCommandError(ProtocolError):
-    """Base of SLC reply errors; ``command`` is the line that caused it."""
-
-    def __init__(self, command: str, message: str) -> None:
-        super().__init__(f"LED controller: {message} (command {command!r})")
-        self.command = command
-
-
-class SlcAckInsteadOfDataError(SlcCommandError):
-    """``##``: a query was acknowledged but no data came back."""
-
-
-class SlcExecutionError(SlcCommandError):
-    """``#!``: valid command, executed, but the controller reported an error."""
-
-
-class SlcArgumentError(SlcCommandError):
-    """``#?``: valid command, argument out of range (channel, mode or current)."""
-
-
-class SlcUnknownCommandError(SlcCommandError):
-    """``XXXX is not defined``: the firmware does not know this command."""
-
-
-class SlcBadReplyError(SlcCommandError):
-    """A reply that is garbled or carries impossible values."""
-
-
-class SlcNoReplyError(DeviceTimeoutError):
-    """Silence: nothing came back within the timeout."""
-
-    def __init__(self, command: str, timeout_s: float) -> None:
-        super().__init__(f"LED controller: no reply within {timeout_s:g} s (command {command!r})")
-        self.command = command
-
-
-@dataclass(frozen=True)
-class SlcDeviceInfo:
-    driver_version: str  # firmware ("Mightex LED Driver:3.1.8")
-    module: str  # e.g. "SLC-SA04-U/S"; "" when the firmware does not report it
-    serial: str
 
 
 # Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
@@ -99,31 +63,6 @@ _DECI_MA_FAMILIES = ("FA", "FV", "XA", "XV")
 _NORMAL_MAX_MA = {"HA": 2000.0, "HV": 2000.0, "FA": 100.0, "FV": 100.0, "XA": 100.0, "XV": 100.0}
 _DEFAULT_NORMAL_MAX_MA = 1000.0
 _MAX_PROBE_CHANNELS = 16
-
-
-def parse_device_info(text: str) -> SlcDeviceInfo:
-    """Parse a DEVICEINFO line by keyword (field order and presence vary by firmware)."""
-
-    def field(key: str) -> str:
-        m = re.search(re.escape(key) + r"\s*(\S+)", text)
-        return m.group(1) if m else ""
-
-    info = SlcDeviceInfo(field("Driver:"), field("Module No.:"), field("Serial No.:"))
-    if not info.driver_version or not info.serial:
-        raise SlcBadReplyError("DEVICEINFO", f"unrecognised device info {text!r}")
-    return info
-
-
-def parse_current_reply(command: str, payload: str) -> tuple[int, int]:
-    """``?CURRENT`` payload -> (Imax, Iset) in wire units: the last two fields, whatever precede."""
-    tokens = payload.split()
-    try:
-        imax, iset = int(tokens[-2]), int(tokens[-1])
-    except (IndexError, ValueError):
-        raise SlcBadReplyError(command, f"cannot read currents from {payload!r}") from None
-    if imax < 0 or iset < 0 or iset > imax:
-        raise SlcBadReplyError(command, f"impossible currents Imax={imax} Iset={iset}")
-    return imax, iset
 
 
 class SlcController(LightSource):
@@ -155,11 +94,11 @@ class SlcController(LightSource):
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
         try:
-            self._ser = serial.Serial(
+            self._ser = open_serial(
                 self.port, BAUD, bytesize=8, parity="N", stopbits=1,
                 timeout=self.timeout_s, write_timeout=self.timeout_s,
             )
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
             self._echo_off()
@@ -310,7 +249,7 @@ class SlcController(LightSource):
             ser.read_until(REPLY_END)  # an ack may or may not come; either is fine
             ser.timeout = self.timeout_s
             ser.reset_input_buffer()
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
     def _configure_family(self, module: str) -> None:
@@ -351,7 +290,7 @@ class SlcController(LightSource):
                 raw = ser.read_until(REPLY_END)
                 if ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
-            except _IO_ERRORS as exc:
+            except IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
                 self._off_pending = True
@@ -366,22 +305,22 @@ class SlcController(LightSource):
             text = raw.decode("ascii").strip()
         except UnicodeDecodeError:
             raise SlcBadReplyError(command, f"non-ASCII reply {raw!r}") from None
-        if "is not defined" in text:
+        if UNDEFINED in text:
             raise SlcUnknownCommandError(command, f"unknown command ({text})")
-        if text.startswith("#!"):
+        if text.startswith(EXECUTION_ERROR):
             raise SlcExecutionError(command, "controller reported an execution error (#!)")
-        if text.startswith("#?"):
+        if text.startswith(ARGUMENT_ERROR):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
 
     def _command(self, command: str) -> None:
         text = self._exchange(command)
-        if text != "##":
-            raise SlcBadReplyError(command, f"expected '##', got {text!r}")
+        if text != ACK:
+            raise SlcBadReplyError(command, f"expected {ACK!r}, got {text!r}")
 
     def _query_data(self, command: str) -> str:
         text = self._exchange(command)
-        if text == "##":
+        if text == ACK:
             raise SlcAckInsteadOfDataError(command, "acknowledged (##) but no data returned")
         if not text.startswith("#") or len(text) < 2:
             raise SlcBadReplyError(command, f"expected '#<data>', got {text!r}")
@@ -398,7 +337,7 @@ class SlcController(LightSource):
         if ser is not None:
             try:
                 ser.close()
-            except _IO_ERRORS:
+            except IO_ERRORS:
                 pass
 
     # ---- Ctrl-C and interpreter exit -------------------------------------------------------
