@@ -13,6 +13,7 @@ import re
 from dataclasses import dataclass, field, replace
 
 from benchlab.drivers.pty_device import Clock, PtyDevice
+from benchlab.drivers.sim_dispatch import CommandTable
 from benchlab.drivers.slc_protocol import (
     ACK,
     ARGUMENT_ERROR,
@@ -72,6 +73,8 @@ class SimulatedSlc(PtyDevice):
     """An SLC-xx0N controller: per-channel mode plus NORMAL / STROBE / TRIGGER parameter sets."""
 
     name = "slc-sim"
+    #: Verb (``?VERB`` for queries) -> handler taking the integer arguments.
+    commands: CommandTable[str] = CommandTable()
 
     def __init__(
         self,
@@ -145,7 +148,7 @@ class SimulatedSlc(PtyDevice):
             junk, f.garbage = f.garbage, None
             self.write(junk)
             return
-        handler = getattr(self, "_cmd_" + verb.replace("?", "Q_"), None)
+        handler = self.commands.handler(self, verb)
         if handler is None or verb in {v.upper() for v in f.undefined}:
             self._reply(f"    {words[0]} {UNDEFINED}")
             return
@@ -172,18 +175,22 @@ class SimulatedSlc(PtyDevice):
             return True
         return False
 
+    @commands.handles("ECHOOFF")
     def _cmd_ECHOOFF(self, args: list[int]) -> str | None:
         self.echo = False
         return ACK if self.echooff_ack else None
 
+    @commands.handles("ECHOON")
     def _cmd_ECHOON(self, args: list[int]) -> str | None:
         self.echo = True  # character echo itself is not simulated
         return ACK
 
+    @commands.handles("DEVICEINFO")
     def _cmd_DEVICEINFO(self, args: list[int]) -> str:
         module = f"Device Module No.:{self.module} " if self.module else ""  # old fw: absent
         return f"Mightex LED Driver:{self.firmware} {module}Device Serial No.:{self.serial}"
 
+    @commands.handles("MODE")
     def _cmd_MODE(self, args: list[int]) -> str:
         c = self._chan(args, 2)
         if c is None or args[1] not in SlcMode._value2member_map_:
@@ -191,12 +198,14 @@ class SimulatedSlc(PtyDevice):
         c.mode = SlcMode(args[1])
         return ACK
 
+    @commands.handles("?MODE")
     def _cmd_Q_MODE(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         if c is None:
             return ARGUMENT_ERROR
         return "#7" if self._take_out_of_range() else f"#{int(c.mode)}"
 
+    @commands.handles("NORMAL")
     def _cmd_NORMAL(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None:
@@ -208,6 +217,7 @@ class SimulatedSlc(PtyDevice):
         c.normal_imax, c.normal_iset = imax, iset
         return ACK
 
+    @commands.handles("CURRENT")
     def _cmd_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 2)
         if c is None or not 0 <= args[1] <= c.normal_imax:
@@ -215,6 +225,7 @@ class SimulatedSlc(PtyDevice):
         c.normal_iset = args[1]
         return ACK
 
+    @commands.handles("?CURRENT")
     def _cmd_Q_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         if c is None:
@@ -223,6 +234,7 @@ class SimulatedSlc(PtyDevice):
             return f"#{_CAL_FIELDS} 1000 4000"  # Iset above Imax: impossible
         return f"#{_CAL_FIELDS} {c.normal_imax} {c.normal_iset}"
 
+    @commands.handles("STROBE")
     def _cmd_STROBE(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None or not 0 <= args[1] <= self.pulsed_max_ma or not 0 <= args[2] <= 99_999_999:
@@ -230,10 +242,12 @@ class SimulatedSlc(PtyDevice):
         c.strobe_imax, c.strobe_repeat = args[1], args[2]
         return ACK
 
+    @commands.handles("?STROBE")
     def _cmd_Q_STROBE(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         return ARGUMENT_ERROR if c is None else f"#{c.strobe_imax} {c.strobe_repeat}"
 
+    @commands.handles("TRIGGER")
     def _cmd_TRIGGER(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None:
@@ -242,20 +256,24 @@ class SimulatedSlc(PtyDevice):
         c.trigger_imax, c.trigger_polarity = min(args[1], self.pulsed_max_ma), args[2]
         return ACK
 
+    @commands.handles("?TRIGGER")
     def _cmd_Q_TRIGGER(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         return ARGUMENT_ERROR if c is None else f"#{c.trigger_imax} {c.trigger_polarity}"
 
+    @commands.handles("STORE")
     def _cmd_STORE(self, args: list[int]) -> str:
         self._stored.channels = [_copy(c) for c in self.channels]
         return ACK
 
+    @commands.handles("RESET")
     def _cmd_RESET(self, args: list[int]) -> str:
         # Soft reset: back to the stored state, each channel resuming its stored mode; echo off.
         self.channels = [_copy(c) for c in self._stored.channels]
         self.echo = False
         return ACK
 
+    @commands.handles("RESTOREDEF")
     def _cmd_RESTOREDEF(self, args: list[int]) -> str:
         self.channels = [SimChannel() for _ in self.channels]  # volatile settings only
         return ACK
@@ -272,6 +290,7 @@ class SimulatedSlc(PtyDevice):
             lines.append("0 0")
         return "#" + " \r\n".join(lines)
 
+    @commands.handles("STRP")
     def _cmd_STRP(self, args: list[int]) -> str:
         c = self._chan(args, 4)
         if c is None or not 0 <= args[1] <= MAX_PROFILE_STEP or not 0 <= args[2] <= c.strobe_imax:
@@ -281,10 +300,12 @@ class SimulatedSlc(PtyDevice):
         c.strobe_profile[args[1]] = (args[2], args[3])
         return ACK
 
+    @commands.handles("?STRP")
     def _cmd_Q_STRP(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         return ARGUMENT_ERROR if c is None else self._profile_reply(c.strobe_profile)
 
+    @commands.handles("TRIGP")
     def _cmd_TRIGP(self, args: list[int]) -> str:
         c = self._chan(args, 4)
         if c is None:
@@ -293,6 +314,7 @@ class SimulatedSlc(PtyDevice):
         c.trigger_profile[args[1]] = (min(args[2], c.trigger_imax), args[3])
         return ACK
 
+    @commands.handles("?TRIGP")
     def _cmd_Q_TRIGP(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         return ARGUMENT_ERROR if c is None else self._profile_reply(c.trigger_profile)
