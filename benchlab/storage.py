@@ -4,8 +4,11 @@ Every file benchlab writes goes through :func:`atomic_write_bytes`: the data is 
 temporary file in the same folder, flushed and fsync'd, then renamed over the target, so a
 crash leaves either the old file or the new one, never half of either.
 
-Frames are TIFF (uncompressed or zlib, both lossless) with their acquisition metadata as JSON
-in the ImageDescription tag, so a frame is self-describing without any sidecar.
+Frames are lossless (zlib) ImageJ TIFFs, so Fiji/ImageJ opens them calibrated: pixel size in
+um (5.2 um sensor pitch times any binning), display range of the bit depth, Software
+"benchlab". The full acquisition metadata is JSON in the ImageJ ``Info`` property (Fiji: Image >
+Show Info), so a frame is self-describing without any sidecar. Frames written before that kept
+the JSON in the ImageDescription tag; :func:`load_frame_tiff` reads both.
 """
 
 from __future__ import annotations
@@ -24,10 +27,14 @@ import numpy.typing as npt
 import tifffile
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.mightex_protocol import BIN_ROWS
+from benchlab.drivers.sensor import PIXEL_PITCH_UM
 
 #: Marks benchlab's metadata inside a TIFF ImageDescription.
 METADATA_FORMAT = "benchlab.frame"
 METADATA_VERSION = 1
+#: The TIFF Software tag of every frame benchlab writes.
+SOFTWARE = "benchlab"
 
 
 def _current_umask() -> int:
@@ -125,10 +132,23 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     if arr.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"frame dtype must be uint8 or uint16, got {arr.dtype}")
     meta = {"format": METADATA_FORMAT, "version": METADATA_VERSION, **dict(metadata)}
-    description = json.dumps(meta, allow_nan=False, default=_json_default)
+    info = json.dumps(meta, allow_nan=False, default=_json_default)
+    x_um, y_um = pixel_size_um(meta)
+    imagej: dict[str, Any] = {"axes": "YX", "unit": "um", "Info": info}
+    bits = meta.get("bits")
+    if isinstance(bits, int) and 8 <= bits <= 16:
+        imagej.update(min=0.0, max=float(2**bits - 1))  # Fiji's display range: the bit depth
     buf = io.BytesIO()
-    tifffile.imwrite(buf, arr, description=description, metadata=None, compression="zlib")
+    tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
+                     metadata=imagej, software=SOFTWARE, compression="zlib")
     return buf.getvalue()
+
+
+def pixel_size_um(metadata: Mapping[str, Any]) -> tuple[float, float]:
+    """Pixel size ``(x, y)`` in um on the sensor: the pitch times the camera's binning
+    (vertical, from its ``bin_code``)."""
+    rows = BIN_ROWS.get(int(metadata.get("bin_code") or 0), 1)
+    return PIXEL_PITCH_UM, PIXEL_PITCH_UM * rows
 
 
 def save_frame_tiff(
@@ -153,7 +173,9 @@ def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dic
         with tifffile.TiffFile(p) as tif:
             page = tif.pages.first
             pixels = page.asarray()
-            description = page.description
+            # ImageJ frames keep the JSON in the Info property; older ones in the description.
+            ij = tif.imagej_metadata if tif.is_imagej else None
+            description = str(ij.get("Info") or "") if ij else page.description
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data
