@@ -1,41 +1,58 @@
-"""``benchlab report SESSION``: one self-contained HTML file (PNG plots embedded as base64).
+"""``benchlab report SESSION``: one self-contained HTML file (images embedded, nothing fetched).
 
-Contents: the session's identity (operator, devices, software, parameters), the results tables
-of its latest results version, measured vs simulated MTF per view and orientation (like the
-thesis's figs. 4.15-4.18), the radiometry fall-off (fig. 4.21), and the frames with their ROIs
-or LED masks drawn. The report only reads the session: frames and results are untouched.
+The page is a list of sections, one renderer per result kind (:data:`SECTIONS`): a new kind of
+result adds a module with a :class:`Section` and one entry here, not a branch in the page code.
+Contents of an MTF session: identity, results tables, measured CTF against the simulated optics
+converted to CTF, Table 4.15's verdict with the Monte Carlo bands, the frames with their ROIs and,
+for every ROI, the evidence behind its number (crop, histogram with the levels used, across-bar
+profile, reading with its interval, estimator, warnings). Radiometry: the fall-off and the frames
+with their LED masks. The report only reads the session: frames and results are untouched.
 """
 
 from __future__ import annotations
 
-import base64
-import html
-import io
-import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import numpy.typing as npt
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
-
-from benchlab.analysis.frequency import nyquist_lp_per_mm  # noqa: E402
-from benchlab.drivers.errors import BenchlabError  # noqa: E402
-from benchlab.report_curves import load_curves  # noqa: E402
-from benchlab.report_tables import TABLE_VIEWS, html_table  # noqa: E402
-from benchlab.session import Session, read_results  # noqa: E402
+from benchlab.drivers.errors import BenchlabError
+from benchlab.report_html import (
+    annotated_image,
+    display_8bit,
+    downsample,
+    enlarge,
+    esc,
+    figure_img,
+    flatten,
+    key_value_table,
+    local_time,
+    png_data_uri,
+    svg_rect,
+)
+from benchlab.report_tables import TABLE_VIEWS, html_table
+from benchlab.session import Session, read_results
 
 _CSS = """
-body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}
+body{font-family:system-ui,sans-serif;margin:2em;max-width:1250px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.9em}
 th,td{border:1px solid #bbb;padding:2px 8px;text-align:right}
 th{background:#eee} h2{border-bottom:1px solid #ccc;margin-top:2em}
-img{max-width:100%} pre{background:#f6f6f6;padding:0.8em;overflow:auto;font-size:0.8em}
-.note{color:#555;font-size:0.9em}
+table.kv td{text-align:left} table.kv th{text-align:left}
+img.plot{max-width:100%} .note{color:#555;font-size:0.9em}
+.frame{position:relative;display:inline-block;margin:4px;vertical-align:top}
+.frame svg{position:absolute;left:0;top:0} .frame img{image-rendering:pixelated}
+.roi-label{font-family:system-ui,sans-serif;paint-order:stroke;stroke:#000;stroke-width:2px}
+.roi-panel{border:1px solid #ccc;border-radius:4px;margin:8px 0;padding:4px 8px}
+.roi-panel h4{margin:2px 0 6px} .roi-body{display:flex;flex-wrap:wrap;gap:10px;align-items:start}
+.roi-body img.crop{image-rendering:pixelated;border:1px solid #888}
+.state{font-size:0.8em;padding:1px 6px;border-radius:3px;color:#fff}
+.state-resolved{background:#2e7d32} .state-unresolved{background:#c0392b}
+.state-aliased{background:#8e44ad} ul.warnings{color:#a35c00;margin:0;font-size:0.9em}
+ul.headline{font-size:1.05em} .warn{color:#a35c00}
 """
 
 
@@ -43,59 +60,205 @@ class ReportError(BenchlabError):
     """The session has nothing to report yet (no results)."""
 
 
-def _png(fig: Figure) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
-    plt.close(fig)
-    return ("<img alt='figure' src='data:image/png;base64,"
-            + base64.b64encode(buf.getvalue()).decode("ascii") + "'>")
+@dataclass
+class ReportContext:
+    """What every section renderer reads: the session and its latest results."""
+
+    session: Session
+    results_path: Path
+    tables: dict[str, list[dict[str, Any]]]
+    doc: dict[str, Any]
+    _frames: dict[tuple[str, str], tuple[npt.NDArray[Any], dict[str, Any]]] = field(
+        default_factory=dict)
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        return dict(self.doc.get("summary") or {})
+
+    def frame(self, step_id: str, name: str) -> tuple[npt.NDArray[Any], dict[str, Any]] | None:
+        """A saved frame (cached: several sections draw the same one); None if not saved."""
+        key = (step_id, name)
+        if key not in self._frames:
+            if name not in self.session.step_frames(step_id):
+                return None
+            self._frames[key] = self.session.load_frame(step_id, name)
+        return self._frames[key]
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of the page. ``procedures`` limits it to sessions of those procedures."""
+
+    title: str
+    render: Callable[[ReportContext], str]
+    procedures: tuple[str, ...] | None = None
+    anchor: str = ""
+
+
+# -- identity, tables, parameters ---------------------------------------------------------------
+def _identity(ctx: ReportContext) -> str:
+    meta = ctx.session.meta
+    rows: list[tuple[str, Any]] = [
+        ("operator", meta.get("operator") or "-"), ("status", meta.get("status")),
+        ("started", local_time(meta.get("started_at"))),
+        ("finished", local_time(meta.get("finished_at"))),
+        ("software", meta.get("software_version")),
+        ("results", f"{ctx.results_path.name} (estimator {ctx.doc.get('estimator')}, "
+                    f"{local_time(ctx.doc.get('created_at'))})")]
+    for kind, dev in (meta.get("devices") or {}).items():
+        if isinstance(dev, dict):
+            rows.append((kind, ", ".join(f"{k} {v}" for k, v in dev.items())))
+        else:
+            rows.append((kind, str(dev)))
+    return key_value_table(rows)
+
+
+def _tables(ctx: ReportContext) -> str:
+    summ = ctx.summary
+    notes = []
+    for key in ("forward_estimator", "radial_estimator", "image_centre_method",
+                "chart_offset_px"):
+        if summ.get(key) is not None:
+            notes.append(f"{key.replace('_', ' ')}: {summ[key]}")
+    centre = summ.get("image_centre_rc")
+    if centre:
+        notes.append("image centre (row, col): " + ", ".join(f"{float(v):.1f}" for v in centre))
+    out = []
+    if notes:
+        out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
+                   "(row, col); the thesis quotes 1-based ones.</p>")
+    for name, rows in ctx.tables.items():
+        view = TABLE_VIEWS.get(name)
+        if view is not None and rows:
+            out.append(f"<h3>{esc(view.title)}</h3>{html_table(rows, view.columns)}")
+    return "".join(out)
+
+
+def _parameters(ctx: ReportContext) -> str:
+    return key_value_table(flatten(ctx.session.meta.get("params") or {}), "kv params")
 
 
 # -- MTF ----------------------------------------------------------------------------------------
-def _mtf_figure(tables: dict[str, list[dict[str, Any]]], curves_path: str) -> str:
+def _ctf(ctx: ReportContext) -> str:
+    from benchlab.report_curves import load_curves
+    from benchlab.report_mtf import ctf_figure
+
+    curves_file = str(ctx.session.params.get("analysis", {}).get("simulated_mtf_file", ""))
     try:
-        curves = load_curves(curves_path or None)
+        curves = load_curves(curves_file or None)
     except (OSError, ValueError) as exc:
-        curves = []
-        note = f"<p class='note'>No simulated curves: {html.escape(str(exc))}</p>"
+        curves, note = [], f"<p class='note'>No simulated curves: {esc(str(exc))}</p>"
     else:
         note = ""
-    fields_used: dict[str, set[float]] = {"forward": set(), "radial": set()}
-    for r in tables.get("table_4_13", []):
-        fields_used.setdefault(r["view"], set()).add(float(r["nearest_field_deg"]))
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8), sharey=True)
-    nyq = nyquist_lp_per_mm()
-    for i, (view, table) in enumerate((("forward", "table_4_11"), ("radial", "table_4_12"))):
-        rows = tables.get(table, [])
-        for j, (orient, d) in enumerate((("sagittal", "S"), ("tangential", "T"))):
-            ax = axes[i][j]
-            for c in curves:
-                if c.view != view or c.direction != d:
-                    continue
-                used = c.field_angle_deg in fields_used.get(view, set())
-                ax.plot(c.freqs_lp_per_mm, c.mtf, "-" if used else ":", lw=1.5 if used else 0.8,
-                        label=f"simulated {c.field_angle_deg:g} deg" + (" (nearest)" if used
-                                                                        else ""))
-            xs = [r["image_lp_per_mm"] for r in rows if r.get(f"{orient}_modulation") is not None]
-            ys = [r[f"{orient}_modulation"] for r in rows
-                  if r.get(f"{orient}_modulation") is not None]
-            es = [r.get(f"{orient}_uncertainty") or 0.0 for r in rows
-                  if r.get(f"{orient}_modulation") is not None]
-            if xs:
-                ax.errorbar(xs, ys, yerr=es, fmt="o", color="k", label="measured (bar modulation)")
-            ax.axvline(nyq, color="r", lw=0.8, ls="--", label="Nyquist 96.15 lp/mm")
-            ax.set_title(f"{view} view, {orient}")
-            ax.set_xlabel("image frequency (lp/mm)")
-            ax.set_ylabel("modulation / MTF")
-            ax.set_ylim(0, 1.05)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=7)
-    fig.tight_layout()
-    return note + _png(fig)
+    return ("<p class='note'>Points: measured bar contrast (Eq. 2.9, the square-wave response, "
+            "CTF) with 1-sigma uncertainty; lines: the simulated sine-wave MTF of the Table 4.14 "
+            "field points converted to CTF with Coltman's series, solid where a test's nearest "
+            "field point. Triangles: not resolved; crosses: aliased (above Nyquist) - neither is "
+            "a measured 0.</p>" + note + ctf_figure(ctx.tables, curves))
+
+
+def _verdict(ctx: ReportContext) -> str:
+    from benchlab.report_mtf import verdict_section
+
+    return verdict_section(ctx.tables.get("table_4_15", []))
+
+
+def _radial_roi(ctx: ReportContext, meta: dict[str, Any]) -> list[int]:
+    roi = meta.get("roi") or ctx.session.params.get("radial", {}).get("roi")
+    return list(roi) if roi else [249, 999, 290, 1050]
+
+
+def _radial_frames(ctx: ReportContext) -> list[tuple[dict[str, Any], str, str]]:
+    frames = [(r, orient, f"radial-{r['object_lp_per_mm']:g}-{orient}")
+              for r in ctx.tables.get("table_4_12", []) for orient in ("sagittal", "tangential")]
+    return [f for f in frames if ctx.frame(f[2], "radial") is not None]
+
+
+def _mtf_frames(ctx: ReportContext) -> str:
+    parts = []
+    rows = ctx.tables.get("table_4_11", [])
+    fwd = ctx.frame("forward", "forward")
+    if fwd is not None:
+        px, _ = fwd
+        small, scale = downsample(display_8bit(px), 640)
+        boxes = [(r["sagittal_roi"], "#f1c40f", r["element"] + "S") for r in rows] + [
+            (r["tangential_roi"], "#00bcd4", r["element"] + "T") for r in rows]
+        overlay = "".join(svg_rect(c0 * scale, r0 * scale, (c1 - c0) * scale, (r1 - r0) * scale,
+                                   color) for (r0, c0, r1, c1), color, _ in boxes)
+        parts.append(annotated_image(png_data_uri(small), small.shape[1], small.shape[0], overlay,
+                                     "forward view with the element ROIs"))
+        if boxes:  # the ROIs at full resolution, enlarged 2x, labelled
+            rr0 = max(min(b[0][0] for b in boxes) - 16, 0)
+            cc0 = max(min(b[0][1] for b in boxes) - 12, 0)
+            rr1 = min(max(b[0][2] for b in boxes) + 16, px.shape[0])
+            cc1 = min(max(b[0][3] for b in boxes) + 30, px.shape[1])
+            k = max(1, min(4, 900 // max(cc1 - cc0, 1)))
+            zoom = enlarge(display_8bit(px[rr0:rr1, cc0:cc1]), k)
+            # Sagittal labels above their box, tangential below: neighbours never overlap.
+            overlay = "".join(svg_rect((c0 - cc0) * k, (r0 - rr0) * k, (c1 - c0) * k,
+                                       (r1 - r0) * k, color, label, 11.0,
+                                       "above" if label.endswith("S") else "below")
+                              for (r0, c0, r1, c1), color, label in boxes)
+            parts.append(annotated_image(png_data_uri(zoom), zoom.shape[1], zoom.shape[0],
+                                         overlay, "zoom on the ROIs (full resolution)"))
+        parts.append("<p class='note'>Sagittal ROIs yellow, tangential cyan. The overview is "
+                     "reduced with an area filter; the zoom shows every pixel.</p>")
+    radial = _radial_frames(ctx)
+    for r, orient, sid in radial:
+        loaded = ctx.frame(sid, "radial")
+        assert loaded is not None
+        px, meta = loaded
+        r0, c0, r1, c1 = _radial_roi(ctx, meta)
+        m = 50
+        rr0, cc0 = max(r0 - m, 0), max(c0 - m, 0)
+        rr1, cc1 = min(r1 + m, px.shape[0]), min(c1 + m, px.shape[1])
+        crop = display_8bit(px[rr0:rr1, cc0:cc1], 255.0 if px.dtype == np.uint8 else None)
+        overlay = (svg_rect(c0 - cc0, r0 - rr0, c1 - c0, r1 - r0, "#f1c40f")
+                   + f"<text x='4' y='14' fill='#f1c40f' font-size='12' class='roi-label'>"
+                   f"{r['object_lp_per_mm']:g} lp/mm {orient}</text>")
+        parts.append(annotated_image(png_data_uri(crop), crop.shape[1], crop.shape[0], overlay,
+                                     f"radial {r['object_lp_per_mm']:g} {orient}"))
+    if radial:
+        parts.append("<p class='note'>Radial frames around the common ROI (yellow), at full "
+                     "resolution.</p>")
+    return "".join(parts)
+
+
+def _evidence(ctx: ReportContext) -> str:
+    from benchlab.report_roi import RoiReading, roi_panel
+
+    summ = ctx.summary
+    est_f = str(summ.get("forward_estimator") or ctx.doc.get("estimator"))
+    est_r = str(summ.get("radial_estimator") or ctx.doc.get("estimator"))
+    why = ("the default (auto)" if ctx.doc.get("estimator") in (None, "", "auto")
+           else "chosen for this analysis")
+    parts = []
+    fwd = ctx.frame("forward", "forward")
+    if fwd is not None:
+        for row in ctx.tables.get("table_4_11", []):
+            for orient in ("sagittal", "tangential"):
+                reading = RoiReading.from_row(
+                    row, orient, label=f"{row['element']} {orient}", view="forward",
+                    roi=row[f"{orient}_roi"], estimator=f"{est_f} ({why})")
+                parts.append(roi_panel(fwd[0], reading))
+    for r, orient, sid in _radial_frames(ctx):
+        loaded = ctx.frame(sid, "radial")
+        assert loaded is not None
+        reading = RoiReading.from_row(
+            r, orient, label=f"radial {r['object_lp_per_mm']:g} lp/mm {orient}", view="radial",
+            roi=r.get("roi") or _radial_roi(ctx, loaded[1]), estimator=f"{est_r} ({why})")
+        parts.append(roi_panel(loaded[0], reading))
+    return "".join(parts)
 
 
 # -- radiometry ---------------------------------------------------------------------------------
-def _radiometry_figure(rows: list[dict[str, Any]]) -> str:
+def _radiometry_figure(ctx: ReportContext) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = ctx.tables.get("table_4_16", [])
     fig, ax = plt.subplots(figsize=(7, 4.5))
     pos = [r["position_mm"] for r in rows]
     ax.plot(pos, [r["simulated_normalised"] for r in rows], "s--", label="simulated irradiance")
@@ -106,157 +269,87 @@ def _radiometry_figure(rows: list[dict[str, Any]]) -> str:
     ax.set_title("Relative radiometry (fig. 4.21)")
     ax.grid(alpha=0.3)
     ax.legend()
-    return _png(fig)
+    fig.tight_layout()
+    return figure_img(fig, "radiometric fall-off")
 
 
-# -- frames -------------------------------------------------------------------------------------
-def _frame_axes(pixels: np.ndarray, title: str, ax: Any) -> None:
-    ax.imshow(pixels, cmap="gray", vmin=0, vmax=255 if pixels.dtype == np.uint8 else 4095,
-              interpolation="nearest")
-    ax.set_title(title, fontsize=9)
-    ax.set_xticks([])
-    ax.set_yticks([])
+def _radiometry_frames(ctx: ReportContext) -> str:
+    import cv2
 
-
-def _box(ax: Any, roi: list[int], color: str, label: str | None = None) -> None:
-    r0, c0, r1, c1 = roi
-    ax.add_patch(Rectangle((c0 - 0.5, r0 - 0.5), c1 - c0, r1 - r0, fill=False, ec=color, lw=1))
-    if label:
-        ax.text(c1 + 2, r0, label, color=color, fontsize=6, va="top")
-
-
-def _mtf_frames(session: Session, tables: dict[str, list[dict[str, Any]]]) -> str:
-    parts = []
-    rows = tables.get("table_4_11", [])
-    if "forward" in session.step_frames("forward"):
-        px, _ = session.load_frame("forward", "forward")
-        fig, axes = plt.subplots(1, 2, figsize=(12, 5))
-        _frame_axes(px, "forward view with the element ROIs (S yellow, T cyan)", axes[0])
-        boxes = [(r["sagittal_roi"], "y", r["element"] + "S") for r in rows] + [
-            (r["tangential_roi"], "c", r["element"] + "T") for r in rows]
-        for roi, color, _label in boxes:
-            _box(axes[0], roi, color)
-        _frame_axes(px, "zoom on the ROIs", axes[1])
-        all_r = [b[0] for b in boxes]
-        if all_r:
-            r0 = min(b[0] for b in all_r) - 15
-            r1 = max(b[2] for b in all_r) + 15
-            c0 = min(b[1] for b in all_r) - 15
-            c1 = max(b[3] for b in all_r) + 40
-            for roi, color, label in boxes:
-                _box(axes[1], roi, color, label)
-            axes[1].set_xlim(c0, c1)
-            axes[1].set_ylim(r1, r0)
-        parts.append(_png(fig))
-    radial_rows = tables.get("table_4_12", [])
-    shown = 0
-    frames = [(r, orient, f"radial-{r['object_lp_per_mm']:g}-{orient}")
-              for r in radial_rows for orient in ("sagittal", "tangential")]
-    frames = [f for f in frames if "radial" in session.step_frames(f[2])]
-    if frames:
-        ncols = 4
-        nrows = max(1, -(-len(frames) // ncols))
-        fig, axes = plt.subplots(nrows, ncols, figsize=(12, 3 * nrows))
-        flat = np.atleast_1d(axes).ravel()
-        for r, orient, sid in frames:
-            px, meta = session.load_frame(sid, "radial")
-            ax = flat[shown]
-            roi = meta.get("roi") or _radial_roi(session)
-            _frame_axes(px, f"{r['object_lp_per_mm']:g} lp/mm {orient}", ax)
-            if roi:
-                r0, c0, r1, c1 = roi
-                _box(ax, roi, "y")
-                ax.set_xlim(c0 - 60, c1 + 60)
-                ax.set_ylim(r1 + 60, r0 - 60)
-            shown += 1
-        for ax in flat[shown:]:
-            ax.axis("off")
-        fig.suptitle("radial frames around the common ROI (yellow)")
-        parts.append(_png(fig))
-    return "".join(parts)
-
-
-def _radial_roi(session: Session) -> list[int] | None:
-    roi = session.params.get("radial", {}).get("roi")
-    return list(roi) if roi else [249, 999, 290, 1050]
-
-
-def _radiometry_frames(session: Session, rows: list[dict[str, Any]]) -> str:
     from benchlab.protocols.radiometry import mask_of, position_step_id
 
-    if not rows:
-        return ""
-    fig, axes = plt.subplots(1, len(rows), figsize=(3 * len(rows), 3.2))
-    thr = float(session.params.get("analysis", {}).get("mask_threshold_fraction", 0.5))
-    for ax, r in zip(np.atleast_1d(axes), rows, strict=True):
+    thr = float(ctx.session.params.get("analysis", {}).get("mask_threshold_fraction", 0.5))
+    parts = []
+    for r in ctx.tables.get("table_4_16", []):
         sid = position_step_id(r["position_mm"])
-        mask_px, _ = session.load_frame(sid, "mask")
-        meas, _ = session.load_frame(sid, "measurement")
-        mask = mask_of(mask_px, thr)
-        _frame_axes(meas, f"{r['position_mm']:g} mm (mask outlined)", ax)
-        ax.contour(mask.astype(float), levels=[0.5], colors="y", linewidths=0.8)
+        mask_f, meas_f = ctx.frame(sid, "mask"), ctx.frame(sid, "measurement")
+        if mask_f is None or meas_f is None:
+            continue
+        mask = mask_of(mask_f[0], thr)
         rows_idx, cols_idx = np.nonzero(mask)
+        meas = meas_f[0]
         if rows_idx.size:
-            ax.set_xlim(cols_idx.min() - 30, cols_idx.max() + 30)
-            ax.set_ylim(rows_idx.max() + 30, rows_idx.min() - 30)
-    fig.tight_layout()
-    return _png(fig)
+            r0, r1 = max(int(rows_idx.min()) - 30, 0), min(int(rows_idx.max()) + 31, meas.shape[0])
+            c0, c1 = max(int(cols_idx.min()) - 30, 0), min(int(cols_idx.max()) + 31, meas.shape[1])
+        else:
+            r0, r1, c0, c1 = 0, meas.shape[0], 0, meas.shape[1]
+        grey = display_8bit(meas[r0:r1, c0:c1])
+        rgb: npt.NDArray[np.uint8] = np.asarray(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR),
+                                                dtype=np.uint8)
+        contours, _ = cv2.findContours(mask[r0:r1, c0:c1].astype(np.uint8), cv2.RETR_EXTERNAL,
+                                       cv2.CHAIN_APPROX_NONE)
+        cv2.drawContours(rgb, contours, -1, (0, 255, 255), 1)
+        img, _ = downsample(rgb, 300)
+        parts.append(annotated_image(png_data_uri(img), img.shape[1], img.shape[0],
+                                     f"<text x='4' y='14' fill='#ff0' font-size='12' "
+                                     f"class='roi-label'>{r['position_mm']:g} mm</text>",
+                                     f"LED at {r['position_mm']:g} mm"))
+    return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
 
 
-# -- the page -----------------------------------------------------------------------------------
-def render_report(session_path: str | Path) -> str:
-    """The report of a session as one HTML string."""
+#: The page, in order. A new kind of result: a module with a renderer, and one entry here.
+SECTIONS: list[Section] = [
+    Section("Session", _identity, anchor="session"),
+    Section("Results", _tables, anchor="results"),
+    Section("Measured vs simulated bar contrast (figs. 4.15-4.18)", _ctf, ("mtf",), "ctf"),
+    Section("Table 4.15 verdict: averaged MTF against the Monte Carlo prediction", _verdict,
+            ("mtf",), "verdict"),
+    Section("Frames with ROIs", _mtf_frames, ("mtf",), "frames"),
+    Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
+    Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
+    Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
+    Section("Parameters", _parameters, anchor="parameters"),
+]
+
+
+def render_report(session_path: str | Path,
+                  timings: dict[str, float] | None = None) -> str:
+    """The report of a session as one HTML string; ``timings`` (if given) receives the
+    seconds each section took, by anchor (for ``benchlab benchmark report``)."""
+    import time
+
     session = Session.open(Path(session_path))
     results = session.latest_results()
     if results is None:
         raise ReportError(f"{session.path}: no results yet (finish the run or resume it, or "
                           "run benchlab analyze on it)")
     tables, doc = read_results(results)
-    meta = session.meta
-    esc = html.escape
+    ctx = ReportContext(session=session, results_path=results, tables=tables, doc=doc)
+    procedure = session.meta["procedure"]
     out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>benchlab report "
            f"{esc(session.path.name)}</title><style>{_CSS}</style></head><body>",
-           f"<h1>benchlab - {esc(meta['procedure'])} session {esc(session.path.name)}</h1>"]
-    ident = [("operator", meta.get("operator") or "-"), ("status", meta.get("status")),
-             ("started", meta.get("started_at")), ("finished", meta.get("finished_at") or "-"),
-             ("software", meta.get("software_version")),
-             ("results", f"{results.name} (estimator {doc.get('estimator')}, "
-                         f"{doc.get('created_at')})")]
-    for kind, dev in (meta.get("devices") or {}).items():
-        if isinstance(dev, dict):
-            ident.append((kind, ", ".join(f"{k} {v}" for k, v in dev.items())))
-        else:
-            ident.append((kind, str(dev)))
-    out.append("<table>" + "".join(f"<tr><th>{esc(str(k))}</th><td style='text-align:left'>"
-                                   f"{esc(str(v))}</td></tr>" for k, v in ident) + "</table>")
-    out.append("<h2>Results</h2>")
-    summ = doc.get("summary") or {}
-    notes = [f"{k.replace('_', ' ')}: {v}" for k, v in summ.items()
-             if k in ("forward_estimator", "radial_estimator", "image_centre_rc",
-                      "image_centre_method", "chart_offset_px") and v is not None]
-    if notes:
-        out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
-                   "(row, col); the thesis quotes 1-based ones.</p>")
-    for name, rows in tables.items():
-        view = TABLE_VIEWS.get(name)
-        if view is not None and rows:
-            out.append(f"<h3>{esc(view.title)}</h3>{html_table(rows, view.columns)}")
-    if meta["procedure"] == "mtf":
-        out.append("<h2>Measured vs simulated MTF (figs. 4.15-4.18)</h2>"
-                   "<p class='note'>Points: measured bar modulation (Eq. 2.9, square-wave "
-                   "response) with 1-sigma uncertainty; lines: simulated sine-wave MTF of the "
-                   "Table 4.14 field points, solid where a test's nearest field point. Points "
-                   "beyond Nyquist are aliased.</p>")
-        curves_file = str(session.params.get("analysis", {}).get("simulated_mtf_file", ""))
-        out.append(_mtf_figure(tables, curves_file))
-        out.append("<h2>Frames with ROIs</h2>" + _mtf_frames(session, tables))
-    else:
-        rows = tables.get("table_4_16", [])
-        out.append("<h2>Radiometric fall-off (fig. 4.21)</h2>" + _radiometry_figure(rows))
-        out.append("<h2>Measurement frames with LED masks</h2>"
-                   + _radiometry_frames(session, rows))
-    out.append("<h2>Parameters</h2><pre>" + esc(json.dumps(meta.get("params"), indent=2))
-               + "</pre></body></html>")
+           f"<h1>benchlab - {esc(procedure)} session {esc(session.path.name)}</h1>"]
+    for section in SECTIONS:
+        if section.procedures is not None and procedure not in section.procedures:
+            continue
+        t0 = time.perf_counter()
+        body = section.render(ctx)
+        if timings is not None:
+            timings[section.anchor] = time.perf_counter() - t0
+        if body:
+            out.append(f"<section id='{section.anchor}'><h2>{esc(section.title)}</h2>"
+                       f"{body}</section>")
+    out.append("</body></html>")
     return "".join(out)
 
 

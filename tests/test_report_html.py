@@ -28,9 +28,15 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     assert out == outcome.session_path / "report.html"
     text = out.read_text()
     for title in ("Table 4.11", "Table 4.12", "Tables 4.13-4.14", "Table 4.15",
-                  "Measured vs simulated MTF", "Frames with ROIs", "G1E5", "SIM-130001"):
+                  "Measured vs simulated bar contrast", "Table 4.15 verdict", "Frames with ROIs",
+                  "Evidence per ROI", "G1E5", "SIM-130001"):
         assert title in text
-    assert text.count("data:image/png;base64,") == 3  # MTF curves, forward ROIs, radial ROIs
+    # Plots: CTF and Monte Carlo bands; frames: forward overview + zoom + 4 radial crops;
+    # evidence: one crop per ROI (2 elements x S/T + 2 radial frequencies x S/T).
+    assert text.count("class='plot'") == 2
+    assert text.count("class='roi-panel'") == 8
+    assert text.count("class='crop'") == 8
+    assert text.count("data:image/png;base64,") == 2 + 6 + 8
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
     assert "src='http" not in text and "<script" not in text  # nothing fetched from outside
@@ -42,7 +48,11 @@ def test_radiometry_report_has_the_fall_off(tmp_path: Path) -> None:
     outcome = run_sim("radiometry", tmp_path, RAD_SMALL)
     text = render_report(outcome.session_path)
     assert "Table 4.16" in text and "fig. 4.21" in text
-    assert text.count("data:image/png;base64,") == 2  # fall-off, frames with masks
+    assert text.count("class='plot'") == 1  # the fall-off
+    # one measurement frame per position, mask outlined
+    n_positions = text.count("alt='LED at")
+    assert n_positions == 3  # radiometry-small.toml's three positions
+    assert text.count("data:image/png;base64,") == 1 + n_positions
 
 
 def test_report_of_a_session_without_results_says_so(tmp_path: Path) -> None:
