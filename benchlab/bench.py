@@ -14,6 +14,7 @@ own exit hooks repeat it if the process dies in between.
 from __future__ import annotations
 
 import contextlib
+import logging
 import threading
 import tomllib
 from collections.abc import Iterator, Mapping
@@ -35,6 +36,8 @@ if TYPE_CHECKING:
     from benchlab.drivers.slc_sim import SimulatedSlc
     from benchlab.scenes.world import SimWorld
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
+
+log = logging.getLogger(__name__)
 
 #: Simulated seconds per wall second on the simulated bench: stage moves take milliseconds.
 SIM_TIME_SCALE = 2000.0
@@ -246,6 +249,7 @@ class Bench:
 
     def safe_state(self) -> None:
         """Every LED channel off and the stage stopped; tries both even if one fails."""
+        log.debug("safe state: LEDs off, stage stopped")
         errors: list[str] = []
         if self.led is not None:
             try:
@@ -258,6 +262,7 @@ class Bench:
             except DeviceError as exc:
                 errors.append(f"stage: {exc}")
         if errors:
+            log.error("could not reach the safe state: %s", "; ".join(errors))
             raise BenchError("could not reach the safe state: " + "; ".join(errors))
 
     # -- identities -----------------------------------------------------------------------------

@@ -523,7 +523,7 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
             summary = data
         else:
             tables[_LABEL_OF_FILE.get(p.stem, p.stem)] = data
-    return tables, summary
+    return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
 
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import logging
 import os
 import tempfile
 from collections.abc import Mapping
@@ -29,6 +30,8 @@ import tifffile
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.mightex_protocol import BIN_ROWS
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
+
+log = logging.getLogger(__name__)
 
 #: Marks benchlab's metadata inside a TIFF ImageDescription.
 METADATA_FORMAT = "benchlab.frame"
@@ -159,7 +162,9 @@ def save_frame_tiff(
     overwrite: bool = False,
 ) -> Path:
     """Save a frame losslessly and atomically; by default refuses to replace an existing file."""
-    return atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+    saved = atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+    log.debug("frame saved: %s", saved)
+    return saved
 
 
 def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dict[str, Any]]:

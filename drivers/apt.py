@@ -15,6 +15,7 @@ interrupted (timeout, Ctrl-C) and at interpreter exit.
 from __future__ import annotations
 
 import collections
+import logging
 import math
 import threading
 import time
@@ -56,6 +57,8 @@ from benchlab.drivers.errors import (
 )
 from benchlab.drivers.interfaces import DeviceIdentity, LinearStage
 from benchlab.drivers.serial_port import IO_ERRORS, open_serial
+
+log = logging.getLogger(__name__)
 
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
@@ -119,7 +122,7 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     """Ask a cube for HW_GET_INFO only (no enable, no updates): safe for device listings."""
     frames = FrameReader(dests={HOST}, sources={UNIT, 0x11, *range(0x21, 0x2B)})
     try:
-        with open_serial(port, BAUD, rtscts=True, timeout=READ_POLL_S,
+        with open_serial(port, BAUD, device="stage", rtscts=True, timeout=READ_POLL_S,
                          write_timeout=timeout_s) as ser:
             ser.reset_input_buffer()
             ser.write(short(Msg.HW_REQ_INFO).pack())
@@ -189,8 +192,8 @@ class AptStage(LinearStage):
     # ---- lifecycle --------------------------------------------------------------------------
     def open(self) -> AptStage:
         try:
-            self._ser = open_serial(self.port, BAUD, bytesize=8, parity="N", stopbits=1,
-                                    rtscts=True, timeout=READ_POLL_S,
+            self._ser = open_serial(self.port, BAUD, device="stage", bytesize=8, parity="N",
+                                    stopbits=1, rtscts=True, timeout=READ_POLL_S,
                                     write_timeout=self.timeout_s)
             self._ser.reset_input_buffer()
             self._ser.reset_output_buffer()
@@ -216,6 +219,8 @@ class AptStage(LinearStage):
                 self._updates_started = True
             self.status  # noqa: B018 - reads homed state into the cache
             self._register_atexit()
+            log.info("stage %s serial %s on %s (homed: %s)", self._info.model, self._info.serial,
+                     self.port, self.is_homed)
         except BaseException:
             self._shutdown_port()
             raise
@@ -354,6 +359,7 @@ class AptStage(LinearStage):
     def _do_move_to_mm(self, position_mm: float, *, wait: bool,
                        timeout_s: float | None) -> None:
         """Absolute move; limits (in counts, after rounding) and homing checked first."""
+        log.debug("stage: move to %.4f mm", position_mm)
         counts = self._target_counts(position_mm)
         self._check_homed()
         seq = self._send(long(Msg.MOT_MOVE_ABSOLUTE, pack_position(counts)))

@@ -18,6 +18,7 @@ from __future__ import annotations
 import array
 import errno
 import functools
+import logging
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -30,6 +31,7 @@ import numpy.typing as npt
 import usb.core
 import usb.util
 
+from benchlab.drivers import io_trace
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.errors import (
     DeviceError,
@@ -40,6 +42,8 @@ from benchlab.drivers.errors import (
     SettingOutOfRangeError,
 )
 from benchlab.drivers.interfaces import Camera, DeviceIdentity, Frame
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "CameraInfo", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
@@ -234,6 +238,8 @@ class MightexCamera(Camera):
                 except BaseException:
                     cam.close()
                     raise
+                log.info("camera %s serial %s firmware %s opened", cam.info.model,
+                         cam.info.serial, cam.info.firmware)
                 return cam
             seen.append(cam.info.serial)
             cam.close()
@@ -293,6 +299,7 @@ class MightexCamera(Camera):
     def reopen(self) -> None:
         """Reconnect to the same serial number (after a lost device) and restore all settings."""
         settings = self._settings
+        log.warning("camera %s: reconnecting", self.info.serial)
         self.close()
         fresh = type(self).open(self.info.serial, backend=self._backend, pid=self.info.pid,
                                 model=self._spec.model)
@@ -327,6 +334,7 @@ class MightexCamera(Camera):
         return self._dev
 
     def _send(self, data: bytes) -> None:
+        io_trace.record("camera", ">", data)
         with _usb_errors(f"command 0x{data[0]:02X}"):
             self._device.write(p.EP_COMMAND_OUT, data, REPLY_TIMEOUT_MS)
 
@@ -334,7 +342,7 @@ class MightexCamera(Camera):
         for _ in range(8):
             try:
                 with _usb_errors("drain"):
-                    self._device.read(p.EP_REPLY_IN, 255, 20)
+                    io_trace.record("camera", "<", self._device.read(p.EP_REPLY_IN, 255, 20))
             except DeviceTimeoutError:
                 return
         self._resync_replies = False
@@ -347,6 +355,7 @@ class MightexCamera(Camera):
         try:
             with _usb_errors(what):
                 reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
+            io_trace.record("camera", "<", reply)
             return p.decode_reply(reply, what, expected_len)
         except (DeviceTimeoutError, ProtocolError):
             self._resync_replies = True
@@ -529,6 +538,7 @@ class MightexCamera(Camera):
         timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
         with _usb_errors("frame read"):
             received = self._device.read(p.EP_FRAME_IN, buf, timeout_ms)
+        io_trace.record("camera", "<", memoryview(buf)[:received])
         return p.decode_frame(buf, layout, received)
 
     def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:

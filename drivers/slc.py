@@ -12,6 +12,7 @@ SLC off, so this driver never relies on it.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 import signal
@@ -48,6 +49,8 @@ from benchlab.drivers.slc_protocol import (
     parse_current_reply,
     parse_device_info,
 )
+
+log = logging.getLogger(__name__)
 
 __all__ = [  # the protocol names are re-exported: callers keep importing them from here
     "SlcAckInsteadOfDataError", "SlcArgumentError", "SlcBadReplyError", "SlcCommandError",
@@ -95,7 +98,7 @@ class SlcController(LightSource):
     def open(self) -> SlcController:
         try:
             self._ser = open_serial(
-                self.port, BAUD, bytesize=8, parity="N", stopbits=1,
+                self.port, BAUD, device="led", bytesize=8, parity="N", stopbits=1,
                 timeout=self.timeout_s, write_timeout=self.timeout_s,
             )
         except IO_ERRORS as exc:
@@ -107,6 +110,8 @@ class SlcController(LightSource):
             self._channel_count = self._count_channels()
             self._install_safety_hooks()
             self.all_off()  # opening the driver must never leave light on from a previous user
+            log.info("LED controller %s serial %s on %s: %d channels, all off",
+                     self._info.module, self._info.serial, self.port, self._channel_count)
         except BaseException:
             self._close_port()
             raise
@@ -200,6 +205,7 @@ class SlcController(LightSource):
 
     def _do_on(self, ch: int, current_ma: float) -> None:
         """NORMAL mode at ``current_ma``, Imax = the configured ceiling."""
+        log.debug("LED channel %d on at %g mA", ch, current_ma)
         ceiling_ma = self.ceiling_ma(ch)
         assert ceiling_ma is not None  # checked by on()
         self.set_normal(ch, ceiling_ma, current_ma)

@@ -12,6 +12,7 @@ reason: normal end, a failed step, abort, Ctrl-C.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -25,6 +26,8 @@ import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 from benchlab.session import Session, read_results
 from benchlab.storage import load_frame_tiff
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
@@ -268,6 +271,7 @@ class Runner:
 
     def _run_step(self, step: Step) -> None:
         ctx = StepContext(self, step)
+        log.info("step %s: %s", step.id, step.title)
         self.session.log_event("step_started", step=step.id, title=step.title)
         try:
             step.action(ctx)
@@ -276,6 +280,7 @@ class Runner:
             self.session.log_event("aborted", step=step.id, message=str(exc))
             raise
         except Exception as exc:
+            log.warning("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             self.bench.safe_state()
             self.session.log_event(
                 "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}"

@@ -2,21 +2,20 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 from test_tui_helpers import MTF_PARAMS, RADIOMETRY_PARAMS, connected, make_app, wait_until
 from textual.widgets import DataTable
 
-from benchlab.session import Session
+from benchlab.session import Session, read_results
 from benchlab.tui.runner import STATUS_MARK, RunScreen
 
 
 def _results_json(session: Session, table: str) -> list[dict]:
     latest = session.latest_results()
     assert latest is not None
-    data = json.loads((Path(latest) / f"{table}.json").read_text(encoding="utf-8"))
+    data = read_results(latest)[0][table]
     return data["rows"] if isinstance(data, dict) else data
 
 

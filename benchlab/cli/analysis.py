@@ -11,12 +11,12 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, Any
 
 from benchlab.drivers.errors import BenchlabError
+
+if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
+    import numpy.typing as npt
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".bmp")
 ORIENTATION_CHOICES = ("sagittal", "tangential", "horizontal", "vertical")
@@ -35,6 +35,7 @@ def read_image(path: Path) -> npt.NDArray[Any]:
     AnalysisInputError
         Missing, unreadable, colour or unsupported file, naming it.
     """
+    import numpy as np
     if not path.exists():
         raise AnalysisInputError(f"{path}: no such file")
     if not path.is_file():
@@ -158,6 +159,7 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
 def analyze_command(args: argparse.Namespace) -> int:
     """``benchlab analyze TARGET``: a session folder goes to the procedures layer; an image has
     one ROI analysed."""
+    import numpy as np
     target = Path(args.target)
     if target.is_dir() and (target / "session.json").is_file():
         from benchlab.cli.procedures import analyze_session_command
