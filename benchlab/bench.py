@@ -81,6 +81,8 @@ class BenchConfig:
     led: LedConfig | None = None
     stage: StageConfig | None = None
     source: str = "<defaults>"
+    #: ``[paths] sessions``: where new sessions go when no ``--out`` is given (``~`` expanded).
+    sessions_dir: Path | None = None
 
     @property
     def has_stage(self) -> bool:
@@ -161,10 +163,12 @@ class BenchConfig:
                 travel_mm=(travel[0], travel[1]),
                 velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
             )
+        sessions = c.string("paths.sessions", "")
         c.unknown_keys()
         if c.problems:
             raise BenchConfigError(source, c.problems)
-        return cls(camera=cam, led=led, stage=stage, source=source)
+        return cls(camera=cam, led=led, stage=stage, source=source,
+                   sessions_dir=Path(sessions).expanduser() if sessions else None)
 
     @classmethod
     def from_session(cls, session_path: str | Path) -> BenchConfig:
@@ -262,7 +266,7 @@ class Bench:
             except DeviceError as exc:
                 errors.append(f"stage: {exc}")
         if errors:
-            log.error("could not reach the safe state: %s", "; ".join(errors))
+            log.info("could not reach the safe state: %s", "; ".join(errors))
             raise BenchError("could not reach the safe state: " + "; ".join(errors))
 
     # -- identities -----------------------------------------------------------------------------

@@ -19,12 +19,15 @@ import array
 import errno
 import functools
 import logging
+import shlex
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
+from importlib import resources
+from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
 
 import numpy.typing as npt
@@ -58,6 +61,7 @@ POLL_INTERVAL_S = 0.002
 #: Bound on frames discarded in one grab (stale settings) before giving up.
 MAX_DISCARDS = 64
 _LIBUSB_NO_DEVICE = -4
+UDEV_RULE = "99-benchlab-mightex.rules"
 _LIBUSB_PIPE = -9
 
 
@@ -144,11 +148,22 @@ def _usb_errors(what: str) -> Iterator[None]:
         ):
             raise DeviceLostError(f"camera disconnected ({what}): {exc}") from exc
         if exc.errno in (errno.EACCES, errno.EPERM):
-            raise DeviceError(
-                f"no permission to open the camera ({what}); install "
-                "drivers/data/99-benchlab-mightex.rules and join the plugdev group"
-            ) from exc
+            raise DeviceError(f"no permission to open the camera ({what}). {udev_hint()}") from exc
         raise DeviceError(f"USB error ({what}): {exc}") from exc
+
+
+def udev_rule_path() -> Path:
+    """The udev rule installed with benchlab (package data of ``benchlab.drivers``)."""
+    return Path(str(resources.files("benchlab.drivers") / "data" / UDEV_RULE))
+
+
+def udev_hint() -> str:
+    """What to run, exactly, so that the camera opens without root (Linux)."""
+    rule = shlex.quote(str(udev_rule_path()))
+    return ("Install the udev rule that came with benchlab, then unplug and replug the camera:\n"
+            f"  sudo install -m 644 {rule} /etc/udev/rules.d/\n"
+            "  sudo udevadm control --reload-rules && sudo udevadm trigger\n"
+            '  sudo groupadd -f plugdev && sudo usermod -aG plugdev "$USER"  # then log out and in')
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
@@ -299,7 +314,7 @@ class MightexCamera(Camera):
     def reopen(self) -> None:
         """Reconnect to the same serial number (after a lost device) and restore all settings."""
         settings = self._settings
-        log.warning("camera %s: reconnecting", self.info.serial)
+        log.info("camera %s: reconnecting", self.info.serial)
         self.close()
         fresh = type(self).open(self.info.serial, backend=self._backend, pid=self.info.pid,
                                 model=self._spec.model)

@@ -280,7 +280,7 @@ class Runner:
             self.session.log_event("aborted", step=step.id, message=str(exc))
             raise
         except Exception as exc:
-            log.warning("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
+            log.info("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             self.bench.safe_state()
             self.session.log_event(
                 "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}"

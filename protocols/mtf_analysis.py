@@ -12,7 +12,6 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
 
 from benchlab.analysis import chart
 from benchlab.analysis.estimators import DEFAULT_ESTIMATOR, estimate_modulation
@@ -23,6 +22,7 @@ from benchlab.analysis.frequency import (
     usaf_frequency_lp_per_mm,
 )
 from benchlab.analysis.geometry import (
+    fill_holes,
     fov_centre,
     image_height_mm,
     image_height_px,
@@ -181,7 +181,7 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
         mask = np.zeros(radial_frames[0].shape, dtype=bool)
         for px in radial_frames:
             mask |= px > threshold_dn
-        mask = ndimage.binary_fill_holes(mask)
+        mask = fill_holes(mask)
         try:
             circle = fov_centre(mask)
             return circle.centre_rc, circle.method

@@ -33,7 +33,7 @@ def _pid(text: str) -> int:
 
 def _sim_backend(pid: int | None, scene: Any = None) -> SimCameraBackend:
     from benchlab.drivers import mightex_protocol as proto
-    from benchlab.drivers.mightex_sim import SimulatedCamera
+    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
     cam = SimulatedCamera(scene=scene, pid=proto.DEFAULT_PID if pid is None else pid)
     return SimCameraBackend([cam])
 
@@ -176,7 +176,7 @@ def benchmark_camera(frames: int = 200, decode_repeats: int = 40) -> list[dict[s
 
     from benchlab.drivers import mightex_protocol as proto
     from benchlab.drivers.mightex import MightexCamera
-    from benchlab.drivers.mightex_sim import SimulatedCamera, flat_field_scene
+    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera, flat_field_scene
     results = []
     for bits in (8, 12):
         sim = SimulatedCamera(scene=flat_field_scene(), seed=0)

@@ -13,7 +13,6 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from benchlab import __version__
 from benchlab.drivers.errors import BenchlabError
 
 COMMAND_MODULES = (
@@ -22,7 +21,20 @@ COMMAND_MODULES = (
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
     "benchlab.cli.tui",  # tui (and the no-argument default)
+    "benchlab.cli.config",  # config init, config show
 )
+LOG_LEVELS = ("debug", "info", "warning", "error")
+
+
+class _VersionAction(argparse.Action):
+    """``--version``, looking the version up only when asked (start-up time)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        from benchlab import __version__
+
+        print(f"benchlab {__version__}")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
             "terminal UI."
         ),
     )
-    parser.add_argument("--version", action="version", version=f"benchlab {__version__}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0,
+                        help="print the version and exit")
+    parser.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
+                        help="log messages from this level up to stderr (default warning)")
+    parser.add_argument("--trace-io", metavar="FILE",
+                        help="append a byte-level trace of every device exchange to FILE")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     bench = commands.add_parser(
         "benchmark", help="measure speed and accuracy and print a table",
@@ -57,6 +74,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if func is None:
         parser.print_help()
         return 2
+    _setup_logging(args.log_level)
+    if args.trace_io:
+        from benchlab.drivers import io_trace
+
+        io_trace.start(args.trace_io)
     try:
         return int(func(args) or 0)
     except BenchlabError as exc:
@@ -65,6 +87,35 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("benchlab: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if args.trace_io:
+            from benchlab.drivers import io_trace
+
+            io_trace.stop()
+
+
+def _setup_logging(level: str) -> None:
+    """One handler on the ``benchlab`` logger: ``benchlab.<module>: LEVEL: message``."""
+    import logging
+
+    class StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+        """Writes to the sys.stderr of the moment (tests and the TUI swap it)."""
+
+        @property  # type: ignore[override]
+        def stream(self) -> object:
+            return sys.stderr
+
+        @stream.setter
+        def stream(self, value: object) -> None:
+            pass
+
+    root = logging.getLogger("benchlab")
+    root.setLevel(level.upper())
+    if not any(type(h).__name__ == "StderrHandler" for h in root.handlers):
+        handler = StderrHandler()
+        handler.setFormatter(logging.Formatter("%(asctime)s %(name)s: %(levelname)s: %(message)s",
+                                               "%H:%M:%S"))
+        root.addHandler(handler)
 
 
 if __name__ == "__main__":

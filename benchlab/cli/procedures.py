@@ -112,9 +112,14 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         else:
             config = BenchConfig.from_session(session_path)
     else:
-        config = BenchConfig.load(args.config, simulate=args.simulate)
-        if not args.simulate and args.config is None:
-            raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+        from benchlab.cli.config import bench_file_in_force, sessions_in_force
+
+        bench_file = bench_file_in_force(args.config, simulate=args.simulate)
+        if not args.simulate and bench_file.value is None:
+            raise BenchlabError("the real bench needs a bench file: --config bench.toml, or "
+                                "`benchlab config init` for a default one (or use --simulate)")
+        config = BenchConfig.load(bench_file.value, simulate=args.simulate)
+        sessions_root = sessions_in_force(args.out).value
     check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
@@ -132,7 +137,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
             if resume:
                 runner = resume_run(session_path, **kwargs)
             else:
-                runner = start_run(args.procedure, params=params, root=args.out,
+                runner = start_run(args.procedure, params=params, root=sessions_root,
                                    operator=args.operator, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
@@ -242,10 +247,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     run.add_argument("procedure", choices=("mtf", "radiometry"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
-    run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel)")
+    run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
+                     "default: the user's, see `benchlab config show`)")
     run.add_argument("--params", help="procedure parameter TOML (default: packaged)")
     run.add_argument("--yes", action="store_true", help="confirm every manual step")
-    run.add_argument("--out", default="sessions", help="folder for sessions (default sessions)")
+    run.add_argument("--out", help="folder for sessions (default: [paths] sessions of the "
+                     "user's bench.toml, else ./sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
     run.add_argument("--estimator", help="modulation estimator (default: params / library)")
     run.set_defaults(func=run_command)

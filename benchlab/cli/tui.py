@@ -18,10 +18,13 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         ),
     )
     parser.add_argument("--simulate", action="store_true", help="use the simulated bench")
-    parser.add_argument("--config", type=Path, default=None, help="bench configuration (TOML)")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="bench configuration (TOML; default: the user's, see "
+                        "`benchlab config show`)")
     parser.add_argument(
-        "--sessions", type=Path, default=Path("sessions"),
-        help="folder of saved sessions (default: ./sessions)",
+        "--sessions", type=Path, default=None,
+        help="folder of saved sessions (default: [paths] sessions of the user's bench.toml, "
+        "else ./sessions)",
     )
     parser.add_argument("--mtf-params", type=Path, default=None, help="MTF parameter file")
     parser.add_argument(
@@ -32,6 +35,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
 
 
 def run_tui(args: argparse.Namespace) -> int:
+    from benchlab.cli.config import bench_file_in_force, sessions_in_force
     from benchlab.tui.app import BenchlabApp
 
     params = {
@@ -40,7 +44,9 @@ def run_tui(args: argparse.Namespace) -> int:
         if path is not None
     }
     app = BenchlabApp(
-        simulate=args.simulate, config=args.config, sessions_dir=args.sessions,
+        simulate=args.simulate,
+        config=bench_file_in_force(args.config, simulate=args.simulate).value,
+        sessions_dir=sessions_in_force(args.sessions, "--sessions").value,
         params_files=params, operator=args.operator,
     )
     app.run()
