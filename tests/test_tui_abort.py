@@ -11,6 +11,7 @@ from test_tui_helpers import connected, make_app, wait_until
 from textual.widgets import DataTable
 
 from benchlab.session import Session
+from benchlab.tui.dialogs import ConfirmDialog
 from benchlab.tui.runner import RunScreen
 
 PARAMS = """\
@@ -105,7 +106,16 @@ async def test_quit_mid_run_stops_workers_and_leaves_the_bench_safe(tmp_path: Pa
         await pilot.press("s")
         await wait_until(pilot, in_position.is_set, answer_prompts=True, what="LED on")
         assert bench.sim_led.channel_output_ma(1) > 0
+        await pilot.press("q")  # a run is active: asks first, changes nothing yet
+        await wait_until(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="confirm")
+        assert not app.abort_event.is_set() and app.bench is not None
+        await pilot.press("n")  # keep running
+        await wait_until(pilot, lambda: app.screen is screen, what="back to the run")
+        assert not app.abort_event.is_set() and app.procedure_running
+        assert bench.sim_led.channel_output_ma(1) > 0
         await pilot.press("q")
+        await wait_until(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="confirm")
+        await pilot.press("q")  # q again confirms
         await wait_until(pilot, lambda: app.bench is None, what="bench closed")
     assert app._active_threads == 0  # every device thread wound down before the bench closed
     assert bench.sim_led.channel_output_ma(1) == 0

@@ -10,6 +10,7 @@ from test_tui_helpers import MTF_PARAMS, make_app, wait_until
 from textual.pilot import Pilot
 from textual.widgets import Static
 
+from benchlab.tui.plot import CtfPlot
 from benchlab.tui.runner import RunScreen
 
 #: The SVGs were recorded with these versions; rendering details change between releases, so
@@ -42,6 +43,8 @@ def test_mtf_checklist_120x36(snap_compare, tmp_path: Path) -> None:  # noqa: AN
         screen = app.screen
         assert isinstance(screen, RunScreen)
         await wait_until(pilot, lambda: len(screen.step_status) == 14, what="checklist")
+        plot = screen.query_one("#ctf-plot", CtfPlot)
+        await wait_until(pilot, lambda: bool(plot.curves), what="simulated CTF band")
         await pilot.pause()
 
     assert snap_compare(app, terminal_size=(120, 36), run_before=ready)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -68,6 +69,42 @@ def test_benchlab_simulate_runs_in_tmux_and_quits(tmp_path: Path) -> None:
             time.sleep(0.2)
         assert done.exists(), "benchlab did not exit after q"
         assert done.read_text().strip() == "0"
+    finally:
+        if _alive(session):
+            _tmux("kill-session", "-t", session)
+
+
+def test_q_during_a_run_asks_before_quitting_in_tmux(tmp_path: Path) -> None:
+    session = f"benchlab-quit-{uuid.uuid4().hex[:8]}"
+    done = tmp_path / "exit-status"
+    command = (
+        f"cd {tmp_path} && TERM=xterm-256color {BENCHLAB} tui --simulate; echo $? > {done}; "
+        "sleep 30"
+    )
+    _tmux("new-session", "-d", "-x", "80", "-y", "24", "-s", session, command)
+    try:
+        _wait_for_screen(session, lambda s: "bench: connected" in s)
+        _tmux("send-keys", "-t", session, "3")
+        _wait_for_screen(session, lambda s: "checklist (Table 4.10 steps)" in s)
+        _tmux("send-keys", "-t", session, "s")
+        _wait_for_screen(session, lambda s: "Done" in s and "Abort run" in s)  # first prompt
+        _tmux("send-keys", "-t", session, "q")
+        screen = _wait_for_screen(session, lambda s: "Quit while a run is active?" in s)
+        assert "Keep running" in screen and not done.exists()
+        _tmux("send-keys", "-t", session, "n")
+        _wait_for_screen(session, lambda s: "Quit while a run is active?" not in s
+                         and "Abort run" in s)
+        assert not done.exists()
+        _tmux("send-keys", "-t", session, "q")
+        _wait_for_screen(session, lambda s: "Quit while a run is active?" in s)
+        _tmux("send-keys", "-t", session, "y")
+        deadline = time.monotonic() + 30
+        while not done.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert done.exists() and done.read_text().strip() == "0"
+        (folder,) = (tmp_path / "sessions").iterdir()
+        status = json.loads((folder / "session.json").read_text())["status"]
+        assert status != "completed"  # aborted mid-run, resumable
     finally:
         if _alive(session):
             _tmux("kill-session", "-t", session)

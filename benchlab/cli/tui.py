@@ -31,11 +31,38 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--radiometry-params", type=Path, default=None, help="radiometry parameter file"
     )
     parser.add_argument("--operator", default="", help="operator name for session.json")
+    parser.add_argument(
+        "--image", choices=("auto", "kitty", "sixel", "halfblock"), default=None,
+        help="how the live view draws the camera: real pixels through Kitty's graphics "
+        "protocol or Sixel where the terminal supports them (auto, the default, asks the "
+        "terminal; env BENCHLAB_IMAGE), else half-block characters",
+    )
     parser.set_defaults(func=run_tui)
+
+    bench = benchmarks.add_parser(
+        "tui", help="live-view frames per second by terminal size and drawing method",
+        description="Run the live view headless on the simulated bench at 80x24, 120x36 and "
+        "200x60 with half-blocks, Sixel and Kitty graphics, and print the frames shown per "
+        "second (the display is capped at 20 Hz).",
+    )
+    bench.add_argument("--seconds", type=float, default=4.0, help="seconds per case (4)")
+    bench.add_argument("--method", action="append", choices=("halfblock", "sixel", "kitty"),
+                       help="only this drawing method (repeatable; default all three)")
+    bench.set_defaults(func=_benchmark_tui)
+
+
+def _benchmark_tui(args: argparse.Namespace) -> int:
+    from benchlab.tui.bench_rate import main
+
+    return main(args.seconds, tuple(args.method or ("halfblock", "sixel", "kitty")))
 
 
 def run_tui(args: argparse.Namespace) -> int:
     from benchlab.cli.config import bench_file_in_force, sessions_in_force
+    from benchlab.tui.pixels import choose_image_protocol
+
+    # Ask the terminal what it can show before Textual takes it over.
+    image_protocol = choose_image_protocol(getattr(args, "image", None))
     from benchlab.tui.app import BenchlabApp
 
     params = {
@@ -47,7 +74,7 @@ def run_tui(args: argparse.Namespace) -> int:
         simulate=args.simulate,
         config=bench_file_in_force(args.config, simulate=args.simulate).value,
         sessions_dir=sessions_in_force(args.sessions, "--sessions").value,
-        params_files=params, operator=args.operator,
+        params_files=params, operator=args.operator, image_protocol=image_protocol,
     )
     app.run()
     if app.close_error is not None:

@@ -17,7 +17,7 @@ from textual.worker import get_current_worker
 
 from benchlab.tui import services
 from benchlab.tui.devices import DevicesScreen
-from benchlab.tui.dialogs import ErrorDialog
+from benchlab.tui.dialogs import ConfirmDialog, ErrorDialog
 from benchlab.tui.live import LiveScreen
 from benchlab.tui.runner import RunScreen
 from benchlab.tui.sessions import SessionsScreen
@@ -65,8 +65,12 @@ class BenchlabApp(App[None]):
         seed: int | None = 0,
         params_files: dict[str, Path] | None = None,
         operator: str = "",
+        image_protocol: str = "halfblock",
     ) -> None:
         super().__init__()
+        #: How the live view draws frames: "kitty" / "sixel" (real pixels) or "halfblock";
+        #: chosen before the app starts (:func:`benchlab.tui.pixels.choose_image_protocol`).
+        self.image_protocol = image_protocol
         self.simulate = simulate
         self.config_path = config
         self.sessions_dir = Path(sessions_dir) if sessions_dir else Path("sessions")
@@ -179,6 +183,24 @@ class BenchlabApp(App[None]):
             self._close_bench()
 
     async def action_quit(self) -> None:
+        """Quit; while a run is active, ask first (``q`` again or ``y`` confirms)."""
+        if self.procedure_running:
+            if isinstance(self.screen, ConfirmDialog):  # q pressed again: that is a yes
+                self.screen.dismiss(True)
+                return
+            self.push_screen(ConfirmDialog(
+                "Quit while a run is active?",
+                "Quitting aborts the run: LEDs off, stage stopped. The session keeps every "
+                "frame saved so far and can be resumed (Sessions, u).",
+                yes="Quit [y/q]", no="Keep running [n]"), self._quit_confirmed)
+            return
+        await self.quit_now()
+
+    async def _quit_confirmed(self, yes: bool | None) -> None:
+        if yes:
+            await self.quit_now()
+
+    async def quit_now(self) -> None:
         """Stop every worker, leave the bench safe (LEDs off, stage stopped), exit."""
         self.abort_event.set()
         self.workers.cancel_all()

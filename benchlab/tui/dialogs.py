@@ -9,13 +9,19 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
 DIALOG_CSS = """
-PromptDialog, ErrorDialog, InputDialog { align: center middle; }
-PromptDialog > Vertical, ErrorDialog > Vertical, InputDialog > Vertical {
+PromptDialog, ErrorDialog, InputDialog, ConfirmDialog { align: center middle; }
+PromptDialog > Vertical, ErrorDialog > Vertical, InputDialog > Vertical,
+ConfirmDialog > Vertical {
     width: 70; max-width: 95%; height: auto; max-height: 90%;
     border: thick $accent; background: $surface; padding: 1 2;
 }
 ErrorDialog > Vertical { border: thick $error; }
-PromptDialog .title, ErrorDialog .title { text-style: bold; margin-bottom: 1; }
+PromptDialog .title, ErrorDialog .title, ConfirmDialog .title {
+    text-style: bold; margin-bottom: 1;
+}
+ConfirmDialog > Vertical { border: thick $warning; }
+ConfirmDialog Horizontal { height: auto; margin-top: 1; align-horizontal: right; }
+ConfirmDialog Button { margin-left: 2; }
 PromptDialog #live-figure { color: $success; text-style: bold; margin-top: 1; }
 PromptDialog Horizontal { height: auto; margin-top: 1; align-horizontal: right; }
 PromptDialog Button, ErrorDialog Button { margin-left: 2; }
@@ -60,6 +66,35 @@ class PromptDialog(ModalScreen[bool]):
 
     def action_cancel(self) -> None:
         self.dismiss(False)
+
+
+class ConfirmDialog(ModalScreen[bool]):
+    """A yes/no question; dismisses with ``True`` for yes. ``n`` / Escape answer no."""
+
+    DEFAULT_CSS = DIALOG_CSS
+    BINDINGS = [
+        Binding("y", "answer(True)", "Yes"),
+        Binding("n,escape", "answer(False)", "No"),
+    ]
+
+    def __init__(self, title: str, message: str, yes: str = "Yes [y]",
+                 no: str = "No [n]") -> None:
+        super().__init__()
+        self._title, self._message, self._yes, self._no = title, message, yes, no
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(self._title, classes="title")
+            yield Static(self._message, markup=False)
+            with Horizontal():
+                yield Button(self._yes, variant="error", id="yes")
+                yield Button(self._no, variant="primary", id="no")
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(event.button.id == "yes")
+
+    def action_answer(self, yes: bool) -> None:
+        self.dismiss(yes)
 
 
 class ErrorDialog(ModalScreen[None]):

@@ -20,6 +20,7 @@ from textual.worker import get_current_worker
 
 from benchlab.bench import plain_target
 from benchlab.tui import services
+from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE, GraphicsFrameView
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -27,9 +28,9 @@ EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500
 #: Gain steps offered by the g / G keys.
 GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 #: How often the screen takes the newest frame from the acquisition thread.
-DISPLAY_INTERVAL_S = 1 / 15
+DISPLAY_INTERVAL_S = 1 / 20
 #: Cap on the acquisition loop so it never hogs the interpreter.
-MAX_GRAB_RATE_HZ = 20.0
+MAX_GRAB_RATE_HZ = 25.0
 #: Orientations the o key cycles through ("auto": the analysis detects it).
 ORIENTATIONS = ("auto", "sagittal", "tangential")
 #: Targets the t key mounts on the simulated bench (a real bench's target is set by hand).
@@ -93,11 +94,17 @@ class LiveScreen(Screen[None]):
         self._last_error = ""
         self._last_error_at = 0.0
         self._idle_reason = ""
+        graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
+        self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
         with Horizontal(id="live-body"):
-            yield FrameView(id="frame")
+            protocol = getattr(self.app, "image_protocol", "halfblock")
+            if protocol in ("kitty", "sixel"):
+                yield GraphicsFrameView(protocol, id="frame")
+            else:
+                yield FrameView(id="frame")
             with Vertical(id="side"):
                 yield Static("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
@@ -144,7 +151,7 @@ class LiveScreen(Screen[None]):
                     orientation = None if self.orientation == "auto" else self.orientation
                     reading = services.live_reading(
                         frame, self.roi, self.estimator, orientation, index, *settings,
-                        zoom=self.zoom,
+                        zoom=self.zoom, preview_max_side=self._preview_side,
                     )
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
@@ -266,7 +273,7 @@ class LiveScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not mount the target", exc)
             return
-        app.call_from_thread(self.notify, f"simulated target: {plain_target(nxt)}")
+        app.call_from_thread(self.notify, f"simulated target: {services.target_words(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)

@@ -20,9 +20,14 @@ from textual.worker import get_current_worker
 
 from benchlab.tui import services
 from benchlab.tui.dialogs import InputDialog, PromptDialog
+from benchlab.tui.plot import CtfPlot, PlotPoint
 from benchlab.tui.widgets import ModeBar
 
 PROCEDURES = ("mtf", "radiometry")
+#: Title of the checklist panel per procedure.
+CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
+                    "radiometry": "positions (section 4.4)"}
+ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 STATUS_MARK = {
     "pending": "  ",
     "running": "\u25b6 ",
@@ -49,14 +54,14 @@ PRIMARY_RESULTS = (("modulation", "M"), ("measured_mean_gray", "gray"), ("sharpn
 
 
 def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
-    """A partial result as (what, value): e.g. ("G2E4 sagittal", "M 0.612")."""
+    """A partial result as (what, value), short enough for 80 columns: ("G2E4 S", "M 0.612")."""
     what: list[str] = []
     if "element" in data:
         what.append(str(data["element"]))
     if "freq_lp_per_mm" in data:
         what.append(f"{_format_value(data['freq_lp_per_mm'])} lp/mm")
     if "orientation" in data:
-        what.append(str(data["orientation"]))
+        what.append(ORIENTATION_SHORT.get(str(data["orientation"]), str(data["orientation"])))
     if "position_mm" in data:
         what.append(f"{_format_value(data['position_mm'])} mm")
     for key, label in PRIMARY_RESULTS:
@@ -82,9 +87,10 @@ class RunScreen(Screen[None]):
     DEFAULT_CSS = """
     RunScreen #run-status { height: auto; padding: 0 1; background: $boost; }
     RunScreen #run-body { height: 1fr; }
-    RunScreen #steps { width: 3fr; height: 1fr; border: round $primary; }
-    RunScreen #results { width: 2fr; height: 1fr; border: round $primary; }
+    RunScreen #steps { width: 1fr; height: 1fr; border: round $primary; }
+    RunScreen #results { width: 1fr; height: 1fr; border: round $primary; }
     RunScreen #results-table { height: 1fr; }
+    RunScreen #ctf-plot { height: 9; border-top: solid $primary; }
     RunScreen #progress { height: 1; padding: 0 1; }
     RunScreen #progress Bar { width: 1fr; }
     RunScreen DataTable > .datatable--cursor { background: $accent 40%; }
@@ -121,15 +127,17 @@ class RunScreen(Screen[None]):
             yield DataTable(id="steps", cursor_type="row", zebra_stripes=False)
             with Vertical(id="results"):
                 yield DataTable(id="results-table", cursor_type="row")
+                yield CtfPlot(id="ctf-plot")
         yield ProgressBar(id="progress", show_eta=False)
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
         steps = self.query_one("#steps", DataTable)
         steps.add_columns("", "step", "what")
-        steps.border_title = "checklist (Table 4.10 steps)"
         self.query_one("#results").border_title = "results"
         self._reset_results()
+        self._show_procedure()
+        self._load_plot_curves()
         self.call_after_refresh(self._refresh_status)
         self._load_checklist()
 
@@ -143,6 +151,22 @@ class RunScreen(Screen[None]):
 
     def watch_procedure(self) -> None:
         self._refresh_status()
+        if self.is_mounted:
+            self._show_procedure()
+
+    def _show_procedure(self) -> None:
+        """Panel titles and the plot follow the chosen procedure."""
+        self.query_one("#steps").border_title = CHECKLIST_TITLES.get(self.procedure, "checklist")
+        self.query_one("#ctf-plot").display = self.procedure == "mtf"
+
+    @work(thread=True, exclusive=True, group="plot-curves", exit_on_error=False)
+    def _load_plot_curves(self) -> None:
+        try:
+            bands, nyq = services.simulated_ctf_bands()
+        except Exception as exc:  # noqa: BLE001 - the plot then shows the points alone
+            self.log.warning(f"simulated curves unavailable: {exc!r}")
+            return
+        self.app.call_from_thread(self.query_one("#ctf-plot", CtfPlot).set_curves, bands, nyq)
 
     def _refresh_status(self) -> None:
         if not self.is_mounted:
@@ -212,7 +236,8 @@ class RunScreen(Screen[None]):
     def _reset_results(self) -> None:
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
-        table.add_columns("step", "what", "result")
+        table.add_columns("what", "result")
+        self.query_one("#ctf-plot", CtfPlot).clear_points()
         self._tables = []
         self._table_index = 0
         self.query_one("#results").border_title = "results"
@@ -220,8 +245,15 @@ class RunScreen(Screen[None]):
     def _add_result(self, step_label: str, data: Mapping[str, Any]) -> None:
         what, numbers = result_row(data)
         table = self.query_one("#results-table", DataTable)
-        table.add_row(step_label, what, numbers)
+        table.add_row(what or step_label, numbers)
         table.move_cursor(row=table.row_count - 1)
+        if "modulation" in data and "image_lp_per_mm" in data:
+            plot = self.query_one("#ctf-plot", CtfPlot)
+            f = float(data["image_lp_per_mm"])
+            resolved = data.get("resolved") is not False
+            plot.add_point(str(data.get("view", "forward")), PlotPoint(
+                f, float(data["modulation"]) if resolved else None,
+                str(data.get("orientation", "")), bool(data.get("aliased", f > plot.nyquist))))
 
     def _show_table(self) -> None:
         if not self._tables:
@@ -229,12 +261,12 @@ class RunScreen(Screen[None]):
         name, data = self._tables[self._table_index % len(self._tables)]
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
-        columns, rows = services.table_rows(data)
-        table.add_columns(*columns)
-        for row in rows:
-            table.add_row(*(_format_value(row.get(c, "")) for c in columns))
+        title, headers, cells = services.display_table(name, data)
+        table.add_columns(*headers)
+        for row in cells:
+            table.add_row(*row)
         self.query_one("#results").border_title = (
-            f"{name} ({self._table_index % len(self._tables) + 1}/{len(self._tables)}, v: next)"
+            f"{title} ({self._table_index % len(self._tables) + 1}/{len(self._tables)}, v: next)"
         )
 
     # -- keys -------------------------------------------------------------------------------
@@ -358,6 +390,7 @@ class RunScreen(Screen[None]):
         self.session_path = Path(runner.session.path)
         if resume_proc := getattr(runner.session, "procedure", None):
             self.set_reactive(RunScreen.procedure, resume_proc)
+            self._show_procedure()
         self._show_steps(runner.steps, set(runner.completed()))
         self._refresh_status()
 

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.bench import plain_target
 from benchlab.drivers import errors
 from benchlab.tui.widgets import Roi
 
@@ -244,8 +245,10 @@ def live_reading(
     gain: float,
     *,
     zoom: bool = False,
+    preview_max_side: int = 320,
 ) -> LiveReading:
-    """Everything the live view shows about one frame (runs in the acquisition thread)."""
+    """Everything the live view shows about one frame (runs in the acquisition thread);
+    the preview's longest side is at most ``preview_max_side`` pixels."""
     from benchlab.analysis.estimators import estimate_modulation
     from benchlab.analysis.focus import sharpness
 
@@ -261,7 +264,7 @@ def live_reading(
         r1 = min(rows, roi.row + roi.height + margin)
         c1 = min(cols, roi.col + roi.width + margin)
         shown, origin = pixels[r0:r1, c0:c1], (r0, c0)
-    preview = preview_of(shown)
+    preview = preview_of(shown, preview_max_side)
     sy, sx = preview.shape[0] / shown.shape[0], preview.shape[1] / shown.shape[1]
     preview_roi = Roi(
         int((roi.row - origin[0]) * sy), int((roi.col - origin[1]) * sx),
@@ -464,3 +467,57 @@ def write_report(path: Path) -> Path:
     from benchlab.report import write_report as _write
 
     return Path(_write(path))
+
+
+CtfBands = dict[str, list[tuple[list[float], list[float]]]]
+
+
+def simulated_ctf_bands(points: int = 120) -> tuple[CtfBands, float]:
+    """Best and worst simulated CTF over the field points and both directions, per view (the
+    band the Run screen's plot draws), and the Nyquist frequency (lp/mm)."""
+    from benchlab.analysis.frequency import nyquist_lp_per_mm
+    from benchlab.report_curves import load_curves
+    from benchlab.report_mtf import simulated_ctf
+
+    nyq = nyquist_lp_per_mm()
+    grid = np.linspace(0.0, 1.15 * nyq, points)
+    bands: CtfBands = {}
+    by_view: dict[str, list[npt.NDArray[np.float64]]] = {}
+    for curve in load_curves(None):
+        by_view.setdefault(curve.view, []).append(simulated_ctf(curve, grid))
+    for view, ctfs in by_view.items():
+        stack = np.vstack(ctfs)
+        bands[view] = [(grid.tolist(), stack.max(axis=0).tolist()),
+                       (grid.tolist(), stack.min(axis=0).tolist())]
+    return bands, nyq
+
+
+def target_words(target: Any) -> str:
+    """A mounted simulated target in words (for the operator, never a Python list)."""
+    t = plain_target(target)
+    if isinstance(t, list) and t and t[0] == "radial":
+        freq = f"{float(t[1]):g}" if len(t) > 1 else "?"
+        roll = f", {t[2]}" if len(t) > 2 else ""
+        return f"radial bars {freq} lp/mm{roll}"
+    return {"usaf": "USAF 1951 chart", "led": "radiometry LED", "dark": "dark (lens capped)",
+            "bars": "bar target", "flat": "flat field", None: "nothing"}.get(
+        t if isinstance(t, str) or t is None else "", str(t))
+
+
+def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]]:
+    """A results table as (title, headers, cells) for a narrow terminal: the known tables use
+    the report's headers and number formats, with the modulation columns right after the
+    first so that 80 columns show them; unknown tables show every column as stored."""
+    from benchlab.report_tables import TABLE_VIEWS, cell
+
+    columns, rows = table_rows(data)
+    view = TABLE_VIEWS.get(name)
+    if view is None:
+        return name, columns, [[cell(r.get(c), ".4g") for c in columns] for r in rows]
+    cols = list(view.columns)
+    first, rest = cols[:1], cols[1:]
+    mods = [c for c in rest if c[0].endswith("_modulation")]
+    ordered = first + mods + [c for c in rest if c not in mods]
+    title = view.title.split(" - ")[0]
+    return (title, [h for _, h, _ in ordered],
+            [[cell(r.get(k), f) for k, _, f in ordered] for r in rows])

@@ -18,12 +18,6 @@ from benchlab.tui import services
 from benchlab.tui.widgets import ModeBar
 
 
-def _fmt(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return "" if value is None else str(value)
-
-
 class SessionsScreen(Screen[None]):
     """Saved sessions under the sessions folder."""
 
@@ -175,12 +169,12 @@ class SessionsScreen(Screen[None]):
         if not self._tables:
             return
         name, data = self._tables[self._table_index % len(self._tables)]
-        columns, rows = services.table_rows(data)
-        table.add_columns(*columns)
-        for row in rows:
-            table.add_row(*(_fmt(row.get(c)) for c in columns))
+        title, headers, cells = services.display_table(name, data)
+        table.add_columns(*headers)
+        for row in cells:
+            table.add_row(*row)
         self.query_one("#session-detail").border_title = (
-            f"{name} ({self._table_index % len(self._tables) + 1}/{len(self._tables)})"
+            f"{title} ({self._table_index % len(self._tables) + 1}/{len(self._tables)})"
         )
 
     def action_next_table(self) -> None:
