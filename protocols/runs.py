@@ -6,7 +6,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benchlab import __version__
+import benchlab
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
 from benchlab.protocols.mtf import MtfProcedure
@@ -87,7 +87,7 @@ def start_run(
     snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
-        devices=bench.identities(), software_version=__version__,
+        devices=bench.identities(), software_version=benchlab.__version__,
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
