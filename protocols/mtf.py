@@ -20,7 +20,7 @@ world (``bench.mount``), so the frames show what the operator was asked to set u
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from benchlab.analysis.focus import sharpness
 from benchlab.protocols.engine import Step, StepContext
@@ -32,6 +32,9 @@ from benchlab.protocols.mtf_analysis import (
     radial_step_id,
 )
 from benchlab.protocols.params import MtfParams
+
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 FORWARD_TARGET = "usaf"
 DARK_TARGET = "dark"
@@ -174,7 +177,7 @@ class MtfProcedure:
         self.analyze(ctx.session, self._estimator(ctx))
 
     # -- offline ------------------------------------------------------------------------------
-    def analyze(self, session: Any, estimator: str | None) -> Path:
+    def analyze(self, session: Session, estimator: str | None) -> Path:
         """Analyse the session's saved frames into a new results version."""
         tables, summary, used = analyze_mtf(session, self.params, estimator)
         return Path(session.write_results(tables, summary=summary, estimator=used))

@@ -7,7 +7,7 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -33,6 +33,9 @@ from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, 
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
+
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 FORWARD_STEP = "forward"
 FORWARD_FRAME = "forward"
@@ -190,7 +193,7 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
     return chart.IMAGE_CENTRE_RC, "nominal"
 
 
-def _load(session: Any, step_id: str, name: str) -> npt.NDArray[Any] | None:
+def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
     if name not in session.step_frames(step_id):
         return None
     pixels, _ = session.load_frame(step_id, name)  # checks the frame's hash against the journal
@@ -198,7 +201,7 @@ def _load(session: Any, step_id: str, name: str) -> npt.NDArray[Any] | None:
 
 
 def analyze_mtf(
-    session: Any, params: MtfParams, estimator: str | None
+    session: Session, params: MtfParams, estimator: str | None
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
     """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``."""
     est = estimator or params.estimator or AUTO

@@ -23,6 +23,7 @@ from benchlab.tui.widgets import Roi
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
+    from benchlab.protocols.engine import Runner
 
 
 def plain_error(exc: BaseException) -> str:
@@ -377,7 +378,7 @@ def run_ending(exc: BaseException) -> str:
     return "error"
 
 
-def focus_sharpness(bench: Bench, runner: Any) -> float:
+def focus_sharpness(bench: Bench, runner: Runner) -> float:
     """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
     from benchlab.analysis.focus import sharpness
 
