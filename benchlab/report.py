@@ -307,6 +307,12 @@ def _radiometry_frames(ctx: ReportContext) -> str:
     return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
 
 
+def _unwrapped(ctx: ReportContext) -> str:
+    from benchlab.report_unwrap import render_unwrap_section  # after benchlab unwrap SESSION
+
+    return render_unwrap_section(ctx.results_path, ctx.tables, ctx.summary)
+
+
 #: The page, in order. A new kind of result: a module with a renderer, and one entry here.
 SECTIONS: list[Section] = [
     Section("Session", _identity, anchor="session"),
@@ -318,6 +324,7 @@ SECTIONS: list[Section] = [
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
+    Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]
 

@@ -9,6 +9,7 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX, RadialLayout, box_centroid
+from benchlab.analysis.viewsynth import cylinder_map
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene, radial_truth_table
 
@@ -50,16 +51,32 @@ def test_sagittal_spokes_have_the_period_along_the_arc(lp: float) -> None:
 
 
 @pytest.mark.parametrize("lp", [1.0, 2.0])
-def test_tangential_rings_have_the_period_along_the_radius(lp: float) -> None:
+def test_tangential_rings_have_the_period_of_the_ray_trace_table(lp: float) -> None:
+    """Rings follow the table's axial magnification: Eq. 4.1's 17.5 at the reference point,
+    a different local period nearer the inner edge (the modelled table is not linear)."""
     scene = RadialScene(lp, "tangential")
     img = scene.render(H, W)
     step = 0.25
-    radial = np.arange(340, 520, step)
-    rows = CR + radial * math.sin(THETA_REF)
-    cols = CC + radial * math.cos(THETA_REF)
-    signal = map_coordinates(img, [rows, cols], order=3)
-    assert _peak_period(signal, step) == pytest.approx(scene.px_per_period, rel=0.01)
-    assert scene.image_lp_per_mm == pytest.approx(17.5 * lp)
+    cyl = cylinder_map(scene.ray_table, scene.object_radius_mm)
+    for centre_px in (R_REF, 370.0):
+        radial = np.arange(centre_px - 45, centre_px + 45, step)
+        rows = CR + radial * math.sin(THETA_REF)
+        cols = CC + radial * math.cos(THETA_REF)
+        signal = map_coordinates(img, [rows, cols], order=3)
+        local_mag = cyl.axial_magnification(centre_px * 5.2e-3)
+        expected = 1.0 / (lp * local_mag * 5.2e-3)
+        assert _peak_period(signal, step) == pytest.approx(expected, rel=0.01)
+    assert scene.px_per_period == pytest.approx(1.0 / (lp * 17.5 * 5.2e-3), rel=1e-4)
+    assert scene.image_lp_per_mm == pytest.approx(17.5 * lp, rel=1e-4)
+    assert cyl.axial_magnification(370 * 5.2e-3) < 17.0  # the table's own, not a constant
+
+
+def test_sagittal_period_is_the_geometric_one_not_eq_4_1() -> None:
+    """Around the circle the magnification is object radius / image radius (rotational
+    symmetry), 19.88 mm / 2.48 mm = 8.0 at the radial ROI, not Eq. 4.1's 17.5."""
+    scene = RadialScene(0.5, "sagittal")
+    assert scene.magnification == pytest.approx(19.88 / (R_REF * 5.2e-3), rel=1e-9)
+    assert scene.px_per_period == pytest.approx(2.0 * R_REF / 19.88, rel=1e-9)
 
 
 @pytest.mark.parametrize(

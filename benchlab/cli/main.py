@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
     "benchlab.cli.config",  # config init, config show
 )

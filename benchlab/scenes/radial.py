@@ -1,20 +1,32 @@
-"""Radial view: a rolled single-frequency bar pattern imaged into the annulus.
+"""Radial view: a rolled single-frequency bar pattern imaged into the annulus, through the
+ray-trace table.
+
+The pattern lies on an object cylinder around the axis (default 19.88 mm from it, depth 6 mm:
+the thesis's radial set-up, section 5.2.2). Every annulus pixel is an object point: its image
+radius gives the axial position through the same ray-trace table that view synthesis uses
+(:func:`benchlab.analysis.viewsynth.cylinder_map`, default the shipped modelled table) and its
+image azimuth is the object azimuth. So what the simulated camera sees and what ``unwrap``
+undoes agree by construction.
 
 Orientation (fig. 4.9; :mod:`benchlab.analysis.chart`):
 
-- **sagittal** - the paper is rolled so its bars run along the endoscope axis. The radial view
-  images the axis direction along the image radius, so the bars are *spokes*; intensity varies
-  around the circle. The pattern's period is exact (``px_per_period``) along the arc through the
-  reference point (the radial ROI's centroid) and scales with radius elsewhere, as an object
-  period on a cylinder does. The roll's seam sits diametrically opposite the reference point.
-- **tangential** - rolled the other way: bars around the cylinder, imaged as *rings*; intensity
-  varies along the radius with a constant period.
+- **sagittal** - the paper is rolled so its bars run along the endoscope axis: *spokes*, the
+  intensity varies around the circle. The object period is along the arc of the cylinder, so
+  on the sensor it is ``period x image radius / object radius`` (rotational symmetry), exact
+  along the arc through the reference point (the radial ROI's centroid). The roll's seam sits
+  diametrically opposite the reference point.
+- **tangential** - rolled the other way: bars around the cylinder, imaged as *rings*; the
+  intensity varies along the radius with the table's axial magnification, which is Eq. 4.1's
+  17.5 at the reference point (:data:`~benchlab.analysis.raytrace.EQ41_RADIAL_MAGNIFICATION`).
 
-Image frequency = object lp/mm x :data:`~benchlab.analysis.frequency.RADIAL_MAGNIFICATION`
-(Eq. 4.1). The pattern is back-lit paper: bright spaces, dark bars, 50 % duty. Each pixel is the
-pattern blurred across its bars by the radial :class:`~benchlab.scenes.optics.BlurProfile` at its
-own radius plus the pixel aperture (Gaussian of variance 1/12 px^2), in closed form, so the blur
-varies continuously with image height and needs no resampling.
+The thesis applies Eq. 4.1's 17.5 to both roll directions; around the circle the geometry
+gives ``object radius / image radius`` (19.88 / 2.48 = 8.0 at the radial ROI) instead, so
+:attr:`RadialScene.image_lp_per_mm` of a sagittal pattern is that geometric value, which is
+what the camera sees. The pattern is back-lit paper: bright spaces, dark bars, 50 % duty. Each
+pixel is the pattern blurred across its bars by the radial
+:class:`~benchlab.scenes.optics.BlurProfile` at its own radius plus the pixel aperture
+(Gaussian of variance 1/12 px^2), converted to object mm through the local scale, in closed
+form, so the blur varies continuously with image height and needs no resampling.
 """
 
 from __future__ import annotations
@@ -29,13 +41,14 @@ import numpy.typing as npt
 from scipy.special import ndtr
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX, Orientation, RadialLayout, box_centroid
-from benchlab.analysis.frequency import (
-    RADIAL_MAGNIFICATION,
-    image_frequency_lp_per_mm,
-    px_per_period,
+from benchlab.analysis.raytrace import (
+    REFERENCE_OBJECT_RADIUS_MM,
+    RayTraceTable,
+    read_raytrace_table,
 )
 from benchlab.analysis.result import eq29_modulation
-from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState, rate_for_dn8
+from benchlab.analysis.viewsynth import CylinderMap, cylinder_map
+from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import (
     PIXEL_APERTURE_VAR_PX2,
     RADIAL_BLUR,
@@ -46,6 +59,65 @@ from benchlab.scenes.optics import (
 FloatArray = npt.NDArray[np.float64]
 #: The object frequencies of the thesis's printed radial targets (Table 4.12), lp/mm.
 RADIAL_TARGETS_LP_PER_MM = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+
+
+@functools.cache
+def default_table() -> RayTraceTable:
+    """The shipped modelled ray-trace table (read once)."""
+    return read_raytrace_table(None)
+
+
+@dataclass(frozen=True)
+class CylinderPixels:
+    """Annulus pixels as points on an object cylinder (read-only arrays, one per pixel).
+
+    ``index`` are flat pixel indices; ``rho_px`` image radius; ``dtheta`` azimuth from the
+    reference direction in [-pi, pi); ``z_mm`` axial position; ``arc_mm`` arc length from the
+    reference azimuth on the cylinder; ``axial_mm_per_px`` and ``arc_mm_per_px`` the local
+    object mm per image pixel along the radius and around the circle; ``envelope`` the soft
+    edges of the annulus.
+    """
+
+    index: npt.NDArray[np.intp]
+    rho_px: FloatArray
+    dtheta: FloatArray
+    z_mm: FloatArray
+    arc_mm: FloatArray
+    axial_mm_per_px: FloatArray
+    arc_mm_per_px: FloatArray
+    envelope: FloatArray
+
+
+@functools.lru_cache(maxsize=8)
+def cylinder_pixels(
+    circles: RadialLayout,
+    edge_sigma_px: float,
+    height: int,
+    width: int,
+    table: RayTraceTable,
+    object_radius_mm: float,
+    theta_ref: float,
+) -> CylinderPixels:
+    """Where each annulus pixel looks on the object cylinder, through the ray-trace table."""
+    index, r, theta, envelope = _annulus(circles, edge_sigma_px, height, width)
+    cyl = cylinder_map(table, object_radius_mm)
+    pitch_mm = circles.pixel_pitch_um / 1000.0
+    rho_mm = r * pitch_mm
+    slope = np.gradient(cyl.z_mm, cyl.rho_mm)
+    dtheta = np.mod(theta - theta_ref + np.pi, 2.0 * np.pi) - np.pi
+    parts = CylinderPixels(
+        index=index,
+        rho_px=r,
+        dtheta=dtheta,
+        z_mm=cyl.axial_mm(rho_mm),
+        arc_mm=object_radius_mm * dtheta,
+        axial_mm_per_px=np.abs(np.interp(rho_mm, cyl.rho_mm, slope)) * pitch_mm,
+        arc_mm_per_px=object_radius_mm / np.maximum(r, 1.0),
+        envelope=envelope,
+    )
+    for f in dataclasses.fields(parts):
+        getattr(parts, f.name).setflags(write=False)
+    return parts
 
 
 @dataclass(frozen=True)
@@ -62,8 +134,10 @@ class RadialScene:
         Centre and annulus radii.
     reference_rc
         Point where the period is exact and the truth is quoted (default: radial ROI centroid).
-    magnification
-        Object-to-image frequency factor.
+    object_radius_mm
+        Radius of the cylinder the pattern is rolled on, mm from the axis.
+    table
+        Ray-trace table the image is formed through (None: the shipped modelled table).
     blur
         Radial-view blur over image height (sagittal = around the circle, tangential = radial).
     dark_dn8, bright_dn8
@@ -80,8 +154,8 @@ class RadialScene:
     orientation: Orientation
     circles: RadialLayout = field(default_factory=RadialLayout)
     reference_rc: tuple[float, float] = box_centroid(RADIAL_ROI_BOX)
-    magnification: float = RADIAL_MAGNIFICATION
-    pixel_pitch_um: float = PIXEL_PITCH_UM
+    object_radius_mm: float = REFERENCE_OBJECT_RADIUS_MM
+    table: RayTraceTable | None = None
     blur: BlurProfile = RADIAL_BLUR
     dark_dn8: float = 20.0
     bright_dn8: float = 190.0
@@ -97,20 +171,52 @@ class RadialScene:
             )
         if not self.object_lp_per_mm > 0:
             raise ValueError(f"object frequency must be > 0 lp/mm, got {self.object_lp_per_mm}")
+        cylinder_map(self.ray_table, self.object_radius_mm)  # refuses a cylinder off the table
 
     @property
-    def image_lp_per_mm(self) -> float:
-        """Image-plane frequency at the reference point."""
-        return image_frequency_lp_per_mm(self.object_lp_per_mm, self.magnification)
+    def ray_table(self) -> RayTraceTable:
+        """The ray-trace table in use."""
+        return self.table if self.table is not None else default_table()
 
     @property
-    def px_per_period(self) -> float:
-        """Pattern period at the reference point, px."""
-        return px_per_period(self.image_lp_per_mm, self.pixel_pitch_um)
+    def pixel_pitch_um(self) -> float:
+        return self.circles.pixel_pitch_um
+
+    def _cylinder(self) -> CylinderMap:
+        return cylinder_map(self.ray_table, self.object_radius_mm)
 
     @property
     def reference_radius_px(self) -> float:
         return self.circles.radius_px(self.reference_rc)
+
+    @property
+    def reference_z_mm(self) -> float:
+        """Axial position of the object point imaged at the reference point."""
+        rho_mm = self.reference_radius_px * self.pixel_pitch_um / 1000.0
+        return float(self._cylinder().axial_mm(rho_mm))
+
+    def object_mm_per_px(self) -> float:
+        """Object mm per image pixel across the bars at the reference point."""
+        if self.orientation == "sagittal":
+            return self.object_radius_mm / self.reference_radius_px
+        rho_mm = self.reference_radius_px * self.pixel_pitch_um / 1000.0
+        return self._cylinder().axial_magnification(rho_mm) * self.pixel_pitch_um / 1000.0
+
+    @property
+    def magnification(self) -> float:
+        """Object-to-image frequency factor across the bars at the reference point (the
+        table's axial magnification for rings, object / image radius for spokes)."""
+        return self.object_mm_per_px() * 1000.0 / self.pixel_pitch_um
+
+    @property
+    def image_lp_per_mm(self) -> float:
+        """Image-plane frequency at the reference point."""
+        return self.object_lp_per_mm * self.magnification
+
+    @property
+    def px_per_period(self) -> float:
+        """Pattern period at the reference point, px."""
+        return 1.0 / (self.object_lp_per_mm * self.object_mm_per_px())
 
     @property
     def dark_rate(self) -> float:
@@ -127,36 +233,38 @@ class RadialScene:
             return self.blur.sagittal_px(h_mm)
         return self.blur.tangential_px(h_mm)
 
-    def _pattern(self, radius_px: FloatArray, dtheta: FloatArray) -> FloatArray:
-        """Bright fraction (0..1) of the blurred pattern at polar coordinates about the centre."""
-        period = self.px_per_period
-        r_ref = self.reference_radius_px
-        sigma = np.sqrt(self.across_bar_sigma_px(radius_px) ** 2 + PIXEL_APERTURE_VAR_PX2)
-        if self.orientation == "sagittal":
-            u = dtheta * r_ref  # arc length at the reference radius
-            sigma = sigma * r_ref / np.maximum(radius_px, 1.0)
-        else:
-            u = radius_px - r_ref
+    def _pattern_object(self, u_mm: FloatArray, sigma_mm: FloatArray) -> FloatArray:
+        """Bright fraction of the blurred pattern at ``u_mm`` across the bars from the
+        reference point (object mm)."""
+        period = 1.0 / self.object_lp_per_mm
         # Square wave is bright on [0, p/2): shift so a dark bar is centred at u = 0.
-        return blurred_square_wave(u + (0.75 + self.phase_cycles) * period, period, sigma)
+        return blurred_square_wave(u_mm + (0.75 + self.phase_cycles) * period, period, sigma_mm)
 
     def _theta_ref(self) -> float:
         cr, cc = self.circles.centre_rc
         return math.atan2(self.reference_rc[0] - cr, self.reference_rc[1] - cc)
 
+    def pixels(self, height: int, width: int) -> CylinderPixels:
+        """The annulus pixels as points on this scene's cylinder (cached)."""
+        return cylinder_pixels(self.circles, self.edge_sigma_px, height, width, self.ray_table,
+                               self.object_radius_mm, self._theta_ref())
+
+    def _bright_fraction(self, pix: CylinderPixels) -> FloatArray:
+        sigma_px = np.sqrt(self.across_bar_sigma_px(pix.rho_px) ** 2 + PIXEL_APERTURE_VAR_PX2)
+        if self.orientation == "sagittal":
+            return self._pattern_object(pix.arc_mm, sigma_px * pix.arc_mm_per_px)
+        return self._pattern_object(pix.z_mm - self.reference_z_mm,
+                                    sigma_px * pix.axial_mm_per_px)
+
     def truth_levels(self, point_rc: tuple[float, float] | None = None) -> tuple[float, float]:
         """Noise-free ``(dark, bright)`` rates (e-/ms) at the centre of a bar and of a space
-        next to ``point_rc``'s radius (default the reference point)."""
+        at ``point_rc``'s radius (default the reference point), with the blur there."""
         radius = self.reference_radius_px if point_rc is None else self.circles.radius_px(point_rc)
-        r = np.array([radius])
-        period = self.px_per_period
-        if self.orientation == "sagittal":
-            half_period_rad = period / (2.0 * self.reference_radius_px)
-            bar = self._pattern(r, np.array([0.0]))[0]
-            space = self._pattern(r, np.array([half_period_rad]))[0]
-        else:
-            bar = self._pattern(r, np.array([0.0]))[0]
-            space = self._pattern(r + period / 2.0, np.array([0.0]))[0]
+        sigma_px = math.sqrt(float(self.across_bar_sigma_px(radius)) ** 2 + PIXEL_APERTURE_VAR_PX2)
+        sigma_mm = np.array([sigma_px * self.object_mm_per_px()])
+        half = 0.5 / self.object_lp_per_mm
+        bar = float(self._pattern_object(np.array([0.0]), sigma_mm)[0])
+        space = float(self._pattern_object(np.array([half]), sigma_mm)[0])
         depth = self.bright_rate - self.dark_rate
         return self.dark_rate + depth * bar, self.dark_rate + depth * space
 
@@ -233,13 +341,11 @@ def _annulus(
 
 @functools.lru_cache(maxsize=16)
 def _render(scene: RadialScene, height: int, width: int) -> FloatArray:
-    index, r, theta, envelope = _annulus(scene.circles, scene.edge_sigma_px, height, width)
-    # Angle from the reference direction in [-pi, pi): the roll's seam is opposite the ROI.
-    dtheta = np.mod(theta - scene._theta_ref() + np.pi, 2.0 * np.pi) - np.pi
-    bright_fraction = scene._pattern(r, dtheta)
+    pix = scene.pixels(height, width)
+    bright_fraction = scene._bright_fraction(pix)
     depth = scene.bright_rate - scene.dark_rate
     flat = np.zeros(height * width)
-    flat[index] = envelope * (scene.dark_rate + depth * bright_fraction)
+    flat[pix.index] = pix.envelope * (scene.dark_rate + depth * bright_fraction)
     img: FloatArray = flat.reshape(height, width)
     img.setflags(write=False)
     return img

@@ -5,6 +5,8 @@ Targets (the set-ups of Table 4.10 and section 4.4):
 - ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`);
 - ``("radial", lp_per_mm, "sagittal" | "tangential")`` - a rolled radial pattern
   (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
+- ``"card"`` or ``("card", radius_mm)`` - a flat grid-and-text card rolled onto the cylinder
+  ``radius_mm`` from the axis (default 19.88; :class:`CardScene`); also ``"card:19.88"``;
 - ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
   ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
 - ``"dark"`` - nothing lit (lens cap on).
@@ -25,18 +27,19 @@ import numpy.typing as npt
 
 from benchlab.analysis.chart import Orientation
 from benchlab.drivers.sensor import AcquisitionState
+from benchlab.scenes.card import CardScene
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "radial", "led", "dark")
+TARGET_KINDS = ("usaf", "radial", "card", "led", "dark")
 
 
 def parse_target(target: object) -> Target:
-    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)`` or
-    ``("radial", lp_per_mm, orientation)``.
+    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)``,
+    ``("radial", lp_per_mm, orientation)`` or ``("card", radius_mm)``.
 
     Raises
     ------
@@ -49,6 +52,8 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str):
         if spec in ("usaf", "led", "dark"):
             return (spec,)
+        if spec == "card":
+            return ("card", None)
         raise ValueError(f"unknown target {target!r}; expected one of {TARGET_KINDS}")
     if isinstance(spec, list | tuple) and len(spec) == 3 and spec[0] == "radial":
         try:
@@ -60,11 +65,21 @@ def parse_target(target: object) -> Target:
         if spec[2] not in ("sagittal", "tangential"):
             raise ValueError(f"radial target {target!r}: orientation must be sagittal/tangential")
         return ("radial", lp, str(spec[2]))
+    if isinstance(spec, list | tuple) and len(spec) == 2 and spec[0] == "card":
+        if spec[1] is None:
+            return ("card", None)
+        try:
+            radius = float(spec[1])
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"card target {target!r}: radius is not a number (mm)") from exc
+        if not radius > 0:
+            raise ValueError(f"card target {target!r}: radius must be > 0 mm")
+        return ("card", radius)
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
         f"unknown target {target!r}; expected 'usaf', 'led', 'dark' or "
-        "('radial', lp_per_mm, 'sagittal'|'tangential')"
+        "('radial', lp_per_mm, 'sagittal'|'tangential') or 'card[:RADIUS_MM]'"
     )
 
 
@@ -90,18 +105,21 @@ class SimWorld:
         *,
         usaf: UsafScene | None = None,
         radial: RadialScene | None = None,
+        card: CardScene | None = None,
         led: LedScene | None = None,
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
         self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
+        self.card_template = card if card is not None else CardScene()
+        self._cards: dict[float, CardScene] = {}
         self.led = led if led is not None else LedScene()
         self.led_channel = led_channel
         self.led_position_mm = led_position_mm
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
-        self._target = parse_target(target)
+        self._target = self._checked(target)
 
     @property
     def target(self) -> Target:
@@ -110,7 +128,14 @@ class SimWorld:
 
     @target.setter
     def target(self, value: object) -> None:
-        self._target = parse_target(value)
+        self._target = self._checked(value)
+
+    def _checked(self, target: object) -> Target:
+        """Parse a target; a card off the ray-trace table is refused here, not at exposure."""
+        spec = parse_target(target)
+        if spec[0] == "card":
+            self.card_scene(spec[1])
+        return spec
 
     def mount(self, target: object) -> None:
         """Mount a target (same as assigning :attr:`target`)."""
@@ -131,9 +156,34 @@ class SimWorld:
                 self._radial[key] = scene
         return scene
 
-    def scene_for(self, target: object) -> UsafScene | RadialScene | LedScene | None:
+    def card_scene(self, radius_mm: float | None) -> CardScene:
+        """The (cached) card scene at a radius (None: the template's).
+
+        Raises
+        ------
+        ValueError
+            When the radius is outside the ray-trace table.
+        """
+        if radius_mm is None:
+            return self.card_template
+        key = float(radius_mm)
+        with self._lock:
+            scene = self._cards.get(key)
+            if scene is None:
+                try:
+                    scene = dataclasses.replace(self.card_template, object_radius_mm=key)
+                except ValueError as exc:  # RayTraceError: off the table
+                    raise ValueError(f"card at {key:g} mm: {exc}") from exc
+                self._cards[key] = scene
+        return scene
+
+    def scene_for(
+        self, target: object
+    ) -> UsafScene | RadialScene | CardScene | LedScene | None:
         """The scene object of a target (None for ``"dark"``)."""
         spec = parse_target(target)
+        if spec[0] == "card":
+            return self.card_scene(spec[1])
         if spec[0] == "usaf":
             return self.usaf
         if spec[0] == "radial":

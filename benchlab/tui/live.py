@@ -21,6 +21,7 @@ from textual.worker import get_current_worker
 from benchlab.bench import plain_target
 from benchlab.tui import services
 from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE, GraphicsFrameView
+from benchlab.tui.unwrap_view import UnwrapPreview
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -71,6 +72,7 @@ class LiveScreen(Screen[None]):
         Binding("o", "orientation", "Orient"),
         Binding("z", "zoom", "Zoom"),
         Binding("t", "target", "Target"),
+        Binding("u", "unwrap", "Unwrap"),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)
@@ -81,6 +83,8 @@ class LiveScreen(Screen[None]):
     orientation: reactive[str] = reactive("auto")
     #: Show the ROI's surroundings instead of the whole frame.
     zoom: reactive[bool] = reactive(False)
+    #: Show the radial annulus unwrapped (estimated orthographic view, thesis 5.2).
+    unwrapped: reactive[bool] = reactive(False)
 
     def __init__(self) -> None:
         super().__init__()
@@ -96,6 +100,7 @@ class LiveScreen(Screen[None]):
         self._idle_reason = ""
         graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
         self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
+        self._unwrap = UnwrapPreview()
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
@@ -153,6 +158,8 @@ class LiveScreen(Screen[None]):
                         frame, self.roi, self.estimator, orientation, index, *settings,
                         zoom=self.zoom, preview_max_side=self._preview_side,
                     )
+                    if self.unwrapped:
+                        reading = self._unwrap.apply(reading, frame[0], self._preview_side)
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
                         app.call_from_thread(self._live_error, exc)
@@ -205,7 +212,8 @@ class LiveScreen(Screen[None]):
         self.frames_displayed += 1
         now = time.monotonic()
         self._display_times.append(now)
-        self.query_one(FrameView).show(reading.preview, reading.preview_roi, reading.max_code)
+        roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
+        self.query_one(FrameView).show(reading.preview, roi, reading.max_code)
         self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
 
@@ -250,6 +258,11 @@ class LiveScreen(Screen[None]):
 
     def action_zoom(self) -> None:
         self.zoom = not self.zoom
+
+    def action_unwrap(self) -> None:
+        self.unwrapped = not self.unwrapped
+        self._unwrap.reset()
+        self.query_one("#frame").border_title = "camera, unwrapped" if self.unwrapped else "camera"
 
     def action_target(self) -> None:
         self._mount_next_target()
