@@ -102,6 +102,8 @@ class Session:
         self.path = Path(path)
         self._meta = meta
         self._lock = threading.Lock()
+        #: Parsed journal and the file identity it was read from (size, mtime, inode).
+        self._events_cache: tuple[tuple[int, int, int], list[dict[str, Any]]] | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -279,6 +281,10 @@ class Session:
         anything else raises :class:`SessionError` naming the file and line.
         """
         try:
+            st = self.events_path.stat()
+            key = (st.st_size, st.st_mtime_ns, st.st_ino)
+            if self._events_cache is not None and self._events_cache[0] == key:
+                return [dict(e) for e in self._events_cache[1]]  # unchanged: no re-parse
             raw = self.events_path.read_bytes()
         except FileNotFoundError as exc:
             raise SessionError(f"{self.events_path}: journal missing") from exc
@@ -303,6 +309,8 @@ class Session:
                 pending_bad = None
             out.append(rec)
         else:
+            if len(raw) == key[0]:  # the file did not grow while it was read
+                self._events_cache = (key, [dict(e) for e in out])
             return out  # at most a torn final line was skipped
         raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
 

@@ -96,11 +96,14 @@ def fov_centre(mask: npt.ArrayLike) -> FovCircle:
     n = int(m.sum())
     if n == 0:
         raise ValueError("field-of-view mask is empty")
-    rows, cols = np.nonzero(m)
+    # Row and column projections give the centroid and the clipping test without listing
+    # every pixel of a mask that covers most of the frame.
+    per_row, per_col = m.sum(axis=1), m.sum(axis=0)
     h, w = m.shape
-    clipped = bool(rows.min() == 0 or cols.min() == 0 or rows.max() == h - 1 or cols.max() == w - 1)
+    clipped = bool(per_row[0] or per_row[-1] or per_col[0] or per_col[-1])
     if not clipped:
-        r, c = float(rows.mean()), float(cols.mean())
+        r = float(per_row @ np.arange(h, dtype=np.float64)) / n
+        c = float(per_col @ np.arange(w, dtype=np.float64)) / n
         return FovCircle((r, c), math.sqrt(n / math.pi), False, "centroid")
     edge = m & ~_erode(m)
     br, bc = np.nonzero(edge)
