@@ -114,3 +114,17 @@ def test_permission_error_names_the_installed_rule_and_commands() -> None:
     text = str(info.value)
     assert f"sudo install -m 644 {rule} /etc/udev/rules.d/" in text
     assert "sudo udevadm control --reload-rules && sudo udevadm trigger" in text
+
+
+def test_benchmark_startup_times_both_commands(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.session import Session
+
+    session = Session.create(tmp_path, procedure="mtf", params={}, operator="t", devices={},
+                             software_version="0", name="s")
+    # A session without frames re-analyses quickly (empty tables): this checks the command.
+    assert main(["benchmark", "startup", str(session.path), "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "--help" in out and "analyze SESSION" in out and "0.35s" in out
+    assert session.result_versions() == []  # each run analysed its own copy
+    assert main(["benchmark", "startup", str(tmp_path / "nope")]) == 1

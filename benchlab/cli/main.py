@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
     "benchlab.cli.config",  # config init, config show
+    "benchlab.cli.startup",  # benchmark startup
 )
 LOG_LEVELS = ("debug", "info", "warning", "error")
 
