@@ -175,8 +175,9 @@ class LightSource(SafeInstrument):
     see :class:`SafeInstrument`) switches every channel off.
     """
 
-    #: How the device is named in messages.
+    #: How the device and its channels are named in messages.
     NAME = "light source"
+    CHANNEL_NAME = "light channel"
 
     @property
     @abstractmethod
@@ -229,10 +230,10 @@ class LightSource(SafeInstrument):
         n = self.channel_count
         if isinstance(ch, bool) or not (isinstance(ch, int) and 1 <= ch <= n):
             raise SettingOutOfRangeError(
-                f"{self.NAME.split()[0]} channel {ch} does not exist (1..{n}); nothing sent")
+                f"{self.CHANNEL_NAME} {ch} does not exist (1..{n}); nothing sent")
 
     def _check_current(self, ch: int, current_ma: float) -> None:
-        what = f"{self.NAME.split()[0]} channel {ch}"
+        what = f"{self.CHANNEL_NAME} {ch}"
         if (isinstance(current_ma, bool) or not isinstance(current_ma, int | float)
                 or not math.isfinite(current_ma)):
             raise SettingOutOfRangeError(f"{what}: current {current_ma!r} is not finite")

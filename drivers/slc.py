@@ -73,6 +73,7 @@ class SlcController(LightSource):
 
     SAFE_ACTION = "switching the LEDs off"
     NAME = "LED controller"
+    CHANNEL_NAME = "LED channel"
 
     def __init__(
         self, port: str, *, ceilings_ma: Mapping[int, float], timeout_s: float = 1.0
