@@ -163,6 +163,18 @@ def _verdict(ctx: ReportContext) -> str:
     return verdict_section(ctx.tables.get("table_4_15", []))
 
 
+def _sfr(ctx: ReportContext) -> str:
+    from benchlab.report_curves import load_curves
+    from benchlab.report_sfr import render_sfr_section
+
+    curves_file = str(ctx.session.params.get("analysis", {}).get("simulated_mtf_file", ""))
+    try:
+        curves = load_curves(curves_file or None)
+    except (OSError, ValueError):
+        curves = []
+    return render_sfr_section(ctx.tables, curves)
+
+
 def _radial_roi(ctx: ReportContext, meta: dict[str, Any]) -> list[int]:
     roi = meta.get("roi") or ctx.session.params.get("radial", {}).get("roi")
     return list(roi) if roi else [249, 999, 290, 1050]
@@ -320,6 +332,8 @@ SECTIONS: list[Section] = [
     Section("Measured vs simulated bar contrast (figs. 4.15-4.18)", _ctf, ("mtf",), "ctf"),
     Section("Table 4.15 verdict: averaged MTF against the Monte Carlo prediction", _verdict,
             ("mtf",), "verdict"),
+    Section("Slanted-edge MTF vs simulated MTF and bars (ISO 12233 e-SFR)", _sfr, ("mtf",),
+            "sfr"),
     Section("Frames with ROIs", _mtf_frames, ("mtf",), "frames"),
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),

@@ -32,6 +32,7 @@ from benchlab.analysis.geometry import (
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
+from benchlab.protocols.mtf_edges import forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 
 if TYPE_CHECKING:
@@ -258,6 +259,8 @@ def analyze_mtf(
 
     t415 = _monte_carlo_rows(t411, t412, params)
     tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
+    if forward is not None:  # slanted-edge MTF where a clean edge exists (issue 16)
+        tables.update(forward_edge_tables(forward, t411, centre, params.simulated_mtf_file))
     summary = {
         "procedure": "mtf",
         "estimator": est,

@@ -31,12 +31,13 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
                   "Measured vs simulated bar contrast", "Table 4.15 verdict", "Frames with ROIs",
                   "Evidence per ROI", "G1E5", "SIM-130001"):
         assert title in text
-    # Plots: CTF and Monte Carlo bands; frames: forward overview + zoom + 4 radial crops;
-    # evidence: one crop per ROI (2 elements x S/T + 2 radial frequencies x S/T).
-    assert text.count("class='plot'") == 2
+    # Plots: CTF, Monte Carlo bands and the slanted-edge MTF; frames: forward overview + zoom +
+    # 4 radial crops; evidence: one crop per ROI (2 elements x S/T + 2 radial frequencies x S/T).
+    assert text.count("class='plot'") == 3
     assert text.count("class='roi-panel'") == 8
     assert text.count("class='crop'") == 8
-    assert text.count("data:image/png;base64,") == 2 + 6 + 8
+    assert text.count("data:image/png;base64,") == 3 + 6 + 8
+    assert "Slanted-edge MTF" in text and "bar readings compared" in text
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
     assert "src='http" not in text and "<script" not in text  # nothing fetched from outside

@@ -87,13 +87,15 @@ def test_world_dispatches_on_the_mounted_target() -> None:
     world = SimWorld()
     assert not world(_state()).any()  # dark by default
     world.target = "usaf"
-    assert np.array_equal(world(_state(300.0)), UsafScene().render(H, W))
+    # the forward view: the USAF chart with the slanted-edge target beside it
+    forward = np.maximum(UsafScene().render(H, W) - world.edges.darkening(_state(300.0)), 0.0)
+    assert np.array_equal(world(_state(300.0)), forward)
     world.mount(("radial", 4, "tangential"))
     radial = world(_state(300.0))
     assert np.array_equal(radial, world.radial_scene(4.0, "tangential").render(H, W))
     assert world.radial_scene(4.0, "tangential") is world.radial_scene(4, "tangential")
     # the bench state's target overrides the mounted one for that exposure
-    assert np.array_equal(world(_state(target="usaf")), UsafScene().render(H, W))
+    assert np.array_equal(world(_state(target="usaf")), forward)
     with pytest.raises(ValueError):
         world.target = "mirror"
 

@@ -90,7 +90,7 @@ def _cmd_devices(args: argparse.Namespace) -> int:
 
 #: Scenes ``snap --simulate`` can show: the two simple ones, or a target of the simulated bench.
 SNAP_SCENES_HELP = (
-    "bars (32 px period test target), flat, or a bench target: usaf, led, dark, "
+    "bars (32 px period test target), flat, or a bench target: usaf, edge, led, dark, "
     "radial:LP_PER_MM:sagittal|tangential (e.g. radial:4:sagittal), "
     "card[:RADIUS_MM] (grid-and-text card rolled at RADIUS_MM from the axis, default 19.88)"
 )

@@ -2,7 +2,9 @@
 
 Targets (the set-ups of Table 4.10 and section 4.4):
 
-- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`);
+- ``"usaf"`` - forward-view set-up with the USAF 1951 chart (:class:`UsafScene`) and, in the
+  empty part of the disc, the slanted-edge target (:class:`EdgeScene`);
+- ``"edge"`` - the forward view with the slanted-edge target alone;
 - ``("radial", lp_per_mm, "sagittal" | "tangential")`` - a rolled radial pattern
   (:class:`RadialScene`); also accepted as a list or the string ``"radial:4:sagittal"``;
 - ``"card"`` or ``("card", radius_mm)`` - a flat grid-and-text card rolled onto the cylinder
@@ -28,17 +30,18 @@ import numpy.typing as npt
 from benchlab.analysis.chart import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
+from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "radial", "card", "led", "dark")
+TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "dark")
 
 
 def parse_target(target: object) -> Target:
-    """Normalise a target spec to ``("usaf",)``, ``("led",)``, ``("dark",)``,
+    """Normalise a target spec to ``("usaf",)``, ``("edge",)``, ``("led",)``, ``("dark",)``,
     ``("radial", lp_per_mm, orientation)`` or ``("card", radius_mm)``.
 
     Raises
@@ -50,7 +53,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "led", "dark"):
+        if spec in ("usaf", "edge", "led", "dark"):
             return (spec,)
         if spec == "card":
             return ("card", None)
@@ -78,7 +81,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
-        f"unknown target {target!r}; expected 'usaf', 'led', 'dark' or "
+        f"unknown target {target!r}; expected 'usaf', 'edge', 'led', 'dark' or "
         "('radial', lp_per_mm, 'sagittal'|'tangential') or 'card[:RADIUS_MM]'"
     )
 
@@ -90,9 +93,9 @@ class SimWorld:
     ----------
     target
         The target mounted at start.
-    usaf, radial, led
-        Scene parameters. ``radial`` is a template whose frequency and orientation are replaced
-        per mounted pattern.
+    usaf, radial, card, led, edges
+        Scene parameters (``edges=None``: the default slanted-edge target). ``radial`` is a
+        template whose frequency and orientation are replaced per mounted pattern.
     led_channel
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
     led_position_mm
@@ -109,8 +112,10 @@ class SimWorld:
         led: LedScene | None = None,
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
+        edges: EdgeScene | None = None,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
+        self.edges = edges if edges is not None else EdgeScene()
         self.radial_template = radial if radial is not None else RadialScene(1.0, "sagittal")
         self.card_template = card if card is not None else CardScene()
         self._cards: dict[float, CardScene] = {}
@@ -179,13 +184,15 @@ class SimWorld:
 
     def scene_for(
         self, target: object
-    ) -> UsafScene | RadialScene | CardScene | LedScene | None:
-        """The scene object of a target (None for ``"dark"``)."""
+    ) -> UsafScene | EdgeScene | RadialScene | CardScene | LedScene | None:
+        """The scene object of a target (None for ``"dark"``; the chart's for ``"usaf"``)."""
         spec = parse_target(target)
         if spec[0] == "card":
             return self.card_scene(spec[1])
         if spec[0] == "usaf":
             return self.usaf
+        if spec[0] == "edge":
+            return self.edges
         if spec[0] == "radial":
             return self.radial_scene(spec[1], spec[2])
         if spec[0] == "led":
@@ -229,4 +236,8 @@ class SimWorld:
             ).copy()
         scene = self.scene_for(spec)
         assert scene is not None
-        return scene(state)
+        img = scene(state)
+        if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
+            img -= self.edges.darkening(state)
+            np.maximum(img, 0.0, out=img)
+        return img

@@ -1,0 +1,649 @@
+"""Slanted-edge spatial frequency response (ISO 12233 e-SFR): the sine-wave MTF from one edge.
+
+Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
+
+1. Work frame: the ROI as given when the intensity varies along the columns (a near-vertical
+   edge), else transposed, so the edge crosses every row of the work frame.
+2. Edge location: per row, the centroid of the 2-tap derivative under a window centred on the
+   edge; a line (or a low-order polynomial) is fitted to the centroids against the row. Three
+   passes: a wide window around the mean profile's edge, then a window of a few ESF widths
+   around the fitted edge; centroids more than 4 robust standard deviations off the fit are
+   dropped.
+3. ESF: every pixel is projected onto the edge normal with the shared projection
+   (:mod:`benchlab.analysis.projection`, the one the oblique bar estimators use) and averaged in
+   1/4-px bins (4x oversampling), each bin's mean placed at the mean position of its pixels.
+   A curved fit shifts each row by its bend before binning. Angles near 45 deg or atan(1/2)
+   put the pixel centres on a lattice coarser than the bins: empty bins are skipped (the
+   samples keep their true spacing) and a warning is given.
+4. LSF: the difference of neighbouring ESF samples at their midpoints, multiplied by a Tukey
+   window centred on the LSF whose flat top covers the LSF core (1.2 10-90 % rise distances +
+   1.5 px) so the window barely touches the signal while it cuts the plateaus' noise.
+5. MTF: ``|DFT|`` at the midpoints (a regular grid when the phases are dense; the lattice's
+   own spacing otherwise), normalised at zero frequency and divided by the transfer function
+   of the difference (``sinc(f h)`` for gap ``h``) and of the in-bin averaging (``sinc(f b)``,
+   ``b`` from the spread of the pixel positions in the bins, 1/4 px when dense); the correction
+   is capped at 10, as ISO 12233 caps its derivative correction. Frequencies are cycles per
+   pixel *along the edge normal*, so no cos(angle) rescaling is needed.
+6. MTF50 (first crossing of 0.5), MTF at chosen frequencies and at Nyquist (0.5 cycles/px).
+   Uncertainty: bootstrap over rows (the edge fit kept), 1-sigma per frequency and for MTF50.
+
+Refused (:class:`SfrRefused`, every reason listed): noise only / no edge, fewer than
+:data:`MIN_EDGE_ROWS` rows, an edge within :data:`MIN_ANGLE_DEG` of a pixel axis or too short
+for its angle to span one phase cycle, more than :data:`CLIP_REFUSE_FRACTION` of the pixels
+clipped. Warned (in :attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle,
+uneven sample phases, a truncated ESF, any clipping, a poor edge fit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.projection import across_coordinate, bin_profile
+
+FloatArray = npt.NDArray[np.float64]
+
+#: ESF bin width, px: ISO 12233's 4x oversampling.
+BIN_WIDTH_PX = 0.25
+#: Edges closer than this to a pixel axis are refused (too few sample phases per row shift).
+MIN_ANGLE_DEG = 1.5
+#: ... and warned about below this angle.
+WARN_ANGLE_DEG = 2.0
+#: Fewer rows along the edge than this are refused; fewer than WARN_EDGE_ROWS are warned about
+#: (MTF Mapper marks edges under ~25 px and recommends >= 35 px).
+MIN_EDGE_ROWS = 10
+WARN_EDGE_ROWS = 35
+#: Eq. 2.9 contrast between the ESF plateaus below which a warning is given (sfrmat: 20 %).
+LOW_CONTRAST = 0.2
+#: "No edge" (noise only): the ROI's 2-98 % gray-level spread must exceed this many noise
+#: sigmas (an edge at SNR 10 spreads ~13 sigma, pure noise ~4) ...
+NOISE_SPREAD_RATIO = 8.0
+#: ... and the ESF step this many standard errors of a plateau mean (noise / sqrt(rows)).
+MIN_STEP_NOISE_RATIO = 6.0
+#: Clipped pixels: any is warned about; above this fraction the edge is refused (sfrmat flags
+#: more than 0.5 %: clipping steepens the ESF and lifts the MTF).
+CLIP_REFUSE_FRACTION = 0.005
+#: Empty ESF bins in the LSF core (a coarse pixel lattice) above this fraction: a warning.
+EMPTY_BIN_WARN_FRACTION = 0.05
+#: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
+FIT_RMS_WARN_PX = 1.0
+#: Derivative-filter correction cap (ISO 12233 / sfrmat limit the correction to 10).
+MAX_DERIVATIVE_CORRECTION = 10.0
+#: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
+MAX_FREQ_CYCLES_PER_PX = 1.0
+NYQUIST_CYCLES_PER_PX = 0.5
+#: LSF window: flat over +-(FLAT_RISES x the 10-90 % rise + FLAT_EXTRA_PX), cosine taper to
+#: TAPER_FACTOR times that. A Gaussian LSF (rise 2.56 sigma) has > 99.7 % of its area under the
+#: flat top (+-3.1 sigma + 1.5 px); a wider window only adds plateau noise (tuned on the
+#: benchmark: the MTF noise near Nyquist grows as the square root of the window width).
+FLAT_RISES = 1.2
+FLAT_EXTRA_PX = 1.5
+#: The taper ends at this multiple of the flat half-width.
+TAPER_FACTOR = 1.5
+
+
+class SfrRefused(ValueError):
+    """The ROI holds no edge the SFR can be measured on; ``reasons`` says why (all of them)."""
+
+    def __init__(self, reasons: list[str]) -> None:
+        self.reasons = tuple(reasons)
+        super().__init__("edge refused: " + "; ".join(reasons))
+
+
+@dataclass(frozen=True)
+class EdgeFit:
+    """The fitted edge, in the work frame (edge crossing the rows).
+
+    Attributes
+    ----------
+    transposed : bool
+        True when the ROI was transposed (a near-horizontal edge, intensity varying along rows).
+    coeffs : ndarray
+        Polynomial (highest power first, ``np.polyval`` order) of the edge column against the
+        row, in work-frame pixel coordinates.
+    slope : float
+        d(column)/d(row) of the edge at the middle row: tan of the angle from the pixel axis.
+    rms_px : float
+        RMS residual of the per-row centroids about the fit (px).
+    rows_used : int
+        Rows whose centroid entered the final fit.
+    """
+
+    transposed: bool
+    coeffs: FloatArray
+    slope: float
+    rms_px: float
+    rows_used: int
+
+
+@dataclass(frozen=True)
+class SfrResult:
+    """Slanted-edge SFR of one ROI.
+
+    Attributes
+    ----------
+    freqs_cycles_per_px : ndarray
+        Frequency grid, cycles/px along the edge normal, 0 to 1.
+    mtf : ndarray
+        MTF on that grid (1 at 0).
+    mtf_sigma : ndarray or None
+        Bootstrap 1-sigma per frequency (None without bootstrap).
+    mtf50_cycles_per_px, mtf50_sigma : float or None
+        First frequency where the MTF falls to 0.5 (None if it never does below 1 cycle/px),
+        and its bootstrap 1-sigma.
+    mtf_nyquist : float
+        MTF at 0.5 cycles/px.
+    edge_angle_deg : float
+        Angle between the edge and the nearest pixel axis (0-45, deg).
+    normal_theta_rad : float
+        Direction of the edge normal (dark to bright) in the projection convention of
+        :func:`benchlab.analysis.projection.across_coordinate` (from the column axis towards
+        the row axis), in the ROI's own frame.
+    direction : str
+        Direction the intensity varies: ``"horizontal"`` (a near-vertical edge; sagittal in the
+        forward view) or ``"vertical"`` (tangential).
+    dark, bright : float
+        Plateau levels of the ESF (ROI units).
+    contrast : float
+        Eq. 2.9 contrast ``(bright - dark) / (bright + dark)`` of the plateaus.
+    noise_sigma : float
+        Pixel noise (robust, from differences along the edge).
+    clipped_fraction : float
+        Fraction of pixels at 0 or at full scale.
+    edge_rows : int
+        Length of the edge in pixels along it (rows of the work frame).
+    fit : EdgeFit
+    esf_u_px, esf, lsf : ndarray
+        The oversampled ESF (bin centres along the normal, px from the edge) and the windowed
+        LSF used.
+    warnings : tuple of str
+    """
+
+    freqs_cycles_per_px: FloatArray
+    mtf: FloatArray
+    mtf_sigma: FloatArray | None
+    mtf50_cycles_per_px: float | None
+    mtf50_sigma: float | None
+    mtf_nyquist: float
+    edge_angle_deg: float
+    normal_theta_rad: float
+    direction: str
+    dark: float
+    bright: float
+    contrast: float
+    noise_sigma: float
+    clipped_fraction: float
+    edge_rows: int
+    fit: EdgeFit
+    esf_u_px: FloatArray
+    esf: FloatArray
+    lsf: FloatArray
+    warnings: tuple[str, ...]
+
+    def mtf_at(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
+        """MTF interpolated at the given frequencies (cycles/px, 0..1)."""
+        f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
+        return np.asarray(np.interp(f, self.freqs_cycles_per_px, self.mtf), dtype=np.float64)
+
+    def sigma_at(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray | None:
+        """Bootstrap 1-sigma interpolated at the given frequencies (None without bootstrap)."""
+        if self.mtf_sigma is None:
+            return None
+        f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
+        return np.asarray(np.interp(f, self.freqs_cycles_per_px, self.mtf_sigma))
+
+    def to_dict(self, step_cycles_per_px: float = 0.01) -> dict[str, Any]:
+        """JSON-ready summary with the curve resampled every ``step_cycles_per_px``."""
+        grid = np.round(np.arange(0.0, MAX_FREQ_CYCLES_PER_PX + 1e-9, step_cycles_per_px), 6)
+        sig = self.sigma_at(grid)
+        return {
+            "mtf50_cycles_per_px": self.mtf50_cycles_per_px,
+            "mtf50_sigma": self.mtf50_sigma,
+            "mtf_nyquist": self.mtf_nyquist,
+            "edge_angle_deg": self.edge_angle_deg,
+            "normal_theta_deg": math.degrees(self.normal_theta_rad),
+            "direction": self.direction,
+            "dark": self.dark,
+            "bright": self.bright,
+            "contrast": self.contrast,
+            "noise_sigma": self.noise_sigma,
+            "clipped_fraction": self.clipped_fraction,
+            "edge_rows": self.edge_rows,
+            "fit_rms_px": self.fit.rms_px,
+            "warnings": list(self.warnings),
+            "freqs_cycles_per_px": grid.tolist(),
+            "mtf": [round(float(v), 6) for v in self.mtf_at(grid)],
+            "mtf_sigma": None if sig is None else [round(float(v), 6) for v in sig],
+        }
+
+
+def full_scale_of(pixels: npt.NDArray[Any]) -> float | None:
+    """Full-scale code of an image: 255 (uint8), 4095 (12-bit data in uint16), 65520
+    (12-bit MSB-aligned), 65535 (other uint16); None for float data (no clipping check)."""
+    if pixels.dtype == np.uint8:
+        return 255.0
+    if pixels.dtype == np.uint16:
+        top = int(pixels.max()) if pixels.size else 0
+        if top <= 4095:
+            return 4095.0
+        if not np.any(pixels % 16):
+            return 65520.0
+        return 65535.0
+    return None
+
+
+def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
+    """1 for ``|x| <= flat``, cosine taper to 0 at ``|x| = total``, 0 beyond."""
+    ax = np.abs(x)
+    w = np.ones_like(ax)
+    if total <= flat:
+        w[ax > flat] = 0.0
+        return w
+    taper = (ax > flat) & (ax < total)
+    w[taper] = 0.5 * (1.0 + np.cos(math.pi * (ax[taper] - flat) / (total - flat)))
+    w[ax >= total] = 0.0
+    return w
+
+
+def _noise_sigma(work: FloatArray) -> float:
+    """Robust pixel noise from differences between neighbouring rows (along the edge)."""
+    if work.shape[0] < 2:
+        return 0.0
+    d = np.diff(work, axis=0).ravel()
+    mad = float(np.median(np.abs(d - np.median(d))))
+    return 1.4826 * mad / math.sqrt(2.0)
+
+
+def _row_centroids(
+    deriv: FloatArray, centres: FloatArray, half_width: float
+) -> FloatArray:
+    """Centroid per row of the derivative under a Hann window of ``half_width`` around
+    ``centres`` (per row). Derivative samples sit at half-pixel positions ``j + 0.5``."""
+    x = np.arange(deriv.shape[1], dtype=np.float64) + 0.5
+    dist = (x[None, :] - centres[:, None]) / half_width
+    w = np.where(np.abs(dist) < 1.0, 0.5 * (1.0 + np.cos(math.pi * dist)), 0.0)
+    wd = w * deriv
+    total = wd.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = (wd * x[None, :]).sum(axis=1) / total
+    c[~(total > 0)] = np.nan
+    return np.asarray(c, dtype=np.float64)
+
+
+def _fit_edge(
+    rows: FloatArray, cents: FloatArray, order: int
+) -> tuple[FloatArray, FloatArray]:
+    """Polynomial fit of the centroids against the row, dropping outliers (> 4 robust sigma);
+    returns the coefficients and the mask of rows kept."""
+    keep = np.isfinite(cents)
+    coeffs = np.zeros(order + 1)
+    for _ in range(3):
+        if int(keep.sum()) <= order + 1:
+            break
+        coeffs = np.polyfit(rows[keep], cents[keep], order)
+        res = cents - np.polyval(coeffs, rows)
+        mad = float(np.median(np.abs(res[keep])))
+        limit = max(4.0 * 1.4826 * mad, 0.25)
+        new_keep = np.isfinite(cents) & (np.abs(res) <= limit)
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    if int(keep.sum()) > order + 1:
+        coeffs = np.polyfit(rows[keep], cents[keep], order)
+    return coeffs, keep
+
+
+def _rise_10_90(u: FloatArray, esf: FloatArray) -> float:
+    """10-90 % rise distance (px) of a rising ESF (plateaus from its outer fifths)."""
+    n = esf.size
+    k = max(1, n // 5)
+    lo, hi = float(np.mean(esf[:k])), float(np.mean(esf[-k:]))
+    if hi <= lo:
+        return float("nan")
+    frac = (esf - lo) / (hi - lo)
+    # The first crossings from each side, so noise in the plateaus does not matter much.
+    i10 = int(np.argmax(frac >= 0.1))
+    i90 = n - 1 - int(np.argmax(frac[::-1] <= 0.9))
+    return float(max(u[min(i90, n - 1)] - u[i10], 0.0))
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """The binned ESF as samples at their own mean positions (not the bin centres)."""
+
+    u: FloatArray  # mean position of the pixels in each filled bin, px from the edge
+    esf: FloatArray  # mean value in each filled bin
+    spread_var: FloatArray  # variance of the pixel positions within each bin, px^2
+    empty_core_fraction: float  # empty bins within the core (coarse pixel lattice)
+
+
+def _esf_samples(
+    u: FloatArray, values: FloatArray, bin_width: float, core_half_px: float
+) -> _Samples:
+    """Bin the projected pixels; keep the well-populated stretch around the edge.
+
+    Each bin's value is placed at the mean position of its pixels: at angles where the pixel
+    centres fall on a lattice a little coarser or finer than the bins (atan 1/4, atan 1/3,
+    ...) the bin centre would misplace the samples by up to half a bin.
+    """
+    prof = bin_profile(u, values, bin_width)
+    pos = bin_profile(u, u, bin_width).mean
+    sq = bin_profile(u, u * u, bin_width).mean
+    counts = prof.count
+    filled = counts > 0
+    typical = float(np.median(counts[filled]))
+    good = counts >= max(1.0, 0.2 * typical)
+    idx = np.flatnonzero(good)
+    centre = int(np.argmin(np.abs(prof.u_px)))
+    left, right = idx[idx <= centre], idx[idx >= centre]
+    lo = int(left[-1]) if left.size else int(idx[0])
+    hi = int(right[0]) if right.size else int(idx[-1])
+    # Walk outwards while the gaps between well-populated bins stay short (sparse ROI corners
+    # are dropped; a coarse lattice leaves regular gaps of up to 3 bins).
+    for j in left[::-1]:
+        if lo - int(j) > 4:
+            break
+        lo = min(lo, int(j))
+    for j in right:
+        if int(j) - hi > 4:
+            break
+        hi = max(hi, int(j))
+    sl = slice(lo, hi + 1)
+    keep = good[sl]
+    centres = prof.u_px[sl]
+    core = np.abs(centres) <= core_half_px
+    empty = float(np.mean(~filled[sl][core])) if np.any(core) else 0.0
+    p, e = pos[sl][keep], prof.mean[sl][keep]
+    var = np.clip(sq[sl][keep] - p * p, 0.0, None)
+    return _Samples(np.asarray(p, np.float64), np.asarray(e, np.float64),
+                    np.asarray(var, np.float64), empty)
+
+
+#: Frequency grid of the MTF, cycles/px along the normal.
+FREQ_STEP_CYCLES_PER_PX = 0.005
+FREQS_CYCLES_PER_PX = np.round(
+    np.arange(0.0, MAX_FREQ_CYCLES_PER_PX + 1e-9, FREQ_STEP_CYCLES_PER_PX), 6
+)
+
+
+def _mtf_from_samples(
+    s: _Samples, flat_half_px: float
+) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
+    """(mtf on FREQS_CYCLES_PER_PX, windowed LSF at the midpoints, midpoints, truncated).
+
+    LSF: the ESF increments between neighbouring samples, at their midpoints (a 2-point
+    difference over each gap ``h``), windowed; its DFT at the midpoints, normalised at zero
+    frequency. Corrections: the 2-point difference passes ``sinc(f h)`` (averaged over the
+    gaps with the LSF as weight) and the in-bin averaging a box, ``sinc(f b)`` with
+    ``b = sqrt(12 var)`` from the LSF-weighted spread of the pixel positions within the bins
+    (1/4 px when the phases are dense, less where the pixel lattice leaves one position per
+    bin); the total correction is capped at :data:`MAX_DERIVATIVE_CORRECTION`.
+    """
+    de = np.diff(s.esf)
+    h = np.diff(s.u)
+    mid = 0.5 * (s.u[1:] + s.u[:-1])
+    pos = np.clip(de, 0.0, None)
+    centre = float(np.sum(mid * pos) / np.sum(pos)) if np.sum(pos) > 0 else 0.0
+    half_data = min(centre - float(s.u[0]), float(s.u[-1]) - centre)
+    total = min(half_data, TAPER_FACTOR * flat_half_px)
+    truncated = half_data < flat_half_px
+    flat = min(flat_half_px, 0.8 * total)
+    win = _tukey(mid - centre, flat, total)
+    lsf = de * win
+    inside = win > 0
+    f = FREQS_CYCLES_PER_PX
+    phase = (2.0 * math.pi) * np.outer(f, mid[inside] - centre)
+    re, im = np.cos(phase) @ lsf[inside], np.sin(phase) @ lsf[inside]
+    spectrum = np.hypot(re, im)
+    mtf = spectrum / spectrum[0] if spectrum[0] > 0 else np.zeros_like(spectrum)
+    # Gaps take few distinct values (one bin, or the pixel lattice's spacing): group them.
+    gaps, which = np.unique(np.round(h[inside], 4), return_inverse=True)
+    weight = np.bincount(which.ravel(), weights=np.abs(lsf[inside]), minlength=gaps.size)
+    gap_response = (np.sinc(np.outer(f, gaps)) @ weight) / max(float(weight.sum()), 1e-300)
+    # Each sample's weight: the LSF on the increments either side of it.
+    w_inc = np.abs(lsf)
+    w_sample = np.zeros(s.u.size)
+    w_sample[:-1] += 0.5 * w_inc
+    w_sample[1:] += 0.5 * w_inc
+    var_eff = float(np.sum(w_sample * s.spread_var) / max(float(w_sample.sum()), 1e-300))
+    response = gap_response * np.sinc(f * math.sqrt(12.0 * var_eff))
+    correction = np.minimum(1.0 / np.maximum(response, 1e-12), MAX_DERIVATIVE_CORRECTION)
+    return np.asarray(mtf * correction, np.float64), lsf, mid, truncated
+
+
+def _mtf50(freqs: FloatArray, mtf: FloatArray) -> float | None:
+    below = np.flatnonzero(mtf < 0.5)
+    if below.size == 0 or below[0] == 0:
+        return None
+    i = int(below[0])
+    f0, f1, m0, m1 = freqs[i - 1], freqs[i], mtf[i - 1], mtf[i]
+    return float(f0 + (m0 - 0.5) * (f1 - f0) / (m0 - m1))
+
+
+def measure_sfr(
+    pixels: npt.ArrayLike,
+    *,
+    full_scale: float | None = None,
+    fit_order: int = 1,
+    bootstrap: int = 0,
+    seed: int = 0,
+    bin_width_px: float = BIN_WIDTH_PX,
+) -> SfrResult:
+    """Slanted-edge SFR (sine-wave MTF along the edge normal) of one ROI holding one edge.
+
+    Parameters
+    ----------
+    pixels : array_like, shape (rows, cols)
+        The ROI, linear gray levels (any numeric dtype). The edge should cross the ROI from one
+        side to the opposite side, a few degrees off a pixel axis.
+    full_scale : float, optional
+        Saturation code for the clipping check; default from the dtype (:func:`full_scale_of`).
+    fit_order : int, default 1
+        Polynomial order of the edge fit (1 = straight; 2-3 follow a bent edge).
+    bootstrap : int, default 0
+        Resamples of the rows for the uncertainty (0 = none).
+    seed : int
+        Random seed of the bootstrap.
+    bin_width_px : float, default 0.25
+        ESF bin width (0.25 = 4x oversampling).
+
+    Returns
+    -------
+    SfrResult
+
+    Raises
+    ------
+    SfrRefused
+        No usable edge (reasons listed).
+    ValueError
+        Malformed input (not 2-D, non-finite values, bad options).
+    """
+    raw = np.asarray(pixels)
+    if raw.ndim != 2:
+        raise ValueError(f"ROI must be 2-D, got shape {raw.shape}")
+    if min(raw.shape) < 3:
+        raise SfrRefused([f"ROI {raw.shape[0]} x {raw.shape[1]} px is too small for an edge"])
+    if not 1 <= fit_order <= 3:
+        raise ValueError(f"fit_order must be 1..3, got {fit_order}")
+    if bootstrap < 0:
+        raise ValueError(f"bootstrap must be >= 0, got {bootstrap}")
+    img = raw.astype(np.float64)
+    if not np.all(np.isfinite(img)):
+        raise ValueError("ROI holds a non-finite value")
+    top = full_scale if full_scale is not None else full_scale_of(raw)
+    clipped = 0.0
+    if top is not None:
+        clipped = float(np.mean((img <= 0.0) | (img >= top)))
+
+    # 1. Work frame: the edge crosses the rows (intensity varies along the columns).
+    gx = float(np.mean(np.abs(np.diff(img, axis=1))))
+    gy = float(np.mean(np.abs(np.diff(img, axis=0))))
+    transposed = gy > gx
+    work = img.T if transposed else img
+    n_rows, n_cols = work.shape
+    noise = _noise_sigma(work)
+    spread = float(np.percentile(work, 98) - np.percentile(work, 2))
+
+    reasons: list[str] = []
+    warnings: list[str] = []
+    if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
+        raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
+                          f"{NOISE_SPREAD_RATIO:g} x the noise {noise:.3g} (noise only?)"])
+    if n_rows < MIN_EDGE_ROWS:
+        reasons.append(f"edge only {n_rows} px long (< {MIN_EDGE_ROWS} px)")
+    if clipped > CLIP_REFUSE_FRACTION:
+        reasons.append(f"{100 * clipped:.1f} % of the pixels are clipped at 0 or full scale "
+                       f"({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF is flattened")
+    if reasons:
+        raise SfrRefused(reasons)
+
+    # 2. Edge location: polarity from the mean profile, then per-row centroids.
+    mean_prof = work.mean(axis=0)
+    fifth = max(1, n_cols // 5)
+    step = float(np.mean(mean_prof[-fifth:]) - np.mean(mean_prof[:fifth]))
+    polarity = 1.0 if step >= 0 else -1.0
+    deriv = polarity * np.diff(work, axis=1)
+    dm = np.clip(polarity * np.diff(mean_prof), 0.0, None)
+    x_half = np.arange(n_cols - 1, dtype=np.float64) + 0.5
+    x0 = float(np.sum(x_half * dm) / np.sum(dm)) if np.sum(dm) > 0 else (n_cols - 1) / 2.0
+    rows = np.arange(n_rows, dtype=np.float64)
+    r_mid = (n_rows - 1) / 2.0
+    cents = _row_centroids(deriv, np.full(n_rows, x0), max(n_cols / 2.0, 4.0))
+    coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
+    half_window = max(n_cols / 4.0, 4.0)
+    rise = float("nan")
+    for _ in range(2):
+        predicted = np.polyval(coeffs, rows - r_mid)
+        cents = _row_centroids(deriv, predicted, half_window)
+        coeffs, keep = _fit_edge(rows - r_mid, cents, fit_order)
+        # Window for the next pass: a few ESF widths around the fitted edge.
+        u_tmp = _work_u(work.shape, coeffs, r_mid, polarity)
+        coarse = bin_profile(u_tmp, work, 2.0 * bin_width_px)
+        ok = coarse.filled
+        rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
+        if math.isfinite(rise):
+            half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
+    if int(keep.sum()) <= fit_order + 1:
+        raise SfrRefused(["no edge: too few rows have a derivative centroid"])
+    slope = float(np.polyval(np.polyder(coeffs), 0.0))
+    residual = cents[keep] - np.polyval(coeffs, rows[keep] - r_mid)
+    rms = float(np.sqrt(np.mean(residual**2)))
+    fit = EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms, int(keep.sum()))
+    angle = math.degrees(math.atan(abs(slope)))
+
+    # 3. ESF by projection onto the normal (first: whether there is an edge at all).
+    u = _work_u(work.shape, coeffs, r_mid, polarity)
+    rise_guess = rise if math.isfinite(rise) else 4.0
+    flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, 3.0)
+    samples = _esf_samples(u, work, bin_width_px, flat_half)
+    k = max(1, samples.esf.size // 8)
+    lo_level, hi_level = float(np.mean(samples.esf[:k])), float(np.mean(samples.esf[-k:]))
+    dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
+    step_abs = abs(hi_level - lo_level)
+    if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
+        raise SfrRefused([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"])
+    if angle < MIN_ANGLE_DEG:
+        reasons.append(f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} deg): "
+                       "too few sample phases; tilt the edge 2-10 deg")
+    elif n_rows * abs(slope) < 1.0:
+        reasons.append(f"edge too short for its angle: {n_rows} px at {angle:.2f} deg shifts "
+                       f"{n_rows * abs(slope):.2f} px (< 1 px, one phase cycle)")
+    if reasons:
+        raise SfrRefused(reasons)
+    freqs = FREQS_CYCLES_PER_PX.copy()
+    mtf, lsf_w, _, truncated = _mtf_from_samples(samples, flat_half)
+    contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+
+    # 4. Bootstrap over rows (edge fit kept).
+    mtf_sigma: FloatArray | None = None
+    mtf50_sigma: float | None = None
+    if bootstrap > 0:
+        rng = np.random.default_rng(seed)
+        curves = np.empty((bootstrap, freqs.size))
+        m50s = []
+        for b in range(bootstrap):
+            pick = rng.integers(0, n_rows, n_rows)
+            pb = _esf_samples(u[pick], work[pick], bin_width_px, flat_half)
+            mb, _, _, _ = _mtf_from_samples(pb, flat_half)
+            curves[b] = mb
+            m50 = _mtf50(freqs, mb)
+            if m50 is not None:
+                m50s.append(m50)
+        mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if bootstrap > 1 else
+                               np.zeros(freqs.size), dtype=np.float64)
+        mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
+
+    # 5. Warnings.
+    if angle < WARN_ANGLE_DEG:
+        warnings.append(f"edge only {angle:.2f} deg from the pixel axis (2-10 deg recommended)")
+    if n_rows < WARN_EDGE_ROWS:
+        warnings.append(f"short edge: {n_rows} px along it (>= {WARN_EDGE_ROWS} px recommended); "
+                        "expect more noise in the MTF")
+    if clipped > 0:
+        warnings.append(f"{100 * clipped:.2f} % of the pixels clipped (0 or {top:g})")
+    if math.isfinite(contrast) and contrast < LOW_CONTRAST:
+        warnings.append(f"low contrast {contrast:.2f} (< {LOW_CONTRAST:g}): noisy, and sensitive "
+                        "to any offset or non-linearity")
+    if samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
+        warnings.append(f"{100 * samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
+                        f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
+                        "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
+                        "MTF near Nyquist less reliable (aliasing)")
+    if truncated:
+        warnings.append("ESF truncated: the ROI is narrow for this blur (widen it across the "
+                        "edge); the MTF at low frequency may be off")
+    if rms > FIT_RMS_WARN_PX:
+        warnings.append(f"edge fit RMS {rms:.2f} px: edge bent or noisy (try fit_order 2)")
+    mtf50 = _mtf50(freqs, mtf)
+    if mtf50 is None:
+        warnings.append("MTF stays above 0.5 up to 1 cycle/px: MTF50 not defined")
+
+    # 6. The normal in the ROI's own frame (work frame normal is (cos, sin) = (1, -slope)).
+    theta_work = math.atan2(-slope * polarity, polarity)
+    if transposed:
+        theta = math.atan2(math.cos(theta_work), math.sin(theta_work))
+    else:
+        theta = theta_work
+    return SfrResult(
+        freqs_cycles_per_px=freqs,
+        mtf=mtf,
+        mtf_sigma=mtf_sigma,
+        mtf50_cycles_per_px=mtf50,
+        mtf50_sigma=mtf50_sigma,
+        mtf_nyquist=float(np.interp(NYQUIST_CYCLES_PER_PX, freqs, mtf)),
+        edge_angle_deg=angle,
+        normal_theta_rad=theta,
+        direction="vertical" if transposed else "horizontal",
+        dark=dark,
+        bright=bright,
+        contrast=float(contrast),
+        noise_sigma=noise,
+        clipped_fraction=clipped,
+        edge_rows=n_rows,
+        fit=fit,
+        esf_u_px=samples.u,
+        esf=samples.esf,
+        lsf=lsf_w,
+        warnings=tuple(warnings),
+    )
+
+
+def _work_u(
+    shape: tuple[int, int], coeffs: FloatArray, r_mid: float, polarity: float
+) -> FloatArray:
+    """Signed distance (px) of each work-frame pixel centre from the fitted edge along its
+    normal, positive on the bright side: the shared projection of the straight edge through
+    the middle row, plus each row's offset from the line for a curved fit."""
+    slope = float(np.polyval(np.polyder(coeffs), 0.0))
+    x_mid = float(np.polyval(coeffs, 0.0))
+    theta = math.atan2(-slope, 1.0)
+    u = across_coordinate(shape, theta, origin_rc=(r_mid, x_mid))
+    if coeffs.size > 2:
+        rows = np.arange(shape[0], dtype=np.float64) - r_mid
+        bend = np.polyval(coeffs, rows) - (x_mid + slope * rows)
+        u = u - (bend * math.cos(theta))[:, None]
+    return np.asarray(polarity * u, dtype=np.float64)

@@ -1,0 +1,118 @@
+"""The report's slanted-edge section: edge MTF against the simulated MTF (sine against sine) and
+the bar readings converted through Coltman, with agreement or disagreement flagged.
+
+Reads the ``table_sfr_edges``, ``table_sfr_curves`` and ``table_sfr_vs_bars`` tables the MTF
+procedure writes (:mod:`benchlab.protocols.mtf_edges`); sessions analysed before they existed get
+a note instead.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from benchlab.analysis.frequency import nyquist_lp_per_mm  # noqa: E402
+from benchlab.report_html import figure_img  # noqa: E402
+from benchlab.report_tables import Column, html_table  # noqa: E402
+
+Rows = Sequence[Mapping[str, Any]]
+
+EDGE_COLUMNS: tuple[Column, ...] = (
+    ("edge", "edge", ""), ("orientation", "orientation", ""),
+    ("image_height_mm", "height mm", ".3f"), ("nearest_field_deg", "field deg", "g"),
+    ("edge_angle_deg", "angle deg", ".2f"), ("mtf50_lp_per_mm", "MTF50 lp/mm", ".1f"),
+    ("mtf50_sigma_lp_per_mm", "+-", ".1f"), ("mtf_nyquist", "MTF(Nyq)", ".3f"),
+    ("contrast", "contrast", ".3f"), ("status", "status", ""), ("warnings", "warnings", ""),
+)
+CHECK_COLUMNS: tuple[Column, ...] = (
+    ("element", "set", ""), ("orientation", "orientation", ""),
+    ("image_lp_per_mm", "lp/mm", ".2f"), ("bar_modulation", "bar mod.", ".3f"),
+    ("object_modulation", "chart mod.", ".3f"), ("ctf", "CTF", ".3f"),
+    ("bar_mtf_coltman", "bars -> MTF", ".3f"), ("coltman_method", "Coltman", ""),
+    ("edge", "edge", ""), ("edge_mtf", "edge MTF", ".3f"), ("edge_mtf_sigma", "+-", ".3f"),
+    ("simulated_mtf", "simulated", ".3f"), ("verdict", "verdict", ""),
+)
+_COLOURS = {"E0": "tab:blue", "E1": "tab:green", "E2": "tab:purple"}
+
+
+def _figure(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> Figure:
+    curves = tables.get("table_sfr_curves", [])
+    checks = tables.get("table_sfr_vs_bars", [])
+    nyq = nyquist_lp_per_mm()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    for ax, orientation, d in ((axes[0], "sagittal", "S"), (axes[1], "tangential", "T")):
+        for c in simulated:
+            if c.view == "forward" and c.direction == d:
+                ax.plot(c.freqs_lp_per_mm, c.mtf, ":", lw=0.9, color="0.45")
+        ax.plot([], [], ":", color="0.45", label="simulated MTF (field points)")
+        edges = sorted({r["edge"] for r in curves if r["orientation"] == orientation})
+        for label in edges:
+            pts = [r for r in curves if r["edge"] == label]
+            f = [r["freq_lp_per_mm"] for r in pts]
+            m = [r["mtf"] for r in pts]
+            colour = _COLOURS.get(label[:2], None)
+            ax.plot(f, m, "-", lw=1.3, color=colour, label=f"edge {label}")
+            if all(r.get("mtf_sigma") is not None for r in pts):
+                lo = [r["mtf"] - r["mtf_sigma"] for r in pts]
+                hi = [r["mtf"] + r["mtf_sigma"] for r in pts]
+                ax.fill_between(f, lo, hi, color=colour, alpha=0.15, lw=0)
+        pts = [r for r in checks if r["orientation"] == orientation]
+        if pts:
+            ok = [r for r in pts if r["verdict"] == "agree"]
+            bad = [r for r in pts if r["verdict"] != "agree"]
+            for group, marker, name in ((ok, "o", "bars via Coltman (agree)"),
+                                        (bad, "X", "bars via Coltman (DISAGREE)")):
+                if group:
+                    ax.plot([r["image_lp_per_mm"] for r in group],
+                            [r["bar_mtf_coltman"] for r in group], marker, ls="none",
+                            color="k" if marker == "o" else "r", label=name)
+        ax.axvline(nyq, color="r", lw=0.8, ls="--", label="Nyquist 96.15 lp/mm")
+        ax.set_xlim(0, 2 * nyq)
+        ax.set_ylim(0, 1.05)
+        ax.set_title(f"forward view, {orientation}: sine-wave MTF")
+        ax.set_xlabel("image frequency (lp/mm)")
+        ax.set_ylabel("MTF")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def render_sfr_section(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> str:
+    """The HTML body of the section (note, figure, the two tables)."""
+    out: list[str] = []
+    edges = tables.get("table_sfr_edges")
+    if edges is None:
+        out.append("<p class='note'>No slanted-edge tables in these results (analysed before "
+                   "edge analysis existed): run <code>benchlab analyze SESSION</code> to add "
+                   "them.</p>")
+        return "".join(out)
+    checks = tables.get("table_sfr_vs_bars", [])
+    n_bad = sum(1 for r in checks if r["verdict"] != "agree")
+    clean = sum(1 for r in edges if r["status"] == "ok")
+    summary = (f"{clean} of {len(edges)} edges clean; "
+               + (f"{len(checks)} bar readings compared, "
+                  + ("all agree" if n_bad == 0 else f"{n_bad} DISAGREE")
+                  if checks else "no bar reading to compare"))
+    out.append(
+        "<p class='note'>Lines: MTF measured from each clean slanted edge (shaded: bootstrap 1 "
+        "sigma) and the simulated MTF at the field points (dotted) - both sine-wave responses. "
+        "Points: the bar modulations below Nyquist divided by the chart's own contrast (from "
+        "the edge plateaus) and converted to sine-wave MTF through Coltman's series; a red "
+        "cross disagrees with the edge (or the edge with the simulation) by more than 0.05. "
+        f"{html.escape(summary)}.</p>"
+    )
+    out.append(figure_img(_figure(tables, simulated), "slanted-edge MTF against simulated MTF "
+                          "and Coltman-converted bars"))
+    out.append("<h3>Edges</h3>" + html_table(edges, EDGE_COLUMNS))
+    if checks:
+        out.append("<h3>Bars (Coltman) vs edge vs simulated</h3>"
+                   + html_table(checks, CHECK_COLUMNS))
+    return "".join(out)

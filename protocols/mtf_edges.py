@@ -1,0 +1,205 @@
+"""Forward frame -> slanted-edge MTF curves, and the three-way check: edge MTF (sine-wave) vs
+simulated MTF (sine-wave) vs the bar readings converted through Coltman.
+
+Tables (written with the Table 4.10 results):
+
+- ``table_sfr_edges``: one row per nominal edge of the slanted-edge target
+  (:mod:`benchlab.analysis.edge_target`): status (``ok`` or why no clean edge is there),
+  angle, MTF50, MTF at Nyquist, plateau levels, image height and nearest field point;
+- ``table_sfr_curves``: each clean edge's MTF (with its bootstrap 1-sigma) every 4 lp/mm;
+- ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
+  chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
+  -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
+  orientation at the bar set's image height (interpolated between the two edges bracketing it)
+  and the simulated MTF there (interpolated between the field points' curves), with a verdict
+  (agreement within :data:`AGREEMENT_TOLERANCE`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.coltman import ctf_to_mtf
+from benchlab.analysis.edge_target import EdgeSpec, edge_specs
+from benchlab.analysis.frequency import cycles_per_px, nyquist_lp_per_mm
+from benchlab.analysis.geometry import (
+    field_points,
+    image_height_mm,
+    nearest_field_point,
+    roi_centroid,
+)
+from benchlab.analysis.mtf_compare import SimulatedCurve
+from benchlab.analysis.sfr import SfrRefused, SfrResult, measure_sfr
+
+#: Three-way agreement: |bar MTF - edge MTF| and |edge MTF - simulated MTF| at most this.
+AGREEMENT_TOLERANCE = 0.05
+#: Bootstrap resamples (rows) for each edge's uncertainty.
+EDGE_BOOTSTRAP = 30
+#: Curve table step, image lp/mm (0 to 192, twice Nyquist).
+CURVE_STEP_LP_PER_MM = 4.0
+_LP_PER_CYCLE_PX = 1.0 / cycles_per_px(1.0)
+
+
+def measure_edges(
+    pixels: npt.NDArray[Any], specs: Sequence[EdgeSpec] | None = None
+) -> list[tuple[EdgeSpec, SfrResult | str]]:
+    """Each nominal edge's SFR, or the reason there is no clean edge in its ROI."""
+    out: list[tuple[EdgeSpec, SfrResult | str]] = []
+    for spec in specs if specs is not None else edge_specs():
+        r0, c0, r1, c1 = spec.roi
+        if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
+            out.append((spec, f"ROI {spec.roi} is off the {pixels.shape} frame"))
+            continue
+        try:
+            out.append((spec, measure_sfr(pixels[r0:r1, c0:c1], bootstrap=EDGE_BOOTSTRAP)))
+        except SfrRefused as exc:
+            out.append((spec, "; ".join(exc.reasons)))
+    return out
+
+
+def edge_tables(
+    measured: Sequence[tuple[EdgeSpec, SfrResult | str]], centre_rc: tuple[float, float]
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """``(table_sfr_edges, table_sfr_curves)`` rows."""
+    rows: list[dict[str, Any]] = []
+    curves: list[dict[str, Any]] = []
+    grid_lp = np.arange(0.0, 2 * nyquist_lp_per_mm() + 1e-9, CURVE_STEP_LP_PER_MM)
+    grid_c = grid_lp / _LP_PER_CYCLE_PX
+    for spec, res in measured:
+        h = image_height_mm(centre_rc, roi_centroid(spec.roi))
+        base = {"edge": spec.label, "orientation": spec.orientation, "roi": list(spec.roi),
+                "image_height_mm": round(h, 4),
+                "nearest_field_deg": nearest_field_point("forward", h).field_angle_deg}
+        if isinstance(res, str):
+            rows.append({**base, "status": f"no clean edge: {res}", "edge_angle_deg": None,
+                         "mtf50_cycles_per_px": None, "mtf50_lp_per_mm": None,
+                         "mtf_nyquist": None, "dark": None, "bright": None, "contrast": None,
+                         "warnings": ""})
+            continue
+        m50 = res.mtf50_cycles_per_px
+        rows.append({
+            **base, "status": "ok", "edge_angle_deg": round(res.edge_angle_deg, 3),
+            "mtf50_cycles_per_px": None if m50 is None else round(m50, 5),
+            "mtf50_lp_per_mm": None if m50 is None else round(m50 * _LP_PER_CYCLE_PX, 3),
+            "mtf50_sigma_lp_per_mm": None if res.mtf50_sigma is None
+            else round(res.mtf50_sigma * _LP_PER_CYCLE_PX, 3),
+            "mtf_nyquist": round(res.mtf_nyquist, 5), "dark": round(res.dark, 3),
+            "bright": round(res.bright, 3), "contrast": round(res.contrast, 5),
+            "warnings": "; ".join(res.warnings),
+        })
+        sig = res.sigma_at(grid_c)
+        for i, (f_lp, f_c, m) in enumerate(zip(grid_lp, grid_c, res.mtf_at(grid_c), strict=True)):
+            curves.append({"edge": spec.label, "orientation": spec.orientation,
+                           "freq_lp_per_mm": float(f_lp), "freq_cycles_per_px": round(f_c, 6),
+                           "mtf": round(float(m), 5),
+                           "mtf_sigma": None if sig is None else round(float(sig[i]), 5)})
+    return rows, curves
+
+
+def _simulated(curves: Sequence[SimulatedCurve], orientation: str, height_mm: float,
+               f_lp: float) -> float | None:
+    """Simulated MTF at ``f_lp`` and image height, interpolated linearly in height between the
+    field points' curves (constant beyond the outermost)."""
+    d = "S" if orientation == "sagittal" else "T"
+    heights = {p.field_angle_deg: p.image_height_mm for p in field_points("forward")}
+    pts = sorted(
+        (heights[c.field_angle_deg], float(np.interp(f_lp, c.freqs_lp_per_mm, c.mtf)))
+        for c in curves
+        if c.view == "forward" and c.direction == d and c.field_angle_deg in heights
+    )
+    if not pts:
+        return None
+    return float(np.interp(height_mm, [h for h, _ in pts], [m for _, m in pts]))
+
+
+def _edge_at_height(
+    edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float, f_cycles_per_px: float,
+    centre_rc: tuple[float, float],
+) -> tuple[str, float, float | None]:
+    """Edge MTF (and 1-sigma) at a frequency for an image height: interpolated linearly in
+    height between the two edges bracketing it (the blur changes with height), else the
+    nearest edge. Returns ``(edge label(s), mtf, sigma)``."""
+    pts = sorted(
+        ((image_height_mm(centre_rc, roi_centroid(s.roi)), s.label,
+          float(r.mtf_at(f_cycles_per_px)), r.sigma_at(f_cycles_per_px)) for s, r in edges),
+        key=lambda p: p[0],
+    )
+    below = [p for p in pts if p[0] <= height_mm]
+    above = [p for p in pts if p[0] > height_mm]
+    if below and above:
+        (h0, l0, m0, s0), (h1, l1, m1, s1) = below[-1], above[0]
+        w = (height_mm - h0) / (h1 - h0)
+        sig = None if s0 is None or s1 is None else float((1 - w) * s0 + w * s1)
+        return f"{l0}+{l1}", (1 - w) * m0 + w * m1, sig
+    _, label, m, s = min(pts, key=lambda p: abs(p[0] - height_mm))
+    return label, m, None if s is None else float(s)
+
+
+def edge_vs_bars(
+    t411: Sequence[dict[str, Any]],
+    measured: Sequence[tuple[EdgeSpec, SfrResult | str]],
+    curves: Sequence[SimulatedCurve],
+    centre_rc: tuple[float, float],
+) -> list[dict[str, Any]]:
+    """The three-way comparison rows (bar sets below Nyquist with a clean edge to compare)."""
+    nyq = nyquist_lp_per_mm()
+    clean = [(s, r) for s, r in measured if not isinstance(r, str)]
+    out: list[dict[str, Any]] = []
+    for orientation in ("sagittal", "tangential"):
+        edges = [(s, r) for s, r in clean if s.orientation == orientation]
+        sets = [r for r in t411 if r["image_lp_per_mm"] < nyq
+                and r.get(f"{orientation}_modulation") is not None]
+        if not edges or not sets:
+            continue
+        # One edge for the chart's contrast: the one nearest the bar sets on average.
+        heights = [image_height_mm(centre_rc, roi_centroid(tuple(r[f"{orientation}_roi"])))
+                   for r in sets]
+        mean_h = float(np.mean(heights))
+        ref_spec, ref = min(edges, key=lambda e: abs(
+            image_height_mm(centre_rc, roi_centroid(e[0].roi)) - mean_h))
+        object_mod = ref.contrast
+        freqs = [float(r["image_lp_per_mm"]) for r in sets]
+        ctf = [float(r[f"{orientation}_modulation"]) / object_mod for r in sets]
+        conv = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=nyq)
+        for r, h, f_lp, c, m_bar, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
+                                             strict=True):
+            label, m_edge, sig = _edge_at_height(edges, h, cycles_per_px(f_lp), centre_rc)
+            m_sim = _simulated(curves, orientation, h, f_lp)
+            problems = []
+            if abs(m_bar - m_edge) > AGREEMENT_TOLERANCE:
+                problems.append(f"bars vs edge {m_bar - m_edge:+.3f}")
+            if m_sim is not None and abs(m_edge - m_sim) > AGREEMENT_TOLERANCE:
+                problems.append(f"edge vs simulated {m_edge - m_sim:+.3f}")
+            out.append({
+                "element": r["element"], "orientation": orientation,
+                "image_lp_per_mm": round(f_lp, 3), "image_height_mm": round(h, 4),
+                "bar_modulation": r[f"{orientation}_modulation"],
+                "object_modulation": round(object_mod, 5), "contrast_from_edge": ref_spec.label,
+                "ctf": round(c, 5), "bar_mtf_coltman": round(float(m_bar), 5),
+                "coltman_method": how, "edge": label, "edge_mtf": round(m_edge, 5),
+                "edge_mtf_sigma": None if sig is None else round(float(sig), 5),
+                "simulated_mtf": None if m_sim is None else round(m_sim, 5),
+                "verdict": "agree" if not problems else "DISAGREE: " + ", ".join(problems),
+            })
+    return out
+
+
+def forward_edge_tables(
+    pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
+    simulated_mtf_file: str = "",
+) -> dict[str, list[dict[str, Any]]]:
+    """The three edge tables of a forward frame (see the module docstring)."""
+    from benchlab.report_curves import load_curves  # the simulated curves' loader
+
+    measured = measure_edges(pixels)
+    rows, curve_rows = edge_tables(measured, centre_rc)
+    try:
+        curves = load_curves(simulated_mtf_file or None)
+    except (OSError, ValueError):
+        curves = []  # the comparison still runs; the simulated column stays empty
+    return {"table_sfr_edges": rows, "table_sfr_curves": curve_rows,
+            "table_sfr_vs_bars": edge_vs_bars(t411, measured, curves, centre_rc)}

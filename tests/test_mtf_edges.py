@@ -1,0 +1,111 @@
+"""The MTF procedure's edge tables: clean edges measured, missing edges reported, the three-way
+check agreeing on the simulated bench and flagging a bar reading that does not fit."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from benchlab.analysis.chart import IMAGE_CENTRE_RC
+from benchlab.analysis.frequency import nyquist_lp_per_mm
+from benchlab.drivers.mightex_sim_sensor import SensorModel
+from benchlab.drivers.sensor import AcquisitionState
+from benchlab.protocols.mtf_analysis import analyze_forward_frame
+from benchlab.protocols.mtf_edges import (
+    AGREEMENT_TOLERANCE,
+    edge_tables,
+    edge_vs_bars,
+    forward_edge_tables,
+    measure_edges,
+)
+from benchlab.protocols.params import load_params
+from benchlab.report_curves import load_curves
+from benchlab.scenes.edge import EdgeScene
+from benchlab.scenes.world import SimWorld
+
+
+def _frame(world: SimWorld, seed: int = 0) -> np.ndarray:
+    """An 8-bit forward frame with shot and read noise (the camera simulator's sensor)."""
+    state = AcquisitionState(300.0, 1.0, 8, 1280, 1024, 0.0, 0, {})
+    dn12 = SensorModel(seed=seed).render_dn12(world, state).reshape(1024, 1280)
+    return (dn12 >> 4).astype(np.uint8)
+
+
+def _t411(pixels: np.ndarray) -> list[dict[str, Any]]:
+    params = load_params("mtf", None)
+    per = {(r["element"], r["orientation"]): r for r in analyze_forward_frame(pixels, params, None)}
+    rows = []
+    for el in params.forward_elements:
+        row: dict[str, Any] = {"element": el.name,
+                               "image_lp_per_mm": per[(el.name, "sagittal")]["image_lp_per_mm"]}
+        for o in ("sagittal", "tangential"):
+            row[f"{o}_modulation"] = per[(el.name, o)]["modulation"]
+            row[f"{o}_roi"] = per[(el.name, o)]["roi"]
+        rows.append(row)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def forward() -> np.ndarray:
+    return _frame(SimWorld("usaf"))
+
+
+def test_every_edge_of_the_forward_view_is_clean_and_near_its_truth(forward: np.ndarray) -> None:
+    measured = measure_edges(forward)
+    scene = EdgeScene()
+    f = np.linspace(0.0, 0.5, 51)
+    for spec, res in measured:
+        assert not isinstance(res, str), (spec.label, res)
+        # One 8-bit frame, 36-50 rows per edge: the noise alone is ~0.01 at Nyquist.
+        assert np.abs(res.mtf_at(f) - scene.truth_mtf(spec, f)).max() < 0.03, spec.label
+    rows, curves = edge_tables(measured, IMAGE_CENTRE_RC)
+    assert [r["status"] for r in rows] == ["ok"] * len(measured)
+    assert all(r["mtf50_lp_per_mm"] > 50 and 0 < r["mtf_nyquist"] < 1 for r in rows)
+    assert {r["nearest_field_deg"] for r in rows} >= {0.0, 12.0}
+    e0r = [r for r in curves if r["edge"] == "E0R"]
+    assert e0r[0]["mtf"] == 1.0 and e0r[-1]["freq_lp_per_mm"] == pytest.approx(192.0)
+
+
+def test_three_way_check_agrees_on_the_simulated_bench(forward: np.ndarray) -> None:
+    tables = forward_edge_tables(forward, _t411(forward), IMAGE_CENTRE_RC)
+    checks = tables["table_sfr_vs_bars"]
+    assert len(checks) == 12  # 6 elements below Nyquist x 2 orientations
+    assert all(r["image_lp_per_mm"] < nyquist_lp_per_mm() for r in checks)
+    assert all(r["coltman_method"] == "pi/4" for r in checks)  # 3f is above Nyquist
+    for r in checks:
+        assert r["verdict"] == "agree", r
+        assert abs(r["bar_mtf_coltman"] - r["edge_mtf"]) <= AGREEMENT_TOLERANCE
+        assert r["object_modulation"] == pytest.approx(170 / 210, abs=0.01)  # 20 and 190 DN
+
+
+def test_a_bar_reading_that_does_not_fit_is_flagged(forward: np.ndarray) -> None:
+    t411 = _t411(forward)
+    t411[2]["tangential_modulation"] -= 0.1
+    checks = edge_vs_bars(t411, measure_edges(forward), load_curves(None), IMAGE_CENTRE_RC)
+    bad = [r for r in checks if r["verdict"] != "agree"]
+    assert [(r["element"], r["orientation"]) for r in bad] == [(t411[2]["element"],
+                                                                "tangential")]
+    assert "bars vs edge" in bad[0]["verdict"]
+
+
+def test_frame_without_the_edge_target_reports_why_and_compares_nothing() -> None:
+    pixels = _frame(SimWorld("usaf", edges=EdgeScene(squares=())))
+    tables = forward_edge_tables(pixels, _t411(pixels), IMAGE_CENTRE_RC)
+    assert all(r["status"].startswith("no clean edge: no edge") for r in tables["table_sfr_edges"])
+    assert tables["table_sfr_curves"] == [] and tables["table_sfr_vs_bars"] == []
+    off = measure_edges(pixels[:300, :300])
+    assert all(isinstance(res, str) and "off the" in res for _, res in off)
+
+
+def test_report_section_counts_disagreements_and_notes_old_results(forward: np.ndarray) -> None:
+    from benchlab.report_sfr import render_sfr_section
+
+    assert "analysed before edge analysis existed" in render_sfr_section({}, [])
+    t411 = _t411(forward)
+    t411[0]["sagittal_modulation"] -= 0.2
+    tables = forward_edge_tables(forward, t411, IMAGE_CENTRE_RC)
+    html = render_sfr_section(tables, load_curves(None))
+    assert "12 of 12 edges clean; 12 bar readings compared, 1 DISAGREE" in html
+    assert html.count("<table>") == 2 and "class='plot'" in html

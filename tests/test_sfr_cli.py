@@ -1,0 +1,123 @@
+"""``benchlab sfr`` and ``benchlab benchmark sfr``: output, errors that name the culprit, files
+never overwritten."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tifffile
+
+from benchlab.analysis.edge_target import edge_specs
+from benchlab.analysis.sfr_benchmark import format_accuracy, run_accuracy, run_extremes
+from benchlab.analysis.sfr_synthetic import synthetic_edge
+from benchlab.cli.main import main
+
+
+@pytest.fixture(scope="module")
+def edge_frame(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("sfr") / "edge.tiff"
+    assert main(["snap", "--simulate", "--scene", "edge", "--exposure-ms", "300", "--gain", "1",
+                 "--bits", "12", str(out)]) == 0
+    return out
+
+
+def _roi(label: str) -> str:
+    spec = next(e for e in edge_specs() if e.label == label)
+    return ",".join(map(str, spec.roi))
+
+
+def test_sfr_text_and_json_on_the_simulated_edge_target(
+    edge_frame: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0R"), "--bootstrap", "20"]) == 0
+    text = capsys.readouterr().out
+    assert "MTF50" in text and "lp/mm" in text and "96.15" in text and "warning" not in text
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--json",
+                 "--freq", "48.08,96.15"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    at = doc["mtf_at"]
+    assert [r["freq_cycles_per_px"] for r in at] == pytest.approx([0.25, 0.5], abs=1e-4)
+    assert at[1]["mtf"] == pytest.approx(doc["mtf_nyquist"], abs=2e-3)
+    assert doc["direction"] == "vertical" and doc["warnings"] == []
+    assert 0.4 < doc["mtf50_cycles_per_px"] < 0.7
+    assert doc["mtf50_lp_per_mm"] == pytest.approx(doc["mtf50_cycles_per_px"] * 1000 / 5.2)
+    assert doc["freqs_lp_per_mm"][50] == pytest.approx(96.15, abs=0.01)
+    assert doc["mtf_sigma"] is not None and doc["roi"] == [int(v) for v in _roi("E0B").split(",")]
+
+
+def test_sfr_plot_is_written_once_and_never_overwritten(
+    edge_frame: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plot = tmp_path / "sfr.png"
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(plot)]) == 0
+    data = plot.read_bytes()
+    assert data.startswith(b"\x89PNG")
+    capsys.readouterr()
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(plot)]) == 1
+    assert "already exists" in capsys.readouterr().err
+    assert plot.read_bytes() == data
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot",
+                 str(tmp_path / "x.jpg")]) == 1
+    assert ".png, .svg or .pdf" in capsys.readouterr().err
+
+
+def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(
+    edge_frame: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["sfr", str(edge_frame), "--roi", "100,100,200,200"]) == 1  # dark surround
+    err = capsys.readouterr().err
+    assert err.startswith("benchlab: error: ") and "no edge" in err and "100,100,200,200" in err
+    square = tmp_path / "square.tiff"
+    tifffile.imwrite(square, (synthetic_edge((80, 80), 0.0, 1.0, bits=8)).astype(np.uint8))
+    assert main(["sfr", str(square), "--roi", "0,0,80,80"]) == 1
+    assert "pixel axis" in capsys.readouterr().err
+    assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 1
+    assert "R1" in capsys.readouterr().err
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--freq", "300"]) == 1
+    assert "--freq 300 is outside" in capsys.readouterr().err
+    assert main(["sfr", str(tmp_path / "missing.tiff"), "--roi", "0,0,5,5"]) == 1
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["sfr", str(edge_frame)])  # --roi is required: a usage error
+    assert exc.value.code == 2
+
+
+def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(0)
+    frames = np.stack([synthetic_edge((60, 60), 6.0, 1.0, noise_sigma=0.01, bits=12, rng=rng)
+                       for _ in range(4)]).astype(np.uint16)
+    path = tmp_path / "stack.tiff"
+    tifffile.imwrite(path, frames, photometric="minisblack")
+    assert main(["sfr", str(path), "--roi", "0,0,60,60", "--json", "--bootstrap", "0"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["clipped_fraction"] == 0 and doc["mtf_sigma"] is None
+    assert doc["noise_sigma"] < 0.01 * 4095 * 0.75  # four frames averaged: half the noise
+
+
+def test_accuracy_table_has_every_bucket_and_a_verdict() -> None:
+    buckets = run_accuracy(cases_per_cell=1, seed=3)
+    assert len(buckets) == 30 and all(b.cases == 2 for b in buckets)
+    text = format_accuracy(buckets)
+    assert text.count("\n") == 31 and "buckets with SNR 20-500" in text
+    best = next(b for b in buckets if b.sigma_px == 1.0 and b.snr == 500.0)
+    assert best.mtf50_within == 1.0 and best.mtf_within == 1.0
+
+
+def test_benchmark_sfr_is_registered(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", "sfr", "--help"])
+    assert exc.value.code == 0
+    assert "Coltman" in capsys.readouterr().out
+
+
+def test_benchmark_extremes_refuse_or_measure_as_the_issue_asks() -> None:
+    got = dict(run_extremes())
+    assert got["0 deg edge"].startswith("refused:") and "pixel axis" in got["0 deg edge"]
+    assert got["45 deg edge"].startswith("measured") and "coarse lattice" in got["45 deg edge"]
+    assert "clipped" in got["clipped edge (bright side 1.3x full scale)"]
+    assert got["clipped edge (bright side 1.3x full scale)"].startswith("refused:")
+    assert "short edge" in got["20-row edge, 8 deg"]
+    assert got["noise only"].startswith("refused: no edge")
