@@ -128,3 +128,17 @@ def test_benchmark_startup_times_both_commands(tmp_path: Path,
     assert "--help" in out and "analyze SESSION" in out and "0.35s" in out
     assert session.result_versions() == []  # each run analysed its own copy
     assert main(["benchmark", "startup", str(tmp_path / "nope")]) == 1
+
+
+def test_help_imports_no_heavy_library() -> None:
+    """`benchlab --help` builds every command's parser: none may import numpy and friends at
+    module level (start-up time); they are imported by the commands that use them."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from benchlab.cli.main import build_parser; build_parser(); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'cv2', 'tifffile', "
+            "'scipy', 'skimage', 'serial', 'usb', 'textual', 'matplotlib', 'platformdirs'}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=60).stdout.strip()
+    assert out == "[]"
