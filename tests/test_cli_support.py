@@ -142,3 +142,19 @@ def test_help_imports_no_heavy_library() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, timeout=60).stdout.strip()
     assert out == "[]"
+
+
+def test_reanalysis_path_imports_no_scipy() -> None:
+    """`benchlab analyze SESSION` needs numpy, OpenCV and tifffile, not scipy, scikit-image,
+    matplotlib or textual (each costs more to import than a re-analysis takes)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import benchlab.cli.analysis, benchlab.cli.procedures, "
+            "benchlab.protocols.runs, benchlab.protocols.mtf_analysis, benchlab.report_tables; "
+            "from benchlab.report_curves import load_curves; load_curves(None); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'skimage', "
+            "'matplotlib', 'textual'}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=60).stdout.strip()
+    assert out == "[]"
