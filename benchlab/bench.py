@@ -14,6 +14,7 @@ own exit hooks repeat it if the process dies in between.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import threading
 import tomllib
@@ -52,6 +53,8 @@ class CameraConfig:
     serial: str | None = None
     pid: int | None = None
     model: str | None = None
+    #: Response calibration file (``benchlab run characterise``), absolute once loaded.
+    response_calibration: str | None = None
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,7 @@ class BenchConfig:
             serial=c.string("camera.serial", "") or None,
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
+            response_calibration=c.string("camera.response_calibration", "") or None,
         )
         led = None
         found, _ = c.get("led", None)
@@ -195,7 +199,12 @@ class BenchConfig:
             raise BenchConfigError(str(p), ["file: no such bench configuration"]) from exc
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise BenchConfigError(str(p), [f"file: not valid TOML ({exc})"]) from exc
-        return cls.from_dict(data, str(p))
+        cfg = cls.from_dict(data, str(p))
+        calib = cfg.camera.response_calibration
+        if calib is not None and not Path(calib).is_absolute():  # relative to the bench file
+            cam = dataclasses.replace(cfg.camera, response_calibration=str(p.parent / calib))
+            cfg = dataclasses.replace(cfg, camera=cam)
+        return cfg
 
 
 class BenchError(BenchlabError):
@@ -284,10 +293,12 @@ class Bench:
             raise BenchError("the bench has no open camera")
         return self.camera
 
-    def configure_camera(self, *, bits: int = 8) -> dict[str, Any]:
-        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation)."""
-        self._open_camera().configure(width=1280, height=1024, bits=bits, mode="normal")
-        self._camera_settings = {"mode": "normal (continuous)", "width": 1280, "height": 1024,
+    def configure_camera(self, *, bits: int = 8, width: int = 1280,
+                         height: int = 1024) -> dict[str, Any]:
+        """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
+        self._open_camera().configure(width=width, height=height, bits=bits, mode="normal")
+        self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
 

@@ -319,6 +319,12 @@ def _radiometry_frames(ctx: ReportContext) -> str:
     return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
 
 
+def _characterise(ctx: ReportContext) -> str:
+    from benchlab.report_characterise import characterise_html
+
+    return characterise_html(ctx.tables, ctx.summary)
+
+
 def _unwrapped(ctx: ReportContext) -> str:
     from benchlab.report_unwrap import render_unwrap_section  # after benchlab unwrap SESSION
 
@@ -338,6 +344,8 @@ SECTIONS: list[Section] = [
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
+    Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),
+            "characterisation"),
     Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]

@@ -58,6 +58,17 @@ TABLE_VIEWS: dict[str, TableView] = {
          ("measured_normalised", "meas. norm.", ".2f"), ("difference", "difference", "+.2f"),
          ("mask_pixels", "mask px", "")),
     ),
+    # Camera characterisation (benchlab run characterise): measured, and the simulator's truth.
+    **{name: TableView(title, (
+        ("gain", "gain", "g"), ("bits", "bits", ""), ("system_gain_dn_per_e", "K DN/e-", ".5f"),
+        ("read_noise_dn", "noise DN", ".3f"), ("read_noise_e", "noise e-", ".2f"),
+        ("saturation_dn", "sat. DN", ".1f"), ("saturation_e", "sat. e-", ".0f"),
+        ("linearity_error_min_pct", "LE min %", "+.3f"),
+        ("linearity_error_max_pct", "LE max %", "+.3f"),
+        ("dark_current_e_per_s", "dark e-/s", ".1f"), ("dsnu_dn", "DSNU DN", ".3f"),
+        ("prnu_pct", "PRNU %", ".3f"))) for name, title in (
+        ("characterisation", "Camera characterisation (EMVA 1288 photon transfer)"),
+        ("simulator_truth", "Simulator truth (same keys)"))},
 }
 
 

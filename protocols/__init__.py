@@ -1,4 +1,5 @@
-"""Measurement procedures: Table 4.10 MTF and section 4.4 relative radiometry.
+"""Measurement procedures: Table 4.10 MTF, section 4.4 relative radiometry, and the camera
+characterisation (EMVA 1288 photon transfer, ``characterise.py``).
 
 Python API for scripted sessions (and for the TUI)
 ==================================================

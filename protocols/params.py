@@ -13,13 +13,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
+from benchlab.protocols.characterise_params import CharacteriseParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
-PROCEDURES = ("mtf", "radiometry")
+PROCEDURES = ("mtf", "radiometry", "characterise")
 #: Camera limits checked here so a bad file fails before the camera is touched (MCE-B013-U).
 EXPOSURE_RANGE_MS = (0.05, 750.0)
 GAIN_RANGE = (0.25, 8.0)
@@ -92,7 +93,7 @@ class RadiometryParams:
         return position_mm + self.stage_offset_mm
 
 
-Params = MtfParams | RadiometryParams
+Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
 
 
 class _Checker(TableChecker):
@@ -261,8 +262,14 @@ def parse_params(
     declared = data.get("procedure", procedure)
     if declared != procedure:
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
-    params: Params = (_check_mtf(checker) if procedure == "mtf"
-                      else _check_radiometry(checker, limits))
+    params: Params
+    if procedure == "characterise":
+        from benchlab.protocols.characterise_params import check_characterise
+
+        params = check_characterise(checker, limits)
+    else:
+        params = (_check_mtf(checker) if procedure == "mtf"
+                  else _check_radiometry(checker, limits))
     checker.unknown_keys()
     if checker.problems:
         raise ParamsError(source, checker.problems)
@@ -292,6 +299,10 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     This is what a session records, so a resume or re-analysis never depends on defaults that a
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
+    if not isinstance(params, MtfParams | RadiometryParams):
+        from benchlab.protocols.characterise_params import characterise_to_dict
+
+        return characterise_to_dict(params)
     if isinstance(params, MtfParams):
         rois: dict[str, dict[str, list[int]]] = {}
         for key, box in params.forward_roi_overrides.items():

@@ -130,13 +130,21 @@ class RadiometryProcedure:
 def analyze_radiometry(
     session: Session, params: RadiometryParams
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
-    """Table 4.16 from a session's frames (measured normalised vs simulated normalised)."""
+    """Table 4.16 from a session's frames (measured normalised vs simulated normalised).
+
+    When the session's bench configuration references a response calibration (``benchlab run
+    characterise``), each measurement frame is linearised with it before the reading; the
+    summary's ``linearised`` records which file (or None).
+    """
+    from benchlab.protocols.characterise_calibration import session_linearisation
+
+    linear, record = session_linearisation(session, params.measurement_gain, params.bits)
     rows: list[Mapping[str, Any]] = []
     for pos, sim in zip(params.positions_mm, params.simulated_irradiance_mw_per_mm2, strict=True):
         sid = position_step_id(pos)
         mask, _ = session.load_frame(sid, MASK_FRAME)
         meas, _ = session.load_frame(sid, MEASUREMENT_FRAME)
-        value, n = reading(mask, meas, params.mask_threshold_fraction)
+        value, n = reading(mask, linear(meas), params.mask_threshold_fraction)
         rows.append({"position_mm": pos, "simulated": sim, "measured": value, "mask_pixels": n})
     table = radiometry_table([r["position_mm"] for r in rows], [r["simulated"] for r in rows],
                              [r["measured"] for r in rows])
@@ -153,5 +161,5 @@ def analyze_radiometry(
         })
     summary = {"procedure": "radiometry", "positions_mm": list(params.positions_mm),
                "exposure_ms": params.exposure_ms, "mask_gain": params.mask_gain,
-               "measurement_gain": params.measurement_gain}
+               "measurement_gain": params.measurement_gain, "linearised": record}
     return {"table_4_16": out}, summary

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError
+from benchlab.protocols.characterise import CharacteriseProcedure
+from benchlab.protocols.characterise_params import CharacteriseParams
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
 from benchlab.protocols.mtf import MtfProcedure
 from benchlab.protocols.params import (
@@ -47,8 +49,10 @@ def check_estimator(name: str | None) -> None:
             f"unknown estimator {name!r}; choose auto, {', '.join(sorted(ESTIMATORS))}")
 
 
-def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure:
+def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | CharacteriseProcedure:
     """The procedure object for a parameter set."""
+    if isinstance(params, CharacteriseParams):
+        return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
         return MtfProcedure(params)
     return RadiometryProcedure(params)
@@ -61,7 +65,8 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
-    expected = MtfParams if procedure == "mtf" else RadiometryParams
+    expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
+                                                                        RadiometryParams)
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])

@@ -164,6 +164,10 @@ def analyze_command(args: argparse.Namespace) -> int:
     if target.is_dir() and (target / "session.json").is_file():
         from benchlab.cli.procedures import analyze_session_command
 
+        if getattr(args, "linearise", None):
+            raise AnalysisInputError(f"{target}: --linearise applies to one image; a session "
+                                     "uses the calibration its bench configuration references")
+
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.frequency import cycles_per_px
@@ -171,6 +175,9 @@ def analyze_command(args: argparse.Namespace) -> int:
     if target.is_dir():
         raise AnalysisInputError(f"{target}: a folder without session.json; give an image file")
     pixels = read_image(target)
+    linearised = None
+    if getattr(args, "linearise", None):
+        pixels, linearised = _linearise(pixels, target, Path(args.linearise))
     roi = parse_roi(args.roi, pixels.shape, target)
     if args.estimator is not None and args.estimator not in ESTIMATORS:
         raise AnalysisInputError(
@@ -205,11 +212,43 @@ def analyze_command(args: argparse.Namespace) -> int:
             payload = next(iter(results.values())).to_dict()
         else:
             payload = {"estimators": {k: r.to_dict() for k, r in results.items()}}
-        payload.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq})
+        payload.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq,
+                        "linearised": linearised})
         print(json.dumps(payload, allow_nan=False))
         return 0
     print("\n\n".join(_format_result(r, target, roi) for r in results.values()))
+    if linearised is not None:
+        print(f"linearised with {linearised['file']} (v{linearised['version']}, gain "
+              f"{linearised['gain']:g}, {linearised['bits']}-bit curve)")
     return 0
+
+
+def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
+               ) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+    """``--linearise``: the frame through the response calibration of its gain and bit depth
+    (gain from the frame's benchlab metadata, else 1; 8-bit for uint8 files, else 12-bit)."""
+    from benchlab.analysis.photon_transfer import linearise, native_codes
+    from benchlab.protocols.characterise_calibration import (
+        curve_for,
+        linearisation_record,
+        load_calibration,
+    )
+
+    gain = 1.0
+    if target.suffix.lower() in (".tif", ".tiff"):
+        from benchlab.storage import load_frame_tiff
+
+        try:
+            gain = float(load_frame_tiff(target)[1].get("gain", 1.0))
+        except Exception:  # noqa: BLE001 - a plain TIFF without benchlab metadata
+            gain = 1.0
+    bits = 8 if pixels.dtype.itemsize == 1 else 12
+    doc = load_calibration(calib)
+    try:
+        codes = native_codes(pixels, bits)
+    except ValueError as exc:
+        raise AnalysisInputError(f"{target}: {exc}") from exc
+    return linearise(codes, curve_for(doc, gain, bits)), linearisation_record(doc, gain, bits)
 
 
 def benchmark_command(args: argparse.Namespace) -> int:
@@ -268,6 +307,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     p.add_argument(
         "--bootstrap", type=int, default=0, metavar="N", help="bootstrap uncertainty, N resamples"
+    )
+    p.add_argument(
+        "--linearise", metavar="CALIBRATION",
+        help="linearise the frame first with a response calibration (benchlab run "
+        "characterise): response-vN.json or a bench TOML referencing one; recorded in --json",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=analyze_command)

@@ -154,6 +154,10 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    if outcome.summary.get("summary", {}).get("procedure") == "characterise":
+        from benchlab.protocols.characterise import run_notes
+
+        print("\n" + "\n".join(run_notes(outcome.session_path, outcome.summary)))
     print(f"\nsession: {outcome.session_path}")
     print(f"results: {outcome.results_path}")
     print(f"wall time: {elapsed:.1f} s")
@@ -202,6 +206,21 @@ def report_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def benchmark_characterise_command(args: argparse.Namespace) -> int:
+    """``benchlab benchmark characterise``: the characterisation figures (simulated bench)."""
+    from benchlab.protocols.characterise_benchmark import (
+        all_pass,
+        format_benchmark,
+        run_benchmark,
+    )
+
+    out = run_benchmark(Path(args.keep) if args.keep else None)
+    print(format_benchmark(out))
+    print("\nall figures within the issue's tolerances" if all_pass(out)
+          else "\nsome figures are outside the issue's tolerances")
+    return 0
+
+
 def benchmark_report_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark report [SESSION]``: seconds to render a report, per section."""
     import statistics
@@ -241,11 +260,12 @@ def benchmark_report_command(args: argparse.Namespace) -> int:
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add ``run``, ``resume``, ``report`` and ``benchmark report``."""
     run = commands.add_parser(
-        "run", help="run a procedure (Table 4.10 MTF or section 4.4 radiometry)",
+        "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry or the camera "
+        "characterisation)",
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry"))
+    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
                      "default: the user's, see `benchlab config show`)")
@@ -280,6 +300,17 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     rep.add_argument("session", help="session folder")
     rep.add_argument("--out", help="output file (default SESSION/report.html)")
     rep.set_defaults(func=report_command)
+
+    bch = benchmarks.add_parser(
+        "characterise", help="camera characterisation figures on the simulated bench",
+        description="Run the characterisation on the simulated bench and compare K, read "
+        "noise, saturation, linearity error, DSNU and PRNU with the simulator's truth (issue "
+        "tolerances); then characterise a non-linear simulated camera and show radiometry "
+        "readings without and with the response calibration against the linear camera. "
+        "About 30 s.",
+    )
+    bch.add_argument("--keep", metavar="DIR", help="keep the sessions in DIR (default: temporary)")
+    bch.set_defaults(func=benchmark_characterise_command)
 
     brep = benchmarks.add_parser(
         "report", help="seconds to render an HTML report, per section",

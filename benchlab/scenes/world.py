@@ -11,6 +11,8 @@ Targets (the set-ups of Table 4.10 and section 4.4):
   ``radius_mm`` from the axis (default 19.88; :class:`CardScene`); also ``"card:19.88"``;
 - ``"led"`` - the radiometry LED (:class:`LedScene`), its current and stage position read from
   ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
+- ``"flat"`` - uniform illumination (diffuser, lens off) lit by the LED: every pixel gets
+  ``flat_e_per_ms_per_ma`` x the LED current (camera characterisation, EMVA 1288 set-up);
 - ``"dark"`` - nothing lit (lens cap on).
 
 ``state.bench["target"]``, when present, overrides the mounted target for that exposure, so a
@@ -37,7 +39,7 @@ from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "dark")
+TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark")
 
 
 def parse_target(target: object) -> Target:
@@ -53,7 +55,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "edge", "led", "dark"):
+        if spec in ("usaf", "edge", "led", "flat", "dark"):
             return (spec,)
         if spec == "card":
             return ("card", None)
@@ -81,7 +83,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, list | tuple) and len(spec) == 1:
         return parse_target(spec[0])
     raise ValueError(
-        f"unknown target {target!r}; expected 'usaf', 'edge', 'led', 'dark' or "
+        f"unknown target {target!r}; expected 'usaf', 'edge', 'led', 'flat', 'dark' or "
         "('radial', lp_per_mm, 'sagittal'|'tangential') or 'card[:RADIUS_MM]'"
     )
 
@@ -100,6 +102,9 @@ class SimWorld:
         Which channel of a per-channel ``led_current_ma`` mapping drives the LED (None: the sum).
     led_position_mm
         Where the LED is when ``state.bench`` has no stage position (positioned by hand).
+    flat_e_per_ms_per_ma
+        Electron rate per pixel per mA of LED current on the ``"flat"`` target (linear in the
+        current, so a current sweep is an irradiance sweep).
     """
 
     def __init__(
@@ -113,6 +118,7 @@ class SimWorld:
         led_channel: int | str | None = None,
         led_position_mm: float | None = None,
         edges: EdgeScene | None = None,
+        flat_e_per_ms_per_ma: float = 20.0,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
         self.edges = edges if edges is not None else EdgeScene()
@@ -122,6 +128,7 @@ class SimWorld:
         self.led = led if led is not None else LedScene()
         self.led_channel = led_channel
         self.led_position_mm = led_position_mm
+        self.flat_e_per_ms_per_ma = float(flat_e_per_ms_per_ma)
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
         self._target = self._checked(target)
@@ -185,7 +192,8 @@ class SimWorld:
     def scene_for(
         self, target: object
     ) -> UsafScene | EdgeScene | RadialScene | CardScene | LedScene | None:
-        """The scene object of a target (None for ``"dark"``; the chart's for ``"usaf"``)."""
+        """The scene object of a target (None for ``"dark"`` and ``"flat"``; the chart's for
+        ``"usaf"``)."""
         spec = parse_target(target)
         if spec[0] == "card":
             return self.card_scene(spec[1])
@@ -197,7 +205,7 @@ class SimWorld:
             return self.radial_scene(spec[1], spec[2])
         if spec[0] == "led":
             return self.led
-        return None
+        return None  # dark, flat: drawn directly by __call__
 
     def led_current_ma(self, bench: Mapping[str, Any]) -> float:
         """LED drive current from the bench state (0 when absent or switched off)."""
@@ -230,6 +238,9 @@ class SimWorld:
         spec = parse_target(bench["target"]) if bench.get("target") is not None else self._target
         if spec[0] == "dark":
             return np.zeros((state.height, state.width))
+        if spec[0] == "flat":
+            rate = self.flat_e_per_ms_per_ma * self.led_current_ma(bench)
+            return np.full((state.height, state.width), rate)
         if spec[0] == "led":
             return self.led.render(
                 self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width

@@ -26,10 +26,11 @@ from benchlab.tui.widgets import ModeBar
 if TYPE_CHECKING:
     from benchlab.protocols.engine import Runner
 
-PROCEDURES = ("mtf", "radiometry")
+PROCEDURES = ("mtf", "radiometry", "characterise")
 #: Title of the checklist panel per procedure.
 CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
-                    "radiometry": "positions (section 4.4)"}
+                    "radiometry": "positions (section 4.4)",
+                    "characterise": "sweeps (EMVA 1288)"}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 STATUS_MARK = {
     "pending": "  ",
@@ -174,7 +175,8 @@ class RunScreen(Screen[None]):
     def _refresh_status(self) -> None:
         if not self.is_mounted:
             return
-        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)"}
+        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
+                 "characterise": "Camera characterisation (EMVA 1288)"}
         params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (

@@ -1,0 +1,162 @@
+"""The response calibration: a versioned file referenced from the bench configuration.
+
+``benchlab run characterise`` writes ``calibration/response-vN.json`` (never overwritten) next
+to the bench configuration file and points the file's ``[camera] response_calibration`` at it,
+so every later run on that bench records which calibration it used (the session's bench
+snapshot) and radiometry linearises its readings with it. The packaged simulated bench file is
+not ours to edit: with ``--simulate`` and no ``--config``, the calibration goes to
+``SESSIONS/calibration/`` beside a copy of the simulated bench file that references it
+(``bench-vN.toml``; pass it as ``--config``).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import tomllib
+from collections.abc import Callable, Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from benchlab.analysis.photon_transfer import ResponseCurve, linearise
+from benchlab.drivers.errors import BenchlabError
+from benchlab.storage import atomic_write_json, atomic_write_text, sha256_file
+
+FORMAT = "benchlab-response-calibration"
+_VERSION_RE = re.compile(r"^response-v(\d+)\.json$")
+
+
+class CalibrationError(BenchlabError):
+    """A response calibration file is missing, unreadable or has no curve for a setting."""
+
+
+def _packaged_bench() -> Path:
+    return Path(str(resources.files("benchlab.protocols") / "defaults" / "bench-simulated.toml"))
+
+
+def _next_version(folder: Path) -> int:
+    found = [int(m.group(1)) for p in folder.glob("response-v*.json")
+             if (m := _VERSION_RE.match(p.name))]
+    return max(found, default=0) + 1
+
+
+def set_camera_reference(text: str, value: str) -> str:
+    """Bench TOML text with ``[camera] response_calibration = value`` set (added or replaced);
+    every other line unchanged. The result is parsed back to check it."""
+    line = f"response_calibration = {json.dumps(value)}"
+    lines = text.splitlines()
+    header = next((i for i, ln in enumerate(lines) if ln.strip() == "[camera]"), None)
+    if header is None:
+        lines = ["[camera]", line, ""] + lines
+    else:
+        end = next((i for i in range(header + 1, len(lines))
+                    if lines[i].lstrip().startswith("[")), len(lines))
+        key = next((i for i in range(header + 1, end)
+                    if re.match(r"^\s*response_calibration\s*=", lines[i])), None)
+        if key is None:
+            lines.insert(header + 1, line)
+        else:
+            lines[key] = line
+    out = "\n".join(lines) + "\n"
+    parsed = tomllib.loads(out)
+    if parsed.get("camera", {}).get("response_calibration") != value:
+        raise CalibrationError("could not set [camera] response_calibration in the bench file")
+    return out
+
+
+def write_calibration(session: Any, results: Path, config: Any) -> dict[str, Any]:
+    """Write the calibration of a characterisation results version; point the bench
+    configuration at it. Returns ``{file, sha256, version, bench_config}``."""
+    summary = json.loads((Path(results) / "summary.json").read_text(encoding="utf-8"))
+    curves = summary.get("summary", {}).get("response_curves") or []
+    if not curves:
+        raise CalibrationError(f"{results}: no response curve to calibrate with")
+    source = Path(config.source) if config.source and not config.source.startswith("<") else None
+    is_file = source is not None and source.suffix == ".toml" and source.is_file()
+    packaged = is_file and source is not None and source.resolve() == _packaged_bench().resolve()
+    editable = is_file and not packaged and source is not None
+    folder = (source.parent if editable and source is not None
+              else Path(session.path).parent) / "calibration"
+    folder.mkdir(parents=True, exist_ok=True)
+    version = _next_version(folder)
+    target = folder / f"response-v{version}.json"
+    doc = {"format": FORMAT, "version": version, "session": str(session.path),
+           "results": str(results), "results_version": summary.get("version"),
+           "camera": session.meta.get("devices", {}).get("camera"), "curves": curves}
+    atomic_write_json(target, doc, overwrite=False)
+    bench_file: Path | None = None
+    if editable and source is not None:
+        bench_file = source
+        atomic_write_text(bench_file, set_camera_reference(
+            bench_file.read_text(encoding="utf-8"), f"calibration/{target.name}"))
+    elif packaged:
+        bench_file = folder / f"bench-v{version}.toml"
+        text = _packaged_bench().read_text(encoding="utf-8")
+        atomic_write_text(bench_file, set_camera_reference(text, target.name))
+    # Otherwise (a configuration rebuilt from a session snapshot) there is no file to edit:
+    # the calibration is written and its path reported.
+    return {"file": str(target), "sha256": sha256_file(target), "version": version,
+            "bench_config": str(bench_file) if bench_file is not None else None}
+
+
+def load_calibration(path: str | Path) -> dict[str, Any]:
+    """Read a calibration file (or the one a bench TOML references)."""
+    p = Path(path)
+    if p.suffix == ".toml":
+        from benchlab.bench import BenchConfig
+
+        ref = BenchConfig.load(p).camera.response_calibration
+        if ref is None:
+            raise CalibrationError(f"{p}: no [camera] response_calibration")
+        p = Path(ref)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise CalibrationError(f"{p}: no such response calibration file") from exc
+    except (OSError, ValueError) as exc:
+        raise CalibrationError(f"{p}: unreadable response calibration ({exc})") from exc
+    if not isinstance(doc, Mapping) or doc.get("format") != FORMAT:
+        raise CalibrationError(f"{p}: not a benchlab response calibration (format)")
+    if not isinstance(doc.get("curves"), list) or not doc["curves"]:
+        raise CalibrationError(f"{p}: curves: missing or empty")
+    return {**doc, "path": str(p), "sha256": sha256_file(p)}
+
+
+def curve_for(doc: Mapping[str, Any], gain: float, bits: int) -> ResponseCurve:
+    """The curve for a gain and bit depth; a curve of the same gain at the other bit depth is
+    rescaled (x16). Raises :class:`CalibrationError` naming the file when there is none."""
+    for want_bits, factor in ((bits, 1.0), (20 - bits, 16.0 if bits == 12 else 1 / 16.0)):
+        for c in doc["curves"]:
+            if abs(float(c.get("gain", -1)) - gain) < 1e-9 and int(c.get("bits", 0)) == want_bits:
+                try:
+                    return ResponseCurve(
+                        gain=gain, bits=bits, black_level_dn=float(c["black_level_dn"]) * factor,
+                        measured_dn=tuple(float(v) * factor for v in c["measured_dn"]),
+                        linear_dn=tuple(float(v) * factor for v in c["linear_dn"]),
+                    )
+                except (KeyError, TypeError, ValueError) as exc:
+                    raise CalibrationError(f"{doc.get('path')}: curve gain {gain:g} / {bits}-bit "
+                                           f"is malformed ({exc})") from exc
+    have = ", ".join(f"gain {c.get('gain')} {c.get('bits')}-bit" for c in doc["curves"])
+    raise CalibrationError(f"{doc.get('path')}: no curve for gain {gain:g}, {bits}-bit "
+                           f"(has {have})")
+
+
+def linearisation_record(doc: Mapping[str, Any], gain: float, bits: int) -> dict[str, Any]:
+    """What a result records about the linearisation it used."""
+    return {"file": doc.get("path"), "sha256": doc.get("sha256"), "version": doc.get("version"),
+            "gain": gain, "bits": bits}
+
+
+def session_linearisation(
+    session: Any, gain: float, bits: int
+) -> tuple[Callable[[Any], Any], dict[str, Any] | None]:
+    """``(linearise_fn, record)`` for a session: the calibration its bench snapshot references,
+    or the identity and None when there is none."""
+    ref = ((session.params.get("bench") or {}).get("camera") or {}).get("response_calibration")
+    if not ref:
+        return (lambda pixels: pixels), None
+    doc = load_calibration(ref)
+    curve = curve_for(doc, gain, bits)
+    return (lambda pixels: linearise(pixels, curve)), linearisation_record(doc, gain, bits)
