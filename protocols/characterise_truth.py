@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.stats import norm
 
 from benchlab.analysis.photon_transfer import (
     LINEARITY_RANGE,
@@ -30,6 +29,8 @@ _W = _W / _W.sum()
 
 def _clipped(mu: Any, sd: Any, ceiling: float) -> tuple[Any, Any]:
     """Mean and variance of N(mu, sd) clipped above at ``ceiling``."""
+    from scipy.stats import norm  # here: importing every procedure must stay fast
+
     a = (ceiling - mu) / sd
     cdf, pdf = norm.cdf(a), norm.pdf(a)
     mean = mu * cdf - sd * pdf + ceiling * (1 - cdf)
