@@ -319,6 +319,16 @@ def _radiometry_frames(ctx: ReportContext) -> str:
     return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
 
 
+def _chart(ctx: ReportContext) -> str:
+    frame = ctx.frame("forward", "forward")
+    if frame is None:
+        return ""
+    from benchlab.report_chart import forward_chart_section
+
+    mag = float(ctx.session.params.get("forward", {}).get("magnification", 16.3))
+    return forward_chart_section(frame[0], mag)
+
+
 def _characterise(ctx: ReportContext) -> str:
     from benchlab.report_characterise import characterise_html
 
@@ -341,6 +351,7 @@ SECTIONS: list[Section] = [
     Section("Slanted-edge MTF vs simulated MTF and bars (ISO 12233 e-SFR)", _sfr, ("mtf",),
             "sfr"),
     Section("Frames with ROIs", _mtf_frames, ("mtf",), "frames"),
+    Section("The USAF chart as found", _chart, ("mtf",), "chart"),
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),

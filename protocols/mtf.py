@@ -148,7 +148,12 @@ class MtfProcedure:
         p = self.params
         pixels = ctx.acquire(FORWARD_FRAME, exposure_ms=p.exposure_ms, gain=p.gain,
                              extra={"view": "forward", "target": FORWARD_TARGET})
-        for row in analyze_forward_frame(pixels, p, self._estimator(ctx)):
+        rows = analyze_forward_frame(pixels, p, self._estimator(ctx))
+        chart = rows[0].get("chart") if rows else None
+        # the journal keeps where the chart was found (or that it was not) for this frame
+        ctx.session.log_event("chart_located", step=ctx.step.id, chart=chart,
+                              offset_px=rows[0].get("chart_offset_px") if rows else None)
+        for row in rows:
             ctx.report(row)
 
     def _mount_step(self, target: Any, ask: bool = True) -> Any:

@@ -6,14 +6,13 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis import chart
+from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
 from benchlab.analysis.estimators import DEFAULT_ESTIMATOR, estimate_modulation
 from benchlab.analysis.frequency import (
     cycles_per_px,
@@ -57,9 +56,12 @@ def radial_step_id(freq_lp_per_mm: float, orientation: str) -> str:
     return f"radial-{freq_lp_per_mm:g}-{orientation}"
 
 
-#: How far (px) the imaged chart may sit from its nominal layout and still be found.
-CHART_SEARCH_PX = 24
-_MARGIN_PX = 4
+#: A found pose this close to the configured geometry (scale within this fraction, rotation
+#: within this many degrees) places the ROIs as the configured boxes shifted by the whole-pixel
+#: offset, so a chart at its configured place gives exactly the configured ROIs; otherwise the
+#: ROIs are the found, scaled and rotated bar sets.
+NOMINAL_SCALE_TOLERANCE = 0.01
+NOMINAL_ROTATION_DEG = 0.3
 
 
 def _bar_group(el: UsafElement, orientation: str) -> chart.BarGroup:
@@ -67,49 +69,42 @@ def _bar_group(el: UsafElement, orientation: str) -> chart.BarGroup:
     return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orient)
 
 
-def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> tuple[int, int]:
-    """Offset (rows, cols) of the imaged USAF chart from its nominal layout, in whole pixels.
+def forward_layout(params: MtfParams) -> chart.ChartLayout:
+    """The configured forward-view chart geometry: the prior of the chart finder."""
+    return chart.ChartLayout(magnification=params.forward_magnification)
 
-    The bars of the configured elements, drawn dark on a bright ground at their nominal
-    places, are matched against the frame (normalised cross-correlation) within
-    +-``CHART_SEARCH_PX``: a chart mounted a little off position still gets its ROIs on the bars.
-    """
-    groups = [_bar_group(el, o) for el in params.forward_elements for o in ORIENTATIONS]
-    top = math.floor(min(g.extent[0] for g in groups)) - _MARGIN_PX
-    left = math.floor(min(g.extent[1] for g in groups)) - _MARGIN_PX
-    bottom = math.ceil(max(g.extent[2] for g in groups)) + _MARGIN_PX
-    right = math.ceil(max(g.extent[3] for g in groups)) + _MARGIN_PX
-    rows = np.arange(top, bottom + 1, dtype=np.float64)[:, None]
-    cols = np.arange(left, right + 1, dtype=np.float64)[None, :]
-    template = np.ones((rows.size, cols.size), dtype=np.float32)
-    for g in groups:
-        for b_top, b_left, b_bottom, b_right in g.bars:
-            inside = (rows >= b_top) & (rows < b_bottom) & (cols >= b_left) & (cols < b_right)
-            template[inside] = 0.0
-    s = CHART_SEARCH_PX
-    r0, c0 = top - s, left - s
-    r1, c1 = bottom + 1 + s, right + 1 + s
-    if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
-        return (0, 0)
-    crop = np.ascontiguousarray(pixels[r0:r1, c0:c1], dtype=np.float32)
-    if float(crop.std()) == 0.0:
-        return (0, 0)
-    score = cv2.matchTemplate(crop, template, cv2.TM_CCOEFF_NORMED)
-    dr, dc = np.unravel_index(int(np.argmax(score)), score.shape)
-    return (int(dr) - s, int(dc) - s)
+
+def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> ChartFit | None:
+    """The USAF chart in the forward frame (:func:`benchlab.analysis.chart_finder.find_chart`
+    with the parameter file's geometry as the prior), or None when no chart is found (the ROIs
+    then stay at the configured places and each row says so)."""
+    try:
+        return find_chart(pixels, forward_layout(params))
+    except ChartNotFoundError:
+        return None
+
+
+def _near_nominal(fit: ChartFit) -> bool:
+    return (abs(fit.pose.scale - 1.0) <= NOMINAL_SCALE_TOLERANCE
+            and abs(fit.pose.rotation_deg) <= NOMINAL_ROTATION_DEG)
 
 
 def forward_roi(
-    params: MtfParams, el: UsafElement, orientation: str, offset: tuple[int, int] = (0, 0)
+    params: MtfParams, el: UsafElement, orientation: str, offset: tuple[int, int] = (0, 0),
+    fit: ChartFit | None = None,
 ) -> Roi:
-    """ROI of one bar set: the technician's override, else the bar set located on the chart
-    (nominal layout shifted by the chart's measured ``offset``): its measurement ROI
-    (:func:`benchlab.analysis.chart.bar_set_roi`), every line across the three bars but none
-    straddling the bar ends, which read bar and bright ground at once and biased the
-    modulation low by up to 0.12."""
+    """ROI of one bar set: the technician's override, else the bar set located on the chart:
+    its measurement ROI (:func:`benchlab.analysis.chart.bar_set_roi`), every line across the
+    three bars but none straddling the bar ends, which read bar and bright ground at once and
+    biased the modulation low by up to 0.12. With a found chart ``fit`` far from the configured
+    geometry the ROI is the found (scaled, rotated) set's; otherwise the configured ROI shifted
+    by ``offset`` (the found offset in whole pixels)."""
     override = params.forward_roi_overrides.get(f"{el.name}.{orientation}")
     if override is not None:
         return override
+    if fit is not None and not _near_nominal(fit):
+        orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+        return fit.element(el.group, el.element, orient).roi
     r0, c0, r1, c1 = _bar_group(el, orientation).roi
     dr, dc = offset
     return (r0 + dr, c0 + dc, r1 + dr, c1 + dc)
@@ -120,7 +115,7 @@ def _measure(
     orientation: str | None,
 ) -> ModulationResult:
     r0, c0, r1, c1 = roi
-    if r1 > pixels.shape[0] or c1 > pixels.shape[1]:
+    if not _inside(roi, pixels.shape):
         raise ValueError(f"ROI {roi} is off the {pixels.shape} frame")
     return estimate_modulation(
         pixels[r0:r1, c0:c1], estimator=estimator, orientation=orientation,
@@ -144,19 +139,45 @@ def analyze_forward_frame(
 ) -> list[dict[str, Any]]:
     """One row per element and orientation (what a UI shows while the run goes on)."""
     est = DEFAULT_ESTIMATOR if estimator in (None, "", AUTO) else estimator
-    offset = locate_chart(pixels, params)
+    fit = locate_chart(pixels, params)
+    offset = fit.offset_px if fit is not None else (0, 0)
+    chart_info = _chart_info(fit)
     rows = []
     for el in params.forward_elements:
         f_img = image_frequency_lp_per_mm(usaf_frequency_lp_per_mm(el.group, el.element),
                                           params.forward_magnification)
         for orient in ORIENTATIONS:
-            roi = forward_roi(params, el, orient, offset)
-            res = _measure(pixels, roi, estimator=est, freq_lp_per_mm=f_img, orientation=orient)
+            roi = forward_roi(params, el, orient, offset, fit)
+            if not _inside(roi, pixels.shape):
+                cells: dict[str, Any] = {
+                    "dark": None, "bright": None, "modulation": None, "resolved": False,
+                    "uncertainty": None, "warnings": "clipped by the FOV: ROI off the frame"}
+            else:
+                cells = _cells(_measure(pixels, roi, estimator=est, freq_lp_per_mm=f_img,
+                                        orientation=orient))
+            if fit is None:
+                note = "chart not found: configured ROI"
+                cells["warnings"] = "; ".join(w for w in (cells["warnings"], note) if w)
             rows.append({"view": "forward", "element": el.name, "orientation": orient,
                          "image_lp_per_mm": f_img, "roi": list(roi),
-                         "chart_offset_px": list(offset),
-                         **_cells(res)})
+                         "chart_offset_px": list(offset), "chart": chart_info,
+                         **cells})
     return rows
+
+
+def _inside(roi: Roi, shape: tuple[int, ...]) -> bool:
+    r0, c0, r1, c1 = roi
+    return 0 <= r0 < r1 <= shape[-2] and 0 <= c0 < c1 <= shape[-1]
+
+
+def _chart_info(fit: ChartFit | None) -> dict[str, Any] | None:
+    """The found chart in brief (pose, magnification, counts, warnings) for the summary."""
+    if fit is None:
+        return None
+    d = fit.to_dict()
+    return {k: d[k] for k in ("pose", "polarity", "configured_magnification",
+                              "implied_magnification", "matched_sets", "residual_px", "found",
+                              "rejected", "warnings")}
 
 
 def analyze_radial_frame(
@@ -270,6 +291,7 @@ def analyze_mtf(
         "image_centre_method": centre_method,
         "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None
         and per else None,
+        "chart": next(iter(per.values()))["chart"] if forward is not None and per else None,
         "nyquist_lp_per_mm": nyq,
         "frames_analysed": (forward is not None) + len(radial),
     }

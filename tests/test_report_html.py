@@ -29,14 +29,15 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     text = out.read_text()
     for title in ("Table 4.11", "Table 4.12", "Tables 4.13-4.14", "Table 4.15",
                   "Measured vs simulated bar contrast", "Table 4.15 verdict", "Frames with ROIs",
-                  "Evidence per ROI", "G1E5", "SIM-130001"):
+                  "Evidence per ROI", "G1E5", "SIM-130001", "The USAF chart as found"):
         assert title in text
-    # Plots: CTF, Monte Carlo bands and the slanted-edge MTF; frames: forward overview + zoom +
-    # 4 radial crops; evidence: one crop per ROI (2 elements x S/T + 2 radial frequencies x S/T).
-    assert text.count("class='plot'") == 3
+    # Plots: CTF, Monte Carlo bands, the slanted-edge MTF and the found chart; frames: forward
+    # overview + zoom + 4 radial crops; evidence: one crop per ROI (2 elements x S/T + 2 radial
+    # frequencies x S/T).
+    assert text.count("class='plot'") == 4
     assert text.count("class='roi-panel'") == 8
     assert text.count("class='crop'") == 8
-    assert text.count("data:image/png;base64,") == 3 + 6 + 8
+    assert text.count("data:image/png;base64,") == 4 + 6 + 8
     assert "Slanted-edge MTF" in text and "bar readings compared" in text
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN

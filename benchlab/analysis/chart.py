@@ -89,6 +89,30 @@ THESIS_ELEMENT_CENTRES_MM: Mapping[tuple[int, int], tuple[float, float]] = {
 #: Elements whose sagittal set is left of the tangential one (the chart mirrors its groups;
 #: Table 4.13's centroids show which); in the others the sagittal set is on the right.
 THESIS_SAGITTAL_LEFT: frozenset[tuple[int, int]] = frozenset({(1, 5), (1, 6), (2, 1), (3, 1)})
+#: The chart's coarser elements around the thesis's (the R3L3S1N chart has every group; the
+#: thesis measured G1E5-G3E1 only): group 1 continues its column below G1E5, elements growing
+#: downwards as in group 2; group 0 is a column of its own right of group 2, as far below the
+#: slanted-edge squares (:mod:`benchlab.analysis.edge_target`) as the thesis's elements. Centres
+#: as (row, col) px offsets from the chart origin at the nominal magnification, like the
+#: thesis's, consecutive elements 6.5-8 mean bar widths apart. Their 2-6 px bars (at 16.3x)
+#: give the chart finder (:mod:`benchlab.analysis.chart_finder`) separable three-bar sets at
+#: any pose.
+COARSE_ELEMENT_CENTRES_MM: Mapping[tuple[int, int], tuple[float, float]] = {
+    (g, e): (dc * _PX_TO_OBJECT_MM, dr * _PX_TO_OBJECT_MM)
+    for (g, e), (dr, dc) in {
+        (0, 1): (190.9, 55.0),
+        (0, 2): (154.6, 55.0),
+        (0, 3): (122.3, 55.0),
+        (0, 4): (93.5, 55.0),
+        (0, 5): (67.8, 55.0),
+        (0, 6): (45.0, 55.0),
+        (1, 1): (135.0, -110.0),
+        (1, 2): (113.0, -110.0),
+        (1, 3): (93.5, -110.0),
+        (1, 4): (76.0, -110.0),
+    }.items()
+}
+COARSE_SAGITTAL_LEFT: frozenset[tuple[int, int]] = frozenset({(1, 1), (1, 2), (1, 3), (1, 4)})
 
 
 @dataclass(frozen=True)
@@ -116,9 +140,9 @@ class ChartLayout:
     magnification: float = FORWARD_MAGNIFICATION
     pixel_pitch_um: float = PIXEL_PITCH_UM
     element_centres_mm: Mapping[tuple[int, int], tuple[float, float]] = field(
-        default_factory=lambda: dict(THESIS_ELEMENT_CENTRES_MM)
+        default_factory=lambda: {**COARSE_ELEMENT_CENTRES_MM, **THESIS_ELEMENT_CENTRES_MM}
     )
-    sagittal_left: frozenset[tuple[int, int]] = THESIS_SAGITTAL_LEFT
+    sagittal_left: frozenset[tuple[int, int]] = THESIS_SAGITTAL_LEFT | COARSE_SAGITTAL_LEFT
 
     def __hash__(self) -> int:  # the mapping field is not hashable by itself
         return hash(

@@ -172,6 +172,10 @@ def analyze_command(args: argparse.Namespace) -> int:
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.frequency import cycles_per_px
 
+    if getattr(args, "chart", None):
+        from benchlab.cli.chart import analyze_chart_command
+
+        return analyze_chart_command(args)
     if target.is_dir():
         raise AnalysisInputError(f"{target}: a folder without session.json; give an image file")
     pixels = read_image(target)
@@ -314,6 +318,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "characterise): response-vN.json or a bench TOML referencing one; recorded in --json",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--chart", metavar="KIND",
+        help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
+        "found element (Table 4.11 layout) instead of one --roi",
+    )
     p.set_defaults(func=analyze_command)
 
     b = benchmarks.add_parser(

@@ -92,7 +92,9 @@ def _cmd_devices(args: argparse.Namespace) -> int:
 SNAP_SCENES_HELP = (
     "bars (32 px period test target), flat, or a bench target: usaf, edge, led, dark, "
     "radial:LP_PER_MM:sagittal|tangential (e.g. radial:4:sagittal), "
-    "card[:RADIUS_MM] (grid-and-text card rolled at RADIUS_MM from the axis, default 19.88)"
+    "card[:RADIUS_MM] (grid-and-text card rolled at RADIUS_MM from the axis, default 19.88); "
+    "the USAF chart at a pose: usaf:dx=PX,dy=PX,scale=S,rot=DEG[,vignetting=V][,negative=1] "
+    "(any subset)"
 )
 
 
@@ -105,6 +107,13 @@ def simulated_snap_scene(name: str) -> Any:
         return flat_field_scene()
     from benchlab.scenes.world import SimWorld  # the bench scenes are only needed here
 
+    if name.startswith("usaf:"):
+        from benchlab.scenes.usaf import usaf_scene_from_spec
+
+        try:
+            return SimWorld("usaf", usaf=usaf_scene_from_spec(name))
+        except ValueError as exc:
+            raise BenchlabError(f"--scene {name}: {exc}") from exc
     try:
         # An LED with no stage sits at 20 mm and no controller: light it as the procedure does.
         world = SimWorld(name, led_position_mm=20.0)

@@ -19,6 +19,7 @@ COMMAND_MODULES = (
     "benchlab.cli.camera",  # devices, snap, benchmark camera
     "benchlab.cli.serial",  # led, stage, simulate
     "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
+    "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
     "benchlab.cli.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
     "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial

@@ -5,6 +5,16 @@ Each bar set is three rectangles from :mod:`benchlab.analysis.chart`, blurred by
 :class:`~benchlab.scenes.optics.BlurProfile` at that set's image height and integrated over the
 pixel aperture, all in closed form. The image is linear in the bars, so the render is the bright
 disc minus each blurred bar; the truth values use the same formulas.
+
+Pose knobs (:class:`~benchlab.analysis.chart_pose.ChartPose`): the chart may be imaged offset,
+scaled and rotated. Bars parallel to the pixel axes use the exact separable form above. A
+rotated bar is the product of two slabs, along and across it, each blurred by the Gaussian
+projected on that direction and by the pixel aperture projected on it (a trapezoid: two boxes
+of widths ``|cos t|`` and ``|sin t|``), in closed form. That is exact along the bar edges and
+approximate only at the bar corners (the aperture and an anisotropic blur are not separable
+along rotated axes), which the measurement ROIs keep off. ``negative`` renders a negative target
+(clear bars on chrome: bright bars on a dark ground); ``vignetting`` dims the disc
+multiplicatively by ``1 - vignetting (rho / disc radius)^2``.
 """
 
 from __future__ import annotations
@@ -19,6 +29,7 @@ import numpy.typing as npt
 from scipy.special import ndtr
 
 from benchlab.analysis.chart import BarGroup, ChartLayout, Orientation, RadialLayout, usaf_bar_group
+from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
 from benchlab.analysis.result import eq29_modulation
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
@@ -49,6 +60,12 @@ class UsafScene:
         Extra isotropic Gaussian blur (added in quadrature) for a back focus away from best;
         ``state.bench["defocus_px"]`` overrides it per exposure, so the focus step (Table 4.10,
         step 3) has something to maximise on the simulated bench.
+    pose
+        Offset, scale and rotation of the imaged chart about its layout origin.
+    negative
+        A negative target: bright bars (``bright_dn8``) on a dark ground (``dark_dn8``).
+    vignetting
+        Fractional fall-off of the lit disc at its edge (0 = flat), quadratic in radius.
     """
 
     layout: ChartLayout = field(default_factory=ChartLayout)
@@ -60,6 +77,19 @@ class UsafScene:
     reference_gain: float = 1.0
     disc_edge_sigma_px: float = 1.5
     defocus_px: float = 0.0
+    pose: ChartPose = field(default_factory=ChartPose)
+    negative: bool = False
+    vignetting: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.vignetting < 1.0:
+            raise ValueError(f"vignetting must be in [0, 1), got {self.vignetting}")
+
+    @property
+    def nominal(self) -> bool:
+        """True when the chart sits at its layout's place, positive, without vignetting: the
+        original closed forms apply unchanged."""
+        return self.pose.is_identity and not self.negative and self.vignetting == 0.0
 
     @property
     def dark_rate(self) -> float:
@@ -75,7 +105,11 @@ class UsafScene:
         """Geometry of one bar set (see :func:`benchlab.analysis.chart.usaf_bar_group`)."""
         return usaf_bar_group(self.layout, group, element, orientation)
 
-    def sigmas_px(self, bars: BarGroup) -> tuple[float, float]:
+    def bar_set(self, group: int, element: int, orientation: Orientation) -> PosedBarSet:
+        """Geometry of one bar set as imaged at the scene's pose."""
+        return posed_bar_set(self.layout, self.pose, group, element, orientation)
+
+    def sigmas_px(self, bars: BarGroup | PosedBarSet) -> tuple[float, float]:
         """Blur widths ``(along rows, along columns)`` applied to a bar set, px."""
         h = bars.image_height_mm
         extra = self.defocus_px**2
@@ -98,6 +132,10 @@ class UsafScene:
 
     def _profile_value(self, bars: BarGroup, row: float, col: float) -> float:
         """Noise-free pixel value (e-/ms) a pixel centred at (row, col) would read."""
+        if not self.nominal:
+            posed = self.bar_set(bars.group, bars.element, bars.orientation)
+            r, c = np.array([[row]]), np.array([[col]])
+            return float(self._compose(self._set_sum(posed, r, c), r, c)[0, 0])
         sig_r, sig_c = self.sigmas_px(bars)
         disc = self._disc(np.array([row]), np.array([col]))[0]
         value = self.bright_rate * disc
@@ -108,6 +146,39 @@ class UsafScene:
             fx = box_blurred_rect(c, left, right, sig_c)[0]
             value -= (self.bright_rate - self.dark_rate) * fy * fx
         return float(value)
+
+    def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray) -> FloatArray:
+        """Pixel values from the summed blurred bars (the general, posed form)."""
+        disc = self._disc(rows, cols)
+        depth = self.bright_rate - self.dark_rate
+        if self.negative:
+            img = disc * (self.dark_rate + depth * bar_sum)
+        else:
+            img = self.bright_rate * disc - depth * bar_sum
+        if self.vignetting:
+            cr, cc = self.circles.centre_rc
+            rho2 = ((rows - cr) ** 2 + (cols - cc) ** 2) / self.circles.disc_radius_px**2
+            img = img * np.clip(1.0 - self.vignetting * rho2, 0.0, None)
+        return np.asarray(img, dtype=np.float64)
+
+    def _set_sum(self, posed: PosedBarSet, rows: FloatArray, cols: FloatArray) -> FloatArray:
+        """Sum of the set's three blurred, pixel-integrated bars at pixel centres (rows, cols)."""
+        sig_r, sig_c = self.sigmas_px(posed)
+        out = np.zeros(np.broadcast(rows, cols).shape)
+        for centre, half_len, half_w in posed.bars():
+            out += _rotated_bar(rows, cols, centre, half_len, half_w, posed.theta_deg, sig_r, sig_c)
+        return out
+
+    def truth_centre_levels(self, posed: PosedBarSet) -> tuple[float, float]:
+        """Noise-free ``(bar, space)`` rates at the centre bar and the spaces beside it."""
+        t = math.radians(posed.theta_deg)
+        w = posed.bar_width_px
+        pts = [(posed.centre_rc[0] + k * w * math.sin(t), posed.centre_rc[1] + k * w * math.cos(t))
+               for k in (0, -1, 1)]
+        r = np.array([[p[0] for p in pts]])
+        c = np.array([[p[1] for p in pts]])
+        vals = self._compose(self._set_sum(posed, r, c), r, c)[0]
+        return float(vals[0]), float(0.5 * (vals[1] + vals[2]))
 
     def truth_levels(
         self, group: int, element: int, orientation: Orientation
@@ -121,6 +192,9 @@ class UsafScene:
         reading depends on that phase (the estimators flag it), and a measurement ROI must keep
         off the bar ends (:func:`benchlab.analysis.chart.bar_set_roi`).
         """
+        if not self.nominal:
+            bar, space = self.truth_centre_levels(self.bar_set(group, element, orientation))
+            return (space, bar) if self.negative else (bar, space)
         bars = self.bar_group(group, element, orientation)
         cr, cc = bars.centre_rc
         w = bars.bar_width_px
@@ -154,6 +228,7 @@ class UsafScene:
         for g, e in self.layout.elements:
             for orientation in ("sagittal", "tangential"):
                 bars = self.bar_group(g, e, orientation)  # type: ignore[arg-type]
+                posed = self.bar_set(g, e, orientation)  # type: ignore[arg-type]
                 dark, bright = self.truth_levels_dn8(g, e, orientation)  # type: ignore[arg-type]
                 rows.append(
                     {
@@ -161,9 +236,11 @@ class UsafScene:
                         "group": g,
                         "element": e,
                         "orientation": orientation,
-                        "image_lp_per_mm": bars.image_lp_per_mm,
-                        "image_height_mm": bars.image_height_mm,
-                        "box": bars.box,
+                        "image_lp_per_mm": posed.image_lp_per_mm,
+                        "image_height_mm": posed.image_height_mm,
+                        "centre_rc": posed.centre_rc,
+                        "bar_width_px": posed.bar_width_px,
+                        "box": bars.box if self.nominal else posed.roi,
                         "dark_dn8": dark,
                         "bright_dn8": bright,
                         "modulation": eq29_modulation(dark, bright),
@@ -180,6 +257,8 @@ class UsafScene:
 
 @functools.lru_cache(maxsize=8)
 def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
+    if not scene.nominal:
+        return _render_posed(scene, height, width)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
     img = scene.bright_rate * scene._disc(rows, cols)
@@ -202,3 +281,132 @@ def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     np.maximum(img, 0.0, out=img)
     img.setflags(write=False)
     return img
+
+
+def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
+    """Render at any pose / polarity / vignetting: sum the blurred bars, then compose."""
+    bar_sum = np.zeros((height, width))
+    for g, e in scene.layout.elements:
+        for orientation in ("sagittal", "tangential"):
+            posed = scene.bar_set(g, e, orientation)  # type: ignore[arg-type]
+            sig_r, sig_c = scene.sigmas_px(posed)
+            for centre, half_len, half_w in posed.bars():
+                reach = half_len + 6.0 * max(sig_r, sig_c) + 2.0
+                r0 = max(int(np.floor(centre[0] - reach)), 0)
+                r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
+                c0 = max(int(np.floor(centre[1] - reach)), 0)
+                c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
+                if r0 >= r1 or c0 >= c1:
+                    continue
+                rows = np.arange(r0, r1, dtype=np.float64)[:, None]
+                cols = np.arange(c0, c1, dtype=np.float64)[None, :]
+                bar_sum[r0:r1, c0:c1] += _rotated_bar(
+                    rows, cols, centre, half_len, half_w, posed.theta_deg, sig_r, sig_c
+                )
+    rows = np.arange(height, dtype=np.float64)[:, None]
+    cols = np.arange(width, dtype=np.float64)[None, :]
+    img = scene._compose(bar_sum, rows, cols)
+    np.maximum(img, 0.0, out=img)
+    img.setflags(write=False)
+    return img
+
+
+def _f2(z: FloatArray) -> FloatArray:
+    """Second antiderivative of the Gaussian CDF: ``((z^2 + 1) Phi(z) + z phi(z)) / 2``."""
+    return 0.5 * ((z * z + 1.0) * ndtr(z) + z * np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))
+
+
+def _f1(z: FloatArray) -> FloatArray:
+    """Antiderivative of the Gaussian CDF: ``z Phi(z) + phi(z)``."""
+    return z * ndtr(z) + np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+
+
+def _smoothed_step(t: FloatArray, sigma: float, p: float, q: float) -> FloatArray:
+    """A unit step at 0 blurred by a Gaussian ``sigma`` and by boxes of widths ``p >= q``."""
+    s = max(sigma, 1e-6)
+    if q < 1e-6:
+        return (s / p) * (_f1((t + p / 2) / s) - _f1((t - p / 2) / s))
+    a, b = (p + q) / 2, (p - q) / 2
+    return (s * s / (p * q)) * (
+        _f2((t + a) / s) - _f2((t + b) / s) - _f2((t - b) / s) + _f2((t - a) / s)
+    )
+
+
+def _rotated_bar(
+    rows: FloatArray,
+    cols: FloatArray,
+    centre: tuple[float, float],
+    half_len: float,
+    half_w: float,
+    theta_deg: float,
+    sig_r: float,
+    sig_c: float,
+) -> FloatArray:
+    """A bar (long axis at ``theta + 90``) blurred and pixel-integrated, at pixel centres.
+
+    Product of the two slab responses (see the module docstring); at 0 / 90 degrees it is the
+    exact separable form of :func:`benchlab.scenes.optics.box_blurred_rect`.
+    """
+    t = math.radians(theta_deg)
+    ct, st = math.cos(t), math.sin(t)
+    dy, dx = rows - centre[0], cols - centre[1]
+    across = dx * ct + dy * st
+    along = -dx * st + dy * ct
+    sig_across = math.sqrt((sig_c * ct) ** 2 + (sig_r * st) ** 2)
+    sig_along = math.sqrt((sig_c * st) ** 2 + (sig_r * ct) ** 2)
+    p, q = max(abs(ct), abs(st)), min(abs(ct), abs(st))
+    f_across = _smoothed_step(across + half_w, sig_across, p, q) - _smoothed_step(
+        across - half_w, sig_across, p, q
+    )
+    f_along = _smoothed_step(along + half_len, sig_along, p, q) - _smoothed_step(
+        along - half_len, sig_along, p, q
+    )
+    return np.asarray(f_across * f_along, dtype=np.float64)
+
+
+#: Knobs of a ``usaf:...`` scene spec (``snap --simulate --scene``) and what they set.
+USAF_SPEC_KNOBS = {
+    "dx": "chart offset along columns, px (right +)",
+    "dy": "chart offset along rows, px (down +)",
+    "scale": "image scale vs the nominal magnification (> 0)",
+    "rot": "rotation, deg (clockwise on screen +)",
+    "vignetting": "fractional fall-off at the disc edge, 0 <= v < 1",
+    "negative": "1 = negative target (bright bars on a dark ground)",
+}
+
+
+def usaf_scene_from_spec(spec: str) -> UsafScene:
+    """A posed USAF scene from ``usaf`` or ``usaf:dx=..,dy=..,scale=..,rot=..[,vignetting=..]
+    [,negative=1]`` (every knob optional; see :data:`USAF_SPEC_KNOBS`).
+
+    Raises
+    ------
+    ValueError
+        Naming the knob that is unknown, not a number or out of range.
+    """
+    head, _, rest = spec.partition(":")
+    if head != "usaf":
+        raise ValueError(f"not a usaf scene spec: {spec!r}")
+    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0}
+    for item in filter(None, (p.strip() for p in rest.split(","))):
+        key, eq, text = item.partition("=")
+        key = key.strip()
+        if key not in USAF_SPEC_KNOBS:
+            raise ValueError(f"usaf knob {key!r} unknown; use {', '.join(USAF_SPEC_KNOBS)}")
+        if not eq:
+            raise ValueError(f"usaf knob {key!r} needs a value ({key}=NUMBER)")
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(f"usaf knob {key}={text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise ValueError(f"usaf knob {key}={text!r} is not finite")
+        values[key] = value
+    if values["scale"] <= 0:
+        raise ValueError(f"usaf knob scale={values['scale']:g} must be > 0")
+    if not 0.0 <= values["vignetting"] < 1.0:
+        raise ValueError(f"usaf knob vignetting={values['vignetting']:g} must be in [0, 1)")
+    if values["negative"] not in (0.0, 1.0):
+        raise ValueError("usaf knob negative must be 0 or 1")
+    pose = ChartPose((values["dy"], values["dx"]), values["scale"], values["rot"])
+    return UsafScene(pose=pose, vignetting=values["vignetting"], negative=values["negative"] == 1.0)

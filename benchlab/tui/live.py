@@ -8,7 +8,7 @@ from collections import deque
 from typing import Any
 
 from rich.markup import escape
-from textual import work
+from textual import events, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
@@ -20,7 +20,14 @@ from textual.worker import get_current_worker
 
 from benchlab.bench import plain_target
 from benchlab.tui import services
-from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE, GraphicsFrameView
+from benchlab.tui.chart_overlay import (
+    ChartFrameView,
+    ChartGraphicsFrameView,
+    pick_element,
+    roi_of,
+    set_overlay,
+)
+from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.unwrap_view import UnwrapPreview
 from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
 
@@ -38,6 +45,9 @@ ORIENTATIONS = ("auto", "sagittal", "tangential")
 SIM_TARGETS: tuple[object, ...] = (
     "usaf", ("radial", 2.0, "sagittal"), ("radial", 2.0, "tangential"), "led", "dark",
 )
+#: With the chart overlay on, the chart is looked for again at most this often (the finder
+#: takes ~0.1-0.3 s of the acquisition thread per full frame).
+CHART_REFRESH_S = 1.0
 
 
 def _step(values: tuple[float, ...], current: float, direction: int) -> float:
@@ -72,6 +82,9 @@ class LiveScreen(Screen[None]):
         Binding("o", "orientation", "Orient"),
         Binding("z", "zoom", "Zoom"),
         Binding("t", "target", "Target"),
+        Binding("c", "chart", "Chart"),
+        Binding("right_square_bracket", "pick(1)", "Pick", key_display="[]"),
+        Binding("left_square_bracket", "pick(-1)", "Pick prev", show=False),
         Binding("u", "unwrap", "Unwrap"),
     ]
 
@@ -83,6 +96,8 @@ class LiveScreen(Screen[None]):
     orientation: reactive[str] = reactive("auto")
     #: Show the ROI's surroundings instead of the whole frame.
     zoom: reactive[bool] = reactive(False)
+    #: Find the USAF chart and draw its found elements (c); [ ] or a click picks one as ROI.
+    chart: reactive[bool] = reactive(False)
     #: Show the radial annulus unwrapped (estimated orthographic view, thesis 5.2).
     unwrapped: reactive[bool] = reactive(False)
 
@@ -100,6 +115,12 @@ class LiveScreen(Screen[None]):
         self._idle_reason = ""
         graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
         self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
+        self.chart_fit: Any = None  # the latest ChartFit (None: off or not found)
+        self._chart_at = 0.0
+        self._chart_note = ""
+        self._picked = -1
+        self._chart_lock = threading.Lock()
+        self._chart_gen = 0  # bumped by the c key: a fit started before it is dropped
         self._unwrap = UnwrapPreview()
 
     def compose(self) -> ComposeResult:
@@ -107,9 +128,9 @@ class LiveScreen(Screen[None]):
         with Horizontal(id="live-body"):
             protocol = getattr(self.app, "image_protocol", "halfblock")
             if protocol in ("kitty", "sixel"):
-                yield GraphicsFrameView(protocol, id="frame")
+                yield ChartGraphicsFrameView(protocol, id="frame")
             else:
-                yield FrameView(id="frame")
+                yield ChartFrameView(id="frame")
             with Vertical(id="side"):
                 yield Static("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
@@ -168,12 +189,30 @@ class LiveScreen(Screen[None]):
                             break
                     time.sleep(0.1)
                     continue
+                if self.chart and time.monotonic() - self._chart_at >= CHART_REFRESH_S:
+                    self._find_chart(frame[0])
                 with self._latest_lock:
                     self._latest = reading
                 index += 1
                 spare = 1.0 / MAX_GRAB_RATE_HZ - (time.monotonic() - started)
                 if spare > 0:
                     time.sleep(spare)
+
+    def _find_chart(self, pixels: Any) -> None:
+        """Look for the chart in one frame (acquisition thread); keep the fit or say why not."""
+        from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
+
+        self._chart_at = time.monotonic()
+        gen = self._chart_gen
+        try:
+            fit = find_chart(pixels)
+            p = fit.pose
+            note = f"{len(fit.found)} found, scale {p.scale:.3f}, rot {p.rotation_deg:+.1f} deg"
+        except (ChartNotFoundError, ValueError) as exc:
+            fit, note = None, str(exc).split(":")[0]
+        with self._chart_lock:
+            if gen == self._chart_gen and self.chart:
+                self.chart_fit, self._chart_note = fit, note
 
     def _live_error(self, exc: BaseException) -> None:
         """Notify once per distinct problem (at most every 5 s), not once per failed frame."""
@@ -212,8 +251,12 @@ class LiveScreen(Screen[None]):
         self.frames_displayed += 1
         now = time.monotonic()
         self._display_times.append(now)
+        view = self.query_one("#frame", FrameView)
+        fit = self.chart_fit if self.chart and not self.zoom and not self.unwrapped else None
+        set_overlay(view, [el.roi for el in fit.found] if fit is not None else [],
+                    reading.frame_shape)
         roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
-        self.query_one(FrameView).show(reading.preview, roi, reading.max_code)
+        view.show(reading.preview, roi, reading.max_code)
         self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
         self.query_one("#readout", Static).update(self._readout_text(reading))
 
@@ -241,6 +284,8 @@ class LiveScreen(Screen[None]):
             f"sharpness [b]{num(r.sharpness, '.4g')}[/b]",
             f"frame {r.index}  view {self.display_rate_hz:.1f} Hz",
         ]
+        if self.chart:
+            lines.append(f"chart: {escape(self._chart_note or 'looking...')}")
         if r.note:
             lines.append(f"[yellow]{escape(r.note)}[/yellow]")
         return "\n".join(lines)
@@ -259,6 +304,44 @@ class LiveScreen(Screen[None]):
     def action_zoom(self) -> None:
         self.zoom = not self.zoom
 
+    def action_chart(self) -> None:
+        with self._chart_lock:
+            self._chart_gen += 1
+            self.chart = not self.chart
+            self._chart_at, self._chart_note, self._picked = 0.0, "", -1
+            self.chart_fit = None
+        if not self.chart:
+            set_overlay(self.query_one("#frame", FrameView), [], self._frame_shape)
+        self.notify("chart overlay " + ("on: [ ] or a click picks an element" if self.chart
+                                        else "off"), timeout=1.5)
+
+    def action_pick(self, direction: int) -> None:
+        fit = self.chart_fit
+        if not self.chart or fit is None or not fit.found:
+            self.notify("no found chart elements (c turns the chart overlay on)",
+                        severity="warning", timeout=2)
+            return
+        self._picked = (self._picked + direction) % len(fit.found)
+        self._use_element(fit.found[self._picked])
+
+    def _use_element(self, el: Any) -> None:
+        self.roi = roi_of(el)
+        self.orientation = el.posed.orientation
+        self.notify(f"ROI: {el.label} ({el.posed.image_lp_per_mm:.1f} lp/mm)", timeout=1.5)
+
+    def on_click(self, event: events.Click) -> None:
+        """A click on the frame picks the found element under it (chart overlay on)."""
+        fit = self.chart_fit
+        view = self.query_one("#frame", FrameView)
+        if (not self.chart or fit is None or self.zoom or self.unwrapped
+                or event.widget is not view
+                or not isinstance(view, ChartFrameView)):  # image views: keys only
+            return
+        point = view.cell_to_frame(event.x, event.y)
+        el = pick_element(fit, point) if point is not None else None
+        if el is not None:
+            self._picked = fit.found.index(el)
+            self._use_element(el)
     def action_unwrap(self) -> None:
         self.unwrapped = not self.unwrapped
         self._unwrap.reset()
