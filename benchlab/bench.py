@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
-from benchlab.drivers.interfaces import Camera, LightSource, LinearStage
+from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
 
 if TYPE_CHECKING:
     from benchlab.drivers.apt_sim import SimulatedAptStage
@@ -217,7 +217,7 @@ class Bench:
     def __init__(self, config: BenchConfig, *, simulated: bool) -> None:
         self.config = config
         self.simulated = simulated
-        self.camera: Camera | None = None
+        self.camera: Camera[FrameMetadata] | None = None
         self.led: LightSource | None = None
         self.stage: LinearStage | None = None
         #: Simulated bench only: the world, and the simulators (for tests and scenes).
@@ -288,7 +288,7 @@ class Bench:
         return out
 
     # -- camera ---------------------------------------------------------------------------------
-    def _open_camera(self) -> Camera:
+    def _open_camera(self) -> Camera[FrameMetadata]:
         if self.camera is None:
             raise BenchError("the bench has no open camera")
         return self.camera
@@ -394,12 +394,22 @@ class Bench:
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}
+        elif self.simulated and self.led is not None and self.config.led is not None:
+            st["led_current_ma"] = _led_output_ma(self.led, self.config.led.channel)
         if self.sim_stage is not None:
             st["stage_position_mm"] = self.sim_stage.position_mm
         elif self.stage is not None:
             with contextlib.suppress(DeviceError):
                 st["stage_position_mm"] = self.stage.position_mm
         return st
+
+
+def _led_output_ma(led: LightSource, channel: int) -> dict[str, float]:
+    """The simulated camera's view of an LED on an external controller: asked over the wire."""
+    with contextlib.suppress(DeviceError):
+        if led.is_on(channel):
+            return {str(channel): float(led.current_ma(channel))}
+    return {str(channel): 0.0}
 
 
 def plain_target(target: object) -> object:
@@ -449,7 +459,11 @@ def open_simulated(
 
     cfg = bench.config
     bench.world = SimWorld("dark", led_channel=cfg.led.channel if cfg.led else None)
-    if cfg.led is not None:
+    if cfg.led is not None and cfg.led.port:
+        # A serial simulator (or device) outside this process, e.g. `benchlab simulate`.
+        bench.led = stack.enter_context(SlcController(cfg.led.port,
+                                                      ceilings_ma=cfg.led.ceilings_ma))
+    elif cfg.led is not None:
         sim_led = SimulatedSlc(channels=max(4, max(cfg.led.ceilings_ma, default=1)))
         sim_led.start()
         stack.callback(sim_led.stop)
@@ -457,7 +471,12 @@ def open_simulated(
         bench.led = stack.enter_context(
             SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma)
         )
-    if cfg.stage is not None:
+    if cfg.stage is not None and cfg.stage.port:
+        bench.stage = stack.enter_context(AptStage(
+            cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+        ))
+        bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
+    elif cfg.stage is not None:
         sim_stage = SimulatedAptStage(
             counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
             velocity_mm_s=cfg.stage.velocity_mm_s, time_scale=time_scale,

@@ -98,8 +98,12 @@ class Section:
 # -- identity, tables, parameters ---------------------------------------------------------------
 def _identity(ctx: ReportContext) -> str:
     meta = ctx.session.meta
+    status = ctx.session.status  # "interrupted" when its writer died, whatever the file says
+    if ctx.doc.get("partial"):
+        status += (f" - results PARTIAL ({ctx.doc.get('steps_done')} of "
+                   f"{ctx.doc.get('steps_total')} steps done)")
     rows: list[tuple[str, Any]] = [
-        ("operator", meta.get("operator") or "-"), ("status", meta.get("status")),
+        ("operator", meta.get("operator") or "-"), ("status", status),
         ("started", local_time(meta.get("started_at"))),
         ("finished", local_time(meta.get("finished_at"))),
         ("software", meta.get("software_version")),

@@ -18,12 +18,15 @@ terminates it and records a ``journal_repaired`` event so the damage stays visib
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import json
 import math
 import os
 import re
 import shutil
+import socket
+import sys
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -50,6 +53,9 @@ SESSION_FILE = "session.json"
 EVENTS_FILE = "events.jsonl"
 FRAMES_DIR = "frames"
 RESULTS_DIR = "results"
+#: Held (``flock``) by the one process writing the session; the kernel drops it when that
+#: process dies, so a session can never stay "running" for a dead process.
+OWNER_FILE = "owner.lock"
 #: Step ids, frame names and table names become file names: keep them plain.
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
@@ -63,6 +69,80 @@ class SessionError(BenchlabError):
 
 class FrameExistsError(SessionError):
     """A frame with this step and name is already saved; frames are never overwritten."""
+
+
+class SessionBusyError(SessionError):
+    """Another live process is writing this session (its owner lock is held)."""
+
+
+def session_holder(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """Who holds the session's owner lock right now (``pid``, ``host``, ``since``,
+    ``command``), or ``None`` when no live process does."""
+    path = Path(folder) / OWNER_FILE
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None  # no lock file: written before locks existed, or never run
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                record = json.loads(os.pread(fd, 4096, 0).decode("utf-8") or "{}")
+            except ValueError:
+                record = {}
+            return record if isinstance(record, dict) else {}
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+def describe_holder(holder: Mapping[str, Any]) -> str:
+    """``"pid 4242 on bench-pc (benchlab run mtf, since ...)"`` for error messages."""
+    text = f"pid {holder.get('pid', '?')} on {holder.get('host', '?')}"
+    extra = ", ".join(str(v) for v in (holder.get("command"), holder.get("since") and
+                                        f"since {holder['since']}") if v)
+    return f"{text} ({extra})" if extra else text
+
+
+#: Fields session.json must have, with their JSON types (a wrong type is named, not a crash).
+_META_TYPES: dict[str, type | tuple[type, ...]] = {
+    "procedure": str, "params": dict, "status": str, "started_at": str,
+}
+_TYPE_WORDS: dict[type | tuple[type, ...], str] = {str: "a string", dict: "a table (object)"}
+
+
+def check_sessions_root(root: str | os.PathLike[str]) -> Path:
+    """The folder that receives new session folders, made ready or refused in plain words.
+
+    Only the last level is created: a missing parent is most likely a typo, and silently
+    creating ``/data/sesions/...`` would hide it.
+
+    Raises
+    ------
+    SessionError
+        Naming the folder: it is a file, its parent is missing, or it is not writable.
+    """
+    folder = Path(root)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"{folder}: is a file, not a folder for sessions")
+    if not folder.exists():
+        parent = folder.parent
+        if not parent.is_dir():
+            raise SessionError(f"{folder}: parent folder {parent} does not exist (only the "
+                               "last level is created; check the path for a typo)")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise SessionError(f"{folder}: cannot create the sessions folder "
+                               f"({(exc.strerror or str(exc)).lower()})") from exc
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SessionError(f"{folder}: sessions folder is not writable (read-only or no "
+                           "permission); nothing was written")
+    return folder
 
 
 def _now_iso() -> str:
@@ -104,6 +184,9 @@ class Session:
         self._lock = threading.Lock()
         #: Parsed journal and the file identity it was read from (size, mtime, inode).
         self._events_cache: tuple[tuple[int, int, int], list[dict[str, Any]]] | None = None
+        self._owner_fd: int | None = None
+        #: Set by :meth:`mark_results_partial`: written into every new results version.
+        self._partial: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -123,8 +206,7 @@ class Session:
         A folder that already exists is never reused: a numeric suffix is added.
         """
         _check_name("procedure", procedure)
-        root = Path(root)
-        root.mkdir(parents=True, exist_ok=True)
+        root = check_sessions_root(root)
         started = datetime.now(UTC)
         base = name if name is not None else f"{started:%Y%m%d-%H%M%S}_{procedure}"
         _check_name("session name", base)
@@ -137,6 +219,9 @@ class Session:
             except FileExistsError:
                 n += 1
                 folder = root / f"{base}-{n}"
+            except OSError as exc:
+                raise SessionError(f"{folder}: cannot create the session folder "
+                                   f"({(exc.strerror or str(exc)).lower()})") from exc
         meta: dict[str, Any] = {
             "format": SESSION_FORMAT,
             "version": SESSION_VERSION,
@@ -152,8 +237,9 @@ class Session:
         (folder / FRAMES_DIR).mkdir()
         (folder / RESULTS_DIR).mkdir()
         atomic_write_text(folder / EVENTS_FILE, "", overwrite=False)
-        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
         session = cls(folder, meta)
+        session.hold()  # before session.json exists, so nobody ever sees it running unowned
+        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
         session.log_event("session_created", procedure=procedure)
         return session
 
@@ -183,13 +269,90 @@ class Session:
             raise SessionError(f"{meta_path}: corrupt session file ({exc})") from exc
         if not isinstance(meta, dict) or meta.get("format") != SESSION_FORMAT:
             raise SessionError(f"{meta_path}: not a benchlab session file")
-        for key in ("procedure", "params", "status", "started_at"):
+        for key, kind in _META_TYPES.items():
             if key not in meta:
                 raise SessionError(f"{meta_path}: session file lacks {key!r}")
+            if not isinstance(meta[key], kind):
+                raise SessionError(f"{meta_path}: field {key!r} must be {_TYPE_WORDS[kind]}, "
+                                   f"got {type(meta[key]).__name__} {meta[key]!r:.60}")
         session = cls(folder, meta)
         session.events()  # fail now, naming the journal, if it is damaged beyond a torn tail
-        session._recover_orphan_frames()
+        if session_holder(folder) is None:  # a live writer's frames are its own business
+            session._recover_orphan_frames()
         return session
+
+    # ------------------------------------------------------------------ ownership
+    def hold(self, command: str | None = None) -> None:
+        """Become the one process that writes this session (until :meth:`release` or exit).
+
+        Raises
+        ------
+        SessionBusyError
+            Naming the holder (pid, host, command) when another live process holds it.
+        """
+        if self._owner_fd is not None:
+            return
+        path = self.path / OWNER_FILE
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise SessionError(f"{path}: cannot take the session's owner lock "
+                               f"({(exc.strerror or str(exc)).lower()}); is the session "
+                               "folder read-only?") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = session_holder(self.path) or {}
+            os.close(fd)
+            raise SessionBusyError(f"{self.path}: session is in use by {describe_holder(holder)}"
+                                   "; wait for it to end or stop that process") from None
+        record = {"pid": os.getpid(), "host": socket.gethostname(), "since": _now_iso(),
+                  "command": command or " ".join(["benchlab", *sys.argv[1:3]])}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(record) + "\n").encode("utf-8"), 0)
+        self._owner_fd = fd
+
+    def release(self) -> None:
+        """Stop being the session's writer (the lock also goes when the process ends)."""
+        fd, self._owner_fd = self._owner_fd, None
+        if fd is not None:
+            os.close(fd)  # closing drops the flock
+
+    def __del__(self) -> None:
+        fd = getattr(self, "_owner_fd", None)
+        if fd is not None:
+            try:
+                os.close(fd)
+            except (OSError, TypeError):  # TypeError: os already torn down at exit
+                pass
+
+    @property
+    def held(self) -> bool:
+        """Whether this object holds the session's owner lock."""
+        return self._owner_fd is not None
+
+    def remove_temporary_files(self) -> list[str]:
+        """Delete what a kill in the middle of an atomic write left behind (``.*.tmp`` files
+        beside frames and results, ``.v-*.tmp`` result folders) - never a real frame - and
+        journal them. Only the holder may do this."""
+        if not self.held:
+            raise SessionError(f"{self.path}: only the session's writer removes temporary files")
+        removed: list[str] = []
+        for folder in (self.path, self.frames_dir, self.results_dir):
+            if not folder.is_dir():
+                continue
+            for p in sorted(folder.glob(".*.tmp")):
+                rel = p.relative_to(self.path).as_posix()
+                if p.is_dir() and folder == self.results_dir and p.name.startswith(".v-"):
+                    shutil.rmtree(p)
+                elif p.is_file() and not p.is_symlink():
+                    p.unlink()
+                else:
+                    continue
+                removed.append(rel)
+        if removed:
+            self.log_event("temporary_files_removed", files=removed)
+        return removed
 
     # ------------------------------------------------------------------ metadata
     @property
@@ -209,8 +372,15 @@ class Session:
 
     @property
     def status(self) -> str:
-        """Run status: "running", "completed", or whatever :meth:`finish` recorded."""
-        return str(self._meta["status"])
+        """Run status: "running", "completed", "interrupted", "aborted", "failed".
+
+        A session recorded as "running" whose writer is gone (kill -9, power loss: nobody
+        holds its owner lock) is "interrupted" - which it is.
+        """
+        recorded = str(self._meta["status"])
+        if recorded == "running" and not self.held and session_holder(self.path) is None:
+            return "interrupted"
+        return recorded
 
     @property
     def frames_dir(self) -> Path:
@@ -433,6 +603,12 @@ class Session:
         }
 
     # ------------------------------------------------------------------ results
+    def mark_results_partial(self, status: str, steps_done: int, steps_total: int) -> None:
+        """Results written from now on come from an incomplete session: ``summary.json`` says
+        ``"partial": true`` with the session status and the steps done."""
+        self._partial = {"partial": True, "session_status": status,
+                         "steps_done": steps_done, "steps_total": steps_total}
+
     def result_versions(self) -> list[int]:
         """Existing results versions, ascending."""
         if not self.results_dir.is_dir():
@@ -480,6 +656,7 @@ class Session:
                     "table_files": {t: result_file_stem(t) for t in sorted(tables)},
                     "frames_sha256": self.frames(),
                     "summary": _plain(summary),
+                    **(self._partial or {"partial": False}),
                 }
                 atomic_write_json(tmp / "summary.json", doc)
                 target = self.results_dir / f"v{version}"

@@ -72,10 +72,12 @@ def atomic_write_bytes(
     """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
 
     With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);
-    raw frames use this so nothing already saved can be lost.
+    raw frames use this so nothing already saved can be lost. The target's folder is created
+    if missing, but not its parents (``FileNotFoundError``).
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    # Only the last folder level is created: a missing parent is more likely a typo.
+    target.parent.mkdir(exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     tmp = Path(tmp_name)
     try:
@@ -165,6 +167,75 @@ def save_frame_tiff(
     saved = atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
     log.debug("frame saved: %s", saved)
     return saved
+
+
+def check_bit_depth(path: str | os.PathLike[str], pixels: npt.NDArray[Any],
+                    metadata: Mapping[str, Any]) -> None:
+    """Refuse a frame whose codes its own ``bits`` metadata rules out (12-bit data above
+    4095, say): analysing it would use the wrong saturation level and noise model.
+
+    Raises
+    ------
+    FrameFileError
+        Naming the file, the metadata value and the largest code found.
+    """
+    bits = metadata.get("bits")
+    if bits is None:
+        return
+    if isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 16:
+        raise FrameFileError(f"{path}: metadata field 'bits' must be an integer 1..16, "
+                             f"got {bits!r}")
+    arr = np.asarray(pixels)
+    if arr.size == 0 or not np.issubdtype(arr.dtype, np.integer):
+        return
+    top = int(arr.max())
+    if top > (1 << bits) - 1:
+        raise FrameFileError(f"{path}: metadata says {bits}-bit but the frame holds codes up to "
+                             f"{top} (> {(1 << bits) - 1})")
+
+
+def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
+    """The pixels of any monochrome TIFF for analysis (a multi-page TIFF gives a stack).
+
+    A colour TIFF (RGB samples; grey stored as three equal channels is accepted) is refused
+    instead of being read as a stack of 3-pixel-wide frames, and a benchlab frame's codes
+    are checked against its ``bits`` metadata (:func:`check_bit_depth`).
+
+    Raises
+    ------
+    FrameFileError
+        Missing, unreadable or colour file, or codes its metadata rules out, naming it.
+    """
+    p = Path(path)
+    try:
+        with tifffile.TiffFile(p) as tif:
+            page = tif.pages.first
+            samples = int(page.samplesperpixel)
+            colour = page.photometric in (tifffile.PHOTOMETRIC.RGB,
+                                          tifffile.PHOTOMETRIC.PALETTE,
+                                          tifffile.PHOTOMETRIC.YCBCR)
+            pixels = np.asarray(tif.asarray())
+            description = page.description
+    except FileNotFoundError as exc:
+        raise FrameFileError(f"{p}: no such file") from exc
+    except Exception as exc:  # tifffile raises several types for corrupt data
+        raise FrameFileError(f"{p}: not a readable TIFF ({exc})") from exc
+    if samples > 1 or colour:
+        if samples >= 3 and pixels.shape[-1] == samples:
+            rgb = pixels[..., :3]
+            if np.all(rgb == rgb[..., :1]):
+                pixels = rgb[..., 0]
+                samples, colour = 1, False
+        if samples > 1 or colour:
+            raise FrameFileError(f"{p}: colour TIFF ({samples} samples per pixel); benchlab "
+                                 "analyses monochrome frames")
+    try:
+        meta = json.loads(description) if description else None
+    except ValueError:
+        meta = None
+    if isinstance(meta, dict) and meta.get("format") == METADATA_FORMAT:
+        check_bit_depth(p, pixels, meta)
+    return pixels
 
 
 def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dict[str, Any]]:

@@ -19,7 +19,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -81,15 +81,19 @@ class FrameMetadata(Protocol):
         ...
 
 
+#: The metadata type a camera's frames carry (each driver has its own, with its extra fields).
+M = TypeVar("M", bound=FrameMetadata, covariant=True)
+
+
 @dataclass(frozen=True)
-class Frame:
+class Frame(Generic[M]):
     """Pixels (``(height, width)``, uint8, or uint16 holding ``meta.bits`` bits) and metadata."""
 
     pixels: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
-    meta: FrameMetadata
+    meta: M
 
 
-class Camera(ABC):
+class Camera(ABC, Generic[M]):
     """A camera: configure, set exposure and gain, grab frames."""
 
     @property
@@ -131,7 +135,7 @@ class Camera(ABC):
         """Gain multiplier, 1.0 = unity (the model's range is checked by the driver)."""
         self._do_set_gain(_finite("gain", gain))
 
-    def grab(self, timeout_s: float | None = None) -> Frame:
+    def grab(self, timeout_s: float | None = None) -> Frame[M]:
         """The next frame taken with the current settings (driver default timeout if None)."""
         return self._do_grab(_timeout(timeout_s))
 
@@ -147,7 +151,7 @@ class Camera(ABC):
     def close(self) -> None:
         """Release the camera (safe to call twice)."""
 
-    def __enter__(self) -> Camera:
+    def __enter__(self) -> Camera[M]:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -164,7 +168,7 @@ class Camera(ABC):
     def _do_set_gain(self, gain: float) -> None: ...
 
     @abstractmethod
-    def _do_grab(self, timeout_s: float | None) -> Frame: ...
+    def _do_grab(self, timeout_s: float | None) -> Frame[M]: ...
 
 
 # ---- light source ------------------------------------------------------------------------------

@@ -201,7 +201,7 @@ def find_cameras(backend: Any = None, pid: int | None = None) -> list[CameraInfo
     return infos
 
 
-class MightexCamera(Camera):
+class MightexCamera(Camera[FrameMeta]):
     """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block.
 
     Frames are :class:`~benchlab.drivers.interfaces.Frame` with :class:`FrameMeta`."""
@@ -372,7 +372,7 @@ class MightexCamera(Camera):
                 reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
             io_trace.record("camera", "<", reply)
             return p.decode_reply(reply, what, expected_len)
-        except (DeviceTimeoutError, ProtocolError):
+        except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
             self._resync_replies = True
             raise
 
@@ -500,7 +500,7 @@ class MightexCamera(Camera):
         return p.FrameLayout(s.width, s.height, s.bits)
 
     @_locked
-    def _do_grab(self, timeout_s: float | None) -> Frame:
+    def _do_grab(self, timeout_s: float | None) -> Frame[FrameMeta]:
         """The next frame acquired with the current settings.
 
         ``timeout_s`` defaults to twice the frame period plus 5 s.

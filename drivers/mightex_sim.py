@@ -21,6 +21,7 @@ overwrites its oldest frame; invalid settings are ignored (and listed in
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import time
 from collections import deque
@@ -43,7 +44,8 @@ from benchlab.drivers.sim_dispatch import CommandTable
 
 __all__ = [
     "BarTargetScene", "CameraFaults", "Clock", "FlatFieldScene", "ManualClock", "RealTimeClock",
-    "SimCameraBackend", "SimulatedCamera", "VirtualClock", "bar_target_scene", "flat_field_scene",
+    "SentFrame", "SimCameraBackend", "SimulatedCamera", "VirtualClock", "bar_target_scene",
+    "flat_field_scene",
 ]
 
 PIXEL_CLOCK_HZ = 48e6
@@ -109,6 +111,25 @@ class CameraFaults:
     stale_frames: int = 0
     #: Result byte of good replies; any non-zero value is legal (0x08 was seen in the field).
     reply_status: int = 0x01
+
+
+@dataclass
+class SentFrame:
+    """One frame transfer as the simulator began it: the ground truth a soak test checks the
+    host against (enable with ``SimulatedCamera.sent_frames = []``)."""
+
+    #: The simulator's own frame counter: every transfer, never reset (power cycles included).
+    seq: int
+    exposure_counts: int
+    gain_raw: int
+    #: SHA-256 of the pixel bytes as rendered, before any transfer fault.
+    pixels_sha256: str
+    #: Power-on generation (bumped by every unplug) and the trailer's timestamp: with the
+    #: exposure, what the host can tell frames apart by.
+    generation: int
+    timestamp_ms: int
+    #: "sending", then "intact", "short" (ended 4 kB early) or "unplugged" (cut mid-frame).
+    outcome: str = "sending"
 
 
 @dataclass(frozen=True)
@@ -178,6 +199,10 @@ class SimulatedCamera:
         self.connected = True
         #: Bumped on every unplug so handles opened before it stay dead.
         self.generation = 0
+        #: Set to a list to record every frame transfer (:class:`SentFrame`); None: off.
+        self.sent_frames: list[SentFrame] | None = None
+        self._sent_seq = 0
+        self._sending: SentFrame | None = None
         self._lock = threading.RLock()
         self._power_on()
 
@@ -463,11 +488,19 @@ class SimulatedCamera:
             if self.faults.unplug_mid_frame:
                 self.faults.unplug_mid_frame = False
                 self._transfer = None
+                self._sent("unplugged")
                 self.unplug()
                 raise DeviceUnplugged
             chunk, rest = self._transfer[:size], self._transfer[size:]
             self._transfer = rest if len(rest) else None
+            if self._transfer is None:
+                self._sent("intact")
             return chunk
+
+    def _sent(self, outcome: str) -> None:
+        record, self._sending = self._sending, None
+        if record is not None and record.outcome == "sending":
+            record.outcome = outcome
 
     def _render(self, frame: _Frame) -> memoryview:
         s = frame.settings
@@ -480,16 +513,26 @@ class SimulatedCamera:
             frame_index=frame.index, bench=frame.bench,
         )
         self.sensor.render_into(payload, frame.scene, state)
+        timestamp_ms = int((frame.ready_s - self._t0) * 1000)
         payload[layout.trailer_offset:] = p.encode_trailer(p.FrameTrailer(
             row=s.width, column=s.height, bin_code=s.bin_code, x_start=0, y_start=0,
             red_gain=s.gain_raw, green_gain=s.gain_raw, blue_gain=s.gain_raw,
-            timestamp_ms=int((frame.ready_s - self._t0) * 1000),
+            timestamp_ms=timestamp_ms,
             trigger_occurred=int(frame.trigger_occurred), trigger_count=frame.trigger_count,
             user_mark=0, frame_time=s.frame_time_counts, clock=s.clock_divider,
             exposure_counts=s.exposure_counts,
         ))
         view = memoryview(payload)
+        if self.sent_frames is not None:
+            self._sending = SentFrame(
+                self._sent_seq, s.exposure_counts, s.gain_raw,
+                hashlib.sha256(view[:layout.pixel_bytes]).hexdigest(), self.generation,
+                timestamp_ms)
+            self.sent_frames.append(self._sending)
+        self._sent_seq += 1
         if self.faults.short_frames > 0:
             self.faults.short_frames -= 1
             view = view[: max(0, len(view) - 4096)]
+            if self._sending is not None:
+                self._sending.outcome = "short"
         return view

@@ -5,6 +5,10 @@ the instrument safe before releasing it - runs on normal exit and on any excepti
 the original error and noting a failed safe-state) and an interpreter-exit hook that closes
 an instrument still open. The hook holds only a weak reference, so it never keeps a driver
 alive; ``__del__`` is deliberately not used for shutdown.
+
+An open instrument is also watched by :mod:`benchlab.drivers.shutdown`, so SIGTERM and SIGHUP
+(``systemctl stop``, a closed terminal) unwind like Ctrl-C and ``close()`` runs; an instrument
+that can act at once from the signal handler overrides :meth:`_on_stop_signal`.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Self
 
+from benchlab.drivers import shutdown
 from benchlab.drivers.errors import DeviceError
 
 
@@ -55,8 +60,14 @@ class SafeInstrument(ABC):
         except DeviceError as safe_exc:  # keep the original error; record the failed safe-state
             exc.add_note(f"{self.SAFE_ACTION} also failed: {safe_exc}")
 
+    def _on_stop_signal(self) -> None:
+        """Called from the signal handler (main thread) on SIGINT/SIGTERM/SIGHUP, before the
+        program unwinds; default: nothing, ``close()`` on the way out makes it safe."""
+        return None
+
     def _register_atexit(self) -> None:
-        """Close this instrument at interpreter exit if it is still open."""
+        """Close this instrument at interpreter exit if it is still open, and watch it for
+        stop signals."""
         ref = weakref.ref(self)
 
         def at_exit() -> None:
@@ -70,8 +81,10 @@ class SafeInstrument(ABC):
         self._unregister_atexit()
         self._atexit_cb = at_exit
         atexit.register(at_exit)
+        shutdown.watch(self)
 
     def _unregister_atexit(self) -> None:
         if self._atexit_cb is not None:
             atexit.unregister(self._atexit_cb)
             self._atexit_cb = None
+        shutdown.unwatch(self)

@@ -15,10 +15,8 @@ from __future__ import annotations
 import logging
 import math
 import re
-import signal
 import threading
 from collections.abc import Mapping
-from types import FrameType
 
 import serial
 
@@ -92,8 +90,9 @@ class SlcController(LightSource):
         self._io_lock = threading.RLock()
         self._busy = False
         self._off_pending = False
-        self._prev_sigint: object = None
-        self._sigint_installed = False
+        #: An exchange was interrupted (Ctrl-C, SIGTERM) after its command went out: its late
+        #: reply must be read before the next command's, or it would be taken for that one.
+        self._late_reply = False
 
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
@@ -109,7 +108,7 @@ class SlcController(LightSource):
             self._info = parse_device_info(self._query_text("DEVICEINFO"))
             self._configure_family(self._info.module)
             self._channel_count = self._count_channels()
-            self._install_safety_hooks()
+            self._register_atexit()  # and SIGINT/SIGTERM/SIGHUP: _on_stop_signal
             self.all_off()  # opening the driver must never leave light on from a previous user
             log.info("LED controller %s serial %s on %s: %d channels, all off",
                      self._info.module, self._info.serial, self.port, self._channel_count)
@@ -125,7 +124,7 @@ class SlcController(LightSource):
         try:
             self.all_off()
         finally:
-            self._remove_safety_hooks()
+            self._unregister_atexit()
             self._close_port()
 
     @property
@@ -292,6 +291,9 @@ class SlcController(LightSource):
         with self._io_lock:
             self._busy = True
             try:
+                if self._late_reply:
+                    self._late_reply = False
+                    ser.read_until(REPLY_END)  # at most timeout_s; usually already there
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
@@ -301,6 +303,7 @@ class SlcController(LightSource):
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
                 self._off_pending = True
+                self._late_reply = True
                 raise
             finally:
                 self._busy = False
@@ -347,22 +350,8 @@ class SlcController(LightSource):
             except IO_ERRORS:
                 pass
 
-    # ---- Ctrl-C and interpreter exit -------------------------------------------------------
-    def _install_safety_hooks(self) -> None:
-        self._register_atexit()
-        if threading.current_thread() is threading.main_thread():
-            self._prev_sigint = signal.getsignal(signal.SIGINT)
-            signal.signal(signal.SIGINT, self._on_sigint)
-            self._sigint_installed = True
-
-    def _remove_safety_hooks(self) -> None:
-        self._unregister_atexit()
-        if self._sigint_installed and threading.current_thread() is threading.main_thread():
-            if signal.getsignal(signal.SIGINT) == self._on_sigint:
-                signal.signal(signal.SIGINT, self._prev_sigint)  # type: ignore[arg-type]
-            self._sigint_installed = False
-
-    def _on_sigint(self, signum: int, frame: FrameType | None) -> None:
+    # ---- stop signals (Ctrl-C, SIGTERM, SIGHUP) ----------------------------------------------
+    def _on_stop_signal(self) -> None:
         # Between commands: switch off now. Mid-command: the interrupted exchange marks
         # the off as pending and the context exit / close performs it.
         if self._ser is not None and not self._busy:
@@ -372,9 +361,3 @@ class SlcController(LightSource):
                 pass
         else:
             self._off_pending = True
-        prev = self._prev_sigint
-        if prev == signal.SIG_IGN:
-            return
-        if callable(prev):
-            prev(signum, frame)  # default_int_handler raises KeyboardInterrupt itself
-        raise KeyboardInterrupt

@@ -11,10 +11,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from benchlab.drivers.mightex_sim_sensor import SensorTruth
-
-#: Exposure and frame limits of the camera (MCE-B013-U), as in params.py.
-_EXPOSURE_RANGE_MS = (0.05, 750.0)
-_GAIN_RANGE = (0.25, 8.0)
+from benchlab.protocols.camera_limits import EXPOSURE_RANGE_MS as _EXPOSURE_RANGE_MS
+from benchlab.protocols.camera_limits import GAIN_RANGE as _GAIN_RANGE
 
 
 @dataclass(frozen=True)

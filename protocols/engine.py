@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 from benchlab.session import Session, read_results
 from benchlab.storage import load_frame_tiff
 
@@ -212,8 +213,16 @@ class Runner:
         """Run (or resume, or retry) from the first incomplete step to the end.
 
         Raises :class:`RunAborted` or :class:`StepFailed`; the session stays resumable and
-        the bench is left safe in every case.
+        the bench is left safe in every case. The session's owner lock is held while this
+        runs (``SessionBusyError`` if another process holds it) and released after.
         """
+        self.session.hold()
+        try:
+            return self._run_held()
+        finally:
+            self.session.release()
+
+    def _run_held(self) -> RunOutcome:
         t0 = time.perf_counter()
         total = len(self.steps)
         try:
@@ -233,12 +242,15 @@ class Runner:
                 done.add(step.id)
             if self.progress is not None:
                 self.progress(total, total, None)
-        except KeyboardInterrupt:
-            self.session.log_event("interrupted", reason="KeyboardInterrupt")
+        except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (drivers.shutdown)
+            self.session.log_event("interrupted", reason=interrupt_reason(exc))
             self.session.update_meta(status="interrupted")
             raise
         except RunAborted:
-            self.session.update_meta(status="aborted")
+            stop_signal = received()  # the UI aborted the run because the process is stopping
+            if stop_signal is not None:
+                self.session.log_event("interrupted", reason=signal_name(stop_signal))
+            self.session.update_meta(status="aborted" if stop_signal is None else "interrupted")
             raise
         except StepFailed:
             self.session.update_meta(status="failed")

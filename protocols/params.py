@@ -16,15 +16,21 @@ from pathlib import Path
 from typing import Any, TypeAlias
 
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
+from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
+    CAMERA_SPEC,
+    EXPOSURE_RANGE_MS,
+    FRAME_SHAPE_PX,
+    GAIN_RANGE,
+    camera_exposure_ms,
+    camera_gain,
+)
 from benchlab.protocols.characterise_params import CharacteriseParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
 PROCEDURES = ("mtf", "radiometry", "characterise")
-#: Camera limits checked here so a bad file fails before the camera is touched (MCE-B013-U).
-EXPOSURE_RANGE_MS = (0.05, 750.0)
-GAIN_RANGE = (0.25, 8.0)
-FRAME_SHAPE_PX = (1024, 1280)
+__all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
+           "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
 
 
@@ -124,8 +130,9 @@ class _Checker(TableChecker):
 
 def _check_mtf(c: _Checker) -> MtfParams:
     d = MtfParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    gain = c.number("camera.gain", d.gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     focus_frames = c.integer("focus.frames", d.focus_frames, 1, 1000)
     fwd_mag = c.number("forward.magnification", d.forward_magnification, 0.0, 1000.0, lo_open=True)
@@ -219,9 +226,11 @@ def _check_bench(
 
 def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
-    exposure = c.number("camera.exposure_ms", d.exposure_ms, *EXPOSURE_RANGE_MS)
-    mask_gain = c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE)
-    meas_gain = c.number("camera.measurement_gain", d.measurement_gain, *GAIN_RANGE)
+    exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
+                                           *EXPOSURE_RANGE_MS))
+    mask_gain = camera_gain(c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE))
+    meas_gain = camera_gain(c.number("camera.measurement_gain", d.measurement_gain,
+                                     *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
-from benchlab.drivers.errors import DeviceError
+from benchlab.drivers.errors import BenchlabError, DeviceError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams
 
@@ -142,10 +142,14 @@ def analyze_radiometry(
     rows: list[Mapping[str, Any]] = []
     for pos, sim in zip(params.positions_mm, params.simulated_irradiance_mw_per_mm2, strict=True):
         sid = position_step_id(pos)
+        if not {MASK_FRAME, MEASUREMENT_FRAME} <= set(session.step_frames(sid)):
+            continue  # not measured yet (an interrupted session): its results are partial
         mask, _ = session.load_frame(sid, MASK_FRAME)
         meas, _ = session.load_frame(sid, MEASUREMENT_FRAME)
         value, n = reading(mask, linear(meas), params.mask_threshold_fraction)
         rows.append({"position_mm": pos, "simulated": sim, "measured": value, "mask_pixels": n})
+    if not rows:
+        raise BenchlabError(f"{session.path}: no LED position measured yet; nothing to analyse")
     table = radiometry_table([r["position_mm"] for r in rows], [r["simulated"] for r in rows],
                              [r["measured"] for r in rows])
     out = []

@@ -23,7 +23,7 @@ from benchlab.protocols.params import (
     parse_params,
 )
 from benchlab.protocols.radiometry import RadiometryProcedure
-from benchlab.session import Session
+from benchlab.session import Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
@@ -34,6 +34,10 @@ BENCH_KEY = "bench"
 
 class FramesModifiedError(BenchlabError):
     """Saved frames no longer match the hashes journalled when they were acquired."""
+
+
+class SessionCompleteError(SessionError):
+    """``resume`` of a session that already completed: there is nothing to do."""
 
 
 class UnknownEstimatorError(BenchlabError):
@@ -119,11 +123,16 @@ def resume_run(
     """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    if session.status == "completed":
+        raise SessionCompleteError(f"{session.path}: session is complete; nothing to resume")
     params = session_params(session)
+    session.hold()  # SessionBusyError naming the live process that writes it
     bad = session.verify_frames()
     if bad:
+        session.release()
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
+    session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
@@ -137,6 +146,20 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
     """
     check_estimator(estimator)
     session = Session.open(Path(session_path))
+    status = session.status  # before holding: a dead writer's "running" is "interrupted"
+    session.hold()  # a live run (or another analysis) writing it is named and refused
+    try:
+        if status != "completed":
+            steps = make_procedure(session_params(session)).steps()
+            done = session.completed_steps()
+            session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
+                                         len(steps))
+        return _reanalyze_held(session, estimator)
+    finally:
+        session.release()
+
+
+def _reanalyze_held(session: Session, estimator: str | None) -> Path:
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "

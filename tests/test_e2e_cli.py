@@ -43,7 +43,9 @@ def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
         proc.wait(timeout=30)
     path = only_session(tmp_path)
     session = Session.open(path)
-    assert session.latest_results() is None and session.status == "running"
+    # session.json still says "running", but its writer is dead: the truth is "interrupted"
+    assert json.loads((path / "session.json").read_text())["status"] == "running"
+    assert session.latest_results() is None and session.status == "interrupted"
     before = session.frames()
     assert before and session.verify_frames() == []
 

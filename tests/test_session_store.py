@@ -44,6 +44,7 @@ def test_create_open_round_trip(tmp_path: Path) -> None:
         "events.jsonl",
         "frames",
         "results",
+        "owner.lock",
     }
     meta = json.loads((s.path / "session.json").read_text())
     assert meta["status"] == "running" and meta["finished_at"] is None
@@ -197,6 +198,7 @@ def test_frame_flushed_before_a_crash_is_recovered_on_open(tmp_path: Path) -> No
     s = _new(tmp_path)
     # the frame reached the disk but the process died before its journal line
     storage.save_frame_tiff(s.path / "frames" / "radial-1__frame.tiff", _frame(3), {"gain": 1})
+    s.release()  # the writer is gone (its lock with it)
     reopened = Session.open(s.path)
     assert set(reopened.step_frames("radial-1")) == {"frame"}
     ev = [e for e in reopened.events() if e["kind"] == "frame_saved"][-1]

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from benchlab.cli import UsageError
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
@@ -47,9 +49,9 @@ def read_image(path: Path) -> npt.NDArray[Any]:
         )
     try:
         if suffix in (".tif", ".tiff"):
-            import tifffile
+            from benchlab.storage import read_tiff_pixels
 
-            pixels = tifffile.imread(path)
+            pixels = read_tiff_pixels(path)  # refuses colour and contradicted bit depth
         else:
             import cv2
 
@@ -57,6 +59,8 @@ def read_image(path: Path) -> npt.NDArray[Any]:
             if decoded is None:
                 raise ValueError("OpenCV could not decode it")
             pixels = decoded
+    except BenchlabError:
+        raise
     except Exception as exc:  # readers raise many types for corrupt files
         raise AnalysisInputError(f"{path}: not a readable image ({exc})") from exc
     pixels = np.asarray(pixels)
@@ -156,12 +160,27 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
     return "\n".join(lines)
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Values that cannot be meant are usage errors (exit 2), never silently ignored."""
+    if args.freq is not None and not (math.isfinite(args.freq) and args.freq > 0):
+        raise UsageError(f"--freq must be a bar frequency > 0 lp/mm, got {args.freq:g}")
+    if args.bootstrap is not None and args.bootstrap < 1:
+        raise UsageError(f"--bootstrap must be a number of resamples >= 1, got {args.bootstrap}")
+
+
 def analyze_command(args: argparse.Namespace) -> int:
     """``benchlab analyze TARGET``: a session folder goes to the procedures layer; an image has
     one ROI analysed."""
-    import numpy as np
     target = Path(args.target)
+    _check_options(args)
     if target.is_dir() and (target / "session.json").is_file():
+        image_only = [opt for opt, value in (
+            ("--roi", args.roi), ("--freq", args.freq), ("--peaks", args.peaks),
+            ("--orientation", args.orientation), ("--bootstrap", args.bootstrap),
+            ("--all-estimators", args.all_estimators or None)) if value is not None]
+        if image_only:
+            raise UsageError(f"{', '.join(image_only)}: for one image only; a session folder "
+                             f"({target}) is re-analysed with its own ROIs (only --estimator)")
         from benchlab.cli.procedures import analyze_session_command
 
         if getattr(args, "linearise", None):
@@ -187,11 +206,7 @@ def analyze_command(args: argparse.Namespace) -> int:
         raise AnalysisInputError(
             f"--estimator {args.estimator!r} unknown; choose one of {', '.join(sorted(ESTIMATORS))}"
         )
-    freq = None
-    if args.freq is not None:
-        if not np.isfinite(args.freq) or args.freq < 0:
-            raise AnalysisInputError(f"--freq must be >= 0 lp/mm, got {args.freq}")
-        freq = cycles_per_px(args.freq)
+    freq = cycles_per_px(args.freq) if args.freq is not None else None
     peaks = parse_pair(args.peaks, "--peaks") if args.peaks else None
     r0, c0, r1, c1 = roi
     region = pixels[..., r0:r1, c0:c1]
@@ -205,7 +220,8 @@ def analyze_command(args: argparse.Namespace) -> int:
             name = args.estimator or DEFAULT_ESTIMATOR
             results = {
                 name: estimate_modulation(
-                    region, estimator=name, peaks=peaks, bootstrap=args.bootstrap, **kwargs
+                    region, estimator=name, peaks=peaks, bootstrap=args.bootstrap or 0,
+                    **kwargs
                 )
             }
     except ValueError as exc:
@@ -310,7 +326,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--all-estimators", action="store_true", help="run every estimator and compare them"
     )
     p.add_argument(
-        "--bootstrap", type=int, default=0, metavar="N", help="bootstrap uncertainty, N resamples"
+        "--bootstrap", type=int, default=None, metavar="N",
+        help="bootstrap uncertainty, N >= 1 resamples (default: none)"
     )
     p.add_argument(
         "--linearise", metavar="CALIBRATION",

@@ -9,10 +9,14 @@ Each command group lives in its own module exposing ``register(commands, benchma
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
+from benchlab.cli import UsageError
+from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
 COMMAND_MODULES = (
@@ -26,6 +30,7 @@ COMMAND_MODULES = (
     "benchlab.cli.tui",  # tui (and the no-argument default)
     "benchlab.cli.config",  # config init, config show
     "benchlab.cli.startup",  # benchmark startup
+    "benchlab.cli.soak",  # benchmark soak
 )
 LOG_LEVELS = ("debug", "info", "warning", "error")
 
@@ -68,11 +73,32 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def plain_os_error(exc: OSError) -> str:
+    """``/data/x: permission denied (read-only?)`` rather than a traceback."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    hint = {errno.EACCES: " (no permission to write there?)",
+            errno.EROFS: " (read-only file system)",
+            errno.EEXIST: " (already exists; nothing was overwritten)",
+            errno.ENOSPC: " (disk full)"}.get(exc.errno or 0, "")
+    name = exc.filename if exc.filename is not None else ""
+    return f"{name}: {what.lower()}{hint}" if name else f"{what}{hint}"
+
+
+#: Options that belong to ``benchlab`` itself, not to the terminal UI.
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io"}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; exit status 0, 1 (runtime error), 2 (usage error) or 128 + signal.
+
+    SIGINT, SIGTERM and SIGHUP all stop the command the same way (:mod:`benchlab.drivers.
+    shutdown`): LEDs off, stage stopped, a running session journalled as interrupted.
+    """
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    if not args_list or args_list == ["--simulate"]:
-        args_list = ["tui", *args_list]
+    first = args_list[0].split("=", 1)[0] if args_list else ""
+    if not args_list or (first.startswith("-") and first not in _TOP_LEVEL_OPTIONS):
+        args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
     if func is None:
@@ -83,19 +109,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         from benchlab.drivers import io_trace
 
         io_trace.start(args.trace_io)
-    try:
-        return int(func(args) or 0)
-    except BenchlabError as exc:
-        print(f"benchlab: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("benchlab: interrupted", file=sys.stderr)
-        return 130
-    finally:
-        if args.trace_io:
-            from benchlab.drivers import io_trace
+    with shutdown.handling_signals():
+        try:
+            return int(func(args) or 0)
+        except UsageError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 2
+        except BenchlabError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
+        except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 1
+        except OSError as exc:  # a file the command was pointed at: say which, plainly
+            print(f"benchlab: error: {plain_os_error(exc)}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt as exc:
+            print(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); bench left safe",
+                  file=sys.stderr)
+            return shutdown.exit_status(exc)
+        finally:
+            if args.trace_io:
+                from benchlab.drivers import io_trace
 
-            io_trace.stop()
+                io_trace.stop()
 
 
 def _setup_logging(level: str) -> None:

@@ -89,14 +89,16 @@ def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
     return prompt
 
 
-def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO) -> None:
+def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO,
+                  partial: bool = False) -> None:
     from benchlab.report_tables import TABLE_VIEWS, format_table
 
+    mark = " [PARTIAL: session incomplete]" if partial else ""
     for name, rows in tables.items():
         view = TABLE_VIEWS.get(name)
         if view is None or not rows:
             continue
-        out.write(f"\n{view.title}\n{format_table(rows, view.columns)}\n")
+        out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
 
 
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
@@ -107,6 +109,8 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     progress = _Progress(sys.stderr)
     if resume:
         session_path = Path(args.session)
+        if _resume_preflight(session_path):
+            return 0
         if args.config:
             config = BenchConfig.load(args.config, simulate=args.simulate)
         else:
@@ -120,6 +124,9 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                                 "`benchlab config init` for a default one (or use --simulate)")
         config = BenchConfig.load(bench_file.value, simulate=args.simulate)
         sessions_root = sessions_in_force(args.out).value
+        from benchlab.session import check_sessions_root
+
+        check_sessions_root(sessions_root)  # before any device is opened
     check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
@@ -164,6 +171,23 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     return 0
 
 
+def _resume_preflight(session_path: Path) -> bool:
+    """Before any device is opened: True (nothing to do) for a completed session; a session
+    another live process writes is refused, naming it (opening the bench would switch its
+    LEDs off under it)."""
+    from benchlab.session import Session, SessionBusyError, describe_holder, session_holder
+
+    session = Session.open(session_path)
+    if session.status == "completed":
+        print(f"{session.path}: session is complete; nothing to resume (unchanged)")
+        return True
+    holder = session_holder(session_path)
+    if holder is not None:
+        raise SessionBusyError(f"{session.path}: session is in use by {describe_holder(holder)}"
+                               "; wait for it to end or stop that process")
+    return False
+
+
 def run_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=False)
 
@@ -187,13 +211,21 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = reanalyze(Path(target), estimator=getattr(args, "estimator", None))
     elapsed = time.perf_counter() - t0
-    tables, _ = read_results(out)
+    tables, summary = read_results(out)
+    partial = bool(summary.get("partial"))
+    note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
+            f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
     if getattr(args, "json", False):
         import json
 
-        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed}))
+        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
+                          "partial": partial}))
+        if partial:
+            print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
-    _print_tables(tables, sys.stdout)
+    _print_tables(tables, sys.stdout, partial=partial)
+    if partial:
+        print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
     return 0
 

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import signal
 import statistics
 import sys
 import time
 from collections.abc import Iterator
 from typing import Any
 
+from benchlab.drivers import shutdown
 from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError
 
@@ -50,9 +52,18 @@ def _port_for(args: argparse.Namespace, kind: str) -> Iterator[str]:
 
 
 def _wait_for_interrupt(hold_s: float | None) -> None:
+    """Hold for ``hold_s`` (None: until a stop signal). Ctrl-C is the documented way to end a
+    hold and returns; SIGTERM / SIGHUP propagate, so the command exits 143 / 129."""
     deadline = None if hold_s is None else time.monotonic() + hold_s
-    while deadline is None or time.monotonic() < deadline:
-        time.sleep(0.1 if deadline is None else max(0.0, min(0.1, deadline - time.monotonic())))
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            time.sleep(0.1 if deadline is None
+                       else max(0.0, min(0.1, deadline - time.monotonic())))
+    except shutdown.Stopped as exc:
+        if exc.signum != signal.SIGINT:
+            raise
+    except KeyboardInterrupt:
+        pass
 
 
 # ---- led -------------------------------------------------------------------------------------
@@ -69,12 +80,13 @@ def _cmd_led(args: argparse.Namespace) -> int:
         slc.on(args.channel, args.current_ma)
         imax_ma, iset_ma = slc.get_current(args.channel)
         held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
-        print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
-              f"held {held}; all channels switch off on exit", flush=True)
-        try:
+        try:  # the stop-signal hook switches off at once; close() verifies
+            print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
+                  f"held {held}; all channels switch off on exit", flush=True)
             _wait_for_interrupt(args.for_s)
-        except KeyboardInterrupt:
-            pass  # the driver's SIGINT hook has already switched off; close() verifies
+        except shutdown.Stopped as exc:
+            if exc.signum != signal.SIGINT:  # Ctrl-C ends the hold; TERM / HUP stop the command
+                raise
     print(f"led channel {args.channel} off")
     return 0
 
@@ -118,8 +130,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(f"led {led.start()}")
         print(f"stage {stage.start()}", flush=True)
         _wait_for_interrupt(args.for_s)
-    except KeyboardInterrupt:
-        pass
     finally:
         led.stop()
         stage.stop()

@@ -59,6 +59,7 @@ def _benchmark_tui(args: argparse.Namespace) -> int:
 
 def run_tui(args: argparse.Namespace) -> int:
     from benchlab.cli.config import bench_file_in_force, sessions_in_force
+    from benchlab.drivers import shutdown
     from benchlab.tui.pixels import choose_image_protocol
 
     # Ask the terminal what it can show before Textual takes it over.
@@ -76,11 +77,16 @@ def run_tui(args: argparse.Namespace) -> int:
         sessions_dir=sessions_in_force(args.sessions, "--sessions").value,
         params_files=params, operator=args.operator, image_protocol=image_protocol,
     )
-    app.run()
+    with shutdown.handling_signals(on_signal=app.stop_from_signal):
+        app.run()
     if app.close_error is not None:
         from benchlab.tui.services import plain_error
 
         print(f"benchlab: error while closing the bench: {plain_error(app.close_error)}",
               file=sys.stderr)
         return 1
+    if app.stop_signal is not None:
+        print(f"benchlab: stopped by {shutdown.signal_name(app.stop_signal)}; bench left safe",
+              file=sys.stderr)
+        return 128 + app.stop_signal
     return int(app.return_code or 0)

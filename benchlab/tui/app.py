@@ -93,8 +93,12 @@ class BenchlabApp(App[None]):
         self._active_threads = 0
         #: Set when closing the bench failed (e.g. LEDs not confirmed off); the CLI reports it.
         self.close_error: BaseException | None = None
+        #: The stop signal (SIGTERM, SIGHUP, SIGINT) that ended the app, if one did.
+        self.stop_signal: int | None = None
+        self._signal_loop: asyncio.AbstractEventLoop | None = None
 
     def on_mount(self) -> None:
+        self._signal_loop = asyncio.get_running_loop()
         self.sub_title = "simulated bench" if self.simulate else "bench"
         if self.autoconnect:
             self.connect_bench()
@@ -184,6 +188,16 @@ class BenchlabApp(App[None]):
         if self.bench is not None:
             self.wait_for_device_threads(timeout_s=10.0)
             self._close_bench()
+
+    def stop_from_signal(self, signum: int) -> None:
+        """SIGTERM / SIGHUP / SIGINT (see :mod:`benchlab.drivers.shutdown`): quit at once, as a
+        confirmed ``q`` does (nobody is there to confirm) - runner aborted, LEDs off, stage
+        stopped. Runs inside the signal handler, so it only schedules the quit."""
+        self.stop_signal = signum
+        loop = self._signal_loop
+        if loop is None or loop.is_closed():
+            return  # not mounted yet or already closed: on_unmount / the bench context clean up
+        loop.call_soon_threadsafe(self.call_later, self.quit_now)
 
     async def action_quit(self) -> None:
         """Quit; while a run is active, ask first (``q`` again or ``y`` confirms)."""

@@ -48,6 +48,15 @@ def plain_error(exc: BaseException) -> str:
         return f"A device gave an unexpected reply.\n{detail}"
     if isinstance(exc, FileNotFoundError):
         return f"File not found: {exc.filename or detail}"
+    if isinstance(exc, PermissionError) or (isinstance(exc, OSError)
+                                            and exc.errno == errno.EROFS):
+        return (f"Cannot write {exc.filename or 'there'}: the folder is read-only or you have "
+                "no permission. Nothing was changed.")
+    if isinstance(exc, FileExistsError):
+        return f"{exc.filename or 'The file'} already exists; nothing was overwritten."
+    if isinstance(exc, OSError):
+        return (f"A file could not be read or written: {exc.filename or ''} "
+                f"({exc.strerror or detail}).")
     if isinstance(exc, errors.BenchlabError):
         return detail
     return f"{exc.__class__.__name__}: {detail}"

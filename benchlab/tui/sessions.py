@@ -156,6 +156,10 @@ class SessionsScreen(Screen[None]):
                 lines.append(f"[red]{escape(info.error)}[/red]")
         if summary.get("estimator"):
             lines.append(f"estimator {summary['estimator']}")
+        if summary.get("partial"):
+            lines.append(f"[yellow]PARTIAL results: the session was {summary.get('session_status')}"
+                         f" ({summary.get('steps_done')} of {summary.get('steps_total')} steps "
+                         "done); u resumes it[/yellow]")
         if not tables:
             lines.append("[dim]no results yet (u: resume the run)[/dim]")
         self.query_one("#session-info", Static).update("\n".join(lines))
