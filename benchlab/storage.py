@@ -194,6 +194,15 @@ def check_bit_depth(path: str | os.PathLike[str], pixels: npt.NDArray[Any],
                              f"{top} (> {(1 << bits) - 1})")
 
 
+def _metadata_text(tif: tifffile.TiffFile) -> str:
+    """The benchlab JSON of a TIFF: the ImageJ Info property of frames written since they are
+    ImageJ TIFFs, the first ImageDescription of older ones ("" when there is none)."""
+    ij = tif.imagej_metadata if tif.is_imagej else None
+    if ij:
+        return str(ij.get("Info") or "")
+    return tif.pages.first.description or ""
+
+
 def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     """The pixels of any monochrome TIFF for analysis (a multi-page TIFF gives a stack).
 
@@ -215,7 +224,7 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
                                           tifffile.PHOTOMETRIC.PALETTE,
                                           tifffile.PHOTOMETRIC.YCBCR)
             pixels = np.asarray(tif.asarray())
-            description = page.description
+            description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data
@@ -249,9 +258,7 @@ def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dic
         with tifffile.TiffFile(p) as tif:
             page = tif.pages.first
             pixels = page.asarray()
-            # ImageJ frames keep the JSON in the Info property; older ones in the description.
-            ij = tif.imagej_metadata if tif.is_imagej else None
-            description = str(ij.get("Info") or "") if ij else page.description
+            description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data
