@@ -399,7 +399,10 @@ def render_report(session_path: str | Path,
 
 def write_report(session_path: str | Path, out: str | Path | None = None) -> Path:
     """Write the HTML report (default ``SESSION/report.html``); returns its path."""
+    from benchlab.catalog import record_session
     from benchlab.storage import atomic_write_text
 
     target = Path(out) if out is not None else Path(session_path) / "report.html"
-    return atomic_write_text(target, render_report(session_path))
+    written = atomic_write_text(target, render_report(session_path))
+    record_session(Path(session_path))
+    return written

@@ -42,6 +42,8 @@ from benchlab.storage import (
     FrameFileError,
     atomic_write_json,
     atomic_write_text,
+    fsync_dir,
+    fsync_tree,
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
@@ -61,6 +63,10 @@ _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
+#: fsync policy of a results version: "per-version" (files written, then flushed together
+#: once before the rename) or "per-file" (each file and its folder fsync'd as it is written,
+#: the old behaviour; ``benchlab benchmark batch --fsync per-file`` measures it).
+RESULTS_FSYNC = "per-version"
 
 
 class SessionError(BenchlabError):
@@ -200,8 +206,12 @@ class Session:
         devices: Mapping[str, Any],
         software_version: str,
         name: str | None = None,
+        sample: str = "",
     ) -> Session:
         """Create ``root/<timestamp>_<procedure>`` (or ``root/<name>``) with status "running".
+
+        ``sample`` identifies the lens or sample under test (optional; the catalogue's trends
+        across prototypes group by it).
 
         A folder that already exists is never reused: a numeric suffix is added.
         """
@@ -227,6 +237,7 @@ class Session:
             "version": SESSION_VERSION,
             "procedure": procedure,
             "operator": operator,
+            "sample": sample,
             "devices": _plain(devices),
             "software_version": software_version,
             "params": _plain(params),
@@ -413,8 +424,13 @@ class Session:
         """The append-only journal."""
         return self.path / EVENTS_FILE
 
-    def log_event(self, kind: str, **data: Any) -> None:
-        """Append one event line to ``events.jsonl``, flushed and fsync'd before returning."""
+    def log_event(self, kind: str, *, durable: bool = True, **data: Any) -> None:
+        """Append one event line to ``events.jsonl``, flushed and fsync'd before returning.
+
+        ``durable=False`` skips the fsync, for events that resume does not depend on (a
+        re-analysis started, a results version written): the next durable event, or the
+        page cache's own write-back, carries them to disk.
+        """
         record = {"time": _now_iso(), "kind": kind, **_plain(data)}
         line = json.dumps(record, allow_nan=False) + "\n"
         with self._lock:
@@ -426,7 +442,8 @@ class Session:
                     repair = {"time": _now_iso(), "kind": "journal_repaired", "torn_bytes": torn}
                     os.write(fd, b"\n" + (json.dumps(repair) + "\n").encode("utf-8"))
                 os.write(fd, line.encode("utf-8"))
-                os.fsync(fd)
+                if durable:
+                    os.fsync(fd)
             finally:
                 os.close(fd)
 
@@ -634,8 +651,12 @@ class Session:
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
-        NaN is written as ``null`` in JSON and ``NA`` in CSV.
+        NaN is written as ``null`` in JSON and ``NA`` in CSV. With :data:`RESULTS_FSYNC`
+        ``"per-version"`` the files are flushed together, once, just before the rename
+        (instead of a file and directory fsync per file); either way the version is on disk
+        before this returns.
         """
+        per_file = RESULTS_FSYNC == "per-file"
         for table in tables:
             _check_name("table name", table)
         self.results_dir.mkdir(exist_ok=True)
@@ -644,8 +665,8 @@ class Session:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                atomic_write_json(tmp / f"{stem}.json", plain_rows)
-                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows))
+                atomic_write_json(tmp / f"{stem}.json", plain_rows, durable=per_file)
+                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {
@@ -658,18 +679,22 @@ class Session:
                     "summary": _plain(summary),
                     **(self._partial or {"partial": False}),
                 }
-                atomic_write_json(tmp / "summary.json", doc)
+                atomic_write_json(tmp / "summary.json", doc, durable=per_file)
+                if not per_file:
+                    fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:
                     target.mkdir()  # claim the number; rename onto an empty dir is atomic
                 except FileExistsError:
                     continue
                 os.replace(tmp, target)
+                fsync_dir(self.results_dir)  # the rename itself
                 break
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-        self.log_event("results_written", version=version, estimator=estimator)
+        # Not fsync'd: the version is already durable and resume does not read this line.
+        self.log_event("results_written", durable=False, version=version, estimator=estimator)
         return target
 
 

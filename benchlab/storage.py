@@ -67,13 +67,15 @@ def _fsync_dir(folder: Path) -> None:
 
 
 def atomic_write_bytes(
-    path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True
+    path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True, durable: bool = True
 ) -> Path:
     """Write ``data`` to ``path`` atomically (temp file, fsync, rename).
 
     With ``overwrite=False`` an existing file is never replaced (``FileExistsError``);
     raw frames use this so nothing already saved can be lost. The target's folder is created
-    if missing, but not its parents (``FileNotFoundError``).
+    if missing, but not its parents (``FileNotFoundError``). ``durable=False`` skips the
+    fsyncs: only for files inside a folder that is made durable as a whole afterwards
+    (:func:`fsync_tree`) before it is renamed into place.
     """
     target = Path(path)
     # Only the last folder level is created: a missing parent is more likely a typo.
@@ -85,7 +87,8 @@ def atomic_write_bytes(
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         if overwrite:
             os.replace(tmp, target)
         else:
@@ -95,19 +98,50 @@ def atomic_write_bytes(
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    _fsync_dir(target.parent)
+    if durable:
+        _fsync_dir(target.parent)
     return target
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str, *, overwrite: bool = True) -> Path:
+def fsync_dir(folder: str | os.PathLike[str]) -> None:
+    """Make a folder's entries (a rename into it) durable."""
+    _fsync_dir(Path(folder))
+
+
+def fsync_tree(folder: str | os.PathLike[str]) -> int:
+    """Flush every file directly in ``folder``, then the folder itself, in one pass.
+
+    One durability barrier for a set of files written with ``durable=False`` (a results
+    version): the data are written back together instead of one file at a time with a
+    directory sync after each. Returns the number of fsync calls made.
+    """
+    base = Path(folder)
+    calls = 0
+    for entry in sorted(base.iterdir()):
+        if entry.is_file():
+            fd = os.open(entry, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            calls += 1
+    _fsync_dir(base)
+    return calls + 1
+
+
+def atomic_write_text(
+    path: str | os.PathLike[str], text: str, *, overwrite: bool = True, durable: bool = True
+) -> Path:
     """Atomically write UTF-8 text (see :func:`atomic_write_bytes`)."""
-    return atomic_write_bytes(path, text.encode("utf-8"), overwrite=overwrite)
+    return atomic_write_bytes(path, text.encode("utf-8"), overwrite=overwrite, durable=durable)
 
 
-def atomic_write_json(path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True) -> Path:
+def atomic_write_json(
+    path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True, durable: bool = True
+) -> Path:
     """Atomically write ``obj`` as indented JSON (NaN is refused: it is not valid JSON)."""
     text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default)
-    return atomic_write_text(path, text + "\n", overwrite=overwrite)
+    return atomic_write_text(path, text + "\n", overwrite=overwrite, durable=durable)
 
 
 def _json_default(obj: Any) -> Any:

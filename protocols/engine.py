@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 from benchlab.session import Session, read_results
@@ -225,6 +226,7 @@ class Runner:
     def _run_held(self) -> RunOutcome:
         t0 = time.perf_counter()
         total = len(self.steps)
+        all_done = False
         try:
             done = self.completed()
             if done and not self._restored:
@@ -242,6 +244,7 @@ class Runner:
                 done.add(step.id)
             if self.progress is not None:
                 self.progress(total, total, None)
+            all_done = True
         except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (drivers.shutdown)
             self.session.log_event("interrupted", reason=interrupt_reason(exc))
             self.session.update_meta(status="interrupted")
@@ -257,10 +260,13 @@ class Runner:
             raise
         finally:
             self.bench.safe_state()
+            if not all_done:
+                record_session(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         if results is None:  # every procedure ends with an analysis step that writes them
             raise BenchlabError(f"{self.procedure.name}: the run ended without results")
         self.session.finish()
+        record_session(self.session.path)
         tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import benchlab
+from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.characterise import CharacteriseProcedure
 from benchlab.protocols.characterise_params import CharacteriseParams
@@ -84,6 +85,7 @@ def start_run(
     params: Params | str | Path | None = None,
     root: str | Path = "sessions",
     operator: str = "",
+    sample: str = "",
     prompt: PromptFn | None = None,
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,
@@ -96,10 +98,11 @@ def start_run(
     snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
-        devices=bench.identities(), software_version=benchlab.__version__,
+        devices=bench.identities(), software_version=benchlab.__version__, sample=sample,
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
+    record_session(session.path)
     return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -135,6 +138,7 @@ def resume_run(
     session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
+    record_session(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -166,8 +170,9 @@ def _reanalyze_held(session: Session, estimator: str | None) -> Path:
                                   f"{', '.join(bad)}")
     before = session.frames()
     params = session_params(session)
-    session.log_event("reanalysis_started", estimator=estimator)
+    session.log_event("reanalysis_started", durable=False, estimator=estimator)
     out = make_procedure(params).analyze(session, estimator)
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
+    record_session(session.path)
     return out

@@ -141,7 +141,7 @@ def done_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("done")
     assert main(["run", "radiometry", "--simulate", "--yes", "--params", str(RAD_SMALL),
                  "--out", str(root)]) == 0
-    (path,) = root.iterdir()
+    (path,) = [p for p in root.iterdir() if (p / "session.json").is_file()]
     return path
 
 

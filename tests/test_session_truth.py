@@ -92,7 +92,7 @@ def test_complete_session_analysis_is_not_partial(
 ) -> None:
     assert main(["run", "radiometry", "--simulate", "--yes", "--params", str(RAD_SMALL),
                  "--out", str(tmp_path)]) == 0
-    (path,) = tmp_path.iterdir()
+    (path,) = [p for p in tmp_path.iterdir() if (p / "session.json").is_file()]
     summary = json.loads((path / "results" / "v1" / "summary.json").read_text())
     assert summary["partial"] is False
     assert Session.open(path).status == "completed"

@@ -102,7 +102,7 @@ def test_q_during_a_run_asks_before_quitting_in_tmux(tmp_path: Path) -> None:
         while not done.exists() and time.monotonic() < deadline:
             time.sleep(0.2)
         assert done.exists() and done.read_text().strip() == "0"
-        (folder,) = (tmp_path / "sessions").iterdir()
+        (folder,) = [p for p in (tmp_path / "sessions").iterdir() if p.is_dir()]  # + catalogue
         status = json.loads((folder / "session.json").read_text())["status"]
         assert status != "completed"  # aborted mid-run, resumable
     finally:

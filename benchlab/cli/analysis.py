@@ -170,7 +170,16 @@ def _check_options(args: argparse.Namespace) -> None:
 
 def analyze_command(args: argparse.Namespace) -> int:
     """``benchlab analyze TARGET``: a session folder goes to the procedures layer; an image has
-    one ROI analysed."""
+    one ROI analysed; several session folders (or ``--all ROOT``) go to the batch."""
+    from benchlab.cli.batch import batch_command, batch_requested
+
+    if batch_requested(args):
+        return batch_command(args)
+    if not args.target:
+        print("benchlab: error: analyze needs an image, a session folder, or --all ROOT",
+              file=sys.stderr)
+        return 2
+    args.target = args.target[0] if isinstance(args.target, list) else args.target
     target = Path(args.target)
     _check_options(args)
     if target.is_dir() and (target / "session.json").is_file():
@@ -295,10 +304,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description=(
             "Measure the Eq. 2.9 bar modulation of one region of an 8- or 16-bit TIFF/PNG/BMP "
             "image. Given a session folder (with session.json) instead, re-analyse the whole "
-            "session (only --estimator applies)."
+            "session (only --estimator applies); several folders or --all ROOT re-analyse "
+            "them in parallel with a summary table (exit 1 if any failed)."
         ),
     )
-    p.add_argument("target", metavar="TARGET", help="image file, or a session folder")
+    p.add_argument("target", metavar="TARGET", nargs="*",
+                   help="image file, or one or more session folders")
     p.add_argument(
         "--roi",
         metavar="R0,C0,R1,C1",
@@ -340,6 +351,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
         "found element (Table 4.11 layout) instead of one --roi",
     )
+    from benchlab.cli.batch import add_batch_arguments
+
+    add_batch_arguments(p)
     p.set_defaults(func=analyze_command)
 
     b = benchmarks.add_parser(

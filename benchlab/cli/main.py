@@ -26,6 +26,8 @@ COMMAND_MODULES = (
     "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
     "benchlab.cli.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
     "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
+    "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
     "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
     "benchlab.cli.config",  # config init, config show

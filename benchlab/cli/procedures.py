@@ -145,7 +145,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                 runner = resume_run(session_path, **kwargs)
             else:
                 runner = start_run(args.procedure, params=params, root=sessions_root,
-                                   operator=args.operator, **kwargs)
+                                   operator=args.operator, sample=args.sample, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
     except (StepFailed, RunAborted) as exc:
@@ -306,6 +306,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     run.add_argument("--out", help="folder for sessions (default: [paths] sessions of the "
                      "user's bench.toml, else ./sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
+    run.add_argument("--sample", default="", metavar="ID",
+                     help="lens or sample under test (the catalogue groups trends by it)")
     run.add_argument("--estimator", help="modulation estimator (default: params / library)")
     run.set_defaults(func=run_command)
 

@@ -413,16 +413,22 @@ class SessionSummary:
     steps_done: int
     result_versions: int
     error: str = ""
+    sample: str = ""
 
 
 def list_sessions(root: Path) -> list[SessionSummary]:
     """Every session folder under ``root``, newest first; unreadable ones say why."""
+    if not root.is_dir():
+        return []
+    return list_sessions_of(sorted(root.iterdir(), reverse=True))
+
+
+def list_sessions_of(folders: list[Path]) -> list[SessionSummary]:
+    """The given session folders read from disk (the truth); non-sessions are left out."""
     from benchlab.session import Session
 
     out: list[SessionSummary] = []
-    if not root.is_dir():
-        return out
-    for folder in sorted(root.iterdir(), reverse=True):
+    for folder in folders:
         if not (folder / "session.json").exists():
             continue
         try:
@@ -433,6 +439,7 @@ def list_sessions(root: Path) -> list[SessionSummary]:
                 started_at=str(meta.get("started_at", ""))[:19].replace("T", " "),
                 operator=str(meta.get("operator", "")),
                 steps_done=len(s.completed_steps()), result_versions=len(s.result_versions()),
+                sample=str(meta.get("sample") or ""),
             ))
         except Exception as exc:  # noqa: BLE001 - a damaged session is listed, not fatal
             out.append(SessionSummary(folder, "?", "unreadable", "", "", 0, 0, plain_error(exc)))
@@ -531,3 +538,62 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     title = view.title.split(" - ")[0]
     return (title, [h for _, h, _ in ordered],
             [[cell(r.get(k), f) for k, _, f in ordered] for r in rows])
+
+
+# -- session catalogue ---------------------------------------------------------------------
+
+#: Sort orders of the catalogue listing: (column, newest/largest first).
+CATALOG_SORTS = (("started_at", True), ("sample", False), ("status", False),
+                 ("procedure", False), ("results_version", True), ("id", False))
+
+
+def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
+                     descending: bool = True) -> list[SessionSummary]:
+    """Sessions from the catalogue (rebuilt from the folders if missing), those whose id,
+    sample, procedure, status or operator contain ``text`` (any case)."""
+    from benchlab.catalog import Catalog
+
+    if not root.is_dir():
+        return []
+    with Catalog.open(root) as catalog:
+        rows = catalog.sessions(sort=sort, descending=descending)
+    needle = text.strip().lower()
+    keys = ("id", "sample", "procedure", "status", "operator")
+    return [
+        SessionSummary(
+            path=root / r["id"], procedure=r["procedure"], status=r["status"],
+            started_at=str(r["started_at"])[:19].replace("T", " "), operator=r["operator"],
+            steps_done=-1, result_versions=r["results_version"] or 0, error=r["error"],
+            sample=r["sample"],
+        )
+        for r in rows
+        if not needle or needle in " ".join(str(r[k]) for k in keys).lower()
+    ]
+
+
+def catalog_reindex(root: Path) -> int:
+    """Rebuild the catalogue from the session folders; returns the number of sessions."""
+    from benchlab.catalog import Catalog
+
+    with Catalog.open(root) as catalog:
+        return catalog.reindex()
+
+
+def catalog_figures(root: Path) -> list[tuple[str, str, str, str]]:
+    """Figures a trend can follow: ``(view, element, orientation, quantity)``."""
+    from benchlab.catalog import Catalog
+
+    if not root.is_dir():
+        return []
+    with Catalog.open(root) as catalog:
+        return [k for k in catalog.figure_keys() if k[1]]
+
+
+def catalog_trend(root: Path, figure: tuple[str, str, str, str]) -> list[Any]:
+    """The figure across sessions, oldest first (:class:`benchlab.catalog.TrendPoint`)."""
+    from benchlab.catalog import Catalog
+
+    view, element, orientation, quantity = figure
+    with Catalog.open(root) as catalog:
+        return list(catalog.trend(view=view, element=element, orientation=orientation,
+                                  quantity=quantity))

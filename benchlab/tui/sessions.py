@@ -1,4 +1,10 @@
-"""Sessions browser: list, open, re-analyse with another estimator, write report, resume."""
+"""Sessions browser: list, open, re-analyse with another estimator, write report, resume.
+
+The list comes from the session catalogue (``sessions/catalog.sqlite``, rebuilt from the
+folders when missing): filter it by typing in the filter box (``/``), change the sort (``o``),
+and follow one figure across the listed sessions (``t``: next figure, a sparkline and the
+values oldest first).
+"""
 
 from __future__ import annotations
 
@@ -12,7 +18,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Static
+from textual.widgets import DataTable, Footer, Input, Sparkline, Static
 
 from benchlab.tui import services
 from benchlab.tui.widgets import ModeBar
@@ -24,7 +30,12 @@ class SessionsScreen(Screen[None]):
     DEFAULT_CSS = """
     SessionsScreen #sessions-status { height: auto; padding: 0 1; background: $boost; }
     SessionsScreen #sessions-body { height: 1fr; }
-    SessionsScreen #session-list { width: 1fr; height: 1fr; border: round $primary; }
+    SessionsScreen #session-left { width: 1fr; height: 1fr; }
+    SessionsScreen #sessions-filter { height: 3; }
+    SessionsScreen #session-list { height: 1fr; border: round $primary; }
+    SessionsScreen #session-trend-box { height: auto; border: round $primary; }
+    SessionsScreen #session-sparkline { height: 3; }
+    SessionsScreen #session-trend { height: auto; }
     SessionsScreen #session-detail { width: 1fr; border: round $primary; }
     SessionsScreen #session-info { height: auto; }
     SessionsScreen #session-table { height: 1fr; }
@@ -37,8 +48,14 @@ class SessionsScreen(Screen[None]):
         Binding("u", "resume", "Resume"),
         Binding("v", "next_table", "Table"),
         Binding("R", "reload", "Reload"),
+        Binding("slash", "filter", "Filter"),
+        Binding("o", "sort", "Sort"),
+        Binding("t", "trend", "Trend"),
+        Binding("i", "reindex", "Reindex"),
     ]
 
+    #: Keys are commands: the list has the focus, the filter box only after ``/``.
+    AUTO_FOCUS = "#session-list"
     estimator: reactive[str] = reactive("")
 
     def __init__(self) -> None:
@@ -47,12 +64,23 @@ class SessionsScreen(Screen[None]):
         self.opened: Path | None = None
         self._tables: list[tuple[str, dict[str, Any]]] = []
         self._table_index = 0
+        self._sort_index = 0
+        self._figures: list[tuple[str, str, str, str]] = []
+        self._figure_index = -1
+        self.trend_values: list[float] = []
 
     def compose(self) -> ComposeResult:
         yield ModeBar("sessions")
         yield Static("", id="sessions-status")
         with Horizontal(id="sessions-body"):
-            yield DataTable(id="session-list", cursor_type="row")
+            with Vertical(id="session-left"):
+                yield Input(placeholder="filter: id, sample, procedure, status, operator "
+                            "(Enter)", id="sessions-filter")
+                yield DataTable(id="session-list", cursor_type="row")
+                with Vertical(id="session-trend-box"):
+                    yield Sparkline([], id="session-sparkline")
+                    yield Static("[dim]t: trend of a figure across the listed sessions[/dim]",
+                                 id="session-trend")
             with Vertical(id="session-detail"):
                 yield Static("[dim]Enter: open the selected session[/dim]", id="session-info")
                 yield DataTable(id="session-table", cursor_type="row")
@@ -60,9 +88,10 @@ class SessionsScreen(Screen[None]):
 
     def on_mount(self) -> None:
         table = self.query_one("#session-list", DataTable)
-        table.add_columns("session", "procedure", "status", "steps", "results")
+        table.add_columns("session", "procedure", "status", "sample", "results")
         table.border_title = "sessions"
         self.query_one("#session-detail").border_title = "session"
+        self.query_one("#session-trend-box").border_title = "trend"
         if not self.estimator:
             self.estimator = "auto"
         self.call_after_refresh(self._status)
@@ -77,7 +106,9 @@ class SessionsScreen(Screen[None]):
         if not self.is_mounted:
             return
         root = self.app.sessions_dir  # type: ignore[attr-defined]
-        text = f"folder [b]{root}[/b]  re-analysis method [b]{self.estimator or 'default'}[/b]"
+        sort, _ = services.CATALOG_SORTS[self._sort_index]
+        text = (f"folder [b]{root}[/b]  re-analysis method [b]{self.estimator or 'default'}[/b]"
+                f"  sorted by [b]{sort}[/b]")
         if extra:
             text += f"\n{extra}"
         self.query_one("#sessions-status", Static).update(text)
@@ -90,8 +121,10 @@ class SessionsScreen(Screen[None]):
     @work(thread=True, exclusive=True, group="sessions-list", exit_on_error=False)
     def _load(self) -> None:
         app: Any = self.app
+        sort, descending = services.CATALOG_SORTS[self._sort_index]
+        text = app.call_from_thread(lambda: self.query_one("#sessions-filter", Input).value)
         try:
-            found = services.list_sessions(Path(app.sessions_dir))
+            found = services.catalog_sessions(Path(app.sessions_dir), text, sort, descending)
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not list sessions", exc)
             return
@@ -103,10 +136,12 @@ class SessionsScreen(Screen[None]):
         table.clear()
         for s in found:
             table.add_row(
-                s.path.name, s.procedure, s.status, str(s.steps_done),
+                s.path.name, s.procedure, s.status, s.sample,
                 f"v{s.result_versions}" if s.result_versions else "-", key=str(s.path),
             )
         self._status(f"{len(found)} session(s)")
+        if self._figure_index >= 0:
+            self._trend(self._current_figure())
 
     def _selected(self) -> Path | None:
         table = self.query_one("#session-list", DataTable)
@@ -131,7 +166,8 @@ class SessionsScreen(Screen[None]):
         app: Any = self.app
         try:
             tables, summary = services.session_tables(path)
-            info = next((s for s in services.list_sessions(path.parent) if s.path == path), None)
+            # One folder, not the whole root: the listing itself comes from the catalogue.
+            info = next(iter(services.list_sessions_of([path])), None)
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, f"Could not open {path.name}", exc)
             return
@@ -185,6 +221,80 @@ class SessionsScreen(Screen[None]):
         if self._tables:
             self._table_index += 1
             self._show_table()
+
+    # -- catalogue: filter, sort, trend ----------------------------------------------------
+
+    def action_filter(self) -> None:
+        self.query_one("#sessions-filter", Input).focus()
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id == "sessions-filter":
+            self.query_one("#session-list", DataTable).focus()
+            self._load()
+
+    def action_sort(self) -> None:
+        self._sort_index = (self._sort_index + 1) % len(services.CATALOG_SORTS)
+        self._load()
+
+    @work(thread=True, exclusive=True, group="sessions-list", exit_on_error=False)
+    def action_reindex(self) -> None:
+        app: Any = self.app
+        try:
+            n = services.catalog_reindex(Path(app.sessions_dir))
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Could not rebuild the catalogue", exc)
+            return
+        app.call_from_thread(self.notify, f"Catalogue rebuilt: {n} session(s)")
+        app.call_from_thread(self._load)
+
+    def _current_figure(self) -> tuple[str, str, str, str] | None:
+        if not self._figures or self._figure_index < 0:
+            return None
+        return self._figures[self._figure_index % len(self._figures)]
+
+    @work(thread=True, exclusive=True, group="sessions-trend", exit_on_error=False)
+    def action_trend(self) -> None:
+        app: Any = self.app
+        try:
+            self._figures = services.catalog_figures(Path(app.sessions_dir))
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Could not read the catalogue", exc)
+            return
+        if not self._figures:
+            app.call_from_thread(self.notify, "No figures yet: analyse a session first.",
+                                 severity="warning")
+            return
+        self._figure_index += 1
+        app.call_from_thread(self._trend, self._current_figure())
+
+    @work(thread=True, exclusive=True, group="sessions-trend-load", exit_on_error=False)
+    def _trend(self, figure: tuple[str, str, str, str] | None) -> None:
+        app: Any = self.app
+        if figure is None:
+            return
+        try:
+            points = services.catalog_trend(Path(app.sessions_dir), figure)
+        except Exception as exc:  # noqa: BLE001
+            app.call_from_thread(app.show_error, "Could not read the trend", exc)
+            return
+        app.call_from_thread(self._show_trend, figure, points)
+
+    def _show_trend(self, figure: tuple[str, str, str, str], points: list[Any]) -> None:
+        listed = {s.path.name for s in self.sessions}
+        points = [p for p in points if p.session_id in listed and p.value is not None]
+        self.trend_values = [float(p.value) for p in points]
+        view, element, orientation, quantity = figure
+        title = " ".join(x for x in (view, element, orientation, quantity) if x)
+        self.query_one("#session-sparkline", Sparkline).data = self.trend_values or [0.0]
+        if not points:
+            text = f"[b]{escape(title)}[/b]: no listed session has it"
+        else:
+            lo, hi = min(self.trend_values), max(self.trend_values)
+            tail = "  ".join(f"{escape(p.sample or p.session_id)} {p.value:.3f}"
+                             for p in points[-4:])
+            text = (f"[b]{escape(title)}[/b]  {len(points)} sessions, oldest first; "
+                    f"min {lo:.3f} max {hi:.3f}\nlatest: {tail}")
+        self.query_one("#session-trend", Static).update(text)
 
     # -- actions ----------------------------------------------------------------------------
 

@@ -1,0 +1,111 @@
+"""The session catalogue's SQLite schema and its migrations.
+
+The schema version is SQLite's ``PRAGMA user_version``. ``MIGRATIONS[i]`` takes a catalogue
+from version ``i`` to ``i + 1``; :func:`migrate` applies the missing ones in order, each in its
+own transaction, so a catalogue written by an older benchlab is upgraded in place and keeps its
+rows. A catalogue from a *newer* benchlab is refused (:class:`CatalogSchemaError`): the caller
+rebuilds a private cache rather than guess at columns it does not know.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+
+from benchlab.drivers.errors import BenchlabError
+
+
+class CatalogSchemaError(BenchlabError):
+    """The catalogue file has a schema this benchlab cannot read or upgrade."""
+
+
+#: v1: sessions, their results versions and the key figures of each version.
+_V1 = """
+CREATE TABLE sessions (
+    id TEXT PRIMARY KEY,
+    path TEXT NOT NULL,
+    procedure TEXT NOT NULL,
+    status TEXT NOT NULL,
+    operator TEXT NOT NULL DEFAULT '',
+    devices_json TEXT NOT NULL DEFAULT '{}',
+    serials TEXT NOT NULL DEFAULT '',
+    started_at TEXT NOT NULL DEFAULT '',
+    finished_at TEXT,
+    software_version TEXT NOT NULL DEFAULT '',
+    results_version INTEGER,
+    estimator TEXT,
+    error TEXT NOT NULL DEFAULT '',
+    indexed_at TEXT NOT NULL
+);
+CREATE TABLE results (
+    session_id TEXT NOT NULL REFERENCES sessions(id) ON DELETE CASCADE,
+    version INTEGER NOT NULL,
+    estimator TEXT NOT NULL DEFAULT '',
+    created_at TEXT NOT NULL DEFAULT '',
+    PRIMARY KEY (session_id, version)
+);
+CREATE TABLE figures (
+    session_id TEXT NOT NULL REFERENCES sessions(id) ON DELETE CASCADE,
+    version INTEGER NOT NULL,
+    view TEXT NOT NULL,
+    element TEXT NOT NULL DEFAULT '',
+    orientation TEXT NOT NULL DEFAULT '',
+    freq_lp_per_mm REAL,
+    quantity TEXT NOT NULL,
+    value REAL,
+    text TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX figures_by_session ON figures(session_id, version);
+"""
+
+#: v2: the lens/sample identifier (``run --sample``), the report marker, and the indexes that
+#: keep a 10,000-session query fast: covering indexes, so a trend reads no table row.
+_V2 = """
+ALTER TABLE sessions ADD COLUMN sample TEXT NOT NULL DEFAULT '';
+ALTER TABLE sessions ADD COLUMN report TEXT NOT NULL DEFAULT '';
+CREATE INDEX sessions_by_start ON sessions(started_at);
+CREATE INDEX sessions_by_sample ON sessions(sample, started_at);
+CREATE INDEX sessions_for_trend ON sessions(id, results_version, started_at, sample, estimator,
+                                            procedure, status);
+CREATE INDEX figures_by_figure ON figures(view, quantity, orientation, element, freq_lp_per_mm,
+                                          session_id, version, value, text);
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2)
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+def schema_version(conn: sqlite3.Connection) -> int:
+    """The catalogue's ``user_version`` (0 for a new, empty file)."""
+    return int(conn.execute("PRAGMA user_version").fetchone()[0])
+
+
+def migrate(conn: sqlite3.Connection, target: int = SCHEMA_VERSION) -> int:
+    """Bring the catalogue up to ``target``; returns the version it was at before.
+
+    Raises
+    ------
+    CatalogSchemaError
+        If the file is newer than ``target`` (written by a newer benchlab).
+    """
+    before = schema_version(conn)
+    if before > target:
+        raise CatalogSchemaError(f"catalogue schema v{before} is newer than this benchlab's "
+                                 f"v{target}")
+    for version in range(before, target):
+        # executescript commits first; BEGIN IMMEDIATE makes each step all-or-nothing and
+        # serialises two processes that open the same old catalogue at once.
+        conn.execute("BEGIN IMMEDIATE")
+        try:
+            if schema_version(conn) == version:  # another process may have migrated it
+                for statement in _statements(MIGRATIONS[version]):
+                    conn.execute(statement)
+                conn.execute(f"PRAGMA user_version = {version + 1}")
+            conn.execute("COMMIT")
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+    return before
+
+
+def _statements(script: str) -> list[str]:
+    return [s.strip() for s in script.split(";") if s.strip()]

@@ -1,0 +1,242 @@
+"""``benchlab sessions reindex|list|show|trend`` and ``benchlab benchmark catalog``.
+
+Everything reads the catalogue (``ROOT/catalog.sqlite``, :mod:`benchlab.catalog`), which is
+created or rebuilt from the session folders when it is missing or damaged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from benchlab.catalog import Catalog, CatalogError, TrendPoint
+
+LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
+                "results_version", "estimator", "serials")
+TREND_COLUMNS = ("session_id", "started_at", "sample", "version", "estimator", "element",
+                 "orientation", "freq_lp_per_mm", "value", "text")
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
+    cells = [[_cell(r.get(c)) for c in columns] for r in rows]
+    widths = [max([len(c)] + [len(row[i]) for row in cells]) for i, c in enumerate(columns)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=True))]
+    lines += ["  ".join(v.ljust(w) for v, w in zip(row, widths, strict=True)) for row in cells]
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: str) -> None:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore",
+                            lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    if target == "-":
+        sys.stdout.write(buf.getvalue())
+    else:
+        from benchlab.storage import atomic_write_text
+
+        atomic_write_text(target, buf.getvalue())
+
+
+def _open(args: argparse.Namespace) -> Catalog:
+    root = Path(args.root)
+    if not root.is_dir():
+        raise CatalogError(f"{root}: no such sessions folder (--root)")
+    return Catalog.open(root)
+
+
+def _filters(args: argparse.Namespace) -> dict[str, Any]:
+    return {"procedure": args.procedure, "since": args.since, "sample": args.sample,
+            "status": args.status}
+
+
+def reindex_command(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    with _open(args) as catalog:
+        n = catalog.reindex()
+    print(f"{catalog.path}: {n} sessions indexed in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def list_command(args: argparse.Namespace) -> int:
+    with _open(args) as catalog:
+        rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
+                                limit=args.limit, devices=args.json)
+    if args.json:
+        print(json.dumps(rows))
+    elif args.csv:
+        _write_csv(rows, LIST_COLUMNS, args.csv)
+    else:
+        print(_table(rows, LIST_COLUMNS) if rows else "no sessions match")
+    return 0
+
+
+def show_command(args: argparse.Namespace) -> int:
+    with _open(args) as catalog:
+        info = catalog.show(args.id)
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    for key in ("id", "path", "procedure", "status", "sample", "operator", "serials",
+                "started_at", "finished_at", "software_version", "report", "error"):
+        if info.get(key):
+            print(f"{key:<17} {info[key]}")
+    print("\nresults versions")
+    print(_table(info["results"], ("version", "estimator", "created_at")))
+    if info["figures"]:
+        print(f"\nfigures of v{info['results_version']}")
+        print(_table(info["figures"], ("view", "element", "orientation", "freq_lp_per_mm",
+                                       "quantity", "value", "text")))
+    return 0
+
+
+def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ids = list(dict.fromkeys(p.session_id for p in points))
+    order = {sid: i for i, sid in enumerate(ids)}
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.25 * len(ids)), 4.0))
+    series: dict[str, list[TrendPoint]] = {}
+    for p in points:
+        series.setdefault(f"{p.element or p.orientation} {p.orientation}".strip(), []).append(p)
+    for label, pts in series.items():
+        ax.plot([order[p.session_id] for p in pts],
+                [float("nan") if p.value is None else p.value for p in pts],
+                marker="o", label=label)
+    labels = [next(p.sample or p.session_id for p in points if p.session_id == sid)
+              for sid in ids]
+    ax.set_xticks(range(len(ids)), labels, rotation=60, ha="right", fontsize=7)
+    ax.set_ylabel(quantity)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    if len(series) > 1:
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    from benchlab.storage import atomic_write_bytes
+
+    atomic_write_bytes(target, buf.getvalue())
+
+
+def trend_command(args: argparse.Namespace) -> int:
+    with _open(args) as catalog:
+        points = catalog.trend(view=args.view, element=args.element,
+                               orientation=args.orientation, freq_lp_per_mm=args.freq,
+                               quantity=args.quantity, **_filters(args))
+    rows = [p._asdict() for p in points]
+    what = " ".join(x for x in (args.view, args.element or "",
+                                f"{args.freq:g} lp/mm" if args.freq else "",
+                                args.orientation or "", args.quantity) if x)
+    if args.json:
+        print(json.dumps(rows))
+    elif args.csv:
+        _write_csv(rows, TREND_COLUMNS, args.csv)
+    else:
+        print(_table(rows, TREND_COLUMNS) if rows else f"no session has {what}")
+    if points and args.plot != "":
+        _plot(points, f"{what} across {len({p.session_id for p in points})} sessions",
+              args.quantity, Path(args.plot))
+        print(f"plot: {args.plot}", file=sys.stderr)
+    return 0
+
+
+def benchmark_catalog_command(args: argparse.Namespace) -> int:
+    """Query times over a synthetic catalogue of ``--sessions`` sessions."""
+    from benchlab.cli.batch_bench import run_catalog_benchmark
+
+    print(run_catalog_benchmark(n_sessions=args.sessions, source=args.source))
+    return 0
+
+
+def _add_filters(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    p.add_argument("--procedure", help="only this procedure (mtf, radiometry)")
+    p.add_argument("--since", metavar="DATE", help="only sessions started on or after DATE "
+                   "(YYYY-MM-DD or ISO time, UTC)")
+    p.add_argument("--sample", metavar="ID", help="only this lens/sample (run --sample)")
+    p.add_argument("--status", help="only this status (completed, failed, running, ...)")
+
+
+def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
+    """Add ``sessions`` and ``benchmark catalog``."""
+    top = commands.add_parser(
+        "sessions", help="catalogue of sessions: list, show, trends across lenses",
+        description="Query the session catalogue (ROOT/catalog.sqlite), a cache of the session "
+        "folders kept up to date by every run, resume, analysis and report; missing or "
+        "damaged, it is rebuilt from the folders.",
+    )
+    sub = top.add_subparsers(dest="sessions_command", metavar="WHAT", required=True)
+    r = sub.add_parser("reindex", help="rebuild the catalogue from the session folders",
+                       description="Rebuild every catalogue row from the session folders.")
+    r.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    r.set_defaults(func=reindex_command)
+
+    ls = sub.add_parser("list", help="sessions matching filters, newest first",
+                        description="List catalogued sessions matching every filter given.")
+    _add_filters(ls)
+    ls.add_argument("--sort", default="started_at", help="column to sort by (default "
+                    "started_at: id, procedure, status, sample, operator, results_version)")
+    ls.add_argument("--ascending", action="store_true", help="oldest / smallest first")
+    ls.add_argument("--limit", type=int, metavar="N", help="at most N sessions")
+    ls.add_argument("--json", action="store_true", help="print a JSON list")
+    ls.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
+    ls.set_defaults(func=list_command)
+
+    sh = sub.add_parser("show", help="one session: devices, results versions, key figures",
+                        description="Show one catalogued session and its latest figures.")
+    sh.add_argument("id", help="session id (its folder name)")
+    sh.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    sh.add_argument("--json", action="store_true", help="print one JSON object")
+    sh.set_defaults(func=show_command)
+
+    t = sub.add_parser(
+        "trend", help="one figure across sessions: table and PNG plot",
+        description="One key figure across sessions, oldest first, from each session's latest "
+        "results version: e.g. --view forward --element G2E2 --orientation S, or --view "
+        "forward --freq 70 (Table 4.15's averaged modulation; with --orientation S/T the "
+        "element nearest 70 lp/mm within 20 %).",
+    )
+    _add_filters(t)
+    t.add_argument("--view", required=True,
+                   help="forward, radial, radiometry, or a results table name")
+    t.add_argument("--element", help="USAF element (G2E2), radial '2lp', radiometry '5mm'")
+    t.add_argument("--orientation", help="S (sagittal), T (tangential), A (averaged)")
+    t.add_argument("--freq", type=float, metavar="LP_PER_MM", help="image frequency, lp/mm")
+    t.add_argument("--quantity", default="modulation",
+                   help="figure name (default modulation; radiometry: measured_normalised)")
+    t.add_argument("--plot", default="trend.png", metavar="FILE.png",
+                   help="PNG plot to write (default trend.png; '' for none)")
+    t.add_argument("--json", action="store_true", help="print a JSON list")
+    t.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
+    t.set_defaults(func=trend_command)
+
+    b = benchmarks.add_parser(
+        "catalog", help="catalogue query time over a synthetic catalogue of many sessions",
+        description="Fill a temporary catalogue with N synthetic sessions (the figures of one "
+        "real session, varied) and time list and trend queries (min and median of repeats).",
+    )
+    b.add_argument("--sessions", type=int, default=10_000, help="synthetic sessions (10000)")
+    b.add_argument("--source", help="a real session folder to copy figures from "
+                   "(default: one simulated MTF run made for the benchmark)")
+    b.set_defaults(func=benchmark_catalog_command)
