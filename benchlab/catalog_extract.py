@@ -170,7 +170,8 @@ def _bar_table(version: int, view: str, rows: list[Mapping[str, Any]], element: 
     for r in rows:
         for o in ORIENTATIONS:
             resolved = r.get(f"{o}_resolved")
-            yield Figure(version, view, element(r), o, _num(r.get("image_lp_per_mm")),
+            freq = r.get(f"{o}_image_lp_per_mm", r.get("image_lp_per_mm"))  # radial: per roll
+            yield Figure(version, view, element(r), o, _num(freq),
                          "modulation", _num(r.get(f"{o}_modulation")),
                          "" if resolved is None else ("resolved" if resolved else "unresolved"))
 

@@ -67,7 +67,7 @@ def simulated_ctf(curve: SimulatedCurve, freqs_lp_per_mm: np.ndarray) -> np.ndar
 
 
 def _state(row: dict[str, Any], orient: str) -> str:
-    if row.get("aliased"):
+    if row.get(f"{orient}_aliased", row.get("aliased")):
         return "aliased"
     resolved = row.get(f"{orient}_resolved")
     if resolved is None:
@@ -106,7 +106,8 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
                 pts = [r for r in rows if _state(r, orient) == state]
                 if not pts:
                     continue
-                xs = [float(r["image_lp_per_mm"]) for r in pts]
+                xs = [float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
+                      for r in pts]
                 if state == "resolved":
                     ys = [float(r[f"{orient}_modulation"]) for r in pts]
                     es = [float(r.get(f"{orient}_uncertainty") or 0.0) for r in pts]

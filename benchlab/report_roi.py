@@ -60,7 +60,8 @@ class RoiReading:
             orientation=orientation, view=view, modulation=f("modulation"),
             dark=f("dark"), bright=f("bright"),
             resolved=bool(row.get(f"{orientation}_resolved", f("modulation") not in (None, 0.0))),
-            aliased=bool(row.get("aliased")), uncertainty=f("uncertainty"),
+            aliased=bool(row.get(f"{orientation}_aliased", row.get("aliased"))),
+            uncertainty=f("uncertainty"),
             warnings=str(row.get(f"{orientation}_warnings") or ""), estimator=estimator,
             angle_deg=angle)
 

@@ -31,9 +31,10 @@ TABLE_VIEWS: dict[str, TableView] = {
          ("aliased", "aliased", "")),
     ),
     "table_4_12": TableView(
-        "Table 4.12 - radial view, modulation (Eq. 2.9)",
+        "Table 4.12 - radial view, modulation (Eq. 2.9); image lp/mm by Eq. 4.1 (rings, T), "
+        "S lp/mm by object / image radius (spokes)",
         (("object_lp_per_mm", "object lp/mm", "g"), ("image_lp_per_mm", "image lp/mm", ".2f"),
-         *_S_T, ("aliased", "aliased", "")),
+         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, ("aliased", "aliased", "")),
     ),
     "table_4_13": TableView(
         "Tables 4.13-4.14 - image height and nearest simulated field point",

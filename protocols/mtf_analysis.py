@@ -13,8 +13,9 @@ import numpy.typing as npt
 
 from benchlab.analysis import chart
 from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
-from benchlab.analysis.estimators import DEFAULT_ESTIMATOR, estimate_modulation
+from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
+    azimuthal_image_frequency_lp_per_mm,
     cycles_per_px,
     image_frequency_lp_per_mm,
     nyquist_lp_per_mm,
@@ -41,11 +42,9 @@ FORWARD_STEP = "forward"
 FORWARD_FRAME = "forward"
 RADIAL_FRAME = "radial"
 ORIENTATIONS = ("sagittal", "tangential")
-#: "auto": per view. Forward bars are horizontal or vertical, where the fit-based library
-#: default is the most accurate on these small ROIs; radial bars run obliquely through the
-#: common ROI, which only the orientation-free histogram-peak estimator handles.
-AUTO = "auto"
-RADIAL_AUTO_ESTIMATOR = "histogram"
+#: "auto" is the library's one default (:data:`benchlab.analysis.estimators.DEFAULT_ESTIMATOR`)
+#: in both views: it measures the bar direction itself, so the oblique spokes and rings of the
+#: radial view need no other estimator.
 #: A measured frequency is compared with a Monte Carlo row within this relative distance (the
 #: thesis paired 73.2 with 70, 35 with 30 and 52.5 with 60 lp/mm: at most 17 % apart).
 MC_MATCH_FRACTION = 0.2
@@ -138,7 +137,7 @@ def analyze_forward_frame(
     pixels: npt.NDArray[Any], params: MtfParams, estimator: str | None
 ) -> list[dict[str, Any]]:
     """One row per element and orientation (what a UI shows while the run goes on)."""
-    est = DEFAULT_ESTIMATOR if estimator in (None, "", AUTO) else estimator
+    est = resolve_estimator(estimator)
     fit = locate_chart(pixels, params)
     offset = fit.offset_px if fit is not None else (0, 0)
     chart_info = _chart_info(fit)
@@ -180,17 +179,33 @@ def _chart_info(fit: ChartFit | None) -> dict[str, Any] | None:
                               "rejected", "warnings")}
 
 
+def radial_image_lp_per_mm(freq_lp_per_mm: float, orientation: str, params: MtfParams,
+                           centre: tuple[float, float]) -> float:
+    """Image frequency of a radial pattern at the radial ROI: Eq. 4.1's axial magnification for
+    tangential bars (rings); object radius / image radius for sagittal bars (spokes), the
+    rotational symmetry's azimuthal magnification."""
+    if orientation != "sagittal":
+        return image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
+    r_mm = image_height_mm(centre, roi_centroid(params.radial_roi))
+    return azimuthal_image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_object_radius_mm,
+                                               r_mm)
+
+
 def analyze_radial_frame(
     pixels: npt.NDArray[Any], freq_lp_per_mm: float, orientation: str, params: MtfParams,
-    estimator: str | None,
+    estimator: str | None, centre: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
-    """Modulation of one radial frame in the common radial ROI."""
-    est = RADIAL_AUTO_ESTIMATOR if estimator in (None, "", AUTO) else estimator
-    f_img = image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
+    """Modulation of one radial frame in the common radial ROI. ``centre`` (row, col) is the
+    image centre; by default it is found from this frame's field of view."""
+    est = resolve_estimator(estimator)
+    if centre is None:
+        centre = _centre([pixels], params.fov_threshold_dn)[0]
+    f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
     res = _measure(pixels, params.radial_roi, estimator=est, freq_lp_per_mm=f_img,
                    orientation=None)
     return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
-            "image_lp_per_mm": f_img, "roi": list(params.radial_roi), **_cells(res)}
+            "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
+            "roi": list(params.radial_roi), **_cells(res)}
 
 
 def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple[
@@ -263,7 +278,12 @@ def analyze_mtf(
     t412: list[dict[str, Any]] = []
     for f in params.radial_frequencies_lp_per_mm:
         f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
-        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq}
+        # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
+        # sagittal spokes image at the azimuthal magnification, in their own columns.
+        f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
+        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+               "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
+               "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
         for orient in ORIENTATIONS:
             px = radial.get((f, orient))
             if px is None:
@@ -271,7 +291,7 @@ def analyze_mtf(
                             ("dark", "bright", "modulation", "resolved", "uncertainty")})
                 row[f"{orient}_warnings"] = "frame missing"
                 continue
-            r = analyze_radial_frame(px, f, orient, params, est)
+            r = analyze_radial_frame(px, f, orient, params, est, centre)
             row.update({f"{orient}_{k}": r[k] for k in
                         ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
         t412.append(row)
@@ -285,8 +305,8 @@ def analyze_mtf(
     summary = {
         "procedure": "mtf",
         "estimator": est,
-        "forward_estimator": DEFAULT_ESTIMATOR if est == AUTO else est,
-        "radial_estimator": RADIAL_AUTO_ESTIMATOR if est == AUTO else est,
+        "forward_estimator": resolve_estimator(est),
+        "radial_estimator": resolve_estimator(est),
         "image_centre_rc": list(centre),
         "image_centre_method": centre_method,
         "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None

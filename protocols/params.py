@@ -69,6 +69,9 @@ class MtfParams:
     forward_elements: tuple[UsafElement, ...] = ()
     forward_roi_overrides: Mapping[str, Roi] = field(default_factory=dict)
     radial_magnification: float = 17.5
+    #: Object cylinder's distance from the endoscope axis (thesis set-up: 13.88 + 6 mm); sets
+    #: the sagittal (spoke) image frequency, which Eq. 4.1's axial magnification does not.
+    radial_object_radius_mm: float = 19.88
     radial_frequencies_lp_per_mm: tuple[float, ...] = (0.5, 1, 2, 3, 4, 5, 6)
     radial_roi: Roi = (250, 1000, 290, 1050)
     fov_threshold_dn: float = 8.0
@@ -180,6 +183,8 @@ def _check_mtf(c: _Checker) -> MtfParams:
                     roi = c.roi(key, (0, 0, 1, 1), box, True)
                     overrides[f"{str(el_name).upper()}.{orient}"] = roi
     rad_mag = c.number("radial.magnification", d.radial_magnification, 0.0, 1000.0, lo_open=True)
+    rad_obj_r = c.number("radial.object_radius_mm", d.radial_object_radius_mm, 0.0, 1000.0,
+                         lo_open=True)
     freqs = c.numbers("radial.frequencies_lp_per_mm", d.radial_frequencies_lp_per_mm, 0.0, 100.0,
                       lo_open=True)
     radial_roi = c.roi("radial.roi", d.radial_roi)
@@ -197,6 +202,7 @@ def _check_mtf(c: _Checker) -> MtfParams:
         exposure_ms=exposure, gain=gain, bits=bits, focus_frames=focus_frames,
         forward_magnification=fwd_mag, forward_elements=tuple(elements),
         forward_roi_overrides=overrides, radial_magnification=rad_mag,
+        radial_object_radius_mm=rad_obj_r,
         radial_frequencies_lp_per_mm=freqs, radial_roi=radial_roi, fov_threshold_dn=fov,
         estimator=estimator, monte_carlo_file=mc_file, simulated_mtf_file=sim_file,
         raw=c.data,
@@ -330,6 +336,7 @@ def params_to_dict(params: Params) -> dict[str, Any]:
             "focus": {"frames": params.focus_frames},
             "forward": forward,
             "radial": {"magnification": params.radial_magnification,
+                       "object_radius_mm": params.radial_object_radius_mm,
                        "frequencies_lp_per_mm": list(params.radial_frequencies_lp_per_mm),
                        "roi": list(params.radial_roi)},
             "analysis": {"estimator": params.estimator,

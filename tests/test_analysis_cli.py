@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from benchlab.analysis.benchmark import format_table, recommend, run_benchmark
+from benchlab.analysis.benchmark import format_table, run_benchmark
 from benchlab.analysis.synthetic import bar_roi
 from benchlab.cli.main import main
 
@@ -40,7 +40,7 @@ def test_analyze_8bit_images(tmp_path: Path, bars, capsys, suffix: str) -> None:
     else:
         cv2.imwrite(str(path), img)
     out = run_json(capsys, str(path), "--roi", ROI, "--freq", f"{1000 / 16 / 5.2}")
-    assert out["resolved"] is True and out["estimator"] == "sinefit"
+    assert out["resolved"] is True and out["estimator"] == "profilefit"  # auto
     assert out["modulation"] == pytest.approx(truth, abs=0.01)
     assert out["diagnostics"]["n_pixels"] == 2000
     assert out["roi"] == [50, 60, 90, 110]
@@ -54,7 +54,8 @@ def test_analyze_16bit_and_estimators(tmp_path: Path, bars, capsys) -> None:
     assert out["estimator"] == "histogram" and out["diagnostics"]["code_step"] == 256.0
     assert out["modulation"] == pytest.approx(truth, abs=0.03)
     both = run_json(capsys, str(path), "--roi", ROI, "--all-estimators")
-    assert set(both["estimators"]) == {"histogram", "sinefit", "variance"}
+    assert set(both["estimators"]) == {"profilefit", "profilefit-fast", "histogram", "sinefit",
+                                       "variance"}
 
 
 def test_analyze_manual_peaks_and_unresolved(tmp_path: Path, capsys) -> None:
@@ -130,9 +131,16 @@ def test_session_folder_is_handed_to_procedures(tmp_path: Path, monkeypatch) -> 
 
 
 def test_benchmark_table_on_a_small_grid() -> None:
-    scores = run_benchmark(quick=True, seed=0, max_cases=60)
-    names = [s.estimator for s in scores]
-    assert names == ["histogram", "sinefit", "variance"]
+    cases, scores = run_benchmark(n_cases=40, seed=1, workers=1,
+                                  estimators=("profilefit", "histogram"))
+    assert len(cases) == 40
+    assert {c.kind for c in cases} == {"bars", "flat", "below-noise", "aliased"}
+    assert {s.estimator for s in scores} == {"profilefit", "histogram"}
+    overall = {s.estimator: s for s in scores if s.bucket == "all"}
+    assert overall["profilefit"].n == overall["histogram"].n > 10
+    assert overall["profilefit"].wrong_resolved == 0  # no flat/below-noise/aliased as a number
+    assert overall["profilefit"].n_negative == 8
+    assert overall["profilefit"].rmse < 0.1
     table = format_table(scores)
-    assert "bias" in table and "us/ROI" in table and "RMSE by px per period" in table
-    assert recommend(scores) in names
+    for word in ("bias", "RMSE", "<=.03", "wrong res", "cover95", "oblique", "period 8-20"):
+        assert word in table

@@ -22,8 +22,14 @@ WIDE = {"shape": (40, 50), "px_per_period": 16.0, "noise_sigma": 1.0, "psf_sigma
 
 
 def test_registry_and_default() -> None:
-    assert set(ESTIMATORS) == {"histogram", "sinefit", "variance"}
-    assert DEFAULT_ESTIMATOR in ESTIMATORS
+    assert set(ESTIMATORS) == {"profilefit", "profilefit-fast", "histogram", "sinefit",
+                               "variance"}
+    assert DEFAULT_ESTIMATOR == "profilefit"
+    assert estimators.resolve_estimator("auto") == estimators.resolve_estimator(None) == (
+        DEFAULT_ESTIMATOR)
+    roi, _ = bar_roi(0, **WIDE)
+    assert estimate_modulation(roi, estimator="auto") == estimate_modulation(
+        roi, estimator=DEFAULT_ESTIMATOR)
 
 
 def test_truth_of_wide_bars_is_the_object_modulation() -> None:
@@ -42,7 +48,9 @@ def test_estimators_recover_truth(name: str, period: float, orientation: str) ->
         roi, estimator=name, freq_cycles_per_px=1 / period, orientation=orientation
     )
     assert r.resolved and r.estimator == name
-    tol = 0.03 if name == "histogram" else 0.015
+    # The histogram reads the sampled pixels' modes: at 8 px per period the samples sit 1/16
+    # period off the profile's peak (sampling phase), which costs it 0.034 here.
+    tol = (0.04 if period == 8.0 else 0.03) if name == "histogram" else 0.015
     assert r.modulation == pytest.approx(case.truth, abs=tol)
     assert r.dark is not None and r.bright is not None and r.dark < r.bright
     assert r.diagnostics.n_pixels == 2000
@@ -164,8 +172,9 @@ def test_compare_estimators_fills_disagreement() -> None:
     # Near the limit the histogram gives up while the fit still measures: a flagged split.
     roi, _ = bar_roi(13, shape=(40, 50), px_per_period=2.5, noise_sigma=0.5, modulation=0.6)
     split = compare_estimators(roi, freq_cycles_per_px=0.4, tolerance=0.01)
-    if split["histogram"].modulation != split["sinefit"].modulation:
-        assert all(any("disagree" in w for w in r.warnings) for r in split.values())
+    mods = [r.modulation for r in split.values()]
+    flagged = [any("disagree" in w for w in r.warnings) for r in split.values()]
+    assert flagged == [max(mods) - min(mods) > 0.01] * len(split)
 
 
 def test_bootstrap_uncertainty() -> None:

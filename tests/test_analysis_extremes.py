@@ -185,19 +185,3 @@ def test_negative_levels_after_dark_subtraction_are_labelled() -> None:
     roi = np.tile(np.r_[np.full(8, -20.0), np.full(8, 5.0)], (10, 2))
     for name in NAMES:
         check_labelled(estimate_modulation(roi, estimator=name, freq_cycles_per_px=1 / 16))
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    y=arrays(np.float64, st.integers(3, 40), elements=st.sampled_from([0.0, 1.0, 2.0, 3.0])),
-    height=st.floats(0.0, 3.0),
-)
-def test_fast_peak_finder_matches_scipy(y: np.ndarray, height: float) -> None:
-    """The histogram's own peak finder (speed) agrees with scipy.signal.find_peaks, plateaus
-    included."""
-    from scipy.signal import find_peaks
-
-    from benchlab.analysis.histogram import _peaks
-
-    padded = np.pad(y, 1)
-    assert _peaks(padded, height) == find_peaks(padded, height=height)[0].tolist()

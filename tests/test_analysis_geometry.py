@@ -101,8 +101,11 @@ def test_coltman_round_trip_gaussian_mtf() -> None:
     assert set(np.array(out.method)[(freqs > 4.0) & low]) == {"coltman"}
     # 2 lp/mm: the series (k <= 99) stops while CTF(202 lp/mm) was measured - labelled.
     assert out.method[0] == "truncated"
-    # Above 400/3 lp/mm no harmonic was measured: the pi/4 relation (MTF beyond taken as 0).
-    assert set(np.array(out.method)[freqs > 400.0 / 3]) == {"pi/4"}
+    # Above 400/3 lp/mm no harmonic was measured and no cutoff was given: the one-term series
+    # is a truncation (MTF beyond 400 lp/mm assumed 0), never labelled as the exact pi/4 case.
+    assert set(np.array(out.method)[freqs > 400.0 / 3]) == {"truncated"}
+    with_cutoff = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=400.0)
+    assert set(np.array(with_cutoff.method)[freqs > 400.0 / 3]) == {"pi/4"}
     short = ctf_to_mtf(freqs, ctf, max_harmonic=21)
     assert short.method[0] == "truncated" and abs(short.mtf[0] - mtf(2.0)) > 1e-3
 

@@ -1,5 +1,5 @@
 """The histogram-peak estimator's speed-ups give exactly what the straightforward code gives:
-scipy's peak prominences, np.convolve smoothing, and counting pixels below the valley."""
+scipy's peak finder, np.convolve smoothing, and counting pixels below the valley."""
 
 from __future__ import annotations
 
@@ -8,44 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from scipy.signal import find_peaks, peak_prominences
+from scipy.signal import find_peaks
 
 from benchlab.analysis import histogram
-from benchlab.analysis.histogram import _find_peaks, _kernel, _prominences, histogram_peak
+from benchlab.analysis.histogram import _find_peaks, _kernel, histogram_peak
 from benchlab.analysis.roi import PreparedROI, prepare_roi
-
-
-def _check_prominences(y: np.ndarray, min_height: float) -> None:
-    peaks, heights = _find_peaks(y, min_height)
-    if not peaks:
-        return
-    assert heights == y[peaks].tolist()
-    expected = peak_prominences(y, peaks)[0].tolist()
-    assert _prominences(y, peaks, heights) == expected
-
-
-@settings(max_examples=300, deadline=None)
-@given(
-    y=arrays(np.float64, st.integers(3, 60), elements=st.sampled_from([0.0, 1.0, 2.0, 3.0, 5.0])),
-    height=st.floats(0.0, 5.0),
-)
-def test_prominences_match_scipy_with_plateaus(y: np.ndarray, height: float) -> None:
-    """Exact scipy prominences for every set of all local maxima above a height, ties and
-    flat tops included."""
-    _check_prominences(np.pad(y, 1), height)
-
-
-@settings(max_examples=300, deadline=None)
-@given(
-    counts=arrays(np.int64, st.integers(1, 200), elements=st.integers(0, 60)),
-    sigma=st.sampled_from([0.7, 1.0, 1.4, 2.5, 6.0]),
-    fraction=st.floats(0.0, 1.0),
-)
-def test_prominences_match_scipy_on_smoothed_histograms(
-    counts: np.ndarray, sigma: float, fraction: float
-) -> None:
-    y = np.convolve(counts, _kernel(sigma), mode="full")
-    _check_prominences(y, float(y.max()) * fraction)
 
 
 @settings(max_examples=200, deadline=None)
@@ -99,10 +66,6 @@ def _reference_binned(prep: PreparedROI) -> tuple[np.ndarray, float, bool]:
 _original_binned = histogram._binned
 
 
-def _scipy_prominences(y: np.ndarray, peaks: list[int], heights: list[float]) -> list[float]:
-    return peak_prominences(y, peaks)[0].tolist()
-
-
 def _convolve_smoothed(
     prep: PreparedROI, counts: np.ndarray, width: float, scale: float
 ) -> tuple[np.ndarray, float, int]:
@@ -117,12 +80,11 @@ def _convolve_smoothed(
 def test_histogram_peak_identical_to_straightforward_path(
     seed: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Same results, bit for bit, as scipy prominences + np.convolve + counting pixels."""
+    """Same results, bit for bit, as np.convolve + counting pixels."""
     rois = _random_rois(300, seed)
     preps = [prepare_roi(roi, **kw) for roi, kw in rois]  # type: ignore[arg-type]
     fast = [histogram_peak(p) for p in preps]
     monkeypatch.setattr(histogram, "_binned", _reference_binned)
-    monkeypatch.setattr(histogram, "_prominences", _scipy_prominences)
     monkeypatch.setattr(histogram, "_smoothed", _convolve_smoothed)
     slow = [histogram_peak(p) for p in preps]
     assert fast == slow

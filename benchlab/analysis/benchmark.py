@@ -1,35 +1,33 @@
 """Speed/accuracy benchmark of the modulation estimators on synthetic bar ROIs with known truth.
 
-Cases span PSF sigma (0.25, 0.5 or 1 px), illumination shading (none or a 20 % ramp), bar duty (half
-the cases 0.4 or 0.6 bright: printed lines come out thicker or thinner), noise level, ROI size
-(12 x 12, 40 x 50, 100 x 128), pixels per period (32 down to 2.2, near Nyquist), saturation
-(1.6x over-exposure), bit depth (8-bit; 12-bit MSB-aligned in 16) and frames averaged (1, 4),
-with random sampling phase and orientation, plus flat fields (no bars) to count false
-"resolved" calls. Every estimator gets the bar frequency and orientation, as the procedures
-pass them.
+The generator (:mod:`benchlab.analysis.synthetic`) draws, from a seed, cases covering: bar
+angle 0-90 deg (axis-aligned and oblique), period 2.2-40 px (log-uniform; plus 1.5-1.99 px,
+above Nyquist), Gaussian PSF sigma 0-4 px, SNR 5-200 with Poisson shot noise and read noise,
+8-bit and 12-bit (MSB-aligned) data, linear shading 0-30 %, duty 0.4-0.6, ROIs from 5 x 5 to
+200 x 200, over-exposed cases that really clip, flat ROIs and below-noise ROIs. Every estimator
+gets the bar frequency; the orientation only where the bars are axis-aligned (as the
+procedures call them).
 
-Definitions (per estimator):
+Definitions:
 
-- truth: Eq. 2.9 contrast of the noise-free blurred image (:mod:`benchlab.analysis.synthetic`).
-- *measurable* case: truth >= 0.05, effective SNR >= 5 (SNR = half peak-to-valley over
-  noise sigma / sqrt(frames)) and at least one full bar period inside the ROI.
-- bias, RMSE: of (estimate - truth) over measurable unsaturated cases, "not resolved" counted as
-  0 (what a report would print). ``RMSE@20`` and ``<=0.02@20``: those with SNR >= 20.
-  ``sat bias``: bias over the measurable saturated cases.
-- wrong-res: fraction of flat cases called resolved; wrong-unres: fraction of measurable
-  unsaturated cases called not resolved.
-- us/ROI: median wall time of :func:`estimate_modulation` on 40 x 50 (2,000-pixel) single-frame
-  8-bit ROIs, best of 3 calls each, in one process (the accuracy runs use worker processes).
+- truth: Eq. 2.9 contrast of the noiseless, blurred, pixel-integrated continuous profile.
+- *measurable*: truth >= 0.05, SNR >= 5, period >= 2.2 px, unclipped, at least one period across
+  the ROI. Errors are over measurable cases, "not resolved" counted as 0 (what a report prints).
+- wrong res: flat, below-noise (bars whose fundamental over the noise of the whole ROI,
+  ``amplitude / (noise sqrt(2 / n))``, is 0.3-1.5) or aliased (period < 2 px) cases called
+  resolved.
+- wrong unres: measurable cases called "not resolved".
+- cover: share of measurable resolved readings whose 95 % interval holds the truth.
+- us: median wall time per call in the accuracy run (worker processes on a shared machine).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,218 +36,266 @@ from benchlab.analysis.synthetic import BarCase, render
 
 MEASURABLE_TRUTH = 0.05
 MEASURABLE_SNR = 5.0
-TARGET_SNR = 20.0
-TARGET_ERROR = 0.02
+MIN_PERIOD_PX = 2.2
+#: Error bounds reported (modulation units).
+TOLERANCES = (0.02, 0.03)
+ROI_SHAPES = ((5, 5), (10, 40), (40, 50), (20, 100), (64, 64), (200, 200))
 
 
 @dataclass(frozen=True)
-class EstimatorScore:
-    """One row of the benchmark table."""
+class Case:
+    """One benchmark case: the synthetic ROI parameters and its kind."""
 
-    estimator: str
-    n_cases: int
-    bias: float
-    rmse: float
-    rmse_snr20: float
-    within_target_snr20: float
-    saturated_bias: float
-    wrong_resolved: float
-    wrong_unresolved: float
-    us_per_roi_2000px: float
-    rmse_by_px_per_period: dict[float, float]
+    bar: BarCase
+    kind: str  # "bars", "flat", "below-noise", "aliased"
+    snr: float
+    axis_aligned: bool
 
 
-def benchmark_cases(quick: bool = False, seed: int = 0) -> list[BarCase]:
-    """The grid of synthetic cases (random phases and orientations from ``seed``)."""
+def _with_snr(bar: BarCase, snr: float, shot_share: float) -> BarCase:
+    """``bar`` with noise set for ``snr`` (half peak-to-valley over noise at the mean), a share
+    ``shot_share`` of the noise variance from Poisson shot noise."""
+    amp = (bar.mean * bar.exposure_scale + bar.pedestal) * max(bar.truth, 1e-3)
+    sigma = amp / snr
+    shot2 = shot_share * sigma**2
+    epd = bar.mean * bar.exposure_scale / shot2 if shot2 > 0 else 0.0
+    return replace(bar, noise_sigma=math.sqrt(sigma**2 - shot2), electrons_per_dn=epd)
+
+
+def benchmark_cases(n_cases: int = 1500, seed: int = 0) -> list[Case]:
+    """``n_cases`` seeded cases: 80 % bar ROIs (a tenth of them over-exposed), then flat,
+    below-noise and aliased ROIs."""
     rng = np.random.default_rng(seed)
-    periods = [32.0, 16.0, 8.0, 5.0, 3.0, 2.2]
-    noises = [0.5, 2.0, 6.0] if quick else [0.5, 2.0, 6.0, 15.0]
-    shapes = [(40, 50), (12, 12)] if quick else [(40, 50), (12, 12), (100, 128)]
-    repeats = 1 if quick else 3
-    cases = []
-    for period, noise, shape, exposure, bits, frames in itertools.product(
-        periods, noises, shapes, [1.0, 1.6], [8, 12], [1, 4]
-    ):
-        # Half the cases have a 20 % illumination ramp across the ROI (thesis: "near-uniform").
-        for _ in range(repeats):
-            cases.append(
-                BarCase(
-                    shape=shape,
-                    px_per_period=period,
-                    modulation=0.6,
-                    mean=100.0,
-                    psf_sigma_px=float(rng.choice([0.25, 0.5, 1.0])),
-                    noise_sigma=noise,
-                    phase=float(rng.uniform()),
-                    orientation="horizontal" if rng.uniform() < 0.5 else "vertical",
-                    exposure_scale=exposure,
-                    bits=bits,
-                    msb_aligned=bits == 12,
-                    n_frames=frames,
-                    shading=float(rng.choice([0.0, 0.2])),
-                    duty=float(rng.choice([0.5, 0.5, 0.4, 0.6])),
-                )
-            )
-    for noise, shape, frames in itertools.product(noises, shapes, [1, 4]):
-        for _ in range(repeats * 4):
-            cases.append(
-                BarCase(
-                    shape=shape,
-                    px_per_period=float(rng.choice(periods)),
-                    modulation=0.0,
-                    noise_sigma=noise,
-                    n_frames=frames,
-                    orientation="horizontal",
-                )
-            )
-    return cases
-
-
-def _is_measurable(case: BarCase) -> bool:
-    along = case.shape[1] if case.orientation == "horizontal" else case.shape[0]
-    snr = case.snr * math.sqrt(case.n_frames)
-    return case.truth >= MEASURABLE_TRUTH and snr >= MEASURABLE_SNR and along >= case.px_per_period
-
-
-def _evaluate(chunk: list[tuple[int, BarCase]]) -> list[tuple[int, str, float, bool]]:
-    """(case index, estimator, modulation, resolved) for every estimator on each case."""
-    out = []
-    for index, case in chunk:
-        roi = render(case, np.random.default_rng(10_000 + index))
-        for name in ESTIMATORS:
-            r = estimate_modulation(
-                roi,
-                estimator=name,
-                freq_cycles_per_px=case.freq_cycles_per_px,
-                orientation=case.orientation,
-            )
-            out.append((index, name, r.modulation, r.resolved))
+    out: list[Case] = []
+    n_bars = int(0.8 * n_cases)
+    for i in range(n_cases):
+        if i < n_bars:
+            kind = "bars"
+        else:
+            kind = ("flat", "below-noise", "aliased")[i % 3]
+        axis = rng.uniform() < 0.35
+        angle = float(rng.choice([0.0, 90.0])) if axis else float(rng.uniform(3.0, 87.0))
+        shape = ROI_SHAPES[int(rng.integers(len(ROI_SHAPES)))]
+        if rng.uniform() < 0.5:
+            shape = shape[::-1]
+        period = float(np.exp(rng.uniform(math.log(2.2), math.log(40.0))))
+        if kind == "aliased":
+            period = float(rng.uniform(1.5, 1.99))
+        bits = 12 if rng.uniform() < 0.4 else 8
+        mean = float(rng.uniform(50.0, 120.0))
+        over = kind == "bars" and rng.uniform() < 0.1
+        bar = BarCase(
+            shape=shape,
+            px_per_period=period,
+            modulation=0.0 if kind == "flat" else float(rng.uniform(0.2, 0.9)),
+            mean=mean,
+            psf_sigma_px=float(rng.uniform(0.0, 4.0)) if rng.uniform() < 0.8 else 0.0,
+            phase=float(rng.uniform()),
+            exposure_scale=float(rng.uniform(1.6, 2.5)) if over else 1.0,
+            bits=bits,
+            msb_aligned=bits == 12 and rng.uniform() < 0.7,
+            duty=float(rng.uniform(0.4, 0.6)),
+            shading=float(rng.uniform(0.0, 0.3)) if rng.uniform() < 0.6 else 0.0,
+            angle_deg=angle,
+            pedestal=float(rng.choice([0.0, 0.0, 8.0])),
+        )
+        if kind == "flat":
+            snr = 50.0
+            noise = bar.mean / float(rng.uniform(5.0, 200.0))
+            bar = replace(bar, noise_sigma=noise)
+        elif kind == "below-noise":
+            # Realistic noise (mean / 10-50) and bars whose fundamental is below the noise of
+            # the whole ROI (amplitude over noise * sqrt(2 / n) of 0.3-1.5): no estimator can
+            # know they are there.
+            n_px = bar.shape[0] * bar.shape[1]
+            noise = bar.mean / float(rng.uniform(10.0, 50.0))
+            amp = float(rng.uniform(0.3, 1.5)) * noise * math.sqrt(2.0 / n_px)
+            bar = replace(bar, modulation=min(amp / bar.mean * 1.3, 0.5), noise_sigma=noise)
+            snr = bar.snr
+        else:
+            snr = float(np.exp(rng.uniform(math.log(5.0), math.log(200.0))))
+            bar = _with_snr(bar, snr, float(rng.uniform()))
+        out.append(Case(bar=bar, kind=kind, snr=snr, axis_aligned=axis))
     return out
 
 
-def _time_estimators(n_rois: int, seed: int) -> dict[str, float]:
-    """Median microseconds per call on 2,000-pixel ROIs (best of 3 calls each)."""
-    rng = np.random.default_rng(seed)
-    rois = []
-    for i in range(n_rois):
-        case = BarCase(
-            shape=(40, 50),
-            px_per_period=[16.0, 8.0, 5.0, 3.0][i % 4],
-            noise_sigma=2.0,
-            phase=float(rng.uniform()),
-        )
-        rois.append((render(case, rng), case.freq_cycles_per_px))
-    times: dict[str, float] = {}
-    for name in ESTIMATORS:
-        per_roi = []
-        for roi, freq in rois:
-            best = math.inf
-            for _ in range(3):
-                t0 = time.perf_counter()
-                estimate_modulation(
-                    roi, estimator=name, freq_cycles_per_px=freq, orientation="horizontal"
-                )
-                best = min(best, time.perf_counter() - t0)
-            per_roi.append(best)
-        times[name] = 1e6 * float(np.median(per_roi))
-    return times
+def is_measurable(case: Case) -> bool:
+    """See the module docstring."""
+    bar = case.bar
+    if case.kind != "bars" or bar.clipped or bar.px_per_period < MIN_PERIOD_PX:
+        return False
+    h, w = bar.shape
+    extent = abs((w - 1) * math.cos(bar.theta_rad)) + abs((h - 1) * math.sin(bar.theta_rad))
+    return bar.truth >= MEASURABLE_TRUTH and case.snr >= MEASURABLE_SNR and extent + 1 >= (
+        bar.px_per_period
+    )
+
+
+def _evaluate(
+    chunk: list[tuple[int, Case]], names: tuple[str, ...]
+) -> list[tuple[int, str, float, bool, float, float, float]]:
+    """(case, estimator, modulation, resolved, interval low, high, seconds) per call."""
+    out = []
+    for index, case in chunk:
+        roi = render(case.bar, np.random.default_rng(10_000 + index))
+        for name in names:
+            t0 = time.perf_counter()
+            r = estimate_modulation(
+                roi,
+                estimator=name,
+                freq_cycles_per_px=case.bar.freq_cycles_per_px,
+                orientation=(
+                    ("horizontal" if case.bar.theta_rad < 0.1 else "vertical")
+                    if case.axis_aligned
+                    else None
+                ),
+            )
+            dt = time.perf_counter() - t0
+            out.append((index, name, r.modulation, r.resolved, r.interval[0], r.interval[1], dt))
+    return out
+
+
+@dataclass(frozen=True)
+class Score:
+    """One row of the table: an estimator on one bucket of cases."""
+
+    estimator: str
+    bucket: str
+    n: int
+    bias: float
+    rmse: float
+    within_002: float
+    within_003: float
+    wrong_resolved: int
+    n_negative: int
+    wrong_unresolved: int
+    coverage: float
+    us_median: float
+
+
+def _buckets(case: Case) -> list[str]:
+    bar = case.bar
+    p = bar.px_per_period
+    n_px = bar.shape[0] * bar.shape[1]
+    out = ["all", "axis 0/90" if case.axis_aligned else "oblique"]
+    out.append(
+        "period 2.2-3.5" if p < 3.5 else "period 3.5-8" if p < 8 else "period 8-20"
+        if p < 20 else "period 20-40"
+    )
+    out.append("SNR 5-10" if case.snr < 10 else "SNR 10-30" if case.snr < 30 else "SNR 30-200")
+    out.append(
+        "ROI 5x5" if n_px <= 25 else "ROI <=640 px" if n_px <= 640 else "ROI 2000-4096 px"
+        if n_px <= 4096 else "ROI 200x200"
+    )
+    if case.snr >= 10:
+        out.append("SNR >= 10")
+    return out
+
+
+def score(cases: list[Case], rows: list[tuple[int, str, float, bool, float, float, float]],
+          names: tuple[str, ...]) -> list[Score]:
+    """Per estimator and bucket: see the module docstring."""
+    order = ["all", "axis 0/90", "oblique", "period 2.2-3.5", "period 3.5-8", "period 8-20",
+             "period 20-40", "SNR 5-10", "SNR 10-30", "SNR 30-200", "SNR >= 10", "ROI 5x5",
+             "ROI <=640 px", "ROI 2000-4096 px", "ROI 200x200"]
+    acc: dict[tuple[str, str], dict[str, list[float]]] = {}
+    for index, name, mod, res, lo, hi, dt in rows:
+        case = cases[index]
+        keys = _buckets(case) if is_measurable(case) else ["all"]
+        for b in keys:
+            d = acc.setdefault((name, b), {"err": [], "miss": [], "cov": [], "t": [], "neg": []})
+            d["t"].append(dt)
+            if is_measurable(case):
+                d["err"].append(mod - case.bar.truth)
+                d["miss"].append(float(not res))
+                if res:
+                    d["cov"].append(float(lo <= case.bar.truth <= hi))
+            elif case.kind in ("flat", "below-noise", "aliased") and b == "all":
+                d["neg"].append(float(res))
+    out = []
+    for name in names:
+        for b in order:
+            got = acc.get((name, b))
+            if got is None or not got["err"]:
+                continue
+            d = got
+            e = np.asarray(d["err"])
+            out.append(Score(
+                estimator=name, bucket=b, n=e.size, bias=float(e.mean()),
+                rmse=float(np.sqrt(np.mean(e * e))),
+                within_002=float(np.mean(np.abs(e) <= TOLERANCES[0])),
+                within_003=float(np.mean(np.abs(e) <= TOLERANCES[1])),
+                wrong_resolved=int(sum(d["neg"])), n_negative=len(d["neg"]),
+                wrong_unresolved=int(sum(d["miss"])),
+                coverage=float(np.mean(d["cov"])) if d["cov"] else math.nan,
+                us_median=1e6 * float(np.median(d["t"])),
+            ))
+    return out
 
 
 def run_benchmark(
-    quick: bool = False, seed: int = 0, max_cases: int | None = None, workers: int | None = None
-) -> list[EstimatorScore]:
-    """Score every estimator of :data:`ESTIMATORS` over :func:`benchmark_cases` (an evenly
-    spaced subset of ``max_cases`` when given), using ``workers`` processes (default: the CPU
-    count, at most 4; 1 runs in this process)."""
-    cases = benchmark_cases(quick, seed)
-    if max_cases is not None and max_cases < len(cases):
-        cases = [cases[i] for i in np.linspace(0, len(cases) - 1, max_cases).astype(int)]
+    n_cases: int = 1500, seed: int = 0, workers: int | None = None,
+    estimators: tuple[str, ...] | None = None,
+) -> tuple[list[Case], list[Score]]:
+    """Score ``estimators`` (default all of :data:`ESTIMATORS`) on :func:`benchmark_cases`,
+    using ``workers`` processes (default 2; 1 runs in this process)."""
+    names = estimators or tuple(ESTIMATORS)
+    cases = benchmark_cases(n_cases, seed)
     indexed = list(enumerate(cases))
-    n_workers = workers if workers is not None else min(os.cpu_count() or 1, 4)
+    n_workers = workers if workers is not None else min(os.cpu_count() or 1, 2)
     if n_workers > 1 and len(indexed) > 50:
         chunks = [indexed[i :: n_workers * 4] for i in range(n_workers * 4)]
         with ProcessPoolExecutor(max_workers=n_workers) as pool:
-            rows = [row for part in pool.map(_evaluate, chunks) for row in part]
+            parts = pool.map(_evaluate, chunks, [names] * len(chunks))
+            rows = [row for part in parts for row in part]
     else:
-        rows = _evaluate(indexed)
-    times = _time_estimators(20 if quick or max_cases else 60, seed)
-
-    scores = []
-    for name in ESTIMATORS:
-        errors, errors20, sat_errors, flat_calls, missed = [], [], [], [], []
-        by_period: dict[float, list[float]] = {}
-        for index, est, modulation, resolved in rows:
-            if est != name:
-                continue
-            case = cases[index]
-            if case.modulation == 0.0:
-                flat_calls.append(resolved)
-                continue
-            if not _is_measurable(case):
-                continue
-            err = modulation - case.truth
-            if case.exposure_scale > 1.0:
-                sat_errors.append(err)
-                continue
-            errors.append(err)
-            missed.append(not resolved)
-            by_period.setdefault(case.px_per_period, []).append(err)
-            if case.snr * math.sqrt(case.n_frames) >= TARGET_SNR:
-                errors20.append(err)
-        e, e20 = np.asarray(errors), np.asarray(errors20)
-
-        def rms(a: np.ndarray) -> float:
-            return float(np.sqrt(np.mean(np.square(a)))) if len(a) else math.nan
-
-        scores.append(
-            EstimatorScore(
-                estimator=name,
-                n_cases=len(cases),
-                bias=float(e.mean()) if e.size else math.nan,
-                rmse=rms(e),
-                rmse_snr20=rms(e20),
-                within_target_snr20=float(np.mean(np.abs(e20) <= TARGET_ERROR))
-                if e20.size
-                else math.nan,
-                saturated_bias=float(np.mean(sat_errors)) if sat_errors else math.nan,
-                wrong_resolved=float(np.mean(flat_calls)) if flat_calls else math.nan,
-                wrong_unresolved=float(np.mean(missed)) if missed else math.nan,
-                us_per_roi_2000px=times[name],
-                rmse_by_px_per_period={
-                    p: rms(np.asarray(v)) for p, v in sorted(by_period.items(), reverse=True)
-                },
-            )
-        )
-    return scores
+        rows = _evaluate(indexed, names)
+    return cases, score(cases, rows, names)
 
 
-def recommend(scores: list[EstimatorScore]) -> str:
-    """The estimator with the smallest RMSE at SNR >= 20 among those with a false "resolved"
-    rate of at most 2 %."""
-    ok = [s for s in scores if not s.wrong_resolved > 0.02] or scores
-    return min(
-        ok, key=lambda s: s.rmse_snr20 if math.isfinite(s.rmse_snr20) else math.inf
-    ).estimator
+def time_per_roi(name: str, shape: tuple[int, int], repeats: int = 15, seed: int = 0) -> float:
+    """Median microseconds of :func:`estimate_modulation` on oblique 8 px bars of ``shape``
+    (frequency given, orientation not), best of 3 per ROI."""
+    rng = np.random.default_rng(seed)
+    per = []
+    for i in range(repeats):
+        bar = BarCase(shape=shape, px_per_period=8.0, angle_deg=20.0 + i, noise_sigma=2.0,
+                      electrons_per_dn=20.0, phase=float(rng.uniform()))
+        roi = render(bar, rng)
+        best = math.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            estimate_modulation(roi, estimator=name, freq_cycles_per_px=0.125)
+            best = min(best, time.perf_counter() - t0)
+        per.append(best)
+    return 1e6 * float(np.median(per))
 
 
-def format_table(scores: list[EstimatorScore]) -> str:
-    """Plain-text tables: the summary per estimator, then RMSE by pixels per period."""
-    head = (
-        f"{'estimator':<10} {'bias':>7} {'RMSE':>6} {'RMSE@20':>7} {'<=0.02@20':>9} "
-        f"{'sat bias':>8} {'wrong-res':>9} {'wrong-unres':>11} {'us/ROI':>7}"
-    )
+def format_table(scores: list[Score]) -> str:
+    """Plain-text table, one line per estimator and bucket."""
+    head = (f"{'estimator':<14} {'bucket':<17} {'n':>5} {'bias':>7} {'RMSE':>6} {'<=.02':>6} "
+            f"{'<=.03':>6} {'wrong res':>10} {'wrong unres':>11} {'cover95':>7} {'us':>7}")
     lines = [head, "-" * len(head)]
+    last = ""
     for s in scores:
+        if s.estimator != last and last:
+            lines.append("")
+        last = s.estimator
+        wres = f"{s.wrong_resolved}/{s.n_negative}" if s.bucket == "all" else ""
         lines.append(
-            f"{s.estimator:<10} {s.bias:>+7.3f} {s.rmse:>6.3f} {s.rmse_snr20:>7.3f} "
-            f"{100 * s.within_target_snr20:>8.0f}% {s.saturated_bias:>+8.3f} "
-            f"{100 * s.wrong_resolved:>8.1f}% {100 * s.wrong_unresolved:>10.1f}% "
-            f"{s.us_per_roi_2000px:>7.0f}"
+            f"{s.estimator:<14} {s.bucket:<17} {s.n:>5} {s.bias:>+7.3f} {s.rmse:>6.3f} "
+            f"{100 * s.within_002:>5.0f}% {100 * s.within_003:>5.0f}% {wres:>10} "
+            f"{s.wrong_unresolved:>11} {100 * s.coverage:>6.0f}% {s.us_median:>7.0f}"
         )
-    periods = sorted({p for s in scores for p in s.rmse_by_px_per_period}, reverse=True)
-    lines.append("")
-    lines.append("RMSE by px per period " + " ".join(f"{p:>6g}" for p in periods))
-    for s in scores:
-        vals = " ".join(f"{s.rmse_by_px_per_period.get(p, math.nan):>6.3f}" for p in periods)
-        lines.append(f"  {s.estimator:<19} {vals}")
+    return "\n".join(lines)
+
+
+def format_speed(names: tuple[str, ...], shapes: tuple[tuple[int, int], ...]) -> str:
+    """Median microseconds per ROI for each estimator and ROI shape (in this process)."""
+    head = f"{'us per ROI':<14} " + " ".join(f"{f'{h}x{w}':>10}" for h, w in shapes)
+    lines = [head]
+    for name in names:
+        reps = [15 if h * w <= 40_000 else 3 for h, w in shapes]
+        vals = [time_per_roi(name, s, r) for s, r in zip(shapes, reps, strict=True)]
+        lines.append(f"{name:<14} " + " ".join(f"{v:>10.0f}" for v in vals))
     return "\n".join(lines)

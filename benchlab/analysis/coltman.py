@@ -52,9 +52,10 @@ class CtfToMtf:
     freqs_lp_per_mm, ctf, mtf : ndarray
         Input frequencies and CTF, and the sine-wave MTF.
     method : tuple of str
-        ``"pi/4"`` (f above f_c/3: exact), ``"coltman"`` (every needed harmonic measured or
-        above cutoff), or ``"truncated"`` (some harmonic below cutoff was not measured and was
-        taken as 0).
+        ``"pi/4"`` (f above a *given* cutoff's third: exact), ``"coltman"`` (every needed
+        harmonic measured or above cutoff), or ``"truncated"`` (some harmonic below the cutoff
+        - or, with no cutoff given, above the highest measured frequency - was not measured
+        and was taken as 0).
     """
 
     freqs_lp_per_mm: npt.NDArray[np.float64]
@@ -108,7 +109,12 @@ def ctf_to_mtf(
     methods: list[str] = []
     for i, fi in enumerate(f):
         total = 0.0
-        method = "pi/4" if 3 * fi > limit else "coltman"
+        if 3 * fi > limit:
+            # Only a known cutoff makes the one-term series exact; without one, CTF(3f) and up
+            # were never measured and are merely assumed to be 0.
+            method = "pi/4" if cutoff_lp_per_mm is not None else "truncated"
+        else:
+            method = "coltman"
         for k in range(1, max_harmonic + 1, 2):
             b = coltman_coefficient(k)
             fk = k * fi

@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.histogram import histogram_peak, manual_peaks
+from benchlab.analysis.profilefit import _model_sd, profile_fit
 from benchlab.analysis.result import (
     NYQUIST_CYCLES_PER_PX,
     ModulationResult,
@@ -409,8 +410,50 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
     return resolved(name, dark, bright, modulation, diag, sd, warnings)
 
 
+def _aliased(name: str, prep: PreparedROI) -> ModulationResult:
+    """Period under 2 px: never a number - "not resolved (aliased)"."""
+    return unresolved(
+        name, prep.diagnostics(), (*prep.warnings, "not resolved (aliased): period < 2 px")
+    )
+
+
 PreparedEstimator = Callable[[PreparedROI], ModulationResult]
+def _phase_gap(prep: PreparedROI) -> float:
+    """Largest gap between the phases of the lines across axis-aligned bars (given orientation
+    and frequency); 0 when either is unknown (the bars are then found at any angle)."""
+    f = prep.freq_cycles_per_px
+    if not f or not prep.orientation_given:
+        return 0.0
+    n = prep.pixels.shape[prep.axis]
+    phases = np.sort(np.mod(f * np.arange(n), 1.0))
+    return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
+
+
+#: Below this many pixels, on axis-aligned bars of given frequency (the forward view's USAF
+#: elements, 3 x 5 to 9 x 10 px), the square-wave model has more freedom than the few lines
+#: across the bars can pin down; the harmonic series of ``sinefit`` is fitted instead.
+TINY_ROI_PIXELS = 100
+
+
+def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
+    """``profilefit``; on tiny ROIs of axis-aligned bars of given frequency, the harmonic
+    series of ``sinefit`` along the axis, relabelled, with the model and sampling-phase term
+    (largest gap between the lines' bar phases) in its uncertainty."""
+    name = "profilefit-fast" if fast else "profilefit"
+    if prep.orientation_given and prep.freq_cycles_per_px and prep.pixels.size < TINY_ROI_PIXELS:
+        r = sine_fit(prep)
+        warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
+        if not r.resolved:
+            return r.with_updates(estimator=name, warnings=warns)
+        sd = math.hypot(r.uncertainty, _model_sd(r.modulation, _phase_gap(prep), 8))
+        return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
+                        r.diagnostics, sd, warns, r.fundamental_modulation)
+    return profile_fit(prep, fast)
+
+
 _PREPARED: dict[str, PreparedEstimator] = {
+    "profilefit": _profilefit,
+    "profilefit-fast": lambda prep: _profilefit(prep, fast=True),
     "histogram": histogram_peak,
     "sinefit": sine_fit,
     "variance": variance_minus_noise,
@@ -442,10 +485,18 @@ def _public(name: str) -> Callable[..., ModulationResult]:
 
 #: Name -> ``fn(roi, *, freq_cycles_per_px, orientation, max_code, noise_sigma)``.
 ESTIMATORS: dict[str, Callable[..., ModulationResult]] = {n: _public(n) for n in _PREPARED}
-#: Chosen from ``benchlab benchmark analysis``: the smallest RMSE at SNR >= 20 (0.012 against
-#: 0.030 for the histogram peaks and 0.061 for variance-minus-noise, which assumes 50 % duty),
-#: no false "resolved" calls, and it keeps working down to 2.2 px per period.
-DEFAULT_ESTIMATOR = "sinefit"
+#: THE default estimator of the library, the CLI, the procedures (both views), the TUI live view
+#: and re-analysis: ``auto`` resolves to it. Chosen from ``benchlab benchmark analysis``: the
+#: only one accurate at every bar angle (see the README's benchmark table).
+DEFAULT_ESTIMATOR = "profilefit"
+#: The name that asks for the default.
+AUTO = "auto"
+
+
+def resolve_estimator(name: str | None) -> str:
+    """``None``, ``""`` and ``"auto"`` -> :data:`DEFAULT_ESTIMATOR`; other names unchanged."""
+    return DEFAULT_ESTIMATOR if name in (None, "", AUTO) else str(name)
+
 #: Disagreement between estimators (modulation units) above which a warning is added.
 DISAGREEMENT_TOLERANCE = 0.05
 
@@ -453,7 +504,7 @@ DISAGREEMENT_TOLERANCE = 0.05
 def estimate_modulation(
     roi: npt.ArrayLike,
     *,
-    estimator: str = DEFAULT_ESTIMATOR,
+    estimator: str = AUTO,
     freq_cycles_per_px: float | None = None,
     orientation: str | None = None,
     peaks: tuple[float, float] | None = None,
@@ -470,7 +521,8 @@ def estimate_modulation(
         2-D gray levels (rows, cols), any integer or float dtype; or a 3-D stack
         (frames, rows, cols) which is averaged (noise then comes from the frame-to-frame spread).
     estimator : str
-        A key of :data:`ESTIMATORS`: ``"histogram"``, ``"sinefit"`` or ``"variance"``.
+        ``"auto"`` (= :data:`DEFAULT_ESTIMATOR`) or a key of :data:`ESTIMATORS`:
+        ``"profilefit"``, ``"profilefit-fast"``, ``"histogram"``, ``"sinefit"``, ``"variance"``.
     freq_cycles_per_px : float, optional
         Bar frequency on the sensor in cycles/pixel (``frequency.cycles_per_px``). Above 0.5 the
         result is flagged ``aliased``; 0.35-0.5 ``phase_sensitive``; 0 gives "not resolved" for
@@ -501,8 +553,11 @@ def estimate_modulation(
     ValueError
         Unknown estimator, empty / non-finite ROI, bad frequency, orientation or noise.
     """
+    estimator = resolve_estimator(estimator)
     if peaks is None and estimator not in _PREPARED:
-        raise ValueError(f"unknown estimator {estimator!r}; choose one of {sorted(_PREPARED)}")
+        raise ValueError(
+            f"unknown estimator {estimator!r}; choose auto or one of {sorted(_PREPARED)}"
+        )
     prep = prepare_roi(
         roi,
         freq_cycles_per_px=freq_cycles_per_px,
@@ -514,6 +569,8 @@ def estimate_modulation(
         if len(peaks) != 2:
             raise ValueError(f"peaks must be (dark, bright), got {peaks!r}")
         return manual_peaks(prep, (float(peaks[0]), float(peaks[1])))
+    if prep.aliased:
+        return _aliased(estimator, prep)
     result = _PREPARED[estimator](prep)
     if bootstrap > 0:
         from benchlab.analysis.uncertainty import bootstrap_result
@@ -550,7 +607,7 @@ def compare_estimators(
         max_code=max_code,
         noise_sigma=noise_sigma,
     )
-    results = {n: _PREPARED[n](prep) for n in names}
+    results = {n: _aliased(n, prep) if prep.aliased else _PREPARED[n](prep) for n in names}
     mods = [r.modulation for r in results.values()]
     spread = float(max(mods) - min(mods)) if mods else 0.0
     out: dict[str, ModulationResult] = {}

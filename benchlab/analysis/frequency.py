@@ -40,6 +40,31 @@ def image_frequency_lp_per_mm(object_lp_per_mm: float, magnification: float) -> 
     return object_lp_per_mm * magnification
 
 
+def azimuthal_image_frequency_lp_per_mm(
+    object_lp_per_mm: float, object_radius_mm: float, image_radius_mm: float
+) -> float:
+    """Image-plane frequency of bars running along the axis of a rotationally symmetric view
+    (the radial view's *sagittal* roll: spokes).
+
+    Around the circle the azimuth is kept, so a period of the object's arc at radius ``R``
+    images onto the arc at image radius ``r``: the frequency scales by ``R / r`` (19.88 / 2.48
+    = 8.0 at the thesis's radial ROI), not by Eq. 4.1's axial magnification (17.5).
+
+    Parameters
+    ----------
+    object_lp_per_mm : float
+        Frequency of the pattern on the object cylinder (lp/mm).
+    object_radius_mm : float
+        Distance of the object cylinder from the axis (mm).
+    image_radius_mm : float
+        Distance of the measured point from the image centre on the sensor (mm).
+    """
+    if object_radius_mm <= 0 or image_radius_mm <= 0:
+        raise ValueError(f"radii must be positive, got object {object_radius_mm} mm, image "
+                         f"{image_radius_mm} mm")
+    return object_lp_per_mm * object_radius_mm / image_radius_mm
+
+
 def cycles_per_px(freq_lp_per_mm: float, pixel_pitch_um: float = PIXEL_PITCH_UM) -> float:
     """Sensor-plane frequency in cycles per pixel."""
     return freq_lp_per_mm * pixel_pitch_um / 1000.0

@@ -62,6 +62,20 @@ class Diagnostics:
         Gaussian smoothing applied to the histogram, in gray units.
     n_frames : int
         Frames averaged before analysis.
+    bar_angle_deg, bar_angle_sd_deg : float or None
+        Measured direction of intensity variation (deg from the column axis) and its
+        standard uncertainty (``profilefit``).
+    period_sd_px : float or None
+        Standard uncertainty of the measured period (px).
+    phase_cycles : float or None
+        Bar phase at the ROI centre (cycles; 0 = a bright bar centred there).
+    duty, blur_sigma_px : float or None
+        Fitted bright fraction and Gaussian blur of the imaged bar model.
+    uncertainty_noise, uncertainty_model : float or None
+        The two parts of ``uncertainty``: noise propagated through the fit, and the model and
+        sampling-phase term.
+    saturation_code : float or None
+        Top code found in the data (a plateau at the maximum) or from the bit depth.
     """
 
     n_pixels: int
@@ -77,6 +91,15 @@ class Diagnostics:
     code_step: float | None = None
     smoothing_codes: float | None = None
     n_frames: int = 1
+    bar_angle_deg: float | None = None
+    bar_angle_sd_deg: float | None = None
+    period_sd_px: float | None = None
+    phase_cycles: float | None = None
+    duty: float | None = None
+    blur_sigma_px: float | None = None
+    uncertainty_noise: float | None = None
+    uncertainty_model: float | None = None
+    saturation_code: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe mapping (non-finite numbers become ``None``)."""

@@ -50,6 +50,7 @@ class PreparedROI:
     freq_cycles_per_px: float | None
     n_frames: int
     warnings: tuple[str, ...]
+    orientation_given: bool = False
 
     @property
     def n_pixels(self) -> int:
@@ -79,6 +80,7 @@ class PreparedROI:
             phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
             code_step=self.code_step if self.integer_valued else None,
             n_frames=self.n_frames,
+            saturation_code=self.max_code if self.clipped_fraction > 0 else None,
             **extra,  # type: ignore[arg-type]
         )
 
@@ -110,6 +112,32 @@ def infer_max_code(
             return 4095.0
         return 65535.0
     return None
+
+
+#: A plateau at the top code: at least this share of the pixels (and 3) sit on the maximum ...
+PLATEAU_MIN_FRACTION = 0.005
+#: ... and at least this many times as many as in the code step just below it.
+PLATEAU_RATIO = 2.0
+
+
+def detect_plateau(values: npt.NDArray[np.generic], code_step: float) -> float | None:
+    """The maximum value when it is a saturation plateau, else ``None``.
+
+    A clipped bright level piles pixels up exactly on the top code, whatever the bit depth or
+    pedestal; an unclipped noise tail thins out towards the maximum. So the maximum counts as
+    saturation when it holds at least ``PLATEAU_MIN_FRACTION`` of the pixels (and 3) and
+    ``PLATEAU_RATIO`` times as many as the code step below it.
+    """
+    top = values.max()
+    n_top = int(np.count_nonzero(values == top))
+    if n_top < max(3, PLATEAU_MIN_FRACTION * values.size):
+        return None
+    step = code_step if code_step > 0 else 0.0
+    if step > 0:
+        n_below = int(np.count_nonzero((values >= top - step) & (values < top)))
+    else:
+        n_below = 0
+    return float(top) if n_top >= PLATEAU_RATIO * max(n_below, 1) else None
 
 
 def detect_code_step(values: npt.NDArray[np.generic]) -> float:
@@ -231,6 +259,9 @@ def prepare_roi(
     code_step = detect_code_step(values) if integer_valued else 0.0
     if max_code is None:
         max_code_f = infer_max_code(raw, code_step, raw_max) if is_int_dtype else None
+        plateau = detect_plateau(values, code_step)
+        if plateau is not None and (max_code_f is None or plateau < max_code_f):
+            max_code_f = plateau
     else:
         max_code_f = float(max_code)
     clipped = 0.0
@@ -289,4 +320,5 @@ def prepare_roi(
         freq_cycles_per_px=f,
         n_frames=n_frames,
         warnings=tuple(warnings),
+        orientation_given=orientation is not None,
     )

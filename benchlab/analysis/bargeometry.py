@@ -1,0 +1,382 @@
+"""Bar geometry measured from the ROI itself: direction, period and phase, with uncertainties.
+
+The bar pattern's fundamental is the strongest peak of the ROI's 2-D spectrum (mean and plane
+removed). Its position ``k = f (cos t, sin t)`` (cycles/px along columns x and rows y) gives the
+direction ``t`` in which the intensity varies and the frequency ``f``; its phase says where the
+bright bars are. The peak is read off a 2x zero-padded FFT (of a central crop of at most
+``FFT_CROP_PX`` for large ROIs), then refined by parabolic interpolation of the DFT magnitude
+evaluated directly on the whole ROI, so the refinement sees every pixel and costs linear time.
+
+Spokes and rings (the radial view) are not straight parallel bars: the local frequency vector
+drifts across the ROI. When the ROI is large enough, the peak is also refined in its four
+quadrants and the drift is kept as a phase curvature ``1/2 r^T H r`` (cycles) when it moves the
+phase by more than ``CURVATURE_MIN_CYCLES`` at the ROI corners.
+
+A frequency given by the caller (``--freq``) is a prior: the search is limited to 0.6-1.6 times
+it, and a measured frequency that disagrees beyond its uncertainty is reported as a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+import numpy.typing as npt
+from scipy import fft as sfft
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Largest square (px) the initial FFT looks at; the refinement uses the whole ROI.
+FFT_CROP_PX = 128
+#: Search band around a given frequency (fraction of it).
+PRIOR_BAND = (0.6, 1.6)
+#: Phase curvature smaller than this at the ROI corners (cycles) is ignored.
+CURVATURE_MIN_CYCLES = 0.05
+#: A peak outside the prior's band wins when this many times stronger than the band's best.
+WIDE_PEAK_RATIO = 1.3
+#: Relative frequency disagreement always tolerated (the USAF magnification is nominal).
+FREQ_TOLERANCE = 0.03
+
+
+@dataclass(frozen=True)
+class BarGeometry:
+    """Direction, frequency and phase of the bars in one ROI.
+
+    Attributes
+    ----------
+    theta_rad : float
+        Direction in which the intensity varies, from the column axis towards the row axis.
+    freq_cycles_per_px : float
+        Bar frequency along that direction (at the ROI centre).
+    phase_cycles : float
+        Fundamental phase at the ROI centre: the bright-bar centre sits where
+        ``f u + phase_cycles`` is an integer.
+    amplitude : float
+        Fundamental amplitude (gray units).
+    theta_sd_rad, freq_sd, phase_sd : float
+        Standard uncertainties from the noise.
+    hessian : (float, float, float)
+        Phase curvature ``(hxx, hxy, hyy)`` in cycles/px^2 (zeros for straight bars).
+    """
+
+    theta_rad: float
+    freq_cycles_per_px: float
+    phase_cycles: float
+    amplitude: float
+    theta_sd_rad: float
+    freq_sd: float
+    phase_sd: float
+    hessian: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def k_xy(self) -> tuple[float, float]:
+        """Frequency vector (cycles/px along x = columns, y = rows)."""
+        f = self.freq_cycles_per_px
+        return f * math.cos(self.theta_rad), f * math.sin(self.theta_rad)
+
+    @property
+    def px_per_period(self) -> float:
+        return 1.0 / self.freq_cycles_per_px
+
+
+def _centred_grid(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+    rows, cols = shape
+    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    return y, x
+
+
+def detrend(img: FloatArray) -> FloatArray:
+    """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS)."""
+    y, x = _centred_grid((img.shape[0], img.shape[1]))
+    out = img - float(img.mean())
+    if img.shape[1] > 1:
+        gx = float((out.sum(axis=0) * x).sum()) / (float((x * x).sum()) * img.shape[0])
+        out = out - gx * x[None, :]
+    if img.shape[0] > 1:
+        gy = float((out.sum(axis=1) * y).sum()) / (float((y * y).sum()) * img.shape[1])
+        out = out - gy * y[:, None]
+    return out
+
+
+def dft_at(img: FloatArray, kx: float, ky: float) -> complex:
+    """``sum I exp(-2 pi i (kx x + ky y))`` over the ROI, coordinates from its centre."""
+    y, x = _centred_grid((img.shape[0], img.shape[1]))
+    ex = np.exp(-2j * math.pi * kx * x)
+    ey = np.exp(-2j * math.pi * ky * y)
+    return complex(((img * ex[None, :]).sum(axis=1) * ey).sum())
+
+
+def _dft_grid(img: FloatArray, kxs: FloatArray, kys: FloatArray) -> npt.NDArray[np.complex128]:
+    """DFT on the grid ``kys x kxs`` (rows, cols) by two separable passes."""
+    y, x = _centred_grid((img.shape[0], img.shape[1]))
+    ex = np.exp(-2j * math.pi * np.outer(x, kxs))  # (cols, nkx)
+    ey = np.exp(-2j * math.pi * np.outer(kys, y))  # (nky, rows)
+    # (rows, cols) x (cols, nkx) as broadcast reductions: cost linear in the pixel count.
+    per_row = (img[:, :, None] * ex[None, :, :]).sum(axis=1)  # (rows, nkx)
+    return (ey[:, :, None] * per_row[None, :, :]).sum(axis=1)  # (nky, nkx)
+
+
+def _parabola_offset(m: FloatArray) -> float:
+    """Vertex offset (in steps) of a parabola through three samples, within +-1."""
+    den = m[0] - 2.0 * m[1] + m[2]
+    if den >= 0:
+        return 0.0
+    return float(np.clip(0.5 * (m[0] - m[2]) / den, -1.0, 1.0))
+
+
+def refine_peak(
+    img: FloatArray, kx: float, ky: float, step: float, iterations: int = 2
+) -> tuple[float, float]:
+    """Refine a spectral peak: a 3x3 grid of direct DFTs at ``step`` around it, a parabola on
+    each axis of the log magnitude, repeated with half the step."""
+    for _ in range(iterations):
+        offsets = step * np.arange(-1, 2, dtype=np.float64)
+        grid = _dft_grid(img, np.asarray(kx + offsets, np.float64),
+                         np.asarray(ky + offsets, np.float64))
+        mag = np.log(np.abs(grid) + 1e-300)
+        j, i = np.unravel_index(int(np.argmax(mag)), mag.shape)
+        if (i, j) != (1, 1):  # the peak moved: recentre before interpolating
+            kx += (int(i) - 1) * step
+            ky += (int(j) - 1) * step
+            continue
+        kx += step * _parabola_offset(mag[1, :])
+        ky += step * _parabola_offset(mag[:, 1])
+        step /= 2.0
+    return kx, ky
+
+
+def _fft_peak(
+    img: FloatArray, f_lo: float, f_hi: float
+) -> tuple[float, float, float] | None:
+    """Strongest peak ``(kx, ky, magnitude)`` of the zero-padded 2-D spectrum with
+    ``f_lo <= |k| <= f_hi`` (half plane kx >= 0); ``None`` when no bin qualifies."""
+    rows, cols = img.shape
+    r0, c0 = max(0, (rows - FFT_CROP_PX) // 2), max(0, (cols - FFT_CROP_PX) // 2)
+    crop = img[r0 : r0 + FFT_CROP_PX, c0 : c0 + FFT_CROP_PX]
+    nr = sfft.next_fast_len(max(2 * crop.shape[0], 16))
+    nc = sfft.next_fast_len(max(2 * crop.shape[1], 16))
+    spec = np.abs(sfft.rfft2(crop, s=(nr, nc)))
+    ky = np.fft.fftfreq(nr)[:, None]
+    kx = np.fft.rfftfreq(nc)[None, :]
+    kk = np.hypot(kx, ky)
+    ok = (kk >= f_lo) & (kk <= f_hi)
+    if not ok.any():
+        return None
+    spec = np.where(ok, spec, -1.0)
+    j, i = np.unravel_index(int(np.argmax(spec)), spec.shape)
+    return float(kx[0, i]), float(ky[j, 0]), float(spec[j, i])
+
+
+def measure_geometry(
+    img: FloatArray,
+    noise_sigma: float,
+    freq_prior: float | None = None,
+    curvature: bool = True,
+) -> BarGeometry | None:
+    """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
+
+    Parameters
+    ----------
+    img : ndarray, shape (rows, cols)
+        The ROI in gray units.
+    noise_sigma : float
+        Per-pixel noise (for the uncertainties).
+    freq_prior : float, optional
+        Expected frequency (cycles/px, below Nyquist): the search band is 0.6-1.6 times it.
+    curvature : bool
+        Also measure the phase curvature of spokes or rings.
+
+    Returns
+    -------
+    BarGeometry or None
+        ``None`` when the ROI is too small for any spectral peak.
+    """
+    rows, cols = img.shape
+    if rows * cols < 4:
+        return None
+    resid = detrend(img)
+    extent = math.hypot(rows, cols)
+    if freq_prior:
+        f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
+    else:
+        f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
+    peak = _fft_peak(resid, f_lo, f_hi)
+    if freq_prior:
+        # The prior is a cross-check, not a cage: a fundamental several times stronger than
+        # anything in the band (a wrong magnification puts a harmonic there) wins, and the
+        # disagreement is reported by the caller.
+        wide = _fft_peak(resid, 0.7 / max(rows, cols), 0.5 * math.sqrt(2))
+        # A band maximum on the band's edge is the skirt of a peak outside it.
+        on_edge = peak is not None and min(
+            abs(math.hypot(peak[0], peak[1]) - f_lo), abs(math.hypot(peak[0], peak[1]) - f_hi)
+        ) < 1.0 / max(rows, cols)
+        if wide is not None and (
+            peak is None or wide[2] > WIDE_PEAK_RATIO * peak[2] or (on_edge and wide[2] > peak[2])
+        ):
+            peak = wide
+    if peak is None:
+        if not freq_prior:
+            return None
+        peak = (freq_prior, 0.0, 0.0) if cols >= rows else (0.0, freq_prior, 0.0)
+    step = 0.5 / max(rows, cols)
+    kx, ky = refine_peak(resid, peak[0], peak[1], step)
+    f = math.hypot(kx, ky)
+    if freq_prior and not (f_lo <= f <= f_hi) and f_lo <= math.hypot(peak[0], peak[1]) <= f_hi:
+        # The refinement walked out of the band (noise): keep the prior's magnitude.
+        scale = freq_prior / max(f, 1e-12)
+        kx, ky, f = kx * scale, ky * scale, freq_prior
+    if f <= 0:
+        return None
+    theta = math.atan2(ky, kx)
+    if theta <= -math.pi / 2 + 1e-12:
+        theta += math.pi
+    elif theta > math.pi / 2:
+        theta -= math.pi
+    # The phase belongs to the normalised direction (the opposite k is the conjugate peak).
+    kx, ky = f * math.cos(theta), f * math.sin(theta)
+    value = dft_at(resid, kx, ky)
+    n = rows * cols
+    amplitude = 2.0 * abs(value) / n
+    # F ~ (A n / 2) e^{i psi} for A cos(2 pi k.r + psi): bright-bar centres where k.r + psi/2pi
+    # is an integer.
+    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
+    # Cramer-Rao-like spreads for one sinusoid in white noise.
+    snr = amplitude / max(noise_sigma, 1e-12)
+    y, x = _centred_grid((rows, cols))
+    s_u = math.sqrt(float((x * x).mean()) * math.cos(theta) ** 2
+                     + float((y * y).mean()) * math.sin(theta) ** 2)
+    s_v = math.sqrt(float((x * x).mean()) * math.sin(theta) ** 2
+                     + float((y * y).mean()) * math.cos(theta) ** 2)
+    base = 1.0 / (math.pi * max(snr, 1e-12) * math.sqrt(2.0 * n))
+    freq_sd = base / max(s_u, 0.5)
+    theta_sd = base / max(s_v, 0.5) / f
+    phase_sd = base * math.sqrt(2.0) / 2.0
+    hess = (0.0, 0.0, 0.0)
+    geom = BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd, hess)
+    if curvature and min(rows, cols) >= 16 and f * extent >= 10:
+        hess = _curvature(resid, kx, ky, step)
+        if any(hess):
+            # Kept only when the pixels then fold onto one period more sharply (noise does
+            # not make a consistent curvature).
+            n_bins = int(min(32, max(8, resid.size // 8)))
+            curved = replace(geom, hessian=hess)
+            if _fold_contrast(resid, curved, n_bins) > 1.001 * _fold_contrast(resid, geom, n_bins):
+                geom = curved
+    return geom
+
+
+def _curvature(resid: FloatArray, kx: float, ky: float, step: float) -> tuple[float, float, float]:
+    """Phase curvature from the frequency vectors of the four quadrants (see module doc)."""
+    rows, cols = resid.shape
+    hr, hc = rows // 2, cols // 2
+    quads = {}
+    for qr, (r0, r1) in enumerate(((0, hr), (rows - hr, rows))):
+        for qc, (c0, c1) in enumerate(((0, hc), (cols - hc, cols))):
+            sub = resid[r0:r1, c0:c1]
+            qkx, qky = refine_peak(sub, kx, ky, 2 * step, iterations=3)
+            centre = ((r0 + r1 - 1) / 2 - (rows - 1) / 2, (c0 + c1 - 1) / 2 - (cols - 1) / 2)
+            quads[(qr, qc)] = (centre, qkx, qky)
+    dy = quads[(1, 0)][0][0] - quads[(0, 0)][0][0]
+    dx = quads[(0, 1)][0][1] - quads[(0, 0)][0][1]
+    if dx <= 0 or dy <= 0:
+        return (0.0, 0.0, 0.0)
+    # Gradients of kx and ky along x and y, averaged over the two pairs of quadrants.
+    dkx_dx = ((quads[(0, 1)][1] - quads[(0, 0)][1]) + (quads[(1, 1)][1] - quads[(1, 0)][1])) / (
+        2 * dx
+    )
+    dky_dy = ((quads[(1, 0)][2] - quads[(0, 0)][2]) + (quads[(1, 1)][2] - quads[(0, 1)][2])) / (
+        2 * dy
+    )
+    dkx_dy = ((quads[(1, 0)][1] - quads[(0, 0)][1]) + (quads[(1, 1)][1] - quads[(0, 1)][1])) / (
+        2 * dy
+    )
+    dky_dx = ((quads[(0, 1)][2] - quads[(0, 0)][2]) + (quads[(1, 1)][2] - quads[(1, 0)][2])) / (
+        2 * dx
+    )
+    hxy = 0.5 * (dkx_dy + dky_dx)
+    corner = (cols / 2.0, rows / 2.0)
+    worst = 0.0
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            x, y = sx * corner[0], sy * corner[1]
+            worst = max(worst, abs(0.5 * (dkx_dx * x * x + 2 * hxy * x * y + dky_dy * y * y)))
+    if worst < CURVATURE_MIN_CYCLES:
+        return (0.0, 0.0, 0.0)
+    return (dkx_dx, hxy, dky_dy)
+
+
+def _fold_contrast(img: FloatArray, geom: BarGeometry, n_bins: int) -> float:
+    """How sharply the pixels fold onto one period: the variance of the phase-binned means
+    weighted by their counts (largest at the right direction and frequency)."""
+    phi = phase_map((img.shape[0], img.shape[1]), geom)
+    idx = ((phi - np.floor(phi)) * n_bins).astype(np.intp) % n_bins
+    flat = img.ravel()
+    count = np.bincount(idx.ravel(), minlength=n_bins)
+    sums = np.bincount(idx.ravel(), weights=flat, minlength=n_bins)
+    ok = count > 0
+    return float((sums[ok] ** 2 / count[ok]).sum())
+
+
+def refine_by_folding(img: FloatArray, geom: BarGeometry, fix_freq: bool) -> BarGeometry:
+    """Refine the direction (and the frequency unless ``fix_freq``) so that the pixels fold
+    most sharply onto one bar period. On small ROIs and few periods the spectral peak is pulled
+    by its own side lobes and by the opposite peak; folding uses the bar edges themselves."""
+    n_bins = int(min(32, max(8, img.size // 8)))
+    resid = img - float(img.mean())
+    start = geom
+    f = geom.freq_cycles_per_px
+    h_theta = min(max(2.0 * geom.theta_sd_rad, math.radians(0.2)), math.radians(2.0))
+    steps: list[tuple[str, float]] = [("theta", h_theta)]
+    if not fix_freq:
+        steps.append(("freq", min(max(2.0 * geom.freq_sd, 0.003 * f), 0.02 * f)))
+    for _ in range(2):
+        for name, h in steps:
+            base = getattr(geom, "theta_rad" if name == "theta" else "freq_cycles_per_px")
+            vals = []
+            for j in range(-2, 3):
+                trial = replace(geom, **{("theta_rad" if name == "theta" else
+                                          "freq_cycles_per_px"): base + j * h})
+                vals.append(_fold_contrast(resid, trial, n_bins))
+            best = int(np.argmax(vals))
+            offset = 0.0
+            if 0 < best < 4:
+                offset = _parabola_offset(np.asarray(vals[best - 1 : best + 2]))
+            new = base + (best - 2 + offset) * h
+            geom = replace(geom, **{("theta_rad" if name == "theta" else
+                                     "freq_cycles_per_px"): new})
+    if _fold_contrast(resid, geom, n_bins) <= 1.001 * _fold_contrast(resid, start, n_bins):
+        return start  # no clear gain: the spectral estimate stands
+    # The phase at the centre for the refined direction and frequency.
+    kx, ky = geom.k_xy
+    value = dft_at(detrend(img), kx, ky)
+    return replace(geom, phase_cycles=math.atan2(value.imag, value.real) / (2 * math.pi))
+
+
+def phase_map(shape: tuple[int, int], geom: BarGeometry) -> FloatArray:
+    """Fundamental phase (cycles) of every pixel: ``k . r + 1/2 r^T H r + phase``; the bright
+    bar centres sit at integers."""
+    from benchlab.analysis.projection import across_coordinate
+
+    u = across_coordinate(shape, geom.theta_rad)
+    phi = geom.freq_cycles_per_px * u + geom.phase_cycles
+    hxx, hxy, hyy = geom.hessian
+    if hxx or hxy or hyy:
+        y, x = _centred_grid(shape)
+        phi = phi + 0.5 * (hxx * (x * x)[None, :] + 2 * hxy * np.outer(y, x)
+                           + hyy * (y * y)[:, None])
+    return phi
+
+
+def frequency_disagreement(geom: BarGeometry, freq_prior: float | None) -> str | None:
+    """A warning when the measured frequency is off the prior beyond 3 sigma and 3 %."""
+    if not freq_prior:
+        return None
+    f = geom.freq_cycles_per_px
+    if abs(f - freq_prior) > 3.0 * geom.freq_sd + FREQ_TOLERANCE * freq_prior:
+        return (
+            f"measured period {1 / f:.2f} px (+-{geom.freq_sd / f**2:.2f}) disagrees with the "
+            f"given frequency ({1 / freq_prior:.2f} px per period); the measured one is used"
+        )
+    return None

@@ -1,0 +1,530 @@
+"""``profilefit``: a model of the imaged bar pattern fitted to the ROI's across-bar profile.
+
+1. The bars' direction, frequency and phase come from the ROI (:mod:`.bargeometry`); a given
+   frequency is only a prior and cross-check.
+2. Every pixel gets its bar phase ``w`` (cycles; the across-bar coordinate ``u = x cos t + y sin
+   t`` of :mod:`.projection` times the frequency, plus the curvature of spokes or rings) and is
+   binned finely in ``w`` with :func:`.projection.bin_profile`. Pixels from every period and at
+   every sub-pixel offset fall into the same bins: oblique bars, and periods that are not whole
+   pixels, sample the profile below one pixel.
+3. The binned profile is fitted with the imaged bar pattern: a square wave of bright fraction
+   ``duty`` blurred by a Gaussian of ``sigma`` and the exact pixel footprint at the measured
+   angle (:func:`.barmodel.fourier_gains`), between levels ``D`` and ``B``, times a linear
+   illumination shading across and along the bars (each bin carries its pixels' mean position,
+   so the shading of a bin is exact for linear shading). Levenberg-Marquardt on
+   (levels, shading, phase, duty, sigma), a weak prior holding the duty near 0.5 where the data
+   cannot tell.
+4. The Eq. 2.9 contrast is the fitted model's maximum and minimum at the ROI centre, the
+   levels never outside the samples. Noise comes from the per-pixel fit residuals (it does not
+   depend on the bar angle). The interval holds the noise (propagated through the fit), a model
+   term and a sampling-phase term (see :func:`_model_sd`).
+
+A ``fast`` variant (``profilefit-fast``) skips the curvature, fixes the duty at 0.5, fits fewer
+harmonics and iterates less; the benchmark states its accuracy cost.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from functools import lru_cache
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis import barmodel
+from benchlab.analysis.bargeometry import (
+    BarGeometry,
+    frequency_disagreement,
+    measure_geometry,
+    phase_map,
+    refine_by_folding,
+)
+from benchlab.analysis.projection import across_coordinate, bin_profiles
+from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
+from benchlab.analysis.roi import PreparedROI
+
+NAME = "profilefit"
+FAST_NAME = "profilefit-fast"
+#: Significance of the fitted fundamental (amplitude over ``noise sqrt(2 / n)``) for
+#: "resolved": the spectral search tries up to ~n/2 frequencies, whose noise maximum is ~4.5.
+RESOLVED_Z = 6.0
+#: Prior on the duty (bright fraction): 0.5 +- this, weighted like one pixel.
+DUTY_PRIOR_SD = 0.1
+DUTY_BOUNDS = (0.2, 0.8)
+#: Most phase bins and harmonics (full and fast modes).
+MAX_BINS, MAX_BINS_FAST = 64, 32
+MAX_HARMONICS, MAX_HARMONICS_FAST = 48, 12
+#: Shading terms only with at least this many filled phase bins ...
+MIN_BINS_SHADING = 14
+#: ... and shading across the bars only over this many periods (fewer: it mimics the bars).
+MIN_PERIODS_ACROSS_SHADING = 3.0
+#: Scale of the ridge on the shading terms (relative shading over the half span).
+SHADING_PRIOR = 0.5
+#: Relative model uncertainty of the contrast (PSF shape, duty and shading not exactly as
+#: modelled), calibrated on ``benchlab benchmark analysis``.
+MODEL_REL_SD = 0.01
+#: Direction and frequency are refined by folding on ROIs narrower than 16 px spanning fewer
+#: periods than this, where the spectral peak is biased by its side lobes.
+FOLD_REFINE_PERIODS = 6.0
+#: Below this many pixels the given frequency and orientation are used as they are (a few
+#: dozen pixels cannot overrule the chart's design).
+PRIORS_RULE_PIXELS = 100
+#: The fast mode's model term: its duty is fixed at 0.5 and its series shorter (calibrated on
+#: ``benchlab benchmark analysis``: RMSE ~0.04 on 2,000-pixel ROIs).
+MODEL_REL_SD_FAST = 0.06
+#: Angle disagreement (deg) with a given axis orientation tolerated before a warning.
+ANGLE_TOLERANCE_DEG = 2.0
+_GRID_N = 256
+_GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
+
+
+@lru_cache(maxsize=64)
+def _grid_trig(n_harm: int) -> tuple[FloatArray, FloatArray]:
+    """cos and sin of ``2 pi k w`` on the phase grid (read-only, cached per harmonic count)."""
+    arg = (2.0 * math.pi) * np.outer(_GRID, np.arange(1, n_harm + 1, dtype=np.float64))
+    c, s = np.cos(arg), np.sin(arg)
+    c.setflags(write=False)
+    s.setflags(write=False)
+    return c, s
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class _Model:
+    """The blurred square wave on fixed phase samples, with its derivatives."""
+
+    def __init__(
+        self, w: FloatArray, freq: float, theta: float, n_harm: int,
+        w_var: FloatArray | None = None,
+    ) -> None:
+        self.k = np.arange(1, n_harm + 1, dtype=np.float64)
+        arg = (2.0 * math.pi) * np.outer(w, self.k)
+        self.c, self.s = np.cos(arg), np.sin(arg)
+        if w_var is not None:
+            # A bin averages the profile over its pixels' spread of phases (variance w_var):
+            # each harmonic is damped like a Gaussian average of that variance.
+            damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
+            self.c *= damp
+            self.s *= damp
+        self.fk = freq * self.k
+        a, b = barmodel.footprint_sides(theta)
+        self.footprint = np.sinc(self.fk * a) * np.sinc(self.fk * b)
+
+    def at(self, w: FloatArray | None) -> _Model:
+        """The same model on other phase samples (``None``: the cached phase grid)."""
+        other = _Model.__new__(_Model)
+        other.k, other.fk, other.footprint = self.k, self.fk, self.footprint
+        if w is None:
+            other.c, other.s = _grid_trig(self.k.size)
+        else:
+            arg = (2.0 * math.pi) * np.outer(w, self.k)
+            other.c, other.s = np.cos(arg), np.sin(arg)
+        return other
+
+    def eval(
+        self, delta: float, duty: float, sigma: float, derivatives: bool = True
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """Bright fraction at the samples and its derivatives (n, 3) in (delta, duty, sigma)."""
+        k = self.k
+        gain = np.exp(-2.0 * (math.pi * sigma) ** 2 * self.fk**2) * self.footprint
+        alpha = (2.0 / math.pi) * np.sin(math.pi * duty * k) / k * gain
+        cd, sd = np.cos((2 * math.pi * delta) * k), np.sin((2 * math.pi * delta) * k)
+        cos_part = self.c * cd
+        cos_part += self.s * sd  # cos(2 pi k (w - delta))
+        value = duty + cos_part @ alpha
+        if not derivatives:
+            return value, None
+        out = np.empty((value.size, 3))
+        sin_part = self.c * sd
+        sin_part -= self.s * cd
+        out[:, 0] = sin_part @ (alpha * (2.0 * math.pi) * k)
+        out[:, 1] = 1.0 + cos_part @ (2.0 * np.cos(math.pi * duty * k) * gain)
+        out[:, 2] = cos_part @ (alpha * (-4.0 * math.pi**2 * sigma) * self.fk**2)
+        return value, out
+
+
+class _Fit:
+    """Levenberg-Marquardt fit of levels, shading, phase, duty and blur to the binned profile.
+
+    Parameters: ``[D, B - D, (shading along: v, s v), (across: u, s u), delta, duty, sigma]``.
+    """
+
+    def __init__(
+        self, model: _Model, y: FloatArray, weight: FloatArray, ub: FloatArray,
+        vb: FloatArray, n_lin: int, prior_scale: float, fit_duty: bool, sigma_max: float,
+    ) -> None:
+        self.model, self.y, self.n_lin = model, y, n_lin
+        self.sw = np.sqrt(weight)
+        self.extra = [vb, ub][: (n_lin - 2) // 2]
+        self.prior_scale, self.fit_duty, self.sigma_max = prior_scale, fit_duty, sigma_max
+        self.grid = model.at(None)
+        # Ridge on the shading terms: a relative shading of SHADING_PRIOR over the half span
+        # costs as much as one pixel one noise sigma off (keeps them finite when the bins'
+        # positions hardly differ).
+        self.ridge = prior_scale / (SHADING_PRIOR * max(float(np.abs(y).max()), 1e-9))
+
+    def design(self, s: FloatArray) -> FloatArray:
+        x = np.empty((s.size, self.n_lin))
+        x[:, 0] = 1.0
+        x[:, 1] = s
+        for j, t in enumerate(self.extra):
+            x[:, 2 + 2 * j] = t
+            x[:, 3 + 2 * j] = s * t
+        return x
+
+    def residuals(self, p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        n_lin, sw = self.n_lin, self.sw
+        s, ds = self.model.eval(float(p[-3]), float(p[-2]), float(p[-1]))
+        assert ds is not None
+        x = self.design(s)
+        m = s.size
+        n_shade = n_lin - 2
+        r = np.empty(m + 1 + n_shade)
+        r[:m] = sw * (self.y - x @ p[:n_lin])
+        r[m] = self.prior_scale * (p[-2] - 0.5) / DUTY_PRIOR_SD
+        r[m + 1 :] = self.ridge * p[2:n_lin]
+        slope = p[1] + sum(p[3 + 2 * j] * t for j, t in enumerate(self.extra))
+        jac = np.zeros((r.size, p.size))
+        jac[:m, :n_lin] = -sw[:, None] * x
+        jac[:m, n_lin:] = -(sw * slope)[:, None] * ds
+        jac[m, -2] = self.prior_scale / DUTY_PRIOR_SD
+        for j in range(n_shade):
+            jac[m + 1 + j, 2 + j] = self.ridge
+        if not self.fit_duty:
+            jac[:, -2] = 0.0
+        return r, jac
+
+    def start(self, sigmas: tuple[float, ...]) -> FloatArray:
+        """Starting parameters: the blur (of ``sigmas``) whose linear least-squares fit at
+        duty 0.5 leaves the smallest residual (the blur is the poorly conditioned one)."""
+        best, best_cost = None, math.inf
+        sw, ysw = self.sw[:, None], self.y * self.sw
+        n_shade = self.n_lin - 2
+        ridge = np.zeros((n_shade, self.n_lin))
+        ridge[:, 2:] = self.ridge * np.eye(n_shade)
+        ysw = np.concatenate([ysw, np.zeros(n_shade)])
+        for sigma in sigmas:
+            nl = np.array([0.0, 0.5, sigma])
+            s, _ = self.model.eval(0.0, 0.5, sigma, derivatives=False)
+            x = np.vstack([self.design(s) * sw, ridge])
+            lin = np.linalg.lstsq(x, ysw, rcond=None)[0]
+            r = ysw - x @ lin
+            cost = float(r @ r)
+            if cost < best_cost:
+                best, best_cost = np.concatenate([lin, nl]), cost
+        assert best is not None
+        return best
+
+    def _projected(self, nl: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, float]:
+        """Variable projection: the linear parameters solved exactly at the nonlinear ones
+        ``nl = (delta, duty, sigma)``; the residual and its Jacobian in ``nl`` with the linear
+        parameters' column space projected out (Kaufman), and the cost."""
+        n_lin, sw = self.n_lin, self.sw
+        s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
+        assert ds is not None
+        m, n_shade = s.size, n_lin - 2
+        xa = np.zeros((m + n_shade, n_lin))
+        xa[:m] = self.design(s) * sw[:, None]
+        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        ya = np.zeros(m + n_shade)
+        ya[:m] = self.y * sw
+        gram = xa.T @ xa
+        gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
+        try:
+            lin = np.linalg.solve(gram, xa.T @ ya)
+        except np.linalg.LinAlgError:
+            lin = np.linalg.lstsq(xa, ya, rcond=None)[0]
+        r = ya - xa @ lin
+        slope = lin[1] + sum(lin[3 + 2 * j] * t for j, t in enumerate(self.extra))
+        jac = np.zeros((m + n_shade, 3))
+        jac[:m] = -(sw * slope)[:, None] * ds
+        try:
+            jac -= xa @ np.linalg.solve(gram, xa.T @ jac)
+        except np.linalg.LinAlgError:
+            jac -= xa @ np.linalg.lstsq(xa, jac, rcond=None)[0]
+        prior_r = self.prior_scale * (nl[1] - 0.5) / DUTY_PRIOR_SD
+        r = np.append(r, prior_r)
+        jac = np.vstack([jac, [0.0, self.prior_scale / DUTY_PRIOR_SD, 0.0]])
+        if not self.fit_duty:
+            jac[:, 1] = 0.0
+        return np.concatenate([lin, nl]), r, jac, float(r @ r)
+
+    def run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
+        """Fitted parameters and ``J^T J`` of all of them (for the covariance)."""
+        params = self.start(sigmas)
+        nl = params[-3:].copy()
+        params, r, jac, cost = self._projected(nl)
+        lam = 1e-2
+        tiny = np.array([1e-5, 1e-5, 1e-5 * self.sigma_max])
+        for _ in range(max_iter):
+            jtj = jac.T @ jac
+            scale = np.diag(jtj).copy()
+            scale[scale <= 0] = 1.0
+            try:
+                step = np.linalg.solve(jtj + lam * np.diag(scale), -(jac.T @ r))
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            if np.all(np.abs(step) < tiny):
+                break
+            trial = nl + step
+            trial[0] = min(max(trial[0], -0.5), 0.5)
+            trial[1] = min(max(trial[1], DUTY_BOUNDS[0]), DUTY_BOUNDS[1])
+            if not self.fit_duty:
+                trial[1] = 0.5
+            trial[2] = min(max(trial[2], 0.0), self.sigma_max)
+            p_t, r_t, jac_t, cost_t = self._projected(trial)
+            if cost_t < cost:
+                rel = (cost - cost_t) / max(cost, 1e-300)
+                nl, params, r, jac, cost = trial, p_t, r_t, jac_t, cost_t
+                lam = max(lam / 10, 1e-9)
+                if rel < 1e-6:
+                    break
+            else:
+                lam *= 10
+        _, jac_full = self.residuals(params)
+        jtj = jac_full.T @ jac_full
+        if not self.fit_duty:  # the duty is fixed: no variance
+            jtj[:, -2] = 0.0
+            jtj[-2, :] = 0.0
+            jtj[-2, -2] = 1e30 * (float(np.abs(jtj).max()) + 1.0)
+        return params, jtj
+
+    def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray]:
+        """Dark and bright levels at the ROI centre (min and max over phase) and their
+        gradients in the parameters (envelope theorem: at the extremes' fixed phases)."""
+        s, _ = self.grid.eval(float(p[-3]), float(p[-2]), float(p[-1]), derivatives=False)
+        level = p[0] + p[1] * s
+        i_lo, i_hi = int(np.argmin(level)), int(np.argmax(level))
+        ext = self.model.at(_GRID[[i_lo, i_hi]])
+        s2, ds2 = ext.eval(float(p[-3]), float(p[-2]), float(p[-1]))
+        assert ds2 is not None
+        grads = np.zeros((2, p.size))
+        grads[:, 0] = 1.0
+        grads[:, 1] = s2
+        grads[:, -3:] = p[1] * ds2
+        return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1]
+
+
+def _model_sd(
+    modulation: float, max_gap_cycles: float, n_bins: int, rel_sd: float | None = None
+) -> float:
+    """Model and sampling-phase uncertainty of the contrast (1 sigma): a relative model term,
+    and a term growing with the largest gap between filled phase bins (where the model alone
+    says what the profile does between samples)."""
+    phase_term = 0.5 * modulation * max_gap_cycles**2
+    rel = MODEL_REL_SD if rel_sd is None else rel_sd
+    return math.hypot(rel * modulation, phase_term) + 0.5 / max(n_bins, 1) ** 2
+
+
+def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
+    """Fit the imaged bar pattern to the ROI; see the module docstring.
+
+    Parameters
+    ----------
+    prep : PreparedROI
+        The prepared ROI (:func:`benchlab.analysis.roi.prepare_roi`).
+    fast : bool
+        The ``profilefit-fast`` variant (no curvature, duty 0.5, fewer harmonics).
+
+    Returns
+    -------
+    ModulationResult
+        "not resolved" (with the reason in ``warnings``) when the fitted bar amplitude is
+        not significant, the ROI is too small, or the frequency is zero.
+    """
+    name = FAST_NAME if fast else NAME
+    warnings = list(prep.warnings)
+    img = prep.pixels
+    rows, cols = img.shape
+    n = img.size
+    f_prior = prep.freq_cycles_per_px
+    if f_prior == 0:
+        return unresolved(name, prep.diagnostics(), warnings)
+    if n < 4 or prep.vmax == prep.vmin:
+        warnings.append("too few pixels or a single gray level: no bar profile")
+        return unresolved(name, prep.diagnostics(), warnings)
+    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast)
+    if geom is None:
+        warnings.append("no bar period found in the ROI")
+        return unresolved(name, prep.diagnostics(), warnings)
+    geom = _apply_priors(prep, geom, warnings)
+    f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    if not fast and span * f < FOLD_REFINE_PERIODS and min(rows, cols) < 16:
+        axis_fixed = prep.orientation_given and (math.sin(2 * theta) == 0.0 or abs(
+            math.sin(2 * theta)) < 1e-12)
+        if not axis_fixed:
+            fixed_f = bool(f_prior) and span * f_prior < 2.0
+            geom = refine_by_folding(img, geom, fix_freq=fixed_f)
+            f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    if span * f < 1.0:
+        warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
+        return unresolved(name, prep.diagnostics(), warnings)
+
+    phi = phase_map((rows, cols), geom)
+    w = phi - np.floor(phi)
+    half = max(span / 2.0, 1.0)
+    u = across_coordinate((rows, cols), theta) / half
+    v = across_coordinate((rows, cols), theta + math.pi / 2) / half
+    n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
+    width = 1.0 / n_bins
+    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
+        w, [img, img * img, w, w * w, u, v], width
+    )
+    filled = prof.filled
+    # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
+    # bar angle (neighbour differences along an image axis do).
+    sq = sq_prof.mean[filled]
+    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
+    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
+    if prep.noise_given or scale_noise <= 0:
+        scale_noise = prep.noise_sigma
+    y = prof.mean[filled]
+    count = prof.count[filled].astype(np.float64)
+    wb = w_prof.mean[filled]
+    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
+    ub = u_prof.mean[filled]
+    vb = v_prof.mean[filled]
+    n_f = int(y.size)
+    if n_f < 3:
+        warnings.append(f"only {n_f} distinct bar phases sampled: cannot fit the profile")
+        return unresolved(name, prep.diagnostics(), warnings)
+    n_lin = 2
+    # Shading along the bars only where the bins' mean along-bar positions differ (not on
+    # axis-aligned bars, where every bin holds whole lines).
+    if n_f >= MIN_BINS_SHADING and float(vb.std()) > 0.15:
+        across = span * f >= MIN_PERIODS_ACROSS_SHADING and float(ub.std()) > 0.15
+        n_lin = 6 if across else 4
+    fit_duty = not fast and n_f >= 6
+    n_harm = int(min(MAX_HARMONICS_FAST if fast else MAX_HARMONICS, max(1, math.ceil(3.0 / f))))
+    model = _Model(wb, f, theta, n_harm, w_var)
+    period = 1.0 / f
+    fitter = _Fit(
+        model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
+        fit_duty=fit_duty, sigma_max=period,
+    )
+    starts = tuple(t * period for t in (0.0, 0.04, 0.1, 0.2, 0.35))
+    params, jtj = fitter.run(starts, max_iter=4 if fast else 12)
+
+    # Per-pixel residuals: the noise, whatever the bar angle.
+    grid_s, _ = fitter.grid.eval(
+        float(params[-3]), float(params[-2]), float(params[-1]), derivatives=False
+    )
+    s_pix = grid_s[(w.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    lin = params[:n_lin]
+    pred = lin[0] + lin[1] * s_pix
+    for j, t in enumerate((v.ravel(), u.ravel())[: (n_lin - 2) // 2]):
+        pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
+    resid = img.ravel() - pred
+    # Levels, shading, phase, blur (and duty), and the direction and frequency found.
+    n_params = n_lin + 2 + (2 if fit_duty else 1)
+    dof = max(n - n_params, 1)
+    noise = math.sqrt(float((resid * resid).sum()) / dof)
+    if prep.integer_valued:
+        noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+    if prep.noise_given:
+        noise = prep.noise_sigma
+
+    dark, bright, g_dark, g_bright = fitter.levels(params)
+    cov = noise**2 * _scaled_pinv(jtj)
+    total = bright + dark
+    grad_m = (2.0 * dark * g_bright - 2.0 * bright * g_dark) / total**2 if total > 0 else g_dark * 0
+    mean_level = params[0] + params[1] * params[-2]
+    a1 = abs(params[1]) * 2.0 * math.sin(math.pi * params[-2]) / math.pi * float(
+        math.exp(-2.0 * (math.pi * params[-1] * f) ** 2) * model.footprint[0]
+    )
+    # Significance of the fundamental against the noise of n pixels: the fitted one, and the
+    # one of the ROI with its mean and plane removed (a shading ramp is not bars).
+    se_a1 = noise * math.sqrt(2.0 / n)
+    a1_test = min(a1, geom.amplitude)
+    z = a1_test / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
+    diag = prep.diagnostics()
+    diag = replace(
+        diag,
+        noise_sigma=noise,
+        px_per_period=period,
+        freq_cycles_per_px=f,
+        bar_angle_deg=math.degrees(theta),
+        bar_angle_sd_deg=math.degrees(geom.theta_sd_rad),
+        period_sd_px=geom.freq_sd / f**2,
+        phase_cycles=float(geom.phase_cycles + params[-3]),
+        duty=float(params[-2]),
+        blur_sigma_px=float(params[-1]),
+        separation_sigma=min(z, 1e9),
+    )
+    if not z >= RESOLVED_Z:
+        warnings.append(
+            f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
+            f"({se_a1:.3g}) of zero: bars not resolved"
+        )
+        return unresolved(name, diag, warnings)
+    # Levels never beyond the samples by more than the model itself says the sampled phases
+    # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
+    at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    dark = max(dark, prep.vmin - (float(at_bins.min()) - dark) - 2.0 * noise)
+    bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
+    if bright + dark <= 0 or bright <= dark:
+        warnings.append("fitted dark + bright <= 0: contrast undefined")
+        return unresolved(name, diag, warnings)
+    modulation = min(eq29_modulation(dark, bright), 1.0)
+    sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
+    gaps = np.diff(np.concatenate([wb, [wb[0] + 1.0]]))
+    sd_model = _model_sd(modulation, float(gaps.max()) if gaps.size else 1.0, n_f,
+                         MODEL_REL_SD_FAST if fast else None)
+    sd = math.hypot(sd_noise, sd_model)
+    diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
+    fundamental = a1 / mean_level if mean_level > 0 else None
+    return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+def _scaled_pinv(jtj: FloatArray) -> FloatArray:
+    """Pseudo-inverse of ``J^T J`` after scaling its columns to unit diagonal (parameters of
+    very different units), dropping directions the data do not constrain."""
+    d = np.sqrt(np.maximum(np.diag(jtj), 0.0))
+    d[d == 0] = 1.0
+    scaled = jtj / np.outer(d, d)
+    try:
+        inv = np.linalg.pinv(scaled, rcond=1e-10)
+    except np.linalg.LinAlgError:
+        return np.full(jtj.shape, np.inf)
+    out: FloatArray = inv / np.outer(d, d)
+    return out
+
+
+def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> BarGeometry:
+    """Cross-check the measured geometry with the given frequency and orientation."""
+    f_prior = prep.freq_cycles_per_px
+    rows, cols = prep.pixels.shape
+    if prep.orientation_given:
+        axis_theta = 0.0 if prep.axis == 1 else math.pi / 2
+        if math.cos(axis_theta - geom.theta_rad) < 0:  # the same sense as the measured one
+            axis_theta -= math.pi
+        diff = abs((geom.theta_rad - axis_theta + math.pi / 2) % math.pi - math.pi / 2)
+        tol = max(3.0 * geom.theta_sd_rad, math.radians(ANGLE_TOLERANCE_DEG))
+        significant = geom.amplitude > 6.0 * prep.noise_sigma * math.sqrt(2.0 / prep.n_pixels)
+        if diff > tol and significant and prep.n_pixels >= PRIORS_RULE_PIXELS:
+            warnings.append(
+                f"measured bar direction {math.degrees(geom.theta_rad):.1f} deg disagrees with "
+                f"the given orientation ({math.degrees(axis_theta) % 180:.0f} deg); the "
+                "measured one is used"
+            )
+        else:
+            # Within its uncertainty of the axis (or too weak to tell): exactly on the axis,
+            # so every bin holds whole lines of pixels.
+            geom = replace(geom, theta_rad=axis_theta)
+    if f_prior:
+        theta = geom.theta_rad
+        span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+        if span * f_prior < 2.0:
+            # Under two periods the data cannot pin the period down: the prior rules.
+            return replace(geom, freq_cycles_per_px=f_prior)
+        message = frequency_disagreement(geom, f_prior)
+        if message and prep.n_pixels >= PRIORS_RULE_PIXELS:
+            warnings.append(message)
+        else:
+            # Consistent with the given frequency, which is known better (chart design and
+            # magnification) than a period measured over a few periods.
+            geom = replace(geom, freq_cycles_per_px=f_prior)
+    return geom
