@@ -15,19 +15,31 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import logging
 import threading
 import tomllib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
-from benchlab.protocols.params import BenchLimits, ParamsError, _Checker
+from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
 
-#: Z8-series actuator counts per mm (KDC101 / TDC001), as in the device notes.
-Z8_COUNTS_PER_MM = 34554.96
+if TYPE_CHECKING:
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.mightex_sim import SimulatedCamera
+    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.scenes.world import SimWorld
+from benchlab.checks import BenchLimits, ParamsError, TableChecker
+
+log = logging.getLogger(__name__)
+
 #: Simulated seconds per wall second on the simulated bench: stage moves take milliseconds.
 SIM_TIME_SCALE = 2000.0
 
@@ -72,6 +84,8 @@ class BenchConfig:
     led: LedConfig | None = None
     stage: StageConfig | None = None
     source: str = "<defaults>"
+    #: ``[paths] sessions``: where new sessions go when no ``--out`` is given (``~`` expanded).
+    sessions_dir: Path | None = None
 
     @property
     def has_stage(self) -> bool:
@@ -113,7 +127,7 @@ class BenchConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<bench config>") -> BenchConfig:
         """Validate a parsed configuration; :class:`BenchConfigError` lists every problem."""
-        c = _Checker(data)
+        c = TableChecker(data)
         cam = CameraConfig(
             serial=c.string("camera.serial", "") or None,
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
@@ -121,10 +135,10 @@ class BenchConfig:
             response_calibration=c.string("camera.response_calibration", "") or None,
         )
         led = None
-        found, _ = c._get("led", None)
+        found, _ = c.get("led", None)
         if found:
             ceilings: dict[int, float] = {}
-            f2, table = c._get("led.ceiling_ma", {1: 50.0})
+            f2, table = c.get("led.ceiling_ma", {1: 50.0})
             if f2 and not isinstance(table, Mapping):
                 c.fail("led.ceiling_ma", "must be a table: channel number -> mA")
             elif f2:
@@ -140,7 +154,7 @@ class BenchConfig:
             led = LedConfig(port=c.string("led.port", "") or None,
                             channel=c.integer("led.channel", 1, 1, 16), ceilings_ma=ceilings)
         stage = None
-        found, _ = c._get("stage", None)
+        found, _ = c.get("stage", None)
         if found:
             travel = c.numbers("stage.travel_mm", (0.0, 50.0), -1000.0, 1000.0)
             if len(travel) != 2 or travel[0] >= travel[1]:
@@ -153,10 +167,12 @@ class BenchConfig:
                 travel_mm=(travel[0], travel[1]),
                 velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
             )
+        sessions = c.string("paths.sessions", "")
         c.unknown_keys()
         if c.problems:
             raise BenchConfigError(source, c.problems)
-        return cls(camera=cam, led=led, stage=stage, source=source)
+        return cls(camera=cam, led=led, stage=stage, source=source,
+                   sessions_dir=Path(sessions).expanduser() if sessions else None)
 
     @classmethod
     def from_session(cls, session_path: str | Path) -> BenchConfig:
@@ -201,15 +217,15 @@ class Bench:
     def __init__(self, config: BenchConfig, *, simulated: bool) -> None:
         self.config = config
         self.simulated = simulated
-        self.camera: Any = None
-        self.led: Any = None
-        self.stage: Any = None
+        self.camera: Camera[FrameMetadata] | None = None
+        self.led: LightSource | None = None
+        self.stage: LinearStage | None = None
         #: Simulated bench only: the world, and the simulators (for tests and scenes).
-        self.world: Any = None
-        self.sim_camera: Any = None
-        self.sim_led: Any = None
-        self.sim_stage: Any = None
-        self._mounted: Any = None
+        self.world: SimWorld | None = None
+        self.sim_camera: SimulatedCamera | None = None
+        self.sim_led: SimulatedSlc | None = None
+        self.sim_stage: SimulatedAptStage | None = None
+        self._mounted: object = None
         self._camera_settings: dict[str, Any] = {}
         self._camera_lost = False
 
@@ -241,11 +257,12 @@ class Bench:
         """Before retrying a failed step: reconnect a camera that was lost (unplugged and
         plugged back in); raises ``DeviceNotFoundError`` while it is still missing."""
         if self._camera_lost:
-            self.camera.reopen()
+            self._open_camera().reopen()
             self._camera_lost = False
 
     def safe_state(self) -> None:
         """Every LED channel off and the stage stopped; tries both even if one fails."""
+        log.debug("safe state: LEDs off, stage stopped")
         errors: list[str] = []
         if self.led is not None:
             try:
@@ -258,53 +275,50 @@ class Bench:
             except DeviceError as exc:
                 errors.append(f"stage: {exc}")
         if errors:
+            log.info("could not reach the safe state: %s", "; ".join(errors))
             raise BenchError("could not reach the safe state: " + "; ".join(errors))
 
     # -- identities -----------------------------------------------------------------------------
     def identities(self) -> dict[str, Any]:
         """Device identities (model, serial, firmware) for ``session.json``."""
         out: dict[str, Any] = {"simulated": self.simulated}
-        if self.camera is not None:
-            info = self.camera.info
-            out["camera"] = {"model": getattr(info, "model", None),
-                             "serial": getattr(info, "serial", None),
-                             "firmware": str(getattr(info, "firmware", ""))}
-        if self.led is not None:
-            info = self.led.device_info
-            out["led"] = {"model": info.module, "serial": info.serial,
-                          "firmware": info.driver_version, "port": self.led.port}
-        if self.stage is not None:
-            hw = self.stage.info
-            out["stage"] = {"model": hw.model, "serial": str(hw.serial),
-                            "firmware": hw.firmware_str, "port": self.stage.port}
+        for key, device in (("camera", self.camera), ("led", self.led), ("stage", self.stage)):
+            if device is not None:
+                out[key] = device.identity.to_dict()
         return out
 
     # -- camera ---------------------------------------------------------------------------------
+    def _open_camera(self) -> Camera[FrameMetadata]:
+        if self.camera is None:
+            raise BenchError("the bench has no open camera")
+        return self.camera
+
     def configure_camera(self, *, bits: int = 8, width: int = 1280,
                          height: int = 1024) -> dict[str, Any]:
         """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
         a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
-        self.camera.configure(width=width, height=height, bits=bits, mode="normal")
+        self._open_camera().configure(width=width, height=height, bits=bits, mode="normal")
         self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
 
     def grab(
         self, *, exposure_ms: float, gain: float, fresh: bool = True
-    ) -> tuple[Any, dict[str, Any]]:
+    ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], dict[str, Any]]:
         """One frame at these settings: ``(pixels, metadata)``.
 
         ``fresh``: the frame is exposed wholly after this call - the buffer is cleared and the
         frame that was already being exposed is dropped - so it shows the set-up as it is now
         (a target just mounted, the LED just switched on), not a frame from before the change.
         """
+        camera = self._open_camera()
         try:
-            self.camera.set_exposure_ms(exposure_ms)
-            self.camera.set_gain(gain)
+            camera.set_exposure_ms(exposure_ms)
+            camera.set_gain(gain)
             if fresh:
-                self.camera.clear_buffer()
-                self.camera.grab()  # exposure had started before the call: drop it
-            frame = self.camera.grab()
+                camera.clear_buffer()
+                camera.grab()  # exposure had started before the call: drop it
+            frame = camera.grab()
         except DeviceLostError:
             self._camera_lost = True
             raise
@@ -334,10 +348,11 @@ class Bench:
     def move_stage_mm(self, position_mm: float, abort: threading.Event | None = None) -> None:
         """Move and wait; when ``abort`` is set meanwhile, the stage is stopped at once (the
         move then ends with the driver's interrupted-move error)."""
-        if self.stage is None:
+        stage = self.stage
+        if stage is None:
             raise BenchError("no stage configured ([stage] in the bench file)")
         if abort is None:
-            self.stage.move_to_mm(position_mm, wait=True)
+            stage.move_to_mm(position_mm, wait=True)
             return
         finished = threading.Event()
 
@@ -345,19 +360,19 @@ class Bench:
             while not finished.wait(0.02):
                 if abort.is_set():
                     with contextlib.suppress(DeviceError):
-                        self.stage.stop(immediate=True, wait=False)
+                        stage.stop(immediate=True, wait=False)
                     return
 
         watcher = threading.Thread(target=watch, name="stage-abort-watch", daemon=True)
         watcher.start()
         try:
-            self.stage.move_to_mm(position_mm, wait=True)
+            stage.move_to_mm(position_mm, wait=True)
         finally:
             finished.set()
             watcher.join()
 
     # -- the mounted target ---------------------------------------------------------------------
-    def mount(self, target: Any) -> None:
+    def mount(self, target: object) -> None:
         """A manual set-up step was confirmed: on the simulated bench, mount ``target`` in the
         world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record."""
         self._mounted = target
@@ -370,12 +385,12 @@ class Bench:
             self.world.led_position_mm = position_mm
 
     @property
-    def mounted(self) -> Any:
+    def mounted(self) -> object:
         return self._mounted
 
     def state(self) -> dict[str, Any]:
         """What the bench knows about itself right now (frame metadata, scenes)."""
-        st: dict[str, Any] = {"target": _plain_target(self._mounted)}
+        st: dict[str, Any] = {"target": plain_target(self._mounted)}
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}
@@ -389,17 +404,16 @@ class Bench:
         return st
 
 
-def _led_output_ma(led: Any, channel: int) -> dict[str, float]:
+def _led_output_ma(led: LightSource, channel: int) -> dict[str, float]:
     """The simulated camera's view of an LED on an external controller: asked over the wire."""
-    from benchlab.drivers.slc import SlcMode
-
     with contextlib.suppress(DeviceError):
-        if led.get_mode(channel) is SlcMode.NORMAL:
-            return {str(channel): float(led.get_current(channel)[1])}
+        if led.is_on(channel):
+            return {str(channel): float(led.current_ma(channel))}
     return {str(channel): 0.0}
 
 
-def _plain_target(target: Any) -> Any:
+def plain_target(target: object) -> object:
+    """A mounted target as plain data (tuples become lists) for JSON, comparison and display."""
     return list(target) if isinstance(target, tuple) else target
 
 
@@ -426,7 +440,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
             travel_mm=cfg.stage.travel_mm,
         ))
-        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
+        bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
 
 
 def open_simulated(
@@ -461,7 +475,7 @@ def open_simulated(
         bench.stage = stack.enter_context(AptStage(
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
         ))
-        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
+        bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
     elif cfg.stage is not None:
         sim_stage = SimulatedAptStage(
             counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
@@ -473,7 +487,7 @@ def open_simulated(
         bench.stage = stack.enter_context(AptStage(
             sim_stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
         ))
-        _set_velocity(bench.stage, cfg.stage.velocity_mm_s)
+        bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
     cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}
     bench.sim_camera = SimulatedCamera(
         bench.world, serial=cfg.camera.serial or "SIM-130001", seed=seed, noise=noise,
@@ -483,9 +497,3 @@ def open_simulated(
     bench.camera = stack.enter_context(
         MightexCamera.open(serial=cfg.camera.serial, backend=backend, pid=cfg.camera.pid)
     )
-
-
-def _set_velocity(stage: Any, velocity_mm_s: float) -> None:
-    """The configured move velocity, keeping the controller's acceleration."""
-    current = stage.get_velocity_params()
-    stage.set_velocity_params(velocity_mm_s, current.acceleration_mm_s2)

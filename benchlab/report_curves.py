@@ -15,13 +15,16 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from benchlab.analysis.geometry import field_points
 from benchlab.analysis.mtf_compare import SimulatedCurve, load_simulated_curves
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
-from benchlab.scenes.optics import FORWARD_BLUR, PIXEL_APERTURE_VAR_PX2, RADIAL_BLUR, BlurProfile
+
+if TYPE_CHECKING:
+    from benchlab.scenes.optics import BlurProfile
 
 HEADER = (
     "# Simulated MTF of the simulated bench's optics (Gaussian blur per direction at each\n"
@@ -36,14 +39,21 @@ FREQS_LP_PER_MM = tuple(float(f) for f in range(0, 401, 2))
 def gaussian_mtf(sigma_px: float, freq_lp_per_mm: float,
                  pixel_pitch_um: float = PIXEL_PITCH_UM) -> float:
     """Sine-wave MTF of a Gaussian blur plus the pixel aperture at one frequency."""
+    # The scenes (and their scipy) are imported only to generate curves, never to load them.
+    from benchlab.scenes.optics import PIXEL_APERTURE_VAR_PX2
+
     nu = freq_lp_per_mm * pixel_pitch_um / 1000.0
     return math.exp(-2.0 * math.pi**2 * (sigma_px**2 + PIXEL_APERTURE_VAR_PX2) * nu**2)
 
 
 def simulated_curves_toml(
-    forward: BlurProfile = FORWARD_BLUR, radial: BlurProfile = RADIAL_BLUR
+    forward: BlurProfile | None = None, radial: BlurProfile | None = None
 ) -> str:
-    """The curve file's text for the given blur profiles."""
+    """The curve file's text for the given blur profiles (default: the simulated bench's)."""
+    from benchlab.scenes.optics import FORWARD_BLUR, RADIAL_BLUR
+
+    forward = FORWARD_BLUR if forward is None else forward
+    radial = RADIAL_BLUR if radial is None else radial
     freqs = ", ".join(f"{f:g}" for f in FREQS_LP_PER_MM)
     parts = [HEADER]
     for fp in field_points():

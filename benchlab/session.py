@@ -188,6 +188,8 @@ class Session:
         self.path = Path(path)
         self._meta = meta
         self._lock = threading.Lock()
+        #: Parsed journal and the file identity it was read from (size, mtime, inode).
+        self._events_cache: tuple[tuple[int, int, int], list[dict[str, Any]]] | None = None
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
@@ -466,6 +468,10 @@ class Session:
         anything else raises :class:`SessionError` naming the file and line.
         """
         try:
+            st = self.events_path.stat()
+            key = (st.st_size, st.st_mtime_ns, st.st_ino)
+            if self._events_cache is not None and self._events_cache[0] == key:
+                return [dict(e) for e in self._events_cache[1]]  # unchanged: no re-parse
             raw = self.events_path.read_bytes()
         except FileNotFoundError as exc:
             raise SessionError(f"{self.events_path}: journal missing") from exc
@@ -490,6 +496,8 @@ class Session:
                 pending_bad = None
             out.append(rec)
         else:
+            if len(raw) == key[0]:  # the file did not grow while it was read
+                self._events_cache = (key, [dict(e) for e in out])
             return out  # at most a torn final line was skipped
         raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
 
@@ -637,7 +645,9 @@ class Session:
         summary: Mapping[str, Any],
         estimator: str,
     ) -> Path:
-        """Write a new results version: ``<table>.csv`` + ``<table>.json`` each, and summary.json.
+        """Write a new results version: ``<file>.csv`` + ``<file>.json`` per table (file names
+        from :data:`RESULT_FILE_STEMS`, e.g. ``forward_view_modulation`` for ``table_4_11``),
+        and summary.json (which maps each table label to its file).
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
@@ -654,8 +664,9 @@ class Session:
         try:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
-                atomic_write_json(tmp / f"{table}.json", plain_rows, durable=per_file)
-                atomic_write_text(tmp / f"{table}.csv", _csv_text(plain_rows), durable=per_file)
+                stem = result_file_stem(table)
+                atomic_write_json(tmp / f"{stem}.json", plain_rows, durable=per_file)
+                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {
@@ -663,6 +674,7 @@ class Session:
                     "estimator": estimator,
                     "created_at": _now_iso(),
                     "tables": sorted(tables),
+                    "table_files": {t: result_file_stem(t) for t in sorted(tables)},
                     "frames_sha256": self.frames(),
                     "summary": _plain(summary),
                     **(self._partial or {"partial": False}),
@@ -686,9 +698,28 @@ class Session:
         return target
 
 
-def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Tables (``name -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+#: Result files are named after what they hold; the thesis table stays the table's label
+#: (the key in ``tables``, the report's caption). Labels not listed are their own file names.
+RESULT_FILE_STEMS: dict[str, str] = {
+    "table_4_11": "forward_view_modulation",
+    "table_4_12": "radial_view_modulation",
+    "table_4_13": "image_heights_field_points",
+    "table_4_15": "averaged_mtf_vs_monte_carlo",
+    "table_4_16": "relative_radiometry",
+}
+_LABEL_OF_FILE = {stem: label for label, stem in RESULT_FILE_STEMS.items()}
 
+
+def result_file_stem(label: str) -> str:
+    """The file name (without ``.csv`` / ``.json``) a results table is written under."""
+    return RESULT_FILE_STEMS.get(label, label)
+
+
+def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+
+    Reads both the descriptive file names and the older thesis-table file names
+    (``table_4_11.json``), so sessions written before the rename still load.
     Raises :class:`SessionError` naming the file when a JSON file is unreadable.
     """
     tables: dict[str, Any] = {}
@@ -701,8 +732,8 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
         if p.stem == "summary":
             summary = data
         else:
-            tables[p.stem] = data
-    return tables, summary
+            tables[_LABEL_OF_FILE.get(p.stem, p.stem)] = data
+    return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
 
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:

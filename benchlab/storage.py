@@ -4,8 +4,11 @@ Every file benchlab writes goes through :func:`atomic_write_bytes`: the data is 
 temporary file in the same folder, flushed and fsync'd, then renamed over the target, so a
 crash leaves either the old file or the new one, never half of either.
 
-Frames are TIFF (uncompressed or zlib, both lossless) with their acquisition metadata as JSON
-in the ImageDescription tag, so a frame is self-describing without any sidecar.
+Frames are lossless (zlib) ImageJ TIFFs, so Fiji/ImageJ opens them calibrated: pixel size in
+um (5.2 um sensor pitch times any binning), display range of the bit depth, Software
+"benchlab". The full acquisition metadata is JSON in the ImageJ ``Info`` property (Fiji: Image >
+Show Info), so a frame is self-describing without any sidecar. Frames written before that kept
+the JSON in the ImageDescription tag; :func:`load_frame_tiff` reads both.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import logging
 import os
 import tempfile
 from collections.abc import Mapping
@@ -24,10 +28,16 @@ import numpy.typing as npt
 import tifffile
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.mightex_protocol import BIN_ROWS
+from benchlab.drivers.sensor import PIXEL_PITCH_UM
+
+log = logging.getLogger(__name__)
 
 #: Marks benchlab's metadata inside a TIFF ImageDescription.
 METADATA_FORMAT = "benchlab.frame"
 METADATA_VERSION = 1
+#: The TIFF Software tag of every frame benchlab writes.
+SOFTWARE = "benchlab"
 
 
 def _current_umask() -> int:
@@ -161,10 +171,23 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     if arr.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"frame dtype must be uint8 or uint16, got {arr.dtype}")
     meta = {"format": METADATA_FORMAT, "version": METADATA_VERSION, **dict(metadata)}
-    description = json.dumps(meta, allow_nan=False, default=_json_default)
+    info = json.dumps(meta, allow_nan=False, default=_json_default)
+    x_um, y_um = pixel_size_um(meta)
+    imagej: dict[str, Any] = {"axes": "YX", "unit": "um", "Info": info}
+    bits = meta.get("bits")
+    if isinstance(bits, int) and 8 <= bits <= 16:
+        imagej.update(min=0.0, max=float(2**bits - 1))  # Fiji's display range: the bit depth
     buf = io.BytesIO()
-    tifffile.imwrite(buf, arr, description=description, metadata=None, compression="zlib")
+    tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
+                     metadata=imagej, software=SOFTWARE, compression="zlib")
     return buf.getvalue()
+
+
+def pixel_size_um(metadata: Mapping[str, Any]) -> tuple[float, float]:
+    """Pixel size ``(x, y)`` in um on the sensor: the pitch times the camera's binning
+    (vertical, from its ``bin_code``)."""
+    rows = BIN_ROWS.get(int(metadata.get("bin_code") or 0), 1)
+    return PIXEL_PITCH_UM, PIXEL_PITCH_UM * rows
 
 
 def save_frame_tiff(
@@ -175,7 +198,9 @@ def save_frame_tiff(
     overwrite: bool = False,
 ) -> Path:
     """Save a frame losslessly and atomically; by default refuses to replace an existing file."""
-    return atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+    saved = atomic_write_bytes(path, encode_frame_tiff(pixels, metadata), overwrite=overwrite)
+    log.debug("frame saved: %s", saved)
+    return saved
 
 
 def check_bit_depth(path: str | os.PathLike[str], pixels: npt.NDArray[Any],
@@ -203,6 +228,15 @@ def check_bit_depth(path: str | os.PathLike[str], pixels: npt.NDArray[Any],
                              f"{top} (> {(1 << bits) - 1})")
 
 
+def _metadata_text(tif: tifffile.TiffFile) -> str:
+    """The benchlab JSON of a TIFF: the ImageJ Info property of frames written since they are
+    ImageJ TIFFs, the first ImageDescription of older ones ("" when there is none)."""
+    ij = tif.imagej_metadata if tif.is_imagej else None
+    if ij:
+        return str(ij.get("Info") or "")
+    return tif.pages.first.description or ""
+
+
 def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     """The pixels of any monochrome TIFF for analysis (a multi-page TIFF gives a stack).
 
@@ -224,7 +258,7 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
                                           tifffile.PHOTOMETRIC.PALETTE,
                                           tifffile.PHOTOMETRIC.YCBCR)
             pixels = np.asarray(tif.asarray())
-            description = page.description
+            description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data
@@ -258,7 +292,7 @@ def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dic
         with tifffile.TiffFile(p) as tif:
             page = tif.pages.first
             pixels = page.asarray()
-            description = page.description
+            description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data

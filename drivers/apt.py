@@ -15,6 +15,7 @@ interrupted (timeout, Ctrl-C) and at interpreter exit.
 from __future__ import annotations
 
 import collections
+import logging
 import math
 import threading
 import time
@@ -23,10 +24,6 @@ from dataclasses import dataclass
 
 import serial
 
-try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
-    from termios import error as _TermiosError
-except ImportError:  # pragma: no cover - non-POSIX
-    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.apt_protocol import (
     CHAN1,
     DISABLE,
@@ -58,9 +55,11 @@ from benchlab.drivers.errors import (
     SafetyLimitError,
     SettingOutOfRangeError,
 )
-from benchlab.drivers.safety import SafeInstrument
+from benchlab.drivers.interfaces import DeviceIdentity, LinearStage
+from benchlab.drivers.serial_port import IO_ERRORS, open_serial
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
+log = logging.getLogger(__name__)
+
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
 KEEPALIVE_PERIOD_S = 0.9  # the cube wants 0x0492 at least once a second while updates flow
@@ -123,8 +122,8 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     """Ask a cube for HW_GET_INFO only (no enable, no updates): safe for device listings."""
     frames = FrameReader(dests={HOST}, sources={UNIT, 0x11, *range(0x21, 0x2B)})
     try:
-        with serial.Serial(port, BAUD, rtscts=True, timeout=READ_POLL_S,
-                           write_timeout=timeout_s) as ser:
+        with open_serial(port, BAUD, device="stage", rtscts=True, timeout=READ_POLL_S,
+                         write_timeout=timeout_s) as ser:
             ser.reset_input_buffer()
             ser.write(short(Msg.HW_REQ_INFO).pack())
             deadline = time.monotonic() + timeout_s
@@ -132,14 +131,14 @@ def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
                 for msg in frames.feed(ser.read(max(1, ser.in_waiting))):
                     if msg.msg_id == Msg.HW_GET_INFO and msg.data:
                         return HwInfo.unpack(msg.data)
-    except _IO_ERRORS as exc:
+    except IO_ERRORS as exc:
         raise DeviceLostError(f"stage: cannot query {port}: {exc}") from exc
     except ValueError as exc:
         raise AptBadReplyError(f"stage: bad HW_GET_INFO reply from {port}: {exc}") from None
     raise AptNoReplyError(f"stage: no HW_GET_INFO reply from {port} within {timeout_s:g} s")
 
 
-class AptStage(SafeInstrument):
+class AptStage(LinearStage):
     """One single-axis APT stage on a serial port; positions in mm, limits from configuration."""
 
     SAFE_ACTION = "stopping the stage"
@@ -163,7 +162,7 @@ class AptStage(SafeInstrument):
             raise SettingOutOfRangeError(f"counts_per_mm must be > 0: {counts_per_mm}")
         self.port = port
         self.units = Units(counts_per_mm)
-        self.travel_mm = (lo, hi)
+        self._travel_mm = (lo, hi)
         # Limits in counts, rounded inwards, so rounding can never step outside the travel.
         self._lo_counts = math.ceil(lo * counts_per_mm - 1e-6)
         self._hi_counts = math.floor(hi * counts_per_mm + 1e-6)
@@ -193,12 +192,12 @@ class AptStage(SafeInstrument):
     # ---- lifecycle --------------------------------------------------------------------------
     def open(self) -> AptStage:
         try:
-            self._ser = serial.Serial(self.port, BAUD, bytesize=8, parity="N", stopbits=1,
-                                      rtscts=True, timeout=READ_POLL_S,
-                                      write_timeout=self.timeout_s)
+            self._ser = open_serial(self.port, BAUD, device="stage", bytesize=8, parity="N",
+                                    stopbits=1, rtscts=True, timeout=READ_POLL_S,
+                                    write_timeout=self.timeout_s)
             self._ser.reset_input_buffer()
             self._ser.reset_output_buffer()
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             self._ser = None
             raise DeviceLostError(f"stage: cannot open {self.port}: {exc}") from exc
         self._closing.clear()
@@ -220,6 +219,8 @@ class AptStage(SafeInstrument):
                 self._updates_started = True
             self.status  # noqa: B018 - reads homed state into the cache
             self._register_atexit()
+            log.info("stage %s serial %s on %s (homed: %s)", self._info.model, self._info.serial,
+                     self.port, self.is_homed)
         except BaseException:
             self._shutdown_port()
             raise
@@ -254,7 +255,7 @@ class AptStage(SafeInstrument):
         if ser is not None:
             try:
                 ser.close()
-            except _IO_ERRORS:
+            except IO_ERRORS:
                 pass
 
     # ---- identity and state -----------------------------------------------------------------
@@ -263,6 +264,23 @@ class AptStage(SafeInstrument):
         if self._info is None:
             raise DeviceError("stage is not open")
         return self._info
+
+    @property
+    def identity(self) -> DeviceIdentity:
+        info = self.info
+        return DeviceIdentity(info.model, str(info.serial), info.firmware_str, self.port)
+
+    @property
+    def travel_mm(self) -> tuple[float, float]:
+        return self._travel_mm
+
+    @property
+    def is_moving(self) -> bool:
+        return self.status.is_moving
+
+    @property
+    def velocity_mm_s(self) -> float:
+        return self._vel.max_velocity_mm_s
 
     @property
     def dropped_bytes(self) -> int:
@@ -325,8 +343,12 @@ class AptStage(SafeInstrument):
         self._send(long(Msg.MOT_SET_VELPARAMS, raw.pack()))
         self._vel = VelocityParams(max_velocity_mm_s, acceleration_mm_s2)
 
+    def _do_set_velocity_mm_s(self, velocity_mm_s: float) -> None:
+        """Keeps the controller's acceleration."""
+        self.set_velocity_params(velocity_mm_s, self.get_velocity_params().acceleration_mm_s2)
+
     # ---- motion -----------------------------------------------------------------------------
-    def home(self, timeout_s: float | None = None) -> None:
+    def _do_home(self, timeout_s: float | None) -> None:
         """Home (drive to the reverse limit and zero the counter) and wait until homed."""
         seq = self._send(short(Msg.MOT_MOVE_HOME, CHAN1))
         self._move_seq, self._move_target_mm = seq, self.travel_mm[0]
@@ -334,9 +356,10 @@ class AptStage(SafeInstrument):
         span = self.travel_mm[1] - self.travel_mm[0]
         self.wait_for_move(timeout_s if timeout_s is not None else self._travel_timeout(2 * span))
 
-    def move_to_mm(self, position_mm: float, *, wait: bool = True,
-                   timeout_s: float | None = None) -> None:
-        """Absolute move; limits and homing are checked before anything is sent."""
+    def _do_move_to_mm(self, position_mm: float, *, wait: bool,
+                       timeout_s: float | None) -> None:
+        """Absolute move; limits (in counts, after rounding) and homing checked first."""
+        log.debug("stage: move to %.4f mm", position_mm)
         counts = self._target_counts(position_mm)
         self._check_homed()
         seq = self._send(long(Msg.MOT_MOVE_ABSOLUTE, pack_position(counts)))
@@ -394,8 +417,7 @@ class AptStage(SafeInstrument):
                 f"{self._move_target_mm} mm")
         return status
 
-    def stop(self, *, immediate: bool = True, wait: bool = True,
-             timeout_s: float | None = None) -> None:
+    def _do_stop(self, *, immediate: bool, wait: bool, timeout_s: float | None) -> None:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""
         seq = self._send(short(Msg.MOT_MOVE_STOP, CHAN1,
                                STOP_IMMEDIATE if immediate else STOP_PROFILED))
@@ -477,7 +499,7 @@ class AptStage(SafeInstrument):
         with self._write_lock:
             try:
                 ser.write(msg.pack())
-            except _IO_ERRORS as exc:
+            except IO_ERRORS as exc:
                 raise DeviceLostError(f"stage lost while sending {msg.name}: {exc}") from exc
         return seq
 
@@ -505,7 +527,7 @@ class AptStage(SafeInstrument):
         while ser is not None and not self._closing.is_set():
             try:
                 data = ser.read(max(1, ser.in_waiting))
-            except (*_IO_ERRORS, TypeError, AttributeError) as exc:
+            except (*IO_ERRORS, TypeError, AttributeError) as exc:
                 if not self._closing.is_set():
                     with self._cond:
                         self._lost = exc

@@ -22,6 +22,7 @@ from benchlab.drivers.apt_protocol import (
     HOST,
     STOP_IMMEDIATE,
     UNIT,
+    Z8_COUNTS_PER_MM,
     DcStatus,
     FrameReader,
     HwInfo,
@@ -37,6 +38,7 @@ from benchlab.drivers.apt_protocol import (
     unpack_position,
 )
 from benchlab.drivers.pty_device import Clock, PtyDevice
+from benchlab.drivers.sim_dispatch import CommandTable
 
 UPDATE_PERIOD_S = 0.1  # 0x0491 period after START_UPDATEMSGS (simulated time)
 UPDATE_MIN_WALL_S = 0.1  # ...but never faster than this in wall time (fast-time mode)
@@ -129,11 +131,13 @@ class SimulatedAptStage(PtyDevice):
     """A KDC101 cube driving a Z8-series actuator (an MTS50-Z8 with ``travel_mm=(0, 50)``)."""
 
     name = "apt-sim"
+    #: Message id -> handler taking ``(message, now_s)``.
+    commands: CommandTable[int] = CommandTable()
 
     def __init__(
         self,
         *,
-        counts_per_mm: float = 34554.96,
+        counts_per_mm: float = Z8_COUNTS_PER_MM,
         travel_mm: tuple[float, float] = (0.0, 25.0),
         velocity_mm_s: float = 2.0,
         clock: Clock | None = None,
@@ -223,55 +227,96 @@ class SimulatedAptStage(PtyDevice):
     def _handle(self, msg: Message) -> None:
         now = self.clock()
         self._advance(now)
-        m = msg.msg_id
-        if m == Msg.MOD_IDENTIFY:
-            self.identify_count += 1
-        elif m == Msg.MOD_SET_CHANENABLESTATE:
-            if msg.param2 in (ENABLE, DISABLE):
-                self.enabled = msg.param2 == ENABLE
-                if not self.enabled:
-                    self._halt(now)  # output no longer driven
-        elif m == Msg.MOD_REQ_CHANENABLESTATE:
-            state = ENABLE if self.enabled else DISABLE
-            self._reply_short(Msg.MOD_GET_CHANENABLESTATE, CHAN1, state)
-        elif m == Msg.HW_REQ_INFO:
-            stage_id = 8 if self.travel_mm[1] - self.travel_mm[0] > 25 + _EPS_MM else 9
-            info = HwInfo(self.serial, self.model, 16, self.firmware, 1, 0, 1, stage_id)
-            self._reply_long(Msg.HW_GET_INFO, info.pack())
-        elif m == Msg.HW_START_UPDATEMSGS:
-            self._updates, self._unacked = True, 0
-        elif m == Msg.HW_STOP_UPDATEMSGS:
-            self._updates = False
-        elif m == Msg.MOT_ACK_DCSTATUSUPDATE:
-            self._unacked = 0
-        elif m == Msg.MOT_REQ_POSCOUNTER:
-            self._reply_long(Msg.MOT_GET_POSCOUNTER, pack_position(self._counter_reply()))
-        elif m == Msg.MOT_SET_POSCOUNTER and msg.data is not None:
+        handler = self.commands.handler(self, msg.msg_id)
+        if handler is not None:
+            handler(msg, now)
+        # HW_DISCONNECT, HW_NO_FLASH_PROGRAMMING and unknown ids: no reply, as on hardware.
+
+    @commands.handles(Msg.MOD_IDENTIFY)
+    def _identify(self, msg: Message, now: float) -> None:
+        self.identify_count += 1
+
+    @commands.handles(Msg.MOD_SET_CHANENABLESTATE)
+    def _set_enable(self, msg: Message, now: float) -> None:
+        if msg.param2 in (ENABLE, DISABLE):
+            self.enabled = msg.param2 == ENABLE
+            if not self.enabled:
+                self._halt(now)  # output no longer driven
+
+    @commands.handles(Msg.MOD_REQ_CHANENABLESTATE)
+    def _req_enable(self, msg: Message, now: float) -> None:
+        state = ENABLE if self.enabled else DISABLE
+        self._reply_short(Msg.MOD_GET_CHANENABLESTATE, CHAN1, state)
+
+    @commands.handles(Msg.HW_REQ_INFO)
+    def _req_info(self, msg: Message, now: float) -> None:
+        stage_id = 8 if self.travel_mm[1] - self.travel_mm[0] > 25 + _EPS_MM else 9
+        info = HwInfo(self.serial, self.model, 16, self.firmware, 1, 0, 1, stage_id)
+        self._reply_long(Msg.HW_GET_INFO, info.pack())
+
+    @commands.handles(Msg.HW_START_UPDATEMSGS)
+    def _start_updates(self, msg: Message, now: float) -> None:
+        self._updates, self._unacked = True, 0
+
+    @commands.handles(Msg.HW_STOP_UPDATEMSGS)
+    def _stop_updates(self, msg: Message, now: float) -> None:
+        self._updates = False
+
+    @commands.handles(Msg.MOT_ACK_DCSTATUSUPDATE)
+    def _ack_status(self, msg: Message, now: float) -> None:
+        self._unacked = 0
+
+    @commands.handles(Msg.MOT_REQ_POSCOUNTER)
+    def _req_position(self, msg: Message, now: float) -> None:
+        self._reply_long(Msg.MOT_GET_POSCOUNTER, pack_position(self._counter_reply()))
+
+    @commands.handles(Msg.MOT_SET_POSCOUNTER)
+    def _set_position(self, msg: Message, now: float) -> None:
+        if msg.data is not None:
             counts = unpack_position(msg.data)[1]
             self._zero_mm = self._pos_mm - self.units.mm(counts)
-        elif m == Msg.MOT_REQ_STATUSBITS:
-            self._reply_long(Msg.MOT_GET_STATUSBITS, pack_statusbits(self._bits(now)))
-        elif m == Msg.MOT_REQ_DCSTATUSUPDATE:
-            self._reply_long(Msg.MOT_GET_DCSTATUSUPDATE, self._status(now).pack())
-        elif m == Msg.MOT_REQ_VELPARAMS:
-            raw = VelParamsRaw(self.units.acc_raw(self.acceleration_mm_s2),
-                               self.units.vel_raw(self.velocity_mm_s))
-            self._reply_long(Msg.MOT_GET_VELPARAMS, raw.pack())
-        elif m == Msg.MOT_SET_VELPARAMS and msg.data is not None:
-            raw = VelParamsRaw.unpack(msg.data)
-            if raw.max_vel_raw > 0 and raw.accel_raw > 0:
-                self.velocity_mm_s = self.units.vel_mm_s(raw.max_vel_raw)
-                self.acceleration_mm_s2 = self.units.acc_mm_s2(raw.accel_raw)
-        elif m == Msg.MOT_MOVE_HOME:
-            self._start(now, self.travel_mm[0] - 1.0, "home")  # runs into the reverse switch
-        elif m == Msg.MOT_MOVE_ABSOLUTE and msg.data is not None:
+
+    @commands.handles(Msg.MOT_REQ_STATUSBITS)
+    def _req_statusbits(self, msg: Message, now: float) -> None:
+        self._reply_long(Msg.MOT_GET_STATUSBITS, pack_statusbits(self._bits(now)))
+
+    @commands.handles(Msg.MOT_REQ_DCSTATUSUPDATE)
+    def _req_status(self, msg: Message, now: float) -> None:
+        self._reply_long(Msg.MOT_GET_DCSTATUSUPDATE, self._status(now).pack())
+
+    @commands.handles(Msg.MOT_REQ_VELPARAMS)
+    def _req_velocity(self, msg: Message, now: float) -> None:
+        raw = VelParamsRaw(self.units.acc_raw(self.acceleration_mm_s2),
+                           self.units.vel_raw(self.velocity_mm_s))
+        self._reply_long(Msg.MOT_GET_VELPARAMS, raw.pack())
+
+    @commands.handles(Msg.MOT_SET_VELPARAMS)
+    def _set_velocity(self, msg: Message, now: float) -> None:
+        if msg.data is None:
+            return
+        raw = VelParamsRaw.unpack(msg.data)
+        if raw.max_vel_raw > 0 and raw.accel_raw > 0:
+            self.velocity_mm_s = self.units.vel_mm_s(raw.max_vel_raw)
+            self.acceleration_mm_s2 = self.units.acc_mm_s2(raw.accel_raw)
+
+    @commands.handles(Msg.MOT_MOVE_HOME)
+    def _move_home(self, msg: Message, now: float) -> None:
+        self._start(now, self.travel_mm[0] - 1.0, "home")  # runs into the reverse switch
+
+    @commands.handles(Msg.MOT_MOVE_ABSOLUTE)
+    def _move_absolute(self, msg: Message, now: float) -> None:
+        if msg.data is not None:
             target = self._zero_mm + self.units.mm(unpack_position(msg.data)[1])
             self._start(now, target, "move")
-        elif m == Msg.MOT_MOVE_RELATIVE and msg.data is not None:
+
+    @commands.handles(Msg.MOT_MOVE_RELATIVE)
+    def _move_relative(self, msg: Message, now: float) -> None:
+        if msg.data is not None:
             self._start(now, self._pos_mm + self.units.mm(unpack_position(msg.data)[1]), "move")
-        elif m == Msg.MOT_MOVE_STOP:
-            self._stop_motion(now, immediate=msg.param2 == STOP_IMMEDIATE)
-        # HW_DISCONNECT, HW_NO_FLASH_PROGRAMMING and unknown ids: no reply, as on hardware.
+
+    @commands.handles(Msg.MOT_MOVE_STOP)
+    def _move_stop(self, msg: Message, now: float) -> None:
+        self._stop_motion(now, immediate=msg.param2 == STOP_IMMEDIATE)
 
     # ---- motion -----------------------------------------------------------------------------
     def _start(self, now: float, target_mm: float, kind: str) -> None:

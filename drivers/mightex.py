@@ -18,18 +18,23 @@ from __future__ import annotations
 import array
 import errno
 import functools
+import logging
+import shlex
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
+from importlib import resources
+from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
 
-import numpy as np
 import numpy.typing as npt
 import usb.core
 import usb.util
+
+from benchlab.drivers import io_trace
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.errors import (
     DeviceError,
@@ -37,7 +42,11 @@ from benchlab.drivers.errors import (
     DeviceNotFoundError,
     DeviceTimeoutError,
     ProtocolError,
+    SettingOutOfRangeError,
 )
+from benchlab.drivers.interfaces import Camera, DeviceIdentity, Frame
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "CameraInfo", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
@@ -52,6 +61,7 @@ POLL_INTERVAL_S = 0.002
 #: Bound on frames discarded in one grab (stale settings) before giving up.
 MAX_DISCARDS = 64
 _LIBUSB_NO_DEVICE = -4
+UDEV_RULE = "99-benchlab-mightex.rules"
 _LIBUSB_PIPE = -9
 
 
@@ -97,14 +107,6 @@ class FrameMeta:
         return asdict(self)
 
 
-@dataclass(frozen=True)
-class Frame:
-    """Pixels (``(height, width)``, uint8 or uint16 0..4095) and their metadata."""
-
-    pixels: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
-    meta: FrameMeta
-
-
 @dataclass
 class _Settings:
     width: int = 1280
@@ -146,11 +148,22 @@ def _usb_errors(what: str) -> Iterator[None]:
         ):
             raise DeviceLostError(f"camera disconnected ({what}): {exc}") from exc
         if exc.errno in (errno.EACCES, errno.EPERM):
-            raise DeviceError(
-                f"no permission to open the camera ({what}); install "
-                "drivers/data/99-benchlab-mightex.rules and join the plugdev group"
-            ) from exc
+            raise DeviceError(f"no permission to open the camera ({what}). {udev_hint()}") from exc
         raise DeviceError(f"USB error ({what}): {exc}") from exc
+
+
+def udev_rule_path() -> Path:
+    """The udev rule installed with benchlab (package data of ``benchlab.drivers``)."""
+    return Path(str(resources.files("benchlab.drivers") / "data" / UDEV_RULE))
+
+
+def udev_hint() -> str:
+    """What to run, exactly, so that the camera opens without root (Linux)."""
+    rule = shlex.quote(str(udev_rule_path()))
+    return ("Install the udev rule that came with benchlab, then unplug and replug the camera:\n"
+            f"  sudo install -m 644 {rule} /etc/udev/rules.d/\n"
+            "  sudo udevadm control --reload-rules && sudo udevadm trigger\n"
+            '  sudo groupadd -f plugdev && sudo usermod -aG plugdev "$USER"  # then log out and in')
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
@@ -188,8 +201,10 @@ def find_cameras(backend: Any = None, pid: int | None = None) -> list[CameraInfo
     return infos
 
 
-class MightexCamera:
-    """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block."""
+class MightexCamera(Camera[FrameMeta]):
+    """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block.
+
+    Frames are :class:`~benchlab.drivers.interfaces.Frame` with :class:`FrameMeta`."""
 
     def __init__(self, dev: usb.core.Device, spec: p.CameraSpec, info: CameraInfo,
                  backend: Any) -> None:
@@ -238,6 +253,8 @@ class MightexCamera:
                 except BaseException:
                     cam.close()
                     raise
+                log.info("camera %s serial %s firmware %s opened", cam.info.model,
+                         cam.info.serial, cam.info.firmware)
                 return cam
             seen.append(cam.info.serial)
             cam.close()
@@ -297,6 +314,7 @@ class MightexCamera:
     def reopen(self) -> None:
         """Reconnect to the same serial number (after a lost device) and restore all settings."""
         settings = self._settings
+        log.info("camera %s: reconnecting", self.info.serial)
         self.close()
         fresh = type(self).open(self.info.serial, backend=self._backend, pid=self.info.pid,
                                 model=self._spec.model)
@@ -331,6 +349,7 @@ class MightexCamera:
         return self._dev
 
     def _send(self, data: bytes) -> None:
+        io_trace.record("camera", ">", data)
         with _usb_errors(f"command 0x{data[0]:02X}"):
             self._device.write(p.EP_COMMAND_OUT, data, REPLY_TIMEOUT_MS)
 
@@ -338,7 +357,7 @@ class MightexCamera:
         for _ in range(8):
             try:
                 with _usb_errors("drain"):
-                    self._device.read(p.EP_REPLY_IN, 255, 20)
+                    io_trace.record("camera", "<", self._device.read(p.EP_REPLY_IN, 255, 20))
             except DeviceTimeoutError:
                 return
         self._resync_replies = False
@@ -351,12 +370,17 @@ class MightexCamera:
         try:
             with _usb_errors(what):
                 reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
+            io_trace.record("camera", "<", reply)
             return p.decode_reply(reply, what, expected_len)
         except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
             self._resync_replies = True
             raise
 
     # ------------------------------------------------------------------ settings
+
+    @property
+    def identity(self) -> DeviceIdentity:
+        return DeviceIdentity(self.info.model, self.info.serial, self.info.firmware)
 
     @property
     def spec(self) -> p.CameraSpec:
@@ -385,13 +409,17 @@ class MightexCamera:
                 "frame_time_ms": self.frame_time_ms}
 
     @_locked
-    def configure(self, *, width: int = 1280, height: int = 1024, bits: int = 8,
-                  mode: str = "normal", bin_code: int = 0, buffer_count: int = 4) -> None:
+    def _do_configure(self, *, width: int, height: int, bits: int, mode: str,
+                      bin_code: int = 0, buffer_count: int = 4, **unknown: int) -> None:
         """Set work mode, bit depth, geometry, bin code and buffer depth; flush old frames.
 
-        Raises ``SettingOutOfRangeError`` (nothing sent) for values the model refuses:
-        width/height multiples of 4 in 8..1280 x 8..1024, bits 8 or 12, buffer 1..24.
+        Options: ``bin_code`` (0 = no decimation) and ``buffer_count`` (frames the camera
+        buffers). Raises ``SettingOutOfRangeError`` (nothing sent) for values the model
+        refuses: width/height multiples of 4 in 8..1280 x 8..1024, bits 8 or 12, buffer 1..24.
         """
+        if unknown:
+            raise SettingOutOfRangeError(
+                f"camera: unknown option(s) {', '.join(sorted(unknown))}; nothing sent")
         p.check_geometry(self._spec, width=width, height=height, bits=bits, mode=mode,
                          bin_code=bin_code, buffer_count=buffer_count)
         s = self._settings
@@ -402,14 +430,14 @@ class MightexCamera:
         self.clear_buffer()
 
     @_locked
-    def set_exposure_ms(self, exposure_ms: float) -> None:
+    def _do_set_exposure_ms(self, exposure_ms: float) -> None:
         """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
         counts = p.exposure_counts(exposure_ms, self._spec)
         self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
         self._settings.exposure_counts = counts
 
     @_locked
-    def set_gain(self, gain: float) -> None:
+    def _do_set_gain(self, gain: float) -> None:
         """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
         raw = p.gain_raw(gain, self._spec)
         self._send(p.encode_gain(raw))
@@ -472,7 +500,7 @@ class MightexCamera:
         return p.FrameLayout(s.width, s.height, s.bits)
 
     @_locked
-    def grab(self, timeout_s: float | None = None) -> Frame:
+    def _do_grab(self, timeout_s: float | None) -> Frame[FrameMeta]:
         """The next frame acquired with the current settings.
 
         ``timeout_s`` defaults to twice the frame period plus 5 s.
@@ -525,6 +553,7 @@ class MightexCamera:
         timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
         with _usb_errors("frame read"):
             received = self._device.read(p.EP_FRAME_IN, buf, timeout_ms)
+        io_trace.record("camera", "<", memoryview(buf)[:received])
         return p.decode_frame(buf, layout, received)
 
     def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+
 from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
 
 VENDOR_ID = 0x04B4
@@ -55,6 +56,11 @@ MODE_NAMES = {v: k for k, v in MODES.items()}
 
 #: Relative slack when checking a float setting against its limits (float round-off only).
 _RANGE_SLACK = 1e-9
+
+
+#: Bin code -> rows combined into one (CGN-B013 CCD table; binning is vertical only). The
+#: MT9M001 CMOS models use code 0 (no binning) only.
+BIN_ROWS = {0x00: 1, 0x81: 2, 0x82: 3, 0x83: 4, 0x03: 4}
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,8 @@ from benchlab.drivers.mightex_sim_sensor import (
 )
 from benchlab.drivers.mightex_sim_usb import DeviceUnplugged, SimCameraBackend
 from benchlab.drivers.sensor import AcquisitionState, Scene
+from benchlab.drivers.sim_clock import ManualClock
+from benchlab.drivers.sim_dispatch import CommandTable
 
 __all__ = [
     "BarTargetScene", "CameraFaults", "Clock", "FlatFieldScene", "ManualClock", "RealTimeClock",
@@ -75,13 +77,6 @@ class VirtualClock:
     def wait_until(self, t_s: float) -> bool:
         self._t = max(self._t, t_s)
         return True
-
-
-class ManualClock(VirtualClock):
-    """Like :class:`VirtualClock` but only :meth:`advance` moves it (tests own the time)."""
-
-    def wait_until(self, t_s: float) -> bool:
-        return False
 
 
 class RealTimeClock:
@@ -181,6 +176,9 @@ class SimulatedCamera:
         Returns the mapping passed to the scene as ``AcquisitionState.bench`` (stage, LEDs);
         sampled when each frame is exposed. Settable at any time.
     """
+
+    #: Command byte -> handler taking the argument bytes; ``False`` = rejected.
+    commands: CommandTable[int] = CommandTable()
 
     def __init__(
         self, scene: Scene | None = None, *, serial: str = "SIM-000001",
@@ -337,60 +335,114 @@ class SimulatedCamera:
             self._reply(self._device_info())
 
     def _execute(self, cmd: int, args: bytes) -> bool:
-        s = self.settings
-        if cmd in (p.CMD_FIRMWARE, p.CMD_DEVICE_INFO):
-            self._answer(cmd)
-        elif cmd == p.CMD_QUERY_BUFFER:
-            self._query_buffer()
-        elif cmd == p.CMD_GET_IMAGE and len(args) == 1:
-            for _ in range(min(args[0], len(self._fifo))):
-                self._outgoing.append(self._fifo.popleft())
-        elif cmd == p.CMD_CLEAR_BUFFER and len(args) == 1:
-            for _ in range(min(args[0], len(self._fifo))):
-                self._fifo.popleft()
-        elif cmd == p.CMD_SOFT_TRIGGER and len(args) == 1:
-            if s.mode == 1:
-                self._trigger_count += 1
-                exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
-                ready_s = self.clock.now() + (exposure_ms + self._readout_ms()) / 1e3
-                self._pending_triggers.append((ready_s, self._trigger_count))
-        elif cmd == p.CMD_RESET and args == b"\x01":
-            self._power_on()
-        elif cmd == p.CMD_WORK_MODE and len(args) == 2:
-            if args[0] not in p.MODE_NAMES or args[1] not in self.spec.bit_depths:
-                return False
-            self._change(replace(s, mode=args[0], bits=args[1]), flush=True)
-            if args[0] == 1:
-                self._trigger_count = 0
-            self._pending_triggers.clear()
-        elif cmd == p.CMD_RESOLUTION and len(args) == 7:
-            width, height = int.from_bytes(args[0:2], "big"), int.from_bytes(args[2:4], "big")
-            try:
-                p.check_geometry(self.spec, width=width, height=height, bits=s.bits,
-                                 mode=p.MODE_NAMES[s.mode], bin_code=args[4],
-                                 buffer_count=args[5])
-            except ValueError:
-                return False
-            self._change(replace(s, width=width, height=height, bin_code=args[4],
-                                 buffer_count=args[5]), flush=True)
-        elif cmd == p.CMD_GAIN and len(args) == 3:
-            if not self.spec.gain_raw_min <= args[1] <= self.spec.gain_raw_max:
-                return False
-            self._change(replace(s, gain_raw=args[1]))
-        elif cmd == p.CMD_EXPOSURE and len(args) == self.spec.exposure_bytes:
-            counts = int.from_bytes(args, "big")
-            if not 1 <= counts <= self.spec.exposure_max_counts:
-                return False
-            self._change(replace(s, exposure_counts=counts))
-        elif cmd == p.CMD_FRAME_TIME and len(args) == 2:
-            counts = int.from_bytes(args, "big")
-            if counts == 0:
-                return False
-            self._change(replace(s, frame_time_counts=counts))
-        elif cmd == p.CMD_CLOCK and len(args) == 1 and args[0] <= 4:
-            self._change(replace(s, clock_divider=args[0]))
-        else:
+        """Run one command; ``False`` (rejected) for unknown commands and bad arguments."""
+        handler = self.commands.handler(self, cmd)
+        return bool(handler is not None and handler(args))
+
+    @commands.handles(p.CMD_FIRMWARE)
+    def _firmware(self, args: bytes) -> bool:
+        self._answer(p.CMD_FIRMWARE)
+        return True
+
+    @commands.handles(p.CMD_DEVICE_INFO)
+    def _device_info_cmd(self, args: bytes) -> bool:
+        self._answer(p.CMD_DEVICE_INFO)
+        return True
+
+    @commands.handles(p.CMD_QUERY_BUFFER)
+    def _query_buffer_cmd(self, args: bytes) -> bool:
+        self._query_buffer()
+        return True
+
+    @commands.handles(p.CMD_GET_IMAGE)
+    def _get_image(self, args: bytes) -> bool:
+        if len(args) != 1:
             return False
+        for _ in range(min(args[0], len(self._fifo))):
+            self._outgoing.append(self._fifo.popleft())
+        return True
+
+    @commands.handles(p.CMD_CLEAR_BUFFER)
+    def _clear_buffer(self, args: bytes) -> bool:
+        if len(args) != 1:
+            return False
+        for _ in range(min(args[0], len(self._fifo))):
+            self._fifo.popleft()
+        return True
+
+    @commands.handles(p.CMD_SOFT_TRIGGER)
+    def _soft_trigger(self, args: bytes) -> bool:
+        if len(args) != 1:
+            return False
+        s = self.settings
+        if s.mode == 1:
+            self._trigger_count += 1
+            exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
+            ready_s = self.clock.now() + (exposure_ms + self._readout_ms()) / 1e3
+            self._pending_triggers.append((ready_s, self._trigger_count))
+        return True
+
+    @commands.handles(p.CMD_RESET)
+    def _reset(self, args: bytes) -> bool:
+        if args != b"\x01":
+            return False
+        self._power_on()
+        return True
+
+    @commands.handles(p.CMD_WORK_MODE)
+    def _work_mode(self, args: bytes) -> bool:
+        if len(args) != 2 or args[0] not in p.MODE_NAMES or args[1] not in self.spec.bit_depths:
+            return False
+        self._change(replace(self.settings, mode=args[0], bits=args[1]), flush=True)
+        if args[0] == 1:
+            self._trigger_count = 0
+        self._pending_triggers.clear()
+        return True
+
+    @commands.handles(p.CMD_RESOLUTION)
+    def _resolution(self, args: bytes) -> bool:
+        if len(args) != 7:
+            return False
+        s = self.settings
+        width, height = int.from_bytes(args[0:2], "big"), int.from_bytes(args[2:4], "big")
+        try:
+            p.check_geometry(self.spec, width=width, height=height, bits=s.bits,
+                             mode=p.MODE_NAMES[s.mode], bin_code=args[4], buffer_count=args[5])
+        except ValueError:
+            return False
+        self._change(replace(s, width=width, height=height, bin_code=args[4],
+                             buffer_count=args[5]), flush=True)
+        return True
+
+    @commands.handles(p.CMD_GAIN)
+    def _gain(self, args: bytes) -> bool:
+        if len(args) != 3 or not self.spec.gain_raw_min <= args[1] <= self.spec.gain_raw_max:
+            return False
+        self._change(replace(self.settings, gain_raw=args[1]))
+        return True
+
+    @commands.handles(p.CMD_EXPOSURE)
+    def _exposure(self, args: bytes) -> bool:
+        if len(args) != self.spec.exposure_bytes:
+            return False
+        counts = int.from_bytes(args, "big")
+        if not 1 <= counts <= self.spec.exposure_max_counts:
+            return False
+        self._change(replace(self.settings, exposure_counts=counts))
+        return True
+
+    @commands.handles(p.CMD_FRAME_TIME)
+    def _frame_time(self, args: bytes) -> bool:
+        if len(args) != 2 or int.from_bytes(args, "big") == 0:
+            return False
+        self._change(replace(self.settings, frame_time_counts=int.from_bytes(args, "big")))
+        return True
+
+    @commands.handles(p.CMD_CLOCK)
+    def _clock(self, args: bytes) -> bool:
+        if len(args) != 1 or args[0] > 4:
+            return False
+        self._change(replace(self.settings, clock_divider=args[0]))
         return True
 
     def _change(self, new: FirmwareSettings, *, flush: bool = False) -> None:

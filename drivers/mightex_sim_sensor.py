@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.sensor import (
     DN12_PER_E,

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import usb.backend
 import usb.core
+
 from benchlab.drivers import mightex_protocol as p
 
 if TYPE_CHECKING:

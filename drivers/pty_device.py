@@ -21,25 +21,11 @@ import tty
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
+from benchlab.drivers.sim_clock import ManualClock
+
+__all__ = ["Clock", "ManualClock", "PtyDevice", "ScaledClock"]
+
 Clock = Callable[[], float]
-
-
-class ManualClock:
-    """Simulated time that only moves when a test calls :meth:`advance`."""
-
-    def __init__(self, start_s: float = 0.0) -> None:
-        self._now_s = start_s
-        self._lock = threading.Lock()
-
-    def __call__(self) -> float:
-        with self._lock:
-            return self._now_s
-
-    def advance(self, dt_s: float) -> None:
-        if dt_s < 0:
-            raise ValueError("time only moves forward")
-        with self._lock:
-            self._now_s += dt_s
 
 
 class ScaledClock:

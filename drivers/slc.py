@@ -12,85 +12,51 @@ SLC off, so this driver never relies on it.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass
-from enum import IntEnum
 
 import serial
 
-try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
-    from termios import error as _TermiosError
-except ImportError:  # pragma: no cover - non-POSIX
-    _TermiosError = OSError  # type: ignore[misc, assignment]
 from benchlab.drivers.errors import (
     DeviceError,
     DeviceLostError,
-    DeviceTimeoutError,
-    ProtocolError,
-    SafetyLimitError,
     SettingOutOfRangeError,
 )
-from benchlab.drivers.safety import SafeInstrument
+from benchlab.drivers.interfaces import DeviceIdentity, LightSource
+from benchlab.drivers.serial_port import IO_ERRORS, open_serial
+from benchlab.drivers.slc_protocol import (
+    ACK,
+    ARGUMENT_ERROR,
+    BAUD,
+    COMMAND_END,
+    EXECUTION_ERROR,
+    REPLY_END,
+    UNDEFINED,
+    SlcAckInsteadOfDataError,
+    SlcArgumentError,
+    SlcBadReplyError,
+    SlcCommandError,
+    SlcDeviceInfo,
+    SlcExecutionError,
+    SlcMode,
+    SlcNoReplyError,
+    SlcUnknownCommandError,
+    parse_current_reply,
+    parse_device_info,
+)
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
-BAUD = 9600
-COMMAND_END = b"\n\r"  # LF then CR - the order the SLC expects
-REPLY_END = b"\r\n"
+log = logging.getLogger(__name__)
+
+__all__ = [  # the protocol names are re-exported: callers keep importing them from here
+    "SlcAckInsteadOfDataError", "SlcArgumentError", "SlcBadReplyError", "SlcCommandError",
+    "SlcController", "SlcDeviceInfo", "SlcExecutionError", "SlcMode", "SlcNoReplyError",
+    "SlcUnknownCommandError", "parse_current_reply", "parse_device_info",
+]
+
 ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
-
-
-class SlcMode(IntEnum):
-    DISABLE = 0
-    NORMAL = 1
-    STROBE = 2
-    TRIGGER = 3
-
-
-# ---- exceptions: one per failure the wire can express, each naming the command -------------
-class SlcCommandError(ProtocolError):
-    """Base of SLC reply errors; ``command`` is the line that caused it."""
-
-    def __init__(self, command: str, message: str) -> None:
-        super().__init__(f"LED controller: {message} (command {command!r})")
-        self.command = command
-
-
-class SlcAckInsteadOfDataError(SlcCommandError):
-    """``##``: a query was acknowledged but no data came back."""
-
-
-class SlcExecutionError(SlcCommandError):
-    """``#!``: valid command, executed, but the controller reported an error."""
-
-
-class SlcArgumentError(SlcCommandError):
-    """``#?``: valid command, argument out of range (channel, mode or current)."""
-
-
-class SlcUnknownCommandError(SlcCommandError):
-    """``XXXX is not defined``: the firmware does not know this command."""
-
-
-class SlcBadReplyError(SlcCommandError):
-    """A reply that is garbled or carries impossible values."""
-
-
-class SlcNoReplyError(DeviceTimeoutError):
-    """Silence: nothing came back within the timeout."""
-
-    def __init__(self, command: str, timeout_s: float) -> None:
-        super().__init__(f"LED controller: no reply within {timeout_s:g} s (command {command!r})")
-        self.command = command
-
-
-@dataclass(frozen=True)
-class SlcDeviceInfo:
-    driver_version: str  # firmware ("Mightex LED Driver:3.1.8")
-    module: str  # e.g. "SLC-SA04-U/S"; "" when the firmware does not report it
-    serial: str
 
 
 # Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
@@ -100,35 +66,12 @@ _DEFAULT_NORMAL_MAX_MA = 1000.0
 _MAX_PROBE_CHANNELS = 16
 
 
-def parse_device_info(text: str) -> SlcDeviceInfo:
-    """Parse a DEVICEINFO line by keyword (field order and presence vary by firmware)."""
-
-    def field(key: str) -> str:
-        m = re.search(re.escape(key) + r"\s*(\S+)", text)
-        return m.group(1) if m else ""
-
-    info = SlcDeviceInfo(field("Driver:"), field("Module No.:"), field("Serial No.:"))
-    if not info.driver_version or not info.serial:
-        raise SlcBadReplyError("DEVICEINFO", f"unrecognised device info {text!r}")
-    return info
-
-
-def parse_current_reply(command: str, payload: str) -> tuple[int, int]:
-    """``?CURRENT`` payload -> (Imax, Iset) in wire units: the last two fields, whatever precede."""
-    tokens = payload.split()
-    try:
-        imax, iset = int(tokens[-2]), int(tokens[-1])
-    except (IndexError, ValueError):
-        raise SlcBadReplyError(command, f"cannot read currents from {payload!r}") from None
-    if imax < 0 or iset < 0 or iset > imax:
-        raise SlcBadReplyError(command, f"impossible currents Imax={imax} Iset={iset}")
-    return imax, iset
-
-
-class SlcController(SafeInstrument):
+class SlcController(LightSource):
     """One SLC controller on a serial port. Channels are 1-based, as on the wire."""
 
     SAFE_ACTION = "switching the LEDs off"
+    NAME = "LED controller"
+    CHANNEL_NAME = "LED channel"
 
     def __init__(
         self, port: str, *, ceilings_ma: Mapping[int, float], timeout_s: float = 1.0
@@ -137,7 +80,7 @@ class SlcController(SafeInstrument):
             if not (isinstance(limit, int | float) and math.isfinite(limit) and limit >= 0):
                 raise SettingOutOfRangeError(f"ceiling for channel {ch} must be >= 0 mA: {limit}")
         self.port = port
-        self.ceilings_ma: dict[int, float] = {int(k): float(v) for k, v in ceilings_ma.items()}
+        self._ceilings_ma: dict[int, float] = {int(k): float(v) for k, v in ceilings_ma.items()}
         self.timeout_s = timeout_s
         self._ser: serial.Serial | None = None
         self._info: SlcDeviceInfo | None = None
@@ -154,11 +97,11 @@ class SlcController(SafeInstrument):
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
         try:
-            self._ser = serial.Serial(
-                self.port, BAUD, bytesize=8, parity="N", stopbits=1,
+            self._ser = open_serial(
+                self.port, BAUD, device="led", bytesize=8, parity="N", stopbits=1,
                 timeout=self.timeout_s, write_timeout=self.timeout_s,
             )
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
             self._echo_off()
@@ -167,6 +110,8 @@ class SlcController(SafeInstrument):
             self._channel_count = self._count_channels()
             self._register_atexit()  # and SIGINT/SIGTERM/SIGHUP: _on_stop_signal
             self.all_off()  # opening the driver must never leave light on from a previous user
+            log.info("LED controller %s serial %s on %s: %d channels, all off",
+                     self._info.module, self._info.serial, self.port, self._channel_count)
         except BaseException:
             self._close_port()
             raise
@@ -193,8 +138,22 @@ class SlcController(SafeInstrument):
         return self._info
 
     @property
+    def identity(self) -> DeviceIdentity:
+        info = self.device_info
+        return DeviceIdentity(info.module, info.serial, info.driver_version, self.port)
+
+    @property
     def channel_count(self) -> int:
         return self._channel_count
+
+    @property
+    def ceilings_ma(self) -> Mapping[int, float]:
+        return self._ceilings_ma
+
+    def ceiling_ma(self, ch: int) -> float | None:
+        """The configured ceiling, capped by what the controller family can drive."""
+        ceiling = self._ceilings_ma.get(ch)
+        return None if ceiling is None else min(ceiling, self._normal_max_ma)
 
     # ---- channel commands ------------------------------------------------------------------
     def set_mode(self, ch: int, mode: SlcMode | int) -> None:
@@ -208,7 +167,7 @@ class SlcController(SafeInstrument):
         if mode is SlcMode.NORMAL:
             # The controller may hold NORMAL currents set by someone else: check before lighting.
             imax_ma, iset_ma = self.get_current(ch)
-            self._check_ceiling(ch, max(imax_ma, iset_ma))
+            self._check_current(ch, max(imax_ma, iset_ma))
         self._command(f"MODE {ch} {int(mode)}")
 
     def get_mode(self, ch: int) -> SlcMode:
@@ -223,8 +182,8 @@ class SlcController(SafeInstrument):
     def set_normal(self, ch: int, imax_ma: float, iset_ma: float) -> None:
         """Store NORMAL-mode ceiling and working current (both checked against the ceiling)."""
         self._check_channel(ch)
-        self._check_ceiling(ch, imax_ma)
-        self._check_ceiling(ch, iset_ma)
+        self._check_current(ch, imax_ma)
+        self._check_current(ch, iset_ma)
         if iset_ma > imax_ma:
             raise SettingOutOfRangeError(
                 f"LED channel {ch}: Iset {iset_ma} mA above Imax {imax_ma} mA; nothing sent"
@@ -234,7 +193,7 @@ class SlcController(SafeInstrument):
     def set_current(self, ch: int, iset_ma: float) -> None:
         """Change the working current live (takes effect only in NORMAL mode)."""
         self._check_channel(ch)
-        self._check_ceiling(ch, iset_ma)
+        self._check_current(ch, iset_ma)
         self._command(f"CURRENT {ch} {self._wire(iset_ma)}")
 
     def get_current(self, ch: int) -> tuple[float, float]:
@@ -244,17 +203,22 @@ class SlcController(SafeInstrument):
         imax, iset = parse_current_reply(cmd, self._query_data(cmd))
         return imax * self._unit_ma, iset * self._unit_ma
 
-    def on(self, ch: int, current_ma: float) -> None:
-        """Light channel ``ch`` at ``current_ma`` (NORMAL mode, Imax = the configured ceiling)."""
-        self._check_channel(ch)
-        self._check_ceiling(ch, current_ma)
-        ceiling_ma = min(self.ceilings_ma[ch], self._normal_max_ma)
+    def _do_on(self, ch: int, current_ma: float) -> None:
+        """NORMAL mode at ``current_ma``, Imax = the configured ceiling."""
+        log.debug("LED channel %d on at %g mA", ch, current_ma)
+        ceiling_ma = self.ceiling_ma(ch)
+        assert ceiling_ma is not None  # checked by on()
         self.set_normal(ch, ceiling_ma, current_ma)
         self._command(f"MODE {ch} {int(SlcMode.NORMAL)}")
 
-    def off(self, ch: int) -> None:
-        self._check_channel(ch)
+    def _do_off(self, ch: int) -> None:
         self._command(f"MODE {ch} {int(SlcMode.DISABLE)}")
+
+    def _do_is_on(self, ch: int) -> bool:
+        return self.get_mode(ch) is not SlcMode.DISABLE
+
+    def _do_current_ma(self, ch: int) -> float:
+        return self.get_current(ch)[1]
 
     def all_off(self) -> None:
         """Disable every channel and read the modes back; raise if any channel may still be lit."""
@@ -276,29 +240,7 @@ class SlcController(SafeInstrument):
         if failures:
             raise DeviceError("LED controller: could not confirm all off: " + "; ".join(failures))
 
-    # ---- checks ----------------------------------------------------------------------------
-    def _check_channel(self, ch: int) -> None:
-        if self._ser is None:
-            raise DeviceError("LED controller is not open")
-        if not (isinstance(ch, int) and 1 <= ch <= self._channel_count):
-            raise SettingOutOfRangeError(
-                f"LED channel {ch} does not exist (1..{self._channel_count}); nothing sent"
-            )
-
-    def _check_ceiling(self, ch: int, current_ma: float) -> None:
-        if not (isinstance(current_ma, int | float) and math.isfinite(current_ma)):
-            raise SettingOutOfRangeError(f"LED channel {ch}: current {current_ma!r} is not finite")
-        if current_ma < 0:
-            raise SettingOutOfRangeError(f"LED channel {ch}: negative current {current_ma} mA")
-        ceiling = self.ceilings_ma.get(ch)
-        if ceiling is None:
-            raise SafetyLimitError(f"LED channel {ch} has no configured ceiling; nothing sent")
-        limit = min(ceiling, self._normal_max_ma)
-        if current_ma > limit:
-            raise SafetyLimitError(
-                f"LED channel {ch}: {current_ma} mA exceeds the ceiling {limit} mA; nothing sent"
-            )
-
+    # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
         # Round down so rounding can never push a value above its checked ceiling.
         return math.floor(current_ma / self._unit_ma + 1e-9)
@@ -313,7 +255,7 @@ class SlcController(SafeInstrument):
             ser.read_until(REPLY_END)  # an ack may or may not come; either is fine
             ser.timeout = self.timeout_s
             ser.reset_input_buffer()
-        except _IO_ERRORS as exc:
+        except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
     def _configure_family(self, module: str) -> None:
@@ -357,7 +299,7 @@ class SlcController(SafeInstrument):
                 raw = ser.read_until(REPLY_END)
                 if ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
-            except _IO_ERRORS as exc:
+            except IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
                 self._off_pending = True
@@ -373,22 +315,22 @@ class SlcController(SafeInstrument):
             text = raw.decode("ascii").strip()
         except UnicodeDecodeError:
             raise SlcBadReplyError(command, f"non-ASCII reply {raw!r}") from None
-        if "is not defined" in text:
+        if UNDEFINED in text:
             raise SlcUnknownCommandError(command, f"unknown command ({text})")
-        if text.startswith("#!"):
+        if text.startswith(EXECUTION_ERROR):
             raise SlcExecutionError(command, "controller reported an execution error (#!)")
-        if text.startswith("#?"):
+        if text.startswith(ARGUMENT_ERROR):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
 
     def _command(self, command: str) -> None:
         text = self._exchange(command)
-        if text != "##":
-            raise SlcBadReplyError(command, f"expected '##', got {text!r}")
+        if text != ACK:
+            raise SlcBadReplyError(command, f"expected {ACK!r}, got {text!r}")
 
     def _query_data(self, command: str) -> str:
         text = self._exchange(command)
-        if text == "##":
+        if text == ACK:
             raise SlcAckInsteadOfDataError(command, "acknowledged (##) but no data returned")
         if not text.startswith("#") or len(text) < 2:
             raise SlcBadReplyError(command, f"expected '#<data>', got {text!r}")
@@ -405,7 +347,7 @@ class SlcController(SafeInstrument):
         if ser is not None:
             try:
                 ser.close()
-            except _IO_ERRORS:
+            except IO_ERRORS:
                 pass
 
     # ---- stop signals (Ctrl-C, SIGTERM, SIGHUP) ----------------------------------------------

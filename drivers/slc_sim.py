@@ -11,26 +11,26 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field, replace
-from enum import IntEnum
 
 from benchlab.drivers.pty_device import Clock, PtyDevice
+from benchlab.drivers.sim_dispatch import CommandTable
+from benchlab.drivers.slc_protocol import (
+    ACK,
+    ARGUMENT_ERROR,
+    EXECUTION_ERROR,
+    REPLY_SUFFIX,
+    UNDEFINED,
+    SlcMode,
+)
 
-REPLY_END = b" \r\n"
 _LINE_SPLIT = re.compile(rb"\n\r|\r\n|\r|\n")
 # Ten leading calibration fields as seen on a bench unit (one negative); drivers must skip them.
 _CAL_FIELDS = "5 81 480 972 1468 1964 8 -72 8000 0"
 
 
-class SimMode(IntEnum):
-    DISABLE = 0
-    NORMAL = 1
-    STROBE = 2
-    TRIGGER = 3
-
-
 @dataclass
 class SimChannel:
-    mode: SimMode = SimMode.DISABLE
+    mode: SlcMode = SlcMode.DISABLE
     normal_imax: int = 20  # factory defaults (SDK): NORMAL Imax 20 / Iset 10
     normal_iset: int = 10
     strobe_imax: int = 20
@@ -73,6 +73,8 @@ class SimulatedSlc(PtyDevice):
     """An SLC-xx0N controller: per-channel mode plus NORMAL / STROBE / TRIGGER parameter sets."""
 
     name = "slc-sim"
+    #: Verb (``?VERB`` for queries) -> handler taking the integer arguments.
+    commands: CommandTable[str] = CommandTable()
 
     def __init__(
         self,
@@ -106,7 +108,7 @@ class SimulatedSlc(PtyDevice):
         """Actual LED current on channel ``ch`` (1-based): Iset while in NORMAL, else 0."""
         with self.lock:
             c = self.channels[ch - 1]
-            return float(c.normal_iset) if c.mode == SimMode.NORMAL else 0.0
+            return float(c.normal_iset) if c.mode == SlcMode.NORMAL else 0.0
 
     def host_lines(self) -> list[bytes]:
         """Every command line the host sent, terminators included."""
@@ -129,7 +131,7 @@ class SimulatedSlc(PtyDevice):
             self._handle_line(line.decode("ascii", errors="replace").strip())
 
     def _reply(self, payload: str) -> None:
-        self.write(payload.encode("ascii") + REPLY_END)
+        self.write(payload.encode("ascii") + REPLY_SUFFIX)
 
     def _handle_line(self, line: str) -> None:
         words = line.split()
@@ -146,19 +148,19 @@ class SimulatedSlc(PtyDevice):
             junk, f.garbage = f.garbage, None
             self.write(junk)
             return
-        handler = getattr(self, "_cmd_" + verb.replace("?", "Q_"), None)
+        handler = self.commands.handler(self, verb)
         if handler is None or verb in {v.upper() for v in f.undefined}:
-            self._reply(f"    {words[0]} is not defined")
+            self._reply(f"    {words[0]} {UNDEFINED}")
             return
         try:
             args = [int(w) for w in words[1:]]
         except ValueError:
-            self._reply("#?")
+            self._reply(ARGUMENT_ERROR)
             return
         reply = handler(args)
-        if reply == "##" and f.exec_error > 0:
+        if reply == ACK and f.exec_error > 0:
             f.exec_error -= 1
-            reply = "#!"
+            reply = EXECUTION_ERROR
         if reply is not None:
             self._reply(reply)
 
@@ -173,93 +175,108 @@ class SimulatedSlc(PtyDevice):
             return True
         return False
 
+    @commands.handles("ECHOOFF")
     def _cmd_ECHOOFF(self, args: list[int]) -> str | None:
         self.echo = False
-        return "##" if self.echooff_ack else None
+        return ACK if self.echooff_ack else None
 
+    @commands.handles("ECHOON")
     def _cmd_ECHOON(self, args: list[int]) -> str | None:
         self.echo = True  # character echo itself is not simulated
-        return "##"
+        return ACK
 
+    @commands.handles("DEVICEINFO")
     def _cmd_DEVICEINFO(self, args: list[int]) -> str:
         module = f"Device Module No.:{self.module} " if self.module else ""  # old fw: absent
         return f"Mightex LED Driver:{self.firmware} {module}Device Serial No.:{self.serial}"
 
+    @commands.handles("MODE")
     def _cmd_MODE(self, args: list[int]) -> str:
         c = self._chan(args, 2)
-        if c is None or args[1] not in SimMode._value2member_map_:
-            return "#?"
-        c.mode = SimMode(args[1])
-        return "##"
+        if c is None or args[1] not in SlcMode._value2member_map_:
+            return ARGUMENT_ERROR
+        c.mode = SlcMode(args[1])
+        return ACK
 
+    @commands.handles("?MODE")
     def _cmd_Q_MODE(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         if c is None:
-            return "#?"
+            return ARGUMENT_ERROR
         return "#7" if self._take_out_of_range() else f"#{int(c.mode)}"
 
+    @commands.handles("NORMAL")
     def _cmd_NORMAL(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None:
-            return "#?"
+            return ARGUMENT_ERROR
         imax, iset = args[1], args[2]
         # Iset > Imax is undocumented on hardware; the simulator rejects it as out of range.
         if not (0 <= imax <= self.normal_max_ma and 0 <= iset <= imax):
-            return "#?"
+            return ARGUMENT_ERROR
         c.normal_imax, c.normal_iset = imax, iset
-        return "##"
+        return ACK
 
+    @commands.handles("CURRENT")
     def _cmd_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 2)
         if c is None or not 0 <= args[1] <= c.normal_imax:
-            return "#?"
+            return ARGUMENT_ERROR
         c.normal_iset = args[1]
-        return "##"
+        return ACK
 
+    @commands.handles("?CURRENT")
     def _cmd_Q_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 1)
         if c is None:
-            return "#?"
+            return ARGUMENT_ERROR
         if self._take_out_of_range():
             return f"#{_CAL_FIELDS} 1000 4000"  # Iset above Imax: impossible
         return f"#{_CAL_FIELDS} {c.normal_imax} {c.normal_iset}"
 
+    @commands.handles("STROBE")
     def _cmd_STROBE(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None or not 0 <= args[1] <= self.pulsed_max_ma or not 0 <= args[2] <= 99_999_999:
-            return "#?"
+            return ARGUMENT_ERROR
         c.strobe_imax, c.strobe_repeat = args[1], args[2]
-        return "##"
+        return ACK
 
+    @commands.handles("?STROBE")
     def _cmd_Q_STROBE(self, args: list[int]) -> str:
         c = self._chan(args, 1)
-        return "#?" if c is None else f"#{c.strobe_imax} {c.strobe_repeat}"
+        return ARGUMENT_ERROR if c is None else f"#{c.strobe_imax} {c.strobe_repeat}"
 
+    @commands.handles("TRIGGER")
     def _cmd_TRIGGER(self, args: list[int]) -> str:
         c = self._chan(args, 3)
         if c is None:
-            return "#?"
+            return ARGUMENT_ERROR
         # Bench quirk: never rejected; Imax clamped to the pulsed ceiling, polarity stored verbatim.
         c.trigger_imax, c.trigger_polarity = min(args[1], self.pulsed_max_ma), args[2]
-        return "##"
+        return ACK
 
+    @commands.handles("?TRIGGER")
     def _cmd_Q_TRIGGER(self, args: list[int]) -> str:
         c = self._chan(args, 1)
-        return "#?" if c is None else f"#{c.trigger_imax} {c.trigger_polarity}"
+        return ARGUMENT_ERROR if c is None else f"#{c.trigger_imax} {c.trigger_polarity}"
 
+    @commands.handles("STORE")
     def _cmd_STORE(self, args: list[int]) -> str:
         self._stored.channels = [_copy(c) for c in self.channels]
-        return "##"
+        return ACK
 
+    @commands.handles("RESET")
     def _cmd_RESET(self, args: list[int]) -> str:
         # Soft reset: back to the stored state, each channel resuming its stored mode; echo off.
         self.channels = [_copy(c) for c in self._stored.channels]
         self.echo = False
-        return "##"
+        return ACK
 
+    @commands.handles("RESTOREDEF")
     def _cmd_RESTOREDEF(self, args: list[int]) -> str:
         self.channels = [SimChannel() for _ in self.channels]  # volatile settings only
-        return "##"
+        return ACK
 
     def _profile_reply(self, profile: dict[int, tuple[int, int]]) -> str:
         # Multi-line: "#I0 T0 \r\n", "I1 T1 \r\n", ... up to and including the first "0 0".
@@ -273,27 +290,31 @@ class SimulatedSlc(PtyDevice):
             lines.append("0 0")
         return "#" + " \r\n".join(lines)
 
+    @commands.handles("STRP")
     def _cmd_STRP(self, args: list[int]) -> str:
         c = self._chan(args, 4)
         if c is None or not 0 <= args[1] <= MAX_PROFILE_STEP or not 0 <= args[2] <= c.strobe_imax:
-            return "#?"
+            return ARGUMENT_ERROR
         if not 0 <= args[3] <= MAX_TSET_US:
-            return "#?"
+            return ARGUMENT_ERROR
         c.strobe_profile[args[1]] = (args[2], args[3])
-        return "##"
+        return ACK
 
+    @commands.handles("?STRP")
     def _cmd_Q_STRP(self, args: list[int]) -> str:
         c = self._chan(args, 1)
-        return "#?" if c is None else self._profile_reply(c.strobe_profile)
+        return ARGUMENT_ERROR if c is None else self._profile_reply(c.strobe_profile)
 
+    @commands.handles("TRIGP")
     def _cmd_TRIGP(self, args: list[int]) -> str:
         c = self._chan(args, 4)
         if c is None:
-            return "#?"
+            return ARGUMENT_ERROR
         # Bench quirk: never rejected; step current clamped to the TRIGGER Imax at write time.
         c.trigger_profile[args[1]] = (min(args[2], c.trigger_imax), args[3])
-        return "##"
+        return ACK
 
+    @commands.handles("?TRIGP")
     def _cmd_Q_TRIGP(self, args: list[int]) -> str:
         c = self._chan(args, 1)
-        return "#?" if c is None else self._profile_reply(c.trigger_profile)
+        return ARGUMENT_ERROR if c is None else self._profile_reply(c.trigger_profile)

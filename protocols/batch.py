@@ -26,7 +26,6 @@ from pathlib import Path
 from typing import Literal
 
 from benchlab.drivers.errors import BenchlabError
-
 from benchlab.session import SESSION_FILE, Session
 
 Outcome = Literal["analysed", "skipped", "failed"]

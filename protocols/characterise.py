@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
 from benchlab.protocols.characterise_analysis import (
     TRUTH_EVENT,
     analyze_characterise,
@@ -128,9 +129,10 @@ class CharacteriseProcedure:
     def _restore(self, ctx: StepContext) -> None:
         """The flat target mounted; on the simulated bench, the sensor truth journalled."""
         ctx.bench.mount(FLAT_TARGET)
-        if getattr(ctx.bench, "sim_camera", None) is not None:
+        world = ctx.bench.world
+        if ctx.bench.sim_camera is not None and world is not None:
             ctx.session.log_event(TRUTH_EVENT, truth=self.params.sensor_truth().to_dict(),
-                                  flat_e_per_ms_per_ma=ctx.bench.world.flat_e_per_ms_per_ma)
+                                  flat_e_per_ms_per_ma=world.flat_e_per_ms_per_ma)
 
     @contextlib.contextmanager
     def _simulated_sensor(self, ctx: StepContext) -> Iterator[None]:

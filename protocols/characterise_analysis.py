@@ -13,10 +13,6 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from benchlab.drivers.mightex_sim_sensor import SensorTruth
-from benchlab.protocols.characterise_params import CharacteriseParams
-from benchlab.protocols.characterise_truth import truth_for
-from benchlab.protocols.engine import frames_of
 
 from benchlab.analysis.photon_transfer import (
     SpatialResult,
@@ -28,6 +24,10 @@ from benchlab.analysis.photon_transfer import (
     response_curve,
     spatial_nonuniformity,
 )
+from benchlab.drivers.mightex_sim_sensor import SensorTruth
+from benchlab.protocols.characterise_params import CharacteriseParams
+from benchlab.protocols.characterise_truth import truth_for
+from benchlab.protocols.engine import frames_of
 
 _SWEEP_NAME = re.compile(r"^e(\d{3})-(lit|dark)-([ab])$")
 #: Journal event recording the simulated sensor truth at set-up.

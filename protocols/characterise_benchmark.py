@@ -87,13 +87,12 @@ def format_figures(rows: list[dict[str, Any]]) -> str:
 
 def _run(procedure: str, root: Path, *, params: Any = None, config: Any = None,
          truth: SensorTruth | None = None) -> Any:
-    from benchlab.protocols.runs import start_run
-
     from benchlab.bench import Bench, BenchConfig
+    from benchlab.protocols.runs import start_run
 
     cfg = config if config is not None else BenchConfig.load(None, simulate=True)
     with Bench.open(cfg, simulate=True) as bench:
-        if truth is not None:
+        if truth is not None and bench.sim_camera is not None:
             bench.sim_camera.sensor.truth = truth
         runner = start_run(procedure, bench=bench, params=params, root=root,
                            prompt=lambda step, message: True)
@@ -102,9 +101,8 @@ def _run(procedure: str, root: Path, *, params: Any = None, config: Any = None,
 
 def run_benchmark(root: Path | None = None) -> dict[str, Any]:
     """Both parts; returns rows, timings and the radiometry comparison."""
-    from benchlab.protocols.params import load_params, params_to_dict, parse_params
-
     from benchlab.bench import BenchConfig
+    from benchlab.protocols.params import load_params, params_to_dict, parse_params
 
     with tempfile.TemporaryDirectory(prefix="benchlab-char-") as tmp:
         base = Path(root) if root is not None else Path(tmp)

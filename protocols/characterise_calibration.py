@@ -19,9 +19,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from benchlab.drivers.errors import BenchlabError
-
 from benchlab.analysis.photon_transfer import ResponseCurve, linearise
+from benchlab.drivers.errors import BenchlabError
 from benchlab.storage import atomic_write_json, atomic_write_text, sha256_file
 
 FORMAT = "benchlab-response-calibration"

@@ -15,14 +15,13 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from benchlab.drivers.mightex_sim_sensor import SensorTruth
-from scipy.stats import norm
 
 from benchlab.analysis.photon_transfer import (
     LINEARITY_RANGE,
     QUANTISATION_VAR_DN2,
     linearity_deviation,
 )
+from benchlab.drivers.mightex_sim_sensor import SensorTruth
 
 _Z, _W = np.polynomial.hermite_e.hermegauss(21)
 _W = _W / _W.sum()
@@ -30,6 +29,8 @@ _W = _W / _W.sum()
 
 def _clipped(mu: Any, sd: Any, ceiling: float) -> tuple[Any, Any]:
     """Mean and variance of N(mu, sd) clipped above at ``ceiling``."""
+    from scipy.stats import norm  # here: importing every procedure must stay fast
+
     a = (ceiling - mu) / sd
     cdf, pdf = norm.cdf(a), norm.pdf(a)
     mean = mu * cdf - sd * pdf + ceiling * (1 - cdf)

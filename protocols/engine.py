@@ -12,21 +12,27 @@ reason: normal end, a failed step, abort, Ctrl-C.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
-from benchlab.drivers.errors import BenchlabError
-from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 
 from benchlab.catalog import record_session
-from benchlab.session import read_results
+from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
+from benchlab.session import Session, read_results
 from benchlab.storage import load_frame_tiff
+
+log = logging.getLogger(__name__)
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 StepKind = Literal["setup", "manual", "focus", "acquire", "analysis"]
 
@@ -75,7 +81,7 @@ class Procedure(Protocol):
 
     def steps(self) -> list[Step]: ...
 
-    def analyze(self, session: Any, estimator: str | None) -> Path: ...
+    def analyze(self, session: Session, estimator: str | None) -> Path: ...
 
 
 @dataclass(frozen=True)
@@ -166,8 +172,8 @@ class Runner:
     def __init__(
         self,
         procedure: Procedure,
-        session: Any,
-        bench: Any,
+        session: Session,
+        bench: Bench,
         *,
         prompt: PromptFn | None = None,
         progress: ProgressFn | None = None,
@@ -257,6 +263,8 @@ class Runner:
             if not all_done:
                 record_session(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
+        if results is None:  # every procedure ends with an analysis step that writes them
+            raise BenchlabError(f"{self.procedure.name}: the run ended without results")
         self.session.finish()
         record_session(self.session.path)
         tables, summary = read_results(results)
@@ -281,6 +289,7 @@ class Runner:
 
     def _run_step(self, step: Step) -> None:
         ctx = StepContext(self, step)
+        log.info("step %s: %s", step.id, step.title)
         self.session.log_event("step_started", step=step.id, title=step.title)
         try:
             step.action(ctx)
@@ -289,6 +298,7 @@ class Runner:
             self.session.log_event("aborted", step=step.id, message=str(exc))
             raise
         except Exception as exc:
+            log.info("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             self.bench.safe_state()
             self.session.log_event(
                 "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}"
@@ -313,7 +323,7 @@ class Runner:
         self.session.log_event("resumed", completed=sorted(done))
 
 
-def frames_of(session: Any, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:
+def frames_of(session: Session, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:
     """Load every saved frame of the given steps: ``{step_id: {name: pixels}}``."""
     out: dict[str, dict[str, npt.NDArray[Any]]] = {}
     for sid in step_ids:

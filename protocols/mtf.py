@@ -20,8 +20,9 @@ world (``bench.mount``), so the frames show what the operator was asked to set u
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from benchlab.analysis.focus import sharpness
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf_analysis import (
     FORWARD_FRAME,
@@ -32,7 +33,8 @@ from benchlab.protocols.mtf_analysis import (
 )
 from benchlab.protocols.params import MtfParams
 
-from benchlab.analysis.focus import sharpness
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 FORWARD_TARGET = "usaf"
 DARK_TARGET = "dark"
@@ -180,7 +182,7 @@ class MtfProcedure:
         self.analyze(ctx.session, self._estimator(ctx))
 
     # -- offline ------------------------------------------------------------------------------
-    def analyze(self, session: Any, estimator: str | None) -> Path:
+    def analyze(self, session: Session, estimator: str | None) -> Path:
         """Analyse the session's saved frames into a new results version."""
         tables, summary, used = analyze_mtf(session, self.params, estimator)
         return Path(session.write_results(tables, summary=summary, estimator=used))

@@ -6,14 +6,10 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-from benchlab.protocols.mtf_edges import forward_edge_tables
-from benchlab.protocols.params import MtfParams, Roi, UsafElement
-from scipy import ndimage
 
 from benchlab.analysis import chart
 from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
@@ -26,21 +22,26 @@ from benchlab.analysis.frequency import (
     usaf_frequency_lp_per_mm,
 )
 from benchlab.analysis.geometry import (
+    fill_holes,
     fov_centre,
     image_height_mm,
     image_height_px,
     nearest_field_point,
     roi_centroid,
 )
+from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
-from benchlab.analysis.thesis_data import optional_float, read_table, thesis_fixture_path
+from benchlab.analysis.thesis_data import thesis_fixture_path
+from benchlab.protocols.mtf_edges import forward_edge_tables
+from benchlab.protocols.params import MtfParams, Roi, UsafElement
+
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 FORWARD_STEP = "forward"
 FORWARD_FRAME = "forward"
 RADIAL_FRAME = "radial"
 ORIENTATIONS = ("sagittal", "tangential")
-#: Probability columns of the Monte Carlo table (Table 4.15): P(averaged MTF > value).
-MC_LEVELS = ("p90", "p80", "p50", "p20", "p10")
 #: "auto" is the library's one default (:data:`benchlab.analysis.estimators.DEFAULT_ESTIMATOR`)
 #: in both views: it measures the bar direction itself, so the oblique spokes and rings of the
 #: radial view need no other estimator.
@@ -220,7 +221,7 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
         mask = np.zeros(radial_frames[0].shape, dtype=bool)
         for px in radial_frames:
             mask |= px > threshold_dn
-        mask = ndimage.binary_fill_holes(mask)
+        mask = fill_holes(mask)
         try:
             circle = fov_centre(mask)
             return circle.centre_rc, circle.method
@@ -229,7 +230,7 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
     return chart.IMAGE_CENTRE_RC, "nominal"
 
 
-def _load(session: Any, step_id: str, name: str) -> npt.NDArray[Any] | None:
+def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
     if name not in session.step_frames(step_id):
         return None
     pixels, _ = session.load_frame(step_id, name)  # checks the frame's hash against the journal
@@ -237,7 +238,7 @@ def _load(session: Any, step_id: str, name: str) -> npt.NDArray[Any] | None:
 
 
 def analyze_mtf(
-    session: Any, params: MtfParams, estimator: str | None
+    session: Session, params: MtfParams, estimator: str | None
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
     """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``."""
     est = estimator or params.estimator or AUTO
@@ -330,30 +331,11 @@ def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> 
     }
 
 
-def monte_carlo_table(path: str = "") -> list[dict[str, Any]]:
-    """Table 4.15 Monte Carlo rows from a user file, or the thesis's shipped with benchlab."""
-    source = path or thesis_fixture_path("table_4_15_monte_carlo")
-    rows = []
-    for r in read_table(source):
-        rows.append({"view": r["view"].strip().lower(),
-                     "freq_lp_per_mm": float(r["freq_lp_per_mm"]),
-                     **{k: optional_float(r.get(k)) for k in MC_LEVELS}})
-    return rows
-
-
-def _band(value: float, mc: Mapping[str, Any]) -> str:
-    """Where an averaged value sits among the Monte Carlo thresholds."""
-    passed = [k for k in MC_LEVELS if mc.get(k) is not None and value > mc[k]]
-    if not passed:
-        return f"below the 90 % threshold ({mc['p90']})"
-    best = passed[-1]
-    return f"exceeds the {best[1:]} % threshold ({mc[best]})"
-
-
 def _monte_carlo_rows(
     t411: list[dict[str, Any]], t412: list[dict[str, Any]], params: MtfParams
 ) -> list[dict[str, Any]]:
-    """Eq. 4.2 averages at the measured frequency nearest each Monte Carlo frequency.
+    """Eq. 4.2 averages at the measured frequency nearest each Monte Carlo frequency, placed
+    among its thresholds by :mod:`benchlab.analysis.mtf_compare` (the one comparison).
 
     Sagittal and tangential stay beside the average: the thesis's lesson is that the average
     alone hid a poor tangential response.
@@ -365,19 +347,21 @@ def _monte_carlo_rows(
             if s is None or t is None or r["aliased"]:
                 continue
             measured[view].append((r["image_lp_per_mm"], s, t))
+    source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
-    for mc in monte_carlo_table(params.monte_carlo_file):
-        cands = measured.get(mc["view"], [])
+    for mc in load_monte_carlo_table(source):
+        cands = measured.get(mc.view, [])
         if not cands:
             continue
-        f, s, t = min(cands, key=lambda c: abs(c[0] - mc["freq_lp_per_mm"]))
-        if abs(f - mc["freq_lp_per_mm"]) > MC_MATCH_FRACTION * mc["freq_lp_per_mm"]:
+        f, s, t = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
+        if abs(f - mc.freq_lp_per_mm) > MC_MATCH_FRACTION * mc.freq_lp_per_mm:
             continue  # nothing measured near this prediction's frequency
-        avg = (s + t) / 2.0
+        avg = averaged_mtf(s, t)
+        _, verdict = monte_carlo_band(avg.average, mc)
         out.append({
-            "view": mc["view"], "mc_freq_lp_per_mm": mc["freq_lp_per_mm"],
+            "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
             "measured_freq_lp_per_mm": f, "sagittal_modulation": s,
-            "tangential_modulation": t, "averaged_modulation": round(avg, 6),
-            **{k: mc[k] for k in MC_LEVELS}, "verdict": _band(avg, mc),
+            "tangential_modulation": t, "averaged_modulation": round(avg.average, 6),
+            **mc.columns(), "verdict": verdict,
         })
     return out

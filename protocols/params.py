@@ -7,7 +7,6 @@ parameter file in one pass. Defaults ship as package data in ``protocols/default
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -16,7 +15,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, TypeAlias
 
-from benchlab.drivers.errors import BenchlabError
+from benchlab.checks import BenchLimits, ParamsError, TableChecker
 from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
     CAMERA_SPEC,
     EXPOSURE_RANGE_MS,
@@ -27,21 +26,12 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
 )
 from benchlab.protocols.characterise_params import CharacteriseParams
 
+__all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
+
 PROCEDURES = ("mtf", "radiometry", "characterise")
 __all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
            "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
-
-
-class ParamsError(BenchlabError):
-    """A parameter file has one or more problems; the message lists every one."""
-
-    def __init__(self, source: str, problems: list[str]) -> None:
-        self.source = source
-        self.problems = list(problems)
-        lines = "\n".join(f"  {p}" for p in self.problems)
-        n = len(self.problems)
-        super().__init__(f"{source}: {n} problem{'s' if n != 1 else ''}:\n{lines}")
 
 
 @dataclass(frozen=True)
@@ -115,111 +105,8 @@ class RadiometryParams:
 Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
 
 
-@dataclass(frozen=True)
-class BenchLimits:
-    """What the bench allows, so parameters are checked against it with everything else.
-
-    ``led_ceilings_ma`` is ``None`` when the bench has no LED controller configured;
-    ``stage_travel_mm`` is ``None`` without a stage (positions are then set by hand).
-    """
-
-    led_ceilings_ma: Mapping[int, float] | None = None
-    stage_travel_mm: tuple[float, float] | None = None
-
-
-class _Checker:
-    """Reads typed values out of a nested mapping, collecting every problem."""
-
-    def __init__(self, data: Mapping[str, Any]) -> None:
-        self.data = data
-        self.problems: list[str] = []
-        self.seen: set[str] = set()
-
-    def _get(self, dotted: str, default: Any) -> tuple[bool, Any]:
-        self.seen.add(dotted)
-        node: Any = self.data
-        for part in dotted.split("."):
-            if not isinstance(node, Mapping) or part not in node:
-                return False, default
-            node = node[part]
-        return True, node
-
-    def fail(self, dotted: str, message: str) -> None:
-        self.problems.append(f"{dotted}: {message}")
-
-    def number(
-        self, dotted: str, default: float, lo: float | None = None, hi: float | None = None,
-        *, lo_open: bool = False,
-    ) -> float:
-        found, value = self._get(dotted, default)
-        if not found:
-            return default
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            self.fail(dotted, f"must be a number, got {value!r}")
-            return default
-        value = float(value)
-        if not math.isfinite(value):
-            self.fail(dotted, f"must be finite, got {value}")
-            return default
-        below = lo is not None and (value <= lo if lo_open else value < lo)
-        if below or (hi is not None and value > hi):
-            rng = f"{'>' if lo_open else '>='} {lo}" if hi is None else f"in [{lo}, {hi}]"
-            self.fail(dotted, f"must be {rng}, got {value:g}")
-            return default
-        return value
-
-    def integer(self, dotted: str, default: int, lo: int, hi: int) -> int:
-        found, value = self._get(dotted, default)
-        if not found:
-            return default
-        if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(dotted, f"must be an integer, got {value!r}")
-            return default
-        if not lo <= value <= hi:
-            self.fail(dotted, f"must be in [{lo}, {hi}], got {value}")
-            return default
-        return value
-
-    def choice(self, dotted: str, default: Any, allowed: tuple[Any, ...]) -> Any:
-        found, value = self._get(dotted, default)
-        if found and value not in allowed:
-            self.fail(dotted, f"must be one of {', '.join(map(str, allowed))}; got {value!r}")
-            return default
-        return value
-
-    def string(self, dotted: str, default: str) -> str:
-        found, value = self._get(dotted, default)
-        if found and not isinstance(value, str):
-            self.fail(dotted, f"must be a string, got {value!r}")
-            return default
-        return value
-
-    def numbers(
-        self, dotted: str, default: tuple[float, ...], lo: float, hi: float,
-        *, lo_open: bool = False,
-    ) -> tuple[float, ...]:
-        found, value = self._get(dotted, default)
-        if not found:
-            return default
-        if not isinstance(value, list) or not value:
-            self.fail(dotted, f"must be a non-empty list of numbers, got {value!r}")
-            return default
-        out: list[float] = []
-        ok = True
-        for i, v in enumerate(value):
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                self.fail(f"{dotted}[{i}]", f"must be a number, got {v!r}")
-                ok = False
-            elif (v <= lo if lo_open else v < lo) or v > hi:
-                self.fail(f"{dotted}[{i}]", f"must be in {'(' if lo_open else '['}{lo}, {hi}], "
-                          f"got {v:g}")
-                ok = False
-            else:
-                out.append(float(v))
-        if ok and len(set(out)) != len(out):
-            self.fail(dotted, "has duplicate values")
-            ok = False
-        return tuple(out) if ok else default
+class _Checker(TableChecker):
+    """The generic checker plus what only parameter files have (ROIs on the frame)."""
 
     def roi(self, dotted: str, default: Roi, value: Any = None, found: bool | None = None) -> Roi:
         if found is None:
@@ -242,20 +129,6 @@ class _Checker:
             self.fail(dotted, f"columns {c0}..{c1} must satisfy 0 <= col0 < col1 <= {cols}")
             bad = True
         return default if bad else (r0, c0, r1, c1)
-
-    def unknown_keys(self) -> None:
-        """Flag keys nobody read (typos would otherwise be silently ignored)."""
-
-        def walk(node: Mapping[str, Any], prefix: str) -> None:
-            for key, value in node.items():
-                dotted = f"{prefix}{key}"
-                nested = any(s.startswith(dotted + ".") for s in self.seen)
-                if isinstance(value, Mapping) and nested:
-                    walk(value, dotted + ".")
-                elif dotted not in self.seen:
-                    self.fail(dotted, "unknown parameter")
-
-        walk(self.data, "")
 
 
 def _check_mtf(c: _Checker) -> MtfParams:

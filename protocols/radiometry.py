@@ -13,15 +13,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
+
+from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
 from benchlab.drivers.errors import BenchlabError, DeviceError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams
 
-from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 LED_TARGET = "led"
 MASK_FRAME = "mask"
@@ -119,13 +122,13 @@ class RadiometryProcedure:
     def _analysis(self, ctx: StepContext) -> None:
         self.analyze(ctx.session, ctx.runner.estimator)
 
-    def analyze(self, session: Any, estimator: str | None) -> Path:
+    def analyze(self, session: Session, estimator: str | None) -> Path:
         tables, summary = analyze_radiometry(session, self.params)
         return Path(session.write_results(tables, summary=summary, estimator="led-mask-mean"))
 
 
 def analyze_radiometry(
-    session: Any, params: RadiometryParams
+    session: Session, params: RadiometryParams
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
     """Table 4.16 from a session's frames (measured normalised vs simulated normalised).
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
+import benchlab
+from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.characterise import CharacteriseProcedure
 from benchlab.protocols.characterise_params import CharacteriseParams
@@ -22,10 +24,10 @@ from benchlab.protocols.params import (
     parse_params,
 )
 from benchlab.protocols.radiometry import RadiometryProcedure
-
-from benchlab import __version__
-from benchlab.catalog import record_session
 from benchlab.session import Session, SessionError
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -79,7 +81,7 @@ def _resolve_params(
 def start_run(
     procedure: str,
     *,
-    bench: Any,
+    bench: Bench,
     params: Params | str | Path | None = None,
     root: str | Path = "sessions",
     operator: str = "",
@@ -96,7 +98,7 @@ def start_run(
     snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
-        devices=bench.identities(), software_version=__version__, sample=sample,
+        devices=bench.identities(), software_version=benchlab.__version__, sample=sample,
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
@@ -114,7 +116,7 @@ def session_params(session: Session) -> Params:
 def resume_run(
     session_path: str | Path,
     *,
-    bench: Any,
+    bench: Bench,
     prompt: PromptFn | None = None,
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
 from benchlab.drivers.mightex_sim_sensor import FlatFieldScene, SensorModel, SensorTruth
 from benchlab.drivers.sensor import AcquisitionState
 

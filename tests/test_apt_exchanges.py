@@ -8,6 +8,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
+
 from benchlab.drivers.apt import AptStage
 from benchlab.drivers.apt_protocol import DcStatus, HwInfo, StatusBits, Units, VelParamsRaw
 from benchlab.drivers.apt_sim import SimulatedAptStage

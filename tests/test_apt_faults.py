@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import pytest
 import serial
+
 from benchlab.drivers.apt import (
     AptBadReplyError,
     AptLimitSwitchError,

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
 from benchlab.drivers.apt import AptStage
 from benchlab.drivers.apt_protocol import Msg, unpack_position
 from benchlab.drivers.apt_sim import SimulatedAptStage
 from benchlab.drivers.errors import DeviceError
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 TRAVEL_MM = (2.0, 40.0)  # soft limits well inside the MTS50's physical 0..50 mm
 CPM = 34554.96

@@ -6,6 +6,9 @@ import struct
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from benchlab.drivers.apt_protocol import (
     HOST,
     UNIT,
@@ -20,8 +23,6 @@ from benchlab.drivers.apt_protocol import (
     pack_position,
     short,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 FRAMES = Path(__file__).resolve().parents[1] / "fixtures" / "serial" / "apt_example_frames.txt"
 Z8 = Units(34554.96)

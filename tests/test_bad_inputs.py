@@ -15,12 +15,12 @@ from typing import Any
 import numpy as np
 import pytest
 import tifffile
-from benchlab.drivers import mightex_protocol
-from benchlab.protocols import params as params_mod
-from benchlab.protocols.params import load_params
 
 from benchlab.analysis.synthetic import bar_roi
 from benchlab.cli.main import main
+from benchlab.drivers import mightex_protocol
+from benchlab.protocols import params as params_mod
+from benchlab.protocols.params import load_params
 from benchlab.session import Session, SessionError, check_sessions_root
 from benchlab.storage import save_frame_tiff
 from benchlab.tui.services import plain_error

@@ -6,13 +6,13 @@ import json
 from pathlib import Path
 
 import pytest
-from benchlab.protocols import batch
-from benchlab.protocols.batch import BatchError, run_batch
-from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session, results_files
 
 from benchlab.cli import batch as cli_batch
 from benchlab.cli.main import main
+from benchlab.protocols import batch
+from benchlab.protocols.batch import BatchError, run_batch
+from benchlab.protocols.runs import reanalyze
 from benchlab.storage import sha256_file
 
 
@@ -33,7 +33,8 @@ def test_batch_equals_single_session_analysis(source: Path, tmp_path: Path) -> N
     report = run_batch(batch, estimator="sinefit", jobs=2)
     assert [i.outcome for i in report.items] == ["analysed"] * 2
     expected = results_files(out)
-    assert set(expected) >= {"summary.json", "table_4_11.csv", "table_4_11.json"}
+    assert set(expected) >= {"summary.json", "forward_view_modulation.csv",
+                             "forward_view_modulation.json"}
     for session, item in zip(batch, report.items, strict=True):
         assert Path(item.results) == session / "results" / "v2"
         assert results_files(session / "results" / "v2") == expected  # same files, same numbers

@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from benchlab.drivers.errors import DeviceError, SafetyLimitError
-from benchlab.protocols import start_run
 from test_protocol_helpers import RAD_SMALL, events
 
 from benchlab.bench import Bench, BenchConfig, BenchError
+from benchlab.drivers.errors import DeviceError, SafetyLimitError
+from benchlab.protocols import start_run
 from benchlab.scenes.led import LedScene
 from benchlab.session import Session
 

@@ -10,14 +10,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from benchlab.protocols.batch import run_batch
-from benchlab.protocols.runs import reanalyze
 from many_sessions_helpers import copy_session, real_session
 
 import benchlab.session as session_mod
 from benchlab.catalog import CATALOG_FILE, Catalog, record_session
 from benchlab.catalog_schema import SCHEMA_VERSION, migrate
 from benchlab.cli.main import main
+from benchlab.protocols.batch import run_batch
+from benchlab.protocols.runs import reanalyze
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def source(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _set_modulation(session: Path, element: str, value: float) -> None:
     """Give a copy its own measured value (as a different lens would)."""
     latest = max((session / "results").iterdir(), key=lambda p: int(p.name[1:]))
-    path = latest / "table_4_11.json"
+    path = latest / "forward_view_modulation.json"  # Table 4.11
     rows = json.loads(path.read_text())
     for row in rows:
         if row["element"] == element:
@@ -59,7 +59,7 @@ def test_a_run_an_analysis_and_a_report_update_the_catalogue(
     assert info["results_version"] == 2 and info["report"] == "report.html"
     forward = {(f["element"], f["orientation"]): f for f in info["figures"]
                if f["view"] == "forward"}
-    rows = json.loads((source / "results" / "v2" / "table_4_11.json").read_text())
+    rows = json.loads((source / "results" / "v2" / "forward_view_modulation.json").read_text())
     for r in rows:  # the catalogue holds exactly the numbers of the results files
         assert forward[(r["element"], "sagittal")]["value"] == r["sagittal_modulation"]
         assert forward[(r["element"], "tangential")]["value"] == r["tangential_modulation"]

@@ -21,12 +21,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from benchlab.protocols.characterise_truth import truth_for
 from emva1288.process import routines
 from emva1288.process.data import Data1288
 from emva1288.process.results import Results1288
 from ptc_frames import RATE_E_PER_MS, TRUTH, make_sweep
 from test_photon_transfer import analyse
+
+from benchlab.protocols.characterise_truth import truth_for
 
 
 def _points(sweep):

@@ -10,6 +10,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from test_protocol_helpers import FIXTURES, RAD_SMALL, events, run_sim, yes
+
+from benchlab.bench import Bench, BenchConfig
+from benchlab.cli.main import main
 from benchlab.drivers.mightex_sim_sensor import SensorTruth
 from benchlab.protocols import ParamsError, RunAborted, load_params, reanalyze, resume_run
 from benchlab.protocols.characterise import sweep_exposures
@@ -21,10 +25,6 @@ from benchlab.protocols.characterise_calibration import (
 )
 from benchlab.protocols.engine import Step
 from benchlab.protocols.params import BenchLimits, parse_params
-from test_protocol_helpers import FIXTURES, RAD_SMALL, events, run_sim, yes
-
-from benchlab.bench import Bench, BenchConfig
-from benchlab.cli.main import main
 from benchlab.session import read_results
 
 SMALL = FIXTURES / "characterise-small.toml"

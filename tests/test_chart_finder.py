@@ -10,12 +10,12 @@ import math
 import numpy as np
 import numpy.typing as npt
 import pytest
-from benchlab.drivers.mightex_sim_sensor import SensorModel
-from benchlab.drivers.sensor import AcquisitionState
 
 from benchlab.analysis import chart
 from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet
+from benchlab.drivers.mightex_sim_sensor import SensorModel
+from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.usaf import UsafScene
 
 H, W = 1024, 1280

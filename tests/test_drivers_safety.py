@@ -5,6 +5,7 @@ from __future__ import annotations
 import atexit
 
 import pytest
+
 from benchlab.drivers.errors import DeviceError
 from benchlab.drivers.safety import SafeInstrument
 

@@ -58,7 +58,7 @@ def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
     saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
     assert len(saved) == 15 and max(saved.values()) == 1
     assert {k: v for k, v in session.frames().items() if k in before} == before
-    rows = json.loads((path / "results" / "v1" / "table_4_12.json").read_text())
+    rows = json.loads((path / "results" / "v1" / "radial_view_modulation.json").read_text())
     world = SimWorld()
     for row in rows[:3]:  # the well-sampled frequencies, as in the uninterrupted run
         f = row["object_lp_per_mm"]

@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from benchlab.protocols import RunOutcome, reanalyze
 from test_protocol_helpers import events, run_sim, tables_of
 
 from benchlab.analysis.chart import IMAGE_CENTRE_RC
 from benchlab.cli.main import main
+from benchlab.protocols import RunOutcome, reanalyze
 from benchlab.scenes.usaf import UsafScene
 from benchlab.scenes.world import SimWorld
 from benchlab.session import Session
@@ -147,8 +147,9 @@ def test_reanalysis_adds_versions_and_never_touches_frames(full_run: RunOutcome)
 
 
 def test_reanalysis_refuses_modified_frames(tmp_path: Path) -> None:
-    from benchlab.protocols.runs import FramesModifiedError
     from test_protocol_helpers import MTF_SMALL
+
+    from benchlab.protocols.runs import FramesModifiedError
 
     outcome = run_sim("mtf", tmp_path, MTF_SMALL)
     frame = next((outcome.session_path / "frames").glob("*.tiff"))
@@ -163,13 +164,13 @@ def test_reanalysis_refuses_modified_frames(tmp_path: Path) -> None:
 def test_rois_follow_a_chart_mounted_off_position(tmp_path: Path) -> None:
     import dataclasses
 
-    from benchlab.protocols import start_run
-    from benchlab.protocols.mtf_analysis import forward_roi
-    from benchlab.protocols.params import load_params
     from test_protocol_helpers import MTF_SMALL, yes
 
     from benchlab.analysis.chart import ChartLayout
     from benchlab.bench import Bench, BenchConfig
+    from benchlab.protocols import start_run
+    from benchlab.protocols.mtf_analysis import forward_roi
+    from benchlab.protocols.params import load_params
 
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
         shifted = ChartLayout(origin_rc=(IMAGE_CENTRE_RC[0] + 6, IMAGE_CENTRE_RC[1] - 9))

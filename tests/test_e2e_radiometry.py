@@ -8,12 +8,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from benchlab.drivers.errors import DeviceError
-from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
-from benchlab.protocols.radiometry import mask_of
 from test_protocol_helpers import RAD_SMALL, events, run_sim, tables_of, yes
 
 from benchlab.bench import Bench, BenchConfig
+from benchlab.drivers.errors import DeviceError
+from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
+from benchlab.protocols.radiometry import mask_of
 from benchlab.scenes.led import LedScene
 from benchlab.session import Session
 

@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import usb.core
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.errors import DeviceNotFoundError, DeviceTimeoutError, SettingOutOfRangeError
 from benchlab.drivers.mightex import MightexCamera, find_cameras
@@ -14,8 +17,6 @@ from benchlab.drivers.mightex_sim import (
     flat_field_scene,
 )
 from benchlab.drivers.sensor import rate_for_dn8
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 H = bytes.fromhex
 

@@ -6,10 +6,11 @@ import array
 
 import numpy as np
 import pytest
-from benchlab.drivers import mightex_protocol as p
-from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+from benchlab.drivers import mightex_protocol as p
+from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
 
 MCE = p.SPECS["MCE-B013-U"]
 BTN = p.SPECS["BTN-B013U"]

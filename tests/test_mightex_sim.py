@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from benchlab.drivers import mightex_protocol as p
 from benchlab.drivers.errors import DeviceTimeoutError
 from benchlab.drivers.mightex import MightexCamera

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from benchlab.protocols import start_run
-from benchlab.protocols.mtf_analysis import analyze_forward_frame
-from benchlab.protocols.params import load_params
 from test_protocol_helpers import MTF_SMALL, events, yes
 
 from benchlab.analysis.chart_pose import ChartPose
 from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import start_run
+from benchlab.protocols.mtf_analysis import analyze_forward_frame
+from benchlab.protocols.params import load_params
 from benchlab.report import render_report
 from benchlab.scenes.usaf import UsafScene
 

@@ -7,6 +7,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+
+from benchlab.analysis.chart import IMAGE_CENTRE_RC
+from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.drivers.mightex_sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.protocols.mtf_analysis import analyze_forward_frame
@@ -18,9 +21,6 @@ from benchlab.protocols.mtf_edges import (
     measure_edges,
 )
 from benchlab.protocols.params import load_params
-
-from benchlab.analysis.chart import IMAGE_CENTRE_RC
-from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.report_curves import load_curves
 from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.world import SimWorld

@@ -6,8 +6,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from benchlab.drivers.mightex_sim_sensor import SensorModel, SensorTruth
-from benchlab.protocols.characterise_truth import truth_for
 from ptc_frames import TRUTH, Sweep, grab, make_sweep
 
 from benchlab.analysis.photon_transfer import (
@@ -21,6 +19,8 @@ from benchlab.analysis.photon_transfer import (
     saturation_vertex,
     spatial_nonuniformity,
 )
+from benchlab.drivers.mightex_sim_sensor import SensorModel, SensorTruth
+from benchlab.protocols.characterise_truth import truth_for
 
 
 def analyse(sweep: Sweep, bits: int = 12, transform=lambda a: a):

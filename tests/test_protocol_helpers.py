@@ -7,9 +7,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from benchlab.protocols import RunOutcome, start_run
-
 from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import RunOutcome, start_run
+from benchlab.session import read_results
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures" / "params"
 MTF_SMALL = FIXTURES / "mtf-small.toml"
@@ -42,4 +42,5 @@ def events(session: Path) -> list[dict[str, Any]]:
 
 
 def tables_of(results: Path) -> dict[str, Any]:
-    return {p.stem: json.loads(p.read_text()) for p in sorted(results.glob("table_*.json"))}
+    """The tables of a results folder, read back from disk under their thesis labels."""
+    return read_results(results)[0]

@@ -5,12 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from benchlab.protocols import MtfParams, ParamsError, RadiometryParams, load_params, parse_params
-from benchlab.protocols.params import BenchLimits
 from test_protocol_helpers import FIXTURES, MTF_SMALL, RAD_SMALL
 
 from benchlab.bench import BenchConfig
 from benchlab.cli.main import main
+from benchlab.protocols import MtfParams, ParamsError, RadiometryParams, load_params, parse_params
+from benchlab.protocols.params import BenchLimits
 
 
 def test_packaged_defaults_follow_table_4_10_and_section_4_4() -> None:

@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
 from test_protocol_helpers import MTF_SMALL, events, only_session, run_sim, tables_of, yes
 
 from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
 from benchlab.session import Session
 
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from benchlab.protocols.mtf_analysis import radial_image_lp_per_mm
-from benchlab.protocols.params import MtfParams, parse_params
 
 from benchlab.analysis.frequency import azimuthal_image_frequency_lp_per_mm
+from benchlab.protocols.mtf_analysis import radial_image_lp_per_mm
+from benchlab.protocols.params import MtfParams, parse_params
 
 
 def test_azimuthal_frequency_is_object_over_image_radius() -> None:

@@ -7,10 +7,10 @@ import re
 from pathlib import Path
 
 import pytest
-from benchlab.protocols import start_run
 from test_protocol_helpers import MTF_SMALL, RAD_SMALL, run_sim
 
 from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import start_run
 from benchlab.report import ReportError, render_report, write_report
 from benchlab.report_curves import (
     default_curves_path,

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX
+from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes import SimWorld
 
 sim_sensor = pytest.importorskip("benchlab.drivers.mightex_sim_sensor")

@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
-from benchlab.drivers.errors import BenchlabError
-from benchlab.drivers.sensor import AcquisitionState
 
 from benchlab.analysis.viewsynth import cylinder_map
 from benchlab.cli.camera import simulated_snap_scene
+from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
 from benchlab.scenes.world import SimWorld, parse_target
 

@@ -7,12 +7,12 @@ import math
 
 import numpy as np
 import pytest
-from benchlab.drivers.sensor import AcquisitionState
 
 from benchlab.analysis import chart
 from benchlab.analysis.edge_target import DEFAULT_SQUARES, edge_specs
 from benchlab.analysis.sfr import measure_sfr
 from benchlab.analysis.sfr_synthetic import pixel_integrated_step
+from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.usaf import UsafScene
 from benchlab.scenes.world import SimWorld, parse_target

@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 import pytest
-from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 
 from benchlab.analysis.chart import RadialLayout
+from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes import LedFalloff, LedScene, SimWorld, UsafScene, parse_target
 
 H, W = 1024, 1280

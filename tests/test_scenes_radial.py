@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
-from benchlab.drivers.sensor import AcquisitionState
 from scipy.ndimage import map_coordinates
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX, RadialLayout, box_centroid
 from benchlab.analysis.viewsynth import cylinder_map
+from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.radial import RADIAL_TARGETS_LP_PER_MM, RadialScene, radial_truth_table
 
 H, W = 1024, 1280

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from benchlab.drivers.sensor import DN12_PER_E, AcquisitionState, rate_for_dn8
 from scipy.ndimage import gaussian_filter1d
 
 from benchlab.analysis.chart import ChartLayout, RadialLayout
+from benchlab.drivers.sensor import DN12_PER_E, AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import BlurProfile
 from benchlab.scenes.usaf import UsafScene
 

@@ -8,11 +8,11 @@ import subprocess
 import sys
 
 import pytest
-from benchlab.drivers.apt import AptStage
-from benchlab.drivers.slc import SlcController
 
 from benchlab.cli.main import main
 from benchlab.cli.serial import list_serial_devices
+from benchlab.drivers.apt import AptStage
+from benchlab.drivers.slc import SlcController
 
 pytestmark = pytest.mark.timeout(60)
 

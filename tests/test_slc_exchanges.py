@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
+
 from benchlab.drivers.errors import SafetyLimitError, SettingOutOfRangeError
 from benchlab.drivers.slc import (
     SlcController,

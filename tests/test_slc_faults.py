@@ -10,6 +10,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
+
 from benchlab.drivers.errors import DeviceLostError, DeviceTimeoutError
 from benchlab.drivers.slc import (
     SlcAckInsteadOfDataError,

@@ -5,11 +5,12 @@ from __future__ import annotations
 import re
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
 from benchlab.drivers.errors import DeviceError
 from benchlab.drivers.slc import SlcController, SlcMode
 from benchlab.drivers.slc_sim import SimulatedSlc
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 CEILINGS = {1: 100.0, 2: 20.5, 3: 0.0}  # channel 4 deliberately has no ceiling
 

@@ -4,16 +4,16 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from benchlab.cli.main import main
 from benchlab.drivers import apt_protocol as apt
 from benchlab.drivers import mightex_protocol as mp
 from benchlab.drivers.errors import DeviceError, ProtocolError
 from benchlab.drivers.mightex import Frame, MightexCamera
 from benchlab.drivers.mightex_soak import FAULT_KINDS, run_soak
 from benchlab.drivers.slc import SlcController, parse_current_reply
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
-from benchlab.cli.main import main
 
 
 # ---- the soak --------------------------------------------------------------------------------

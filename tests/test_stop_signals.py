@@ -21,9 +21,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+
 from benchlab.drivers.apt_sim import SimulatedAptStage
 from benchlab.drivers.slc_sim import SimulatedSlc
-
 from benchlab.session import Session
 
 ROOT = Path(__file__).resolve().parents[1]

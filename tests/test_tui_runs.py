@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
@@ -10,7 +9,7 @@ import pytest
 from test_tui_helpers import MTF_PARAMS, RADIOMETRY_PARAMS, connected, make_app, wait_until
 from textual.widgets import DataTable
 
-from benchlab.session import Session
+from benchlab.session import Session, read_results
 from benchlab.tui.plot import CtfPlot, render_plot
 from benchlab.tui.runner import STATUS_MARK, RunScreen
 
@@ -62,7 +61,7 @@ async def test_run_screen_is_readable_at_80x24_and_plots_the_readings(tmp_path: 
 def _results_json(session: Session, table: str) -> list[dict]:
     latest = session.latest_results()
     assert latest is not None
-    data = json.loads((Path(latest) / f"{table}.json").read_text(encoding="utf-8"))
+    data = read_results(latest)[0][table]
     return data["rows"] if isinstance(data, dict) else data
 
 

@@ -15,7 +15,7 @@ from benchlab.tui.sessions import SessionsScreen
 
 
 def _set_modulation(session: Path, element: str, value: float) -> None:
-    path = session / "results" / "v1" / "table_4_11.json"
+    path = session / "results" / "v1" / "forward_view_modulation.json"
     rows = json.loads(path.read_text())
     for row in rows:
         if row["element"] == element:

@@ -6,10 +6,10 @@ import errno
 
 import numpy as np
 import pytest
-from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
-from benchlab.protocols import ParamsError
 from textual.app import App, ComposeResult
 
+from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
+from benchlab.protocols import ParamsError
 from benchlab.tui.services import plain_error
 from benchlab.tui.widgets import (
     ROI_RGB,

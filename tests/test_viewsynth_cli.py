@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tifffile
-from benchlab.protocols import RunOutcome
 from test_protocol_helpers import MTF_SMALL, run_sim
 
 from benchlab.analysis.raytrace import read_raytrace_table
@@ -17,6 +16,7 @@ from benchlab.analysis.viewsynth import fov_centre_of_frame
 from benchlab.analysis.viewsynth_calibrate import calibrate_from_rings, compare_tables
 from benchlab.cli.main import main
 from benchlab.cli.viewsynth_bench import _render, expose_dn8
+from benchlab.protocols import RunOutcome
 from benchlab.radial_views import load_view_tiff
 from benchlab.scenes.card import CardScene
 from benchlab.scenes.radial import RadialScene

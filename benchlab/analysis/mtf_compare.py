@@ -68,6 +68,11 @@ class MonteCarloRow:
     freq_lp_per_mm: float
     thresholds: dict[float, float]  # probability (0-1) -> averaged-MTF threshold
 
+    def columns(self) -> dict[str, float]:
+        """The thresholds as the table's columns, most probable first: ``{"p90": 0.46, ...}``."""
+        return {f"p{round(100 * p)}": t for p, t in sorted(self.thresholds.items(),
+                                                            reverse=True)}
+
 
 def load_monte_carlo_table(path: str | Path) -> list[MonteCarloRow]:
     """Read a Monte Carlo table: CSV ``view,freq_lp_per_mm,p90,p80,...`` (``#`` comments).
@@ -151,19 +156,41 @@ def compare_with_monte_carlo(
     if not rows:
         raise ValueError(f"no Monte Carlo rows for view {view!r}")
     row = min(rows, key=lambda r: abs(r.freq_lp_per_mm - freq_lp_per_mm))
-    exceeded = tuple(
-        sorted((p for p, t in row.thresholds.items() if avg.average > t), reverse=True)
-    )
+    exceeded, band = monte_carlo_band(avg.average, row)
+    return MonteCarloComparison(key, freq_lp_per_mm, avg, False, row, exceeded, band)
+
+
+def monte_carlo_band(average: float, row: MonteCarloRow) -> tuple[tuple[float, ...], str]:
+    """Place an averaged MTF among one Monte Carlo row's thresholds.
+
+    Parameters
+    ----------
+    average : float
+        Measured averaged MTF (Eq. 4.2).
+    row : MonteCarloRow
+        The prediction it is compared with.
+
+    Returns
+    -------
+    exceeded : tuple of float
+        Probabilities whose thresholds ``average`` exceeds, highest first.
+    band : str
+        The placement in words, e.g. ``"between the 80% and 50% thresholds (0.27 .. 0.45)"``.
+    """
+    exceeded = tuple(sorted((p for p, t in row.thresholds.items() if average > t), reverse=True))
     probs = sorted(row.thresholds)
     if not exceeded:
         band = f"below the {100 * max(probs):.0f}% threshold ({row.thresholds[max(probs)]:.2f})"
     elif len(exceeded) == len(probs):
         band = f"above the {100 * min(probs):.0f}% threshold ({row.thresholds[min(probs)]:.2f})"
     else:
+        # Thresholds rise as the probability falls: the value beats the one at ``lo`` and
+        # falls short of the next less probable one.
         lo = min(exceeded)
-        hi = min(p for p in probs if p > lo)
-        band = f"between the {100 * hi:.0f}% and {100 * lo:.0f}% thresholds"
-    return MonteCarloComparison(key, freq_lp_per_mm, avg, False, row, exceeded, band)
+        nxt = max(p for p in probs if p < lo)
+        band = (f"between the {100 * lo:.0f}% and {100 * nxt:.0f}% thresholds "
+                f"({row.thresholds[lo]:.2f} .. {row.thresholds[nxt]:.2f})")
+    return exceeded, band
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
-from skimage.filters import threshold_otsu
 
 
 def led_mask(
@@ -39,6 +37,9 @@ def led_mask(
     ValueError
         Non-2-D frame, uniform frame (nothing to find) or a mask smaller than ``min_pixels``.
     """
+    from scipy import ndimage  # imported here: most analyses never need them
+    from skimage.filters import threshold_otsu
+
     img = np.asarray(high_gain_frame, dtype=np.float64)
     if img.ndim != 2 or img.size == 0:
         raise ValueError(f"mask frame must be a non-empty 2-D array, got shape {img.shape}")

@@ -8,16 +8,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError
 from benchlab.drivers.errors import BenchlabError
+
+if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
+    import numpy.typing as npt
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".bmp")
 ORIENTATION_CHOICES = ("sagittal", "tangential", "horizontal", "vertical")
@@ -36,6 +37,7 @@ def read_image(path: Path) -> npt.NDArray[Any]:
     AnalysisInputError
         Missing, unreadable, colour or unsupported file, naming it.
     """
+    import numpy as np
     if not path.exists():
         raise AnalysisInputError(f"{path}: no such file")
     if not path.is_file():
@@ -165,7 +167,7 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
 
 def _check_options(args: argparse.Namespace) -> None:
     """Values that cannot be meant are usage errors (exit 2), never silently ignored."""
-    if args.freq is not None and not (np.isfinite(args.freq) and args.freq > 0):
+    if args.freq is not None and not (math.isfinite(args.freq) and args.freq > 0):
         raise UsageError(f"--freq must be a bar frequency > 0 lp/mm, got {args.freq:g}")
     if args.bootstrap is not None and args.bootstrap < 1:
         raise UsageError(f"--bootstrap must be a number of resamples >= 1, got {args.bootstrap}")
@@ -275,7 +277,7 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
             gain = float(load_frame_tiff(target)[1].get("gain", 1.0))
         except Exception:  # noqa: BLE001 - a plain TIFF without benchlab metadata
             gain = 1.0
-    bits = 8 if pixels.dtype == np.uint8 else 12
+    bits = 8 if pixels.dtype.itemsize == 1 else 12
     doc = load_calibration(calib)
     try:
         codes = native_codes(pixels, bits)

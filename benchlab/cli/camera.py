@@ -13,22 +13,12 @@ import statistics
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import usb.core
-
-from benchlab import __version__
-from benchlab.drivers import mightex_protocol as proto
 from benchlab.drivers.errors import BenchlabError, DeviceNotFoundError
-from benchlab.drivers.mightex import MightexCamera, find_cameras
-from benchlab.drivers.mightex_sim import (
-    SimCameraBackend,
-    SimulatedCamera,
-    bar_target_scene,
-    flat_field_scene,
-)
-from benchlab.storage import save_frame_tiff
+
+if TYPE_CHECKING:  # the driver stack (numpy, pyusb) is imported by the commands that use it
+    from benchlab.drivers.mightex_sim import SimCameraBackend
 
 
 def _pid(text: str) -> int:
@@ -42,6 +32,8 @@ def _pid(text: str) -> int:
 
 
 def _sim_backend(pid: int | None, scene: Any = None) -> SimCameraBackend:
+    from benchlab.drivers import mightex_protocol as proto
+    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
     cam = SimulatedCamera(scene=scene, pid=proto.DEFAULT_PID if pid is None else pid)
     return SimCameraBackend([cam])
 
@@ -51,6 +43,7 @@ def _sim_backend(pid: int | None, scene: Any = None) -> SimCameraBackend:
 
 def list_devices(simulate: bool, pid: int | None = None) -> tuple[list[dict[str, Any]], list[str]]:
     """Cameras, then serial devices, as dicts (kind, model, serial, firmware, ...) and notes."""
+    from benchlab.drivers.mightex import find_cameras
     notes: list[str] = []
     rows: list[dict[str, Any]] = []
     try:
@@ -107,6 +100,7 @@ SNAP_SCENES_HELP = (
 
 def simulated_snap_scene(name: str) -> Any:
     """The scene for ``snap --simulate --scene NAME``; a clear error names a bad NAME."""
+    from benchlab.drivers.mightex_sim import bar_target_scene, flat_field_scene
     if name == "bars":
         return bar_target_scene()
     if name == "flat":
@@ -133,6 +127,9 @@ def simulated_snap_scene(name: str) -> Any:
 def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: str | None = None,
          pid: int | None = None, simulate: bool = False, scene: str = "bars") -> dict[str, Any]:
     """Grab one frame and save it as lossless TIFF with its metadata; returns the metadata."""
+    from benchlab import __version__
+    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.storage import save_frame_tiff
     if out.exists():
         raise BenchlabError(f"{out} already exists; frames are never overwritten")
     backend = _sim_backend(pid, simulated_snap_scene(scene)) if simulate else None
@@ -172,6 +169,9 @@ def _cmd_snap(args: argparse.Namespace) -> int:
 
 def _raw_frame(backend: SimCameraBackend) -> tuple[bytes, int]:
     """One raw frame transfer read by plain pyusb calls (the camera must be configured)."""
+    import usb.core
+
+    from benchlab.drivers import mightex_protocol as proto
     dev = usb.core.find(idVendor=proto.VENDOR_ID, idProduct=proto.DEFAULT_PID, backend=backend)
     dev.write(proto.EP_COMMAND_OUT, proto.encode_query_buffer())
     proto.decode_reply(bytes(dev.read(proto.EP_REPLY_IN, 255)), "buffer query", 6)
@@ -182,6 +182,11 @@ def _raw_frame(backend: SimCameraBackend) -> tuple[bytes, int]:
 
 def benchmark_camera(frames: int = 200, decode_repeats: int = 40) -> list[dict[str, Any]]:
     """Full-frame 8- and 12-bit figures: end-to-end fps, decode vs plain copy (medians)."""
+    import numpy as np
+
+    from benchlab.drivers import mightex_protocol as proto
+    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera, flat_field_scene
     results = []
     for bits in (8, 12):
         sim = SimulatedCamera(scene=flat_field_scene(), seed=0)

@@ -7,12 +7,12 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from benchlab.analysis.chart import ChartLayout
-from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
-from benchlab.analysis.frequency import FORWARD_MAGNIFICATION
 from benchlab.drivers.errors import BenchlabError
+
+if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
+    from benchlab.analysis.chart_finder import ChartFit
 
 CHART_KINDS = ("usaf",)
 
@@ -21,9 +21,16 @@ class ChartNotFound(BenchlabError):
     """No chart in the frame (printed as ``benchlab: error: FRAME: no chart found: ...``)."""
 
 
-def locate(path: Path, magnification: float = FORWARD_MAGNIFICATION) -> tuple[Any, ChartFit]:
-    """Read an image and find the chart in it; a clear error when there is none."""
+def locate(path: Path, magnification: float | None = None) -> tuple[Any, ChartFit]:
+    """Read an image and find the chart in it; a clear error when there is none
+    (``magnification`` default: the forward view's, Eq. 4.1)."""
+    from benchlab.analysis.chart import ChartLayout
+    from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
+    from benchlab.analysis.frequency import FORWARD_MAGNIFICATION
     from benchlab.cli.analysis import AnalysisInputError, read_image
+
+    if magnification is None:
+        magnification = FORWARD_MAGNIFICATION
 
     if not magnification > 0:
         raise AnalysisInputError(f"--magnification must be > 0, got {magnification}")
@@ -192,7 +199,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     p.add_argument("frame", metavar="FRAME", help="image file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="write a PNG of the frame with the found chart")
-    p.add_argument("--magnification", type=float, default=FORWARD_MAGNIFICATION,
+    p.add_argument("--magnification", type=float, default=None,
                    help="configured object-to-image frequency factor, Eq. 4.1 (default 16.3)")
     p.set_defaults(func=_find_chart_command)
 

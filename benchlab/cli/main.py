@@ -15,7 +15,6 @@ import os
 import sys
 from collections.abc import Sequence
 
-from benchlab import __version__
 from benchlab.cli import UsageError
 from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
@@ -31,8 +30,22 @@ COMMAND_MODULES = (
     "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
     "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
+    "benchlab.cli.config",  # config init, config show
+    "benchlab.cli.startup",  # benchmark startup
     "benchlab.cli.soak",  # benchmark soak
 )
+LOG_LEVELS = ("debug", "info", "warning", "error")
+
+
+class _VersionAction(argparse.Action):
+    """``--version``, looking the version up only when asked (start-up time)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        from benchlab import __version__
+
+        print(f"benchlab {__version__}")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,7 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
             "terminal UI."
         ),
     )
-    parser.add_argument("--version", action="version", version=f"benchlab {__version__}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0,
+                        help="print the version and exit")
+    parser.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
+                        help="log messages from this level up to stderr (default warning)")
+    parser.add_argument("--trace-io", metavar="FILE",
+                        help="append a byte-level trace of every device exchange to FILE")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     bench = commands.add_parser(
         "benchmark", help="measure speed and accuracy and print a table",
@@ -69,7 +87,7 @@ def plain_os_error(exc: OSError) -> str:
 
 
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
-_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version"}
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -80,13 +98,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    if not args_list or (args_list[0].startswith("-") and args_list[0] not in _TOP_LEVEL_OPTIONS):
+    first = args_list[0].split("=", 1)[0] if args_list else ""
+    if not args_list or (first.startswith("-") and first not in _TOP_LEVEL_OPTIONS):
         args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
         return 2
+    _setup_logging(args.log_level)
+    if args.trace_io:
+        from benchlab.drivers import io_trace
+
+        io_trace.start(args.trace_io)
     with shutdown.handling_signals():
         try:
             return int(func(args) or 0)
@@ -106,6 +130,35 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); bench left safe",
                   file=sys.stderr)
             return shutdown.exit_status(exc)
+        finally:
+            if args.trace_io:
+                from benchlab.drivers import io_trace
+
+                io_trace.stop()
+
+
+def _setup_logging(level: str) -> None:
+    """One handler on the ``benchlab`` logger: ``benchlab.<module>: LEVEL: message``."""
+    import logging
+
+    class StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+        """Writes to the sys.stderr of the moment (tests and the TUI swap it)."""
+
+        @property  # type: ignore[override]
+        def stream(self) -> object:
+            return sys.stderr
+
+        @stream.setter
+        def stream(self, value: object) -> None:
+            pass
+
+    root = logging.getLogger("benchlab")
+    root.setLevel(level.upper())
+    if not any(type(h).__name__ == "StderrHandler" for h in root.handlers):
+        handler = StderrHandler()
+        handler.setFormatter(logging.Formatter("%(asctime)s %(name)s: %(levelname)s: %(message)s",
+                                               "%H:%M:%S"))
+        root.addHandler(handler)
 
 
 if __name__ == "__main__":

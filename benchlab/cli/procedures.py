@@ -8,9 +8,12 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.drivers.errors import BenchlabError
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 
 class _Progress:
@@ -40,7 +43,7 @@ class _Progress:
         self.stream.flush()
 
 
-def _live_sharpness(bench: Any, step: Any, stream: TextIO) -> str:
+def _live_sharpness(bench: Bench, step: Any, stream: TextIO) -> str:
     """Back-focus step on a terminal: show the sharpness of fresh frames until Enter."""
     from benchlab.analysis.focus import sharpness
 
@@ -68,7 +71,7 @@ def _live_sharpness(bench: Any, step: Any, stream: TextIO) -> str:
     return answer[0] if answer else ""
 
 
-def _prompter(yes: bool, progress: _Progress, bench: Any) -> Any:
+def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
     def prompt(step: Any, message: str) -> bool:
         if yes:
             progress.line(f"  {step.id}: {message} [--yes]")
@@ -113,12 +116,17 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         else:
             config = BenchConfig.from_session(session_path)
     else:
-        config = BenchConfig.load(args.config, simulate=args.simulate)
-        if not args.simulate and args.config is None:
-            raise BenchlabError("the real bench needs --config bench.toml (or use --simulate)")
+        from benchlab.cli.config import bench_file_in_force, sessions_in_force
+
+        bench_file = bench_file_in_force(args.config, simulate=args.simulate)
+        if not args.simulate and bench_file.value is None:
+            raise BenchlabError("the real bench needs a bench file: --config bench.toml, or "
+                                "`benchlab config init` for a default one (or use --simulate)")
+        config = BenchConfig.load(bench_file.value, simulate=args.simulate)
+        sessions_root = sessions_in_force(args.out).value
         from benchlab.session import check_sessions_root
 
-        check_sessions_root(args.out)  # before any device is opened
+        check_sessions_root(sessions_root)  # before any device is opened
     check_estimator(getattr(args, "estimator", None))
     params = None
     if not resume:
@@ -136,7 +144,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
             if resume:
                 runner = resume_run(session_path, **kwargs)
             else:
-                runner = start_run(args.procedure, params=params, root=args.out,
+                runner = start_run(args.procedure, params=params, root=sessions_root,
                                    operator=args.operator, sample=args.sample, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
@@ -291,10 +299,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     run.add_argument("procedure", choices=("mtf", "radiometry", "characterise"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
-    run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel)")
+    run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
+                     "default: the user's, see `benchlab config show`)")
     run.add_argument("--params", help="procedure parameter TOML (default: packaged)")
     run.add_argument("--yes", action="store_true", help="confirm every manual step")
-    run.add_argument("--out", default="sessions", help="folder for sessions (default sessions)")
+    run.add_argument("--out", help="folder for sessions (default: [paths] sessions of the "
+                     "user's bench.toml, else ./sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
     run.add_argument("--sample", default="", metavar="ID",
                      help="lens or sample under test (the catalogue groups trends by it)")

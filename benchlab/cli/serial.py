@@ -17,12 +17,8 @@ from collections.abc import Iterator
 from typing import Any
 
 from benchlab.drivers import shutdown
-from benchlab.drivers.apt import AptStage, query_info
 from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
-from benchlab.drivers.apt_sim import SimulatedAptStage
 from benchlab.drivers.errors import BenchlabError, DeviceError
-from benchlab.drivers.slc import SlcController
-from benchlab.drivers.slc_sim import SimulatedSlc
 
 DEFAULT_CEILING_MA = 100.0
 CLI_SIM_TIME_SCALE = 20.0  # one-shot --simulate commands should not make people wait
@@ -33,6 +29,8 @@ APT_USB_IDS = {(0x0403, 0xFAF0)}  # Thorlabs APT cubes (FTDI with Thorlabs PID)
 @contextlib.contextmanager
 def _port_for(args: argparse.Namespace, kind: str) -> Iterator[str]:
     """Yield the port to use: a fresh simulator's pty with --simulate, else --port."""
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.slc_sim import SimulatedSlc
     if not args.simulate:
         if not args.port:
             raise BenchlabError(f"{kind}: give --port PATH (or --simulate)")
@@ -70,6 +68,7 @@ def _wait_for_interrupt(hold_s: float | None) -> None:
 
 # ---- led -------------------------------------------------------------------------------------
 def _cmd_led(args: argparse.Namespace) -> int:
+    from benchlab.drivers.slc import SlcController
     ceilings = {args.channel: args.ceiling_ma}
     with _port_for(args, "led") as port, SlcController(port, ceilings_ma=ceilings) as slc:
         if args.off:
@@ -94,6 +93,7 @@ def _cmd_led(args: argparse.Namespace) -> int:
 
 # ---- stage -----------------------------------------------------------------------------------
 def _cmd_stage(args: argparse.Namespace) -> int:
+    from benchlab.drivers.apt import AptStage
     lo, hi = args.travel_mm
     with _port_for(args, "stage") as port, AptStage(
         port, counts_per_mm=args.counts_per_mm, travel_mm=(lo, hi),
@@ -119,6 +119,8 @@ def _cmd_stage(args: argparse.Namespace) -> int:
 
 # ---- simulate --------------------------------------------------------------------------------
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.slc_sim import SimulatedSlc
     lo, hi = args.travel_mm
     led = SimulatedSlc(channels=args.channels)
     stage = SimulatedAptStage(travel_mm=(lo, hi), time_scale=args.time_scale, homed=args.homed,
@@ -143,6 +145,7 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
     by USB id and asked for HW_GET_INFO only; other USB-serial ports are listed as
     ``kind="serial"`` without probing, since writing to an unknown instrument is unsafe.
     """
+    from benchlab.drivers.apt import query_info
     if simulate:
         return _list_simulated()
     from serial.tools import list_ports
@@ -166,6 +169,10 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
 
 
 def _list_simulated() -> list[dict[str, Any]]:
+    from benchlab.drivers.apt import AptStage
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.slc import SlcController
+    from benchlab.drivers.slc_sim import SimulatedSlc
     led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0))
     try:
         led_port, stage_port = led.start(), stage.start()
@@ -186,6 +193,10 @@ def _list_simulated() -> list[dict[str, Any]]:
 
 # ---- benchmark -------------------------------------------------------------------------------
 def _cmd_benchmark(args: argparse.Namespace) -> int:
+    from benchlab.drivers.apt import AptStage
+    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.slc import SlcController
+    from benchlab.drivers.slc_sim import SimulatedSlc
     n = args.repeat
     rows: list[tuple[str, list[float]]] = []
     led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True,

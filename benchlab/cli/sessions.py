@@ -14,9 +14,10 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from benchlab.catalog import Catalog, CatalogError, TrendPoint
+if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
+    from benchlab.catalog import Catalog, TrendPoint
 
 LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
                 "results_version", "estimator", "serials")
@@ -55,6 +56,8 @@ def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: s
 
 
 def _open(args: argparse.Namespace) -> Catalog:
+    from benchlab.catalog import Catalog, CatalogError
+
     root = Path(args.root)
     if not root.is_dir():
         raise CatalogError(f"{root}: no such sessions folder (--root)")

@@ -10,8 +10,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from benchlab.cli.analysis import AnalysisInputError, parse_roi, read_image
 from benchlab.drivers.errors import BenchlabError
 
@@ -92,6 +90,8 @@ def _parse_freqs(text: str | None) -> list[float]:
 
 
 def _at_freqs(result: Any, freqs_lp: list[float]) -> list[dict[str, Any]]:
+    import numpy as np  # here, not at import: `benchlab --help` needs no numpy
+
     cyc = np.asarray(freqs_lp, dtype=np.float64) / _lp_per_mm(1.0)
     mtf = result.mtf_at(cyc)
     sig = result.sigma_at(cyc)
@@ -103,6 +103,8 @@ def _at_freqs(result: Any, freqs_lp: list[float]) -> list[dict[str, Any]]:
 
 def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
           chosen: list[dict[str, Any]]) -> str:
+    import numpy as np
+
     m50 = result.mtf50_cycles_per_px
     sig = result.sigma_at(np.asarray(TABLE_FREQS))
     m50_txt = "N/A (stays above 0.5)" if m50 is None else (

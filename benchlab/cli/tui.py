@@ -18,10 +18,13 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         ),
     )
     parser.add_argument("--simulate", action="store_true", help="use the simulated bench")
-    parser.add_argument("--config", type=Path, default=None, help="bench configuration (TOML)")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="bench configuration (TOML; default: the user's, see "
+                        "`benchlab config show`)")
     parser.add_argument(
-        "--sessions", type=Path, default=Path("sessions"),
-        help="folder of saved sessions (default: ./sessions)",
+        "--sessions", type=Path, default=None,
+        help="folder of saved sessions (default: [paths] sessions of the user's bench.toml, "
+        "else ./sessions)",
     )
     parser.add_argument("--mtf-params", type=Path, default=None, help="MTF parameter file")
     parser.add_argument(
@@ -55,6 +58,7 @@ def _benchmark_tui(args: argparse.Namespace) -> int:
 
 
 def run_tui(args: argparse.Namespace) -> int:
+    from benchlab.cli.config import bench_file_in_force, sessions_in_force
     from benchlab.drivers import shutdown
     from benchlab.tui.pixels import choose_image_protocol
 
@@ -68,7 +72,9 @@ def run_tui(args: argparse.Namespace) -> int:
         if path is not None
     }
     app = BenchlabApp(
-        simulate=args.simulate, config=args.config, sessions_dir=args.sessions,
+        simulate=args.simulate,
+        config=bench_file_in_force(args.config, simulate=args.simulate).value,
+        sessions_dir=sessions_in_force(args.sessions, "--sessions").value,
         params_files=params, operator=args.operator, image_protocol=image_protocol,
     )
     with shutdown.handling_signals(on_signal=app.stop_from_signal):

@@ -7,7 +7,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from textual import work
 from textual.app import App
@@ -21,6 +21,9 @@ from benchlab.tui.dialogs import ConfirmDialog, ErrorDialog
 from benchlab.tui.live import LiveScreen
 from benchlab.tui.runner import RunScreen
 from benchlab.tui.sessions import SessionsScreen
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
 
 
 class BenchlabApp(App[None]):
@@ -80,7 +83,7 @@ class BenchlabApp(App[None]):
         self.params_files: dict[str, Path | None] = dict(params_files or {})
         #: Recorded in ``session.json`` of every run started here.
         self.operator = operator
-        self.bench: Any = None
+        self.bench: Bench | None = None
         self._opened: services.OpenedBench | None = None
         #: Serialises device access between the live view, the devices panel and the runner.
         self.device_lock = threading.RLock()

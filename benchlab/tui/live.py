@@ -18,6 +18,7 @@ from textual.timer import Timer
 from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
+from benchlab.bench import plain_target
 from benchlab.tui import services
 from benchlab.tui.chart_overlay import (
     ChartFrameView,
@@ -358,8 +359,8 @@ class LiveScreen(Screen[None]):
                 self.notify, "Targets are mounted by hand on a real bench.", severity="warning"
             )
             return
-        current = services.plain_target(bench.mounted)
-        names = [services.plain_target(t) for t in SIM_TARGETS]
+        current = plain_target(bench.mounted)
+        names = [plain_target(t) for t in SIM_TARGETS]
         nxt = SIM_TARGETS[(names.index(current) + 1) % len(SIM_TARGETS)] if current in names \
             else SIM_TARGETS[0]
         try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import concurrent.futures
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.markup import escape
 from textual import work
@@ -22,6 +22,9 @@ from benchlab.tui import services
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.plot import CtfPlot, PlotPoint
 from benchlab.tui.widgets import ModeBar
+
+if TYPE_CHECKING:
+    from benchlab.protocols.engine import Runner
 
 PROCEDURES = ("mtf", "radiometry", "characterise")
 #: Title of the checklist panel per procedure.
@@ -112,7 +115,7 @@ class RunScreen(Screen[None]):
 
     def __init__(self) -> None:
         super().__init__()
-        self.runner: Any = None
+        self.runner: Runner | None = None
         self.outcome: Any = None
         self.session_path: Path | None = None
         self.step_status: dict[str, str] = {}
@@ -388,7 +391,7 @@ class RunScreen(Screen[None]):
             finally:
                 call(setattr, app, "procedure_running", False)
 
-    def _started(self, runner: Any) -> None:
+    def _started(self, runner: Runner) -> None:
         self.session_path = Path(runner.session.path)
         if resume_proc := getattr(runner.session, "procedure", None):
             self.set_reactive(RunScreen.procedure, resume_proc)
@@ -479,6 +482,8 @@ class RunScreen(Screen[None]):
     def _update_focus_figure(self, dialog: PromptDialog) -> None:
         app: Any = self.app
         try:
+            if self.runner is None:
+                raise RuntimeError("no run in progress")
             value = services.focus_sharpness(app.bench, self.runner)
         except Exception as exc:  # noqa: BLE001 - a figure, not a reason to stop the run
             text = f"sharpness: unavailable ({services.plain_error(exc)})"

@@ -12,13 +12,18 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.bench import plain_target
 from benchlab.drivers import errors
 from benchlab.tui.widgets import Roi
+
+if TYPE_CHECKING:
+    from benchlab.bench import Bench
+    from benchlab.protocols.engine import Runner
 
 
 def plain_error(exc: BaseException) -> str:
@@ -104,7 +109,7 @@ def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDAr
 class OpenedBench:
     """An open bench and the context that closes it (safe state first)."""
 
-    def __init__(self, bench: Any, context: Any) -> None:
+    def __init__(self, bench: Bench, context: Any) -> None:
         self.bench = bench
         self._context = context
 
@@ -123,12 +128,12 @@ def open_bench(config: Path | None, simulate: bool, seed: int | None = 0) -> Ope
     return OpenedBench(bench, context)
 
 
-def safe_state(bench: Any) -> None:
+def safe_state(bench: Bench) -> None:
     """Every LED channel off, stage stopped."""
     bench.safe_state()
 
 
-def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str, str]]]:
+def describe_devices(bench: Bench, live: bool = True) -> dict[str, list[tuple[str, str]]]:
     """Label/value rows per device; ``live`` also reads LED currents and the stage position.
 
     Read errors are shown in the rows, in plain words, instead of raising.
@@ -159,23 +164,20 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
     if bench.led is not None:
         try:
             for ch in range(1, bench.led.channel_count + 1):
-                mode = bench.led.get_mode(ch)
-                imax, iset = bench.led.get_current(ch)
+                state = "ON " if bench.led.is_on(ch) else "off"
+                iset = bench.led.current_ma(ch)
                 ceiling = bench.config.led_ceiling_ma(ch)
                 limit = f"  limit {ceiling:g}" if ceiling is not None else ""
-                state = "ON " if mode.name != "DISABLE" else "off"
-                out["leds"].append(
-                    (f"ch {ch}", f"{state} {iset:g} mA  max {imax:g}{limit}")
-                )
+                out["leds"].append((f"ch {ch}", f"{state} {iset:g} mA{limit}"))
         except Exception as exc:  # noqa: BLE001 - shown in the panel
             out["leds"].append(("error", plain_error(exc)))
     if bench.stage is not None:
         try:
-            status = bench.stage.status
+            stage = bench.stage
             out["stage"].extend([
-                ("position", f"{bench.stage.position_mm:.3f} mm"),
-                ("homed", "yes" if status.is_homed else "no"),
-                ("moving", "yes" if status.is_moving else "no"),
+                ("position", f"{stage.position_mm:.3f} mm"),
+                ("homed", "yes" if stage.is_homed else "no"),
+                ("moving", "yes" if stage.is_moving else "no"),
             ])
             travel = bench.config.stage_travel_mm
             if travel is not None:
@@ -185,7 +187,7 @@ def describe_devices(bench: Any, live: bool = True) -> dict[str, list[tuple[str,
     return out
 
 
-def device_action(bench: Any, what: str) -> str:
+def device_action(bench: Bench, what: str) -> str:
     """``"safe"``: LEDs off and stage stopped; ``"home"``: home the stage. Returns a message."""
     if what == "safe":
         bench.safe_state()
@@ -198,7 +200,7 @@ def device_action(bench: Any, what: str) -> str:
     raise ValueError(f"unknown device action {what!r}")
 
 
-def grab(bench: Any, exposure_ms: float, gain: float) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+def grab(bench: Bench, exposure_ms: float, gain: float) -> tuple[npt.NDArray[Any], dict[str, Any]]:
     """One frame at these settings: ``(pixels, metadata)``."""
     pixels, meta = bench.grab(exposure_ms=exposure_ms, gain=gain)
     return np.asarray(pixels), dict(meta or {})
@@ -238,12 +240,7 @@ def default_estimator() -> str:
     return DEFAULT_ESTIMATOR
 
 
-def plain_target(target: Any) -> Any:
-    """A mounted target as plain data (tuples become lists) for comparison and display."""
-    return list(target) if isinstance(target, tuple) else target
-
-
-def mount_target(bench: Any, target: Any) -> None:
+def mount_target(bench: Bench, target: Any) -> None:
     """Mount a target in the simulated world (what a manual set-up step does)."""
     bench.mount(target)
 
@@ -354,7 +351,7 @@ def make_runner(
     *,
     procedure: str,
     resume: Path | None,
-    bench: Any,
+    bench: Bench,
     params: Path | None,
     root: Path,
     prompt: Callable[[Any, str], bool],
@@ -390,7 +387,7 @@ def run_ending(exc: BaseException) -> str:
     return "error"
 
 
-def focus_sharpness(bench: Any, runner: Any) -> float:
+def focus_sharpness(bench: Bench, runner: Runner) -> float:
     """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
     from benchlab.analysis.focus import sharpness
 
@@ -451,23 +448,12 @@ def list_sessions_of(folders: list[Path]) -> list[SessionSummary]:
 
 def session_tables(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """The latest results version of a session: ``(tables, summary)`` (empty if none)."""
-    import json
+    from benchlab.session import Session, read_results
 
-    from benchlab.session import Session
-
-    s = Session.open(path)
-    latest = s.latest_results()
-    tables: dict[str, Any] = {}
-    summary: dict[str, Any] = {}
+    latest = Session.open(path).latest_results()
     if latest is None:
-        return tables, summary
-    for p in sorted(Path(latest).glob("*.json")):
-        data = json.loads(p.read_text(encoding="utf-8"))
-        if p.stem == "summary":
-            summary = data
-        else:
-            tables[p.stem] = data
-    return tables, summary
+        return {}, {}
+    return read_results(latest)
 
 
 def table_rows(data: Any) -> tuple[list[str], list[Mapping[str, Any]]]:
