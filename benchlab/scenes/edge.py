@@ -29,14 +29,15 @@ from scipy.special import ndtr
 from benchlab.analysis.chart import IMAGE_CENTRE_RC, RadialLayout
 from benchlab.analysis.edge_target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
 from benchlab.analysis.sfr_synthetic import edge_truth_mtf, pixel_integrated_step
-from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState, rate_for_dn8
+from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile
+from benchlab.scenes.printed import TwoLevelPrint
 
 FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class EdgeScene:
+class EdgeScene(TwoLevelPrint):
     """The forward-view slanted-edge target.
 
     Parameters
@@ -69,15 +70,6 @@ class EdgeScene:
     disc_edge_sigma_px: float = 1.5
     defocus_px: float = 0.0
 
-    @property
-    def dark_rate(self) -> float:
-        """Electron rate (e-/ms) of the chrome."""
-        return float(rate_for_dn8(self.dark_dn8, self.reference_exposure_ms, self.reference_gain))
-
-    @property
-    def bright_rate(self) -> float:
-        """Electron rate (e-/ms) of the clear glass."""
-        return float(rate_for_dn8(self.bright_dn8, self.reference_exposure_ms, self.reference_gain))
 
     def edges(self) -> list[EdgeSpec]:
         """Every side of every square as a slanted edge with its measurement ROI."""

@@ -55,6 +55,7 @@ from benchlab.scenes.optics import (
     BlurProfile,
     blurred_square_wave,
 )
+from benchlab.scenes.printed import TwoLevelPrint
 
 FloatArray = npt.NDArray[np.float64]
 #: The object frequencies of the thesis's printed radial targets (Table 4.12), lp/mm.
@@ -121,7 +122,7 @@ def cylinder_pixels(
 
 
 @dataclass(frozen=True)
-class RadialScene:
+class RadialScene(TwoLevelPrint):
     """A rolled bar pattern seen by the radial view.
 
     Parameters
@@ -218,13 +219,6 @@ class RadialScene:
         """Pattern period at the reference point, px."""
         return 1.0 / (self.object_lp_per_mm * self.object_mm_per_px())
 
-    @property
-    def dark_rate(self) -> float:
-        return float(rate_for_dn8(self.dark_dn8, self.reference_exposure_ms, self.reference_gain))
-
-    @property
-    def bright_rate(self) -> float:
-        return float(rate_for_dn8(self.bright_dn8, self.reference_exposure_ms, self.reference_gain))
 
     def across_bar_sigma_px(self, radius_px: float | FloatArray) -> FloatArray:
         """Optical blur across the bars at a radius, px (without the pixel aperture)."""

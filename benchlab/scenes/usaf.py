@@ -33,12 +33,13 @@ from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
 from benchlab.analysis.result import eq29_modulation
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
+from benchlab.scenes.printed import TwoLevelPrint
 
 FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class UsafScene:
+class UsafScene(TwoLevelPrint):
     """The forward-view USAF 1951 scene.
 
     Parameters
@@ -91,15 +92,6 @@ class UsafScene:
         original closed forms apply unchanged."""
         return self.pose.is_identity and not self.negative and self.vignetting == 0.0
 
-    @property
-    def dark_rate(self) -> float:
-        """Electron rate (e-/ms) of a wide dark bar."""
-        return float(rate_for_dn8(self.dark_dn8, self.reference_exposure_ms, self.reference_gain))
-
-    @property
-    def bright_rate(self) -> float:
-        """Electron rate (e-/ms) of the clear glass."""
-        return float(rate_for_dn8(self.bright_dn8, self.reference_exposure_ms, self.reference_gain))
 
     def bar_group(self, group: int, element: int, orientation: Orientation) -> BarGroup:
         """Geometry of one bar set (see :func:`benchlab.analysis.chart.usaf_bar_group`)."""
