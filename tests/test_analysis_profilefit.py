@@ -257,3 +257,25 @@ def test_histogram_levels_from_inner_bars_not_background() -> None:
     r = estimate_modulation(framed, estimator="histogram", freq_cycles_per_px=1 / 16,
                             orientation="horizontal")
     assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.02)
+
+
+def test_benchmark_scores_clipped_cases_in_their_own_bucket() -> None:
+    from benchlab.analysis.benchmark import (
+        benchmark_cases,
+        is_clipped_measurable,
+        is_measurable,
+        score,
+    )
+
+    cases = benchmark_cases(300, seed=0)
+    clipped = [i for i, c in enumerate(cases) if is_clipped_measurable(c)]
+    plain = [i for i, c in enumerate(cases) if is_measurable(c)]
+    assert clipped and not set(clipped) & set(plain)
+    # Synthetic rows: every reading 0.1 above the truth, resolved, interval around it.
+    rows = [(i, "x", cases[i].bar.truth + 0.1, True, cases[i].bar.truth, 1.0, 1e-4)
+            for i in clipped + plain]
+    by_bucket = {s.bucket: s for s in score(cases, rows, ("x",))}
+    assert by_bucket["clipped"].n == len(clipped)
+    assert by_bucket["all"].n == len(plain)  # clipped cases stay out of "all"
+    assert by_bucket["clipped"].bias == pytest.approx(0.1)
+    assert by_bucket["clipped"].coverage == 1.0

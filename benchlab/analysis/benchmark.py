@@ -13,6 +13,8 @@ Definitions:
 - truth: Eq. 2.9 contrast of the noiseless, blurred, pixel-integrated continuous profile.
 - *measurable*: truth >= 0.05, SNR >= 5, period >= 2.2 px, unclipped, at least one period across
   the ROI. Errors are over measurable cases, "not resolved" counted as 0 (what a report prints).
+  The *clipped* bucket holds cases measurable but for real clipping, scored against the
+  unclipped truth (kept out of "all": no estimator can see above the top code).
 - wrong res: flat, below-noise (bars whose fundamental over the noise of the whole ROI,
   ``amplitude / (noise sqrt(2 / n))``, is 0.3-1.5) or aliased (period < 2 px) cases called
   resolved.
@@ -121,8 +123,18 @@ def benchmark_cases(n_cases: int = 1500, seed: int = 0) -> list[Case]:
 
 def is_measurable(case: Case) -> bool:
     """See the module docstring."""
+    return not case.bar.clipped and _measurable_but_for_clipping(case)
+
+
+def is_clipped_measurable(case: Case) -> bool:
+    """Measurable but for real clipping: scored in their own bucket against the unclipped
+    truth (what the bars would read on a camera that did not saturate)."""
+    return case.bar.clipped and _measurable_but_for_clipping(case)
+
+
+def _measurable_but_for_clipping(case: Case) -> bool:
     bar = case.bar
-    if case.kind != "bars" or bar.clipped or bar.px_per_period < MIN_PERIOD_PX:
+    if case.kind != "bars" or bar.px_per_period < MIN_PERIOD_PX:
         return False
     h, w = bar.shape
     extent = abs((w - 1) * math.cos(bar.theta_rad)) + abs((h - 1) * math.sin(bar.theta_rad))
@@ -197,15 +209,16 @@ def score(cases: list[Case], rows: list[tuple[int, str, float, bool, float, floa
     """Per estimator and bucket: see the module docstring."""
     order = ["all", "axis 0/90", "oblique", "period 2.2-3.5", "period 3.5-8", "period 8-20",
              "period 20-40", "SNR 5-10", "SNR 10-30", "SNR 30-200", "SNR >= 10", "ROI 5x5",
-             "ROI <=640 px", "ROI 2000-4096 px", "ROI 200x200"]
+             "ROI <=640 px", "ROI 2000-4096 px", "ROI 200x200", "clipped"]
     acc: dict[tuple[str, str], dict[str, list[float]]] = {}
     for index, name, mod, res, lo, hi, dt in rows:
         case = cases[index]
-        keys = _buckets(case) if is_measurable(case) else ["all"]
+        clipped = is_clipped_measurable(case)
+        keys = _buckets(case) if is_measurable(case) else ["clipped"] if clipped else ["all"]
         for b in keys:
             d = acc.setdefault((name, b), {"err": [], "miss": [], "cov": [], "t": [], "neg": []})
             d["t"].append(dt)
-            if is_measurable(case):
+            if is_measurable(case) or clipped:
                 d["err"].append(mod - case.bar.truth)
                 d["miss"].append(float(not res))
                 if res:

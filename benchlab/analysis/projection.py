@@ -112,27 +112,7 @@ def bin_profile(
     ValueError
         On mismatched shapes, no samples, non-finite ``u`` or a non-positive bin width.
     """
-    u = np.asarray(u_px, dtype=np.float64).ravel()
-    v = np.asarray(values, dtype=np.float64).ravel()
-    if u.shape != v.shape:
-        raise ValueError(f"u_px and values differ in size: {u.size} vs {v.size}")
-    if u.size == 0:
-        raise ValueError("no samples to bin")
-    if not (bin_width_px > 0 and math.isfinite(bin_width_px)):
-        raise ValueError(f"bin_width_px must be a positive number, got {bin_width_px}")
-    if not np.all(np.isfinite(u)):
-        raise ValueError("u_px holds a non-finite value")
-    u_min = float(u.min())
-    # floor(x + 0.5) with a tolerance: samples on a bin edge (half-pixel steps at 1 px bins)
-    # go to one side consistently despite rounding noise in cos/sin.
-    idx = np.floor((u - u_min) / bin_width_px + 0.5 + 1e-9).astype(np.int64)
-    n_bins = int(idx.max()) + 1
-    count = np.bincount(idx, minlength=n_bins).astype(np.int64)
-    sums = np.bincount(idx, weights=v, minlength=n_bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(count > 0, sums / np.maximum(count, 1), np.nan)
-    centres = u_min + np.arange(n_bins, dtype=np.float64) * bin_width_px
-    return BinnedProfile(u_px=centres, mean=mean, count=count, bin_width_px=float(bin_width_px))
+    return bin_profiles(u_px, [values], bin_width_px)[0]
 
 
 def bin_profiles(
@@ -168,6 +148,8 @@ def bin_profiles(
     if not np.all(np.isfinite(u)):
         raise ValueError("u_px holds a non-finite value")
     u_min = float(u.min())
+    # floor(x + 0.5) with a tolerance: samples on a bin edge (half-pixel steps at 1 px bins)
+    # go to one side consistently despite rounding noise in cos/sin.
     idx = np.floor((u - u_min) / bin_width_px + 0.5 + 1e-9).astype(np.int64)
     n_bins = int(idx.max()) + 1
     count = np.bincount(idx, minlength=n_bins).astype(np.int64)

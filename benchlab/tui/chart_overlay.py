@@ -13,12 +13,11 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from textual.strip import Strip
 
 from benchlab.analysis.chart import Box
 from benchlab.analysis.chart_finder import ChartFit, FoundElement
 from benchlab.tui.pixels import GraphicsFrameView, frame_rgb
-from benchlab.tui.widgets import FrameView, Roi, rgb_to_strips, to_display_rgb
+from benchlab.tui.widgets import FrameView, Roi
 
 FOUND_RGB = (0, 220, 60)
 
@@ -78,18 +77,9 @@ class ChartFrameView(FrameView):
             self._strips = None
             self.refresh()
 
-    def _ensure_strips(self) -> list[Strip]:
-        size = (self.size.width, self.size.height)
-        if self._strips is None or self._strips_size != size:
-            if self._pixels is None:
-                self._strips = []
-            else:
-                rgb = to_display_rgb(self._pixels, size, self._roi, self._max_code)
-                self._draw(rgb)
-                self._rgb_shape = (rgb.shape[0], rgb.shape[1])
-                self._strips = rgb_to_strips(rgb)
-            self._strips_size = size
-        return self._strips
+    def _decorate(self, rgb: npt.NDArray[np.uint8]) -> None:
+        self._draw(rgb)
+        self._rgb_shape = (rgb.shape[0], rgb.shape[1])
 
     def _draw(self, rgb: npt.NDArray[np.uint8]) -> None:
         _draw_boxes(rgb, self._boxes, self._frame_shape)

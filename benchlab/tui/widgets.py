@@ -156,9 +156,13 @@ class FrameView(Widget):
                 self._strips = []
             else:
                 rgb = to_display_rgb(self._pixels, size, self._roi, self._max_code)
+                self._decorate(rgb)
                 self._strips = rgb_to_strips(rgb)
             self._strips_size = size
         return self._strips
+
+    def _decorate(self, rgb: npt.NDArray[np.uint8]) -> None:
+        """Draw over the downscaled frame before it becomes cells (subclasses: overlays)."""
 
     def render_line(self, y: int) -> Strip:
         strips = self._ensure_strips()
