@@ -37,8 +37,8 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bargeometry import measure_geometry, phase_map
-from benchlab.analysis.projection import across_coordinate, bin_profile
+from benchlab.analysis.bargeometry import detrend, measure_geometry, quick_geometry
+from benchlab.analysis.projection import across_coordinate
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -58,8 +58,14 @@ PHASE_WINDOW = 0.1
 MODEL_SD = 0.015
 #: Fewer centre pixels than this: the window is widened (tiny ROIs).
 MIN_CENTRE_PIXELS = 48
-#: Phase bins for the noise estimate (scatter about the phase-binned profile).
-NOISE_BINS = 32
+#: Phase bins for the noise estimate (scatter about the phase-binned profile) and the bar and
+#: space centres (a multiple of ``1 / PHASE_WINDOW``: the window is whole bins).
+NOISE_BINS = 40
+#: Below this significance of the fundamental (amplitude over its standard error) the ROI
+#: shows no bar pattern: not resolved, whatever its histogram (shading on a flat ROI, or a
+#: few quantisation codes, make two modes). A noise maximum found by the spectral search is
+#: at most ~4.5.
+MIN_FUNDAMENTAL_Z = 6.0
 #: Largest number of histogram bins (float data is re-binned coarser beyond this).
 MAX_BINS = 1 << 16
 
@@ -307,7 +313,11 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
         warnings = [*prep.warnings, "single-valued ROI: one gray level, no bars"]
         return unresolved(NAME, prep.diagnostics(), warnings)
     n_roi = prep.n_pixels
-    centres = _bar_centres(prep)
+    centres, z = _bar_centres(prep)
+    if z is not None and z < MIN_FUNDAMENTAL_Z:
+        warnings = [*prep.warnings, f"no bar pattern above the noise: fundamental {z:.1f} "
+                    f"standard errors (< {MIN_FUNDAMENTAL_Z:g})"]
+        return unresolved(NAME, prep.diagnostics(), warnings)
     result = _histogram_peak(centres)
     if not result.resolved and centres is not prep:
         # The phase did not locate the bars (e.g. a chart rotated against the given
@@ -340,15 +350,45 @@ def _histogram_peak(prep: PreparedROI) -> ModulationResult:
     return first
 
 
-def _bar_centres(prep: PreparedROI) -> PreparedROI:
+def _phase_tables(n_bins: int) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Which of ``n_bins`` phase bins (bin ``i`` covers ``[i, i + 1) / n_bins`` cycles, one
+    extra bin for ``w`` rounding up to 1) lie within ``PHASE_WINDOW`` and twice that of a bar
+    (0) or space (1/2) centre."""
+    lo = np.arange(n_bins + 1) / n_bins
+    mid = (lo + 0.5 / n_bins) % 1.0
+    dist = np.minimum(np.abs(mid - np.rint(mid)), np.abs(mid - 0.5))
+    return dist <= PHASE_WINDOW, dist <= 2 * PHASE_WINDOW
+
+
+_NEAR, _NEAR_WIDE = _phase_tables(NOISE_BINS)
+
+
+def _scatter_about_bins(
+    idx: npt.NDArray[np.intp], flat: npt.NDArray[np.float64], n_bins: int
+) -> float:
+    """Pooled scatter of ``flat`` within the bins ``idx`` (the noise about the phase-binned
+    profile: it does not depend on the bar angle)."""
+    count = np.bincount(idx, minlength=n_bins)
+    sums = np.bincount(idx, weights=flat, minlength=n_bins)
+    squares = np.bincount(idx, weights=flat * flat, minlength=n_bins)
+    ok = count > 0
+    within = float(np.maximum(squares[ok] - sums[ok] ** 2 / count[ok], 0.0).sum())
+    return math.sqrt(within / max(flat.size - int(np.count_nonzero(ok)), 1))
+
+
+def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     """``prep`` holding only the pixels near the centres of the inner bars and spaces, with the
-    noise measured about the phase-binned profile (see the module docstring). Unchanged when
-    the bar phase cannot be found (no frequency, too few pixels)."""
+    noise measured about the phase-binned profile (see the module docstring), and the
+    significance of the bars' fundamental (amplitude over its standard error; ``None`` when
+    unknown). ``prep`` is returned unchanged when the bar phase cannot be found (no frequency,
+    too few pixels)."""
     img = prep.pixels
     rows, cols = img.shape
+    n = img.size
     f = prep.freq_cycles_per_px
-    if img.size < 16 or (f is not None and (f == 0 or f > 0.5)):
-        return prep
+    if n < 16 or (f is not None and (f == 0 or f > 0.5)):
+        return prep, None
+    z = None
     if prep.orientation_given and f:
         # Axis-aligned bars of known frequency: the phase of the line-averaged profile.
         theta = 0.0 if prep.axis == 1 else math.pi / 2
@@ -363,40 +403,82 @@ def _bar_centres(prep: PreparedROI) -> PreparedROI:
         noise = math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1))
         if along < 2:
             noise = prep.noise_sigma
+        # The fundamental's significance on the profile without its straight line (shading on
+        # a flat ROI is no bar pattern).
+        if line.size >= 3:
+            xx = float((x * x).sum())
+            slope = float((line * x).sum()) / xx if xx > 0 else 0.0
+            flat_line = line - line.mean() - slope * x
+            value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
+            z = _significance(2.0 * abs(value) / line.size, noise, n)
+        w = np.asarray(phi - np.floor(phi))
+        u = np.abs(across_coordinate((rows, cols), theta))
+        half = float(u.max())
+        inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
+        idx = (w * NOISE_BINS).astype(np.intp)
     else:
-        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
+        geom = quick_geometry(img, prep.noise_sigma, f) if f else None
         if geom is None:
-            return prep
-        theta, f = geom.theta_rad, geom.freq_cycles_per_px
-        phi = phase_map((rows, cols), geom)
-        w_all = phi - np.floor(phi)
-        width = 1.0 / NOISE_BINS
-        prof = bin_profile(w_all, img, width)
-        sq = bin_profile(w_all, img * img, width)
-        ok = prof.filled
-        within = float((prof.count[ok] * np.maximum(sq.mean[ok] - prof.mean[ok] ** 2, 0)).sum())
-        noise = math.sqrt(within / max(img.size - int(ok.sum()), 1))
+            geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
+        if geom is None:
+            return prep, None
+        f = geom.freq_cycles_per_px
+        kx, ky = geom.k_xy
+        y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+        x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+        phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
+        w = phi - np.floor(phi)
+        idx = (w * NOISE_BINS).astype(np.intp)
+        flat = img.ravel()
+        noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
+        z_noise = noise
+        if n < 8 * NOISE_BINS:
+            # Few pixels per bin, and a geometry from few periods that smears the bins: the
+            # least of the noise estimates (coarser bins, the residual of the fundamental,
+            # neighbour differences) - none of them is inflated by the bars on a flat ROI.
+            n_z = max(4, n // 8)
+            coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
+            fundamental = geom.amplitude * np.cos(2.0 * math.pi * phi)
+            misfit = detrend(img) - fundamental
+            residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
+            z_noise = min(coarse, residual, prep.noise_sigma)
+        if prep.integer_valued:
+            z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+        z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
+        # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
+        half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
+                            + abs((rows - 1) * math.sin(geom.theta_rad)))
+        if half_f >= 1.0:
+            dev = phi - geom.phase_cycles
+            inner = np.abs(dev, out=dev) <= half_f - 0.5
+        else:
+            inner = np.ones(img.shape, bool)
     if prep.integer_valued:
         noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     if prep.noise_given:
         noise = prep.noise_sigma
-    w = np.asarray(phi - np.floor(phi + 0.5))  # -0.5..0.5, bright-bar centres at 0
-    u = np.abs(across_coordinate((rows, cols), theta))
-    half = float(u.max())
-    inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
-    dist = np.minimum(np.abs(w), np.abs(np.abs(w) - 0.5))  # cycles from a bar or space centre
-    near = inner & (dist <= PHASE_WINDOW)
-    if np.count_nonzero(near) < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
-        near = inner & (dist <= 2 * PHASE_WINDOW)
-        if np.count_nonzero(near) < MIN_CENTRE_PIXELS:
-            near = inner
+    near = _NEAR[idx]
+    near &= inner
     values = img[near]
+    if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
+        near = _NEAR_WIDE[idx]
+        near &= inner
+        values = img[near]
+        if values.size < MIN_CENTRE_PIXELS:
+            values = img[inner]
     if values.size < 8 or float(values.max()) == float(values.min()):
-        return replace(prep, noise_sigma=noise if not prep.noise_given else prep.noise_sigma)
+        return replace(prep, noise_sigma=noise), z
     return replace(
         prep, pixels=values[None, :], noise_sigma=noise,
         vmin=float(values.min()), vmax=float(values.max()),
-    )
+    ), z
+
+
+def _significance(amplitude: float, noise: float, n_pixels: int) -> float:
+    """Fundamental amplitude over its standard error ``noise sqrt(2 / n)`` (large when the
+    noise is 0)."""
+    se = max(noise, 1e-12) * math.sqrt(2.0 / max(n_pixels, 1))
+    return amplitude / se
 
 
 def manual_peaks(prep: PreparedROI, peaks: tuple[float, float]) -> ModulationResult:
