@@ -3,9 +3,16 @@
 The bar pattern's fundamental is the strongest peak of the ROI's 2-D spectrum (mean and plane
 removed). Its position ``k = f (cos t, sin t)`` (cycles/px along columns x and rows y) gives the
 direction ``t`` in which the intensity varies and the frequency ``f``; its phase says where the
-bright bars are. The peak is read off a 2x zero-padded FFT (of a central crop of at most
-``FFT_CROP_PX`` for large ROIs), then refined by parabolic interpolation of the DFT magnitude
-evaluated directly on the whole ROI, so the refinement sees every pixel and costs linear time.
+bright bars are. The peak is read off a 2x zero-padded FFT (``numpy.fft``, of a central crop of
+at most ``FFT_CROP_PX`` for large ROIs), then refined on the whole ROI: by the phase drift of
+the DFT at ``k`` between the ROI's halves (a few passes, each one complex product and two block
+sums; see :func:`_drift_refine`) when each half holds enough periods, else by parabolic
+interpolation of the DFT magnitude on small grids of frequencies. Either way the refinement
+sees every pixel and costs linear time (numpy reductions, no BLAS products on the pixels).
+
+:func:`quick_geometry` skips the spectrum when the frequency is known: the direction comes from
+the gradient structure tensor and the same phase-drift refinement follows. The histogram-peak
+method uses it (falling back to :func:`measure_geometry` when it declines).
 
 Spokes and rings (the radial view) are not straight parallel bars: the local frequency vector
 drifts across the ROI. When the ROI is large enough, the peak is also refined in its four
@@ -20,10 +27,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
-from scipy import fft as sfft
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -37,12 +44,15 @@ CURVATURE_MIN_CYCLES = 0.05
 WIDE_PEAK_RATIO = 1.3
 #: :func:`quick_geometry` only on ROIs of at least this many pixels ...
 QUICK_MIN_PIXELS = 256
-#: ... spanning at least this many bar periods along the diagonal ...
+#: ... spanning at least this many bar periods across the bars ...
 QUICK_MIN_PERIODS = 3.0
 #: ... when its refinement settles (phase drift over half the ROI, cycles) within this many
 #: rounds ...
-QUICK_SETTLED_CYCLES = 0.02
+QUICK_SETTLED_CYCLES = 0.05
 QUICK_ITERATIONS = 3
+#: :func:`measure_geometry` refines by phase drift to this (cycles), in at most so many passes.
+DRIFT_SETTLED_CYCLES = 0.01
+DRIFT_PASSES = 5
 #: ... and the fundamental is this many standard errors above the noise.
 QUICK_MIN_Z = 8.0
 #: Relative frequency disagreement always tolerated (the USAF magnification is nominal).
@@ -90,10 +100,14 @@ class BarGeometry:
         return 1.0 / self.freq_cycles_per_px
 
 
+@lru_cache(maxsize=64)
 def _centred_grid(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+    """Row and column coordinates from the ROI centre (cached, read-only)."""
     rows, cols = shape
     y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
     x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    y.setflags(write=False)
+    x.setflags(write=False)
     return y, x
 
 
@@ -101,12 +115,13 @@ def detrend(img: FloatArray) -> FloatArray:
     """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS)."""
     rows, cols = img.shape[0], img.shape[1]
     y, x = _centred_grid((rows, cols))
-    mean = float(img.mean())
-    # x and y sum to zero, so the plane's slopes need no mean removed first.
-    gx = float((img.sum(axis=0) * x).sum()) / (float((x * x).sum()) * rows) if cols > 1 else 0.0
-    gy = float((img.sum(axis=1) * y).sum()) / (float((y * y).sum()) * cols) if rows > 1 else 0.0
-    plane = (gy * y)[:, None] + (mean + gx * x)[None, :]
-    return img - plane
+    col_sums = img.sum(axis=0)
+    row_sums = img.sum(axis=1)
+    mean = float(col_sums.sum()) / (rows * cols)
+    # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
+    gx = float((col_sums * x).sum()) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
+    gy = float((row_sums * y).sum()) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
+    return img - ((gy * y)[:, None] + (mean + gx * x)[None, :])
 
 
 def dft_at(img: FloatArray, kx: float, ky: float) -> complex:
@@ -158,26 +173,52 @@ def refine_peak(
     return kx, ky
 
 
-def _fft_peak(
-    img: FloatArray, f_lo: float, f_hi: float
-) -> tuple[float, float, float] | None:
-    """Strongest peak ``(kx, ky, magnitude)`` of the zero-padded 2-D spectrum with
-    ``f_lo <= |k| <= f_hi`` (half plane kx >= 0); ``None`` when no bin qualifies."""
+def _fast_len(n: int) -> int:
+    """Smallest integer >= ``n`` without prime factors above 11 (a fast FFT length; the same
+    as ``scipy.fft.next_fast_len``, without importing scipy)."""
+    m = max(n, 1)
+    while True:
+        rest = m
+        for p in (2, 3, 5, 7, 11):
+            while rest % p == 0:
+                rest //= p
+        if rest == 1:
+            return m
+        m += 1
+
+
+@dataclass(frozen=True)
+class _Spectrum:
+    """Magnitude of the zero-padded 2-D spectrum (half plane kx >= 0) and each bin's |k|."""
+
+    magnitude: FloatArray
+    kx: FloatArray  # (1, ncols)
+    ky: FloatArray  # (nrows, 1)
+    k_norm: FloatArray
+
+
+def _spectrum(img: FloatArray) -> _Spectrum:
+    """2x zero-padded ``numpy.fft`` spectrum of the central ``FFT_CROP_PX`` square."""
     rows, cols = img.shape
     r0, c0 = max(0, (rows - FFT_CROP_PX) // 2), max(0, (cols - FFT_CROP_PX) // 2)
     crop = img[r0 : r0 + FFT_CROP_PX, c0 : c0 + FFT_CROP_PX]
-    nr = sfft.next_fast_len(max(2 * crop.shape[0], 16))
-    nc = sfft.next_fast_len(max(2 * crop.shape[1], 16))
-    spec = np.abs(sfft.rfft2(crop, s=(nr, nc)))
+    nr = _fast_len(max(2 * crop.shape[0], 16))
+    nc = _fast_len(max(2 * crop.shape[1], 16))
+    mag = np.abs(np.fft.rfft2(crop, s=(nr, nc)))
     ky = np.fft.fftfreq(nr)[:, None]
     kx = np.fft.rfftfreq(nc)[None, :]
-    kk = np.hypot(kx, ky)
-    ok = (kk >= f_lo) & (kk <= f_hi)
+    return _Spectrum(mag, kx, ky, np.hypot(kx, ky))
+
+
+def _fft_peak(spec: _Spectrum, f_lo: float, f_hi: float) -> tuple[float, float, float] | None:
+    """Strongest peak ``(kx, ky, magnitude)`` of ``spec`` with ``f_lo <= |k| <= f_hi``;
+    ``None`` when no bin qualifies."""
+    ok = (spec.k_norm >= f_lo) & (spec.k_norm <= f_hi)
     if not ok.any():
         return None
-    spec = np.where(ok, spec, -1.0)
-    j, i = np.unravel_index(int(np.argmax(spec)), spec.shape)
-    return float(kx[0, i]), float(ky[j, 0]), float(spec[j, i])
+    masked = np.where(ok, spec.magnitude, -1.0)
+    j, i = np.unravel_index(int(np.argmax(masked)), masked.shape)
+    return float(spec.kx[0, i]), float(spec.ky[j, 0]), float(masked[j, i])
 
 
 def structure_tensor_direction(resid: FloatArray) -> tuple[float, float]:
@@ -229,6 +270,30 @@ def _quadrant_sums(resid: FloatArray, kx: float, ky: float) -> npt.NDArray[np.co
     halves = np.add.reduceat(resid * ex[None, :], [0, cols // 2], axis=1)  # (rows, 2)
     halves *= ey[:, None]
     return np.add.reduceat(halves, [0, rows // 2], axis=0)
+
+
+def _drift_refine(
+    resid: FloatArray, kx: float, ky: float, settled_cycles: float, max_passes: int
+) -> tuple[float, float, complex] | None:
+    """Refine the frequency vector ``(kx, ky)`` from the phase drift of the DFT at it between
+    the ROI's halves: a phase moving ``d`` cycles from one half to the other (their centres are
+    ``cols / 2`` or ``rows / 2`` apart) means ``k`` is off by ``d / (size / 2)``.
+
+    Returns the refined ``(kx, ky)`` and the whole ROI's DFT at the last ``k`` evaluated (the
+    centre phase changes only to second order with the last step), once a step moves the
+    phase at the ROI's edges by less than ``settled_cycles``; ``None`` if that takes more than
+    ``max_passes`` passes over the pixels (a poor start: weak or unclear bars)."""
+    rows, cols = resid.shape
+    for _ in range(max_passes):
+        q = _quadrant_sums(resid, kx, ky)
+        dkx = float(np.angle(q[0, 1] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[1, 0])))
+        dky = float(np.angle(q[1, 0] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[0, 1])))
+        dkx /= math.pi * cols
+        dky /= math.pi * rows
+        kx, ky = kx + dkx, ky + dky
+        if abs(dkx) * cols / 2 + abs(dky) * rows / 2 < settled_cycles:
+            return kx, ky, complex(q.sum())
+    return None
 
 
 def _uncertainties(
@@ -284,29 +349,21 @@ def quick_geometry(
     n = rows * cols
     if not freq_prior or not 0 < freq_prior <= 0.5 or n < QUICK_MIN_PIXELS or min(rows, cols) < 8:
         return None
-    half_extent = 0.5 * math.hypot(rows, cols)
-    if 2 * half_extent * freq_prior < QUICK_MIN_PERIODS:
-        return None
     if resid is None:
         resid = detrend(img)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells
     for _ in range(3):  # invert the cell gradients' anisotropy (a near-identity map)
         theta += theta_cells - _cell_gradient_direction(theta, freq_prior)
+    # Periods across the ROI along the bars' normal (each half needs a few).
+    if freq_prior * (abs(math.cos(theta)) * cols + abs(math.sin(theta)) * rows) < (
+            QUICK_MIN_PERIODS):
+        return None
     kx, ky = freq_prior * math.cos(theta), freq_prior * math.sin(theta)
-    q = _quadrant_sums(resid, kx, ky)
-    for attempt in range(QUICK_ITERATIONS):
-        # Phase drift between the halves (quadrant centres are cols / 2 and rows / 2 apart).
-        dkx = np.angle(q[0, 1] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[1, 0])) / (math.pi * cols)
-        dky = np.angle(q[1, 0] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[0, 1])) / (math.pi * rows)
-        kx, ky = kx + float(dkx), ky + float(dky)
-        drift_cycles = abs(float(dkx)) * cols / 2 + abs(float(dky)) * rows / 2
-        if drift_cycles < QUICK_SETTLED_CYCLES:
-            break
-        if attempt == QUICK_ITERATIONS - 1:
-            return None  # still moving: a poor start (weak or unclear bars)
-        q = _quadrant_sums(resid, kx, ky)
-    value = complex(q.sum())  # at the last k evaluated: the centre phase moves only to 2nd order
+    refined = _drift_refine(resid, kx, ky, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS)
+    if refined is None:
+        return None  # still moving: a poor start (weak or unclear bars)
+    kx, ky, value = refined
     f = math.hypot(kx, ky)
     if not PRIOR_BAND[0] * freq_prior <= f <= min(PRIOR_BAND[1] * freq_prior, 0.5):
         return None
@@ -356,12 +413,13 @@ def measure_geometry(
         f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
     else:
         f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
-    peak = _fft_peak(resid, f_lo, f_hi)
+    spec = _spectrum(resid)
+    peak = _fft_peak(spec, f_lo, f_hi)
     if freq_prior:
         # The prior is a cross-check, not a cage: a fundamental several times stronger than
         # anything in the band (a wrong magnification puts a harmonic there) wins, and the
         # disagreement is reported by the caller.
-        wide = _fft_peak(resid, 0.7 / max(rows, cols), 0.5 * math.sqrt(2))
+        wide = _fft_peak(spec, 0.7 / max(rows, cols), 0.5 * math.sqrt(2))
         # A band maximum on the band's edge is the skirt of a peak outside it.
         on_edge = peak is not None and min(
             abs(math.hypot(peak[0], peak[1]) - f_lo), abs(math.hypot(peak[0], peak[1]) - f_hi)
@@ -375,7 +433,16 @@ def measure_geometry(
             return None
         peak = (freq_prior, 0.0, 0.0) if cols >= rows else (0.0, freq_prior, 0.0)
     step = 0.5 / max(rows, cols)
-    kx, ky = refine_peak(resid, peak[0], peak[1], step)
+    refined = None
+    if (min(rows, cols) >= 8 and rows * cols >= QUICK_MIN_PIXELS
+            and abs(peak[0]) * cols + abs(peak[1]) * rows >= QUICK_MIN_PERIODS):
+        # Enough periods in each half for the phase-drift refinement (a few passes); else the
+        # DFT magnitude's maximum on grids of frequencies around the peak.
+        refined = _drift_refine(resid, peak[0], peak[1], DRIFT_SETTLED_CYCLES, DRIFT_PASSES)
+    if refined is None:
+        kx, ky = refine_peak(resid, peak[0], peak[1], step)
+    else:
+        kx, ky = refined[0], refined[1]
     f = math.hypot(kx, ky)
     if freq_prior and not (f_lo <= f <= f_hi) and f_lo <= math.hypot(peak[0], peak[1]) <= f_hi:
         # The refinement walked out of the band (noise): keep the prior's magnitude.
@@ -429,7 +496,9 @@ def _curvature(resid: FloatArray, kx: float, ky: float, step: float) -> tuple[fl
     for qr, (r0, r1) in enumerate(((0, hr), (rows - hr, rows))):
         for qc, (c0, c1) in enumerate(((0, hc), (cols - hc, cols))):
             sub = resid[r0:r1, c0:c1]
-            qkx, qky = refine_peak(sub, kx, ky, 2 * step, iterations=3)
+            drift = _drift_refine(sub, kx, ky, DRIFT_SETTLED_CYCLES, DRIFT_PASSES)
+            qkx, qky = ((drift[0], drift[1]) if drift is not None
+                        else refine_peak(sub, kx, ky, 2 * step, iterations=3))
             centre = ((r0 + r1 - 1) / 2 - (rows - 1) / 2, (c0 + c1 - 1) / 2 - (cols - 1) / 2)
             quads[(qr, qc)] = (centre, qkx, qky)
     dy = quads[(1, 0)][0][0] - quads[(0, 0)][0][0]

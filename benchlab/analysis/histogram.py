@@ -60,7 +60,7 @@ MODEL_SD = 0.015
 MIN_CENTRE_PIXELS = 48
 #: Phase bins for the noise estimate (scatter about the phase-binned profile) and the bar and
 #: space centres (a multiple of ``1 / PHASE_WINDOW``: the window is whole bins).
-NOISE_BINS = 40
+NOISE_BINS = 32
 #: Below this significance of the fundamental (amplitude over its standard error) the ROI
 #: shows no bar pattern: not resolved, whatever its histogram (shading on a flat ROI, or a
 #: few quantisation codes, make two modes). A noise maximum found by the spectral search is
@@ -369,11 +369,11 @@ def _scatter_about_bins(
     """Pooled scatter of ``flat`` within the bins ``idx`` (the noise about the phase-binned
     profile: it does not depend on the bar angle)."""
     count = np.bincount(idx, minlength=n_bins)
-    sums = np.bincount(idx, weights=flat, minlength=n_bins)
-    squares = np.bincount(idx, weights=flat * flat, minlength=n_bins)
-    ok = count > 0
-    within = float(np.maximum(squares[ok] - sums[ok] ** 2 / count[ok], 0.0).sum())
-    return math.sqrt(within / max(flat.size - int(np.count_nonzero(ok)), 1))
+    sums = np.bincount(idx, flat, n_bins)
+    squares = np.bincount(idx, flat * flat, n_bins)
+    # Empty bins add 0 - 0; per bin: sum of squares about the bin mean.
+    within = max(float((squares - sums * sums / np.maximum(count, 1)).sum()), 0.0)
+    return math.sqrt(within / max(flat.size - int(np.count_nonzero(count)), 1))
 
 
 def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
