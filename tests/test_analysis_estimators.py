@@ -213,14 +213,15 @@ def test_unknown_names_are_clear_errors() -> None:
 
 
 def test_histogram_looks_past_shading_bumps() -> None:
-    """A 20 % illumination ramp spreads each plateau into a bumpy hump; the smoothing widens
-    until the two humps read as two peaks (a technician's reading), not "unimodal"."""
+    """A 20 % illumination ramp spreads each plateau into a bumpy hump; the two humps read as
+    two peaks (a technician's reading), not "unimodal". (With the bar centres located from the
+    measured geometry the first smoothing already does; the whole-ROI histogram too.)"""
     roi, case = bar_roi(
         17, shape=(100, 128), px_per_period=32.0, noise_sigma=0.5, duty=0.4, shading=0.2
     )
     r = estimate_modulation(roi, estimator="histogram")
-    assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.05)
-    assert r.diagnostics.smoothing_codes is not None and r.diagnostics.smoothing_codes > 1.0
+    assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.01)
+    assert r.diagnostics.smoothing_codes is not None
 
 
 @pytest.mark.parametrize("duty", [0.4, 0.6])
