@@ -205,8 +205,8 @@ def _spectrum(img: FloatArray) -> _Spectrum:
     nr = _fast_len(max(2 * crop.shape[0], 16))
     nc = _fast_len(max(2 * crop.shape[1], 16))
     mag = np.abs(np.fft.rfft2(crop, s=(nr, nc)))
-    ky = np.fft.fftfreq(nr)[:, None]
-    kx = np.fft.rfftfreq(nc)[None, :]
+    ky = np.asarray(np.fft.fftfreq(nr), dtype=np.float64)[:, None]
+    kx = np.asarray(np.fft.rfftfreq(nc), dtype=np.float64)[None, :]
     return _Spectrum(mag, kx, ky, np.hypot(kx, ky))
 
 
