@@ -13,9 +13,11 @@ import pytest
 from benchlab.analysis import bargeometry
 from benchlab.analysis.bargeometry import (
     _cell_gradient_direction,
+    _centred_crop,
     _drift_refine,
     _fast_len,
     detrend,
+    dft_at,
     measure_geometry,
     quick_geometry,
     structure_tensor_direction,
@@ -163,3 +165,21 @@ def test_geometry_modules_import_no_scipy_at_module_level() -> None:
                 assert not any(a.name.split(".")[0] == "scipy" for a in node.names), name
             if isinstance(node, ast.ImportFrom):
                 assert (node.module or "").split(".")[0] != "scipy", name
+
+
+@pytest.mark.parametrize("shape", [(300, 520), (301, 257), (40, 700)])
+def test_large_rois_are_measured_on_a_centred_crop(shape: tuple[int, int]) -> None:
+    """Fixed cost on large ROIs, and the crop's centre is the ROI's: the phase is the whole
+    ROI's."""
+    crop = _centred_crop(np.zeros(shape), 256)
+    assert crop.shape[0] <= 256 and crop.shape[1] <= 256
+    assert (shape[0] - crop.shape[0]) % 2 == 0 and (shape[1] - crop.shape[1]) % 2 == 0
+    img, case = _bars(28.0, 9.0, shape=shape, noise=2.0, seed=shape[1])
+    for geom in (quick_geometry(img, 2.0, case.freq_cycles_per_px),
+                 measure_geometry(img, 2.0, case.freq_cycles_per_px)):
+        assert geom is not None
+        value = dft_at(detrend(img), *geom.k_xy)
+        whole = math.atan2(value.imag, value.real) / (2 * math.pi)
+        assert abs((geom.phase_cycles - whole + 0.5) % 1.0 - 0.5) < 0.01
+        edge = 0.5 * math.hypot(*shape)
+        assert abs(geom.freq_cycles_per_px - case.freq_cycles_per_px) * edge < 0.03

@@ -25,6 +25,7 @@ it, and a measured frequency that disagrees beyond its uncertainty is reported a
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -50,6 +51,10 @@ QUICK_MIN_PERIODS = 3.0
 #: rounds ...
 QUICK_SETTLED_CYCLES = 0.05
 QUICK_ITERATIONS = 3
+#: Larger ROIs are measured on a centred crop of at most this many rows and columns.
+QUICK_CROP_PX = 256
+#: :func:`measure_geometry` refines the frequency vector on a centred crop of at most this.
+REFINE_CROP_PX = 512
 #: :func:`measure_geometry` refines by phase drift to this (cycles), in at most so many passes.
 DRIFT_SETTLED_CYCLES = 0.01
 DRIFT_PASSES = 5
@@ -285,15 +290,26 @@ def _drift_refine(
     ``max_passes`` passes over the pixels (a poor start: weak or unclear bars)."""
     rows, cols = resid.shape
     for _ in range(max_passes):
-        q = _quadrant_sums(resid, kx, ky)
-        dkx = float(np.angle(q[0, 1] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[1, 0])))
-        dky = float(np.angle(q[1, 0] * np.conj(q[0, 0]) + q[1, 1] * np.conj(q[0, 1])))
-        dkx /= math.pi * cols
-        dky /= math.pi * rows
+        (q00, q01), (q10, q11) = _quadrant_sums(resid, kx, ky).tolist()  # Python complexes
+        dkx = cmath.phase(q01 * q00.conjugate() + q11 * q10.conjugate()) / (math.pi * cols)
+        dky = cmath.phase(q10 * q00.conjugate() + q11 * q01.conjugate()) / (math.pi * rows)
         kx, ky = kx + dkx, ky + dky
         if abs(dkx) * cols / 2 + abs(dky) * rows / 2 < settled_cycles:
-            return kx, ky, complex(q.sum())
+            return kx, ky, q00 + q01 + q10 + q11
     return None
+
+
+def _centred_crop(img: FloatArray, max_px: int) -> FloatArray:
+    """The central at most ``max_px`` x ``max_px`` of ``img`` with exactly the same centre
+    (each side keeps its parity), so phases measured from the centre are unchanged; ``img``
+    itself when it fits."""
+    rows, cols = img.shape
+    if rows <= max_px and cols <= max_px:
+        return img
+    crop_r = rows if rows <= max_px else max_px - (rows - max_px) % 2
+    crop_c = cols if cols <= max_px else max_px - (cols - max_px) % 2
+    r0, c0 = (rows - crop_r) // 2, (cols - crop_c) // 2
+    return img[r0 : r0 + crop_r, c0 : c0 + crop_c]
 
 
 def _uncertainties(
@@ -338,7 +354,8 @@ def quick_geometry(
     freq_prior : float
         Expected frequency (cycles/px, below Nyquist).
     resid : ndarray, optional
-        ``detrend(img)`` if already computed.
+        ``detrend(img)`` if already computed (then used whole; otherwise ROIs larger than
+        ``QUICK_CROP_PX`` are measured on a centred crop).
 
     Returns
     -------
@@ -350,6 +367,11 @@ def quick_geometry(
     if not freq_prior or not 0 < freq_prior <= 0.5 or n < QUICK_MIN_PIXELS or min(rows, cols) < 8:
         return None
     if resid is None:
+        # Straight bars: a centred crop (same centre, so the same phase) measures them as well
+        # as the whole ROI, at a fixed cost.
+        img = _centred_crop(img, QUICK_CROP_PX)
+        rows, cols = img.shape
+        n = rows * cols
         resid = detrend(img)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells
@@ -432,6 +454,11 @@ def measure_geometry(
         if not freq_prior:
             return None
         peak = (freq_prior, 0.0, 0.0) if cols >= rows else (0.0, freq_prior, 0.0)
+    # The frequency vector and phase at the centre from a centred crop of large ROIs (the
+    # curvature below sees the whole ROI).
+    full_resid = resid
+    resid = _centred_crop(resid, REFINE_CROP_PX)
+    rows, cols = resid.shape
     step = 0.5 / max(rows, cols)
     refined = None
     if (min(rows, cols) >= 8 and rows * cols >= QUICK_MIN_PIXELS
@@ -476,8 +503,10 @@ def measure_geometry(
     phase_sd = base * math.sqrt(2.0) / 2.0
     hess = (0.0, 0.0, 0.0)
     geom = BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd, hess)
+    resid = full_resid
+    rows, cols = resid.shape
     if curvature and min(rows, cols) >= 16 and f * extent >= 10:
-        hess = _curvature(resid, kx, ky, step)
+        hess = _curvature(resid, kx, ky, 0.5 / max(rows, cols))
         if any(hess):
             # Kept only when the pixels then fold onto one period more sharply (noise does
             # not make a consistent curvature).
@@ -495,7 +524,8 @@ def _curvature(resid: FloatArray, kx: float, ky: float, step: float) -> tuple[fl
     quads = {}
     for qr, (r0, r1) in enumerate(((0, hr), (rows - hr, rows))):
         for qc, (c0, c1) in enumerate(((0, hc), (cols - hc, cols))):
-            sub = resid[r0:r1, c0:c1]
+            # Each quadrant's local frequency from its centred crop (the same centre).
+            sub = _centred_crop(resid[r0:r1, c0:c1], QUICK_CROP_PX)
             drift = _drift_refine(sub, kx, ky, DRIFT_SETTLED_CYCLES, DRIFT_PASSES)
             qkx, qky = ((drift[0], drift[1]) if drift is not None
                         else refine_peak(sub, kx, ky, 2 * step, iterations=3))
