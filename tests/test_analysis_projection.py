@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from benchlab.analysis.projection import across_coordinate, bin_profile, project_roi
+from benchlab.analysis.projection import across_coordinate, bin_profile, bin_profiles, project_roi
 
 
 def test_axis_aligned_projection_is_the_column_mean():
@@ -56,6 +56,9 @@ def test_one_pixel_roi():
         (([], []), "no samples"),
         (([0.0], [1.0], 0.0), "positive"),
         (([float("nan")], [1.0]), "non-finite"),
+        (([0.0, float("inf"), 1.0], [1.0, 2.0, 3.0]), "non-finite"),
+        (([0.0, float("-inf")], [1.0, 2.0]), "non-finite"),
+        (([float("nan"), 2.0, 1.0], [1.0, 2.0, 3.0]), "non-finite"),
     ],
 )
 def test_bad_input(args, match):
@@ -68,3 +71,32 @@ def test_bad_shape():
         project_roi(np.zeros(5), 0.0)
     with pytest.raises(ValueError, match="at least 1 x 1"):
         across_coordinate((0, 3), 0.0)
+
+
+def _reference_bins(u, values, width):
+    """The straightforward binning: index per sample, then a mean per bin."""
+    u = np.asarray(u, dtype=np.float64).ravel()
+    idx = np.floor((u - u.min()) / width + 0.5 + 1e-9).astype(np.int64)
+    n_bins = int(idx.max()) + 1
+    count = np.bincount(idx, minlength=n_bins)
+    inv = 1.0 / np.maximum(count, 1)
+    means = [np.where(count > 0, np.bincount(idx, np.ravel(v), n_bins) * inv, np.nan)
+             for v in values]
+    return u.min() + np.arange(n_bins) * width, count, means
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_bin_profiles_identical_to_the_straightforward_binning(seed):
+    """In-place index arithmetic and the last bin from max(u): bit-identical bins and means,
+    bin edges (half-pixel steps at 1 px bins) included."""
+    rng = np.random.default_rng(seed)
+    shape = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
+    theta = float(rng.choice([0.0, math.pi / 2, rng.uniform(-math.pi, math.pi)]))
+    u = across_coordinate(shape, theta)
+    width = float(rng.choice([0.25, 0.5, 1.0, rng.uniform(0.05, 3.0)]))
+    values = [rng.normal(size=shape), rng.integers(0, 4096, size=shape)]
+    got = bin_profiles(u, values, width)
+    centres, count, means = _reference_bins(u, values, width)
+    for prof, mean in zip(got, means, strict=True):
+        assert np.array_equal(prof.u_px, centres) and np.array_equal(prof.count, count)
+        assert np.array_equal(prof.mean, mean, equal_nan=True)

@@ -145,23 +145,30 @@ def bin_profiles(
         raise ValueError("no samples to bin")
     if not (bin_width_px > 0 and math.isfinite(bin_width_px)):
         raise ValueError(f"bin_width_px must be a positive number, got {bin_width_px}")
-    if not np.all(np.isfinite(u)):
+    u_min, u_max = float(u.min()), float(u.max())
+    if not (math.isfinite(u_min) and math.isfinite(u_max)):  # NaN or inf anywhere shows here
         raise ValueError("u_px holds a non-finite value")
-    u_min = float(u.min())
     # floor(x + 0.5) with a tolerance: samples on a bin edge (half-pixel steps at 1 px bins)
-    # go to one side consistently despite rounding noise in cos/sin.
-    idx = np.floor((u - u_min) / bin_width_px + 0.5 + 1e-9).astype(np.int64)
-    n_bins = int(idx.max()) + 1
+    # go to one side consistently despite rounding noise in cos/sin. In place, same order of
+    # operations; the last bin is that of u_max (every step is monotonic).
+    scaled = u - u_min
+    scaled /= bin_width_px
+    scaled += 0.5
+    scaled += 1e-9
+    idx = np.floor(scaled, out=scaled).astype(np.int64)
+    n_bins = math.floor((u_max - u_min) / bin_width_px + 0.5 + 1e-9) + 1
     count = np.bincount(idx, minlength=n_bins).astype(np.int64)
     centres = u_min + np.arange(n_bins, dtype=np.float64) * bin_width_px
     inv = 1.0 / np.maximum(count, 1)
+    filled = count > 0
     out = []
     for vals in values:
         v = np.asarray(vals, dtype=np.float64).ravel()
         if v.shape != u.shape:
             raise ValueError(f"u_px and values differ in size: {u.size} vs {v.size}")
         sums = np.bincount(idx, weights=v, minlength=n_bins)
-        mean = np.where(count > 0, sums * inv, np.nan)
+        sums *= inv
+        mean = np.where(filled, sums, np.nan)
         out.append(BinnedProfile(u_px=centres, mean=mean, count=count,
                                  bin_width_px=float(bin_width_px)))
     return out
