@@ -22,7 +22,15 @@ the centres of the inner bars and spaces (within ``PHASE_WINDOW`` cycles of them
 in from the ends of the ROI), so background beyond the outer bars and the blurred edges do not
 make modes of their own; and the noise is the scatter of the pixels about the phase-binned
 profile, which does not depend on the bar angle (neighbour differences along an image axis are
-4-80x too high on oblique bars).
+4-80x too high on oblique bars). With the frequency given, the phase comes from
+:func:`.bargeometry.quick_geometry` (structure tensor and phase drift, a few passes over the
+pixels; the 2-D spectral search only when it declines), and one pass of phase bins gives both
+the noise and the bar and space centres (``PHASE_WINDOW`` rounded to whole bins).
+
+No reading without bars: when the fundamental at the measured geometry is less than
+``MIN_FUNDAMENTAL_Z`` standard errors above the noise, the ROI is "not resolved" whatever its
+histogram (a shading ramp on a flat ROI, or a few quantisation codes on a small one, make two
+modes).
 
 References: thesis Eq. 2.9 and figs. 4.10-4.11; measurement-notes section 6 (comb artefacts,
 unimodal histograms, mode bias).
