@@ -384,6 +384,11 @@ def _scatter_about_bins(
     return math.sqrt(within / max(flat.size - int(np.count_nonzero(count)), 1))
 
 
+#: Phase bins of every pixel, which pixels lie on the inner bars, the noise about the
+#: phase-binned profile and the fundamental's significance (``None``: unknown).
+_Phases = tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_], float, float | None]
+
+
 def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     """``prep`` holding only the pixels near the centres of the inner bars and spaces, with the
     noise measured about the phase-binned profile (see the module docstring), and the
@@ -391,76 +396,18 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     unknown). ``prep`` is returned unchanged when the bar phase cannot be found (no frequency,
     too few pixels)."""
     img = prep.pixels
-    rows, cols = img.shape
-    n = img.size
     f = prep.freq_cycles_per_px
-    if n < 16 or (f is not None and (f == 0 or f > 0.5)):
+    if img.size < 16 or (f is not None and (f == 0 or f > 0.5)):
         return prep, None
-    z = None
-    if prep.orientation_given and f:
-        # Axis-aligned bars of known frequency: the phase of the line-averaged profile.
-        theta = 0.0 if prep.axis == 1 else math.pi / 2
-        line = img.mean(axis=1 - prep.axis)
-        x = np.arange(line.size, dtype=np.float64) - (line.size - 1) / 2.0
-        value = complex(((line - line.mean()) * np.exp(-2j * math.pi * f * x)).sum())
-        phase_1d = f * x + math.atan2(value.imag, value.real) / (2 * math.pi)
-        phi = phase_1d[None, :] if prep.axis == 1 else phase_1d[:, None]
-        phi = np.broadcast_to(phi, img.shape)
-        resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
-        along = img.shape[1 - prep.axis]
-        noise = math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1))
-        if along < 2:
-            noise = prep.noise_sigma
-        # The fundamental's significance on the profile without its straight line (shading on
-        # a flat ROI is no bar pattern).
-        if line.size >= 3:
-            xx = float((x * x).sum())
-            slope = float((line * x).sum()) / xx if xx > 0 else 0.0
-            flat_line = line - line.mean() - slope * x
-            value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
-            z = _significance(2.0 * abs(value) / line.size, noise, n)
-        w = np.asarray(phi - np.floor(phi))
-        u = np.abs(across_coordinate((rows, cols), theta))
-        half = float(u.max())
-        inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
-        idx = (w * NOISE_BINS).astype(np.intp)
-    else:
-        geom = quick_geometry(img, prep.noise_sigma, f) if f else None
-        if geom is None:
-            geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
-        if geom is None:
-            return prep, None
-        f = geom.freq_cycles_per_px
-        kx, ky = geom.k_xy
-        y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
-        x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
-        phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
-        w = phi - np.floor(phi)
-        idx = (w * NOISE_BINS).astype(np.intp)
-        flat = img.ravel()
-        noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
-        z_noise = noise
-        if n < 8 * NOISE_BINS:
-            # Few pixels per bin, and a geometry from few periods that smears the bins: the
-            # least of the noise estimates (coarser bins, the residual of the fundamental,
-            # neighbour differences) - none of them is inflated by the bars on a flat ROI.
-            n_z = max(4, n // 8)
-            coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
-            fundamental = geom.amplitude * np.cos(2.0 * math.pi * phi)
-            misfit = detrend(img) - fundamental
-            residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
-            z_noise = min(coarse, residual, prep.noise_sigma)
-        if prep.integer_valued:
-            z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
-        z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
-        # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
-        half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
-                            + abs((rows - 1) * math.sin(geom.theta_rad)))
-        if half_f >= 1.0:
-            dev = phi - geom.phase_cycles
-            inner = np.abs(dev, out=dev) <= half_f - 0.5
-        else:
-            inner = np.ones(img.shape, bool)
+    phases = _axis_phases(prep, f) if prep.orientation_given and f else None
+    if phases is None or (phases[3] is not None and phases[3] < MIN_FUNDAMENTAL_Z):
+        # No orientation, or no bars along it (a chart rotated against the given
+        # orientation): the bars' own geometry.
+        measured = _measured_phases(prep, f)
+        phases = measured if measured is not None else phases
+    if phases is None:
+        return prep, None
+    idx, inner, noise, z = phases
     if prep.integer_valued:
         noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     if prep.noise_given:
@@ -480,6 +427,84 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
         prep, pixels=values[None, :], noise_sigma=noise,
         vmin=float(values.min()), vmax=float(values.max()),
     ), z
+
+
+def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
+    """Axis-aligned bars of known frequency: the phase of the line-averaged profile."""
+    img = prep.pixels
+    rows, cols = img.shape
+    theta = 0.0 if prep.axis == 1 else math.pi / 2
+    line = img.mean(axis=1 - prep.axis)
+    x = np.arange(line.size, dtype=np.float64) - (line.size - 1) / 2.0
+    value = complex(((line - line.mean()) * np.exp(-2j * math.pi * f * x)).sum())
+    phase_1d = f * x + math.atan2(value.imag, value.real) / (2 * math.pi)
+    phi = phase_1d[None, :] if prep.axis == 1 else phase_1d[:, None]
+    phi = np.broadcast_to(phi, img.shape)
+    resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
+    along = img.shape[1 - prep.axis]
+    noise = math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1))
+    if along < 2:
+        noise = prep.noise_sigma
+    z = None
+    if line.size >= 3:
+        # The fundamental's significance on the profile without its straight line (shading
+        # on a flat ROI is no bar pattern).
+        xx = float((x * x).sum())
+        slope = float((line * x).sum()) / xx if xx > 0 else 0.0
+        flat_line = line - line.mean() - slope * x
+        value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
+        z_noise = prep.noise_sigma if prep.noise_given else noise
+        z = _significance(2.0 * abs(value) / line.size, z_noise, img.size)
+    w = np.asarray(phi - np.floor(phi))
+    u = np.abs(across_coordinate((rows, cols), theta))
+    half = float(u.max())
+    inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
+    return (w * NOISE_BINS).astype(np.intp), inner, noise, z
+
+
+def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
+    """The phase from the bars' measured geometry (quick path first); ``None`` without a
+    spectral peak."""
+    img = prep.pixels
+    rows, cols = img.shape
+    n = img.size
+    geom = quick_geometry(img, prep.noise_sigma, f) if f else None
+    if geom is None:
+        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
+    if geom is None:
+        return None
+    f = geom.freq_cycles_per_px
+    kx, ky = geom.k_xy
+    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
+    w = phi - np.floor(phi)
+    idx = (w * NOISE_BINS).astype(np.intp)
+    flat = img.ravel()
+    noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
+    z_noise = noise
+    if n < 8 * NOISE_BINS:
+        # Few pixels per bin, and a geometry from few periods that smears the bins: the
+        # least of the noise estimates (coarser bins, the residual of the fundamental,
+        # neighbour differences) - none of them is inflated by the bars on a flat ROI.
+        n_z = max(4, n // 8)
+        coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
+        fundamental = geom.amplitude * np.cos(2.0 * math.pi * phi)
+        misfit = detrend(img) - fundamental
+        residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
+        z_noise = min(coarse, residual, prep.noise_sigma)
+    if prep.integer_valued:
+        z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+    z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
+    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
+    half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
+                        + abs((rows - 1) * math.sin(geom.theta_rad)))
+    if half_f >= 1.0:
+        dev = phi - geom.phase_cycles
+        inner = np.abs(dev, out=dev) <= half_f - 0.5
+    else:
+        inner = np.ones(img.shape, bool)
+    return idx, inner, noise, z
 
 
 def _significance(amplitude: float, noise: float, n_pixels: int) -> float:

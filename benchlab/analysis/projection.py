@@ -167,8 +167,7 @@ def bin_profiles(
         if v.shape != u.shape:
             raise ValueError(f"u_px and values differ in size: {u.size} vs {v.size}")
         sums = np.bincount(idx, weights=v, minlength=n_bins)
-        sums *= inv
-        mean = np.where(filled, sums, np.nan)
+        mean = np.where(filled, sums * inv, np.nan)
         out.append(BinnedProfile(u_px=centres, mean=mean, count=count,
                                  bin_width_px=float(bin_width_px)))
     return out
