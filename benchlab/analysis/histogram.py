@@ -62,7 +62,7 @@ MIN_MODE_FRACTION = 0.04
 #: Pixels within this many cycles of a bar or space centre make the histogram.
 PHASE_WINDOW = 0.1
 #: The method's own error (modulation units, 1 sigma), part of every interval: ``benchlab
-#: benchmark analysis`` puts its RMSE at ~0.018 (bias -0.009) over 2.2-40 px periods.
+#: benchmark analysis`` puts its RMSE at ~0.015 (bias -0.008) over 2.2-40 px periods.
 MODEL_SD = 0.015
 #: Fewer centre pixels than this: the window is widened (tiny ROIs).
 MIN_CENTRE_PIXELS = 48
