@@ -183,3 +183,29 @@ def test_large_rois_are_measured_on_a_centred_crop(shape: tuple[int, int]) -> No
         assert abs((geom.phase_cycles - whole + 0.5) % 1.0 - 0.5) < 0.01
         edge = 0.5 * math.hypot(*shape)
         assert abs(geom.freq_cycles_per_px - case.freq_cycles_per_px) * edge < 0.03
+
+
+def test_quick_geometry_with_a_prior_a_few_percent_off() -> None:
+    """A nominal magnification 3-5 % off wraps the phase over half a large ROI: one step
+    between quarters first, then the halves."""
+    img, case = _bars(31.0, 8.0, shape=(200, 200), noise=1.0, seed=1)
+    f = case.freq_cycles_per_px
+    for ratio in (0.95, 1.05):
+        assert _drift_refine(detrend(img), *(_k(f * ratio, case.theta_rad)), 0.05, 3) is None
+        geom = quick_geometry(img, 1.0, f * ratio)
+        assert geom is not None and geom.freq_cycles_per_px == pytest.approx(f, rel=1e-3)
+
+
+def test_quick_geometry_rejects_a_side_lobe() -> None:
+    """Strong 4 px bars and a prior at 0.7 of their frequency: the refinement can settle on a
+    side lobe (75 % of the frequency); it carries a small share of the bars' power, so the
+    quick path declines and the caller searches the spectrum."""
+    img, case = _bars(31.0, 4.0, shape=(40, 50), noise=1.0, seed=1)
+    f = case.freq_cycles_per_px
+    assert quick_geometry(img, 1.0, 0.7 * f) is None
+    geom = measure_geometry(img, 1.0, 0.7 * f)
+    assert geom is not None and geom.freq_cycles_per_px == pytest.approx(f, rel=0.01)
+
+
+def _k(f: float, theta: float) -> tuple[float, float]:
+    return f * math.cos(theta), f * math.sin(theta)

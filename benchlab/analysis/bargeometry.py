@@ -53,6 +53,8 @@ QUICK_SETTLED_CYCLES = 0.05
 QUICK_ITERATIONS = 3
 #: Larger ROIs are measured on a centred crop of at most this many rows and columns.
 QUICK_CROP_PX = 256
+#: ... and from this size on a start that does not settle gets one step between quarters.
+QUICK_COARSE_MIN_PX = 32
 #: :func:`measure_geometry` refines the frequency vector on a centred crop of at most this.
 REFINE_CROP_PX = 512
 #: :func:`measure_geometry` refines by phase drift to this (cycles), in at most so many passes.
@@ -60,6 +62,8 @@ DRIFT_SETTLED_CYCLES = 0.01
 DRIFT_PASSES = 5
 #: ... and the fundamental is this many standard errors above the noise.
 QUICK_MIN_Z = 8.0
+#: ... and carries at least this share of the ROI's power above the noise.
+QUICK_MIN_POWER_SHARE = 0.5
 #: Relative frequency disagreement always tolerated (the USAF magnification is nominal).
 FREQ_TOLERANCE = 0.03
 
@@ -277,6 +281,24 @@ def _quadrant_sums(resid: FloatArray, kx: float, ky: float) -> npt.NDArray[np.co
     return np.add.reduceat(halves, [0, rows // 2], axis=0)
 
 
+def _coarse_drift_step(resid: FloatArray, kx: float, ky: float) -> tuple[float, float]:
+    """One phase-drift step between neighbouring quarters of the ROI (a baseline of a quarter
+    of its size: twice the unambiguous range of the halves, for a start further off)."""
+    rows, cols = resid.shape
+    y, x = _centred_grid((rows, cols))
+    ex = np.exp(-2j * math.pi * kx * x)
+    ey = np.exp(-2j * math.pi * ky * y)
+    col_edges = [round(i * cols / 4) for i in range(4)]
+    row_edges = [round(i * rows / 4) for i in range(4)]
+    blocks = np.add.reduceat(resid * ex[None, :], col_edges, axis=1)  # (rows, 4)
+    blocks *= ey[:, None]
+    z = np.add.reduceat(blocks, row_edges, axis=0)  # (4, 4)
+    across = complex((z[:, 1:] * np.conj(z[:, :-1])).sum())
+    down = complex((z[1:, :] * np.conj(z[:-1, :])).sum())
+    return (kx + cmath.phase(across) / (2 * math.pi * cols / 4),
+            ky + cmath.phase(down) / (2 * math.pi * rows / 4))
+
+
 def _drift_refine(
     resid: FloatArray, kx: float, ky: float, settled_cycles: float, max_passes: int
 ) -> tuple[float, float, complex] | None:
@@ -342,8 +364,9 @@ def quick_geometry(
     twice; the phase and amplitude are those of the whole ROI's DFT. No 2-D spectrum, no
     search: what the bar-centre selection of the histogram method needs, at a fraction of the
     cost. It declines ROIs under ``QUICK_MIN_PIXELS`` or ``QUICK_MIN_PERIODS`` periods, a
-    refinement that does not settle, a frequency outside the prior's band and a fundamental
-    under ``QUICK_MIN_Z`` standard errors.
+    refinement that does not settle, a frequency outside the prior's band, a fundamental
+    under ``QUICK_MIN_Z`` standard errors and one carrying less than
+    ``QUICK_MIN_POWER_SHARE`` of the power above the noise (a side lobe).
 
     Parameters
     ----------
@@ -383,6 +406,11 @@ def quick_geometry(
         return None
     kx, ky = freq_prior * math.cos(theta), freq_prior * math.sin(theta)
     refined = _drift_refine(resid, kx, ky, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS)
+    if refined is None and min(rows, cols) >= QUICK_COARSE_MIN_PX:
+        # The prior's magnitude may be a few % off (a nominal magnification): over half a
+        # large ROI that wraps the phase; quarters first.
+        kx, ky = _coarse_drift_step(resid, kx, ky)
+        refined = _drift_refine(resid, kx, ky, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS)
     if refined is None:
         return None  # still moving: a poor start (weak or unclear bars)
     kx, ky, value = refined
@@ -396,6 +424,11 @@ def quick_geometry(
         value = value.conjugate()
     amplitude = 2.0 * abs(value) / n
     if amplitude < QUICK_MIN_Z * max(noise_sigma, 1e-12) * math.sqrt(2.0 / n):
+        return None
+    # A settled k must carry the bars' power (a fundamental holds >= 3/4 of a square wave's),
+    # not a side lobe or harmonic of them.
+    power = float(np.einsum("ij,ij->", resid, resid)) / n - noise_sigma**2
+    if amplitude * amplitude / 2.0 < QUICK_MIN_POWER_SHARE * power:
         return None
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
     theta_sd, freq_sd, phase_sd = _uncertainties((rows, cols), theta, f, amplitude, noise_sigma)
