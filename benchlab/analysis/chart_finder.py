@@ -71,6 +71,15 @@ MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
 MIN_ROI_LINES = 3
 MIN_ROI_ACROSS_PX = 4
+#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) with fewer
+#: pixels per period are found but not measured: every line samples another phase, the ROI
+#: holds a few dozen pixels, and on ``benchlab benchmark chart`` only 32 % (2-2.25 px) and 77 %
+#: (2.25-2.5 px) of their readings came within 0.03 of the truth, against 85-98 % above.
+MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: Fewest whole periods the measurement ROI must span across the bars.
+MIN_ROI_PERIODS = 2.0
+#: Blur reach (px) of a neighbouring set kept out of a measurement ROI.
+NEIGHBOUR_MARGIN_PX = 1.0
 
 
 class ChartNotFoundError(ValueError):
@@ -86,7 +95,11 @@ class FoundElement:
     across-bar profile with the three-bar pattern at the predicted place and period (0 when
     not checked). ``image_lp_per_mm`` is the object frequency (Eq. 4.1 / Table 4.9) times the
     implied magnification; ``px_per_period`` follows from it, ``measured_px_per_period`` is the
-    period that fits the ROI best (None when not checked).
+    period that fits the ROI best (None when not checked). ``roi`` is the bar-set ROI (bar ends
+    trimmed, across the set only); ``measurement_roi`` the ROI a modulation is read from: three
+    whole periods across (:attr:`PosedBarSet.whole_period_roi`), back to ``roi`` where a
+    neighbouring set would reach into it. ``unmeasurable`` says why a found set gives no
+    reliable modulation (None when it does).
     """
 
     posed: PosedBarSet
@@ -95,6 +108,16 @@ class FoundElement:
     confidence: float
     measured_px_per_period: float | None
     roi: Box
+    measurement_roi: Box
+    unmeasurable: str | None = None
+
+    def estimator_priors(self) -> dict[str, Any]:
+        """Keyword arguments for :func:`benchlab.analysis.estimate_modulation`: the set's
+        frequency, and its orientation only where the bars lie on a pixel axis (the estimators
+        take an axis, not an angle; oblique bars have their direction measured)."""
+        p = self.posed
+        return {"freq_cycles_per_px": 1.0 / p.px_per_period,
+                "orientation": p.orientation if p.axis_aligned else None}
 
     @property
     def label(self) -> str:
@@ -115,7 +138,8 @@ class FoundElement:
             "confidence": round(self.confidence, 4),
             "centre_rc": [round(p.centre_rc[0], 3), round(p.centre_rc[1], 3)],
             "bar_width_px": round(p.bar_width_px, 4), "theta_deg": round(p.theta_deg, 3),
-            "roi": list(self.roi), "object_lp_per_mm": p.object_lp_per_mm,
+            "roi": list(self.roi), "measurement_roi": list(self.measurement_roi),
+            "unmeasurable": self.unmeasurable, "object_lp_per_mm": p.object_lp_per_mm,
             "image_lp_per_mm": round(p.image_lp_per_mm, 4),
             "px_per_period": round(p.px_per_period, 4),
             "measured_px_per_period": None if self.measured_px_per_period is None
@@ -270,8 +294,9 @@ def find_chart(
             f"(needs at least {MIN_MATCHED_SETS} bar sets in a consistent arrangement)"
         )
     _, pol, pose, matched, resid, lit, n_cands = best
-    elements = tuple(_check(img, lit, pol, posed_bar_set(lay, pose, g, e, o))
-                     for g, e in lay.elements for o in ("sagittal", "tangential"))
+    placed = [posed_bar_set(lay, pose, g, e, o)
+              for g, e in lay.elements for o in ("sagittal", "tangential")]
+    elements = tuple(_check(img, lit, pol, posed, placed) for posed in placed)
     warnings: list[str] = []
     implied = lay.magnification / pose.scale
     if abs(implied / lay.magnification - 1.0) > magnification_tolerance:
@@ -520,14 +545,15 @@ def _refine(
 
 
 def _check(
-    img: npt.NDArray[np.float32], lit: FloatArray, pol: Polarity, posed: PosedBarSet
+    img: npt.NDArray[np.float32], lit: FloatArray, pol: Polarity, posed: PosedBarSet,
+    placed: list[PosedBarSet],
 ) -> FoundElement:
     """Place one set, reject it with a reason or confirm it against the frame."""
     roi = posed.roi
     h, w = img.shape
 
     def rejected(reason: str) -> FoundElement:
-        return FoundElement(posed, "rejected", reason, 0.0, None, roi)
+        return FoundElement(posed, "rejected", reason, 0.0, None, roi, roi)
 
     corners = posed.corners()
     if any(not (-0.5 <= r <= h - 0.5 and -0.5 <= c <= w - 0.5) for r, c in corners):
@@ -550,8 +576,63 @@ def _check(
     if conf < MIN_CONFIDENCE:
         return FoundElement(posed, "rejected",
                             f"ambiguous (three-bar pattern correlation {conf:.2f} < "
-                            f"{MIN_CONFIDENCE})", conf, measured, roi)
-    return FoundElement(posed, "found", None, conf, measured, roi)
+                            f"{MIN_CONFIDENCE})", conf, measured, roi, roi)
+    box, note = _measurement_roi(posed, placed, (h, w))
+    return FoundElement(posed, "found", None, conf, measured, roi, box, note)
+
+
+def _measurement_roi(
+    posed: PosedBarSet, placed: list[PosedBarSet], shape: tuple[int, int]
+) -> tuple[Box, str | None]:
+    """The ROI a modulation is read from, and why it gives no reliable reading (or None).
+
+    Three whole periods across the bars when that box stays on the frame and clear of every
+    other set (with :data:`NEIGHBOUR_MARGIN_PX` for its blur), else the bar-set ROI.
+    """
+    others = [o for o in placed if o is not posed]
+    box = posed.whole_period_roi
+    r0, c0, r1, c1 = box
+    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]) or any(
+        _box_meets_set(box, o) for o in others
+    ):
+        box = posed.roi
+    if any(_box_meets_set(box, o) for o in others):
+        return box, "a neighbouring bar set reaches into the ROI"
+    p = posed.px_per_period
+    if not posed.axis_aligned and p < MIN_OBLIQUE_PX_PER_PERIOD:
+        off_axis = abs((posed.theta_deg + 45.0) % 90.0 - 45.0)
+        return box, (f"not measurable: {p:.2f} px per period < {MIN_OBLIQUE_PX_PER_PERIOD:g} on "
+                     f"bars {off_axis:.1f} deg off the pixel axes (every line samples another "
+                     "phase; too few pixels per phase for a reliable modulation)")
+    r0, c0, r1, c1 = box
+    t = math.radians(posed.theta_deg)
+    span = abs((c1 - c0 - 1) * math.cos(t)) + abs((r1 - r0 - 1) * math.sin(t)) + 1.0
+    if span / p < MIN_ROI_PERIODS:
+        return box, (f"not measurable: the ROI spans {span / p:.1f} periods across the bars "
+                     f"(< {MIN_ROI_PERIODS:g})")
+    return box, None
+
+
+def _box_meets_set(box: Box, other: PosedBarSet) -> bool:
+    """True when the pixels of ``box`` overlap the square of ``other`` widened by
+    :data:`NEIGHBOUR_MARGIN_PX` (separating-axis test of two rectangles)."""
+    r0, c0, r1, c1 = box
+    top, left, bottom, right = r0 - 0.5, c0 - 0.5, r1 - 0.5, c1 - 0.5
+    half = other.half_size_px + NEIGHBOUR_MARGIN_PX
+    oy, ox = other.centre_rc
+    by, bx = 0.5 * (top + bottom), 0.5 * (left + right)
+    hy, hx = 0.5 * (bottom - top), 0.5 * (right - left)
+    if math.hypot(oy - by, ox - bx) > math.hypot(hy, hx) + half * math.sqrt(2.0):
+        return False
+    t = math.radians(other.theta_deg)
+    ct, st = abs(math.cos(t)), abs(math.sin(t))
+    # the box's axes (rotated square's extent along x and y is half * (|cos| + |sin|))
+    if abs(ox - bx) > hx + half * (ct + st) or abs(oy - by) > hy + half * (ct + st):
+        return False
+    # the square's axes (the box's extent along u and v)
+    ux, uy = math.cos(t), math.sin(t)
+    du, dv = (bx - ox) * ux + (by - oy) * uy, -(bx - ox) * uy + (by - oy) * ux
+    return not (abs(du) > half + hx * ct + hy * st or abs(dv) > half + hx * st + hy * ct)
 
 
 def _confirm(

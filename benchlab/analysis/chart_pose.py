@@ -29,6 +29,18 @@ from benchlab.analysis.frequency import px_per_period
 
 Point = tuple[float, float]
 
+#: Half width across the bars, in bar widths, of the measurement ROI: the set (``2.5``) plus half
+#: a space each side, so the ROI holds exactly three whole periods of the bar pattern (the
+#: ground beside the outer bars reads as the space that would follow them). A ROI of 2.5
+#: periods leaves the estimators an unbalanced pattern: on the benchmark's 3-5 px periods it
+#: misread the modulation by more than 0.03 in twice as many sets.
+WHOLE_PERIODS_HALF_WIDTHS = 3.0
+#: Bars within this many degrees of a pixel axis count as axis-aligned: every line across them
+#: then samples the same phases, and the estimators may take the axis as the bar direction.
+#: Beyond it the direction must be measured (the estimators take an axis, not an angle, as a
+#: prior: a set at 2-15 deg measured as if on the axis read up to 0.2 off on a small ROI).
+AXIS_TOLERANCE_DEG = 0.5
+
 
 @dataclass(frozen=True)
 class ChartPose:
@@ -116,8 +128,20 @@ class PosedBarSet:
 
     @property
     def roi(self) -> Box:
-        """Measurement ROI: :func:`posed_bar_set_roi` of this set."""
+        """The bar-set ROI: :func:`posed_bar_set_roi` of this set (across: the set only)."""
         return posed_bar_set_roi(self.centre_rc, self.bar_width_px, self.theta_deg)
+
+    @property
+    def whole_period_roi(self) -> Box:
+        """The set's ROI over three whole periods across the bars (half a space beyond each
+        outer bar, :data:`WHOLE_PERIODS_HALF_WIDTHS`), bar ends trimmed as in :attr:`roi`."""
+        return posed_bar_set_roi(self.centre_rc, self.bar_width_px, self.theta_deg,
+                                 half_across_widths=WHOLE_PERIODS_HALF_WIDTHS)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """True when the bars lie along a pixel axis within :data:`AXIS_TOLERANCE_DEG`."""
+        return abs((self.theta_deg + 45.0) % 90.0 - 45.0) <= AXIS_TOLERANCE_DEG
 
 
 def posed_bar_set(
@@ -160,7 +184,8 @@ def posed_bar_sets(layout: ChartLayout, pose: ChartPose) -> list[PosedBarSet]:
 
 
 def posed_bar_set_roi(
-    centre_rc: Point, bar_width_px: float, theta_deg: float, margin_px: float = ROI_END_MARGIN_PX
+    centre_rc: Point, bar_width_px: float, theta_deg: float, margin_px: float = ROI_END_MARGIN_PX,
+    half_across_widths: float = 2.5,
 ) -> Box:
     """Largest axis-aligned pixel box inside a (possibly rotated) bar set, bar ends trimmed.
 
@@ -170,18 +195,19 @@ def posed_bar_set_roi(
     at angle ``t`` reaches ``(|cos t| + |sin t|) / 2`` along any axis). The region is convex, so
     a box is inside when its four corner pixels are; among the boxes centred on the set the one
     with most pixels wins. At 0 or 90 degrees this is exactly ``bar_set_roi``. Never empty: the
-    pixel holding the centre when nothing fits.
+    pixel holding the centre when nothing fits. ``half_across_widths`` (bar widths from the
+    centre) widens the region across the bars (3 = three whole periods).
     """
     t = math.radians(theta_deg)
     cu, su = math.cos(t), math.sin(t)
     reach = 0.5 * (abs(cu) + abs(su))
-    half_across = 2.5 * bar_width_px + 1e-9
+    half_across = half_across_widths * bar_width_px + 1e-9
     half_along = 2.5 * bar_width_px - margin_px - reach + 1e-9
     cr, cc = centre_rc
     best: Box | None = None
     best_n = 0
     if half_along >= 0:
-        extent = math.ceil(3.6 * bar_width_px) + 1
+        extent = math.ceil(1.45 * max(half_across, half_along + reach)) + 1
         r_mid = math.floor(cr)
         for r0 in range(r_mid - extent, r_mid + 1):
             for r1 in {math.floor(2 * cr - r0), math.ceil(2 * cr - r0)}:
