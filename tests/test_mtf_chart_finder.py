@@ -35,7 +35,7 @@ def test_rotated_scaled_chart_gets_its_rois_and_the_report_shows_it(tmp_path: Pa
     for row, el in zip(outcome.tables["table_4_11"], params.forward_elements, strict=True):
         for orient in ("sagittal", "tangential"):
             truth = scene.bar_set(el.group, el.element, orient)  # type: ignore[arg-type]
-            assert np.abs(np.subtract(row[f"{orient}_roi"], truth.roi)).max() <= 1
+            assert np.abs(np.subtract(row[f"{orient}_roi"], truth.whole_period_roi)).max() <= 1
             assert row[f"{orient}_resolved"]  # on the bars, not beside them
     located = [e for e in events(outcome.session_path) if e["kind"] == "chart_located"]
     assert len(located) == 1 and located[0]["offset_px"] == [14, -22]
