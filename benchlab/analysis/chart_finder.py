@@ -41,7 +41,12 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.chart import Box, ChartLayout, Orientation, usaf_bar_group
-from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
+from benchlab.analysis.chart_pose import (
+    WHOLE_PERIODS_HALF_WIDTHS,
+    ChartPose,
+    PosedBarSet,
+    posed_bar_set,
+)
 from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.projection import project_roi
 
@@ -66,6 +71,15 @@ MIN_MATCHED_SETS = 3
 MIN_CONFIDENCE = 0.5
 #: The lit field: local ground above this fraction of the frame's lit level.
 LIT_FRACTION = 0.3
+#: The layout's own place: the default prior pose.
+NOMINAL_POSE = ChartPose()
+#: A pose fit is "confident" when it matches at least this many sets and this share of the
+#: three-bar candidates (the rest are dust, defects and sets the layout does not hold).
+CONFIDENT_MIN_SETS = 8
+CONFIDENT_SHARE = 0.6
+#: The search window: blocks of this many px, padded by the closing's kernel plus this.
+WINDOW_BLOCK_PX = 8
+WINDOW_PAD_PX = 8
 #: Default warning threshold: implied vs configured magnification, relative.
 MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
@@ -236,6 +250,7 @@ def find_chart(
     scale_range: tuple[float, float] = (0.5, 2.0),
     polarity: Polarity | None = None,
     magnification_tolerance: float = MAGNIFICATION_TOLERANCE,
+    prior: ChartPose | None = NOMINAL_POSE,
 ) -> ChartFit:
     """Locate the USAF 1951 chart of ``layout`` in a frame and check every element.
 
@@ -253,6 +268,12 @@ def find_chart(
         Dark bars on a bright ground or the reverse; ``None`` tries both.
     magnification_tolerance : float
         Relative disagreement of implied and configured magnification that gives a warning.
+    prior : ChartPose, optional
+        Pose tried first (default: the layout's own place, unit scale, no rotation - the
+        parameter file's geometry; or a previous frame's pose). When, refined, it explains
+        most three-bar sets found (:data:`CONFIDENT_SHARE`, at least
+        :data:`CONFIDENT_MIN_SETS`) it is taken without searching every pose, and a polarity
+        fitted that well is not searched in the other; ``None`` always searches.
 
     Returns
     -------
@@ -276,18 +297,27 @@ def find_chart(
     model = _model(lay)
     w_max = float(model["width"].max()) * hi
     kernel = 2 * math.ceil(w_max) + 3
-    best: tuple[tuple[int, float], Polarity, ChartPose, int, float, FloatArray, int] | None = None
+    r0, c0, r1, c1 = _search_window(img, kernel + WINDOW_PAD_PX)
+    sub = img[r0:r1, c0:c1]
+    best: tuple[tuple[int, float], Polarity, ChartPose, int, float, _Lit, int] | None = None
     for pol in (("positive", "negative") if polarity is None else (polarity,)):
-        work = img if pol == "positive" else float(np.percentile(img, 99.9)) - img
-        cands = _candidates(_darkness(work, kernel))
-        fit = _fit_pose(cands, model, lay, scale_range)
+        top = 0.0 if pol == "positive" else float(np.percentile(sub[::2, ::2], 99.9))
+        work = sub if pol == "positive" else top - sub
+        darkness, ground = _darkness(work, kernel)
+        cands = _candidates(darkness, (r0, c0))
+        fit = _fit_pose(cands, model, lay, scale_range, prior)
         if fit is None:
             continue
         pose, matched, resid = fit
         key = (matched, -resid)
         if best is None or key > best[0]:
-            lit = _lit_ground(img, pol, kernel)
+            # the ground of the frame itself: the closing for a positive target; for a
+            # negative one the opening of the frame, which is top - the closing of the work
+            lit_ground = ground if pol == "positive" else top - ground
+            lit = _Lit(lit_ground, (r0, c0), _high_level(lit_ground))
             best = (key, pol, pose, matched, resid, lit, cands.n)
+        if _confident(matched, cands.n):
+            break  # the other polarity's bars are this one's spaces: two per set, no chart
     if best is None:
         raise ChartNotFoundError(
             "no chart found: no three-bar sets matching the USAF 1951 layout "
@@ -325,17 +355,43 @@ def _as_frame(pixels: npt.ArrayLike) -> npt.NDArray[np.float32]:
     return out
 
 
-def _darkness(work: npt.NDArray[np.float32], kernel: int) -> npt.NDArray[np.float32]:
-    """Relative darkness against the local ground (a closing); 0 outside the lit field."""
+def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
+    """The part of the frame worth searching (r0, c0, r1, c1): blocks of 8 x 8 px whose
+    brightest pixel is above :data:`LIT_FRACTION` of the way from the dark floor to the
+    brightest blocks (the lit disc of a positive target, the bars of a negative one), padded
+    by ``pad_px``. A frame lit all over is searched whole."""
+    h, w = img.shape
+    step = WINDOW_BLOCK_PX
+    hb, wb = h // step, w // step
+    if hb < 4 or wb < 4:
+        return (0, 0, h, w)
+    near_max = cv2.dilate(img, np.ones((step, step), np.uint8))  # max over step x step
+    blocks = near_max[step // 2 : hb * step : step, step // 2 : wb * step : step]
+    floor, level = np.percentile(blocks, (5.0, 99.0))
+    lit = blocks > floor + LIT_FRACTION * (level - floor)
+    if not lit.any():
+        return (0, 0, h, w)
+    rows, cols = np.nonzero(lit.any(axis=1))[0], np.nonzero(lit.any(axis=0))[0]
+    r0, c0 = int(rows[0]) * step - pad_px, int(cols[0]) * step - pad_px
+    r1 = h if rows[-1] == hb - 1 else (int(rows[-1]) + 1) * step + pad_px
+    c1 = w if cols[-1] == wb - 1 else (int(cols[-1]) + 1) * step + pad_px
+    return (max(r0, 0), max(c0, 0), min(r1, h), min(c1, w))
+
+
+def _darkness(
+    work: npt.NDArray[np.float32], kernel: int
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    """Relative darkness against the local ground (a closing; 0 outside the lit field), and
+    that ground."""
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
-    ground = cv2.morphologyEx(work, cv2.MORPH_CLOSE, k)
+    ground = np.asarray(cv2.morphologyEx(work, cv2.MORPH_CLOSE, k), dtype=np.float32)
     lit_level = _high_level(ground)
     if lit_level <= 0:
-        return np.zeros_like(work)
+        return np.zeros_like(work), ground
     floor = LIT_FRACTION * lit_level
     darkness = np.asarray((ground - work) / np.maximum(ground, floor), dtype=np.float32)
     darkness[ground < floor] = 0.0
-    return darkness
+    return darkness, ground
 
 
 def _high_level(ground: npt.NDArray[Any]) -> float:
@@ -343,18 +399,36 @@ def _high_level(ground: npt.NDArray[Any]) -> float:
     return float(np.percentile(ground[::4, ::4], 99.0))
 
 
-def _lit_ground(img: npt.NDArray[np.float32], pol: Polarity, kernel: int) -> FloatArray:
-    """Where the chart is lit: the ground level (closing for a positive target, opening for a
-    negative one) smoothed, as a fraction of its high percentile."""
-    k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
-    op = cv2.MORPH_CLOSE if pol == "positive" else cv2.MORPH_OPEN
-    ground = cv2.morphologyEx(img, op, k)
-    level = _high_level(ground)
-    return np.asarray(ground / level if level > 0 else np.zeros_like(ground), dtype=np.float64)
+@dataclass(frozen=True)
+class _Lit:
+    """Where the chart is lit: the ground level (closing of a positive target, opening of a
+    negative one) over the search window at ``origin_rc``, as a fraction of its high
+    percentile; 0 outside the window."""
+
+    ground: npt.NDArray[np.float32]
+    origin_rc: tuple[int, int]
+    level: float
+
+    def at(self, points_rc: list[tuple[float, float]]) -> float:
+        """The least lit fraction over the pixels holding the points."""
+        level = self.level
+        if level <= 0:
+            return 0.0
+        h, w = self.ground.shape
+        out = math.inf
+        for r, c in points_rc:
+            rr, cc = round(r) - self.origin_rc[0], round(c) - self.origin_rc[1]
+            if not (0 <= rr < h and 0 <= cc < w):
+                return 0.0
+            out = min(out, float(self.ground[rr, cc]) / level)
+        return out
 
 
-def _candidates(darkness: npt.NDArray[np.float32]) -> _Candidates:
-    """Three-bar sets among the dark components of the darkness map."""
+def _candidates(
+    darkness: npt.NDArray[np.float32], origin_rc: tuple[int, int] = (0, 0)
+) -> _Candidates:
+    """Three-bar sets among the dark components of the darkness map (``origin_rc``: where the
+    map's first pixel sits in the frame)."""
     mask = (darkness > BAR_CONTRAST).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
     empty = _Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
@@ -414,7 +488,8 @@ def _candidates(darkness: npt.NDArray[np.float32]) -> _Candidates:
         angles.append(math.degrees(0.5 * math.atan2(np.sin(a).sum(), np.cos(a).sum())) % 180.0)
     if not centres:
         return empty
-    return _Candidates(np.array(centres), np.array(widths), np.array(angles))
+    return _Candidates(np.array(centres) + np.array(origin_rc, dtype=np.float64),
+                       np.array(widths), np.array(angles))
 
 
 # --------------------------------------------------------------------------- pose
@@ -469,14 +544,27 @@ def _match(
     return np.isfinite(best), which, best
 
 
+def _confident(matched: int, n_candidates: int) -> bool:
+    """A fit that explains most candidates with many sets: no other pose or polarity can
+    match more of them."""
+    return matched >= CONFIDENT_MIN_SETS and matched >= CONFIDENT_SHARE * n_candidates
+
+
 def _fit_pose(
     cands: _Candidates, model: dict[str, Any], layout: ChartLayout,
-    scale_range: tuple[float, float],
+    scale_range: tuple[float, float], prior: ChartPose | None = None,
 ) -> tuple[ChartPose, int, float] | None:
-    """Best pose from candidate / layout-set correspondences, refined; None when unsupported."""
+    """Best pose from candidate / layout-set correspondences, refined; None when unsupported.
+
+    A ``prior`` pose that, refined, explains most candidates (:func:`_confident`) is taken
+    without the search over every candidate / set pairing."""
     if cands.n < 2:
         return None
     origin = layout.origin_rc
+    if prior is not None and scale_range[0] <= prior.scale <= scale_range[1]:
+        refined = _refine(cands, model, origin, prior)
+        if refined is not None and _confident(refined[1], cands.n):
+            return refined
     grid_c, grid_s = np.meshgrid(np.arange(cands.n), np.arange(len(model["keys"])), indexing="ij")
     ci, si = grid_c.ravel(), grid_s.ravel()
     k = cands.width_px[ci] / model["width"][si]
@@ -545,7 +633,7 @@ def _refine(
 
 
 def _check(
-    img: npt.NDArray[np.float32], lit: FloatArray, pol: Polarity, posed: PosedBarSet,
+    img: npt.NDArray[np.float32], lit: _Lit, pol: Polarity, posed: PosedBarSet,
     placed: list[PosedBarSet],
 ) -> FoundElement:
     """Place one set, reject it with a reason or confirm it against the frame."""
@@ -558,10 +646,7 @@ def _check(
     corners = posed.corners()
     if any(not (-0.5 <= r <= h - 0.5 and -0.5 <= c <= w - 0.5) for r, c in corners):
         return rejected("clipped by the FOV (runs off the frame)")
-    samples = [*corners, posed.centre_rc]
-    lit_min = min(float(lit[min(max(round(r), 0), h - 1), min(max(round(c), 0), w - 1)])
-                  for r, c in samples)
-    if lit_min < LIT_FRACTION:
+    if lit.at([*corners, posed.centre_rc]) < LIT_FRACTION:
         return rejected("clipped by the FOV (outside the lit field)")
     if posed.image_lp_per_mm > nyquist_lp_per_mm():
         return rejected(f"above Nyquist ({posed.px_per_period:.2f} px per period < 2)")
@@ -589,7 +674,9 @@ def _measurement_roi(
     Three whole periods across the bars when that box stays on the frame and clear of every
     other set (with :data:`NEIGHBOUR_MARGIN_PX` for its blur), else the bar-set ROI.
     """
-    others = [o for o in placed if o is not posed]
+    reach = (WHOLE_PERIODS_HALF_WIDTHS * posed.bar_width_px + 2.0) * math.sqrt(2.0)
+    others = [o for o in placed if o is not posed and math.dist(o.centre_rc, posed.centre_rc)
+              <= reach + (o.half_size_px + NEIGHBOUR_MARGIN_PX) * math.sqrt(2.0)]
     box = posed.whole_period_roi
     r0, c0, r1, c1 = box
     if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]) or any(
@@ -653,11 +740,10 @@ def _confirm(
     u, v, n = prof.u_px[filled], prof.mean[filled], prof.count[filled].astype(np.float64)
     sign = -1.0 if pol == "positive" else 1.0
     trials = posed.bar_width_px * np.linspace(0.85, 1.15, 13)
-    scores = np.full(trials.size, -1.0)
-    for i, wt in enumerate(trials):
-        inside = np.abs(u) <= 2.5 * wt
-        if inside.sum() >= 4:
-            scores[i] = _weighted_corr(v[inside], sign * np.cos(np.pi * u[inside] / wt), n[inside])
+    # every trial width at once: one row per trial, the bins outside its set weighted 0
+    wgt = np.where(np.abs(u)[None, :] <= 2.5 * trials[:, None], n[None, :], 0.0)
+    scores = _weighted_corr_rows(v, sign * np.cos(np.pi * u[None, :] / trials[:, None]), wgt)
+    scores[(wgt > 0).sum(axis=1) < 4] = -1.0
     i = int(np.argmax(scores))
     best_w = float(trials[i])
     if 0 < i < trials.size - 1:  # parabola through the peak and its neighbours
@@ -668,9 +754,12 @@ def _confirm(
     return max(0.0, float(scores[i])), 2.0 * best_w
 
 
-def _weighted_corr(a: FloatArray, b: FloatArray, wgt: FloatArray) -> float:
-    wsum = wgt.sum()
-    am, bm = (wgt * a).sum() / wsum, (wgt * b).sum() / wsum
-    da, db = a - am, b - bm
-    den = math.sqrt(float((wgt * da * da).sum() * (wgt * db * db).sum()))
-    return float((wgt * da * db).sum() / den) if den > 0 else 0.0
+def _weighted_corr_rows(a: FloatArray, b: FloatArray, wgt: FloatArray) -> FloatArray:
+    """Weighted correlation of ``a`` (one profile) with each row of ``b`` under the weights
+    of the same row of ``wgt`` (0 where a row has no weight or no spread)."""
+    wsum = np.maximum(wgt.sum(axis=1, keepdims=True), 1e-300)
+    da = a[None, :] - (wgt * a[None, :]).sum(axis=1, keepdims=True) / wsum
+    db = b - (wgt * b).sum(axis=1, keepdims=True) / wsum
+    den = np.sqrt((wgt * da * da).sum(axis=1) * (wgt * db * db).sum(axis=1))
+    num = (wgt * da * db).sum(axis=1)
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

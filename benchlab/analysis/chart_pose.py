@@ -17,6 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from benchlab.analysis.chart import (
     ROI_END_MARGIN_PX,
     Box,
@@ -26,6 +29,8 @@ from benchlab.analysis.chart import (
     usaf_bar_group,
 )
 from benchlab.analysis.frequency import px_per_period
+
+FloatArray = npt.NDArray[np.float64]
 
 Point = tuple[float, float]
 
@@ -204,41 +209,41 @@ def posed_bar_set_roi(
     half_across = half_across_widths * bar_width_px + 1e-9
     half_along = 2.5 * bar_width_px - margin_px - reach + 1e-9
     cr, cc = centre_rc
-    best: Box | None = None
-    best_n = 0
     if half_along >= 0:
+        # every candidate top row r0 with the bottom rows r1 that centre the box on the set
         extent = math.ceil(1.45 * max(half_across, half_along + reach)) + 1
         r_mid = math.floor(cr)
-        for r0 in range(r_mid - extent, r_mid + 1):
-            for r1 in {math.floor(2 * cr - r0), math.ceil(2 * cr - r0)}:
-                if r1 < r0:
-                    continue
-                lo, hi = _x_range(r0 - cr, r1 - cr, cu, su, half_across, half_along)
-                c0, c1 = math.ceil(cc + lo - 1e-9), math.floor(cc + hi + 1e-9)
-                n = (r1 - r0 + 1) * (c1 - c0 + 1)
-                if c1 >= c0 and n > best_n:
-                    best, best_n = (r0, c0, r1 + 1, c1 + 1), n
-    if best is None:
-        r, c = round(cr), round(cc)
-        return (r, c, r + 1, c + 1)
-    return best
+        r0 = np.repeat(np.arange(r_mid - extent, r_mid + 1, dtype=np.float64), 2)
+        r1 = np.empty_like(r0)
+        r1[0::2], r1[1::2] = np.floor(2 * cr - r0[0::2]), np.ceil(2 * cr - r0[1::2])
+        lo, hi = _x_range(r0 - cr, r1 - cr, cu, su, half_across, half_along)
+        c0, c1 = np.ceil(cc + lo - 1e-9), np.floor(cc + hi + 1e-9)
+        n = np.where((r1 >= r0) & (c1 >= c0), (r1 - r0 + 1) * (c1 - c0 + 1), 0.0)
+        i = int(np.argmax(n))  # the first of the largest, as the rows are scanned top down
+        if n[i] > 0:
+            return (int(r0[i]), int(c0[i]), int(r1[i]) + 1, int(c1[i]) + 1)
+    r, c = round(cr), round(cc)
+    return (r, c, r + 1, c + 1)
 
 
 def _x_range(
-    dy0: float, dy1: float, cu: float, su: float, half_across: float, half_along: float
-) -> tuple[float, float]:
-    """Column offsets x for which (x, dy) lies in the rotated rectangle for both dy0 and dy1.
+    dy0: FloatArray, dy1: FloatArray, cu: float, su: float, half_across: float,
+    half_along: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Column offsets x for which (x, dy) lies in the rotated rectangle for both dy0 and dy1
+    (arrays: one interval per pair; empty where ``lo > hi``).
 
     Across: ``|x cu + dy su| <= half_across``; along: ``|-x su + dy cu| <= half_along``. Each
     is an interval in x (or all or nothing when its coefficient vanishes).
     """
-    lo, hi = -math.inf, math.inf
+    lo = np.full(dy0.shape, -np.inf)
+    hi = np.full(dy0.shape, np.inf)
     for dy in (dy0, dy1):
         for coef, const, half in ((cu, dy * su, half_across), (-su, dy * cu, half_along)):
             if abs(coef) < 1e-12:
-                if abs(const) > half:
-                    return (1.0, -1.0)
+                outside = np.abs(const) > half
+                lo, hi = np.where(outside, 1.0, lo), np.where(outside, -1.0, hi)
                 continue
             a, b = (-half - const) / coef, (half - const) / coef
-            lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+            lo, hi = np.maximum(lo, np.minimum(a, b)), np.minimum(hi, np.maximum(a, b))
     return lo, hi
