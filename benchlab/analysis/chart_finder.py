@@ -4,6 +4,9 @@ The chart's known layout (:class:`benchlab.analysis.chart.ChartLayout`: element 
 the three-bar sets, where each element sits) is the model; the frame supplies evidence; the
 pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) links them.
 
+0. **Window.** Only the part of the frame with light in it is searched: 8 x 8 px blocks whose
+   brightest pixel stands out from the dark floor (the forward view's lit disc is a fifth of
+   the frame), padded by the closing's width.
 1. **Candidates.** The local ground level is a morphological closing of the frame wider than the
    widest expected bar (it fills every bar with the spaces beside it and follows vignetting);
    the relative darkness ``(ground - frame) / ground`` above :data:`BAR_CONTRAST` marks bar
@@ -16,7 +19,8 @@ pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) 
    the bar widths, rotation from the bar angles, offset from the centres). Every proposal is
    scored by how many layout sets it places on a candidate of the predicted width and angle;
    the best few are refined by least squares (a similarity transform over all matched sets)
-   and re-scored.
+   and re-scored. A prior pose (default: the layout's own place, i.e. the parameter file's
+   geometry) is refined first; when it explains most candidates the search is skipped.
 3. **Placement and check.** Every set of the layout is placed by the fitted pose. Sets off the
    frame or outside the lit field are rejected as clipped by the FOV, sets with bar periods
    under 2 px as above Nyquist, sets whose measurement ROI is too thin as too small. The rest
@@ -24,7 +28,9 @@ pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) 
    (:func:`benchlab.analysis.projection.project_roi`) and correlated with the three-bar
    pattern at the predicted phase; the correlation is the confidence and the best-fitting
    period the measured pixels per period. A set whose pattern does not correlate
-   (< :data:`MIN_CONFIDENCE`) is rejected as ambiguous.
+   (< :data:`MIN_CONFIDENCE`) is rejected as ambiguous. A found set gets its measurement ROI
+   (three whole periods across, bar ends trimmed, no neighbouring set inside) and, where no
+   reliable modulation can be read from it, the reason (:attr:`FoundElement.unmeasurable`).
 
 Pure numpy/OpenCV: no files, no devices. Raises :class:`ChartNotFoundError` when no pose is
 supported by at least :data:`MIN_MATCHED_SETS` sets.
@@ -36,7 +42,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -360,6 +365,7 @@ def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
     brightest pixel is above :data:`LIT_FRACTION` of the way from the dark floor to the
     brightest blocks (the lit disc of a positive target, the bars of a negative one), padded
     by ``pad_px``. A frame lit all over is searched whole."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     h, w = img.shape
     step = WINDOW_BLOCK_PX
     hb, wb = h // step, w // step
@@ -383,6 +389,7 @@ def _darkness(
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """Relative darkness against the local ground (a closing; 0 outside the lit field), and
     that ground."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
     ground = np.asarray(cv2.morphologyEx(work, cv2.MORPH_CLOSE, k), dtype=np.float32)
     lit_level = _high_level(ground)
@@ -429,6 +436,7 @@ def _candidates(
 ) -> _Candidates:
     """Three-bar sets among the dark components of the darkness map (``origin_rc``: where the
     map's first pixel sits in the frame)."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     mask = (darkness > BAR_CONTRAST).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
     empty = _Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
