@@ -15,7 +15,7 @@ from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
 from textual.timer import Timer
-from textual.widgets import Footer, Static
+from textual.widgets import Footer
 from textual.worker import get_current_worker
 
 from benchlab.bench import plain_target
@@ -29,7 +29,7 @@ from benchlab.tui.chart_overlay import (
 )
 from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.unwrap_view import UnwrapPreview
-from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
+from benchlab.tui.widgets import FrameView, ModeBar, Readout, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
 EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500.0, 1000.0)
@@ -113,6 +113,7 @@ class LiveScreen(Screen[None]):
         self._last_error = ""
         self._last_error_at = 0.0
         self._idle_reason = ""
+        self._shown_settings: tuple[object, ...] = ()
         graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
         self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
         self.chart_fit: Any = None  # the latest ChartFit (None: off or not found)
@@ -132,7 +133,7 @@ class LiveScreen(Screen[None]):
             else:
                 yield ChartFrameView(id="frame")
             with Vertical(id="side"):
-                yield Static("waiting for the camera...", id="readout")
+                yield Readout("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
         yield Footer(compact=True)
 
@@ -221,7 +222,7 @@ class LiveScreen(Screen[None]):
         if text != self._last_error or now - self._last_error_at > 5.0:
             self._last_error, self._last_error_at = text, now
             self.notify(text, title="Live view", severity="error", timeout=4)
-        self.query_one("#readout", Static).update(f"[red]{escape(text)}[/red]")
+        self.query_one(Readout).show(f"[red]{escape(text)}[/red]", urgent=True)
 
     def _show_idle(self) -> None:
         app: Any = self.app
@@ -234,7 +235,7 @@ class LiveScreen(Screen[None]):
         if self._idle_reason != why:
             self._idle_reason = why
             self.query_one(FrameView).clear()
-            self.query_one("#readout", Static).update(f"[dim]{why}[/dim]")
+            self.query_one(Readout).show(f"[dim]{why}[/dim]", urgent=True)
 
     def _show_latest(self) -> None:
         with self._latest_lock:
@@ -257,8 +258,14 @@ class LiveScreen(Screen[None]):
                     reading.frame_shape)
         roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
         view.show(reading.preview, roi, reading.max_code)
-        self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
-        self.query_one("#readout", Static).update(self._readout_text(reading))
+        # The side panel follows at a few Hz (a changed setting at once): redrawing it with
+        # every frame cost more than the frame itself at large terminal sizes.
+        settings = (reading.roi, reading.exposure_ms, reading.gain, self.estimator,
+                    self.orientation, self.zoom, self.chart, self.unwrapped)
+        changed, self._shown_settings = settings != self._shown_settings, settings
+        self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks,
+                                          force=changed)
+        self.query_one(Readout).show(self._readout_text(reading), urgent=changed)
 
     @property
     def display_rate_hz(self) -> float:
