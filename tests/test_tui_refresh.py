@@ -21,9 +21,10 @@ from benchlab.tui.graphics import (
     KittyCanvas,
     SixelCanvas,
     fit_image,
-    sixel_palette_image,
+    sixel_palette,
 )
 from benchlab.tui.live import LiveScreen
+from benchlab.tui.sixel import encode_sixel
 from benchlab.tui.widgets import ROI_RGB, Readout, RoiHistogram
 
 
@@ -117,15 +118,66 @@ def test_sixel_palette_keeps_gray_levels_and_overlay_colours() -> None:
     rgb = np.repeat(np.tile(np.arange(256, dtype=np.uint8), (8, 1))[:, :, None], 3, axis=2)
     rgb[2, 10:20] = ROI_RGB
     rgb[5, 30:40] = (0, 220, 60)
-    image = sixel_palette_image(rgb)
-    assert image.mode == "P" and image.size == (256, 8)
-    index = np.asarray(image)
-    palette = np.asarray(image.getpalette()[: 3 * (SIXEL_GRAY_LEVELS + 2)]).reshape(-1, 3)
+    index, palette = sixel_palette(rgb)
+    assert index.shape == (8, 256) and palette.shape == (SIXEL_GRAY_LEVELS + 2, 3)
     shown = palette[index]
     assert tuple(shown[2, 15]) == ROI_RGB and tuple(shown[5, 35]) == (0, 220, 60)
     gray_error = np.abs(shown[0, :, 0].astype(int) - np.arange(256))
     assert gray_error.max() <= 256 // SIXEL_GRAY_LEVELS  # 32 levels
     assert len(np.unique(index)) == SIXEL_GRAY_LEVELS + 2
+
+
+def _decode_sixel(data: str) -> tuple[np.ndarray, dict[int, tuple[int, ...]]]:
+    """A plain Sixel decoder (one character at a time) to check the vectorised encoder."""
+    head = re.match(r'\x1bP0;0;0q"1;1;(\d+);(\d+)', data)
+    assert head is not None and data.endswith("\x1b\\")
+    width, height = int(head.group(1)), int(head.group(2))
+    body, image = data[head.end():-2], np.full((height, width), -1)
+    registers: dict[int, tuple[int, ...]] = {}
+    i = x = band = colour = 0
+    while i < len(body):
+        if body[i] == "#":
+            m = re.match(r"#(\d+)(?:;2;(\d+);(\d+);(\d+))?", body[i:])
+            assert m is not None
+            colour = int(m.group(1))
+            if m.group(2):
+                registers[colour] = tuple(int(v) for v in m.groups()[1:])
+            i += m.end()
+            continue
+        if body[i] in "$-":
+            x, band, i = 0, band + (body[i] == "-"), i + 1
+            continue
+        n = 1
+        if body[i] == "!":
+            m = re.match(r"!(\d+)", body[i:])
+            assert m is not None
+            n, i = int(m.group(1)), i + m.end()
+        bits = ord(body[i]) - 63
+        assert 0 <= bits < 64
+        for r in range(6):
+            if bits >> r & 1 and band * 6 + r < height:
+                image[band * 6 + r, x:x + n] = colour
+        x, i = x + n, i + 1
+    return image, registers
+
+
+@pytest.mark.parametrize("height, width, colours", [
+    (1, 1, 1), (7, 13, 3), (64, 80, 34), (13, 5, 256), (6, 700, 2)])
+def test_sixel_encoder_round_trips(height: int, width: int, colours: int) -> None:
+    rng = np.random.default_rng(height * width)
+    index = rng.integers(0, colours, (height, width)).astype(np.uint8)
+    index[:, : width // 2] = 0  # long runs (sent as !<n><char>)
+    palette = rng.integers(0, 256, (colours, 3)).astype(np.uint8)
+    data = encode_sixel(index, palette)
+    image, registers = _decode_sixel(data)
+    assert (image == index).all()
+    for c in np.unique(index).tolist():  # every used colour defined, in percent
+        assert registers[c] == tuple(round(v * 100 / 255) for v in palette[c].tolist())
+    if width >= 8:
+        assert "!" in data  # runs are compressed
+    with pytest.raises(ValueError, match="palette index"):
+        encode_sixel(np.full((2, 2), colours, np.uint8), palette) if colours < 256 else \
+            encode_sixel(np.full((2, 2), 1, np.uint8), palette[:1])
 
 
 class _Canvases(App[None]):

@@ -5,13 +5,14 @@ Two line-API widgets that show one RGB image centred in their area, built for a 
 - :class:`SixelCanvas` encodes the image at the pixel size it is shown at, never above the
   image's own size (a Sixel image is drawn 1:1 by the terminal, so every extra pixel is encode
   and transfer time: the cost per frame stays bounded at any terminal size). The image becomes
-  32 gray levels plus the overlay colours it holds, so no colour quantisation is needed.
+  32 gray levels plus the overlay colours it holds (no colour quantisation), encoded by
+  :mod:`benchlab.tui.sixel`.
 - :class:`KittyCanvas` transmits the image at its own resolution and lets the terminal scale
   it to the placement's cells (Unicode placeholders), so a larger terminal costs nothing more.
 
 Both encode only when a new image arrived or their size changed, and never re-layout the
-screen. ``textual-image`` supplies the Sixel encoder, the Kitty transmission and the
-terminal's cell size (queried before Textual starts).
+screen. ``textual-image`` supplies the Kitty transmission and the terminal's cell size
+(queried before Textual starts).
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ from rich.style import Style
 from textual.geometry import Region, Size
 from textual.strip import Strip
 from textual.widget import Widget
+
+from benchlab.tui.sixel import encode_sixel
 
 #: Gray levels of a Sixel frame (the half-block view shows 32 too): fewer palette colours per
 #: six-row band is less to encode and send.
@@ -78,30 +81,25 @@ def fit_image(image_px: tuple[int, int], area_cells: tuple[int, int], cell_px: t
     return (px_w, px_h), (min(cols, math.ceil(px_w / cw)), min(rows, math.ceil(px_h / ch)))
 
 
-def sixel_palette_image(rgb: npt.NDArray[np.uint8]) -> Any:
-    """A palette (``P``) PIL image of ``rgb``: 32 gray levels plus its overlay colours.
+def sixel_palette(rgb: npt.NDArray[np.uint8]) -> tuple[npt.NDArray[np.uint8],
+                                                      npt.NDArray[np.uint8]]:
+    """``rgb`` as palette indices and a palette: 32 gray levels plus its overlay colours.
 
     Gray pixels (r = g = b within a few codes) keep their level; coloured ones (ROI and chart
     outlines) take the nearest of the few distinct colours present.
     """
-    from PIL import Image
-
     px = rgb.astype(np.int16)
     spread = np.abs(px[..., 0] - px[..., 1]) + np.abs(px[..., 1] - px[..., 2])
     coloured = spread > 24
-    step = 256 // SIXEL_GRAY_LEVELS
-    index = (rgb[..., 1] // step).astype(np.uint8)
-    grays = [round(i * 255 / (SIXEL_GRAY_LEVELS - 1)) for i in range(SIXEL_GRAY_LEVELS)]
-    palette = [v for g in grays for v in (g, g, g)]
+    index = (rgb[..., 1] // (256 // SIXEL_GRAY_LEVELS)).astype(np.uint8)
+    grays = np.round(np.arange(SIXEL_GRAY_LEVELS) * 255 / (SIXEL_GRAY_LEVELS - 1))
+    palette = np.repeat(grays.astype(np.uint8)[:, None], 3, axis=1)
     if coloured.any():
         colours = np.unique(rgb[coloured], axis=0)[: 256 - SIXEL_GRAY_LEVELS]
         d2 = ((px[coloured][:, None, :] - colours[None, :, :].astype(np.int16)) ** 2).sum(axis=2)
         index[coloured] = SIXEL_GRAY_LEVELS + d2.argmin(axis=1).astype(np.uint8)
-        palette += [int(v) for c in colours for v in c]
-    image = Image.frombytes("P", (rgb.shape[1], rgb.shape[0]),
-                            np.ascontiguousarray(index).tobytes())
-    image.putpalette(palette)
-    return image
+        palette = np.concatenate((palette, colours.astype(np.uint8)))
+    return index, palette
 
 
 class _Canvas(Widget):
@@ -155,8 +153,6 @@ class SixelCanvas(_Canvas):
 
     def sixel_data(self) -> str:
         """The Sixel string of the current image at its shown size (cached per image/size)."""
-        from textual_image.renderable.sixel import image_to_sixels
-
         shown = self.shown_px()
         key = (self.serial, shown)
         if key != self._sixel_key:
@@ -166,7 +162,7 @@ class SixelCanvas(_Canvas):
                 if shown != (rgb.shape[1], rgb.shape[0]):
                     rgb = np.asarray(cv2.resize(rgb, shown, interpolation=cv2.INTER_AREA),
                                      np.uint8)
-                self._sixel = image_to_sixels(sixel_palette_image(rgb))
+                self._sixel = encode_sixel(*sixel_palette(rgb))
                 self.encodes += 1
             self._sixel_key = key
         return self._sixel
