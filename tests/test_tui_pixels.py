@@ -76,7 +76,7 @@ async def test_live_view_sends_real_pixels(tmp_path: Path, protocol: str, introd
             w, h = canvas.shown_px()
             assert f'"1;1;{w};{h}' in text and w <= 640 and h <= 512 and w <= cols * 10
         else:  # a virtual placement of exactly the canvas' cells; the terminal scales
-            assert f"a=p,i={canvas._tgp.terminal_image_id},c={cols},r={rows}" in text
+            assert f"a=p,i={canvas.image_id},c={cols},r={rows}" in text
 
 
 @pytest.mark.asyncio

@@ -4,6 +4,7 @@ Sixel / Kitty frames are encoded once per new frame, at the size they are shown.
 from __future__ import annotations
 
 import base64
+import io
 import re
 import struct
 import time
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 from test_tui_helpers import connected, wait_until
 from textual.app import App, ComposeResult
 from textual.geometry import Region
@@ -217,6 +219,9 @@ async def test_image_canvases_encode_once_per_new_frame(
         png = base64.b64decode(payload)
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
         assert struct.unpack(">II", png[16:24]) == (640, 512)
+        sent = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+        assert np.abs(sent - _frame(50)).max() <= 2  # 128 gray levels, the outline exact
+        assert tuple(sent[105, 200]) == ROI_RGB
         assert f"c={kitty.size.width},r={kitty.size.height}" in out
         sixel.set_image(_frame(60))
         kitty.set_image(_frame(60))

@@ -7,18 +7,22 @@ Two line-API widgets that show one RGB image centred in their area, built for a 
   and transfer time: the cost per frame stays bounded at any terminal size). The image becomes
   32 gray levels plus the overlay colours it holds (no colour quantisation), encoded by
   :mod:`benchlab.tui.sixel`.
-- :class:`KittyCanvas` transmits the image at its own resolution and lets the terminal scale
-  it to the placement's cells (Unicode placeholders), so a larger terminal costs nothing more.
+- :class:`KittyCanvas` transmits the image at its own resolution (a palette PNG, 128 grays)
+  and lets the terminal scale it to the placement's cells (Unicode placeholders), so a larger
+  terminal costs nothing more.
 
 Both encode only when a new image arrived or their size changed, and never re-layout the
-screen. ``textual-image`` supplies the Kitty transmission and the terminal's cell size
-(queried before Textual starts).
+screen. ``textual-image`` supplies the terminal's cell size (queried before Textual starts)
+and Kitty's placeholder numbering table.
 """
 
 from __future__ import annotations
 
 import io
+import itertools
 import math
+import random
+import sys
 from base64 import standard_b64encode
 from functools import lru_cache
 from typing import Any
@@ -26,6 +30,7 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
+from rich.color import Color
 from rich.control import Control
 from rich.segment import ControlType, Segment
 from rich.style import Style
@@ -81,9 +86,10 @@ def fit_image(image_px: tuple[int, int], area_cells: tuple[int, int], cell_px: t
     return (px_w, px_h), (min(cols, math.ceil(px_w / cw)), min(rows, math.ceil(px_h / ch)))
 
 
-def sixel_palette(rgb: npt.NDArray[np.uint8]) -> tuple[npt.NDArray[np.uint8],
-                                                      npt.NDArray[np.uint8]]:
-    """``rgb`` as palette indices and a palette: 32 gray levels plus its overlay colours.
+def sixel_palette(rgb: npt.NDArray[np.uint8], gray_levels: int = SIXEL_GRAY_LEVELS,
+                  ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
+    """``rgb`` as palette indices and a palette: ``gray_levels`` (a power of two <= 128) gray
+    levels plus its overlay colours.
 
     Gray pixels (r = g = b within a few codes) keep their level; coloured ones (ROI and chart
     outlines) take the nearest of the few distinct colours present.
@@ -91,13 +97,13 @@ def sixel_palette(rgb: npt.NDArray[np.uint8]) -> tuple[npt.NDArray[np.uint8],
     px = rgb.astype(np.int16)
     spread = np.abs(px[..., 0] - px[..., 1]) + np.abs(px[..., 1] - px[..., 2])
     coloured = spread > 24
-    index = (rgb[..., 1] // (256 // SIXEL_GRAY_LEVELS)).astype(np.uint8)
-    grays = np.round(np.arange(SIXEL_GRAY_LEVELS) * 255 / (SIXEL_GRAY_LEVELS - 1))
+    index = (rgb[..., 1] // (256 // gray_levels)).astype(np.uint8)
+    grays = np.round(np.arange(gray_levels) * 255 / (gray_levels - 1))
     palette = np.repeat(grays.astype(np.uint8)[:, None], 3, axis=1)
     if coloured.any():
-        colours = np.unique(rgb[coloured], axis=0)[: 256 - SIXEL_GRAY_LEVELS]
+        colours = np.unique(rgb[coloured], axis=0)[: 256 - gray_levels]
         d2 = ((px[coloured][:, None, :] - colours[None, :, :].astype(np.int16)) ** 2).sum(axis=2)
-        index[coloured] = SIXEL_GRAY_LEVELS + d2.argmin(axis=1).astype(np.uint8)
+        index[coloured] = gray_levels + d2.argmin(axis=1).astype(np.uint8)
         palette = np.concatenate((palette, colours.astype(np.uint8)))
     return index, palette
 
@@ -190,83 +196,115 @@ class SixelCanvas(_Canvas):
         return [*lines[:-1], Strip(image, crop.width)]
 
 
-@lru_cache(maxsize=1)
-def _tgp_image_class() -> type:
-    """textual-image's Kitty renderable, sending the image at its own size (PNG, fast level).
+#: Gray levels of a Kitty frame: sent as a palette PNG (a fifth of the RGB PNG's time).
+KITTY_GRAY_LEVELS = 128
+_KITTY_PLACEHOLDER = "\U0010EEEE"
+_kitty_ids = itertools.count(random.randint(1, 2**23))
 
-    The placement is sized in cells and the terminal scales the image into it, so scaling it
-    here to the cells' pixel size (textual-image's default) would only cost time.
-    """
-    from textual_image.renderable.tgp import Image as TGPImage
-    from textual_image.renderable.tgp import _send_tgp_message
 
-    class NativeSizeTGP(TGPImage):  # type: ignore[misc]
-        png: bytes = b""
+def _kitty_id() -> int:
+    """A new 24-bit image id: the placeholder cells' colour alone names it."""
+    return next(_kitty_ids) % (2**24 - 1) + 1
 
-        def _send_image_to_terminal(self, width: int, height: int) -> None:
-            self.terminal_image_id = next(TGPImage._image_id_counter)
-            data = standard_b64encode(self.png).decode("ascii")
-            while data:
-                chunk, data = data[:4096], data[4096:]
-                _send_tgp_message(i=self.terminal_image_id, m=1 if data else 0, f=100,
-                                  payload=chunk, q=2)
 
-    return NativeSizeTGP
+def _kitty_diacritics() -> list[int]:
+    """Kitty's row / column numbering diacritics (textual-image carries the table)."""
+    from textual_image.renderable.tgp import _NUMBER_TO_DIACRITIC
+
+    return list(_NUMBER_TO_DIACRITIC)
+
+
+@lru_cache(maxsize=8)
+def _placeholder_rows(cols: int, rows: int) -> tuple[str, ...]:
+    """The placeholder text of a ``cols`` x ``rows`` placement (the same for every image)."""
+    marks = [chr(c) for c in _kitty_diacritics()]
+    return tuple("".join(_KITTY_PLACEHOLDER + marks[r] + marks[c] for c in range(cols))
+                 for r in range(rows))
+
+
+def _kitty_command(payload: str = "", **keys: int | str) -> str:
+    """One graphics command (APC ``G`` keys ``;`` payload ST)."""
+    head = ",".join(f"{k}={v}" for k, v in keys.items())
+    return f"\x1b_G{head}{';' + payload if payload else ''}\x1b\\"
+
+
+def _to_terminal(data: str) -> None:
+    """Write straight to the terminal (Kitty graphics commands don't go through Textual)."""
+    out = sys.__stdout__
+    if out is not None:
+        out.write(data)
+        out.flush()
 
 
 class KittyCanvas(_Canvas):
-    """The image through Kitty's graphics protocol: one transmission and placement per image,
-    shown by placeholder cells that the terminal replaces with the scaled image."""
+    """The image through Kitty's graphics protocol: one transmission and virtual placement per
+    image, shown by placeholder cells (their colour names the image) that the terminal
+    replaces with the image scaled to them."""
 
     UPSCALE = True
 
     def __init__(self, *, classes: str | None = None) -> None:
         super().__init__(classes=classes)
-        self._tgp: Any = None
-        self._tgp_key: tuple[Any, ...] = ()
-        self._lines: list[Strip] = []
+        self.image_id = 0  # the placed image (0: none)
+        self._placed_key: tuple[Any, ...] = ()
+        self._style = Style()
 
-    def _ensure_placed(self) -> None:
+    def _fit(self, cols: int, rows: int) -> tuple[tuple[int, int], tuple[int, int]]:
+        most = len(_kitty_diacritics())  # placeholders can number this many rows / columns
+        return super()._fit(min(cols, most), min(rows, most))
+
+    def png(self) -> bytes:
+        """The current image as a palette PNG (128 grays and its outline colours)."""
         from PIL import Image
 
+        assert self.image is not None
+        index, palette = sixel_palette(self.image, KITTY_GRAY_LEVELS)
+        image = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
+        image.putpalette(palette.ravel().tolist())
+        buffer = io.BytesIO()
+        image.save(buffer, format="png", compress_level=1)
+        return buffer.getvalue()
+
+    def _ensure_placed(self) -> None:
         cells = (self.content_size.width, self.content_size.height)
         key = (self.serial, cells)
-        if key == self._tgp_key:
+        if key == self._placed_key:
             return
-        old, self._tgp, self._lines = self._tgp, None, []
+        old, self.image_id = self.image_id, 0
         if self.image is not None and min(cells) > 0:
-            rows, cols = self.image.shape[:2]
-            buffer = io.BytesIO()
-            Image.fromarray(self.image, mode="RGB").save(buffer, format="png", compress_level=1)
-            tgp = _tgp_image_class()(Image.new("L", (cols, rows)), *cells)
-            tgp.png = buffer.getvalue()
-            console = self.app.console
-            options = console.options.update(width=cells[0], height=cells[1])
-            self._lines = [Strip([Segment(s.text.rstrip("\n"), s.style)], cells[0])
-                           for s in tgp.__rich_console__(console, options)]
-            self._tgp = tgp
+            self.image_id = _kitty_id()
+            data = standard_b64encode(self.png()).decode("ascii")
+            chunks = [data[i:i + 4096] for i in range(0, len(data), 4096)]
+            commands = [_kitty_command(chunk, i=self.image_id, f=100, q=2,
+                                       m=int(n < len(chunks) - 1))
+                        for n, chunk in enumerate(chunks)]
+            commands.append(_kitty_command(a="p", i=self.image_id, c=cells[0], r=cells[1],
+                                           U=1, q=2))
+            if old:  # after the new one is placed: no blank flash
+                commands.append(_free_command(old))
+            _to_terminal("".join(commands))
+            self._style = Style(color=Color.from_rgb((self.image_id >> 16) & 255,
+                                                     (self.image_id >> 8) & 255,
+                                                     self.image_id & 255))
             self.encodes += 1
-        if old is not None:
-            _free_tgp(old)  # after the new one is placed: no blank flash
-        self._tgp_key = key
+        elif old:
+            _to_terminal(_free_command(old))
+        self._placed_key = key
 
     def render_line(self, y: int) -> Strip:
         self._ensure_placed()
-        if 0 <= y < len(self._lines):
-            return self._lines[y]
+        cols, rows = self.content_size
+        if self.image_id and 0 <= y < rows:
+            return Strip([Segment(_placeholder_rows(cols, rows)[y], self._style)], cols)
         return Strip.blank(self.size.width)
 
     def on_unmount(self) -> None:
-        if self._tgp is not None:
-            _free_tgp(self._tgp)
-            self._tgp = None
+        if self.image_id:
+            _to_terminal(_free_command(self.image_id))
+            self.image_id = 0
 
 
-def _free_tgp(tgp: Any) -> None:
-    """Delete a transmitted image and its virtual placement (``d=I``: by id, data freed; the
-    default ``d=a`` would not touch virtual placements and leave the image stored)."""
-    from textual_image.renderable.tgp import _send_tgp_message
-
-    if tgp.terminal_image_id:
-        _send_tgp_message(a="d", d="I", i=tgp.terminal_image_id, q=2)
-        tgp.terminal_image_id = None
+def _free_command(image_id: int) -> str:
+    """Delete an image and its virtual placement by id (``d=I``: data freed too; the default
+    ``d=a`` would not touch virtual placements and leave the image stored)."""
+    return _kitty_command(a="d", d="I", i=image_id, q=2)
