@@ -23,7 +23,8 @@ from benchlab.tui.graphics import (
     KittyCanvas,
     SixelCanvas,
     fit_image,
-    sixel_palette,
+    overlay_colours,
+    to_palette,
 )
 from benchlab.tui.live import LiveScreen
 from benchlab.tui.sixel import encode_sixel
@@ -120,13 +121,18 @@ def test_sixel_palette_keeps_gray_levels_and_overlay_colours() -> None:
     rgb = np.repeat(np.tile(np.arange(256, dtype=np.uint8), (8, 1))[:, :, None], 3, axis=2)
     rgb[2, 10:20] = ROI_RGB
     rgb[5, 30:40] = (0, 220, 60)
-    index, palette = sixel_palette(rgb)
+    index, palette = to_palette(rgb)
     assert index.shape == (8, 256) and palette.shape == (SIXEL_GRAY_LEVELS + 2, 3)
     shown = palette[index]
     assert tuple(shown[2, 15]) == ROI_RGB and tuple(shown[5, 35]) == (0, 220, 60)
     gray_error = np.abs(shown[0, :, 0].astype(int) - np.arange(256))
     assert gray_error.max() <= 256 // SIXEL_GRAY_LEVELS  # 32 levels
     assert len(np.unique(index)) == SIXEL_GRAY_LEVELS + 2
+    # a downscaled copy's blended edges map to the full image's two colours, no new entries
+    blended = rgb.copy()
+    blended[2, 20] = (180, 150, 40)  # half ROI yellow, half gray
+    index, palette = to_palette(blended, colours=overlay_colours(rgb))
+    assert len(palette) == SIXEL_GRAY_LEVELS + 2 and tuple(palette[index[2, 20]]) == ROI_RGB
 
 
 def _decode_sixel(data: str) -> tuple[np.ndarray, dict[int, tuple[int, ...]]]:

@@ -86,25 +86,39 @@ def fit_image(image_px: tuple[int, int], area_cells: tuple[int, int], cell_px: t
     return (px_w, px_h), (min(cols, math.ceil(px_w / cw)), min(rows, math.ceil(px_h / ch)))
 
 
-def sixel_palette(rgb: npt.NDArray[np.uint8], gray_levels: int = SIXEL_GRAY_LEVELS,
+def _coloured(rgb: npt.NDArray[np.uint8]) -> npt.NDArray[np.bool_]:
+    """Pixels that are not gray (r, g, b more than a few codes apart): the outlines."""
+    px = rgb.astype(np.int16)
+    return (np.abs(px[..., 0] - px[..., 1]) + np.abs(px[..., 1] - px[..., 2])) > 24
+
+
+def overlay_colours(rgb: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    """The distinct non-gray colours of ``rgb`` (ROI and chart outlines), shape (n, 3)."""
+    return np.unique(rgb[_coloured(rgb)], axis=0).astype(np.uint8).reshape(-1, 3)
+
+
+def to_palette(rgb: npt.NDArray[np.uint8], gray_levels: int = SIXEL_GRAY_LEVELS,
+                  colours: npt.NDArray[np.uint8] | None = None,
                   ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
     """``rgb`` as palette indices and a palette: ``gray_levels`` (a power of two <= 128) gray
-    levels plus its overlay colours.
+    levels plus the overlay colours.
 
-    Gray pixels (r = g = b within a few codes) keep their level; coloured ones (ROI and chart
-    outlines) take the nearest of the few distinct colours present.
+    Gray pixels keep their level; coloured ones (ROI and chart outlines) take the nearest of
+    ``colours`` (default: the distinct ones in ``rgb``; pass the full-size image's when ``rgb``
+    is a downscaled copy, whose blended edge colours are not worth palette entries).
     """
-    px = rgb.astype(np.int16)
-    spread = np.abs(px[..., 0] - px[..., 1]) + np.abs(px[..., 1] - px[..., 2])
-    coloured = spread > 24
+    coloured = _coloured(rgb)
     index = (rgb[..., 1] // (256 // gray_levels)).astype(np.uint8)
     grays = np.round(np.arange(gray_levels) * 255 / (gray_levels - 1))
     palette = np.repeat(grays.astype(np.uint8)[:, None], 3, axis=1)
-    if coloured.any():
-        colours = np.unique(rgb[coloured], axis=0)[: 256 - gray_levels]
-        d2 = ((px[coloured][:, None, :] - colours[None, :, :].astype(np.int16)) ** 2).sum(axis=2)
+    if colours is None:
+        colours = overlay_colours(rgb)
+    colours = colours[: 256 - gray_levels]
+    if coloured.any() and len(colours):
+        px = rgb[coloured].astype(np.int32)
+        d2 = ((px[:, None, :] - colours[None, :, :].astype(np.int32)) ** 2).sum(axis=2)
         index[coloured] = gray_levels + d2.argmin(axis=1).astype(np.uint8)
-        palette = np.concatenate((palette, colours.astype(np.uint8)))
+        palette = np.concatenate((palette, colours))
     return index, palette
 
 
@@ -165,10 +179,11 @@ class SixelCanvas(_Canvas):
             self._sixel = ""
             if self.image is not None and shown[0] > 0:
                 rgb = self.image
+                colours = overlay_colours(rgb)
                 if shown != (rgb.shape[1], rgb.shape[0]):
                     rgb = np.asarray(cv2.resize(rgb, shown, interpolation=cv2.INTER_AREA),
                                      np.uint8)
-                self._sixel = encode_sixel(*sixel_palette(rgb))
+                self._sixel = encode_sixel(*to_palette(rgb, colours=colours))
                 self.encodes += 1
             self._sixel_key = key
         return self._sixel
@@ -258,7 +273,7 @@ class KittyCanvas(_Canvas):
         from PIL import Image
 
         assert self.image is not None
-        index, palette = sixel_palette(self.image, KITTY_GRAY_LEVELS)
+        index, palette = to_palette(self.image, KITTY_GRAY_LEVELS)
         image = Image.frombytes("P", (index.shape[1], index.shape[0]), index.tobytes())
         image.putpalette(palette.ravel().tolist())
         buffer = io.BytesIO()
