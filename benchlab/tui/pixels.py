@@ -1,8 +1,9 @@
 """Real pixels in the live view where the terminal can show them.
 
 Terminals with an image protocol (Kitty's graphics protocol: kitty; Sixel: WezTerm, foot,
-recent xterm, mlterm) get the camera frame as an image through ``textual-image``; every other
-terminal keeps the half-block rendering of :class:`benchlab.tui.widgets.FrameView`.
+recent xterm, mlterm) get the camera frame as an image (:mod:`benchlab.tui.graphics`; the
+terminal is asked through ``textual-image``); every other terminal keeps the half-block
+rendering of :class:`benchlab.tui.widgets.FrameView`.
 
 The terminal must be asked what it supports *before* Textual takes it over, so
 :func:`choose_image_protocol` runs in ``benchlab tui`` before the app starts. ``--image`` (or
