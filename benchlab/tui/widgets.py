@@ -161,7 +161,11 @@ class FrameView(Widget):
             else:
                 rgb = to_display_rgb(self._pixels, size, self._roi, self._max_code)
                 self._decorate(rgb)
-                self._strips = rgb_to_strips(rgb)
+                width = size[0]  # centred once per frame, not once per line drawn
+                self._strips = [
+                    Strip([Segment(" " * (max(0, width - s.cell_length) // 2)), *s._segments])
+                    .crop(0, width) for s in rgb_to_strips(rgb)
+                ]
             self._strips_size = size
         return self._strips
 
@@ -172,9 +176,7 @@ class FrameView(Widget):
         strips = self._ensure_strips()
         width = self.size.width
         if y < len(strips):
-            strip = strips[y]
-            pad = max(0, width - strip.cell_length) // 2
-            return Strip([Segment(" " * pad), *strip._segments]).crop(0, width)
+            return strips[y]
         if not strips and y == self.size.height // 2:
             return Strip([Segment("no camera image".center(width), Style(dim=True))])
         return Strip.blank(width)
