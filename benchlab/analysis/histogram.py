@@ -478,12 +478,25 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
     x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
     phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
-    w = phi - np.floor(phi)
-    idx = (w * NOISE_BINS).astype(np.intp)
+    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
+    half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
+                        + abs((rows - 1) * math.sin(geom.theta_rad)))
+    if half_f >= 1.0:
+        dev = phi - geom.phase_cycles
+        inner = np.abs(dev, out=dev) <= half_f - 0.5
+    else:
+        inner = np.ones(img.shape, bool)
+    # Phase in cycles modulo 1 (rounding can give exactly 1: the tables' extra bin), in place:
+    # few full-size temporaries keep large ROIs cheap.
+    w = phi if n >= 8 * NOISE_BINS else phi.copy()
+    np.mod(w, 1.0, out=w)
+    w *= NOISE_BINS
+    idx = w.astype(np.intp)
     flat = img.ravel()
     noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
     z_noise = noise
     if n < 8 * NOISE_BINS:
+        w /= NOISE_BINS
         # Few pixels per bin, and a geometry from few periods that smears the bins: the
         # least of the noise estimates (coarser bins, the residual of the fundamental,
         # neighbour differences) - none of them is inflated by the bars on a flat ROI.
@@ -496,14 +509,6 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     if prep.integer_valued:
         z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
-    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
-    half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
-                        + abs((rows - 1) * math.sin(geom.theta_rad)))
-    if half_f >= 1.0:
-        dev = phi - geom.phase_cycles
-        inner = np.abs(dev, out=dev) <= half_f - 0.5
-    else:
-        inner = np.ones(img.shape, bool)
     return idx, inner, noise, z
 
 
