@@ -209,3 +209,17 @@ def test_quick_geometry_rejects_a_side_lobe() -> None:
 
 def _k(f: float, theta: float) -> tuple[float, float]:
     return f * math.cos(theta), f * math.sin(theta)
+
+
+def test_no_blas_products_on_the_pixels() -> None:
+    """A BLAS dot or matrix product over a large ROI wakes OpenBLAS's threads, which then spin
+    against the analysis on a loaded machine (a 200 x 200 histogram reading went from ~1 to
+    ~10 ms): the geometry, projection, histogram and ROI preparation use numpy reductions."""
+    root = Path(bargeometry.__file__).parent
+    for name in ("bargeometry.py", "projection.py", "histogram.py", "roi.py"):
+        tree = ast.parse((root / name).read_text())
+        products = [node.lineno for node in ast.walk(tree)
+                    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.MatMult)]
+        dots = [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Attribute)
+                and node.attr in ("dot", "matmul", "vdot", "inner", "tensordot")]
+        assert not products and not dots, (name, products, dots)
