@@ -93,7 +93,8 @@ def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixtu
     tifffile.imwrite(path, frames, photometric="minisblack")
     assert main(["sfr", str(path), "--roi", "0,0,60,60", "--json", "--bootstrap", "0"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["clipped_fraction"] == 0 and doc["mtf_sigma"] is None
+    assert doc["clipped_fraction"] == 0 and doc["uncertainty_method"] == "analytic"
+    assert doc["mtf_sigma"][0] == 0 and all(s > 0 for s in doc["mtf_sigma"][1:])
     assert doc["noise_sigma"] < 0.01 * 4095 * 0.75  # four frames averaged: half the noise
 
 
@@ -101,9 +102,10 @@ def test_accuracy_table_has_every_bucket_and_a_verdict() -> None:
     buckets = run_accuracy(cases_per_cell=1, seed=3)
     assert len(buckets) == 30 and all(b.cases == 2 for b in buckets)
     text = format_accuracy(buckets)
-    assert text.count("\n") == 31 and "buckets with SNR 20-500" in text
+    assert text.count("\n") == 32 and "buckets with SNR 20-500" in text and "cover" in text
     best = next(b for b in buckets if b.sigma_px == 1.0 and b.snr == 500.0)
     assert best.mtf50_within == 1.0 and best.mtf_within == 1.0
+    assert all(0.0 <= b.mtf_coverage <= 1.0 for b in buckets)
 
 
 def test_benchmark_sfr_is_registered(capsys: pytest.CaptureFixture[str]) -> None:

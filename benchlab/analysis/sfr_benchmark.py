@@ -5,6 +5,10 @@ closed-form pixel-integrated Gaussian edge, levels 0.2 and 0.8 of full scale): a
 uniformly in 2-40 deg, a random sub-pixel offset, Gaussian noise for the SNR (edge step over
 noise sigma), quantised to 8 or 12 bits. Truth: :func:`edge_truth_mtf` and its MTF50.
 
+Coverage: per bucket, the share of readings whose +-1.96 sigma interval (the SFR's propagated
+uncertainty) holds the truth, for the MTF at every checked frequency up to Nyquist and for
+MTF50.
+
 Pass criteria (issue 16): MTF50 within 2 % and MTF(f) within 0.02 for f <= Nyquist in >= 95 %
 of the cases of every bucket with SNR >= 20.
 """
@@ -45,6 +49,8 @@ class Bucket:
     mtf_within: float  # fraction with max |MTF - truth| over f <= Nyquist <= MTF_TOL
     mtf50_err_median_pct: float
     mtf_err_p95: float
+    mtf_coverage: float  # share of |MTF - truth| <= 1.96 sigma, over cases x f in (0, Nyquist]
+    mtf50_coverage: float  # the same for MTF50
 
     @property
     def judged(self) -> bool:
@@ -75,6 +81,8 @@ def run_accuracy(cases_per_cell: int = 20, seed: int = 0) -> list[Bucket]:
     for sigma in SIGMAS_PX:
         for snr in SNRS:
             m50_err, mtf_err, refused = [], [], 0
+            covered: list[float] = []
+            covered50: list[float] = []
             for bits in BITS:
                 for _ in range(cases_per_cell):
                     img, angle, _ = _case(rng, sigma, snr, bits)
@@ -91,12 +99,19 @@ def run_accuracy(cases_per_cell: int = 20, seed: int = 0) -> list[Bucket]:
                     m50_err.append(math.inf if got50 is None else abs(got50 / truth50 - 1))
                     diff = res.mtf_at(_F_CHECK) - edge_truth_mtf(_F_CHECK, sigma, theta)
                     mtf_err.append(float(np.max(np.abs(diff))))
+                    sig = res.sigma_at(_F_CHECK)
+                    if sig is not None:
+                        covered.extend((np.abs(diff[1:]) <= 1.96 * sig[1:]).tolist())
+                    if got50 is not None and res.mtf50_sigma is not None:
+                        covered50.append(float(abs(got50 - truth50) <= 1.96 * res.mtf50_sigma))
             n = len(m50_err)
             e50, em = np.asarray(m50_err), np.asarray(mtf_err)
             out.append(Bucket(
                 sigma, snr, n, refused,
                 float(np.mean(e50 <= MTF50_TOL)), float(np.mean(em <= MTF_TOL)),
                 float(np.median(e50) * 100), float(np.percentile(em, 95)),
+                float(np.mean(covered)) if covered else math.nan,
+                float(np.mean(covered50)) if covered50 else math.nan,
             ))
     return out
 
@@ -124,7 +139,8 @@ def format_accuracy(buckets: list[Bucket]) -> str:
     """The accuracy table (one line per bucket) and the overall verdict."""
     lines = [
         f"{'sigma px':>8} {'SNR':>5} {'cases':>5} {'refused':>7} {'MTF50<=2%':>9} "
-        f"{'MTF<=0.02':>9} {'med MTF50 err':>13} {'p95 max|dMTF|':>13}  verdict"
+        f"{'MTF<=0.02':>9} {'med MTF50 err':>13} {'p95 max|dMTF|':>13} {'cover MTF':>9} "
+        f"{'cover MTF50':>11}  verdict"
     ]
     for b in buckets:
         verdict = ("pass" if b.passed else "FAIL") if b.judged else "(SNR<20: not judged)"
@@ -132,7 +148,8 @@ def format_accuracy(buckets: list[Bucket]) -> str:
         lines.append(
             f"{b.sigma_px:>8.1f} {snr} {b.cases:>5d} {b.refused:>7d} "
             f"{100 * b.mtf50_within:>8.1f}% {100 * b.mtf_within:>8.1f}% "
-            f"{b.mtf50_err_median_pct:>12.2f}% {b.mtf_err_p95:>13.3f}  {verdict}"
+            f"{b.mtf50_err_median_pct:>12.2f}% {b.mtf_err_p95:>13.3f} "
+            f"{100 * b.mtf_coverage:>8.1f}% {100 * b.mtf50_coverage:>10.1f}%  {verdict}"
         )
     judged = [b for b in buckets if b.judged and math.isfinite(b.snr)]
     n_pass = sum(b.passed for b in judged)
@@ -141,6 +158,10 @@ def format_accuracy(buckets: list[Bucket]) -> str:
         f"buckets with SNR 20-500: {n_pass}/{len(judged)} pass both criteria; "
         f"{m50_pass}/{len(judged)} pass the MTF50 criterion (SNR inf: the method's own bias, "
         "quantisation only)"
+    )
+    lines.append(
+        "cover: share of the readings whose +-1.96 sigma interval (the SFR's own uncertainty) "
+        "holds the truth; MTF pooled over f in (0, Nyquist]; nominal 95 %"
     )
     return "\n".join(lines)
 
