@@ -265,6 +265,12 @@ def full_scale_of(pixels: npt.NDArray[Any]) -> float | None:
     return None
 
 
+def _sinc(x: FloatArray) -> FloatArray:
+    """``sin(pi x) / (pi x)`` (``np.sinc`` without its generic-input overhead)."""
+    px = math.pi * np.where(x == 0.0, 1.0, x)
+    return np.asarray(np.where(x == 0.0, 1.0, np.sin(px) / px), dtype=np.float64)
+
+
 def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     """1 for ``|x| <= flat``, cosine taper to 0 at ``|x| = total``, 0 beyond."""
     ax = np.abs(x)
@@ -278,11 +284,11 @@ def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     return w
 
 
-def _noise_sigma(work: FloatArray) -> float:
+def _noise_sigma(row_diff: FloatArray) -> float:
     """Robust pixel noise from differences between neighbouring rows (along the edge)."""
-    if work.shape[0] < 2:
+    if row_diff.size == 0:
         return 0.0
-    d = np.diff(work, axis=0).ravel()
+    d = row_diff.ravel()
     mad = float(np.median(np.abs(d - np.median(d))))
     return 1.4826 * mad / math.sqrt(2.0)
 
@@ -374,14 +380,14 @@ def _esf_samples(
     hi = int(right[0]) if right.size else int(idx[-1])
     # Walk outwards while the gaps between well-populated bins stay short (sparse ROI corners
     # are dropped; a coarse lattice leaves regular gaps of up to 3 bins).
-    for j in left[::-1]:
-        if lo - int(j) > 4:
-            break
-        lo = min(lo, int(j))
-    for j in right:
-        if int(j) - hi > 4:
-            break
-        hi = max(hi, int(j))
+    if left.size:
+        run = np.concatenate(([lo], left[::-1]))
+        gap = np.flatnonzero(-np.diff(run) > 4)
+        lo = int(run[gap[0]] if gap.size else run[-1])
+    if right.size:
+        run = np.concatenate(([hi], right))
+        gap = np.flatnonzero(np.diff(run) > 4)
+        hi = int(run[gap[0]] if gap.size else run[-1])
     sl = slice(lo, hi + 1)
     keep = good[sl]
     centres = prof.u_px[sl]
@@ -492,14 +498,14 @@ def _mtf_from_samples(
     # Gaps take few distinct values (one bin, or the pixel lattice's spacing): group them.
     gaps, which = np.unique(np.round(h[inside], 4), return_inverse=True)
     weight = np.bincount(which.ravel(), weights=np.abs(li), minlength=gaps.size)
-    gap_response = (np.sinc(np.outer(f, gaps)) @ weight) / max(float(weight.sum()), 1e-300)
+    gap_response = (_sinc(np.outer(f, gaps)) @ weight) / max(float(weight.sum()), 1e-300)
     # Each sample's weight: the LSF on the increments either side of it.
     w_inc = np.abs(lsf)
     w_sample = np.zeros(s.u.size)
     w_sample[:-1] += 0.5 * w_inc
     w_sample[1:] += 0.5 * w_inc
     var_eff = float(np.sum(w_sample * s.spread_var) / max(float(w_sample.sum()), 1e-300))
-    response = gap_response * np.sinc(f * math.sqrt(12.0 * var_eff))
+    response = gap_response * _sinc(f * math.sqrt(12.0 * var_eff))
     correction = np.minimum(1.0 / np.maximum(response, 1e-12), MAX_DERIVATIVE_CORRECTION)
     sigma = None
     if noise is not None and x0 > 0:
@@ -531,24 +537,23 @@ def _mtf_from_samples(
 
 
 def _plateau_noise_var(
-    work: FloatArray, u: FloatArray, core_half_px: float, fallback_sigma: float
+    row_diff: FloatArray, u: FloatArray, core_half_px: float, fallback_sigma: float,
+    code_step: float,
 ) -> tuple[float, float]:
     """Pixel noise variance on the dark and on the bright side of the edge, from differences
     between neighbouring rows (along the edge) of the pixels clear of the core; the overall
-    robust noise where a side has too few pixels."""
-    d = np.diff(work, axis=0)
+    robust noise where a side has too few pixels. At least the rounding noise of the codes,
+    ``code_step^2 / 12``: noise-free plateaus round to one code, but across the edge the
+    rounding error varies from pixel to pixel like noise."""
     u_pair = 0.5 * (u[1:] + u[:-1])
     out = []
     for side in (u_pair < -core_half_px, u_pair > core_half_px):
-        vals = d[side]
-        if vals.size < 30:
-            out.append(fallback_sigma**2)
-            continue
-        mad = float(np.median(np.abs(vals - np.median(vals))))
-        sig = 1.4826 * mad / math.sqrt(2.0)
-        if sig == 0.0:  # quantised noise-free plateaus: the rounding noise of the codes
-            sig = math.sqrt(float(np.mean(vals * vals)) / 2.0)
-        out.append(sig * sig)
+        vals = row_diff[side]
+        sig = fallback_sigma
+        if vals.size >= 30:
+            # Differences along a plateau are centred on 0: one median suffices.
+            sig = 1.4826 * float(np.median(np.abs(vals))) / math.sqrt(2.0)
+        out.append(max(sig * sig, code_step * code_step / 12.0))
     return out[0], out[1]
 
 
@@ -558,8 +563,9 @@ def _mtf50_sigma(
     """1-sigma of MTF50: the MTF's 1-sigma there over the curve's slope (first order)."""
     if sigma is None or mtf50 is None:
         return None
+    # Slope over +-2 grid steps (0.01 cycles/px): the chord, not two noisy neighbours.
     i = int(np.clip(np.searchsorted(freqs, mtf50), 2, freqs.size - 3))
-    slope = float(np.polyfit(freqs[i - 2:i + 3], mtf[i - 2:i + 3], 1)[0])
+    slope = float((mtf[i + 2] - mtf[i - 2]) / (freqs[i + 2] - freqs[i - 2]))
     if slope >= 0:
         return None
     return float(np.interp(mtf50, freqs, sigma) / -slope)
@@ -656,7 +662,8 @@ def measure_sfr(
     transposed = gy > gx
     work = img.T if transposed else img
     n_rows, n_cols = work.shape
-    noise = _noise_sigma(work)
+    row_diff = np.diff(work, axis=0)
+    noise = _noise_sigma(row_diff)
     spread = float(np.percentile(work, 98) - np.percentile(work, 2))
 
     reasons: list[str] = []
@@ -730,7 +737,10 @@ def measure_sfr(
 
     # 4. Uncertainty: the pixel noise (per level: shot noise makes the bright side noisier)
     # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
-    var_dark, var_bright = _plateau_noise_var(work, u, flat_half, noise)
+    code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
+    if np.issubdtype(raw.dtype, np.integer):
+        code_step = 16.0 if top == 65520.0 else 1.0
+    var_dark, var_bright = _plateau_noise_var(row_diff, u, flat_half, noise, code_step)
     model = _NoiseModel(dark, bright, var_dark, var_bright)
     narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
     spec = _mtf_from_samples(samples, flat_half, model, narrow_half_px=narrow_half,
