@@ -136,32 +136,48 @@ def run_speed(
 
 
 def format_accuracy(buckets: list[Bucket]) -> str:
-    """The accuracy table (one line per bucket) and the overall verdict."""
+    """The accuracy table (one line per bucket), the overall verdict, and which failures no
+    model-free method could avoid (:func:`noise_floor`)."""
     lines = [
         f"{'sigma px':>8} {'SNR':>5} {'cases':>5} {'refused':>7} {'MTF50<=2%':>9} "
         f"{'MTF<=0.02':>9} {'med MTF50 err':>13} {'p95 max|dMTF|':>13} {'cover MTF':>9} "
-        f"{'cover MTF50':>11}  verdict"
+        f"{'cover MTF50':>11} {'floor sd MTF50/MTF(Nyq)':>23}  verdict"
     ]
+    beyond = 0
     for b in buckets:
         verdict = ("pass" if b.passed else "FAIL") if b.judged else "(SNR<20: not judged)"
         snr = f"{b.snr:>5.0f}" if math.isfinite(b.snr) else "  inf"
+        floor = ""
+        if math.isfinite(b.snr):
+            nf = noise_floor(b.sigma_px, b.snr)
+            floor = (f"{100 * nf.mtf50_rel_sd:.2f}%{'' if nf.mtf50_reachable else '!'} / "
+                     f"{nf.mtf_nyquist_sd:.4f}{'' if nf.mtf_reachable else '!'}")
+            if b.judged and not b.passed and not (nf.mtf_reachable and nf.mtf50_reachable):
+                verdict += " (below the noise floor)"
+                beyond += 1
         lines.append(
             f"{b.sigma_px:>8.1f} {snr} {b.cases:>5d} {b.refused:>7d} "
             f"{100 * b.mtf50_within:>8.1f}% {100 * b.mtf_within:>8.1f}% "
             f"{b.mtf50_err_median_pct:>12.2f}% {b.mtf_err_p95:>13.3f} "
-            f"{100 * b.mtf_coverage:>8.1f}% {100 * b.mtf50_coverage:>10.1f}%  {verdict}"
+            f"{100 * b.mtf_coverage:>8.1f}% {100 * b.mtf50_coverage:>10.1f}% {floor:>23}  "
+            f"{verdict}"
         )
     judged = [b for b in buckets if b.judged and math.isfinite(b.snr)]
     n_pass = sum(b.passed for b in judged)
     m50_pass = sum(b.mtf50_within >= PASS_FRACTION for b in judged)
     lines.append(
         f"buckets with SNR 20-500: {n_pass}/{len(judged)} pass both criteria; "
-        f"{m50_pass}/{len(judged)} pass the MTF50 criterion (SNR inf: the method's own bias, "
-        "quantisation only)"
+        f"{m50_pass}/{len(judged)} pass the MTF50 criterion; {beyond} of the failures ask for "
+        "less noise than the floor allows (SNR inf: the method's own bias, quantisation only)"
     )
     lines.append(
         "cover: share of the readings whose +-1.96 sigma interval (the SFR's own uncertainty) "
         "holds the truth; MTF pooled over f in (0, Nyquist]; nominal 95 %"
+    )
+    lines.append(
+        "floor: 1-sigma of MTF50 (relative) and of MTF at Nyquist that even an ideal model-free "
+        f"estimator has on this {ROI_SHAPE[0]}-row ROI (21 deg edge); '!' = above what 95 % "
+        f"within the tolerance needs ({100 * MTF50_TOL / 1.96:.2f} %, {MTF_TOL / 1.96:.4f})"
     )
     return "\n".join(lines)
 
@@ -198,3 +214,53 @@ def run_extremes(seed: int = 2) -> list[tuple[str, str]]:
         out.append((name, f"measured (SNR 100): MTF50 {rel:+.2f} %, max |dMTF| to Nyquist "
                           f"{err:.3f}; warnings: {'; '.join(res.warnings) or 'none'}"))
     return out
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """Lower bound on the noise of any unbiased model-free edge MTF (see :func:`noise_floor`)."""
+
+    mtf_nyquist_sd: float  # 1-sigma of MTF at Nyquist
+    mtf50_rel_sd: float  # relative 1-sigma of MTF50
+
+    @property
+    def mtf_reachable(self) -> bool:
+        """Whether MTF(Nyquist) within MTF_TOL in 95 % of cases is possible at all."""
+        return self.mtf_nyquist_sd <= MTF_TOL / 1.96
+
+    @property
+    def mtf50_reachable(self) -> bool:
+        """Whether MTF50 within MTF50_TOL in 95 % of cases is possible at all."""
+        return self.mtf50_rel_sd <= MTF50_TOL / 1.96
+
+
+def noise_floor(
+    sigma_px: float, snr: float, angle_deg: float = 21.0, rows: int = ROI_SHAPE[0],
+    bin_px: float = 0.25,
+) -> NoiseFloor:
+    """Cramer-Rao-style floor on the MTF noise of an edge, with no model of the LSF.
+
+    The ESF bin means are sufficient statistics for the pixels (Gaussian noise of sigma
+    ``step / snr``), and a model-free MTF is the DFT of their differences over the LSF's
+    support ``W``; the ideal estimator uses nothing outside it. A bin of width ``h`` holds
+    ``N h`` pixels (``N = rows / cos a`` per px along the normal), so each component of the
+    DFT at ``f`` has the sigma ``(1 / snr) sqrt(2 W / N) |sin(pi f h)| / h`` (about
+    ``pi f / snr sqrt(2 W / N)``: noise grows with frequency, and with the root of the
+    support). ``W`` is taken as the projected pixel width plus +-2.576 sigma of the blur
+    (99 % of a Gaussian LSF) - less than any real window needs, so the floor is optimistic.
+    MTF50's relative sigma is the MTF's sigma there over the curve's slope, over MTF50.
+    """
+    a = math.radians(angle_deg)
+    width = abs(math.cos(a)) + abs(math.sin(a)) + 2 * 2.576 * math.hypot(sigma_px,
+                                                                          bin_px / 12**0.5)
+    n_per_px = rows / math.cos(a)
+
+    def sd(f: float) -> float:
+        return (math.sqrt(2.0 * width / n_per_px) * abs(math.sin(math.pi * f * bin_px))
+                / bin_px / snr)
+
+    f50 = edge_truth_mtf50(sigma_px, a)
+    df = 1e-4
+    slope = float(np.diff(edge_truth_mtf(np.array([f50 - df, f50 + df]), sigma_px, a))[0])
+    slope /= 2 * df
+    return NoiseFloor(sd(0.5), sd(f50) / abs(slope) / f50)
