@@ -18,8 +18,8 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
 4. LSF: the difference of neighbouring ESF samples at their midpoints, multiplied by a Tukey
    window centred on the LSF near the fitted edge, whose flat top covers the LSF core (1.2
    10-90 % rise distances + 1.5 px) so the window barely touches the signal while it cuts
-   the plateaus' noise. Above ~1.25 x MTF50 a narrower window on the core takes over
-   (frequency-dependent window: the tails shape only the low frequencies).
+   the plateaus' noise. Above ~1.25 x MTF50 narrower windows on the core take over, in two
+   steps (a frequency-dependent window: the smooth tails shape only the low frequencies).
 5. MTF: ``|DFT|`` at the midpoints (a regular grid when the phases are dense; the lattice's
    own spacing otherwise), normalised at zero frequency, with the noise power (known from
    the pixel noise) subtracted from ``|DFT|^2`` so noise does not read as MTF where the
@@ -83,7 +83,8 @@ MAX_DERIVATIVE_CORRECTION = 10.0
 #: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
 MAX_FREQ_CYCLES_PER_PX = 1.0
 NYQUIST_CYCLES_PER_PX = 0.5
-#: LSF window: flat over +-(FLAT_RISES x the 10-90 % rise + FLAT_EXTRA_PX), cosine taper to
+#: Wide LSF window: flat over +-(FLAT_RISES x the 10-90 % rise + FLAT_EXTRA_PX, at least
+#: FLAT_MIN_PX), cosine taper to
 #: TAPER_FACTOR times that. A Gaussian LSF (rise 2.56 sigma) has > 99.7 % of its area under the
 #: flat top (+-3.1 sigma + 1.5 px); a wider window only adds plateau noise (tuned on the
 #: benchmark: the MTF noise near Nyquist grows as the square root of the window width).
@@ -92,17 +93,24 @@ FLAT_EXTRA_PX = 1.5
 FLAT_MIN_PX = 2.0
 #: The taper ends at this multiple of the flat half-width.
 TAPER_FACTOR = 1.5
-#: Above WIDE_UP_TO_RISES / rise (cycles/px; ~1.25 x MTF50 for a Gaussian LSF) the MTF is
-#: taken with a narrower window on the LSF core, blended in up to twice that frequency: flat
-#: over +-(NARROW_RISES x rise + NARROW_EXTRA_PX), at least NARROW_MIN_PX, taper to
-#: NARROW_TAPER times that. The LSF tails only shape the low frequencies; beyond them the
-#: wide window adds plateau noise and nothing else.
+#: Frequency-dependent LSF window. Up to WIDE_UP_TO_RISES / rise (cycles/px, ~1.25 x MTF50
+#: for a Gaussian LSF; at most WIDE_UP_TO_MAX_CYCLES_PER_PX) the wide window above; then,
+#: blended in up to twice that frequency, a narrow one on the LSF core: flat over
+#: +-(NARROW_RISES x rise + NARROW_EXTRA_PX), at least NARROW_MIN_PX, tapered to NARROW_TAPER
+#: times that; from CORE_FROM_F_WIDE x that frequency (blended over 1.5x) a still narrower
+#: one (CORE_*). The LSF's smooth tails shape only the low frequencies; at high frequencies
+#: a wide window adds plateau noise (sigma ~ sqrt(width)) and nothing else. Each step was
+#: kept only if the +-1.96 sigma coverage on the benchmark stayed ~95 % (no truncation bias).
 WIDE_UP_TO_RISES = 0.6
 WIDE_UP_TO_MAX_CYCLES_PER_PX = 0.15
 NARROW_RISES = 1.0
 NARROW_EXTRA_PX = 0.75
 NARROW_MIN_PX = 1.5
 NARROW_TAPER = 1.3
+CORE_FROM_F_WIDE = 2.5
+CORE_RISES = 0.6
+CORE_EXTRA_PX = 0.5
+CORE_TAPER = 1.8
 #: The propagated 1-sigma is scaled by this and a systematic floor (the method's own error
 #: on noise-free edges, up to ~0.005 at the lattice angles) added in quadrature, so that the
 #: +-1.96 sigma interval covers the truth in ~95 % of synthetic cases (``benchlab benchmark
@@ -512,6 +520,12 @@ def _mtf_from_samples(
     f_wide = min(WIDE_UP_TO_RISES / max(rise_px, 1e-6), WIDE_UP_TO_MAX_CYCLES_PER_PX)
     blend = _tukey(f, f_wide, 2.0 * f_wide)
     win_f = blend[:, None] * win[inside] + (1.0 - blend)[:, None] * win_n  # (freq, increment)
+    if CORE_FROM_F_WIDE > 0:
+        core_half = max(CORE_RISES * rise_px + CORE_EXTRA_PX, NARROW_MIN_PX)
+        if core_half < narrow_half:
+            win_c = _tukey(x, min(core_half, 0.8 * total), min(total, CORE_TAPER * core_half))
+            b2 = _tukey(f, CORE_FROM_F_WIDE * f_wide, 1.5 * CORE_FROM_F_WIDE * f_wide)
+            win_f = b2[:, None] * win_f + (1.0 - b2)[:, None] * win_c
     phase = (2.0 * math.pi) * np.outer(f, x)
     cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
