@@ -231,7 +231,7 @@ class SfrResult:
         return np.asarray(np.interp(f, self.freqs_cycles_per_px, self.mtf), dtype=np.float64)
 
     def sigma_at(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray | None:
-        """1-sigma interpolated at the given frequencies (None without bootstrap)."""
+        """1-sigma interpolated at the given frequencies (None if there is none)."""
         if self.mtf_sigma is None:
             return None
         f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
