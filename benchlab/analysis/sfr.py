@@ -103,8 +103,8 @@ TAPER_FACTOR = 1.5
 #: kept only if the +-1.96 sigma coverage on the benchmark stayed ~95 % (no truncation bias).
 WIDE_UP_TO_RISES = 0.6
 WIDE_UP_TO_MAX_CYCLES_PER_PX = 0.15
-NARROW_RISES = 1.0
-NARROW_EXTRA_PX = 0.75
+NARROW_RISES = 0.9
+NARROW_EXTRA_PX = 0.5
 NARROW_MIN_PX = 1.5
 NARROW_TAPER = 1.3
 CORE_FROM_F_WIDE = 2.5
@@ -523,7 +523,9 @@ def _mtf_from_samples(
     if CORE_FROM_F_WIDE > 0:
         core_half = max(CORE_RISES * rise_px + CORE_EXTRA_PX, NARROW_MIN_PX)
         if core_half < narrow_half:
-            win_c = _tukey(x, min(core_half, 0.8 * total), min(total, CORE_TAPER * core_half))
+            narrow_total = min(total, NARROW_TAPER * narrow_half)
+            win_c = _tukey(x, min(core_half, 0.8 * narrow_total),
+                           min(narrow_total, CORE_TAPER * core_half))
             b2 = _tukey(f, CORE_FROM_F_WIDE * f_wide, 1.5 * CORE_FROM_F_WIDE * f_wide)
             win_f = b2[:, None] * win_f + (1.0 - b2)[:, None] * win_c
     phase = (2.0 * math.pi) * np.outer(f, x)
