@@ -38,7 +38,8 @@ Refused (:class:`SfrRefused`, every reason listed): noise only / no edge, fewer 
 :data:`MIN_EDGE_ROWS` rows, an edge within :data:`MIN_ANGLE_DEG` of a pixel axis or too short
 for its angle to span one phase cycle, more than :data:`CLIP_REFUSE_FRACTION` of the pixels
 clipped. Warned (in :attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle,
-uneven sample phases, a truncated ESF, any clipping, a poor edge fit.
+uneven sample phases, a truncated ESF, any clipping, a poor edge fit, pixels more than
+:data:`OUTLIER_SIGMAS` noise sigmas off the ESF (clipped to that limit before the MTF).
 """
 
 from __future__ import annotations
