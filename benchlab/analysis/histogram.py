@@ -486,10 +486,10 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
         inner = np.abs(dev, out=dev) <= half_f - 0.5
     else:
         inner = np.ones(img.shape, bool)
-    # Phase in cycles modulo 1 (rounding can give exactly 1: the tables' extra bin), in place:
-    # few full-size temporaries keep large ROIs cheap.
-    w = phi if n >= 8 * NOISE_BINS else phi.copy()
-    np.mod(w, 1.0, out=w)
+    # Phase in cycles modulo 1, in place where possible (few full-size temporaries keep large
+    # ROIs cheap; np.mod is 10x slower than floor and subtract).
+    w = np.floor(phi)
+    np.subtract(phi, w, out=w)
     w *= NOISE_BINS
     idx = w.astype(np.intp)
     flat = img.ravel()
