@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import ndtr
+
+from benchlab.analysis.normal_cdf import ndtr
 
 FloatArray = npt.NDArray[np.float64]
 
