@@ -12,14 +12,16 @@ on whole arrays:
 * ``0.66291 < |x| <= sqrt(32)``: tail ``= exp(-x^2/2) C(|x|) / D(|x|)``;
 * ``|x| > sqrt(32)``: tail ``= exp(-x^2/2) (1/sqrt(2 pi) - z P(z) / Q(z)) / |x|``, ``z = 1/x^2``;
 
-where the tail is ``Phi(-|x|)`` and ``Phi(x) = 1 - tail`` for ``x > 0``. ``exp(-x^2/2)`` is
-computed as ``exp(-s^2/2) exp(-(x - s)(x + s)/2)`` with ``s`` = ``x`` truncated to 1/16, so
-the product keeps full relative precision in the far tail. Below ``x = -37.519`` the result is
+where the tail is ``Phi(-|x|)`` and ``Phi(x) = 1 - tail`` for ``x > 0``. Beyond ``sqrt(32)``
+``exp(-x^2/2)`` is computed as ``exp(-s^2/2) exp(-(x - s)(x + s)/2)`` with ``s`` = ``x``
+truncated to 1/16, so the far tail keeps full relative precision (scipy's ``ndtr`` loses
+``~x^2 eps`` there, 2.4e-13 at ``x = -37``); in the middle region the plain ``exp`` costs at
+most ``x^2 eps / 2`` < 2e-15 relative. Below ``x = -37.519`` the result is
 0 (scipy returns subnormals there, < 1e-307) and from ``x = 8.572`` it is 1.
 
 Accuracy against ``scipy.special.ndtr`` (tested in ``tests/test_normal_cdf.py`` on a dense
-grid over [-38, 9]): absolute error <= 2e-16 everywhere, relative error <= 1e-14 down to
-1e-300.
+grid over [-40, 10]): absolute difference <= 2.3e-16 everywhere; against a 50-digit reference
+in the lower tail: relative error < 2e-15.
 """
 
 from __future__ import annotations
@@ -69,11 +71,13 @@ def _ratio(t: FloatArray, num: tuple[float, ...], den: tuple[float, ...]) -> Flo
     return (xnum + num[-2]) / (xden + den[-1])
 
 
-def _gauss_tail_factor(y: FloatArray) -> FloatArray:
-    """``exp(-y^2 / 2)`` with the argument split so that its rounding does not cost
-    relative precision for large ``y``."""
-    s = np.trunc(y * 16.0) / 16.0
-    return np.exp(-0.5 * s * s) * np.exp(-0.5 * (y - s) * (y + s))
+def _split_gaussian(y: FloatArray) -> FloatArray:
+    """``exp(-y^2 / 2)`` with the argument split so that rounding ``y^2`` costs no relative
+    precision for large ``y`` (Cody's device; the middle region does without it)."""
+    s = np.trunc(y * 16.0) * 0.0625
+    out = np.exp(-0.5 * s * s)
+    out *= np.exp(-0.5 * (y - s) * (y + s))
+    return out
 
 
 def ndtr(x: npt.ArrayLike) -> FloatArray:
@@ -91,29 +95,36 @@ def ndtr(x: npt.ArrayLike) -> FloatArray:
     """
     xa = np.asarray(x, dtype=np.float64)
     flat_x = xa.ravel()
-    # Saturated values first (0 below X_LOW, 1 from X_HIGH): blurred edges are mostly that.
+    # Saturated values first (0 below X_LOW, 1 from X_HIGH; NaN is fixed at the end): most
+    # of a blurred scene is that, so only the rest is gathered and computed.
     flat = (flat_x > 0.0).astype(np.float64)
-    y = np.abs(flat_x)
+    work = np.flatnonzero((flat_x > X_LOW) & (flat_x < X_HIGH))
+    if work.size:
+        flat[work] = _unsaturated(flat_x[work])
+    if np.isnan(flat_x.sum()):  # one reduction instead of a mask in the usual NaN-free case
+        flat[np.isnan(flat_x)] = np.nan
+    return flat.reshape(xa.shape)
 
-    centre = np.flatnonzero(y <= THRESHOLD)
-    if centre.size:
-        xc = flat_x[centre]
-        flat[centre] = 0.5 + xc * _ratio(xc * xc, _A, _B)
 
-    middle = np.flatnonzero((y > THRESHOLD) & (y <= ROOT32))
-    if middle.size:
+def _unsaturated(x: FloatArray) -> FloatArray:
+    """:func:`ndtr` of values in ``(X_LOW, X_HIGH)`` (1-d)."""
+    y = np.abs(x)
+    centre = y <= THRESHOLD
+    middle = ~centre & (y <= ROOT32)
+    far = y > ROOT32
+    # tail = Phi(-|x|) in both tails; 1 - tail where x > 0.
+    out = np.empty_like(x)
+    if middle.any():
         ym = y[middle]
-        tail = _gauss_tail_factor(ym) * _ratio(ym, _C, _D)
-        flat[middle] = np.where(flat_x[middle] > 0.0, 1.0 - tail, tail)
-
-    far = np.flatnonzero((y > ROOT32) & (flat_x > X_LOW) & (flat_x < X_HIGH))
-    if far.size:
+        tail = np.exp(-0.5 * ym * ym)
+        tail *= _ratio(ym, _C, _D)
+        out[middle] = tail
+    if far.any():
         yf = y[far]
         z = 1.0 / (yf * yf)
-        tail = _gauss_tail_factor(yf) * (_INV_SQRT_2PI - z * _ratio(z, _P, _Q)) / yf
-        flat[far] = np.where(flat_x[far] > 0.0, 1.0 - tail, tail)
-
-    nan = np.flatnonzero(np.isnan(flat_x))
-    if nan.size:
-        flat[nan] = np.nan
-    return flat.reshape(xa.shape)
+        out[far] = _split_gaussian(yf) * (_INV_SQRT_2PI - z * _ratio(z, _P, _Q)) / yf
+    np.subtract(1.0, out, out=out, where=x > 0.0)
+    if centre.any():
+        xc = x[centre]
+        out[centre] = 0.5 + xc * _ratio(xc * xc, _A, _B)
+    return out
