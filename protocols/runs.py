@@ -9,10 +9,8 @@ from typing import TYPE_CHECKING
 import benchlab
 from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
-from benchlab.protocols.characterise import CharacteriseProcedure
 from benchlab.protocols.characterise_params import CharacteriseParams
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
-from benchlab.protocols.mtf import MtfProcedure
 from benchlab.protocols.params import (
     BenchLimits,
     MtfParams,
@@ -23,11 +21,13 @@ from benchlab.protocols.params import (
     params_to_dict,
     parse_params,
 )
-from benchlab.protocols.radiometry import RadiometryProcedure
 from benchlab.session import Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
+    from benchlab.protocols.characterise import CharacteriseProcedure
+    from benchlab.protocols.mtf import MtfProcedure
+    from benchlab.protocols.radiometry import RadiometryProcedure
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -55,11 +55,21 @@ def check_estimator(name: str | None) -> None:
 
 
 def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | CharacteriseProcedure:
-    """The procedure object for a parameter set."""
+    """The procedure object for a parameter set.
+
+    Each procedure module is imported only when its procedure is asked for: re-analysing an
+    MTF session never loads the characterisation's or the radiometry's analysis (start-up).
+    """
     if isinstance(params, CharacteriseParams):
+        from benchlab.protocols.characterise import CharacteriseProcedure
+
         return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
+        from benchlab.protocols.mtf import MtfProcedure
+
         return MtfProcedure(params)
+    from benchlab.protocols.radiometry import RadiometryProcedure
+
     return RadiometryProcedure(params)
 
 

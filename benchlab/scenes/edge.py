@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from scipy.special import ndtr
 
 from benchlab.analysis.chart import IMAGE_CENTRE_RC, RadialLayout
 from benchlab.analysis.edge_target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
-from benchlab.analysis.normal_cdf import ndtr
 from benchlab.analysis.sfr_synthetic import edge_truth_mtf, pixel_integrated_step
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile

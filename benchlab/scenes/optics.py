@@ -20,8 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-
-from benchlab.analysis.normal_cdf import ndtr
+from scipy.special import ndtr
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -38,9 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from scipy.special import ndtr
 
 from benchlab.analysis.chart import RADIAL_ROI_BOX, Orientation, RadialLayout, box_centroid
-from benchlab.analysis.normal_cdf import ndtr
 from benchlab.analysis.raytrace import (
     REFERENCE_OBJECT_RADIUS_MM,
     RayTraceTable,

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from scipy.special import ndtr
 
 from benchlab.analysis.chart import BarGroup, ChartLayout, Orientation, RadialLayout, usaf_bar_group
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
-from benchlab.analysis.normal_cdf import ndtr
 from benchlab.analysis.result import eq29_modulation
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
