@@ -42,6 +42,7 @@ from benchlab.storage import (
     FrameFileError,
     atomic_write_json,
     atomic_write_text,
+    flush_folder,
     fsync_dir,
     fsync_tree,
     load_frame_tiff,
@@ -63,10 +64,12 @@ _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
-#: fsync policy of a results version: "per-version" (files written, then flushed together
-#: once before the rename) or "per-file" (each file and its folder fsync'd as it is written,
-#: the old behaviour; ``benchlab benchmark batch --fsync per-file`` measures it).
-RESULTS_FSYNC = "per-version"
+#: Flush policy of a results version: "syncfs" (files written, then ONE flush of the file
+#: system, syncfs(2), before the rename; falls back to "per-version" off Linux),
+#: "per-version" (each file fsync'd once before the rename) or "per-file" (each file and its
+#: folder fsync'd as it is written, the old behaviour). ``benchlab benchmark batch`` measures
+#: all three. The journal lines resume depends on are fsync'd one by one whatever this says.
+RESULTS_FSYNC = "syncfs"
 
 
 class SessionError(BenchlabError):
@@ -652,9 +655,9 @@ class Session:
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
         NaN is written as ``null`` in JSON and ``NA`` in CSV. With :data:`RESULTS_FSYNC`
-        ``"per-version"`` the files are flushed together, once, just before the rename
-        (instead of a file and directory fsync per file); either way the version is on disk
-        before this returns.
+        ``"syncfs"`` (default) or ``"per-version"`` the files are flushed together just before
+        the rename (one file-system flush, or one fsync per file), instead of a file and
+        directory fsync per file; either way the version is on disk before this returns.
         """
         per_file = RESULTS_FSYNC == "per-file"
         for table in tables:
@@ -680,7 +683,9 @@ class Session:
                     **(self._partial or {"partial": False}),
                 }
                 atomic_write_json(tmp / "summary.json", doc, durable=per_file)
-                if not per_file:
+                if RESULTS_FSYNC == "syncfs":
+                    flush_folder(tmp)
+                elif not per_file:
                     fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:

@@ -13,6 +13,7 @@ the JSON in the ImageDescription tag; :func:`load_frame_tiff` reads both.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
@@ -127,6 +128,53 @@ def fsync_tree(folder: str | os.PathLike[str]) -> int:
             calls += 1
     _fsync_dir(base)
     return calls + 1
+
+
+@functools.cache
+def _libc() -> Any:
+    """The C library through ctypes when it has ``syncfs`` (Linux), else None."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+    except OSError:  # pragma: no cover - no C library to load
+        return None
+    return libc if hasattr(libc, "syncfs") else None
+
+
+def _syncfs(fd: int) -> bool:
+    """``syncfs(2)`` of the file system holding ``fd``; False where there is none.
+
+    Raises
+    ------
+    OSError
+        The write-back failed (Linux >= 5.8 reports it), with its errno.
+    """
+    libc = _libc()
+    if libc is None:
+        return False
+    if libc.syncfs(fd) != 0:
+        import ctypes
+
+        err = ctypes.get_errno()
+        raise OSError(err, os.strerror(err))
+    return True
+
+
+def flush_folder(folder: str | os.PathLike[str]) -> int:
+    """Make every file directly in ``folder`` and the folder itself durable with ONE barrier:
+    ``syncfs(2)`` of its file system on Linux (one write-back of everything dirty there,
+    typically a few ms against ~3 ms per file for fsync), else :func:`fsync_tree`.
+
+    Returns the number of flush calls made (1 with syncfs).
+    """
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        if _syncfs(fd):
+            return 1
+    finally:
+        os.close(fd)
+    return fsync_tree(folder)
 
 
 def atomic_write_text(
