@@ -11,6 +11,7 @@ replaces it through ``analysis.simulated_mtf_file`` in the MTF parameters.
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from importlib import resources
@@ -70,8 +71,30 @@ def simulated_curves_toml(
 
 
 def load_curves(path: str | Path | None = None) -> list[SimulatedCurve]:
-    """Simulated curves from a CSV export or a benchlab TOML curve file (default: shipped)."""
+    """Simulated curves from a CSV export or a benchlab TOML curve file (default: shipped).
+
+    A file already parsed in this process, unchanged since (same size and modification
+    time), is not parsed again: a batch re-analysis reads the same curves for every session
+    (the TOML parse is ~25 ms). The cached arrays are read-only.
+    """
     p = Path(path) if path else default_curves_path()
+    try:
+        st = p.stat()
+    except OSError:
+        return _parse_curves(p)  # the parser names the missing or unreadable file
+    return list(_cached_curves(str(p.resolve()), st.st_size, st.st_mtime_ns))
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_curves(path: str, size: int, mtime_ns: int) -> tuple[SimulatedCurve, ...]:
+    curves = _parse_curves(Path(path))
+    for c in curves:
+        c.freqs_lp_per_mm.setflags(write=False)
+        c.mtf.setflags(write=False)
+    return tuple(curves)
+
+
+def _parse_curves(p: Path) -> list[SimulatedCurve]:
     if p.suffix.lower() != ".toml":
         return load_simulated_curves(p)
     data = tomllib.loads(p.read_text(encoding="utf-8"))
