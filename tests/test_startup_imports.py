@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import benchlab.analysis as analysis_pkg
+from benchlab.analysis.mtf_compare import SimulatedCurve
 
 
 def _modules_after(code: str) -> set[str]:
@@ -105,7 +106,12 @@ def test_curve_file_is_parsed_once_until_it_changes(tmp_path: Path,
 
     parsed: list[Path] = []
     real = rc._parse_curves
-    monkeypatch.setattr(rc, "_parse_curves", lambda p: (parsed.append(p), real(p))[1])
+
+    def counting(p: Path) -> list[SimulatedCurve]:
+        parsed.append(p)
+        return real(p)
+
+    monkeypatch.setattr(rc, "_parse_curves", counting)
     rc._cached_curves.cache_clear()
     path = tmp_path / "curves.toml"
     path.write_text(rc.default_curves_path().read_text(encoding="utf-8"), encoding="utf-8")
