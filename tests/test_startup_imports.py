@@ -113,7 +113,7 @@ def test_curve_file_is_parsed_once_until_it_changes(tmp_path: Path,
 
     monkeypatch.setattr(rc, "_parse_curves", counting)
     rc._cached_curves.cache_clear()
-    path = tmp_path / "curves.toml"
+    path = tmp_path / "curves.json"
     path.write_text(rc.default_curves_path().read_text(encoding="utf-8"), encoding="utf-8")
     first = rc.load_curves(path)
     second = rc.load_curves(path)
@@ -122,7 +122,7 @@ def test_curve_file_is_parsed_once_until_it_changes(tmp_path: Path,
     assert all(np.array_equal(a.mtf, b.mtf) for a, b in zip(first, second, strict=True))
     with pytest.raises(ValueError, match="read-only"):
         first[0].mtf[0] = 0.0  # a caller cannot change what the next one gets
-    text = path.read_text(encoding="utf-8").replace('view = "forward"', 'view = "radial"', 1)
+    text = path.read_text(encoding="utf-8").replace('"view": "forward"', '"view": "radial"', 1)
     path.write_text(text, encoding="utf-8")
     os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
     third = rc.load_curves(path)
