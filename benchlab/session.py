@@ -45,6 +45,7 @@ from benchlab.storage import (
     flush_folder,
     fsync_dir,
     fsync_tree,
+    json_rows_text,
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
@@ -668,7 +669,8 @@ class Session:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                atomic_write_json(tmp / f"{stem}.json", plain_rows, durable=per_file)
+                atomic_write_text(tmp / f"{stem}.json", json_rows_text(plain_rows),
+                                  durable=per_file)
                 atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
