@@ -334,34 +334,49 @@ def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> 
 def _monte_carlo_rows(
     t411: list[dict[str, Any]], t412: list[dict[str, Any]], params: MtfParams
 ) -> list[dict[str, Any]]:
-    """Eq. 4.2 averages at the measured frequency nearest each Monte Carlo frequency, placed
-    among its thresholds by :mod:`benchlab.analysis.mtf_compare` (the one comparison).
+    """Eq. 4.2 averages near each Monte Carlo frequency, placed among its thresholds by
+    :mod:`benchlab.analysis.mtf_compare` (the one comparison).
+
+    Each orientation is taken at its own measured frequency nearest the prediction's: in the
+    forward view sagittal and tangential bars share one frequency, but the radial view's spokes
+    image at object radius / image radius, not at Eq. 4.1's frequency of the rings (their rows'
+    ``sagittal_image_lp_per_mm``), so pairing a row's S and T would average two frequencies
+    about 2x apart. ``measured_freq_lp_per_mm`` is the tangential reading's frequency (Eq. 4.1,
+    the thesis's column); both frequencies are in the row.
 
     Sagittal and tangential stay beside the average: the thesis's lesson is that the average
     alone hid a poor tangential response.
     """
-    measured: dict[str, list[tuple[float, float, float]]] = {"forward": [], "radial": []}
+    # (frequency, modulation) per view and orientation; aliased readings are no readings.
+    measured: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for view, table in (("forward", t411), ("radial", t412)):
         for r in table:
-            s, t = r.get("sagittal_modulation"), r.get("tangential_modulation")
-            if s is None or t is None or r["aliased"]:
-                continue
-            measured[view].append((r["image_lp_per_mm"], s, t))
+            for orient in ORIENTATIONS:
+                m = r.get(f"{orient}_modulation")
+                f = float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
+                if m is None or r.get(f"{orient}_aliased", r["aliased"]):
+                    continue
+                measured.setdefault((view, orient), []).append((f, float(m)))
     source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
     for mc in load_monte_carlo_table(source):
-        cands = measured.get(mc.view, [])
-        if not cands:
-            continue
-        f, s, t = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
-        if abs(f - mc.freq_lp_per_mm) > MC_MATCH_FRACTION * mc.freq_lp_per_mm:
-            continue  # nothing measured near this prediction's frequency
+        picks = []
+        for orient in ORIENTATIONS:
+            cands = measured.get((mc.view, orient), [])
+            if cands:
+                f, m = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
+                if abs(f - mc.freq_lp_per_mm) <= MC_MATCH_FRACTION * mc.freq_lp_per_mm:
+                    picks.append((f, m))
+        if len(picks) < 2:
+            continue  # nothing measured near this prediction's frequency in one orientation
+        (f_s, s), (f_t, t) = picks
         avg = averaged_mtf(s, t)
         _, verdict = monte_carlo_band(avg.average, mc)
         out.append({
             "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
-            "measured_freq_lp_per_mm": f, "sagittal_modulation": s,
+            "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s,
             "tangential_modulation": t, "averaged_modulation": round(avg.average, 6),
             **mc.columns(), "verdict": verdict,
+            "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
         })
     return out
