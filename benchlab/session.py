@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import fcntl
+import hashlib
 import io
 import json
 import math
@@ -594,11 +595,13 @@ class Session:
         rec = self._frame_records().get(rel)
         if rec is None:
             raise SessionError(f"{path}: no such frame recorded in {self.events_path}")
-        if not path.exists():
-            raise SessionError(f"{path}: recorded frame is missing")
-        if sha256_file(path) != rec["sha256"]:
+        try:
+            data = path.read_bytes()  # read once: the bytes hashed are the bytes decoded
+        except FileNotFoundError:
+            raise SessionError(f"{path}: recorded frame is missing") from None
+        if hashlib.sha256(data).hexdigest() != rec["sha256"]:
             raise SessionError(f"{path}: frame modified since it was saved (sha256 mismatch)")
-        return load_frame_tiff(path)
+        return load_frame_tiff(path, data)
 
     def verify_frames(self) -> list[str]:
         """Relative paths of recorded frames that are missing or whose sha256 changed."""

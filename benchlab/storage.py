@@ -342,15 +342,20 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     return pixels
 
 
-def load_frame_tiff(path: str | os.PathLike[str]) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
+                    ) -> tuple[npt.NDArray[Any], dict[str, Any]]:
     """Load a frame written by :func:`save_frame_tiff`: ``(pixels, metadata)``.
+
+    ``data``: the file's bytes already read (and hash-checked) by the caller, decoded instead
+    of reading the file again, so the pixels are exactly the bytes that were checked.
 
     Raises :class:`FrameFileError` naming the file when it is missing, unreadable, not 2-D,
     or carries no benchlab metadata.
     """
     p = Path(path)
     try:
-        with tifffile.TiffFile(p) as tif:
+        source = p if data is None else tifffile.FileHandle(io.BytesIO(data), name=p.name)
+        with tifffile.TiffFile(source) as tif:
             page = tif.pages.first
             pixels = page.asarray()
             description = _metadata_text(tif)
