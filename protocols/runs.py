@@ -153,10 +153,13 @@ def resume_run(
                   abort=abort, on_result=on_result, estimator=estimator)
 
 
-def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
+def reanalyze(session_path: str | Path, estimator: str | None = None, *,
+              catalogue: bool = True) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
+    ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
+    sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
     """
     check_estimator(estimator)
     session = Session.open(Path(session_path))
@@ -168,12 +171,12 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
             done = session.completed_steps()
             session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
                                          len(steps))
-        return _reanalyze_held(session, estimator)
+        return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()
 
 
-def _reanalyze_held(session: Session, estimator: str | None) -> Path:
+def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
@@ -184,5 +187,6 @@ def _reanalyze_held(session: Session, estimator: str | None) -> Path:
     out = make_procedure(params).analyze(session, estimator)
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
-    record_session(session.path)
+    if catalogue:
+        record_session(session.path)
     return out

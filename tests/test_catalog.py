@@ -311,6 +311,43 @@ def test_a_failed_file_system_flush_is_an_error_and_leaves_no_version(
     assert not [p for p in s.results_dir.iterdir() if p.name.startswith(".v-")]
 
 
+def test_a_batch_parent_records_each_root_once(
+    source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from benchlab import catalog as catalog_mod
+    from benchlab.catalog import session_recorder
+
+    a = [copy_session(source, tmp_path / "a" / f"s{i}") for i in range(3)]
+    b = copy_session(source, tmp_path / "b" / "s")
+    v = len(list((source / "results").iterdir()))
+    Catalog.open(tmp_path / "a").close()  # indexes the copies as they are: version v
+    for s in (*a, b):
+        reanalyze(s, catalogue=False)  # a batch worker: analysed, not catalogued
+    with Catalog.open(tmp_path / "a") as cat:
+        assert {r["results_version"] for r in cat.sessions()} == {v}
+    assert not (tmp_path / "b" / CATALOG_FILE).exists()
+    opened: list[Path] = []
+    real_open = catalog_mod.Catalog.open
+    monkeypatch.setattr(catalog_mod.Catalog, "open",
+                        lambda root: (opened.append(Path(root)), real_open(root))[1])
+    with session_recorder() as record:
+        assert all(record(s) for s in (*a, b))
+        assert record(tmp_path / "not-a-session") is False
+    assert sorted(opened) == [(tmp_path / "a").resolve(), (tmp_path / "b").resolve()]
+    monkeypatch.setattr(catalog_mod.Catalog, "open", real_open)
+    for root, names in ((tmp_path / "a", ["s0", "s1", "s2"]), (tmp_path / "b", ["s"])):
+        with Catalog.open(root) as cat:
+            rows = {r["id"]: r["results_version"] for r in cat.sessions()}
+        assert rows == dict.fromkeys(names, v + 1)
+    # a catalogue that cannot be written is a warning, never an error (it is a cache)
+    monkeypatch.setattr(catalog_mod.Catalog, "record",
+                        lambda self, folder: (_ for _ in ()).throw(sqlite3.OperationalError("x")))
+    with session_recorder() as record:
+        assert record(a[0]) is False
+    assert "catalogue not updated" in caplog.text
+
+
 def test_figures_of_every_known_table_and_any_other() -> None:
     from benchlab.catalog_extract import figures_of
 
