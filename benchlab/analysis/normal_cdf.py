@@ -3,8 +3,8 @@
 ``scipy.special`` costs 35-130 ms to import (its array-API layer pulls in ``numpy.testing``
 and ``numpy.f2py``); the analysis layer's bar model needs only this one function, so it lives
 here. :func:`ndtr` has ``scipy.special.ndtr``'s name and contract so callers swap the import.
-It is 2-7x slower than scipy's C loop on large arrays, so the scenes (which render whole frames
-and import scipy anyway) keep scipy's.
+On large arrays of ``|x| < 6`` it is up to 7x slower than scipy's C loop, so the scenes (which
+render whole frames and import scipy anyway) keep scipy's.
 
 The method is W. J. Cody's ``ANORM`` (ACM TOMS Algorithm 715, SPECFUN, 1993; the rational
 Chebyshev approximations of Cody, Math. Comp. 23 (1969) 631-637), evaluated here per region
