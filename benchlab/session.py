@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import fcntl
+import hashlib
 import io
 import json
 import math
@@ -42,8 +43,10 @@ from benchlab.storage import (
     FrameFileError,
     atomic_write_json,
     atomic_write_text,
+    flush_folder,
     fsync_dir,
     fsync_tree,
+    json_rows_text,
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
@@ -63,10 +66,12 @@ _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
-#: fsync policy of a results version: "per-version" (files written, then flushed together
-#: once before the rename) or "per-file" (each file and its folder fsync'd as it is written,
-#: the old behaviour; ``benchlab benchmark batch --fsync per-file`` measures it).
-RESULTS_FSYNC = "per-version"
+#: Flush policy of a results version: "syncfs" (files written, then ONE flush of the file
+#: system, syncfs(2), before the rename; falls back to "per-version" off Linux),
+#: "per-version" (each file fsync'd once before the rename) or "per-file" (each file and its
+#: folder fsync'd as it is written, the old behaviour). ``benchlab benchmark batch`` measures
+#: all three. The journal lines resume depends on are fsync'd one by one whatever this says.
+RESULTS_FSYNC = "syncfs"
 
 
 class SessionError(BenchlabError):
@@ -590,11 +595,13 @@ class Session:
         rec = self._frame_records().get(rel)
         if rec is None:
             raise SessionError(f"{path}: no such frame recorded in {self.events_path}")
-        if not path.exists():
-            raise SessionError(f"{path}: recorded frame is missing")
-        if sha256_file(path) != rec["sha256"]:
+        try:
+            data = path.read_bytes()  # read once: the bytes hashed are the bytes decoded
+        except FileNotFoundError:
+            raise SessionError(f"{path}: recorded frame is missing") from None
+        if hashlib.sha256(data).hexdigest() != rec["sha256"]:
             raise SessionError(f"{path}: frame modified since it was saved (sha256 mismatch)")
-        return load_frame_tiff(path)
+        return load_frame_tiff(path, data)
 
     def verify_frames(self) -> list[str]:
         """Relative paths of recorded frames that are missing or whose sha256 changed."""
@@ -652,9 +659,9 @@ class Session:
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
         NaN is written as ``null`` in JSON and ``NA`` in CSV. With :data:`RESULTS_FSYNC`
-        ``"per-version"`` the files are flushed together, once, just before the rename
-        (instead of a file and directory fsync per file); either way the version is on disk
-        before this returns.
+        ``"syncfs"`` (default) or ``"per-version"`` the files are flushed together just before
+        the rename (one file-system flush, or one fsync per file), instead of a file and
+        directory fsync per file; either way the version is on disk before this returns.
         """
         per_file = RESULTS_FSYNC == "per-file"
         for table in tables:
@@ -665,7 +672,8 @@ class Session:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                atomic_write_json(tmp / f"{stem}.json", plain_rows, durable=per_file)
+                atomic_write_text(tmp / f"{stem}.json", json_rows_text(plain_rows),
+                                  durable=per_file)
                 atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
@@ -680,7 +688,9 @@ class Session:
                     **(self._partial or {"partial": False}),
                 }
                 atomic_write_json(tmp / "summary.json", doc, durable=per_file)
-                if not per_file:
+                if RESULTS_FSYNC == "syncfs":
+                    flush_folder(tmp)
+                elif not per_file:
                     fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from benchlab.catalog import session_recorder
 from benchlab.drivers.errors import BenchlabError
 from benchlab.session import SESSION_FILE, Session
 
@@ -89,8 +90,10 @@ def _acquisition_pending(session: Session) -> list[str]:
     return [s.id for s in steps if s.kind != "analysis" and s.id not in done]
 
 
-def analyse_one(path: str, estimator: str | None = None) -> BatchItem:
-    """Re-analyse one session in this process (the worker's task; never raises)."""
+def analyse_one(path: str, estimator: str | None = None, catalogue: bool = True) -> BatchItem:
+    """Re-analyse one session in this process (the worker's task; never raises).
+
+    ``catalogue=False``: the parent records the session in the catalogue (local pool)."""
     from benchlab.protocols.runs import reanalyze
 
     t0 = time.perf_counter()
@@ -112,7 +115,7 @@ def analyse_one(path: str, estimator: str | None = None) -> BatchItem:
         if pending:
             return item("skipped", f"acquisition incomplete ({len(pending)} steps to do, "
                         f"first {pending[0]}): benchlab resume it first")
-        out = reanalyze(folder, estimator=estimator)
+        out = reanalyze(folder, estimator=estimator, catalogue=catalogue)
     except Exception as exc:  # noqa: BLE001 - one bad session must not stop the batch
         return item("failed", f"{type(exc).__name__}: {exc}")
     return item("analysed", results=str(out))
@@ -185,15 +188,20 @@ def run_batch(
     t0 = time.perf_counter()
     report = BatchReport(jobs=n_jobs)
     by_path: dict[str, BatchItem] = {}
-    with _executor(n_jobs, scheduler) as (executor, label):
+    # A local pool's sessions are catalogued here, each root's catalogue opened once; a
+    # cluster's workers catalogue their own (this process may not see the folders).
+    in_parent = scheduler is None
+    with _executor(n_jobs, scheduler) as (executor, label), session_recorder() as record:
         report.executor = label
-        futures = {executor.submit(analyse_one, p, estimator): p for p in paths}
+        futures = {executor.submit(analyse_one, p, estimator, not in_parent): p for p in paths}
         for fut in cf.as_completed(futures):
             p = futures[fut]
             try:
                 result = fut.result()
             except Exception as exc:  # noqa: BLE001 - a worker died (OOM, kill): that session
                 result = BatchItem(p, "failed", f"worker lost: {type(exc).__name__}: {exc}")
+            if in_parent and result.outcome == "analysed":
+                record(p)
             by_path[p] = result
             if progress is not None:
                 progress(len(by_path), len(paths), result)

@@ -9,10 +9,8 @@ from typing import TYPE_CHECKING
 import benchlab
 from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
-from benchlab.protocols.characterise import CharacteriseProcedure
 from benchlab.protocols.characterise_params import CharacteriseParams
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
-from benchlab.protocols.mtf import MtfProcedure
 from benchlab.protocols.params import (
     BenchLimits,
     MtfParams,
@@ -23,11 +21,13 @@ from benchlab.protocols.params import (
     params_to_dict,
     parse_params,
 )
-from benchlab.protocols.radiometry import RadiometryProcedure
 from benchlab.session import Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
+    from benchlab.protocols.characterise import CharacteriseProcedure
+    from benchlab.protocols.mtf import MtfProcedure
+    from benchlab.protocols.radiometry import RadiometryProcedure
 
 #: Key of the bench configuration inside the session's parameter snapshot.
 BENCH_KEY = "bench"
@@ -55,11 +55,21 @@ def check_estimator(name: str | None) -> None:
 
 
 def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | CharacteriseProcedure:
-    """The procedure object for a parameter set."""
+    """The procedure object for a parameter set.
+
+    Each procedure module is imported only when its procedure is asked for: re-analysing an
+    MTF session never loads the characterisation's or the radiometry's analysis (start-up).
+    """
     if isinstance(params, CharacteriseParams):
+        from benchlab.protocols.characterise import CharacteriseProcedure
+
         return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
+        from benchlab.protocols.mtf import MtfProcedure
+
         return MtfProcedure(params)
+    from benchlab.protocols.radiometry import RadiometryProcedure
+
     return RadiometryProcedure(params)
 
 
@@ -143,10 +153,13 @@ def resume_run(
                   abort=abort, on_result=on_result, estimator=estimator)
 
 
-def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
+def reanalyze(session_path: str | Path, estimator: str | None = None, *,
+              catalogue: bool = True) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
+    ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
+    sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
     """
     check_estimator(estimator)
     session = Session.open(Path(session_path))
@@ -158,12 +171,12 @@ def reanalyze(session_path: str | Path, estimator: str | None = None) -> Path:
             done = session.completed_steps()
             session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
                                          len(steps))
-        return _reanalyze_held(session, estimator)
+        return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()
 
 
-def _reanalyze_held(session: Session, estimator: str | None) -> Path:
+def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
@@ -174,5 +187,6 @@ def _reanalyze_held(session: Session, estimator: str | None) -> Path:
     out = make_procedure(params).analyze(session, estimator)
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
-    record_session(session.path)
+    if catalogue:
+        record_session(session.path)
     return out

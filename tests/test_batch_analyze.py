@@ -137,3 +137,17 @@ def test_dask_scheduler_runs_the_same_analysis(source: Path, tmp_path: Path) -> 
     assert [i.outcome for i in report.items] == ["analysed", "analysed"]
     for s in sessions:
         assert results_files(s / "results" / "v2") == expected
+
+
+def test_benchmark_batch_prints_its_figures_and_the_flush_policies(
+        source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["benchmark", "batch", "--sessions", "2", "--jobs", "1", "--source",
+                 str(source), "--workdir", str(tmp_path), "--fsync-repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "2 (2 analysed, 0 failed)" in out and "extrapolated to 10,000" in out
+    rows = {line.split("  ")[0]: line for line in out.splitlines() if line.startswith("flush")}
+    assert set(rows) == {"flush per-file", "flush per-version", "flush syncfs (default)"}
+    calls = {k: int(v.split("  ", 1)[1].split()[0]) for k, v in rows.items()}
+    # one file-system flush per version instead of one fsync per file (and folder)
+    assert calls["flush syncfs (default)"] < calls["flush per-version"] < calls["flush per-file"]
+    assert list(tmp_path.iterdir()) == []  # the fabricated sessions are removed

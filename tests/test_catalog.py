@@ -249,26 +249,103 @@ def test_concurrent_runs_write_while_a_batch_reads(source: Path, tmp_path: Path)
 def test_results_are_fsynced_once_per_version_with_the_same_bytes(
     source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    import benchlab.storage as storage_mod
+
     calls: list[int] = []
+    syncfs_calls: list[int] = []
     real = os.fsync
+    real_syncfs = storage_mod._syncfs
     monkeypatch.setattr(os, "fsync", lambda fd: (calls.append(fd), real(fd))[1])
+    monkeypatch.setattr(storage_mod, "_syncfs",
+                        lambda fd: (syncfs_calls.append(fd), real_syncfs(fd))[1])
     got = {}
-    for policy in ("per-file", "per-version"):
+    for policy in ("per-file", "per-version", "syncfs"):
         monkeypatch.setattr(session_mod, "RESULTS_FSYNC", policy)
         s = session_mod.Session.open(copy_session(source, tmp_path / policy))
         calls.clear()
+        syncfs_calls.clear()
         out = s.write_results({"t": [{"a": 1.5}], "u": [{"b": None}]}, summary={"k": 1},
                               estimator="x")
         got[policy] = (len(calls), {p.name: p.read_bytes() for p in out.iterdir()
-                                    if p.name != "summary.json"})
-    # per-file: 5 files x (file + folder) + the rename; per-version: 5 files + 2 folders
+                                    if p.name != "summary.json"}, len(syncfs_calls))
+    # per-file: 5 files x (file + folder) + the rename; per-version: 5 files + 2 folders;
+    # syncfs: one file-system flush + the rename (Linux has syncfs)
     assert got["per-file"][0] == 11 and got["per-version"][0] == 7
-    assert got["per-file"][1] == got["per-version"][1]
+    assert got["syncfs"][0] == 1 and got["syncfs"][2] == 1
+    assert got["per-file"][2] == got["per-version"][2] == 0
+    assert got["per-file"][1] == got["per-version"][1] == got["syncfs"][1]
+    # without syncfs (not Linux) the policy falls back to one fsync per file
+    monkeypatch.setattr(storage_mod, "_libc", lambda: None)
+    calls.clear()
+    s.write_results({"t": [{"a": 1.5}]}, summary={"k": 1}, estimator="x")
+    assert len(calls) == 5  # 3 files + the folder, then the rename
     calls.clear()
     s.log_event("note", durable=False)
     assert calls == []
     s.log_event("step_completed", step_id="x")  # resume depends on these: fsync'd
     assert len(calls) == 1
+
+
+def test_a_failed_file_system_flush_is_an_error_and_leaves_no_version(
+    source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    import benchlab.storage as storage_mod
+
+    class FailingLibc:
+        def syncfs(self, fd: int) -> int:
+            import ctypes
+
+            ctypes.set_errno(errno.EIO)
+            return -1
+
+    monkeypatch.setattr(storage_mod, "_libc", lambda: FailingLibc())
+    monkeypatch.setattr(session_mod, "RESULTS_FSYNC", "syncfs")
+    s = session_mod.Session.open(copy_session(source, tmp_path / "s"))
+    before = s.result_versions()
+    with pytest.raises(OSError) as info:
+        s.write_results({"t": [{"a": 1.5}]}, summary={"k": 1}, estimator="x")
+    assert info.value.errno == errno.EIO
+    assert s.result_versions() == before
+    assert not [p for p in s.results_dir.iterdir() if p.name.startswith(".v-")]
+
+
+def test_a_batch_parent_records_each_root_once(
+    source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from benchlab import catalog as catalog_mod
+    from benchlab.catalog import session_recorder
+
+    a = [copy_session(source, tmp_path / "a" / f"s{i}") for i in range(3)]
+    b = copy_session(source, tmp_path / "b" / "s")
+    v = len(list((source / "results").iterdir()))
+    Catalog.open(tmp_path / "a").close()  # indexes the copies as they are: version v
+    for s in (*a, b):
+        reanalyze(s, catalogue=False)  # a batch worker: analysed, not catalogued
+    with Catalog.open(tmp_path / "a") as cat:
+        assert {r["results_version"] for r in cat.sessions()} == {v}
+    assert not (tmp_path / "b" / CATALOG_FILE).exists()
+    opened: list[Path] = []
+    real_open = catalog_mod.Catalog.open
+    monkeypatch.setattr(catalog_mod.Catalog, "open",
+                        lambda root: (opened.append(Path(root)), real_open(root))[1])
+    with session_recorder() as record:
+        assert all(record(s) for s in (*a, b))
+        assert record(tmp_path / "not-a-session") is False
+    assert sorted(opened) == [(tmp_path / "a").resolve(), (tmp_path / "b").resolve()]
+    monkeypatch.setattr(catalog_mod.Catalog, "open", real_open)
+    for root, names in ((tmp_path / "a", ["s0", "s1", "s2"]), (tmp_path / "b", ["s"])):
+        with Catalog.open(root) as cat:
+            rows = {r["id"]: r["results_version"] for r in cat.sessions()}
+        assert rows == dict.fromkeys(names, v + 1)
+    # a catalogue that cannot be written is a warning, never an error (it is a cache)
+    monkeypatch.setattr(catalog_mod.Catalog, "record",
+                        lambda self, folder: (_ for _ in ()).throw(sqlite3.OperationalError("x")))
+    with session_recorder() as record:
+        assert record(a[0]) is False
+    assert "catalogue not updated" in caplog.text
 
 
 def test_figures_of_every_known_table_and_any_other() -> None:

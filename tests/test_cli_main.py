@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 
 import pytest
 
 from benchlab import __version__
-from benchlab.cli.main import build_parser, main
+from benchlab.cli.main import COMMAND_OWNERS, build_parser, command_of, main
 
 
 def test_version(capsys: pytest.CaptureFixture[str]) -> None:
@@ -34,3 +35,42 @@ def test_console_script_help_runs() -> None:
     ).stdout
     text = " ".join(out.split())  # argparse re-wraps the description
     assert "Table 4.10 MTF test" in text and "--simulate" in text
+
+
+def _top_level(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    sub = next(a for a in parser._actions if a.dest == "command")
+    return dict(sub.choices)  # type: ignore[arg-type]
+
+
+def test_each_command_builds_only_its_module_and_parses_the_same() -> None:
+    """COMMAND_OWNERS names the module registering each command: a command line builds only
+    that module's parsers (start-up), with the same options and defaults as the full one."""
+    full = _top_level(build_parser())
+    assert set(full) - {"benchmark"} == set(COMMAND_OWNERS)
+    for command, module in COMMAND_OWNERS.items():
+        partial = _top_level(build_parser(command))
+        assert command in partial, command
+        # only the owner's commands (and the benchmark group) are there
+        assert all(COMMAND_OWNERS.get(c, module) == module for c in partial), command
+        for a, b in zip(full[command]._actions, partial[command]._actions, strict=True):
+            assert (a.dest, a.option_strings, a.default, a.nargs) == \
+                (b.dest, b.option_strings, b.default, b.nargs), command
+    args = ["analyze", "frame.tiff", "--roi", "1,2,3,4", "--freq", "6"]
+    assert vars(build_parser("analyze").parse_args(args)) == vars(build_parser().parse_args(args))
+
+
+@pytest.mark.parametrize(("argv", "command"), [
+    (["analyze", "x"], "analyze"), (["--log-level", "info", "run", "mtf"], "run"),
+    (["--log-level=debug", "--trace-io", "t.txt", "snap"], "snap"), (["--help"], None),
+    ([], None), (["--trace-io", "analyze", "sessions"], "sessions"),
+])
+def test_command_word_after_the_global_options(argv: list[str], command: str | None) -> None:
+    assert command_of(argv) == command
+
+
+def test_unknown_command_still_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["no-such-command"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "invalid choice: 'no-such-command'" in err and "find-chart" in err and "tui" in err

@@ -7,6 +7,7 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_protocol_helpers import MTF_SMALL, RAD_SMALL, run_sim
 
@@ -17,6 +18,7 @@ from benchlab.report_curves import (
     default_curves_path,
     gaussian_mtf,
     load_curves,
+    simulated_curves_json,
     simulated_curves_toml,
 )
 from benchlab.session import Session
@@ -73,9 +75,16 @@ def test_report_of_a_session_without_results_says_so(tmp_path: Path) -> None:
         write_report(runner.session.path)
 
 
-def test_shipped_curves_are_the_simulated_optics() -> None:
-    assert default_curves_path().read_text() == simulated_curves_toml()
+def test_shipped_curves_are_the_simulated_optics(tmp_path: Path) -> None:
+    assert default_curves_path().read_text() == simulated_curves_json()
     curves = load_curves()
+    toml = tmp_path / "curves.toml"  # the same curves written as TOML read back the same
+    toml.write_text(simulated_curves_toml(), encoding="utf-8")
+    for a, b in zip(load_curves(toml), curves, strict=True):
+        assert (a.view, a.field_angle_deg, a.direction) == (b.view, b.field_angle_deg,
+                                                            b.direction)
+        assert np.array_equal(a.freqs_lp_per_mm, b.freqs_lp_per_mm)
+        assert np.array_equal(a.mtf, b.mtf)
     assert len(curves) == 16  # 8 field points x S/T
     radial_t = next(c for c in curves if c.view == "radial" and c.field_angle_deg == -30
                     and c.direction == "T")

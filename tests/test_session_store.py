@@ -132,6 +132,8 @@ def test_verify_frames_catches_a_modified_frame(tmp_path: Path) -> None:
         s.load_frame("s1", "mask")
     (s.path / "frames" / "s1__measurement.tiff").unlink()
     assert s.verify_frames() == ["frames/s1__mask.tiff", "frames/s1__measurement.tiff"]
+    with pytest.raises(SessionError, match="recorded frame is missing"):
+        s.load_frame("s1", "measurement")
 
 
 def test_results_are_versioned_and_never_overwritten(tmp_path: Path) -> None:

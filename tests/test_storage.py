@@ -131,3 +131,19 @@ def test_load_errors_name_the_file(tmp_path: Path) -> None:
     tifffile.imwrite(foreign, np.zeros((3, 3), np.uint8), description="hello")
     with pytest.raises(FrameFileError, match="foreign.tiff: ImageDescription"):
         load_frame_tiff(foreign)
+
+
+def test_results_table_json_is_one_row_a_line_and_the_same_json(tmp_path: Path) -> None:
+    from benchlab.storage import json_rows_text
+
+    rows = [{"element": "G2E2", "mod": np.float64(0.738), "n": np.int64(3), "curve": [0.5, 1.0],
+             "none": None, "path": Path("frames/x.tiff")},
+            {"element": "G2E3", "mod": 0.709}]
+    text = json_rows_text(rows)
+    atomic_write_json(tmp_path / "indented.json", rows)
+    assert json.loads(text) == json.loads((tmp_path / "indented.json").read_text())
+    lines = text.splitlines()
+    assert lines[0] == "[" and lines[-1] == "]" and len(lines) == 2 + len(rows)
+    assert json_rows_text([]) == "[]\n" and json.loads(json_rows_text([])) == []
+    with pytest.raises(ValueError):
+        json_rows_text([{"mod": float("nan")}])  # NaN is not JSON: refused as before

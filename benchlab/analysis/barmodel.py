@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import ndtr
+
+from benchlab.analysis.normal_cdf import ndtr
 
 FloatArray = npt.NDArray[np.float64]
 #: Below this footprint side (px) a box is treated as a delta (first-order exact).

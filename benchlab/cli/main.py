@@ -34,7 +34,28 @@ COMMAND_MODULES = (
     "benchlab.cli.startup",  # benchmark startup
     "benchlab.cli.soak",  # benchmark soak
 )
+#: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
+#: naming one of these builds only that module's parsers: the full parser (every module
+#: imported, ~45 sub-parsers) costs 50-100 ms of start-up. tests/test_cli_main.py checks
+#: this table against what the modules register.
+COMMAND_OWNERS = {
+    "devices": "benchlab.cli.camera", "snap": "benchlab.cli.camera",
+    "led": "benchlab.cli.serial", "stage": "benchlab.cli.serial",
+    "simulate": "benchlab.cli.serial",
+    "analyze": "benchlab.cli.analysis",
+    "find-chart": "benchlab.cli.chart",
+    "sfr": "benchlab.cli.sfr",
+    "run": "benchlab.cli.procedures", "resume": "benchlab.cli.procedures",
+    "report": "benchlab.cli.procedures",
+    "sessions": "benchlab.cli.sessions",
+    "unwrap": "benchlab.cli.viewsynth", "perspective": "benchlab.cli.viewsynth",
+    "viewpoint": "benchlab.cli.viewsynth", "calibrate": "benchlab.cli.viewsynth",
+    "tui": "benchlab.cli.tui",
+    "config": "benchlab.cli.config",
+}
 LOG_LEVELS = ("debug", "info", "warning", "error")
+#: Top-level options that take a value as the next word (``--log-level info``).
+_OPTIONS_WITH_VALUE = ("--log-level", "--trace-io")
 
 
 class _VersionAction(argparse.Action):
@@ -48,7 +69,20 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def command_of(argv: Sequence[str]) -> str | None:
+    """The top-level command word of a command line (after the global options), if any."""
+    words = iter(argv)
+    for word in words:
+        if word in _OPTIONS_WITH_VALUE:
+            next(words, None)
+        elif not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``benchlab`` parser; with a ``command`` of :data:`COMMAND_OWNERS`, only that
+    command's module is registered (everything else parses the same)."""
     parser = argparse.ArgumentParser(
         prog="benchlab",
         description=(
@@ -70,7 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Measure speed and accuracy and print a table.",
     )
     benchmarks = bench.add_subparsers(dest="benchmark", metavar="WHAT", required=True)
-    for name in COMMAND_MODULES:
+    owner = COMMAND_OWNERS.get(command or "")
+    for name in (owner,) if owner else COMMAND_MODULES:
         importlib.import_module(name).register(commands, benchmarks)
     return parser
 
@@ -97,10 +132,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     shutdown`): LEDs off, stage stopped, a running session journalled as interrupted.
     """
     args_list = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser()
     first = args_list[0].split("=", 1)[0] if args_list else ""
     if not args_list or (first.startswith("-") and first not in _TOP_LEVEL_OPTIONS):
         args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
+    parser = build_parser(command_of(args_list))
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
     if func is None:

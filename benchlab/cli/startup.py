@@ -1,5 +1,13 @@
 """``benchlab benchmark startup``: how long ``benchlab --help`` and ``benchlab analyze SESSION``
-take as fresh processes (import time included, which is what a user waits for)."""
+take as fresh processes (import time included, which is what a user waits for).
+
+An installed package has its bytecode (``.pyc``) cached after the first run; a development
+shell with ``PYTHONDONTWRITEBYTECODE=1`` recompiles benchlab's sources in every process
+(~0.1 s). Both are timed: "cached" runs without ``PYTHONDONTWRITEBYTECODE`` and with
+``PYTHONPYCACHEPREFIX`` pointing at a temporary folder filled by one warm-up run (what a user
+gets; the targets apply to it, and nothing is written next to the sources); "no .pyc" runs with
+``PYTHONDONTWRITEBYTECODE=1`` and no prefix (what this kind of shell gets).
+"""
 
 from __future__ import annotations
 
@@ -10,17 +18,27 @@ import statistics
 import subprocess
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from benchlab.cli import UsageError
 from benchlab.drivers.errors import BenchlabError
 
 #: The targets from issue 11 (seconds of wall time on an otherwise idle machine).
 TARGETS_S = {"--help": 0.15, "analyze SESSION": 0.35}
 
 
-def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None
-          ) -> tuple[list[float], list[float]]:
+def bytecode_environments(pycache: Path) -> dict[str, dict[str, str]]:
+    """The child environments: ``cached`` (bytecode written to and read from ``pycache``) and
+    ``no .pyc`` (nothing written, benchlab compiled from source in every process)."""
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONPYCACHEPREFIX")}
+    return {"cached": {**base, "PYTHONPYCACHEPREFIX": str(pycache)},
+            "no .pyc": {**base, "PYTHONDONTWRITEBYTECODE": "1"}}
+
+
+def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None,
+          env: Mapping[str, str] | None = None) -> tuple[list[float], list[float]]:
     """Wall and CPU (user + system of the child) seconds of ``repeats`` runs of ``argv``;
     with ``fresh_copy_of``, each run gets its own copy of that session folder (appended)."""
     import time
@@ -35,7 +53,7 @@ def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None
             before = os.times()
             t0 = time.perf_counter()
             done = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                  text=True)
+                                  text=True, env=None if env is None else dict(env))
             wall.append(time.perf_counter() - t0)
             after = os.times()
             cpu.append(after.children_user - before.children_user
@@ -55,21 +73,34 @@ def _simulated_session(folder: Path) -> Path:
 
 
 def _cmd_startup(args: argparse.Namespace) -> int:
+    if args.repeats < 1:
+        raise UsageError(f"--repeats must be >= 1, got {args.repeats}")
     me = [sys.executable, "-m", "benchlab.cli.main"]
+    commands = [("--help", [*me, "--help"], False), ("analyze SESSION", [*me, "analyze"], True)]
+    rows = []
     with tempfile.TemporaryDirectory(prefix="benchlab-session-") as tmp:
         session = Path(args.session) if args.session else _simulated_session(Path(tmp))
         if not (session / "session.json").is_file():
             raise BenchlabError(f"{session}: not a session folder (no session.json)")
-        rows = [("--help", *_time([*me, "--help"], args.repeats)),
-                ("analyze SESSION", *_time([*me, "analyze"], args.repeats, session))]
+        envs = bytecode_environments(Path(tmp) / "pycache")
+        for _name, argv, needs_session in commands:  # the warm-up run fills the bytecode cache
+            _time(argv, 1, session if needs_session else None, envs["cached"])
+        for how, env in envs.items():
+            for name, argv, needs_session in commands:
+                wall, cpu = _time(argv, args.repeats, session if needs_session else None, env)
+                rows.append((name, how, wall, cpu))
     load = os.getloadavg()[0]
-    print(f"{'command':<18}{'wall min':>10}{'wall med':>10}{'cpu min':>10}{'cpu med':>10}"
-          f"{'target':>9}")
-    for name, wall, cpu in rows:
-        print(f"{name:<18}{min(wall):>9.3f}s{statistics.median(wall):>9.3f}s{min(cpu):>9.3f}s"
-              f"{statistics.median(cpu):>9.3f}s{TARGETS_S[name]:>8.2f}s")
+    print(f"{'command':<18}{'bytecode':<10}{'wall min':>10}{'wall med':>10}{'cpu min':>10}"
+          f"{'cpu med':>10}{'target':>9}")
+    for name, how, wall, cpu in rows:
+        target = f"{TARGETS_S[name]:>8.2f}s" if how == "cached" else f"{'-':>9}"
+        print(f"{name:<18}{how:<10}{min(wall):>9.3f}s{statistics.median(wall):>9.3f}s"
+              f"{min(cpu):>9.3f}s{statistics.median(cpu):>9.3f}s{target}")
     print(f"{args.repeats} fresh processes each; load average {load:.1f} on {os.cpu_count()} "
-          "CPUs (wall time grows with load; CPU time much less)")
+          "CPUs (wall time grows with load; CPU time much less).\n"
+          "cached: .pyc files cached after one warm-up run, as an installed benchlab has them "
+          "(the targets apply here); no .pyc: PYTHONDONTWRITEBYTECODE=1, benchlab's sources "
+          "compiled in every process.")
     return 0
 
 
@@ -78,9 +109,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     b = benchmarks.add_parser(
         "startup", help="seconds for `benchlab --help` and `benchlab analyze SESSION`",
         description="Time `benchlab --help` and `benchlab analyze SESSION` as fresh processes "
-        "(imports included): wall and CPU time, min and median. SESSION is copied for each "
-        "run so every re-analysis starts from the same state; without SESSION a simulated "
-        "Table 4.10 MTF session is made first.",
+        "(imports included): wall and CPU time, min and median, both with the bytecode cached "
+        "(after one warm-up run, as an installed benchlab has it; the targets apply) and with "
+        "PYTHONDONTWRITEBYTECODE=1 (sources compiled in every process). SESSION is copied for "
+        "each run so every re-analysis starts from the same state; without SESSION a "
+        "simulated Table 4.10 MTF session is made first.",
     )
     b.add_argument("session", nargs="?", help="session folder (default: simulate one)")
     b.add_argument("--repeats", type=int, default=10, help="runs of each command (default 10)")
