@@ -136,8 +136,8 @@ class _Model:
         if not derivatives:
             return value, None
         out = np.empty((value.size, 3))
-        sin_part = self.c * sd
-        sin_part -= self.s * cd
+        sin_part = self.s * cd
+        sin_part -= self.c * sd  # sin(2 pi k (w - delta)): d/d(delta) of cos_part / (2 pi k)
         out[:, 0] = sin_part @ (alpha * (2.0 * math.pi) * k)
         out[:, 1] = 1.0 + cos_part @ (2.0 * np.cos(math.pi * duty * k) * gain)
         out[:, 2] = cos_part @ (alpha * (-4.0 * math.pi**2 * sigma) * self.fk**2)
