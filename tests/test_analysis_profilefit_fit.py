@@ -57,3 +57,48 @@ def test_few_periods_fit_converges(
     assert r.modulation == pytest.approx(case.truth, abs=0.02)
     assert r.interval[0] <= case.truth <= r.interval[1]
     assert math.isfinite(r.uncertainty)
+
+
+@pytest.mark.parametrize(
+    ("shape", "period", "angle", "sigma", "exposure", "noise"),
+    [
+        ((64, 64), 8.1, 12.8, 2.0, 2.2, 0.5),  # blurred: 9 % of the pixels at the top code
+        ((40, 50), 13.7, 80.0, 0.0, 2.3, 2.0),  # sharp bars: half the ROI saturated
+    ],
+)
+def test_saturated_bars_read_against_the_unclipped_truth(
+    shape: tuple[int, int], period: float, angle: float, sigma: float, exposure: float,
+    noise: float,
+) -> None:
+    """Saturated pixels are censored, not data: the fit leaves the saturated phases out and
+    the model carries the bright level beyond the top code (before: -0.13 and -0.16, interval
+    missing the truth)."""
+    roi, case = bar_roi(
+        7, shape=shape, px_per_period=period, angle_deg=angle, psf_sigma_px=sigma,
+        exposure_scale=exposure, mean=100.0, modulation=0.45, noise_sigma=noise,
+        electrons_per_dn=5.0, bits=12, msb_aligned=True,
+    )
+    assert case.clipped and int(np.count_nonzero(roi == 65520)) > roi.size // 20
+    r = estimate_modulation(roi, freq_cycles_per_px=1 / period)
+    assert r.resolved
+    assert r.modulation == pytest.approx(case.truth, abs=0.03)
+    assert r.interval[0] <= case.truth <= r.interval[1]
+    assert any("censored" in w for w in r.warnings)
+
+
+def test_noise_clipping_does_not_bias_the_bright_level() -> None:
+    """Bars whose noiseless bright level sits just under the top code: only the noise's upper
+    tail is clipped (16 % of the pixels), and a saturated pixel stands for the tail's mean
+    (read as the top code, the bright level came out low: -0.008 on average)."""
+    errors = []
+    for seed in range(6):
+        roi, case = bar_roi(
+            seed, shape=(100, 20), px_per_period=34.8, angle_deg=90.0, psf_sigma_px=0.66,
+            duty=0.43, exposure_scale=1.8, mean=100.0, modulation=0.4, noise_sigma=6.0,
+            electrons_per_dn=1.0, bits=12, msb_aligned=True,
+        )
+        assert not case.clipped and 0 < int(np.count_nonzero(roi == 65520)) < roi.size // 4
+        r = estimate_modulation(roi, freq_cycles_per_px=1 / 34.8, orientation="vertical")
+        assert r.interval[0] <= case.truth <= r.interval[1]
+        errors.append(r.modulation - case.truth)
+    assert abs(float(np.mean(errors))) < 0.003

@@ -369,9 +369,27 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     u = across_coordinate((rows, cols), theta) / half
     v = across_coordinate((rows, cols), theta + math.pi / 2) / half
     n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
+    vals, w_fit, u_fit, v_fit = img, w, u, v
+    clipped = _clipped_mask(prep)
+    if clipped is not None:
+        # Saturated pixels only say "at least the top code", and the unclipped pixels at the
+        # same phases are the noise's low tail: every phase cell holding a clipped pixel is
+        # left out, and the model carries the bright level over them (their gap in the
+        # sampled phases widens the interval, see _model_sd).
+        vals, keep, n_bad = _censored(img, clipped, w, n_bins, float(prep.max_code or 0.0))
+        if int(keep.sum()) < 4:
+            warnings.append("every bar phase saturated: no bar profile")
+            return unresolved(name, prep.diagnostics(), warnings)
+        vals, w_fit, u_fit, v_fit = vals[keep], w[keep], u[keep], v[keep]
+        n = int(vals.size)
+        warnings.append(
+            f"saturated pixels taken as censored ({n_bad} of {n_bins} bar phases mostly "
+            "saturated, fitted without them): the bright level is the model's"
+        )
+        n_bins = int(min(n_bins, max(8, n // 6)))
     width = 1.0 / n_bins
     prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
-        w, [img, img * img, w, w * w, u, v], width
+        w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
     )
     filled = prof.filled
     # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
@@ -412,12 +430,12 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     grid_s, _ = fitter.grid.eval(
         float(params[-3]), float(params[-2]), float(params[-1]), derivatives=False
     )
-    s_pix = grid_s[(w.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    s_pix = grid_s[(w_fit.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
     lin = params[:n_lin]
     pred = lin[0] + lin[1] * s_pix
-    for j, t in enumerate((v.ravel(), u.ravel())[: (n_lin - 2) // 2]):
+    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
         pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
-    resid = img.ravel() - pred
+    resid = vals.ravel() - pred
     # Levels, shading, phase, blur (and duty), and the direction and frequency found.
     n_params = n_lin + 2 + (2 if fit_duty else 1)
     dof = max(n - n_params, 1)
@@ -464,7 +482,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
     at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
     dark = max(dark, prep.vmin - (float(at_bins.min()) - dark) - 2.0 * noise)
-    bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
+    if clipped is None:  # above the top code the model alone says where the bright level is
+        bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
     if bright + dark <= 0 or bright <= dark:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
         return unresolved(name, diag, warnings)
@@ -477,6 +496,46 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+def _clipped_mask(prep: PreparedROI) -> npt.NDArray[np.bool_] | None:
+    """Pixels at the saturation code (``None`` when none is clipped)."""
+    if prep.max_code is None or prep.clipped_fraction <= 0:
+        return None
+    mask: npt.NDArray[np.bool_] = prep.pixels >= prep.max_code
+    return mask if bool(mask.any()) else None
+
+
+def _censored(
+    img: FloatArray, clipped: npt.NDArray[np.bool_], w: FloatArray, n_bins: int, top: float
+) -> tuple[FloatArray, npt.NDArray[np.bool_], int]:
+    """Pixel values with the saturated ones replaced by their expected value, the pixels to
+    fit, and how many phase cells were left out.
+
+    In each of ``n_bins`` phase cells holding saturated pixels the noise is taken as normal:
+    where under half of the cell is saturated, its median ``m`` and the spread of its lower
+    half ``s`` are unaffected, and a saturated pixel stands for the normal's mean above the top
+    code ``T``: ``m + s phi(a) / (1 - Phi(a))``, ``a = (T - m) / s`` (the cell's mean is then
+    unbiased). Cells at least half saturated are left out.
+    """
+    cell = (w * n_bins).astype(np.intp) % n_bins
+    flat_cell, flat_clip = cell.ravel(), clipped.ravel()
+    n_cell = np.bincount(flat_cell, minlength=n_bins)
+    n_clip = np.bincount(flat_cell[flat_clip], minlength=n_bins)
+    bad = 2 * n_clip >= np.maximum(n_cell, 1)
+    out = img.ravel().copy()
+    for c in np.flatnonzero((n_clip > 0) & ~bad):
+        members = flat_cell == c
+        x = out[members]
+        m, q16 = (float(v) for v in np.percentile(x, [50.0, 15.87]))
+        s = max(m - q16, 1e-9)
+        a = (top - m) / s
+        upper = max(0.5 * math.erfc(a / math.sqrt(2.0)), 1e-12)  # 1 - Phi(a)
+        tail = math.exp(-0.5 * a * a) / math.sqrt(2.0 * math.pi) / upper
+        x[x >= top] = m + s * tail
+        out[members] = x
+    keep = ~bad[flat_cell]
+    return out.reshape(img.shape), keep.reshape(img.shape), int(bad.sum())
 
 
 def _scaled_pinv(jtj: FloatArray) -> FloatArray:
