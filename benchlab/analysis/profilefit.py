@@ -75,79 +75,112 @@ PRIORS_RULE_PIXELS = 100
 MODEL_REL_SD_FAST = 0.06
 #: Angle disagreement (deg) with a given axis orientation tolerated before a warning.
 ANGLE_TOLERANCE_DEG = 2.0
+#: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
+_SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
-
-
-@lru_cache(maxsize=64)
-def _grid_trig(n_harm: int) -> tuple[FloatArray, FloatArray]:
-    """cos and sin of ``2 pi k w`` on the phase grid (read-only, cached per harmonic count)."""
-    arg = (2.0 * math.pi) * np.outer(_GRID, np.arange(1, n_harm + 1, dtype=np.float64))
-    c, s = np.cos(arg), np.sin(arg)
-    c.setflags(write=False)
-    s.setflags(write=False)
-    return c, s
+_TWO_PI = 2.0 * math.pi
 
 FloatArray = npt.NDArray[np.float64]
 
 
+def _phasors(w: FloatArray, k: FloatArray) -> FloatArray:
+    """``[cos | sin](2 pi k w)`` (n, 2 n_harm): the real and imaginary parts of the phasors
+    side by side, so that every product is a real one (a complex matrix-vector product wakes
+    OpenBLAS's threads: milliseconds)."""
+    arg = (2.0 * math.pi) * np.outer(w, k)
+    return np.concatenate([np.cos(arg), np.sin(arg)], axis=1)
+
+
+@lru_cache(maxsize=64)
+def _grid_phasors(n_harm: int) -> FloatArray:
+    """:func:`_phasors` on the phase grid (read-only, cached per harmonic count)."""
+    e = _phasors(_GRID, np.arange(1, n_harm + 1, dtype=np.float64))
+    e.setflags(write=False)
+    return e
+
+
 class _Model:
-    """The blurred square wave on fixed phase samples, with its derivatives."""
+    """The blurred square wave on fixed phase samples, with its derivatives.
+
+    Harmonic ``k`` of the bright fraction is ``alpha_k cos(2 pi k (w - delta))`` with
+    ``alpha_k = 2 sin(pi k duty) / (pi k) * gain_k(sigma)``: with the phasors
+    ``E = exp(2 pi i k w)`` fixed, the value and its three derivatives are the real part of
+    ``E @ Z``, one small real product (few numpy calls: the fit evaluates it many times).
+    """
 
     def __init__(
         self, w: FloatArray, freq: float, theta: float, n_harm: int,
         w_var: FloatArray | None = None,
     ) -> None:
         self.k = np.arange(1, n_harm + 1, dtype=np.float64)
-        arg = (2.0 * math.pi) * np.outer(w, self.k)
-        self.c, self.s = np.cos(arg), np.sin(arg)
+        e = _phasors(w, self.k)
         if w_var is not None:
             # A bin averages the profile over its pixels' spread of phases (variance w_var):
             # each harmonic is damped like a Gaussian average of that variance.
             damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
-            self.c *= damp
-            self.s *= damp
+            e *= np.concatenate([damp, damp], axis=1)
+        self.e: FloatArray = e
         self.fk = freq * self.k
         a, b = barmodel.footprint_sides(theta)
         self.footprint = np.sinc(self.fk * a) * np.sinc(self.fk * b)
+        self._blur = -2.0 * math.pi**2 * self.fk**2  # log gain per sigma^2
+        self._two_over_pik = 2.0 / (math.pi * self.k)
+        self._dphase = -2j * math.pi * self.k
 
     def at(self, w: FloatArray | None) -> _Model:
         """The same model on other phase samples (``None``: the cached phase grid)."""
         other = _Model.__new__(_Model)
-        other.k, other.fk, other.footprint = self.k, self.fk, self.footprint
+        other.__dict__.update(self.__dict__)
         if w is None:
-            other.c, other.s = _grid_trig(self.k.size)
+            other.e = _grid_phasors(self.k.size)
         else:
-            arg = (2.0 * math.pi) * np.outer(w, self.k)
-            other.c, other.s = np.cos(arg), np.sin(arg)
+            other.e = _phasors(w, self.k)
         return other
 
+    def coefficients(self, delta: float, duty: float, var: float) -> FloatArray:
+        """``[Re Z | -Im Z]`` (4, 2 n_harm) for value, d/d(delta), d/d(duty), d/d(var)
+        (without the duty's own constant and unit derivative); ``var`` is the PSF's
+        variance (px^2): the gains are log-linear in it, and its derivative does not vanish
+        at zero blur as the sigma's does (Levenberg-Marquardt then stalls on the bound)."""
+        gain = np.exp(self._blur * var) * self.footprint
+        pk = math.pi * duty * self.k
+        rot = np.exp((-2j * math.pi * delta) * self.k) * gain
+        z = np.empty((4, self.k.size), dtype=np.complex128)
+        z[0] = rot * (self._two_over_pik * np.sin(pk))
+        z[1] = z[0] * self._dphase
+        z[2] = rot * (2.0 * np.cos(pk))
+        z[3] = z[0] * self._blur
+        return np.concatenate([z.real, -z.imag], axis=1)
+
     def eval(
-        self, delta: float, duty: float, sigma: float, derivatives: bool = True
+        self, delta: float, duty: float, var: float, derivatives: bool = True
     ) -> tuple[FloatArray, FloatArray | None]:
-        """Bright fraction at the samples and its derivatives (n, 3) in (delta, duty, sigma)."""
-        k = self.k
-        gain = np.exp(-2.0 * (math.pi * sigma) ** 2 * self.fk**2) * self.footprint
-        alpha = (2.0 / math.pi) * np.sin(math.pi * duty * k) / k * gain
-        cd, sd = np.cos((2 * math.pi * delta) * k), np.sin((2 * math.pi * delta) * k)
-        cos_part = self.c * cd
-        cos_part += self.s * sd  # cos(2 pi k (w - delta))
-        value = duty + cos_part @ alpha
+        """Bright fraction at the samples and its derivatives (n, 3) in (delta, duty, var)."""
+        z = self.coefficients(delta, duty, var)
         if not derivatives:
+            value: FloatArray = self.e @ z[0] + duty
             return value, None
-        out = np.empty((value.size, 3))
-        sin_part = self.s * cd
-        sin_part -= self.c * sd  # sin(2 pi k (w - delta)): d/d(delta) of cos_part / (2 pi k)
-        out[:, 0] = sin_part @ (alpha * (2.0 * math.pi) * k)
-        out[:, 1] = 1.0 + cos_part @ (2.0 * np.cos(math.pi * duty * k) * gain)
-        out[:, 2] = cos_part @ (alpha * (-4.0 * math.pi**2 * sigma) * self.fk**2)
-        return value, out
+        out = self.e @ z.T
+        out[:, 0] += duty
+        out[:, 2] += 1.0
+        return out[:, 0], out[:, 1:]
+
+    def eval_many(self, duty: float, variances: FloatArray) -> FloatArray:
+        """Bright fraction (n, len(variances)) at ``delta = 0`` for several blurs at once."""
+        gains = np.exp(np.outer(self._blur, variances)) * self.footprint[:, None]
+        alpha = (self._two_over_pik * np.sin(math.pi * duty * self.k))[:, None] * gains
+        out: FloatArray = self.e[:, : self.k.size] @ alpha + duty
+        return out
 
 
 class _Fit:
     """Levenberg-Marquardt fit of levels, shading, phase, duty and blur to the binned profile.
 
-    Parameters: ``[D, B - D, (shading along: v, s v), (across: u, s u), delta, duty, sigma]``.
+    Parameters: ``[D, B - D, (shading along: v, s v), (across: u, s u), delta, duty, var]``
+    (``var``: the PSF's variance, px^2). The linear ones are solved exactly at each
+    ``(delta, duty, var)`` (variable projection),
+    with fixed-size arrays allocated once.
     """
 
     def __init__(
@@ -155,16 +188,40 @@ class _Fit:
         vb: FloatArray, n_lin: int, prior_scale: float, fit_duty: bool, sigma_max: float,
     ) -> None:
         self.model, self.y, self.n_lin = model, y, n_lin
-        self.sw = np.sqrt(weight)
+        sw = np.sqrt(weight)
+        self.sw = sw
         self.extra = [vb, ub][: (n_lin - 2) // 2]
-        self.prior_scale, self.fit_duty, self.sigma_max = prior_scale, fit_duty, sigma_max
+        self.prior_scale, self.fit_duty = prior_scale, fit_duty
+        self.var_max = sigma_max * sigma_max
         self.grid = model.at(None)
         # Ridge on the shading terms: a relative shading of SHADING_PRIOR over the half span
         # costs as much as one pixel one noise sigma off (keeps them finite when the bins'
         # positions hardly differ).
         self.ridge = prior_scale / (SHADING_PRIOR * max(float(np.abs(y).max()), 1e-9))
+        m, n_shade = y.size, n_lin - 2
+        self.m = m
+        # Weighted design (m rows) and the shading ridge's rows below it; the columns that
+        # do not depend on the model are filled once.
+        xa = np.zeros((m + n_shade, n_lin))
+        xa[:m, 0] = sw
+        for j, t in enumerate(self.extra):
+            xa[:m, 2 + 2 * j] = t * sw
+        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        self.xa = xa
+        self.ya = np.zeros(m + n_shade)
+        self.ya[:m] = y * sw
+        self.swt = [t * sw for t in self.extra]
+        self.prior_d = prior_scale / DUTY_PRIOR_SD
+
+    def _fill(self, s: FloatArray) -> FloatArray:
+        xa, m = self.xa, self.m
+        xa[:m, 1] = s * self.sw
+        for j, t in enumerate(self.swt):
+            xa[:m, 3 + 2 * j] = s * t
+        return xa
 
     def design(self, s: FloatArray) -> FloatArray:
+        """Unweighted design matrix of the linear parameters at model values ``s``."""
         x = np.empty((s.size, self.n_lin))
         x[:, 0] = 1.0
         x[:, 1] = s
@@ -173,138 +230,135 @@ class _Fit:
             x[:, 3 + 2 * j] = s * t
         return x
 
-    def residuals(self, p: FloatArray) -> tuple[FloatArray, FloatArray]:
-        n_lin, sw = self.n_lin, self.sw
-        s, ds = self.model.eval(float(p[-3]), float(p[-2]), float(p[-1]))
-        assert ds is not None
-        x = self.design(s)
-        m = s.size
-        n_shade = n_lin - 2
-        r = np.empty(m + 1 + n_shade)
-        r[:m] = sw * (self.y - x @ p[:n_lin])
-        r[m] = self.prior_scale * (p[-2] - 0.5) / DUTY_PRIOR_SD
-        r[m + 1 :] = self.ridge * p[2:n_lin]
-        slope = p[1] + sum(p[3 + 2 * j] * t for j, t in enumerate(self.extra))
-        jac = np.zeros((r.size, p.size))
-        jac[:m, :n_lin] = -sw[:, None] * x
-        jac[:m, n_lin:] = -(sw * slope)[:, None] * ds
-        jac[m, -2] = self.prior_scale / DUTY_PRIOR_SD
-        for j in range(n_shade):
-            jac[m + 1 + j, 2 + j] = self.ridge
-        if not self.fit_duty:
-            jac[:, -2] = 0.0
-        return r, jac
-
     def start(self, sigmas: tuple[float, ...]) -> FloatArray:
-        """Starting parameters: the blur (of ``sigmas``) whose linear least-squares fit at
-        duty 0.5 leaves the smallest residual (the blur is the poorly conditioned one)."""
-        best, best_cost = None, math.inf
-        sw, ysw = self.sw[:, None], self.y * self.sw
-        n_shade = self.n_lin - 2
-        ridge = np.zeros((n_shade, self.n_lin))
-        ridge[:, 2:] = self.ridge * np.eye(n_shade)
-        ysw = np.concatenate([ysw, np.zeros(n_shade)])
-        for sigma in sigmas:
-            nl = np.array([0.0, 0.5, sigma])
-            s, _ = self.model.eval(0.0, 0.5, sigma, derivatives=False)
-            x = np.vstack([self.design(s) * sw, ridge])
-            lin = np.linalg.lstsq(x, ysw, rcond=None)[0]
-            r = ysw - x @ lin
-            cost = float(r @ r)
-            if cost < best_cost:
-                best, best_cost = np.concatenate([lin, nl]), cost
-        assert best is not None
-        return best
+        """Starting ``(delta, duty, var)``: the blur (of ``sigmas``) whose linear fit of
+        levels at duty 0.5 leaves the smallest residual (the blur is the poorly conditioned
+        one), all candidates in one pass (weighted regression on the model, in closed form)."""
+        sig = np.asarray(sigmas, dtype=np.float64)
+        s = self.model.eval_many(0.5, sig * sig)  # (m, n_sigma)
+        w = self.sw * self.sw
+        sw_tot = float(w.sum())
+        ybar = float(w @ self.y) / sw_tot
+        sbar = (w @ s) / sw_tot
+        ds = s - sbar
+        sxx = w @ (ds * ds)
+        sxy = (w * (self.y - ybar)) @ ds
+        slope = np.where(sxx > 0, sxy / np.maximum(sxx, 1e-300), 0.0)
+        resid = float(w @ (self.y - ybar) ** 2) - slope * sxy
+        best = int(np.argmin(resid))
+        return np.array([0.0, 0.5, float(sig[best]) ** 2])
 
-    def _projected(self, nl: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, float]:
+    def _projected(
+        self, nl: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray]:
         """Variable projection: the linear parameters solved exactly at the nonlinear ones
-        ``nl = (delta, duty, sigma)``; the residual and its Jacobian in ``nl`` with the linear
-        parameters' column space projected out (Kaufman), and the cost."""
-        n_lin, sw = self.n_lin, self.sw
+        ``nl = (delta, duty, var)``; the residual and its Jacobian in ``nl`` with the linear
+        parameters' column space projected out (Kaufman), the cost, and the model and its
+        derivatives at the bins."""
+        m, n_lin = self.m, self.n_lin
         s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
         assert ds is not None
-        m, n_shade = s.size, n_lin - 2
-        xa = np.zeros((m + n_shade, n_lin))
-        xa[:m] = self.design(s) * sw[:, None]
-        xa[m:, 2:] = self.ridge * np.eye(n_shade)
-        ya = np.zeros(m + n_shade)
-        ya[:m] = self.y * sw
+        xa = self._fill(s)
         gram = xa.T @ xa
         gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
         try:
-            lin = np.linalg.solve(gram, xa.T @ ya)
+            g_inv = np.linalg.inv(gram)
         except np.linalg.LinAlgError:
-            lin = np.linalg.lstsq(xa, ya, rcond=None)[0]
-        r = ya - xa @ lin
-        slope = lin[1] + sum(lin[3 + 2 * j] * t for j, t in enumerate(self.extra))
-        jac = np.zeros((m + n_shade, 3))
-        jac[:m] = -(sw * slope)[:, None] * ds
-        try:
-            jac -= xa @ np.linalg.solve(gram, xa.T @ jac)
-        except np.linalg.LinAlgError:
-            jac -= xa @ np.linalg.lstsq(xa, jac, rcond=None)[0]
-        prior_r = self.prior_scale * (nl[1] - 0.5) / DUTY_PRIOR_SD
-        r = np.append(r, prior_r)
-        jac = np.vstack([jac, [0.0, self.prior_scale / DUTY_PRIOR_SD, 0.0]])
+            g_inv = np.linalg.pinv(gram)
+        lin = g_inv @ (xa.T @ self.ya)
+        n_rows = xa.shape[0]
+        r = np.empty(n_rows + 1)
+        r[:n_rows] = self.ya - xa @ lin
+        slope = self.sw * lin[1]
+        for j, t in enumerate(self.swt):
+            slope = slope + lin[3 + 2 * j] * t
+        jac = np.zeros((n_rows + 1, 3))
+        jac[:m] = -slope[:, None] * ds
+        jac[:n_rows] -= xa @ (g_inv @ (xa.T @ jac[:n_rows]))
+        r[n_rows] = self.prior_d * (nl[1] - 0.5)
+        jac[n_rows, 1] = self.prior_d
         if not self.fit_duty:
             jac[:, 1] = 0.0
-        return np.concatenate([lin, nl]), r, jac, float(r @ r)
+        params = np.concatenate([lin, nl])
+        return params, r, jac, float(r @ r), s, ds
 
     def run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
         """Fitted parameters and ``J^T J`` of all of them (for the covariance)."""
-        params = self.start(sigmas)
-        nl = params[-3:].copy()
-        params, r, jac, cost = self._projected(nl)
-        lam = 1e-2
-        tiny = np.array([1e-5, 1e-5, 1e-5 * self.sigma_max])
+        nl = self.start(sigmas)
+        params, r, jac, cost, s, ds = self._projected(nl)
+        lam = 1e-3
+        # Converged when the next step is predicted to lower the cost by less than a
+        # hundredth of the noise variance: a move of a tenth of a standard error at most.
+        enough = 1e-2 * cost / max(self.m - 3, 1)
+        tiny = np.array([1e-5, 1e-5, 1e-5 * self.var_max])
+        lo = np.array([-0.5, DUTY_BOUNDS[0], 0.0])
+        hi = np.array([0.5, DUTY_BOUNDS[1], self.var_max])
+        if not self.fit_duty:
+            lo[1] = hi[1] = 0.5
         for _ in range(max_iter):
             jtj = jac.T @ jac
+            grad = jac.T @ r
             scale = np.diag(jtj).copy()
             scale[scale <= 0] = 1.0
+            jtj.flat[::4] += lam * scale
             try:
-                step = np.linalg.solve(jtj + lam * np.diag(scale), -(jac.T @ r))
+                step = -np.linalg.solve(jtj, grad)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if np.all(np.abs(step) < tiny):
+            if np.all(np.abs(step) < tiny) or -float(grad @ step) < enough:
                 break
-            trial = nl + step
-            trial[0] = min(max(trial[0], -0.5), 0.5)
-            trial[1] = min(max(trial[1], DUTY_BOUNDS[0]), DUTY_BOUNDS[1])
-            if not self.fit_duty:
-                trial[1] = 0.5
-            trial[2] = min(max(trial[2], 0.0), self.sigma_max)
-            p_t, r_t, jac_t, cost_t = self._projected(trial)
-            if cost_t < cost:
-                rel = (cost - cost_t) / max(cost, 1e-300)
-                nl, params, r, jac, cost = trial, p_t, r_t, jac_t, cost_t
+            trial = np.minimum(np.maximum(nl + step, lo), hi)
+            got = self._projected(trial)
+            if got[3] < cost:
+                rel = (cost - got[3]) / max(cost, 1e-300)
+                nl = trial
+                params, r, jac, cost, s, ds = got
                 lam = max(lam / 10, 1e-9)
+                enough = 1e-2 * cost / max(self.m - 3, 1)
                 if rel < 1e-6:
                     break
             else:
                 lam *= 10
-        _, jac_full = self.residuals(params)
-        jtj = jac_full.T @ jac_full
+        return params, self._full_jtj(params, s, ds)
+
+    def _full_jtj(self, p: FloatArray, s: FloatArray, ds: FloatArray) -> FloatArray:
+        """``J^T J`` of every parameter (linear ones included) at the solution."""
+        n_lin, m = self.n_lin, self.m
+        n_shade = n_lin - 2
+        x = self.design(s)
+        slope = p[1] + sum(p[3 + 2 * j] * t for j, t in enumerate(self.extra))
+        jac = np.zeros((m + 1 + n_shade, p.size))
+        jac[:m, :n_lin] = -self.sw[:, None] * x
+        jac[:m, n_lin:] = -(self.sw * slope)[:, None] * ds
+        jac[m, -2] = self.prior_d
+        for j in range(n_shade):
+            jac[m + 1 + j, 2 + j] = self.ridge
+        if not self.fit_duty:
+            jac[:, -2] = 0.0
+        jtj: FloatArray = jac.T @ jac
         if not self.fit_duty:  # the duty is fixed: no variance
             jtj[:, -2] = 0.0
             jtj[-2, :] = 0.0
             jtj[-2, -2] = 1e30 * (float(np.abs(jtj).max()) + 1.0)
-        return params, jtj
+        return jtj
 
-    def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray]:
-        """Dark and bright levels at the ROI centre (min and max over phase) and their
-        gradients in the parameters (envelope theorem: at the extremes' fixed phases)."""
-        s, _ = self.grid.eval(float(p[-3]), float(p[-2]), float(p[-1]), derivatives=False)
+    def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray, FloatArray]:
+        """Dark and bright levels at the ROI centre (min and max over phase), their gradients
+        in the parameters (envelope theorem: at the extremes' fixed phases), and the model on
+        the phase grid."""
+        delta, duty, var = float(p[-3]), float(p[-2]), float(p[-1])
+        s, _ = self.grid.eval(delta, duty, var, derivatives=False)
         level = p[0] + p[1] * s
         i_lo, i_hi = int(np.argmin(level)), int(np.argmax(level))
         ext = self.model.at(_GRID[[i_lo, i_hi]])
-        s2, ds2 = ext.eval(float(p[-3]), float(p[-2]), float(p[-1]))
+        s2, ds2 = ext.eval(delta, duty, var)
         assert ds2 is not None
         grads = np.zeros((2, p.size))
         grads[:, 0] = 1.0
         grads[:, 1] = s2
         grads[:, -3:] = p[1] * ds2
-        return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1]
+        return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1], s
 
 
 def _model_sd(
@@ -423,13 +477,11 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
         fit_duty=fit_duty, sigma_max=period,
     )
-    starts = tuple(t * period for t in (0.0, 0.04, 0.1, 0.2, 0.35))
+    starts = tuple(t * period for t in _SIGMA_STARTS)
     params, jtj = fitter.run(starts, max_iter=4 if fast else 12)
 
     # Per-pixel residuals: the noise, whatever the bar angle.
-    grid_s, _ = fitter.grid.eval(
-        float(params[-3]), float(params[-2]), float(params[-1]), derivatives=False
-    )
+    dark, bright, g_dark, g_bright, grid_s = fitter.levels(params)
     s_pix = grid_s[(w_fit.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
     lin = params[:n_lin]
     pred = lin[0] + lin[1] * s_pix
@@ -445,13 +497,12 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if prep.noise_given:
         noise = prep.noise_sigma
 
-    dark, bright, g_dark, g_bright = fitter.levels(params)
     cov = noise**2 * _scaled_pinv(jtj)
     total = bright + dark
     grad_m = (2.0 * dark * g_bright - 2.0 * bright * g_dark) / total**2 if total > 0 else g_dark * 0
     mean_level = params[0] + params[1] * params[-2]
     a1 = abs(params[1]) * 2.0 * math.sin(math.pi * params[-2]) / math.pi * float(
-        math.exp(-2.0 * (math.pi * params[-1] * f) ** 2) * model.footprint[0]
+        math.exp(-2.0 * math.pi**2 * float(params[-1]) * f * f) * model.footprint[0]
     )
     # Significance of the fundamental against the noise of n pixels: the fitted one, and the
     # one of the ROI with its mean and plane removed (a shading ramp is not bars).
@@ -469,7 +520,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         period_sd_px=geom.freq_sd / f**2,
         phase_cycles=float(geom.phase_cycles + params[-3]),
         duty=float(params[-2]),
-        blur_sigma_px=float(params[-1]),
+        blur_sigma_px=math.sqrt(max(float(params[-1]), 0.0)),
         separation_sigma=min(z, 1e9),
     )
     if not z >= RESOLVED_Z:
