@@ -26,7 +26,7 @@ harmonics and iterates less; the benchmark states its accuracy cost.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -75,6 +75,15 @@ PRIORS_RULE_PIXELS = 100
 MODEL_REL_SD_FAST = 0.06
 #: Angle disagreement (deg) with a given axis orientation tolerated before a warning.
 ANGLE_TOLERANCE_DEG = 2.0
+#: Spectral geometry spanning at least this many periods is fitted (the refined one must
+#: span one).
+MIN_PERIODS_TRIED = 0.75
+#: Rounds of Gauss-Newton on the direction and frequency from the per-pixel residuals, and
+#: when one is applied: significant (chi-square of the step over the noise) and moving the
+#: bar phase by at least this many cycles at the ROI's edges.
+REFINE_ROUNDS = 2
+REFINE_CHI2 = 9.0
+REFINE_MIN_CYCLES = 0.01
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
@@ -413,85 +422,46 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             fixed_f = bool(f_prior) and span * f_prior < 2.0
             geom = refine_by_folding(img, geom, fix_freq=fixed_f)
             f, theta = geom.freq_cycles_per_px, geom.theta_rad
-    if span * f < 1.0:
+    if span * f < MIN_PERIODS_TRIED:
         warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
         return unresolved(name, prep.diagnostics(), warnings)
 
-    phi = phase_map((rows, cols), geom)
-    w = phi - np.floor(phi)
-    half = max(span / 2.0, 1.0)
-    u = across_coordinate((rows, cols), theta) / half
-    v = across_coordinate((rows, cols), theta + math.pi / 2) / half
-    n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
-    vals, w_fit, u_fit, v_fit = img, w, u, v
+    n_warnings = len(warnings)
     clipped = _clipped_mask(prep)
-    if clipped is not None:
-        # Saturated pixels only say "at least the top code", and the unclipped pixels at the
-        # same phases are the noise's low tail: every phase cell holding a clipped pixel is
-        # left out, and the model carries the bright level over them (their gap in the
-        # sampled phases widens the interval, see _model_sd).
-        vals, keep, n_bad = _censored(img, clipped, w, n_bins, float(prep.max_code or 0.0))
-        if int(keep.sum()) < 4:
-            warnings.append("every bar phase saturated: no bar profile")
-            return unresolved(name, prep.diagnostics(), warnings)
-        vals, w_fit, u_fit, v_fit = vals[keep], w[keep], u[keep], v[keep]
-        n = int(vals.size)
-        warnings.append(
-            f"saturated pixels taken as censored ({n_bad} of {n_bins} bar phases mostly "
-            "saturated, fitted without them): the bright level is the model's"
-        )
-        n_bins = int(min(n_bins, max(8, n // 6)))
-    width = 1.0 / n_bins
-    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
-        w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
-    )
-    filled = prof.filled
-    # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
-    # bar angle (neighbour differences along an image axis do).
-    sq = sq_prof.mean[filled]
-    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
-    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
-    if prep.noise_given or scale_noise <= 0:
-        scale_noise = prep.noise_sigma
-    y = prof.mean[filled]
-    count = prof.count[filled].astype(np.float64)
-    wb = w_prof.mean[filled]
-    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
-    ub = u_prof.mean[filled]
-    vb = v_prof.mean[filled]
-    n_f = int(y.size)
-    if n_f < 3:
-        warnings.append(f"only {n_f} distinct bar phases sampled: cannot fit the profile")
+    fit = _fit_at(prep, geom, fast, clipped)
+    fit_geom0 = geom
+    if isinstance(fit, str):
+        warnings.append(fit)
         return unresolved(name, prep.diagnostics(), warnings)
-    n_lin = 2
-    # Shading along the bars only where the bins' mean along-bar positions differ (not on
-    # axis-aligned bars, where every bin holds whole lines).
-    if n_f >= MIN_BINS_SHADING and float(vb.std()) > 0.15:
-        across = span * f >= MIN_PERIODS_ACROSS_SHADING and float(ub.std()) > 0.15
-        n_lin = 6 if across else 4
-    fit_duty = not fast and n_f >= 6
-    n_harm = int(min(MAX_HARMONICS_FAST if fast else MAX_HARMONICS, max(1, math.ceil(3.0 / f))))
-    model = _Model(wb, f, theta, n_harm, w_var)
-    period = 1.0 / f
-    fitter = _Fit(
-        model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
-        fit_duty=fit_duty, sigma_max=period,
-    )
-    starts = tuple(t * period for t in _SIGMA_STARTS)
-    params, jtj = fitter.run(starts, max_iter=4 if fast else 12)
-
-    # Per-pixel residuals: the noise, whatever the bar angle.
+    if not fast:
+        fix_theta = prep.orientation_given and abs(math.sin(2 * theta)) < 1e-12
+        fix_freq = bool(f_prior) and span * f_prior < 2.0
+        for _ in range(REFINE_ROUNDS):
+            better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
+            if better is None:
+                break
+            fit = better
+    geom, params, jtj, fitter, n_lin = fit.geom, fit.params, fit.jtj, fit.fitter, fit.n_lin
+    f, theta, n, n_f, wb = geom.freq_cycles_per_px, geom.theta_rad, fit.n, fit.n_f, fit.wb
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    if span * f < 1.0:
+        warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
+        return unresolved(name, prep.diagnostics(), warnings)
+    if f_prior and geom is not fit_geom0 and len(warnings) > n_warnings - 1 >= 0 and (
+        "disagrees with the given frequency" in warnings[n_warnings - 1]
+    ) and frequency_disagreement(geom, f_prior) is None:
+        del warnings[n_warnings - 1]  # the refined period agrees after all
+    model, fit_duty, period = fitter.model, fitter.fit_duty, 1.0 / geom.freq_cycles_per_px
+    if fit.n_bad >= 0:
+        warnings.append(
+            f"saturated pixels taken as censored ({fit.n_bad} of {fit.n_bins} bar phases "
+            "mostly saturated, fitted without them): the bright level is the model's"
+        )
     dark, bright, g_dark, g_bright, grid_s = fitter.levels(params)
-    s_pix = grid_s[(w_fit.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
-    lin = params[:n_lin]
-    pred = lin[0] + lin[1] * s_pix
-    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
-        pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
-    resid = vals.ravel() - pred
     # Levels, shading, phase, blur (and duty), and the direction and frequency found.
     n_params = n_lin + 2 + (2 if fit_duty else 1)
     dof = max(n - n_params, 1)
-    noise = math.sqrt(float((resid * resid).sum()) / dof)
+    noise = math.sqrt(fit.resid_ss / dof)
     if prep.integer_valued:
         noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     if prep.noise_given:
@@ -547,6 +517,185 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+@dataclass
+class _Fitted:
+    """The profile fitted at one bar geometry, with what the refinement and the reading
+    need (pixels kept for the fit, their coordinates and residuals)."""
+
+    geom: BarGeometry
+    fitter: _Fit
+    params: FloatArray
+    jtj: FloatArray
+    n_lin: int
+    n: int  # pixels fitted
+    n_f: int  # filled phase bins
+    n_bins: int
+    n_bad: int  # phase cells left out as saturated (-1: nothing saturated)
+    wb: FloatArray  # bins' mean phases
+    keep: npt.NDArray[np.bool_] | None  # pixels fitted (None: all)
+    s_pix: FloatArray  # model bright fraction at each fitted pixel
+    slope_pix: FloatArray  # d(value)/d(bright fraction) at each fitted pixel
+    resid: FloatArray  # per-pixel residuals
+    resid_ss: float
+
+
+def _fit_at(
+    prep: PreparedROI, geom: BarGeometry, fast: bool, clipped: npt.NDArray[np.bool_] | None
+) -> _Fitted | str:
+    """Bin the ROI on the bar phase of ``geom`` and fit the model (a reason when it cannot)."""
+    img = prep.pixels
+    rows, cols = img.shape
+    n = img.size
+    f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    phi = phase_map((rows, cols), geom)
+    w = phi - np.floor(phi)
+    half = max(span / 2.0, 1.0)
+    u = across_coordinate((rows, cols), theta) / half
+    v = across_coordinate((rows, cols), theta + math.pi / 2) / half
+    n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
+    vals, w_fit, u_fit, v_fit = img, w, u, v
+    keep = None
+    n_bad = -1
+    if clipped is not None:
+        # Saturated pixels only say "at least the top code", and the unclipped pixels at the
+        # same phases are the noise's low tail: see _censored. Mostly saturated phases are
+        # left out and the model carries the bright level over them (their gap in the
+        # sampled phases widens the interval, see _model_sd).
+        vals, keep, n_bad = _censored(img, clipped, w, n_bins, float(prep.max_code or 0.0))
+        if int(keep.sum()) < 4:
+            return "every bar phase saturated: no bar profile"
+        vals, w_fit, u_fit, v_fit = vals[keep], w[keep], u[keep], v[keep]
+        n = int(vals.size)
+        n_bins = int(min(n_bins, max(8, n // 6)))
+    width = 1.0 / n_bins
+    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
+        w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
+    )
+    filled = prof.filled
+    # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
+    # bar angle (neighbour differences along an image axis do).
+    sq = sq_prof.mean[filled]
+    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
+    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
+    if prep.noise_given or scale_noise <= 0:
+        scale_noise = prep.noise_sigma
+    y = prof.mean[filled]
+    count = prof.count[filled].astype(np.float64)
+    wb = w_prof.mean[filled]
+    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
+    ub = u_prof.mean[filled]
+    vb = v_prof.mean[filled]
+    n_f = int(y.size)
+    if n_f < 3:
+        return f"only {n_f} distinct bar phases sampled: cannot fit the profile"
+    n_lin = 2
+    # Shading along the bars only where the bins' mean along-bar positions differ (not on
+    # axis-aligned bars, where every bin holds whole lines).
+    if n_f >= MIN_BINS_SHADING and float(vb.std()) > 0.15:
+        across = span * f >= MIN_PERIODS_ACROSS_SHADING and float(ub.std()) > 0.15
+        n_lin = 6 if across else 4
+    fit_duty = not fast and n_f >= 6
+    n_harm = int(min(MAX_HARMONICS_FAST if fast else MAX_HARMONICS, max(1, math.ceil(3.0 / f))))
+    model = _Model(wb, f, theta, n_harm, w_var)
+    period = 1.0 / f
+    fitter = _Fit(
+        model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
+        fit_duty=fit_duty, sigma_max=period,
+    )
+    starts = tuple(t * period for t in _SIGMA_STARTS)
+    params, jtj = fitter.run(starts, max_iter=4 if fast else 12)
+    # Per-pixel residuals: the noise, whatever the bar angle.
+    grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
+                              derivatives=False)[0]
+    s_pix = grid_s[(w_fit.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    lin = params[:n_lin]
+    slope = np.full(s_pix.shape, float(lin[1]))
+    pred = lin[0] + lin[1] * s_pix
+    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
+        pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
+        slope += lin[3 + 2 * j] * t
+    resid = vals.ravel() - pred
+    return _Fitted(
+        geom=geom, fitter=fitter, params=params, jtj=jtj, n_lin=n_lin, n=n, n_f=n_f,
+        n_bins=n_bins, n_bad=n_bad, wb=wb, keep=None if keep is None else keep.ravel(),
+        s_pix=s_pix, slope_pix=slope, resid=resid, resid_ss=float((resid * resid).sum()),
+    )
+
+
+def _refined(
+    prep: PreparedROI, fit: _Fitted, fast: bool, clipped: npt.NDArray[np.bool_] | None,
+    fix_theta: bool, fix_freq: bool,
+) -> _Fitted | None:
+    """The fit at a corrected direction and frequency, or ``None`` when no correction is
+    significant or the corrected one fits worse.
+
+    The per-pixel residuals are regressed on the model's response to a rotation, a change of
+    frequency and a phase shift (Gauss-Newton on the geometry the spectrum measured): on few
+    periods or long bars the spectral peak is pulled by its side lobes, and an angle off by
+    a degree moves the bar phase by a tenth of a cycle at the ends of a 100 px ROI.
+    """
+    geom = fit.geom
+    f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    rows, cols = prep.pixels.shape
+    # Slope of the model's bright fraction in phase, at each fitted pixel (from the grid).
+    delta, duty, var = (float(x) for x in fit.params[-3:])
+    grid_s = fit.fitter.grid.eval(delta, duty, var, derivatives=False)[0]
+    ds_grid = (np.roll(grid_s, -1) - np.roll(grid_s, 1)) * (0.5 * _GRID_N)
+    phi = phase_map((rows, cols), geom).ravel()
+    u_px = across_coordinate((rows, cols), theta).ravel()
+    v_px = across_coordinate((rows, cols), theta + math.pi / 2).ravel()
+    if fit.keep is not None:
+        phi, u_px, v_px = phi[fit.keep], u_px[fit.keep], v_px[fit.keep]
+    w = phi - np.floor(phi)
+    g = fit.slope_pix * ds_grid[(w * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    cols_ = [g]  # phase shift
+    names = ["phase"]
+    if not fix_theta:
+        cols_.append(g * (f * v_px))
+        names.append("theta")
+    if not fix_freq:
+        cols_.append(g * u_px)
+        names.append("freq")
+    if len(cols_) == 1:
+        return None
+    k = len(cols_)
+    normal = np.empty((k, k))
+    rhs = np.empty(k)
+    for i in range(k):
+        rhs[i] = float((cols_[i] * fit.resid).sum())
+        for j in range(i, k):
+            normal[i, j] = normal[j, i] = float((cols_[i] * cols_[j]).sum())
+    try:
+        step = np.linalg.solve(normal, rhs)
+    except np.linalg.LinAlgError:
+        return None
+    noise2 = fit.resid_ss / max(fit.n - 6, 1)
+    significance = float(step @ normal @ step) / max(noise2, 1e-300)
+    # Phase moved at the ROI's edges by the change of direction and frequency (cycles).
+    moved = 0.0
+    for name, d in zip(names, step, strict=True):
+        if name == "theta":
+            moved += abs(d) * f * float(np.abs(v_px).max())
+        elif name == "freq":
+            moved += abs(d) * float(np.abs(u_px).max())
+    if significance < REFINE_CHI2 or moved < REFINE_MIN_CYCLES:
+        return None
+    new = geom
+    for name, d in zip(names, step, strict=True):
+        if name == "theta":
+            new = replace(new, theta_rad=new.theta_rad + float(d))
+        elif name == "freq":
+            new = replace(new, freq_cycles_per_px=max(new.freq_cycles_per_px + float(d), 1e-6))
+    new = replace(new, phase_cycles=new.phase_cycles - delta + float(step[0]))
+    other = _fit_at(prep, new, fast, clipped)
+    if isinstance(other, str) or other.resid_ss / max(other.n, 1) >= fit.resid_ss / max(
+        fit.n, 1
+    ):
+        return None
+    return other
 
 
 def _clipped_mask(prep: PreparedROI) -> npt.NDArray[np.bool_] | None:
