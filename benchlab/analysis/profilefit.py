@@ -83,7 +83,8 @@ MIN_PERIODS_TRIED = 0.75
 #: bar phase by at least this many cycles at the ROI's edges.
 REFINE_ROUNDS = 2
 REFINE_CHI2 = 9.0
-REFINE_MIN_CYCLES = 0.01
+REFINE_MIN_CYCLES = 0.03
+REFINE_MAX_PIXELS = 20_000
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
@@ -352,12 +353,13 @@ class _Fit:
             jtj[-2, -2] = 1e30 * (float(np.abs(jtj).max()) + 1.0)
         return jtj
 
-    def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray, FloatArray]:
-        """Dark and bright levels at the ROI centre (min and max over phase), their gradients
-        in the parameters (envelope theorem: at the extremes' fixed phases), and the model on
-        the phase grid."""
+    def levels(
+        self, p: FloatArray, s: FloatArray
+    ) -> tuple[float, float, FloatArray, FloatArray]:
+        """Dark and bright levels at the ROI centre (min and max over phase of the model
+        ``s`` on the phase grid) and their gradients in the parameters (envelope theorem: at
+        the extremes' fixed phases)."""
         delta, duty, var = float(p[-3]), float(p[-2]), float(p[-1])
-        s, _ = self.grid.eval(delta, duty, var, derivatives=False)
         level = p[0] + p[1] * s
         i_lo, i_hi = int(np.argmin(level)), int(np.argmax(level))
         ext = self.model.at(_GRID[[i_lo, i_hi]])
@@ -367,7 +369,7 @@ class _Fit:
         grads[:, 0] = 1.0
         grads[:, 1] = s2
         grads[:, -3:] = p[1] * ds2
-        return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1], s
+        return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1]
 
 
 def _model_sd(
@@ -457,7 +459,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f"saturated pixels taken as censored ({fit.n_bad} of {fit.n_bins} bar phases "
             "mostly saturated, fitted without them): the bright level is the model's"
         )
-    dark, bright, g_dark, g_bright, grid_s = fitter.levels(params)
+    grid_s = fit.grid_s
+    dark, bright, g_dark, g_bright = fitter.levels(params, grid_s)
     # Levels, shading, phase, blur (and duty), and the direction and frequency found.
     n_params = n_lin + 2 + (2 if fit_duty else 1)
     dof = max(n - n_params, 1)
@@ -539,6 +542,10 @@ class _Fitted:
     slope_pix: FloatArray  # d(value)/d(bright fraction) at each fitted pixel
     resid: FloatArray  # per-pixel residuals
     resid_ss: float
+    grid_s: FloatArray  # model bright fraction on the phase grid
+    at_grid: npt.NDArray[np.intp]  # each fitted pixel's place on the grid
+    u_px: FloatArray  # across- and along-bar coordinates (px) of the fitted pixels
+    v_px: FloatArray
 
 
 def _fit_at(
@@ -550,11 +557,16 @@ def _fit_at(
     n = img.size
     f, theta = geom.freq_cycles_per_px, geom.theta_rad
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
-    phi = phase_map((rows, cols), geom)
+    u_px = across_coordinate((rows, cols), theta)
+    v_px = across_coordinate((rows, cols), theta + math.pi / 2)
+    if any(geom.hessian):
+        phi = phase_map((rows, cols), geom)
+    else:  # phase_map's straight-bar case, without computing u again
+        phi = u_px * f
+        phi += geom.phase_cycles
     w = phi - np.floor(phi)
     half = max(span / 2.0, 1.0)
-    u = across_coordinate((rows, cols), theta) / half
-    v = across_coordinate((rows, cols), theta + math.pi / 2) / half
+    u, v = u_px * (1.0 / half), v_px * (1.0 / half)
     n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
     vals, w_fit, u_fit, v_fit = img, w, u, v
     keep = None
@@ -594,8 +606,8 @@ def _fit_at(
     n_lin = 2
     # Shading along the bars only where the bins' mean along-bar positions differ (not on
     # axis-aligned bars, where every bin holds whole lines).
-    if n_f >= MIN_BINS_SHADING and float(vb.std()) > 0.15:
-        across = span * f >= MIN_PERIODS_ACROSS_SHADING and float(ub.std()) > 0.15
+    if n_f >= MIN_BINS_SHADING and _spread(vb) > 0.15:
+        across = span * f >= MIN_PERIODS_ACROSS_SHADING and _spread(ub) > 0.15
         n_lin = 6 if across else 4
     fit_duty = not fast and n_f >= 6
     n_harm = int(min(MAX_HARMONICS_FAST if fast else MAX_HARMONICS, max(1, math.ceil(3.0 / f))))
@@ -610,18 +622,25 @@ def _fit_at(
     # Per-pixel residuals: the noise, whatever the bar angle.
     grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
                               derivatives=False)[0]
-    s_pix = grid_s[(w_fit.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    w_pix = w_fit.ravel()
+    at_grid = (w_pix * _GRID_N + 0.5).astype(np.intp) % _GRID_N
+    s_pix = grid_s[at_grid]
     lin = params[:n_lin]
     slope = np.full(s_pix.shape, float(lin[1]))
-    pred = lin[0] + lin[1] * s_pix
     for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
-        pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
         slope += lin[3 + 2 * j] * t
-    resid = vals.ravel() - pred
+    # value = D + shading offsets + slope * s, built in place (few full-size temporaries)
+    resid = vals.ravel() - lin[0]
+    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
+        resid -= lin[2 + 2 * j] * t
+    resid -= slope * s_pix
     return _Fitted(
         geom=geom, fitter=fitter, params=params, jtj=jtj, n_lin=n_lin, n=n, n_f=n_f,
         n_bins=n_bins, n_bad=n_bad, wb=wb, keep=None if keep is None else keep.ravel(),
         s_pix=s_pix, slope_pix=slope, resid=resid, resid_ss=float((resid * resid).sum()),
+        grid_s=grid_s, at_grid=at_grid,
+        u_px=(u_px if keep is None else u_px[keep]).ravel(),
+        v_px=(v_px if keep is None else v_px[keep]).ravel(),
     )
 
 
@@ -638,19 +657,21 @@ def _refined(
     a degree moves the bar phase by a tenth of a cycle at the ends of a 100 px ROI.
     """
     geom = fit.geom
-    f, theta = geom.freq_cycles_per_px, geom.theta_rad
-    rows, cols = prep.pixels.shape
+    f = geom.freq_cycles_per_px
+    delta = float(fit.params[-3])
     # Slope of the model's bright fraction in phase, at each fitted pixel (from the grid).
-    delta, duty, var = (float(x) for x in fit.params[-3:])
-    grid_s = fit.fitter.grid.eval(delta, duty, var, derivatives=False)[0]
-    ds_grid = (np.roll(grid_s, -1) - np.roll(grid_s, 1)) * (0.5 * _GRID_N)
-    phi = phase_map((rows, cols), geom).ravel()
-    u_px = across_coordinate((rows, cols), theta).ravel()
-    v_px = across_coordinate((rows, cols), theta + math.pi / 2).ravel()
-    if fit.keep is not None:
-        phi, u_px, v_px = phi[fit.keep], u_px[fit.keep], v_px[fit.keep]
-    w = phi - np.floor(phi)
-    g = fit.slope_pix * ds_grid[(w * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    grid_s = fit.grid_s
+    ds_grid = np.empty_like(grid_s)
+    ds_grid[1:-1] = grid_s[2:] - grid_s[:-2]
+    ds_grid[0] = grid_s[1] - grid_s[-1]
+    ds_grid[-1] = grid_s[0] - grid_s[-2]
+    ds_grid *= 0.5 * _GRID_N
+    # A Gauss-Newton step needs no more than REFINE_MAX_PIXELS pixels (evenly strided): the
+    # cost stays bounded on large ROIs, whose spectral geometry is close already.
+    stride = max(1, fit.n // REFINE_MAX_PIXELS)
+    u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
+    resid = fit.resid[::stride]
+    g = fit.slope_pix[::stride] * ds_grid[fit.at_grid[::stride]]
     cols_ = [g]  # phase shift
     names = ["phase"]
     if not fix_theta:
@@ -665,7 +686,7 @@ def _refined(
     normal = np.empty((k, k))
     rhs = np.empty(k)
     for i in range(k):
-        rhs[i] = float((cols_[i] * fit.resid).sum())
+        rhs[i] = float((cols_[i] * resid).sum())
         for j in range(i, k):
             normal[i, j] = normal[j, i] = float((cols_[i] * cols_[j]).sum())
     try:
@@ -673,7 +694,8 @@ def _refined(
     except np.linalg.LinAlgError:
         return None
     noise2 = fit.resid_ss / max(fit.n - 6, 1)
-    significance = float(step @ normal @ step) / max(noise2, 1e-300)
+    # Chi-square of the step over every pixel (the strided sums are 1/stride of theirs).
+    significance = float(step @ normal @ step) * stride / max(noise2, 1e-300)
     # Phase moved at the ROI's edges by the change of direction and frequency (cycles).
     moved = 0.0
     for name, d in zip(names, step, strict=True):
@@ -696,6 +718,12 @@ def _refined(
     ):
         return None
     return other
+
+
+def _spread(x: FloatArray) -> float:
+    """Standard deviation of ``x`` (two reductions; ``ndarray.std`` costs several calls)."""
+    m = float(x.sum()) / x.size
+    return math.sqrt(max(float((x * x).sum()) / x.size - m * m, 0.0))
 
 
 def _clipped_mask(prep: PreparedROI) -> npt.NDArray[np.bool_] | None:
