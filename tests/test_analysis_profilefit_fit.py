@@ -4,6 +4,7 @@ between a given and a measured period, and honest intervals where the fit is har
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -147,3 +148,28 @@ def test_one_period_across_with_the_spectral_direction_off() -> None:
     assert r.resolved
     assert r.modulation == pytest.approx(case.truth, abs=0.03)
     assert r.interval[0] <= case.truth <= r.interval[1]
+
+
+def test_benchmark_lists_the_worst_cases() -> None:
+    """``benchlab benchmark analysis --worst N``: the N largest errors, largest first, each
+    with the reading, interval and case parameters."""
+    from benchlab.analysis.benchmark import (
+        Row,
+        format_worst,
+        is_clipped_measurable,
+        is_measurable,
+        run_benchmark,
+    )
+
+    rows: list[Row] = []
+    cases, _ = run_benchmark(n_cases=30, seed=2, workers=1, estimators=("profilefit",),
+                             rows_out=rows)
+    assert len(rows) == 30
+    text = format_worst(cases, rows, 3).splitlines()
+    assert text[0].startswith("profilefit: 3 worst of")
+    errors = [abs(float(re.findall(r"[+-]\d+\.\d{3}", line)[0])) for line in text[1:]]
+    assert len(errors) == 3 and errors == sorted(errors, reverse=True)
+    scored = [r for r in rows if is_measurable(cases[r[0]]) or is_clipped_measurable(cases[r[0]])]
+    assert errors[0] == pytest.approx(
+        max(abs(r[2] - cases[r[0]].bar.truth) for r in scored), abs=1e-3)
+    assert "period" in text[1] and "SNR" in text[1]
