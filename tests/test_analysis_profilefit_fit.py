@@ -173,3 +173,25 @@ def test_benchmark_lists_the_worst_cases() -> None:
     assert errors[0] == pytest.approx(
         max(abs(r[2] - cases[r[0]].bar.truth) for r in scored), abs=1e-3)
     assert "period" in text[1] and "SNR" in text[1]
+
+
+def test_bootstrap_keeps_the_model_term_and_skips_oblique_bars() -> None:
+    """The bootstrap resamples lines of an image axis: it sees the noise only, so the model
+    and sampling-phase term is added; on oblique bars a resampled line lands at another bar
+    phase (the audit's 25 % coverage), so the analytic interval is kept and said so."""
+    roi, case = bar_roi(8, shape=(40, 50), px_per_period=7.3, angle_deg=0.0, **{
+        "noise_sigma": 1.5, "electrons_per_dn": 20.0})
+    r = estimate_modulation(roi, freq_cycles_per_px=1 / 7.3, orientation="horizontal",
+                            bootstrap=20, seed=1)
+    model = r.diagnostics.uncertainty_model
+    assert r.uncertainty_method == "bootstrap" and model is not None and model > 0
+    assert r.uncertainty >= model
+    assert r.interval[1] - r.interval[0] >= 2 * 1.96 * model - 1e-9
+    assert r.interval[0] <= case.truth <= r.interval[1]
+
+    roi, case = bar_roi(9, shape=(40, 50), px_per_period=7.3, angle_deg=30.0, **{
+        "noise_sigma": 1.5, "electrons_per_dn": 20.0})
+    r = estimate_modulation(roi, freq_cycles_per_px=1 / 7.3, bootstrap=20, seed=1)
+    assert r.uncertainty_method == "analytic"
+    assert any("analytic uncertainty kept" in w for w in r.warnings)
+    assert r.interval[0] <= case.truth <= r.interval[1]

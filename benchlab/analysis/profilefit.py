@@ -486,7 +486,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # one of the ROI with its mean and plane removed (a shading ramp is not bars).
     se_a1 = noise * math.sqrt(2.0 / n)
     a1_test = min(a1, geom.amplitude)
-    z = a1_test / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
+    z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
     diag = prep.diagnostics()
     diag = replace(
         diag,
