@@ -14,10 +14,9 @@ which smears the profile the estimator sees, so oblique bars keep the analytic u
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
-
-import math
 
 import numpy as np
 import numpy.typing as npt
