@@ -1,7 +1,8 @@
 """The found USAF chart drawn on its frame (``find-chart --plot`` and the MTF report).
 
-Each bar set of the fitted layout is drawn as its (rotated) square: green when found, with its
-measurement ROI in yellow and its label; red dashed when rejected. The left panel is the whole
+Each bar set of the fitted layout is drawn as its (rotated) square: green when found (orange
+when found but not measurable), with its measurement ROI in yellow and its label; red dashed
+when rejected. The left panel is the whole
 frame, the right one zooms on the chart.
 """
 
@@ -41,8 +42,9 @@ def chart_figure(pixels: npt.NDArray[Any], fit: ChartFit, title: str = "") -> Fi
         for el in fit.elements:
             pts = [(c, r) for r, c in el.posed.corners()]
             if el.found:
-                ax.add_patch(Polygon(pts, closed=True, fill=False, ec="lime", lw=0.8))
-                r0, c0, r1, c1 = el.roi
+                ax.add_patch(Polygon(pts, closed=True, fill=False, lw=0.8,
+                                     ec="orange" if el.unmeasurable else "lime"))
+                r0, c0, r1, c1 = el.measurement_roi
                 ax.add_patch(Rectangle((c0 - 0.5, r0 - 0.5), c1 - c0, r1 - r0, fill=False,
                                        ec="yellow", lw=0.6))
             else:
@@ -118,9 +120,10 @@ def chart_html(pixels: npt.NDArray[Any], fit: ChartFit) -> str:
             pts = " ".join(f"{(c - c0) * scale:.1f},{(r - r0) * scale:.1f}"
                            for r, c in el.posed.corners())
             if el.found:
-                out.append(f"<polygon points='{pts}' fill='none' stroke='lime' "
+                colour = "orange" if el.unmeasurable else "lime"
+                out.append(f"<polygon points='{pts}' fill='none' stroke='{colour}' "
                            "stroke-width='1'/>")
-                rr0, cc0, rr1, cc1 = el.roi
+                rr0, cc0, rr1, cc1 = el.measurement_roi
                 out.append(f"<rect x='{(cc0 - c0) * scale:.1f}' y='{(rr0 - r0) * scale:.1f}' "
                            f"width='{(cc1 - cc0) * scale:.1f}' "
                            f"height='{(rr1 - rr0) * scale:.1f}' fill='none' stroke='yellow' "
@@ -148,5 +151,6 @@ def chart_html(pixels: npt.NDArray[Any], fit: ChartFit) -> str:
         zoom = enlarge(grey[r0:r1, c0:c1], z)
         parts.append(annotated_image(png_data_uri(zoom), zoom.shape[1], zoom.shape[0],
                                      shapes(z, r0, c0, True), "zoom on the chart"))
-    return ("".join(parts) + "<p class='note'>Found sets green with their ROIs yellow, "
-            "rejected sets red (dashed); the zoom shows every pixel.</p>")
+    return ("".join(parts) + "<p class='note'>Found sets green with their measurement ROIs "
+            "yellow (orange: found but not measurable), rejected sets red (dashed); the zoom "
+            "shows every pixel.</p>")

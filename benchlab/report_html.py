@@ -1,8 +1,8 @@
 """Small, fast building blocks of the HTML report: escaped text, embedded images, inline SVG.
 
 Frames and crops are encoded with OpenCV (milliseconds) and annotated with inline SVG, whose text
-stays readable at any zoom; matplotlib is kept for the few real plots. Nothing is fetched from
-outside the page.
+stays readable at any zoom; matplotlib is kept for the few real plots, written as SVG. Nothing
+is fetched from outside the page.
 """
 
 from __future__ import annotations
@@ -71,13 +71,19 @@ def enlarge(image_u8: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint
 
 
 def figure_img(fig: Any, alt: str) -> str:
-    """A matplotlib figure as an embedded PNG ``<img>`` (fixed size: no tight-bbox pass)."""
+    """A matplotlib figure as an embedded SVG ``<img>``.
+
+    SVG rather than PNG: no rasterisation pass (about a fifth of the report's time), and the
+    labels stay text, sharp at any zoom. Text is written as text, not glyph paths, and the
+    figure is an ``<img>``, so the ids of several plots never collide in one page."""
+    import matplotlib
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=PLOT_DPI)
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "benchlab"}):
+        fig.savefig(buf, format="svg", dpi=PLOT_DPI, metadata={"Date": None})
     plt.close(fig)
-    return (f"<img class='plot' alt='{esc(alt)}' src='data:image/png;base64,"
+    return (f"<img class='plot' alt='{esc(alt)}' src='data:image/svg+xml;base64,"
             + base64.b64encode(buf.getvalue()).decode("ascii") + "'>")
 
 

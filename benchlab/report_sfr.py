@@ -102,8 +102,9 @@ def render_sfr_section(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> 
                   + ("all agree" if n_bad == 0 else f"{n_bad} DISAGREE")
                   if checks else "no bar reading to compare"))
     out.append(
-        "<p class='note'>Lines: MTF measured from each clean slanted edge (shaded: bootstrap 1 "
-        "sigma) and the simulated MTF at the field points (dotted) - both sine-wave responses. "
+        "<p class='note'>Lines: MTF measured from each clean slanted edge (shaded: 1 sigma, the "
+        "pixel noise propagated) and the simulated MTF at the field points (dotted) - both "
+        "sine-wave responses. "
         "Points: the bar modulations below Nyquist divided by the chart's own contrast (from "
         "the edge plateaus) and converted to sine-wave MTF through Coltman's series; a red "
         "cross disagrees with the edge (or the edge with the simulation) by more than 0.05. "

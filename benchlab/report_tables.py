@@ -46,7 +46,8 @@ TABLE_VIEWS: dict[str, TableView] = {
     "table_4_15": TableView(
         "Table 4.15 - averaged MTF (Eq. 4.2) against the Monte Carlo prediction",
         (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
-         ("measured_freq_lp_per_mm", "measured lp/mm", ".3f"),
+         ("sagittal_freq_lp_per_mm", "S lp/mm", ".3f"),
+         ("measured_freq_lp_per_mm", "T lp/mm", ".3f"),
          ("sagittal_modulation", "S", ".3f"), ("tangential_modulation", "T", ".3f"),
          ("averaged_modulation", "avg", ".3f"), ("p90", "90%>", ".2f"), ("p50", "50%>", ".2f"),
          ("p10", "10%>", ".2f"), ("verdict", "verdict", "")),

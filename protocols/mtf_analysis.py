@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis import chart
-from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, find_chart
+from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, FoundElement, find_chart
 from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
     azimuthal_image_frequency_lp_per_mm,
@@ -88,6 +88,15 @@ def _near_nominal(fit: ChartFit) -> bool:
             and abs(fit.pose.rotation_deg) <= NOMINAL_ROTATION_DEG)
 
 
+def _found_element(el: UsafElement, orientation: str, fit: ChartFit | None) -> FoundElement | None:
+    """The found chart's placement of a set when the chart is far from the configured
+    geometry (its ROIs, priors and measurability then apply), else None."""
+    if fit is None or _near_nominal(fit):
+        return None
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    return fit.element(el.group, el.element, orient)
+
+
 def forward_roi(
     params: MtfParams, el: UsafElement, orientation: str, offset: tuple[int, int] = (0, 0),
     fit: ChartFit | None = None,
@@ -96,21 +105,22 @@ def forward_roi(
     its measurement ROI (:func:`benchlab.analysis.chart.bar_set_roi`), every line across the
     three bars but none straddling the bar ends, which read bar and bright ground at once and
     biased the modulation low by up to 0.12. With a found chart ``fit`` far from the configured
-    geometry the ROI is the found (scaled, rotated) set's; otherwise the configured ROI shifted
-    by ``offset`` (the found offset in whole pixels)."""
+    geometry the ROI is the found (scaled, rotated) set's measurement ROI (three whole periods
+    across, :attr:`FoundElement.measurement_roi`); otherwise the configured ROI shifted by
+    ``offset`` (the found offset in whole pixels)."""
     override = params.forward_roi_overrides.get(f"{el.name}.{orientation}")
     if override is not None:
         return override
-    if fit is not None and not _near_nominal(fit):
-        orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
-        return fit.element(el.group, el.element, orient).roi
+    found = _found_element(el, orientation, fit)
+    if found is not None:
+        return found.measurement_roi
     r0, c0, r1, c1 = _bar_group(el, orientation).roi
     dr, dc = offset
     return (r0 + dr, c0 + dc, r1 + dr, c1 + dc)
 
 
 def _measure(
-    pixels: npt.NDArray[Any], roi: Roi, *, estimator: str, freq_lp_per_mm: float,
+    pixels: npt.NDArray[Any], roi: Roi, *, estimator: str, freq_cycles_per_px: float,
     orientation: str | None,
 ) -> ModulationResult:
     r0, c0, r1, c1 = roi
@@ -118,7 +128,7 @@ def _measure(
         raise ValueError(f"ROI {roi} is off the {pixels.shape} frame")
     return estimate_modulation(
         pixels[r0:r1, c0:c1], estimator=estimator, orientation=orientation,
-        freq_cycles_per_px=cycles_per_px(freq_lp_per_mm),
+        freq_cycles_per_px=freq_cycles_per_px,
     )
 
 
@@ -147,13 +157,19 @@ def analyze_forward_frame(
                                           params.forward_magnification)
         for orient in ORIENTATIONS:
             roi = forward_roi(params, el, orient, offset, fit)
+            found = (None if f"{el.name}.{orient}" in params.forward_roi_overrides
+                     else _found_element(el, orient, fit))
             if not _inside(roi, pixels.shape):
-                cells: dict[str, Any] = {
-                    "dark": None, "bright": None, "modulation": None, "resolved": False,
-                    "uncertainty": None, "warnings": "clipped by the FOV: ROI off the frame"}
+                cells = _not_measured("clipped by the FOV: ROI off the frame")
+            elif found is not None and found.found and found.unmeasurable:
+                cells = _not_measured(found.unmeasurable)
             else:
-                cells = _cells(_measure(pixels, roi, estimator=est, freq_lp_per_mm=f_img,
-                                        orientation=orient))
+                # A found chart far from the configured geometry: the frequency on the sensor
+                # is the found one (magnification / scale), and bars off the pixel axes have
+                # their direction measured, not taken as the axis.
+                priors = (found.estimator_priors() if found is not None else
+                          {"freq_cycles_per_px": cycles_per_px(f_img), "orientation": orient})
+                cells = _cells(_measure(pixels, roi, estimator=est, **priors))
             if fit is None:
                 note = "chart not found: configured ROI"
                 cells["warnings"] = "; ".join(w for w in (cells["warnings"], note) if w)
@@ -162,6 +178,11 @@ def analyze_forward_frame(
                          "chart_offset_px": list(offset), "chart": chart_info,
                          **cells})
     return rows
+
+
+def _not_measured(reason: str) -> dict[str, Any]:
+    return {"dark": None, "bright": None, "modulation": None, "resolved": False,
+            "uncertainty": None, "warnings": reason}
 
 
 def _inside(roi: Roi, shape: tuple[int, ...]) -> bool:
@@ -201,8 +222,8 @@ def analyze_radial_frame(
     if centre is None:
         centre = _centre([pixels], params.fov_threshold_dn)[0]
     f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
-    res = _measure(pixels, params.radial_roi, estimator=est, freq_lp_per_mm=f_img,
-                   orientation=None)
+    res = _measure(pixels, params.radial_roi, estimator=est,
+                   freq_cycles_per_px=cycles_per_px(f_img), orientation=None)
     return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
             "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
             "roi": list(params.radial_roi), **_cells(res)}
@@ -334,34 +355,49 @@ def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> 
 def _monte_carlo_rows(
     t411: list[dict[str, Any]], t412: list[dict[str, Any]], params: MtfParams
 ) -> list[dict[str, Any]]:
-    """Eq. 4.2 averages at the measured frequency nearest each Monte Carlo frequency, placed
-    among its thresholds by :mod:`benchlab.analysis.mtf_compare` (the one comparison).
+    """Eq. 4.2 averages near each Monte Carlo frequency, placed among its thresholds by
+    :mod:`benchlab.analysis.mtf_compare` (the one comparison).
+
+    Each orientation is taken at its own measured frequency nearest the prediction's: in the
+    forward view sagittal and tangential bars share one frequency, but the radial view's spokes
+    image at object radius / image radius, not at Eq. 4.1's frequency of the rings (their rows'
+    ``sagittal_image_lp_per_mm``), so pairing a row's S and T would average two frequencies
+    about 2x apart. ``measured_freq_lp_per_mm`` is the tangential reading's frequency (Eq. 4.1,
+    the thesis's column); both frequencies are in the row.
 
     Sagittal and tangential stay beside the average: the thesis's lesson is that the average
     alone hid a poor tangential response.
     """
-    measured: dict[str, list[tuple[float, float, float]]] = {"forward": [], "radial": []}
+    # (frequency, modulation) per view and orientation; aliased readings are no readings.
+    measured: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for view, table in (("forward", t411), ("radial", t412)):
         for r in table:
-            s, t = r.get("sagittal_modulation"), r.get("tangential_modulation")
-            if s is None or t is None or r["aliased"]:
-                continue
-            measured[view].append((r["image_lp_per_mm"], s, t))
+            for orient in ORIENTATIONS:
+                m = r.get(f"{orient}_modulation")
+                f = float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
+                if m is None or r.get(f"{orient}_aliased", r["aliased"]):
+                    continue
+                measured.setdefault((view, orient), []).append((f, float(m)))
     source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
     for mc in load_monte_carlo_table(source):
-        cands = measured.get(mc.view, [])
-        if not cands:
-            continue
-        f, s, t = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
-        if abs(f - mc.freq_lp_per_mm) > MC_MATCH_FRACTION * mc.freq_lp_per_mm:
-            continue  # nothing measured near this prediction's frequency
+        picks = []
+        for orient in ORIENTATIONS:
+            cands = measured.get((mc.view, orient), [])
+            if cands:
+                f, m = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
+                if abs(f - mc.freq_lp_per_mm) <= MC_MATCH_FRACTION * mc.freq_lp_per_mm:
+                    picks.append((f, m))
+        if len(picks) < 2:
+            continue  # nothing measured near this prediction's frequency in one orientation
+        (f_s, s), (f_t, t) = picks
         avg = averaged_mtf(s, t)
         _, verdict = monte_carlo_band(avg.average, mc)
         out.append({
             "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
-            "measured_freq_lp_per_mm": f, "sagittal_modulation": s,
+            "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s,
             "tangential_modulation": t, "averaged_modulation": round(avg.average, 6),
             **mc.columns(), "verdict": verdict,
+            "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
         })
     return out

@@ -6,7 +6,8 @@ Tables (written with the Table 4.10 results):
 - ``table_sfr_edges``: one row per nominal edge of the slanted-edge target
   (:mod:`benchlab.analysis.edge_target`): status (``ok`` or why no clean edge is there),
   angle, MTF50, MTF at Nyquist, plateau levels, image height and nearest field point;
-- ``table_sfr_curves``: each clean edge's MTF (with its bootstrap 1-sigma) every 4 lp/mm;
+- ``table_sfr_curves``: each clean edge's MTF (with its 1-sigma, the pixel noise propagated
+  analytically: :func:`benchlab.analysis.sfr.measure_sfr`) every 4 lp/mm;
 - ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
   chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
   -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
@@ -37,8 +38,6 @@ from benchlab.analysis.sfr import SfrRefused, SfrResult, measure_sfr
 
 #: Three-way agreement: |bar MTF - edge MTF| and |edge MTF - simulated MTF| at most this.
 AGREEMENT_TOLERANCE = 0.05
-#: Bootstrap resamples (rows) for each edge's uncertainty.
-EDGE_BOOTSTRAP = 30
 #: Curve table step, image lp/mm (0 to 192, twice Nyquist).
 CURVE_STEP_LP_PER_MM = 4.0
 _LP_PER_CYCLE_PX = 1.0 / cycles_per_px(1.0)
@@ -55,7 +54,7 @@ def measure_edges(
             out.append((spec, f"ROI {spec.roi} is off the {pixels.shape} frame"))
             continue
         try:
-            out.append((spec, measure_sfr(pixels[r0:r1, c0:c1], bootstrap=EDGE_BOOTSTRAP)))
+            out.append((spec, measure_sfr(pixels[r0:r1, c0:c1])))
         except SfrRefused as exc:
             out.append((spec, "; ".join(exc.reasons)))
     return out

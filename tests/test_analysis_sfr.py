@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from benchlab.analysis.sfr import SfrRefused, full_scale_of, measure_sfr
+from benchlab.analysis.sfr import SfrRefused, _rise_10_90, full_scale_of, measure_sfr
 from benchlab.analysis.sfr_synthetic import (
     edge_truth_mtf,
     edge_truth_mtf50,
@@ -64,20 +64,95 @@ def test_noise_free_edges_match_the_analytic_mtf(angle_deg: float, sigma: float)
                                                     else 0.005)
 
 
-def test_noisy_12_bit_edge_meets_the_mtf50_figure_and_its_bootstrap_is_honest() -> None:
+def test_noisy_12_bit_edge_meets_the_mtf50_figure_and_its_analytic_sigma_is_honest() -> None:
     rng = np.random.default_rng(3)
     truth50 = edge_truth_mtf50(1.0, math.radians(7.0))
-    readings, sigmas = [], []
-    for _ in range(12):
+    f = np.array([0.3, 0.5])  # where the noise, not the 0.002 floor, makes the sigma
+    readings, m50_sigmas, curves, sigmas = [], [], [], []
+    for _ in range(16):
         img = synthetic_edge((100, 100), 7.0, 1.0, noise_sigma=0.006, bits=12, rng=rng)
-        res = measure_sfr(img.astype(np.uint16), bootstrap=40, seed=1)
+        res = measure_sfr(img.astype(np.uint16))
+        assert res.uncertainty_method == "analytic"
         assert res.mtf50_cycles_per_px == pytest.approx(truth50, rel=0.02)
-        assert res.mtf_sigma is not None and res.mtf_sigma[0] == pytest.approx(0.0, abs=1e-12)
+        assert res.mtf_sigma is not None and res.mtf_sigma[0] == 0.0
         assert res.mtf50_sigma is not None and res.mtf50_sigma > 0
         readings.append(res.mtf50_cycles_per_px)
-        sigmas.append(res.mtf50_sigma)
+        m50_sigmas.append(res.mtf50_sigma)
+        curves.append(res.mtf_at(f))
+        sigmas.append(res.sigma_at(f))
+    # The propagated sigma matches the scatter of repeated readings (scaled 1.2 on purpose,
+    # plus a 0.002 floor): neither a token number nor a gross overstatement.
     spread = float(np.std(readings, ddof=1))
-    assert 0.4 < float(np.median(sigmas)) / spread < 2.5
+    assert 0.6 < float(np.median(m50_sigmas)) / spread < 2.5
+    ratio = np.median(sigmas, axis=0) / np.std(curves, axis=0, ddof=1)
+    assert np.all((ratio > 0.7) & (ratio < 2.0)), ratio
+
+
+def test_bootstrap_on_request_replaces_the_analytic_sigma() -> None:
+    rng = np.random.default_rng(4)
+    img = synthetic_edge((60, 60), 6.0, 1.0, noise_sigma=0.01, bits=12, rng=rng)
+    boot = measure_sfr(img.astype(np.uint16), bootstrap=8, seed=2)
+    plain = measure_sfr(img.astype(np.uint16))
+    assert boot.uncertainty_method == "bootstrap" and plain.uncertainty_method == "analytic"
+    assert np.array_equal(boot.mtf, plain.mtf)  # same reading, other uncertainty
+    assert boot.mtf_sigma is not None and plain.mtf_sigma is not None
+    assert not np.allclose(boot.mtf_sigma, plain.mtf_sigma)
+
+
+def test_noise_does_not_read_as_mtf_beyond_the_cutoff() -> None:
+    # sigma 3 px: the true MTF at 0.4-0.5 cycles/px is < 1e-6. The modulus of pure noise
+    # would read ~1.25 sigma on average; the noise power is subtracted, so the mean reading
+    # stays well under the sigma and the +-1.96 sigma interval holds the truth.
+    rng = np.random.default_rng(6)
+    f = np.array([0.4, 0.45, 0.5])
+    got, sig = [], []
+    for _ in range(24):
+        img = synthetic_edge((100, 100), 5.0, 3.0, noise_sigma=0.6 / 50, bits=12, rng=rng)
+        res = measure_sfr(img.astype(np.uint16))
+        got.append(res.mtf_at(f))
+        sig.append(res.sigma_at(f))
+    assert float(np.mean(got)) < 0.7 * float(np.mean(sig))
+    assert float(np.mean(np.asarray(got) <= 1.96 * np.asarray(sig))) >= 0.9
+
+
+def test_off_centre_edge_at_low_snr_keeps_its_low_frequencies() -> None:
+    # The edge 20 px off the ROI centre: the LSF window must sit on the edge, not be dragged
+    # towards the ROI's middle by the plateaus' noise (that cut the LSF and lifted the MTF).
+    rng = np.random.default_rng(7)
+    f = np.array([0.05, 0.1, 0.2])
+    errs = []
+    for _ in range(20):
+        ang = float(rng.uniform(3, 30))
+        img = synthetic_edge((100, 100), ang, 1.0, offset_px=20.0, noise_sigma=0.6 / 20,
+                             bits=12, rng=rng)
+        res = measure_sfr(img.astype(np.uint16))
+        errs.append(res.mtf_at(f) - edge_truth_mtf(f, 1.0, math.radians(ang)))
+    assert np.all(np.abs(np.mean(errs, axis=0)) < 0.01), np.mean(errs, axis=0)
+
+
+def test_hot_and_dead_pixels_at_the_edge_are_clipped_with_a_warning() -> None:
+    # One hot and one dead pixel beside a 2 px blurred edge: unclipped they put a spike in
+    # the ESF and a ripple of 0.03-0.05 over the MTF; clipped to 5 noise sigmas, they do not.
+    worst_clean, worst_bad = 0.0, 0.0
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        img = synthetic_edge((100, 100), 7.0, 2.0, noise_sigma=0.006, bits=12, rng=rng)
+        clean = measure_sfr(img.astype(np.uint16))
+        bad = img.copy()
+        bad[40 + seed, 46 + seed] = 3900.0
+        bad[70 + seed, 52] = 100.0
+        res = measure_sfr(bad.astype(np.uint16))
+        assert any("2 pixel(s) more than 5 noise sigmas" in w for w in res.warnings)
+        assert not any("noise sigmas" in w for w in clean.warnings)
+        worst_clean = max(worst_clean, _max_err(clean, 7.0, 2.0))
+        worst_bad = max(worst_bad, _max_err(res, 7.0, 2.0))
+    assert worst_bad < worst_clean + 0.005
+
+
+def test_rise_is_interpolated_between_coarse_samples() -> None:
+    u = np.arange(-10, 11) * 0.7071  # the 45 deg lattice
+    esf = np.clip((u + 4.0) / 8.0, 0.0, 1.0)  # linear ramp over 8 px: 10-90 % rise 6.4 px
+    assert _rise_10_90(u, esf) == pytest.approx(6.4, abs=1e-9)  # samples alone: 5.66
 
 
 def test_horizontal_edge_and_reversed_polarity_give_the_same_curve() -> None:
@@ -112,6 +187,8 @@ def test_45_degree_edge_is_measured_with_the_coarse_lattice_warning() -> None:
     assert res.edge_angle_deg == pytest.approx(45.0, abs=0.1)
     assert any("coarse lattice" in w for w in res.warnings)
     assert _max_err(res, 45.0, 0.6) < 0.03  # aliasing of the 0.71 px lattice limits it
+    # sigma 1 px at 45 deg: the rise read off the coarse lattice sets the LSF windows
+    assert _max_err(measure_sfr(synthetic_edge((100, 100), 45.0, 1.0)), 45.0, 1.0) < 0.006
 
 
 def test_clipped_edge_is_refused_and_slight_clipping_is_warned() -> None:

@@ -64,9 +64,14 @@ def test_analyze_chart_measures_every_found_element(posed_frame: Path,
     g0 = rows["G0E1T"]
     assert g0["result"]["resolved"] and 0.6 < g0["result"]["modulation"] < 1.0
     assert {r["label"] for r in d["rejected"]} >= {"G3E1S", "G3E1T"}
+    # found at 2.23 px per period on bars 8 deg off the axes: a reason, not a number
+    fine = rows["G2E5S"]
+    assert fine["result"] is None and "px per period < 2.5" in fine["unmeasurable"]
+    assert rows["G1E5S"]["unmeasurable"] is None and rows["G1E5S"]["result"]["resolved"]
     assert main(["analyze", str(posed_frame), "--chart", "usaf"]) == 0
     table = capsys.readouterr().out
     assert "S dark/bright" in table and "\nG1E5 " in table and "not measured:" in table
+    assert "found, not measured: G2E5S not measurable" in table
 
 
 def test_no_chart_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

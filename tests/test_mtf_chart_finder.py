@@ -35,7 +35,7 @@ def test_rotated_scaled_chart_gets_its_rois_and_the_report_shows_it(tmp_path: Pa
     for row, el in zip(outcome.tables["table_4_11"], params.forward_elements, strict=True):
         for orient in ("sagittal", "tangential"):
             truth = scene.bar_set(el.group, el.element, orient)  # type: ignore[arg-type]
-            assert np.abs(np.subtract(row[f"{orient}_roi"], truth.roi)).max() <= 1
+            assert np.abs(np.subtract(row[f"{orient}_roi"], truth.whole_period_roi)).max() <= 1
             assert row[f"{orient}_resolved"]  # on the bars, not beside them
     located = [e for e in events(outcome.session_path) if e["kind"] == "chart_located"]
     assert len(located) == 1 and located[0]["offset_px"] == [14, -22]
@@ -67,3 +67,21 @@ def test_rois_off_the_frame_are_reported_not_measured() -> None:
         assert g1e5["modulation"] is None and g1e5["resolved"] is False
         assert g1e5["warnings"] == "clipped by the FOV: ROI off the frame"
         assert g2e1["resolved"] and g2e1["modulation"] > 0.1  # measured (2 deg oblique)
+
+
+def test_rotated_chart_oblique_fine_sets_say_why_and_the_rest_use_the_found_frequency() -> None:
+    from test_chart_finder import frame
+
+    params = load_params("mtf", None)  # the thesis's G1E5-G3E1
+    scene = UsafScene(pose=ChartPose((10.0, -12.0), 1.05, 6.0))
+    rows = {(r["element"], r["orientation"]): r
+            for r in analyze_forward_frame(frame(scene, 12), params, "profilefit")}
+    for orient in ("sagittal", "tangential"):
+        fine = rows[("G2E4", orient)]  # 2.19 px per period, 6 deg off the axes
+        assert fine["modulation"] is None and fine["resolved"] is False
+        assert fine["warnings"].startswith("not measurable: 2.19 px per period < 2.5")
+        coarse = rows[("G1E6", orient)]
+        truth = scene.truth_modulation(1, 6, orient)  # type: ignore[arg-type]
+        assert coarse["resolved"] and abs(coarse["modulation"] - truth) <= 0.03
+        # the found (scaled, rotated) set's whole-period ROI, not the configured box
+        assert coarse["roi"] == list(scene.bar_set(1, 6, orient).whole_period_roi)  # type: ignore[arg-type]

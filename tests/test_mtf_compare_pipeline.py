@@ -33,3 +33,42 @@ def test_pipeline_rows_match_the_analysis_comparison() -> None:
     assert rows[0]["verdict"] == "above the 10% threshold (0.62)"
     assert rows[2]["verdict"] == "between the 80% and 50% thresholds (0.27 .. 0.45)"
     assert list(rows[0])[6:11] == ["p90", "p80", "p50", "p20", "p10"]
+
+
+def _radial_row(f_obj: float, s: float, t: float) -> dict:
+    """A Table 4.12 row as the procedure writes it: rings (T) at Eq. 4.1's 17.5x, spokes (S)
+    at object radius / image radius (about 8.0x) - the two orientations' own frequencies."""
+    f_t, f_s = 17.5 * f_obj, 8.007 * f_obj
+    return {"object_lp_per_mm": f_obj, "image_lp_per_mm": f_t, "aliased": f_t > 100.0,
+            "sagittal_modulation": s, "tangential_modulation": t,
+            "sagittal_image_lp_per_mm": f_s, "sagittal_aliased": f_s > 100.0,
+            "tangential_image_lp_per_mm": f_t, "tangential_aliased": f_t > 100.0}
+
+
+def test_radial_average_takes_each_orientation_at_its_own_frequency() -> None:
+    params = parse_params("mtf", {}, "<test>")
+    # S readings fall with their own frequency; a row's S is ~2x lower in frequency than its T.
+    radial = [_radial_row(f, s, t) for f, s, t in
+              ((2, 0.90, 0.20), (3, 0.85, 0.05), (4, 0.70, 0.0), (6, 0.55, 0.0))]
+    rows = {r["mc_freq_lp_per_mm"]: r for r in _monte_carlo_rows([], radial, params)}
+    # 30 lp/mm: T from the 35 lp/mm rings (object 2), S from the 32 lp/mm spokes (object 4),
+    # not the 16 lp/mm spokes of the same row.
+    r30 = rows[30.0]
+    assert (r30["tangential_modulation"], r30["sagittal_modulation"]) == (0.20, 0.70)
+    assert r30["sagittal_freq_lp_per_mm"] == pytest.approx(32.028)
+    assert r30["tangential_freq_lp_per_mm"] == r30["measured_freq_lp_per_mm"] == 35.0
+    assert r30["averaged_modulation"] == pytest.approx(0.45)
+    # 60 lp/mm: T from the 52.5 lp/mm rings; S from the 48 lp/mm spokes (object 6, whose
+    # rings alias at 105 lp/mm: the spokes of that row are still a reading).
+    r60 = rows[60.0]
+    assert (r60["tangential_modulation"], r60["sagittal_modulation"]) == (0.05, 0.55)
+    assert r60["sagittal_freq_lp_per_mm"] == pytest.approx(48.042)
+
+
+def test_no_row_when_one_orientation_has_nothing_near() -> None:
+    params = parse_params("mtf", {}, "<test>")
+    # Spokes at 48 lp/mm are near 60, but the rings are at 17.5 and 105 lp/mm (aliased):
+    # no tangential reading near 30 or 60 lp/mm, so no row.
+    radial = [_radial_row(1, 0.9, 0.6), _radial_row(6, 0.6, 0.0)]
+    rows = _monte_carlo_rows([], radial, params)
+    assert [r["mc_freq_lp_per_mm"] for r in rows] == []

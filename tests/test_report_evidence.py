@@ -117,6 +117,12 @@ def test_verdict_shows_every_threshold_it_may_cite_and_the_frequency_mismatch() 
     assert "class='plot'" in html  # the bands
     same = verdict_section([{**MC_ROW, "measured_freq_lp_per_mm": 60.0}])
     assert "apart" not in same
+    # The radial spokes' own frequency differs from the rings': both are named.
+    both = verdict_section([{**MC_ROW, "sagittal_freq_lp_per_mm": 48.04,
+                             "tangential_freq_lp_per_mm": 52.5}])
+    assert ("measured sagittal at 48.0 lp/mm and tangential at 52.5 lp/mm against the "
+            "prediction at 60 lp/mm (up to 20 % apart") in both
+    assert ">48.04<" in both  # the S lp/mm column
     assert "No Monte Carlo comparison" in verdict_section([])
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import math
 import re
 from pathlib import Path
@@ -40,7 +41,11 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     assert text.count("alt='frame with the found chart'") == 1
     assert text.count("alt='zoom on the chart'") == 1
     assert text.count("<polygon") >= 4 * 2  # the 4 elements' sets, drawn in both images
-    assert text.count("data:image/png;base64,") == 3 + 6 + 2 + 8
+    assert text.count("data:image/png;base64,") == 6 + 2 + 8  # frames and crops: pixels
+    plots = re.findall(r"data:image/svg\+xml;base64,([^']*)'", text)
+    assert len(plots) == 3  # plots: vectors, their labels kept as text (sharp at any zoom)
+    ctf_svg = base64.b64decode(plots[0]).decode("utf-8")
+    assert "<text" in ctf_svg and "square-wave contrast (CTF)" in ctf_svg
     assert "Slanted-edge MTF" in text and "bar readings compared" in text
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
@@ -57,7 +62,8 @@ def test_radiometry_report_has_the_fall_off(tmp_path: Path) -> None:
     # one measurement frame per position, mask outlined
     n_positions = text.count("alt='LED at")
     assert n_positions == 3  # radiometry-small.toml's three positions
-    assert text.count("data:image/png;base64,") == 1 + n_positions
+    assert text.count("data:image/png;base64,") == n_positions
+    assert text.count("data:image/svg+xml;base64,") == 1
 
 
 def test_report_of_a_session_without_results_says_so(tmp_path: Path) -> None:

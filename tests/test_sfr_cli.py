@@ -4,6 +4,7 @@ never overwritten."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,16 @@ import pytest
 import tifffile
 
 from benchlab.analysis.edge_target import edge_specs
-from benchlab.analysis.sfr_benchmark import format_accuracy, run_accuracy, run_extremes
-from benchlab.analysis.sfr_synthetic import synthetic_edge
+from benchlab.analysis.sfr import measure_sfr
+from benchlab.analysis.sfr_benchmark import (
+    MTF_TOL,
+    SIGMAS_PX,
+    format_accuracy,
+    noise_floor,
+    run_accuracy,
+    run_extremes,
+)
+from benchlab.analysis.sfr_synthetic import edge_truth_mtf, synthetic_edge
 from benchlab.cli.main import main
 
 
@@ -93,7 +102,8 @@ def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixtu
     tifffile.imwrite(path, frames, photometric="minisblack")
     assert main(["sfr", str(path), "--roi", "0,0,60,60", "--json", "--bootstrap", "0"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["clipped_fraction"] == 0 and doc["mtf_sigma"] is None
+    assert doc["clipped_fraction"] == 0 and doc["uncertainty_method"] == "analytic"
+    assert doc["mtf_sigma"][0] == 0 and all(s > 0 for s in doc["mtf_sigma"][1:])
     assert doc["noise_sigma"] < 0.01 * 4095 * 0.75  # four frames averaged: half the noise
 
 
@@ -101,9 +111,33 @@ def test_accuracy_table_has_every_bucket_and_a_verdict() -> None:
     buckets = run_accuracy(cases_per_cell=1, seed=3)
     assert len(buckets) == 30 and all(b.cases == 2 for b in buckets)
     text = format_accuracy(buckets)
-    assert text.count("\n") == 31 and "buckets with SNR 20-500" in text
+    assert text.count("\n") == 33 and "buckets with SNR 20-500" in text and "cover" in text
+    assert text.splitlines()[-1].startswith("floor:")
     best = next(b for b in buckets if b.sigma_px == 1.0 and b.snr == 500.0)
     assert best.mtf50_within == 1.0 and best.mtf_within == 1.0
+    assert all(0.0 <= b.mtf_coverage <= 1.0 for b in buckets)
+
+
+@pytest.mark.parametrize("sigma", SIGMAS_PX)
+def test_noise_floor_says_what_snr_20_cannot_reach(sigma: float) -> None:
+    low, mid, high = (noise_floor(sigma, snr) for snr in (20.0, 50.0, 500.0))
+    assert not low.mtf_reachable and high.mtf_reachable and high.mtf50_reachable
+    assert low.mtf_nyquist_sd == pytest.approx(2.5 * mid.mtf_nyquist_sd)  # 1 / SNR
+    assert low.mtf_nyquist_sd > MTF_TOL / 1.96
+
+
+def test_noise_floor_is_a_floor_of_the_measured_scatter() -> None:
+    # sigma 0.6 px, SNR 50, 21 deg: the readings at Nyquist scatter more than the ideal
+    # estimator's floor, but not by much (the window is close to the LSF's support).
+    rng = np.random.default_rng(8)
+    theta = math.radians(21.0)
+    got = []
+    for _ in range(30):
+        img = synthetic_edge((100, 100), 21.0, 0.6, noise_sigma=0.6 / 50, bits=12, rng=rng)
+        got.append(measure_sfr(img.astype(np.uint16)).mtf_at([0.5])[0])
+    sd = float(np.std(np.asarray(got) - edge_truth_mtf([0.5], 0.6, theta)[0], ddof=1))
+    floor = noise_floor(0.6, 50.0).mtf_nyquist_sd
+    assert floor < sd < 2.5 * floor
 
 
 def test_benchmark_sfr_is_registered(capsys: pytest.CaptureFixture[str]) -> None:

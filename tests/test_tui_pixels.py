@@ -57,18 +57,26 @@ async def test_live_view_sends_real_pixels(tmp_path: Path, protocol: str, introd
         await wait_until(pilot, lambda: view.frames_shown >= 2, what="frames")
         assert view.last_rgb is not None and view.last_rgb.shape == (512, 640, 3)
         assert (view.last_rgb == np.asarray(ROI_RGB, np.uint8)).all(axis=2).any()  # ROI drawn
-        image = view.image_widget.image
-        assert image is not None and image.size == (640, 512)
+        canvas = view.image_widget
+        assert canvas is not None and canvas.image is view.last_rgb
         await pilot.pause(0.2)
-        target = view.image_widget
-        if protocol == "sixel":  # the Sixel data is injected by the image's child widget
-            target = next(iter(target.children))
-        region = Region(0, 0, target.size.width, target.size.height)
-        text = "".join(seg.text for strip in target.render_lines(region) for seg in strip)
+        cols, rows = canvas.content_size
+        # the image fits the frame (10 x 20 px cells when the terminal can't say): it fills
+        # the limiting side, or (Sixel) is shown 1:1
+        width, height = view.content_size
+        assert 0 < cols <= width and 0 < rows <= height
+        assert cols == width or rows == height or canvas.shown_px() == (640, 512)
+        text = "".join(seg.text for strip in canvas.render_lines(Region(0, 0, cols, rows))
+                       for seg in strip)
         # Kitty's protocol transmits the image straight to the terminal; Sixel travels in
         # the rendered lines.
         text += capfd.readouterr().out
         assert introducer in text
+        if protocol == "sixel":  # drawn 1:1 at most: the raster is the shown size, <= 640x512
+            w, h = canvas.shown_px()
+            assert f'"1;1;{w};{h}' in text and w <= 640 and h <= 512 and w <= cols * 10
+        else:  # a virtual placement of exactly the canvas' cells; the terminal scales
+            assert f"a=p,i={canvas.image_id},c={cols},r={rows}" in text
 
 
 @pytest.mark.asyncio

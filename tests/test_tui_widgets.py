@@ -74,7 +74,8 @@ async def test_widgets_render_a_frame_and_a_marked_histogram() -> None:
         lines = [view.render_line(y).text for y in range(view.size.height)]
         assert sum(line.count(UPPER_HALF) for line in lines) > 100
         assert view.frames_shown == 1
-        text = hist.render().plain.splitlines()
+        text = hist.text_lines()
+        assert [hist.render_line(y).text for y in range(len(text))] == text
         axis = text[-1]
         width = hist.size.width
         assert axis.index("D") == int(40 / 256 * width)

@@ -4,6 +4,9 @@ The chart's known layout (:class:`benchlab.analysis.chart.ChartLayout`: element 
 the three-bar sets, where each element sits) is the model; the frame supplies evidence; the
 pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) links them.
 
+0. **Window.** Only the part of the frame with light in it is searched: 8 x 8 px blocks whose
+   brightest pixel stands out from the dark floor (the forward view's lit disc is a fifth of
+   the frame), padded by the closing's width.
 1. **Candidates.** The local ground level is a morphological closing of the frame wider than the
    widest expected bar (it fills every bar with the spaces beside it and follows vignetting);
    the relative darkness ``(ground - frame) / ground`` above :data:`BAR_CONTRAST` marks bar
@@ -16,7 +19,8 @@ pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) 
    the bar widths, rotation from the bar angles, offset from the centres). Every proposal is
    scored by how many layout sets it places on a candidate of the predicted width and angle;
    the best few are refined by least squares (a similarity transform over all matched sets)
-   and re-scored.
+   and re-scored. A prior pose (default: the layout's own place, i.e. the parameter file's
+   geometry) is refined first; when it explains most candidates the search is skipped.
 3. **Placement and check.** Every set of the layout is placed by the fitted pose. Sets off the
    frame or outside the lit field are rejected as clipped by the FOV, sets with bar periods
    under 2 px as above Nyquist, sets whose measurement ROI is too thin as too small. The rest
@@ -24,7 +28,9 @@ pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) 
    (:func:`benchlab.analysis.projection.project_roi`) and correlated with the three-bar
    pattern at the predicted phase; the correlation is the confidence and the best-fitting
    period the measured pixels per period. A set whose pattern does not correlate
-   (< :data:`MIN_CONFIDENCE`) is rejected as ambiguous.
+   (< :data:`MIN_CONFIDENCE`) is rejected as ambiguous. A found set gets its measurement ROI
+   (three whole periods across, bar ends trimmed, no neighbouring set inside) and, where no
+   reliable modulation can be read from it, the reason (:attr:`FoundElement.unmeasurable`).
 
 Pure numpy/OpenCV: no files, no devices. Raises :class:`ChartNotFoundError` when no pose is
 supported by at least :data:`MIN_MATCHED_SETS` sets.
@@ -36,12 +42,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.chart import Box, ChartLayout, Orientation, usaf_bar_group
-from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
+from benchlab.analysis.chart_pose import (
+    WHOLE_PERIODS_HALF_WIDTHS,
+    ChartPose,
+    PosedBarSet,
+    posed_bar_set,
+)
 from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.projection import project_roi
 
@@ -66,11 +76,29 @@ MIN_MATCHED_SETS = 3
 MIN_CONFIDENCE = 0.5
 #: The lit field: local ground above this fraction of the frame's lit level.
 LIT_FRACTION = 0.3
+#: The layout's own place: the default prior pose.
+NOMINAL_POSE = ChartPose()
+#: A pose fit is "confident" when it matches at least this many sets and this share of the
+#: three-bar candidates (the rest are dust, defects and sets the layout does not hold).
+CONFIDENT_MIN_SETS = 8
+CONFIDENT_SHARE = 0.6
+#: The search window: blocks of this many px, padded by the closing's kernel plus this.
+WINDOW_BLOCK_PX = 8
+WINDOW_PAD_PX = 8
 #: Default warning threshold: implied vs configured magnification, relative.
 MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
 MIN_ROI_LINES = 3
 MIN_ROI_ACROSS_PX = 4
+#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) with fewer
+#: pixels per period are found but not measured: every line samples another phase, the ROI
+#: holds a few dozen pixels, and on ``benchlab benchmark chart`` only 32 % (2-2.25 px) and 77 %
+#: (2.25-2.5 px) of their readings came within 0.03 of the truth, against 85-98 % above.
+MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: Fewest whole periods the measurement ROI must span across the bars.
+MIN_ROI_PERIODS = 2.0
+#: Blur reach (px) of a neighbouring set kept out of a measurement ROI.
+NEIGHBOUR_MARGIN_PX = 1.0
 
 
 class ChartNotFoundError(ValueError):
@@ -86,7 +114,11 @@ class FoundElement:
     across-bar profile with the three-bar pattern at the predicted place and period (0 when
     not checked). ``image_lp_per_mm`` is the object frequency (Eq. 4.1 / Table 4.9) times the
     implied magnification; ``px_per_period`` follows from it, ``measured_px_per_period`` is the
-    period that fits the ROI best (None when not checked).
+    period that fits the ROI best (None when not checked). ``roi`` is the bar-set ROI (bar ends
+    trimmed, across the set only); ``measurement_roi`` the ROI a modulation is read from: three
+    whole periods across (:attr:`PosedBarSet.whole_period_roi`), back to ``roi`` where a
+    neighbouring set would reach into it. ``unmeasurable`` says why a found set gives no
+    reliable modulation (None when it does).
     """
 
     posed: PosedBarSet
@@ -95,6 +127,16 @@ class FoundElement:
     confidence: float
     measured_px_per_period: float | None
     roi: Box
+    measurement_roi: Box
+    unmeasurable: str | None = None
+
+    def estimator_priors(self) -> dict[str, Any]:
+        """Keyword arguments for :func:`benchlab.analysis.estimate_modulation`: the set's
+        frequency, and its orientation only where the bars lie on a pixel axis (the estimators
+        take an axis, not an angle; oblique bars have their direction measured)."""
+        p = self.posed
+        return {"freq_cycles_per_px": 1.0 / p.px_per_period,
+                "orientation": p.orientation if p.axis_aligned else None}
 
     @property
     def label(self) -> str:
@@ -115,7 +157,8 @@ class FoundElement:
             "confidence": round(self.confidence, 4),
             "centre_rc": [round(p.centre_rc[0], 3), round(p.centre_rc[1], 3)],
             "bar_width_px": round(p.bar_width_px, 4), "theta_deg": round(p.theta_deg, 3),
-            "roi": list(self.roi), "object_lp_per_mm": p.object_lp_per_mm,
+            "roi": list(self.roi), "measurement_roi": list(self.measurement_roi),
+            "unmeasurable": self.unmeasurable, "object_lp_per_mm": p.object_lp_per_mm,
             "image_lp_per_mm": round(p.image_lp_per_mm, 4),
             "px_per_period": round(p.px_per_period, 4),
             "measured_px_per_period": None if self.measured_px_per_period is None
@@ -212,6 +255,7 @@ def find_chart(
     scale_range: tuple[float, float] = (0.5, 2.0),
     polarity: Polarity | None = None,
     magnification_tolerance: float = MAGNIFICATION_TOLERANCE,
+    prior: ChartPose | None = NOMINAL_POSE,
 ) -> ChartFit:
     """Locate the USAF 1951 chart of ``layout`` in a frame and check every element.
 
@@ -229,6 +273,12 @@ def find_chart(
         Dark bars on a bright ground or the reverse; ``None`` tries both.
     magnification_tolerance : float
         Relative disagreement of implied and configured magnification that gives a warning.
+    prior : ChartPose, optional
+        Pose tried first (default: the layout's own place, unit scale, no rotation - the
+        parameter file's geometry; or a previous frame's pose). When, refined, it explains
+        most three-bar sets found (:data:`CONFIDENT_SHARE`, at least
+        :data:`CONFIDENT_MIN_SETS`) it is taken without searching every pose, and a polarity
+        fitted that well is not searched in the other; ``None`` always searches.
 
     Returns
     -------
@@ -252,26 +302,36 @@ def find_chart(
     model = _model(lay)
     w_max = float(model["width"].max()) * hi
     kernel = 2 * math.ceil(w_max) + 3
-    best: tuple[tuple[int, float], Polarity, ChartPose, int, float, FloatArray, int] | None = None
+    r0, c0, r1, c1 = _search_window(img, kernel + WINDOW_PAD_PX)
+    sub = img[r0:r1, c0:c1]
+    best: tuple[tuple[int, float], Polarity, ChartPose, int, float, _Lit, int] | None = None
     for pol in (("positive", "negative") if polarity is None else (polarity,)):
-        work = img if pol == "positive" else float(np.percentile(img, 99.9)) - img
-        cands = _candidates(_darkness(work, kernel))
-        fit = _fit_pose(cands, model, lay, scale_range)
+        top = 0.0 if pol == "positive" else float(np.percentile(sub[::2, ::2], 99.9))
+        work = sub if pol == "positive" else top - sub
+        darkness, ground = _darkness(work, kernel)
+        cands = _candidates(darkness, (r0, c0))
+        fit = _fit_pose(cands, model, lay, scale_range, prior)
         if fit is None:
             continue
         pose, matched, resid = fit
         key = (matched, -resid)
         if best is None or key > best[0]:
-            lit = _lit_ground(img, pol, kernel)
+            # the ground of the frame itself: the closing for a positive target; for a
+            # negative one the opening of the frame, which is top - the closing of the work
+            lit_ground = ground if pol == "positive" else top - ground
+            lit = _Lit(lit_ground, (r0, c0), _high_level(lit_ground))
             best = (key, pol, pose, matched, resid, lit, cands.n)
+        if _confident(matched, cands.n):
+            break  # the other polarity's bars are this one's spaces: two per set, no chart
     if best is None:
         raise ChartNotFoundError(
             "no chart found: no three-bar sets matching the USAF 1951 layout "
             f"(needs at least {MIN_MATCHED_SETS} bar sets in a consistent arrangement)"
         )
     _, pol, pose, matched, resid, lit, n_cands = best
-    elements = tuple(_check(img, lit, pol, posed_bar_set(lay, pose, g, e, o))
-                     for g, e in lay.elements for o in ("sagittal", "tangential"))
+    placed = [posed_bar_set(lay, pose, g, e, o)
+              for g, e in lay.elements for o in ("sagittal", "tangential")]
+    elements = tuple(_check(img, lit, pol, posed, placed) for posed in placed)
     warnings: list[str] = []
     implied = lay.magnification / pose.scale
     if abs(implied / lay.magnification - 1.0) > magnification_tolerance:
@@ -300,17 +360,45 @@ def _as_frame(pixels: npt.ArrayLike) -> npt.NDArray[np.float32]:
     return out
 
 
-def _darkness(work: npt.NDArray[np.float32], kernel: int) -> npt.NDArray[np.float32]:
-    """Relative darkness against the local ground (a closing); 0 outside the lit field."""
+def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
+    """The part of the frame worth searching (r0, c0, r1, c1): blocks of 8 x 8 px whose
+    brightest pixel is above :data:`LIT_FRACTION` of the way from the dark floor to the
+    brightest blocks (the lit disc of a positive target, the bars of a negative one), padded
+    by ``pad_px``. A frame lit all over is searched whole."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
+    h, w = img.shape
+    step = WINDOW_BLOCK_PX
+    hb, wb = h // step, w // step
+    if hb < 4 or wb < 4:
+        return (0, 0, h, w)
+    near_max = cv2.dilate(img, np.ones((step, step), np.uint8))  # max over step x step
+    blocks = near_max[step // 2 : hb * step : step, step // 2 : wb * step : step]
+    floor, level = np.percentile(blocks, (5.0, 99.0))
+    lit = blocks > floor + LIT_FRACTION * (level - floor)
+    if not lit.any():
+        return (0, 0, h, w)
+    rows, cols = np.nonzero(lit.any(axis=1))[0], np.nonzero(lit.any(axis=0))[0]
+    r0, c0 = int(rows[0]) * step - pad_px, int(cols[0]) * step - pad_px
+    r1 = h if rows[-1] == hb - 1 else (int(rows[-1]) + 1) * step + pad_px
+    c1 = w if cols[-1] == wb - 1 else (int(cols[-1]) + 1) * step + pad_px
+    return (max(r0, 0), max(c0, 0), min(r1, h), min(c1, w))
+
+
+def _darkness(
+    work: npt.NDArray[np.float32], kernel: int
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    """Relative darkness against the local ground (a closing; 0 outside the lit field), and
+    that ground."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
-    ground = cv2.morphologyEx(work, cv2.MORPH_CLOSE, k)
+    ground = np.asarray(cv2.morphologyEx(work, cv2.MORPH_CLOSE, k), dtype=np.float32)
     lit_level = _high_level(ground)
     if lit_level <= 0:
-        return np.zeros_like(work)
+        return np.zeros_like(work), ground
     floor = LIT_FRACTION * lit_level
     darkness = np.asarray((ground - work) / np.maximum(ground, floor), dtype=np.float32)
     darkness[ground < floor] = 0.0
-    return darkness
+    return darkness, ground
 
 
 def _high_level(ground: npt.NDArray[Any]) -> float:
@@ -318,18 +406,37 @@ def _high_level(ground: npt.NDArray[Any]) -> float:
     return float(np.percentile(ground[::4, ::4], 99.0))
 
 
-def _lit_ground(img: npt.NDArray[np.float32], pol: Polarity, kernel: int) -> FloatArray:
-    """Where the chart is lit: the ground level (closing for a positive target, opening for a
-    negative one) smoothed, as a fraction of its high percentile."""
-    k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
-    op = cv2.MORPH_CLOSE if pol == "positive" else cv2.MORPH_OPEN
-    ground = cv2.morphologyEx(img, op, k)
-    level = _high_level(ground)
-    return np.asarray(ground / level if level > 0 else np.zeros_like(ground), dtype=np.float64)
+@dataclass(frozen=True)
+class _Lit:
+    """Where the chart is lit: the ground level (closing of a positive target, opening of a
+    negative one) over the search window at ``origin_rc``, as a fraction of its high
+    percentile; 0 outside the window."""
+
+    ground: npt.NDArray[np.float32]
+    origin_rc: tuple[int, int]
+    level: float
+
+    def at(self, points_rc: list[tuple[float, float]]) -> float:
+        """The least lit fraction over the pixels holding the points."""
+        level = self.level
+        if level <= 0:
+            return 0.0
+        h, w = self.ground.shape
+        out = math.inf
+        for r, c in points_rc:
+            rr, cc = round(r) - self.origin_rc[0], round(c) - self.origin_rc[1]
+            if not (0 <= rr < h and 0 <= cc < w):
+                return 0.0
+            out = min(out, float(self.ground[rr, cc]) / level)
+        return out
 
 
-def _candidates(darkness: npt.NDArray[np.float32]) -> _Candidates:
-    """Three-bar sets among the dark components of the darkness map."""
+def _candidates(
+    darkness: npt.NDArray[np.float32], origin_rc: tuple[int, int] = (0, 0)
+) -> _Candidates:
+    """Three-bar sets among the dark components of the darkness map (``origin_rc``: where the
+    map's first pixel sits in the frame)."""
+    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     mask = (darkness > BAR_CONTRAST).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
     empty = _Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
@@ -389,7 +496,8 @@ def _candidates(darkness: npt.NDArray[np.float32]) -> _Candidates:
         angles.append(math.degrees(0.5 * math.atan2(np.sin(a).sum(), np.cos(a).sum())) % 180.0)
     if not centres:
         return empty
-    return _Candidates(np.array(centres), np.array(widths), np.array(angles))
+    return _Candidates(np.array(centres) + np.array(origin_rc, dtype=np.float64),
+                       np.array(widths), np.array(angles))
 
 
 # --------------------------------------------------------------------------- pose
@@ -444,14 +552,27 @@ def _match(
     return np.isfinite(best), which, best
 
 
+def _confident(matched: int, n_candidates: int) -> bool:
+    """A fit that explains most candidates with many sets: no other pose or polarity can
+    match more of them."""
+    return matched >= CONFIDENT_MIN_SETS and matched >= CONFIDENT_SHARE * n_candidates
+
+
 def _fit_pose(
     cands: _Candidates, model: dict[str, Any], layout: ChartLayout,
-    scale_range: tuple[float, float],
+    scale_range: tuple[float, float], prior: ChartPose | None = None,
 ) -> tuple[ChartPose, int, float] | None:
-    """Best pose from candidate / layout-set correspondences, refined; None when unsupported."""
+    """Best pose from candidate / layout-set correspondences, refined; None when unsupported.
+
+    A ``prior`` pose that, refined, explains most candidates (:func:`_confident`) is taken
+    without the search over every candidate / set pairing."""
     if cands.n < 2:
         return None
     origin = layout.origin_rc
+    if prior is not None and scale_range[0] <= prior.scale <= scale_range[1]:
+        refined = _refine(cands, model, origin, prior)
+        if refined is not None and _confident(refined[1], cands.n):
+            return refined
     grid_c, grid_s = np.meshgrid(np.arange(cands.n), np.arange(len(model["keys"])), indexing="ij")
     ci, si = grid_c.ravel(), grid_s.ravel()
     k = cands.width_px[ci] / model["width"][si]
@@ -520,22 +641,20 @@ def _refine(
 
 
 def _check(
-    img: npt.NDArray[np.float32], lit: FloatArray, pol: Polarity, posed: PosedBarSet
+    img: npt.NDArray[np.float32], lit: _Lit, pol: Polarity, posed: PosedBarSet,
+    placed: list[PosedBarSet],
 ) -> FoundElement:
     """Place one set, reject it with a reason or confirm it against the frame."""
     roi = posed.roi
     h, w = img.shape
 
     def rejected(reason: str) -> FoundElement:
-        return FoundElement(posed, "rejected", reason, 0.0, None, roi)
+        return FoundElement(posed, "rejected", reason, 0.0, None, roi, roi)
 
     corners = posed.corners()
     if any(not (-0.5 <= r <= h - 0.5 and -0.5 <= c <= w - 0.5) for r, c in corners):
         return rejected("clipped by the FOV (runs off the frame)")
-    samples = [*corners, posed.centre_rc]
-    lit_min = min(float(lit[min(max(round(r), 0), h - 1), min(max(round(c), 0), w - 1)])
-                  for r, c in samples)
-    if lit_min < LIT_FRACTION:
+    if lit.at([*corners, posed.centre_rc]) < LIT_FRACTION:
         return rejected("clipped by the FOV (outside the lit field)")
     if posed.image_lp_per_mm > nyquist_lp_per_mm():
         return rejected(f"above Nyquist ({posed.px_per_period:.2f} px per period < 2)")
@@ -550,8 +669,65 @@ def _check(
     if conf < MIN_CONFIDENCE:
         return FoundElement(posed, "rejected",
                             f"ambiguous (three-bar pattern correlation {conf:.2f} < "
-                            f"{MIN_CONFIDENCE})", conf, measured, roi)
-    return FoundElement(posed, "found", None, conf, measured, roi)
+                            f"{MIN_CONFIDENCE})", conf, measured, roi, roi)
+    box, note = _measurement_roi(posed, placed, (h, w))
+    return FoundElement(posed, "found", None, conf, measured, roi, box, note)
+
+
+def _measurement_roi(
+    posed: PosedBarSet, placed: list[PosedBarSet], shape: tuple[int, int]
+) -> tuple[Box, str | None]:
+    """The ROI a modulation is read from, and why it gives no reliable reading (or None).
+
+    Three whole periods across the bars when that box stays on the frame and clear of every
+    other set (with :data:`NEIGHBOUR_MARGIN_PX` for its blur), else the bar-set ROI.
+    """
+    reach = (WHOLE_PERIODS_HALF_WIDTHS * posed.bar_width_px + 2.0) * math.sqrt(2.0)
+    others = [o for o in placed if o is not posed and math.dist(o.centre_rc, posed.centre_rc)
+              <= reach + (o.half_size_px + NEIGHBOUR_MARGIN_PX) * math.sqrt(2.0)]
+    box = posed.whole_period_roi
+    r0, c0, r1, c1 = box
+    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]) or any(
+        _box_meets_set(box, o) for o in others
+    ):
+        box = posed.roi
+    if any(_box_meets_set(box, o) for o in others):
+        return box, "a neighbouring bar set reaches into the ROI"
+    p = posed.px_per_period
+    if not posed.axis_aligned and p < MIN_OBLIQUE_PX_PER_PERIOD:
+        off_axis = abs((posed.theta_deg + 45.0) % 90.0 - 45.0)
+        return box, (f"not measurable: {p:.2f} px per period < {MIN_OBLIQUE_PX_PER_PERIOD:g} on "
+                     f"bars {off_axis:.1f} deg off the pixel axes (every line samples another "
+                     "phase; too few pixels per phase for a reliable modulation)")
+    r0, c0, r1, c1 = box
+    t = math.radians(posed.theta_deg)
+    span = abs((c1 - c0 - 1) * math.cos(t)) + abs((r1 - r0 - 1) * math.sin(t)) + 1.0
+    if span / p < MIN_ROI_PERIODS:
+        return box, (f"not measurable: the ROI spans {span / p:.1f} periods across the bars "
+                     f"(< {MIN_ROI_PERIODS:g})")
+    return box, None
+
+
+def _box_meets_set(box: Box, other: PosedBarSet) -> bool:
+    """True when the pixels of ``box`` overlap the square of ``other`` widened by
+    :data:`NEIGHBOUR_MARGIN_PX` (separating-axis test of two rectangles)."""
+    r0, c0, r1, c1 = box
+    top, left, bottom, right = r0 - 0.5, c0 - 0.5, r1 - 0.5, c1 - 0.5
+    half = other.half_size_px + NEIGHBOUR_MARGIN_PX
+    oy, ox = other.centre_rc
+    by, bx = 0.5 * (top + bottom), 0.5 * (left + right)
+    hy, hx = 0.5 * (bottom - top), 0.5 * (right - left)
+    if math.hypot(oy - by, ox - bx) > math.hypot(hy, hx) + half * math.sqrt(2.0):
+        return False
+    t = math.radians(other.theta_deg)
+    ct, st = abs(math.cos(t)), abs(math.sin(t))
+    # the box's axes (rotated square's extent along x and y is half * (|cos| + |sin|))
+    if abs(ox - bx) > hx + half * (ct + st) or abs(oy - by) > hy + half * (ct + st):
+        return False
+    # the square's axes (the box's extent along u and v)
+    ux, uy = math.cos(t), math.sin(t)
+    du, dv = (bx - ox) * ux + (by - oy) * uy, -(bx - ox) * uy + (by - oy) * ux
+    return not (abs(du) > half + hx * ct + hy * st or abs(dv) > half + hx * st + hy * ct)
 
 
 def _confirm(
@@ -572,11 +748,10 @@ def _confirm(
     u, v, n = prof.u_px[filled], prof.mean[filled], prof.count[filled].astype(np.float64)
     sign = -1.0 if pol == "positive" else 1.0
     trials = posed.bar_width_px * np.linspace(0.85, 1.15, 13)
-    scores = np.full(trials.size, -1.0)
-    for i, wt in enumerate(trials):
-        inside = np.abs(u) <= 2.5 * wt
-        if inside.sum() >= 4:
-            scores[i] = _weighted_corr(v[inside], sign * np.cos(np.pi * u[inside] / wt), n[inside])
+    # every trial width at once: one row per trial, the bins outside its set weighted 0
+    wgt = np.where(np.abs(u)[None, :] <= 2.5 * trials[:, None], n[None, :], 0.0)
+    scores = _weighted_corr_rows(v, sign * np.cos(np.pi * u[None, :] / trials[:, None]), wgt)
+    scores[(wgt > 0).sum(axis=1) < 4] = -1.0
     i = int(np.argmax(scores))
     best_w = float(trials[i])
     if 0 < i < trials.size - 1:  # parabola through the peak and its neighbours
@@ -587,9 +762,12 @@ def _confirm(
     return max(0.0, float(scores[i])), 2.0 * best_w
 
 
-def _weighted_corr(a: FloatArray, b: FloatArray, wgt: FloatArray) -> float:
-    wsum = wgt.sum()
-    am, bm = (wgt * a).sum() / wsum, (wgt * b).sum() / wsum
-    da, db = a - am, b - bm
-    den = math.sqrt(float((wgt * da * da).sum() * (wgt * db * db).sum()))
-    return float((wgt * da * db).sum() / den) if den > 0 else 0.0
+def _weighted_corr_rows(a: FloatArray, b: FloatArray, wgt: FloatArray) -> FloatArray:
+    """Weighted correlation of ``a`` (one profile) with each row of ``b`` under the weights
+    of the same row of ``wgt`` (0 where a row has no weight or no spread)."""
+    wsum = np.maximum(wgt.sum(axis=1, keepdims=True), 1e-300)
+    da = a[None, :] - (wgt * a[None, :]).sum(axis=1, keepdims=True) / wsum
+    db = b - (wgt * b).sum(axis=1, keepdims=True) / wsum
+    den = np.sqrt((wgt * da * da).sum(axis=1) * (wgt * db * db).sum(axis=1))
+    num = (wgt * da * db).sum(axis=1)
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

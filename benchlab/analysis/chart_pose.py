@@ -17,6 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from benchlab.analysis.chart import (
     ROI_END_MARGIN_PX,
     Box,
@@ -27,7 +30,21 @@ from benchlab.analysis.chart import (
 )
 from benchlab.analysis.frequency import px_per_period
 
+FloatArray = npt.NDArray[np.float64]
+
 Point = tuple[float, float]
+
+#: Half width across the bars, in bar widths, of the measurement ROI: the set (``2.5``) plus half
+#: a space each side, so the ROI holds exactly three whole periods of the bar pattern (the
+#: ground beside the outer bars reads as the space that would follow them). A ROI of 2.5
+#: periods leaves the estimators an unbalanced pattern: on the benchmark's 3-5 px periods it
+#: misread the modulation by more than 0.03 in twice as many sets.
+WHOLE_PERIODS_HALF_WIDTHS = 3.0
+#: Bars within this many degrees of a pixel axis count as axis-aligned: every line across them
+#: then samples the same phases, and the estimators may take the axis as the bar direction.
+#: Beyond it the direction must be measured (the estimators take an axis, not an angle, as a
+#: prior: a set at 2-15 deg measured as if on the axis read up to 0.2 off on a small ROI).
+AXIS_TOLERANCE_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -116,8 +133,20 @@ class PosedBarSet:
 
     @property
     def roi(self) -> Box:
-        """Measurement ROI: :func:`posed_bar_set_roi` of this set."""
+        """The bar-set ROI: :func:`posed_bar_set_roi` of this set (across: the set only)."""
         return posed_bar_set_roi(self.centre_rc, self.bar_width_px, self.theta_deg)
+
+    @property
+    def whole_period_roi(self) -> Box:
+        """The set's ROI over three whole periods across the bars (half a space beyond each
+        outer bar, :data:`WHOLE_PERIODS_HALF_WIDTHS`), bar ends trimmed as in :attr:`roi`."""
+        return posed_bar_set_roi(self.centre_rc, self.bar_width_px, self.theta_deg,
+                                 half_across_widths=WHOLE_PERIODS_HALF_WIDTHS)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """True when the bars lie along a pixel axis within :data:`AXIS_TOLERANCE_DEG`."""
+        return abs((self.theta_deg + 45.0) % 90.0 - 45.0) <= AXIS_TOLERANCE_DEG
 
 
 def posed_bar_set(
@@ -160,7 +189,8 @@ def posed_bar_sets(layout: ChartLayout, pose: ChartPose) -> list[PosedBarSet]:
 
 
 def posed_bar_set_roi(
-    centre_rc: Point, bar_width_px: float, theta_deg: float, margin_px: float = ROI_END_MARGIN_PX
+    centre_rc: Point, bar_width_px: float, theta_deg: float, margin_px: float = ROI_END_MARGIN_PX,
+    half_across_widths: float = 2.5,
 ) -> Box:
     """Largest axis-aligned pixel box inside a (possibly rotated) bar set, bar ends trimmed.
 
@@ -170,49 +200,50 @@ def posed_bar_set_roi(
     at angle ``t`` reaches ``(|cos t| + |sin t|) / 2`` along any axis). The region is convex, so
     a box is inside when its four corner pixels are; among the boxes centred on the set the one
     with most pixels wins. At 0 or 90 degrees this is exactly ``bar_set_roi``. Never empty: the
-    pixel holding the centre when nothing fits.
+    pixel holding the centre when nothing fits. ``half_across_widths`` (bar widths from the
+    centre) widens the region across the bars (3 = three whole periods).
     """
     t = math.radians(theta_deg)
     cu, su = math.cos(t), math.sin(t)
     reach = 0.5 * (abs(cu) + abs(su))
-    half_across = 2.5 * bar_width_px + 1e-9
+    half_across = half_across_widths * bar_width_px + 1e-9
     half_along = 2.5 * bar_width_px - margin_px - reach + 1e-9
     cr, cc = centre_rc
-    best: Box | None = None
-    best_n = 0
     if half_along >= 0:
-        extent = math.ceil(3.6 * bar_width_px) + 1
+        # every candidate top row r0 with the bottom rows r1 that centre the box on the set
+        extent = math.ceil(1.45 * max(half_across, half_along + reach)) + 1
         r_mid = math.floor(cr)
-        for r0 in range(r_mid - extent, r_mid + 1):
-            for r1 in {math.floor(2 * cr - r0), math.ceil(2 * cr - r0)}:
-                if r1 < r0:
-                    continue
-                lo, hi = _x_range(r0 - cr, r1 - cr, cu, su, half_across, half_along)
-                c0, c1 = math.ceil(cc + lo - 1e-9), math.floor(cc + hi + 1e-9)
-                n = (r1 - r0 + 1) * (c1 - c0 + 1)
-                if c1 >= c0 and n > best_n:
-                    best, best_n = (r0, c0, r1 + 1, c1 + 1), n
-    if best is None:
-        r, c = round(cr), round(cc)
-        return (r, c, r + 1, c + 1)
-    return best
+        r0 = np.repeat(np.arange(r_mid - extent, r_mid + 1, dtype=np.float64), 2)
+        r1 = np.empty_like(r0)
+        r1[0::2], r1[1::2] = np.floor(2 * cr - r0[0::2]), np.ceil(2 * cr - r0[1::2])
+        lo, hi = _x_range(r0 - cr, r1 - cr, cu, su, half_across, half_along)
+        c0, c1 = np.ceil(cc + lo - 1e-9), np.floor(cc + hi + 1e-9)
+        n = np.where((r1 >= r0) & (c1 >= c0), (r1 - r0 + 1) * (c1 - c0 + 1), 0.0)
+        i = int(np.argmax(n))  # the first of the largest, as the rows are scanned top down
+        if n[i] > 0:
+            return (int(r0[i]), int(c0[i]), int(r1[i]) + 1, int(c1[i]) + 1)
+    r, c = round(cr), round(cc)
+    return (r, c, r + 1, c + 1)
 
 
 def _x_range(
-    dy0: float, dy1: float, cu: float, su: float, half_across: float, half_along: float
-) -> tuple[float, float]:
-    """Column offsets x for which (x, dy) lies in the rotated rectangle for both dy0 and dy1.
+    dy0: FloatArray, dy1: FloatArray, cu: float, su: float, half_across: float,
+    half_along: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Column offsets x for which (x, dy) lies in the rotated rectangle for both dy0 and dy1
+    (arrays: one interval per pair; empty where ``lo > hi``).
 
     Across: ``|x cu + dy su| <= half_across``; along: ``|-x su + dy cu| <= half_along``. Each
     is an interval in x (or all or nothing when its coefficient vanishes).
     """
-    lo, hi = -math.inf, math.inf
+    lo = np.full(dy0.shape, -np.inf)
+    hi = np.full(dy0.shape, np.inf)
     for dy in (dy0, dy1):
         for coef, const, half in ((cu, dy * su, half_across), (-su, dy * cu, half_along)):
             if abs(coef) < 1e-12:
-                if abs(const) > half:
-                    return (1.0, -1.0)
+                outside = np.abs(const) > half
+                lo, hi = np.where(outside, 1.0, lo), np.where(outside, -1.0, hi)
                 continue
             a, b = (-half - const) / coef, (half - const) / coef
-            lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+            lo, hi = np.maximum(lo, np.minimum(a, b)), np.minimum(hi, np.maximum(a, b))
     return lo, hi

@@ -5,6 +5,10 @@ closed-form pixel-integrated Gaussian edge, levels 0.2 and 0.8 of full scale): a
 uniformly in 2-40 deg, a random sub-pixel offset, Gaussian noise for the SNR (edge step over
 noise sigma), quantised to 8 or 12 bits. Truth: :func:`edge_truth_mtf` and its MTF50.
 
+Coverage: per bucket, the share of readings whose +-1.96 sigma interval (the SFR's propagated
+uncertainty) holds the truth, for the MTF at every checked frequency up to Nyquist and for
+MTF50.
+
 Pass criteria (issue 16): MTF50 within 2 % and MTF(f) within 0.02 for f <= Nyquist in >= 95 %
 of the cases of every bucket with SNR >= 20.
 """
@@ -45,6 +49,8 @@ class Bucket:
     mtf_within: float  # fraction with max |MTF - truth| over f <= Nyquist <= MTF_TOL
     mtf50_err_median_pct: float
     mtf_err_p95: float
+    mtf_coverage: float  # share of |MTF - truth| <= 1.96 sigma, over cases x f in (0, Nyquist]
+    mtf50_coverage: float  # the same for MTF50
 
     @property
     def judged(self) -> bool:
@@ -75,6 +81,8 @@ def run_accuracy(cases_per_cell: int = 20, seed: int = 0) -> list[Bucket]:
     for sigma in SIGMAS_PX:
         for snr in SNRS:
             m50_err, mtf_err, refused = [], [], 0
+            covered: list[float] = []
+            covered50: list[float] = []
             for bits in BITS:
                 for _ in range(cases_per_cell):
                     img, angle, _ = _case(rng, sigma, snr, bits)
@@ -91,12 +99,19 @@ def run_accuracy(cases_per_cell: int = 20, seed: int = 0) -> list[Bucket]:
                     m50_err.append(math.inf if got50 is None else abs(got50 / truth50 - 1))
                     diff = res.mtf_at(_F_CHECK) - edge_truth_mtf(_F_CHECK, sigma, theta)
                     mtf_err.append(float(np.max(np.abs(diff))))
+                    sig = res.sigma_at(_F_CHECK)
+                    if sig is not None:
+                        covered.extend((np.abs(diff[1:]) <= 1.96 * sig[1:]).tolist())
+                    if got50 is not None and res.mtf50_sigma is not None:
+                        covered50.append(float(abs(got50 - truth50) <= 1.96 * res.mtf50_sigma))
             n = len(m50_err)
             e50, em = np.asarray(m50_err), np.asarray(mtf_err)
             out.append(Bucket(
                 sigma, snr, n, refused,
                 float(np.mean(e50 <= MTF50_TOL)), float(np.mean(em <= MTF_TOL)),
                 float(np.median(e50) * 100), float(np.percentile(em, 95)),
+                float(np.mean(covered)) if covered else math.nan,
+                float(np.mean(covered50)) if covered50 else math.nan,
             ))
     return out
 
@@ -121,26 +136,48 @@ def run_speed(
 
 
 def format_accuracy(buckets: list[Bucket]) -> str:
-    """The accuracy table (one line per bucket) and the overall verdict."""
+    """The accuracy table (one line per bucket), the overall verdict, and which failures no
+    model-free method could avoid (:func:`noise_floor`)."""
     lines = [
         f"{'sigma px':>8} {'SNR':>5} {'cases':>5} {'refused':>7} {'MTF50<=2%':>9} "
-        f"{'MTF<=0.02':>9} {'med MTF50 err':>13} {'p95 max|dMTF|':>13}  verdict"
+        f"{'MTF<=0.02':>9} {'med MTF50 err':>13} {'p95 max|dMTF|':>13} {'cover MTF':>9} "
+        f"{'cover MTF50':>11} {'floor sd MTF50/MTF(Nyq)':>23}  verdict"
     ]
+    beyond = 0
     for b in buckets:
         verdict = ("pass" if b.passed else "FAIL") if b.judged else "(SNR<20: not judged)"
         snr = f"{b.snr:>5.0f}" if math.isfinite(b.snr) else "  inf"
+        floor = ""
+        if math.isfinite(b.snr):
+            nf = noise_floor(b.sigma_px, b.snr)
+            floor = (f"{100 * nf.mtf50_rel_sd:.2f}%{'' if nf.mtf50_reachable else '!'} / "
+                     f"{nf.mtf_nyquist_sd:.4f}{'' if nf.mtf_reachable else '!'}")
+            if b.judged and not b.passed and not (nf.mtf_reachable and nf.mtf50_reachable):
+                verdict += " (below the noise floor)"
+                beyond += 1
         lines.append(
             f"{b.sigma_px:>8.1f} {snr} {b.cases:>5d} {b.refused:>7d} "
             f"{100 * b.mtf50_within:>8.1f}% {100 * b.mtf_within:>8.1f}% "
-            f"{b.mtf50_err_median_pct:>12.2f}% {b.mtf_err_p95:>13.3f}  {verdict}"
+            f"{b.mtf50_err_median_pct:>12.2f}% {b.mtf_err_p95:>13.3f} "
+            f"{100 * b.mtf_coverage:>8.1f}% {100 * b.mtf50_coverage:>10.1f}% {floor:>23}  "
+            f"{verdict}"
         )
     judged = [b for b in buckets if b.judged and math.isfinite(b.snr)]
     n_pass = sum(b.passed for b in judged)
     m50_pass = sum(b.mtf50_within >= PASS_FRACTION for b in judged)
     lines.append(
         f"buckets with SNR 20-500: {n_pass}/{len(judged)} pass both criteria; "
-        f"{m50_pass}/{len(judged)} pass the MTF50 criterion (SNR inf: the method's own bias, "
-        "quantisation only)"
+        f"{m50_pass}/{len(judged)} pass the MTF50 criterion; {beyond} of the failures ask for "
+        "less noise than the floor allows (SNR inf: the method's own bias, quantisation only)"
+    )
+    lines.append(
+        "cover: share of the readings whose +-1.96 sigma interval (the SFR's own uncertainty) "
+        "holds the truth; MTF pooled over f in (0, Nyquist]; nominal 95 %"
+    )
+    lines.append(
+        "floor: 1-sigma of MTF50 (relative) and of MTF at Nyquist that even an ideal model-free "
+        f"estimator has on this {ROI_SHAPE[0]}-row ROI (21 deg edge); '!' = above what 95 % "
+        f"within the tolerance needs ({100 * MTF50_TOL / 1.96:.2f} %, {MTF_TOL / 1.96:.4f})"
     )
     return "\n".join(lines)
 
@@ -177,3 +214,53 @@ def run_extremes(seed: int = 2) -> list[tuple[str, str]]:
         out.append((name, f"measured (SNR 100): MTF50 {rel:+.2f} %, max |dMTF| to Nyquist "
                           f"{err:.3f}; warnings: {'; '.join(res.warnings) or 'none'}"))
     return out
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """Lower bound on the noise of any unbiased model-free edge MTF (see :func:`noise_floor`)."""
+
+    mtf_nyquist_sd: float  # 1-sigma of MTF at Nyquist
+    mtf50_rel_sd: float  # relative 1-sigma of MTF50
+
+    @property
+    def mtf_reachable(self) -> bool:
+        """Whether MTF(Nyquist) within MTF_TOL in 95 % of cases is possible at all."""
+        return self.mtf_nyquist_sd <= MTF_TOL / 1.96
+
+    @property
+    def mtf50_reachable(self) -> bool:
+        """Whether MTF50 within MTF50_TOL in 95 % of cases is possible at all."""
+        return self.mtf50_rel_sd <= MTF50_TOL / 1.96
+
+
+def noise_floor(
+    sigma_px: float, snr: float, angle_deg: float = 21.0, rows: int = ROI_SHAPE[0],
+    bin_px: float = 0.25,
+) -> NoiseFloor:
+    """Cramer-Rao-style floor on the MTF noise of an edge, with no model of the LSF.
+
+    The ESF bin means are sufficient statistics for the pixels (Gaussian noise of sigma
+    ``step / snr``), and a model-free MTF is the DFT of their differences over the LSF's
+    support ``W``; the ideal estimator uses nothing outside it. A bin of width ``h`` holds
+    ``N h`` pixels (``N = rows / cos a`` per px along the normal), so each component of the
+    DFT at ``f`` has the sigma ``(1 / snr) sqrt(2 W / N) |sin(pi f h)| / h`` (about
+    ``pi f / snr sqrt(2 W / N)``: noise grows with frequency, and with the root of the
+    support). ``W`` is taken as the projected pixel width plus +-2.576 sigma of the blur
+    (99 % of a Gaussian LSF) - less than any real window needs, so the floor is optimistic.
+    MTF50's relative sigma is the MTF's sigma there over the curve's slope, over MTF50.
+    """
+    a = math.radians(angle_deg)
+    width = abs(math.cos(a)) + abs(math.sin(a)) + 2 * 2.576 * math.hypot(sigma_px,
+                                                                          bin_px / 12**0.5)
+    n_per_px = rows / math.cos(a)
+
+    def sd(f: float) -> float:
+        return (math.sqrt(2.0 * width / n_per_px) * abs(math.sin(math.pi * f * bin_px))
+                / bin_px / snr)
+
+    f50 = edge_truth_mtf50(sigma_px, a)
+    df = 1e-4
+    slope = float(np.diff(edge_truth_mtf(np.array([f50 - df, f50 + df]), sigma_px, a))[0])
+    slope /= 2 * df
+    return NoiseFloor(sd(0.5), sd(f50) / abs(slope) / f50)

@@ -68,7 +68,8 @@ def format_elements(fit: ChartFit) -> str:
             f"{p.label:<7} {el.status:<8} {el.confidence:>4.2f}  "
             f"({p.centre_rc[0]:7.1f},{p.centre_rc[1]:7.1f})  {roi:<19} "
             f"{p.object_lp_per_mm:>9.3f} {p.image_lp_per_mm:>9.2f} {p.px_per_period:>9.2f} "
-            f"{meas:>8}" + (f"  {el.reason}" if el.reason else ""))
+            f"{meas:>8}" + (f"  {el.reason or el.unmeasurable}"
+                            if el.reason or el.unmeasurable else ""))
     return "\n".join(lines)
 
 
@@ -100,16 +101,19 @@ def measure_chart(pixels: Any, fit: ChartFit, estimator: str | None) -> list[dic
     name = estimator or DEFAULT_ESTIMATOR
     rows = []
     for el in fit.found:
-        r0, c0, r1, c1 = el.roi
+        r0, c0, r1, c1 = el.measurement_roi
         p = el.posed
-        res = estimate_modulation(pixels[..., r0:r1, c0:c1], estimator=name,
-                                  freq_cycles_per_px=1.0 / p.px_per_period,
-                                  orientation=p.orientation)
+        result: dict[str, Any] | None = None
+        if el.unmeasurable is None:  # else no number: the reason says why
+            res = estimate_modulation(pixels[..., r0:r1, c0:c1], estimator=name,
+                                      **el.estimator_priors())
+            result = res.to_dict()
         rows.append({"element": f"G{p.group}E{p.element}", "orientation": p.orientation,
-                     "label": p.label, "roi": list(el.roi), "object_lp_per_mm": p.object_lp_per_mm,
+                     "label": p.label, "roi": list(el.measurement_roi),
+                     "object_lp_per_mm": p.object_lp_per_mm,
                      "image_lp_per_mm": p.image_lp_per_mm, "px_per_period": p.px_per_period,
                      "theta_deg": p.theta_deg, "confidence": el.confidence,
-                     "result": res.to_dict()})
+                     "unmeasurable": el.unmeasurable, "result": result})
     return rows
 
 
@@ -123,6 +127,8 @@ def format_table_411(fit: ChartFit, rows: list[dict[str, Any]]) -> str:
         if r is None:
             return f"{'-':>17}"
         res = r["result"]
+        if res is None:
+            return f"{'not measured':>17}"
         if not res.get("resolved"):
             return f"{'N/A':>9} {0.0:>7.2f}"
         return f"{res['dark']:>4.0f}/{res['bright']:<4.0f} {res['modulation']:>7.2f}"
@@ -135,6 +141,10 @@ def format_table_411(fit: ChartFit, rows: list[dict[str, Any]]) -> str:
         lines.append(f"{name:<8} {any_row['object_lp_per_mm']:>9.3f} "
                      f"{any_row['image_lp_per_mm']:>9.2f}  {cell(pair.get('sagittal')):>19}  "
                      f"{cell(pair.get('tangential')):>19}")
+    unmeasured = [f"{r['label']} {r['unmeasurable']}" for r in rows if r["unmeasurable"]]
+    if unmeasured:
+        lines.append("")
+        lines.append("found, not measured: " + "; ".join(unmeasured))
     if fit.rejected:
         lines.append("")
         lines.append("not measured: " + "; ".join(f"{e.label} {e.reason}" for e in fit.rejected))

@@ -46,7 +46,7 @@ def _plot(result: Any, out: Path, title: str) -> None:
     ax.plot(f, result.mtf, "k-", label="edge MTF")
     if result.mtf_sigma is not None:
         ax.fill_between(f, result.mtf - result.mtf_sigma, result.mtf + result.mtf_sigma,
-                        color="0.8", label="bootstrap 1 sigma")
+                        color="0.8", label=f"{result.uncertainty_method} 1 sigma")
     ax.axvline(0.5, color="r", ls="--", lw=0.8, label="Nyquist")
     if result.mtf50_cycles_per_px is not None:
         ax.axvline(result.mtf50_cycles_per_px, color="b", ls=":", lw=0.8,
@@ -243,8 +243,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="also report the MTF at these sensor frequencies (lp/mm, comma-separated)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
-    p.add_argument("--bootstrap", type=int, default=100, metavar="N",
-                   help="bootstrap resamples of the rows for the uncertainty (default 100)")
+    p.add_argument("--bootstrap", type=int, default=0, metavar="N",
+                   help="uncertainty by N bootstrap resamples of the rows instead of the default "
+                        "analytic one (the pixel noise propagated; 0 = analytic)")
     p.add_argument("--fit-order", type=int, choices=(1, 2, 3), default=1,
                    help="polynomial order of the edge fit (2-3 follow a bent edge; default 1)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the bootstrap")

@@ -6,6 +6,7 @@ scene's analytic MTF, and its Coltman-converted bar readings against the edge MT
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,7 @@ class BenchCheck:
     bits: int
     edge_rows: list[dict[str, Any]]  # label, orientation, max |edge - truth| to Nyquist, ...
     bar_rows: list[dict[str, Any]]  # the procedure's table_sfr_vs_bars rows
+    edge_tables_cpu_ms: float  # median CPU time of the edge tables of the forward frame
 
 
 def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
@@ -44,7 +46,9 @@ def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
         with Bench.open(config, simulate=True, seed=seed) as bench:
             runner = start_run("mtf", bench=bench, params=params, root=root, operator="bench",
                                prompt=lambda step, msg: True, abort=threading.Event())
-            tables = runner.run().tables
+            outcome = runner.run()
+            tables = outcome.tables
+            edge_ms = _edge_tables_cpu_ms(outcome.session_path / "frames" / "forward__forward.tiff")
     scene = EdgeScene()  # what the simulated bench's world shows by default
     specs = {e.label: e for e in scene.edges()}
     edge_rows = []
@@ -65,7 +69,29 @@ def run_bench_check(bits: int = 8, seed: int = 0) -> BenchCheck:
                           "mtf_nyquist": row["mtf_nyquist"],
                           "truth_mtf_nyquist": float(scene.truth_mtf(specs[row["edge"]],
                                                                      [NYQUIST])[0])})
-    return BenchCheck(bits, edge_rows, list(tables.get("table_sfr_vs_bars", [])))
+    return BenchCheck(bits, edge_rows, list(tables.get("table_sfr_vs_bars", [])), edge_ms)
+
+
+def _edge_tables_cpu_ms(frame: Path, repeats: int = 15) -> float:
+    """Median CPU milliseconds of what re-analysis spends on the slanted edges of one forward
+    frame: every edge's SFR (with its uncertainty) and the curve tables (``measure_edges`` +
+    ``edge_tables``; CPU time, which the machine's other jobs do not inflate)."""
+    import statistics
+    import time
+
+    import tifffile
+
+    from benchlab.protocols.mtf_edges import edge_tables, measure_edges
+
+    pixels = tifffile.imread(frame)
+    centre = (pixels.shape[0] / 2.0, pixels.shape[1] / 2.0)
+    edge_tables(measure_edges(pixels), centre)  # warm-up
+    cpu = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        edge_tables(measure_edges(pixels), centre)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(cpu) * 1e3
 
 
 def format_bench_check(checks: list[BenchCheck]) -> str:
@@ -102,7 +128,10 @@ def format_bench_check(checks: list[BenchCheck]) -> str:
                          f"{r['ctf']:>6.3f} {r['bar_mtf_coltman']:>7.3f} {r['edge_mtf']:>6.3f} "
                          f"{sim:>6} {d:>10.3f}")
     n = sum(len(c.bar_rows) for c in checks)
+    cpu = ", ".join(f"{c.bits}-bit {c.edge_tables_cpu_ms:.1f} ms" for c in checks)
     lines.append(f"Coltman-converted bars vs edge MTF below Nyquist ({n} readings): worst "
                  f"{worst_b:.3f} ({'pass' if n and worst_b <= BARS_EDGE_TOL else 'FAIL'}, "
                  f"criterion {BARS_EDGE_TOL})")
+    lines.append(f"edge tables of one forward frame (12 edges, SFR + uncertainty + curves), CPU "
+                 f"median: {cpu} (target <= 40 ms per session)")
     return "\n".join(lines)

@@ -43,7 +43,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "tui", help="live-view frames per second by terminal size and drawing method",
         description="Run the live view headless on the simulated bench at 80x24, 120x36 and "
         "200x60 with half-blocks, Sixel and Kitty graphics, and print the frames shown per "
-        "second (the display is capped at 20 Hz).",
+        "second (the display is capped at 20 Hz), the CPU ms per shown frame of the UI thread "
+        "and of the whole process, and the rate that CPU cost implies on a quiet machine "
+        "(min(20, 1000 / process ms); load on a shared machine lowers the measured rate, "
+        "hardly the CPU time).",
     )
     bench.add_argument("--seconds", type=float, default=4.0, help="seconds per case (4)")
     bench.add_argument("--method", action="append", choices=("halfblock", "sixel", "kitty"),

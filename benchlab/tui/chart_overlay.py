@@ -111,11 +111,6 @@ class ChartGraphicsFrameView(GraphicsFrameView):
         self._boxes, self._frame_shape = list(boxes), frame_shape
 
     def show(self, pixels: npt.NDArray[np.generic], roi: Roi | None, max_code: float) -> None:
-        from PIL import Image
-
-        self.frames_shown += 1
         rgb = frame_rgb(pixels, roi, max_code)
         _draw_boxes(rgb, self._boxes, self._frame_shape)
-        self.last_rgb = rgb
-        if self.image_widget is not None:
-            self.image_widget.image = Image.fromarray(rgb, mode="RGB")
+        self.show_rgb(rgb)

@@ -15,7 +15,7 @@ from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
 from textual.screen import Screen
 from textual.timer import Timer
-from textual.widgets import Footer, Static
+from textual.widgets import Footer
 from textual.worker import get_current_worker
 
 from benchlab.bench import plain_target
@@ -29,14 +29,18 @@ from benchlab.tui.chart_overlay import (
 )
 from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.unwrap_view import UnwrapPreview
-from benchlab.tui.widgets import FrameView, ModeBar, Roi, RoiHistogram
+from benchlab.tui.widgets import FrameView, ModeBar, Readout, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
 EXPOSURES_MS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 300.0, 375.0, 500.0, 1000.0)
 #: Gain steps offered by the g / G keys.
 GAINS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
-#: How often the screen takes the newest frame from the acquisition thread.
+#: Shortest time between two shown frames (the display is capped at 1 / this).
 DISPLAY_INTERVAL_S = 1 / 20
+#: How often the screen looks for a newer frame. Finer than the display interval so that a
+#: frame taking a little longer than it to draw delays the next by a poll, not by a whole
+#: interval (on a 50 ms grid, 55 ms of work would halve the rate to 10 Hz).
+POLL_INTERVAL_S = 1 / 100
 #: Cap on the acquisition loop so it never hogs the interpreter.
 MAX_GRAB_RATE_HZ = 25.0
 #: Orientations the o key cycles through ("auto": the analysis detects it).
@@ -48,6 +52,12 @@ SIM_TARGETS: tuple[object, ...] = (
 #: With the chart overlay on, the chart is looked for again at most this often (the finder
 #: takes ~0.1-0.3 s of the acquisition thread per full frame).
 CHART_REFRESH_S = 1.0
+
+
+def display_due(now_s: float, last_shown_s: float) -> bool:
+    """Whether a new frame may be shown ``now_s``: the display interval has passed since the
+    last one, give or take half a poll (so polls on a grid don't stretch it by one poll)."""
+    return now_s - last_shown_s >= DISPLAY_INTERVAL_S - POLL_INTERVAL_S / 2
 
 
 def _step(values: tuple[float, ...], current: float, direction: int) -> float:
@@ -113,6 +123,7 @@ class LiveScreen(Screen[None]):
         self._last_error = ""
         self._last_error_at = 0.0
         self._idle_reason = ""
+        self._shown_settings: tuple[object, ...] = ()
         graphics = getattr(self.app, "image_protocol", "halfblock") in ("kitty", "sixel")
         self._preview_side = GRAPHICS_PREVIEW_SIDE if graphics else 320
         self.chart_fit: Any = None  # the latest ChartFit (None: off or not found)
@@ -132,7 +143,7 @@ class LiveScreen(Screen[None]):
             else:
                 yield ChartFrameView(id="frame")
             with Vertical(id="side"):
-                yield Static("waiting for the camera...", id="readout")
+                yield Readout("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
         yield Footer(compact=True)
 
@@ -146,7 +157,7 @@ class LiveScreen(Screen[None]):
     # -- acquisition runs only while the screen is visible ----------------------------------
 
     def on_screen_resume(self) -> None:
-        self._timer = self.set_interval(DISPLAY_INTERVAL_S, self._show_latest)
+        self._timer = self.set_interval(POLL_INTERVAL_S, self._show_latest)
         self._acquire()
 
     def on_screen_suspend(self) -> None:
@@ -221,7 +232,7 @@ class LiveScreen(Screen[None]):
         if text != self._last_error or now - self._last_error_at > 5.0:
             self._last_error, self._last_error_at = text, now
             self.notify(text, title="Live view", severity="error", timeout=4)
-        self.query_one("#readout", Static).update(f"[red]{escape(text)}[/red]")
+        self.query_one(Readout).show(f"[red]{escape(text)}[/red]", urgent=True)
 
     def _show_idle(self) -> None:
         app: Any = self.app
@@ -234,22 +245,24 @@ class LiveScreen(Screen[None]):
         if self._idle_reason != why:
             self._idle_reason = why
             self.query_one(FrameView).clear()
-            self.query_one("#readout", Static).update(f"[dim]{why}[/dim]")
+            self.query_one(Readout).show(f"[dim]{why}[/dim]", urgent=True)
 
     def _show_latest(self) -> None:
-        with self._latest_lock:
-            reading = self._latest
         app: Any = self.app
         if app.bench is None or app.procedure_running:
             self._show_idle()
             return
         self._idle_reason = ""
+        now = time.monotonic()
+        if self._display_times and not display_due(now, self._display_times[-1]):
+            return
+        with self._latest_lock:
+            reading = self._latest
         if reading is None or reading.index == self._shown_index:
             return
         self._shown_index = reading.index
         self._frame_shape = reading.frame_shape
         self.frames_displayed += 1
-        now = time.monotonic()
         self._display_times.append(now)
         view = self.query_one("#frame", FrameView)
         fit = self.chart_fit if self.chart and not self.zoom and not self.unwrapped else None
@@ -257,8 +270,14 @@ class LiveScreen(Screen[None]):
                     reading.frame_shape)
         roi = None if self.unwrapped else reading.preview_roi  # no ROI box on the unwrapped
         view.show(reading.preview, roi, reading.max_code)
-        self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks)
-        self.query_one("#readout", Static).update(self._readout_text(reading))
+        # The side panel follows at a few Hz (a changed setting at once): redrawing it with
+        # every frame cost more than the frame itself at large terminal sizes.
+        settings = (reading.roi, reading.exposure_ms, reading.gain, self.estimator,
+                    self.orientation, self.zoom, self.chart, self.unwrapped)
+        changed, self._shown_settings = settings != self._shown_settings, settings
+        self.query_one(RoiHistogram).show(reading.roi_pixels, reading.max_code, *reading.peaks,
+                                          force=changed)
+        self.query_one(Readout).show(self._readout_text(reading), urgent=changed)
 
     @property
     def display_rate_hz(self) -> float:

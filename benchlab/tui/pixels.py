@@ -1,8 +1,9 @@
 """Real pixels in the live view where the terminal can show them.
 
 Terminals with an image protocol (Kitty's graphics protocol: kitty; Sixel: WezTerm, foot,
-recent xterm, mlterm) get the camera frame as an image through ``textual-image``; every other
-terminal keeps the half-block rendering of :class:`benchlab.tui.widgets.FrameView`.
+recent xterm, mlterm) get the camera frame as an image (:mod:`benchlab.tui.graphics`; the
+terminal is asked through ``textual-image``); every other terminal keeps the half-block
+rendering of :class:`benchlab.tui.widgets.FrameView`.
 
 The terminal must be asked what it supports *before* Textual takes it over, so
 :func:`choose_image_protocol` runs in ``benchlab tui`` before the app starts. ``--image`` (or
@@ -19,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 from textual.app import ComposeResult
 
+from benchlab.tui.graphics import KittyCanvas, SixelCanvas
 from benchlab.tui.widgets import ROI_RGB, FrameView, Roi
 
 IMAGE_PROTOCOLS = ("auto", "kitty", "sixel", "halfblock")
@@ -75,11 +77,10 @@ def frame_rgb(pixels: npt.NDArray[np.generic], roi: Roi | None,
 
 
 class GraphicsFrameView(FrameView):
-    """The live frame as a real image (Kitty graphics or Sixel) through ``textual-image``."""
+    """The live frame as a real image (Kitty graphics or Sixel): :mod:`benchlab.tui.graphics`."""
 
     DEFAULT_CSS = """
     GraphicsFrameView { width: 1fr; height: 1fr; min-height: 4; align: center middle; }
-    GraphicsFrameView > .frame-image { width: auto; height: 100%; }
     """
 
     def __init__(self, protocol: str, *, id: str | None = None,  # noqa: A002 - Textual's
@@ -88,30 +89,30 @@ class GraphicsFrameView(FrameView):
         if protocol not in ("kitty", "sixel"):
             raise ValueError(f"GraphicsFrameView needs kitty or sixel, got {protocol!r}")
         self.protocol = protocol
-        self.image_widget: Any = None
+        self.image_widget: KittyCanvas | SixelCanvas | None = None
         self.last_rgb: npt.NDArray[np.uint8] | None = None
 
     def compose(self) -> ComposeResult:
-        from textual_image.widget import SixelImage, TGPImage
-
-        cls = SixelImage if self.protocol == "sixel" else TGPImage
-        self.image_widget = cls(None, classes="frame-image")
+        cls = SixelCanvas if self.protocol == "sixel" else KittyCanvas
+        self.image_widget = cls(classes="frame-image")
         yield self.image_widget
 
     def show(self, pixels: npt.NDArray[np.generic], roi: Roi | None, max_code: float) -> None:
-        from PIL import Image
+        self.show_rgb(frame_rgb(pixels, roi, max_code))
 
+    def show_rgb(self, rgb: npt.NDArray[np.uint8]) -> None:
+        """Show an already drawn RGB frame (encoded when the terminal next draws it)."""
         self.frames_shown += 1
-        self.last_rgb = frame_rgb(pixels, roi, max_code)
+        self.last_rgb = rgb
         if self.image_widget is not None:
-            self.image_widget.image = Image.fromarray(self.last_rgb, mode="RGB")
+            self.image_widget.set_image(rgb)
 
     def clear(self) -> None:
         self.last_rgb = None
         if self.image_widget is not None:
-            self.image_widget.image = None
+            self.image_widget.set_image(None)
 
-    def render_line(self, y: int) -> Any:  # the child image widget draws; nothing here
+    def render_line(self, y: int) -> Any:  # the child image widget draws; margins blank
         from textual.strip import Strip
 
         return Strip.blank(self.size.width)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -14,6 +17,7 @@ from rich.style import Style
 from rich.text import Text
 from textual.strip import Strip
 from textual.widget import Widget
+from textual.widgets import Static
 
 UPPER_HALF = "\u2580"
 ROI_RGB = (255, 200, 0)
@@ -157,7 +161,11 @@ class FrameView(Widget):
             else:
                 rgb = to_display_rgb(self._pixels, size, self._roi, self._max_code)
                 self._decorate(rgb)
-                self._strips = rgb_to_strips(rgb)
+                width = size[0]  # centred once per frame, not once per line drawn
+                self._strips = [
+                    Strip([Segment(" " * (max(0, width - s.cell_length) // 2)), *s._segments])
+                    .crop(0, width) for s in rgb_to_strips(rgb)
+                ]
             self._strips_size = size
         return self._strips
 
@@ -168,27 +176,46 @@ class FrameView(Widget):
         strips = self._ensure_strips()
         width = self.size.width
         if y < len(strips):
-            strip = strips[y]
-            pad = max(0, width - strip.cell_length) // 2
-            return Strip([Segment(" " * pad), *strip._segments]).crop(0, width)
+            return strips[y]
         if not strips and y == self.size.height // 2:
             return Strip([Segment("no camera image".center(width), Style(dim=True))])
         return Strip.blank(width)
 
 
+#: The ROI histogram is redrawn at most this often, s (the eye can't follow more; every redraw
+#: costs a compositor pass that would otherwise slow the live frame).
+HISTOGRAM_INTERVAL_S = 0.2
+_HIST_STYLE = Style(color="cyan")
+_DARK_STYLE = Style(color="blue", bold=True)
+_BRIGHT_STYLE = Style(color="yellow", bold=True)
+_AXIS_STYLE = Style(bold=True)
+
+
 class RoiHistogram(Widget):
-    """Histogram of the ROI's gray codes with the dark and bright levels marked."""
+    """Histogram of the ROI's gray codes with the dark and bright levels marked.
+
+    :meth:`show` takes every frame but redraws at most once per ``min_interval_s`` and only
+    when the drawing changed; the drawing is a few cached strips (one segment per colour run).
+    """
 
     DEFAULT_CSS = """
     RoiHistogram { height: 7; width: 1fr; }
     """
 
-    def __init__(self, *, id: str | None = None, classes: str | None = None) -> None:
+    def __init__(self, *, id: str | None = None, classes: str | None = None,  # noqa: A002
+                 min_interval_s: float = HISTOGRAM_INTERVAL_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(id=id, classes=classes)
+        self.min_interval_s = min_interval_s
+        self._clock = clock
         self._counts: npt.NDArray[np.float64] | None = None
         self._max_code = 255.0
         self._dark: float | None = None
         self._bright: float | None = None
+        self._shown_at = -math.inf
+        self._strips: list[Strip] | None = None
+        self._strips_size = (0, 0)
+        self.redraws = 0  # refreshes asked for (a changed drawing)
 
     def show(
         self,
@@ -196,55 +223,122 @@ class RoiHistogram(Widget):
         max_code: float,
         dark: float | None,
         bright: float | None,
-    ) -> None:
-        """Histogram ``roi_pixels`` over ``[0, max_code]``; mark ``dark`` / ``bright``."""
+        *,
+        force: bool = False,
+    ) -> bool:
+        """Histogram ``roi_pixels`` over ``[0, max_code]``; mark ``dark`` / ``bright``.
+
+        Skipped (returns False) within ``min_interval_s`` of the last update unless ``force``,
+        or when the drawing would not change.
+        """
+        now = self._clock()
+        if not force and now - self._shown_at < self.min_interval_s:
+            return False
+        self._shown_at = now
         bins = max(8, self.size.width or 64)
         counts, _ = np.histogram(
             np.asarray(roi_pixels, dtype=np.float64), bins=bins, range=(0.0, max_code + 1.0)
         )
+        before = self.text_lines()
         self._counts = counts.astype(np.float64)
         self._max_code = max_code
         self._dark, self._bright = dark, bright
+        self._strips = None
+        if self.text_lines() == before:
+            return False
+        self.redraws += 1
         self.refresh()
+        return True
 
     def _column(self, level: float | None, width: int) -> int | None:
         if level is None or not np.isfinite(level):
             return None
         return int(min(width - 1, max(0, level / (self._max_code + 1.0) * width)))
 
-    def render(self) -> Text:
-        width, height = max(1, self.size.width), max(2, self.size.height)
+    def _ensure_strips(self) -> list[Strip]:
+        size = (max(1, self.size.width), max(2, self.size.height))
+        if self._strips is None or self._strips_size != size:
+            self._strips = self._draw(*size)
+            self._strips_size = size
+        return self._strips
+
+    def _draw(self, width: int, height: int) -> list[Strip]:
         if self._counts is None or self._counts.sum() == 0:
-            return Text("no histogram", style="dim")
+            return [Strip([Segment("no histogram"[:width], Style(dim=True))], width)]
         counts = self._counts
         if len(counts) != width:  # re-bin to the widget width
             edges = np.linspace(0, len(counts), width + 1).astype(int)
-            counts = np.array([counts[a:b].sum() if b > a else 0 for a, b in zip(edges[:-1],
-                                                                                  edges[1:],
-                                                                                  strict=True)])
+            sums = np.concatenate(([0.0], np.cumsum(counts)))
+            counts = sums[edges[1:]] - sums[edges[:-1]]
         peak = counts.max() or 1.0
         plot_rows = height - 1
         levels = np.sqrt(counts / peak) * plot_rows * 8  # sqrt: show small populations
-        dark_col, bright_col = self._column(self._dark, width), self._column(self._bright, width)
-        text = Text()
+        marks = {c: st for c, st in ((self._column(self._dark, width), _DARK_STYLE),
+                                     (self._column(self._bright, width), _BRIGHT_STYLE))
+                 if c is not None}
+        bars = np.array(list(BARS))
+        strips = []
         for row in range(plot_rows):
             base = (plot_rows - 1 - row) * 8
-            for col in range(width):
-                fill = int(min(8, max(0, levels[col] - base)))
-                style = "cyan"
-                if col == dark_col:
-                    style = "bold blue"
-                elif col == bright_col:
-                    style = "bold yellow"
-                text.append(BARS[fill], style=style)
-            text.append("\n")
+            fill = np.clip(levels - base, 0, 8).astype(int)
+            strips.append(_marked(("".join(bars[fill])), _HIST_STYLE, marks, width))
         axis = [" "] * width
-        if dark_col is not None:
-            axis[dark_col] = "D"
-        if bright_col is not None:
-            axis[bright_col] = "B"
-        text.append("".join(axis), style="bold")
-        return text
+        for col, st in marks.items():
+            axis[col] = "D" if st is _DARK_STYLE else "B"
+        strips.append(_marked("".join(axis), _AXIS_STYLE, {}, width))
+        return strips
+
+    def text_lines(self) -> list[str]:
+        """The drawing as plain text, one string per row (what the widget shows)."""
+        if self._counts is None:
+            return []
+        return [strip.text for strip in self._ensure_strips()]
+
+    def render_line(self, y: int) -> Strip:
+        strips = self._ensure_strips()
+        return strips[y] if y < len(strips) else Strip.blank(self.size.width)
+
+
+def _marked(text: str, style: Style, marks: dict[int, Style], width: int) -> Strip:
+    """``text`` in ``style`` with the characters at ``marks`` (column: style) restyled."""
+    segments, start = [], 0
+    for col in sorted(marks):
+        if start < col:
+            segments.append(Segment(text[start:col], style))
+        segments.append(Segment(text[col], marks[col]))
+        start = col + 1
+    if start < len(text):
+        segments.append(Segment(text[start:], style))
+    return Strip(segments, width)
+
+
+#: The live readout's figures change at most this often, s (settings changes show at once).
+READOUT_INTERVAL_S = 0.2
+
+
+class Readout(Static):
+    """Text that changes every frame, redrawn at most every ``min_interval_s`` (unless
+    ``urgent``: a key press, an error) and never when the text is unchanged."""
+
+    def __init__(self, text: str = "", *, id: str | None = None,  # noqa: A002 - Textual's
+                 min_interval_s: float = READOUT_INTERVAL_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(text, id=id)
+        self.min_interval_s = min_interval_s
+        self._clock = clock
+        self._text = text
+        self._shown_at = -math.inf
+        self.redraws = 0
+
+    def show(self, text: str, *, urgent: bool = False) -> bool:
+        """Show ``text`` (Rich markup); False when skipped (unchanged, or too soon)."""
+        now = self._clock()
+        if text == self._text or (not urgent and now - self._shown_at < self.min_interval_s):
+            return False
+        self._text, self._shown_at = text, now
+        self.redraws += 1
+        self.update(text)
+        return True
 
 
 class ModeBar(Widget):
