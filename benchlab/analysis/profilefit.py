@@ -544,11 +544,11 @@ class _Fitted:
     wb: FloatArray  # bins' mean phases
     keep: npt.NDArray[np.bool_] | None  # pixels fitted (None: all)
     s_pix: FloatArray  # model bright fraction at each fitted pixel
-    slope_pix: FloatArray  # d(value)/d(bright fraction) at each fitted pixel
+    slope_pix: FloatArray | float  # d(value)/d(bright fraction) at each fitted pixel
     resid: FloatArray  # per-pixel residuals
     resid_ss: float
     grid_s: FloatArray  # model bright fraction on the phase grid
-    at_grid: npt.NDArray[np.intp]  # each fitted pixel's place on the grid
+    at_grid: npt.NDArray[np.intp]  # each fitted pixel's place on the grid (0.._GRID_N)
     u_px: FloatArray  # across- and along-bar coordinates (px) of the fitted pixels
     v_px: FloatArray
 
@@ -569,7 +569,7 @@ def _fit_at(
     else:  # phase_map's straight-bar case, without computing u again
         phi = u_px * f
         phi += geom.phase_cycles
-    w = phi - np.floor(phi)
+    w = np.subtract(phi, np.floor(phi), out=phi)  # phase within the period, in place
     half = max(span / 2.0, 1.0)
     u, v = u_px * (1.0 / half), v_px * (1.0 / half)
     n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
@@ -627,17 +627,22 @@ def _fit_at(
     # Per-pixel residuals: the noise, whatever the bar angle.
     grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
                               derivatives=False)[0]
-    w_pix = w_fit.ravel()
-    at_grid = (w_pix * _GRID_N + 0.5).astype(np.intp) % _GRID_N
-    s_pix = grid_s[at_grid]
+    # The grid with its first point repeated at w = 1: rounding needs no modulo.
+    grid_wrap = np.append(grid_s, grid_s[0])
+    at_grid = (w_fit.ravel() * _GRID_N + 0.5).astype(np.intp)
+    s_pix = grid_wrap[at_grid]
     lin = params[:n_lin]
-    slope = np.full(s_pix.shape, float(lin[1]))
-    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
-        slope += lin[3 + 2 * j] * t
-    # value = D + shading offsets + slope * s, built in place (few full-size temporaries)
+    shading = list(zip((v_fit.ravel(), u_fit.ravel()), range(2, n_lin, 2), strict=False))
+    # value = D + shading offsets + slope * s, built in place (few full-size temporaries);
+    # without shading the slope is one number.
+    slope: FloatArray | float = float(lin[1])
+    if shading:
+        slope = np.full(s_pix.shape, float(lin[1]))
+        for t, j in shading:
+            slope += lin[j + 1] * t
     resid = vals.ravel() - lin[0]
-    for j, t in enumerate((v_fit.ravel(), u_fit.ravel())[: (n_lin - 2) // 2]):
-        resid -= lin[2 + 2 * j] * t
+    for t, j in shading:
+        resid -= lin[j] * t
     resid -= slope * s_pix
     return _Fitted(
         geom=geom, fitter=fitter, params=params, jtj=jtj, n_lin=n_lin, n=n, n_f=n_f,
@@ -676,7 +681,8 @@ def _refined(
     stride = max(1, fit.n // REFINE_MAX_PIXELS)
     u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
     resid = fit.resid[::stride]
-    g = fit.slope_pix[::stride] * ds_grid[fit.at_grid[::stride]]
+    slope = fit.slope_pix if isinstance(fit.slope_pix, float) else fit.slope_pix[::stride]
+    g = slope * ds_grid[fit.at_grid[::stride] % _GRID_N]
     cols_ = [g]  # phase shift
     names = ["phase"]
     if not fix_theta:
