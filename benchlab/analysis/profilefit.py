@@ -91,6 +91,9 @@ REFINE_ROUNDS = 2
 REFINE_CHI2 = 9.0
 REFINE_MIN_CYCLES = 0.03
 REFINE_MAX_PIXELS = 20_000
+#: Largest direction (rad) and relative frequency correction applied.
+REFINE_MAX_THETA_RAD = math.radians(6.0)
+REFINE_MAX_FREQ_REL = 0.15
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
@@ -441,8 +444,10 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if isinstance(fit, str):
         warnings.append(fit)
         return unresolved(name, prep.diagnostics(), warnings)
-    fix_theta = prep.orientation_given and abs(math.sin(2 * theta)) < 1e-12
-    fix_freq = bool(f_prior) and span * f_prior < 2.0
+    # As in _apply_priors: on a few dozen pixels, or under two periods, the priors rule.
+    few = prep.n_pixels < PRIORS_RULE_PIXELS
+    fix_theta = prep.orientation_given and (few or abs(math.sin(2 * theta)) < 1e-12)
+    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0)
     for _ in range(1 if fast else REFINE_ROUNDS):
         better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
         if better is None:
@@ -716,6 +721,13 @@ def _refined(
             moved += abs(d) * float(np.abs(u_px).max())
     if significance < REFINE_CHI2 or moved < REFINE_MIN_CYCLES:
         return None
+    # A linearised step is trusted only for small corrections (a larger one means the
+    # spectral geometry was wrong altogether, or the noise is fitted).
+    for name, d in zip(names, step, strict=True):
+        if (name == "theta" and abs(d) > REFINE_MAX_THETA_RAD) or (
+            name == "freq" and abs(d) > REFINE_MAX_FREQ_REL * f
+        ):
+            return None
     new = geom
     for name, d in zip(names, step, strict=True):
         if name == "theta":
