@@ -201,11 +201,15 @@ def test_geometry_refinement_takes_small_steps_only() -> None:
     """Bars blurred away (PSF sigma 3.6 px at a 6.3 px period, truth 0.001): the spectrum finds
     an 18 px shading pattern, and unbounded Gauss-Newton steps chased the noise to a 31 px
     period (reading 0.006); steps over 6 deg or 15 % of the frequency are refused."""
-    from benchlab.analysis.benchmark import benchmark_cases
-    from benchlab.analysis.synthetic import render
+    from benchlab.analysis.synthetic import BarCase, render
 
-    case = benchmark_cases(1500, 0)[704]  # the benchmark's own case, with its noise
-    bar = case.bar
+    bar = BarCase(  # the benchmark's case 704 (seed 0), with its noise
+        shape=(20, 100), px_per_period=6.301938037517345, modulation=0.41749896895793737,
+        mean=93.34976734783896, psf_sigma_px=3.5734908380353363,
+        noise_sigma=0.008171887116916394, phase=0.3805941186572196, duty=0.501135981673537,
+        shading=0.021578291274496095, angle_deg=90.0, electrons_per_dn=907905.4398475882,
+        pedestal=8.0,
+    )
     roi = render(bar, np.random.default_rng(10_704))
     r = estimate_modulation(roi, freq_cycles_per_px=bar.freq_cycles_per_px,
                             orientation="vertical")
