@@ -143,11 +143,15 @@ def _measurable_but_for_clipping(case: Case) -> bool:
     )
 
 
+#: One reading: case index, estimator, modulation, resolved, interval low and high, seconds.
+Row = tuple[int, str, float, bool, float, float, float]
+
+
 def _evaluate(
     chunk: list[tuple[int, Case]], names: tuple[str, ...]
-) -> list[tuple[int, str, float, bool, float, float, float]]:
+) -> list[Row]:
     """(case, estimator, modulation, resolved, interval low, high, seconds) per call."""
-    out = []
+    out: list[Row] = []
     for index, case in chunk:
         roi = render(case.bar, np.random.default_rng(10_000 + index))
         for name in names:
@@ -248,10 +252,12 @@ def score(cases: list[Case], rows: list[tuple[int, str, float, bool, float, floa
 
 def run_benchmark(
     n_cases: int = 1500, seed: int = 0, workers: int | None = None,
-    estimators: tuple[str, ...] | None = None,
+    estimators: tuple[str, ...] | None = None, rows_out: list[Row] | None = None,
 ) -> tuple[list[Case], list[Score]]:
     """Score ``estimators`` (default all of :data:`ESTIMATORS`) on :func:`benchmark_cases`,
-    using ``workers`` processes (default 2; 1 runs in this process)."""
+    using ``workers`` processes (default 2; 1 runs in this process). The raw readings
+    (case index, estimator, modulation, resolved, interval, seconds) are appended to
+    ``rows_out`` when given (for :func:`format_worst`)."""
     names = estimators or tuple(ESTIMATORS)
     cases = benchmark_cases(n_cases, seed)
     indexed = list(enumerate(cases))
@@ -263,7 +269,40 @@ def run_benchmark(
             rows = [row for part in parts for row in part]
     else:
         rows = _evaluate(indexed, names)
+    if rows_out is not None:
+        rows_out.extend(rows)
     return cases, score(cases, rows, names)
+
+
+def format_worst(cases: list[Case], rows: list[Row], n_worst: int) -> str:
+    """The ``n_worst`` largest errors per estimator among measurable and clipped cases, each
+    with its reading, interval and the case's parameters (what to look at first when a bucket
+    misses its target); intervals missing the truth are marked ``OUT``."""
+    lines = []
+    by_name: dict[str, list[tuple[float, str]]] = {}
+    for index, name, mod, res, lo, hi, _ in rows:
+        case = cases[index]
+        measurable = is_measurable(case)
+        if not (measurable or is_clipped_measurable(case)):
+            continue
+        bar = case.bar
+        err = mod - bar.truth
+        covered = "" if not res else ("ok " if lo <= bar.truth <= hi else "OUT")
+        shape = f"{bar.shape[0]}x{bar.shape[1]}"
+        text = (
+            f"{index:>5} {'clip' if not measurable else '':<4} {err:>+7.3f} {bar.truth:>6.3f} "
+            f"{mod if res else math.nan:>6.3f} [{lo:.3f}, {hi:.3f}] {covered:<3}  {shape:>7} "
+            f"period {bar.px_per_period:5.2f} angle {bar.angle_deg or 0.0:4.1f} "
+            f"psf {bar.psf_sigma_px:4.2f} duty {bar.duty:.2f} shading {bar.shading:.2f} "
+            f"SNR {case.snr:5.1f} {bar.bits}-bit{' MSB' if bar.msb_aligned else ''}"
+        )
+        by_name.setdefault(name, []).append((abs(err), text))
+    for name, entries in by_name.items():
+        entries.sort(key=lambda e: -e[0])
+        lines.append(f"{name}: {min(n_worst, len(entries))} worst of {len(entries)} "
+                     "(case, error, truth, reading, 95 % interval, parameters)")
+        lines.extend(text for _, text in entries[:n_worst])
+    return "\n".join(lines)
 
 
 def time_per_roi(name: str, shape: tuple[int, int], repeats: int = 15, seed: int = 0) -> float:

@@ -12,21 +12,27 @@
    angle (:func:`.barmodel.fourier_gains`), between levels ``D`` and ``B``, times a linear
    illumination shading across and along the bars (each bin carries its pixels' mean position,
    so the shading of a bin is exact for linear shading). Levenberg-Marquardt on
-   (levels, shading, phase, duty, sigma), a weak prior holding the duty near 0.5 where the data
-   cannot tell.
-4. The Eq. 2.9 contrast is the fitted model's maximum and minimum at the ROI centre, the
-   levels never outside the samples. Noise comes from the per-pixel fit residuals (it does not
-   depend on the bar angle). The interval holds the noise (propagated through the fit), a model
-   term and a sampling-phase term (see :func:`_model_sd`).
+   (phase, duty, PSF variance) with the levels and shading solved exactly at each step
+   (variable projection), a weak prior holding the duty near 0.5 where the data cannot tell.
+4. The direction and frequency are refined by Gauss-Newton on the per-pixel residuals (the
+   spectral peak is pulled by its side lobes on few periods), and the profile refitted when
+   that moves the bar phase noticeably at the ROI's edges.
+5. Saturated pixels are censored data, not levels (see :func:`_censored`): the model carries
+   the bright level beyond the top code.
+6. The Eq. 2.9 contrast is the fitted model's maximum and minimum at the ROI centre, the
+   levels never outside the samples (unless saturated). Noise comes from the per-pixel fit
+   residuals (it does not depend on the bar angle). The interval holds the noise (propagated
+   through the fit), a model term and a sampling-phase term (see :func:`_model_sd`).
 
-A ``fast`` variant (``profilefit-fast``) skips the curvature, fixes the duty at 0.5, fits fewer
-harmonics and iterates less; the benchmark states its accuracy cost.
+A ``fast`` variant (``profilefit-fast``) skips the curvature, bins half as finely, fits at most
+32 harmonics, iterates less and refines the geometry once; ``benchlab benchmark analysis``
+states its accuracy cost.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -54,7 +60,7 @@ DUTY_PRIOR_SD = 0.1
 DUTY_BOUNDS = (0.2, 0.8)
 #: Most phase bins and harmonics (full and fast modes).
 MAX_BINS, MAX_BINS_FAST = 64, 32
-MAX_HARMONICS, MAX_HARMONICS_FAST = 48, 12
+MAX_HARMONICS, MAX_HARMONICS_FAST = 48, 32
 #: Shading terms only with at least this many filled phase bins ...
 MIN_BINS_SHADING = 14
 #: ... and shading across the bars only over this many periods (fewer: it mimics the bars).
@@ -70,84 +76,130 @@ FOLD_REFINE_PERIODS = 6.0
 #: Below this many pixels the given frequency and orientation are used as they are (a few
 #: dozen pixels cannot overrule the chart's design).
 PRIORS_RULE_PIXELS = 100
-#: The fast mode's model term: its duty is fixed at 0.5 and its series shorter (calibrated on
-#: ``benchlab benchmark analysis``: RMSE ~0.04 on 2,000-pixel ROIs).
-MODEL_REL_SD_FAST = 0.06
+#: The fast mode's model term: coarser bins and a shorter series (calibrated on ``benchlab
+#: benchmark analysis``: 95 % intervals covering 95-99 % per bucket).
+MODEL_REL_SD_FAST = 0.02
 #: Angle disagreement (deg) with a given axis orientation tolerated before a warning.
 ANGLE_TOLERANCE_DEG = 2.0
+#: Spectral geometry spanning at least this many periods is fitted (the refined one must
+#: span one).
+MIN_PERIODS_TRIED = 0.75
+#: Rounds of Gauss-Newton on the direction and frequency from the per-pixel residuals, and
+#: when one is applied: significant (chi-square of the step over the noise) and moving the
+#: bar phase by at least this many cycles at the ROI's edges.
+REFINE_ROUNDS = 2
+REFINE_CHI2 = 9.0
+REFINE_MIN_CYCLES = 0.03
+REFINE_MAX_PIXELS = 20_000
+#: Largest direction (rad) and relative frequency correction applied.
+REFINE_MAX_THETA_RAD = math.radians(6.0)
+REFINE_MAX_FREQ_REL = 0.15
+#: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
+_SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
-
-
-@lru_cache(maxsize=64)
-def _grid_trig(n_harm: int) -> tuple[FloatArray, FloatArray]:
-    """cos and sin of ``2 pi k w`` on the phase grid (read-only, cached per harmonic count)."""
-    arg = (2.0 * math.pi) * np.outer(_GRID, np.arange(1, n_harm + 1, dtype=np.float64))
-    c, s = np.cos(arg), np.sin(arg)
-    c.setflags(write=False)
-    s.setflags(write=False)
-    return c, s
+_TWO_PI = 2.0 * math.pi
 
 FloatArray = npt.NDArray[np.float64]
 
 
+def _phasors(w: FloatArray, k: FloatArray) -> FloatArray:
+    """``[cos | sin](2 pi k w)`` (n, 2 n_harm): the real and imaginary parts of the phasors
+    side by side, so that every product is a real one (a complex matrix-vector product wakes
+    OpenBLAS's threads: milliseconds)."""
+    arg = (2.0 * math.pi) * np.outer(w, k)
+    return np.concatenate([np.cos(arg), np.sin(arg)], axis=1)
+
+
+@lru_cache(maxsize=64)
+def _grid_phasors(n_harm: int) -> FloatArray:
+    """:func:`_phasors` on the phase grid (read-only, cached per harmonic count)."""
+    e = _phasors(_GRID, np.arange(1, n_harm + 1, dtype=np.float64))
+    e.setflags(write=False)
+    return e
+
+
 class _Model:
-    """The blurred square wave on fixed phase samples, with its derivatives."""
+    """The blurred square wave on fixed phase samples, with its derivatives.
+
+    Harmonic ``k`` of the bright fraction is ``alpha_k cos(2 pi k (w - delta))`` with
+    ``alpha_k = 2 sin(pi k duty) / (pi k) * gain_k(sigma)``: with the phasors
+    ``E = exp(2 pi i k w)`` fixed, the value and its three derivatives are the real part of
+    ``E @ Z``, one small real product (few numpy calls: the fit evaluates it many times).
+    """
 
     def __init__(
         self, w: FloatArray, freq: float, theta: float, n_harm: int,
         w_var: FloatArray | None = None,
     ) -> None:
         self.k = np.arange(1, n_harm + 1, dtype=np.float64)
-        arg = (2.0 * math.pi) * np.outer(w, self.k)
-        self.c, self.s = np.cos(arg), np.sin(arg)
+        e = _phasors(w, self.k)
         if w_var is not None:
             # A bin averages the profile over its pixels' spread of phases (variance w_var):
             # each harmonic is damped like a Gaussian average of that variance.
             damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
-            self.c *= damp
-            self.s *= damp
+            e *= np.concatenate([damp, damp], axis=1)
+        self.e: FloatArray = e
         self.fk = freq * self.k
         a, b = barmodel.footprint_sides(theta)
         self.footprint = np.sinc(self.fk * a) * np.sinc(self.fk * b)
+        self._blur = -2.0 * math.pi**2 * self.fk**2  # log gain per sigma^2
+        self._two_over_pik = 2.0 / (math.pi * self.k)
+        self._dphase = -2j * math.pi * self.k
 
     def at(self, w: FloatArray | None) -> _Model:
         """The same model on other phase samples (``None``: the cached phase grid)."""
         other = _Model.__new__(_Model)
-        other.k, other.fk, other.footprint = self.k, self.fk, self.footprint
+        other.__dict__.update(self.__dict__)
         if w is None:
-            other.c, other.s = _grid_trig(self.k.size)
+            other.e = _grid_phasors(self.k.size)
         else:
-            arg = (2.0 * math.pi) * np.outer(w, self.k)
-            other.c, other.s = np.cos(arg), np.sin(arg)
+            other.e = _phasors(w, self.k)
         return other
 
+    def coefficients(self, delta: float, duty: float, var: float) -> FloatArray:
+        """``[Re Z | -Im Z]`` (4, 2 n_harm) for value, d/d(delta), d/d(duty), d/d(var)
+        (without the duty's own constant and unit derivative); ``var`` is the PSF's
+        variance (px^2): the gains are log-linear in it, and its derivative does not vanish
+        at zero blur as the sigma's does (Levenberg-Marquardt then stalls on the bound)."""
+        gain = np.exp(self._blur * var) * self.footprint
+        pk = math.pi * duty * self.k
+        rot = np.exp((-2j * math.pi * delta) * self.k) * gain
+        z = np.empty((4, self.k.size), dtype=np.complex128)
+        z[0] = rot * (self._two_over_pik * np.sin(pk))
+        z[1] = z[0] * self._dphase
+        z[2] = rot * (2.0 * np.cos(pk))
+        z[3] = z[0] * self._blur
+        return np.concatenate([z.real, -z.imag], axis=1)
+
     def eval(
-        self, delta: float, duty: float, sigma: float, derivatives: bool = True
+        self, delta: float, duty: float, var: float, derivatives: bool = True
     ) -> tuple[FloatArray, FloatArray | None]:
-        """Bright fraction at the samples and its derivatives (n, 3) in (delta, duty, sigma)."""
-        k = self.k
-        gain = np.exp(-2.0 * (math.pi * sigma) ** 2 * self.fk**2) * self.footprint
-        alpha = (2.0 / math.pi) * np.sin(math.pi * duty * k) / k * gain
-        cd, sd = np.cos((2 * math.pi * delta) * k), np.sin((2 * math.pi * delta) * k)
-        cos_part = self.c * cd
-        cos_part += self.s * sd  # cos(2 pi k (w - delta))
-        value = duty + cos_part @ alpha
+        """Bright fraction at the samples and its derivatives (n, 3) in (delta, duty, var)."""
+        z = self.coefficients(delta, duty, var)
         if not derivatives:
+            value: FloatArray = self.e @ z[0] + duty
             return value, None
-        out = np.empty((value.size, 3))
-        sin_part = self.c * sd
-        sin_part -= self.s * cd
-        out[:, 0] = sin_part @ (alpha * (2.0 * math.pi) * k)
-        out[:, 1] = 1.0 + cos_part @ (2.0 * np.cos(math.pi * duty * k) * gain)
-        out[:, 2] = cos_part @ (alpha * (-4.0 * math.pi**2 * sigma) * self.fk**2)
-        return value, out
+        out = self.e @ z.T
+        out[:, 0] += duty
+        out[:, 2] += 1.0
+        return out[:, 0], out[:, 1:]
+
+    def eval_many(self, duty: float, variances: FloatArray) -> FloatArray:
+        """Bright fraction (n, len(variances)) at ``delta = 0`` for several blurs at once."""
+        gains = np.exp(np.outer(self._blur, variances)) * self.footprint[:, None]
+        alpha = (self._two_over_pik * np.sin(math.pi * duty * self.k))[:, None] * gains
+        out: FloatArray = self.e[:, : self.k.size] @ alpha + duty
+        return out
 
 
 class _Fit:
     """Levenberg-Marquardt fit of levels, shading, phase, duty and blur to the binned profile.
 
-    Parameters: ``[D, B - D, (shading along: v, s v), (across: u, s u), delta, duty, sigma]``.
+    Parameters: ``[D, B - D, (shading along: v, s v), (across: u, s u), delta, duty, var]``
+    (``var``: the PSF's variance, px^2). The linear ones are solved exactly at each
+    ``(delta, duty, var)`` (variable projection),
+    with fixed-size arrays allocated once.
     """
 
     def __init__(
@@ -155,16 +207,40 @@ class _Fit:
         vb: FloatArray, n_lin: int, prior_scale: float, fit_duty: bool, sigma_max: float,
     ) -> None:
         self.model, self.y, self.n_lin = model, y, n_lin
-        self.sw = np.sqrt(weight)
+        sw = np.sqrt(weight)
+        self.sw = sw
         self.extra = [vb, ub][: (n_lin - 2) // 2]
-        self.prior_scale, self.fit_duty, self.sigma_max = prior_scale, fit_duty, sigma_max
+        self.prior_scale, self.fit_duty = prior_scale, fit_duty
+        self.var_max = sigma_max * sigma_max
         self.grid = model.at(None)
         # Ridge on the shading terms: a relative shading of SHADING_PRIOR over the half span
         # costs as much as one pixel one noise sigma off (keeps them finite when the bins'
         # positions hardly differ).
         self.ridge = prior_scale / (SHADING_PRIOR * max(float(np.abs(y).max()), 1e-9))
+        m, n_shade = y.size, n_lin - 2
+        self.m = m
+        # Weighted design (m rows) and the shading ridge's rows below it; the columns that
+        # do not depend on the model are filled once.
+        xa = np.zeros((m + n_shade, n_lin))
+        xa[:m, 0] = sw
+        for j, t in enumerate(self.extra):
+            xa[:m, 2 + 2 * j] = t * sw
+        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        self.xa = xa
+        self.ya = np.zeros(m + n_shade)
+        self.ya[:m] = y * sw
+        self.swt = [t * sw for t in self.extra]
+        self.prior_d = prior_scale / DUTY_PRIOR_SD
+
+    def _fill(self, s: FloatArray) -> FloatArray:
+        xa, m = self.xa, self.m
+        xa[:m, 1] = s * self.sw
+        for j, t in enumerate(self.swt):
+            xa[:m, 3 + 2 * j] = s * t
+        return xa
 
     def design(self, s: FloatArray) -> FloatArray:
+        """Unweighted design matrix of the linear parameters at model values ``s``."""
         x = np.empty((s.size, self.n_lin))
         x[:, 0] = 1.0
         x[:, 1] = s
@@ -173,132 +249,130 @@ class _Fit:
             x[:, 3 + 2 * j] = s * t
         return x
 
-    def residuals(self, p: FloatArray) -> tuple[FloatArray, FloatArray]:
-        n_lin, sw = self.n_lin, self.sw
-        s, ds = self.model.eval(float(p[-3]), float(p[-2]), float(p[-1]))
-        assert ds is not None
-        x = self.design(s)
-        m = s.size
-        n_shade = n_lin - 2
-        r = np.empty(m + 1 + n_shade)
-        r[:m] = sw * (self.y - x @ p[:n_lin])
-        r[m] = self.prior_scale * (p[-2] - 0.5) / DUTY_PRIOR_SD
-        r[m + 1 :] = self.ridge * p[2:n_lin]
-        slope = p[1] + sum(p[3 + 2 * j] * t for j, t in enumerate(self.extra))
-        jac = np.zeros((r.size, p.size))
-        jac[:m, :n_lin] = -sw[:, None] * x
-        jac[:m, n_lin:] = -(sw * slope)[:, None] * ds
-        jac[m, -2] = self.prior_scale / DUTY_PRIOR_SD
-        for j in range(n_shade):
-            jac[m + 1 + j, 2 + j] = self.ridge
-        if not self.fit_duty:
-            jac[:, -2] = 0.0
-        return r, jac
-
     def start(self, sigmas: tuple[float, ...]) -> FloatArray:
-        """Starting parameters: the blur (of ``sigmas``) whose linear least-squares fit at
-        duty 0.5 leaves the smallest residual (the blur is the poorly conditioned one)."""
-        best, best_cost = None, math.inf
-        sw, ysw = self.sw[:, None], self.y * self.sw
-        n_shade = self.n_lin - 2
-        ridge = np.zeros((n_shade, self.n_lin))
-        ridge[:, 2:] = self.ridge * np.eye(n_shade)
-        ysw = np.concatenate([ysw, np.zeros(n_shade)])
-        for sigma in sigmas:
-            nl = np.array([0.0, 0.5, sigma])
-            s, _ = self.model.eval(0.0, 0.5, sigma, derivatives=False)
-            x = np.vstack([self.design(s) * sw, ridge])
-            lin = np.linalg.lstsq(x, ysw, rcond=None)[0]
-            r = ysw - x @ lin
-            cost = float(r @ r)
-            if cost < best_cost:
-                best, best_cost = np.concatenate([lin, nl]), cost
-        assert best is not None
-        return best
+        """Starting ``(delta, duty, var)``: the blur (of ``sigmas``) whose linear fit of
+        levels at duty 0.5 leaves the smallest residual (the blur is the poorly conditioned
+        one), all candidates in one pass (weighted regression on the model, in closed form)."""
+        sig = np.asarray(sigmas, dtype=np.float64)
+        s = self.model.eval_many(0.5, sig * sig)  # (m, n_sigma)
+        w = self.sw * self.sw
+        sw_tot = float(w.sum())
+        ybar = float(w @ self.y) / sw_tot
+        sbar = (w @ s) / sw_tot
+        ds = s - sbar
+        sxx = w @ (ds * ds)
+        sxy = (w * (self.y - ybar)) @ ds
+        slope = np.where(sxx > 0, sxy / np.maximum(sxx, 1e-300), 0.0)
+        resid = float(w @ (self.y - ybar) ** 2) - slope * sxy
+        best = int(np.argmin(resid))
+        return np.array([0.0, 0.5, float(sig[best]) ** 2])
 
-    def _projected(self, nl: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, float]:
+    def _projected(
+        self, nl: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray]:
         """Variable projection: the linear parameters solved exactly at the nonlinear ones
-        ``nl = (delta, duty, sigma)``; the residual and its Jacobian in ``nl`` with the linear
-        parameters' column space projected out (Kaufman), and the cost."""
-        n_lin, sw = self.n_lin, self.sw
+        ``nl = (delta, duty, var)``; the residual and its Jacobian in ``nl`` with the linear
+        parameters' column space projected out (Kaufman), the cost, and the model and its
+        derivatives at the bins."""
+        m, n_lin = self.m, self.n_lin
         s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
         assert ds is not None
-        m, n_shade = s.size, n_lin - 2
-        xa = np.zeros((m + n_shade, n_lin))
-        xa[:m] = self.design(s) * sw[:, None]
-        xa[m:, 2:] = self.ridge * np.eye(n_shade)
-        ya = np.zeros(m + n_shade)
-        ya[:m] = self.y * sw
+        xa = self._fill(s)
         gram = xa.T @ xa
         gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
         try:
-            lin = np.linalg.solve(gram, xa.T @ ya)
+            g_inv = np.linalg.inv(gram)
         except np.linalg.LinAlgError:
-            lin = np.linalg.lstsq(xa, ya, rcond=None)[0]
-        r = ya - xa @ lin
-        slope = lin[1] + sum(lin[3 + 2 * j] * t for j, t in enumerate(self.extra))
-        jac = np.zeros((m + n_shade, 3))
-        jac[:m] = -(sw * slope)[:, None] * ds
-        try:
-            jac -= xa @ np.linalg.solve(gram, xa.T @ jac)
-        except np.linalg.LinAlgError:
-            jac -= xa @ np.linalg.lstsq(xa, jac, rcond=None)[0]
-        prior_r = self.prior_scale * (nl[1] - 0.5) / DUTY_PRIOR_SD
-        r = np.append(r, prior_r)
-        jac = np.vstack([jac, [0.0, self.prior_scale / DUTY_PRIOR_SD, 0.0]])
+            g_inv = np.linalg.pinv(gram)
+        lin = g_inv @ (xa.T @ self.ya)
+        n_rows = xa.shape[0]
+        r = np.empty(n_rows + 1)
+        r[:n_rows] = self.ya - xa @ lin
+        slope = self.sw * lin[1]
+        for j, t in enumerate(self.swt):
+            slope = slope + lin[3 + 2 * j] * t
+        jac = np.zeros((n_rows + 1, 3))
+        jac[:m] = -slope[:, None] * ds
+        jac[:n_rows] -= xa @ (g_inv @ (xa.T @ jac[:n_rows]))
+        r[n_rows] = self.prior_d * (nl[1] - 0.5)
+        jac[n_rows, 1] = self.prior_d
         if not self.fit_duty:
             jac[:, 1] = 0.0
-        return np.concatenate([lin, nl]), r, jac, float(r @ r)
+        params = np.concatenate([lin, nl])
+        return params, r, jac, float(r @ r), s, ds
 
     def run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
         """Fitted parameters and ``J^T J`` of all of them (for the covariance)."""
-        params = self.start(sigmas)
-        nl = params[-3:].copy()
-        params, r, jac, cost = self._projected(nl)
-        lam = 1e-2
-        tiny = np.array([1e-5, 1e-5, 1e-5 * self.sigma_max])
+        nl = self.start(sigmas)
+        params, r, jac, cost, s, ds = self._projected(nl)
+        lam = 1e-3
+        # Converged when the next step is predicted to lower the cost by less than a
+        # hundredth of the noise variance: a move of a tenth of a standard error at most.
+        enough = 1e-2 * cost / max(self.m - 3, 1)
+        tiny = np.array([1e-5, 1e-5, 1e-5 * self.var_max])
+        lo = np.array([-0.5, DUTY_BOUNDS[0], 0.0])
+        hi = np.array([0.5, DUTY_BOUNDS[1], self.var_max])
+        if not self.fit_duty:
+            lo[1] = hi[1] = 0.5
         for _ in range(max_iter):
             jtj = jac.T @ jac
+            grad = jac.T @ r
             scale = np.diag(jtj).copy()
             scale[scale <= 0] = 1.0
+            jtj.flat[::4] += lam * scale
             try:
-                step = np.linalg.solve(jtj + lam * np.diag(scale), -(jac.T @ r))
+                step = -np.linalg.solve(jtj, grad)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if np.all(np.abs(step) < tiny):
+            if np.all(np.abs(step) < tiny) or -float(grad @ step) < enough:
                 break
-            trial = nl + step
-            trial[0] = min(max(trial[0], -0.5), 0.5)
-            trial[1] = min(max(trial[1], DUTY_BOUNDS[0]), DUTY_BOUNDS[1])
-            if not self.fit_duty:
-                trial[1] = 0.5
-            trial[2] = min(max(trial[2], 0.0), self.sigma_max)
-            p_t, r_t, jac_t, cost_t = self._projected(trial)
-            if cost_t < cost:
-                rel = (cost - cost_t) / max(cost, 1e-300)
-                nl, params, r, jac, cost = trial, p_t, r_t, jac_t, cost_t
+            trial = np.minimum(np.maximum(nl + step, lo), hi)
+            got = self._projected(trial)
+            if got[3] < cost:
+                rel = (cost - got[3]) / max(cost, 1e-300)
+                nl = trial
+                params, r, jac, cost, s, ds = got
                 lam = max(lam / 10, 1e-9)
+                enough = 1e-2 * cost / max(self.m - 3, 1)
                 if rel < 1e-6:
                     break
             else:
                 lam *= 10
-        _, jac_full = self.residuals(params)
-        jtj = jac_full.T @ jac_full
+        return params, self._full_jtj(params, s, ds)
+
+    def _full_jtj(self, p: FloatArray, s: FloatArray, ds: FloatArray) -> FloatArray:
+        """``J^T J`` of every parameter (linear ones included) at the solution."""
+        n_lin, m = self.n_lin, self.m
+        n_shade = n_lin - 2
+        x = self.design(s)
+        slope = p[1] + sum(p[3 + 2 * j] * t for j, t in enumerate(self.extra))
+        jac = np.zeros((m + 1 + n_shade, p.size))
+        jac[:m, :n_lin] = -self.sw[:, None] * x
+        jac[:m, n_lin:] = -(self.sw * slope)[:, None] * ds
+        jac[m, -2] = self.prior_d
+        for j in range(n_shade):
+            jac[m + 1 + j, 2 + j] = self.ridge
+        if not self.fit_duty:
+            jac[:, -2] = 0.0
+        jtj: FloatArray = jac.T @ jac
         if not self.fit_duty:  # the duty is fixed: no variance
             jtj[:, -2] = 0.0
             jtj[-2, :] = 0.0
             jtj[-2, -2] = 1e30 * (float(np.abs(jtj).max()) + 1.0)
-        return params, jtj
+        return jtj
 
-    def levels(self, p: FloatArray) -> tuple[float, float, FloatArray, FloatArray]:
-        """Dark and bright levels at the ROI centre (min and max over phase) and their
-        gradients in the parameters (envelope theorem: at the extremes' fixed phases)."""
-        s, _ = self.grid.eval(float(p[-3]), float(p[-2]), float(p[-1]), derivatives=False)
+    def levels(
+        self, p: FloatArray, s: FloatArray
+    ) -> tuple[float, float, FloatArray, FloatArray]:
+        """Dark and bright levels at the ROI centre (min and max over phase of the model
+        ``s`` on the phase grid) and their gradients in the parameters (envelope theorem: at
+        the extremes' fixed phases)."""
+        delta, duty, var = float(p[-3]), float(p[-2]), float(p[-1])
         level = p[0] + p[1] * s
         i_lo, i_hi = int(np.argmin(level)), int(np.argmax(level))
         ext = self.model.at(_GRID[[i_lo, i_hi]])
-        s2, ds2 = ext.eval(float(p[-3]), float(p[-2]), float(p[-1]))
+        s2, ds2 = ext.eval(delta, duty, var)
         assert ds2 is not None
         grads = np.zeros((2, p.size))
         grads[:, 0] = 1.0
@@ -326,7 +400,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     prep : PreparedROI
         The prepared ROI (:func:`benchlab.analysis.roi.prepare_roi`).
     fast : bool
-        The ``profilefit-fast`` variant (no curvature, duty 0.5, fewer harmonics).
+        The ``profilefit-fast`` variant (no curvature, coarser bins, fewer harmonics).
 
     Returns
     -------
@@ -352,26 +426,175 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     geom = _apply_priors(prep, geom, warnings)
     f, theta = geom.freq_cycles_per_px, geom.theta_rad
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
-    if not fast and span * f < FOLD_REFINE_PERIODS and min(rows, cols) < 16:
+    if span * f < FOLD_REFINE_PERIODS and min(rows, cols) < 16:
         axis_fixed = prep.orientation_given and (math.sin(2 * theta) == 0.0 or abs(
             math.sin(2 * theta)) < 1e-12)
         if not axis_fixed:
             fixed_f = bool(f_prior) and span * f_prior < 2.0
             geom = refine_by_folding(img, geom, fix_freq=fixed_f)
             f, theta = geom.freq_cycles_per_px, geom.theta_rad
-    if span * f < 1.0:
+    if span * f < MIN_PERIODS_TRIED:
         warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
         return unresolved(name, prep.diagnostics(), warnings)
 
-    phi = phase_map((rows, cols), geom)
-    w = phi - np.floor(phi)
+    n_warnings = len(warnings)
+    clipped = _clipped_mask(prep)
+    fit = _fit_at(prep, geom, fast, clipped)
+    fit_geom0 = geom
+    if isinstance(fit, str):
+        warnings.append(fit)
+        return unresolved(name, prep.diagnostics(), warnings)
+    # As in _apply_priors: on a few dozen pixels, or under two periods, the priors rule.
+    few = prep.n_pixels < PRIORS_RULE_PIXELS
+    fix_theta = prep.orientation_given and (few or abs(math.sin(2 * theta)) < 1e-12)
+    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0)
+    for _ in range(1 if fast else REFINE_ROUNDS):
+        better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
+        if better is None:
+            break
+        fit = better
+    geom, params, jtj, fitter, n_lin = fit.geom, fit.params, fit.jtj, fit.fitter, fit.n_lin
+    f, theta, n, n_f, wb = geom.freq_cycles_per_px, geom.theta_rad, fit.n, fit.n_f, fit.wb
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    if span * f < 1.0:
+        warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
+        return unresolved(name, prep.diagnostics(), warnings)
+    if f_prior and geom is not fit_geom0 and len(warnings) > n_warnings - 1 >= 0 and (
+        "disagrees with the given frequency" in warnings[n_warnings - 1]
+    ) and frequency_disagreement(geom, f_prior) is None:
+        del warnings[n_warnings - 1]  # the refined period agrees after all
+    model, fit_duty, period = fitter.model, fitter.fit_duty, 1.0 / geom.freq_cycles_per_px
+    if fit.n_bad >= 0:
+        warnings.append(
+            f"saturated pixels taken as censored ({fit.n_bad} of {fit.n_bins} bar phases "
+            "mostly saturated, fitted without them): the bright level is the model's"
+        )
+    grid_s = fit.grid_s
+    dark, bright, g_dark, g_bright = fitter.levels(params, grid_s)
+    # Levels, shading, phase, blur (and duty), and the direction and frequency found.
+    n_params = n_lin + 2 + (2 if fit_duty else 1)
+    dof = max(n - n_params, 1)
+    noise = math.sqrt(fit.resid_ss / dof)
+    if prep.integer_valued:
+        noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+    if prep.noise_given:
+        noise = prep.noise_sigma
+
+    cov = noise**2 * _scaled_pinv(jtj)
+    total = bright + dark
+    grad_m = (2.0 * dark * g_bright - 2.0 * bright * g_dark) / total**2 if total > 0 else g_dark * 0
+    mean_level = params[0] + params[1] * params[-2]
+    a1 = abs(params[1]) * 2.0 * math.sin(math.pi * params[-2]) / math.pi * float(
+        math.exp(-2.0 * math.pi**2 * float(params[-1]) * f * f) * model.footprint[0]
+    )
+    # Significance of the fundamental against the noise of n pixels: the fitted one, and the
+    # one of the ROI with its mean and plane removed (a shading ramp is not bars).
+    se_a1 = noise * math.sqrt(2.0 / n)
+    a1_test = min(a1, geom.amplitude)
+    z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
+    diag = prep.diagnostics()
+    diag = replace(
+        diag,
+        noise_sigma=noise,
+        px_per_period=period,
+        freq_cycles_per_px=f,
+        bar_angle_deg=math.degrees(theta),
+        bar_angle_sd_deg=math.degrees(geom.theta_sd_rad),
+        period_sd_px=geom.freq_sd / f**2,
+        phase_cycles=float(geom.phase_cycles + params[-3]),
+        duty=float(params[-2]),
+        blur_sigma_px=math.sqrt(max(float(params[-1]), 0.0)),
+        separation_sigma=min(z, 1e9),
+    )
+    if not z >= RESOLVED_Z:
+        warnings.append(
+            f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
+            f"({se_a1:.3g}) of zero: bars not resolved"
+        )
+        return unresolved(name, diag, warnings)
+    # Levels never beyond the samples by more than the model itself says the sampled phases
+    # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
+    at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    dark = max(dark, prep.vmin - (float(at_bins.min()) - dark) - 2.0 * noise)
+    if clipped is None:  # above the top code the model alone says where the bright level is
+        bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
+    if bright + dark <= 0 or bright <= dark:
+        warnings.append("fitted dark + bright <= 0: contrast undefined")
+        return unresolved(name, diag, warnings)
+    modulation = min(eq29_modulation(dark, bright), 1.0)
+    sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
+    gaps = np.diff(np.concatenate([wb, [wb[0] + 1.0]]))
+    sd_model = _model_sd(modulation, float(gaps.max()) if gaps.size else 1.0, n_f,
+                         MODEL_REL_SD_FAST if fast else None)
+    sd = math.hypot(sd_noise, sd_model)
+    diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
+    fundamental = a1 / mean_level if mean_level > 0 else None
+    return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+@dataclass
+class _Fitted:
+    """The profile fitted at one bar geometry, with what the refinement and the reading
+    need (pixels kept for the fit, their coordinates and residuals)."""
+
+    geom: BarGeometry
+    fitter: _Fit
+    params: FloatArray
+    jtj: FloatArray
+    n_lin: int
+    n: int  # pixels fitted
+    n_f: int  # filled phase bins
+    n_bins: int
+    n_bad: int  # phase cells left out as saturated (-1: nothing saturated)
+    wb: FloatArray  # bins' mean phases
+    keep: npt.NDArray[np.bool_] | None  # pixels fitted (None: all)
+    s_pix: FloatArray  # model bright fraction at each fitted pixel
+    slope_pix: FloatArray | float  # d(value)/d(bright fraction) at each fitted pixel
+    resid: FloatArray  # per-pixel residuals
+    resid_ss: float
+    grid_s: FloatArray  # model bright fraction on the phase grid
+    at_grid: npt.NDArray[np.intp]  # each fitted pixel's place on the grid (0.._GRID_N)
+    u_px: FloatArray  # across- and along-bar coordinates (px) of the fitted pixels
+    v_px: FloatArray
+
+
+def _fit_at(
+    prep: PreparedROI, geom: BarGeometry, fast: bool, clipped: npt.NDArray[np.bool_] | None
+) -> _Fitted | str:
+    """Bin the ROI on the bar phase of ``geom`` and fit the model (a reason when it cannot)."""
+    img = prep.pixels
+    rows, cols = img.shape
+    n = img.size
+    f, theta = geom.freq_cycles_per_px, geom.theta_rad
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    u_px = across_coordinate((rows, cols), theta)
+    v_px = across_coordinate((rows, cols), theta + math.pi / 2)
+    if any(geom.hessian):
+        phi = phase_map((rows, cols), geom)
+    else:  # phase_map's straight-bar case, without computing u again
+        phi = u_px * f
+        phi += geom.phase_cycles
+    w = np.subtract(phi, np.floor(phi), out=phi)  # phase within the period, in place
     half = max(span / 2.0, 1.0)
-    u = across_coordinate((rows, cols), theta) / half
-    v = across_coordinate((rows, cols), theta + math.pi / 2) / half
+    u, v = u_px * (1.0 / half), v_px * (1.0 / half)
     n_bins = int(min(MAX_BINS_FAST if fast else MAX_BINS, max(8, n // 6)))
+    vals, w_fit, u_fit, v_fit = img, w, u, v
+    keep = None
+    n_bad = -1
+    if clipped is not None:
+        # Saturated pixels only say "at least the top code", and the unclipped pixels at the
+        # same phases are the noise's low tail: see _censored. Mostly saturated phases are
+        # left out and the model carries the bright level over them (their gap in the
+        # sampled phases widens the interval, see _model_sd).
+        vals, keep, n_bad = _censored(img, clipped, w, n_bins, float(prep.max_code or 0.0))
+        if int(keep.sum()) < 4:
+            return "every bar phase saturated: no bar profile"
+        vals, w_fit, u_fit, v_fit = vals[keep], w[keep], u[keep], v[keep]
+        n = int(vals.size)
+        n_bins = int(min(n_bins, max(8, n // 6)))
     width = 1.0 / n_bins
     prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
-        w, [img, img * img, w, w * w, u, v], width
+        w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
     )
     filled = prof.filled
     # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
@@ -389,15 +612,14 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     vb = v_prof.mean[filled]
     n_f = int(y.size)
     if n_f < 3:
-        warnings.append(f"only {n_f} distinct bar phases sampled: cannot fit the profile")
-        return unresolved(name, prep.diagnostics(), warnings)
+        return f"only {n_f} distinct bar phases sampled: cannot fit the profile"
     n_lin = 2
     # Shading along the bars only where the bins' mean along-bar positions differ (not on
     # axis-aligned bars, where every bin holds whole lines).
-    if n_f >= MIN_BINS_SHADING and float(vb.std()) > 0.15:
-        across = span * f >= MIN_PERIODS_ACROSS_SHADING and float(ub.std()) > 0.15
+    if n_f >= MIN_BINS_SHADING and _spread(vb) > 0.15:
+        across = span * f >= MIN_PERIODS_ACROSS_SHADING and _spread(ub) > 0.15
         n_lin = 6 if across else 4
-    fit_duty = not fast and n_f >= 6
+    fit_duty = n_f >= 6
     n_harm = int(min(MAX_HARMONICS_FAST if fast else MAX_HARMONICS, max(1, math.ceil(3.0 / f))))
     model = _Model(wb, f, theta, n_harm, w_var)
     period = 1.0 / f
@@ -405,78 +627,166 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         model, y, count, ub, vb, n_lin, prior_scale=max(min(scale_noise, prep.noise_sigma), 1e-9),
         fit_duty=fit_duty, sigma_max=period,
     )
-    starts = tuple(t * period for t in (0.0, 0.04, 0.1, 0.2, 0.35))
-    params, jtj = fitter.run(starts, max_iter=4 if fast else 12)
-
+    starts = tuple(t * period for t in _SIGMA_STARTS)
+    params, jtj = fitter.run(starts, max_iter=6 if fast else 12)
     # Per-pixel residuals: the noise, whatever the bar angle.
-    grid_s, _ = fitter.grid.eval(
-        float(params[-3]), float(params[-2]), float(params[-1]), derivatives=False
-    )
-    s_pix = grid_s[(w.ravel() * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
+    grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
+                              derivatives=False)[0]
+    # The grid with its first point repeated at w = 1: rounding needs no modulo.
+    grid_wrap = np.append(grid_s, grid_s[0])
+    at_grid = (w_fit.ravel() * _GRID_N + 0.5).astype(np.intp)
+    s_pix = grid_wrap[at_grid]
     lin = params[:n_lin]
-    pred = lin[0] + lin[1] * s_pix
-    for j, t in enumerate((v.ravel(), u.ravel())[: (n_lin - 2) // 2]):
-        pred += (lin[2 + 2 * j] + lin[3 + 2 * j] * s_pix) * t
-    resid = img.ravel() - pred
-    # Levels, shading, phase, blur (and duty), and the direction and frequency found.
-    n_params = n_lin + 2 + (2 if fit_duty else 1)
-    dof = max(n - n_params, 1)
-    noise = math.sqrt(float((resid * resid).sum()) / dof)
-    if prep.integer_valued:
-        noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
-    if prep.noise_given:
-        noise = prep.noise_sigma
+    shading = list(zip((v_fit.ravel(), u_fit.ravel()), range(2, n_lin, 2), strict=False))
+    # value = D + shading offsets + slope * s, built in place (few full-size temporaries);
+    # without shading the slope is one number.
+    slope: FloatArray | float = float(lin[1])
+    if shading:
+        slope = np.full(s_pix.shape, float(lin[1]))
+        for t, j in shading:
+            slope += lin[j + 1] * t
+    resid = vals.ravel() - lin[0]
+    for t, j in shading:
+        resid -= lin[j] * t
+    resid -= slope * s_pix
+    return _Fitted(
+        geom=geom, fitter=fitter, params=params, jtj=jtj, n_lin=n_lin, n=n, n_f=n_f,
+        n_bins=n_bins, n_bad=n_bad, wb=wb, keep=None if keep is None else keep.ravel(),
+        s_pix=s_pix, slope_pix=slope, resid=resid, resid_ss=float((resid * resid).sum()),
+        grid_s=grid_s, at_grid=at_grid,
+        u_px=(u_px if keep is None else u_px[keep]).ravel(),
+        v_px=(v_px if keep is None else v_px[keep]).ravel(),
+    )
 
-    dark, bright, g_dark, g_bright = fitter.levels(params)
-    cov = noise**2 * _scaled_pinv(jtj)
-    total = bright + dark
-    grad_m = (2.0 * dark * g_bright - 2.0 * bright * g_dark) / total**2 if total > 0 else g_dark * 0
-    mean_level = params[0] + params[1] * params[-2]
-    a1 = abs(params[1]) * 2.0 * math.sin(math.pi * params[-2]) / math.pi * float(
-        math.exp(-2.0 * (math.pi * params[-1] * f) ** 2) * model.footprint[0]
-    )
-    # Significance of the fundamental against the noise of n pixels: the fitted one, and the
-    # one of the ROI with its mean and plane removed (a shading ramp is not bars).
-    se_a1 = noise * math.sqrt(2.0 / n)
-    a1_test = min(a1, geom.amplitude)
-    z = a1_test / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
-    diag = prep.diagnostics()
-    diag = replace(
-        diag,
-        noise_sigma=noise,
-        px_per_period=period,
-        freq_cycles_per_px=f,
-        bar_angle_deg=math.degrees(theta),
-        bar_angle_sd_deg=math.degrees(geom.theta_sd_rad),
-        period_sd_px=geom.freq_sd / f**2,
-        phase_cycles=float(geom.phase_cycles + params[-3]),
-        duty=float(params[-2]),
-        blur_sigma_px=float(params[-1]),
-        separation_sigma=min(z, 1e9),
-    )
-    if not z >= RESOLVED_Z:
-        warnings.append(
-            f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
-            f"({se_a1:.3g}) of zero: bars not resolved"
-        )
-        return unresolved(name, diag, warnings)
-    # Levels never beyond the samples by more than the model itself says the sampled phases
-    # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
-    at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
-    dark = max(dark, prep.vmin - (float(at_bins.min()) - dark) - 2.0 * noise)
-    bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
-    if bright + dark <= 0 or bright <= dark:
-        warnings.append("fitted dark + bright <= 0: contrast undefined")
-        return unresolved(name, diag, warnings)
-    modulation = min(eq29_modulation(dark, bright), 1.0)
-    sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
-    gaps = np.diff(np.concatenate([wb, [wb[0] + 1.0]]))
-    sd_model = _model_sd(modulation, float(gaps.max()) if gaps.size else 1.0, n_f,
-                         MODEL_REL_SD_FAST if fast else None)
-    sd = math.hypot(sd_noise, sd_model)
-    diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
-    fundamental = a1 / mean_level if mean_level > 0 else None
-    return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+def _refined(
+    prep: PreparedROI, fit: _Fitted, fast: bool, clipped: npt.NDArray[np.bool_] | None,
+    fix_theta: bool, fix_freq: bool,
+) -> _Fitted | None:
+    """The fit at a corrected direction and frequency, or ``None`` when no correction is
+    significant or the corrected one fits worse.
+
+    The per-pixel residuals are regressed on the model's response to a rotation, a change of
+    frequency and a phase shift (Gauss-Newton on the geometry the spectrum measured): on few
+    periods or long bars the spectral peak is pulled by its side lobes, and an angle off by
+    a degree moves the bar phase by a tenth of a cycle at the ends of a 100 px ROI.
+    """
+    geom = fit.geom
+    f = geom.freq_cycles_per_px
+    delta = float(fit.params[-3])
+    # Slope of the model's bright fraction in phase, at each fitted pixel (from the grid).
+    grid_s = fit.grid_s
+    ds_grid = np.empty_like(grid_s)
+    ds_grid[1:-1] = grid_s[2:] - grid_s[:-2]
+    ds_grid[0] = grid_s[1] - grid_s[-1]
+    ds_grid[-1] = grid_s[0] - grid_s[-2]
+    ds_grid *= 0.5 * _GRID_N
+    # A Gauss-Newton step needs no more than REFINE_MAX_PIXELS pixels (evenly strided): the
+    # cost stays bounded on large ROIs, whose spectral geometry is close already.
+    stride = max(1, fit.n // REFINE_MAX_PIXELS)
+    u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
+    resid = fit.resid[::stride]
+    slope = fit.slope_pix if isinstance(fit.slope_pix, float) else fit.slope_pix[::stride]
+    g = slope * ds_grid[fit.at_grid[::stride] % _GRID_N]
+    cols_ = [g]  # phase shift
+    names = ["phase"]
+    if not fix_theta:
+        cols_.append(g * (f * v_px))
+        names.append("theta")
+    if not fix_freq:
+        cols_.append(g * u_px)
+        names.append("freq")
+    if len(cols_) == 1:
+        return None
+    k = len(cols_)
+    normal = np.empty((k, k))
+    rhs = np.empty(k)
+    for i in range(k):
+        rhs[i] = float((cols_[i] * resid).sum())
+        for j in range(i, k):
+            normal[i, j] = normal[j, i] = float((cols_[i] * cols_[j]).sum())
+    try:
+        step = np.linalg.solve(normal, rhs)
+    except np.linalg.LinAlgError:
+        return None
+    noise2 = fit.resid_ss / max(fit.n - 6, 1)
+    # Chi-square of the step over every pixel (the strided sums are 1/stride of theirs).
+    significance = float(step @ normal @ step) * stride / max(noise2, 1e-300)
+    # Phase moved at the ROI's edges by the change of direction and frequency (cycles).
+    moved = 0.0
+    for name, d in zip(names, step, strict=True):
+        if name == "theta":
+            moved += abs(d) * f * float(np.abs(v_px).max())
+        elif name == "freq":
+            moved += abs(d) * float(np.abs(u_px).max())
+    if significance < REFINE_CHI2 or moved < REFINE_MIN_CYCLES:
+        return None
+    # A linearised step is trusted only for small corrections (a larger one means the
+    # spectral geometry was wrong altogether, or the noise is fitted).
+    for name, d in zip(names, step, strict=True):
+        if (name == "theta" and abs(d) > REFINE_MAX_THETA_RAD) or (
+            name == "freq" and abs(d) > REFINE_MAX_FREQ_REL * f
+        ):
+            return None
+    new = geom
+    for name, d in zip(names, step, strict=True):
+        if name == "theta":
+            new = replace(new, theta_rad=new.theta_rad + float(d))
+        elif name == "freq":
+            new = replace(new, freq_cycles_per_px=max(new.freq_cycles_per_px + float(d), 1e-6))
+    new = replace(new, phase_cycles=new.phase_cycles - delta + float(step[0]))
+    other = _fit_at(prep, new, fast, clipped)
+    if isinstance(other, str) or other.resid_ss / max(other.n, 1) >= fit.resid_ss / max(
+        fit.n, 1
+    ):
+        return None
+    return other
+
+
+def _spread(x: FloatArray) -> float:
+    """Standard deviation of ``x`` (two reductions; ``ndarray.std`` costs several calls)."""
+    m = float(x.sum()) / x.size
+    return math.sqrt(max(float((x * x).sum()) / x.size - m * m, 0.0))
+
+
+def _clipped_mask(prep: PreparedROI) -> npt.NDArray[np.bool_] | None:
+    """Pixels at the saturation code (``None`` when none is clipped)."""
+    if prep.max_code is None or prep.clipped_fraction <= 0:
+        return None
+    mask: npt.NDArray[np.bool_] = prep.pixels >= prep.max_code
+    return mask if bool(mask.any()) else None
+
+
+def _censored(
+    img: FloatArray, clipped: npt.NDArray[np.bool_], w: FloatArray, n_bins: int, top: float
+) -> tuple[FloatArray, npt.NDArray[np.bool_], int]:
+    """Pixel values with the saturated ones replaced by their expected value, the pixels to
+    fit, and how many phase cells were left out.
+
+    In each of ``n_bins`` phase cells holding saturated pixels the noise is taken as normal:
+    where under half of the cell is saturated, its median ``m`` and the spread of its lower
+    half ``s`` are unaffected, and a saturated pixel stands for the normal's mean above the top
+    code ``T``: ``m + s phi(a) / (1 - Phi(a))``, ``a = (T - m) / s`` (the cell's mean is then
+    unbiased). Cells at least half saturated are left out.
+    """
+    cell = (w * n_bins).astype(np.intp) % n_bins
+    flat_cell, flat_clip = cell.ravel(), clipped.ravel()
+    n_cell = np.bincount(flat_cell, minlength=n_bins)
+    n_clip = np.bincount(flat_cell[flat_clip], minlength=n_bins)
+    bad = 2 * n_clip >= np.maximum(n_cell, 1)
+    out = img.ravel().copy()
+    for c in np.flatnonzero((n_clip > 0) & ~bad):
+        members = flat_cell == c
+        x = out[members]
+        m, q16 = (float(v) for v in np.percentile(x, [50.0, 15.87]))
+        s = max(m - q16, 1e-9)
+        a = (top - m) / s
+        upper = max(0.5 * math.erfc(a / math.sqrt(2.0)), 1e-12)  # 1 - Phi(a)
+        tail = math.exp(-0.5 * a * a) / math.sqrt(2.0 * math.pi) / upper
+        x[x >= top] = m + s * tail
+        out[members] = x
+    keep = ~bad[flat_cell]
+    return out.reshape(img.shape), keep.reshape(img.shape), int(bad.sum())
 
 
 def _scaled_pinv(jtj: FloatArray) -> FloatArray:

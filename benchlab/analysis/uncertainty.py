@@ -4,10 +4,17 @@ Lines **along the bars** are resampled with replacement: each resampled line sti
 same bars, so the spatial profile survives (pixel-wise resampling would destroy it for the
 sine fit). The spread of the re-estimated modulation gives the standard uncertainty and a
 percentile interval. A ROI only one line thick keeps its analytic uncertainty.
+
+The bootstrap sees the noise only: the estimator's model and sampling-phase term (the
+``uncertainty_model`` of its diagnostics, when it reports one) is added in quadrature and
+widens the interval. Lines of an image axis only run along the bars when the bars are
+axis-aligned: on oblique bars a resampled line lands at another row with another bar phase,
+which smears the profile the estimator sees, so oblique bars keep the analytic uncertainty.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -16,6 +23,9 @@ import numpy.typing as npt
 
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.roi import PreparedROI
+
+#: Bars more than this far (deg) off the image axis of the resampled lines are "oblique".
+OBLIQUE_LIMIT_DEG = 1.0
 
 
 def bootstrap_result(
@@ -37,6 +47,17 @@ def bootstrap_result(
         return result.with_updates(
             warnings=(*result.warnings, "one line along the bars: analytic uncertainty kept")
         )
+    angle = result.diagnostics.bar_angle_deg
+    if angle is not None:
+        # The direction in which the intensity varies: along columns (axis 1) is 0 deg.
+        axis_angle = 0.0 if prep.axis == 1 else 90.0
+        off = abs((angle - axis_angle + 90.0) % 180.0 - 90.0)
+        if off > OBLIQUE_LIMIT_DEG:
+            return result.with_updates(warnings=(
+                *result.warnings,
+                f"bars {off:.1f} deg off the image axis: resampled lines would shift their "
+                "bar phase, analytic uncertainty kept",
+            ))
     rng = np.random.default_rng(seed)
     mods: list[float] = []
     for _ in range(n_resamples):
@@ -45,8 +66,14 @@ def bootstrap_result(
         mods.append(estimator(replace(prep, pixels=pixels)).modulation)
     arr = np.asarray(mods)
     low, high = (float(v) for v in np.percentile(arr, [2.5, 97.5]))
+    model_sd = result.diagnostics.uncertainty_model or 0.0
+    spread = float(arr.std(ddof=1))
+    # Widen each side of the percentile interval by the model term (in quadrature).
+    centre = result.modulation
+    low = centre - math.hypot(centre - low, 1.96 * model_sd)
+    high = centre + math.hypot(high - centre, 1.96 * model_sd)
     return result.with_updates(
-        uncertainty=float(arr.std(ddof=1)),
-        interval=(low, high),
+        uncertainty=math.hypot(spread, model_sd),
+        interval=(max(low, 0.0), min(high, 1.0)),
         uncertainty_method="bootstrap",
     )

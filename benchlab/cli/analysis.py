@@ -289,7 +289,13 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
-    from benchlab.analysis.benchmark import format_speed, format_table, run_benchmark
+    from benchlab.analysis.benchmark import (
+        Row,
+        format_speed,
+        format_table,
+        format_worst,
+        run_benchmark,
+    )
 
     names = tuple(ESTIMATORS)
     if args.estimators:
@@ -303,10 +309,17 @@ def benchmark_command(args: argparse.Namespace) -> int:
     n_cases = 300 if args.quick else args.cases
     if n_cases < 10:
         raise AnalysisInputError(f"--cases must be at least 10, got {n_cases}")
+    if args.worst is not None and args.worst < 1:
+        raise AnalysisInputError(f"--worst must be at least 1, got {args.worst}")
     t0 = time.perf_counter()
-    cases, scores = run_benchmark(n_cases=n_cases, seed=args.seed, estimators=names)
+    rows: list[Row] = []
+    cases, scores = run_benchmark(n_cases=n_cases, seed=args.seed, estimators=names,
+                                  rows_out=rows)
     elapsed = time.perf_counter() - t0
     print(format_table(scores))
+    if args.worst:
+        print()
+        print(format_worst(cases, rows, args.worst))
     print(f"\n{len(cases)} synthetic ROIs (seed {args.seed}) per estimator, {elapsed:.1f} s")
     if not args.no_speed:
         shapes = ((40, 50), (100, 100), (200, 200)) if args.quick else (
@@ -403,4 +416,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--estimators", metavar="A,B", help="comma-separated estimators (default: all)"
     )
     b.add_argument("--no-speed", action="store_true", help="skip the ROI-size speed table")
+    b.add_argument(
+        "--worst", type=int, metavar="N",
+        help="also list each estimator's N largest errors with the case parameters",
+    )
     b.set_defaults(func=benchmark_command)
