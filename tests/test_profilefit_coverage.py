@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis import estimate_modulation
-from benchlab.analysis.estimators import FEW_PERIODS, sine_fit
+from benchlab.analysis.estimators import FEW_PERIODS, _series_starved, sine_fit
 from benchlab.analysis.profilefit import DENSE_PIXELS_PER_BIN, MODEL_REL_SD, _model_sd, profile_fit
 from benchlab.analysis.roi import prepare_roi
 from benchlab.analysis.synthetic import BarCase, render
@@ -27,19 +27,39 @@ def _read(bar: BarCase, seed: int, orientation: str | None = "horizontal"):  # t
 
 
 def test_tiny_roi_interval_holds_the_bar_model_disagreement() -> None:
-    # Benchmark case 384: 5 lines across at 4.74 px per period, sharp bars. The harmonic series
-    # reads 0.43 (+-0.02 before), the bar model 0.29, truth 0.28.
+    # Benchmark case 957: 5 lines across at 2.36 px per period. The harmonic series reads 0.158
+    # (before: [0.130, 0.186]), the bar model 0.255, truth 0.195.
+    bar = BarCase(shape=(5, 5), px_per_period=2.35897, modulation=0.68958, mean=58.714,
+                  psf_sigma_px=0.52432, noise_sigma=0.13271, phase=0.025691, duty=0.55886,
+                  shading=0.12980, angle_deg=0.0, electrons_per_dn=1572.24, pedestal=8.0)
+    prep, r = _read(bar, 10_957)
+    series, bars = sine_fit(prep), profile_fit(prep)
+    assert any("harmonic-series" in w for w in r.warnings)
+    assert r.modulation == pytest.approx(series.modulation)  # reading unchanged: interval only
+    assert abs(series.modulation - bars.modulation) > 0.05
+    assert r.uncertainty >= abs(series.modulation - bars.modulation)
+    lo, hi = r.interval
+    assert lo <= bar.truth <= hi
+
+
+def test_tiny_roi_too_few_lines_for_the_harmonics_reads_the_bar_model() -> None:
+    # Benchmark case 384: 5 lines across at 4.74 px per period: the 2nd harmonic is below
+    # Nyquist but 5 lines cannot hold it, the series falls back to a sine and reads sharp bars
+    # 0.425 (truth 0.280). The bar model reads them.
     bar = BarCase(shape=(5, 5), px_per_period=4.7438, modulation=0.3097, mean=76.3,
                   psf_sigma_px=0.0, noise_sigma=1.10, phase=0.0727, duty=0.428, shading=0.0294,
                   angle_deg=90.0, bits=12, msb_aligned=True, electrons_per_dn=13187.0, pedestal=8.0)
     prep, r = _read(bar, 10_384, "vertical")
-    series, bars = sine_fit(prep), profile_fit(prep)
-    assert any("harmonic-series" in w for w in r.warnings)
-    assert r.modulation == pytest.approx(series.modulation)  # reading unchanged: interval only
-    assert abs(series.modulation - bars.modulation) > 0.1
-    assert r.uncertainty >= abs(series.modulation - bars.modulation)
+    assert _series_starved(prep)
+    assert not any("harmonic-series" in w for w in r.warnings)
+    assert sine_fit(prep).modulation - bar.truth > 0.1
+    assert r.modulation == pytest.approx(bar.truth, abs=0.03)
     lo, hi = r.interval
     assert lo <= bar.truth <= hi
+    # Wider lines hold the 2nd harmonic: not starved (the forward view's elements).
+    wide = prepare_roi(np.ones((8, 5)), freq_cycles_per_px=bar.freq_cycles_per_px,
+                       orientation="vertical")
+    assert not _series_starved(wide)
 
 
 def test_few_periods_axis_aligned_widens_the_model_term() -> None:
