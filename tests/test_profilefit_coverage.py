@@ -40,6 +40,15 @@ def test_tiny_roi_interval_holds_the_bar_model_disagreement() -> None:
     assert r.uncertainty >= abs(series.modulation - bars.modulation)
     lo, hi = r.interval
     assert lo <= bar.truth <= hi
+    # The bootstrap resamples the noise only and adds the model term back from diagnostics.
+    assert r.diagnostics.uncertainty_model == pytest.approx(
+        math.sqrt(r.uncertainty**2 - series.uncertainty**2))
+    roi = render(bar, np.random.default_rng(10_957))
+    boot = estimate_modulation(roi, estimator="profilefit", bootstrap=50,
+                               freq_cycles_per_px=bar.freq_cycles_per_px, orientation="horizontal")
+    assert boot.uncertainty_method == "bootstrap"
+    assert boot.uncertainty >= abs(series.modulation - bars.modulation)
+    assert boot.interval[0] <= bar.truth <= boot.interval[1]
 
 
 def test_tiny_roi_too_few_lines_for_the_harmonics_reads_the_bar_model() -> None:

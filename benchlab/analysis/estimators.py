@@ -508,9 +508,12 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
         if not r.resolved:
             return r.with_updates(estimator=name, warnings=warns)
-        sd = math.hypot(r.uncertainty, _tiny_model_sd(prep, r, fast))
+        model = _tiny_model_sd(prep, r, fast)
+        sd = math.hypot(r.uncertainty, model)
+        # The terms in the diagnostics too: a bootstrap (noise only) adds the model term back.
+        diag = replace(r.diagnostics, uncertainty_noise=r.uncertainty, uncertainty_model=model)
         return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
-                        r.diagnostics, sd, warns, r.fundamental_modulation)
+                        diag, sd, warns, r.fundamental_modulation)
     return _few_periods(prep, profile_fit(prep, fast))
 
 
