@@ -31,6 +31,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,8 @@ CSV_MISSING = "NA"
 #: folder fsync'd as it is written, the old behaviour). ``benchlab benchmark batch`` measures
 #: all three. The journal lines resume depends on are fsync'd one by one whatever this says.
 RESULTS_FSYNC = "syncfs"
+#: Threads that load a session's frames (decoding releases the GIL; more buys nothing here).
+FRAME_LOAD_THREADS = min(4, os.cpu_count() or 1)
 
 
 class SessionError(BenchlabError):
@@ -198,6 +201,9 @@ class Session:
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
+        #: Frames being loaded ahead by :meth:`prefetch_frames`: relative file -> load.
+        self._prefetched: dict[str, Future[tuple[npt.NDArray[Any], dict[str, Any]]]] = {}
+        self._prefetch_pool: ThreadPoolExecutor | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -330,6 +336,7 @@ class Session:
 
     def release(self) -> None:
         """Stop being the session's writer (the lock also goes when the process ends)."""
+        self.stop_prefetch()
         fd, self._owner_fd = self._owner_fd, None
         if fd is not None:
             os.close(fd)  # closing drops the flock
@@ -580,6 +587,32 @@ class Session:
         """Every recorded frame: relative file -> recorded sha256."""
         return {f: str(ev["sha256"]) for f, ev in self._frame_records().items()}
 
+    def prefetch_frames(self, threads: int) -> None:
+        """Start loading every recorded frame on ``threads`` threads, so that the reading,
+        hashing and inflating (zlib and sha256 release the GIL) overlap whatever the caller
+        does next (a re-analysis imports its analysis meanwhile). :meth:`load_frame` hands out
+        each prefetched frame once, with the same hash check and errors as a direct load.
+        Stopped by :meth:`stop_prefetch` (and :meth:`release`)."""
+        self.stop_prefetch()
+        pool = ThreadPoolExecutor(max_workers=max(1, threads),
+                                  thread_name_prefix="benchlab-frames")
+        self._prefetch_pool = pool
+        for rel, ev in sorted(self._frame_records().items()):
+            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
+            try:
+                path = self.frame_path(step_id, name)
+            except ValueError:
+                continue  # not a frame load_frame can ask for
+            if path.relative_to(self.path).as_posix() == rel:
+                self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
+
+    def stop_prefetch(self) -> None:
+        """Drop frames prefetched and not yet handed out; cancel loads not yet started."""
+        pool, self._prefetch_pool = self._prefetch_pool, None
+        self._prefetched = {}
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+
     def load_frame(self, step_id: str, name: str) -> tuple[npt.NDArray[Any], dict[str, Any]]:
         """Load a recorded frame after checking its hash against the journal.
 
@@ -592,6 +625,12 @@ class Session:
         """
         path = self.frame_path(step_id, name)
         rel = path.relative_to(self.path).as_posix()
+        ahead = self._prefetched.pop(rel, None)
+        if ahead is not None and not ahead.cancelled():
+            return ahead.result()
+        return self._load_frame_now(path, rel)
+
+    def _load_frame_now(self, path: Path, rel: str) -> tuple[npt.NDArray[Any], dict[str, Any]]:
         rec = self._frame_records().get(rel)
         if rec is None:
             raise SessionError(f"{path}: no such frame recorded in {self.events_path}")

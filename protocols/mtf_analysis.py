@@ -6,7 +6,6 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
@@ -36,6 +35,7 @@ from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
 from benchlab.protocols.mtf_edges import forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
+from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -51,7 +51,7 @@ ORIENTATIONS = ("sagittal", "tangential")
 #: thesis paired 73.2 with 70, 35 with 30 and 52.5 with 60 lp/mm: at most 17 % apart).
 MC_MATCH_FRACTION = 0.2
 #: Threads that load a session's frames (decoding releases the GIL; more buys nothing here).
-LOAD_THREADS = min(4, os.cpu_count() or 1)
+LOAD_THREADS = FRAME_LOAD_THREADS
 
 
 def radial_step_id(freq_lp_per_mm: float, orientation: str) -> str:
@@ -271,26 +271,32 @@ def analyze_mtf(
     radial_keys = [(f, orient) for f in params.radial_frequencies_lp_per_mm
                    for orient in ORIENTATIONS]
     # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
-    # several cores the 15 frames of a session load in a fraction of the time. The first
-    # failure (changed or unreadable frame) is raised as before.
+    # several cores the 15 frames of a session load in a fraction of the time. The forward
+    # frame's analysis (the chart finder's OpenCV calls release the GIL too) runs on a thread
+    # beside the optical centre and the radial rows, which it does not depend on. The first
+    # failure (changed or unreadable frame) is raised as before; the numbers are the same as
+    # one thread's (every estimate is a pure function of its frame).
     with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
         forward_job = pool.submit(_load, session, FORWARD_STEP, FORWARD_FRAME)
         radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
                        for f, o in radial_keys]
         forward = forward_job.result()
+        forward_rows = (None if forward is None else
+                        pool.submit(analyze_forward_frame, forward, params, est))
         radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
         for key, job in zip(radial_keys, radial_jobs, strict=True):
             px = job.result()
             if px is not None:
                 radial[key] = px
-    centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+        centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+        t412 = _radial_rows(radial, params, est, centre)
+        forward_result = None if forward_rows is None else forward_rows.result()
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
     per: dict[tuple[str, str], dict[str, Any]] = {}
-    if forward is not None:
-        per = {(r["element"], r["orientation"]): r
-               for r in analyze_forward_frame(forward, params, est)}
+    if forward_result is not None:
+        per = {(r["element"], r["orientation"]): r for r in forward_result}
         for el in params.forward_elements:
             s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
             f_img = s["image_lp_per_mm"]
@@ -308,26 +314,6 @@ def analyze_mtf(
                                         tuple(r["roi"]), centre))
             t411.append(row)
 
-    t412: list[dict[str, Any]] = []
-    for f in params.radial_frequencies_lp_per_mm:
-        f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
-        # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
-        # sagittal spokes image at the azimuthal magnification, in their own columns.
-        f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
-        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
-               "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
-               "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
-        for orient in ORIENTATIONS:
-            px = radial.get((f, orient))
-            if px is None:
-                row.update({f"{orient}_{k}": None for k in
-                            ("dark", "bright", "modulation", "resolved", "uncertainty")})
-                row[f"{orient}_warnings"] = "frame missing"
-                continue
-            r = analyze_radial_frame(px, f, orient, params, est, centre)
-            row.update({f"{orient}_{k}": r[k] for k in
-                        ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
-        t412.append(row)
     if radial:
         t413.append(_height_row("radial", "radial ROI", params.radial_roi, centre))
 
@@ -349,6 +335,34 @@ def analyze_mtf(
         "frames_analysed": (forward is not None) + len(radial),
     }
     return tables, summary, est
+
+
+def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfParams,
+                 est: str, centre: tuple[float, float]) -> list[dict[str, Any]]:
+    """Table 4.12: one row per radial frequency, both orientations (missing frames say so)."""
+    nyq = nyquist_lp_per_mm()
+    t412: list[dict[str, Any]] = []
+    for f in params.radial_frequencies_lp_per_mm:
+        f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
+        # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
+        # sagittal spokes image at the azimuthal magnification, in their own columns.
+        f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
+        row: dict[str, Any] = {
+            "object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+            "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
+            "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
+        for orient in ORIENTATIONS:
+            px = radial.get((f, orient))
+            if px is None:
+                row.update({f"{orient}_{k}": None for k in
+                            ("dark", "bright", "modulation", "resolved", "uncertainty")})
+                row[f"{orient}_warnings"] = "frame missing"
+                continue
+            r = analyze_radial_frame(px, f, orient, params, est, centre)
+            row.update({f"{orient}_{k}": r[k] for k in
+                        ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
+        t412.append(row)
+    return t412
 
 
 def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> dict[str, Any]:

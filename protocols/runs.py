@@ -21,7 +21,7 @@ from benchlab.protocols.params import (
     params_to_dict,
     parse_params,
 )
-from benchlab.session import Session, SessionError
+from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
@@ -166,6 +166,7 @@ def reanalyze(session_path: str | Path, estimator: str | None = None, *,
     status = session.status  # before holding: a dead writer's "running" is "interrupted"
     session.hold()  # a live run (or another analysis) writing it is named and refused
     try:
+        _prefetch_frames(session)
         if status != "completed":
             steps = make_procedure(session_params(session)).steps()
             done = session.completed_steps()
@@ -174,6 +175,19 @@ def reanalyze(session_path: str | Path, estimator: str | None = None, *,
         return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()
+
+
+def _prefetch_frames(session: Session) -> None:
+    """Start loading an MTF session's frames (its 15 frames are all analysed) on threads, so
+    the inflating overlaps the import of the analysis (``make_procedure``) and the checks that
+    follow. Other procedures load their frames themselves (a characterisation has hundreds).
+    Parameters that do not parse start nothing: the error comes where it always did."""
+    try:
+        params = session_params(session)
+    except (ParamsError, SessionError):
+        return
+    if isinstance(params, MtfParams):
+        session.prefetch_frames(FRAME_LOAD_THREADS)
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
