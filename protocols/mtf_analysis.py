@@ -6,7 +6,7 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -272,55 +272,50 @@ def analyze_mtf(
                    for orient in ORIENTATIONS]
     # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
     # several cores the 15 frames of a session load in a fraction of the time. The forward
-    # frame's analysis (the chart finder's OpenCV calls release the GIL too) runs on a thread
-    # beside the optical centre and the radial rows, which it does not depend on. The first
-    # failure (changed or unreadable frame) is raised as before; the numbers are the same as
-    # one thread's (every estimate is a pure function of its frame).
-    with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        forward_job = pool.submit(_load, session, FORWARD_STEP, FORWARD_FRAME)
+    # view (chart finder, bar ROIs, then the slanted edges once the optical centre is known)
+    # runs on its own thread beside the radial frames, the centre and the radial rows: OpenCV
+    # and the larger numpy calls release the GIL. Every estimate is a pure function of its
+    # frame, so the numbers are those of one thread. A failure is raised as before (the
+    # forward frame's first).
+    centre_ready: Future[tuple[float, float]] = Future()
+    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
+            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        forward_job = forward_pool.submit(_forward_view, session, params, est, centre_ready)
         radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
                        for f, o in radial_keys]
-        forward = forward_job.result()
-        forward_rows = (None if forward is None else
-                        pool.submit(analyze_forward_frame, forward, params, est))
-        radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
-        for key, job in zip(radial_keys, radial_jobs, strict=True):
-            px = job.result()
-            if px is not None:
-                radial[key] = px
-        centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+        try:
+            radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
+            for key, job in zip(radial_keys, radial_jobs, strict=True):
+                px = job.result()
+                if px is not None:
+                    radial[key] = px
+            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+        except BaseException:
+            centre_ready.cancel()  # the forward thread stops waiting for it
+            failed = forward_job.exception()
+            if failed is not None and not isinstance(failed, CancelledError):
+                raise failed from None
+            raise
+        centre_ready.set_result(centre)
         t412 = _radial_rows(radial, params, est, centre)
-        forward_result = None if forward_rows is None else forward_rows.result()
+        forward = forward_job.result()
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
     per: dict[tuple[str, str], dict[str, Any]] = {}
-    if forward_result is not None:
-        per = {(r["element"], r["orientation"]): r for r in forward_result}
+    edges: dict[str, list[dict[str, Any]]] = {}
+    if forward is not None:
+        per, t411, edges = forward
         for el in params.forward_elements:
-            s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
-            f_img = s["image_lp_per_mm"]
-            row: dict[str, Any] = {
-                "element": el.name,
-                "object_lp_per_mm": usaf_frequency_lp_per_mm(el.group, el.element),
-                "image_lp_per_mm": f_img, "aliased": f_img > nyq,
-            }
-            for orient, r in (("sagittal", s), ("tangential", t)):
-                row.update({f"{orient}_{k}": r[k] for k in
-                            ("dark", "bright", "modulation", "resolved", "uncertainty",
-                             "warnings")})
-                row[f"{orient}_roi"] = r["roi"]
+            for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",
-                                        tuple(r["roi"]), centre))
-            t411.append(row)
-
+                                        tuple(per[(el.name, orient)]["roi"]), centre))
     if radial:
         t413.append(_height_row("radial", "radial ROI", params.radial_roi, centre))
 
     t415 = _monte_carlo_rows(t411, t412, params)
     tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
-    if forward is not None:  # slanted-edge MTF where a clean edge exists (issue 16)
-        tables.update(forward_edge_tables(forward, t411, centre, params.simulated_mtf_file))
+    tables.update(edges)  # slanted-edge MTF where a clean edge exists (issue 16)
     summary = {
         "procedure": "mtf",
         "estimator": est,
@@ -328,13 +323,45 @@ def analyze_mtf(
         "radial_estimator": resolve_estimator(est),
         "image_centre_rc": list(centre),
         "image_centre_method": centre_method,
-        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None
-        and per else None,
-        "chart": next(iter(per.values()))["chart"] if forward is not None and per else None,
+        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if per else None,
+        "chart": next(iter(per.values()))["chart"] if per else None,
         "nyquist_lp_per_mm": nyq,
         "frames_analysed": (forward is not None) + len(radial),
     }
     return tables, summary, est
+
+
+_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]],
+                     dict[str, list[dict[str, Any]]]]
+
+
+def _forward_view(session: Session, params: MtfParams, est: str,
+                  centre_ready: Future[tuple[float, float]]) -> _ForwardView | None:
+    """The forward frame's rows by (element, orientation), Table 4.11 and the slanted-edge
+    tables (which wait for the optical centre), or None without a forward frame."""
+    forward = _load(session, FORWARD_STEP, FORWARD_FRAME)
+    if forward is None:
+        return None
+    per = {(r["element"], r["orientation"]): r
+           for r in analyze_forward_frame(forward, params, est)}
+    nyq = nyquist_lp_per_mm()
+    t411: list[dict[str, Any]] = []
+    for el in params.forward_elements:
+        s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
+        f_img = s["image_lp_per_mm"]
+        row: dict[str, Any] = {
+            "element": el.name,
+            "object_lp_per_mm": usaf_frequency_lp_per_mm(el.group, el.element),
+            "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+        }
+        for orient, r in (("sagittal", s), ("tangential", t)):
+            row.update({f"{orient}_{k}": r[k] for k in
+                        ("dark", "bright", "modulation", "resolved", "uncertainty",
+                         "warnings")})
+            row[f"{orient}_roi"] = r["roi"]
+        t411.append(row)
+    edges = forward_edge_tables(forward, t411, centre_ready.result(), params.simulated_mtf_file)
+    return per, t411, edges
 
 
 def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfParams,
