@@ -26,7 +26,6 @@ import math
 import os
 import re
 import shutil
-import socket
 import sys
 import tempfile
 import threading
@@ -172,8 +171,22 @@ def _check_name(kind: str, value: str) -> str:
     return value
 
 
+#: Types :func:`_plain` returns as they are, tested first: a results version has thousands of
+#: such cells, and the ``Mapping`` check (an ABC) costs several times a type lookup.
+_PLAIN_SCALARS = frozenset({str, int, bool, type(None)})
+
+
 def _plain(obj: Any) -> Any:
     """JSON-safe copy: NaN/inf -> None, tuples -> lists, numpy scalars -> Python."""
+    kind = type(obj)
+    if kind in _PLAIN_SCALARS:
+        return obj
+    if kind is float:
+        return obj if math.isfinite(obj) else None
+    if kind is dict:
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if kind is list:
+        return [_plain(v) for v in obj]
     if isinstance(obj, Mapping):
         return {str(k): _plain(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
@@ -328,7 +341,7 @@ class Session:
             os.close(fd)
             raise SessionBusyError(f"{self.path}: session is in use by {describe_holder(holder)}"
                                    "; wait for it to end or stop that process") from None
-        record = {"pid": os.getpid(), "host": socket.gethostname(), "since": _now_iso(),
+        record = {"pid": os.getpid(), "host": os.uname().nodename, "since": _now_iso(),
                   "command": command or " ".join(["benchlab", *sys.argv[1:3]])}
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(record) + "\n").encode("utf-8"), 0)
@@ -605,6 +618,11 @@ class Session:
                 continue  # not a frame load_frame can ask for
             if path.relative_to(self.path).as_posix() == rel:
                 self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
+
+    @property
+    def prefetching(self) -> bool:
+        """Whether :meth:`prefetch_frames` is loading (or holds) frames ahead."""
+        return self._prefetch_pool is not None
 
     def stop_prefetch(self) -> None:
         """Drop frames prefetched and not yet handed out; cancel loads not yet started."""

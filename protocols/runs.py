@@ -153,16 +153,19 @@ def resume_run(
                   abort=abort, on_result=on_result, estimator=estimator)
 
 
-def reanalyze(session_path: str | Path, estimator: str | None = None, *,
+def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
               catalogue: bool = True) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
     sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
+    ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
+    loading its frames before it imports the analysis).
     """
     check_estimator(estimator)
-    session = Session.open(Path(session_path))
+    session = (session_path if isinstance(session_path, Session)
+               else Session.open(Path(session_path)))
     status = session.status  # before holding: a dead writer's "running" is "interrupted"
     session.hold()  # a live run (or another analysis) writing it is named and refused
     try:
@@ -182,6 +185,8 @@ def _prefetch_frames(session: Session) -> None:
     the inflating overlaps the import of the analysis (``make_procedure``) and the checks that
     follow. Other procedures load their frames themselves (a characterisation has hundreds).
     Parameters that do not parse start nothing: the error comes where it always did."""
+    if session.prefetching:
+        return
     try:
         params = session_params(session)
     except (ParamsError, SessionError):
