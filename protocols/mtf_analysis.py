@@ -243,10 +243,12 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
     the frame edge clips it). Falls back to the chart's nominal centre when no mask exists.
     """
     if radial_frames:
-        mask = np.zeros(radial_frames[0].shape, dtype=bool)
-        for px in radial_frames:
-            mask |= px > threshold_dn
-        mask = fill_holes(mask)
+        # Lit in any frame = the frames' maximum above the threshold: one comparison instead
+        # of one per frame (each converts the whole frame to float), the same mask.
+        brightest = np.array(radial_frames[0], dtype=np.result_type(*radial_frames), copy=True)
+        for px in radial_frames[1:]:
+            np.maximum(brightest, px, out=brightest)
+        mask = fill_holes(brightest > threshold_dn)
         try:
             circle = fov_centre(mask)
             return circle.centre_rc, circle.method

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from test_protocol_helpers import MTF_SMALL, run_sim, tables_of
 
+from benchlab.catalog import Catalog
 from benchlab.cli.main import main
 from benchlab.protocols.mtf_analysis import analyze_mtf
 from benchlab.protocols.runs import reanalyze, session_params
@@ -85,6 +86,11 @@ def test_cli_and_api_reanalysis_match_the_run_and_accept_an_open_session(
     first = small_mtf / "results" / "v1"
     assert main(["analyze", str(small_mtf)]) == 0
     assert tables_of(small_mtf / "results" / "v2") == tables_of(first)
+    # the catalogue, updated beside the printing, has the new version when the command ends
+    with Catalog.open(small_mtf.parent) as catalog:
+        shown = catalog.show(small_mtf.name)
+    assert shown["results_version"] == 2
+    assert [r["version"] for r in shown["results"]] == [1, 2]
     opened = Session.open(small_mtf)
     opened.prefetch_frames(2)
     v3 = reanalyze(opened)

@@ -227,13 +227,27 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     early = _open_prefetching(Path(target))
     try:
+        from benchlab.catalog import record_session
         from benchlab.protocols.runs import reanalyze
 
-        out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None))
+        out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None),
+                        catalogue=False)
     finally:
         if early is not None:
             early.stop_prefetch()
     elapsed = time.perf_counter() - t0
+    # The catalogue update (mostly waiting for SQLite's flush) overlaps the printing; it never
+    # raises, and the process waits for it before it ends.
+    recorder = threading.Thread(target=record_session, args=(Path(target),),
+                                name="benchlab-catalogue")
+    recorder.start()
+    try:
+        return _print_reanalysis(args, out, elapsed)
+    finally:
+        recorder.join()
+
+
+def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
     from benchlab.session import read_results
 
     tables, summary = read_results(out)
