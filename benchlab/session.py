@@ -805,19 +805,25 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:
     columns: list[str] = []
+    seen: set[str] = set()
     for row in rows:
-        columns.extend(k for k in row if k not in columns)
+        for k in row:
+            if k not in seen:
+                seen.add(k)
+                columns.append(k)
     buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
+    # csv.writer with lists: the text DictWriter writes, without its per-row key checks (a
+    # results version has ~700 rows, most of them the SFR curves).
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
     for row in rows:
-        writer.writerow(
-            {k: CSV_MISSING if row.get(k) is None else _csv_cell(row.get(k)) for k in columns}
-        )
+        writer.writerow([_csv_cell(row.get(k)) for k in columns])
     return buf.getvalue()
 
 
 def _csv_cell(value: Any) -> Any:
+    if value is None:
+        return CSV_MISSING
     if isinstance(value, dict | list):
         return json.dumps(value)
     return value

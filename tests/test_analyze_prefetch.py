@@ -118,3 +118,23 @@ def test_threaded_analysis_raises_the_first_bad_frame_and_ends(
         _flip_byte(frame)
     with pytest.raises(SessionError, match=named):
         analyze_mtf(session, session_params(session), None)  # type: ignore[arg-type]
+
+
+def test_results_csv_has_every_column_missing_cells_and_json_cells() -> None:
+    import csv
+    import io
+
+    from benchlab.session import CSV_MISSING, _csv_text
+
+    rows = [{"a": 1, "b": None, "c": 'say "hi", twice'},
+            {"b": [1, 2], "d": {"k": 0.5}, "a": 2.25},
+            {"e": True}]
+    text = _csv_text(rows)
+    assert text.splitlines()[0] == "a,b,c,d,e"
+    back = list(csv.DictReader(io.StringIO(text)))
+    assert back[0] == {"a": "1", "b": CSV_MISSING, "c": 'say "hi", twice', "d": CSV_MISSING,
+                       "e": CSV_MISSING}
+    assert back[1] == {"a": "2.25", "b": "[1, 2]", "c": CSV_MISSING, "d": '{"k": 0.5}',
+                       "e": CSV_MISSING}
+    assert back[2]["e"] == "True" and back[2]["a"] == CSV_MISSING
+    assert _csv_text([]) == "\n"
