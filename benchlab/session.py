@@ -26,11 +26,11 @@ import math
 import os
 import re
 import shutil
-import socket
 import sys
 import tempfile
 import threading
 from collections.abc import Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -72,6 +72,8 @@ CSV_MISSING = "NA"
 #: folder fsync'd as it is written, the old behaviour). ``benchlab benchmark batch`` measures
 #: all three. The journal lines resume depends on are fsync'd one by one whatever this says.
 RESULTS_FSYNC = "syncfs"
+#: Threads that load a session's frames (decoding releases the GIL; more buys nothing here).
+FRAME_LOAD_THREADS = min(4, os.cpu_count() or 1)
 
 
 class SessionError(BenchlabError):
@@ -169,8 +171,22 @@ def _check_name(kind: str, value: str) -> str:
     return value
 
 
+#: Types :func:`_plain` returns as they are, tested first: a results version has thousands of
+#: such cells, and the ``Mapping`` check (an ABC) costs several times a type lookup.
+_PLAIN_SCALARS = frozenset({str, int, bool, type(None)})
+
+
 def _plain(obj: Any) -> Any:
     """JSON-safe copy: NaN/inf -> None, tuples -> lists, numpy scalars -> Python."""
+    kind = type(obj)
+    if kind in _PLAIN_SCALARS:
+        return obj
+    if kind is float:
+        return obj if math.isfinite(obj) else None
+    if kind is dict:
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if kind is list:
+        return [_plain(v) for v in obj]
     if isinstance(obj, Mapping):
         return {str(k): _plain(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
@@ -198,6 +214,9 @@ class Session:
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
+        #: Frames being loaded ahead by :meth:`prefetch_frames`: relative file -> load.
+        self._prefetched: dict[str, Future[tuple[npt.NDArray[Any], dict[str, Any]]]] = {}
+        self._prefetch_pool: ThreadPoolExecutor | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -322,7 +341,7 @@ class Session:
             os.close(fd)
             raise SessionBusyError(f"{self.path}: session is in use by {describe_holder(holder)}"
                                    "; wait for it to end or stop that process") from None
-        record = {"pid": os.getpid(), "host": socket.gethostname(), "since": _now_iso(),
+        record = {"pid": os.getpid(), "host": os.uname().nodename, "since": _now_iso(),
                   "command": command or " ".join(["benchlab", *sys.argv[1:3]])}
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(record) + "\n").encode("utf-8"), 0)
@@ -330,6 +349,7 @@ class Session:
 
     def release(self) -> None:
         """Stop being the session's writer (the lock also goes when the process ends)."""
+        self.stop_prefetch()
         fd, self._owner_fd = self._owner_fd, None
         if fd is not None:
             os.close(fd)  # closing drops the flock
@@ -580,6 +600,37 @@ class Session:
         """Every recorded frame: relative file -> recorded sha256."""
         return {f: str(ev["sha256"]) for f, ev in self._frame_records().items()}
 
+    def prefetch_frames(self, threads: int) -> None:
+        """Start loading every recorded frame on ``threads`` threads, so that the reading,
+        hashing and inflating (zlib and sha256 release the GIL) overlap whatever the caller
+        does next (a re-analysis imports its analysis meanwhile). :meth:`load_frame` hands out
+        each prefetched frame once, with the same hash check and errors as a direct load.
+        Stopped by :meth:`stop_prefetch` (and :meth:`release`)."""
+        self.stop_prefetch()
+        pool = ThreadPoolExecutor(max_workers=max(1, threads),
+                                  thread_name_prefix="benchlab-frames")
+        self._prefetch_pool = pool
+        for rel, ev in sorted(self._frame_records().items()):
+            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
+            try:
+                path = self.frame_path(step_id, name)
+            except ValueError:
+                continue  # not a frame load_frame can ask for
+            if path.relative_to(self.path).as_posix() == rel:
+                self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
+
+    @property
+    def prefetching(self) -> bool:
+        """Whether :meth:`prefetch_frames` is loading (or holds) frames ahead."""
+        return self._prefetch_pool is not None
+
+    def stop_prefetch(self) -> None:
+        """Drop frames prefetched and not yet handed out; cancel loads not yet started."""
+        pool, self._prefetch_pool = self._prefetch_pool, None
+        self._prefetched = {}
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+
     def load_frame(self, step_id: str, name: str) -> tuple[npt.NDArray[Any], dict[str, Any]]:
         """Load a recorded frame after checking its hash against the journal.
 
@@ -592,6 +643,12 @@ class Session:
         """
         path = self.frame_path(step_id, name)
         rel = path.relative_to(self.path).as_posix()
+        ahead = self._prefetched.pop(rel, None)
+        if ahead is not None and not ahead.cancelled():
+            return ahead.result()
+        return self._load_frame_now(path, rel)
+
+    def _load_frame_now(self, path: Path, rel: str) -> tuple[npt.NDArray[Any], dict[str, Any]]:
         rec = self._frame_records().get(rel)
         if rec is None:
             raise SessionError(f"{path}: no such frame recorded in {self.events_path}")
@@ -748,19 +805,25 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:
     columns: list[str] = []
+    seen: set[str] = set()
     for row in rows:
-        columns.extend(k for k in row if k not in columns)
+        for k in row:
+            if k not in seen:
+                seen.add(k)
+                columns.append(k)
     buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
+    # csv.writer with lists: the text DictWriter writes, without its per-row key checks (a
+    # results version has ~700 rows, most of them the SFR curves).
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
     for row in rows:
-        writer.writerow(
-            {k: CSV_MISSING if row.get(k) is None else _csv_cell(row.get(k)) for k in columns}
-        )
+        writer.writerow([_csv_cell(row.get(k)) for k in columns])
     return buf.getvalue()
 
 
 def _csv_cell(value: Any) -> Any:
+    if value is None:
+        return CSV_MISSING
     if isinstance(value, dict | list):
         return json.dumps(value)
     return value

@@ -6,8 +6,7 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -36,6 +35,7 @@ from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
 from benchlab.protocols.mtf_edges import forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
+from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -51,7 +51,7 @@ ORIENTATIONS = ("sagittal", "tangential")
 #: thesis paired 73.2 with 70, 35 with 30 and 52.5 with 60 lp/mm: at most 17 % apart).
 MC_MATCH_FRACTION = 0.2
 #: Threads that load a session's frames (decoding releases the GIL; more buys nothing here).
-LOAD_THREADS = min(4, os.cpu_count() or 1)
+LOAD_THREADS = FRAME_LOAD_THREADS
 
 
 def radial_step_id(freq_lp_per_mm: float, orientation: str) -> str:
@@ -243,10 +243,12 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
     the frame edge clips it). Falls back to the chart's nominal centre when no mask exists.
     """
     if radial_frames:
-        mask = np.zeros(radial_frames[0].shape, dtype=bool)
-        for px in radial_frames:
-            mask |= px > threshold_dn
-        mask = fill_holes(mask)
+        # Lit in any frame = the frames' maximum above the threshold: one comparison instead
+        # of one per frame (each converts the whole frame to float), the same mask.
+        brightest = np.array(radial_frames[0], dtype=np.result_type(*radial_frames), copy=True)
+        for px in radial_frames[1:]:
+            np.maximum(brightest, px, out=brightest)
+        mask = fill_holes(brightest > threshold_dn)
         try:
             circle = fov_centre(mask)
             return circle.centre_rc, circle.method
@@ -271,52 +273,113 @@ def analyze_mtf(
     radial_keys = [(f, orient) for f in params.radial_frequencies_lp_per_mm
                    for orient in ORIENTATIONS]
     # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
-    # several cores the 15 frames of a session load in a fraction of the time. The first
-    # failure (changed or unreadable frame) is raised as before.
-    with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        forward_job = pool.submit(_load, session, FORWARD_STEP, FORWARD_FRAME)
+    # several cores the 15 frames of a session load in a fraction of the time. The forward
+    # view (chart finder, bar ROIs, then the slanted edges once the optical centre is known)
+    # runs on its own thread beside the radial frames, the centre and the radial rows: OpenCV
+    # and the larger numpy calls release the GIL. Every estimate is a pure function of its
+    # frame, so the numbers are those of one thread. A failure is raised as before (the
+    # forward frame's first).
+    centre_ready: Future[tuple[float, float]] = Future()
+    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
+            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        forward_job = forward_pool.submit(_forward_view, session, params, est, centre_ready)
         radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
                        for f, o in radial_keys]
+        try:
+            radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
+            for key, job in zip(radial_keys, radial_jobs, strict=True):
+                px = job.result()
+                if px is not None:
+                    radial[key] = px
+            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+        except BaseException:
+            centre_ready.cancel()  # the forward thread stops waiting for it
+            failed = forward_job.exception()
+            if failed is not None and not isinstance(failed, CancelledError):
+                raise failed from None
+            raise
+        centre_ready.set_result(centre)
+        t412 = _radial_rows(radial, params, est, centre)
         forward = forward_job.result()
-        radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
-        for key, job in zip(radial_keys, radial_jobs, strict=True):
-            px = job.result()
-            if px is not None:
-                radial[key] = px
-    centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
     per: dict[tuple[str, str], dict[str, Any]] = {}
+    edges: dict[str, list[dict[str, Any]]] = {}
     if forward is not None:
-        per = {(r["element"], r["orientation"]): r
-               for r in analyze_forward_frame(forward, params, est)}
+        per, t411, edges = forward
         for el in params.forward_elements:
-            s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
-            f_img = s["image_lp_per_mm"]
-            row: dict[str, Any] = {
-                "element": el.name,
-                "object_lp_per_mm": usaf_frequency_lp_per_mm(el.group, el.element),
-                "image_lp_per_mm": f_img, "aliased": f_img > nyq,
-            }
-            for orient, r in (("sagittal", s), ("tangential", t)):
-                row.update({f"{orient}_{k}": r[k] for k in
-                            ("dark", "bright", "modulation", "resolved", "uncertainty",
-                             "warnings")})
-                row[f"{orient}_roi"] = r["roi"]
+            for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",
-                                        tuple(r["roi"]), centre))
-            t411.append(row)
+                                        tuple(per[(el.name, orient)]["roi"]), centre))
+    if radial:
+        t413.append(_height_row("radial", "radial ROI", params.radial_roi, centre))
 
+    t415 = _monte_carlo_rows(t411, t412, params)
+    tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
+    tables.update(edges)  # slanted-edge MTF where a clean edge exists (issue 16)
+    summary = {
+        "procedure": "mtf",
+        "estimator": est,
+        "forward_estimator": resolve_estimator(est),
+        "radial_estimator": resolve_estimator(est),
+        "image_centre_rc": list(centre),
+        "image_centre_method": centre_method,
+        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if per else None,
+        "chart": next(iter(per.values()))["chart"] if per else None,
+        "nyquist_lp_per_mm": nyq,
+        "frames_analysed": (forward is not None) + len(radial),
+    }
+    return tables, summary, est
+
+
+_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]],
+                     dict[str, list[dict[str, Any]]]]
+
+
+def _forward_view(session: Session, params: MtfParams, est: str,
+                  centre_ready: Future[tuple[float, float]]) -> _ForwardView | None:
+    """The forward frame's rows by (element, orientation), Table 4.11 and the slanted-edge
+    tables (which wait for the optical centre), or None without a forward frame."""
+    forward = _load(session, FORWARD_STEP, FORWARD_FRAME)
+    if forward is None:
+        return None
+    per = {(r["element"], r["orientation"]): r
+           for r in analyze_forward_frame(forward, params, est)}
+    nyq = nyquist_lp_per_mm()
+    t411: list[dict[str, Any]] = []
+    for el in params.forward_elements:
+        s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
+        f_img = s["image_lp_per_mm"]
+        row: dict[str, Any] = {
+            "element": el.name,
+            "object_lp_per_mm": usaf_frequency_lp_per_mm(el.group, el.element),
+            "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+        }
+        for orient, r in (("sagittal", s), ("tangential", t)):
+            row.update({f"{orient}_{k}": r[k] for k in
+                        ("dark", "bright", "modulation", "resolved", "uncertainty",
+                         "warnings")})
+            row[f"{orient}_roi"] = r["roi"]
+        t411.append(row)
+    edges = forward_edge_tables(forward, t411, centre_ready.result(), params.simulated_mtf_file)
+    return per, t411, edges
+
+
+def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfParams,
+                 est: str, centre: tuple[float, float]) -> list[dict[str, Any]]:
+    """Table 4.12: one row per radial frequency, both orientations (missing frames say so)."""
+    nyq = nyquist_lp_per_mm()
     t412: list[dict[str, Any]] = []
     for f in params.radial_frequencies_lp_per_mm:
         f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
         # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
         # sagittal spokes image at the azimuthal magnification, in their own columns.
         f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
-        row = {"object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
-               "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
-               "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
+        row: dict[str, Any] = {
+            "object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+            "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
+            "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
         for orient in ORIENTATIONS:
             px = radial.get((f, orient))
             if px is None:
@@ -328,27 +391,7 @@ def analyze_mtf(
             row.update({f"{orient}_{k}": r[k] for k in
                         ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
         t412.append(row)
-    if radial:
-        t413.append(_height_row("radial", "radial ROI", params.radial_roi, centre))
-
-    t415 = _monte_carlo_rows(t411, t412, params)
-    tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
-    if forward is not None:  # slanted-edge MTF where a clean edge exists (issue 16)
-        tables.update(forward_edge_tables(forward, t411, centre, params.simulated_mtf_file))
-    summary = {
-        "procedure": "mtf",
-        "estimator": est,
-        "forward_estimator": resolve_estimator(est),
-        "radial_estimator": resolve_estimator(est),
-        "image_centre_rc": list(centre),
-        "image_centre_method": centre_method,
-        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if forward is not None
-        and per else None,
-        "chart": next(iter(per.values()))["chart"] if forward is not None and per else None,
-        "nyquist_lp_per_mm": nyq,
-        "frames_analysed": (forward is not None) + len(radial),
-    }
-    return tables, summary, est
+    return t412
 
 
 def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> dict[str, Any]:

@@ -21,7 +21,7 @@ from benchlab.protocols.params import (
     params_to_dict,
     parse_params,
 )
-from benchlab.session import Session, SessionError
+from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
@@ -153,19 +153,23 @@ def resume_run(
                   abort=abort, on_result=on_result, estimator=estimator)
 
 
-def reanalyze(session_path: str | Path, estimator: str | None = None, *,
+def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
               catalogue: bool = True) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
     sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
+    ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
+    loading its frames before it imports the analysis).
     """
     check_estimator(estimator)
-    session = Session.open(Path(session_path))
+    session = (session_path if isinstance(session_path, Session)
+               else Session.open(Path(session_path)))
     status = session.status  # before holding: a dead writer's "running" is "interrupted"
     session.hold()  # a live run (or another analysis) writing it is named and refused
     try:
+        _prefetch_frames(session)
         if status != "completed":
             steps = make_procedure(session_params(session)).steps()
             done = session.completed_steps()
@@ -174,6 +178,21 @@ def reanalyze(session_path: str | Path, estimator: str | None = None, *,
         return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()
+
+
+def _prefetch_frames(session: Session) -> None:
+    """Start loading an MTF session's frames (its 15 frames are all analysed) on threads, so
+    the inflating overlaps the import of the analysis (``make_procedure``) and the checks that
+    follow. Other procedures load their frames themselves (a characterisation has hundreds).
+    Parameters that do not parse start nothing: the error comes where it always did."""
+    if session.prefetching:
+        return
+    try:
+        params = session_params(session)
+    except (ParamsError, SessionError):
+        return
+    if isinstance(params, MtfParams):
+        session.prefetch_frames(FRAME_LOAD_THREADS)
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:

@@ -15,6 +15,7 @@ from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
+    from benchlab.session import Session
 
 
 class _Progress:
@@ -197,11 +198,25 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
+def _open_prefetching(folder: Path) -> Session | None:
+    """The MTF session at ``folder``, its frames already loading on threads (inflating
+    releases the GIL), so the loads overlap the import of the protocols and the analysis
+    (start-up, issue 11); None for anything else, which :func:`reanalyze` then opens and
+    reports on as always (a folder that is not a session, another procedure)."""
+    from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
+
+    try:
+        session = Session.open(folder)
+        if session.procedure != "mtf":
+            return None
+        session.prefetch_frames(FRAME_LOAD_THREADS)
+    except (SessionError, OSError, KeyError):
+        return None
+    return session
+
+
 def analyze_session_command(args: argparse.Namespace) -> int:
     """Re-analyse a session folder (``args.target``) into a new results version."""
-    from benchlab.protocols.runs import reanalyze
-    from benchlab.session import read_results
-
     target = next(
         (getattr(args, a) for a in ("target", "session", "image", "path")
          if getattr(args, a, None)),
@@ -210,8 +225,31 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     if target is None:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
-    out = reanalyze(Path(target), estimator=getattr(args, "estimator", None))
+    early = _open_prefetching(Path(target))
+    try:
+        from benchlab.catalog import record_session
+        from benchlab.protocols.runs import reanalyze
+
+        out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None),
+                        catalogue=False)
+    finally:
+        if early is not None:
+            early.stop_prefetch()
     elapsed = time.perf_counter() - t0
+    # The catalogue update (mostly waiting for SQLite's flush) overlaps the printing; it never
+    # raises, and the process waits for it before it ends.
+    recorder = threading.Thread(target=record_session, args=(Path(target),),
+                                name="benchlab-catalogue")
+    recorder.start()
+    try:
+        return _print_reanalysis(args, out, elapsed)
+    finally:
+        recorder.join()
+
+
+def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
+    from benchlab.session import read_results
+
     tables, summary = read_results(out)
     partial = bool(summary.get("partial"))
     note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
