@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis import estimate_modulation
-from benchlab.analysis.profilefit import _Model
+from benchlab.analysis.profilefit import _Model, _scaled_pinv
 from benchlab.analysis.synthetic import bar_roi
 
 
@@ -216,3 +216,19 @@ def test_geometry_refinement_takes_small_steps_only() -> None:
     period = r.diagnostics.px_per_period
     assert bar.truth < 0.002 and r.modulation < 0.004
     assert period is not None and period < 25.0
+
+
+@pytest.mark.parametrize("rank", [9, 7])
+def test_scaled_pinv_matches_the_svd_pseudo_inverse(rank: int) -> None:
+    """The covariance's pseudo-inverse (eigen-decomposition of the scaled symmetric ``J^T J``)
+    equals numpy's SVD one, also when directions are unconstrained (rank-deficient)."""
+    rng = np.random.default_rng(rank)
+    jac = rng.normal(size=(60, rank)) @ rng.normal(size=(rank, 9))
+    jac *= np.logspace(-3, 3, 9)  # parameters of very different units
+    jtj = jac.T @ jac
+    d = np.sqrt(np.diag(jtj))
+    expected = np.linalg.pinv(jtj / np.outer(d, d), rcond=1e-10) / np.outer(d, d)
+    got = _scaled_pinv(jtj)
+    assert np.allclose(got, expected, rtol=1e-6, atol=1e-9 * float(np.abs(expected).max()))
+    if rank < 9:  # a plain inverse would blow up along the null space
+        assert float(np.abs(got).max()) < 1e6 * float(np.abs(expected).max())

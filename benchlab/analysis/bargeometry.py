@@ -435,39 +435,12 @@ def quick_geometry(
     return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
 
 
-def measure_geometry(
-    img: FloatArray,
-    noise_sigma: float,
-    freq_prior: float | None = None,
-    curvature: bool = True,
-) -> BarGeometry | None:
-    """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
-
-    Parameters
-    ----------
-    img : ndarray, shape (rows, cols)
-        The ROI in gray units.
-    noise_sigma : float
-        Per-pixel noise (for the uncertainties).
-    freq_prior : float, optional
-        Expected frequency (cycles/px, below Nyquist): the search band is 0.6-1.6 times it.
-    curvature : bool
-        Also measure the phase curvature of spokes or rings.
-
-    Returns
-    -------
-    BarGeometry or None
-        ``None`` when the ROI is too small for any spectral peak.
-    """
-    rows, cols = img.shape
-    if rows * cols < 4:
-        return None
-    resid = detrend(img)
-    extent = math.hypot(rows, cols)
-    if freq_prior:
-        f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
-    else:
-        f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
+def _spectral_peak(
+    resid: FloatArray, freq_prior: float | None, f_lo: float, f_hi: float
+) -> tuple[float, float, float] | None:
+    """The fundamental ``(kx, ky, magnitude)`` from the 2-D spectrum: the strongest peak in
+    ``[f_lo, f_hi]``, or outside it when much stronger (see :func:`measure_geometry`)."""
+    rows, cols = resid.shape
     spec = _spectrum(resid)
     peak = _fft_peak(spec, f_lo, f_hi)
     if freq_prior:
@@ -483,6 +456,57 @@ def measure_geometry(
             peak is None or wide[2] > WIDE_PEAK_RATIO * peak[2] or (on_edge and wide[2] > peak[2])
         ):
             peak = wide
+    return peak
+
+
+def measure_geometry(
+    img: FloatArray,
+    noise_sigma: float,
+    freq_prior: float | None = None,
+    curvature: bool = True,
+    quick_start: bool = False,
+) -> BarGeometry | None:
+    """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
+
+    Parameters
+    ----------
+    img : ndarray, shape (rows, cols)
+        The ROI in gray units.
+    noise_sigma : float
+        Per-pixel noise (for the uncertainties).
+    freq_prior : float, optional
+        Expected frequency (cycles/px, below Nyquist): the search band is 0.6-1.6 times it.
+    curvature : bool
+        Also measure the phase curvature of spokes or rings.
+    quick_start : bool
+        With ``freq_prior``: start from :func:`quick_geometry` (on a centred crop) when it
+        accepts the ROI, instead of the 2-D spectrum's peak; the same refinement, phase and
+        curvature follow. It accepts only a fundamental carrying at least
+        ``QUICK_MIN_POWER_SHARE`` of the power, so no peak outside the prior's band can be
+        ``WIDE_PEAK_RATIO`` times stronger: the spectral search would start there too.
+
+    Returns
+    -------
+    BarGeometry or None
+        ``None`` when the ROI is too small for any spectral peak.
+    """
+    rows, cols = img.shape
+    if rows * cols < 4:
+        return None
+    resid = detrend(img)
+    extent = math.hypot(rows, cols)
+    if freq_prior:
+        f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
+    else:
+        f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
+    start = None
+    if quick_start and freq_prior:
+        start = quick_geometry(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
+                               resid=_centred_crop(resid, QUICK_CROP_PX))
+    if start is not None:
+        peak: tuple[float, float, float] | None = (*start.k_xy, start.amplitude)
+    else:
+        peak = _spectral_peak(resid, freq_prior, f_lo, f_hi)
     if peak is None:
         if not freq_prior:
             return None

@@ -419,7 +419,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if n < 4 or prep.vmax == prep.vmin:
         warnings.append("too few pixels or a single gray level: no bar profile")
         return unresolved(name, prep.diagnostics(), warnings)
-    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast)
+    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True)
     if geom is None:
         warnings.append("no bar period found in the ROI")
         return unresolved(name, prep.diagnostics(), warnings)
@@ -794,12 +794,19 @@ def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     very different units), dropping directions the data do not constrain."""
     d = np.sqrt(np.maximum(np.diag(jtj), 0.0))
     d[d == 0] = 1.0
-    scaled = jtj / np.outer(d, d)
+    dd = np.outer(d, d)
+    scaled = jtj / dd
+    # Symmetric: its eigen-decomposition is its SVD (a tenth of numpy.linalg.pinv's cost on
+    # these small matrices), cut at the same relative threshold.
     try:
-        inv = np.linalg.pinv(scaled, rcond=1e-10)
+        vals, vecs = np.linalg.eigh(scaled)
     except np.linalg.LinAlgError:
         return np.full(jtj.shape, np.inf)
-    out: FloatArray = inv / np.outer(d, d)
+    mag = np.abs(vals)
+    keep = mag > 1e-10 * float(mag.max()) if mag.size else mag > 0
+    inv_vals = np.zeros_like(vals)
+    inv_vals[keep] = 1.0 / vals[keep]
+    out: FloatArray = (vecs * inv_vals) @ vecs.T / dd
     return out
 
 
