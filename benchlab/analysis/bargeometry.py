@@ -532,6 +532,7 @@ def measure_geometry(
         # The refinement walked out of the band (noise): keep the prior's magnitude.
         scale = freq_prior / max(f, 1e-12)
         kx, ky, f = kx * scale, ky * scale, freq_prior
+        refined = None  # its DFT belongs to the frequency walked out of the band
     if f <= 0:
         return None
     theta = math.atan2(ky, kx)
@@ -540,24 +541,22 @@ def measure_geometry(
     elif theta > math.pi / 2:
         theta -= math.pi
     # The phase belongs to the normalised direction (the opposite k is the conjugate peak).
+    kx_found, ky_found = kx, ky
     kx, ky = f * math.cos(theta), f * math.sin(theta)
-    value = dft_at(resid, kx, ky)
+    if refined is not None:
+        # The phase-drift refinement's last pass already summed the DFT at (nearly) this k:
+        # the centre phase moves only to second order with its last, settled step.
+        value = refined[2]
+        if kx * kx_found + ky * ky_found < 0:  # the opposite k: the conjugate
+            value = value.conjugate()
+    else:
+        value = dft_at(resid, kx, ky)
     n = rows * cols
     amplitude = 2.0 * abs(value) / n
     # F ~ (A n / 2) e^{i psi} for A cos(2 pi k.r + psi): bright-bar centres where k.r + psi/2pi
     # is an integer.
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    # Cramer-Rao-like spreads for one sinusoid in white noise.
-    snr = amplitude / max(noise_sigma, 1e-12)
-    y, x = _centred_grid((rows, cols))
-    s_u = math.sqrt(float((x * x).mean()) * math.cos(theta) ** 2
-                     + float((y * y).mean()) * math.sin(theta) ** 2)
-    s_v = math.sqrt(float((x * x).mean()) * math.sin(theta) ** 2
-                     + float((y * y).mean()) * math.cos(theta) ** 2)
-    base = 1.0 / (math.pi * max(snr, 1e-12) * math.sqrt(2.0 * n))
-    freq_sd = base / max(s_u, 0.5)
-    theta_sd = base / max(s_v, 0.5) / f
-    phase_sd = base * math.sqrt(2.0) / 2.0
+    theta_sd, freq_sd, phase_sd = _uncertainties((rows, cols), theta, f, amplitude, noise_sigma)
     hess = (0.0, 0.0, 0.0)
     geom = BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd, hess)
     resid = full_resid
