@@ -154,7 +154,9 @@ class _Model:
         self.footprint = sides[0] * sides[1]
         self._blur = -2.0 * math.pi**2 * self.fk**2  # log gain per sigma^2
         self._two_over_pik = 2.0 / (math.pi * self.k)
-        self._dphase = -2j * math.pi * self.k
+        self._two_pi_k = 2.0 * math.pi * self.k
+        self._minus_two_pi_k = -self._two_pi_k
+        self._blur2 = np.concatenate([self._blur, self._blur])
 
     def at(self, w: FloatArray | None) -> _Model:
         """The same model on other phase samples (``None``: the cached phase grid)."""
@@ -178,15 +180,25 @@ class _Model:
         (without the duty's own constant and unit derivative); ``var`` is the PSF's
         variance (px^2): the gains are log-linear in it, and its derivative does not vanish
         at zero blur as the sigma's does (Levenberg-Marquardt then stalls on the bound)."""
+        # Z = exp(-2 pi i k delta) gain a_k: [Re | -Im] = [cos | sin](2 pi k delta) gain a_k,
+        # and d/d(delta) multiplies Z by -2 pi i k: [Re | -Im] -> 2 pi k [-(-Im) | Re].
+        # Real arithmetic throughout (complex temporaries cost more numpy calls).
+        n_harm = self.k.size
         gain = np.exp(self._blur * var) * self.footprint
         pk = math.pi * duty * self.k
-        rot = np.exp((-2j * math.pi * delta) * self.k) * gain
-        z = np.empty((4, self.k.size), dtype=np.complex128)
-        z[0] = rot * (self._two_over_pik * np.sin(pk))
-        z[1] = z[0] * self._dphase
-        z[2] = rot * (2.0 * np.cos(pk))
-        z[3] = z[0] * self._blur
-        return np.concatenate([z.real, -z.imag], axis=1)
+        ang = self._two_pi_k * delta
+        cos_a, sin_a = np.cos(ang), np.sin(ang)
+        amp = self._two_over_pik * np.sin(pk) * gain
+        amp_duty = 2.0 * np.cos(pk) * gain
+        out = np.empty((4, 2 * n_harm))
+        np.multiply(cos_a, amp, out=out[0, :n_harm])
+        np.multiply(sin_a, amp, out=out[0, n_harm:])
+        np.multiply(out[0, n_harm:], self._minus_two_pi_k, out=out[1, :n_harm])
+        np.multiply(out[0, :n_harm], self._two_pi_k, out=out[1, n_harm:])
+        np.multiply(cos_a, amp_duty, out=out[2, :n_harm])
+        np.multiply(sin_a, amp_duty, out=out[2, n_harm:])
+        np.multiply(out[0], self._blur2, out=out[3])
+        return out
 
     def eval(
         self, delta: float, duty: float, var: float, derivatives: bool = True
@@ -337,15 +349,14 @@ class _Fit:
         for _ in range(max_iter):
             jtj = jac.T @ jac
             grad = jac.T @ r
-            scale = np.diag(jtj).copy()
-            scale[scale <= 0] = 1.0
-            jtj.flat[::4] += lam * scale
+            scale = jtj.diagonal()
+            jtj.flat[::4] += lam * np.where(scale > 0, scale, 1.0)
             try:
                 step = -np.linalg.solve(jtj, grad)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if np.all(np.abs(step) < tiny) or -float(grad @ step) < enough:
+            if -float(grad @ step) < enough or bool((np.abs(step) < tiny).all()):
                 break
             trial = np.minimum(np.maximum(nl + step, lo), hi)
             got = self._projected(trial)
@@ -810,20 +821,17 @@ def _censored(
 def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     """Pseudo-inverse of ``J^T J`` after scaling its columns to unit diagonal (parameters of
     very different units), dropping directions the data do not constrain."""
-    d = np.sqrt(np.maximum(np.diag(jtj), 0.0))
-    d[d == 0] = 1.0
+    diag = jtj.diagonal()
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
     dd = np.outer(d, d)
-    scaled = jtj / dd
     # Symmetric: its eigen-decomposition is its SVD (a tenth of numpy.linalg.pinv's cost on
     # these small matrices), cut at the same relative threshold.
     try:
-        vals, vecs = np.linalg.eigh(scaled)
+        vals, vecs = np.linalg.eigh(jtj / dd)
     except np.linalg.LinAlgError:
         return np.full(jtj.shape, np.inf)
     mag = np.abs(vals)
-    keep = mag > 1e-10 * float(mag.max()) if mag.size else mag > 0
-    inv_vals = np.zeros_like(vals)
-    inv_vals[keep] = 1.0 / vals[keep]
+    inv_vals = np.where(mag > 1e-10 * float(mag.max()), 1.0 / np.where(mag > 0, vals, 1.0), 0.0)
     out: FloatArray = (vecs * inv_vals) @ vecs.T / dd
     return out
 
