@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis import estimate_modulation
-from benchlab.analysis.profilefit import _Model, _scaled_pinv
+from benchlab.analysis.profilefit import _Model, _phasors, _scaled_pinv
 from benchlab.analysis.synthetic import bar_roi
 
 
@@ -232,3 +232,15 @@ def test_scaled_pinv_matches_the_svd_pseudo_inverse(rank: int) -> None:
     assert np.allclose(got, expected, rtol=1e-6, atol=1e-9 * float(np.abs(expected).max()))
     if rank < 9:  # a plain inverse would blow up along the null space
         assert float(np.abs(got).max()) < 1e6 * float(np.abs(expected).max())
+
+
+def test_phasors_by_running_product_match_cos_and_sin() -> None:
+    """The phasors are powers of the fundamental (a running product, with the bins' damping
+    folded in): equal to cos and sin of every harmonic to rounding, up to 48 harmonics."""
+    w = np.random.default_rng(5).uniform(0.0, 1.0, 70)
+    k = np.arange(1, 49, dtype=np.float64)
+    arg = 2.0 * math.pi * np.outer(w, k)
+    damp = np.exp(-np.outer(np.full(70, 1e-4), k * k))
+    assert np.abs(_phasors(w, 48) - np.hstack([np.cos(arg), np.sin(arg)])).max() < 1e-12
+    damped = np.hstack([np.cos(arg) * damp, np.sin(arg) * damp])
+    assert np.abs(_phasors(w, 48, damp) - damped).max() < 1e-12

@@ -103,16 +103,19 @@ _TWO_PI = 2.0 * math.pi
 FloatArray = npt.NDArray[np.float64]
 
 
-def _phasors(w: FloatArray, n_harm: int) -> FloatArray:
+def _phasors(w: FloatArray, n_harm: int, damp: FloatArray | None = None) -> FloatArray:
     """``[cos | sin](2 pi k w)`` (n, 2 n_harm), ``k = 1..n_harm``: the real and imaginary
     parts of the phasors side by side, so that every product is a real one (a complex
-    matrix-vector product wakes OpenBLAS's threads: milliseconds)."""
+    matrix-vector product wakes OpenBLAS's threads: milliseconds), each harmonic times
+    ``damp`` when given."""
     # Harmonic k's phasor is the fundamental's k-th power: one complex exp per sample and a
     # running product (rounding grows ~k eps, 1e-14 at 48 harmonics) instead of cos and sin
     # of every harmonic, several times faster.
     z = np.empty((w.size, n_harm), dtype=np.complex128)
     z[:] = np.exp((2j * math.pi) * np.asarray(w, dtype=np.float64))[:, None]
     np.cumprod(z, axis=1, out=z)
+    if damp is not None:  # (n, n_harm) real factors of both parts
+        z *= damp
     out = np.empty((w.size, 2 * n_harm))
     out[:, :n_harm] = z.real
     out[:, n_harm:] = z.imag
@@ -141,13 +144,12 @@ class _Model:
         w_var: FloatArray | None = None,
     ) -> None:
         self.k = np.arange(1, n_harm + 1, dtype=np.float64)
-        e = _phasors(w, self.k.size)
+        damp = None
         if w_var is not None:
             # A bin averages the profile over its pixels' spread of phases (variance w_var):
             # each harmonic is damped like a Gaussian average of that variance.
             damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
-            e *= np.concatenate([damp, damp], axis=1)
-        self.e: FloatArray = e
+        self.e: FloatArray = _phasors(w, n_harm, damp)
         self.fk = freq * self.k
         a, b = barmodel.footprint_sides(theta)
         sides = np.sinc(np.outer((a, b), self.fk))  # one call: np.sinc costs ~4 us
