@@ -239,8 +239,12 @@ def test_quick_start_reads_like_the_spectral_start(
     spectral = measure_geometry(img, 1.0, f, curvature=False)
     calls: list[int] = []
     real_spectrum = bargeometry._spectrum
-    monkeypatch.setattr(bargeometry, "_spectrum",
-                        lambda r: calls.append(1) or real_spectrum(r))
+
+    def counted(resid: np.ndarray) -> bargeometry._Spectrum:
+        calls.append(1)
+        return real_spectrum(resid)
+
+    monkeypatch.setattr(bargeometry, "_spectrum", counted)
     quick = measure_geometry(img, 1.0, f, curvature=False, quick_start=True)
     assert calls == []  # the quick path accepted these bars: no spectrum
     assert spectral is not None and quick is not None
