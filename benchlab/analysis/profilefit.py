@@ -556,8 +556,9 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         return unresolved(name, replace(diag0, **fields), warnings)  # type: ignore[arg-type]
     modulation = min(eq29_modulation(dark, bright), 1.0)
     sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
-    gaps = np.diff(np.concatenate([wb, [wb[0] + 1.0]]))
-    sd_model = _model_sd(modulation, float(gaps.max()) if gaps.size else 1.0, n_f,
+    # Largest gap between the filled bins' phases, around the period (they are ascending).
+    max_gap = max(float(np.diff(wb).max()) if wb.size > 1 else 0.0, float(wb[0] + 1.0 - wb[-1]))
+    sd_model = _model_sd(modulation, max_gap, n_f,
                          MODEL_REL_SD_FAST if fast else None)
     sd = math.hypot(sd_noise, sd_model)
     diag = replace(diag0, **fields, uncertainty_noise=sd_noise,  # type: ignore[arg-type]
