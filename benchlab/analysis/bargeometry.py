@@ -12,7 +12,9 @@ sees every pixel and costs linear time (numpy reductions, no BLAS products on th
 
 :func:`quick_geometry` skips the spectrum when the frequency is known: the direction comes from
 the gradient structure tensor and the same phase-drift refinement follows. The histogram-peak
-method uses it (falling back to :func:`measure_geometry` when it declines).
+method uses it (falling back to :func:`measure_geometry` when it declines), and
+``measure_geometry(..., quick_start=True)`` (profilefit) starts its refinement from it instead of
+the spectrum's peak when it accepts the ROI.
 
 Spokes and rings (the radial view) are not straight parallel bars: the local frequency vector
 drifts across the ROI. When the ROI is large enough, the peak is also refined in its four
