@@ -223,3 +223,45 @@ def test_no_blas_products_on_the_pixels() -> None:
         dots = [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Attribute)
                 and node.attr in ("dot", "matmul", "vdot", "inner", "tensordot")]
         assert not products and not dots, (name, products, dots)
+
+
+@pytest.mark.parametrize(("angle", "period", "shape"), [
+    (0.0, 8.0, (40, 50)), (23.0, 8.0, (40, 50)), (58.0, 3.1, (64, 64)), (90.0, 15.0, (100, 100)),
+    (37.0, 5.0, (300, 400)),
+])
+def test_quick_start_reads_like_the_spectral_start(
+    angle: float, period: float, shape: tuple[int, int], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``quick_start`` replaces only the 2-D spectrum's peak as the refinement's start: the
+    same direction, frequency, phase and amplitude, and no spectrum computed at all."""
+    img, case = _bars(angle, period, shape=shape, seed=3)
+    f = case.freq_cycles_per_px
+    spectral = measure_geometry(img, 1.0, f, curvature=False)
+    calls: list[int] = []
+    real_spectrum = bargeometry._spectrum
+
+    def counted(resid: np.ndarray) -> bargeometry._Spectrum:
+        calls.append(1)
+        return real_spectrum(resid)
+
+    monkeypatch.setattr(bargeometry, "_spectrum", counted)
+    quick = measure_geometry(img, 1.0, f, curvature=False, quick_start=True)
+    assert calls == []  # the quick path accepted these bars: no spectrum
+    assert spectral is not None and quick is not None
+    edge = 0.5 * math.hypot(*shape)
+    assert _angle_error(quick.theta_rad, spectral.theta_rad) * f * edge < 0.005
+    assert abs(quick.freq_cycles_per_px - spectral.freq_cycles_per_px) * edge < 0.005
+    assert abs((quick.phase_cycles - spectral.phase_cycles + 0.5) % 1.0 - 0.5) < 0.005
+    assert quick.amplitude == pytest.approx(spectral.amplitude, rel=1e-3)
+
+
+def test_quick_start_falls_back_to_the_spectrum() -> None:
+    """Where the quick path declines (a side lobe near a prior far off, too few pixels) the
+    spectral search starts the refinement as without ``quick_start``."""
+    img, case = _bars(31.0, 4.0, shape=(40, 50), noise=1.0, seed=1)
+    f = case.freq_cycles_per_px
+    geom = measure_geometry(img, 1.0, 0.7 * f, quick_start=True)
+    assert geom is not None and geom.freq_cycles_per_px == pytest.approx(f, rel=0.01)
+    small, small_case = _bars(20.0, 5.0, shape=(12, 12), seed=2)
+    assert measure_geometry(small, 1.0, small_case.freq_cycles_per_px, quick_start=True) == (
+        measure_geometry(small, 1.0, small_case.freq_cycles_per_px))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis import estimate_modulation
-from benchlab.analysis.profilefit import _Model
+from benchlab.analysis.profilefit import _Model, _phasors, _scaled_pinv
 from benchlab.analysis.synthetic import bar_roi
 
 
@@ -216,3 +216,48 @@ def test_geometry_refinement_takes_small_steps_only() -> None:
     period = r.diagnostics.px_per_period
     assert bar.truth < 0.002 and r.modulation < 0.004
     assert period is not None and period < 25.0
+
+
+@pytest.mark.parametrize("rank", [9, 7])
+def test_scaled_pinv_matches_the_svd_pseudo_inverse(rank: int) -> None:
+    """The covariance's pseudo-inverse (eigen-decomposition of the scaled symmetric ``J^T J``)
+    equals numpy's SVD one, also when directions are unconstrained (rank-deficient)."""
+    rng = np.random.default_rng(rank)
+    jac = rng.normal(size=(60, rank)) @ rng.normal(size=(rank, 9))
+    jac *= np.logspace(-3, 3, 9)  # parameters of very different units
+    jtj = jac.T @ jac
+    d = np.sqrt(np.diag(jtj))
+    expected = np.linalg.pinv(jtj / np.outer(d, d), rcond=1e-10) / np.outer(d, d)
+    got = _scaled_pinv(jtj)
+    assert np.allclose(got, expected, rtol=1e-6, atol=1e-9 * float(np.abs(expected).max()))
+    if rank < 9:  # a plain inverse would blow up along the null space
+        assert float(np.abs(got).max()) < 1e6 * float(np.abs(expected).max())
+
+
+def test_phasors_by_running_product_match_cos_and_sin() -> None:
+    """The phasors are powers of the fundamental (a running product, with the bins' damping
+    folded in): equal to cos and sin of every harmonic to rounding, up to 48 harmonics."""
+    w = np.random.default_rng(5).uniform(0.0, 1.0, 70)
+    k = np.arange(1, 49, dtype=np.float64)
+    arg = 2.0 * math.pi * np.outer(w, k)
+    damp = np.exp(-np.outer(np.full(70, 1e-4), k * k))
+    assert np.abs(_phasors(w, 48) - np.hstack([np.cos(arg), np.sin(arg)])).max() < 1e-12
+    damped = np.hstack([np.cos(arg) * damp, np.sin(arg) * damp])
+    assert np.abs(_phasors(w, 48, damp) - damped).max() < 1e-12
+
+
+def test_profilefit_starts_from_the_quick_geometry(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the frequency given, clear bars on a 2,000-pixel ROI are read without the 2-D
+    spectrum (the structure-tensor start settles), within 0.02 of the truth."""
+    from benchlab.analysis import bargeometry
+
+    roi, case = bar_roi(3, shape=(40, 50), px_per_period=8.0, angle_deg=27.0, noise_sigma=2.0,
+                        electrons_per_dn=20.0, phase=0.4)
+
+    def no_spectrum(resid: np.ndarray) -> None:
+        raise AssertionError("the 2-D spectrum was computed")
+
+    monkeypatch.setattr(bargeometry, "_spectrum", no_spectrum)
+    got = estimate_modulation(roi, estimator="profilefit", freq_cycles_per_px=0.125)
+    assert got.modulation == pytest.approx(case.truth, abs=0.02)
+    assert got.interval[0] <= case.truth <= got.interval[1]

@@ -12,7 +12,9 @@ sees every pixel and costs linear time (numpy reductions, no BLAS products on th
 
 :func:`quick_geometry` skips the spectrum when the frequency is known: the direction comes from
 the gradient structure tensor and the same phase-drift refinement follows. The histogram-peak
-method uses it (falling back to :func:`measure_geometry` when it declines).
+method uses it (falling back to :func:`measure_geometry` when it declines), and
+``measure_geometry(..., quick_start=True)`` (profilefit) starts its refinement from it instead of
+the spectrum's peak when it accepts the ROI.
 
 Spokes and rings (the radial view) are not straight parallel bars: the local frequency vector
 drifts across the ROI. When the ROI is large enough, the peak is also refined in its four
@@ -435,39 +437,12 @@ def quick_geometry(
     return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
 
 
-def measure_geometry(
-    img: FloatArray,
-    noise_sigma: float,
-    freq_prior: float | None = None,
-    curvature: bool = True,
-) -> BarGeometry | None:
-    """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
-
-    Parameters
-    ----------
-    img : ndarray, shape (rows, cols)
-        The ROI in gray units.
-    noise_sigma : float
-        Per-pixel noise (for the uncertainties).
-    freq_prior : float, optional
-        Expected frequency (cycles/px, below Nyquist): the search band is 0.6-1.6 times it.
-    curvature : bool
-        Also measure the phase curvature of spokes or rings.
-
-    Returns
-    -------
-    BarGeometry or None
-        ``None`` when the ROI is too small for any spectral peak.
-    """
-    rows, cols = img.shape
-    if rows * cols < 4:
-        return None
-    resid = detrend(img)
-    extent = math.hypot(rows, cols)
-    if freq_prior:
-        f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
-    else:
-        f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
+def _spectral_peak(
+    resid: FloatArray, freq_prior: float | None, f_lo: float, f_hi: float
+) -> tuple[float, float, float] | None:
+    """The fundamental ``(kx, ky, magnitude)`` from the 2-D spectrum: the strongest peak in
+    ``[f_lo, f_hi]``, or outside it when much stronger (see :func:`measure_geometry`)."""
+    rows, cols = resid.shape
     spec = _spectrum(resid)
     peak = _fft_peak(spec, f_lo, f_hi)
     if freq_prior:
@@ -483,6 +458,57 @@ def measure_geometry(
             peak is None or wide[2] > WIDE_PEAK_RATIO * peak[2] or (on_edge and wide[2] > peak[2])
         ):
             peak = wide
+    return peak
+
+
+def measure_geometry(
+    img: FloatArray,
+    noise_sigma: float,
+    freq_prior: float | None = None,
+    curvature: bool = True,
+    quick_start: bool = False,
+) -> BarGeometry | None:
+    """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
+
+    Parameters
+    ----------
+    img : ndarray, shape (rows, cols)
+        The ROI in gray units.
+    noise_sigma : float
+        Per-pixel noise (for the uncertainties).
+    freq_prior : float, optional
+        Expected frequency (cycles/px, below Nyquist): the search band is 0.6-1.6 times it.
+    curvature : bool
+        Also measure the phase curvature of spokes or rings.
+    quick_start : bool
+        With ``freq_prior``: start from :func:`quick_geometry` (on a centred crop) when it
+        accepts the ROI, instead of the 2-D spectrum's peak; the same refinement, phase and
+        curvature follow. It accepts only a fundamental carrying at least
+        ``QUICK_MIN_POWER_SHARE`` of the power, so no peak outside the prior's band can be
+        ``WIDE_PEAK_RATIO`` times stronger: the spectral search would start there too.
+
+    Returns
+    -------
+    BarGeometry or None
+        ``None`` when the ROI is too small for any spectral peak.
+    """
+    rows, cols = img.shape
+    if rows * cols < 4:
+        return None
+    resid = detrend(img)
+    extent = math.hypot(rows, cols)
+    if freq_prior:
+        f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
+    else:
+        f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
+    start = None
+    if quick_start and freq_prior:
+        start = quick_geometry(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
+                               resid=_centred_crop(resid, QUICK_CROP_PX))
+    if start is not None:
+        peak: tuple[float, float, float] | None = (*start.k_xy, start.amplitude)
+    else:
+        peak = _spectral_peak(resid, freq_prior, f_lo, f_hi)
     if peak is None:
         if not freq_prior:
             return None
@@ -508,6 +534,7 @@ def measure_geometry(
         # The refinement walked out of the band (noise): keep the prior's magnitude.
         scale = freq_prior / max(f, 1e-12)
         kx, ky, f = kx * scale, ky * scale, freq_prior
+        refined = None  # its DFT belongs to the frequency walked out of the band
     if f <= 0:
         return None
     theta = math.atan2(ky, kx)
@@ -516,24 +543,22 @@ def measure_geometry(
     elif theta > math.pi / 2:
         theta -= math.pi
     # The phase belongs to the normalised direction (the opposite k is the conjugate peak).
+    kx_found, ky_found = kx, ky
     kx, ky = f * math.cos(theta), f * math.sin(theta)
-    value = dft_at(resid, kx, ky)
+    if refined is not None:
+        # The phase-drift refinement's last pass already summed the DFT at (nearly) this k:
+        # the centre phase moves only to second order with its last, settled step.
+        value = refined[2]
+        if kx * kx_found + ky * ky_found < 0:  # the opposite k: the conjugate
+            value = value.conjugate()
+    else:
+        value = dft_at(resid, kx, ky)
     n = rows * cols
     amplitude = 2.0 * abs(value) / n
     # F ~ (A n / 2) e^{i psi} for A cos(2 pi k.r + psi): bright-bar centres where k.r + psi/2pi
     # is an integer.
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    # Cramer-Rao-like spreads for one sinusoid in white noise.
-    snr = amplitude / max(noise_sigma, 1e-12)
-    y, x = _centred_grid((rows, cols))
-    s_u = math.sqrt(float((x * x).mean()) * math.cos(theta) ** 2
-                     + float((y * y).mean()) * math.sin(theta) ** 2)
-    s_v = math.sqrt(float((x * x).mean()) * math.sin(theta) ** 2
-                     + float((y * y).mean()) * math.cos(theta) ** 2)
-    base = 1.0 / (math.pi * max(snr, 1e-12) * math.sqrt(2.0 * n))
-    freq_sd = base / max(s_u, 0.5)
-    theta_sd = base / max(s_v, 0.5) / f
-    phase_sd = base * math.sqrt(2.0) / 2.0
+    theta_sd, freq_sd, phase_sd = _uncertainties((rows, cols), theta, f, amplitude, noise_sigma)
     hess = (0.0, 0.0, 0.0)
     geom = BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd, hess)
     resid = full_resid
