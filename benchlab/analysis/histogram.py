@@ -191,23 +191,31 @@ def _find_peaks(
     return peaks, heights
 
 
-def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[int]:
-    """The local maxima whose basins hold at least ``MIN_MODE_FRACTION`` of the mass.
+def _massive_modes(
+    smooth: npt.NDArray[np.float64], peaks: list[int]
+) -> tuple[list[int], int | None]:
+    """The local maxima whose basins hold at least ``MIN_MODE_FRACTION`` of the mass, and
+    the lowest bin between them when they are two neighbouring maxima (else ``None``).
 
     Basins are cut at the lowest bin between neighbouring maxima; a light basin is merged into
     the neighbour across its shallower valley, so the mass of a noise bump joins its mode.
     """
     if len(peaks) < 2:
-        return peaks
+        return peaks, None
     total = float(smooth.sum())
-    cuts = [p + int(np.argmin(smooth[p : q + 1])) for p, q in zip(peaks[:-1], peaks[1:],
-                                                                  strict=True)]
-    cum = np.concatenate([[0.0], np.cumsum(smooth)])
+    cuts = [p + int(smooth[p : q + 1].argmin()) for p, q in zip(peaks[:-1], peaks[1:],
+                                                                 strict=True)]
+    # Basin masses from the running sum (cs[e - 1] is the mass below edge e; the same
+    # numbers as differences of a cumulative sum with a leading 0).
+    cs = np.cumsum(smooth)
     edges = [0, *[c + 1 for c in cuts], smooth.size]
     modes: list[tuple[int, float]] = [
-        (p, float(cum[edges[i + 1]] - cum[edges[i]])) for i, p in enumerate(peaks)
+        (p, cs.item(edges[i + 1] - 1) - (cs.item(edges[i] - 1) if edges[i] else 0.0))
+        for i, p in enumerate(peaks)
     ]
-    valleys = [float(smooth[c]) for c in cuts]
+    if len(modes) == 2 and min(modes[0][1], modes[1][1]) >= MIN_MODE_FRACTION * total:
+        return peaks, cuts[0]  # the common case: two clear modes, nothing to merge
+    valleys = [smooth.item(c) for c in cuts]
     while len(modes) > 1:
         light = min(range(len(modes)), key=lambda i: modes[i][1])
         if modes[light][1] >= MIN_MODE_FRACTION * total:
@@ -222,7 +230,7 @@ def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[in
         lo = min(light, j)
         modes[lo : lo + 2] = [(peak, mass)]
         del valleys[lo]
-    return [int(m[0]) for m in modes if m[1] >= MIN_MODE_FRACTION * total]
+    return [int(m[0]) for m in modes if m[1] >= MIN_MODE_FRACTION * total], None
 
 
 def _read(
@@ -240,14 +248,15 @@ def _read(
     peaks, heights = _find_peaks(smooth, 0.0)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
-    peaks = _massive_modes(smooth, peaks)
+    peaks, valley_pos_known = _massive_modes(smooth, peaks)
     if len(peaks) < 2:
         warnings.append("histogram unimodal: dark and bright peaks cannot be told apart")
         diag0 = prep.diagnostics(n_pixels=n_roi, bimodality=0.0, **base)
         return unresolved(NAME, diag0, warnings), many
     # The technician's reading: the darkest and the brightest clear peaks.
     i_a, i_b = int(peaks[0]), int(peaks[-1])
-    valley_pos = i_a + int(smooth[i_a : i_b + 1].argmin())
+    valley_pos = (valley_pos_known if valley_pos_known is not None
+                  else i_a + int(smooth[i_a : i_b + 1].argmin()))
     valley = smooth.item(valley_pos)
     lower_peak = min(smooth.item(i_a), smooth.item(i_b))
     bimodality = 1.0 - valley / lower_peak if lower_peak > 0 else 0.0
