@@ -154,7 +154,7 @@ def _rises(y: npt.NDArray[np.float64]) -> Rises:
     """Bins ``i`` with ``y[i - 1] < y[i] >= y[i + 1]`` (where a peak or a flat top starts),
     their heights, and ``max(y)`` - read off the candidates when the maximum is not at an end
     of ``y`` (then the first bin of its plateau is a candidate), which saves a pass over y."""
-    up = (y[1:] - y[:-1]) > 0
+    up = y[1:] > y[:-1]  # = (y[1:] - y[:-1]) > 0 for finite floats (gradual underflow)
     starts = np.nonzero(up[:-1] > up[1:])[0]  # bin starts + 1
     heights = y[1:-1][starts].tolist()
     top = max(heights) if heights else -math.inf
@@ -207,7 +207,7 @@ def _massive_modes(
                                                                  strict=True)]
     # Basin masses from the running sum (cs[e - 1] is the mass below edge e; the same
     # numbers as differences of a cumulative sum with a leading 0).
-    cs = np.cumsum(smooth)
+    cs = smooth.cumsum()
     edges = [0, *[c + 1 for c in cuts], smooth.size]
     modes: list[tuple[int, float]] = [
         (p, cs.item(edges[i + 1] - 1) - (cs.item(edges[i] - 1) if edges[i] else 0.0))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -134,15 +135,19 @@ PLATEAU_MIN_FRACTION = 0.005
 PLATEAU_RATIO = 2.0
 
 
-def detect_plateau(values: npt.NDArray[np.generic], code_step: float) -> float | None:
+def detect_plateau(
+    values: npt.NDArray[np.generic], code_step: float, top: Any = None
+) -> float | None:
     """The maximum value when it is a saturation plateau, else ``None``.
 
     A clipped bright level piles pixels up exactly on the top code, whatever the bit depth or
     pedestal; an unclipped noise tail thins out towards the maximum. So the maximum counts as
     saturation when it holds at least ``PLATEAU_MIN_FRACTION`` of the pixels (and 3) and
-    ``PLATEAU_RATIO`` times as many as the code step below it.
+    ``PLATEAU_RATIO`` times as many as the code step below it. ``top``: ``values.max()`` if
+    already known (the numpy scalar: comparisons keep the data's precision).
     """
-    top = values.max()
+    if top is None:
+        top = values.max()
     n_top = int(np.count_nonzero(values == top))
     if n_top < max(3, PLATEAU_MIN_FRACTION * values.size):
         return None
@@ -281,11 +286,12 @@ def prepare_roi(
         np.all(raw == np.round(raw)) and np.abs(raw).max() < 2**53
     )
     values = raw.ravel()
-    raw_max = float(values.max())
+    top = values.max()
+    raw_max = float(top)
     code_step = detect_code_step(values) if integer_valued else 0.0
     if max_code is None:
         max_code_f = infer_max_code(raw, code_step, raw_max) if is_int_dtype else None
-        plateau = detect_plateau(values, code_step)
+        plateau = detect_plateau(values, code_step, top)
         if plateau is not None and (max_code_f is None or plateau < max_code_f):
             max_code_f = plateau
     else:
