@@ -203,6 +203,13 @@ def _massive_modes(
     if len(peaks) < 2:
         return peaks, None
     total = float(smooth.sum())
+    if len(peaks) == 2:  # the common case, without the lists below (same numbers)
+        p, q = peaks
+        cut = p + int(smooth[p : q + 1].argmin())
+        cs = smooth.cumsum()
+        low = cs.item(cut)
+        if min(low, cs.item(-1) - low) >= MIN_MODE_FRACTION * total:
+            return peaks, cut  # two clear modes, nothing to merge
     cuts = [p + int(smooth[p : q + 1].argmin()) for p, q in zip(peaks[:-1], peaks[1:],
                                                                  strict=True)]
     # Basin masses from the running sum (cs[e - 1] is the mass below edge e; the same
@@ -213,8 +220,6 @@ def _massive_modes(
         (p, cs.item(edges[i + 1] - 1) - (cs.item(edges[i] - 1) if edges[i] else 0.0))
         for i, p in enumerate(peaks)
     ]
-    if len(modes) == 2 and min(modes[0][1], modes[1][1]) >= MIN_MODE_FRACTION * total:
-        return peaks, cuts[0]  # the common case: two clear modes, nothing to merge
     valleys = [smooth.item(c) for c in cuts]
     while len(modes) > 1:
         light = min(range(len(modes)), key=lambda i: modes[i][1])
