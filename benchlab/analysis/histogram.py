@@ -155,12 +155,13 @@ def _rises(y: npt.NDArray[np.float64]) -> Rises:
     their heights, and ``max(y)`` - read off the candidates when the maximum is not at an end
     of ``y`` (then the first bin of its plateau is a candidate), which saves a pass over y."""
     up = y[1:] > y[:-1]  # = (y[1:] - y[:-1]) > 0 for finite floats (gradual underflow)
-    starts = np.nonzero(up[:-1] > up[1:])[0]  # bin starts + 1
-    heights = y[1:-1][starts].tolist()
+    starts = (np.nonzero(up[:-1] > up[1:])[0] + 1).tolist()
+    item = y.item
+    heights = [item(i) for i in starts]  # few candidates: cheaper than a gather and tolist
     top = max(heights) if heights else -math.inf
-    if not heights or y.item(0) >= top or y.item(-1) >= top:
+    if not heights or item(0) >= top or item(-1) >= top:
         top = float(y.max())
-    return (starts + 1).tolist(), heights, top
+    return starts, heights, top
 
 
 def _find_peaks(
