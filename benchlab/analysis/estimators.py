@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
@@ -435,20 +436,85 @@ def _phase_gap(prep: PreparedROI) -> float:
 TINY_ROI_PIXELS = 100
 
 
+def _tiny_model_sd(prep: PreparedROI, series: ModulationResult, fast: bool) -> float:
+    """Model term (1 sigma) of the harmonic-series reading on a tiny ROI: the sampling-phase
+    term of its largest phase gap, and the disagreement with the bar-pattern model fitted to
+    the same pixels. A handful of lines across cannot tell a sine from a blurred square wave
+    (both fit, e.g. 5 lines at 4.7 px per period: series 0.43, bar model 0.29, truth 0.28), so
+    where the two models read differently the data do not pin the contrast down."""
+    term = _model_sd(series.modulation, _phase_gap(prep), 8)
+    bars = profile_fit(prep, fast)
+    if bars.resolved:
+        term = math.hypot(term, series.modulation - bars.modulation)
+    return term
+
+
+#: Bars within this angle (deg) of an image axis are axis-aligned for :func:`_few_periods`.
+AXIS_ALIGNED_DEG = 1.0
+#: Axis-aligned ROIs spanning fewer bar periods than this widen the model term (x N / periods).
+FEW_PERIODS = 2.0
+
+
+def _few_periods(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
+    """``r`` with its model term times ``FEW_PERIODS / periods`` when axis-aligned bars span
+    fewer than ``FEW_PERIODS`` periods across the ROI.
+
+    Across one or two axis-aligned bars the shading plane and the bar levels are fitted to the
+    same few bars, and the lines sample the bar phase only where they happen to fall: on the
+    analysis benchmark such readings (e.g. 40 x 50 px at 33 px per period) missed their
+    intervals by 2-5 sigma, axis-aligned coverage 91 %. Oblique bars cross the ROI along its
+    diagonal at many phases and keep the term."""
+    d = r.diagnostics
+    angle, period, model = d.bar_angle_deg, d.px_per_period, d.uncertainty_model
+    if not r.resolved or angle is None or not period or not model:
+        return r
+    off_deg = abs((angle + 45.0) % 90.0 - 45.0)
+    if off_deg > AXIS_ALIGNED_DEG:
+        return r
+    rows, cols = prep.pixels.shape
+    theta = math.radians(angle)
+    span_px = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    periods = span_px / period
+    if periods >= FEW_PERIODS:
+        return r
+    model *= FEW_PERIODS / periods
+    sd = math.hypot(d.uncertainty_noise or 0.0, model)
+    m = r.modulation
+    return r.with_updates(
+        uncertainty=sd,
+        interval=(max(0.0, m - 1.96 * sd), min(1.0, m + 1.96 * sd)),
+        diagnostics=replace(d, uncertainty_model=model),
+    )
+
+
+def _series_starved(prep: PreparedROI) -> bool:
+    """Too few lines across for the harmonics below Nyquist: ``sine_fit`` would cut its series
+    to a sine, which reads sharp bars up to 4/pi too high (e.g. 5 lines at 4.7 px per period:
+    0.43 for a truth of 0.28); the bar-pattern model is fitted instead."""
+    f = prep.freq_cycles_per_px or 0.0
+    k = _harmonics(_fold_alias(f) if f > NYQUIST_CYCLES_PER_PX else f)
+    return k > 1 and prep.pixels.shape[prep.axis] - (2 + 2 * k) < 2
+
+
 def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
-    """``profilefit``; on tiny ROIs of axis-aligned bars of given frequency, the harmonic
-    series of ``sinefit`` along the axis, relabelled, with the model and sampling-phase term
-    (largest gap between the lines' bar phases) in its uncertainty."""
+    """``profilefit``; on tiny ROIs of axis-aligned bars of given frequency with lines enough
+    for the harmonics (:func:`_series_starved`), the harmonic series of ``sinefit`` along the
+    axis, relabelled, with the model and sampling-phase term (:func:`_tiny_model_sd`) in its
+    uncertainty; elsewhere the bar-pattern fit (:func:`_few_periods` widening its interval)."""
     name = "profilefit-fast" if fast else "profilefit"
-    if prep.orientation_given and prep.freq_cycles_per_px and prep.pixels.size < TINY_ROI_PIXELS:
+    if (prep.orientation_given and prep.freq_cycles_per_px and prep.pixels.size < TINY_ROI_PIXELS
+            and not _series_starved(prep)):
         r = sine_fit(prep)
         warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
         if not r.resolved:
             return r.with_updates(estimator=name, warnings=warns)
-        sd = math.hypot(r.uncertainty, _model_sd(r.modulation, _phase_gap(prep), 8))
+        model = _tiny_model_sd(prep, r, fast)
+        sd = math.hypot(r.uncertainty, model)
+        # The terms in the diagnostics too: a bootstrap (noise only) adds the model term back.
+        diag = replace(r.diagnostics, uncertainty_noise=r.uncertainty, uncertainty_model=model)
         return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
-                        r.diagnostics, sd, warns, r.fundamental_modulation)
-    return profile_fit(prep, fast)
+                        diag, sd, warns, r.fundamental_modulation)
+    return _few_periods(prep, profile_fit(prep, fast))
 
 
 _PREPARED: dict[str, PreparedEstimator] = {

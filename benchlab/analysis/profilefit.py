@@ -381,15 +381,27 @@ class _Fit:
         return float(level[i_lo]), float(level[i_hi]), grads[0], grads[1]
 
 
+#: Pixels per filled phase bin above which the model term shrinks as 1/sqrt(pixels per bin).
+DENSE_PIXELS_PER_BIN = 200.0
+
+
 def _model_sd(
-    modulation: float, max_gap_cycles: float, n_bins: int, rel_sd: float | None = None
+    modulation: float, max_gap_cycles: float, n_bins: int, rel_sd: float | None = None,
+    n_pixels: int | None = None,
 ) -> float:
     """Model and sampling-phase uncertainty of the contrast (1 sigma): a relative model term,
     and a term growing with the largest gap between filled phase bins (where the model alone
-    says what the profile does between samples)."""
+    says what the profile does between samples). With ``n_pixels`` fitted, beyond
+    ``DENSE_PIXELS_PER_BIN`` pixels per bin the whole term shrinks as 1/sqrt(pixels per bin):
+    every phase is then sampled many times over and the model's misfit averages out (on the
+    analysis benchmark the 200 x 200 ROIs' intervals covered 99 % without it)."""
     phase_term = 0.5 * modulation * max_gap_cycles**2
     rel = MODEL_REL_SD if rel_sd is None else rel_sd
-    return math.hypot(rel * modulation, phase_term) + 0.5 / max(n_bins, 1) ** 2
+    bins = max(n_bins, 1)
+    sd = math.hypot(rel * modulation, phase_term) + 0.5 / bins**2
+    if n_pixels:
+        sd *= min(1.0, math.sqrt(DENSE_PIXELS_PER_BIN * bins / n_pixels))
+    return sd
 
 
 def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
@@ -525,7 +537,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
     gaps = np.diff(np.concatenate([wb, [wb[0] + 1.0]]))
     sd_model = _model_sd(modulation, float(gaps.max()) if gaps.size else 1.0, n_f,
-                         MODEL_REL_SD_FAST if fast else None)
+                         MODEL_REL_SD_FAST if fast else None, n_pixels=n)
     sd = math.hypot(sd_noise, sd_model)
     diag = replace(diag, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
