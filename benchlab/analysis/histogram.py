@@ -39,7 +39,6 @@ unimodal histograms, mode bias).
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -155,13 +154,14 @@ def _rises(y: npt.NDArray[np.float64]) -> Rises:
     """Bins ``i`` with ``y[i - 1] < y[i] >= y[i + 1]`` (where a peak or a flat top starts),
     their heights, and ``max(y)`` - read off the candidates when the maximum is not at an end
     of ``y`` (then the first bin of its plateau is a candidate), which saves a pass over y."""
-    up = (y[1:] - y[:-1]) > 0
-    starts = np.nonzero(up[:-1] > up[1:])[0]  # bin starts + 1
-    heights = y[1:-1][starts].tolist()
+    up = y[1:] > y[:-1]  # = (y[1:] - y[:-1]) > 0 for finite floats (gradual underflow)
+    starts = (np.nonzero(up[:-1] > up[1:])[0] + 1).tolist()
+    item = y.item
+    heights = [item(i) for i in starts]  # few candidates: cheaper than a gather and tolist
     top = max(heights) if heights else -math.inf
-    if not heights or y.item(0) >= top or y.item(-1) >= top:
+    if not heights or item(0) >= top or item(-1) >= top:
         top = float(y.max())
-    return (starts + 1).tolist(), heights, top
+    return starts, heights, top
 
 
 def _find_peaks(
@@ -192,23 +192,36 @@ def _find_peaks(
     return peaks, heights
 
 
-def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[int]:
-    """The local maxima whose basins hold at least ``MIN_MODE_FRACTION`` of the mass.
+def _massive_modes(
+    smooth: npt.NDArray[np.float64], peaks: list[int]
+) -> tuple[list[int], int | None]:
+    """The local maxima whose basins hold at least ``MIN_MODE_FRACTION`` of the mass, and
+    the lowest bin between them when they are two neighbouring maxima (else ``None``).
 
     Basins are cut at the lowest bin between neighbouring maxima; a light basin is merged into
     the neighbour across its shallower valley, so the mass of a noise bump joins its mode.
     """
     if len(peaks) < 2:
-        return peaks
+        return peaks, None
     total = float(smooth.sum())
-    cuts = [p + int(np.argmin(smooth[p : q + 1])) for p, q in zip(peaks[:-1], peaks[1:],
-                                                                  strict=True)]
-    cum = np.concatenate([[0.0], np.cumsum(smooth)])
+    if len(peaks) == 2:  # the common case, without the lists below (same numbers)
+        p, q = peaks
+        cut = p + int(smooth[p : q + 1].argmin())
+        cs = smooth.cumsum()
+        low = cs.item(cut)
+        if min(low, cs.item(-1) - low) >= MIN_MODE_FRACTION * total:
+            return peaks, cut  # two clear modes, nothing to merge
+    cuts = [p + int(smooth[p : q + 1].argmin()) for p, q in zip(peaks[:-1], peaks[1:],
+                                                                 strict=True)]
+    # Basin masses from the running sum (cs[e - 1] is the mass below edge e; the same
+    # numbers as differences of a cumulative sum with a leading 0).
+    cs = smooth.cumsum()
     edges = [0, *[c + 1 for c in cuts], smooth.size]
     modes: list[tuple[int, float]] = [
-        (p, float(cum[edges[i + 1]] - cum[edges[i]])) for i, p in enumerate(peaks)
+        (p, cs.item(edges[i + 1] - 1) - (cs.item(edges[i] - 1) if edges[i] else 0.0))
+        for i, p in enumerate(peaks)
     ]
-    valleys = [float(smooth[c]) for c in cuts]
+    valleys = [smooth.item(c) for c in cuts]
     while len(modes) > 1:
         light = min(range(len(modes)), key=lambda i: modes[i][1])
         if modes[light][1] >= MIN_MODE_FRACTION * total:
@@ -223,15 +236,16 @@ def _massive_modes(smooth: npt.NDArray[np.float64], peaks: list[int]) -> list[in
         lo = min(light, j)
         modes[lo : lo + 2] = [(peak, mass)]
         del valleys[lo]
-    return [int(m[0]) for m in modes if m[1] >= MIN_MODE_FRACTION * total]
+    return [int(m[0]) for m in modes if m[1] >= MIN_MODE_FRACTION * total], None
 
 
 def _read(
-    prep: PreparedROI, binned: tuple[npt.NDArray[np.intp], float, bool], scale: float
+    prep: PreparedROI, binned: tuple[npt.NDArray[np.intp], float, bool], scale: float,
+    n_roi: int,
 ) -> tuple[ModulationResult, bool]:
     """One reading at one smoothing of the histogram ``binned`` (from :func:`_binned`); also
     whether more smoothing could help (two or more local maxima, or a unimodal verdict from
-    noise bumps)."""
+    noise bumps). ``n_roi``: the ROI's pixel count, for the diagnostics."""
     warnings = list(prep.warnings)
     values = prep.pixels.ravel()
     counts, width, exact = binned
@@ -240,13 +254,15 @@ def _read(
     peaks, heights = _find_peaks(smooth, 0.0)
     base = {"smoothing_codes": smoothing}
     many = len(peaks) >= 2
-    peaks = _massive_modes(smooth, peaks)
+    peaks, valley_pos_known = _massive_modes(smooth, peaks)
     if len(peaks) < 2:
         warnings.append("histogram unimodal: dark and bright peaks cannot be told apart")
-        return unresolved(NAME, prep.diagnostics(bimodality=0.0, **base), warnings), many
+        diag0 = prep.diagnostics(n_pixels=n_roi, bimodality=0.0, **base)
+        return unresolved(NAME, diag0, warnings), many
     # The technician's reading: the darkest and the brightest clear peaks.
     i_a, i_b = int(peaks[0]), int(peaks[-1])
-    valley_pos = i_a + int(smooth[i_a : i_b + 1].argmin())
+    valley_pos = (valley_pos_known if valley_pos_known is not None
+                  else i_a + int(smooth[i_a : i_b + 1].argmin()))
     valley = smooth.item(valley_pos)
     lower_peak = min(smooth.item(i_a), smooth.item(i_b))
     bimodality = 1.0 - valley / lower_peak if lower_peak > 0 else 0.0
@@ -260,7 +276,8 @@ def _read(
     else:
         n_low = int(np.count_nonzero(values <= split_value + 1e-9 * width))
     side_fraction = min(n_low, values.size - n_low) / values.size
-    diag = prep.diagnostics(bimodality=bimodality, separation_sigma=min(separation, 1e9), **base)
+    diag = prep.diagnostics(n_pixels=n_roi, bimodality=bimodality,
+                            separation_sigma=min(separation, 1e9), **base)
     reasons = []
     if bimodality < MIN_BIMODALITY:
         reasons.append(f"valley depth {bimodality:.2f} < {MIN_BIMODALITY}")
@@ -326,30 +343,33 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
         warnings = [*prep.warnings, f"no bar pattern above the noise: fundamental {z:.1f} "
                     f"standard errors (< {MIN_FUNDAMENTAL_Z:g})"]
         return unresolved(NAME, prep.diagnostics(), warnings)
-    result = _histogram_peak(centres)
+    result = _histogram_peak(centres, n_roi)
     if not result.resolved and centres is not prep:
         # The phase did not locate the bars (e.g. a chart rotated against the given
         # orientation): the whole ROI's histogram, as the thesis read it.
-        whole = _histogram_peak(prep)
+        whole = _histogram_peak(prep, n_roi)
         if whole.resolved:
             result = whole.with_updates(warnings=(
                 *whole.warnings, "bar phase not found: levels from the whole ROI"))
-    return result.with_updates(diagnostics=replace(result.diagnostics, n_pixels=n_roi))
+    return result
 
 
-def _histogram_peak(prep: PreparedROI) -> ModulationResult:
-    """:func:`histogram_peak` on the selected pixels."""
+def _histogram_peak(prep: PreparedROI, n_roi: int | None = None) -> ModulationResult:
+    """:func:`histogram_peak` on the selected pixels (diagnostics count ``n_roi`` pixels,
+    default: those held)."""
+    if n_roi is None:
+        n_roi = prep.n_pixels
     if prep.vmax == prep.vmin:
         warnings = [*prep.warnings, "one gray level at the bar and space centres: no bars"]
-        return unresolved(NAME, prep.diagnostics(), warnings)
+        return unresolved(NAME, prep.diagnostics(n_pixels=n_roi), warnings)
     binned = _binned(prep)
-    first, retry = _read(prep, binned, 1.0)
+    first, retry = _read(prep, binned, 1.0, n_roi)
     if first.resolved or not retry:
         return first
     base = max(prep.noise_sigma, 1e-12)
     scale = 2.0
     while scale * base <= (prep.vmax - prep.vmin) / 8.0:
-        result, retry = _read(prep, binned, scale)
+        result, retry = _read(prep, binned, scale, n_roi)
         if result.resolved:
             return result
         if not retry:
@@ -421,12 +441,12 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
         values = img[near]
         if values.size < MIN_CENTRE_PIXELS:
             values = img[inner]
-    if values.size < 8 or float(values.max()) == float(values.min()):
-        return replace(prep, noise_sigma=noise), z
-    return replace(
-        prep, pixels=values[None, :], noise_sigma=noise,
-        vmin=float(values.min()), vmax=float(values.max()),
-    ), z
+    if values.size < 8:
+        return prep.selected(img, noise, prep.vmin, prep.vmax), z
+    vmin, vmax = float(values.min()), float(values.max())
+    if vmax == vmin:
+        return prep.selected(img, noise, prep.vmin, prep.vmax), z
+    return prep.selected(values[None, :], noise, vmin, vmax), z
 
 
 def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
@@ -475,8 +495,7 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
         return None
     f = geom.freq_cycles_per_px
     kx, ky = geom.k_xy
-    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
-    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    y, x = _centred_grid(rows, cols)
     phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
     # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
@@ -510,6 +529,16 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
         z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
     return idx, inner, noise, z
+
+
+@lru_cache(maxsize=64)
+def _centred_grid(rows: int, cols: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Row and column coordinates from the ROI centre (cached, read-only)."""
+    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    y.setflags(write=False)
+    x.setflags(write=False)
+    return y, x
 
 
 def _significance(amplitude: float, noise: float, n_pixels: int) -> float:
