@@ -5,23 +5,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from test_tui_helpers import connected, make_app, wait_until
+from test_tui_helpers import make_app, open_live, wait_until
 
 from benchlab.analysis.chart_finder import find_chart
 from benchlab.scenes.usaf import UsafScene
 from benchlab.tui.chart_overlay import ChartFrameView, pick_element, roi_of
-from benchlab.tui.live import LiveScreen
 
 
 @pytest.mark.asyncio
 async def test_chart_overlay_and_picking(tmp_path: Path) -> None:
     app = make_app(tmp_path)
     async with app.run_test(size=(100, 30)) as pilot:
-        await connected(pilot)
-        await pilot.press("2")
-        live = app.screen
-        assert isinstance(live, LiveScreen)
-        await wait_until(pilot, lambda: live.frames_displayed >= 2, what="frames")
+        live = await open_live(pilot, 2)
         await pilot.press("c")
         await wait_until(pilot, lambda: live.chart_fit is not None, what="chart found")
         fit = live.chart_fit

@@ -11,6 +11,7 @@ from textual.widgets import Static
 
 from benchlab.tui.app import BenchlabApp
 from benchlab.tui.dialogs import ErrorDialog, PromptDialog
+from benchlab.tui.live import LiveScreen
 
 MTF_PARAMS = """\
 procedure = "mtf"
@@ -76,3 +77,13 @@ async def connected(pilot: Pilot[None]) -> None:
         return app.bench is not None  # type: ignore[attr-defined]
 
     await wait_until(pilot, ready, what="bench connected")
+
+
+async def open_live(pilot: Pilot[None], frames: int) -> LiveScreen:
+    """Connect, open the Live screen (key 2) and wait until it has shown ``frames`` frames."""
+    await connected(pilot)
+    await pilot.press("2")
+    live = pilot.app.screen
+    assert isinstance(live, LiveScreen)
+    await wait_until(pilot, lambda: live.frames_displayed >= frames, what="frames")
+    return live

@@ -5,10 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from test_tui_helpers import connected, make_app, wait_until
+from test_tui_helpers import make_app, open_live, wait_until
 from textual.widgets import Static
 
-from benchlab.tui.live import LiveScreen
 from benchlab.tui.widgets import UPPER_HALF, FrameView
 
 
@@ -16,11 +15,7 @@ from benchlab.tui.widgets import UPPER_HALF, FrameView
 async def test_live_view_streams_and_obeys_keys(tmp_path: Path) -> None:
     app = make_app(tmp_path)
     async with app.run_test(size=(100, 30)) as pilot:
-        await connected(pilot)
-        await pilot.press("2")
-        live = app.screen
-        assert isinstance(live, LiveScreen)
-        await wait_until(pilot, lambda: live.frames_displayed >= 5, what="frames")
+        live = await open_live(pilot, 5)
         view = live.query_one(FrameView)
         lines = [view.render_line(y).text for y in range(view.size.height)]
         assert sum(line.count(UPPER_HALF) for line in lines) > 500

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from test_tui_helpers import connected, wait_until
+from test_tui_helpers import open_live, wait_until
 from textual.app import App, ComposeResult
 from textual.geometry import Region
 
@@ -26,7 +26,6 @@ from benchlab.tui.graphics import (
     overlay_colours,
     to_palette,
 )
-from benchlab.tui.live import LiveScreen
 from benchlab.tui.sixel import encode_sixel
 from benchlab.tui.widgets import ROI_RGB, Readout, RoiHistogram
 
@@ -245,12 +244,8 @@ async def test_image_canvases_encode_once_per_new_frame(
 async def test_live_side_panel_lags_the_frame_rate(tmp_path: Path) -> None:
     app = BenchlabApp(simulate=True, sessions_dir=tmp_path / "s")
     async with app.run_test(size=(120, 36)) as pilot:
-        await connected(pilot)
-        await pilot.press("2")
-        live = app.screen
-        assert isinstance(live, LiveScreen)
+        live = await open_live(pilot, 3)
         hist, readout = live.query_one(RoiHistogram), live.query_one(Readout)
-        await wait_until(pilot, lambda: live.frames_displayed >= 3, what="frames")
         n0, h0, r0 = live.frames_displayed, hist.redraws, readout.redraws
         t0 = time.monotonic()
         await wait_until(pilot, lambda: live.frames_displayed >= n0 + 10

@@ -5,20 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from test_tui_helpers import connected, make_app, wait_until
-
-from benchlab.tui.live import LiveScreen
+from test_tui_helpers import make_app, open_live, wait_until
 
 
 @pytest.mark.asyncio
 async def test_u_toggles_the_unwrapped_radial_view(tmp_path: Path) -> None:
     app = make_app(tmp_path)
     async with app.run_test(size=(100, 30)) as pilot:
-        await connected(pilot)
-        await pilot.press("2")
-        live = app.screen
-        assert isinstance(live, LiveScreen)
-        await wait_until(pilot, lambda: live.frames_displayed >= 2, what="frames")
+        live = await open_live(pilot, 2)
         await pilot.press("t")  # the simulated bench mounts the radial sagittal pattern
         await wait_until(pilot, lambda: app.bench.mounted == ("radial", 2.0, "sagittal"),
                          what="radial target")
