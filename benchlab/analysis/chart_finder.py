@@ -53,7 +53,9 @@ from benchlab.analysis.chart_pose import (
     posed_bar_set,
 )
 from benchlab.analysis.frequency import nyquist_lp_per_mm
+from benchlab.analysis.knownbars import read_three_bars
 from benchlab.analysis.projection import project_roi
+from benchlab.analysis.result import ModulationResult
 
 Polarity = Literal["positive", "negative"]
 FloatArray = npt.NDArray[np.float64]
@@ -90,11 +92,19 @@ MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
 MIN_ROI_LINES = 3
 MIN_ROI_ACROSS_PX = 4
-#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) with fewer
-#: pixels per period are found but not measured: every line samples another phase, the ROI
-#: holds a few dozen pixels, and on ``benchlab benchmark chart`` only 32 % (2-2.25 px) and 77 %
-#: (2.25-2.5 px) of their readings came within 0.03 of the truth, against 85-98 % above.
-MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) are measured
+#: down to this many pixels per period, i.e. down to Nyquist: every line samples another phase,
+#: and :meth:`FoundElement.measure` fixes the geometry from the pose
+#: (:func:`benchlab.analysis.knownbars.read_three_bars`), so those phases pin the profile down.
+#: On ``benchlab benchmark chart`` (40 + 8 frames) that reading came within 0.03 of the truth
+#: for SEE_README of the oblique sets at 2-2.25 px and SEE_README at 2.25-2.5 px. (The generic
+#: estimators, which re-estimate the geometry from the ROI, read only 32 % and 77 % of them
+#: within 0.03: see :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD`.)
+MIN_OBLIQUE_PX_PER_PERIOD = 2.0
+#: Oblique sets with fewer pixels per period give no reliable reading from a generic estimator
+#: (:func:`benchlab.analysis.estimate_modulation` with :meth:`FoundElement.estimator_priors`):
+#: it must find the direction and phase from a few dozen pixels first.
+GENERIC_MIN_OBLIQUE_PX_PER_PERIOD = 2.5
 #: Fewest whole periods the measurement ROI must span across the bars.
 MIN_ROI_PERIODS = 2.0
 #: Blur reach (px) of a neighbouring set kept out of a measurement ROI.
@@ -129,6 +139,38 @@ class FoundElement:
     roi: Box
     measurement_roi: Box
     unmeasurable: str | None = None
+
+    def measure(self, pixels: npt.ArrayLike, max_code: float | None = None) -> ModulationResult:
+        """The set's Eq. 2.9 modulation read at the geometry the pose gives it.
+
+        :func:`benchlab.analysis.knownbars.read_three_bars` on :attr:`measurement_roi` of the
+        frame (``pixels``: the whole 2-D frame, or a stack of frames), with the set's centre,
+        bar width and bar angle fixed by the fitted pose; only the levels, shading, blur and a
+        small shift are fitted. Read whether or not :attr:`unmeasurable` is set (callers show
+        that reason instead of a number).
+        """
+        r0, c0, r1, c1 = self.measurement_roi
+        p = self.posed
+        roi = np.asarray(pixels)[..., r0:r1, c0:c1]
+        return read_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
+                               bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
+                               max_code=max_code)
+
+    @property
+    def generic_unreliable(self) -> str | None:
+        """Why a generic estimator (:meth:`estimator_priors`) gives no reliable reading here:
+        :attr:`unmeasurable`, or oblique bars under
+        :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD` px per period (None when it does)."""
+        if self.unmeasurable is not None:
+            return self.unmeasurable
+        p = self.posed
+        if not p.axis_aligned and p.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:
+            off_axis = abs((p.theta_deg + 45.0) % 90.0 - 45.0)
+            return (f"not measurable by a generic estimator: {p.px_per_period:.2f} px per period "
+                    f"< {GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:g} on bars {off_axis:.1f} deg off the "
+                    "pixel axes (it must find the bar direction and phase from the few pixels; "
+                    "the default chart reading fixes them from the pose)")
+        return None
 
     def estimator_priors(self) -> dict[str, Any]:
         """Keyword arguments for :func:`benchlab.analysis.estimate_modulation`: the set's
