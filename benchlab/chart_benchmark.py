@@ -45,8 +45,9 @@ from benchlab.analysis.chart_finder import (
     find_chart,
 )
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet
+from benchlab.analysis.chart_reading import read_chart
 from benchlab.analysis.knownbars import NAME as CHART_READING
-from benchlab.analysis.result import eq29_modulation
+from benchlab.analysis.result import ModulationResult, eq29_modulation
 from benchlab.drivers.mightex_sim_sensor import SensorModel
 from benchlab.drivers.sensor import SENSOR_HEIGHT_PX, SENSOR_WIDTH_PX, AcquisitionState
 from benchlab.scenes.usaf import UsafScene
@@ -233,10 +234,11 @@ def _reason_key(note: str) -> str:
     return note
 
 
-def _read(el: FoundElement, pixels: npt.NDArray[Any], truth: float) -> _Reading:
-    """Score one found set: the chart reading, and the generic estimators for reference."""
+def _read(el: FoundElement, res: ModulationResult, pixels: npt.NDArray[Any],
+          truth: float) -> _Reading:
+    """Score one found set: the chart reading ``res``, and the generic estimators for
+    reference."""
     p = el.posed
-    res = el.measure(pixels)
     reason = el.unmeasurable
     if reason is None and not res.resolved:
         reason = next((w for w in res.warnings if "not resolved" in w), "not resolved")
@@ -260,6 +262,9 @@ def _score(tally: _Tally, scene: UsafScene, dust: npt.NDArray[np.float64],
     cr, cc = scene.circles.centre_rc
     lim = scene.circles.disc_radius_px - 3.0
     h, w = pixels.shape
+    readings: dict[str, ModulationResult] = {}
+    if fit is not None:
+        readings = dict(zip([e.label for e in fit.found], read_chart(pixels, fit), strict=True))
     for truth in _sets(scene):
         corners = truth.corners()
         imaged = all(math.hypot(r - cr, c - cc) <= lim and 0 <= r <= h - 1 and 0 <= c <= w - 1
@@ -289,7 +294,8 @@ def _score(tally: _Tally, scene: UsafScene, dust: npt.NDArray[np.float64],
             continue
         tally.found_clean += 1
         tally.found_clean_wide += wide
-        tally.readings.append(_read(el, pixels, frame_truth_modulation(scene, truth, bits)))
+        tally.readings.append(_read(el, readings[el.label], pixels,
+                                    frame_truth_modulation(scene, truth, bits)))
     # every element reported found but away from the true set of its label is wrongly labelled
     if fit is not None:
         for el in fit.found:

@@ -53,7 +53,7 @@ from benchlab.analysis.chart_pose import (
     posed_bar_set,
 )
 from benchlab.analysis.frequency import nyquist_lp_per_mm
-from benchlab.analysis.knownbars import read_three_bars
+from benchlab.analysis.knownbars import ThreeBarReading, fit_three_bars
 from benchlab.analysis.projection import project_roi
 from benchlab.analysis.result import ModulationResult
 
@@ -140,21 +140,33 @@ class FoundElement:
     measurement_roi: Box
     unmeasurable: str | None = None
 
-    def measure(self, pixels: npt.ArrayLike, max_code: float | None = None) -> ModulationResult:
+    def measure(
+        self, pixels: npt.ArrayLike, max_code: float | None = None,
+        blur_prior_px: tuple[float, float] | None = None,
+    ) -> ModulationResult:
         """The set's Eq. 2.9 modulation read at the geometry the pose gives it.
 
         :func:`benchlab.analysis.knownbars.read_three_bars` on :attr:`measurement_roi` of the
         frame (``pixels``: the whole 2-D frame, or a stack of frames), with the set's centre,
         bar width and bar angle fixed by the fitted pose; only the levels, shading, blur and a
-        small shift are fitted. Read whether or not :attr:`unmeasurable` is set (callers show
-        that reason instead of a number).
+        small shift are fitted (``blur_prior_px``: a prior on the blur, see
+        :func:`benchlab.analysis.chart_reading.read_chart`, which reads every set with the
+        blur shared across the chart). Read whether or not :attr:`unmeasurable` is set
+        (callers show that reason instead of a number).
         """
+        return self.fit_reading(pixels, max_code, blur_prior_px).result
+
+    def fit_reading(
+        self, pixels: npt.ArrayLike, max_code: float | None = None,
+        blur_prior_px: tuple[float, float] | None = None,
+    ) -> ThreeBarReading:
+        """:meth:`measure` with the blur it used and the blurs the pixels allow."""
         r0, c0, r1, c1 = self.measurement_roi
         p = self.posed
         roi = np.asarray(pixels)[..., r0:r1, c0:c1]
-        return read_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
-                               bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
-                               max_code=max_code)
+        return fit_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
+                              bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
+                              max_code=max_code, blur_prior_px=blur_prior_px)
 
     @property
     def generic_unreliable(self) -> str | None:

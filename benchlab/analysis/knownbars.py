@@ -70,6 +70,12 @@ MAX_SIGMA_WIDTHS = 0.75
 MAX_SIGMA_BOUNDS_PX = (1.5, 4.0)
 #: Blur search: this many blurs from 0 (denser towards sharp), then a parabola at the best.
 SIGMA_GRID = 32
+#: Prior (1 sigma) on the linear shading: relative change per px of the ROI's span (the forward
+#: view's vignetting changes the light by at most ~0.3 % per px).
+SHADING_PRIOR_PER_PX = 0.005
+#: Default prior (1 sigma, px) on the set's shift across the bars from where the pose puts it
+#: (``benchlab benchmark chart``: set centres within 0.06 px of the truth).
+SHIFT_PRIOR_PX = 0.05
 #: Relative model term (1 sigma) of the modulation.
 MODEL_REL_SD = 0.01
 #: The sharp pattern is tabulated every this many px (at most this many points) and blurred
@@ -159,23 +165,43 @@ class _Fit:
 
     coef: FloatArray
     rss: float
+    penalty: float
     inv: FloatArray
     p_bar: float
     p_space: float
 
 
 def _solve(
-    design: FloatArray, values: FloatArray
-) -> tuple[FloatArray, float, FloatArray]:
-    """Least squares: coefficients, residual sum of squares, inverse normal matrix."""
+    design: FloatArray, values: FloatArray, ridge: FloatArray | None = None
+) -> tuple[FloatArray, float, float, FloatArray]:
+    """Least squares with an optional ridge (prior precision per coefficient, in units of the
+    noise variance): coefficients, residual sum of squares, the ridge's penalty, inverse
+    normal matrix."""
     gram = design.T @ design
+    if ridge is not None:
+        gram = gram + np.diag(ridge)
     try:
         inv = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
         inv = np.linalg.pinv(gram)
     coef = inv @ (design.T @ values)
     resid = values - design @ coef
-    return coef, float(resid @ resid), inv
+    penalty = float(ridge @ (coef * coef)) if ridge is not None else 0.0
+    return coef, float(resid @ resid), penalty, inv
+
+
+@dataclass(frozen=True)
+class ThreeBarReading:
+    """:func:`fit_three_bars`'s answer: the reading, and the across-bar blur behind it.
+
+    ``blur_sigma_px`` is the blur the reading used (None when none was fitted);
+    ``blur_range_px`` the blurs the data alone allow (``Delta chi^2 <= 1`` without any prior):
+    narrow on sets that pin the blur down, wide where the pixels sample too few phases.
+    """
+
+    result: ModulationResult
+    blur_sigma_px: float | None = None
+    blur_range_px: tuple[float, float] | None = None
 
 
 def read_three_bars(
@@ -185,6 +211,8 @@ def read_three_bars(
     bar_width_px: float,
     theta_deg: float,
     max_code: float | None = None,
+    blur_prior_px: tuple[float, float] | None = None,
+    shift_prior_px: float = SHIFT_PRIOR_PX,
 ) -> ModulationResult:
     """Eq. 2.9 modulation of a three-bar set whose geometry is known (see the module docstring).
 
@@ -204,6 +232,11 @@ def read_three_bars(
     max_code : float, optional
         Saturation code; inferred for integer data (255, 4095, 65520, 65535). Pixels at or
         above it are left out of the fit.
+    blur_prior_px : (float, float), optional
+        Gaussian prior (mean, standard deviation; px) on the PSF sigma across the bars, e.g.
+        from the chart's other sets at the same image height
+        (:func:`benchlab.analysis.chart_reading.read_chart`). Without it the blur is whatever
+        fits the ROI best.
 
     Returns
     -------
@@ -215,9 +248,25 @@ def read_three_bars(
     Raises
     ------
     ValueError
-        For an empty or non-finite ROI, a ROI that is not 2-D or 3-D, or non-finite / non-positive
-        geometry.
+        For an empty or non-finite ROI, a ROI that is not 2-D or 3-D, non-finite / non-positive
+        geometry or a bad prior.
     """
+    return fit_three_bars(roi, centre_rc=centre_rc, bar_width_px=bar_width_px,
+                          theta_deg=theta_deg, max_code=max_code,
+                          blur_prior_px=blur_prior_px, shift_prior_px=shift_prior_px).result
+
+
+def fit_three_bars(
+    roi: npt.ArrayLike,
+    *,
+    centre_rc: tuple[float, float],
+    bar_width_px: float,
+    theta_deg: float,
+    max_code: float | None = None,
+    blur_prior_px: tuple[float, float] | None = None,
+    shift_prior_px: float = SHIFT_PRIOR_PX,
+) -> ThreeBarReading:
+    """:func:`read_three_bars` with the blur it used and the blurs the data allow."""
     arr = np.asarray(roi)
     if arr.dtype.kind == "b":
         arr = arr.astype(np.uint8)
@@ -233,6 +282,12 @@ def read_three_bars(
         raise ValueError("theta_deg and centre_rc must be finite")
     if max_code is not None and not (max_code > 0 and math.isfinite(max_code)):
         raise ValueError(f"max_code must be positive, got {max_code}")
+    if blur_prior_px is not None and not (
+        math.isfinite(blur_prior_px[0]) and blur_prior_px[1] > 0 and math.isfinite(blur_prior_px[1])
+    ):
+        raise ValueError(f"blur_prior_px must be (mean, sd > 0), got {blur_prior_px}")
+    if not (shift_prior_px > 0 and math.isfinite(shift_prior_px)):
+        raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
     n_frames = arr.shape[0] if arr.ndim == 3 else 1
     img = arr.astype(np.float64).mean(axis=0) if arr.ndim == 3 else arr.astype(np.float64)
     integer = arr.dtype.kind in "ui"
@@ -261,7 +316,8 @@ def read_three_bars(
         clip_px = np.zeros(img.shape, dtype=bool)
     clipped_fraction = float(clip_px.mean())
     if freq > NYQUIST_CYCLES_PER_PX + 1e-12:
-        return unresolved(NAME, diag(), ["not resolved (aliased): period < 2 px"])
+        return ThreeBarReading(
+            unresolved(NAME, diag(), ["not resolved (aliased): period < 2 px"]))
     if clipped_fraction > CLIPPED_WARN_FRACTION:
         warnings.append(f"{int(clip_px.sum())} of {img.size} pixels clipped at code {top:g}: "
                         "left out of the fit (the model carries the level beyond it)")
@@ -274,7 +330,7 @@ def read_three_bars(
     if n < n_params + 1 + MIN_DOF:
         warnings.append(f"too few pixels: {n} unclipped, a fit of the levels, shading and blur "
                         f"needs at least {n_params + 1 + MIN_DOF}")
-        return unresolved(NAME, diag(), warnings)
+        return ThreeBarReading(unresolved(NAME, diag(), warnings))
     # shading along u only when the ROI spans the pattern and ground both sides of it; along v
     # only when there are at least two lines along the bars
     design = np.empty((n, n_params))
@@ -298,6 +354,8 @@ def read_three_bars(
     t_along = along.tables(sigmas) if along is not None else None
     probe = np.array([0.0, -w, w])  # the bar centre and the spaces beside it
 
+    ridge: FloatArray | None = None
+
     def fit(tu: FloatArray, tv: FloatArray | None) -> _Fit:
         """Linear fit at one blur across (``tu``) and along (``tv``) the bars."""
         a_pix = along.at(tv) if along is not None and tv is not None else 1.0
@@ -305,9 +363,21 @@ def read_three_bars(
             else 1.0
         design[:, 3] = across.slope_at(tu) * a_pix
         design[:, 4] = across.at(tu) * a_pix
-        coef, rss, inv = _solve(design[:, cols], y)
+        coef, rss, penalty, inv = _solve(design[:, cols], y, ridge)
         p0, pm, pp = across.at(tu, probe) * a_mid
-        return _Fit(coef, rss, inv, float(p0), 0.5 * float(pm + pp))
+        return _Fit(coef, rss + penalty, penalty, inv, float(p0), 0.5 * float(pm + pp))
+
+    # The scale of the priors on shading and shift: a free fit on a coarse blur grid gives the
+    # noise, the ground level and the bar depth.
+    coarse = [fit(t_across[i], None if t_along is None else t_along[i])
+              for i in range(0, sigmas.size, 4)]
+    first = min(coarse, key=lambda f: f.rss)
+    noise0_sq = max(first.rss / max(n - len(cols) - 1, 1), 1e-300)
+    prior_sd = np.array([math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0),
+                         SHADING_PRIOR_PER_PX * max(span_v, 1.0), math.inf, math.inf])
+    prior_sd[1:3] *= abs(float(first.coef[0]))
+    prior_sd[3] = abs(float(first.coef[-1])) * shift_prior_px
+    ridge = np.array([noise0_sq / sd**2 if 0 < sd < math.inf else 0.0 for sd in prior_sd[cols]])
 
     # one blur for both directions, then along the bars at the best, then across at that
     tied = [fit(t_across[i], None if t_along is None else t_along[i]) for i in range(sigmas.size)]
@@ -319,23 +389,38 @@ def read_three_bars(
     tv_best = None if t_along is None else t_along[i_v]
     across_fits = [fit(t_across[i], tv_best) for i in range(sigmas.size)]
     rss = np.array([f.rss for f in across_fits])
-    i = int(np.argmin(rss))
-    sigma_best, best = float(sigmas[i]), across_fits[i]
+    rss_free = float(rss.min())
+    rss_data = min(f.rss - f.penalty for f in across_fits)
+    dof = n - len(cols) - 1
+    noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
+    if integer:
+        noise = max(noise, (step / n_frames) / math.sqrt(12.0))
+    scale = noise * noise if noise > 0 else max(rss_free, 1e-300)
+
+    def objective(sig: FloatArray, r: FloatArray) -> FloatArray:
+        """Chi-square of the fit plus the blur prior's (the noise from the best free fit)."""
+        out = r / scale
+        if blur_prior_px is not None:
+            out = out + ((sig - blur_prior_px[0]) / blur_prior_px[1]) ** 2
+        return np.asarray(out, dtype=np.float64)
+
+    obj = objective(sigmas, rss)
+    allowed = sigmas[rss / scale - rss_free / scale <= 1.0]
+    blur_range = (float(allowed.min()), float(allowed.max()))
+    i = int(np.argmin(obj))
+    sigma_best, best, obj_best = float(sigmas[i]), across_fits[i], float(obj[i])
     if 0 < i < sigmas.size - 1:  # parabola through the best grid point and its neighbours
         x0, x1, x2 = sigmas[i - 1:i + 2]
-        y0, y1, y2 = rss[i - 1:i + 2]
+        y0, y1, y2 = obj[i - 1:i + 2]
         den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
         if den != 0:
             vertex = x1 - 0.5 * ((x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)) / den
             if x0 < vertex < x2:
                 cand = fit(across.tables(np.array([vertex]))[0], tv_best)
-                if cand.rss < best.rss:
-                    sigma_best, best = float(vertex), cand
-    coef, rss_min, inv, p_bar, p_space = best.coef, best.rss, best.inv, best.p_bar, best.p_space
-    dof = n - len(cols) - 1
-    noise = math.sqrt(rss_min / dof) if dof > 0 else 0.0
-    if integer:
-        noise = max(noise, (step / n_frames) / math.sqrt(12.0))
+                cand_obj = float(objective(np.array([vertex]), np.array([cand.rss]))[0])
+                if cand_obj < obj_best:
+                    sigma_best, best, obj_best = float(vertex), cand, cand_obj
+    coef, inv, p_bar, p_space = best.coef, best.inv, best.p_bar, best.p_space
 
     def levels(c: FloatArray, p0: float, p_sp: float) -> tuple[float, float]:
         """(bar, space) levels of the fitted model at v = 0."""
@@ -349,11 +434,11 @@ def read_three_bars(
     if not abs(depth) > RESOLVED_Z * depth_sd or p_bar - p_space <= 0:
         warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
                         f"({depth_sd:.3g}) of zero: bars not resolved")
-        return unresolved(NAME, diag(**extra), warnings)
+        return ThreeBarReading(unresolved(NAME, diag(**extra), warnings), sigma_best, blur_range)
     dark, bright = min(bar, space), max(bar, space)
     if dark + bright <= 0 or dark < 0:
         warnings.append("fitted dark level below zero: contrast undefined")
-        return unresolved(NAME, diag(**extra), warnings)
+        return ThreeBarReading(unresolved(NAME, diag(**extra), warnings), sigma_best, blur_range)
     modulation = eq29_modulation(dark, bright)
     # noise: m = |bar - space| / (bar + space), bar and space linear in (ground, depth)
     total = bar + space
@@ -367,10 +452,11 @@ def read_three_bars(
     # blur: the spread of the reading over the blurs the data allow (Delta chi^2 <= 1)
     blur_sd = 0.0
     if noise > 0:
-        for profile in (across_fits, along_fits):
+        for profile, objs in ((across_fits, obj), (along_fits, None)):
             mods = [modulation]
-            for f in profile:
-                if (f.rss - rss_min) / noise**2 <= 1.0:
+            for k, f in enumerate(profile):
+                excess = (objs[k] - obj_best) if objs is not None else (f.rss - best.rss) / scale
+                if excess <= 1.0:
                     b_s, sp_s = levels(f.coef, f.p_bar, f.p_space)
                     if b_s + sp_s > 0:
                         mods.append(abs(sp_s - b_s) / (b_s + sp_s))
@@ -380,4 +466,5 @@ def read_three_bars(
     extra.update(uncertainty_noise=noise_sd, uncertainty_model=math.hypot(blur_sd, model_sd))
     if modulation > 1.0:
         modulation = 1.0
-    return resolved(NAME, dark, bright, modulation, diag(**extra), sd, warnings)
+    return ThreeBarReading(resolved(NAME, dark, bright, modulation, diag(**extra), sd, warnings),
+                           sigma_best, blur_range)
