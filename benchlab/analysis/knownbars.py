@@ -181,9 +181,9 @@ def _solve(
     if ridge is not None:
         gram = gram + np.diag(ridge)
     try:
-        inv = np.linalg.inv(gram)
+        inv: FloatArray = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
-        inv = np.linalg.pinv(gram)
+        inv = np.asarray(np.linalg.pinv(gram), dtype=np.float64)
     coef = inv @ (design.T @ values)
     resid = values - design @ coef
     penalty = float(ridge @ (coef * coef)) if ridge is not None else 0.0
