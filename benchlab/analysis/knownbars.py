@@ -181,7 +181,7 @@ def _solve(
     if ridge is not None:
         gram = gram + np.diag(ridge)
     try:
-        inv: FloatArray = np.linalg.inv(gram)
+        inv: FloatArray = np.asarray(np.linalg.inv(gram), dtype=np.float64)
     except np.linalg.LinAlgError:
         inv = np.asarray(np.linalg.pinv(gram), dtype=np.float64)
     coef = inv @ (design.T @ values)
