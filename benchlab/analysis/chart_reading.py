@@ -14,7 +14,8 @@ height and orientation (sagittal: intensity varying along the chart's x) see the
    image height (Gaussian kernel :data:`KERNEL_MM`, weighted by their ranges), its mean at the
    set's height, its standard deviation the fit's scatter and error (at least
    :data:`PRIOR_FLOOR_PX`);
-3. the set is read again with the prior (:func:`benchlab.analysis.knownbars.read_three_bars`'s
+3. the set is read again with the prior (:meth:`ThreeBarReading.with_blur_prior`: its fits
+   reused, only re-weighed; :func:`benchlab.analysis.knownbars.read_three_bars`'s
    ``blur_prior_px``): the chi-square plus the prior's term picks the blur, and the interval
    holds the readings over the blurs both allow. Where the set's own pixels pin the blur down
    the prior changes little; where they sample few phases it decides (on ``benchlab benchmark
@@ -70,10 +71,10 @@ def read_chart(
     found = fit.found
     first = [el.fit_reading(pixels, max_code) for el in found]
     out = [r.result for r in first]
-    for k, el in enumerate(found):
+    for k in range(len(found)):
         prior = blur_prior(found, first, k)
         if prior is not None:
-            out[k] = el.fit_reading(pixels, max_code, blur_prior_px=prior).result
+            out[k] = first[k].with_blur_prior(prior).result
     return out
 
 

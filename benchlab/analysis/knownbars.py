@@ -82,8 +82,6 @@ MODEL_REL_SD = 0.01
 #: through its spectrum.
 GRID_STEP_PX = 0.02
 MAX_GRID_POINTS = 1 << 14
-#: Fraction of clipped pixels above which the warning names the share.
-CLIPPED_WARN_FRACTION = 0.0
 
 
 def three_bar_pattern(
@@ -124,70 +122,100 @@ class _Blurred:
     """Bars (intervals of a 1-D coordinate) seen through the pixel footprint and a Gaussian of
     many widths, fast: the sharp pattern (footprint alone, closed form) is tabulated once on a
     fine grid; each blur is a Gaussian gain on its spectrum (one inverse FFT for every blur at
-    once), interpolated at the pixels' coordinates."""
+    once), read at the pixels' coordinates by linear interpolation (weights computed once)."""
 
     def __init__(
         self, pos: FloatArray, bars: list[tuple[float, float]], theta_rad: float,
         max_sigma_px: float,
     ) -> None:
-        self.pos = pos
         pad = 6.0 * max_sigma_px + 1.0
         lo = min(float(pos.min()), min(b[0] for b in bars)) - pad
         hi = max(float(pos.max()), max(b[1] for b in bars)) + pad
         n = min(1 << max(8, math.ceil(math.log2((hi - lo) / GRID_STEP_PX))), MAX_GRID_POINTS)
-        self.grid = lo + (hi - lo) * np.arange(n) / n
+        self.lo, self.step = lo, (hi - lo) / n
+        grid = lo + self.step * np.arange(n)
         sharp = np.zeros(n)
         for start, stop in bars:
-            sharp += edge_response(self.grid - start, 0.0, theta_rad)
-            sharp -= edge_response(self.grid - stop, 0.0, theta_rad)
+            sharp += edge_response(grid - start, 0.0, theta_rad)
+            sharp -= edge_response(grid - stop, 0.0, theta_rad)
         self.spectrum = np.fft.rfft(sharp)
-        freqs = np.fft.rfftfreq(n, (hi - lo) / n)
+        freqs = np.fft.rfftfreq(n, self.step)
         self.freqs2 = freqs * freqs
+        self.n = n
+        self.idx, self.frac = self._weights(pos)
+
+    def _weights(self, pos: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
+        x = (np.asarray(pos, dtype=np.float64) - self.lo) / self.step
+        idx = np.clip(np.floor(x).astype(np.intp), 0, self.n - 2)
+        return idx, x - idx
 
     def tables(self, sigmas: FloatArray) -> FloatArray:
         """The blurred pattern on the grid, one row per blur."""
         gain = np.exp(-2.0 * math.pi**2 * np.outer(sigmas * sigmas, self.freqs2))
-        return np.fft.irfft(self.spectrum[None, :] * gain, n=self.grid.size, axis=1)
+        return np.fft.irfft(self.spectrum[None, :] * gain, n=self.n, axis=1)
 
-    def at(self, table: FloatArray, pos: FloatArray | None = None) -> FloatArray:
-        """One blur's pattern at ``pos`` (default the pixels')."""
-        return np.interp(self.pos if pos is None else pos, self.grid, table)
+    def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
+        """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
+        idx, frac = (self.idx, self.frac) if pos is None else self._weights(pos)
+        left, right = tables[:, idx], tables[:, idx + 1]
+        return np.asarray(left + frac * (right - left), dtype=np.float64)
 
-    def slope_at(self, table: FloatArray) -> FloatArray:
-        """One blur's pattern's derivative at the pixels."""
-        return np.interp(self.pos, self.grid, np.gradient(table, self.grid[1] - self.grid[0]))
+    def slope(self, tables: FloatArray) -> FloatArray:
+        """Each table's derivative at the pixels (the grid step's finite difference)."""
+        return np.asarray((tables[:, self.idx + 1] - tables[:, self.idx]) / self.step,
+                          dtype=np.float64)
 
 
 @dataclass(frozen=True)
-class _Fit:
-    """The linear fit at one blur: coefficients, residual sum of squares, inverse normal
-    matrix, and the pattern at the bar centre and (mean) at the spaces beside it."""
+class _Batch:
+    """Linear fits at several blurs: coefficients (m, k), residual sum of squares plus the
+    ridge's penalty (m,), the penalty (m,), inverse normal matrices (m, k, k), and the
+    pattern at the bar centre and (mean) at the spaces beside it (m,)."""
 
     coef: FloatArray
-    rss: float
-    penalty: float
+    cost: FloatArray
+    penalty: FloatArray
     inv: FloatArray
-    p_bar: float
-    p_space: float
+    p_bar: FloatArray
+    p_space: FloatArray
+
+    def modulations(self) -> FloatArray:
+        """Eq. 2.9 contrast of each fit (NaN where undefined)."""
+        bar = self.coef[:, 0] + self.coef[:, -1] * self.p_bar
+        space = self.coef[:, 0] + self.coef[:, -1] * self.p_space
+        total = bar + space
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(total > 0, np.abs(space - bar) / total, np.nan)
 
 
-def _solve(
-    design: FloatArray, values: FloatArray, ridge: FloatArray | None = None
-) -> tuple[FloatArray, float, float, FloatArray]:
-    """Least squares with an optional ridge (prior precision per coefficient, in units of the
-    noise variance): coefficients, residual sum of squares, the ridge's penalty, inverse
-    normal matrix."""
-    gram = design.T @ design
+def _solve_batch(
+    base: FloatArray, extra: list[FloatArray], y: FloatArray, ridge: FloatArray | None,
+    p_bar: FloatArray, p_space: FloatArray,
+) -> _Batch:
+    """Least squares of ``y`` on the ``base`` columns (n, kb) plus, per blur, the ``extra``
+    columns (each (m, n)); ``ridge``: prior precision per coefficient in units of the noise
+    variance (0 = free)."""
+    m, n = extra[0].shape
+    kb = base.shape[1]
+    k = kb + len(extra)
+    design = np.empty((m, n, k))
+    design[:, :, :kb] = base[None, :, :]
+    for j, col in enumerate(extra):
+        design[:, :, kb + j] = col
+    gram = np.einsum("mni,mnj->mij", design, design)
     if ridge is not None:
-        gram = gram + np.diag(ridge)
+        gram[:, np.arange(k), np.arange(k)] += ridge
     try:
-        inv: FloatArray = np.asarray(np.linalg.inv(gram), dtype=np.float64)
+        inv = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
-        inv = np.asarray(np.linalg.pinv(gram), dtype=np.float64)
-    coef = inv @ (design.T @ values)
-    resid = values - design @ coef
-    penalty = float(ridge @ (coef * coef)) if ridge is not None else 0.0
-    return coef, float(resid @ resid), penalty, inv
+        inv = np.linalg.pinv(gram)
+    rhs = np.einsum("mni,n->mi", design, y)
+    coef = np.einsum("mij,mj->mi", inv, rhs)
+    resid = y[None, :] - np.einsum("mni,mi->mn", design, coef)
+    rss = np.einsum("mn,mn->m", resid, resid)
+    penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
+    return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
+                  np.asarray(inv, dtype=np.float64), p_bar, p_space)
 
 
 @dataclass(frozen=True)
@@ -197,11 +225,29 @@ class ThreeBarReading:
     ``blur_sigma_px`` is the blur the reading used (None when none was fitted);
     ``blur_range_px`` the blurs the data alone allow (``Delta chi^2 <= 1`` without any prior):
     narrow on sets that pin the blur down, wide where the pixels sample too few phases.
+    :meth:`with_blur_prior` reads the same fits again under a prior on the blur.
     """
 
     result: ModulationResult
     blur_sigma_px: float | None = None
     blur_range_px: tuple[float, float] | None = None
+    _state: _FitState | None = None
+
+    def with_blur_prior(self, blur_prior_px: tuple[float, float]) -> ThreeBarReading:
+        """The reading under a Gaussian prior (mean, sd; px) on the blur across the bars (the
+        fits are reused: only the choice of blur and the interval change)."""
+        _check_prior(blur_prior_px)
+        if self._state is None:
+            return self
+        return self._state.conclude(blur_prior_px)
+
+
+def _check_prior(blur_prior_px: tuple[float, float] | None) -> None:
+    if blur_prior_px is not None and not (
+        math.isfinite(blur_prior_px[0]) and blur_prior_px[1] > 0
+        and math.isfinite(blur_prior_px[1])
+    ):
+        raise ValueError(f"blur_prior_px must be (mean, sd > 0), got {blur_prior_px}")
 
 
 def read_three_bars(
@@ -237,6 +283,9 @@ def read_three_bars(
         from the chart's other sets at the same image height
         (:func:`benchlab.analysis.chart_reading.read_chart`). Without it the blur is whatever
         fits the ROI best.
+    shift_prior_px : float
+        Prior (1 sigma, px) on the set's shift across the bars from ``centre_rc`` (the pose's
+        error; default :data:`SHIFT_PRIOR_PX`).
 
     Returns
     -------
@@ -266,7 +315,7 @@ def fit_three_bars(
     blur_prior_px: tuple[float, float] | None = None,
     shift_prior_px: float = SHIFT_PRIOR_PX,
 ) -> ThreeBarReading:
-    """:func:`read_three_bars` with the blur it used and the blurs the data allow."""
+    """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
     arr = np.asarray(roi)
     if arr.dtype.kind == "b":
         arr = arr.astype(np.uint8)
@@ -282,10 +331,7 @@ def fit_three_bars(
         raise ValueError("theta_deg and centre_rc must be finite")
     if max_code is not None and not (max_code > 0 and math.isfinite(max_code)):
         raise ValueError(f"max_code must be positive, got {max_code}")
-    if blur_prior_px is not None and not (
-        math.isfinite(blur_prior_px[0]) and blur_prior_px[1] > 0 and math.isfinite(blur_prior_px[1])
-    ):
-        raise ValueError(f"blur_prior_px must be (mean, sd > 0), got {blur_prior_px}")
+    _check_prior(blur_prior_px)
     if not (shift_prior_px > 0 and math.isfinite(shift_prior_px)):
         raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
     n_frames = arr.shape[0] if arr.ndim == 3 else 1
@@ -294,177 +340,203 @@ def fit_three_bars(
     step = detect_code_step(arr.ravel()) if integer else 0.0
     top = max_code if max_code is not None else (
         infer_max_code(arr, step, float(arr.max())) if integer else None)
-    period = 2.0 * bar_width_px
-    freq = 1.0 / period
-    theta = math.radians(theta_deg)
-    warnings: list[str] = []
-
-    def diag(**extra: object) -> Diagnostics:
-        return Diagnostics(
-            n_pixels=int(img.size), px_per_period=period, freq_cycles_per_px=freq,
-            clipped_fraction=clipped_fraction, aliased=freq > NYQUIST_CYCLES_PER_PX + 1e-12,
-            phase_sensitive=PHASE_SENSITIVE_CYCLES_PER_PX <= freq <= NYQUIST_CYCLES_PER_PX + 1e-12,
-            code_step=(step / n_frames) if integer else None, n_frames=n_frames,
-            bar_angle_deg=theta_deg % 180.0,
-            saturation_code=top if clipped_fraction > 0 else None,
-            **extra,  # type: ignore[arg-type]
-        )
-
     if top is not None:
         clip_px = arr >= top if arr.ndim == 2 else (arr >= top).any(axis=0)
     else:
         clip_px = np.zeros(img.shape, dtype=bool)
-    clipped_fraction = float(clip_px.mean())
-    if freq > NYQUIST_CYCLES_PER_PX + 1e-12:
-        return ThreeBarReading(
-            unresolved(NAME, diag(), ["not resolved (aliased): period < 2 px"]))
-    if clipped_fraction > CLIPPED_WARN_FRACTION:
+    period = 2.0 * bar_width_px
+    freq = 1.0 / period
+    diag = Diagnostics(
+        n_pixels=int(img.size), px_per_period=period, freq_cycles_per_px=freq,
+        clipped_fraction=float(clip_px.mean()), aliased=freq > NYQUIST_CYCLES_PER_PX + 1e-12,
+        phase_sensitive=PHASE_SENSITIVE_CYCLES_PER_PX <= freq <= NYQUIST_CYCLES_PER_PX + 1e-12,
+        code_step=(step / n_frames) if integer else None, n_frames=n_frames,
+        bar_angle_deg=theta_deg % 180.0,
+        saturation_code=top if clip_px.any() else None,
+    )
+    if diag.aliased:
+        return ThreeBarReading(unresolved(NAME, diag, ["not resolved (aliased): period < 2 px"]))
+    warnings: list[str] = []
+    if clip_px.any():
         warnings.append(f"{int(clip_px.sum())} of {img.size} pixels clipped at code {top:g}: "
                         "left out of the fit (the model carries the level beyond it)")
+    theta = math.radians(theta_deg)
     u_all = across_coordinate(img.shape, theta, centre_rc)
     v_all = across_coordinate(img.shape, theta + 0.5 * math.pi, centre_rc)
     keep = ~clip_px
     u, v, y = u_all[keep], v_all[keep], img[keep]
     n = int(y.size)
-    n_params = 5
+    span_u, span_v = float(np.ptp(u)), float(np.ptp(v))
+    # ground, shading across (and along, given two lines along the bars), shift, bar depth
+    base_cols = [np.ones(n), u / max(span_u, 1.0)] + ([v / span_v] if span_v >= 1.0 else [])
+    n_params = len(base_cols) + 2
     if n < n_params + 1 + MIN_DOF:
         warnings.append(f"too few pixels: {n} unclipped, a fit of the levels, shading and blur "
                         f"needs at least {n_params + 1 + MIN_DOF}")
-        return ThreeBarReading(unresolved(NAME, diag(), warnings))
-    # shading along u only when the ROI spans the pattern and ground both sides of it; along v
-    # only when there are at least two lines along the bars
-    design = np.empty((n, n_params))
-    design[:, 0] = 1.0
-    design[:, 1] = u / max(float(np.ptp(u)), 1.0)
-    span_v = float(np.ptp(v))
-    design[:, 2] = v / span_v if span_v >= 1.0 else 0.0
-    cols = [0, 1, 2, 3, 4] if span_v >= 1.0 else [0, 1, 3, 4]
-    max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * bar_width_px),
-                    MAX_SIGMA_BOUNDS_PX[1])
-    w = bar_width_px
-    across = _Blurred(u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta,
-                      max_sigma)
-    # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only when
-    # the ROI comes within their reach (the ROI trims the ends by a fraction of a pixel only)
-    foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
-    near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
-    along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
-    sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
-    t_across = across.tables(sigmas)
-    t_along = along.tables(sigmas) if along is not None else None
-    probe = np.array([0.0, -w, w])  # the bar centre and the spaces beside it
+        return ThreeBarReading(unresolved(NAME, diag, warnings))
+    state = _FitState(
+        np.stack(base_cols, axis=1), u, v, y, bar_width_px, theta, shift_prior_px,
+        (step / n_frames) / math.sqrt(12.0) if integer else 0.0, diag, warnings,
+    )
+    return state.conclude(blur_prior_px)
 
-    ridge: FloatArray | None = None
 
-    def fit(tu: FloatArray, tv: FloatArray | None) -> _Fit:
-        """Linear fit at one blur across (``tu``) and along (``tv``) the bars."""
-        a_pix = along.at(tv) if along is not None and tv is not None else 1.0
-        a_mid = float(along.at(tv, np.zeros(1))[0]) if along is not None and tv is not None \
-            else 1.0
-        design[:, 3] = across.slope_at(tu) * a_pix
-        design[:, 4] = across.at(tu) * a_pix
-        coef, rss, penalty, inv = _solve(design[:, cols], y, ridge)
-        p0, pm, pp = across.at(tu, probe) * a_mid
-        return _Fit(coef, rss + penalty, penalty, inv, float(p0), 0.5 * float(pm + pp))
+class _FitState:
+    """The fits of one set at every blur (across and along the bars), kept so that a prior on
+    the blur only re-weighs them (:meth:`conclude`)."""
 
-    # The scale of the priors on shading and shift: a free fit on a coarse blur grid gives the
-    # noise, the ground level and the bar depth.
-    coarse = [fit(t_across[i], None if t_along is None else t_along[i])
-              for i in range(0, sigmas.size, 4)]
-    first = min(coarse, key=lambda f: f.rss)
-    noise0_sq = max(first.rss / max(n - len(cols) - 1, 1), 1e-300)
-    prior_sd = np.array([math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0),
-                         SHADING_PRIOR_PER_PX * max(span_v, 1.0), math.inf, math.inf])
-    prior_sd[1:3] *= abs(float(first.coef[0]))
-    prior_sd[3] = abs(float(first.coef[-1])) * shift_prior_px
-    ridge = np.array([noise0_sq / sd**2 if 0 < sd < math.inf else 0.0 for sd in prior_sd[cols]])
+    def __init__(
+        self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
+        theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
+        warnings: list[str],
+    ) -> None:
+        self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        n = y.size
+        max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
+                        MAX_SIGMA_BOUNDS_PX[1])
+        self.across = _Blurred(u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)],
+                               theta, max_sigma)
+        # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
+        # when the ROI comes within their reach (the ROI trims the ends by a fraction of a px)
+        foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
+        near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
+        self.along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
+        self.sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
+        t_across = self.across.tables(self.sigmas)
+        self.p_pix = self.across.sample(t_across)
+        self.s_pix = self.across.slope(t_across)
+        self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
+        if self.along is not None:
+            t_along = self.along.tables(self.sigmas)
+            a_pix = self.along.sample(t_along)
+            a_mid = self.along.sample(t_along, np.zeros(1))[:, 0]
+        else:
+            a_pix, a_mid = np.ones((self.sigmas.size, n)), np.ones(self.sigmas.size)
+        every = np.arange(self.sigmas.size)
+        # the priors' scale: a free fit on a coarse blur grid gives noise, ground and depth
+        coarse = every[::4]
+        first = self._fit(coarse, coarse, a_pix, a_mid, None)
+        j = int(np.argmin(first.cost))
+        noise0_sq = max(float(first.cost[j]) / max(n - n_params_of(base) - 1, 1), 1e-300)
+        ground, depth = abs(float(first.coef[j, 0])), abs(float(first.coef[j, -1]))
+        sds = [math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0) * ground]
+        if base.shape[1] == 3:
+            sds.append(SHADING_PRIOR_PER_PX * max(float(np.ptp(v)), 1.0) * ground)
+        sds += [depth * shift_prior_px, math.inf]
+        self.ridge = np.array([noise0_sq / sd**2 if 0 < sd < math.inf else 0.0 for sd in sds])
+        # one blur for both directions, then along the bars at the best, then across at that
+        tied = self._fit(every, every, a_pix, a_mid, self.ridge)
+        i_u = int(np.argmin(tied.cost))
+        self.along_fits: _Batch | None = None
+        i_v = i_u
+        if self.along is not None:
+            self.along_fits = self._fit(np.full_like(every, i_u), every, a_pix, a_mid, self.ridge)
+            i_v = int(np.argmin(self.along_fits.cost))
+        self.a_best = (a_pix[i_v], float(a_mid[i_v]))
+        self.fits = self._fit(every, np.full_like(every, i_v), a_pix, a_mid, self.ridge)
+        rss_data = float(np.min(self.fits.cost - self.fits.penalty))
+        dof = n - n_params_of(base) - 1
+        noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
+        self.noise = max(noise, quantum_sd)
+        self.scale = self.noise**2 if self.noise > 0 else max(float(self.fits.cost.min()), 1e-300)
+        chi2 = (self.fits.cost - self.fits.cost.min()) / self.scale
+        allowed = self.sigmas[chi2 <= 1.0]
+        self.blur_range = (float(allowed.min()), float(allowed.max()))
 
-    # one blur for both directions, then along the bars at the best, then across at that
-    tied = [fit(t_across[i], None if t_along is None else t_along[i]) for i in range(sigmas.size)]
-    i_u = i_v = int(np.argmin([f.rss for f in tied]))
-    along_fits: list[_Fit] = []
-    if t_along is not None:
-        along_fits = [fit(t_across[i_u], t_along[j]) for j in range(sigmas.size)]
-        i_v = int(np.argmin([f.rss for f in along_fits]))
-    tv_best = None if t_along is None else t_along[i_v]
-    across_fits = [fit(t_across[i], tv_best) for i in range(sigmas.size)]
-    rss = np.array([f.rss for f in across_fits])
-    rss_free = float(rss.min())
-    rss_data = min(f.rss - f.penalty for f in across_fits)
-    dof = n - len(cols) - 1
-    noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
-    if integer:
-        noise = max(noise, (step / n_frames) / math.sqrt(12.0))
-    scale = noise * noise if noise > 0 else max(rss_free, 1e-300)
+    def _fit(
+        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray,
+        a_mid: FloatArray, ridge: FloatArray | None,
+    ) -> _Batch:
+        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``."""
+        a = a_pix[i_v]
+        probe = self.p_probe[i_u] * a_mid[i_v][:, None]
+        return _solve_batch(self.base, [self.s_pix[i_u] * a, self.p_pix[i_u] * a], self.y,
+                            ridge, probe[:, 0], 0.5 * (probe[:, 1] + probe[:, 2]))
 
-    def objective(sig: FloatArray, r: FloatArray) -> FloatArray:
-        """Chi-square of the fit plus the blur prior's (the noise from the best free fit)."""
-        out = r / scale
-        if blur_prior_px is not None:
-            out = out + ((sig - blur_prior_px[0]) / blur_prior_px[1]) ** 2
-        return np.asarray(out, dtype=np.float64)
+    def _fit_at(self, sigma: float) -> _Batch:
+        """One fit at an off-grid blur across the bars (the along-bar blur at its best)."""
+        table = self.across.tables(np.array([sigma]))
+        a_pix, a_mid = self.a_best
+        probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
+        return _solve_batch(self.base, [self.across.slope(table) * a_pix,
+                                        self.across.sample(table) * a_pix], self.y, self.ridge,
+                            np.array([probe[0]]), np.array([0.5 * (probe[1] + probe[2])]))
 
-    obj = objective(sigmas, rss)
-    allowed = sigmas[rss / scale - rss_free / scale <= 1.0]
-    blur_range = (float(allowed.min()), float(allowed.max()))
-    i = int(np.argmin(obj))
-    sigma_best, best, obj_best = float(sigmas[i]), across_fits[i], float(obj[i])
-    if 0 < i < sigmas.size - 1:  # parabola through the best grid point and its neighbours
-        x0, x1, x2 = sigmas[i - 1:i + 2]
-        y0, y1, y2 = obj[i - 1:i + 2]
-        den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
-        if den != 0:
-            vertex = x1 - 0.5 * ((x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)) / den
-            if x0 < vertex < x2:
-                cand = fit(across.tables(np.array([vertex]))[0], tv_best)
-                cand_obj = float(objective(np.array([vertex]), np.array([cand.rss]))[0])
-                if cand_obj < obj_best:
-                    sigma_best, best, obj_best = float(vertex), cand, cand_obj
-    coef, inv, p_bar, p_space = best.coef, best.inv, best.p_bar, best.p_space
+    def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
+        """The reading at the blur the fits (and the prior) favour, with its interval."""
+        sigmas, fits = self.sigmas, self.fits
 
-    def levels(c: FloatArray, p0: float, p_sp: float) -> tuple[float, float]:
-        """(bar, space) levels of the fitted model at v = 0."""
-        return float(c[0]) + float(c[-1]) * p0, float(c[0]) + float(c[-1]) * p_sp
+        def objective(sig: FloatArray, cost: FloatArray) -> FloatArray:
+            out = cost / self.scale
+            if blur_prior_px is not None:
+                out = out + ((sig - blur_prior_px[0]) / blur_prior_px[1]) ** 2
+            return np.asarray(out, dtype=np.float64)
 
-    bar, space = levels(coef, p_bar, p_space)
-    depth = float(coef[-1])
-    depth_sd = noise * math.sqrt(max(float(inv[-1, -1]), 0.0))
-    extra: dict[str, object] = {"noise_sigma": noise, "blur_sigma_px": sigma_best,
-                                "phase_cycles": 0.0}
-    if not abs(depth) > RESOLVED_Z * depth_sd or p_bar - p_space <= 0:
-        warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
-                        f"({depth_sd:.3g}) of zero: bars not resolved")
-        return ThreeBarReading(unresolved(NAME, diag(**extra), warnings), sigma_best, blur_range)
-    dark, bright = min(bar, space), max(bar, space)
-    if dark + bright <= 0 or dark < 0:
-        warnings.append("fitted dark level below zero: contrast undefined")
-        return ThreeBarReading(unresolved(NAME, diag(**extra), warnings), sigma_best, blur_range)
-    modulation = eq29_modulation(dark, bright)
-    # noise: m = |bar - space| / (bar + space), bar and space linear in (ground, depth)
-    total = bar + space
-    sign = 1.0 if space >= bar else -1.0
-    dm_dspace = sign * 2.0 * bar / total**2
-    dm_dbar = -sign * 2.0 * space / total**2
-    grad = np.zeros(len(cols))
-    grad[0] = dm_dbar + dm_dspace
-    grad[-1] = dm_dbar * p_bar + dm_dspace * p_space
-    noise_sd = noise * math.sqrt(max(float(grad @ inv @ grad), 0.0))
-    # blur: the spread of the reading over the blurs the data allow (Delta chi^2 <= 1)
-    blur_sd = 0.0
-    if noise > 0:
-        for profile, objs in ((across_fits, obj), (along_fits, None)):
-            mods = [modulation]
-            for k, f in enumerate(profile):
-                excess = (objs[k] - obj_best) if objs is not None else (f.rss - best.rss) / scale
-                if excess <= 1.0:
-                    b_s, sp_s = levels(f.coef, f.p_bar, f.p_space)
-                    if b_s + sp_s > 0:
-                        mods.append(abs(sp_s - b_s) / (b_s + sp_s))
-            blur_sd = math.hypot(blur_sd, 0.5 * (max(mods) - min(mods)))
-    model_sd = MODEL_REL_SD * modulation
-    sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
-    extra.update(uncertainty_noise=noise_sd, uncertainty_model=math.hypot(blur_sd, model_sd))
-    if modulation > 1.0:
-        modulation = 1.0
-    return ThreeBarReading(resolved(NAME, dark, bright, modulation, diag(**extra), sd, warnings),
-                           sigma_best, blur_range)
+        obj = objective(sigmas, fits.cost)
+        i = int(np.argmin(obj))
+        best, k, sigma_best, obj_best = fits, i, float(sigmas[i]), float(obj[i])
+        if 0 < i < sigmas.size - 1:  # parabola through the best grid point and its neighbours
+            x0, x1, x2 = sigmas[i - 1:i + 2]
+            y0, y1, y2 = obj[i - 1:i + 2]
+            den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
+            if den != 0:
+                vertex = x1 - 0.5 * ((x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)) / den
+                if x0 < vertex < x2:
+                    cand = self._fit_at(float(vertex))
+                    cand_obj = float(objective(np.array([vertex]), cand.cost)[0])
+                    if cand_obj < obj_best:
+                        best, k, sigma_best, obj_best = cand, 0, float(vertex), cand_obj
+        coef, inv = best.coef[k], best.inv[k]
+        p_bar, p_space = float(best.p_bar[k]), float(best.p_space[k])
+        noise = self.noise
+        warnings = list(self.warnings)
+        bar = float(coef[0] + coef[-1] * p_bar)
+        space = float(coef[0] + coef[-1] * p_space)
+        depth = float(coef[-1])
+        depth_sd = noise * math.sqrt(max(float(inv[-1, -1]), 0.0))
+        diag_fit = _with(self.diag, noise_sigma=noise, blur_sigma_px=sigma_best,
+                         phase_cycles=0.0)
+        if not abs(depth) > RESOLVED_Z * depth_sd or p_bar - p_space <= 0:
+            warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
+                            f"({depth_sd:.3g}) of zero: bars not resolved")
+            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+                                   self.blur_range, self)
+        dark, bright = min(bar, space), max(bar, space)
+        if dark < 0 or dark + bright <= 0:
+            warnings.append("fitted dark level below zero: contrast undefined")
+            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+                                   self.blur_range, self)
+        modulation = eq29_modulation(dark, bright)
+        # noise: m = |bar - space| / (bar + space), bar and space linear in (ground, depth)
+        total = bar + space
+        sign = 1.0 if space >= bar else -1.0
+        dm_dspace, dm_dbar = sign * 2.0 * bar / total**2, -sign * 2.0 * space / total**2
+        grad = np.zeros(coef.size)
+        grad[0] = dm_dbar + dm_dspace
+        grad[-1] = dm_dbar * p_bar + dm_dspace * p_space
+        noise_sd = noise * math.sqrt(max(float(grad @ inv @ grad), 0.0))
+        # blur: the spread of the readings over the blurs the data (and prior) allow
+        blur_sd = 0.0
+        spreads = [(fits, obj - obj_best)]
+        if self.along_fits is not None:
+            spreads.append((self.along_fits, (self.along_fits.cost - best.cost[k]) / self.scale))
+        for batch, excess in spreads:
+            mods = batch.modulations()[(excess <= 1.0)]
+            mods = np.append(mods[np.isfinite(mods)], modulation)
+            blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
+        model_sd = MODEL_REL_SD * modulation
+        sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
+        diag_fit = _with(diag_fit, uncertainty_noise=noise_sd,
+                         uncertainty_model=math.hypot(blur_sd, model_sd))
+        result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
+        return ThreeBarReading(result, sigma_best, self.blur_range, self)
+
+
+def n_params_of(base: FloatArray) -> int:
+    """Linear terms of the fit: the base columns, the shift and the bar depth."""
+    return int(base.shape[1]) + 2
+
+
+def _with(diag: Diagnostics, **changes: object) -> Diagnostics:
+    """``diag`` with some fields replaced."""
+    return Diagnostics(**{**diag.__dict__, **changes})  # type: ignore[arg-type]
