@@ -51,6 +51,7 @@ from benchlab.analysis.chart_pose import (
     ChartPose,
     PosedBarSet,
     posed_bar_set,
+    posed_bar_set_roi,
 )
 from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.knownbars import ThreeBarReading, fit_three_bars
@@ -105,6 +106,11 @@ MIN_OBLIQUE_PX_PER_PERIOD = 2.0
 #: (:func:`benchlab.analysis.estimate_modulation` with :meth:`FoundElement.estimator_priors`):
 #: it must find the direction and phase from a few dozen pixels first.
 GENERIC_MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: The chart reading's ROI runs this far (px) past the bar ends (see :func:`_reading_roi`):
+#: its model holds the ends' blur, and short bars get more lines along them. On ``benchlab
+#: benchmark chart`` the sets at 2-2.25 px per period went from 3 to 1 of 94 read more than
+#: 0.03 off with it (no set worse); 1.5 px read closer still but beside fewer neighbours.
+READING_END_PX = 1.0
 #: Fewest whole periods the measurement ROI must span across the bars.
 MIN_ROI_PERIODS = 2.0
 #: Blur reach (px) of a neighbouring set kept out of a measurement ROI.
@@ -127,8 +133,11 @@ class FoundElement:
     period that fits the ROI best (None when not checked). ``roi`` is the bar-set ROI (bar ends
     trimmed, across the set only); ``measurement_roi`` the ROI a modulation is read from: three
     whole periods across (:attr:`PosedBarSet.whole_period_roi`), back to ``roi`` where a
-    neighbouring set would reach into it. ``unmeasurable`` says why a found set gives no
-    reliable modulation (None when it does).
+    neighbouring set would reach into it. ``reading_roi`` is the ROI :meth:`measure` reads:
+    the measurement ROI run :data:`READING_END_PX` past the bar ends (its model holds the ends'
+    blur), where that stays on the frame and clear of every other set (None: the measurement
+    ROI). ``unmeasurable`` says why a found set gives no reliable modulation (None when it
+    does).
     """
 
     posed: PosedBarSet
@@ -139,6 +148,7 @@ class FoundElement:
     roi: Box
     measurement_roi: Box
     unmeasurable: str | None = None
+    reading_roi: Box | None = None
 
     def measure(
         self, pixels: npt.ArrayLike, max_code: float | None = None,
@@ -161,7 +171,7 @@ class FoundElement:
         blur_prior_px: tuple[float, float] | None = None,
     ) -> ThreeBarReading:
         """:meth:`measure` with the blur it used and the blurs the pixels allow."""
-        r0, c0, r1, c1 = self.measurement_roi
+        r0, c0, r1, c1 = self.reading_roi or self.measurement_roi
         p = self.posed
         roi = np.asarray(pixels)[..., r0:r1, c0:c1]
         return fit_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
@@ -725,7 +735,31 @@ def _check(
                             f"ambiguous (three-bar pattern correlation {conf:.2f} < "
                             f"{MIN_CONFIDENCE})", conf, measured, roi, roi)
     box, note = _measurement_roi(posed, placed, (h, w))
-    return FoundElement(posed, "found", None, conf, measured, roi, box, note)
+    return FoundElement(posed, "found", None, conf, measured, roi, box, note,
+                        _reading_roi(posed, placed, (h, w), box))
+
+
+def _reading_roi(
+    posed: PosedBarSet, placed: list[PosedBarSet], shape: tuple[int, int], box: Box
+) -> Box | None:
+    """The measurement ROI ``box`` (when it spans three whole periods) run
+    :data:`READING_END_PX` past the bar ends, when that stays on the frame and clear of every
+    other set; None otherwise (the reading then uses ``box``)."""
+    if box != posed.whole_period_roi:
+        return None
+    longer = posed_bar_set_roi(posed.centre_rc, posed.bar_width_px, posed.theta_deg,
+                               margin_px=-READING_END_PX,
+                               half_across_widths=WHOLE_PERIODS_HALF_WIDTHS)
+    r0, c0, r1, c1 = longer
+    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]):
+        return None
+    reach = math.dist((r0, c0), (r1, c1))
+    for o in placed:
+        if o is not posed and math.dist(o.centre_rc, posed.centre_rc) <= reach + (
+            o.half_size_px + NEIGHBOUR_MARGIN_PX
+        ) * math.sqrt(2.0) and _box_meets_set(longer, o):
+            return None
+    return longer
 
 
 def _measurement_roi(

@@ -78,6 +78,10 @@ SHADING_PRIOR_PER_PX = 0.005
 SHIFT_PRIOR_PX = 0.05
 #: Relative model term (1 sigma) of the modulation.
 MODEL_REL_SD = 0.01
+#: Sampling-phase term, relative: ``PHASE_GAP_REL * gap^2`` where ``gap`` (cycles) is how far
+#: the nearest pixel phase stays from the bar centre or a space centre; there the levels rest
+#: on the model's shape between samples (bars on a pixel axis near 2 px per period).
+PHASE_GAP_REL = 2.0
 #: The sharp pattern is tabulated every this many px (at most this many points) and blurred
 #: through its spectrum.
 GRID_STEP_PX = 0.02
@@ -391,6 +395,7 @@ class _FitState:
         warnings: list[str],
     ) -> None:
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        self.phase_gap = _phase_gap(u, w)
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
                         MAX_SIGMA_BOUNDS_PX[1])
@@ -524,12 +529,25 @@ class _FitState:
             mods = batch.modulations()[(excess <= 1.0)]
             mods = np.append(mods[np.isfinite(mods)], modulation)
             blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
-        model_sd = MODEL_REL_SD * modulation
+        model_sd = math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation
         sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
         diag_fit = _with(diag_fit, uncertainty_noise=noise_sd,
                          uncertainty_model=math.hypot(blur_sd, model_sd))
         result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
         return ThreeBarReading(result, sigma_best, self.blur_range, self)
+
+
+def _phase_gap(u: FloatArray, bar_width_px: float) -> float:
+    """How far (cycles) the pixels' phases of the pattern come to the bar centre and to the
+    spaces' centres at best: the larger of the two smallest distances (0 = a pixel centred on
+    each). Within the set only (``|u| <= 2.5 w``)."""
+    inside = u[np.abs(u) <= 2.5 * bar_width_px]
+    if inside.size == 0:
+        return 0.5
+    phase = np.mod(inside / (2.0 * bar_width_px), 1.0)  # 0 = a bar centre, 0.5 = a space
+    to_bar = np.minimum(phase, 1.0 - phase)
+    to_space = np.abs(phase - 0.5)
+    return float(max(to_bar.min(), to_space.min()))
 
 
 def n_params_of(base: FloatArray) -> int:
