@@ -103,6 +103,7 @@ class _Reading:
     reason: str | None
     err_generic: float | None
     err_histogram: float | None
+    half_width: float | None = None
 
 
 def _dust(rng: np.random.Generator, scene: UsafScene, shape: tuple[int, int]) -> npt.NDArray[
@@ -254,8 +255,9 @@ def _read(el: FoundElement, res: ModulationResult, pixels: npt.NDArray[Any],
         hist = estimate_modulation(pixels[r0:r1, c0:c1], estimator="histogram",
                                    freq_cycles_per_px=priors["freq_cycles_per_px"])
         err_hist = hist.modulation - truth if hist.resolved else None
+    half = 0.5 * (res.interval[1] - res.interval[0]) if reason is None else None
     return _Reading(p.px_per_period, p.axis_aligned, p.bar_width_px >= WIDE_BAR_PX, err,
-                    covered, reason, err_generic, err_hist)
+                    covered, reason, err_generic, err_hist, half)
 
 
 def _score(tally: _Tally, scene: UsafScene, dust: npt.NDArray[np.float64],
@@ -330,6 +332,11 @@ def _bucket_rows(readings: list[_Reading]) -> list[dict[str, Any]]:
                 "within": _within([r.err for r in sel]),
                 "coverage": sum(r.covered for r in sel) / len(sel) if sel else math.nan,
                 "no_number": sum(r.err is None for r in sel),
+                "half_width_median": statistics.median(halves) if (halves := [
+                    r.half_width for r in sel if r.half_width is not None]) else math.nan,
+                "abs_err_p95": float(np.percentile([abs(r.err) for r in sel if r.err is not None],
+                                                   95)) if any(r.err is not None for r in sel)
+                else math.nan,
                 "generic_within": _within([r.err_generic for r in sel]),
                 "generic_read": sum(r.err_generic is not None for r in sel),
             })
@@ -427,13 +434,15 @@ def format_benchmark(s: dict[str, Any]) -> str:
     out += [f"{a:<{width}}  {b:>22}  {c}" for a, b, c in rows]
     out += ["", f"modulation per period bucket (every frame, control included): within "
             f"{MODULATION_TOL} / 95 % interval coverage / no number; {s['estimator']} "
-            "(generic, with priors) within, unread = miss",
+            "(generic, with priors) within, unread = miss; 95th percentile of |error|; median "
+            "half-width of the 95 % interval",
             f"{'bars':<8} {'px/period':<9} {'sets':>5} {'within':>7} {'coverage':>8} "
-            f"{'no number':>9} {'generic':>8}"]
+            f"{'no number':>9} {'generic':>8} {'|d| p95':>8} {'median +-':>9}"]
     for b in s.get("buckets", []):
         if not b["n"]:
             continue
         out.append(f"{b['bars']:<8} {b['px_per_period']:<9} {b['n']:>5} "
                    f"{100 * b['within']:>6.1f}% {100 * b['coverage']:>7.1f}% "
-                   f"{b['no_number']:>9} {100 * b['generic_within']:>7.1f}%")
+                   f"{b['no_number']:>9} {100 * b['generic_within']:>7.1f}% "
+                   f"{b['abs_err_p95']:>8.4f} {b['half_width_median']:>9.4f}")
     return "\n".join(out)
