@@ -84,7 +84,8 @@ def test_analyze_chart_measures_every_found_element(posed_frame: Path,
                  "--json"]) == 0
     rows = {r["label"]: r for r in json.loads(capsys.readouterr().out)["rows"]}
     assert rows["G2E5S"]["result"] is None
-    assert "not measurable by a generic estimator" in rows["G2E5S"]["unmeasurable"]
+    assert "px per period < 2.5" in rows["G2E5S"]["unmeasurable"]
+    assert "generic estimator" in rows["G2E5S"]["unmeasurable"]
     assert rows["G1E5S"]["result"]["estimator"] == "profilefit"
 
 

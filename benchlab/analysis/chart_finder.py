@@ -195,10 +195,10 @@ class FoundElement:
         p = self.posed
         if not p.axis_aligned and p.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:
             off_axis = abs((p.theta_deg + 45.0) % 90.0 - 45.0)
-            return (f"not measurable by a generic estimator: {p.px_per_period:.2f} px per period "
-                    f"< {GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:g} on bars {off_axis:.1f} deg off the "
-                    "pixel axes (it must find the bar direction and phase from the few pixels; "
-                    "the default chart reading fixes them from the pose)")
+            return (f"not measurable: {p.px_per_period:.2f} px per period < "
+                    f"{GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:g} on bars {off_axis:.1f} deg off the "
+                    "pixel axes by a generic estimator (it must find the bar direction and phase "
+                    "from the few pixels; the chart reading fixes them from the pose)")
         return None
 
     def estimator_priors(self) -> dict[str, Any]:
