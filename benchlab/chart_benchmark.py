@@ -104,6 +104,7 @@ class _Reading:
     err_generic: float | None
     err_histogram: float | None
     half_width: float | None = None
+    generic_covered: bool = False
 
 
 def _dust(rng: np.random.Generator, scene: UsafScene, shape: tuple[int, int]) -> npt.NDArray[
@@ -247,17 +248,19 @@ def _read(el: FoundElement, res: ModulationResult, pixels: npt.NDArray[Any],
     err = res.modulation - truth if reason is None else None
     covered = reason is None and res.interval[0] <= truth <= res.interval[1]
     err_generic = err_hist = None
+    generic_covered = False
     if el.generic_unreliable is None:
         r0, c0, r1, c1 = el.measurement_roi
         priors = el.estimator_priors()
         gen = estimate_modulation(pixels[r0:r1, c0:c1], estimator=DEFAULT_ESTIMATOR, **priors)
         err_generic = gen.modulation - truth if gen.resolved else None
+        generic_covered = gen.resolved and gen.interval[0] <= truth <= gen.interval[1]
         hist = estimate_modulation(pixels[r0:r1, c0:c1], estimator="histogram",
                                    freq_cycles_per_px=priors["freq_cycles_per_px"])
         err_hist = hist.modulation - truth if hist.resolved else None
     half = 0.5 * (res.interval[1] - res.interval[0]) if reason is None else None
     return _Reading(p.px_per_period, p.axis_aligned, p.bar_width_px >= WIDE_BAR_PX, err,
-                    covered, reason, err_generic, err_hist, half)
+                    covered, reason, err_generic, err_hist, half, generic_covered)
 
 
 def _score(tally: _Tally, scene: UsafScene, dust: npt.NDArray[np.float64],
@@ -339,6 +342,8 @@ def _bucket_rows(readings: list[_Reading]) -> list[dict[str, Any]]:
                 else math.nan,
                 "generic_within": _within([r.err_generic for r in sel]),
                 "generic_read": sum(r.err_generic is not None for r in sel),
+                "generic_coverage": (sum(r.generic_covered for r in sel) / len(sel) if sel
+                                     else math.nan),
             })
     return out
 
@@ -433,16 +438,17 @@ def format_benchmark(s: dict[str, Any]) -> str:
            f"{'figure':<{width}}  {'measured':>22}  target"]
     out += [f"{a:<{width}}  {b:>22}  {c}" for a, b, c in rows]
     out += ["", f"modulation per period bucket (every frame, control included): within "
-            f"{MODULATION_TOL} / 95 % interval coverage / no number; {s['estimator']} "
-            "(generic, with priors) within, unread = miss; 95th percentile of |error|; median "
-            "half-width of the 95 % interval",
+            f"{MODULATION_TOL} / 95 % interval coverage / no number / 95th percentile of |error| "
+            f"/ median half-width of the 95 % interval; then {s['estimator']} (generic, with "
+            "priors: the reading before the chart reading) within and coverage, unread = miss",
             f"{'bars':<8} {'px/period':<9} {'sets':>5} {'within':>7} {'coverage':>8} "
-            f"{'no number':>9} {'generic':>8} {'|d| p95':>8} {'median +-':>9}"]
+            f"{'no number':>9} {'|d| p95':>8} {'median +-':>9} {'generic':>8} {'gen.cov':>8}"]
     for b in s.get("buckets", []):
         if not b["n"]:
             continue
         out.append(f"{b['bars']:<8} {b['px_per_period']:<9} {b['n']:>5} "
                    f"{100 * b['within']:>6.1f}% {100 * b['coverage']:>7.1f}% "
-                   f"{b['no_number']:>9} {100 * b['generic_within']:>7.1f}% "
-                   f"{b['abs_err_p95']:>8.4f} {b['half_width_median']:>9.4f}")
+                   f"{b['no_number']:>9} {b['abs_err_p95']:>8.4f} "
+                   f"{b['half_width_median']:>9.4f} {100 * b['generic_within']:>7.1f}% "
+                   f"{100 * b['generic_coverage']:>7.1f}%")
     return "\n".join(out)

@@ -198,3 +198,13 @@ def test_blur_prior_comes_from_pinned_sets_near_in_image_height() -> None:
     r = el.fit_reading(px, blur_prior_px=prior)
     assert r.blur_sigma_px == pytest.approx(prior[0], abs=3.0 * prior[1])
     assert r.result.resolved
+
+
+def test_a_stack_of_frames_reads_like_its_mean() -> None:
+    scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.1, 8.0))
+    stack = np.stack([frame(scene, 12, seed=s) for s in (1, 2)])
+    fit = find_chart(stack)
+    mean = stack.astype(np.float64).mean(axis=0)
+    for got, ref in zip(read_chart(stack, fit), read_chart(mean, fit), strict=True):
+        assert got.modulation == pytest.approx(ref.modulation, abs=1e-9)
+        assert got.diagnostics.n_frames == 2
