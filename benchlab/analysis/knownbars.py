@@ -12,10 +12,17 @@ fitted:
 2. The imaged set is the three dark bars of width ``w`` at ``u = -2w, 0, 2w`` (the ground beyond
    the outer bars is a space: the model is the finite set, not an endless square wave), blurred
    by a Gaussian PSF of ``sigma`` and integrated over the pixel's footprint at the bar angle
-   (:func:`.barmodel.edge_response`): a pattern ``P(u; sigma)`` between 0 and 1.
-3. Pixel values are ``a + b_u u + b_v v + s P(u; sigma)``: for a fixed ``sigma`` a linear
-   least-squares problem (ground level, linear shading, bar depth ``s``; ``s < 0`` for dark bars,
-   ``> 0`` for a negative target). ``sigma`` is found by a 1-D search on the residual.
+   (:func:`.barmodel.edge_response`): a pattern ``P(u; sigma)`` between 0 and 1. The bar ends
+   (``v = +-2.5 w``) are blurred the same way along the bars, ``A(v; sigma_v)``, so the ROI may
+   run up to and past them.
+3. Pixel values are ``a + b_u u + b_v v + c P'(u) A(v) + s P(u) A(v)``: for fixed blurs a
+   linear least-squares problem (ground level, linear shading, a small shift ``-c / s`` of the
+   set across the bars, bar depth ``s``; ``s < 0`` for dark bars, ``> 0`` for a negative
+   target), the shading and the shift held by weak priors (:data:`SHADING_PRIOR_PER_PX`,
+   ``shift_prior_px``) so that a ROI of a few lines cannot trade them for contrast. The blurs
+   are a 1-D search each (every blur of a grid solved at once; a parabola at the best), with an
+   optional prior on ``sigma`` (the chart's other sets:
+   :func:`benchlab.analysis.chart_reading.read_chart`).
 4. The Eq. 2.9 levels are the fitted model at the middle bar's centre and the mean of the spaces
    either side of it (``u = 0`` and ``u = +-w``, ``v = 0``): the contrast a pixel centred on the
    bar and on the spaces would read (the simulated scene's truth is defined the same way).
@@ -25,10 +32,11 @@ model with known geometry is pinned down by the data even at 2-2.5 px per period
 pixel axis sample only the phases the pixel grid gives; there the blur is less well determined
 and the interval says so.
 
-The interval holds three terms: the noise propagated through the linear fit (the noise estimated
-from the residuals, at least the code step's quantisation), the spread of the reading over the
-blurs the data allow (``Delta chi^2 <= 1``), and a relative model term (:data:`MODEL_REL_SD`:
-shading that is not linear over the ROI, the multiplicative vignetting, the pose's own error).
+The interval holds the noise propagated through the linear fit (the noise estimated from the
+residuals, at least the code step's quantisation; the shift's and shading's uncertainty
+included), the spread of the reading over the blurs the data (and prior) allow
+(``Delta chi^2 <= 1``), a sampling-phase term where no pixel comes near the bar centre or a
+space centre (:data:`PHASE_GAP_REL`), and a relative model term (:data:`MODEL_REL_SD`).
 
 Pixels at the saturation code are censored: they are left out of the fit (the model carries the
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
@@ -425,7 +433,7 @@ class _FitState:
         coarse = every[::4]
         first = self._fit(coarse, coarse, a_pix, a_mid, None)
         j = int(np.argmin(first.cost))
-        noise0_sq = max(float(first.cost[j]) / max(n - n_params_of(base) - 1, 1), 1e-300)
+        noise0_sq = max(float(first.cost[j]) / max(n - _n_params(base) - 1, 1), 1e-300)
         ground, depth = abs(float(first.coef[j, 0])), abs(float(first.coef[j, -1]))
         sds = [math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0) * ground]
         if base.shape[1] == 3:
@@ -443,7 +451,7 @@ class _FitState:
         self.a_best = (a_pix[i_v], float(a_mid[i_v]))
         self.fits = self._fit(every, np.full_like(every, i_v), a_pix, a_mid, self.ridge)
         rss_data = float(np.min(self.fits.cost - self.fits.penalty))
-        dof = n - n_params_of(base) - 1
+        dof = n - _n_params(base) - 1
         noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
         self.noise = max(noise, quantum_sd)
         self.scale = self.noise**2 if self.noise > 0 else max(float(self.fits.cost.min()), 1e-300)
@@ -553,7 +561,7 @@ def _phase_gap(u: FloatArray, bar_width_px: float) -> float:
     return float(max(to_bar.min(), to_space.min()))
 
 
-def n_params_of(base: FloatArray) -> int:
+def _n_params(base: FloatArray) -> int:
     """Linear terms of the fit: the base columns, the shift and the bar depth."""
     return int(base.shape[1]) + 2
 
