@@ -105,7 +105,7 @@ MIN_ROI_ACROSS_PX = 4
 #: (:func:`benchlab.analysis.knownbars.read_three_bars`), so those phases pin the profile down.
 #: On ``benchlab benchmark chart`` (40 + 8 frames) that reading came within 0.03 of the truth
 #: for all 78 oblique sets at 2-2.25 px and all 67 at 2.25-2.5 px (95 % intervals holding the
-#: truth for 94 % and 100 %). The generic estimators, which re-estimate the geometry from the
+#: truth for 95 % and 100 %). The generic estimators, which re-estimate the geometry from the
 #: ROI, read only 32 % and 77 % of them within 0.03: see
 #: :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD`. Above Nyquist (< 2 px) sets are rejected.
 MIN_OBLIQUE_PX_PER_PERIOD = 2.0

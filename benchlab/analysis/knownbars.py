@@ -36,7 +36,8 @@ The interval holds the noise propagated through the linear fit (the noise estima
 residuals, at least the code step's quantisation; the shift's and shading's uncertainty
 included), the spread of the reading over the blurs the data (and prior) allow
 (``Delta chi^2 <= 1``), a sampling-phase term where no pixel comes near the bar centre or a
-space centre (:data:`PHASE_GAP_REL`), and a relative model term (:data:`MODEL_REL_SD`).
+space centre (:data:`PHASE_GAP_REL`), and a model term (:data:`MODEL_REL_SD` relative,
+:data:`MODEL_ABS_SD` absolute).
 
 Pixels at the saturation code are censored: they are left out of the fit (the model carries the
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
@@ -72,9 +73,10 @@ RESOLVED_Z = 5.0
 #: Fewest unclipped pixels: the four linear terms, the blur and at least this many more.
 MIN_DOF = 4
 #: Blur searched (PSF sigma, px): from sharp to this many bar widths, within these bounds
-#: (beyond about 0.7 bar widths the pattern is gone; a blur of several px on wide bars is
-#: defocus the chart's coarse sets would show).
-MAX_SIGMA_WIDTHS = 0.75
+#: (beyond about 0.7 bar widths hardly any contrast is left; a blur of several px on wide
+#: bars is defocus the chart's coarse sets would show; 0.75 cut the search short of a 2 px
+#: defocus on 2.8 px bars).
+MAX_SIGMA_WIDTHS = 1.0
 MAX_SIGMA_BOUNDS_PX = (1.5, 4.0)
 #: Blur search: this many blurs from 0 (denser towards sharp), then a parabola at the best.
 SIGMA_GRID = 32
@@ -86,9 +88,14 @@ SHADING_PRIOR_PER_PX = 0.005
 SHIFT_PRIOR_PX = 0.05
 #: Relative model term (1 sigma) of the modulation: shading that is not linear over the ROI,
 #: the multiplicative vignetting, the pose's own error. Calibrated on ``benchlab benchmark
-#: chart`` (40 + 8 frames): 95 % intervals holding the truth for 93.6 % of the oblique sets at
-#: 2-2.25 px per period and 99.9-100 % elsewhere (0.01 gave 98.7-100 % at twice the width).
+#: chart`` (40 + 8 frames): 95 % intervals holding the truth for 94.9 % of the oblique sets at
+#: 2-2.25 px per period and 100 % elsewhere, with :data:`MODEL_ABS_SD` (0.01 alone gave
+#: 98.7-100 % at 1.6 times the width).
 MODEL_REL_SD = 0.005
+#: Absolute model term (1 sigma): at low contrast (a defocused chart, 1-2 px of extra blur, 8-bit
+#: frames) the relative term alone gave intervals of +-0.0015 that missed the truth by
+#: 0.002-0.004 on a quarter of the sets.
+MODEL_ABS_SD = 0.002
 #: Sampling-phase term, relative: ``PHASE_GAP_REL * gap^2`` where ``gap`` (cycles) is how far
 #: the nearest pixel phase stays from the bar centre or a space centre; there the levels rest
 #: on the model's shape between samples (bars on a pixel axis near 2 px per period).
@@ -540,7 +547,9 @@ class _FitState:
             mods = batch.modulations()[(excess <= 1.0)]
             mods = np.append(mods[np.isfinite(mods)], modulation)
             blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
-        model_sd = math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation
+        model_sd = math.hypot(
+            math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation,
+            MODEL_ABS_SD)
         sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
         diag_fit = _with(diag_fit, uncertainty_noise=noise_sd,
                          uncertainty_model=math.hypot(blur_sd, model_sd))
