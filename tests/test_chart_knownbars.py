@@ -208,3 +208,68 @@ def test_a_stack_of_frames_reads_like_its_mean() -> None:
     for got, ref in zip(read_chart(stack, fit), read_chart(mean, fit), strict=True):
         assert got.modulation == pytest.approx(ref.modulation, abs=1e-9)
         assert got.diagnostics.n_frames == 2
+
+
+def test_a_defocused_chart_is_read_within_its_intervals() -> None:
+    """2 px of extra blur: low contrast, the blur searched up to a bar width. Every found set
+    within 0.03 and inside its interval (without MODEL_ABS_SD 4 of 16 intervals missed)."""
+    scene = UsafScene(pose=ChartPose((5.0, -8.0), 1.2, 7.0), vignetting=0.3, defocus_px=2.0,
+                      negative=True)
+    px = frame(scene, 8, seed=3)
+    fit = find_chart(px)
+    readings = read_chart(px, fit)
+    assert len(readings) >= 12
+    for el, r in zip(fit.found, readings, strict=True):
+        p = el.posed
+        truth = frame_truth_modulation(scene, scene.bar_set(p.group, p.element, p.orientation), 8)
+        assert r.modulation == pytest.approx(truth, abs=0.03), p.label
+        assert r.interval[0] <= truth <= r.interval[1], p.label
+
+
+def _control_frame(scale: float, bits: int, seed: int) -> tuple[UsafScene, npt.NDArray[np.generic]]:
+    """A chart with its bars on the pixel axes (the benchmark's control frames)."""
+    scene = UsafScene(pose=ChartPose((-20.0, 30.0), scale, 0.0), vignetting=0.25)
+    return scene, frame(scene, bits, seed=seed)
+
+
+def test_the_blur_shared_across_the_chart_reads_fine_sets_on_the_axes() -> None:
+    """G2E3S at 2.11 px per period on the axes: its own pixels sample too few phases to pin the
+    blur (its own reading is 0.12 off); the blur of the sets at its image height fixes it."""
+    scene, px = _control_frame(0.9, 12, 2)
+    fit = find_chart(px)
+    readings = dict(zip([e.label for e in fit.found], read_chart(px, fit), strict=True))
+    el = fit.element(2, 3, "sagittal")
+    truth = frame_truth_modulation(scene, scene.bar_set(2, 3, "sagittal"), 12)
+    shared = readings["G2E3S"]
+    assert shared.modulation == pytest.approx(truth, abs=0.03)
+    assert shared.interval[0] <= truth <= shared.interval[1]
+    own = el.fit_reading(px).result
+    assert abs(own.modulation - truth) > 0.06
+
+
+@pytest.mark.parametrize(("scale", "label"), [(1.0, (2, 4, "sagittal")),
+                                              (0.8, (2, 2, "tangential"))])
+def test_few_sampled_phases_widen_the_interval(scale: float, label: tuple[int, int, str]) -> None:
+    """Fine sets on the axes whose pixels never come near the bar or space centres: the
+    sampling-phase term keeps the truth inside the interval."""
+    scene, px = _control_frame(scale, 12, 1)
+    fit = find_chart(px)
+    readings = dict(zip([e.label for e in fit.found], read_chart(px, fit), strict=True))
+    g, e, o = label
+    r = readings[f"G{g}E{e}{o[0].upper()}"]
+    truth = frame_truth_modulation(scene, scene.bar_set(g, e, o), 12)  # type: ignore[arg-type]
+    assert r.interval[0] <= truth <= r.interval[1]
+    assert abs(r.modulation - truth) <= 0.04
+
+
+def test_a_small_pose_error_is_fitted_as_a_shift() -> None:
+    """The pose's centre up to 0.1 px off across 2.3 px periods: the fitted shift is applied
+    and the fit repeated (the first-order shift term alone left 0.012 at 0.06 px)."""
+    scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.0, 6.0))
+    roi, geometry, truth = noiseless_roi(scene, (2, 3, "sagittal"))
+    r_c, c_c = geometry["centre_rc"]  # type: ignore[misc]
+    for d in (-0.1, -0.06, 0.06, 0.1):
+        t = math.radians(float(geometry["theta_deg"]))  # type: ignore[arg-type]
+        off = {**geometry, "centre_rc": (r_c + d * math.sin(t), c_c + d * math.cos(t))}
+        r = read_three_bars(roi, **off)  # type: ignore[arg-type]
+        assert r.modulation == pytest.approx(truth, abs=0.002)

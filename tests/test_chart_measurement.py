@@ -16,7 +16,9 @@ from benchlab.analysis import estimate_modulation
 from benchlab.analysis.chart import ROI_END_MARGIN_PX, RadialLayout
 from benchlab.analysis.chart_finder import (
     GENERIC_MIN_OBLIQUE_PX_PER_PERIOD,
+    READING_END_PX,
     _measurement_roi,
+    _reading_roi,
     find_chart,
 )
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set_roi
@@ -53,6 +55,27 @@ def test_whole_period_roi_spans_three_periods_off_the_bar_ends(theta: float, wid
         lines = c1 - c0 if theta == 0.0 else r1 - r0
         lo = (centre[1] if theta == 0.0 else centre[0]) - 3.0 * width
         assert lines == math.floor(lo + 6.0 * width) - math.ceil(lo) + 1
+
+
+def test_the_reading_roi_runs_past_the_bar_ends_unless_a_neighbour_is_there() -> None:
+    me = _posed((300.0, 300.0), 2.0, 0.0)
+    shape = (1024, 1280)
+    box = me.whole_period_roi
+    longer = _reading_roi(me, [me], shape, box)
+    assert longer is not None
+    # same columns (three whole periods across); the rows reach the bar ends (295 and 305),
+    # the pixel apertures at most READING_END_PX past them
+    assert (longer[1], longer[3]) == (box[1], box[3])
+    assert longer[0] < box[0] and longer[2] > box[2]
+    assert longer[0] <= 295 and longer[2] - 1 >= 305
+    assert longer[0] - 0.5 >= 295.0 - READING_END_PX and longer[2] - 0.5 <= 305.0 + READING_END_PX
+    # a set just beyond the bar ends: the measurement ROI
+    below = _posed((300.0 + 5.0 + 5.6, 300.0), 2.0, 0.0)
+    assert _reading_roi(me, [me, below], shape, box) is None
+    # off the frame, or a measurement ROI that is not the whole-period one: none
+    assert _reading_roi(_posed((3.0, 300.0), 2.0, 0.0), [], shape,
+                        _posed((3.0, 300.0), 2.0, 0.0).whole_period_roi) is None
+    assert _reading_roi(me, [me], shape, me.roi) is None
 
 
 def test_priors_give_the_axis_only_for_bars_on_an_axis() -> None:
