@@ -135,11 +135,64 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
     return "\n".join(lines)
 
 
-def sfr_command(args: argparse.Namespace) -> int:
-    """``benchlab sfr IMAGE --roi R0,C0,R1,C1``."""
-    from benchlab.analysis.sfr import SfrRefused, measure_sfr
+def _read_frames(
+    paths: list[Path], roi_text: str
+) -> tuple[Any, tuple[int, int, int, int], float | None, list[Path]]:
+    """The ROI of every frame: one image, a multi-page TIFF or several files of one shape.
+    Returns the region (rows, cols) or (frames, rows, cols), the ROI, the full scale and the
+    file of each frame."""
+    import numpy as np
 
-    path = Path(args.image)
+    from benchlab.analysis.sfr import full_scale_of
+
+    regions, sources = [], []
+    roi: tuple[int, int, int, int] | None = None
+    shape = None
+    for p in paths:
+        pixels = read_image(p)
+        if shape is None:
+            shape = pixels.shape[-2:]
+            roi = parse_roi(roi_text, pixels.shape, p)
+        elif pixels.shape[-2:] != shape:
+            raise AnalysisInputError(f"{p}: {pixels.shape[-2]} x {pixels.shape[-1]} px, but "
+                                     f"{paths[0]} is {shape[0]} x {shape[1]}: not frames of "
+                                     "one scene")
+        assert roi is not None
+        r0, c0, r1, c1 = roi
+        cut = pixels[..., r0:r1, c0:c1]
+        stack = cut.reshape((-1, *cut.shape[-2:]))
+        regions.append(stack)
+        sources += [p] * stack.shape[0]
+    assert roi is not None
+    dtypes = {r.dtype for r in regions}
+    if len(dtypes) > 1:
+        kinds = ", ".join(sorted(map(str, dtypes)))
+        raise AnalysisInputError(f"the images mix pixel types ({kinds}): not frames of one "
+                                 "camera setting")
+    region = np.concatenate(regions, axis=0)
+    top = full_scale_of(region)
+    return (region[0] if region.shape[0] == 1 else region), roi, top, sources
+
+
+def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -> tuple[Any, Any]:
+    """Frames: the edge of their mean fitted, the frames checked against it (the same edge,
+    :func:`benchlab.analysis.sfr_frames.average_frames`), the SFR of the mean."""
+    from benchlab.analysis.sfr import measure_sfr
+    from benchlab.analysis.sfr_frames import average_frames
+
+    first = measure_sfr(region.mean(axis=0), full_scale=top, fit_order=args.fit_order)
+    check = average_frames(region, first.normal_theta_rad)
+    result = measure_sfr(check.mean, full_scale=top, fit_order=args.fit_order,
+                         bootstrap=args.bootstrap, seed=args.seed)
+    return check, result
+
+
+def sfr_command(args: argparse.Namespace) -> int:
+    """``benchlab sfr IMAGE [IMAGE ...] --roi R0,C0,R1,C1``."""
+    from benchlab.analysis.sfr import SfrRefused, measure_sfr
+    from benchlab.analysis.sfr_frames import FramesDiffer
+
+    path = Path(args.image[0])
     plot = Path(args.plot) if args.plot else None
     if plot is not None:
         if plot.suffix.lower() not in PLOT_SUFFIXES:
@@ -149,28 +202,31 @@ def sfr_command(args: argparse.Namespace) -> int:
     if args.bootstrap < 0:
         raise AnalysisInputError(f"--bootstrap must be >= 0, got {args.bootstrap}")
     freqs = _parse_freqs(args.freq)
-    pixels = read_image(path)
-    roi = parse_roi(args.roi, pixels.shape, path)
-    r0, c0, r1, c1 = roi
-    region = pixels[..., r0:r1, c0:c1]
-    from benchlab.analysis.sfr import full_scale_of
-
-    top = full_scale_of(region)
-    if region.ndim == 3:  # a multi-page TIFF: average the frames (less noise, same edge)
-        region = region.mean(axis=0)
+    region, roi, top, sources = _read_frames([Path(p) for p in args.image], args.roi)
+    frames_check = None
     try:
-        result = measure_sfr(region, full_scale=top, fit_order=args.fit_order,
-                             bootstrap=args.bootstrap, seed=args.seed)
+        if region.ndim == 3 and region.shape[0] > 1:
+            frames_check, result = _average_checked(region, top, args)
+        else:
+            result = measure_sfr(region.reshape(region.shape[-2:]), full_scale=top,
+                                 fit_order=args.fit_order, bootstrap=args.bootstrap,
+                                 seed=args.seed)
     except SfrRefused as exc:
         raise AnalysisInputError(f"{path} roi {','.join(map(str, roi))}: {exc}") from None
+    except FramesDiffer as exc:
+        raise AnalysisInputError(f"{sources[exc.frame]} roi {','.join(map(str, roi))}: "
+                                 f"{exc}") from None
     except ValueError as exc:
         raise AnalysisInputError(f"{path}: {exc}") from exc
     if plot is not None:
         _plot(result, plot, f"{path.name} roi {','.join(map(str, roi))}")
+    n_frames = 1 if frames_check is None else frames_check.frames
+    shift = None if frames_check is None else round(frames_check.max_shift_px, 4)
     if args.json:
         payload = result.to_dict()
         payload.update({
-            "image": str(path), "roi": list(roi),
+            "image": str(path), "images": [str(Path(p)) for p in args.image], "roi": list(roi),
+            "frames": n_frames, "frames_max_shift_px": shift,
             "mtf50_lp_per_mm": None if result.mtf50_cycles_per_px is None
             else _lp_per_mm(result.mtf50_cycles_per_px),
             "freqs_lp_per_mm": [round(_lp_per_mm(f), 4) for f in payload["freqs_cycles_per_px"]],
@@ -180,6 +236,9 @@ def sfr_command(args: argparse.Namespace) -> int:
         print(json.dumps(payload, allow_nan=False))
         return 0
     print(_text(result, path, roi, _at_freqs(result, freqs)))
+    if frames_check is not None:
+        print(f"frames             {n_frames} averaged (noise / {n_frames ** 0.5:.2f}); the edge "
+              f"moved at most {frames_check.max_shift_px:.3f} px between them")
     if plot is not None:
         print(f"plot: {plot}")
     return 0
@@ -270,7 +329,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
             "0 deg, clipped, too short, no edge) is an error naming the reason."
         ),
     )
-    p.add_argument("image", metavar="IMAGE", help="image file (TIFF, PNG or BMP)")
+    p.add_argument("image", metavar="IMAGE", nargs="+",
+                   help="image file (TIFF, PNG or BMP); several files, or a multi-page TIFF, "
+                        "are frames of the same edge: checked (the edge must not move by more "
+                        "than 0.1 px) and averaged, which divides the noise by sqrt(frames)")
     p.add_argument("--roi", metavar="R0,C0,R1,C1", required=True,
                    help="region: rows R0..R1 and columns C0..C1, 0-based, end-exclusive")
     p.add_argument("--freq", metavar="LP_PER_MM[,...]",
