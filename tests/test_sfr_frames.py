@@ -99,6 +99,7 @@ def test_cli_averages_frames_from_several_files_and_names_a_moved_one(
     doc = json.loads(capsys.readouterr().out)
     assert doc["frames"] == 2 and doc["frames_max_shift_px"] < MAX_SHIFT_PX
     assert doc["images"] == [str(paths[0]), str(paths[1])]
+    assert doc["lsf_windows"][0]["flat_half_px"] > doc["lsf_windows"][-1]["flat_half_px"]
     assert main(["sfr", *map(str, paths), "--roi", "0,0,100,100"]) == 1
     err = capsys.readouterr().err
     assert "f2.tiff" in err and "moved" in err

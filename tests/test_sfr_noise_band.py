@@ -1,5 +1,6 @@
 """Noise-band pooling of the SFR's debiased power (sfr.NOISE_BAND_*): less noise where the MTF
-is lost in it, no bias where it is not (noise-free sigma 0.3 px, a non-Gaussian box LSF)."""
+is lost in it, no bias where it is not (noise-free sigma 0.3 px, a non-Gaussian box LSF); the
+LSF windows the SFR reports."""
 
 from __future__ import annotations
 
@@ -77,3 +78,19 @@ def test_a_box_lsf_with_a_zero_below_nyquist_is_measured_unbiased(
     assert float(np.max(np.abs(pooled - truth))) < (0.002 if noise == 0 else 0.02)
     monkeypatch.setattr(sfr, "NOISE_BAND_CYCLES_PER_PX", 0.0)
     assert float(np.max(np.abs(measure_sfr(img).mtf_at(F_NYQ) - pooled))) < 0.005
+
+
+@pytest.mark.parametrize("sigma", [0.3, 3.0])
+def test_lsf_windows_are_reported_and_narrow_with_frequency(sigma: float) -> None:
+    res = measure_sfr(synthetic_edge((100, 100), 7.0, sigma, noise_sigma=0.006, bits=12,
+                                     rng=np.random.default_rng(2)).astype(np.uint16))
+    wins = res.lsf_windows
+    assert 2 <= len(wins) <= 3 and wins[0].from_cycles_per_px == 0.0
+    # The widest window's flat top holds the Gaussian LSF to +-3 sigma (and the pixel).
+    assert wins[0].flat_half_px >= 3.0 * sigma + 0.5
+    for wide, narrow in zip(wins, wins[1:], strict=False):
+        assert narrow.flat_half_px <= wide.flat_half_px
+        assert wide.full_from_cycles_per_px <= narrow.from_cycles_per_px
+        assert narrow.from_cycles_per_px < narrow.full_from_cycles_per_px
+    assert res.to_dict()["lsf_windows"][0]["flat_half_px"] == pytest.approx(
+        wins[0].flat_half_px, abs=1e-4)

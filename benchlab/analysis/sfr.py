@@ -140,6 +140,26 @@ NOISE_BAND_LO = 1.0
 NOISE_BAND_HI = 3.0
 
 
+@dataclass(frozen=True)
+class LsfWindow:
+    """One of the frequency-dependent LSF windows (Tukey, centred on the LSF near the edge).
+
+    Attributes
+    ----------
+    flat_half_px, total_half_px : float
+        Half-width of the flat top and of the whole window (taper included), px along the
+        normal.
+    from_cycles_per_px, full_from_cycles_per_px : float
+        It is blended in from the first frequency and alone from the second (0, 0 for the
+        widest, used from zero frequency); a narrower one takes over above.
+    """
+
+    flat_half_px: float
+    total_half_px: float
+    from_cycles_per_px: float
+    full_from_cycles_per_px: float
+
+
 class SfrRefused(ValueError):
     """The ROI holds no edge the SFR can be measured on; ``reasons`` says why (all of them)."""
 
@@ -218,6 +238,9 @@ class SfrResult:
         The oversampled ESF (bin centres along the normal, px from the edge) and the windowed
         LSF used.
     warnings : tuple of str
+    lsf_windows : tuple of LsfWindow
+        The LSF windows chosen from the data (their widths from the measured 10-90 % rise),
+        widest first, each with the frequencies where it takes over.
     """
 
     freqs_cycles_per_px: FloatArray
@@ -241,6 +264,7 @@ class SfrResult:
     esf: FloatArray
     lsf: FloatArray
     warnings: tuple[str, ...]
+    lsf_windows: tuple[LsfWindow, ...] = ()
 
     def mtf_at(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
         """MTF interpolated at the given frequencies (cycles/px, 0..1)."""
@@ -274,6 +298,11 @@ class SfrResult:
             "edge_rows": self.edge_rows,
             "fit_rms_px": self.fit.rms_px,
             "warnings": list(self.warnings),
+            "lsf_windows": [{"flat_half_px": round(w.flat_half_px, 4),
+                             "total_half_px": round(w.total_half_px, 4),
+                             "from_cycles_per_px": round(w.from_cycles_per_px, 4),
+                             "full_from_cycles_per_px": round(w.full_from_cycles_per_px, 4)}
+                            for w in self.lsf_windows],
             "freqs_cycles_per_px": grid.tolist(),
             "mtf": [round(float(v), 6) for v in self.mtf_at(grid)],
             "mtf_sigma": None if sig is None else [round(float(v), 6) for v in sig],
@@ -466,6 +495,7 @@ class _Spectrum:
     mid: FloatArray  # midpoints, px
     truncated: bool  # the window had to stop short of the LSF core
     sigma: FloatArray | None  # 1-sigma per frequency from the sample variances (if given)
+    windows: tuple[LsfWindow, ...] = ()  # the LSF windows used, widest first
 
 
 @dataclass(frozen=True)
@@ -568,6 +598,9 @@ def _mtf_from_samples(
     f_wide = min(WIDE_UP_TO_RISES / max(rise_px, 1e-6), WIDE_UP_TO_MAX_CYCLES_PER_PX)
     blend = _tukey(f, f_wide, 2.0 * f_wide)
     win_f = blend[:, None] * win[inside] + (1.0 - blend)[:, None] * win_n  # (freq, increment)
+    windows = [LsfWindow(min(flat_half_px, 0.8 * total), total, 0.0, 0.0),
+               LsfWindow(min(narrow_half, 0.8 * total), min(total, NARROW_TAPER * narrow_half),
+                         f_wide, 2.0 * f_wide)]
     if CORE_FROM_F_WIDE > 0:
         core_half = max(CORE_RISES * rise_px + CORE_EXTRA_PX, NARROW_MIN_PX)
         if core_half < narrow_half:
@@ -576,6 +609,10 @@ def _mtf_from_samples(
                            min(narrow_total, CORE_TAPER * core_half))
             b2 = _tukey(f, CORE_FROM_F_WIDE * f_wide, 1.5 * CORE_FROM_F_WIDE * f_wide)
             win_f = b2[:, None] * win_f + (1.0 - b2)[:, None] * win_c
+            windows.append(LsfWindow(min(core_half, 0.8 * narrow_total),
+                                     min(narrow_total, CORE_TAPER * core_half),
+                                     CORE_FROM_F_WIDE * f_wide,
+                                     1.5 * CORE_FROM_F_WIDE * f_wide))
     phase = (2.0 * math.pi) * np.outer(f, x)
     cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
@@ -632,7 +669,8 @@ def _mtf_from_samples(
         if NOISE_BAND_CYCLES_PER_PX > 0:
             excess = _pool_noise_band(excess, power)
         mtf_raw = np.sqrt(np.clip(excess, 0.0, None))
-    return _Spectrum(np.asarray(mtf_raw * correction, np.float64), lsf, mid, truncated, sigma)
+    return _Spectrum(np.asarray(mtf_raw * correction, np.float64), lsf, mid, truncated, sigma,
+                     tuple(windows))
 
 
 def _pool_noise_band(excess: FloatArray, power: FloatArray) -> FloatArray:
@@ -956,6 +994,7 @@ def measure_sfr(
         esf=samples.esf,
         lsf=lsf_w,
         warnings=tuple(warnings),
+        lsf_windows=spec.windows,
     )
 
 

@@ -101,6 +101,16 @@ def _at_freqs(result: Any, freqs_lp: list[float]) -> list[dict[str, Any]]:
                                   strict=True)]
 
 
+def _windows_text(result: Any) -> str:
+    """The LSF windows chosen: flat half-width / with the taper, and from which frequency."""
+    parts = []
+    for w in result.lsf_windows:
+        when = (f" from {w.full_from_cycles_per_px:.2f} c/px" if w.full_from_cycles_per_px > 0
+                else "")
+        parts.append(f"+-{w.flat_half_px:.1f}/{w.total_half_px:.1f} px{when}")
+    return "; ".join(parts) + " (flat/with taper, from the measured rise)"
+
+
 def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
           chosen: list[dict[str, Any]]) -> str:
     import numpy as np
@@ -121,6 +131,7 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
         f"MTF50              {m50_txt}",
         f"MTF at Nyquist     {result.mtf_nyquist:.4f} (0.5 cycles/px = "
         f"{_lp_per_mm(0.5):.2f} lp/mm)",
+        f"LSF windows        {_windows_text(result)}",
         "",
         f"{'cycles/px':>9}  {'lp/mm':>7}  {'MTF':>6}  {'1 sigma':>7}",
     ]
