@@ -146,3 +146,19 @@ def test_frames_table_finds_what_snr_20_needs() -> None:
     assert nd.bucket.cases == 4
     text = format_frames(needs)
     assert "SNR 20" in text and f"{nd.floor_frames:>11d}" in text.splitlines()[2]
+
+
+def test_a_different_scene_is_refused_even_where_the_edge_fits() -> None:
+    stack = _frames(3, 50.0, 8)
+    other = synthetic_edge((100, 100), 25.0, 2.0, noise_sigma=0.6 / 50, bits=12,
+                           rng=np.random.default_rng(9))
+    stack[1] = other
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(stack, THETA)
+    assert exc.value.frame == 1
+
+
+def test_noise_free_frames_of_one_edge_pass() -> None:
+    stack = np.stack([synthetic_edge((100, 100), 6.0, 1.0, bits=12) for _ in range(3)])
+    check = average_frames(stack, THETA)
+    assert check.max_shift_px < 1e-9 and check.gain_spread < 1e-9

@@ -12,7 +12,9 @@ harmless to the normalised MTF). The fitted shift at the edge's two ends, scaled
 the *other* frames, is each frame's movement; the frame that moved most is named; it is refused
 above :data:`MAX_SHIFT_PX` when that is also more than :data:`SHIFT_SIGMAS` of its own noise (so
 noisy frames of a still edge are not refused). This is linear and works at any SNR, where
-fitting the edge in each frame alone would fail.
+fitting the edge in each frame alone would fail. A frame whose residual after all four is more
+than :data:`RESIDUAL_RATIO` times the variance its own noise (row differences along the edge)
+explains shows something else and is refused too.
 """
 
 from __future__ import annotations
@@ -29,6 +31,21 @@ FloatArray = npt.NDArray[np.float64]
 MAX_SHIFT_PX = 0.1
 #: ... provided that movement is also this many of its standard errors.
 SHIFT_SIGMAS = 5.0
+
+
+#: A frame whose residual (after the shift, turn, offset and gain) exceeds this many times the
+#: variance its own noise explains is not the same scene.
+RESIDUAL_RATIO = 4.0
+
+
+def _row_noise_var(frame: FloatArray, cos_n: float, sin_n: float) -> float:
+    """Pixel noise variance of one frame from differences between neighbours along the edge
+    (rows for a near-vertical edge, columns for a near-horizontal one): robust (MAD)."""
+    d = np.diff(frame, axis=0 if abs(cos_n) >= abs(sin_n) else 1).ravel()
+    if d.size == 0:
+        return 0.0
+    mad = float(np.median(np.abs(d - np.median(d))))
+    return (1.4826 * mad) ** 2 / 2.0
 
 
 class FramesDiffer(ValueError):
@@ -106,21 +123,35 @@ def average_frames(stack: npt.ArrayLike, normal_theta_rad: float) -> FramesCheck
     noise_var = np.sum((resid - fitted) ** 2, axis=0) / dof  # per frame
     cov_unit = np.linalg.pinv(design.T @ design)
     shift, tilt = coef[0], coef[1]  # edge moves by -(shift + tilt t) along the normal
+    # A frame that differs from the others by more than its own noise is another scene.
+    floor_var = (1e-3 * float(np.ptp(mean))) ** 2
+    if np.all(s == np.round(s)):
+        floor_var += 1.0 / 12.0  # integer codes: the rounding noise
+    own = np.array([max(_row_noise_var(s[k], c, si), floor_var) for k in range(n)])
+    ratio = noise_var / (own * (1.0 - 1.0 / n))
+    k = int(np.argmax(ratio))  # the odd one out differs most from the mean
+    if ratio[k] > RESIDUAL_RATIO:
+        raise FramesDiffer(k, f"frame {k + 1} of {n} differs from the others by "
+                              f"{math.sqrt(noise_var[k]):.3g} RMS, {math.sqrt(ratio[k]):.1f}x "
+                              "its own noise, after allowing for a shift, a turn and an "
+                              "exposure change: not the same scene")
     # From the mean of the *other* frames: n / (n - 1) times the move from the mean of all.
     loo = n / (n - 1)
-    worst, worst_k, worst_se = 0.0, -1, 0.0
+    worst, flagged, flagged_k, flagged_se = 0.0, 0.0, -1, 0.0
     for k in range(n):
         for end in (-1.0, 1.0):
             move = loo * abs(float(shift[k] + end * tilt[k]))
             var = noise_var[k] * (cov_unit[0, 0] + 2 * end * cov_unit[0, 1] + cov_unit[1, 1])
             se = loo * math.sqrt(max(float(var), 0.0))
-            if move > MAX_SHIFT_PX and move > SHIFT_SIGMAS * se and move > worst:
-                worst_k, worst_se = k, se
+            if move > MAX_SHIFT_PX and move > SHIFT_SIGMAS * se and move > flagged:
+                flagged, flagged_k, flagged_se = move, k, se
             worst = max(worst, move)
-    if worst_k >= 0:
-        raise FramesDiffer(worst_k, f"frame {worst_k + 1} of {n}: the edge moved {worst:.2f} "
-                                    f"px from the other frames (> {MAX_SHIFT_PX:g} px, "
-                                    f"{worst / max(worst_se, 1e-12):.0f} standard errors): "
-                                    "not the same scene, averaging would blur the edge")
+    if flagged_k >= 0:
+        raise FramesDiffer(flagged_k, f"frame {flagged_k + 1} of {n}: the edge moved "
+                                      f"{flagged:.2f} px from the other frames (> "
+                                      f"{MAX_SHIFT_PX:g} px, "
+                                      f"{flagged / max(flagged_se, 1e-12):.0f} standard "
+                                      "errors): not the same scene, averaging would blur the "
+                                      "edge")
     gains = coef[3]
     return FramesCheck(mean, n, worst, float(np.max(gains) - np.min(gains)))
