@@ -162,3 +162,17 @@ def test_noise_free_frames_of_one_edge_pass() -> None:
     stack = np.stack([synthetic_edge((100, 100), 6.0, 1.0, bits=12) for _ in range(3)])
     check = average_frames(stack, THETA)
     assert check.max_shift_px < 1e-9 and check.gain_spread < 1e-9
+
+
+def test_cli_refuses_frames_clipped_in_some_frames_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The mean of a clipped and an unclipped frame is below full scale: checked per frame.
+    bright = synthetic_edge((80, 80), 6.0, 1.0, dark=0.3, bright=1.2, bits=12)
+    dim = synthetic_edge((80, 80), 6.0, 1.0, dark=0.3 * 0.7, bright=1.2 * 0.7, bits=12)
+    paths = [tmp_path / "bright.tiff", tmp_path / "dim.tiff"]
+    for path, img in zip(paths, (bright, dim), strict=True):
+        tifffile.imwrite(path, img.astype(np.uint16), photometric="minisblack")
+    assert float(np.max((bright + dim) / 2)) < 4095
+    assert main(["sfr", *map(str, paths), "--roi", "0,0,80,80"]) == 1
+    assert "clipped" in capsys.readouterr().err

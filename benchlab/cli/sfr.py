@@ -188,13 +188,26 @@ def _read_frames(
 def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -> tuple[Any, Any]:
     """Frames: the edge of their mean fitted, the frames checked against it (the same edge,
     :func:`benchlab.analysis.sfr_frames.average_frames`), the SFR of the mean."""
-    from benchlab.analysis.sfr import measure_sfr
+    import dataclasses
+
+    import numpy as np
+
+    from benchlab.analysis.sfr import CLIP_REFUSE_FRACTION, SfrRefused, measure_sfr
     from benchlab.analysis.sfr_frames import average_frames
 
+    # Clipping per frame: a pixel clipped in some frames only is not at full scale in the mean.
+    clipped = 0.0 if top is None else float(np.mean((region <= 0) | (region >= top)))
+    if clipped > CLIP_REFUSE_FRACTION:
+        raise SfrRefused([f"{100 * clipped:.1f} % of the frames' pixels are clipped at 0 or "
+                          f"full scale ({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF "
+                          "is flattened"])
     first = measure_sfr(region.mean(axis=0), full_scale=top, fit_order=args.fit_order)
     check = average_frames(region, first.normal_theta_rad)
     result = measure_sfr(check.mean, full_scale=top, fit_order=args.fit_order,
                          bootstrap=args.bootstrap, seed=args.seed)
+    if clipped > 0 and result.clipped_fraction == 0:
+        note = f"{100 * clipped:.2f} % of the frames' pixels clipped (0 or {top:g})"
+        result = dataclasses.replace(result, warnings=(*result.warnings, note))
     return check, result
 
 
