@@ -198,9 +198,9 @@ def _verdict(b: Bucket) -> tuple[str, bool]:
     failed_50 = b.mtf50_within < PASS_FRACTION
     notes = []
     if failed_mtf and r_mtf > 1:
-        notes.append(f"MTF(Nyq) floor {r_mtf:.1f}x")
+        notes.append(f"MTF(Nyq) floor {r_mtf:.2f}x")
     if failed_50 and r_50 > 1:
-        notes.append(f"MTF50 floor {r_50:.1f}x")
+        notes.append(f"MTF50 floor {r_50:.2f}x")
     if notes:
         return f"FAIL, below the model-free floor ({', '.join(notes)} what 95 % needs)", True
     return "FAIL (the floor allows a pass)", False
@@ -272,7 +272,7 @@ def format_by_length(results: dict[int, list[Bucket]]) -> str:
             if b.passed:
                 cells.append("pass")
             else:
-                cells.append(f"FAIL (floor {r:.1f}x)" if r > 1 else "FAIL (floor ok)")
+                cells.append(f"FAIL (floor {r:.2f}x)" if r > 1 else "FAIL (floor ok)")
         lines.append(f"{b0.sigma_px:>8.1f} {b0.snr:>5.0f}" + "".join(f" {c:>22}" for c in cells))
     n_judged = sum(1 for b in first if b.judged and math.isfinite(b.snr))
     lines.append("passing buckets (SNR 20-500): " + ", ".join(
