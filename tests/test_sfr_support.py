@@ -55,3 +55,19 @@ def test_noise_and_an_illumination_slope_leave_a_gaussian_window_alone(
     wide = measure_sfr(roi).lsf_windows[0].flat_half_px
     monkeypatch.setattr(sfr, "SUPPORT_SIGMAS", 0.0)
     assert wide == pytest.approx(measure_sfr(roi).lsf_windows[0].flat_half_px, abs=0.5)
+
+
+def test_benchmark_scores_non_gaussian_lsfs_against_their_own_truth() -> None:
+    from benchlab.analysis.sfr_benchmark import (
+        NON_GAUSSIAN,
+        NON_GAUSSIAN_SNRS,
+        format_non_gaussian,
+        run_non_gaussian,
+    )
+
+    rows = run_non_gaussian(cases=1, seed=4)
+    assert len(rows) == len(NON_GAUSSIAN) * len(NON_GAUSSIAN_SNRS)
+    noise_free = [r for r in rows if math.isinf(r[1])]
+    assert all(r[2] == 1.0 and r[3] == 1.0 and r[4] < 0.015 for r in noise_free)
+    text = format_non_gaussian(rows)
+    assert "halo" in text and "box 3 px" in text and text.count("\n") == len(rows) + 1
