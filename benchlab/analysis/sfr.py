@@ -713,8 +713,8 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     centre = int(np.argmin(np.abs(at)))
     floor = SUPPORT_FLOOR_OF_STEP * abs(noise.bright - noise.dark)
     reach = 0.0
-    for side, walk in ((np.flatnonzero(full[:centre]), range(centre, -1, -1)),
-                       (centre + np.flatnonzero(full[centre:]), range(centre, at.size))):
+    for side, sign in ((np.flatnonzero(full[:centre]), -1),
+                       (centre + np.flatnonzero(full[centre:]), 1)):
         k_out = max(3, int(SUPPORT_PLATEAU_FRACTION * side.size))
         if side.size < 2 * k_out:
             continue
@@ -727,11 +727,9 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
             1.0 / outer.size + (at - x.mean()) ** 2 / max(sxx, 1e-12))
         limit = np.maximum(SUPPORT_SIGMAS * np.sqrt(sd * sd + v_line), floor)
         dev = np.abs(smooth - np.polyval(line, at)) > limit
-        last = centre
-        for i in walk:
-            if not dev[i]:
-                break
-            last = i
+        walk = dev[centre::-1] if sign < 0 else dev[centre:]  # outwards from the edge
+        run = int(np.argmin(walk)) if not walk.all() else walk.size
+        last = centre + sign * max(run - 1, 0)
         reach = max(reach, abs(float(at[last])) + 0.5 * m * step)
     return reach
 
