@@ -46,6 +46,7 @@ is not significant above the noise, is "not resolved" with the reason.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -102,6 +103,27 @@ MODEL_ABS_SD = 0.002
 #: the nearest pixel phase stays from the bar centre or a space centre; there the levels rest
 #: on the model's shape between samples (bars on a pixel axis near 2 px per period).
 PHASE_GAP_REL = 2.0
+#: Defocus across the bars: the uniform disc's share of the PSF's variance (disc radius
+#: ``2 sigma sqrt(share)``, the rest Gaussian) tried besides the pure Gaussian, each on a grid of
+#: this many equivalent sigmas (a disc reverses the contrast past its first OTF zero, which no
+#: Gaussian can).
+DISC_SHARES = (0.5, 1.0)
+DISC_SIGMA_GRID = 32
+#: A defocus shape is chosen over the Gaussian only when it lowers the chi-square by more than
+#: this (twice the extra parameter's price in Akaike's criterion: chance alone rarely pays
+#: it); within it, its reading widens the interval instead.
+DISC_PENALTY = 4.0
+#: ... and by more than this share of the Gaussian's residual sum of squares (noise-free frames
+#: have a chi-square scale near zero: a slightly non-linear shading would otherwise buy a disc).
+DISC_REL_GAIN = 0.25
+#: Defocus shapes are tried from this equivalent sigma (px) up: below it the pixel footprint
+#: dominates the blur and the shape only absorbs other model errors (a noise-free simulated
+#: chart at sigma 0.16 px bought a disc share and read 0.007 low).
+DISC_MIN_SIGMA_PX = 0.3
+#: Misfit: residual variance beyond the white noise counts when above this many standard errors
+#: (the difference estimate's relative variance about ``MISFIT_VAR_FACTOR / n``).
+MISFIT_Z = 3.0
+MISFIT_VAR_FACTOR = 5.0
 #: The sharp pattern is tabulated every this many px (at most this many points) and blurred
 #: through its spectrum.
 GRID_STEP_PX = 0.02
@@ -142,6 +164,31 @@ def three_bar_pattern(
     return out
 
 
+def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
+    """Spectrum of a uniform disc's line spread (defocus): ``2 J1(x) / x``, ``x = 2 pi R f``.
+
+    Parameters
+    ----------
+    radius_px : array_like
+        Disc radii (px, >= 0), shape (m,).
+    freqs_cycles_per_px : array_like
+        Frequencies (cycles/px, >= 0), shape (n,).
+
+    Returns
+    -------
+    ndarray
+        (m, n) gains; 1 at ``f = 0``, negative between the first zeros (``x`` = 3.83-7.02):
+        the contrast reversal of a defocused lens.
+    """
+    from scipy.special import j1  # only the defocus family needs it
+
+    x = 2.0 * math.pi * np.outer(np.asarray(radius_px, dtype=np.float64),
+                                 np.asarray(freqs_cycles_per_px, dtype=np.float64))
+    small = x < 1e-6
+    safe = np.where(small, 1.0, x)
+    return np.asarray(np.where(small, 1.0, 2.0 * j1(safe) / safe), dtype=np.float64)
+
+
 class _Blurred:
     """Bars (intervals of a 1-D coordinate) seen through the pixel footprint and a Gaussian of
     many widths, fast: the sharp pattern (footprint alone, closed form) is tabulated once on a
@@ -168,14 +215,29 @@ class _Blurred:
         self.n = n
         self.idx, self.frac = self._weights(pos)
 
+    def moved(self, pos: FloatArray) -> _Blurred:
+        """The same tabulation read at other positions ``pos``."""
+        out = copy.copy(self)
+        out.idx, out.frac = self._weights(pos)
+        return out
+
     def _weights(self, pos: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
         x = (np.asarray(pos, dtype=np.float64) - self.lo) / self.step
         idx = np.clip(np.floor(x).astype(np.intp), 0, self.n - 2)
         return idx, x - idx
 
-    def tables(self, sigmas: FloatArray) -> FloatArray:
-        """The blurred pattern on the grid, one row per blur."""
-        gain = np.exp(-2.0 * math.pi**2 * np.outer(sigmas * sigmas, self.freqs2))
+    def tables(self, sigmas: FloatArray, disc_shares: FloatArray | None = None) -> FloatArray:
+        """The blurred pattern on the grid, one row per blur: ``sigmas`` the PSF's equivalent
+        sigma (px), ``disc_shares`` the disc's share of its variance (default 0: Gaussian)."""
+        sigmas = np.asarray(sigmas, dtype=np.float64)
+        share = np.zeros_like(sigmas) if disc_shares is None else np.asarray(disc_shares)
+        gauss_var = sigmas * sigmas * (1.0 - share)
+        gain = np.exp(-2.0 * math.pi**2 * np.outer(gauss_var, self.freqs2))
+        disc = share > 0
+        if np.any(disc):
+            # a uniform disc of radius R has a line spread of variance R^2 / 4
+            gain[disc] *= disc_gain(2.0 * sigmas[disc] * np.sqrt(share[disc]),
+                                    np.sqrt(self.freqs2))
         return np.fft.irfft(self.spectrum[None, :] * gain, n=self.n, axis=1)
 
     def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
@@ -208,8 +270,9 @@ class _Batch:
         bar = self.coef[:, 0] + self.coef[:, -1] * self.p_bar
         space = self.coef[:, 0] + self.coef[:, -1] * self.p_space
         total = bar + space
+        sign = np.where(self.coef[:, -1] > 0, -1.0, 1.0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(total > 0, np.abs(space - bar) / total, np.nan)
+            return np.where(total > 0, sign * (space - bar) / total, np.nan)
 
 
 def _solve_batch(
@@ -226,16 +289,17 @@ def _solve_batch(
     design[:, :, :kb] = base[None, :, :]
     for j, col in enumerate(extra):
         design[:, :, kb + j] = col
-    gram = np.einsum("mni,mnj->mij", design, design)
+    design_t = design.transpose(0, 2, 1)
+    gram = design_t @ design
     if ridge is not None:
         gram[:, np.arange(k), np.arange(k)] += ridge
     try:
         inv = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
         inv = np.linalg.pinv(gram)
-    rhs = np.einsum("mni,n->mi", design, y)
-    coef = np.einsum("mij,mj->mi", inv, rhs)
-    resid = y[None, :] - np.einsum("mni,mi->mn", design, coef)
+    rhs = design_t @ y
+    coef = (inv @ rhs[:, :, None])[:, :, 0]
+    resid = y[None, :] - (design @ coef[:, :, None])[:, :, 0]
     rss = np.einsum("mn,mn->m", resid, resid)
     penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
     return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
@@ -256,6 +320,7 @@ class ThreeBarReading:
     blur_sigma_px: float | None = None
     blur_range_px: tuple[float, float] | None = None
     _state: _FitState | None = None
+    blur_disc_share: float = 0.0
 
     def with_blur_prior(self, blur_prior_px: tuple[float, float]) -> ThreeBarReading:
         """The reading under a Gaussian prior (mean, sd; px) on the blur across the bars (the
@@ -408,7 +473,7 @@ def fit_three_bars(
     shift = state.shift_px()
     if abs(shift) >= REFIT_SHIFT_PX:
         state = _FitState(base, u - shift, v, y, bar_width_px, theta, shift_prior_px,
-                          quantum_sd, diag, warnings)
+                          quantum_sd, diag, warnings, reuse=state)
     return state.conclude(blur_prior_px)
 
 
@@ -419,27 +484,50 @@ class _FitState:
     def __init__(
         self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
         theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
-        warnings: list[str],
+        warnings: list[str], reuse: _FitState | None = None,
     ) -> None:
+        """``reuse``: a state of the same set at other ``u`` (a shift applied), whose tabulated
+        patterns serve again (the grid reaches several px beyond any shift)."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
         self.phase_gap = _phase_gap(u, w)
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
                         MAX_SIGMA_BOUNDS_PX[1])
-        self.across = _Blurred(u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)],
-                               theta, max_sigma)
-        # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
-        # when the ROI comes within their reach (the ROI trims the ends by a fraction of a px)
-        foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
-        near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
-        self.along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
+        if reuse is None:
+            self.across = _Blurred(
+                u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta, max_sigma)
+            # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
+            # when the ROI comes within their reach (the ROI trims the ends by a fraction of a
+            # px)
+            foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
+            near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
+            self.along = (_Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends
+                          else None)
+        else:
+            self.across, self.along = reuse.across.moved(u), reuse.along
         self.sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
-        t_across = self.across.tables(self.sigmas)
+        # across the bars the family holds defocus too: the disc's share of the PSF's variance
+        # at DISC_SHARES, each on a coarser grid of the equivalent sigma (rows after the
+        # Gaussian ones; ``groups`` the row ranges, each in ascending sigma)
+        coarse_sigmas = max_sigma * np.linspace(0.0, 1.0, DISC_SIGMA_GRID)[1:] ** 2
+        sig_rows, share_rows = [self.sigmas], [np.zeros(SIGMA_GRID)]
+        self.groups = [(0, SIGMA_GRID)]
+        for share in DISC_SHARES:
+            start = self.groups[-1][1]
+            sig_rows.append(coarse_sigmas)
+            share_rows.append(np.full(coarse_sigmas.size, share))
+            self.groups.append((start, start + coarse_sigmas.size))
+        self.sig_all, self.share_all = np.concatenate(sig_rows), np.concatenate(share_rows)
+        self.t_across = (reuse.t_across if reuse is not None
+                         else self.across.tables(self.sig_all, self.share_all))
+        t_across = self.t_across
         self.p_pix = self.across.sample(t_across)
         self.s_pix = self.across.slope(t_across)
         self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
-        if self.along is not None:
-            t_along = self.along.tables(self.sigmas)
+        self.t_along = reuse.t_along if reuse is not None else (
+            self.along.tables(self.sigmas) if self.along is not None else None)
+        if self.along is not None and self.t_along is not None:
+            t_along = self.t_along
             a_pix = self.along.sample(t_along)
             a_mid = self.along.sample(t_along, np.zeros(1))[:, 0]
         else:
@@ -465,21 +553,48 @@ class _FitState:
             self.along_fits = self._fit(np.full_like(every, i_u), every, a_pix, a_mid, self.ridge)
             i_v = int(np.argmin(self.along_fits.cost))
         self.a_best = (a_pix[i_v], float(a_mid[i_v]))
-        self.fits = self._fit(every, np.full_like(every, i_v), a_pix, a_mid, self.ridge)
+        rows = np.arange(self.sig_all.size)
+        self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
         rss_data = float(np.min(self.fits.cost - self.fits.penalty))
         dof = n - _n_params(base) - 1
         noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
         self.noise = max(noise, quantum_sd)
         self.scale = self.noise**2 if self.noise > 0 else max(float(self.fits.cost.min()), 1e-300)
         chi2 = (self.fits.cost - self.fits.cost.min()) / self.scale
-        allowed = self.sigmas[chi2 <= 1.0]
+        allowed = self.sig_all[chi2 <= 1.0]
         self.blur_range = (float(allowed.min()), float(allowed.max()))
+        # the best fit, a defocus shape paying its price (:data:`DISC_PENALTY`)
+        gauss_rss = float(np.min((self.fits.cost - self.fits.penalty)[:SIGMA_GRID]))
+        self.disc_price = max(DISC_PENALTY, DISC_REL_GAIN * gauss_rss / self.scale)
+        self.shape_price = np.where(
+            self.share_all > 0,
+            np.where(self.sig_all >= DISC_MIN_SIGMA_PX, self.disc_price, np.inf), 0.0)
+        self.best_row = int(np.argmin(chi2 + self.shape_price))
+        self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
+
+    def _misfit(self, row: int, u: FloatArray, a: FloatArray, quantum_sd: float) -> float:
+        """RMS of the residuals' structure beyond the noise at fit ``row`` (0 when not
+        significant): the residual variance minus the white noise's, the latter from
+        successive differences of the residuals in order of ``u`` (a misfit is smooth in ``u``
+        and cancels there; noise does not). A term that does not shrink with pixel count."""
+        design = np.column_stack([self.base, self.s_pix[row] * a, self.p_pix[row] * a])
+        resid = self.y - design @ self.fits.coef[row]
+        n = resid.size
+        dof = n - _n_params(self.base) - 1
+        if dof <= 0 or n < 3:
+            return 0.0
+        steps = np.diff(resid[np.argsort(u, kind="stable")])
+        white_sq = max(0.5 * float(np.mean(steps * steps)), quantum_sd**2)
+        excess = float(resid @ resid) / dof - white_sq
+        if excess <= MISFIT_Z * white_sq * math.sqrt(MISFIT_VAR_FACTOR / n):
+            return 0.0
+        return math.sqrt(excess)
 
     def shift_px(self) -> float:
         """The set's shift across the bars (px) in the best fit: the shift column's
         coefficient over the bar depth, ``-c / s`` (0 when the depth vanishes); at most half a
         bar width."""
-        i = int(np.argmin(self.fits.cost))
+        i = self.best_row
         c, depth = float(self.fits.coef[i, -2]), float(self.fits.coef[i, -1])
         if depth == 0.0:
             return 0.0
@@ -495,9 +610,9 @@ class _FitState:
         return _solve_batch(self.base, [self.s_pix[i_u] * a, self.p_pix[i_u] * a], self.y,
                             ridge, probe[:, 0], 0.5 * (probe[:, 1] + probe[:, 2]))
 
-    def _fit_at(self, sigma: float) -> _Batch:
+    def _fit_at(self, sigma: float, disc_share: float) -> _Batch:
         """One fit at an off-grid blur across the bars (the along-bar blur at its best)."""
-        table = self.across.tables(np.array([sigma]))
+        table = self.across.tables(np.array([sigma]), np.array([disc_share]))
         a_pix, a_mid = self.a_best
         probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
         return _solve_batch(self.base, [self.across.slope(table) * a_pix,
@@ -506,26 +621,29 @@ class _FitState:
 
     def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
         """The reading at the blur the fits (and the prior) favour, with its interval."""
-        sigmas, fits = self.sigmas, self.fits
+        sigmas, fits = self.sig_all, self.fits
 
-        def objective(sig: FloatArray, cost: FloatArray) -> FloatArray:
-            out = cost / self.scale
+        def objective(sig: FloatArray, cost: FloatArray, price: FloatArray) -> FloatArray:
+            out = cost / self.scale + price
             if blur_prior_px is not None:
                 out = out + ((sig - blur_prior_px[0]) / blur_prior_px[1]) ** 2
             return np.asarray(out, dtype=np.float64)
 
-        obj = objective(sigmas, fits.cost)
+        obj = objective(sigmas, fits.cost, self.shape_price)
         i = int(np.argmin(obj))
         best, k, sigma_best, obj_best = fits, i, float(sigmas[i]), float(obj[i])
-        if 0 < i < sigmas.size - 1:  # parabola through the best grid point and its neighbours
+        share_best = float(self.share_all[i])
+        lo, hi = next(g for g in self.groups if g[0] <= i < g[1])
+        if lo < i < hi - 1:  # parabola through the best grid point and its neighbours
             x0, x1, x2 = sigmas[i - 1:i + 2]
             y0, y1, y2 = obj[i - 1:i + 2]
             den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
             if den != 0:
                 vertex = x1 - 0.5 * ((x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)) / den
                 if x0 < vertex < x2:
-                    cand = self._fit_at(float(vertex))
-                    cand_obj = float(objective(np.array([vertex]), cand.cost)[0])
+                    cand = self._fit_at(float(vertex), share_best)
+                    cand_obj = float(objective(np.array([vertex]), cand.cost,
+                                               self.shape_price[i:i + 1])[0])
                     if cand_obj < obj_best:
                         best, k, sigma_best, obj_best = cand, 0, float(vertex), cand_obj
         coef, inv = best.coef[k], best.inv[k]
@@ -538,7 +656,7 @@ class _FitState:
         depth_sd = noise * math.sqrt(max(float(inv[-1, -1]), 0.0))
         diag_fit = _with(self.diag, noise_sigma=noise, blur_sigma_px=sigma_best,
                          phase_cycles=0.0)
-        if not abs(depth) > RESOLVED_Z * depth_sd or p_bar - p_space <= 0:
+        if not abs(depth) > RESOLVED_Z * depth_sd:
             warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
                             f"({depth_sd:.3g}) of zero: bars not resolved")
             return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
@@ -548,10 +666,12 @@ class _FitState:
             warnings.append("fitted dark level below zero: contrast undefined")
             return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
                                    self.blur_range, self)
-        modulation = eq29_modulation(dark, bright)
-        # noise: m = |bar - space| / (bar + space), bar and space linear in (ground, depth)
+        # Eq. 2.9 with its sign: the level at the bars' centre against the spaces' (dark bars
+        # have depth < 0, a negative target's bright bars > 0); negative = contrast reversed
+        sign = -1.0 if depth > 0 else 1.0
+        modulation = sign * eq29_modulation(bar, space)
+        # noise: m = sign (space - bar) / (bar + space), bar and space linear in (ground, depth)
         total = bar + space
-        sign = 1.0 if space >= bar else -1.0
         dm_dspace, dm_dbar = sign * 2.0 * bar / total**2, -sign * 2.0 * space / total**2
         grad = np.zeros(coef.size)
         grad[0] = dm_dbar + dm_dspace
@@ -562,18 +682,42 @@ class _FitState:
         spreads = [(fits, obj - obj_best)]
         if self.along_fits is not None:
             spreads.append((self.along_fits, (self.along_fits.cost - best.cost[k]) / self.scale))
+        allowed_mods = np.array([modulation])
         for batch, excess in spreads:
             mods = batch.modulations()[(excess <= 1.0)]
             mods = np.append(mods[np.isfinite(mods)], modulation)
+            allowed_mods = np.append(allowed_mods, mods)
             blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
+        # misfit: residual structure beyond the noise, as an error of both levels
+        misfit_sd = self.misfit_rms * math.hypot(dm_dbar, dm_dspace)
         model_sd = math.hypot(
             math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation,
             MODEL_ABS_SD)
+        model_sd = math.hypot(model_sd, misfit_sd)
+        if misfit_sd > 0:
+            warnings.append(f"the residuals show structure beyond the noise (rms "
+                            f"{self.misfit_rms:.3g}): the model misfits; interval widened by "
+                            f"{misfit_sd:.3g}")
         sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
         diag_fit = _with(diag_fit, uncertainty_noise=noise_sd,
                          uncertainty_model=math.hypot(blur_sd, model_sd))
-        result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
-        return ThreeBarReading(result, sigma_best, self.blur_range, self)
+        reversal_allowed = bool(np.any(allowed_mods < 0)) or modulation < 0
+        if modulation < 0 or (reversal_allowed and modulation - 1.96 * sd < 0):
+            if modulation < 0:
+                warnings.append(
+                    f"contrast reversed (spurious resolution): the bars image "
+                    f"{'brighter' if depth < 0 else 'darker'} than the spaces (a PSF past its "
+                    f"first OTF zero, e.g. defocus); modulation {modulation:.3f} +- "
+                    f"{1.96 * sd:.3f}, not a resolved reading")
+            result = ModulationResult(
+                estimator=NAME, dark=bar if depth < 0 else space,
+                bright=space if depth < 0 else bar, modulation=modulation, resolved=True,
+                diagnostics=diag_fit, uncertainty=sd,
+                interval=(max(-1.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
+                warnings=tuple(warnings))
+        else:
+            result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
+        return ThreeBarReading(result, sigma_best, self.blur_range, self, share_best)
 
 
 def _phase_gap(u: FloatArray, bar_width_px: float) -> float:
