@@ -518,13 +518,13 @@ class _FitState:
             share_rows.append(np.full(coarse_sigmas.size, share))
             self.groups.append((start, start + coarse_sigmas.size))
         self.sig_all, self.share_all = np.concatenate(sig_rows), np.concatenate(share_rows)
-        self.t_across = (reuse.t_across if reuse is not None
+        self.t_across: FloatArray = (reuse.t_across if reuse is not None
                          else self.across.tables(self.sig_all, self.share_all))
         t_across = self.t_across
         self.p_pix = self.across.sample(t_across)
         self.s_pix = self.across.slope(t_across)
         self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
-        self.t_along = reuse.t_along if reuse is not None else (
+        self.t_along: FloatArray | None = reuse.t_along if reuse is not None else (
             self.along.tables(self.sigmas) if self.along is not None else None)
         if self.along is not None and self.t_along is not None:
             t_along = self.t_along
