@@ -39,6 +39,17 @@ included), the spread of the reading over the blurs the data (and prior) allow
 space centre (:data:`PHASE_GAP_REL`), and a model term (:data:`MODEL_REL_SD` relative,
 :data:`MODEL_ABS_SD` absolute).
 
+The PSF need not be Gaussian: across the bars the blur family also holds defocus, a uniform
+disc (line spread ``2 sqrt(R^2 - u^2) / (pi R^2)``, spectrum ``2 J1(2 pi R f) / (2 pi R f)``,
+:func:`disc_gain`) taking :data:`DISC_SHARES` of the PSF's variance, the rest Gaussian; every
+shape on its grid of equivalent sigmas is solved in the same batch, and a disc shape is chosen
+only when it pays :data:`DISC_PENALTY` / :data:`DISC_REL_GAIN` in chi-square (within that its
+reading widens the interval through the blur spread). A disc past its first zero reverses the
+contrast (spurious resolution): the reading keeps its sign (negative), with a warning, and its
+interval may go below 0. Residual structure beyond the noise (the residual variance minus the
+white noise's, estimated from successive differences in order of ``u``) adds a misfit term that
+does not shrink with pixel count (:data:`MISFIT_Z`).
+
 Pixels at the saturation code are censored: they are left out of the fit (the model carries the
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
 is not significant above the noise, is "not resolved" with the reason.
