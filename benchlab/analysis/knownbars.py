@@ -521,6 +521,7 @@ class _FitState:
         # at DISC_SHARES, each on a coarser grid of the equivalent sigma (rows after the
         # Gaussian ones; ``groups`` the row ranges, each in ascending sigma)
         coarse_sigmas = max_sigma * np.linspace(0.0, 1.0, DISC_SIGMA_GRID)[1:] ** 2
+        coarse_sigmas = coarse_sigmas[coarse_sigmas >= DISC_MIN_SIGMA_PX]
         sig_rows, share_rows = [self.sigmas], [np.zeros(SIGMA_GRID)]
         self.groups = [(0, SIGMA_GRID)]
         for share in DISC_SHARES:
@@ -577,9 +578,7 @@ class _FitState:
         # the best fit, a defocus shape paying its price (:data:`DISC_PENALTY`)
         gauss_rss = float(np.min((self.fits.cost - self.fits.penalty)[:SIGMA_GRID]))
         self.disc_price = max(DISC_PENALTY, DISC_REL_GAIN * gauss_rss / self.scale)
-        self.shape_price = np.where(
-            self.share_all > 0,
-            np.where(self.sig_all >= DISC_MIN_SIGMA_PX, self.disc_price, np.inf), 0.0)
+        self.shape_price = np.where(self.share_all > 0, self.disc_price, 0.0)
         self.best_row = int(np.argmin(chi2 + self.shape_price))
         self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
 
