@@ -465,7 +465,7 @@ PSF_CHECK_PSFS: tuple[PsfSpec, ...] = (
 )
 PSF_CHECK_BUCKETS_PX: tuple[tuple[float, float], ...] = (
     (1.0, 1.25), (1.25, 1.5), (1.5, 2.0), (2.0, 3.0))
-PSF_CHECK_REPEATS = 3
+PSF_CHECK_REPEATS = 6
 
 
 def _psf_label(p: PsfSpec) -> str:

@@ -567,8 +567,38 @@ class _FitState:
         self.a_best = (a_pix[i_v], float(a_mid[i_v]))
         rows = np.arange(self.sig_all.size)
         self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
+        self._score(quantum_sd)
+        # a defocus shape across the bars blurs the bar ends the same way: the along-bar blur
+        # searched again in that shape, and the fits across redone at its best
+        self.t_along_shape: FloatArray | None = None
+        self.along_group = (0, 0)
+        best_group = next(g for g in self.groups if g[0] <= self.best_row < g[1])
+        if self.along is not None and self.share_all[self.best_row] > 0:
+            lo, hi = best_group
+            self.t_along_shape = (
+                reuse.t_along_shape if reuse is not None and reuse.along_group == best_group
+                and reuse.t_along_shape is not None
+                else self.along.tables(self.sig_all[lo:hi], self.share_all[lo:hi]))
+            self.along_group = best_group
+            a_pix = np.concatenate([a_pix, self.along.sample(self.t_along_shape)])
+            a_mid = np.concatenate([a_mid,
+                                    self.along.sample(self.t_along_shape, np.zeros(1))[:, 0]])
+            every_v = np.arange(a_mid.size)
+            self.along_fits = self._fit(np.full_like(every_v, self.best_row), every_v, a_pix,
+                                        a_mid, self.ridge)
+            i_v2 = int(np.argmin(self.along_fits.cost))
+            if i_v2 != i_v:
+                i_v = i_v2
+                self.a_best = (a_pix[i_v], float(a_mid[i_v]))
+                self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
+                self._score(quantum_sd)
+        self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
+
+    def _score(self, quantum_sd: float) -> None:
+        """Noise, chi-square scale, allowed blurs and the best row of :attr:`fits`."""
+        n = self.y.size
         rss_data = float(np.min(self.fits.cost - self.fits.penalty))
-        dof = n - _n_params(base) - 1
+        dof = n - _n_params(self.base) - 1
         noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
         self.noise = max(noise, quantum_sd)
         self.scale = self.noise**2 if self.noise > 0 else max(float(self.fits.cost.min()), 1e-300)
@@ -580,7 +610,6 @@ class _FitState:
         self.disc_price = max(DISC_PENALTY, DISC_REL_GAIN * gauss_rss / self.scale)
         self.shape_price = np.where(self.share_all > 0, self.disc_price, 0.0)
         self.best_row = int(np.argmin(chi2 + self.shape_price))
-        self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
 
     def _misfit(self, row: int, u: FloatArray, a: FloatArray, quantum_sd: float) -> float:
         """RMS of the residuals' structure beyond the noise at fit ``row`` (0 when not
