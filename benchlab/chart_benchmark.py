@@ -500,7 +500,7 @@ def run_psf_check(seed: int = 0) -> list[dict[str, Any]]:
                         w, theta, psf, rng=rng, full_well_e=20000.0, read_noise_e=10.0,
                         bits=12, centre_offset_px=(float(rng.uniform()), float(rng.uniform())))
                     r = read_three_bars(s.roi, centre_rc=s.centre_rc, bar_width_px=w,
-                                        theta_deg=theta, max_code=s.max_code)
+                                        theta_deg=theta, max_code=s.max_code, dark_bars=True)
                     truth = s.truth_modulation
                     m = r.modulation if r.resolved else None
                     errs.append(None if m is None else m - truth)

@@ -43,6 +43,21 @@ def test_contrast_reversal_is_read_negative_with_the_warning(w: float, theta: fl
     assert r.interval[0] < r.modulation < r.interval[1] and r.interval[0] < 0
 
 
+@pytest.mark.parametrize(("w", "theta"), [(1.1, 17.0), (1.15, 25.0)])
+def test_the_known_polarity_keeps_a_reversal_from_passing_for_a_negative_target(
+    w: float, theta: float
+) -> None:
+    """On the smallest sets a reversed dark-bar set fits about as well as a blurred negative
+    target; told the bars are dark, the reading is the reversal, within 0.01."""
+    s = render_three_bars(w, theta, PsfSpec("disc", radius_px=1.6), bits=16)
+    assert s.truth_modulation < -0.04
+    r = kb.read_three_bars(s.roi, centre_rc=s.centre_rc, bar_width_px=w, theta_deg=theta,
+                           dark_bars=True)
+    assert abs(r.modulation - s.truth_modulation) <= 0.01
+    assert any("contrast reversed" in x for x in r.warnings)
+    assert r.dark is not None and r.bright is not None and r.dark > r.bright
+
+
 def test_a_misfit_widens_the_interval(monkeypatch: pytest.MonkeyPatch) -> None:
     """Bars 4 % narrower in the model than in the image leave structure in the residuals: the
     interval widens (by a term that does not shrink with pixel count) and says why."""

@@ -276,12 +276,14 @@ class _Batch:
     p_bar: FloatArray
     p_space: FloatArray
 
-    def modulations(self) -> FloatArray:
-        """Eq. 2.9 contrast of each fit (NaN where undefined)."""
+    def modulations(self, dark_bars: bool | None = None) -> FloatArray:
+        """Eq. 2.9 contrast of each fit (NaN where undefined), its sign from the polarity
+        (``dark_bars``) or, without it, from each fit's depth."""
         bar = self.coef[:, 0] + self.coef[:, -1] * self.p_bar
         space = self.coef[:, 0] + self.coef[:, -1] * self.p_space
         total = bar + space
-        sign = np.where(self.coef[:, -1] > 0, -1.0, 1.0)
+        sign = (np.where(self.coef[:, -1] > 0, -1.0, 1.0) if dark_bars is None
+                else np.full(total.shape, 1.0 if dark_bars else -1.0))
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(total > 0, sign * (space - bar) / total, np.nan)
 
@@ -359,6 +361,7 @@ def read_three_bars(
     max_code: float | None = None,
     blur_prior_px: tuple[float, float] | None = None,
     shift_prior_px: float = SHIFT_PRIOR_PX,
+    dark_bars: bool | None = None,
 ) -> ModulationResult:
     """Eq. 2.9 modulation of a three-bar set whose geometry is known (see the module docstring).
 
@@ -386,6 +389,12 @@ def read_three_bars(
     shift_prior_px : float
         Prior (1 sigma, px) on the set's shift across the bars from ``centre_rc`` (the pose's
         error; default :data:`SHIFT_PRIOR_PX`).
+    dark_bars : bool, optional
+        The target's polarity when known (True: dark bars on a bright ground, False: a negative
+        target; e.g. :attr:`benchlab.analysis.chart_finder.ChartFit.polarity`). Fits whose bar
+        depth has the other sign are left out (unless all have it) and the modulation's sign
+        follows the polarity: a reversed contrast cannot pass for the other polarity. Without
+        it the fitted depth's sign decides.
 
     Returns
     -------
@@ -402,7 +411,8 @@ def read_three_bars(
     """
     return fit_three_bars(roi, centre_rc=centre_rc, bar_width_px=bar_width_px,
                           theta_deg=theta_deg, max_code=max_code,
-                          blur_prior_px=blur_prior_px, shift_prior_px=shift_prior_px).result
+                          blur_prior_px=blur_prior_px, shift_prior_px=shift_prior_px,
+                          dark_bars=dark_bars).result
 
 
 def fit_three_bars(
@@ -414,6 +424,7 @@ def fit_three_bars(
     max_code: float | None = None,
     blur_prior_px: tuple[float, float] | None = None,
     shift_prior_px: float = SHIFT_PRIOR_PX,
+    dark_bars: bool | None = None,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
     arr = np.asarray(roi)
@@ -477,14 +488,14 @@ def fit_three_bars(
     base = np.stack(base_cols, axis=1)
     quantum_sd = (step / n_frames) / math.sqrt(12.0) if integer else 0.0
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
-                      warnings)
+                      warnings, dark_bars=dark_bars)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a
     # second-order bias (0.012 at 0.06 px on 2.3 px periods), so a fitted shift is applied to
     # the coordinates and the fit repeated once.
     shift = state.shift_px()
     if abs(shift) >= REFIT_SHIFT_PX:
         state = _FitState(base, u - shift, v, y, bar_width_px, theta, shift_prior_px,
-                          quantum_sd, diag, warnings, reuse=state)
+                          quantum_sd, diag, warnings, reuse=state, dark_bars=dark_bars)
     return state.conclude(blur_prior_px)
 
 
@@ -495,11 +506,12 @@ class _FitState:
     def __init__(
         self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
         theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
-        warnings: list[str], reuse: _FitState | None = None,
+        warnings: list[str], reuse: _FitState | None = None, dark_bars: bool | None = None,
     ) -> None:
         """``reuse``: a state of the same set at other ``u`` (a shift applied), whose tabulated
         patterns serve again (the grid reaches several px beyond any shift)."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        self.dark_bars = dark_bars
         self.phase_gap = _phase_gap(u, w)
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
@@ -609,6 +621,11 @@ class _FitState:
         gauss_rss = float(np.min((self.fits.cost - self.fits.penalty)[:SIGMA_GRID]))
         self.disc_price = max(DISC_PENALTY, DISC_REL_GAIN * gauss_rss / self.scale)
         self.shape_price = np.where(self.share_all > 0, self.disc_price, 0.0)
+        if self.dark_bars is not None:
+            # the known polarity: a depth of the other sign is not this target
+            wrong = (self.fits.coef[:, -1] > 0) == self.dark_bars
+            if not wrong.all():
+                self.shape_price = np.where(wrong, np.inf, self.shape_price)
         self.best_row = int(np.argmin(chi2 + self.shape_price))
 
     def _misfit(self, row: int, u: FloatArray, a: FloatArray, quantum_sd: float) -> float:
@@ -707,7 +724,8 @@ class _FitState:
                                    self.blur_range, self)
         # Eq. 2.9 with its sign: the level at the bars' centre against the spaces' (dark bars
         # have depth < 0, a negative target's bright bars > 0); negative = contrast reversed
-        sign = -1.0 if depth > 0 else 1.0
+        dark_target = depth < 0 if self.dark_bars is None else self.dark_bars
+        sign = 1.0 if dark_target else -1.0
         modulation = sign * eq29_modulation(bar, space)
         # noise: m = sign (space - bar) / (bar + space), bar and space linear in (ground, depth)
         total = bar + space
@@ -723,7 +741,7 @@ class _FitState:
             spreads.append((self.along_fits, (self.along_fits.cost - best.cost[k]) / self.scale))
         allowed_mods = np.array([modulation])
         for batch, excess in spreads:
-            mods = batch.modulations()[(excess <= 1.0)]
+            mods = batch.modulations(self.dark_bars)[(excess <= 1.0)]
             mods = np.append(mods[np.isfinite(mods)], modulation)
             allowed_mods = np.append(allowed_mods, mods)
             blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
@@ -745,12 +763,12 @@ class _FitState:
             if modulation < 0:
                 warnings.append(
                     f"contrast reversed (spurious resolution): the bars image "
-                    f"{'brighter' if depth < 0 else 'darker'} than the spaces (a PSF past its "
+                    f"{'brighter' if dark_target else 'darker'} than the spaces (a PSF past its "
                     f"first OTF zero, e.g. defocus); modulation {modulation:.3f} +- "
                     f"{1.96 * sd:.3f}, not a resolved reading")
             result = ModulationResult(
-                estimator=NAME, dark=bar if depth < 0 else space,
-                bright=space if depth < 0 else bar, modulation=modulation, resolved=True,
+                estimator=NAME, dark=bar if dark_target else space,
+                bright=space if dark_target else bar, modulation=modulation, resolved=True,
                 diagnostics=diag_fit, uncertainty=sd,
                 interval=(max(-1.0, modulation - 1.96 * sd), min(1.0, modulation + 1.96 * sd)),
                 warnings=tuple(warnings))
