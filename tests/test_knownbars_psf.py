@@ -58,6 +58,21 @@ def test_the_known_polarity_keeps_a_reversal_from_passing_for_a_negative_target(
     assert r.dark is not None and r.bright is not None and r.dark > r.bright
 
 
+def test_a_defocus_size_floor_keeps_the_interval_honest(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A disc of 1.6 px on 1.25 px bars on a pixel axis: the separable model's best disc size
+    is biased (read 0.010 off); the size floor widens the interval over the truth, without it
+    the interval (+-0.004) misses."""
+    s = render_three_bars(1.25, 0.0, PsfSpec("disc", radius_px=1.6), bits=12)
+
+    def read() -> kb.ModulationResult:
+        return kb.read_three_bars(s.roi, centre_rc=s.centre_rc, bar_width_px=1.25,
+                                  theta_deg=0.0, dark_bars=True)
+
+    assert read().interval[0] <= s.truth_modulation <= read().interval[1]
+    monkeypatch.setattr(kb, "DISC_SIGMA_FLOOR_PX", 0.0)
+    assert not read().interval[0] <= s.truth_modulation <= read().interval[1]
+
+
 def test_a_misfit_widens_the_interval(monkeypatch: pytest.MonkeyPatch) -> None:
     """Bars 4 % narrower in the model than in the image leave structure in the residuals: the
     interval widens (by a term that does not shrink with pixel count) and says why."""

@@ -131,6 +131,11 @@ DISC_REL_GAIN = 0.25
 #: dominates the blur and the shape only absorbs other model errors (a noise-free simulated
 #: chart at sigma 0.16 px bought a disc share and read 0.007 low).
 DISC_MIN_SIGMA_PX = 0.3
+#: With a defocus shape chosen, its equivalent sigma is held uncertain by at least this (px):
+#: the disc is not separable (its bar ends blur the pattern across too), so the separable
+#: model's best size carries a bias a sharp chi-square does not show (``--psf-check``: disc of
+#: 1.6 px on 1-1.5 px bars read up to 0.01 off at +-0.005 without it).
+DISC_SIGMA_FLOOR_PX = 0.03
 #: Misfit: residual variance beyond the white noise counts when above this many standard errors
 #: (the difference estimate's relative variance about ``MISFIT_VAR_FACTOR / n``).
 MISFIT_Z = 3.0
@@ -747,6 +752,14 @@ class _FitState:
             blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
         # misfit: residual structure beyond the noise, as an error of both levels
         misfit_sd = self.misfit_rms * math.hypot(dm_dbar, dm_dspace)
+        if share_best > 0:
+            # a defocus shape is the separable model's nearest to a non-separable blur: its
+            # size is known to DISC_SIGMA_FLOOR_PX at best, however sharp the chi-square
+            near = [self._fit_at(max(sigma_best + d, 0.0), share_best).modulations(
+                self.dark_bars)[0] for d in (-DISC_SIGMA_FLOOR_PX, DISC_SIGMA_FLOOR_PX)]
+            near = [x for x in near if math.isfinite(x)]
+            if near:
+                blur_sd = math.hypot(blur_sd, 0.5 * (max(near) - min(near)))
         model_sd = math.hypot(
             math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation,
             MODEL_ABS_SD)
