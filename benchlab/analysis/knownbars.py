@@ -46,7 +46,10 @@ shape on its grid of equivalent sigmas is solved in the same batch, and a disc s
 only when it pays :data:`DISC_PENALTY` / :data:`DISC_REL_GAIN` in chi-square (within that its
 reading widens the interval through the blur spread). A disc past its first zero reverses the
 contrast (spurious resolution): the reading keeps its sign (negative), with a warning, and its
-interval may go below 0. Residual structure beyond the noise (the residual variance minus the
+interval may go below 0; given the target's polarity (``dark_bars``) a reversed set cannot pass
+for bars of the other polarity. The along-bar blur is searched again in the chosen shape, and the
+shape's size is held uncertain by at least :data:`DISC_SIGMA_FLOOR_PX` (a disc is not separable:
+the separable model's best size is biased). Residual structure beyond the noise (the residual variance minus the
 white noise's, estimated from successive differences in order of ``u``) adds a misfit term that
 does not shrink with pixel count (:data:`MISFIT_Z`).
 
