@@ -22,14 +22,17 @@ import os
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import tifffile
 
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.tiff_strips import decode_frame
+
+if TYPE_CHECKING:
+    import tifffile
 
 log = logging.getLogger(__name__)
 
@@ -237,6 +240,8 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     bits = meta.get("bits")
     if isinstance(bits, int) and 8 <= bits <= 16:
         imagej.update(min=0.0, max=float(2**bits - 1))  # Fiji's display range: the bit depth
+    import tifffile  # here: reading a frame back does not need it (start-up, issue 11)
+
     buf = io.BytesIO()
     tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
                      metadata=imagej, software=SOFTWARE, compression="zlib")
@@ -311,6 +316,8 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     FrameFileError
         Missing, unreadable or colour file, or codes its metadata rules out, naming it.
     """
+    import tifffile
+
     p = Path(path)
     try:
         with tifffile.TiffFile(p) as tif:
@@ -355,11 +362,18 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
     """
     p = Path(path)
     try:
-        source = p if data is None else tifffile.FileHandle(io.BytesIO(data), name=p.name)
-        with tifffile.TiffFile(source) as tif:
-            page = tif.pages.first
-            pixels = page.asarray()
-            description = _metadata_text(tif)
+        if data is None:
+            data = p.read_bytes()
+        # benchlab's own layout without tifffile (same pixels and text); anything else with it
+        fast = decode_frame(data)
+        if fast is not None:
+            pixels, description = fast
+        else:
+            import tifffile
+
+            with tifffile.TiffFile(tifffile.FileHandle(io.BytesIO(data), name=p.name)) as tif:
+                pixels = tif.pages.first.asarray()
+                description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data
