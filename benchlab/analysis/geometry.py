@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis import morphology
 from benchlab.analysis.roi import orientation_axis
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
@@ -53,8 +54,9 @@ def _erode(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
 def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
     """Set every background pixel not 4-connected to the image border.
 
-    The same result as ``scipy.ndimage.binary_fill_holes`` with its default structure, by one
-    OpenCV flood fill (scipy.ndimage costs more to import than a re-analysis takes to run).
+    The same result as ``scipy.ndimage.binary_fill_holes`` with its default structure, by
+    run-length labelling in numpy (:func:`benchlab.analysis.morphology.fill_holes`): importing
+    scipy.ndimage or OpenCV for it costs more start-up than a re-analysis takes to run.
 
     Parameters
     ----------
@@ -66,16 +68,7 @@ def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
     ndarray of bool
         ``mask`` with its enclosed holes filled.
     """
-    import cv2
-
-    m = np.asarray(mask).astype(bool)
-    if m.ndim != 2:
-        raise ValueError(f"mask must be 2-D, got shape {m.shape}")
-    # Background as 1 inside a one-pixel background frame, so all of the border is one region.
-    background = np.pad(~m, 1, constant_values=True).astype(np.uint8)
-    cv2.floodFill(background, None, (0, 0), 2, flags=4)
-    filled: npt.NDArray[np.bool_] = background[1:-1, 1:-1] != 2
-    return filled
+    return morphology.fill_holes(mask)
 
 
 def fov_centre(mask: npt.ArrayLike) -> FovCircle:
