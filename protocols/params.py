@@ -8,10 +8,8 @@ parameter file in one pass. Defaults ship as package data in ``protocols/default
 from __future__ import annotations
 
 import re
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, TypeAlias
 
@@ -261,6 +259,8 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
 
 def default_params_path(procedure: str) -> Path:
     """The packaged default parameter file of a procedure."""
+    from importlib import resources  # here, like tomllib below: a re-analysis reads neither
+
     return Path(str(resources.files("benchlab.protocols") / "defaults" / f"{procedure}.toml"))
 
 
@@ -298,6 +298,8 @@ def load_params(
 
     With ``limits`` the values are also checked against the bench (LED ceiling, travel).
     """
+    import tomllib
+
     p = Path(path) if path is not None else default_params_path(procedure)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))

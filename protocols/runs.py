@@ -7,10 +7,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import benchlab
-from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.characterise_params import CharacteriseParams
-from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
+from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, record_in_catalogue
 from benchlab.protocols.params import (
     BenchLimits,
     MtfParams,
@@ -112,7 +111,7 @@ def start_run(
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
-    record_session(session.path)
+    record_in_catalogue(session.path)
     return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -148,7 +147,7 @@ def resume_run(
     session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
-    record_session(session.path)
+    record_in_catalogue(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -196,16 +195,20 @@ def _prefetch_frames(session: Session) -> None:
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
+    # The procedure (and its analysis modules) first: importing them overlaps the frames still
+    # loading ahead, which the check below waits for (their loads hash them).
+    procedure = make_procedure(session_params(session))
     bad = session.verify_frames()
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     before = session.frames()
-    params = session_params(session)
     session.log_event("reanalysis_started", durable=False, estimator=estimator)
-    out = make_procedure(params).analyze(session, estimator)
+    out = procedure.analyze(session, estimator)
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
     if catalogue:
-        record_session(session.path)
+        record_in_catalogue(session.path)
     return out
+
+
