@@ -51,6 +51,7 @@ from benchlab.storage import (
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
+    write_new_file,
 )
 
 SESSION_FORMAT = "benchlab.session"
@@ -189,6 +190,9 @@ def _plain(obj: Any) -> Any:
         return obj
     if kind is float:
         return obj if math.isfinite(obj) else None
+    if kind is np.float64:  # most cells of the SFR curves: the np.generic case, tested first
+        value = obj.item()
+        return value if math.isfinite(value) else None
     if kind is dict:
         return {str(k): _plain(v) for k, v in obj.items()}
     if kind is list:
@@ -781,13 +785,19 @@ class Session:
             _check_name("table name", table)
         self.results_dir.mkdir(exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=".v-", suffix=".tmp", dir=self.results_dir))
+
+        def write(path: Path, text: str) -> None:
+            if per_file:
+                atomic_write_text(path, text)
+            else:  # the folder is private until its rename: no temporary file per file
+                write_new_file(path, text.encode("utf-8"))
+
         try:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                atomic_write_text(tmp / f"{stem}.json", json_rows_text(plain_rows),
-                                  durable=per_file)
-                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
+                write(tmp / f"{stem}.json", json_rows_text(plain_rows))
+                write(tmp / f"{stem}.csv", _csv_text(plain_rows))
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {

@@ -106,6 +106,22 @@ def atomic_write_bytes(
     return target
 
 
+def write_new_file(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Create ``path`` with ``data`` (``FileExistsError`` if it exists), not fsync'd, in
+    place: only for files inside a private temporary folder that is flushed and renamed
+    into place as a whole (a results version), which is what makes them atomic and durable.
+    Saves the temporary name and rename per file of :func:`atomic_write_bytes`."""
+    target = Path(path)
+    fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _FILE_MODE)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+    finally:
+        os.close(fd)
+    return target
+
+
 def fsync_dir(folder: str | os.PathLike[str]) -> None:
     """Make a folder's entries (a rename into it) durable."""
     _fsync_dir(Path(folder))

@@ -151,3 +151,21 @@ def test_in_process_commands_leave_the_garbage_collector_as_it_was(
     (broken / "session.json").write_text("not json", encoding="utf-8")
     assert main(["analyze", str(broken)]) == 1  # the re-analysis fails: collection back on
     assert gc.isenabled() and gc.get_freeze_count() == frozen
+
+
+def test_results_files_are_written_in_place_with_the_usual_mode(tmp_path: Path) -> None:
+    target = storage.write_new_file(tmp_path / "a.json", b"[]\n")
+    assert target.read_bytes() == b"[]\n"
+    assert target.stat().st_mode & 0o777 == storage._FILE_MODE
+    with pytest.raises(FileExistsError):
+        storage.write_new_file(target, b"other")
+    assert target.read_bytes() == b"[]\n"  # never replaced
+    session = Session.create(tmp_path, procedure="mtf", params={}, operator="ada", devices={},
+                             software_version="0")
+    version = session.write_results({"t": [{"a": 1.5, "b": np.float64("nan")}]}, summary={},
+                                    estimator="fit")
+    files = sorted(p.name for p in version.iterdir())
+    assert files == ["summary.json", "t.csv", "t.json"]  # no temporary file left
+    assert {(version / f).stat().st_mode & 0o777 for f in files} == {storage._FILE_MODE}
+    assert json.loads((version / "t.json").read_text()) == [{"a": 1.5, "b": None}]
+    assert (version / "t.csv").read_text() == "a,b\n1.5,NA\n"
