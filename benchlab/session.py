@@ -695,7 +695,7 @@ class Session:
         self._verified[rel] = (identity, expected)
         return load_frame_tiff(path, data)
 
-    def verify_frames(self) -> list[str]:
+    def verify_frames(self, *, trust_loads: bool = False) -> list[str]:
         """Relative paths of recorded frames that are missing or whose sha256 changed.
 
         A frame this object already hashed (a load, an earlier check) is not hashed again while
@@ -703,12 +703,17 @@ class Session:
         the one it had when read: any write to the file sets its status-change time (ctime),
         which no program can set back. So a re-analysis reads and hashes each frame once
         (its loads) and its checks before and after cost a ``stat`` per frame. Frames still
-        being loaded ahead (:meth:`prefetch_frames`) are waited for: their loads hash them.
+        being loaded ahead (:meth:`prefetch_frames`) are waited for (their loads hash them),
+        or with ``trust_loads`` left to their loads, which raise on a mismatch (the analysis
+        then starts while the last frames load).
         """
         records = sorted(self._frame_records().items())
-        ahead = [f for f in (self._prefetched.get(rel) for rel, _ in records) if f is not None]
-        if ahead:
-            wait(ahead)  # their outcome is read below, from what they verified
+        ahead = {rel: f for rel, f in ((rel, self._prefetched.get(rel)) for rel, _ in records)
+                 if f is not None and not f.done()}
+        if trust_loads:
+            records = [(rel, ev) for rel, ev in records if rel not in ahead]
+        elif ahead:
+            wait(ahead.values())  # their outcome is read below, from what they verified
         bad = []
         for rel, ev in records:
             path = self.path / rel

@@ -195,16 +195,24 @@ def _prefetch_frames(session: Session) -> None:
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
-    # The procedure (and its analysis modules) first: importing them overlaps the frames still
-    # loading ahead, which the check below waits for (their loads hash them).
     procedure = make_procedure(session_params(session))
-    bad = session.verify_frames()
+    # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
+    # analysed; a mismatch fails the analysis before any result is written), so the analysis
+    # starts while the last frames load; every other frame is checked here.
+    bad = session.verify_frames(trust_loads=True)
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     before = session.frames()
     session.log_event("reanalysis_started", durable=False, estimator=estimator)
-    out = procedure.analyze(session, estimator)
+    try:
+        out = procedure.analyze(session, estimator)
+    except SessionError as exc:  # a load found its frame changed: say so as above
+        bad = session.verify_frames()
+        if bad:
+            raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
+                                      f"{', '.join(bad)}") from exc
+        raise
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
     if catalogue:

@@ -169,3 +169,19 @@ def test_results_files_are_written_in_place_with_the_usual_mode(tmp_path: Path) 
     assert {(version / f).stat().st_mode & 0o777 for f in files} == {storage._FILE_MODE}
     assert json.loads((version / "t.json").read_text()) == [{"a": 1.5, "b": None}]
     assert (version / "t.csv").read_text() == "a,b\n1.5,NA\n"
+
+
+@pytest.mark.parametrize("frame", ["forward__forward.tiff", "radial-0.5-sagittal__radial.tiff"])
+def test_a_changed_frame_still_stops_the_reanalysis_before_any_result(
+        small_mtf: Path, tmp_path: Path, frame: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """The analysis starts while frames load; a load finding its frame changed stops it with
+    the same error, and no results version is written."""
+    path = _copy(small_mtf, tmp_path)
+    target = path / "frames" / frame
+    data = bytearray(target.read_bytes())
+    data[-10] ^= 0xFF
+    target.write_bytes(bytes(data))
+    assert main(["analyze", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "frames changed since acquisition" in err and frame in err
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
