@@ -30,7 +30,7 @@ import stat
 import sys
 import tempfile
 import threading
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from datetime import UTC, datetime
 from pathlib import Path
@@ -853,8 +853,11 @@ def result_file_stem(label: str) -> str:
     return RESULT_FILE_STEMS.get(label, label)
 
 
-def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = None
+                 ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder; with
+    ``only``, just the tables of those labels (the catalogue skips the SFR curves, the
+    largest file of a version).
 
     Reads both the descriptive file names and the older thesis-table file names
     (``table_4_11.json``), so sessions written before the rename still load.
@@ -863,6 +866,9 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
     tables: dict[str, Any] = {}
     summary: dict[str, Any] = {}
     for p in sorted(Path(folder).glob("*.json")):
+        if (only is not None and p.stem != "summary"
+                and _LABEL_OF_FILE.get(p.stem, p.stem) not in only):
+            continue
         try:
             data = json.loads(p.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:

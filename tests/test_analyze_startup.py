@@ -185,3 +185,16 @@ def test_a_changed_frame_still_stops_the_reanalysis_before_any_result(
     err = capsys.readouterr().err
     assert "frames changed since acquisition" in err and frame in err
     assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+
+
+def test_the_catalogue_reads_only_the_tables_it_takes_figures_from(small_mtf: Path) -> None:
+    from benchlab.catalog_extract import FIGURE_TABLES, figures_of
+    from benchlab.session import read_results
+
+    version = small_mtf / "results" / "v1"
+    every, summary = read_results(version)
+    some, same_summary = read_results(version, FIGURE_TABLES)
+    assert "table_sfr_curves" in every and "table_sfr_curves" not in some
+    assert set(some) == set(every) & set(FIGURE_TABLES) and same_summary == summary
+    assert list(figures_of(1, some)) == list(figures_of(1, every))
+    assert len(list(figures_of(1, some))) > 20
