@@ -135,11 +135,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     frozen (:func:`gc.freeze`): the process ends next, and the cycle collections of the
     interpreter's exit over every object of numpy and benchlab took 20-60 ms of a 0.4 s
     ``benchlab analyze SESSION`` (issue 11). Exit handlers and buffered output are unchanged.
+    ``analyze`` (one image or a re-analysis: short, few reference cycles) also runs without
+    cycle collection: ~60 passes over the objects of the imports cost it 10-15 ms.
     """
-    status = _main(argv)
-    if argv is None:
-        import gc
+    import gc
 
+    program = argv is None
+    if program and command_of(sys.argv[1:]) == "analyze":
+        gc.disable()  # not enabled again: the process ends with the command
+    status = _main(argv)
+    if program:
         gc.freeze()
     return status
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 import sys
 import threading
@@ -226,10 +225,6 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     if target is None:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
-    # No cycle collection while the analysis imports and runs: it finds next to nothing (the
-    # frames and results are freed by reference counting) and cost 10-15 ms in ~60 passes.
-    collecting = gc.isenabled()
-    gc.disable()
     early = _open_prefetching(Path(target))
     try:
         from benchlab.protocols.runs import reanalyze
@@ -239,8 +234,6 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     finally:
         if early is not None:
             early.stop_prefetch()
-        if collecting:
-            gc.enable()
     elapsed = time.perf_counter() - t0
     # The catalogue update (mostly waiting for SQLite's flush) overlaps the printing; it never
     # raises, and the process waits for it before it ends.
