@@ -190,11 +190,15 @@ def edge_vs_bars(
 def forward_edge_tables(
     pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
     simulated_mtf_file: str = "",
+    measured: Sequence[tuple[EdgeSpec, SfrResult | str]] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
-    """The three edge tables of a forward frame (see the module docstring)."""
+    """The three edge tables of a forward frame (see the module docstring); ``measured``:
+    :func:`measure_edges` of ``pixels`` already done (it needs neither the chart nor the
+    centre, so a re-analysis runs it beside the bar ROIs)."""
     from benchlab.report_curves import load_curves  # the simulated curves' loader
 
-    measured = measure_edges(pixels)
+    if measured is None:
+        measured = measure_edges(pixels)
     rows, curve_rows = edge_tables(measured, centre_rc)
     try:
         curves = load_curves(simulated_mtf_file or None)
