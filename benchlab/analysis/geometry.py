@@ -47,8 +47,12 @@ class FovCircle:
 def _erode(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """4-neighbour binary erosion; outside the image counts as set (a clipped edge is not an
     edge of the mask)."""
-    p = np.pad(mask, 1, constant_values=True)
-    return p[1:-1, 1:-1] & p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
+    out = np.array(mask, dtype=bool, copy=True)
+    out[1:, :] &= mask[:-1, :]  # in place: no padded copy of a whole frame
+    out[:-1, :] &= mask[1:, :]
+    out[:, 1:] &= mask[:, :-1]
+    out[:, :-1] &= mask[:, 1:]
+    return out
 
 
 def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
@@ -86,12 +90,12 @@ def fov_centre(mask: npt.ArrayLike) -> FovCircle:
     m = np.asarray(mask).astype(bool)
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D, got shape {m.shape}")
-    n = int(m.sum())
+    n = int(np.count_nonzero(m))
     if n == 0:
         raise ValueError("field-of-view mask is empty")
     # Row and column projections give the centroid and the clipping test without listing
     # every pixel of a mask that covers most of the frame.
-    per_row, per_col = m.sum(axis=1), m.sum(axis=0)
+    per_row, per_col = np.count_nonzero(m, axis=1), np.count_nonzero(m, axis=0)
     h, w = m.shape
     clipped = bool(per_row[0] or per_row[-1] or per_col[0] or per_col[-1])
     if not clipped:
@@ -99,7 +103,7 @@ def fov_centre(mask: npt.ArrayLike) -> FovCircle:
         c = float(per_col @ np.arange(w, dtype=np.float64)) / n
         return FovCircle((r, c), math.sqrt(n / math.pi), False, "centroid")
     edge = m & ~_erode(m)
-    br, bc = np.nonzero(edge)
+    br, bc = np.divmod(np.flatnonzero(edge), w)  # as np.nonzero, ~10x faster on a frame
     inside = (br > 0) & (br < h - 1) & (bc > 0) & (bc < w - 1)
     br, bc = br[inside].astype(np.float64), bc[inside].astype(np.float64)
     if br.size < 10 or np.ptp(br) < 3 or np.ptp(bc) < 3:
