@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -149,8 +150,11 @@ def test_in_process_commands_leave_the_garbage_collector_as_it_was(
     assert gc.isenabled() and gc.get_freeze_count() == frozen
     broken = _copy(small_mtf, tmp_path / "broken")
     (broken / "session.json").write_text("not json", encoding="utf-8")
-    assert main(["analyze", str(broken)]) == 1  # the re-analysis fails: collection back on
+    assert main(["analyze", str(broken)]) == 1
     assert gc.isenabled() and gc.get_freeze_count() == frozen
+    # the catalogue thread started beside the analysis has ended, recording nothing
+    assert not [t for t in threading.enumerate() if t.name == "benchlab-catalogue"]
+    assert not (broken.parent / "catalog.sqlite").exists()
 
 
 def test_results_files_are_written_in_place_with_the_usual_mode(tmp_path: Path) -> None:

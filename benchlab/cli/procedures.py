@@ -226,32 +226,47 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
     early = _open_prefetching(Path(target))
+    # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
+    # the analysis runs, records once the results are written, overlapping the printing; it
+    # never raises, and the process waits for it before it ends. Nothing is recorded when the
+    # re-analysis fails.
+    recorder = _CatalogueRecorder(Path(target))
+    recorder.start()
     try:
         from benchlab.protocols.runs import reanalyze
 
         out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None),
                         catalogue=False)
+        recorder.record = True
     finally:
+        recorder.results_written.set()
+        if not recorder.record:
+            recorder.join()  # failed: it ends without recording
         if early is not None:
             early.stop_prefetch()
     elapsed = time.perf_counter() - t0
-    # The catalogue update (mostly waiting for SQLite's flush) overlaps the printing; it never
-    # raises, and the process waits for it before it ends.
-    recorder = threading.Thread(target=_record_session, args=(Path(target),),
-                                name="benchlab-catalogue")
-    recorder.start()
     try:
         return _print_reanalysis(args, out, elapsed)
     finally:
         recorder.join()
 
 
-def _record_session(folder: Path) -> None:
-    """:func:`benchlab.catalog.record_session`, imported on the recording thread: the import
-    overlaps the printing of the tables instead of preceding the analysis."""
-    from benchlab.catalog import record_session
+class _CatalogueRecorder(threading.Thread):
+    """Records a session in its catalogue once :attr:`results_written` is set (and
+    :attr:`record` is true), the catalogue imported beforehand."""
 
-    record_session(folder)
+    def __init__(self, folder: Path) -> None:
+        super().__init__(name="benchlab-catalogue")
+        self.folder = folder
+        self.results_written = threading.Event()
+        self.record = False
+
+    def run(self) -> None:
+        from benchlab.catalog import record_session  # beside the analysis
+
+        self.results_written.wait()
+        if self.record:
+            record_session(self.folder)
 
 
 def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
