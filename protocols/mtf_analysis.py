@@ -33,7 +33,7 @@ from benchlab.analysis.geometry import (
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import forward_edge_tables, measure_edges
+from benchlab.protocols.mtf_edges import edge_parts, forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
@@ -276,10 +276,10 @@ def analyze_mtf(
     # several cores the 15 frames of a session load in a fraction of the time. The forward
     # view's chart finder and bar ROIs run on their own thread beside the radial frames, the
     # centre and the radial rows; this thread then measures the forward frame's slanted edges
-    # (which need neither the chart nor the centre) while the bar ROIs finish, so neither
-    # thread waits long for the other; the larger numpy calls release the GIL. Every estimate
-    # is a pure function of its frame, so the numbers are those of one thread. A failure is
-    # raised as before (the forward frame's first).
+    # and their tables (which need the centre, not the chart) while the bar ROIs finish, so
+    # neither thread waits long for the other; the larger numpy calls release the GIL. Every
+    # estimate is a pure function of its frame, so the numbers are those of one thread. A
+    # failure is raised as before (the forward frame's first).
     frame_ready: Future[npt.NDArray[Any] | None] = Future()
     with ThreadPoolExecutor(max_workers=1) as forward_pool, \
             ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
@@ -295,7 +295,8 @@ def analyze_mtf(
             centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
             t412 = _radial_rows(radial, params, est, centre)
             forward_px = frame_ready.result()
-            measured = measure_edges(forward_px) if forward_px is not None else None
+            edges_done = (edge_parts(forward_px, centre, params.simulated_mtf_file)
+                          if forward_px is not None else None)
         except BaseException:
             failed = forward_job.exception()
             if failed is not None and not isinstance(failed, CancelledError):
@@ -310,7 +311,7 @@ def analyze_mtf(
     if forward is not None and forward_px is not None:
         per, t411 = forward
         edges = forward_edge_tables(forward_px, t411, centre, params.simulated_mtf_file,
-                                    measured=measured)
+                                    parts=edges_done)
         for el in params.forward_elements:
             for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",
