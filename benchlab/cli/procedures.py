@@ -272,11 +272,17 @@ class _CatalogueRecorder(threading.Thread):
 def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
     from benchlab.session import read_results
 
-    tables, summary = read_results(out)
+    as_json = getattr(args, "json", False)
+    if as_json:
+        tables, summary = read_results(out)
+    else:  # only the tables printed (the SFR curves, the largest file, are not)
+        from benchlab.report_tables import TABLE_VIEWS
+
+        tables, summary = read_results(out, TABLE_VIEWS)
     partial = bool(summary.get("partial"))
     note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
             f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
-    if getattr(args, "json", False):
+    if as_json:
         import json
 
         print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
