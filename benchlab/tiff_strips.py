@@ -34,6 +34,8 @@ _IJ_BYTE_COUNTS, _IJ_METADATA = 50838, 50839
 _ZLIB = (8, 32946)  # Adobe deflate, old-style deflate
 _IJ_MAGIC = 0x494A494A  # "IJIJ"
 _IJ_INFO = 0x696E666F  # "info"
+#: Most bytes a deflate stream can expand to per byte (1032:1), with margin.
+_MAX_INFLATION = 1100
 
 
 def _tags(data: bytes, order: str) -> dict[int, tuple[int, int, int]] | None:
@@ -130,8 +132,9 @@ def _decode(data: bytes, order: str) -> tuple[npt.NDArray[Any], str] | None:
         return NOT_HANDLED  # (an Info that ImageJ would not read as ImageJ's is not one)
     row_bytes = width * bits[0] // 8
     n_strips = -(-height // rows_per_strip)
-    if len(offsets) != n_strips or len(byte_counts) != n_strips:
-        return NOT_HANDLED
+    if (len(offsets) != n_strips or len(byte_counts) != n_strips
+            or height * row_bytes > _MAX_INFLATION * len(data)):
+        return NOT_HANDLED  # (no zlib stream inflates more: a damaged size, not a frame)
     out = np.empty(height * row_bytes, dtype=np.uint8)
     pos = 0
     for k, (offset, size) in enumerate(zip(offsets, byte_counts, strict=True)):

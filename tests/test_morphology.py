@@ -129,3 +129,10 @@ def test_block_max_is_the_sampled_opencv_dilation_it_replaced() -> None:
         near_max = cv2.dilate(img, np.ones((step, step), np.uint8))
         sampled = near_max[step // 2: hb * step: step, step // 2: wb * step: step]
         assert np.array_equal(_block_max(img, step), sampled)
+
+
+def test_empty_shapes() -> None:
+    for shape in ((0, 5), (5, 0), (0, 0)):
+        n, labels, areas = label_components(np.zeros(shape, bool))
+        assert n == 1 and labels.shape == shape and areas.tolist() == [0]
+        assert fill_holes(np.zeros(shape, bool)).shape == shape

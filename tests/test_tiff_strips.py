@@ -115,3 +115,10 @@ def test_damaged_frames_are_refused_as_before(tmp_path: Path, damage: str) -> No
     path.write_bytes(bytes(data))
     with pytest.raises(FrameFileError, match="not a readable TIFF"):
         load_frame_tiff(path)
+
+
+def test_a_blank_frame_compressed_to_almost_nothing_still_takes_the_fast_path() -> None:
+    blank = np.zeros((1024, 1280), np.uint8)
+    data = encode_frame_tiff(blank, {"bits": 8})
+    fast = decode_frame(data)
+    assert len(data) < 20_000 and fast is not None and np.array_equal(fast[0], blank)

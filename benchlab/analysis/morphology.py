@@ -156,6 +156,8 @@ def label_components(mask: npt.ArrayLike) -> tuple[int, npt.NDArray[np.int32],
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D, got shape {m.shape}")
     h, w = m.shape
+    if m.size == 0:
+        return 1, np.zeros((h, w), dtype=np.int32), np.zeros(1, dtype=np.int64)
     rows, starts, ends = _runs(m)
     run_labels = _run_components(rows, starts, ends, w)
     n = int(run_labels.max()) + 1 if run_labels.size else 1
