@@ -11,7 +11,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
 from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
@@ -22,7 +22,9 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
     camera_exposure_ms,
     camera_gain,
 )
-from benchlab.protocols.characterise_params import CharacteriseParams
+
+if TYPE_CHECKING:
+    from benchlab.protocols.characterise_params import CharacteriseParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
@@ -100,7 +102,9 @@ class RadiometryParams:
         return position_mm + self.stage_offset_mm
 
 
-Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
+#: (A string: the characterisation's parameters are imported only where they are used, so an
+#: MTF re-analysis never loads them.)
+Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams"
 
 
 class _Checker(TableChecker):

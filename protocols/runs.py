@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError
-from benchlab.protocols.characterise_params import CharacteriseParams
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, record_in_catalogue
 from benchlab.protocols.params import (
     BenchLimits,
@@ -59,17 +58,17 @@ def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | Chara
     Each procedure module is imported only when its procedure is asked for: re-analysing an
     MTF session never loads the characterisation's or the radiometry's analysis (start-up).
     """
-    if isinstance(params, CharacteriseParams):
-        from benchlab.protocols.characterise import CharacteriseProcedure
-
-        return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
         from benchlab.protocols.mtf import MtfProcedure
 
         return MtfProcedure(params)
-    from benchlab.protocols.radiometry import RadiometryProcedure
+    if isinstance(params, RadiometryParams):
+        from benchlab.protocols.radiometry import RadiometryProcedure
 
-    return RadiometryProcedure(params)
+        return RadiometryProcedure(params)
+    from benchlab.protocols.characterise import CharacteriseProcedure
+
+    return CharacteriseProcedure(params)
 
 
 def _resolve_params(
@@ -79,6 +78,8 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
+    from benchlab.protocols.characterise_params import CharacteriseParams
+
     expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
                                                                         RadiometryParams)
     if not isinstance(params, expected):
