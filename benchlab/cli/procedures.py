@@ -256,7 +256,7 @@ class _CatalogueRecorder(threading.Thread):
     :attr:`record` is true), the catalogue imported beforehand."""
 
     def __init__(self, folder: Path) -> None:
-        super().__init__(name="benchlab-catalogue")
+        super().__init__(name="benchlab-catalogue", daemon=True)  # never holds the exit up
         self.folder = folder
         self.results_written = threading.Event()
         self.record = False
