@@ -219,8 +219,9 @@ def json_rows_text(rows: list[Any]) -> str:
     """
     if not rows:
         return "[]\n"
-    lines = (json.dumps(r, allow_nan=False, default=_json_default) for r in rows)
-    return "[\n  " + ",\n  ".join(lines) + "\n]\n"
+    # One encoder for all rows: json.dumps with options builds a new one per call.
+    encode = json.JSONEncoder(allow_nan=False, default=_json_default).encode
+    return "[\n  " + ",\n  ".join(map(encode, rows)) + "\n]\n"
 
 
 def _json_default(obj: Any) -> Any:
