@@ -122,16 +122,17 @@ def _centred_grid(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
     return y, x
 
 
-def detrend(img: FloatArray) -> FloatArray:
-    """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS)."""
+def detrend(img: FloatArray, sums: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
+    """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS).
+    ``sums``: ``(img.sum(axis=0), img.sum(axis=1))`` if already known."""
     rows, cols = img.shape[0], img.shape[1]
     y, x = _centred_grid((rows, cols))
-    col_sums = img.sum(axis=0)
-    row_sums = img.sum(axis=1)
-    mean = float(col_sums.sum()) / (rows * cols)
+    add = np.add.reduce  # = ndarray.sum without its Python wrapper
+    col_sums, row_sums = sums if sums is not None else (add(img, axis=0), add(img, axis=1))
+    mean = float(add(col_sums)) / (rows * cols)
     # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
-    gx = float((col_sums * x).sum()) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
-    gy = float((row_sums * y).sum()) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
+    gx = float(add(col_sums * x)) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
+    gy = float(add(row_sums * y)) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
     return img - ((gy * y)[:, None] + (mean + gx * x)[None, :])
 
 
@@ -354,7 +355,8 @@ def _uncertainties(
 
 
 def quick_geometry(
-    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None = None
+    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None = None,
+    sums: tuple[FloatArray, FloatArray] | None = None,
 ) -> BarGeometry | None:
     """Straight-bar geometry near a known frequency in a few passes over the pixels, or
     ``None`` when it cannot be trusted (then use :func:`measure_geometry`).
@@ -381,6 +383,8 @@ def quick_geometry(
     resid : ndarray, optional
         ``detrend(img)`` if already computed (then used whole; otherwise ROIs larger than
         ``QUICK_CROP_PX`` are measured on a centred crop).
+    sums : (ndarray, ndarray), optional
+        ``(img.sum(axis=0), img.sum(axis=1))`` if already known (used when not cropped).
 
     Returns
     -------
@@ -394,10 +398,10 @@ def quick_geometry(
     if resid is None:
         # Straight bars: a centred crop (same centre, so the same phase) measures them as well
         # as the whole ROI, at a fixed cost.
-        img = _centred_crop(img, QUICK_CROP_PX)
-        rows, cols = img.shape
+        crop = _centred_crop(img, QUICK_CROP_PX)
+        resid = detrend(crop, sums if crop is img else None)
+        rows, cols = crop.shape
         n = rows * cols
-        resid = detrend(img)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells
     for _ in range(3):  # invert the cell gradients' anisotropy (a near-identity map)
@@ -467,6 +471,7 @@ def measure_geometry(
     freq_prior: float | None = None,
     curvature: bool = True,
     quick_start: bool = False,
+    sums: tuple[FloatArray, FloatArray] | None = None,
 ) -> BarGeometry | None:
     """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
 
@@ -486,6 +491,8 @@ def measure_geometry(
         curvature follow. It accepts only a fundamental carrying at least
         ``QUICK_MIN_POWER_SHARE`` of the power, so no peak outside the prior's band can be
         ``WIDE_PEAK_RATIO`` times stronger: the spectral search would start there too.
+    sums : (ndarray, ndarray), optional
+        ``(img.sum(axis=0), img.sum(axis=1))`` if already known.
 
     Returns
     -------
@@ -495,7 +502,7 @@ def measure_geometry(
     rows, cols = img.shape
     if rows * cols < 4:
         return None
-    resid = detrend(img)
+    resid = detrend(img, sums)
     extent = math.hypot(rows, cols)
     if freq_prior:
         f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))

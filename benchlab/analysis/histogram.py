@@ -488,9 +488,10 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     img = prep.pixels
     rows, cols = img.shape
     n = img.size
-    geom = quick_geometry(img, prep.noise_sigma, f) if f else None
+    sums = prep.profile_sums
+    geom = quick_geometry(img, prep.noise_sigma, f, sums=sums) if f else None
     if geom is None:
-        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
+        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False, sums=sums)
     if geom is None:
         return None
     f = geom.freq_cycles_per_px
@@ -522,7 +523,7 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
         n_z = max(4, n // 8)
         coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
         fundamental = geom.amplitude * np.cos(2.0 * math.pi * phi)
-        misfit = detrend(img) - fundamental
+        misfit = detrend(img, sums) - fundamental
         residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
         z_noise = min(coarse, residual, prep.noise_sigma)
     if prep.integer_valued:

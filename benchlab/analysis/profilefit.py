@@ -46,7 +46,7 @@ from benchlab.analysis.bargeometry import (
     phase_map,
     refine_by_folding,
 )
-from benchlab.analysis.projection import across_coordinate, bin_profiles
+from benchlab.analysis.projection import across_coordinate, filled_bin_means
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -503,7 +503,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if n < 4 or prep.vmax == prep.vmin:
         warnings.append("too few pixels or a single gray level: no bar profile")
         return unresolved(name, prep.diagnostics(), warnings)
-    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True)
+    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True,
+                            sums=prep.profile_sums)
     if geom is None:
         warnings.append("no bar period found in the ROI")
         return unresolved(name, prep.diagnostics(), warnings)
@@ -576,8 +577,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     se_a1 = noise * math.sqrt(2.0 / n)
     a1_test = min(a1, geom.amplitude)
     z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
-    diag0 = prep.diagnostics()
-    # Built once (dataclasses.replace costs ~10 us a call): the reading's fields go in below.
+    # The reading's fields go into prep.diagnostics (dataclasses.replace costs ~10 us a call).
     fields = dict(
         noise_sigma=noise,
         px_per_period=period,
@@ -595,7 +595,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
             f"({se_a1:.3g}) of zero: bars not resolved"
         )
-        return unresolved(name, replace(diag0, **fields), warnings)  # type: ignore[arg-type]
+        return unresolved(name, prep.diagnostics(**fields), warnings)
     # Levels never beyond the samples by more than the model itself says the sampled phases
     # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
     at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
@@ -604,7 +604,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
     if bright + dark <= 0 or bright <= dark:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
-        return unresolved(name, replace(diag0, **fields), warnings)  # type: ignore[arg-type]
+        return unresolved(name, prep.diagnostics(**fields), warnings)
     modulation = min(eq29_modulation(dark, bright), 1.0)
     sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
     # Largest gap between the filled bins' phases, around the period (they are ascending).
@@ -612,8 +612,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     sd_model = _model_sd(modulation, max_gap, n_f,
                          MODEL_REL_SD_FAST if fast else None, n_pixels=n)
     sd = math.hypot(sd_noise, sd_model)
-    diag = replace(diag0, **fields, uncertainty_noise=sd_noise,  # type: ignore[arg-type]
-                   uncertainty_model=sd_model)
+    diag = prep.diagnostics(**fields, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 
@@ -679,23 +678,17 @@ def _fit_at(
         n = int(vals.size)
         n_bins = int(min(n_bins, max(8, n // 6)))
     width = 1.0 / n_bins
-    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
+    n_filled, (y, sq, wb, w2b, ub, vb) = filled_bin_means(
         w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
     )
-    filled = prof.filled
     # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
     # bar angle (neighbour differences along an image axis do).
-    sq = sq_prof.mean[filled]
-    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
-    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
+    within = float(np.add.reduce(n_filled * np.maximum(sq - y**2, 0.0)))
+    scale_noise = math.sqrt(within / max(n - n_filled.size, 1))
     if prep.noise_given or scale_noise <= 0:
         scale_noise = prep.noise_sigma
-    y = prof.mean[filled]
-    count = prof.count[filled].astype(np.float64)
-    wb = w_prof.mean[filled]
-    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
-    ub = u_prof.mean[filled]
-    vb = v_prof.mean[filled]
+    count = n_filled.astype(np.float64)
+    w_var = np.maximum(w2b - wb * wb, 0.0)
     n_f = int(y.size)
     if n_f < 3:
         return f"only {n_f} distinct bar phases sampled: cannot fit the profile"
