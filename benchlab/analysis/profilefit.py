@@ -183,17 +183,22 @@ class _Model:
         if w_var is not None:
             # A bin averages the profile over its pixels' spread of phases (variance w_var):
             # each harmonic is damped like a Gaussian average of that variance.
-            damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
+            damp = np.exp(-2.0 * math.pi**2 * np.multiply.outer(w_var, self.k * self.k))
         self.e: FloatArray = _phasors(w, n_harm, damp)
         self.fk = freq * self.k
         a, b = barmodel.footprint_sides(theta)
-        sides = np.sinc(np.outer((a, b), self.fk))  # one call: np.sinc costs ~4 us
+        sides = np.sinc(np.multiply.outer((a, b), self.fk))  # one call: np.sinc costs ~4 us
         self.footprint = sides[0] * sides[1]
         self._blur = -2.0 * math.pi**2 * self.fk**2  # log gain per sigma^2
         self._two_over_pik = 2.0 / (math.pi * self.k)
         self._two_pi_k = 2.0 * math.pi * self.k
         self._minus_two_pi_k = -self._two_pi_k
         self._blur2 = np.concatenate([self._blur, self._blur])
+        # For coefficients(): the angles' factors (2 pi k, k) as rows, the amplitudes'
+        # factors (2 / (pi k), 2) and the derivative's (-2 pi k, 2 pi k).
+        self._k_rows = np.stack([self._two_pi_k, self.k])
+        self._amp_rows = np.stack([self._two_over_pik, np.full(n_harm, 2.0)])
+        self._d_rows = np.stack([self._minus_two_pi_k, self._two_pi_k])
 
     def at(self, w: FloatArray | None) -> _Model:
         """The same model on other phase samples (``None``: the cached phase grid)."""
@@ -220,20 +225,23 @@ class _Model:
         # Z = exp(-2 pi i k delta) gain a_k: [Re | -Im] = [cos | sin](2 pi k delta) gain a_k,
         # and d/d(delta) multiplies Z by -2 pi i k: [Re | -Im] -> 2 pi k [-(-Im) | Re].
         # Real arithmetic throughout (complex temporaries cost more numpy calls).
+        # Each product below is the one of the straightforward code (ang = 2 pi k delta,
+        # pk = pi duty k, amp = 2 / (pi k) sin(pk) gain, amp_duty = 2 cos(pk) gain, then
+        # [cos | sin](ang) times those), in stacked rows: half the numpy calls.
         n_harm = self.k.size
-        gain = np.exp(self._blur * var) * self.footprint
-        pk = math.pi * duty * self.k
-        ang = self._two_pi_k * delta
-        cos_a, sin_a = np.cos(ang), np.sin(ang)
-        amp = self._two_over_pik * np.sin(pk) * gain
-        amp_duty = 2.0 * np.cos(pk) * gain
+        gain = np.exp(self._blur * var)
+        gain *= self.footprint
+        arg = np.multiply(self._k_rows, ((delta,), (math.pi * duty,)))  # [ang; pk]
+        trig = np.empty((4, n_harm))  # [cos ang; cos pk; sin ang; sin pk]
+        np.cos(arg, out=trig[:2])
+        np.sin(arg, out=trig[2:])
+        amps = np.multiply(self._amp_rows, trig[3::-2])  # [2/(pi k) sin pk; 2 cos pk]
+        amps *= gain
         out = np.empty((4, 2 * n_harm))
-        np.multiply(cos_a, amp, out=out[0, :n_harm])
-        np.multiply(sin_a, amp, out=out[0, n_harm:])
-        np.multiply(out[0, n_harm:], self._minus_two_pi_k, out=out[1, :n_harm])
-        np.multiply(out[0, :n_harm], self._two_pi_k, out=out[1, n_harm:])
-        np.multiply(cos_a, amp_duty, out=out[2, :n_harm])
-        np.multiply(sin_a, amp_duty, out=out[2, n_harm:])
+        rows = out.reshape(4, 2, n_harm)
+        np.multiply(trig[0::2], amps[0], out=rows[0])  # [cos ang; sin ang] amp
+        np.multiply(rows[0, ::-1], self._d_rows, out=rows[1])
+        np.multiply(trig[0::2], amps[1], out=rows[2])
         np.multiply(out[0], self._blur2, out=out[3])
         return out
 
@@ -252,7 +260,7 @@ class _Model:
 
     def eval_many(self, duty: float, variances: FloatArray) -> FloatArray:
         """Bright fraction (n, len(variances)) at ``delta = 0`` for several blurs at once."""
-        gains = np.exp(np.outer(self._blur, variances)) * self.footprint[:, None]
+        gains = np.exp(np.multiply.outer(self._blur, variances)) * self.footprint[:, None]
         alpha = (self._two_over_pik * np.sin(math.pi * duty * self.k))[:, None] * gains
         out: FloatArray = self.e[:, : self.k.size] @ alpha + duty
         return out
@@ -871,7 +879,7 @@ def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     very different units), dropping directions the data do not constrain."""
     diag = jtj.diagonal()
     d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    dd = np.outer(d, d)
+    dd = np.multiply.outer(d, d)
     # Symmetric: its eigen-decomposition is its SVD (a tenth of numpy.linalg.pinv's cost on
     # these small matrices), cut at the same relative threshold.
     try:
@@ -917,6 +925,8 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
             warnings.append(message)
         else:
             # Consistent with the given frequency, which is known better (chart design and
-            # magnification) than a period measured over a few periods.
-            geom = replace(geom, freq_cycles_per_px=f_prior)
+            # magnification) than a period measured over a few periods. (Built directly:
+            # dataclasses.replace costs a few us.)
+            geom = BarGeometry(geom.theta_rad, f_prior, geom.phase_cycles, geom.amplitude,
+                               geom.theta_sd_rad, geom.freq_sd, geom.phase_sd, geom.hessian)
     return geom

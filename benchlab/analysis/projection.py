@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -76,10 +77,26 @@ def across_coordinate(
         raise ValueError(f"ROI shape must be at least 1 x 1, got {rows} x {cols}")
     if not math.isfinite(theta_rad):
         raise ValueError(f"theta_rad must be finite, got {theta_rad}")
-    r0, c0 = origin_rc if origin_rc is not None else ((rows - 1) / 2.0, (cols - 1) / 2.0)
-    y = (np.arange(rows, dtype=np.float64) - r0) * math.sin(theta_rad)
-    x = (np.arange(cols, dtype=np.float64) - c0) * math.cos(theta_rad)
+    if origin_rc is None:
+        yc, xc = _centred_coordinates(rows, cols)
+    else:
+        yc = np.arange(rows, dtype=np.float64) - origin_rc[0]
+        xc = np.arange(cols, dtype=np.float64) - origin_rc[1]
+    y = yc * math.sin(theta_rad)
+    x = xc * math.cos(theta_rad)
     return y[:, None] + x[None, :]
+
+
+@lru_cache(maxsize=64)
+def _centred_coordinates(
+    rows: int, cols: int
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Row and column offsets from the ROI centre (cached per shape, read-only)."""
+    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    y.setflags(write=False)
+    x.setflags(write=False)
+    return y, x
 
 
 def bin_profile(
