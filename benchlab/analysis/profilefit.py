@@ -603,7 +603,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
             f"({se_a1:.3g}) of zero: bars not resolved"
         )
-        return unresolved(name, prep.diagnostics(**fields), warnings)
+        return unresolved(name, prep.diagnostics_with(**fields), warnings)
     # Levels never beyond the samples by more than the model itself says the sampled phases
     # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
     at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
@@ -612,7 +612,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
     if bright + dark <= 0 or bright <= dark:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
-        return unresolved(name, prep.diagnostics(**fields), warnings)
+        return unresolved(name, prep.diagnostics_with(**fields), warnings)
     modulation = min(eq29_modulation(dark, bright), 1.0)
     sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
     # Largest gap between the filled bins' phases, around the period (they are ascending).
@@ -620,7 +620,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     sd_model = _model_sd(modulation, max_gap, n_f,
                          MODEL_REL_SD_FAST if fast else None, n_pixels=n)
     sd = math.hypot(sd_noise, sd_model)
-    diag = prep.diagnostics(**fields, uncertainty_noise=sd_noise, uncertainty_model=sd_model)
+    diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
+                                 uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 

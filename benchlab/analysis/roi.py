@@ -84,14 +84,12 @@ class PreparedROI:
         )
 
     def diagnostics(self, n_pixels: int | None = None, **extra: object) -> Diagnostics:
-        """The shared diagnostics plus ``extra`` fields, which may also override the shared
-        ones (e.g. a measured ``noise_sigma``: cheaper than ``dataclasses.replace`` after);
-        ``n_pixels`` defaults to the pixels held (pass the whole ROI's count when they are a
-        selection)."""
+        """The shared diagnostics plus ``extra`` fields; ``n_pixels`` defaults to the pixels
+        held (pass the whole ROI's count when they are a selection)."""
         f = self.freq_cycles_per_px
         # ``aliased`` and ``phase_sensitive`` inlined (this runs once per estimate).
         aliased = f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
-        fields: dict[str, Any] = dict(
+        return Diagnostics(
             n_pixels=self.pixels.size if n_pixels is None else n_pixels,
             px_per_period=(1.0 / f) if f else None,
             freq_cycles_per_px=f,
@@ -102,9 +100,28 @@ class PreparedROI:
             code_step=self.code_step if self.integer_valued else None,
             n_frames=self.n_frames,
             saturation_code=self.max_code if self.clipped_fraction > 0 else None,
+            **extra,  # type: ignore[arg-type]
         )
-        fields.update(extra)
-        return Diagnostics(**fields)
+
+    def diagnostics_with(self, **fields: object) -> Diagnostics:
+        """:meth:`diagnostics` with ``fields`` added or overriding the shared ones (e.g. a
+        measured ``noise_sigma``): cheaper than ``dataclasses.replace`` afterwards."""
+        f = self.freq_cycles_per_px
+        aliased = f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
+        shared: dict[str, Any] = dict(
+            n_pixels=self.pixels.size,
+            px_per_period=(1.0 / f) if f else None,
+            freq_cycles_per_px=f,
+            clipped_fraction=self.clipped_fraction,
+            noise_sigma=self.noise_sigma,
+            aliased=aliased,
+            phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
+            code_step=self.code_step if self.integer_valued else None,
+            n_frames=self.n_frames,
+            saturation_code=self.max_code if self.clipped_fraction > 0 else None,
+        )
+        shared.update(fields)
+        return Diagnostics(**shared)
 
 
 def orientation_axis(orientation: str | None) -> int | None:
