@@ -371,7 +371,9 @@ class _Fit:
         xa = self._fill(s)
         xt = xa.T
         gram = xt @ xa
-        gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
+        # Keeps it invertible (the diagonal through a view of the contiguous product: the
+        # flat iterator costs more).
+        gram.ravel()[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)
         try:
             g_inv = _inv(gram)
         except np.linalg.LinAlgError:
@@ -385,8 +387,7 @@ class _Fit:
             slope += lin[3 + 2 * j] * t
         # Rows: the bins, the shading ridge's (no nonlinear dependence), the duty prior.
         jac = np.empty((n_rows + 1, 3))
-        jac[:m] = ds
-        jac[:m] *= -slope[:, None]
+        np.multiply(ds, -slope[:, None], out=jac[:m])
         jac[m:] = 0.0
         jac[:n_rows] -= xa @ (g_inv @ (xt @ jac[:n_rows]))
         r[n_rows] = self.prior_d * (nl[1] - 0.5)
@@ -408,7 +409,7 @@ class _Fit:
         # Converged when the next step is predicted to lower the cost by less than a
         # hundredth of the noise variance: a move of a tenth of a standard error at most.
         enough = 1e-2 * cost / max(self.m - 3, 1)
-        tiny = np.array([1e-5, 1e-5, 1e-5 * self.var_max])
+        tiny = (1e-5, 1e-5, 1e-5 * self.var_max)
         lo = np.array([-0.5, DUTY_BOUNDS[0], 0.0])
         hi = np.array([0.5, DUTY_BOUNDS[1], self.var_max])
         if not self.fit_duty:
@@ -417,13 +418,14 @@ class _Fit:
             jtj = jac.T @ jac
             grad = jac.T @ r
             scale = jtj.diagonal()
-            jtj.flat[::4] += lam * np.where(scale > 0, scale, 1.0)
+            jtj.ravel()[::4] += lam * np.where(scale > 0, scale, 1.0)
             try:
                 step = -_solve(jtj, grad)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if -float(grad @ step) < enough or bool((np.abs(step) < tiny).all()):
+            if -float(grad @ step) < enough or all(
+                    abs(a) < t for a, t in zip(step.tolist(), tiny, strict=True)):
                 break
             trial = np.minimum(np.maximum(nl + step, lo), hi)
             got = self._projected(trial)
@@ -787,25 +789,31 @@ def _refined(
     ds_grid[0] = grid_s[1] - grid_s[-1]
     ds_grid[-1] = grid_s[0] - grid_s[-2]
     ds_grid *= 0.5 * _GRID_N
+    names = ["phase"]
+    if not fix_theta:
+        names.append("theta")
+    if not fix_freq:
+        names.append("freq")
+    if len(names) == 1:
+        return None
     # A Gauss-Newton step needs no more than REFINE_MAX_PIXELS pixels (evenly strided): the
     # cost stays bounded on large ROIs, whose spectral geometry is close already.
     stride = max(1, fit.n // REFINE_MAX_PIXELS)
     u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
     resid = fit.resid[::stride]
     slope = fit.slope_pix if isinstance(fit.slope_pix, float) else fit.slope_pix[::stride]
-    g = slope * ds_grid[fit.at_grid[::stride] % _GRID_N]
-    cols_ = [g]  # phase shift
-    names = ["phase"]
+    # The design's rows written in place (np.stack costs a copy); the grid's first point
+    # repeated at w = 1, as the pixels' places on it run 0.._GRID_N (no modulo needed).
+    design = np.empty((len(names), u_px.size))
+    g = design[0]
+    np.multiply(slope, np.append(ds_grid, ds_grid[0])[fit.at_grid[::stride]], out=g)
+    row = 1
     if not fix_theta:
-        cols_.append(g * (f * v_px))
-        names.append("theta")
+        np.multiply(g, f * v_px, out=design[row])
+        row += 1
     if not fix_freq:
-        cols_.append(g * u_px)
-        names.append("freq")
-    if len(cols_) == 1:
-        return None
+        np.multiply(g, u_px, out=design[row])
     # Normal equations in two einsums (numpy's own loops: no BLAS threads on large ROIs).
-    design = np.stack(cols_)
     normal = np.einsum("in,jn->ij", design, design)
     rhs = np.einsum("in,n->i", design, resid)
     try:
