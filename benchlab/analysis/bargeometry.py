@@ -391,6 +391,22 @@ def quick_geometry(
     BarGeometry or None
         Straight bars (zero curvature).
     """
+    found = _quick_k(img, noise_sigma, freq_prior, resid, sums)
+    if found is None:
+        return None
+    theta, f, value, amplitude, shape = found
+    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
+    theta_sd, freq_sd, phase_sd = _uncertainties(shape, theta, f, amplitude, noise_sigma)
+    return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
+
+
+def _quick_k(
+    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None,
+    sums: tuple[FloatArray, FloatArray] | None,
+) -> tuple[float, float, complex, float, tuple[int, int]] | None:
+    """:func:`quick_geometry`'s direction, frequency, DFT at them, amplitude and the shape
+    measured (``None`` when it declines); without the phase and uncertainties, which
+    :func:`measure_geometry` does not need from its start."""
     rows, cols = img.shape
     n = rows * cols
     if not freq_prior or not 0 < freq_prior <= 0.5 or n < QUICK_MIN_PIXELS or min(rows, cols) < 8:
@@ -436,9 +452,7 @@ def quick_geometry(
     power = float(np.einsum("ij,ij->", resid, resid)) / n - noise_sigma**2
     if amplitude * amplitude / 2.0 < QUICK_MIN_POWER_SHARE * power:
         return None
-    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    theta_sd, freq_sd, phase_sd = _uncertainties((rows, cols), theta, f, amplitude, noise_sigma)
-    return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
+    return theta, f, value, amplitude, (rows, cols)
 
 
 def _spectral_peak(
@@ -510,10 +524,13 @@ def measure_geometry(
         f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
     start = None
     if quick_start and freq_prior:
-        start = quick_geometry(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
-                               resid=_centred_crop(resid, QUICK_CROP_PX))
+        start = _quick_k(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
+                         _centred_crop(resid, QUICK_CROP_PX), None)
     if start is not None:
-        peak: tuple[float, float, float] | None = (*start.k_xy, start.amplitude)
+        # As BarGeometry.k_xy of quick_geometry's result.
+        q_theta, q_f, _, q_amplitude, _ = start
+        peak: tuple[float, float, float] | None = (
+            q_f * math.cos(q_theta), q_f * math.sin(q_theta), q_amplitude)
     else:
         peak = _spectral_peak(resid, freq_prior, f_lo, f_hi)
     if peak is None:

@@ -501,17 +501,18 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
                         + abs((rows - 1) * math.sin(geom.theta_rad)))
-    if half_f >= 1.0:
-        dev = phi - geom.phase_cycles
-        inner = np.abs(dev, out=dev) <= half_f - 0.5
-    else:
-        inner = np.ones(img.shape, bool)
     # Phase in cycles modulo 1, in place where possible (few full-size temporaries keep large
     # ROIs cheap; np.mod is 10x slower than floor and subtract).
     w = np.floor(phi)
     np.subtract(phi, w, out=w)
     w *= NOISE_BINS
     idx = w.astype(np.intp)
+    if half_f >= 1.0:
+        # In place when phi is not needed after this (the small-ROI noise below uses it).
+        dev = np.subtract(phi, geom.phase_cycles, out=phi if n >= 8 * NOISE_BINS else None)
+        inner = np.abs(dev, out=dev) <= half_f - 0.5
+    else:
+        inner = np.ones(img.shape, bool)
     flat = img.ravel()
     noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
     z_noise = noise

@@ -316,7 +316,8 @@ class _Fit:
         xa[:m, 0] = sw
         for j, t in enumerate(self.extra):
             xa[:m, 2 + 2 * j] = t * sw
-        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        if n_shade:
+            xa[m:, 2:] = self.ridge * np.eye(n_shade)
         self.xa = xa
         self.ya = np.zeros(m + n_shade)
         self.ya[:m] = y * sw
@@ -347,14 +348,15 @@ class _Fit:
         sig = np.asarray(sigmas, dtype=np.float64)
         s = self.model.eval_many(0.5, sig * sig)  # (m, n_sigma)
         w = self.sw * self.sw
-        sw_tot = float(w.sum())
+        sw_tot = float(np.add.reduce(w))
         ybar = float(w @ self.y) / sw_tot
         sbar = (w @ s) / sw_tot
         ds = s - sbar
         sxx = w @ (ds * ds)
-        sxy = (w * (self.y - ybar)) @ ds
+        dy = self.y - ybar
+        sxy = (w * dy) @ ds
         slope = np.where(sxx > 0, sxy / np.maximum(sxx, 1e-300), 0.0)
-        resid = float(w @ (self.y - ybar) ** 2) - slope * sxy
+        resid = float(w @ dy**2) - slope * sxy
         best = int(np.argmin(resid))
         return np.array([0.0, 0.5, float(sig[best]) ** 2])
 
