@@ -368,14 +368,19 @@ class _Fit:
         parameters' column space projected out (Kaufman), the cost, and the model and its
         derivatives at the bins."""
         m, n_lin = self.m, self.n_lin
-        s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
+        delta, duty, var = nl.tolist()
+        s, ds = self.model.eval(delta, duty, var)
         assert ds is not None
         xa = self._fill(s)
         xt = xa.T
         gram = xt @ xa
         # Keeps it invertible (the diagonal through a view of the contiguous product: the
         # flat iterator costs more).
-        gram.ravel()[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)
+        diag = gram.ravel()[:: n_lin + 1]
+        trace = 0.0  # summed in order, as ndarray.trace sums these few
+        for v in diag.tolist():
+            trace += v
+        diag += 1e-12 * (trace + 1e-300)
         try:
             g_inv = _inv(gram)
         except np.linalg.LinAlgError:
@@ -743,7 +748,7 @@ def _fit_at(
     grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
                               derivatives=False)[0]
     # The grid with its first point repeated at w = 1: rounding needs no modulo.
-    grid_wrap = np.append(grid_s, grid_s[0])
+    grid_wrap = np.concatenate((grid_s, grid_s[:1]))
     at_grid = (w_fit.ravel() * _GRID_N + 0.5).astype(np.intp)
     s_pix = grid_wrap[at_grid]
     lin = params[:n_lin]
@@ -786,11 +791,13 @@ def _refined(
     delta = float(fit.params[-3])
     # Slope of the model's bright fraction in phase, at each fitted pixel (from the grid).
     grid_s = fit.grid_s
-    ds_grid = np.empty_like(grid_s)
-    ds_grid[1:-1] = grid_s[2:] - grid_s[:-2]
+    # With the first point repeated at w = 1: the pixels' places on the grid run 0.._GRID_N.
+    ds_grid = np.empty(grid_s.size + 1)
+    ds_grid[1:-2] = grid_s[2:] - grid_s[:-2]
     ds_grid[0] = grid_s[1] - grid_s[-1]
-    ds_grid[-1] = grid_s[0] - grid_s[-2]
-    ds_grid *= 0.5 * _GRID_N
+    ds_grid[-2] = grid_s[0] - grid_s[-2]
+    ds_grid[:-1] *= 0.5 * _GRID_N
+    ds_grid[-1] = ds_grid[0]
     names = ["phase"]
     if not fix_theta:
         names.append("theta")
@@ -804,11 +811,10 @@ def _refined(
     u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
     resid = fit.resid[::stride]
     slope = fit.slope_pix if isinstance(fit.slope_pix, float) else fit.slope_pix[::stride]
-    # The design's rows written in place (np.stack costs a copy); the grid's first point
-    # repeated at w = 1, as the pixels' places on it run 0.._GRID_N (no modulo needed).
+    # The design's rows written in place (np.stack costs a copy).
     design = np.empty((len(names), u_px.size))
     g = design[0]
-    np.multiply(slope, np.append(ds_grid, ds_grid[0])[fit.at_grid[::stride]], out=g)
+    np.multiply(slope, ds_grid[fit.at_grid[::stride]], out=g)
     row = 1
     if not fix_theta:
         np.multiply(g, f * v_px, out=design[row])
@@ -828,11 +834,12 @@ def _refined(
     significance = float(step @ normal @ step) * stride / max(noise2, 1e-300)
     # Phase moved at the ROI's edges by the change of direction and frequency (cycles).
     moved = 0.0
+    whole = stride == 1 and fit.keep is None
     for name, d in zip(names, step, strict=True):
         if name == "theta":
-            moved += abs(d) * f * float(np.abs(v_px).max())
+            moved += abs(d) * f * _abs_max(v_px, prep.pixels.shape, whole)
         elif name == "freq":
-            moved += abs(d) * float(np.abs(u_px).max())
+            moved += abs(d) * _abs_max(u_px, prep.pixels.shape, whole)
     if significance < REFINE_CHI2 or moved < REFINE_MIN_CYCLES:
         return None
     # A linearised step is trusted only for small corrections (a larger one means the
@@ -855,6 +862,18 @@ def _refined(
     ):
         return None
     return other
+
+
+def _abs_max(a: FloatArray, shape: tuple[int, ...], whole: bool) -> float:
+    """``max |a|`` of a coordinate (``u`` or ``v`` of :func:`.projection.across_coordinate`,
+    flattened); with ``whole`` (every pixel of the ``shape`` ROI, in order) read off its four
+    corners: the coordinate is a rounded sum of a row and a column term, monotonic in each,
+    so its extremes sit at corners - the same number without two passes."""
+    if whole:
+        cols = shape[1]
+        item = a.item
+        return max(abs(item(0)), abs(item(cols - 1)), abs(item(a.size - cols)), abs(item(-1)))
+    return float(np.abs(a).max())
 
 
 def _spread(x: FloatArray) -> float:
