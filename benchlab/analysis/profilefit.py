@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -102,6 +103,7 @@ _TWO_PI = 2.0 * math.pi
 
 FloatArray = npt.NDArray[np.float64]
 
+_lapack: Any
 try:  # numpy's own LAPACK gufuncs, without np.linalg's Python wrappers
     from numpy.linalg import _umath_linalg as _lapack
 except ImportError:  # pragma: no cover - a numpy without the private module
@@ -117,7 +119,7 @@ def _inv(a: FloatArray) -> FloatArray:
         out: FloatArray = _lapack.inv(a, signature="d->d")
         if math.isfinite(out.item(0)):
             return out
-    return np.linalg.inv(a)
+    return np.asarray(np.linalg.inv(a), dtype=np.float64)
 
 
 def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -126,7 +128,7 @@ def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
         out: FloatArray = _lapack.solve1(a, b, signature="dd->d")
         if math.isfinite(out.item(0)):
             return out
-    return np.linalg.solve(a, b)
+    return np.asarray(np.linalg.solve(a, b), dtype=np.float64)
 
 
 def _eigh(a: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -384,7 +386,7 @@ class _Fit:
         try:
             g_inv = _inv(gram)
         except np.linalg.LinAlgError:
-            g_inv = np.linalg.pinv(gram)
+            g_inv = np.asarray(np.linalg.pinv(gram), dtype=np.float64)
         lin = g_inv @ (xt @ self.ya)
         n_rows = xa.shape[0]
         r = np.empty(n_rows + 1)
