@@ -128,7 +128,10 @@ def detrend(img: FloatArray, sums: tuple[FloatArray, FloatArray] | None = None) 
     rows, cols = img.shape[0], img.shape[1]
     y, x = _centred_grid((rows, cols))
     add = np.add.reduce  # = ndarray.sum without its Python wrapper
-    col_sums, row_sums = sums if sums is not None else (add(img, axis=0), add(img, axis=1))
+    if sums is not None and sums[0].shape == (cols,) and sums[1].shape == (rows,):
+        col_sums, row_sums = sums
+    else:
+        col_sums, row_sums = add(img, axis=0), add(img, axis=1)
     mean = float(add(col_sums)) / (rows * cols)
     # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
     gx = float(add(col_sums * x)) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
