@@ -208,3 +208,16 @@ def test_fit_diagnostics_carry_the_fit_noise_not_the_rois() -> None:
     assert r.diagnostics.uncertainty_model is not None and r.diagnostics.duty is not None
     d = prep.diagnostics_with(noise_sigma=1.5, duty=0.4)
     assert (d.noise_sigma, d.duty, d.n_pixels) == (1.5, 0.4, 2000)
+
+
+def test_fit_falls_back_to_numpys_linalg_without_the_lapack_gufuncs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Another numpy without the private gufuncs: the fit reads the same through np.linalg."""
+    roi = render(BarCase(shape=(40, 50), px_per_period=8.0, angle_deg=25.0, noise_sigma=2.0),
+                 np.random.default_rng(4))
+    fast = estimate_modulation(roi, estimator="profilefit", freq_cycles_per_px=0.125)
+    assert profilefit._lapack is not None
+    monkeypatch.setattr(profilefit, "_lapack", None)
+    slow = estimate_modulation(roi, estimator="profilefit", freq_cycles_per_px=0.125)
+    assert (fast.modulation, fast.interval) == (slow.modulation, slow.interval)

@@ -103,11 +103,26 @@ _TWO_PI = 2.0 * math.pi
 
 FloatArray = npt.NDArray[np.float64]
 
-_lapack: Any
-try:  # numpy's own LAPACK gufuncs, without np.linalg's Python wrappers
-    from numpy.linalg import _umath_linalg as _lapack
-except ImportError:  # pragma: no cover - a numpy without the private module
-    _lapack = None
+
+def _load_lapack() -> Any:
+    """numpy's own LAPACK gufuncs (a private module), used without np.linalg's Python
+    wrappers; ``None`` (np.linalg then) unless they exist and give np.linalg's numbers."""
+    try:
+        from numpy.linalg import _umath_linalg as lapack
+
+        a, b = np.array([[2.0, 1.0], [1.0, 3.0]]), np.array([1.0, 2.0])
+        same = (
+            np.array_equal(lapack.inv(a, signature="d->d"), np.linalg.inv(a))
+            and np.array_equal(lapack.solve1(a, b, signature="dd->d"), np.linalg.solve(a, b))
+            and all(np.array_equal(x, y) for x, y in
+                    zip(lapack.eigh_lo(a, signature="d->dd"), np.linalg.eigh(a), strict=True))
+        )
+    except Exception:  # pragma: no cover - another numpy: its public functions then
+        return None
+    return lapack if same else None
+
+
+_lapack = _load_lapack()
 
 
 def _inv(a: FloatArray) -> FloatArray:
