@@ -15,7 +15,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from benchlab.analysis import profilefit
-from benchlab.analysis.bargeometry import detrend, measure_geometry, quick_geometry
+from benchlab.analysis.bargeometry import (
+    detrend,
+    measure_geometry,
+    quick_fundamental,
+    quick_geometry,
+)
 from benchlab.analysis.estimators import estimate_modulation
 from benchlab.analysis.projection import across_coordinate, bin_profiles, filled_bin_means
 from benchlab.analysis.roi import _axis_and_sums, detect_axis, prepare_roi
@@ -221,3 +226,21 @@ def test_fit_falls_back_to_numpys_linalg_without_the_lapack_gufuncs(
     monkeypatch.setattr(profilefit, "_lapack", None)
     slow = estimate_modulation(roi, estimator="profilefit", freq_cycles_per_px=0.125)
     assert (fast.modulation, fast.interval) == (slow.modulation, slow.interval)
+
+
+@pytest.mark.parametrize("shape", [(40, 50), (16, 16), (300, 280), (12, 40)])
+def test_quick_fundamental_is_quick_geometry_without_its_uncertainties(
+    shape: tuple[int, int],
+) -> None:
+    roi = render(BarCase(shape=shape, px_per_period=6.0, angle_deg=52.0, noise_sigma=2.0),
+                 np.random.default_rng(9))
+    prep = prepare_roi(roi, freq_cycles_per_px=1 / 6.0)
+    geom = quick_geometry(prep.pixels, prep.noise_sigma, 1 / 6.0, sums=prep.profile_sums)
+    parts = quick_fundamental(prep.pixels, prep.noise_sigma, 1 / 6.0, None, prep.profile_sums)
+    if geom is None:  # declined by both (12 x 40: narrower than 8 periods' worth)
+        assert parts is None
+        return
+    assert parts is not None
+    theta, f, value, amplitude, _ = parts
+    assert (theta, f, amplitude) == (geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
+    assert math.atan2(value.imag, value.real) / (2 * math.pi) == geom.phase_cycles

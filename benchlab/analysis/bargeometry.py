@@ -394,7 +394,7 @@ def quick_geometry(
     BarGeometry or None
         Straight bars (zero curvature).
     """
-    found = _quick_k(img, noise_sigma, freq_prior, resid, sums)
+    found = quick_fundamental(img, noise_sigma, freq_prior, resid, sums)
     if found is None:
         return None
     theta, f, value, amplitude, shape = found
@@ -403,13 +403,25 @@ def quick_geometry(
     return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
 
 
-def _quick_k(
+def quick_fundamental(
     img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None,
     sums: tuple[FloatArray, FloatArray] | None,
 ) -> tuple[float, float, complex, float, tuple[int, int]] | None:
-    """:func:`quick_geometry`'s direction, frequency, DFT at them, amplitude and the shape
-    measured (``None`` when it declines); without the phase and uncertainties, which
-    :func:`measure_geometry` does not need from its start."""
+    """:func:`quick_geometry` without its phase and uncertainties (which
+    :func:`measure_geometry`'s start and the histogram method's bin phases do not need).
+
+    Parameters
+    ----------
+    img, noise_sigma, freq_prior, resid, sums
+        As :func:`quick_geometry`.
+
+    Returns
+    -------
+    (float, float, complex, float, (int, int)) or None
+        Direction ``theta`` (rad), frequency (cycles/px), the DFT at ``f (cos t, sin t)``
+        (phases from the centre), the fundamental amplitude and the shape measured (a crop
+        of large ROIs); ``None`` where :func:`quick_geometry` declines.
+    """
     rows, cols = img.shape
     n = rows * cols
     if not freq_prior or not 0 < freq_prior <= 0.5 or n < QUICK_MIN_PIXELS or min(rows, cols) < 8:
@@ -527,7 +539,7 @@ def measure_geometry(
         f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
     start = None
     if quick_start and freq_prior:
-        start = _quick_k(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
+        start = quick_fundamental(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
                          _centred_crop(resid, QUICK_CROP_PX), None)
     if start is not None:
         # As BarGeometry.k_xy of quick_geometry's result.
