@@ -237,10 +237,7 @@ def test_quick_fundamental_is_quick_geometry_without_its_uncertainties(
     prep = prepare_roi(roi, freq_cycles_per_px=1 / 6.0)
     geom = quick_geometry(prep.pixels, prep.noise_sigma, 1 / 6.0, sums=prep.profile_sums)
     parts = quick_fundamental(prep.pixels, prep.noise_sigma, 1 / 6.0, None, prep.profile_sums)
-    if geom is None:  # declined by both (12 x 40: narrower than 8 periods' worth)
-        assert parts is None
-        return
-    assert parts is not None
+    assert geom is not None and parts is not None
     theta, f, value, amplitude, _ = parts
     assert (theta, f, amplitude) == (geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
     assert math.atan2(value.imag, value.real) / (2 * math.pi) == geom.phase_cycles
