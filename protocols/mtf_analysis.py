@@ -165,8 +165,8 @@ def analyze_forward_frame(
                      else _found_element(el, orient, fit))
             if not _inside(roi, pixels.shape):
                 cells = _not_measured("clipped by the FOV: ROI off the frame")
-            elif found is not None and found.found and found.unmeasurable:
-                cells = _not_measured(found.unmeasurable)
+            elif found is not None and found.found and found.generic_unreliable:
+                cells = _not_measured(found.generic_unreliable)
             else:
                 # A found chart far from the configured geometry: the frequency on the sensor
                 # is the found one (magnification / scale), and bars off the pixel axes have

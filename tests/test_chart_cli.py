@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from benchlab.chart_benchmark import frame_truth_modulation
 from benchlab.cli.main import main
 from benchlab.scenes.usaf import usaf_scene_from_spec
 
@@ -64,14 +65,28 @@ def test_analyze_chart_measures_every_found_element(posed_frame: Path,
     g0 = rows["G0E1T"]
     assert g0["result"]["resolved"] and 0.6 < g0["result"]["modulation"] < 1.0
     assert {r["label"] for r in d["rejected"]} >= {"G3E1S", "G3E1T"}
-    # found at 2.23 px per period on bars 8 deg off the axes: a reason, not a number
+    # found at 2.23 px per period on bars 8 deg off the axes: read at the pose's geometry,
+    # within 0.03 of the scene's truth and inside its interval
+    scene = usaf_scene_from_spec(SPEC)
     fine = rows["G2E5S"]
-    assert fine["result"] is None and "px per period < 2.5" in fine["unmeasurable"]
+    assert fine["unmeasurable"] is None and fine["result"]["estimator"] == "knownbars"
+    truth = frame_truth_modulation(scene, scene.bar_set(2, 5, "sagittal"), 12)
+    assert fine["result"]["modulation"] == pytest.approx(truth, abs=0.03)
+    lo, hi = fine["result"]["interval"]
+    assert lo <= truth <= hi
     assert rows["G1E5S"]["unmeasurable"] is None and rows["G1E5S"]["result"]["resolved"]
     assert main(["analyze", str(posed_frame), "--chart", "usaf"]) == 0
     table = capsys.readouterr().out
     assert "S dark/bright" in table and "\nG1E5 " in table and "not measured:" in table
-    assert "found, not measured: G2E5S not measurable" in table
+    assert "found, not measured" not in table
+    # a generic estimator asked for by name: the fine oblique set gets the reason, no number
+    assert main(["analyze", str(posed_frame), "--chart", "usaf", "--estimator", "profilefit",
+                 "--json"]) == 0
+    rows = {r["label"]: r for r in json.loads(capsys.readouterr().out)["rows"]}
+    assert rows["G2E5S"]["result"] is None
+    assert "px per period < 2.5" in rows["G2E5S"]["unmeasurable"]
+    assert "generic estimator" in rows["G2E5S"]["unmeasurable"]
+    assert rows["G1E5S"]["result"]["estimator"] == "profilefit"
 
 
 def test_no_chart_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -115,7 +130,11 @@ def test_benchmark_chart_scores_a_frame(capsys: pytest.CaptureFixture[str]) -> N
     assert s["found_share_wide"] == 1.0 and s["wrongly_labelled"] == 0
     assert s["centre_err_median_px"] < 0.1
     assert s["control_modulation_n"] > 20
+    assert s["modulation_within_all"] >= 0.95 and s["modulation_coverage"] >= 0.9
+    assert {(b["bars"], b["px_per_period"]) for b in s["buckets"]} >= {
+        ("oblique", "2-2.25"), ("oblique", "2.25-2.5"), ("axis", ">=4")}
     assert main(["benchmark", "chart", "--frames", "1", "--control", "0"]) == 0
     out = capsys.readouterr().out
     assert "found + correctly labelled" in out and "finder time per frame" in out
     assert "control: 0 more poses at rotation 0" in out
+    assert "modulation per period bucket" in out and "oblique  2-2.25" in out

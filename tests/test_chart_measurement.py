@@ -15,11 +15,14 @@ from test_chart_finder import frame
 from benchlab.analysis import estimate_modulation
 from benchlab.analysis.chart import ROI_END_MARGIN_PX, RadialLayout
 from benchlab.analysis.chart_finder import (
-    MIN_OBLIQUE_PX_PER_PERIOD,
+    GENERIC_MIN_OBLIQUE_PX_PER_PERIOD,
+    READING_END_PX,
     _measurement_roi,
+    _reading_roi,
     find_chart,
 )
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set_roi
+from benchlab.analysis.chart_reading import read_chart
 from benchlab.chart_benchmark import TRUNCATION_DN8, frame_truth_modulation
 from benchlab.drivers.mightex_sim_sensor import FlatFieldScene, SensorModel
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
@@ -54,6 +57,27 @@ def test_whole_period_roi_spans_three_periods_off_the_bar_ends(theta: float, wid
         assert lines == math.floor(lo + 6.0 * width) - math.ceil(lo) + 1
 
 
+def test_the_reading_roi_runs_past_the_bar_ends_unless_a_neighbour_is_there() -> None:
+    me = _posed((300.0, 300.0), 2.0, 0.0)
+    shape = (1024, 1280)
+    box = me.whole_period_roi
+    longer = _reading_roi(me, [me], shape, box)
+    assert longer is not None
+    # same columns (three whole periods across); the rows reach the bar ends (295 and 305),
+    # the pixel apertures at most READING_END_PX past them
+    assert (longer[1], longer[3]) == (box[1], box[3])
+    assert longer[0] < box[0] and longer[2] > box[2]
+    assert longer[0] <= 295 and longer[2] - 1 >= 305
+    assert longer[0] - 0.5 >= 295.0 - READING_END_PX and longer[2] - 0.5 <= 305.0 + READING_END_PX
+    # a set just beyond the bar ends: the measurement ROI
+    below = _posed((300.0 + 5.0 + 5.6, 300.0), 2.0, 0.0)
+    assert _reading_roi(me, [me, below], shape, box) is None
+    # off the frame, or a measurement ROI that is not the whole-period one: none
+    assert _reading_roi(_posed((3.0, 300.0), 2.0, 0.0), [], shape,
+                        _posed((3.0, 300.0), 2.0, 0.0).whole_period_roi) is None
+    assert _reading_roi(me, [me], shape, me.roi) is None
+
+
 def test_priors_give_the_axis_only_for_bars_on_an_axis() -> None:
     on_axis = _posed((300.0, 300.0), 2.0, 90.3, 4.0, "tangential")
     oblique = _posed((300.0, 300.0), 2.0, 4.0, 4.0)
@@ -86,34 +110,37 @@ def test_a_neighbour_is_kept_out_of_the_roi() -> None:
 
 @pytest.mark.parametrize("pose", [ChartPose((10.0, -15.0), 1.1, 7.0),
                                   ChartPose((-20.0, 25.0), 0.9, -11.0)])
-def test_rotated_chart_measured_within_003_and_fine_oblique_sets_not_measured(
-    pose: ChartPose,
-) -> None:
+def test_rotated_chart_read_within_003_down_to_nyquist(pose: ChartPose) -> None:
+    """Every found set is read at the pose's geometry within 0.03, the fine oblique ones too;
+    the generic estimator is kept off the fine oblique sets (GENERIC_MIN_OBLIQUE_PX_PER_PERIOD)
+    and still reads the others within 0.03."""
     scene = UsafScene(pose=pose, vignetting=0.2)
     px = frame(scene, 12, seed=3)
     fit = find_chart(px)
-    within, measured, unmeasured = 0, 0, 0
-    for el in fit.found:
+    within, generic_within, generic_read, fine = 0, 0, 0, 0
+    for el, res in zip(fit.found, read_chart(px, fit), strict=True):
         p = el.posed
-        if p.px_per_period < MIN_OBLIQUE_PX_PER_PERIOD:
-            assert el.unmeasurable is not None and "px per period <" in el.unmeasurable
-            unmeasured += 1
-            continue
         assert el.unmeasurable is None, el.label
-        r0, c0, r1, c1 = el.measurement_roi
-        res = estimate_modulation(px[r0:r1, c0:c1], **el.estimator_priors())
         truth = frame_truth_modulation(scene, scene.bar_set(p.group, p.element, p.orientation), 12)
-        measured += 1
         within += abs(res.modulation - truth) <= 0.03
-    assert unmeasured >= 2 and measured >= 25
-    # the bar-set ROI with the axis as the prior read only 14-17 of these within 0.03
-    assert within >= measured - 1
+        fine += p.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD
+        if p.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:
+            assert el.generic_unreliable is not None and "px per period <" in el.generic_unreliable
+            continue
+        assert el.generic_unreliable is None, el.label
+        r0, c0, r1, c1 = el.measurement_roi
+        gen = estimate_modulation(px[r0:r1, c0:c1], **el.estimator_priors())
+        generic_read += 1
+        generic_within += abs(gen.modulation - truth) <= 0.03
+    assert fine >= 2 and len(fit.found) >= 27
+    assert within == len(fit.found)
+    assert generic_within >= generic_read - 1
 
 
-def test_fine_sets_on_the_axes_are_still_measured() -> None:
+def test_fine_sets_on_the_axes_are_measured() -> None:
     fit = find_chart(frame(UsafScene(pose=ChartPose((0.0, 0.0), 1.0, 0.0))))
-    fine = [e for e in fit.found if e.posed.px_per_period < MIN_OBLIQUE_PX_PER_PERIOD]
-    assert fine and all(e.unmeasurable is None for e in fine)
+    fine = [e for e in fit.found if e.posed.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD]
+    assert fine and all(e.unmeasurable is None and e.generic_unreliable is None for e in fine)
 
 
 def test_prior_pose_gives_the_searched_fit_and_a_wrong_prior_falls_back() -> None:

@@ -31,6 +31,12 @@ pose (:class:`benchlab.analysis.chart_pose.ChartPose`: offset, scale, rotation) 
    (< :data:`MIN_CONFIDENCE`) is rejected as ambiguous. A found set gets its measurement ROI
    (three whole periods across, bar ends trimmed, no neighbouring set inside) and, where no
    reliable modulation can be read from it, the reason (:attr:`FoundElement.unmeasurable`).
+4. **Reading.** :meth:`FoundElement.measure` reads a set's modulation with its geometry fixed
+   by the pose (:mod:`benchlab.analysis.knownbars`; every set of a chart at once, the blur
+   shared between them: :func:`benchlab.analysis.chart_reading.read_chart`), down to Nyquist
+   at any angle. :meth:`FoundElement.estimator_priors` hands the generic estimators the
+   frequency (and the axis on axis-aligned bars) instead; they re-estimate the geometry and
+   are kept off fine oblique sets (:attr:`FoundElement.generic_unreliable`).
 
 Pure numpy/OpenCV: no files, no devices. Raises :class:`ChartNotFoundError` when no pose is
 supported by at least :data:`MIN_MATCHED_SETS` sets.
@@ -51,9 +57,12 @@ from benchlab.analysis.chart_pose import (
     ChartPose,
     PosedBarSet,
     posed_bar_set,
+    posed_bar_set_roi,
 )
 from benchlab.analysis.frequency import nyquist_lp_per_mm
+from benchlab.analysis.knownbars import ThreeBarReading, fit_three_bars
 from benchlab.analysis.projection import project_roi
+from benchlab.analysis.result import ModulationResult
 
 Polarity = Literal["positive", "negative"]
 FloatArray = npt.NDArray[np.float64]
@@ -90,11 +99,25 @@ MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
 MIN_ROI_LINES = 3
 MIN_ROI_ACROSS_PX = 4
-#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) with fewer
-#: pixels per period are found but not measured: every line samples another phase, the ROI
-#: holds a few dozen pixels, and on ``benchlab benchmark chart`` only 32 % (2-2.25 px) and 77 %
-#: (2.25-2.5 px) of their readings came within 0.03 of the truth, against 85-98 % above.
-MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) are measured
+#: down to this many pixels per period, i.e. down to Nyquist: every line samples another phase,
+#: and :meth:`FoundElement.measure` fixes the geometry from the pose
+#: (:func:`benchlab.analysis.knownbars.read_three_bars`), so those phases pin the profile down.
+#: On ``benchlab benchmark chart`` (40 + 8 frames) that reading came within 0.03 of the truth
+#: for all 78 oblique sets at 2-2.25 px and all 67 at 2.25-2.5 px (95 % intervals holding the
+#: truth for 95 % and 100 %). The generic estimators, which re-estimate the geometry from the
+#: ROI, read only 32 % and 77 % of them within 0.03: see
+#: :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD`. Above Nyquist (< 2 px) sets are rejected.
+MIN_OBLIQUE_PX_PER_PERIOD = 2.0
+#: Oblique sets with fewer pixels per period give no reliable reading from a generic estimator
+#: (:func:`benchlab.analysis.estimate_modulation` with :meth:`FoundElement.estimator_priors`):
+#: it must find the direction and phase from a few dozen pixels first.
+GENERIC_MIN_OBLIQUE_PX_PER_PERIOD = 2.5
+#: The chart reading's ROI runs this far (px) past the bar ends (see :func:`_reading_roi`):
+#: its model holds the ends' blur, and short bars get more lines along them. On ``benchlab
+#: benchmark chart`` the sets at 2-2.25 px per period went from 3 to 1 of 94 read more than
+#: 0.03 off with it (no set worse); 1.5 px read closer still but beside fewer neighbours.
+READING_END_PX = 1.0
 #: Fewest whole periods the measurement ROI must span across the bars.
 MIN_ROI_PERIODS = 2.0
 #: Blur reach (px) of a neighbouring set kept out of a measurement ROI.
@@ -117,8 +140,11 @@ class FoundElement:
     period that fits the ROI best (None when not checked). ``roi`` is the bar-set ROI (bar ends
     trimmed, across the set only); ``measurement_roi`` the ROI a modulation is read from: three
     whole periods across (:attr:`PosedBarSet.whole_period_roi`), back to ``roi`` where a
-    neighbouring set would reach into it. ``unmeasurable`` says why a found set gives no
-    reliable modulation (None when it does).
+    neighbouring set would reach into it. ``reading_roi`` is the ROI :meth:`measure` reads:
+    the measurement ROI run :data:`READING_END_PX` past the bar ends (its model holds the ends'
+    blur), where that stays on the frame and clear of every other set (None: the measurement
+    ROI). ``unmeasurable`` says why a found set gives no reliable modulation (None when it
+    does).
     """
 
     posed: PosedBarSet
@@ -129,6 +155,51 @@ class FoundElement:
     roi: Box
     measurement_roi: Box
     unmeasurable: str | None = None
+    reading_roi: Box | None = None
+
+    def measure(
+        self, pixels: npt.ArrayLike, max_code: float | None = None,
+        blur_prior_px: tuple[float, float] | None = None,
+    ) -> ModulationResult:
+        """The set's Eq. 2.9 modulation read at the geometry the pose gives it.
+
+        :func:`benchlab.analysis.knownbars.read_three_bars` on :attr:`measurement_roi` of the
+        frame (``pixels``: the whole 2-D frame, or a stack of frames), with the set's centre,
+        bar width and bar angle fixed by the fitted pose; only the levels, shading, blur and a
+        small shift are fitted (``blur_prior_px``: a prior on the blur, see
+        :func:`benchlab.analysis.chart_reading.read_chart`, which reads every set with the
+        blur shared across the chart). Read whether or not :attr:`unmeasurable` is set
+        (callers show that reason instead of a number).
+        """
+        return self.fit_reading(pixels, max_code, blur_prior_px).result
+
+    def fit_reading(
+        self, pixels: npt.ArrayLike, max_code: float | None = None,
+        blur_prior_px: tuple[float, float] | None = None,
+    ) -> ThreeBarReading:
+        """:meth:`measure` with the blur it used and the blurs the pixels allow."""
+        r0, c0, r1, c1 = self.reading_roi or self.measurement_roi
+        p = self.posed
+        roi = np.asarray(pixels)[..., r0:r1, c0:c1]
+        return fit_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
+                              bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
+                              max_code=max_code, blur_prior_px=blur_prior_px)
+
+    @property
+    def generic_unreliable(self) -> str | None:
+        """Why a generic estimator (:meth:`estimator_priors`) gives no reliable reading here:
+        :attr:`unmeasurable`, or oblique bars under
+        :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD` px per period (None when it does)."""
+        if self.unmeasurable is not None:
+            return self.unmeasurable
+        p = self.posed
+        if not p.axis_aligned and p.px_per_period < GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:
+            off_axis = abs((p.theta_deg + 45.0) % 90.0 - 45.0)
+            return (f"not measurable: {p.px_per_period:.2f} px per period < "
+                    f"{GENERIC_MIN_OBLIQUE_PX_PER_PERIOD:g} on bars {off_axis:.1f} deg off the "
+                    "pixel axes by a generic estimator (it must find the bar direction and phase "
+                    "from the few pixels; the chart reading fixes them from the pose)")
+        return None
 
     def estimator_priors(self) -> dict[str, Any]:
         """Keyword arguments for :func:`benchlab.analysis.estimate_modulation`: the set's
@@ -671,7 +742,31 @@ def _check(
                             f"ambiguous (three-bar pattern correlation {conf:.2f} < "
                             f"{MIN_CONFIDENCE})", conf, measured, roi, roi)
     box, note = _measurement_roi(posed, placed, (h, w))
-    return FoundElement(posed, "found", None, conf, measured, roi, box, note)
+    return FoundElement(posed, "found", None, conf, measured, roi, box, note,
+                        _reading_roi(posed, placed, (h, w), box))
+
+
+def _reading_roi(
+    posed: PosedBarSet, placed: list[PosedBarSet], shape: tuple[int, int], box: Box
+) -> Box | None:
+    """The measurement ROI ``box`` (when it spans three whole periods) run
+    :data:`READING_END_PX` past the bar ends, when that stays on the frame and clear of every
+    other set; None otherwise (the reading then uses ``box``)."""
+    if box != posed.whole_period_roi:
+        return None
+    longer = posed_bar_set_roi(posed.centre_rc, posed.bar_width_px, posed.theta_deg,
+                               margin_px=-READING_END_PX,
+                               half_across_widths=WHOLE_PERIODS_HALF_WIDTHS)
+    r0, c0, r1, c1 = longer
+    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]):
+        return None
+    reach = math.dist((r0, c0), (r1, c1))
+    for o in placed:
+        if o is not posed and math.dist(o.centre_rc, posed.centre_rc) <= reach + (
+            o.half_size_px + NEIGHBOUR_MARGIN_PX
+        ) * math.sqrt(2.0) and _box_meets_set(longer, o):
+            return None
+    return longer
 
 
 def _measurement_roi(

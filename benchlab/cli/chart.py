@@ -13,6 +13,7 @@ from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
     from benchlab.analysis.chart_finder import ChartFit
+    from benchlab.analysis.result import ModulationResult
 
 CHART_KINDS = ("usaf",)
 
@@ -95,25 +96,40 @@ def _find_chart_command(args: argparse.Namespace) -> int:
 
 
 def measure_chart(pixels: Any, fit: ChartFit, estimator: str | None) -> list[dict[str, Any]]:
-    """Every found element measured with the (default) estimator: one dict per bar set."""
-    from benchlab.analysis import DEFAULT_ESTIMATOR, estimate_modulation
+    """Every found element measured: one dict per bar set.
 
-    name = estimator or DEFAULT_ESTIMATOR
+    By default (``estimator`` None or ``auto``) the chart's own reading
+    (:func:`benchlab.analysis.chart_reading.read_chart`: each set fitted at the geometry the
+    pose gives it, the blur shared across the chart); a named estimator instead runs the
+    generic estimator on each set's ROI with its priors, where the finder deems that reliable
+    (:attr:`FoundElement.generic_unreliable`; otherwise the reason, not a number).
+    """
+    from benchlab.analysis import ESTIMATORS, estimate_modulation
+    from benchlab.analysis.chart_reading import read_chart
+
+    generic = estimator not in (None, "", "auto")
+    if generic and estimator not in ESTIMATORS:
+        raise ValueError(f"--estimator {estimator!r} unknown; choose auto or one of "
+                         f"{', '.join(sorted(ESTIMATORS))}")
+    readings: list[ModulationResult | None] = (
+        [None] * len(fit.found) if generic else list(read_chart(pixels, fit)))
     rows = []
-    for el in fit.found:
+    for el, reading in zip(fit.found, readings, strict=True):
         r0, c0, r1, c1 = el.measurement_roi
         p = el.posed
+        note = el.generic_unreliable if generic else el.unmeasurable
         result: dict[str, Any] | None = None
-        if el.unmeasurable is None:  # else no number: the reason says why
-            res = estimate_modulation(pixels[..., r0:r1, c0:c1], estimator=name,
-                                      **el.estimator_priors())
-            result = res.to_dict()
+        if note is None:  # else no number: the note says why
+            if reading is None:
+                reading = estimate_modulation(pixels[..., r0:r1, c0:c1], estimator=str(estimator),
+                                              **el.estimator_priors())
+            result = reading.to_dict()
         rows.append({"element": f"G{p.group}E{p.element}", "orientation": p.orientation,
                      "label": p.label, "roi": list(el.measurement_roi),
                      "object_lp_per_mm": p.object_lp_per_mm,
                      "image_lp_per_mm": p.image_lp_per_mm, "px_per_period": p.px_per_period,
                      "theta_deg": p.theta_deg, "confidence": el.confidence,
-                     "unmeasurable": el.unmeasurable, "result": result})
+                     "unmeasurable": note, "result": result})
     return rows
 
 

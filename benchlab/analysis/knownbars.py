@@ -1,0 +1,599 @@
+"""A three-bar set read at its known geometry: the levels of the imaged pattern, fitted.
+
+An estimator that sees only an ROI has to find the bars' direction, period and phase from a few
+dozen pixels before it can read a contrast; near Nyquist that search costs more accuracy than the
+contrast itself. The chart finder already knows each set's geometry from the pose fitted to the
+whole chart (bar angle, bar width, centre: every set's centre to a few hundredths of a pixel on
+``benchlab benchmark chart``). Here that geometry is fixed and only what the pose cannot know is
+fitted:
+
+1. Every pixel centre gets its across-bar coordinate ``u`` (:func:`.projection.across_coordinate`,
+   ``u = 0`` on the middle bar) and its along-bar coordinate ``v``.
+2. The imaged set is the three dark bars of width ``w`` at ``u = -2w, 0, 2w`` (the ground beyond
+   the outer bars is a space: the model is the finite set, not an endless square wave), blurred
+   by a Gaussian PSF of ``sigma`` and integrated over the pixel's footprint at the bar angle
+   (:func:`.barmodel.edge_response`): a pattern ``P(u; sigma)`` between 0 and 1. The bar ends
+   (``v = +-2.5 w``) are blurred the same way along the bars, ``A(v; sigma_v)``, so the ROI may
+   run up to and past them.
+3. Pixel values are ``a + b_u u + b_v v + c P'(u) A(v) + s P(u) A(v)``: for fixed blurs a
+   linear least-squares problem (ground level, linear shading, a small shift ``-c / s`` of the
+   set across the bars, bar depth ``s``; ``s < 0`` for dark bars, ``> 0`` for a negative
+   target), the shading and the shift held by weak priors (:data:`SHADING_PRIOR_PER_PX`,
+   ``shift_prior_px``) so that a ROI of a few lines cannot trade them for contrast. The blurs
+   are a 1-D search each (every blur of a grid solved at once; a parabola at the best), with an
+   optional prior on ``sigma`` (the chart's other sets:
+   :func:`benchlab.analysis.chart_reading.read_chart`).
+4. The Eq. 2.9 levels are the fitted model at the middle bar's centre and the mean of the spaces
+   either side of it (``u = 0`` and ``u = +-w``, ``v = 0``): the contrast a pixel centred on the
+   bar and on the spaces would read (the simulated scene's truth is defined the same way).
+
+Oblique bars put every pixel at another phase of the pattern (the slanted-edge trick), so a
+model with known geometry is pinned down by the data even at 2-2.5 px per period. Bars on a
+pixel axis sample only the phases the pixel grid gives; there the blur is less well determined
+and the interval says so.
+
+The interval holds the noise propagated through the linear fit (the noise estimated from the
+residuals, at least the code step's quantisation; the shift's and shading's uncertainty
+included), the spread of the reading over the blurs the data (and prior) allow
+(``Delta chi^2 <= 1``), a sampling-phase term where no pixel comes near the bar centre or a
+space centre (:data:`PHASE_GAP_REL`), and a model term (:data:`MODEL_REL_SD` relative,
+:data:`MODEL_ABS_SD` absolute).
+
+Pixels at the saturation code are censored: they are left out of the fit (the model carries the
+level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
+is not significant above the noise, is "not resolved" with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.barmodel import edge_response
+from benchlab.analysis.projection import across_coordinate
+from benchlab.analysis.result import (
+    NYQUIST_CYCLES_PER_PX,
+    PHASE_SENSITIVE_CYCLES_PER_PX,
+    Diagnostics,
+    ModulationResult,
+    eq29_modulation,
+    resolved,
+    unresolved,
+)
+from benchlab.analysis.roi import detect_code_step, infer_max_code
+
+FloatArray = npt.NDArray[np.float64]
+
+NAME = "knownbars"
+#: Significance of the bar depth (over its standard error) for "resolved".
+RESOLVED_Z = 5.0
+#: Fewest unclipped pixels: the four linear terms, the blur and at least this many more.
+MIN_DOF = 4
+#: Blur searched (PSF sigma, px): from sharp to this many bar widths, within these bounds
+#: (beyond about 0.7 bar widths hardly any contrast is left; a blur of several px on wide
+#: bars is defocus the chart's coarse sets would show; 0.75 cut the search short of a 2 px
+#: defocus on 2.8 px bars).
+MAX_SIGMA_WIDTHS = 1.0
+MAX_SIGMA_BOUNDS_PX = (1.5, 4.0)
+#: Blur search: this many blurs from 0 (denser towards sharp), then a parabola at the best.
+SIGMA_GRID = 32
+#: Prior (1 sigma) on the linear shading: relative change per px of the ROI's span (the forward
+#: view's vignetting changes the light by at most ~0.3 % per px).
+SHADING_PRIOR_PER_PX = 0.005
+#: Default prior (1 sigma, px) on the set's shift across the bars from where the pose puts it
+#: (``benchlab benchmark chart``: set centres within 0.06 px of the truth).
+SHIFT_PRIOR_PX = 0.05
+#: A fitted shift of at least this many px is applied to the coordinates and the fit repeated.
+REFIT_SHIFT_PX = 0.015
+#: Relative model term (1 sigma) of the modulation: shading that is not linear over the ROI,
+#: the multiplicative vignetting, the pose's own error. Calibrated on ``benchlab benchmark
+#: chart`` (40 + 8 frames): 95 % intervals holding the truth for 94.9 % of the oblique sets at
+#: 2-2.25 px per period and 100 % elsewhere, with :data:`MODEL_ABS_SD` (0.01 alone gave
+#: 98.7-100 % at 1.6 times the width).
+MODEL_REL_SD = 0.005
+#: Absolute model term (1 sigma): at low contrast (a defocused chart, 1-2 px of extra blur, 8-bit
+#: frames) the relative term alone gave intervals of +-0.0015 that missed the truth by
+#: 0.002-0.004 on a quarter of the sets.
+MODEL_ABS_SD = 0.002
+#: Sampling-phase term, relative: ``PHASE_GAP_REL * gap^2`` where ``gap`` (cycles) is how far
+#: the nearest pixel phase stays from the bar centre or a space centre; there the levels rest
+#: on the model's shape between samples (bars on a pixel axis near 2 px per period).
+PHASE_GAP_REL = 2.0
+#: The sharp pattern is tabulated every this many px (at most this many points) and blurred
+#: through its spectrum.
+GRID_STEP_PX = 0.02
+MAX_GRID_POINTS = 1 << 14
+
+
+def three_bar_pattern(
+    u_px: npt.ArrayLike, bar_width_px: float, sigma_px: float, theta_rad: float
+) -> FloatArray:
+    """Dark-bar fraction (0-1) of an imaged three-bar set at across-bar positions ``u_px``.
+
+    Three bars of width ``bar_width_px`` centred at ``u = -2w, 0, 2w``, blurred by a Gaussian of
+    ``sigma_px`` and integrated over the pixel footprint at ``theta_rad``
+    (:func:`benchlab.analysis.barmodel.edge_response`), evaluated exactly.
+
+    Parameters
+    ----------
+    u_px : array_like
+        Across-bar positions (px) from the middle bar's centre.
+    bar_width_px : float
+        Bar width (px, > 0).
+    sigma_px : float
+        Gaussian PSF sigma along ``u`` (px, >= 0).
+    theta_rad : float
+        Direction of intensity variation (from the column axis), for the pixel footprint.
+
+    Returns
+    -------
+    ndarray
+        Same shape as ``u_px``; 1 on a sharp bar, 0 on the ground.
+    """
+    u = np.asarray(u_px, dtype=np.float64)
+    w = float(bar_width_px)
+    out = np.zeros_like(u)
+    for centre in (-2.0 * w, 0.0, 2.0 * w):
+        out += edge_response(u - (centre - 0.5 * w), sigma_px, theta_rad)
+        out -= edge_response(u - (centre + 0.5 * w), sigma_px, theta_rad)
+    return out
+
+
+class _Blurred:
+    """Bars (intervals of a 1-D coordinate) seen through the pixel footprint and a Gaussian of
+    many widths, fast: the sharp pattern (footprint alone, closed form) is tabulated once on a
+    fine grid; each blur is a Gaussian gain on its spectrum (one inverse FFT for every blur at
+    once), read at the pixels' coordinates by linear interpolation (weights computed once)."""
+
+    def __init__(
+        self, pos: FloatArray, bars: list[tuple[float, float]], theta_rad: float,
+        max_sigma_px: float,
+    ) -> None:
+        pad = 6.0 * max_sigma_px + 1.0
+        lo = min(float(pos.min()), min(b[0] for b in bars)) - pad
+        hi = max(float(pos.max()), max(b[1] for b in bars)) + pad
+        n = min(1 << max(8, math.ceil(math.log2((hi - lo) / GRID_STEP_PX))), MAX_GRID_POINTS)
+        self.lo, self.step = lo, (hi - lo) / n
+        grid = lo + self.step * np.arange(n)
+        sharp = np.zeros(n)
+        for start, stop in bars:
+            sharp += edge_response(grid - start, 0.0, theta_rad)
+            sharp -= edge_response(grid - stop, 0.0, theta_rad)
+        self.spectrum = np.fft.rfft(sharp)
+        freqs = np.fft.rfftfreq(n, self.step)
+        self.freqs2 = freqs * freqs
+        self.n = n
+        self.idx, self.frac = self._weights(pos)
+
+    def _weights(self, pos: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
+        x = (np.asarray(pos, dtype=np.float64) - self.lo) / self.step
+        idx = np.clip(np.floor(x).astype(np.intp), 0, self.n - 2)
+        return idx, x - idx
+
+    def tables(self, sigmas: FloatArray) -> FloatArray:
+        """The blurred pattern on the grid, one row per blur."""
+        gain = np.exp(-2.0 * math.pi**2 * np.outer(sigmas * sigmas, self.freqs2))
+        return np.fft.irfft(self.spectrum[None, :] * gain, n=self.n, axis=1)
+
+    def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
+        """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
+        idx, frac = (self.idx, self.frac) if pos is None else self._weights(pos)
+        left, right = tables[:, idx], tables[:, idx + 1]
+        return np.asarray(left + frac * (right - left), dtype=np.float64)
+
+    def slope(self, tables: FloatArray) -> FloatArray:
+        """Each table's derivative at the pixels (the grid step's finite difference)."""
+        return np.asarray((tables[:, self.idx + 1] - tables[:, self.idx]) / self.step,
+                          dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class _Batch:
+    """Linear fits at several blurs: coefficients (m, k), residual sum of squares plus the
+    ridge's penalty (m,), the penalty (m,), inverse normal matrices (m, k, k), and the
+    pattern at the bar centre and (mean) at the spaces beside it (m,)."""
+
+    coef: FloatArray
+    cost: FloatArray
+    penalty: FloatArray
+    inv: FloatArray
+    p_bar: FloatArray
+    p_space: FloatArray
+
+    def modulations(self) -> FloatArray:
+        """Eq. 2.9 contrast of each fit (NaN where undefined)."""
+        bar = self.coef[:, 0] + self.coef[:, -1] * self.p_bar
+        space = self.coef[:, 0] + self.coef[:, -1] * self.p_space
+        total = bar + space
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(total > 0, np.abs(space - bar) / total, np.nan)
+
+
+def _solve_batch(
+    base: FloatArray, extra: list[FloatArray], y: FloatArray, ridge: FloatArray | None,
+    p_bar: FloatArray, p_space: FloatArray,
+) -> _Batch:
+    """Least squares of ``y`` on the ``base`` columns (n, kb) plus, per blur, the ``extra``
+    columns (each (m, n)); ``ridge``: prior precision per coefficient in units of the noise
+    variance (0 = free)."""
+    m, n = extra[0].shape
+    kb = base.shape[1]
+    k = kb + len(extra)
+    design = np.empty((m, n, k))
+    design[:, :, :kb] = base[None, :, :]
+    for j, col in enumerate(extra):
+        design[:, :, kb + j] = col
+    gram = np.einsum("mni,mnj->mij", design, design)
+    if ridge is not None:
+        gram[:, np.arange(k), np.arange(k)] += ridge
+    try:
+        inv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        inv = np.linalg.pinv(gram)
+    rhs = np.einsum("mni,n->mi", design, y)
+    coef = np.einsum("mij,mj->mi", inv, rhs)
+    resid = y[None, :] - np.einsum("mni,mi->mn", design, coef)
+    rss = np.einsum("mn,mn->m", resid, resid)
+    penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
+    return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
+                  np.asarray(inv, dtype=np.float64), p_bar, p_space)
+
+
+@dataclass(frozen=True)
+class ThreeBarReading:
+    """:func:`fit_three_bars`'s answer: the reading, and the across-bar blur behind it.
+
+    ``blur_sigma_px`` is the blur the reading used (None when none was fitted);
+    ``blur_range_px`` the blurs the data alone allow (``Delta chi^2 <= 1`` without any prior):
+    narrow on sets that pin the blur down, wide where the pixels sample too few phases.
+    :meth:`with_blur_prior` reads the same fits again under a prior on the blur.
+    """
+
+    result: ModulationResult
+    blur_sigma_px: float | None = None
+    blur_range_px: tuple[float, float] | None = None
+    _state: _FitState | None = None
+
+    def with_blur_prior(self, blur_prior_px: tuple[float, float]) -> ThreeBarReading:
+        """The reading under a Gaussian prior (mean, sd; px) on the blur across the bars (the
+        fits are reused: only the choice of blur and the interval change)."""
+        _check_prior(blur_prior_px)
+        if self._state is None:
+            return self
+        return self._state.conclude(blur_prior_px)
+
+
+def _check_prior(blur_prior_px: tuple[float, float] | None) -> None:
+    if blur_prior_px is not None and not (
+        math.isfinite(blur_prior_px[0]) and blur_prior_px[1] > 0
+        and math.isfinite(blur_prior_px[1])
+    ):
+        raise ValueError(f"blur_prior_px must be (mean, sd > 0), got {blur_prior_px}")
+
+
+def read_three_bars(
+    roi: npt.ArrayLike,
+    *,
+    centre_rc: tuple[float, float],
+    bar_width_px: float,
+    theta_deg: float,
+    max_code: float | None = None,
+    blur_prior_px: tuple[float, float] | None = None,
+    shift_prior_px: float = SHIFT_PRIOR_PX,
+) -> ModulationResult:
+    """Eq. 2.9 modulation of a three-bar set whose geometry is known (see the module docstring).
+
+    Parameters
+    ----------
+    roi : array_like
+        2-D gray levels (rows, cols), any integer or float dtype, or a 3-D stack (frames, rows,
+        cols), which is averaged. Should hold the set with its bar ends trimmed (e.g.
+        :attr:`benchlab.analysis.chart_pose.PosedBarSet.whole_period_roi`).
+    centre_rc : (float, float)
+        The set's centre (middle of the middle bar) in ROI pixel coordinates (row, col).
+    bar_width_px : float
+        Bar width (px); the period is twice that.
+    theta_deg : float
+        Direction in which the intensity varies (across the bars), degrees from the column
+        axis towards the row axis (:mod:`benchlab.analysis.projection`'s angle).
+    max_code : float, optional
+        Saturation code; inferred for integer data (255, 4095, 65520, 65535). Pixels at or
+        above it are left out of the fit.
+    blur_prior_px : (float, float), optional
+        Gaussian prior (mean, standard deviation; px) on the PSF sigma across the bars, e.g.
+        from the chart's other sets at the same image height
+        (:func:`benchlab.analysis.chart_reading.read_chart`). Without it the blur is whatever
+        fits the ROI best.
+    shift_prior_px : float
+        Prior (1 sigma, px) on the set's shift across the bars from ``centre_rc`` (the pose's
+        error; default :data:`SHIFT_PRIOR_PX`).
+
+    Returns
+    -------
+    ModulationResult
+        Estimator ``"knownbars"``: levels, modulation, a 1-sigma uncertainty (noise, blur and
+        model terms) and its 95 % interval; "not resolved" with the reason when the period is
+        under 2 px (aliased), too few pixels remain, or the bars do not stand out of the noise.
+
+    Raises
+    ------
+    ValueError
+        For an empty or non-finite ROI, a ROI that is not 2-D or 3-D, non-finite / non-positive
+        geometry or a bad prior.
+    """
+    return fit_three_bars(roi, centre_rc=centre_rc, bar_width_px=bar_width_px,
+                          theta_deg=theta_deg, max_code=max_code,
+                          blur_prior_px=blur_prior_px, shift_prior_px=shift_prior_px).result
+
+
+def fit_three_bars(
+    roi: npt.ArrayLike,
+    *,
+    centre_rc: tuple[float, float],
+    bar_width_px: float,
+    theta_deg: float,
+    max_code: float | None = None,
+    blur_prior_px: tuple[float, float] | None = None,
+    shift_prior_px: float = SHIFT_PRIOR_PX,
+) -> ThreeBarReading:
+    """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
+    arr = np.asarray(roi)
+    if arr.dtype.kind == "b":
+        arr = arr.astype(np.uint8)
+    if arr.dtype.kind not in "uif":
+        raise ValueError(f"ROI must hold numbers, got dtype {arr.dtype}")
+    if arr.ndim not in (2, 3) or arr.size == 0:
+        raise ValueError(f"ROI must be a non-empty 2-D or 3-D array, got shape {arr.shape}")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        raise ValueError("ROI contains NaN or infinite pixels")
+    if not (bar_width_px > 0 and math.isfinite(bar_width_px)):
+        raise ValueError(f"bar_width_px must be a positive number, got {bar_width_px}")
+    if not (math.isfinite(theta_deg) and all(math.isfinite(v) for v in centre_rc)):
+        raise ValueError("theta_deg and centre_rc must be finite")
+    if max_code is not None and not (max_code > 0 and math.isfinite(max_code)):
+        raise ValueError(f"max_code must be positive, got {max_code}")
+    _check_prior(blur_prior_px)
+    if not (shift_prior_px > 0 and math.isfinite(shift_prior_px)):
+        raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
+    n_frames = arr.shape[0] if arr.ndim == 3 else 1
+    img = arr.astype(np.float64).mean(axis=0) if arr.ndim == 3 else arr.astype(np.float64)
+    integer = arr.dtype.kind in "ui"
+    step = detect_code_step(arr.ravel()) if integer else 0.0
+    top = max_code if max_code is not None else (
+        infer_max_code(arr, step, float(arr.max())) if integer else None)
+    if top is not None:
+        clip_px = arr >= top if arr.ndim == 2 else (arr >= top).any(axis=0)
+    else:
+        clip_px = np.zeros(img.shape, dtype=bool)
+    period = 2.0 * bar_width_px
+    freq = 1.0 / period
+    diag = Diagnostics(
+        n_pixels=int(img.size), px_per_period=period, freq_cycles_per_px=freq,
+        clipped_fraction=float(clip_px.mean()), aliased=freq > NYQUIST_CYCLES_PER_PX + 1e-12,
+        phase_sensitive=PHASE_SENSITIVE_CYCLES_PER_PX <= freq <= NYQUIST_CYCLES_PER_PX + 1e-12,
+        code_step=(step / n_frames) if integer else None, n_frames=n_frames,
+        bar_angle_deg=theta_deg % 180.0,
+        saturation_code=top if clip_px.any() else None,
+    )
+    if diag.aliased:
+        return ThreeBarReading(unresolved(NAME, diag, ["not resolved (aliased): period < 2 px"]))
+    warnings: list[str] = []
+    if clip_px.any():
+        warnings.append(f"{int(clip_px.sum())} of {img.size} pixels clipped at code {top:g}: "
+                        "left out of the fit (the model carries the level beyond it)")
+    theta = math.radians(theta_deg)
+    u_all = across_coordinate(img.shape, theta, centre_rc)
+    v_all = across_coordinate(img.shape, theta + 0.5 * math.pi, centre_rc)
+    keep = ~clip_px
+    u, v, y = u_all[keep], v_all[keep], img[keep]
+    n = int(y.size)
+    span_u, span_v = float(np.ptp(u)), float(np.ptp(v))
+    # ground, shading across (and along, given two lines along the bars), shift, bar depth
+    base_cols = [np.ones(n), u / max(span_u, 1.0)] + ([v / span_v] if span_v >= 1.0 else [])
+    n_params = len(base_cols) + 2
+    if n < n_params + 1 + MIN_DOF:
+        warnings.append(f"too few pixels: {n} unclipped, a fit of the levels, shading and blur "
+                        f"needs at least {n_params + 1 + MIN_DOF}")
+        return ThreeBarReading(unresolved(NAME, diag, warnings))
+    base = np.stack(base_cols, axis=1)
+    quantum_sd = (step / n_frames) / math.sqrt(12.0) if integer else 0.0
+    state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
+                      warnings)
+    # The shift column is a first-order term: a shift of a few hundredths of a px leaves a
+    # second-order bias (0.012 at 0.06 px on 2.3 px periods), so a fitted shift is applied to
+    # the coordinates and the fit repeated once.
+    shift = state.shift_px()
+    if abs(shift) >= REFIT_SHIFT_PX:
+        state = _FitState(base, u - shift, v, y, bar_width_px, theta, shift_prior_px,
+                          quantum_sd, diag, warnings)
+    return state.conclude(blur_prior_px)
+
+
+class _FitState:
+    """The fits of one set at every blur (across and along the bars), kept so that a prior on
+    the blur only re-weighs them (:meth:`conclude`)."""
+
+    def __init__(
+        self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
+        theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
+        warnings: list[str],
+    ) -> None:
+        self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        self.phase_gap = _phase_gap(u, w)
+        n = y.size
+        max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
+                        MAX_SIGMA_BOUNDS_PX[1])
+        self.across = _Blurred(u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)],
+                               theta, max_sigma)
+        # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
+        # when the ROI comes within their reach (the ROI trims the ends by a fraction of a px)
+        foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
+        near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
+        self.along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
+        self.sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
+        t_across = self.across.tables(self.sigmas)
+        self.p_pix = self.across.sample(t_across)
+        self.s_pix = self.across.slope(t_across)
+        self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
+        if self.along is not None:
+            t_along = self.along.tables(self.sigmas)
+            a_pix = self.along.sample(t_along)
+            a_mid = self.along.sample(t_along, np.zeros(1))[:, 0]
+        else:
+            a_pix, a_mid = np.ones((self.sigmas.size, n)), np.ones(self.sigmas.size)
+        every = np.arange(self.sigmas.size)
+        # the priors' scale: a free fit on a coarse blur grid gives noise, ground and depth
+        coarse = every[::4]
+        first = self._fit(coarse, coarse, a_pix, a_mid, None)
+        j = int(np.argmin(first.cost))
+        noise0_sq = max(float(first.cost[j]) / max(n - _n_params(base) - 1, 1), 1e-300)
+        ground, depth = abs(float(first.coef[j, 0])), abs(float(first.coef[j, -1]))
+        sds = [math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0) * ground]
+        if base.shape[1] == 3:
+            sds.append(SHADING_PRIOR_PER_PX * max(float(np.ptp(v)), 1.0) * ground)
+        sds += [depth * shift_prior_px, math.inf]
+        self.ridge = np.array([noise0_sq / sd**2 if 0 < sd < math.inf else 0.0 for sd in sds])
+        # one blur for both directions, then along the bars at the best, then across at that
+        tied = self._fit(every, every, a_pix, a_mid, self.ridge)
+        i_u = int(np.argmin(tied.cost))
+        self.along_fits: _Batch | None = None
+        i_v = i_u
+        if self.along is not None:
+            self.along_fits = self._fit(np.full_like(every, i_u), every, a_pix, a_mid, self.ridge)
+            i_v = int(np.argmin(self.along_fits.cost))
+        self.a_best = (a_pix[i_v], float(a_mid[i_v]))
+        self.fits = self._fit(every, np.full_like(every, i_v), a_pix, a_mid, self.ridge)
+        rss_data = float(np.min(self.fits.cost - self.fits.penalty))
+        dof = n - _n_params(base) - 1
+        noise = math.sqrt(rss_data / dof) if dof > 0 else 0.0
+        self.noise = max(noise, quantum_sd)
+        self.scale = self.noise**2 if self.noise > 0 else max(float(self.fits.cost.min()), 1e-300)
+        chi2 = (self.fits.cost - self.fits.cost.min()) / self.scale
+        allowed = self.sigmas[chi2 <= 1.0]
+        self.blur_range = (float(allowed.min()), float(allowed.max()))
+
+    def shift_px(self) -> float:
+        """The set's shift across the bars (px) in the best fit: the shift column's
+        coefficient over the bar depth, ``-c / s`` (0 when the depth vanishes); at most half a
+        bar width."""
+        i = int(np.argmin(self.fits.cost))
+        c, depth = float(self.fits.coef[i, -2]), float(self.fits.coef[i, -1])
+        if depth == 0.0:
+            return 0.0
+        return float(np.clip(-c / depth, -0.5 * self.w, 0.5 * self.w))
+
+    def _fit(
+        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray,
+        a_mid: FloatArray, ridge: FloatArray | None,
+    ) -> _Batch:
+        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``."""
+        a = a_pix[i_v]
+        probe = self.p_probe[i_u] * a_mid[i_v][:, None]
+        return _solve_batch(self.base, [self.s_pix[i_u] * a, self.p_pix[i_u] * a], self.y,
+                            ridge, probe[:, 0], 0.5 * (probe[:, 1] + probe[:, 2]))
+
+    def _fit_at(self, sigma: float) -> _Batch:
+        """One fit at an off-grid blur across the bars (the along-bar blur at its best)."""
+        table = self.across.tables(np.array([sigma]))
+        a_pix, a_mid = self.a_best
+        probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
+        return _solve_batch(self.base, [self.across.slope(table) * a_pix,
+                                        self.across.sample(table) * a_pix], self.y, self.ridge,
+                            np.array([probe[0]]), np.array([0.5 * (probe[1] + probe[2])]))
+
+    def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
+        """The reading at the blur the fits (and the prior) favour, with its interval."""
+        sigmas, fits = self.sigmas, self.fits
+
+        def objective(sig: FloatArray, cost: FloatArray) -> FloatArray:
+            out = cost / self.scale
+            if blur_prior_px is not None:
+                out = out + ((sig - blur_prior_px[0]) / blur_prior_px[1]) ** 2
+            return np.asarray(out, dtype=np.float64)
+
+        obj = objective(sigmas, fits.cost)
+        i = int(np.argmin(obj))
+        best, k, sigma_best, obj_best = fits, i, float(sigmas[i]), float(obj[i])
+        if 0 < i < sigmas.size - 1:  # parabola through the best grid point and its neighbours
+            x0, x1, x2 = sigmas[i - 1:i + 2]
+            y0, y1, y2 = obj[i - 1:i + 2]
+            den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
+            if den != 0:
+                vertex = x1 - 0.5 * ((x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)) / den
+                if x0 < vertex < x2:
+                    cand = self._fit_at(float(vertex))
+                    cand_obj = float(objective(np.array([vertex]), cand.cost)[0])
+                    if cand_obj < obj_best:
+                        best, k, sigma_best, obj_best = cand, 0, float(vertex), cand_obj
+        coef, inv = best.coef[k], best.inv[k]
+        p_bar, p_space = float(best.p_bar[k]), float(best.p_space[k])
+        noise = self.noise
+        warnings = list(self.warnings)
+        bar = float(coef[0] + coef[-1] * p_bar)
+        space = float(coef[0] + coef[-1] * p_space)
+        depth = float(coef[-1])
+        depth_sd = noise * math.sqrt(max(float(inv[-1, -1]), 0.0))
+        diag_fit = _with(self.diag, noise_sigma=noise, blur_sigma_px=sigma_best,
+                         phase_cycles=0.0)
+        if not abs(depth) > RESOLVED_Z * depth_sd or p_bar - p_space <= 0:
+            warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
+                            f"({depth_sd:.3g}) of zero: bars not resolved")
+            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+                                   self.blur_range, self)
+        dark, bright = min(bar, space), max(bar, space)
+        if dark < 0 or dark + bright <= 0:
+            warnings.append("fitted dark level below zero: contrast undefined")
+            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+                                   self.blur_range, self)
+        modulation = eq29_modulation(dark, bright)
+        # noise: m = |bar - space| / (bar + space), bar and space linear in (ground, depth)
+        total = bar + space
+        sign = 1.0 if space >= bar else -1.0
+        dm_dspace, dm_dbar = sign * 2.0 * bar / total**2, -sign * 2.0 * space / total**2
+        grad = np.zeros(coef.size)
+        grad[0] = dm_dbar + dm_dspace
+        grad[-1] = dm_dbar * p_bar + dm_dspace * p_space
+        noise_sd = noise * math.sqrt(max(float(grad @ inv @ grad), 0.0))
+        # blur: the spread of the readings over the blurs the data (and prior) allow
+        blur_sd = 0.0
+        spreads = [(fits, obj - obj_best)]
+        if self.along_fits is not None:
+            spreads.append((self.along_fits, (self.along_fits.cost - best.cost[k]) / self.scale))
+        for batch, excess in spreads:
+            mods = batch.modulations()[(excess <= 1.0)]
+            mods = np.append(mods[np.isfinite(mods)], modulation)
+            blur_sd = math.hypot(blur_sd, 0.5 * float(mods.max() - mods.min()))
+        model_sd = math.hypot(
+            math.hypot(MODEL_REL_SD, PHASE_GAP_REL * self.phase_gap**2) * modulation,
+            MODEL_ABS_SD)
+        sd = math.sqrt(noise_sd**2 + blur_sd**2 + model_sd**2)
+        diag_fit = _with(diag_fit, uncertainty_noise=noise_sd,
+                         uncertainty_model=math.hypot(blur_sd, model_sd))
+        result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
+        return ThreeBarReading(result, sigma_best, self.blur_range, self)
+
+
+def _phase_gap(u: FloatArray, bar_width_px: float) -> float:
+    """How far (cycles) the pixels' phases of the pattern come to the bar centre and to the
+    spaces' centres at best: the larger of the two smallest distances (0 = a pixel centred on
+    each). Within the set only (``|u| <= 2.5 w``)."""
+    inside = u[np.abs(u) <= 2.5 * bar_width_px]
+    if inside.size == 0:
+        return 0.5
+    phase = np.mod(inside / (2.0 * bar_width_px), 1.0)  # 0 = a bar centre, 0.5 = a space
+    to_bar = np.minimum(phase, 1.0 - phase)
+    to_space = np.abs(phase - 0.5)
+    return float(max(to_bar.min(), to_space.min()))
+
+
+def _n_params(base: FloatArray) -> int:
+    """Linear terms of the fit: the base columns, the shift and the bar depth."""
+    return int(base.shape[1]) + 2
+
+
+def _with(diag: Diagnostics, **changes: object) -> Diagnostics:
+    """``diag`` with some fields replaced."""
+    return Diagnostics(**{**diag.__dict__, **changes})  # type: ignore[arg-type]
