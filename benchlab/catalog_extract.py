@@ -114,7 +114,7 @@ def read_session_record(path: Path) -> SessionRecord:
         folder_v = session.results_dir / f"v{version}"
         try:
             if version == versions[-1]:  # key figures: of the latest version only
-                tables, summary = read_results(folder_v)
+                tables, summary = read_results(folder_v, FIGURE_TABLES)
                 record.figures.extend(figures_of(version, tables))
             else:
                 summary = json.loads((folder_v / "summary.json").read_text(encoding="utf-8"))
@@ -124,6 +124,11 @@ def read_session_record(path: Path) -> SessionRecord:
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))
     return record
+
+
+#: The tables :func:`figures_of` reads figures from (the others are not read at all).
+FIGURE_TABLES = ("table_4_11", "table_4_12", "table_4_15", "table_4_16", "table_sfr_edges",
+                 "table_sfr_vs_bars")
 
 
 def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:

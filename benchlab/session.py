@@ -26,11 +26,12 @@ import math
 import os
 import re
 import shutil
+import stat
 import sys
 import tempfile
 import threading
-from collections.abc import Mapping
-from concurrent.futures import Future, ThreadPoolExecutor
+from collections.abc import Collection, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -50,6 +51,7 @@ from benchlab.storage import (
     load_frame_tiff,
     save_frame_tiff,
     sha256_file,
+    write_new_file,
 )
 
 SESSION_FORMAT = "benchlab.session"
@@ -158,6 +160,11 @@ def check_sessions_root(root: str | os.PathLike[str]) -> Path:
     return folder
 
 
+def _file_identity(st: os.stat_result) -> tuple[int, ...]:
+    """What changes when a file is replaced or written: device, inode, size, mtime, ctime."""
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
 def _now_iso() -> str:
     return datetime.now(UTC).isoformat(timespec="microseconds")
 
@@ -183,6 +190,9 @@ def _plain(obj: Any) -> Any:
         return obj
     if kind is float:
         return obj if math.isfinite(obj) else None
+    if kind is np.float64:  # most cells of the SFR curves: the np.generic case, tested first
+        value = obj.item()
+        return value if math.isfinite(value) else None
     if kind is dict:
         return {str(k): _plain(v) for k, v in obj.items()}
     if kind is list:
@@ -211,12 +221,17 @@ class Session:
         self._lock = threading.Lock()
         #: Parsed journal and the file identity it was read from (size, mtime, inode).
         self._events_cache: tuple[tuple[int, int, int], list[dict[str, Any]]] | None = None
+        #: :meth:`_frame_records` of that journal (same identity).
+        self._records_cache: tuple[tuple[int, int, int], dict[str, dict[str, Any]]] | None = None
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
         #: Frames being loaded ahead by :meth:`prefetch_frames`: relative file -> load.
         self._prefetched: dict[str, Future[tuple[npt.NDArray[Any], dict[str, Any]]]] = {}
         self._prefetch_pool: ThreadPoolExecutor | None = None
+        #: Frames this object has hashed and found as journalled: relative file ->
+        #: (file identity when read, sha256); see :meth:`verify_frames`.
+        self._verified: dict[str, tuple[tuple[int, ...], str]] = {}
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -311,7 +326,7 @@ class Session:
                 raise SessionError(f"{meta_path}: field {key!r} must be {_TYPE_WORDS[kind]}, "
                                    f"got {type(meta[key]).__name__} {meta[key]!r:.60}")
         session = cls(folder, meta)
-        session.events()  # fail now, naming the journal, if it is damaged beyond a torn tail
+        session._journal()  # fail now, naming the journal, if it is damaged beyond a torn tail
         if session_holder(folder) is None:  # a live writer's frames are its own business
             session._recover_orphan_frames()
         return session
@@ -492,11 +507,16 @@ class Session:
         accepted only when the next event is the ``journal_repaired`` that terminated it;
         anything else raises :class:`SessionError` naming the file and line.
         """
+        return [dict(e) for e in self._journal()[1]]
+
+    def _journal(self) -> tuple[tuple[int, int, int] | None, list[dict[str, Any]]]:
+        """``(file identity, events)``: the parsed journal, shared with the cache (callers
+        only read it); the identity is None when the file grew while it was read."""
         try:
             st = self.events_path.stat()
             key = (st.st_size, st.st_mtime_ns, st.st_ino)
             if self._events_cache is not None and self._events_cache[0] == key:
-                return [dict(e) for e in self._events_cache[1]]  # unchanged: no re-parse
+                return self._events_cache  # unchanged: no re-parse
             raw = self.events_path.read_bytes()
         except FileNotFoundError as exc:
             raise SessionError(f"{self.events_path}: journal missing") from exc
@@ -522,8 +542,9 @@ class Session:
             out.append(rec)
         else:
             if len(raw) == key[0]:  # the file did not grow while it was read
-                self._events_cache = (key, [dict(e) for e in out])
-            return out  # at most a torn final line was skipped
+                self._events_cache = (key, out)
+                return self._events_cache
+            return None, out  # at most a torn final line was skipped
         raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
 
     # ------------------------------------------------------------------ frames
@@ -565,12 +586,21 @@ class Session:
         )
 
     def _frame_records(self) -> dict[str, dict[str, Any]]:
-        """``relative file -> frame_saved event`` (first record wins: it is the original hash)."""
+        """``relative file -> frame_saved event`` (first record wins: it is the original hash).
+
+        Kept while the journal file is unchanged: a re-analysis asks for it once per frame
+        load, from several threads (the events are shared: read them, never change them)."""
+        key, events = self._journal()
+        cached = self._records_cache
+        if key is not None and cached is not None and cached[0] == key:
+            return dict(cached[1])
         recs: dict[str, dict[str, Any]] = {}
-        for ev in self.events():
+        for ev in events:
             if ev.get("kind") == "frame_saved" and "file" in ev:
                 recs.setdefault(str(ev["file"]), ev)
-        return recs
+        if key is not None:
+            self._records_cache = (key, recs)
+        return dict(recs)
 
     def _recover_orphan_frames(self) -> None:
         known = self._frame_records()
@@ -653,20 +683,55 @@ class Session:
         if rec is None:
             raise SessionError(f"{path}: no such frame recorded in {self.events_path}")
         try:
-            data = path.read_bytes()  # read once: the bytes hashed are the bytes decoded
+            with open(path, "rb") as fh:
+                # identity before reading: a write after it changes the ctime seen later
+                identity = _file_identity(os.fstat(fh.fileno()))
+                data = fh.read()  # read once: the bytes hashed are the bytes decoded
         except FileNotFoundError:
             raise SessionError(f"{path}: recorded frame is missing") from None
-        if hashlib.sha256(data).hexdigest() != rec["sha256"]:
+        expected = str(rec["sha256"])
+        if hashlib.sha256(data).hexdigest() != expected:
             raise SessionError(f"{path}: frame modified since it was saved (sha256 mismatch)")
+        self._verified[rel] = (identity, expected)
         return load_frame_tiff(path, data)
 
-    def verify_frames(self) -> list[str]:
-        """Relative paths of recorded frames that are missing or whose sha256 changed."""
+    def verify_frames(self, *, trust_loads: bool = False) -> list[str]:
+        """Relative paths of recorded frames that are missing or whose sha256 changed.
+
+        A frame this object already hashed (a load, an earlier check) is not hashed again while
+        its file identity - device, inode, size, modification and status-change times - is
+        the one it had when read: any write to the file sets its status-change time (ctime),
+        which no program can set back. So a re-analysis reads and hashes each frame once
+        (its loads) and its checks before and after cost a ``stat`` per frame. Frames still
+        being loaded ahead (:meth:`prefetch_frames`) are waited for (their loads hash them),
+        or with ``trust_loads`` left to their loads, which raise on a mismatch (the analysis
+        then starts while the last frames load).
+        """
+        records = sorted(self._frame_records().items())
+        ahead = {rel: f for rel, f in ((rel, self._prefetched.get(rel)) for rel, _ in records)
+                 if f is not None and not f.done()}
+        if trust_loads:
+            records = [(rel, ev) for rel, ev in records if rel not in ahead]
+        elif ahead:
+            wait(ahead.values())  # their outcome is read below, from what they verified
         bad = []
-        for rel, ev in sorted(self._frame_records().items()):
+        for rel, ev in records:
             path = self.path / rel
-            if not path.is_file() or sha256_file(path) != ev["sha256"]:
+            try:
+                st = os.stat(path)
+            except OSError:
                 bad.append(rel)
+                continue
+            expected = str(ev["sha256"])
+            identity = _file_identity(st)
+            if not stat.S_ISREG(st.st_mode):
+                bad.append(rel)
+            elif self._verified.get(rel) == (identity, expected):
+                continue
+            elif sha256_file(path) != expected:
+                bad.append(rel)
+            else:
+                self._verified[rel] = (identity, expected)
         return bad
 
     # ------------------------------------------------------------------ steps
@@ -679,7 +744,7 @@ class Session:
         """Step ids with a ``step_completed`` event."""
         return {
             str(ev["step_id"])
-            for ev in self.events()
+            for ev in self._journal()[1]
             if ev.get("kind") == "step_completed" and "step_id" in ev
         }
 
@@ -725,13 +790,19 @@ class Session:
             _check_name("table name", table)
         self.results_dir.mkdir(exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=".v-", suffix=".tmp", dir=self.results_dir))
+
+        def write(path: Path, text: str) -> None:
+            if per_file:
+                atomic_write_text(path, text)
+            else:  # the folder is private until its rename: no temporary file per file
+                write_new_file(path, text.encode("utf-8"))
+
         try:
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                atomic_write_text(tmp / f"{stem}.json", json_rows_text(plain_rows),
-                                  durable=per_file)
-                atomic_write_text(tmp / f"{stem}.csv", _csv_text(plain_rows), durable=per_file)
+                write(tmp / f"{stem}.json", json_rows_text(plain_rows))
+                write(tmp / f"{stem}.csv", _csv_text(plain_rows))
             while True:
                 version = (self.result_versions() or [0])[-1] + 1
                 doc = {
@@ -782,8 +853,11 @@ def result_file_stem(label: str) -> str:
     return RESULT_FILE_STEMS.get(label, label)
 
 
-def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder.
+def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = None
+                 ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder; with
+    ``only``, just the tables of those labels (the catalogue skips the SFR curves, the
+    largest file of a version).
 
     Reads both the descriptive file names and the older thesis-table file names
     (``table_4_11.json``), so sessions written before the rename still load.
@@ -792,6 +866,9 @@ def read_results(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[s
     tables: dict[str, Any] = {}
     summary: dict[str, Any] = {}
     for p in sorted(Path(folder).glob("*.json")):
+        if (only is not None and p.stem != "summary"
+                and _LABEL_OF_FILE.get(p.stem, p.stem) not in only):
+            continue
         try:
             data = json.loads(p.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
@@ -816,14 +893,9 @@ def _csv_text(rows: list[dict[str, Any]]) -> str:
     # results version has ~700 rows, most of them the SFR curves).
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(columns)
-    for row in rows:
-        writer.writerow([_csv_cell(row.get(k)) for k in columns])
+    # a cell: NA for a missing value, JSON for a list or table, else the value (inline: a
+    # function call per cell was a third of the time)
+    writer.writerows([CSV_MISSING if v is None else json.dumps(v) if isinstance(v, dict | list)
+                      else v for v in map(row.get, columns)] for row in rows)
     return buf.getvalue()
 
-
-def _csv_cell(value: Any) -> Any:
-    if value is None:
-        return CSV_MISSING
-    if isinstance(value, dict | list):
-        return json.dumps(value)
-    return value

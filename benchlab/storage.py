@@ -22,14 +22,17 @@ import os
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import tifffile
 
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.tiff_strips import decode_frame
+
+if TYPE_CHECKING:
+    import tifffile
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +103,22 @@ def atomic_write_bytes(
         raise
     if durable:
         _fsync_dir(target.parent)
+    return target
+
+
+def write_new_file(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Create ``path`` with ``data`` (``FileExistsError`` if it exists), not fsync'd, in
+    place: only for files inside a private temporary folder that is flushed and renamed
+    into place as a whole (a results version), which is what makes them atomic and durable.
+    Saves the temporary name and rename per file of :func:`atomic_write_bytes`."""
+    target = Path(path)
+    fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _FILE_MODE)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+    finally:
+        os.close(fd)
     return target
 
 
@@ -200,8 +219,9 @@ def json_rows_text(rows: list[Any]) -> str:
     """
     if not rows:
         return "[]\n"
-    lines = (json.dumps(r, allow_nan=False, default=_json_default) for r in rows)
-    return "[\n  " + ",\n  ".join(lines) + "\n]\n"
+    # One encoder for all rows: json.dumps with options builds a new one per call.
+    encode = json.JSONEncoder(allow_nan=False, default=_json_default).encode
+    return "[\n  " + ",\n  ".join(map(encode, rows)) + "\n]\n"
 
 
 def _json_default(obj: Any) -> Any:
@@ -237,6 +257,8 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     bits = meta.get("bits")
     if isinstance(bits, int) and 8 <= bits <= 16:
         imagej.update(min=0.0, max=float(2**bits - 1))  # Fiji's display range: the bit depth
+    import tifffile  # here: reading a frame back does not need it (start-up, issue 11)
+
     buf = io.BytesIO()
     tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
                      metadata=imagej, software=SOFTWARE, compression="zlib")
@@ -311,6 +333,8 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     FrameFileError
         Missing, unreadable or colour file, or codes its metadata rules out, naming it.
     """
+    import tifffile
+
     p = Path(path)
     try:
         with tifffile.TiffFile(p) as tif:
@@ -355,11 +379,18 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
     """
     p = Path(path)
     try:
-        source = p if data is None else tifffile.FileHandle(io.BytesIO(data), name=p.name)
-        with tifffile.TiffFile(source) as tif:
-            page = tif.pages.first
-            pixels = page.asarray()
-            description = _metadata_text(tif)
+        if data is None:
+            data = p.read_bytes()
+        # benchlab's own layout without tifffile (same pixels and text); anything else with it
+        fast = decode_frame(data)
+        if fast is not None:
+            pixels, description = fast
+        else:
+            import tifffile
+
+            with tifffile.TiffFile(tifffile.FileHandle(io.BytesIO(data), name=p.name)) as tif:
+                pixels = tif.pages.first.asarray()
+                description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data

@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 from benchlab.session import Session, read_results
@@ -261,12 +260,12 @@ class Runner:
         finally:
             self.bench.safe_state()
             if not all_done:
-                record_session(self.session.path)  # the catalogue shows why it stopped
+                record_in_catalogue(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         if results is None:  # every procedure ends with an analysis step that writes them
             raise BenchlabError(f"{self.procedure.name}: the run ended without results")
         self.session.finish()
-        record_session(self.session.path)
+        record_in_catalogue(self.session.path)
         tables, summary = read_results(results)
         return RunOutcome(
             session_path=Path(self.session.path), results_path=Path(results),
@@ -330,3 +329,11 @@ def frames_of(session: Session, step_ids: Sequence[str]) -> dict[str, dict[str, 
         frames = session.step_frames(sid)
         out[sid] = {name: np.asarray(load_frame_tiff(path)[0]) for name, path in frames.items()}
     return out
+
+
+def record_in_catalogue(folder: Path) -> None:
+    """:func:`benchlab.catalog.record_session`, imported when a run records (SQLite and the
+    catalogue are not imported by a re-analysis before its results exist)."""
+    from benchlab.catalog import record_session
+
+    record_session(folder)

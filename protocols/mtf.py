@@ -22,7 +22,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchlab.analysis.focus import sharpness
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf_analysis import (
     FORWARD_FRAME,
@@ -133,6 +132,9 @@ class MtfProcedure:
         ctx.bench.mount(DARK_TARGET)
 
     def _focus(self, ctx: StepContext) -> None:
+        # Imported here: it loads OpenCV, which a re-analysis never needs (start-up, issue 11).
+        from benchlab.analysis.focus import sharpness
+
         p = self.params
         readings: list[float] = []
         for _ in range(p.focus_frames):

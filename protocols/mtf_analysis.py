@@ -33,7 +33,7 @@ from benchlab.analysis.geometry import (
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import forward_edge_tables
+from benchlab.protocols.mtf_edges import edge_parts, forward_edge_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
@@ -274,15 +274,16 @@ def analyze_mtf(
                    for orient in ORIENTATIONS]
     # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
     # several cores the 15 frames of a session load in a fraction of the time. The forward
-    # view (chart finder, bar ROIs, then the slanted edges once the optical centre is known)
-    # runs on its own thread beside the radial frames, the centre and the radial rows: OpenCV
-    # and the larger numpy calls release the GIL. Every estimate is a pure function of its
-    # frame, so the numbers are those of one thread. A failure is raised as before (the
-    # forward frame's first).
-    centre_ready: Future[tuple[float, float]] = Future()
+    # view's chart finder and bar ROIs run on their own thread beside the radial frames, the
+    # centre and the radial rows; this thread then measures the forward frame's slanted edges
+    # and their tables (which need the centre, not the chart) while the bar ROIs finish, so
+    # neither thread waits long for the other; the larger numpy calls release the GIL. Every
+    # estimate is a pure function of its frame, so the numbers are those of one thread. A
+    # failure is raised as before (the forward frame's first).
+    frame_ready: Future[npt.NDArray[Any] | None] = Future()
     with ThreadPoolExecutor(max_workers=1) as forward_pool, \
             ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        forward_job = forward_pool.submit(_forward_view, session, params, est, centre_ready)
+        forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
         radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
                        for f, o in radial_keys]
         try:
@@ -292,22 +293,25 @@ def analyze_mtf(
                 if px is not None:
                     radial[key] = px
             centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+            t412 = _radial_rows(radial, params, est, centre)
+            forward_px = frame_ready.result()
+            edges_done = (edge_parts(forward_px, centre, params.simulated_mtf_file)
+                          if forward_px is not None else None)
         except BaseException:
-            centre_ready.cancel()  # the forward thread stops waiting for it
             failed = forward_job.exception()
             if failed is not None and not isinstance(failed, CancelledError):
                 raise failed from None
             raise
-        centre_ready.set_result(centre)
-        t412 = _radial_rows(radial, params, est, centre)
         forward = forward_job.result()
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
     per: dict[tuple[str, str], dict[str, Any]] = {}
     edges: dict[str, list[dict[str, Any]]] = {}
-    if forward is not None:
-        per, t411, edges = forward
+    if forward is not None and forward_px is not None:
+        per, t411 = forward
+        edges = forward_edge_tables(forward_px, t411, centre, params.simulated_mtf_file,
+                                    parts=edges_done)
         for el in params.forward_elements:
             for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",
@@ -333,15 +337,19 @@ def analyze_mtf(
     return tables, summary, est
 
 
-_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]],
-                     dict[str, list[dict[str, Any]]]]
+_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
 
 
 def _forward_view(session: Session, params: MtfParams, est: str,
-                  centre_ready: Future[tuple[float, float]]) -> _ForwardView | None:
-    """The forward frame's rows by (element, orientation), Table 4.11 and the slanted-edge
-    tables (which wait for the optical centre), or None without a forward frame."""
-    forward = _load(session, FORWARD_STEP, FORWARD_FRAME)
+                  frame_ready: Future[npt.NDArray[Any] | None]) -> _ForwardView | None:
+    """The forward frame's rows by (element, orientation) and Table 4.11, or None without a
+    forward frame; the frame (or its load's failure) is handed to ``frame_ready`` first."""
+    try:
+        forward = _load(session, FORWARD_STEP, FORWARD_FRAME)
+    except BaseException as exc:
+        frame_ready.set_exception(exc)
+        raise
+    frame_ready.set_result(forward)
     if forward is None:
         return None
     per = {(r["element"], r["orientation"]): r
@@ -362,8 +370,7 @@ def _forward_view(session: Session, params: MtfParams, est: str,
                          "warnings")})
             row[f"{orient}_roi"] = r["roi"]
         t411.append(row)
-    edges = forward_edge_tables(forward, t411, centre_ready.result(), params.simulated_mtf_file)
-    return per, t411, edges
+    return per, t411
 
 
 def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfParams,

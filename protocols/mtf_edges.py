@@ -19,7 +19,7 @@ Tables (written with the Table 4.10 results):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -187,11 +187,19 @@ def edge_vs_bars(
     return out
 
 
-def forward_edge_tables(
-    pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
-    simulated_mtf_file: str = "",
-) -> dict[str, list[dict[str, Any]]]:
-    """The three edge tables of a forward frame (see the module docstring)."""
+class EdgeParts(NamedTuple):
+    """What the edge tables need besides the bar readings (Table 4.11)."""
+
+    measured: list[tuple[EdgeSpec, SfrResult | str]]
+    rows: list[dict[str, Any]]
+    curve_rows: list[dict[str, Any]]
+    curves: list[SimulatedCurve]
+
+
+def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
+               simulated_mtf_file: str = "") -> EdgeParts:
+    """The forward frame's edges measured, their two tables and the simulated curves: all
+    but the comparison with the bars, so a re-analysis computes them beside the bar ROIs."""
     from benchlab.report_curves import load_curves  # the simulated curves' loader
 
     measured = measure_edges(pixels)
@@ -200,5 +208,15 @@ def forward_edge_tables(
         curves = load_curves(simulated_mtf_file or None)
     except (OSError, ValueError):
         curves = []  # the comparison still runs; the simulated column stays empty
-    return {"table_sfr_edges": rows, "table_sfr_curves": curve_rows,
-            "table_sfr_vs_bars": edge_vs_bars(t411, measured, curves, centre_rc)}
+    return EdgeParts(measured, rows, curve_rows, list(curves))
+
+
+def forward_edge_tables(
+    pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
+    simulated_mtf_file: str = "", parts: EdgeParts | None = None,
+) -> dict[str, list[dict[str, Any]]]:
+    """The three edge tables of a forward frame (see the module docstring); ``parts``:
+    :func:`edge_parts` of the frame already computed."""
+    p = parts if parts is not None else edge_parts(pixels, centre_rc, simulated_mtf_file)
+    return {"table_sfr_edges": p.rows, "table_sfr_curves": p.curve_rows,
+            "table_sfr_vs_bars": edge_vs_bars(t411, p.measured, p.curves, centre_rc)}

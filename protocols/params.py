@@ -8,12 +8,10 @@ parameter file in one pass. Defaults ship as package data in ``protocols/default
 from __future__ import annotations
 
 import re
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
 from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
@@ -24,7 +22,9 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
     camera_exposure_ms,
     camera_gain,
 )
-from benchlab.protocols.characterise_params import CharacteriseParams
+
+if TYPE_CHECKING:
+    from benchlab.protocols.characterise_params import CharacteriseParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
@@ -102,7 +102,9 @@ class RadiometryParams:
         return position_mm + self.stage_offset_mm
 
 
-Params: TypeAlias = MtfParams | RadiometryParams | CharacteriseParams
+#: (A string: the characterisation's parameters are imported only where they are used, so an
+#: MTF re-analysis never loads them.)
+Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams"
 
 
 class _Checker(TableChecker):
@@ -261,6 +263,8 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
 
 def default_params_path(procedure: str) -> Path:
     """The packaged default parameter file of a procedure."""
+    from importlib import resources  # here, like tomllib below: a re-analysis reads neither
+
     return Path(str(resources.files("benchlab.protocols") / "defaults" / f"{procedure}.toml"))
 
 
@@ -298,6 +302,8 @@ def load_params(
 
     With ``limits`` the values are also checked against the bench (LED ceiling, travel).
     """
+    import tomllib
+
     p = Path(path) if path is not None else default_params_path(procedure)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))

@@ -7,10 +7,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import benchlab
-from benchlab.catalog import record_session
 from benchlab.drivers.errors import BenchlabError
-from benchlab.protocols.characterise_params import CharacteriseParams
-from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner
+from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, record_in_catalogue
 from benchlab.protocols.params import (
     BenchLimits,
     MtfParams,
@@ -60,17 +58,17 @@ def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | Chara
     Each procedure module is imported only when its procedure is asked for: re-analysing an
     MTF session never loads the characterisation's or the radiometry's analysis (start-up).
     """
-    if isinstance(params, CharacteriseParams):
-        from benchlab.protocols.characterise import CharacteriseProcedure
-
-        return CharacteriseProcedure(params)
     if isinstance(params, MtfParams):
         from benchlab.protocols.mtf import MtfProcedure
 
         return MtfProcedure(params)
-    from benchlab.protocols.radiometry import RadiometryProcedure
+    if isinstance(params, RadiometryParams):
+        from benchlab.protocols.radiometry import RadiometryProcedure
 
-    return RadiometryProcedure(params)
+        return RadiometryProcedure(params)
+    from benchlab.protocols.characterise import CharacteriseProcedure
+
+    return CharacteriseProcedure(params)
 
 
 def _resolve_params(
@@ -80,6 +78,8 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
+    from benchlab.protocols.characterise_params import CharacteriseParams
+
     expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
                                                                         RadiometryParams)
     if not isinstance(params, expected):
@@ -112,7 +112,7 @@ def start_run(
     )
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
-    record_session(session.path)
+    record_in_catalogue(session.path)
     return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -148,7 +148,7 @@ def resume_run(
     session.remove_temporary_files()  # a kill in the middle of an atomic write
     session.update_meta(status="running")
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
-    record_session(session.path)
+    record_in_catalogue(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
@@ -196,16 +196,28 @@ def _prefetch_frames(session: Session) -> None:
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
-    bad = session.verify_frames()
+    procedure = make_procedure(session_params(session))
+    # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
+    # analysed; a mismatch fails the analysis before any result is written), so the analysis
+    # starts while the last frames load; every other frame is checked here.
+    bad = session.verify_frames(trust_loads=True)
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     before = session.frames()
-    params = session_params(session)
     session.log_event("reanalysis_started", durable=False, estimator=estimator)
-    out = make_procedure(params).analyze(session, estimator)
+    try:
+        out = procedure.analyze(session, estimator)
+    except SessionError as exc:  # a load found its frame changed: say so as above
+        bad = session.verify_frames()
+        if bad:
+            raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
+                                      f"{', '.join(bad)}") from exc
+        raise
     if session.verify_frames() or session.frames() != before:
         raise FramesModifiedError(f"{session.path}: frames changed during re-analysis")
     if catalogue:
-        record_session(session.path)
+        record_in_catalogue(session.path)
     return out
+
+

@@ -72,7 +72,7 @@ def test_quick_geometry_reads_like_the_spectral_search(
                    electrons_per_dn=20.0, phase=0.2, psf_sigma_px=1.0)
     roi = render(case, np.random.default_rng(int(angle)))
     quick = estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=1 / 7)
-    monkeypatch.setattr(histogram, "quick_geometry", lambda *a, **k: None)
+    monkeypatch.setattr(histogram, "quick_fundamental", lambda *a, **k: None)
     full = estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=1 / 7)
     assert quick.resolved and full.resolved
     assert quick.modulation == pytest.approx(full.modulation, abs=0.005)

@@ -145,9 +145,10 @@ def test_help_imports_no_heavy_library() -> None:
 
 
 def test_reanalysis_path_imports_no_scipy() -> None:
-    """`benchlab analyze SESSION` needs numpy, OpenCV, tifffile and scipy.fft (which brings
-    scipy.special), not scipy.ndimage/stats/interpolate/optimize/signal, scikit-image,
-    matplotlib or textual (each costs more to import than a re-analysis takes)."""
+    """`benchlab analyze SESSION` needs numpy only, not scipy.ndimage/stats/interpolate/
+    optimize/signal, scikit-image, matplotlib or textual (each costs more to import than a
+    re-analysis takes); tests/test_analyze_startup.py runs it and checks OpenCV and tifffile
+    too."""
     import subprocess
     import sys
 

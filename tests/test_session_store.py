@@ -179,15 +179,15 @@ def test_a_crash_mid_write_leaves_the_old_files(
 
     s.write_results({"t": [{"a": 1}]}, summary={}, estimator="histogram")
     calls = {"n": 0}
-    real = session_mod.atomic_write_text
+    real = session_mod.write_new_file  # the table files of a version (its folder is private)
 
-    def crash_on_second_table(path: object, text: str, **kw: object) -> Path:
+    def crash_on_second_table(path: Path, data: bytes) -> Path:
         calls["n"] += 1
         if calls["n"] == 2:
             raise OSError("disk full")
-        return real(path, text, **kw)  # type: ignore[arg-type]
+        return real(path, data)
 
-    monkeypatch.setattr(session_mod, "atomic_write_text", crash_on_second_table)
+    monkeypatch.setattr(session_mod, "write_new_file", crash_on_second_table)
     with pytest.raises(OSError, match="disk full"):
         s.write_results({"t": [{"a": 2}], "u": [{"b": 3}]}, summary={}, estimator="fit")
     monkeypatch.undo()

@@ -122,16 +122,20 @@ def _centred_grid(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
     return y, x
 
 
-def detrend(img: FloatArray) -> FloatArray:
-    """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS)."""
+def detrend(img: FloatArray, sums: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
+    """``img`` minus its mean and least-squares plane (numpy reductions, no BLAS).
+    ``sums``: ``(img.sum(axis=0), img.sum(axis=1))`` if already known."""
     rows, cols = img.shape[0], img.shape[1]
     y, x = _centred_grid((rows, cols))
-    col_sums = img.sum(axis=0)
-    row_sums = img.sum(axis=1)
-    mean = float(col_sums.sum()) / (rows * cols)
+    add = np.add.reduce  # = ndarray.sum without its Python wrapper
+    if sums is not None and sums[0].shape == (cols,) and sums[1].shape == (rows,):
+        col_sums, row_sums = sums
+    else:
+        col_sums, row_sums = add(img, axis=0), add(img, axis=1)
+    mean = float(add(col_sums)) / (rows * cols)
     # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
-    gx = float((col_sums * x).sum()) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
-    gy = float((row_sums * y).sum()) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
+    gx = float(add(col_sums * x)) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
+    gy = float(add(row_sums * y)) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
     return img - ((gy * y)[:, None] + (mean + gx * x)[None, :])
 
 
@@ -354,7 +358,8 @@ def _uncertainties(
 
 
 def quick_geometry(
-    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None = None
+    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None = None,
+    sums: tuple[FloatArray, FloatArray] | None = None,
 ) -> BarGeometry | None:
     """Straight-bar geometry near a known frequency in a few passes over the pixels, or
     ``None`` when it cannot be trusted (then use :func:`measure_geometry`).
@@ -381,11 +386,41 @@ def quick_geometry(
     resid : ndarray, optional
         ``detrend(img)`` if already computed (then used whole; otherwise ROIs larger than
         ``QUICK_CROP_PX`` are measured on a centred crop).
+    sums : (ndarray, ndarray), optional
+        ``(img.sum(axis=0), img.sum(axis=1))`` if already known (used when not cropped).
 
     Returns
     -------
     BarGeometry or None
         Straight bars (zero curvature).
+    """
+    found = quick_fundamental(img, noise_sigma, freq_prior, resid, sums)
+    if found is None:
+        return None
+    theta, f, value, amplitude, shape = found
+    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
+    theta_sd, freq_sd, phase_sd = _uncertainties(shape, theta, f, amplitude, noise_sigma)
+    return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
+
+
+def quick_fundamental(
+    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None,
+    sums: tuple[FloatArray, FloatArray] | None,
+) -> tuple[float, float, complex, float, tuple[int, int]] | None:
+    """:func:`quick_geometry` without its phase and uncertainties (which
+    :func:`measure_geometry`'s start and the histogram method's bin phases do not need).
+
+    Parameters
+    ----------
+    img, noise_sigma, freq_prior, resid, sums
+        As :func:`quick_geometry`.
+
+    Returns
+    -------
+    (float, float, complex, float, (int, int)) or None
+        Direction ``theta`` (rad), frequency (cycles/px), the DFT at ``f (cos t, sin t)``
+        (phases from the centre), the fundamental amplitude and the shape measured (a crop
+        of large ROIs); ``None`` where :func:`quick_geometry` declines.
     """
     rows, cols = img.shape
     n = rows * cols
@@ -394,10 +429,10 @@ def quick_geometry(
     if resid is None:
         # Straight bars: a centred crop (same centre, so the same phase) measures them as well
         # as the whole ROI, at a fixed cost.
-        img = _centred_crop(img, QUICK_CROP_PX)
-        rows, cols = img.shape
+        crop = _centred_crop(img, QUICK_CROP_PX)
+        resid = detrend(crop, sums if crop is img else None)
+        rows, cols = crop.shape
         n = rows * cols
-        resid = detrend(img)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells
     for _ in range(3):  # invert the cell gradients' anisotropy (a near-identity map)
@@ -432,9 +467,7 @@ def quick_geometry(
     power = float(np.einsum("ij,ij->", resid, resid)) / n - noise_sigma**2
     if amplitude * amplitude / 2.0 < QUICK_MIN_POWER_SHARE * power:
         return None
-    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    theta_sd, freq_sd, phase_sd = _uncertainties((rows, cols), theta, f, amplitude, noise_sigma)
-    return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
+    return theta, f, value, amplitude, (rows, cols)
 
 
 def _spectral_peak(
@@ -467,6 +500,7 @@ def measure_geometry(
     freq_prior: float | None = None,
     curvature: bool = True,
     quick_start: bool = False,
+    sums: tuple[FloatArray, FloatArray] | None = None,
 ) -> BarGeometry | None:
     """Direction, frequency and phase of the bars in ``img`` (see the module docstring).
 
@@ -486,6 +520,8 @@ def measure_geometry(
         curvature follow. It accepts only a fundamental carrying at least
         ``QUICK_MIN_POWER_SHARE`` of the power, so no peak outside the prior's band can be
         ``WIDE_PEAK_RATIO`` times stronger: the spectral search would start there too.
+    sums : (ndarray, ndarray), optional
+        ``(img.sum(axis=0), img.sum(axis=1))`` if already known.
 
     Returns
     -------
@@ -495,7 +531,7 @@ def measure_geometry(
     rows, cols = img.shape
     if rows * cols < 4:
         return None
-    resid = detrend(img)
+    resid = detrend(img, sums)
     extent = math.hypot(rows, cols)
     if freq_prior:
         f_lo, f_hi = PRIOR_BAND[0] * freq_prior, min(PRIOR_BAND[1] * freq_prior, 0.5 * math.sqrt(2))
@@ -503,10 +539,13 @@ def measure_geometry(
         f_lo, f_hi = 0.7 / max(rows, cols), 0.5 * math.sqrt(2)
     start = None
     if quick_start and freq_prior:
-        start = quick_geometry(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
-                               resid=_centred_crop(resid, QUICK_CROP_PX))
+        start = quick_fundamental(_centred_crop(img, QUICK_CROP_PX), noise_sigma, freq_prior,
+                         _centred_crop(resid, QUICK_CROP_PX), None)
     if start is not None:
-        peak: tuple[float, float, float] | None = (*start.k_xy, start.amplitude)
+        # As BarGeometry.k_xy of quick_geometry's result.
+        q_theta, q_f, _, q_amplitude, _ = start
+        peak: tuple[float, float, float] | None = (
+            q_f * math.cos(q_theta), q_f * math.sin(q_theta), q_amplitude)
     else:
         peak = _spectral_peak(resid, freq_prior, f_lo, f_hi)
     if peak is None:

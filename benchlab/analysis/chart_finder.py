@@ -61,6 +61,7 @@ from benchlab.analysis.chart_pose import (
 )
 from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.knownbars import ThreeBarReading, fit_three_bars
+from benchlab.analysis.morphology import box_close, label_components
 from benchlab.analysis.projection import project_roi
 from benchlab.analysis.result import ModulationResult
 
@@ -436,14 +437,12 @@ def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
     brightest pixel is above :data:`LIT_FRACTION` of the way from the dark floor to the
     brightest blocks (the lit disc of a positive target, the bars of a negative one), padded
     by ``pad_px``. A frame lit all over is searched whole."""
-    import cv2  # here, not at module top: `benchlab` starts without OpenCV
     h, w = img.shape
     step = WINDOW_BLOCK_PX
     hb, wb = h // step, w // step
     if hb < 4 or wb < 4:
         return (0, 0, h, w)
-    near_max = cv2.dilate(img, np.ones((step, step), np.uint8))  # max over step x step
-    blocks = near_max[step // 2 : hb * step : step, step // 2 : wb * step : step]
+    blocks = _block_max(img, step)
     floor, level = np.percentile(blocks, (5.0, 99.0))
     lit = blocks > floor + LIT_FRACTION * (level - floor)
     if not lit.any():
@@ -455,14 +454,22 @@ def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
     return (max(r0, 0), max(c0, 0), min(r1, h), min(c1, w))
 
 
+def _block_max(img: npt.NDArray[np.float32], step: int) -> npt.NDArray[np.float32]:
+    """Brightest pixel of each whole ``step`` x ``step`` block (what sampling a ``step``-box
+    dilation at the block centres gives, without the dilation)."""
+    hb, wb = img.shape[0] // step, img.shape[1] // step
+    # rows first: a maximum of whole rows (contiguous, ~8x faster than both axes at once)
+    rows = img[: hb * step].reshape(hb, step, img.shape[1]).max(axis=1)
+    out: npt.NDArray[np.float32] = rows[:, : wb * step].reshape(hb, wb, step).max(axis=2)
+    return out
+
+
 def _darkness(
     work: npt.NDArray[np.float32], kernel: int
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """Relative darkness against the local ground (a closing; 0 outside the lit field), and
     that ground."""
-    import cv2  # here, not at module top: `benchlab` starts without OpenCV
-    k = cv2.getStructuringElement(cv2.MORPH_RECT, (kernel, kernel))
-    ground = np.asarray(cv2.morphologyEx(work, cv2.MORPH_CLOSE, k), dtype=np.float32)
+    ground = np.asarray(box_close(work, kernel), dtype=np.float32)
     lit_level = _high_level(ground)
     if lit_level <= 0:
         return np.zeros_like(work), ground
@@ -507,9 +514,8 @@ def _candidates(
 ) -> _Candidates:
     """Three-bar sets among the dark components of the darkness map (``origin_rc``: where the
     map's first pixel sits in the frame)."""
-    import cv2  # here, not at module top: `benchlab` starts without OpenCV
-    mask = (darkness > BAR_CONTRAST).astype(np.uint8)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
+    mask = darkness > BAR_CONTRAST
+    n, labels, areas = label_components(mask)
     empty = _Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     if n <= 1:
         return empty
@@ -518,7 +524,7 @@ def _candidates(
     wgt = darkness[rr, cc].astype(np.float64)
     cnt = np.bincount(lab, minlength=n).astype(np.float64)
     m0 = np.bincount(lab, wgt, n)
-    ok = (cnt >= 4) & (stats[:, cv2.CC_STAT_AREA] < 5000)
+    ok = (cnt >= 4) & (areas < 5000)
     ok[0] = False
     m0s = np.where(m0 > 0, m0, 1.0)
     my = np.bincount(lab, wgt * rr, n) / m0s

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import replace
@@ -314,9 +315,13 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 
 
+@functools.cache
 def _crest_table() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Kurtosis -> crest factor (half peak-to-valley / RMS) of Gaussian-blurred 50 %-duty
-    square waves, from sharp (1, 1) to fully blurred = sine (1.5, sqrt 2)."""
+    square waves, from sharp (1, 1) to fully blurred = sine (1.5, sqrt 2).
+
+    Built on first use (~10 ms) and kept: only the ``variance`` estimator reads it, and
+    building it at import cost every ``benchlab analyze`` that start-up time (issue 11)."""
     x = np.linspace(0.0, 1.0, 2048, endpoint=False)
     k = np.arange(1, 200, 2, dtype=np.float64)
     basis = np.sin(2 * np.pi * np.outer(x, k)) / k
@@ -332,8 +337,6 @@ def _crest_table() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     order = np.argsort(kurts)
     return np.asarray(kurts)[order], np.asarray(crests)[order]
 
-
-_CREST_KURTOSIS, _CREST_FACTOR = _crest_table()
 
 
 def _whole_periods(prep: PreparedROI) -> npt.NDArray[np.float64]:
@@ -400,7 +403,7 @@ def variance_minus_noise(prep: PreparedROI) -> ModulationResult:
         return unresolved(name, diag, warnings)
     r_noise, r_signal = noise2 / var, signal2 / var
     kurt = (m4_ratio - 6.0 * r_noise * r_signal - 3.0 * r_noise * r_noise) / (r_signal * r_signal)
-    crest = float(np.interp(kurt, _CREST_KURTOSIS, _CREST_FACTOR))
+    crest = float(np.interp(kurt, *_crest_table()))
     half = crest * math.sqrt(signal2)
     dark, bright = mean - half, mean + half
     modulation = half / mean

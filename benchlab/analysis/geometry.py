@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis import morphology
 from benchlab.analysis.roi import orientation_axis
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
@@ -46,15 +47,20 @@ class FovCircle:
 def _erode(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """4-neighbour binary erosion; outside the image counts as set (a clipped edge is not an
     edge of the mask)."""
-    p = np.pad(mask, 1, constant_values=True)
-    return p[1:-1, 1:-1] & p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
+    out = np.array(mask, dtype=bool, copy=True)
+    out[1:, :] &= mask[:-1, :]  # in place: no padded copy of a whole frame
+    out[:-1, :] &= mask[1:, :]
+    out[:, 1:] &= mask[:, :-1]
+    out[:, :-1] &= mask[:, 1:]
+    return out
 
 
 def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
     """Set every background pixel not 4-connected to the image border.
 
-    The same result as ``scipy.ndimage.binary_fill_holes`` with its default structure, by one
-    OpenCV flood fill (scipy.ndimage costs more to import than a re-analysis takes to run).
+    The same result as ``scipy.ndimage.binary_fill_holes`` with its default structure, by
+    run-length labelling in numpy (:func:`benchlab.analysis.morphology.fill_holes`): importing
+    scipy.ndimage or OpenCV for it costs more start-up than a re-analysis takes to run.
 
     Parameters
     ----------
@@ -66,16 +72,7 @@ def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
     ndarray of bool
         ``mask`` with its enclosed holes filled.
     """
-    import cv2
-
-    m = np.asarray(mask).astype(bool)
-    if m.ndim != 2:
-        raise ValueError(f"mask must be 2-D, got shape {m.shape}")
-    # Background as 1 inside a one-pixel background frame, so all of the border is one region.
-    background = np.pad(~m, 1, constant_values=True).astype(np.uint8)
-    cv2.floodFill(background, None, (0, 0), 2, flags=4)
-    filled: npt.NDArray[np.bool_] = background[1:-1, 1:-1] != 2
-    return filled
+    return morphology.fill_holes(mask)
 
 
 def fov_centre(mask: npt.ArrayLike) -> FovCircle:
@@ -93,12 +90,12 @@ def fov_centre(mask: npt.ArrayLike) -> FovCircle:
     m = np.asarray(mask).astype(bool)
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D, got shape {m.shape}")
-    n = int(m.sum())
+    n = int(np.count_nonzero(m))
     if n == 0:
         raise ValueError("field-of-view mask is empty")
     # Row and column projections give the centroid and the clipping test without listing
     # every pixel of a mask that covers most of the frame.
-    per_row, per_col = m.sum(axis=1), m.sum(axis=0)
+    per_row, per_col = np.count_nonzero(m, axis=1), np.count_nonzero(m, axis=0)
     h, w = m.shape
     clipped = bool(per_row[0] or per_row[-1] or per_col[0] or per_col[-1])
     if not clipped:
@@ -106,7 +103,7 @@ def fov_centre(mask: npt.ArrayLike) -> FovCircle:
         c = float(per_col @ np.arange(w, dtype=np.float64)) / n
         return FovCircle((r, c), math.sqrt(n / math.pi), False, "centroid")
     edge = m & ~_erode(m)
-    br, bc = np.nonzero(edge)
+    br, bc = np.divmod(np.flatnonzero(edge), w)  # as np.nonzero, ~10x faster on a frame
     inside = (br > 0) & (br < h - 1) & (bc > 0) & (bc < w - 1)
     br, bc = br[inside].astype(np.float64), bc[inside].astype(np.float64)
     if br.size < 10 or np.ptp(br) < 3 or np.ptp(bc) < 3:

@@ -44,7 +44,7 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bargeometry import detrend, measure_geometry, quick_geometry
+from benchlab.analysis.bargeometry import detrend, measure_geometry, quick_fundamental
 from benchlab.analysis.projection import across_coordinate
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
@@ -392,15 +392,16 @@ _NEAR, _NEAR_WIDE = _phase_tables(NOISE_BINS)
 
 
 def _scatter_about_bins(
-    idx: npt.NDArray[np.intp], flat: npt.NDArray[np.float64], n_bins: int
+    idx: npt.NDArray[np.intp], flat: npt.NDArray[np.float64], n_bins: int,
+    work: npt.NDArray[np.float64] | None = None,
 ) -> float:
     """Pooled scatter of ``flat`` within the bins ``idx`` (the noise about the phase-binned
-    profile: it does not depend on the bar angle)."""
+    profile: it does not depend on the bar angle); ``work``: a free buffer of its size."""
     count = np.bincount(idx, minlength=n_bins)
     sums = np.bincount(idx, flat, n_bins)
-    squares = np.bincount(idx, flat * flat, n_bins)
+    squares = np.bincount(idx, np.multiply(flat, flat, out=work), n_bins)
     # Empty bins add 0 - 0; per bin: sum of squares about the bin mean.
-    within = max(float((squares - sums * sums / np.maximum(count, 1)).sum()), 0.0)
+    within = max(float(np.add.reduce(squares - sums * sums / np.maximum(count, 1))), 0.0)
     return math.sqrt(within / max(flat.size - int(np.count_nonzero(count)), 1))
 
 
@@ -488,46 +489,54 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     img = prep.pixels
     rows, cols = img.shape
     n = img.size
-    geom = quick_geometry(img, prep.noise_sigma, f) if f else None
-    if geom is None:
-        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False)
-    if geom is None:
-        return None
-    f = geom.freq_cycles_per_px
-    kx, ky = geom.k_xy
-    y, x = _centred_grid(rows, cols)
-    phi = (ky * y)[:, None] + (kx * x + geom.phase_cycles)[None, :]
-    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
-    half_f = 0.5 * f * (abs((cols - 1) * math.cos(geom.theta_rad))
-                        + abs((rows - 1) * math.sin(geom.theta_rad)))
-    if half_f >= 1.0:
-        dev = phi - geom.phase_cycles
-        inner = np.abs(dev, out=dev) <= half_f - 0.5
+    sums = prep.profile_sums
+    # quick_geometry's numbers, without the uncertainties it would add (not needed here).
+    quick = quick_fundamental(img, prep.noise_sigma, f, None, sums) if f else None
+    if quick is not None:
+        theta, f, value, amplitude, _ = quick
+        phase = math.atan2(value.imag, value.real) / (2 * math.pi)
     else:
-        inner = np.ones(img.shape, bool)
+        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False, sums=sums)
+        if geom is None:
+            return None
+        theta, f, phase, amplitude = (geom.theta_rad, geom.freq_cycles_per_px,
+                                      geom.phase_cycles, geom.amplitude)
+    kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
+    y, x = _centred_grid(rows, cols)
+    phi = (ky * y)[:, None] + (kx * x + phase)[None, :]
+    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
+    half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
     # Phase in cycles modulo 1, in place where possible (few full-size temporaries keep large
     # ROIs cheap; np.mod is 10x slower than floor and subtract).
     w = np.floor(phi)
     np.subtract(phi, w, out=w)
     w *= NOISE_BINS
     idx = w.astype(np.intp)
+    if half_f >= 1.0:
+        # In place when phi is not needed after this (the small-ROI noise below uses it).
+        dev = np.subtract(phi, phase, out=phi if n >= 8 * NOISE_BINS else None)
+        inner = np.abs(dev, out=dev) <= half_f - 0.5
+    else:
+        inner = np.ones(img.shape, bool)
     flat = img.ravel()
-    noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1)
+    small = n < 8 * NOISE_BINS  # w is needed again below
+    noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1,
+                                None if small else w.reshape(-1))
     z_noise = noise
-    if n < 8 * NOISE_BINS:
+    if small:
         w /= NOISE_BINS
         # Few pixels per bin, and a geometry from few periods that smears the bins: the
         # least of the noise estimates (coarser bins, the residual of the fundamental,
         # neighbour differences) - none of them is inflated by the bars on a flat ROI.
         n_z = max(4, n // 8)
         coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
-        fundamental = geom.amplitude * np.cos(2.0 * math.pi * phi)
-        misfit = detrend(img) - fundamental
+        fundamental = amplitude * np.cos(2.0 * math.pi * phi)
+        misfit = detrend(img, sums) - fundamental
         residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
         z_noise = min(coarse, residual, prep.noise_sigma)
     if prep.integer_valued:
         z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
-    z = _significance(geom.amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
+    z = _significance(amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
     return idx, inner, noise, z
 
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -46,7 +47,7 @@ from benchlab.analysis.bargeometry import (
     phase_map,
     refine_by_folding,
 )
-from benchlab.analysis.projection import across_coordinate, bin_profiles
+from benchlab.analysis.projection import across_coordinate, filled_bin_means
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -103,6 +104,57 @@ _TWO_PI = 2.0 * math.pi
 FloatArray = npt.NDArray[np.float64]
 
 
+def _load_lapack() -> Any:
+    """numpy's own LAPACK gufuncs (a private module), used without np.linalg's Python
+    wrappers; ``None`` (np.linalg then) unless they exist and give np.linalg's numbers."""
+    try:
+        from numpy.linalg import _umath_linalg as lapack
+
+        a, b = np.array([[2.0, 1.0], [1.0, 3.0]]), np.array([1.0, 2.0])
+        same = (
+            np.array_equal(lapack.inv(a, signature="d->d"), np.linalg.inv(a))
+            and np.array_equal(lapack.solve1(a, b, signature="dd->d"), np.linalg.solve(a, b))
+            and all(np.array_equal(x, y) for x, y in
+                    zip(lapack.eigh_lo(a, signature="d->dd"), np.linalg.eigh(a), strict=True))
+        )
+    except Exception:  # pragma: no cover - another numpy: its public functions then
+        return None
+    return lapack if same else None
+
+
+_lapack = _load_lapack()
+
+
+def _inv(a: FloatArray) -> FloatArray:
+    """``np.linalg.inv`` of a float64 matrix: the same LAPACK gufunc (bit-identical) without
+    the wrapper's checks and error-state context, ~6 us of its ~7 us on the fit's small
+    matrices. Singular: ``LinAlgError`` as numpy raises it (LAPACK then returns NaNs; call
+    under ``np.errstate(invalid="ignore")``, once per fit, to keep that quiet)."""
+    if _lapack is not None:
+        out: FloatArray = _lapack.inv(a, signature="d->d")
+        if math.isfinite(out.item(0)):
+            return out
+    return np.asarray(np.linalg.inv(a), dtype=np.float64)
+
+
+def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.linalg.solve(a, b)`` for a float64 matrix and vector (see :func:`_inv`)."""
+    if _lapack is not None:
+        out: FloatArray = _lapack.solve1(a, b, signature="dd->d")
+        if math.isfinite(out.item(0)):
+            return out
+    return np.asarray(np.linalg.solve(a, b), dtype=np.float64)
+
+
+def _eigh(a: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``np.linalg.eigh`` of a symmetric float64 matrix (see :func:`_inv`; ~19 us less)."""
+    if _lapack is not None:
+        vals, vecs = _lapack.eigh_lo(a, signature="d->dd")
+        if math.isfinite(vals.item(0)):
+            return vals, vecs
+    return np.linalg.eigh(a)  # type: ignore[return-value]
+
+
 def _phasors(w: FloatArray, n_harm: int, damp: FloatArray | None = None) -> FloatArray:
     """``[cos | sin](2 pi k w)`` (n, 2 n_harm), ``k = 1..n_harm``: the real and imaginary
     parts of the phasors side by side, so that every product is a real one (a complex
@@ -148,17 +200,27 @@ class _Model:
         if w_var is not None:
             # A bin averages the profile over its pixels' spread of phases (variance w_var):
             # each harmonic is damped like a Gaussian average of that variance.
-            damp = np.exp(-2.0 * math.pi**2 * np.outer(w_var, self.k * self.k))
+            damp = np.exp(-2.0 * math.pi**2 * np.multiply.outer(w_var, self.k * self.k))
         self.e: FloatArray = _phasors(w, n_harm, damp)
         self.fk = freq * self.k
         a, b = barmodel.footprint_sides(theta)
-        sides = np.sinc(np.outer((a, b), self.fk))  # one call: np.sinc costs ~4 us
+        sides = np.sinc(np.multiply.outer((a, b), self.fk))  # one call: np.sinc costs ~4 us
         self.footprint = sides[0] * sides[1]
         self._blur = -2.0 * math.pi**2 * self.fk**2  # log gain per sigma^2
         self._two_over_pik = 2.0 / (math.pi * self.k)
         self._two_pi_k = 2.0 * math.pi * self.k
         self._minus_two_pi_k = -self._two_pi_k
         self._blur2 = np.concatenate([self._blur, self._blur])
+        # For coefficients(): the angles' factors (2 pi k, k) as rows, the amplitudes'
+        # factors (2 / (pi k), 2) and the derivative's (-2 pi k, 2 pi k).
+        rows = np.empty((3, 2, n_harm))  # filled by rows: np.stack costs ~3 us a call
+        rows[0, 0], rows[0, 1] = self._two_pi_k, self.k
+        rows[1, 0], rows[1, 1] = self._two_over_pik, 2.0
+        rows[2, 0], rows[2, 1] = self._minus_two_pi_k, self._two_pi_k
+        self._k_rows, self._amp_rows, self._d_rows = rows
+        # The last coefficients computed, shared with the copies made by at() and at_rows():
+        # the fit's last step, the phase grid and the levels ask for the same parameters.
+        self._recent: dict[tuple[float, float, float], FloatArray] = {}
 
     def at(self, w: FloatArray | None) -> _Model:
         """The same model on other phase samples (``None``: the cached phase grid)."""
@@ -181,24 +243,40 @@ class _Model:
         """``[Re Z | -Im Z]`` (4, 2 n_harm) for value, d/d(delta), d/d(duty), d/d(var)
         (without the duty's own constant and unit derivative); ``var`` is the PSF's
         variance (px^2): the gains are log-linear in it, and its derivative does not vanish
-        at zero blur as the sigma's does (Levenberg-Marquardt then stalls on the bound)."""
+        at zero blur as the sigma's does (Levenberg-Marquardt then stalls on the bound).
+        Read-only: the result may be shared with later calls at the same parameters."""
+        key = (delta, duty, var)
+        recent = self._recent
+        got = recent.get(key)
+        if got is not None:
+            return got
+        if len(recent) >= 4:
+            recent.clear()
+        out = self._coefficients(delta, duty, var)
+        recent[key] = out
+        return out
+
+    def _coefficients(self, delta: float, duty: float, var: float) -> FloatArray:
         # Z = exp(-2 pi i k delta) gain a_k: [Re | -Im] = [cos | sin](2 pi k delta) gain a_k,
         # and d/d(delta) multiplies Z by -2 pi i k: [Re | -Im] -> 2 pi k [-(-Im) | Re].
         # Real arithmetic throughout (complex temporaries cost more numpy calls).
+        # Each product below is the one of the straightforward code (ang = 2 pi k delta,
+        # pk = pi duty k, amp = 2 / (pi k) sin(pk) gain, amp_duty = 2 cos(pk) gain, then
+        # [cos | sin](ang) times those), in stacked rows: half the numpy calls.
         n_harm = self.k.size
-        gain = np.exp(self._blur * var) * self.footprint
-        pk = math.pi * duty * self.k
-        ang = self._two_pi_k * delta
-        cos_a, sin_a = np.cos(ang), np.sin(ang)
-        amp = self._two_over_pik * np.sin(pk) * gain
-        amp_duty = 2.0 * np.cos(pk) * gain
+        gain = np.exp(self._blur * var)
+        gain *= self.footprint
+        arg = np.multiply(self._k_rows, ((delta,), (math.pi * duty,)))  # [ang; pk]
+        trig = np.empty((4, n_harm))  # [cos ang; cos pk; sin ang; sin pk]
+        np.cos(arg, out=trig[:2])
+        np.sin(arg, out=trig[2:])
+        amps = np.multiply(self._amp_rows, trig[3::-2])  # [2/(pi k) sin pk; 2 cos pk]
+        amps *= gain
         out = np.empty((4, 2 * n_harm))
-        np.multiply(cos_a, amp, out=out[0, :n_harm])
-        np.multiply(sin_a, amp, out=out[0, n_harm:])
-        np.multiply(out[0, n_harm:], self._minus_two_pi_k, out=out[1, :n_harm])
-        np.multiply(out[0, :n_harm], self._two_pi_k, out=out[1, n_harm:])
-        np.multiply(cos_a, amp_duty, out=out[2, :n_harm])
-        np.multiply(sin_a, amp_duty, out=out[2, n_harm:])
+        rows = out.reshape(4, 2, n_harm)
+        np.multiply(trig[0::2], amps[0], out=rows[0])  # [cos ang; sin ang] amp
+        np.multiply(rows[0, ::-1], self._d_rows, out=rows[1])
+        np.multiply(trig[0::2], amps[1], out=rows[2])
         np.multiply(out[0], self._blur2, out=out[3])
         return out
 
@@ -217,7 +295,7 @@ class _Model:
 
     def eval_many(self, duty: float, variances: FloatArray) -> FloatArray:
         """Bright fraction (n, len(variances)) at ``delta = 0`` for several blurs at once."""
-        gains = np.exp(np.outer(self._blur, variances)) * self.footprint[:, None]
+        gains = np.exp(np.multiply.outer(self._blur, variances)) * self.footprint[:, None]
         alpha = (self._two_over_pik * np.sin(math.pi * duty * self.k))[:, None] * gains
         out: FloatArray = self.e[:, : self.k.size] @ alpha + duty
         return out
@@ -255,7 +333,8 @@ class _Fit:
         xa[:m, 0] = sw
         for j, t in enumerate(self.extra):
             xa[:m, 2 + 2 * j] = t * sw
-        xa[m:, 2:] = self.ridge * np.eye(n_shade)
+        if n_shade:
+            xa[m:, 2:] = self.ridge * np.eye(n_shade)
         self.xa = xa
         self.ya = np.zeros(m + n_shade)
         self.ya[:m] = y * sw
@@ -286,14 +365,15 @@ class _Fit:
         sig = np.asarray(sigmas, dtype=np.float64)
         s = self.model.eval_many(0.5, sig * sig)  # (m, n_sigma)
         w = self.sw * self.sw
-        sw_tot = float(w.sum())
+        sw_tot = float(np.add.reduce(w))
         ybar = float(w @ self.y) / sw_tot
         sbar = (w @ s) / sw_tot
         ds = s - sbar
         sxx = w @ (ds * ds)
-        sxy = (w * (self.y - ybar)) @ ds
+        dy = self.y - ybar
+        sxy = (w * dy) @ ds
         slope = np.where(sxx > 0, sxy / np.maximum(sxx, 1e-300), 0.0)
-        resid = float(w @ (self.y - ybar) ** 2) - slope * sxy
+        resid = float(w @ dy**2) - slope * sxy
         best = int(np.argmin(resid))
         return np.array([0.0, 0.5, float(sig[best]) ** 2])
 
@@ -305,16 +385,23 @@ class _Fit:
         parameters' column space projected out (Kaufman), the cost, and the model and its
         derivatives at the bins."""
         m, n_lin = self.m, self.n_lin
-        s, ds = self.model.eval(float(nl[0]), float(nl[1]), float(nl[2]))
+        delta, duty, var = nl.tolist()
+        s, ds = self.model.eval(delta, duty, var)
         assert ds is not None
         xa = self._fill(s)
         xt = xa.T
         gram = xt @ xa
-        gram.flat[:: n_lin + 1] += 1e-12 * (gram.trace() + 1e-300)  # keeps it invertible
+        # Keeps it invertible (the diagonal through a view of the contiguous product: the
+        # flat iterator costs more).
+        diag = gram.ravel()[:: n_lin + 1]
+        trace = 0.0  # summed in order, as ndarray.trace sums these few
+        for v in diag.tolist():
+            trace += v
+        diag += 1e-12 * (trace + 1e-300)
         try:
-            g_inv = np.linalg.inv(gram)
+            g_inv = _inv(gram)
         except np.linalg.LinAlgError:
-            g_inv = np.linalg.pinv(gram)
+            g_inv = np.asarray(np.linalg.pinv(gram), dtype=np.float64)
         lin = g_inv @ (xt @ self.ya)
         n_rows = xa.shape[0]
         r = np.empty(n_rows + 1)
@@ -324,8 +411,7 @@ class _Fit:
             slope += lin[3 + 2 * j] * t
         # Rows: the bins, the shading ridge's (no nonlinear dependence), the duty prior.
         jac = np.empty((n_rows + 1, 3))
-        jac[:m] = ds
-        jac[:m] *= -slope[:, None]
+        np.multiply(ds, -slope[:, None], out=jac[:m])
         jac[m:] = 0.0
         jac[:n_rows] -= xa @ (g_inv @ (xt @ jac[:n_rows]))
         r[n_rows] = self.prior_d * (nl[1] - 0.5)
@@ -337,13 +423,17 @@ class _Fit:
 
     def run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
         """Fitted parameters and ``J^T J`` of all of them (for the covariance)."""
+        with np.errstate(invalid="ignore"):  # a singular step is caught (see _inv)
+            return self._run(sigmas, max_iter)
+
+    def _run(self, sigmas: tuple[float, ...], max_iter: int) -> tuple[FloatArray, FloatArray]:
         nl = self.start(sigmas)
         params, r, jac, cost, s, ds = self._projected(nl)
         lam = 1e-3
         # Converged when the next step is predicted to lower the cost by less than a
         # hundredth of the noise variance: a move of a tenth of a standard error at most.
         enough = 1e-2 * cost / max(self.m - 3, 1)
-        tiny = np.array([1e-5, 1e-5, 1e-5 * self.var_max])
+        tiny = (1e-5, 1e-5, 1e-5 * self.var_max)
         lo = np.array([-0.5, DUTY_BOUNDS[0], 0.0])
         hi = np.array([0.5, DUTY_BOUNDS[1], self.var_max])
         if not self.fit_duty:
@@ -352,13 +442,14 @@ class _Fit:
             jtj = jac.T @ jac
             grad = jac.T @ r
             scale = jtj.diagonal()
-            jtj.flat[::4] += lam * np.where(scale > 0, scale, 1.0)
+            jtj.ravel()[::4] += lam * np.where(scale > 0, scale, 1.0)
             try:
-                step = -np.linalg.solve(jtj, grad)
+                step = -_solve(jtj, grad)
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            if -float(grad @ step) < enough or bool((np.abs(step) < tiny).all()):
+            if -float(grad @ step) < enough or all(
+                    abs(a) < t for a, t in zip(step.tolist(), tiny, strict=True)):
                 break
             trial = np.minimum(np.maximum(nl + step, lo), hi)
             got = self._projected(trial)
@@ -464,7 +555,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if n < 4 or prep.vmax == prep.vmin:
         warnings.append("too few pixels or a single gray level: no bar profile")
         return unresolved(name, prep.diagnostics(), warnings)
-    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True)
+    geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True,
+                            sums=prep.profile_sums)
     if geom is None:
         warnings.append("no bar period found in the ROI")
         return unresolved(name, prep.diagnostics(), warnings)
@@ -537,8 +629,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     se_a1 = noise * math.sqrt(2.0 / n)
     a1_test = min(a1, geom.amplitude)
     z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
-    diag0 = prep.diagnostics()
-    # Built once (dataclasses.replace costs ~10 us a call): the reading's fields go in below.
+    # The reading's fields go into prep.diagnostics (dataclasses.replace costs ~10 us a call).
     fields = dict(
         noise_sigma=noise,
         px_per_period=period,
@@ -556,7 +647,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f"bar fundamental {a1_test:.3g} within {RESOLVED_Z:g} standard errors "
             f"({se_a1:.3g}) of zero: bars not resolved"
         )
-        return unresolved(name, replace(diag0, **fields), warnings)  # type: ignore[arg-type]
+        return unresolved(name, prep.diagnostics_with(**fields), warnings)
     # Levels never beyond the samples by more than the model itself says the sampled phases
     # fall short of the extremes (plus two noise sigmas): no overshoot below every sample.
     at_bins = params[0] + params[1] * grid_s[(wb * _GRID_N + 0.5).astype(np.intp) % _GRID_N]
@@ -565,7 +656,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         bright = min(bright, prep.vmax + (bright - float(at_bins.max())) + 2.0 * noise)
     if bright + dark <= 0 or bright <= dark:
         warnings.append("fitted dark + bright <= 0: contrast undefined")
-        return unresolved(name, replace(diag0, **fields), warnings)  # type: ignore[arg-type]
+        return unresolved(name, prep.diagnostics_with(**fields), warnings)
     modulation = min(eq29_modulation(dark, bright), 1.0)
     sd_noise = math.sqrt(max(float(grad_m @ cov @ grad_m), 0.0))
     # Largest gap between the filled bins' phases, around the period (they are ascending).
@@ -573,8 +664,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     sd_model = _model_sd(modulation, max_gap, n_f,
                          MODEL_REL_SD_FAST if fast else None, n_pixels=n)
     sd = math.hypot(sd_noise, sd_model)
-    diag = replace(diag0, **fields, uncertainty_noise=sd_noise,  # type: ignore[arg-type]
-                   uncertainty_model=sd_model)
+    diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
+                                 uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 
@@ -640,23 +731,17 @@ def _fit_at(
         n = int(vals.size)
         n_bins = int(min(n_bins, max(8, n // 6)))
     width = 1.0 / n_bins
-    prof, sq_prof, w_prof, w2_prof, u_prof, v_prof = bin_profiles(
+    n_filled, (y, sq, wb, w2b, ub, vb) = filled_bin_means(
         w_fit, [vals, vals * vals, w_fit, w_fit * w_fit, u_fit, v_fit], width
     )
-    filled = prof.filled
     # Pooled scatter within the bins: an upper bound of the noise that does not depend on the
     # bar angle (neighbour differences along an image axis do).
-    sq = sq_prof.mean[filled]
-    within = float((prof.count[filled] * np.maximum(sq - prof.mean[filled] ** 2, 0.0)).sum())
-    scale_noise = math.sqrt(within / max(n - int(filled.sum()), 1))
+    within = float(np.add.reduce(n_filled * np.maximum(sq - y**2, 0.0)))
+    scale_noise = math.sqrt(within / max(n - n_filled.size, 1))
     if prep.noise_given or scale_noise <= 0:
         scale_noise = prep.noise_sigma
-    y = prof.mean[filled]
-    count = prof.count[filled].astype(np.float64)
-    wb = w_prof.mean[filled]
-    w_var = np.maximum(w2_prof.mean[filled] - wb * wb, 0.0)
-    ub = u_prof.mean[filled]
-    vb = v_prof.mean[filled]
+    count = n_filled.astype(np.float64)
+    w_var = np.maximum(w2b - wb * wb, 0.0)
     n_f = int(y.size)
     if n_f < 3:
         return f"only {n_f} distinct bar phases sampled: cannot fit the profile"
@@ -680,7 +765,7 @@ def _fit_at(
     grid_s = fitter.grid.eval(float(params[-3]), float(params[-2]), float(params[-1]),
                               derivatives=False)[0]
     # The grid with its first point repeated at w = 1: rounding needs no modulo.
-    grid_wrap = np.append(grid_s, grid_s[0])
+    grid_wrap = np.concatenate((grid_s, grid_s[:1]))
     at_grid = (w_fit.ravel() * _GRID_N + 0.5).astype(np.intp)
     s_pix = grid_wrap[at_grid]
     lin = params[:n_lin]
@@ -723,34 +808,42 @@ def _refined(
     delta = float(fit.params[-3])
     # Slope of the model's bright fraction in phase, at each fitted pixel (from the grid).
     grid_s = fit.grid_s
-    ds_grid = np.empty_like(grid_s)
-    ds_grid[1:-1] = grid_s[2:] - grid_s[:-2]
+    # With the first point repeated at w = 1: the pixels' places on the grid run 0.._GRID_N.
+    ds_grid = np.empty(grid_s.size + 1)
+    ds_grid[1:-2] = grid_s[2:] - grid_s[:-2]
     ds_grid[0] = grid_s[1] - grid_s[-1]
-    ds_grid[-1] = grid_s[0] - grid_s[-2]
-    ds_grid *= 0.5 * _GRID_N
+    ds_grid[-2] = grid_s[0] - grid_s[-2]
+    ds_grid[:-1] *= 0.5 * _GRID_N
+    ds_grid[-1] = ds_grid[0]
+    names = ["phase"]
+    if not fix_theta:
+        names.append("theta")
+    if not fix_freq:
+        names.append("freq")
+    if len(names) == 1:
+        return None
     # A Gauss-Newton step needs no more than REFINE_MAX_PIXELS pixels (evenly strided): the
     # cost stays bounded on large ROIs, whose spectral geometry is close already.
     stride = max(1, fit.n // REFINE_MAX_PIXELS)
     u_px, v_px = fit.u_px[::stride], fit.v_px[::stride]
     resid = fit.resid[::stride]
     slope = fit.slope_pix if isinstance(fit.slope_pix, float) else fit.slope_pix[::stride]
-    g = slope * ds_grid[fit.at_grid[::stride] % _GRID_N]
-    cols_ = [g]  # phase shift
-    names = ["phase"]
+    # The design's rows written in place (np.stack costs a copy).
+    design = np.empty((len(names), u_px.size))
+    g = design[0]
+    np.multiply(slope, ds_grid[fit.at_grid[::stride]], out=g)
+    row = 1
     if not fix_theta:
-        cols_.append(g * (f * v_px))
-        names.append("theta")
+        np.multiply(g, f * v_px, out=design[row])
+        row += 1
     if not fix_freq:
-        cols_.append(g * u_px)
-        names.append("freq")
-    if len(cols_) == 1:
-        return None
+        np.multiply(g, u_px, out=design[row])
     # Normal equations in two einsums (numpy's own loops: no BLAS threads on large ROIs).
-    design = np.stack(cols_)
     normal = np.einsum("in,jn->ij", design, design)
     rhs = np.einsum("in,n->i", design, resid)
     try:
-        step = np.linalg.solve(normal, rhs)
+        with np.errstate(invalid="ignore"):
+            step = _solve(normal, rhs)
     except np.linalg.LinAlgError:
         return None
     noise2 = fit.resid_ss / max(fit.n - 6, 1)
@@ -758,11 +851,12 @@ def _refined(
     significance = float(step @ normal @ step) * stride / max(noise2, 1e-300)
     # Phase moved at the ROI's edges by the change of direction and frequency (cycles).
     moved = 0.0
+    whole = stride == 1 and fit.keep is None
     for name, d in zip(names, step, strict=True):
         if name == "theta":
-            moved += abs(d) * f * float(np.abs(v_px).max())
+            moved += abs(d) * f * _abs_max(v_px, prep.pixels.shape, whole)
         elif name == "freq":
-            moved += abs(d) * float(np.abs(u_px).max())
+            moved += abs(d) * _abs_max(u_px, prep.pixels.shape, whole)
     if significance < REFINE_CHI2 or moved < REFINE_MIN_CYCLES:
         return None
     # A linearised step is trusted only for small corrections (a larger one means the
@@ -785,6 +879,18 @@ def _refined(
     ):
         return None
     return other
+
+
+def _abs_max(a: FloatArray, shape: tuple[int, ...], whole: bool) -> float:
+    """``max |a|`` of a coordinate (``u`` or ``v`` of :func:`.projection.across_coordinate`,
+    flattened); with ``whole`` (every pixel of the ``shape`` ROI, in order) read off its four
+    corners: the coordinate is a rounded sum of a row and a column term, monotonic in each,
+    so its extremes sit at corners - the same number without two passes."""
+    if whole:
+        cols = shape[1]
+        item = a.item
+        return max(abs(item(0)), abs(item(cols - 1)), abs(item(a.size - cols)), abs(item(-1)))
+    return float(np.abs(a).max())
 
 
 def _spread(x: FloatArray) -> float:
@@ -838,11 +944,12 @@ def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     very different units), dropping directions the data do not constrain."""
     diag = jtj.diagonal()
     d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    dd = np.outer(d, d)
+    dd = np.multiply.outer(d, d)
     # Symmetric: its eigen-decomposition is its SVD (a tenth of numpy.linalg.pinv's cost on
     # these small matrices), cut at the same relative threshold.
     try:
-        vals, vecs = np.linalg.eigh(jtj / dd)
+        with np.errstate(invalid="ignore"):
+            vals, vecs = _eigh(jtj / dd)
     except np.linalg.LinAlgError:
         return np.full(jtj.shape, np.inf)
     mag = np.abs(vals)
@@ -883,6 +990,8 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
             warnings.append(message)
         else:
             # Consistent with the given frequency, which is known better (chart design and
-            # magnification) than a period measured over a few periods.
-            geom = replace(geom, freq_cycles_per_px=f_prior)
+            # magnification) than a period measured over a few periods. (Built directly:
+            # dataclasses.replace costs a few us.)
+            geom = BarGeometry(geom.theta_rad, f_prior, geom.phase_cycles, geom.amplitude,
+                               geom.theta_sd_rad, geom.freq_sd, geom.phase_sd, geom.hessian)
     return geom

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -76,10 +77,26 @@ def across_coordinate(
         raise ValueError(f"ROI shape must be at least 1 x 1, got {rows} x {cols}")
     if not math.isfinite(theta_rad):
         raise ValueError(f"theta_rad must be finite, got {theta_rad}")
-    r0, c0 = origin_rc if origin_rc is not None else ((rows - 1) / 2.0, (cols - 1) / 2.0)
-    y = (np.arange(rows, dtype=np.float64) - r0) * math.sin(theta_rad)
-    x = (np.arange(cols, dtype=np.float64) - c0) * math.cos(theta_rad)
+    if origin_rc is None:
+        yc, xc = _centred_coordinates(rows, cols)
+    else:
+        yc = np.arange(rows, dtype=np.float64) - origin_rc[0]
+        xc = np.arange(cols, dtype=np.float64) - origin_rc[1]
+    y = yc * math.sin(theta_rad)
+    x = xc * math.cos(theta_rad)
     return y[:, None] + x[None, :]
+
+
+@lru_cache(maxsize=64)
+def _centred_coordinates(
+    rows: int, cols: int
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Row and column offsets from the ROI centre (cached per shape, read-only)."""
+    y = np.arange(rows, dtype=np.float64) - (rows - 1) / 2.0
+    x = np.arange(cols, dtype=np.float64) - (cols - 1) / 2.0
+    y.setflags(write=False)
+    x.setflags(write=False)
+    return y, x
 
 
 def bin_profile(
@@ -140,6 +157,28 @@ def bin_profiles(
     list of BinnedProfile
         One per quantity, in order; identical to ``bin_profile(u_px, v, bin_width_px)``.
     """
+    u, idx, n_bins, u_min = _bin_index(u_px, bin_width_px)
+    count = np.bincount(idx, minlength=n_bins).astype(np.int64)
+    centres = u_min + np.arange(n_bins, dtype=np.float64) * bin_width_px
+    inv = 1.0 / np.maximum(count, 1)
+    filled = count > 0
+    out = []
+    for vals in values:
+        v = np.asarray(vals, dtype=np.float64).ravel()
+        if v.shape != u.shape:
+            raise ValueError(f"u_px and values differ in size: {u.size} vs {v.size}")
+        sums = np.bincount(idx, weights=v, minlength=n_bins)
+        mean = np.where(filled, sums * inv, np.nan)
+        out.append(BinnedProfile(u_px=centres, mean=mean, count=count,
+                                 bin_width_px=float(bin_width_px)))
+    return out
+
+
+def _bin_index(
+    u_px: npt.ArrayLike, bin_width_px: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, float]:
+    """The samples ``u`` (flat), each one's bin, the number of bins and ``min(u)`` (the first
+    bin's centre), as :func:`bin_profiles` bins them."""
     u = np.asarray(u_px, dtype=np.float64).ravel()
     if u.size == 0:
         raise ValueError("no samples to bin")
@@ -157,20 +196,44 @@ def bin_profiles(
     scaled += 1e-9
     idx = np.floor(scaled, out=scaled).astype(np.int64)
     n_bins = math.floor((u_max - u_min) / bin_width_px + 0.5 + 1e-9) + 1
-    count = np.bincount(idx, minlength=n_bins).astype(np.int64)
-    centres = u_min + np.arange(n_bins, dtype=np.float64) * bin_width_px
-    inv = 1.0 / np.maximum(count, 1)
+    return u, idx, n_bins, u_min
+
+
+def filled_bin_means(
+    u_px: npt.ArrayLike,
+    values: list[npt.NDArray[np.float64]],
+    bin_width_px: float,
+) -> tuple[npt.NDArray[np.int64], list[npt.NDArray[np.float64]]]:
+    """The counts and means of :func:`bin_profiles` in its filled bins only (in order): the
+    same numbers, without the empty bins' NaNs and the per-quantity profile objects (a model
+    fit on a 100 us scale feels them).
+
+    Parameters
+    ----------
+    u_px : array_like of float
+        Across-feature coordinate of each sample (pixels), any shape.
+    values : list of ndarray of float64
+        Quantities to average per bin, each the same size as ``u_px``.
+    bin_width_px : float
+        Bin width in pixels (> 0).
+
+    Returns
+    -------
+    (ndarray of int64, list of ndarray of float64)
+        Pixels per filled bin, and each quantity's mean per filled bin.
+    """
+    u, idx, n_bins, _ = _bin_index(u_px, bin_width_px)
+    count = np.bincount(idx, minlength=n_bins)
     filled = count > 0
+    count = count[filled].astype(np.int64)
+    inv = 1.0 / count  # = 1 / max(count, 1) on the filled bins: the same means
     out = []
-    for vals in values:
-        v = np.asarray(vals, dtype=np.float64).ravel()
-        if v.shape != u.shape:
+    for v in values:
+        if v.size != u.size:
             raise ValueError(f"u_px and values differ in size: {u.size} vs {v.size}")
-        sums = np.bincount(idx, weights=v, minlength=n_bins)
-        mean = np.where(filled, sums * inv, np.nan)
-        out.append(BinnedProfile(u_px=centres, mean=mean, count=count,
-                                 bin_width_px=float(bin_width_px)))
-    return out
+        sums = np.bincount(idx, weights=v.ravel(), minlength=n_bins)
+        out.append(sums[filled] * inv)
+    return count, out
 
 
 def project_roi(

@@ -52,6 +52,9 @@ class PreparedROI:
     n_frames: int
     warnings: tuple[str, ...]
     orientation_given: bool = False
+    #: ``pixels.sum(axis=0)`` and ``pixels.sum(axis=1)`` when the orientation was detected
+    #: (the bar geometry's plane fit reuses them); ``None`` otherwise.
+    profile_sums: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
 
     @property
     def n_pixels(self) -> int:
@@ -77,6 +80,7 @@ class PreparedROI:
             pixels, self.axis, self.integer_valued, self.code_step, noise_sigma,
             self.noise_given, self.max_code, self.clipped_fraction, vmin, vmax,
             self.freq_cycles_per_px, self.n_frames, self.warnings, self.orientation_given,
+            self.profile_sums if pixels is self.pixels else None,
         )
 
     def diagnostics(self, n_pixels: int | None = None, **extra: object) -> Diagnostics:
@@ -98,6 +102,26 @@ class PreparedROI:
             saturation_code=self.max_code if self.clipped_fraction > 0 else None,
             **extra,  # type: ignore[arg-type]
         )
+
+    def diagnostics_with(self, **fields: object) -> Diagnostics:
+        """:meth:`diagnostics` with ``fields`` added or overriding the shared ones (e.g. a
+        measured ``noise_sigma``): cheaper than ``dataclasses.replace`` afterwards."""
+        f = self.freq_cycles_per_px
+        aliased = f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
+        shared: dict[str, Any] = dict(
+            n_pixels=self.pixels.size,
+            px_per_period=(1.0 / f) if f else None,
+            freq_cycles_per_px=f,
+            clipped_fraction=self.clipped_fraction,
+            noise_sigma=self.noise_sigma,
+            aliased=aliased,
+            phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
+            code_step=self.code_step if self.integer_valued else None,
+            n_frames=self.n_frames,
+            saturation_code=self.max_code if self.clipped_fraction > 0 else None,
+        )
+        shared.update(fields)
+        return Diagnostics(**shared)
 
 
 def orientation_axis(orientation: str | None) -> int | None:
@@ -217,12 +241,31 @@ def detect_axis(img: npt.NDArray[np.float64]) -> int:
 def _profile_var(img: npt.NDArray[np.float64], ax: int) -> float:
     """``np.var(img.mean(axis=ax))`` by the same ufunc steps (bit-identical), without
     ``np.mean``/``np.var``'s Python wrappers: this runs on every ROI with no orientation."""
+    return _sums_var(np.add.reduce(img, axis=ax), img.shape[ax])
+
+
+def _sums_var(sums: npt.NDArray[np.float64], n: int) -> float:
+    """:func:`_profile_var` from the sums along the axis (``n`` of them per entry)."""
     add = np.add.reduce
-    profile = add(img, axis=ax)
-    profile /= img.shape[ax]
+    profile = sums / n
     dev = profile - add(profile) / profile.size
     np.multiply(dev, dev, out=dev)
     return float(add(dev) / dev.size)
+
+
+def _axis_and_sums(
+    img: npt.NDArray[np.float64],
+) -> tuple[int, tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None]:
+    """:func:`detect_axis` and the column and row sums it used (``None`` for a single line)."""
+    if img.shape[0] < 2:
+        return 1, None
+    if img.shape[1] < 2:
+        return 0, None
+    col_sums = np.add.reduce(img, axis=0)
+    row_sums = np.add.reduce(img, axis=1)
+    v_cols = _sums_var(col_sums, img.shape[0])
+    v_rows = _sums_var(row_sums, img.shape[1])
+    return (1 if v_cols >= v_rows else 0), (col_sums, row_sums)
 
 
 def prepare_roi(
@@ -310,8 +353,9 @@ def prepare_roi(
         # The mean of n frames on a grid of ``code_step`` lies on a grid of code_step / n.
         code_step = code_step / n_frames
 
+    sums = None
     if axis is None:
-        axis = detect_axis(img)
+        axis, sums = _axis_and_sums(img)
     if noise_sigma is not None:
         sigma = float(noise_sigma)
         given = True
@@ -353,4 +397,5 @@ def prepare_roi(
         n_frames=n_frames,
         warnings=tuple(warnings),
         orientation_given=orientation is not None,
+        profile_sums=sums,
     )

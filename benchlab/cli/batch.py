@@ -65,6 +65,9 @@ class _Bar:
 
 def batch_command(args: argparse.Namespace) -> int:
     """Re-analyse several sessions; exit 1 if any failed."""
+    import gc
+
+    gc.enable()  # a batch runs long: collect cycles (the analyze program starts without)
     from benchlab.protocols.batch import find_sessions, run_batch, summary_rows
 
     used = [f"--{o}" for o in _IMAGE_OPTIONS if getattr(args, o, None)]

@@ -226,35 +226,63 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
     early = _open_prefetching(Path(target))
+    # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
+    # the analysis runs, records once the results are written, overlapping the printing; it
+    # never raises, and the process waits for it before it ends. Nothing is recorded when the
+    # re-analysis fails.
+    recorder = _CatalogueRecorder(Path(target))
+    recorder.start()
     try:
-        from benchlab.catalog import record_session
         from benchlab.protocols.runs import reanalyze
 
         out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None),
                         catalogue=False)
+        recorder.record = True
     finally:
+        recorder.results_written.set()
+        if not recorder.record:
+            recorder.join()  # failed: it ends without recording
         if early is not None:
             early.stop_prefetch()
     elapsed = time.perf_counter() - t0
-    # The catalogue update (mostly waiting for SQLite's flush) overlaps the printing; it never
-    # raises, and the process waits for it before it ends.
-    recorder = threading.Thread(target=record_session, args=(Path(target),),
-                                name="benchlab-catalogue")
-    recorder.start()
     try:
         return _print_reanalysis(args, out, elapsed)
     finally:
         recorder.join()
 
 
+class _CatalogueRecorder(threading.Thread):
+    """Records a session in its catalogue once :attr:`results_written` is set (and
+    :attr:`record` is true), the catalogue imported beforehand."""
+
+    def __init__(self, folder: Path) -> None:
+        super().__init__(name="benchlab-catalogue", daemon=True)  # never holds the exit up
+        self.folder = folder
+        self.results_written = threading.Event()
+        self.record = False
+
+    def run(self) -> None:
+        from benchlab.catalog import record_session  # beside the analysis
+
+        self.results_written.wait()
+        if self.record:
+            record_session(self.folder)
+
+
 def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
     from benchlab.session import read_results
 
-    tables, summary = read_results(out)
+    as_json = getattr(args, "json", False)
+    if as_json:
+        tables, summary = read_results(out)
+    else:  # only the tables printed (the SFR curves, the largest file, are not)
+        from benchlab.report_tables import TABLE_VIEWS
+
+        tables, summary = read_results(out, TABLE_VIEWS)
     partial = bool(summary.get("partial"))
     note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
             f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
-    if getattr(args, "json", False):
+    if as_json:
         import json
 
         print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
