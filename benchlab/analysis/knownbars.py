@@ -49,9 +49,9 @@ contrast (spurious resolution): the reading keeps its sign (negative), with a wa
 interval may go below 0; given the target's polarity (``dark_bars``) a reversed set cannot pass
 for bars of the other polarity. The along-bar blur is searched again in the chosen shape, and the
 shape's size is held uncertain by at least :data:`DISC_SIGMA_FLOOR_PX` (a disc is not separable:
-the separable model's best size is biased). Residual structure beyond the noise (the residual variance minus the
-white noise's, estimated from successive differences in order of ``u``) adds a misfit term that
-does not shrink with pixel count (:data:`MISFIT_Z`).
+the separable model's best size is biased). Residual structure beyond the noise (the residual
+variance minus the white noise's, estimated from successive differences in order of ``u``) adds a
+misfit term that does not shrink with pixel count (:data:`MISFIT_Z`).
 
 Pixels at the saturation code are censored: they are left out of the fit (the model carries the
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
