@@ -273,3 +273,28 @@ def test_a_small_pose_error_is_fitted_as_a_shift() -> None:
         off = {**geometry, "centre_rc": (r_c + d * math.sin(t), c_c + d * math.cos(t))}
         r = read_three_bars(roi, **off)  # type: ignore[arg-type]
         assert r.modulation == pytest.approx(truth, abs=0.002)
+
+
+@pytest.mark.parametrize("negative", [False, True])
+def test_read_chart_reads_every_set_with_the_charts_polarity(
+    negative: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The chart's polarity reaches every set's fit (a reversed contrast cannot pass for bars
+    of the other polarity), positive and negative targets alike."""
+    import benchlab.analysis.chart_finder as cf
+
+    scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.0, 5.0), negative=negative)
+    px = frame(scene, 12, seed=3)
+    fit = find_chart(px)
+    assert fit.polarity == ("negative" if negative else "positive")
+    seen: list[object] = []
+    real = cf.fit_three_bars
+
+    def spy(*args: object, **kwargs: object):  # noqa: ANN202
+        seen.append(kwargs.get("dark_bars"))
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(cf, "fit_three_bars", spy)
+    readings = read_chart(px, fit)
+    assert seen == [not negative] * len(fit.found)
+    assert sum(r.resolved and r.modulation > 0.3 for r in readings) >= 10

@@ -160,7 +160,7 @@ class FoundElement:
 
     def measure(
         self, pixels: npt.ArrayLike, max_code: float | None = None,
-        blur_prior_px: tuple[float, float] | None = None,
+        blur_prior_px: tuple[float, float] | None = None, dark_bars: bool | None = None,
     ) -> ModulationResult:
         """The set's Eq. 2.9 modulation read at the geometry the pose gives it.
 
@@ -170,13 +170,15 @@ class FoundElement:
         small shift are fitted (``blur_prior_px``: a prior on the blur, see
         :func:`benchlab.analysis.chart_reading.read_chart`, which reads every set with the
         blur shared across the chart). Read whether or not :attr:`unmeasurable` is set
-        (callers show that reason instead of a number).
+        (callers show that reason instead of a number). ``dark_bars``: the chart's polarity
+        (``ChartFit.polarity == "positive"``), so that a contrast reversed by defocus cannot
+        pass for bars of the other polarity; None lets the fit choose.
         """
-        return self.fit_reading(pixels, max_code, blur_prior_px).result
+        return self.fit_reading(pixels, max_code, blur_prior_px, dark_bars).result
 
     def fit_reading(
         self, pixels: npt.ArrayLike, max_code: float | None = None,
-        blur_prior_px: tuple[float, float] | None = None,
+        blur_prior_px: tuple[float, float] | None = None, dark_bars: bool | None = None,
     ) -> ThreeBarReading:
         """:meth:`measure` with the blur it used and the blurs the pixels allow."""
         r0, c0, r1, c1 = self.reading_roi or self.measurement_roi
@@ -184,7 +186,8 @@ class FoundElement:
         roi = np.asarray(pixels)[..., r0:r1, c0:c1]
         return fit_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
                               bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
-                              max_code=max_code, blur_prior_px=blur_prior_px)
+                              max_code=max_code, blur_prior_px=blur_prior_px,
+                              dark_bars=dark_bars)
 
     @property
     def generic_unreliable(self) -> str | None:

@@ -34,7 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.chart_finder import ChartFit, FoundElement
-from benchlab.analysis.knownbars import ThreeBarReading, fit_three_bars
+from benchlab.analysis.knownbars import ThreeBarReading
 from benchlab.analysis.result import ModulationResult
 
 #: A set's own blur counts as pinned down when its allowed range is at most this wide (px).
@@ -71,26 +71,13 @@ def read_chart(
     """
     found = fit.found
     dark_bars = fit.polarity == "positive"
-    first = [_fit_reading(el, pixels, max_code, dark_bars) for el in found]
+    first = [el.fit_reading(pixels, max_code, dark_bars=dark_bars) for el in found]
     out = [r.result for r in first]
     for k in range(len(found)):
         prior = blur_prior(found, first, k)
         if prior is not None:
             out[k] = first[k].with_blur_prior(prior).result
     return out
-
-
-def _fit_reading(
-    el: FoundElement, pixels: npt.ArrayLike, max_code: float | None, dark_bars: bool
-) -> ThreeBarReading:
-    """:meth:`FoundElement.fit_reading` with the chart's polarity: a contrast reversed by
-    defocus cannot pass for bars of the other polarity."""
-    r0, c0, r1, c1 = el.reading_roi or el.measurement_roi
-    p = el.posed
-    roi = np.asarray(pixels)[..., r0:r1, c0:c1]
-    return fit_three_bars(roi, centre_rc=(p.centre_rc[0] - r0, p.centre_rc[1] - c0),
-                          bar_width_px=p.bar_width_px, theta_deg=p.theta_deg,
-                          max_code=max_code, dark_bars=dark_bars)
 
 
 def _pinned(r: ThreeBarReading) -> bool:

@@ -121,7 +121,9 @@ class ModulationResult:
         Dark and bright gray levels (ROI gray units); both ``None`` when not resolved.
     modulation : float
         Eq. 2.9 bar contrast in [0, 1]; exactly 0.0 when not resolved (the thesis's N/A), never
-        NaN.
+        NaN. Negative only for a contrast reversal (spurious resolution: the bars image
+        brighter than the spaces), which only the chart reading
+        (:mod:`benchlab.analysis.knownbars`) reports, with a warning saying so.
     resolved : bool
         Whether the bars were told apart.
     diagnostics : Diagnostics
@@ -129,7 +131,8 @@ class ModulationResult:
     uncertainty : float
         Standard uncertainty (1 sigma) of ``modulation``; 0.0 when not resolved.
     interval : tuple of float
-        Approximate 95 % interval of ``modulation``, clipped to [0, 1].
+        Approximate 95 % interval of ``modulation``, clipped to [0, 1] ([-1, 1] for a contrast
+        reversal).
     uncertainty_method : str
         ``"analytic"``, ``"bootstrap"`` or ``"frames"``.
     fundamental_modulation : float or None
