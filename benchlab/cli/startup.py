@@ -50,6 +50,9 @@ def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None,
             args = list(argv)
             if fresh_copy_of is not None:
                 args.append(str(shutil.copytree(fresh_copy_of, Path(tmp) / fresh_copy_of.name)))
+                # A saved session is on disk already (acquisition made it durable); without
+                # this the command's own syncfs would also flush the copy just made here.
+                os.sync()
             before = os.times()
             t0 = time.perf_counter()
             done = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
