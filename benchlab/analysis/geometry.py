@@ -56,22 +56,9 @@ def _erode(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
 
 
 def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
-    """Set every background pixel not 4-connected to the image border.
-
-    The same result as ``scipy.ndimage.binary_fill_holes`` with its default structure, by
-    run-length labelling in numpy (:func:`benchlab.analysis.morphology.fill_holes`): importing
-    scipy.ndimage or OpenCV for it costs more start-up than a re-analysis takes to run.
-
-    Parameters
-    ----------
-    mask : array_like of bool, 2-D
-        Foreground pixels.
-
-    Returns
-    -------
-    ndarray of bool
-        ``mask`` with its enclosed holes filled.
-    """
+    """:func:`benchlab.analysis.morphology.fill_holes` (``scipy.ndimage.binary_fill_holes``'s
+    result in numpy: importing scipy.ndimage or OpenCV for it costs more start-up than a
+    re-analysis takes to run)."""
     return morphology.fill_holes(mask)
 
 

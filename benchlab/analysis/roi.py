@@ -86,22 +86,9 @@ class PreparedROI:
     def diagnostics(self, n_pixels: int | None = None, **extra: object) -> Diagnostics:
         """The shared diagnostics plus ``extra`` fields; ``n_pixels`` defaults to the pixels
         held (pass the whole ROI's count when they are a selection)."""
-        f = self.freq_cycles_per_px
-        # ``aliased`` and ``phase_sensitive`` inlined (this runs once per estimate).
-        aliased = f is not None and f > NYQUIST_CYCLES_PER_PX + 1e-12
-        return Diagnostics(
-            n_pixels=self.pixels.size if n_pixels is None else n_pixels,
-            px_per_period=(1.0 / f) if f else None,
-            freq_cycles_per_px=f,
-            clipped_fraction=self.clipped_fraction,
-            noise_sigma=self.noise_sigma,
-            aliased=aliased,
-            phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
-            code_step=self.code_step if self.integer_valued else None,
-            n_frames=self.n_frames,
-            saturation_code=self.max_code if self.clipped_fraction > 0 else None,
-            **extra,  # type: ignore[arg-type]
-        )
+        if n_pixels is not None:
+            extra["n_pixels"] = n_pixels
+        return self.diagnostics_with(**extra)
 
     def diagnostics_with(self, **fields: object) -> Diagnostics:
         """:meth:`diagnostics` with ``fields`` added or overriding the shared ones (e.g. a
