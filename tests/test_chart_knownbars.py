@@ -15,7 +15,6 @@ from test_chart_finder import frame
 from benchlab.analysis import estimate_modulation
 from benchlab.analysis.chart_finder import (
     GENERIC_MIN_OBLIQUE_PX_PER_PERIOD,
-    MIN_OBLIQUE_PX_PER_PERIOD,
     find_chart,
 )
 from benchlab.analysis.chart_pose import ChartPose, PosedBarSet
@@ -67,10 +66,10 @@ def test_fine_oblique_sets_of_a_rotated_chart_read_within_003(rotation: float) -
 
 
 def test_the_rule_keeps_generic_estimators_off_fine_oblique_sets() -> None:
-    """MIN_OBLIQUE_PX_PER_PERIOD sits at Nyquist because the chart reading fixes the geometry;
-    the generic estimators still need GENERIC_MIN_OBLIQUE_PX_PER_PERIOD: on these sets they
-    miss the truth where the chart reading does not."""
-    assert MIN_OBLIQUE_PX_PER_PERIOD == 2.0 and GENERIC_MIN_OBLIQUE_PX_PER_PERIOD == 2.5
+    """Oblique sets are read down to Nyquist because the chart reading fixes the geometry; the
+    generic estimators still need GENERIC_MIN_OBLIQUE_PX_PER_PERIOD: on these sets they miss
+    the truth where the chart reading does not."""
+    assert GENERIC_MIN_OBLIQUE_PX_PER_PERIOD == 2.5
     scene = UsafScene(pose=ChartPose((15.0, -10.0), 1.1, -12.0), vignetting=0.2)
     px = frame(scene, 12, seed=2)
     fit = find_chart(px)

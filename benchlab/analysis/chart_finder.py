@@ -100,19 +100,15 @@ MAGNIFICATION_TOLERANCE = 0.05
 #: Fewest lines along the bars / pixels across them for a measurable ROI.
 MIN_ROI_LINES = 3
 MIN_ROI_ACROSS_PX = 4
-#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) are measured
-#: down to this many pixels per period, i.e. down to Nyquist: every line samples another phase,
-#: and :meth:`FoundElement.measure` fixes the geometry from the pose
-#: (:func:`benchlab.analysis.knownbars.read_three_bars`), so those phases pin the profile down.
-#: On ``benchlab benchmark chart`` (40 + 8 frames) that reading came within 0.03 of the truth
-#: for all 78 oblique sets at 2-2.25 px and all 67 at 2.25-2.5 px (95 % intervals holding the
-#: truth for 95 % and 100 %). The generic estimators, which re-estimate the geometry from the
-#: ROI, read only 32 % and 77 % of them within 0.03: see
-#: :data:`GENERIC_MIN_OBLIQUE_PX_PER_PERIOD`. Above Nyquist (< 2 px) sets are rejected.
-MIN_OBLIQUE_PX_PER_PERIOD = 2.0
-#: Oblique sets with fewer pixels per period give no reliable reading from a generic estimator
+#: Oblique sets (beyond :data:`~benchlab.analysis.chart_pose.AXIS_TOLERANCE_DEG`) with fewer
+#: pixels per period give no reliable reading from a generic estimator
 #: (:func:`benchlab.analysis.estimate_modulation` with :meth:`FoundElement.estimator_priors`):
-#: it must find the direction and phase from a few dozen pixels first.
+#: it must find the direction and phase from a few dozen pixels first, and read only 32 %
+#: (2-2.25 px) and 77 % (2.25-2.5 px) of them within 0.03 on ``benchlab benchmark chart``.
+#: :meth:`FoundElement.measure` fixes the geometry from the pose
+#: (:func:`benchlab.analysis.knownbars.read_three_bars`), and every line of an oblique set
+#: samples another phase, so it reads them down to Nyquist: all 78 sets at 2-2.25 px and all 67
+#: at 2.25-2.5 px within 0.03 (40 + 8 frames). Sets above Nyquist (< 2 px) are rejected.
 GENERIC_MIN_OBLIQUE_PX_PER_PERIOD = 2.5
 #: The chart reading's ROI runs this far (px) past the bar ends (see :func:`_reading_roi`):
 #: its model holds the ends' blur, and short bars get more lines along them. On ``benchlab
@@ -798,11 +794,6 @@ def _measurement_roi(
     if any(_box_meets_set(box, o) for o in others):
         return box, "a neighbouring bar set reaches into the ROI"
     p = posed.px_per_period
-    if not posed.axis_aligned and p < MIN_OBLIQUE_PX_PER_PERIOD:
-        off_axis = abs((posed.theta_deg + 45.0) % 90.0 - 45.0)
-        return box, (f"not measurable: {p:.2f} px per period < {MIN_OBLIQUE_PX_PER_PERIOD:g} on "
-                     f"bars {off_axis:.1f} deg off the pixel axes (every line samples another "
-                     "phase; too few pixels per phase for a reliable modulation)")
     r0, c0, r1, c1 = box
     t = math.radians(posed.theta_deg)
     span = abs((c1 - c0 - 1) * math.cos(t)) + abs((r1 - r0 - 1) * math.sin(t)) + 1.0

@@ -504,6 +504,9 @@ def fit_three_bars(
     if abs(shift) >= REFIT_SHIFT_PX:
         state = _FitState(base, u - shift, v, y, bar_width_px, theta, shift_prior_px,
                           quantum_sd, diag, warnings, reuse=state, dark_bars=dark_bars)
+    # The tabulated patterns (MBs per set) served only the fits; the reading keeps the state
+    # for a later blur prior, which needs the fits alone.
+    state.t_across = state.t_along = state.t_along_shape = None
     return state.conclude(blur_prior_px)
 
 
@@ -550,9 +553,9 @@ class _FitState:
             share_rows.append(np.full(coarse_sigmas.size, share))
             self.groups.append((start, start + coarse_sigmas.size))
         self.sig_all, self.share_all = np.concatenate(sig_rows), np.concatenate(share_rows)
-        self.t_across: FloatArray = (reuse.t_across if reuse is not None
-                         else self.across.tables(self.sig_all, self.share_all))
-        t_across = self.t_across
+        t_across = (reuse.t_across if reuse is not None and reuse.t_across is not None
+                    else self.across.tables(self.sig_all, self.share_all))
+        self.t_across: FloatArray | None = t_across
         self.p_pix = self.across.sample(t_across)
         self.s_pix = self.across.slope(t_across)
         self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))

@@ -356,8 +356,8 @@ def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     return w
 
 
-def _noise_sigma(row_diff: FloatArray) -> float:
-    """Robust pixel noise from differences between neighbouring rows (along the edge)."""
+def difference_noise_sigma(row_diff: FloatArray) -> float:
+    """Robust (MAD) pixel noise from differences between neighbouring pixels along the edge."""
     if row_diff.size == 0:
         return 0.0
     d = row_diff.ravel()
@@ -885,7 +885,7 @@ def measure_sfr(
     work = img.T if transposed else img
     n_rows, n_cols = work.shape
     row_diff = np.diff(work, axis=0)
-    noise = _noise_sigma(row_diff)
+    noise = difference_noise_sigma(row_diff)
     p02, p98 = np.percentile(work, [2.0, 98.0])
     spread = float(p98 - p02)
 

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.sfr import difference_noise_sigma
+
 FloatArray = npt.NDArray[np.float64]
 
 #: A frame whose edge moved more than this (px, at either end of the edge) is refused ...
@@ -41,11 +43,8 @@ RESIDUAL_RATIO = 4.0
 def _row_noise_var(frame: FloatArray, cos_n: float, sin_n: float) -> float:
     """Pixel noise variance of one frame from differences between neighbours along the edge
     (rows for a near-vertical edge, columns for a near-horizontal one): robust (MAD)."""
-    d = np.diff(frame, axis=0 if abs(cos_n) >= abs(sin_n) else 1).ravel()
-    if d.size == 0:
-        return 0.0
-    mad = float(np.median(np.abs(d - np.median(d))))
-    return (1.4826 * mad) ** 2 / 2.0
+    axis = 0 if abs(cos_n) >= abs(sin_n) else 1
+    return difference_noise_sigma(np.diff(frame, axis=axis)) ** 2
 
 
 class FramesDiffer(ValueError):

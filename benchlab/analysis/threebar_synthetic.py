@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.chart_pose import WHOLE_PERIODS_HALF_WIDTHS, posed_bar_set_roi
+from benchlab.analysis.result import eq29_modulation
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -202,7 +203,7 @@ def render_three_bars(
                      + a * (1 - b) * q[1, 0] + a * b * q[1, 1])
 
     dark, bright = at(0.0), 0.5 * (at(w) + at(-w))
-    truth = (bright - dark) / (bright + dark)
+    truth = eq29_modulation(dark, bright)
     # the chart reading's ROI: three whole periods across, bar ends trimmed
     r0, c0, r1, c1 = (int(b) for b in posed_bar_set_roi(
         (cy - 0.5, cx - 0.5), w, theta_deg, half_across_widths=WHOLE_PERIODS_HALF_WIDTHS))

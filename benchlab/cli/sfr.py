@@ -186,8 +186,8 @@ def _read_frames(
 
 
 def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -> tuple[Any, Any]:
-    """Frames: the edge of their mean fitted, the frames checked against it (the same edge,
-    :func:`benchlab.analysis.sfr_frames.average_frames`), the SFR of the mean."""
+    """Frames: the SFR of their mean, and the frames checked against its edge (the same edge,
+    :func:`benchlab.analysis.sfr_frames.average_frames`)."""
     import dataclasses
 
     import numpy as np
@@ -201,10 +201,9 @@ def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -
         raise SfrRefused([f"{100 * clipped:.1f} % of the frames' pixels are clipped at 0 or "
                           f"full scale ({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF "
                           "is flattened"])
-    first = measure_sfr(region.mean(axis=0), full_scale=top, fit_order=args.fit_order)
-    check = average_frames(region, first.normal_theta_rad)
-    result = measure_sfr(check.mean, full_scale=top, fit_order=args.fit_order,
+    result = measure_sfr(region.mean(axis=0), full_scale=top, fit_order=args.fit_order,
                          bootstrap=args.bootstrap, seed=args.seed)
+    check = average_frames(region, result.normal_theta_rad)  # raises when they differ
     if clipped > 0 and result.clipped_fraction == 0:
         note = f"{100 * clipped:.2f} % of the frames' pixels clipped (0 or {top:g})"
         result = dataclasses.replace(result, warnings=(*result.warnings, note))
