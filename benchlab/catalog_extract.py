@@ -18,8 +18,9 @@ from typing import Any
 from benchlab.session import SESSION_FILE, SESSION_FORMAT, Session, SessionError, read_results
 
 ORIENTATIONS = ("sagittal", "tangential")
-#: Tables with no figure of merit: image heights (4.13), sampled SFR curves.
-_NOT_FIGURES = frozenset({"table_4_13", "table_sfr_curves"})
+#: Tables with no figure of merit: image heights (4.13), sampled SFR curves (the largest file
+#: of a version: the catalogue does not read them at all).
+NOT_FIGURES = frozenset({"table_4_13", "table_sfr_curves"})
 #: A table of another kind with more rows than this is a curve, not key figures.
 MAX_GENERIC_ROWS = 100
 
@@ -114,7 +115,7 @@ def read_session_record(path: Path) -> SessionRecord:
         folder_v = session.results_dir / f"v{version}"
         try:
             if version == versions[-1]:  # key figures: of the latest version only
-                tables, summary = read_results(folder_v, FIGURE_TABLES)
+                tables, summary = read_results(folder_v, skip=NOT_FIGURES)
                 record.figures.extend(figures_of(version, tables))
             else:
                 summary = json.loads((folder_v / "summary.json").read_text(encoding="utf-8"))
@@ -124,11 +125,6 @@ def read_session_record(path: Path) -> SessionRecord:
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))
     return record
-
-
-#: The tables :func:`figures_of` reads figures from (the others are not read at all).
-FIGURE_TABLES = ("table_4_11", "table_4_12", "table_4_15", "table_4_16", "table_sfr_edges",
-                 "table_sfr_vs_bars")
 
 
 def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
@@ -164,7 +160,7 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
                     yield Figure(version, "sfr_vs_bars", str(r.get("element", "")),
                                  str(r.get("orientation", "")), _num(r.get("image_lp_per_mm")),
                                  q, _num(r.get(q)), str(r.get("verdict", "")))
-        elif name in _NOT_FIGURES or len(rows) > MAX_GENERIC_ROWS:
+        elif name in NOT_FIGURES or len(rows) > MAX_GENERIC_ROWS:
             continue  # geometry or whole curves: not figures of merit
         else:
             yield from _generic_table(version, name, rows)

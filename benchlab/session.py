@@ -853,11 +853,11 @@ def result_file_stem(label: str) -> str:
     return RESULT_FILE_STEMS.get(label, label)
 
 
-def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = None
-                 ) -> tuple[dict[str, Any], dict[str, Any]]:
+def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = None,
+                 skip: Collection[str] = ()) -> tuple[dict[str, Any], dict[str, Any]]:
     """Tables (``label -> rows``) and ``summary.json`` of one ``results/vN`` folder; with
-    ``only``, just the tables of those labels (the catalogue skips the SFR curves, the
-    largest file of a version).
+    ``only``, just the tables of those labels; tables labelled in ``skip`` are not read (the
+    catalogue skips the SFR curves, the largest file of a version).
 
     Reads both the descriptive file names and the older thesis-table file names
     (``table_4_11.json``), so sessions written before the rename still load.
@@ -866,8 +866,8 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
     tables: dict[str, Any] = {}
     summary: dict[str, Any] = {}
     for p in sorted(Path(folder).glob("*.json")):
-        if (only is not None and p.stem != "summary"
-                and _LABEL_OF_FILE.get(p.stem, p.stem) not in only):
+        label = _LABEL_OF_FILE.get(p.stem, p.stem)
+        if p.stem != "summary" and ((only is not None and label not in only) or label in skip):
             continue
         try:
             data = json.loads(p.read_text(encoding="utf-8"))
@@ -876,7 +876,7 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
         if p.stem == "summary":
             summary = data
         else:
-            tables[_LABEL_OF_FILE.get(p.stem, p.stem)] = data
+            tables[label] = data
     return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
 
 

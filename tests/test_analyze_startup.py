@@ -191,14 +191,25 @@ def test_a_changed_frame_still_stops_the_reanalysis_before_any_result(
     assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
 
 
-def test_the_catalogue_reads_only_the_tables_it_takes_figures_from(small_mtf: Path) -> None:
-    from benchlab.catalog_extract import FIGURE_TABLES, figures_of
+def test_the_catalogue_reads_only_the_tables_it_takes_figures_from(
+    small_mtf: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    from benchlab.catalog_extract import NOT_FIGURES, figures_of, read_session_record
     from benchlab.session import read_results
 
     version = small_mtf / "results" / "v1"
     every, summary = read_results(version)
-    some, same_summary = read_results(version, FIGURE_TABLES)
+    some, same_summary = read_results(version, skip=NOT_FIGURES)
     assert "table_sfr_curves" in every and "table_sfr_curves" not in some
-    assert set(some) == set(every) & set(FIGURE_TABLES) and same_summary == summary
+    assert set(some) == set(every) - NOT_FIGURES and same_summary == summary
     assert list(figures_of(1, some)) == list(figures_of(1, every))
     assert len(list(figures_of(1, some))) > 20
+    # A table of another kind (characterisation, simulator truth, ...) keeps its figures.
+    copy = Path(shutil.copytree(small_mtf, tmp_path / small_mtf.name))
+    (copy / "results" / "v1" / "extra_table.json").write_text(
+        '[{"name": "gain", "value": 0.42}]', encoding="utf-8")
+    record = read_session_record(copy)
+    assert any(f.view == "extra_table" and f.quantity == "value" and f.value == 0.42
+               for f in record.figures), record.figures
