@@ -232,6 +232,10 @@ class Session:
         #: Frames this object has hashed and found as journalled: relative file ->
         #: (file identity when read, sha256); see :meth:`verify_frames`.
         self._verified: dict[str, tuple[tuple[int, ...], str]] = {}
+        #: Set by a re-analysis: :meth:`write_results` first checks every recorded frame
+        #: (:meth:`verify_frames`), so results are never written from changed frames - also
+        #: when the analysis started before the last frames had finished loading.
+        self.verify_frames_before_results = False
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -788,6 +792,11 @@ class Session:
         per_file = RESULTS_FSYNC == "per-file"
         for table in tables:
             _check_name("table name", table)
+        if self.verify_frames_before_results:
+            bad = self.verify_frames()
+            if bad:
+                raise SessionError(f"{self.path}: frames changed since acquisition: "
+                                   f"{', '.join(bad)}; no results written")
         self.results_dir.mkdir(exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=".v-", suffix=".tmp", dir=self.results_dir))
 

@@ -198,8 +198,9 @@ def _prefetch_frames(session: Session) -> None:
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
     procedure = make_procedure(session_params(session))
     # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
-    # analysed; a mismatch fails the analysis before any result is written), so the analysis
-    # starts while the last frames load; every other frame is checked here.
+    # analysed), so the analysis starts while the last frames load; every other frame is
+    # checked here, and all of them again before any result is written.
+    session.verify_frames_before_results = True
     bad = session.verify_frames(trust_loads=True)
     if bad:
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "

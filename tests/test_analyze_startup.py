@@ -213,3 +213,26 @@ def test_the_catalogue_reads_only_the_tables_it_takes_figures_from(
     record = read_session_record(copy)
     assert any(f.view == "extra_table" and f.quantity == "value" and f.value == 0.42
                for f in record.figures), record.figures
+
+
+def test_a_reanalysis_writes_no_results_from_a_frame_no_load_has_checked(
+    small_mtf: Path, tmp_path: Path
+) -> None:
+    """The analysis may start before the last frames are hashed (their loads check them);
+    write_results checks every recorded frame first, so a changed frame that no load read
+    still leaves the session's results as they were."""
+    from benchlab.session import Session, SessionError
+
+    path = _copy(small_mtf, tmp_path)
+    session = Session.open(path)
+    session.verify_frames_before_results = True
+    frame = sorted((path / "frames").iterdir())[0]
+    data = bytearray(frame.read_bytes())
+    data[-10] ^= 0xFF
+    frame.write_bytes(bytes(data))
+    with pytest.raises(SessionError, match="frames changed since acquisition"):
+        session.write_results({"table_x": [{"a": 1}]}, summary={}, estimator="auto")
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+    session.verify_frames_before_results = False  # an acquisition writes without the check
+    assert session.write_results({"table_x": [{"a": 1}]}, summary={}, estimator="auto").name \
+        == "v2"
