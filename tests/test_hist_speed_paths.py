@@ -181,9 +181,12 @@ def test_profile_sums_only_where_the_orientation_was_detected() -> None:
     assert prepare_roi(roi).profile_sums is not None
     assert prepare_roi(roi, orientation="horizontal").profile_sums is None
     prep = prepare_roi(roi)
-    assert prep.selected(prep.pixels, 1.0, prep.vmin, prep.vmax).profile_sums is not None
-    other = prep.pixels[:, :20]
-    assert prep.selected(other, 1.0, prep.vmin, prep.vmax).profile_sums is None
+    same = prep.selected(prep.pixels, 1.0, prep.vmin, prep.vmax)
+    assert same.sums_for(same.pixels) is not None
+    other = prep.selected(prep.pixels[:, :20], 1.0, prep.vmin, prep.vmax)
+    assert other.sums_for(other.pixels) is None
+    resampled = dataclasses.replace(prep, pixels=prep.pixels.copy())
+    assert resampled.sums_for(resampled.pixels) is None
 
 
 def test_bootstrap_resamples_do_not_reuse_the_roi_profile_sums() -> None:

@@ -489,7 +489,7 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     img = prep.pixels
     rows, cols = img.shape
     n = img.size
-    sums = prep.profile_sums
+    sums = prep.sums_for(img)
     # quick_geometry's numbers, without the uncertainties it would add (not needed here).
     quick = quick_fundamental(img, prep.noise_sigma, f, None, sums) if f else None
     if quick is not None:

@@ -556,7 +556,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         warnings.append("too few pixels or a single gray level: no bar profile")
         return unresolved(name, prep.diagnostics(), warnings)
     geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True,
-                            sums=prep.profile_sums)
+                            sums=prep.sums_for(img))
     if geom is None:
         warnings.append("no bar period found in the ROI")
         return unresolved(name, prep.diagnostics(), warnings)

@@ -53,8 +53,17 @@ class PreparedROI:
     warnings: tuple[str, ...]
     orientation_given: bool = False
     #: ``pixels.sum(axis=0)`` and ``pixels.sum(axis=1)`` when the orientation was detected
-    #: (the bar geometry's plane fit reuses them); ``None`` otherwise.
+    #: (the bar geometry's plane fit reuses them); ``None`` otherwise. Read them through
+    #: :meth:`sums_for`, which knows the array they were summed from.
     profile_sums: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
+    sums_source: npt.NDArray[np.float64] | None = None
+
+    def sums_for(
+        self, img: npt.NDArray[np.float64]
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None:
+        """:attr:`profile_sums` if they are the sums of ``img`` (the very array), else None:
+        a copy with other pixels (a selection, a bootstrap resample) cannot reuse them."""
+        return self.profile_sums if img is self.sums_source else None
 
     @property
     def n_pixels(self) -> int:
@@ -80,7 +89,7 @@ class PreparedROI:
             pixels, self.axis, self.integer_valued, self.code_step, noise_sigma,
             self.noise_given, self.max_code, self.clipped_fraction, vmin, vmax,
             self.freq_cycles_per_px, self.n_frames, self.warnings, self.orientation_given,
-            self.profile_sums if pixels is self.pixels else None,
+            self.profile_sums, self.sums_source,
         )
 
     def diagnostics(self, n_pixels: int | None = None, **extra: object) -> Diagnostics:
@@ -216,13 +225,7 @@ def robust_noise_sigma(img: npt.NDArray[np.float64], axis: int | None) -> float:
 
 def detect_axis(img: npt.NDArray[np.float64]) -> int:
     """Axis along which the mean profile varies most (the testing direction)."""
-    if img.shape[0] < 2:
-        return 1
-    if img.shape[1] < 2:
-        return 0
-    v_cols = _profile_var(img, 0)  # profile along axis 1
-    v_rows = _profile_var(img, 1)  # profile along axis 0
-    return 1 if v_cols >= v_rows else 0
+    return _axis_and_sums(img)[0]
 
 
 def _profile_var(img: npt.NDArray[np.float64], ax: int) -> float:
@@ -385,4 +388,5 @@ def prepare_roi(
         warnings=tuple(warnings),
         orientation_given=orientation is not None,
         profile_sums=sums,
+        sums_source=img if sums is not None else None,
     )

@@ -63,8 +63,7 @@ def bootstrap_result(
     for _ in range(n_resamples):
         pick = rng.integers(0, n_lines, n_lines)
         pixels: npt.NDArray[np.float64] = np.take(prep.pixels, pick, axis=lines_axis)
-        # Other pixels: the original's profile sums do not hold for them.
-        mods.append(estimator(replace(prep, pixels=pixels, profile_sums=None)).modulation)
+        mods.append(estimator(replace(prep, pixels=pixels)).modulation)
     arr = np.asarray(mods)
     low, high = (float(v) for v in np.percentile(arr, [2.5, 97.5]))
     model_sd = result.diagnostics.uncertainty_model or 0.0
