@@ -33,7 +33,7 @@ from benchlab.analysis.geometry import (
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import edge_parts, forward_edge_tables
+from benchlab.protocols.mtf_edges import edge_parts, edge_parts_tables
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
@@ -308,10 +308,9 @@ def analyze_mtf(
     t413: list[dict[str, Any]] = []
     per: dict[tuple[str, str], dict[str, Any]] = {}
     edges: dict[str, list[dict[str, Any]]] = {}
-    if forward is not None and forward_px is not None:
+    if forward is not None and edges_done is not None:
         per, t411 = forward
-        edges = forward_edge_tables(forward_px, t411, centre, params.simulated_mtf_file,
-                                    parts=edges_done)
+        edges = edge_parts_tables(edges_done, t411, centre)
         for el in params.forward_elements:
             for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",

@@ -213,10 +213,16 @@ def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
 
 def forward_edge_tables(
     pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
-    simulated_mtf_file: str = "", parts: EdgeParts | None = None,
+    simulated_mtf_file: str = "",
 ) -> dict[str, list[dict[str, Any]]]:
-    """The three edge tables of a forward frame (see the module docstring); ``parts``:
-    :func:`edge_parts` of the frame already computed."""
-    p = parts if parts is not None else edge_parts(pixels, centre_rc, simulated_mtf_file)
-    return {"table_sfr_edges": p.rows, "table_sfr_curves": p.curve_rows,
-            "table_sfr_vs_bars": edge_vs_bars(t411, p.measured, p.curves, centre_rc)}
+    """The three edge tables of a forward frame (see the module docstring)."""
+    return edge_parts_tables(edge_parts(pixels, centre_rc, simulated_mtf_file), t411, centre_rc)
+
+
+def edge_parts_tables(
+    parts: EdgeParts, t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float]
+) -> dict[str, list[dict[str, Any]]]:
+    """:func:`forward_edge_tables` from :func:`edge_parts` already computed (a re-analysis
+    measures the edges beside the bar ROIs, then compares them with the bars' Table 4.11)."""
+    return {"table_sfr_edges": parts.rows, "table_sfr_curves": parts.curve_rows,
+            "table_sfr_vs_bars": edge_vs_bars(t411, parts.measured, parts.curves, centre_rc)}
