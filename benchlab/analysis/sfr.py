@@ -599,33 +599,30 @@ def _mtf_from_samples(
     half_data = min(centre - float(s.u[0]), float(s.u[-1]) - centre)
     total = min(half_data, TAPER_FACTOR * flat_half_px)
     truncated = half_data < flat_half_px
-    win = _tukey(mid - centre, min(flat_half_px, 0.8 * total), total)
+    # Frequency-dependent window: the wide one up to just above MTF50 (the LSF's tails set the
+    # low frequencies), a narrow one on the core beyond (the tails hold no high frequencies,
+    # only plateau noise, which grows as the square root of the window width). Each window is
+    # recorded once and applied from its record (what the output reports is what was used).
+    narrow_half = min(narrow_half_px, flat_half_px)
+    f_wide = min(WIDE_UP_TO_RISES / max(rise_px, 1e-6), WIDE_UP_TO_MAX_CYCLES_PER_PX)
+    narrow_total = min(total, NARROW_TAPER * narrow_half)
+    windows = [LsfWindow(min(flat_half_px, 0.8 * total), total, 0.0, 0.0),
+               LsfWindow(min(narrow_half, 0.8 * total), narrow_total, f_wide, 2.0 * f_wide)]
+    core_half = max(CORE_RISES * rise_px + CORE_EXTRA_PX, NARROW_MIN_PX)
+    if CORE_FROM_F_WIDE > 0 and core_half < narrow_half:
+        windows.append(LsfWindow(min(core_half, 0.8 * narrow_total),
+                                 min(narrow_total, CORE_TAPER * core_half),
+                                 CORE_FROM_F_WIDE * f_wide, 1.5 * CORE_FROM_F_WIDE * f_wide))
+    wide = windows[0]
+    win = _tukey(mid - centre, wide.flat_half_px, wide.total_half_px)
     inside = np.flatnonzero(win > 0)
     x = mid[inside] - centre
     f = FREQS_CYCLES_PER_PX
-    # Frequency-dependent window: the wide one up to just above MTF50 (the LSF's tails set the
-    # low frequencies), a narrow one on the core beyond (the tails hold no high frequencies,
-    # only plateau noise, which grows as the square root of the window width).
-    narrow_half = min(narrow_half_px, flat_half_px)
-    win_n = _tukey(x, min(narrow_half, 0.8 * total), min(total, NARROW_TAPER * narrow_half))
-    f_wide = min(WIDE_UP_TO_RISES / max(rise_px, 1e-6), WIDE_UP_TO_MAX_CYCLES_PER_PX)
-    blend = _tukey(f, f_wide, 2.0 * f_wide)
-    win_f = blend[:, None] * win[inside] + (1.0 - blend)[:, None] * win_n  # (freq, increment)
-    windows = [LsfWindow(min(flat_half_px, 0.8 * total), total, 0.0, 0.0),
-               LsfWindow(min(narrow_half, 0.8 * total), min(total, NARROW_TAPER * narrow_half),
-                         f_wide, 2.0 * f_wide)]
-    if CORE_FROM_F_WIDE > 0:
-        core_half = max(CORE_RISES * rise_px + CORE_EXTRA_PX, NARROW_MIN_PX)
-        if core_half < narrow_half:
-            narrow_total = min(total, NARROW_TAPER * narrow_half)
-            win_c = _tukey(x, min(core_half, 0.8 * narrow_total),
-                           min(narrow_total, CORE_TAPER * core_half))
-            b2 = _tukey(f, CORE_FROM_F_WIDE * f_wide, 1.5 * CORE_FROM_F_WIDE * f_wide)
-            win_f = b2[:, None] * win_f + (1.0 - b2)[:, None] * win_c
-            windows.append(LsfWindow(min(core_half, 0.8 * narrow_total),
-                                     min(narrow_total, CORE_TAPER * core_half),
-                                     CORE_FROM_F_WIDE * f_wide,
-                                     1.5 * CORE_FROM_F_WIDE * f_wide))
+    win_f = np.broadcast_to(win[inside], (f.size, inside.size))  # (freq, increment)
+    for w in windows[1:]:  # each narrower one takes over above its frequencies
+        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
+        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
+        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
     phase = (2.0 * math.pi) * np.outer(f, x)
     cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
