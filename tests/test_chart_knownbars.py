@@ -150,6 +150,20 @@ def test_clipped_spaces_are_left_out_and_the_level_carried_beyond() -> None:
     assert r.diagnostics.saturation_code == 255.0
 
 
+@pytest.mark.parametrize("dtype", [np.uint16, np.float64])
+def test_a_plateau_below_the_dtypes_top_code_is_saturation(dtype: type) -> None:
+    """A sensor that saturates at 3000 in 16-bit words (or float codes): the plateau at the
+    maximum is found from the data, as prepare_roi finds it, and left out of the fit."""
+    scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.2, 5.0))
+    roi, geometry, truth = noiseless_roi(scene, (1, 2, "tangential"))
+    codes = np.minimum(np.round(roi * 1.45 * 16), 3000).astype(dtype)
+    assert (codes == 3000).mean() > 0.2
+    r = read_three_bars(codes, **geometry)  # type: ignore[arg-type]
+    assert r.diagnostics.saturation_code == 3000.0
+    assert r.resolved and any("clipped" in w for w in r.warnings)
+    assert r.modulation == pytest.approx(truth, abs=0.02)
+
+
 def test_twelve_bit_codes_and_a_stack_read_alike() -> None:
     scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.1, -9.0))
     roi, geometry, truth = noiseless_roi(scene, (2, 1, "sagittal"))

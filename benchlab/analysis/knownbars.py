@@ -78,7 +78,7 @@ from benchlab.analysis.result import (
     resolved,
     unresolved,
 )
-from benchlab.analysis.roi import detect_code_step, infer_max_code
+from benchlab.analysis.roi import detect_code_step, is_integer_valued, saturation_code
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -455,10 +455,9 @@ def fit_three_bars(
         raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
     n_frames = arr.shape[0] if arr.ndim == 3 else 1
     img = arr.astype(np.float64).mean(axis=0) if arr.ndim == 3 else arr.astype(np.float64)
-    integer = arr.dtype.kind in "ui"
+    integer = is_integer_valued(arr)
     step = detect_code_step(arr.ravel()) if integer else 0.0
-    top = max_code if max_code is not None else (
-        infer_max_code(arr, step, float(arr.max())) if integer else None)
+    top = max_code if max_code is not None else saturation_code(arr, step)
     if top is not None:
         clip_px = arr >= top if arr.ndim == 2 else (arr >= top).any(axis=0)
     else:

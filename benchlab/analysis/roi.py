@@ -149,6 +149,30 @@ def infer_max_code(
     return None
 
 
+def is_integer_valued(raw: npt.NDArray[Any]) -> bool:
+    """Whether ``raw`` holds integer codes (an integer dtype, or floats that are all whole
+    numbers within float64's exact range)."""
+    return raw.dtype.kind in "ui" or bool(
+        np.all(raw == np.round(raw)) and np.abs(raw).max() < 2**53
+    )
+
+
+def saturation_code(
+    raw: npt.NDArray[np.generic], code_step: float, top: Any = None
+) -> float | None:
+    """The code ``raw`` saturates at: the integer dtype's top code (:func:`infer_max_code`) or,
+    lower, a plateau at the maximum (:func:`detect_plateau`; any data); ``None`` when neither.
+    ``top``: ``raw.max()`` if already known."""
+    values = raw.ravel()
+    if top is None:
+        top = values.max()
+    code = infer_max_code(raw, code_step, float(top)) if raw.dtype.kind in "ui" else None
+    plateau = detect_plateau(values, code_step, top)
+    if plateau is not None and (code is None or plateau < code):
+        code = plateau
+    return code
+
+
 #: A plateau at the top code: at least this share of the pixels (and 3) sit on the maximum ...
 PLATEAU_MIN_FRACTION = 0.005
 #: ... and at least this many times as many as in the code step just below it.
@@ -314,21 +338,12 @@ def prepare_roi(
     else:
         img = stack
 
-    is_int_dtype = raw.dtype.kind in "ui"
-    integer_valued = is_int_dtype or bool(
-        np.all(raw == np.round(raw)) and np.abs(raw).max() < 2**53
-    )
+    integer_valued = is_integer_valued(raw)
     values = raw.ravel()
     top = values.max()
     raw_max = float(top)
     code_step = detect_code_step(values) if integer_valued else 0.0
-    if max_code is None:
-        max_code_f = infer_max_code(raw, code_step, raw_max) if is_int_dtype else None
-        plateau = detect_plateau(values, code_step, top)
-        if plateau is not None and (max_code_f is None or plateau < max_code_f):
-            max_code_f = plateau
-    else:
-        max_code_f = float(max_code)
+    max_code_f = saturation_code(raw, code_step, top) if max_code is None else float(max_code)
     clipped = 0.0
     if max_code_f is not None:
         clipped = (
