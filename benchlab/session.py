@@ -220,9 +220,9 @@ class Session:
         self._meta = meta
         self._lock = threading.Lock()
         #: Parsed journal and the file identity it was read from (size, mtime, inode).
-        self._events_cache: tuple[tuple[int, int, int], list[dict[str, Any]]] | None = None
+        self._events_cache: tuple[tuple[int, ...], list[dict[str, Any]]] | None = None
         #: :meth:`_frame_records` of that journal (same identity).
-        self._records_cache: tuple[tuple[int, int, int], dict[str, dict[str, Any]]] | None = None
+        self._records_cache: tuple[tuple[int, ...], dict[str, dict[str, Any]]] | None = None
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
@@ -513,12 +513,12 @@ class Session:
         """
         return [dict(e) for e in self._journal()[1]]
 
-    def _journal(self) -> tuple[tuple[int, int, int] | None, list[dict[str, Any]]]:
+    def _journal(self) -> tuple[tuple[int, ...] | None, list[dict[str, Any]]]:
         """``(file identity, events)``: the parsed journal, shared with the cache (callers
         only read it); the identity is None when the file grew while it was read."""
         try:
             st = self.events_path.stat()
-            key = (st.st_size, st.st_mtime_ns, st.st_ino)
+            key = _file_identity(st)  # as for frames: any write changes the ctime
             if self._events_cache is not None and self._events_cache[0] == key:
                 return self._events_cache  # unchanged: no re-parse
             raw = self.events_path.read_bytes()
@@ -545,7 +545,7 @@ class Session:
                 pending_bad = None
             out.append(rec)
         else:
-            if len(raw) == key[0]:  # the file did not grow while it was read
+            if len(raw) == st.st_size:  # the file did not grow while it was read
                 self._events_cache = (key, out)
                 return self._events_cache
             return None, out  # at most a torn final line was skipped
