@@ -19,12 +19,14 @@ world (``bench.mount``), so the frames show what the operator was asked to set u
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf_analysis import (
     FORWARD_FRAME,
+    ForwardPart,
     analyze_forward_frame,
     analyze_mtf,
     analyze_radial_frame,
@@ -184,7 +186,10 @@ class MtfProcedure:
         self.analyze(ctx.session, self._estimator(ctx))
 
     # -- offline ------------------------------------------------------------------------------
-    def analyze(self, session: Session, estimator: str | None) -> Path:
-        """Analyse the session's saved frames into a new results version."""
-        tables, summary, used = analyze_mtf(session, self.params, estimator)
+    def analyze(self, session: Session, estimator: str | None,
+                ahead: Callable[[], ForwardPart | None] | None = None) -> Path:
+        """Analyse the session's saved frames into a new results version (``ahead``: the
+        forward frame's part computed elsewhere, :func:`~benchlab.protocols.mtf_analysis.
+        analyze_mtf`)."""
+        tables, summary, used = analyze_mtf(session, self.params, estimator, ahead)
         return Path(session.write_results(tables, summary=summary, estimator=used))

@@ -6,14 +6,16 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis import chart
 from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, FoundElement, find_chart
+from benchlab.analysis.edge_target import EdgeSpec
 from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
     azimuthal_image_frequency_lp_per_mm,
@@ -32,8 +34,9 @@ from benchlab.analysis.geometry import (
 )
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
+from benchlab.analysis.sfr import SfrResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import edge_parts, edge_parts_tables
+from benchlab.protocols.mtf_edges import edge_parts_of, edge_parts_tables, measure_edges
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
@@ -264,45 +267,54 @@ def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
     return np.asarray(pixels)
 
 
+_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
+
+
+class ForwardPart(NamedTuple):
+    """What the forward frame alone gives (no radial frame, no centre): its bar sets' rows
+    by (element, orientation) with Table 4.11, and its slanted edges measured; None for both
+    without a forward frame. ``estimator`` is the one used (the caller's must match)."""
+
+    estimator: str
+    view: _ForwardView | None
+    edges: list[tuple[EdgeSpec, SfrResult | str]] | None
+
+
+def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
+    """The estimator of an MTF analysis: the caller's, else the parameter file's, else auto."""
+    return estimator or params.estimator or AUTO
+
+
+def forward_part(session: Session, params: MtfParams, estimator: str | None) -> ForwardPart:
+    """The forward frame's analysis (:class:`ForwardPart`), which a re-analysis may compute
+    in another process beside the radial frames (:func:`analyze_mtf`'s ``ahead``)."""
+    est = mtf_estimator(params, estimator)
+    pixels = _load(session, FORWARD_STEP, FORWARD_FRAME)
+    if pixels is None:
+        return ForwardPart(est, None, None)
+    return ForwardPart(est, _forward_rows(pixels, params, est), measure_edges(pixels))
+
+
 def analyze_mtf(
-    session: Session, params: MtfParams, estimator: str | None
+    session: Session, params: MtfParams, estimator: str | None,
+    ahead: Callable[[], ForwardPart | None] | None = None,
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
-    """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``."""
-    est = estimator or params.estimator or AUTO
+    """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``.
+
+    ``ahead``, when given, returns the :func:`forward_part` computed elsewhere (a forked
+    process: :mod:`benchlab.forked`), or None when it could not be (it is then computed
+    here); this process meanwhile loads the radial frames and measures their rows.
+    """
+    est = mtf_estimator(params, estimator)
+    if ahead is not None:
+        centre, centre_method, radial, t412, part = _with_forward_ahead(
+            session, params, est, ahead)
+    else:
+        centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
+    forward = part.view
+    edges_done = (edge_parts_of(part.edges, centre, params.simulated_mtf_file)
+                  if part.edges is not None else None)
     nyq = nyquist_lp_per_mm()
-    radial_keys = [(f, orient) for f in params.radial_frequencies_lp_per_mm
-                   for orient in ORIENTATIONS]
-    # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
-    # several cores the 15 frames of a session load in a fraction of the time. The forward
-    # view's chart finder and bar ROIs run on their own thread beside the radial frames, the
-    # centre and the radial rows; this thread then measures the forward frame's slanted edges
-    # and their tables (which need the centre, not the chart) while the bar ROIs finish, so
-    # neither thread waits long for the other; the larger numpy calls release the GIL. Every
-    # estimate is a pure function of its frame, so the numbers are those of one thread. A
-    # failure is raised as before (the forward frame's first).
-    frame_ready: Future[npt.NDArray[Any] | None] = Future()
-    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
-            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
-        radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
-                       for f, o in radial_keys]
-        try:
-            radial: dict[tuple[float, str], npt.NDArray[Any]] = {}
-            for key, job in zip(radial_keys, radial_jobs, strict=True):
-                px = job.result()
-                if px is not None:
-                    radial[key] = px
-            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
-            t412 = _radial_rows(radial, params, est, centre)
-            forward_px = frame_ready.result()
-            edges_done = (edge_parts(forward_px, centre, params.simulated_mtf_file)
-                          if forward_px is not None else None)
-        except BaseException:
-            failed = forward_job.exception()
-            if failed is not None and not isinstance(failed, CancelledError):
-                raise failed from None
-            raise
-        forward = forward_job.result()
 
     t411: list[dict[str, Any]] = []
     t413: list[dict[str, Any]] = []
@@ -336,7 +348,83 @@ def analyze_mtf(
     return tables, summary, est
 
 
-_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
+_Radial = dict[tuple[float, str], npt.NDArray[Any]]
+_RadialPart = tuple[tuple[float, float], str, _Radial, list[dict[str, Any]], ForwardPart]
+
+
+def _radial_keys(params: MtfParams) -> list[tuple[float, str]]:
+    return [(f, orient) for f in params.radial_frequencies_lp_per_mm for orient in ORIENTATIONS]
+
+
+def _collect(keys: list[tuple[float, str]],
+             jobs: list[Future[npt.NDArray[Any] | None]]) -> _Radial:
+    radial: _Radial = {}
+    for key, job in zip(keys, jobs, strict=True):
+        px = job.result()
+        if px is not None:
+            radial[key] = px
+    return radial
+
+
+def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _RadialPart:
+    """Everything measured in this process: the centre, Table 4.12 and the forward part."""
+    radial_keys = _radial_keys(params)
+    # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
+    # several cores the 15 frames of a session load in a fraction of the time. The forward
+    # view's chart finder and bar ROIs run on their own thread beside the radial frames, the
+    # centre and the radial rows; this thread then measures the forward frame's slanted edges
+    # (which need neither the centre nor the chart) while the bar ROIs finish, so neither
+    # thread waits long for the other; the larger numpy calls release the GIL. Every
+    # estimate is a pure function of its frame, so the numbers are those of one thread. A
+    # failure is raised as before (the forward frame's first).
+    frame_ready: Future[npt.NDArray[Any] | None] = Future()
+    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
+            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
+        radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
+                       for f, o in radial_keys]
+        try:
+            radial = _collect(radial_keys, radial_jobs)
+            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+            t412 = _radial_rows(radial, params, est, centre)
+            forward_px = frame_ready.result()
+            measured = measure_edges(forward_px) if forward_px is not None else None
+        except BaseException:
+            failed = forward_job.exception()
+            if failed is not None and not isinstance(failed, CancelledError):
+                raise failed from None
+            raise
+        forward = forward_job.result()
+    return centre, centre_method, radial, t412, ForwardPart(est, forward, measured)
+
+
+def _with_forward_ahead(session: Session, params: MtfParams, est: str,
+                        ahead: Callable[[], ForwardPart | None]) -> _RadialPart:
+    """The radial frames measured here while ``ahead`` computes the forward part; a failure
+    is raised as in :func:`_with_forward_thread` (the forward frame's first)."""
+    radial_keys = _radial_keys(params)
+    with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
+                       for f, o in radial_keys]
+        try:
+            radial = _collect(radial_keys, radial_jobs)
+            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+            t412 = _radial_rows(radial, params, est, centre)
+        except Exception:
+            _forward_here_unless(ahead(), session, params, est)  # its failure comes first
+            raise
+    return centre, centre_method, radial, t412, _forward_here_unless(ahead(), session, params,
+                                                                     est)
+
+
+def _forward_here_unless(part: ForwardPart | None, session: Session, params: MtfParams,
+                         est: str) -> ForwardPart:
+    """``part`` if it was computed with this estimator, else the forward part computed here
+    (which raises what the other process met)."""
+    if part is not None and part.estimator == est:
+        return part
+    return forward_part(session, params, est)
+
 
 
 def _forward_view(session: Session, params: MtfParams, est: str,
@@ -351,6 +439,11 @@ def _forward_view(session: Session, params: MtfParams, est: str,
     frame_ready.set_result(forward)
     if forward is None:
         return None
+    return _forward_rows(forward, params, est)
+
+
+def _forward_rows(forward: npt.NDArray[Any], params: MtfParams, est: str) -> _ForwardView:
+    """The forward frame's rows by (element, orientation) and Table 4.11."""
     per = {(r["element"], r["orientation"]): r
            for r in analyze_forward_frame(forward, params, est)}
     nyq = nyquist_lp_per_mm()

@@ -200,9 +200,15 @@ def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
                simulated_mtf_file: str = "") -> EdgeParts:
     """The forward frame's edges measured, their two tables and the simulated curves: all
     but the comparison with the bars, so a re-analysis computes them beside the bar ROIs."""
+    return edge_parts_of(measure_edges(pixels), centre_rc, simulated_mtf_file)
+
+
+def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
+                  centre_rc: tuple[float, float], simulated_mtf_file: str = "") -> EdgeParts:
+    """:func:`edge_parts` from the edges already measured (:func:`measure_edges`, which
+    needs no centre: a re-analysis measures them in another process)."""
     from benchlab.report_curves import load_curves  # the simulated curves' loader
 
-    measured = measure_edges(pixels)
     rows, curve_rows = edge_tables(measured, centre_rc)
     try:
         curves = load_curves(simulated_mtf_file or None)

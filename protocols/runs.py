@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,6 +26,7 @@ if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise import CharacteriseProcedure
     from benchlab.protocols.mtf import MtfProcedure
+    from benchlab.protocols.mtf_analysis import ForwardPart
     from benchlab.protocols.radiometry import RadiometryProcedure
 
 #: Key of the bench configuration inside the session's parameter snapshot.
@@ -154,14 +156,18 @@ def resume_run(
 
 
 def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
-              catalogue: bool = True) -> Path:
+              catalogue: bool = True,
+              forward_ahead: Callable[[], ForwardPart | None] | None = None) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
     sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
     ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
-    loading its frames before it imports the analysis).
+    loading its frames before it imports the analysis). ``forward_ahead`` returns an MTF
+    session's forward frame analysed elsewhere, or None to analyse it here
+    (:func:`benchlab.protocols.mtf_analysis.analyze_mtf`'s ``ahead``; the CLI forks a process
+    for it); other procedures ignore it.
     """
     check_estimator(estimator)
     session = (session_path if isinstance(session_path, Session)
@@ -175,7 +181,7 @@ def reanalyze(session_path: str | Path | Session, estimator: str | None = None, 
             done = session.completed_steps()
             session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
                                          len(steps))
-        return _reanalyze_held(session, estimator, catalogue)
+        return _reanalyze_held(session, estimator, catalogue, forward_ahead)
     finally:
         session.release()
 
@@ -195,7 +201,19 @@ def _prefetch_frames(session: Session) -> None:
         session.prefetch_frames(FRAME_LOAD_THREADS)
 
 
-def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
+def _analyze(procedure: MtfProcedure | RadiometryProcedure | CharacteriseProcedure,
+             session: Session, estimator: str | None,
+             forward_ahead: Callable[[], ForwardPart | None] | None) -> Path:
+    if forward_ahead is not None and isinstance(procedure.params, MtfParams):
+        from benchlab.protocols.mtf import MtfProcedure  # imported by make_procedure
+
+        if isinstance(procedure, MtfProcedure):
+            return procedure.analyze(session, estimator, forward_ahead)
+    return procedure.analyze(session, estimator)
+
+
+def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool,
+                    forward_ahead: Callable[[], ForwardPart | None] | None) -> Path:
     procedure = make_procedure(session_params(session))
     # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
     # analysed), so the analysis starts while the last frames load; every other frame is
@@ -208,7 +226,7 @@ def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) ->
     before = session.frames()
     session.log_event("reanalysis_started", durable=False, estimator=estimator)
     try:
-        out = procedure.analyze(session, estimator)
+        out = _analyze(procedure, session, estimator, forward_ahead)
     except SessionError as exc:  # a load found its frame changed: say so as above
         bad = session.verify_frames()
         if bad:

@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYER = {
     "benchlab.drivers": 0, "benchlab.analysis": 1, "benchlab.scenes": 2,
     "benchlab.checks": 3, "benchlab.storage": 3, "benchlab.session": 3, "benchlab.bench": 3,
-    "benchlab.tiff_strips": 3,
+    "benchlab.tiff_strips": 3, "benchlab.forked": 3,
     "benchlab.protocols": 4, "benchlab.cli": 5, "benchlab.tui": 5,
 }
 

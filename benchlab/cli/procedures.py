@@ -8,6 +8,7 @@ import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -15,6 +16,8 @@ from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
+    from benchlab.forked import ForkedCall
+    from benchlab.protocols.mtf_analysis import ForwardPart
     from benchlab.session import Session
 
 
@@ -198,21 +201,45 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
-def _open_prefetching(folder: Path) -> Session | None:
+def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
+    Session | None, ForkedCall[ForwardPart] | None
+]:
     """The MTF session at ``folder``, its frames already loading on threads (inflating
     releases the GIL), so the loads overlap the import of the protocols and the analysis
-    (start-up, issue 11); None for anything else, which :func:`reanalyze` then opens and
-    reports on as always (a folder that is not a session, another procedure)."""
+    (start-up, issue 11), and its forward frame analysed in a forked child process
+    (:mod:`benchlab.forked`; forked first, while this process has no other thread); None for
+    anything else, which :func:`reanalyze` then opens and reports on as always (a folder that
+    is not a session, another procedure)."""
+    from benchlab import forked
     from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
     try:
         session = Session.open(folder)
         if session.procedure != "mtf":
-            return None
+            return None, None
+    except (SessionError, OSError, KeyError):
+        return None, None
+    ahead = forked.start(partial(_forward_part, session, estimator),
+                         f"{folder}: the forward frame's analysis")
+    try:
         session.prefetch_frames(FRAME_LOAD_THREADS)
     except (SessionError, OSError, KeyError):
-        return None
-    return session
+        if ahead is not None:
+            ahead.close()
+        return None, None
+    return session, ahead
+
+
+def _forward_part(session: Session, estimator: str | None) -> ForwardPart:
+    """The forward frame's analysis (in the child: the protocols are imported there)."""
+    from benchlab.protocols.mtf_analysis import forward_part
+    from benchlab.protocols.params import MtfParams
+    from benchlab.protocols.runs import session_params
+
+    params = session_params(session)
+    if not isinstance(params, MtfParams):
+        raise TypeError(f"{session.path}: not an MTF session")
+    return forward_part(session, params, estimator)
 
 
 def analyze_session_command(args: argparse.Namespace) -> int:
@@ -225,7 +252,8 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     if target is None:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
-    early = _open_prefetching(Path(target))
+    estimator = getattr(args, "estimator", None)
+    early, ahead = _open_prefetching(Path(target), estimator)
     # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
     # the analysis runs, records once the results are written, overlapping the printing; it
     # never raises, and the process waits for it before it ends. Nothing is recorded when the
@@ -235,10 +263,12 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     try:
         from benchlab.protocols.runs import reanalyze
 
-        out = reanalyze(early or Path(target), estimator=getattr(args, "estimator", None),
-                        catalogue=False)
+        out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
+                        forward_ahead=ahead.result if ahead is not None else None)
         recorder.record = True
     finally:
+        if ahead is not None:
+            ahead.close()
         recorder.results_written.set()
         if not recorder.record:
             recorder.join()  # failed: it ends without recording

@@ -1,0 +1,163 @@
+"""One call computed in a forked child process while the caller goes on (start-up of
+``benchlab analyze SESSION``, issue 11: the analysis is bound to one core by the GIL, and a
+child forked after the imports common to both halves uses the second core without importing
+them again).
+
+The child sends its value back pickled through a pipe and ends with :func:`os._exit` (no exit
+handlers, no buffered output of the parent flushed twice). Whatever goes wrong in the child -
+an exception, a value that does not pickle, the child killed or crashed - makes
+:meth:`ForkedCall.result` return None, and the caller computes the value itself: an error then
+reaches the user exactly as it does without a child (same exception, message and exit
+status), and a child that died is logged as a warning. A child that dies closes its end of the
+pipe, so the parent never waits for a dead child; :meth:`ForkedCall.close` (on every exit path)
+kills a child still running and reaps it, so no zombie is left.
+
+Forking copies only the calling thread, so :func:`fork_usable` allows it only while the
+process has no other Python thread (a lock held by another thread - an import, a logging
+handler - would stay held forever in the child), on a POSIX system that reports its CPU
+affinity (Linux; macOS forks unsafely once its system frameworks are loaded), with two or more
+usable CPUs, and unless ``BENCHLAB_SERIAL`` is set (debugging: everything in one process).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import signal
+import threading
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+#: Set (to anything but ``""`` or ``0``) to compute everything in one process.
+SERIAL_ENV = "BENCHLAB_SERIAL"
+
+T = TypeVar("T")
+_log = logging.getLogger(__name__)
+#: Child exit statuses: the value was sent / the call raised (the parent computes it again).
+_SENT, _RAISED = 0, 3
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity mask), 1 where the system does not say."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return 1
+
+
+def fork_usable() -> bool:
+    """Whether :func:`start` may fork now (see the module docstring for the conditions)."""
+    if os.environ.get(SERIAL_ENV, "") not in ("", "0"):
+        return False
+    return hasattr(os, "fork") and threading.active_count() == 1 and usable_cpus() >= 2
+
+
+class ForkedCall(Generic[T]):
+    """A call running in a child process: :meth:`result` once, :meth:`close` always."""
+
+    def __init__(self, pid: int, read_fd: int, what: str) -> None:
+        self.pid = pid
+        self.what = what
+        self._read_fd: int | None = read_fd
+
+    def result(self) -> T | None:
+        """The child's value, or None when it raised or died (compute the value here then).
+        Waits for the child to send it or to end."""
+        fd, self._read_fd = self._read_fd, None
+        if fd is None:
+            return None  # already taken or closed
+        with os.fdopen(fd, "rb") as pipe:
+            data = pipe.read()  # until the child closes its end: sent, raised or died
+        status = self._reap(kill=False)
+        if status == _SENT and data:
+            try:
+                value: T = pickle.loads(data)
+            except Exception as exc:  # any unpickling failure: compute here
+                _log.warning("%s: the child's result did not unpickle (%s); computing it here",
+                             self.what, exc)
+                return None
+            return value
+        if status != _RAISED:
+            _log.warning("%s: the child process %s; computing it here", self.what,
+                         _describe(status))
+        return None
+
+    def close(self) -> None:
+        """Stop the child if it still runs and reap it (idempotent)."""
+        fd, self._read_fd = self._read_fd, None
+        if fd is not None:
+            os.close(fd)
+        self._reap(kill=True)
+
+    def _reap(self, *, kill: bool) -> int | None:
+        """The child's exit status (``-signal`` when a signal ended it); None if reaped before."""
+        if self.pid == 0:
+            return None
+        pid, self.pid = self.pid, 0
+        if kill:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        while True:
+            try:
+                _, wait_status = os.waitpid(pid, 0)
+            except ChildProcessError:
+                return None  # reaped by someone else (a SIGCHLD handler)
+            except InterruptedError:
+                continue
+            return os.waitstatus_to_exitcode(wait_status)
+
+
+def _describe(status: int | None) -> str:
+    if status is None:
+        return "was reaped elsewhere"
+    if status < 0:
+        try:
+            name = signal.Signals(-status).name
+        except ValueError:
+            name = f"signal {-status}"
+        return f"was killed by {name}"
+    return f"ended with status {status} without a result"
+
+
+def start(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
+    """Run ``call()`` in a forked child; None (nothing started) unless :func:`fork_usable`.
+    ``what`` names the computation in warnings."""
+    if not fork_usable():
+        return None
+    read_fd, write_fd = os.pipe()
+    try:
+        pid = os.fork()
+    except OSError as exc:  # no memory or process slots left: compute in this process
+        os.close(read_fd)
+        os.close(write_fd)
+        _log.warning("%s: cannot fork (%s); computing it in this process", what, exc)
+        return None
+    if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
+        _child(call, read_fd, write_fd)
+    os.close(write_fd)
+    return ForkedCall(pid, read_fd, what)
+
+
+def _child(call: Callable[[], object], read_fd: int, write_fd: int) -> None:
+    """Compute, send, and leave with :func:`os._exit` whatever happens: never return into the
+    caller's stack (its ``finally`` blocks and exit handlers belong to the parent)."""
+    status = _RAISED
+    try:
+        os.close(read_fd)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_DFL)  # a stop signal just ends the child
+        try:
+            data = pickle.dumps(call(), protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException:  # the parent computes it again and raises
+            data = b""
+        else:
+            status = _SENT
+        with os.fdopen(write_fd, "wb") as pipe:
+            pipe.write(data)
+    except BaseException:  # the parent sees no value: it computes it
+        status = _RAISED
+    finally:
+        os._exit(status)
