@@ -34,8 +34,9 @@ SERIAL_ENV = "BENCHLAB_SERIAL"
 
 T = TypeVar("T")
 _log = logging.getLogger(__name__)
-#: Child exit statuses: the value was sent / the call raised (the parent computes it again).
-_SENT, _RAISED = 0, 3
+#: Child exit statuses: the value was sent / the call raised (the parent computes it again,
+#: raising the same) / the value did not pickle (a programming error: a warning).
+_SENT, _RAISED, _UNPICKLABLE = 0, 3, 4
 
 
 def usable_cpus() -> int:
@@ -58,6 +59,7 @@ class ForkedCall(Generic[T]):
 
     def __init__(self, pid: int, read_fd: int, what: str) -> None:
         self.pid = pid
+        self._child_pid = pid
         self.what = what
         self._read_fd: int | None = read_fd
 
@@ -77,8 +79,11 @@ class ForkedCall(Generic[T]):
                 _log.warning("%s: the child's result did not unpickle (%s); computing it here",
                              self.what, exc)
                 return None
+            _log.debug("%s: computed in child process %d", self.what, self._child_pid)
             return value
-        if status != _RAISED:
+        if status == _UNPICKLABLE:
+            _log.warning("%s: the child's result does not pickle; computing it here", self.what)
+        elif status != _RAISED:
             _log.warning("%s: the child process %s; computing it here", self.what,
                          _describe(status))
         return None
@@ -125,8 +130,11 @@ def _describe(status: int | None) -> str:
 def start(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
     """Run ``call()`` in a forked child; None (nothing started) unless :func:`fork_usable`.
     ``what`` names the computation in warnings."""
-    if not fork_usable():
-        return None
+    return fork_call(call, what) if fork_usable() else None
+
+
+def fork_call(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
+    """:func:`start` without the checks of :func:`fork_usable`; None if the fork failed."""
     read_fd, write_fd = os.pipe()
     try:
         pid = os.fork()
@@ -149,12 +157,17 @@ def _child(call: Callable[[], object], read_fd: int, write_fd: int) -> None:
         os.close(read_fd)
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, signal.SIG_DFL)  # a stop signal just ends the child
+        data = b""
         try:
-            data = pickle.dumps(call(), protocol=pickle.HIGHEST_PROTOCOL)
+            value = call()
         except BaseException:  # the parent computes it again and raises
-            data = b""
+            pass
         else:
-            status = _SENT
+            try:
+                data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+                status = _SENT
+            except BaseException:
+                status = _UNPICKLABLE
         with os.fdopen(write_fd, "wb") as pipe:
             pipe.write(data)
     except BaseException:  # the parent sees no value: it computes it

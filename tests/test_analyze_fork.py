@@ -1,0 +1,192 @@
+"""``benchlab analyze SESSION`` with the forward frame analysed in a forked child (start-up,
+issue 11): the same results files as in one process (``BENCHLAB_SERIAL=1``), the same error
+and exit status when the forward frame's analysis fails, the analysis completed when the child
+is killed, and no child left behind. Each case is a fresh ``benchlab`` process, as a user
+runs it (a test process may hold threads, and then nothing is forked)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, cast
+
+import pytest
+from test_protocol_helpers import MTF_SMALL, run_sim
+
+import benchlab.protocols.mtf_analysis as mtf_analysis
+from benchlab.forked import SERIAL_ENV, usable_cpus
+from benchlab.protocols.mtf_analysis import ForwardPart, analyze_mtf
+from benchlab.protocols.params import MtfParams
+from benchlab.protocols.runs import session_params
+from benchlab.session import Session, SessionError
+
+#: Runs ``benchlab [ARGS]`` as the program, after PATCH; prints its outcome as the last line.
+_PROGRAM = """
+import json, os, sys
+{patch}
+from benchlab.cli.main import main
+sys.argv = ["benchlab", *{args!r}]
+try:
+    outcome = {{"status": main()}}
+except Exception as exc:
+    outcome = {{"raised": f"{{type(exc).__name__}}: {{exc}}"}}
+try:
+    os.waitpid(-1, os.WNOHANG)
+    outcome["children"] = "left"
+except ChildProcessError:
+    outcome["children"] = "none"
+sys.stdout.flush()
+print("\\n" + json.dumps(outcome))
+"""
+#: The forward frame's analysis fails in whichever process computes it.
+_FAILING = """
+import benchlab.protocols.mtf_analysis as m
+def boom(*args, **kwargs):
+    raise ValueError("no bars in the forward frame")
+m.analyze_forward_frame = boom
+"""
+#: The child dies (SIGKILL) as soon as it starts on the forward frame; the parent is unharmed.
+_CHILD_KILLED = """
+import signal
+import benchlab.protocols.mtf_analysis as m
+parent, real = os.getpid(), m.forward_part
+def dying(*args, **kwargs):
+    if os.getpid() != parent:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(*args, **kwargs)
+m.forward_part = dying
+"""
+FORKS = usable_cpus() >= 2 and hasattr(os, "fork")
+
+
+@pytest.fixture(scope="module")
+def small_mtf(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return run_sim("mtf", tmp_path_factory.mktemp("mtf"), MTF_SMALL).session_path
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    return Path(shutil.copytree(src, dst / src.name))
+
+
+def _analyze(path: Path, *, serial: bool, patch: str = "") -> tuple[dict[str, Any], str]:
+    env = {k: v for k, v in os.environ.items() if k != SERIAL_ENV}
+    if serial:
+        env[SERIAL_ENV] = "1"
+    code = _PROGRAM.format(patch=patch, args=["--log-level", "debug", "analyze", str(path)])
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+
+
+def _files(version: Path) -> dict[str, bytes]:
+    out = {}
+    for p in sorted(version.iterdir()):
+        data = p.read_bytes()
+        if p.name == "summary.json":
+            doc = json.loads(data)
+            for varying in ("version", "created_at"):
+                doc.pop(varying)
+            data = json.dumps(doc).encode()
+        out[p.name] = data
+    return out
+
+
+def _flip_byte(frame: Path) -> None:
+    data = bytearray(frame.read_bytes())
+    data[-10] ^= 0xFF
+    frame.write_bytes(bytes(data))
+
+
+def _forked(stderr: str) -> bool:
+    return "the forward frame's analysis: computed in child process" in stderr
+
+
+def test_the_forked_analysis_writes_the_files_of_one_process(small_mtf: Path,
+                                                              tmp_path: Path) -> None:
+    path = _copy(small_mtf, tmp_path)
+    serial, serial_err = _analyze(path, serial=True)
+    parallel, parallel_err = _analyze(path, serial=False)
+    assert serial == parallel == {"status": 0, "children": "none"}
+    assert not _forked(serial_err) and _forked(parallel_err) == FORKS
+    one, two = _files(path / "results" / "v2"), _files(path / "results" / "v3")
+    assert len(one) >= 15 and one == two
+    assert one == _files(path / "results" / "v1")  # and the run's own results
+
+
+def test_a_failing_forward_analysis_fails_as_in_one_process(small_mtf: Path,
+                                                           tmp_path: Path) -> None:
+    path = _copy(small_mtf, tmp_path)
+    serial, _ = _analyze(path, serial=True, patch=_FAILING)
+    parallel, err = _analyze(path, serial=False, patch=_FAILING)
+    assert serial == parallel == {"raised": "ValueError: no bars in the forward frame",
+                                  "children": "none"}
+    assert "computing it here" not in err  # an exception is the caller's to raise, no warning
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+
+
+def test_a_changed_forward_frame_is_reported_as_in_one_process(small_mtf: Path,
+                                                              tmp_path: Path) -> None:
+    path = _copy(small_mtf, tmp_path)
+    _flip_byte(path / "frames" / "forward__forward.tiff")
+    outcomes = []
+    for serial in (True, False):
+        outcome, err = _analyze(path, serial=serial)
+        errors = [line for line in err.splitlines() if line.startswith("benchlab: error:")]
+        outcomes.append((outcome, errors))
+    assert outcomes[0] == outcomes[1]
+    outcome, errors = outcomes[0]
+    assert outcome == {"status": 1, "children": "none"}
+    assert errors == [f"benchlab: error: {path}: frames changed since acquisition: "
+                      "frames/forward__forward.tiff"]
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+
+
+def test_a_killed_child_is_reported_and_the_analysis_completes(small_mtf: Path,
+                                                               tmp_path: Path) -> None:
+    path = _copy(small_mtf, tmp_path)
+    outcome, err = _analyze(path, serial=False, patch=_CHILD_KILLED)
+    assert outcome == {"status": 0, "children": "none"}
+    killed = "the forward frame's analysis: the child process was killed by SIGKILL"
+    assert (killed in err) == FORKS and not _forked(err)
+    assert _files(path / "results" / "v2") == _files(path / "results" / "v1")
+
+
+def _boom(*args: Any, **kwargs: Any) -> Any:
+    raise ValueError("no bars in the forward frame")
+
+
+@pytest.mark.parametrize("ahead", [None, lambda: None])
+def test_the_forward_frames_failure_comes_first_either_way(
+        small_mtf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        ahead: Callable[[], ForwardPart | None] | None) -> None:
+    """A radial frame fails to load and the forward frame's analysis fails: the forward
+    frame's error is raised, with the forward part on a thread (``ahead`` None) as when it
+    came from elsewhere and has to be computed here (``ahead`` gives None)."""
+    path = _copy(small_mtf, tmp_path)
+    _flip_byte(sorted((path / "frames").glob("radial-*.tiff"))[-1])
+    session = Session.open(path)
+    with pytest.raises(SessionError, match="sha256 mismatch"):
+        analyze_mtf(session, cast(MtfParams, session_params(session)), None, ahead)
+    monkeypatch.setattr(mtf_analysis, "analyze_forward_frame", _boom)
+    with pytest.raises(ValueError, match="no bars in the forward frame"):
+        analyze_mtf(session, cast(MtfParams, session_params(session)), None, ahead)
+
+
+def test_a_forward_part_from_elsewhere_is_used_only_with_the_same_estimator(
+        small_mtf: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    session = Session.open(small_mtf)
+    params = cast(MtfParams, session_params(session))
+    tables, _, est = analyze_mtf(session, params, None)
+    part = mtf_analysis.forward_part(session, params, None)
+    assert part.estimator == est
+    monkeypatch.setattr(mtf_analysis, "forward_part", _boom)  # not computed here again
+    assert analyze_mtf(session, params, None, lambda: part)[0] == tables
+    other = part._replace(estimator="fit" if est != "fit" else "contrast")
+    with pytest.raises(ValueError, match="no bars"):  # another estimator's: computed here
+        analyze_mtf(session, params, None, lambda: other)

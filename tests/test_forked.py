@@ -1,0 +1,148 @@
+"""A call computed in a forked child (:mod:`benchlab.forked`, start-up of ``analyze SESSION``,
+issue 11): its value comes back unchanged; an exception, a crash or a kill in the child makes
+the caller compute the value itself (a death is logged), never waits for a dead child, and
+leaves no zombie; fork only where it is safe and useful."""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from benchlab import forked
+
+
+def _reaped(pid: int) -> bool:
+    try:
+        os.waitpid(pid, os.WNOHANG)
+    except ChildProcessError:
+        return True
+    return False
+
+
+def _run(call: Callable[[], Any]) -> tuple[Any, int]:
+    job = forked.fork_call(call, "test call")
+    assert job is not None
+    pid = job.pid
+    try:
+        return job.result(), pid
+    finally:
+        job.close()
+
+
+def test_the_childs_value_comes_back_unchanged_and_the_child_is_reaped(
+        caplog: pytest.LogCaptureFixture) -> None:
+    parent = os.getpid()
+    value = {"pid": 0, "rows": [{"a": 0.1 + 0.2, "b": None, "c": np.float64(1 / 3)}],
+             "array": np.linspace(0.0, 1.0, 7), "key": (1.5, "sagittal")}
+
+    def compute() -> dict[str, Any]:
+        return {**value, "pid": os.getpid()}
+
+    with caplog.at_level(logging.DEBUG, logger="benchlab.forked"):
+        got, pid = _run(compute)
+    assert got["pid"] == pid != parent  # computed in the child
+    assert got["rows"] == value["rows"] and type(got["rows"][0]["c"]) is np.float64
+    assert np.array_equal(got["array"], value["array"]) and got["key"] == value["key"]
+    assert _reaped(pid)
+    assert f"test call: computed in child process {pid}" in caplog.text
+
+
+def test_an_exception_in_the_child_gives_no_value_and_no_warning(
+        caplog: pytest.LogCaptureFixture) -> None:
+    def fails() -> int:
+        raise ValueError("bad frame")
+
+    with caplog.at_level(logging.DEBUG, logger="benchlab.forked"):
+        got, pid = _run(fails)
+    assert got is None and _reaped(pid)
+    assert caplog.records == []  # the caller computes it again and raises the same error
+
+
+@pytest.mark.parametrize(("die", "said"), [
+    (lambda: os.kill(os.getpid(), signal.SIGKILL), "the child process was killed by SIGKILL"),
+    (lambda: os.kill(os.getpid(), signal.SIGTERM), "the child process was killed by SIGTERM"),
+    (lambda: os._exit(7), "the child process ended with status 7 without a result"),
+    (lambda: lambda: None, "the child's result does not pickle"),
+])
+def test_a_child_that_dies_is_reported_and_not_waited_for(
+        caplog: pytest.LogCaptureFixture, die: Callable[[], Any], said: str) -> None:
+    t0 = time.monotonic()
+    with caplog.at_level(logging.WARNING, logger="benchlab.forked"):
+        got, pid = _run(die)
+    assert got is None and _reaped(pid)
+    assert time.monotonic() - t0 < 10
+    assert [r.getMessage() for r in caplog.records] == [f"test call: {said}; computing it here"]
+
+
+def test_close_stops_a_running_child_and_reaps_it() -> None:
+    job = forked.fork_call(lambda: time.sleep(60), "sleeper")
+    assert job is not None
+    pid = job.pid
+    t0 = time.monotonic()
+    job.close()
+    job.close()  # idempotent
+    assert time.monotonic() - t0 < 10 and _reaped(pid)
+    assert job.result() is None  # nothing left to take
+
+
+def test_the_child_ends_on_a_stop_signal_instead_of_running_the_callers_handler() -> None:
+    got, _ = _run(lambda: [signal.getsignal(s) for s in
+                           (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)])
+    assert got == [signal.SIG_DFL] * 3
+
+
+def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(forked.SERIAL_ENV, raising=False)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    assert forked.usable_cpus() == 2
+    lingering = [t for t in threading.enumerate() if t is not threading.main_thread()]
+    for t in lingering:
+        t.join(timeout=10)
+    assert forked.fork_usable()
+    for value in ("1", "yes"):
+        monkeypatch.setenv(forked.SERIAL_ENV, value)
+        assert not forked.fork_usable()
+        assert forked.start(lambda: 1, "x") is None  # nothing forked
+    monkeypatch.setenv(forked.SERIAL_ENV, "0")
+    assert forked.fork_usable()
+    # one usable CPU (an affinity mask, a container limit): nothing to gain
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {3})
+    assert not forked.fork_usable()
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    # another thread: a lock it holds would stay held in the child
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert not forked.fork_usable()
+    finally:
+        stop.set()
+        other.join()
+    assert forked.fork_usable()
+    # no fork (Windows) or no affinity to ask (macOS): one process
+    monkeypatch.delattr(os, "sched_getaffinity")
+    assert forked.usable_cpus() == 1 and not forked.fork_usable()
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.delattr(os, "fork")
+    assert not forked.fork_usable()
+
+
+def test_a_failed_fork_computes_here(monkeypatch: pytest.MonkeyPatch,
+                                     caplog: pytest.LogCaptureFixture) -> None:
+    def no_fork() -> int:
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(os, "fork", no_fork)
+    fds_before = len(os.listdir("/proc/self/fd"))
+    with caplog.at_level(logging.WARNING, logger="benchlab.forked"):
+        assert forked.fork_call(lambda: 1, "test call") is None
+    assert "test call: cannot fork" in caplog.text
+    assert len(os.listdir("/proc/self/fd")) == fds_before  # the pipe closed again
