@@ -14,7 +14,6 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis import chart
-from benchlab.analysis.chart_finder import ChartFit, ChartNotFoundError, FoundElement, find_chart
 from benchlab.analysis.edge_target import EdgeSpec
 from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
@@ -41,6 +40,7 @@ from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
+    from benchlab.analysis.chart_finder import ChartFit, FoundElement
     from benchlab.session import Session
 
 FORWARD_STEP = "forward"
@@ -84,6 +84,10 @@ def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> ChartFit | None
     """The USAF chart in the forward frame (:func:`benchlab.analysis.chart_finder.find_chart`
     with the parameter file's geometry as the prior), or None when no chart is found (the ROIs
     then stay at the configured places and each row says so)."""
+    # Imported here: a re-analysis that has the forward frame analysed in another process
+    # (:func:`analyze_mtf`'s ``ahead``) never loads the chart finder (start-up, issue 11).
+    from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
+
     try:
         return find_chart(pixels, forward_layout(params))
     except ChartNotFoundError:

@@ -40,6 +40,7 @@ try:
     outcome["children"] = "left"
 except ChildProcessError:
     outcome["children"] = "none"
+outcome["chart finder imported"] = "benchlab.analysis.chart_finder" in sys.modules
 sys.stdout.flush()
 print("\\n" + json.dumps(outcome))
 """
@@ -112,6 +113,9 @@ def test_the_forked_analysis_writes_the_files_of_one_process(small_mtf: Path,
     path = _copy(small_mtf, tmp_path)
     serial, serial_err = _analyze(path, serial=True)
     parallel, parallel_err = _analyze(path, serial=False)
+    # the chart finder is imported by the process that analyses the forward frame only
+    assert serial.pop("chart finder imported") and parallel.pop("chart finder imported") \
+        != FORKS
     assert serial == parallel == {"status": 0, "children": "none"}
     assert not _forked(serial_err) and _forked(parallel_err) == FORKS
     one, two = _files(path / "results" / "v2"), _files(path / "results" / "v3")
@@ -125,7 +129,7 @@ def test_a_failing_forward_analysis_fails_as_in_one_process(small_mtf: Path,
     serial, _ = _analyze(path, serial=True, patch=_FAILING)
     parallel, err = _analyze(path, serial=False, patch=_FAILING)
     assert serial == parallel == {"raised": "ValueError: no bars in the forward frame",
-                                  "children": "none"}
+                                  "children": "none", "chart finder imported": False}
     assert "computing it here" not in err  # an exception is the caller's to raise, no warning
     assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
 
@@ -141,7 +145,7 @@ def test_a_changed_forward_frame_is_reported_as_in_one_process(small_mtf: Path,
         outcomes.append((outcome, errors))
     assert outcomes[0] == outcomes[1]
     outcome, errors = outcomes[0]
-    assert outcome == {"status": 1, "children": "none"}
+    assert outcome == {"status": 1, "children": "none", "chart finder imported": False}
     assert errors == [f"benchlab: error: {path}: frames changed since acquisition: "
                       "frames/forward__forward.tiff"]
     assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
@@ -151,7 +155,7 @@ def test_a_killed_child_is_reported_and_the_analysis_completes(small_mtf: Path,
                                                                tmp_path: Path) -> None:
     path = _copy(small_mtf, tmp_path)
     outcome, err = _analyze(path, serial=False, patch=_CHILD_KILLED)
-    assert outcome == {"status": 0, "children": "none"}
+    assert outcome == {"status": 0, "children": "none", "chart finder imported": True}
     killed = "the forward frame's analysis: the child process was killed by SIGKILL"
     assert (killed in err) == FORKS and not _forked(err)
     assert _files(path / "results" / "v2") == _files(path / "results" / "v1")
@@ -190,3 +194,29 @@ def test_a_forward_part_from_elsewhere_is_used_only_with_the_same_estimator(
     other = part._replace(estimator="fit" if est != "fit" else "contrast")
     with pytest.raises(ValueError, match="no bars"):  # another estimator's: computed here
         analyze_mtf(session, params, None, lambda: other)
+
+
+def test_the_cli_leaves_the_forward_step_of_the_protocol_to_the_child() -> None:
+    from benchlab.cli import procedures
+
+    assert procedures.FORWARD_STEP == mtf_analysis.FORWARD_STEP
+
+
+def test_frames_of_the_steps_excepted_are_not_loaded_ahead(
+        small_mtf: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    loaded: list[str] = []
+    real = Session._load_frame_now
+
+    def counting(self: Session, path: Path, rel: str) -> Any:
+        loaded.append(rel)
+        return real(self, path, rel)
+
+    monkeypatch.setattr(Session, "_load_frame_now", counting)
+    session = Session.open(small_mtf)
+    session.prefetch_frames(2, except_steps=("forward",))
+    assert session.verify_frames() == []  # waits for the loads ahead
+    forward = "frames/forward__forward.tiff"
+    assert forward not in loaded and sorted(loaded) == sorted(set(session.frames()) - {forward})
+    session.load_frame("forward", "forward")  # a direct load, hash-checked as always
+    assert loaded[-1] == forward
+    session.stop_prefetch()

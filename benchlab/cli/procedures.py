@@ -201,6 +201,11 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
+#: :data:`benchlab.protocols.mtf_analysis.FORWARD_STEP`, named here so that the protocols are
+#: not imported before the fork (tests/test_analyze_fork.py checks they agree).
+FORWARD_STEP = "forward"
+
+
 def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
     Session | None, ForkedCall[ForwardPart] | None
 ]:
@@ -221,8 +226,8 @@ def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
         return None, None
     ahead = forked.start(partial(_forward_part, session, estimator),
                          f"{folder}: the forward frame's analysis")
-    try:
-        session.prefetch_frames(FRAME_LOAD_THREADS)
+    try:  # the child loads the forward frame itself
+        session.prefetch_frames(FRAME_LOAD_THREADS, () if ahead is None else (FORWARD_STEP,))
     except (SessionError, OSError, KeyError):
         if ahead is not None:
             ahead.close()
