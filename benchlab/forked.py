@@ -54,6 +54,30 @@ def fork_usable() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1 and usable_cpus() >= 2
 
 
+class SharedFlags:
+    """Flags shared by this process and the children it forks after making them (an anonymous
+    shared mapping): work items the two split between them as they go, each claiming the next
+    item not yet claimed. A claim's check and set are not atomic, so both may take the same
+    item at the same moment: an item must give the same result in either process (it is then
+    done twice, nothing worse)."""
+
+    def __init__(self, size: int) -> None:
+        import mmap
+
+        self.size = size
+        self._flags = mmap.mmap(-1, size)  # MAP_SHARED | MAP_ANONYMOUS: seen by the children
+
+    def claim(self, index: int) -> bool:
+        """Set flag ``index``; whether it was unset (the caller then does item ``index``).
+        An index past the flags is always claimed (both processes do that item)."""
+        if index >= self.size:
+            return True
+        if self._flags[index]:
+            return False
+        self._flags[index] = 1
+        return True
+
+
 class ForkedCall(Generic[T]):
     """A call running in a child process: :meth:`result` once, :meth:`close` always."""
 

@@ -634,12 +634,11 @@ class Session:
         """Every recorded frame: relative file -> recorded sha256."""
         return {f: str(ev["sha256"]) for f, ev in self._frame_records().items()}
 
-    def prefetch_frames(self, threads: int, except_steps: Collection[str] = ()) -> None:
+    def prefetch_frames(self, threads: int) -> None:
         """Start loading every recorded frame on ``threads`` threads, so that the reading,
         hashing and inflating (zlib and sha256 release the GIL) overlap whatever the caller
         does next (a re-analysis imports its analysis meanwhile). :meth:`load_frame` hands out
         each prefetched frame once, with the same hash check and errors as a direct load.
-        Frames of ``except_steps`` are left to a direct load (another process analyses them).
         Stopped by :meth:`stop_prefetch` (and :meth:`release`)."""
         self.stop_prefetch()
         pool = ThreadPoolExecutor(max_workers=max(1, threads),
@@ -647,8 +646,6 @@ class Session:
         self._prefetch_pool = pool
         for rel, ev in sorted(self._frame_records().items()):
             step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
-            if step_id in except_steps:
-                continue
             try:
                 path = self.frame_path(step_id, name)
             except ValueError:

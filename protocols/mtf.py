@@ -19,14 +19,13 @@ world (``bench.mount``), so the frames show what the operator was asked to set u
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf_analysis import (
     FORWARD_FRAME,
-    ForwardPart,
+    ForwardAhead,
     analyze_forward_frame,
     analyze_mtf,
     analyze_radial_frame,
@@ -187,7 +186,7 @@ class MtfProcedure:
 
     # -- offline ------------------------------------------------------------------------------
     def analyze(self, session: Session, estimator: str | None,
-                ahead: Callable[[], ForwardPart | None] | None = None) -> Path:
+                ahead: ForwardAhead | None = None) -> Path:
         """Analyse the session's saved frames into a new results version (``ahead``: the
         forward frame's part computed elsewhere, :func:`~benchlab.protocols.mtf_analysis.
         analyze_mtf`)."""

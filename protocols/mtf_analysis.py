@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis import chart
-from benchlab.analysis.edge_target import EdgeSpec
+from benchlab.analysis.edge_target import EdgeSpec, edge_specs
 from benchlab.analysis.estimators import AUTO, estimate_modulation, resolve_estimator
 from benchlab.analysis.frequency import (
     azimuthal_image_frequency_lp_per_mm,
@@ -35,12 +35,13 @@ from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, 
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.sfr import SfrResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import edge_parts_of, edge_parts_tables, measure_edges
+from benchlab.protocols.mtf_edges import edge_parts_of, edge_parts_tables, measure_edge
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
     from benchlab.analysis.chart_finder import ChartFit, FoundElement
+    from benchlab.forked import SharedFlags
     from benchlab.session import Session
 
 FORWARD_STEP = "forward"
@@ -274,14 +275,32 @@ def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
 _ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
 
 
+#: A forward frame's slanted edges measured, by index in :func:`edge_specs`.
+_Edges = dict[int, tuple[EdgeSpec, SfrResult | str]]
+
+
 class ForwardPart(NamedTuple):
     """What the forward frame alone gives (no radial frame, no centre): its bar sets' rows
-    by (element, orientation) with Table 4.11, and its slanted edges measured; None for both
-    without a forward frame. ``estimator`` is the one used (the caller's must match)."""
+    by (element, orientation) with Table 4.11, and its slanted edges measured (all, or those
+    this process claimed: :class:`ForwardAhead`); None for both without a forward frame.
+    ``estimator`` is the one used (the caller's must match)."""
 
     estimator: str
     view: _ForwardView | None
-    edges: list[tuple[EdgeSpec, SfrResult | str]] | None
+    edges: _Edges | None
+
+
+class ForwardAhead(NamedTuple):
+    """The forward part computed in another process (:func:`analyze_mtf`'s ``ahead``).
+
+    ``result()`` returns it, or None when it could not be computed there (it is then computed
+    here). With ``claims`` (shared with that process) the slanted edges are split as the two
+    go: the other process measures them from the first after the bar sets, this one from the
+    last after the radial frames, each taking the edges not claimed yet.
+    """
+
+    result: Callable[[], ForwardPart | None]
+    claims: SharedFlags | None = None
 
 
 def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
@@ -289,25 +308,39 @@ def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
     return estimator or params.estimator or AUTO
 
 
-def forward_part(session: Session, params: MtfParams, estimator: str | None) -> ForwardPart:
+def forward_part(session: Session, params: MtfParams, estimator: str | None,
+                 claims: SharedFlags | None = None) -> ForwardPart:
     """The forward frame's analysis (:class:`ForwardPart`), which a re-analysis may compute
-    in another process beside the radial frames (:func:`analyze_mtf`'s ``ahead``)."""
+    in another process beside the radial frames (:class:`ForwardAhead`): every edge, or with
+    ``claims`` the edges claimed first here."""
     est = mtf_estimator(params, estimator)
     pixels = _load(session, FORWARD_STEP, FORWARD_FRAME)
     if pixels is None:
         return ForwardPart(est, None, None)
-    return ForwardPart(est, _forward_rows(pixels, params, est), measure_edges(pixels))
+    view = _forward_rows(pixels, params, est)
+    return ForwardPart(est, view, _measure_claimed(pixels, claims, last_first=False))
+
+
+def _measure_claimed(pixels: npt.NDArray[Any], claims: SharedFlags | None, *,
+                     last_first: bool) -> _Edges:
+    """Every edge measured (``claims`` None), or every edge claimed here in that order."""
+    specs = list(enumerate(edge_specs()))
+    out: _Edges = {}
+    for i, spec in reversed(specs) if last_first else specs:
+        if claims is None or claims.claim(i):
+            out[i] = (spec, measure_edge(pixels, spec))
+    return out
 
 
 def analyze_mtf(
     session: Session, params: MtfParams, estimator: str | None,
-    ahead: Callable[[], ForwardPart | None] | None = None,
+    ahead: ForwardAhead | None = None,
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
     """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``.
 
-    ``ahead``, when given, returns the :func:`forward_part` computed elsewhere (a forked
-    process: :mod:`benchlab.forked`), or None when it could not be (it is then computed
-    here); this process meanwhile loads the radial frames and measures their rows.
+    ``ahead``, when given, is the :func:`forward_part` being computed elsewhere (a forked
+    process: :mod:`benchlab.forked`); this process meanwhile loads the radial frames,
+    measures their rows and then its share of the edges. The tables are those of one process.
     """
     est = mtf_estimator(params, estimator)
     if ahead is not None:
@@ -316,7 +349,8 @@ def analyze_mtf(
     else:
         centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
     forward = part.view
-    edges_done = (edge_parts_of(part.edges, centre, params.simulated_mtf_file)
+    edges_done = (edge_parts_of([part.edges[i] for i in sorted(part.edges)], centre,
+                                params.simulated_mtf_file)
                   if part.edges is not None else None)
     nyq = nyquist_lp_per_mm()
 
@@ -392,7 +426,8 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
             centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
             t412 = _radial_rows(radial, params, est, centre)
             forward_px = frame_ready.result()
-            measured = measure_edges(forward_px) if forward_px is not None else None
+            measured = (_measure_claimed(forward_px, None, last_first=False)
+                        if forward_px is not None else None)
         except BaseException:
             failed = forward_job.exception()
             if failed is not None and not isinstance(failed, CancelledError):
@@ -403,9 +438,11 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
 
 
 def _with_forward_ahead(session: Session, params: MtfParams, est: str,
-                        ahead: Callable[[], ForwardPart | None]) -> _RadialPart:
-    """The radial frames measured here while ``ahead`` computes the forward part; a failure
-    is raised as in :func:`_with_forward_thread` (the forward frame's first)."""
+                        ahead: ForwardAhead) -> _RadialPart:
+    """The radial frames and this process's share of the edges measured here while ``ahead``
+    computes the forward part. Any failure here, or a forward part that did not come, and the
+    forward part is computed here from the start: what fails is then raised as in
+    :func:`_with_forward_thread` (the forward frame's failure first)."""
     radial_keys = _radial_keys(params)
     with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
         radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
@@ -414,21 +451,21 @@ def _with_forward_ahead(session: Session, params: MtfParams, est: str,
             radial = _collect(radial_keys, radial_jobs)
             centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
             t412 = _radial_rows(radial, params, est, centre)
+            forward_px = None if ahead.claims is None else _load(session, FORWARD_STEP,
+                                                                 FORWARD_FRAME)
+            mine = ({} if forward_px is None
+                    else _measure_claimed(forward_px, ahead.claims, last_first=True))
         except Exception:
-            _forward_here_unless(ahead(), session, params, est)  # its failure comes first
+            forward_part(session, params, est)  # the forward frame's failure comes first
             raise
-    return centre, centre_method, radial, t412, _forward_here_unless(ahead(), session, params,
-                                                                     est)
-
-
-def _forward_here_unless(part: ForwardPart | None, session: Session, params: MtfParams,
-                         est: str) -> ForwardPart:
-    """``part`` if it was computed with this estimator, else the forward part computed here
-    (which raises what the other process met)."""
+    part = ahead.result()
     if part is not None and part.estimator == est:
-        return part
-    return forward_part(session, params, est)
-
+        if part.edges is None:
+            return centre, centre_method, radial, t412, part  # no forward frame
+        edges = {**part.edges, **mine}
+        if len(edges) == len(edge_specs()):
+            return centre, centre_method, radial, t412, part._replace(edges=edges)
+    return centre, centre_method, radial, t412, forward_part(session, params, est)
 
 
 def _forward_view(session: Session, params: MtfParams, est: str,

@@ -47,17 +47,19 @@ def measure_edges(
     pixels: npt.NDArray[Any], specs: Sequence[EdgeSpec] | None = None
 ) -> list[tuple[EdgeSpec, SfrResult | str]]:
     """Each nominal edge's SFR, or the reason there is no clean edge in its ROI."""
-    out: list[tuple[EdgeSpec, SfrResult | str]] = []
-    for spec in specs if specs is not None else edge_specs():
-        r0, c0, r1, c1 = spec.roi
-        if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
-            out.append((spec, f"ROI {spec.roi} is off the {pixels.shape} frame"))
-            continue
-        try:
-            out.append((spec, measure_sfr(pixels[r0:r1, c0:c1])))
-        except SfrRefused as exc:
-            out.append((spec, "; ".join(exc.reasons)))
-    return out
+    return [(spec, measure_edge(pixels, spec))
+            for spec in (specs if specs is not None else edge_specs())]
+
+
+def measure_edge(pixels: npt.NDArray[Any], spec: EdgeSpec) -> SfrResult | str:
+    """One nominal edge's SFR, or the reason there is no clean edge in its ROI."""
+    r0, c0, r1, c1 = spec.roi
+    if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
+        return f"ROI {spec.roi} is off the {pixels.shape} frame"
+    try:
+        return measure_sfr(pixels[r0:r1, c0:c1])
+    except SfrRefused as exc:
+        return "; ".join(exc.reasons)
 
 
 def edge_tables(

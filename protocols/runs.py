@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,7 +25,7 @@ if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise import CharacteriseProcedure
     from benchlab.protocols.mtf import MtfProcedure
-    from benchlab.protocols.mtf_analysis import ForwardPart
+    from benchlab.protocols.mtf_analysis import ForwardAhead
     from benchlab.protocols.radiometry import RadiometryProcedure
 
 #: Key of the bench configuration inside the session's parameter snapshot.
@@ -157,17 +156,17 @@ def resume_run(
 
 def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
               catalogue: bool = True,
-              forward_ahead: Callable[[], ForwardPart | None] | None = None) -> Path:
+              forward_ahead: ForwardAhead | None = None) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
     sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
     ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
-    loading its frames before it imports the analysis). ``forward_ahead`` returns an MTF
-    session's forward frame analysed elsewhere, or None to analyse it here
-    (:func:`benchlab.protocols.mtf_analysis.analyze_mtf`'s ``ahead``; the CLI forks a process
-    for it); other procedures ignore it.
+    loading its frames before it imports the analysis). ``forward_ahead`` is an MTF
+    session's forward frame being analysed elsewhere
+    (:class:`benchlab.protocols.mtf_analysis.ForwardAhead`; the CLI forks a process for it);
+    other procedures ignore it.
     """
     check_estimator(estimator)
     session = (session_path if isinstance(session_path, Session)
@@ -203,7 +202,7 @@ def _prefetch_frames(session: Session) -> None:
 
 def _analyze(procedure: MtfProcedure | RadiometryProcedure | CharacteriseProcedure,
              session: Session, estimator: str | None,
-             forward_ahead: Callable[[], ForwardPart | None] | None) -> Path:
+             forward_ahead: ForwardAhead | None) -> Path:
     if forward_ahead is not None and isinstance(procedure.params, MtfParams):
         from benchlab.protocols.mtf import MtfProcedure  # imported by make_procedure
 
@@ -213,7 +212,7 @@ def _analyze(procedure: MtfProcedure | RadiometryProcedure | CharacteriseProcedu
 
 
 def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool,
-                    forward_ahead: Callable[[], ForwardPart | None] | None) -> Path:
+                    forward_ahead: ForwardAhead | None) -> Path:
     procedure = make_procedure(session_params(session))
     # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
     # analysed), so the analysis starts while the last frames load; every other frame is

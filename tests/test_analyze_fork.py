@@ -11,7 +11,6 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, cast
 
@@ -19,8 +18,9 @@ import pytest
 from test_protocol_helpers import MTF_SMALL, run_sim
 
 import benchlab.protocols.mtf_analysis as mtf_analysis
-from benchlab.forked import SERIAL_ENV, usable_cpus
-from benchlab.protocols.mtf_analysis import ForwardPart, analyze_mtf
+from benchlab.analysis.edge_target import edge_specs
+from benchlab.forked import SERIAL_ENV, SharedFlags, usable_cpus
+from benchlab.protocols.mtf_analysis import ForwardAhead, analyze_mtf
 from benchlab.protocols.params import MtfParams
 from benchlab.protocols.runs import session_params
 from benchlab.session import Session, SessionError
@@ -165,13 +165,18 @@ def _boom(*args: Any, **kwargs: Any) -> Any:
     raise ValueError("no bars in the forward frame")
 
 
-@pytest.mark.parametrize("ahead", [None, lambda: None])
+def _boom(*args: Any, **kwargs: Any) -> Any:
+    raise ValueError("no bars in the forward frame")
+
+
+@pytest.mark.parametrize("ahead", [None, ForwardAhead(lambda: None),
+                                   ForwardAhead(lambda: None, SharedFlags(64))])
 def test_the_forward_frames_failure_comes_first_either_way(
         small_mtf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-        ahead: Callable[[], ForwardPart | None] | None) -> None:
+        ahead: ForwardAhead | None) -> None:
     """A radial frame fails to load and the forward frame's analysis fails: the forward
     frame's error is raised, with the forward part on a thread (``ahead`` None) as when it
-    came from elsewhere and has to be computed here (``ahead`` gives None)."""
+    was to come from elsewhere and has to be computed here (its result None)."""
     path = _copy(small_mtf, tmp_path)
     _flip_byte(sorted((path / "frames").glob("radial-*.tiff"))[-1])
     session = Session.open(path)
@@ -182,41 +187,48 @@ def test_the_forward_frames_failure_comes_first_either_way(
         analyze_mtf(session, cast(MtfParams, session_params(session)), None, ahead)
 
 
-def test_a_forward_part_from_elsewhere_is_used_only_with_the_same_estimator(
+def test_the_edges_split_between_two_processes_give_the_tables_of_one(
+        small_mtf: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    session = Session.open(small_mtf)
+    params = cast(MtfParams, session_params(session))
+    tables, summary, est = analyze_mtf(session, params, None)
+    n = len(edge_specs())
+    # the other process claimed the first edges; this one measures the rest, from the last
+    claims = SharedFlags(64)
+    there = mtf_analysis.forward_part(session, params, None, claims)
+    assert there.estimator == est and there.edges is not None and sorted(there.edges) == \
+        list(range(n))
+    measured_here: list[str] = []
+    real = mtf_analysis.measure_edge
+
+    def counting(pixels: Any, spec: Any) -> Any:
+        measured_here.append(spec.label)
+        return real(pixels, spec)
+
+    monkeypatch.setattr(mtf_analysis, "measure_edge", counting)
+    monkeypatch.setattr(mtf_analysis, "forward_part", _boom)  # never computed here
+    for taken in (0, 5, n):
+        claims = SharedFlags(64)
+        for i in range(taken):
+            assert claims.claim(i)
+        part = there._replace(edges={i: e for i, e in there.edges.items() if i < taken})
+        measured_here.clear()
+        got = analyze_mtf(session, params, None, ForwardAhead(lambda p=part: p, claims))
+        assert got == (tables, summary, est), taken
+        assert measured_here == [s.label for s in reversed(edge_specs()[taken:])]
+
+
+def test_a_forward_part_from_elsewhere_is_used_only_when_whole_and_same_estimator(
         small_mtf: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     session = Session.open(small_mtf)
     params = cast(MtfParams, session_params(session))
     tables, _, est = analyze_mtf(session, params, None)
     part = mtf_analysis.forward_part(session, params, None)
-    assert part.estimator == est
+    assert part.estimator == est and part.edges is not None
     monkeypatch.setattr(mtf_analysis, "forward_part", _boom)  # not computed here again
-    assert analyze_mtf(session, params, None, lambda: part)[0] == tables
+    assert analyze_mtf(session, params, None, ForwardAhead(lambda: part))[0] == tables
     other = part._replace(estimator="fit" if est != "fit" else "contrast")
-    with pytest.raises(ValueError, match="no bars"):  # another estimator's: computed here
-        analyze_mtf(session, params, None, lambda: other)
-
-
-def test_the_cli_leaves_the_forward_step_of_the_protocol_to_the_child() -> None:
-    from benchlab.cli import procedures
-
-    assert procedures.FORWARD_STEP == mtf_analysis.FORWARD_STEP
-
-
-def test_frames_of_the_steps_excepted_are_not_loaded_ahead(
-        small_mtf: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    loaded: list[str] = []
-    real = Session._load_frame_now
-
-    def counting(self: Session, path: Path, rel: str) -> Any:
-        loaded.append(rel)
-        return real(self, path, rel)
-
-    monkeypatch.setattr(Session, "_load_frame_now", counting)
-    session = Session.open(small_mtf)
-    session.prefetch_frames(2, except_steps=("forward",))
-    assert session.verify_frames() == []  # waits for the loads ahead
-    forward = "frames/forward__forward.tiff"
-    assert forward not in loaded and sorted(loaded) == sorted(set(session.frames()) - {forward})
-    session.load_frame("forward", "forward")  # a direct load, hash-checked as always
-    assert loaded[-1] == forward
-    session.stop_prefetch()
+    missing = part._replace(edges={i: e for i, e in part.edges.items() if i != 3})
+    for wrong in (other, missing):  # another estimator's, an edge missing: computed here
+        with pytest.raises(ValueError, match="no bars"):
+            analyze_mtf(session, params, None, ForwardAhead(lambda w=wrong: w))

@@ -146,3 +146,12 @@ def test_a_failed_fork_computes_here(monkeypatch: pytest.MonkeyPatch,
         assert forked.fork_call(lambda: 1, "test call") is None
     assert "test call: cannot fork" in caplog.text
     assert len(os.listdir("/proc/self/fd")) == fds_before  # the pipe closed again
+
+
+def test_flags_claimed_in_the_child_are_seen_by_the_parent() -> None:
+    flags = forked.SharedFlags(8)
+    got, _ = _run(lambda: [flags.claim(i) for i in (0, 2, 2, 5)])
+    assert got == [True, True, False, True]
+    assert [flags.claim(i) for i in range(8)] == [False, True, False, True, True, False,
+                                                  True, True]
+    assert not flags.claim(7) and flags.claim(8) and flags.claim(8)  # past the flags: always

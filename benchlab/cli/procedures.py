@@ -10,13 +10,13 @@ import time
 from collections.abc import Mapping, Sequence
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
-    from benchlab.forked import ForkedCall
+    from benchlab.forked import ForkedCall, SharedFlags
     from benchlab.protocols.mtf_analysis import ForwardPart
     from benchlab.session import Session
 
@@ -201,14 +201,21 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
-#: :data:`benchlab.protocols.mtf_analysis.FORWARD_STEP`, named here so that the protocols are
-#: not imported before the fork (tests/test_analyze_fork.py checks they agree).
-FORWARD_STEP = "forward"
+class _Ahead(NamedTuple):
+    """The forward frame's analysis started in a child process, and the flags by which the
+    two processes split the slanted edges."""
+
+    call: ForkedCall[ForwardPart]
+    claims: SharedFlags
 
 
-def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
-    Session | None, ForkedCall[ForwardPart] | None
-]:
+#: Flags shared with the child: one per slanted edge (there are 12; a 13th and later edge
+#: would be measured by both processes).
+_EDGE_FLAGS = 64
+
+
+def _open_prefetching(folder: Path, estimator: str | None) -> tuple[Session | None,
+                                                                      _Ahead | None]:
     """The MTF session at ``folder``, its frames already loading on threads (inflating
     releases the GIL), so the loads overlap the import of the protocols and the analysis
     (start-up, issue 11), and its forward frame analysed in a forked child process
@@ -224,18 +231,20 @@ def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
             return None, None
     except (SessionError, OSError, KeyError):
         return None, None
-    ahead = forked.start(partial(_forward_part, session, estimator),
-                         f"{folder}: the forward frame's analysis")
-    try:  # the child loads the forward frame itself
-        session.prefetch_frames(FRAME_LOAD_THREADS, () if ahead is None else (FORWARD_STEP,))
+    claims = forked.SharedFlags(_EDGE_FLAGS)
+    call = forked.start(partial(_forward_part, session, estimator, claims),
+                        f"{folder}: the forward frame's analysis")
+    ahead = None if call is None else _Ahead(call, claims)
+    try:
+        session.prefetch_frames(FRAME_LOAD_THREADS)
     except (SessionError, OSError, KeyError):
-        if ahead is not None:
-            ahead.close()
+        if call is not None:
+            call.close()
         return None, None
     return session, ahead
 
 
-def _forward_part(session: Session, estimator: str | None) -> ForwardPart:
+def _forward_part(session: Session, estimator: str | None, claims: SharedFlags) -> ForwardPart:
     """The forward frame's analysis (in the child: the protocols are imported there)."""
     from benchlab.protocols.mtf_analysis import forward_part
     from benchlab.protocols.params import MtfParams
@@ -244,7 +253,7 @@ def _forward_part(session: Session, estimator: str | None) -> ForwardPart:
     params = session_params(session)
     if not isinstance(params, MtfParams):
         raise TypeError(f"{session.path}: not an MTF session")
-    return forward_part(session, params, estimator)
+    return forward_part(session, params, estimator, claims)
 
 
 def analyze_session_command(args: argparse.Namespace) -> int:
@@ -266,14 +275,16 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     recorder = _CatalogueRecorder(Path(target))
     recorder.start()
     try:
+        from benchlab.protocols.mtf_analysis import ForwardAhead
         from benchlab.protocols.runs import reanalyze
 
         out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
-                        forward_ahead=ahead.result if ahead is not None else None)
+                        forward_ahead=None if ahead is None
+                        else ForwardAhead(ahead.call.result, ahead.claims))
         recorder.record = True
     finally:
         if ahead is not None:
-            ahead.close()
+            ahead.call.close()
         recorder.results_written.set()
         if not recorder.record:
             recorder.join()  # failed: it ends without recording
