@@ -54,6 +54,7 @@ def test_analyze_session_imports_no_opencv_nor_tifffile(small_mtf: Path, tmp_pat
     assert status == 0 and (path / "results" / "v2" / "summary.json").is_file()
     heavy = sorted({m.split(".")[0] for m in loaded} & set(NOT_IMPORTED))
     assert heavy == []
+    assert "numpy.ma" not in loaded  # 7-12 ms: benchlab.analysis.quantiles, not numpy's
     # ... while the code that used them ran: the chart finder, the hole fill, frame loads
     for used in ("benchlab.analysis.chart_finder", "benchlab.analysis.morphology",
                  "benchlab.analysis.geometry", "benchlab.tiff_strips"):

@@ -48,6 +48,7 @@ from benchlab.analysis.bargeometry import (
     refine_by_folding,
 )
 from benchlab.analysis.projection import across_coordinate, filled_bin_means
+from benchlab.analysis.quantiles import percentiles
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -928,7 +929,7 @@ def _censored(
     for c in np.flatnonzero((n_clip > 0) & ~bad):
         members = flat_cell == c
         x = out[members]
-        m, q16 = (float(v) for v in np.percentile(x, [50.0, 15.87]))
+        m, q16 = (float(v) for v in percentiles(x, [50.0, 15.87]))
         s = max(m - q16, 1e-9)
         a = (top - m) / s
         upper = max(0.5 * math.erfc(a / math.sqrt(2.0)), 1e-12)  # 1 - Phi(a)

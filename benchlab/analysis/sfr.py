@@ -55,6 +55,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.projection import across_coordinate, bin_profile, bin_profiles
+from benchlab.analysis.quantiles import median, percentiles
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -361,7 +362,7 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
     if row_diff.size == 0:
         return 0.0
     d = row_diff.ravel()
-    mad = float(np.median(np.abs(d - np.median(d))))
+    mad = float(median(np.abs(d - median(d))))
     return 1.4826 * mad / math.sqrt(2.0)
 
 
@@ -406,7 +407,7 @@ def _fit_edge(
             break
         coeffs, fitted = _polyfit(rows[keep], cents[keep], order), True
         res = np.abs(cents - np.polyval(coeffs, rows))
-        limit = max(4.0 * 1.4826 * float(np.median(res[keep])), 0.25)
+        limit = max(4.0 * 1.4826 * float(median(res[keep])), 0.25)
         new_keep = finite & (res <= limit)
         if np.array_equal(new_keep, keep):
             break
@@ -464,7 +465,7 @@ def _esf_samples(
     pos, sq = pos_p.mean, sq_p.mean
     counts = prof.count
     filled = counts > 0
-    typical = float(np.median(counts[filled]))
+    typical = float(median(counts[filled]))
     good = counts >= max(1.0, 0.2 * typical)
     idx = np.flatnonzero(good)
     centre = int(np.argmin(np.abs(prof.u_px)))
@@ -697,7 +698,7 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     a plateau is too short to fit.
     """
     n = s.esf.size
-    step = float(np.median(np.diff(s.u))) if n > 1 else 1.0
+    step = float(median(np.diff(s.u))) if n > 1 else 1.0
     m = max(1, int(round(SUPPORT_SPAN_PX / max(step, 1e-6))))
     if n < 4 * m + 8:
         return 0.0
@@ -706,7 +707,7 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     smooth = np.convolve(s.esf, kernel, mode="valid")
     sd = np.sqrt(np.convolve(var, kernel * kernel, mode="valid"))
     at = np.convolve(s.u, kernel, mode="valid")
-    full = np.convolve(s.count >= 0.8 * float(np.median(s.count)), kernel, mode="valid") > 0.99
+    full = np.convolve(s.count >= 0.8 * float(median(s.count)), kernel, mode="valid") > 0.99
     centre = int(np.argmin(np.abs(at)))
     floor = SUPPORT_FLOOR_OF_STEP * abs(noise.bright - noise.dark)
     reach = 0.0
@@ -767,7 +768,7 @@ def _plateau_noise_var(
             # Differences along a plateau are centred on 0. The median of |d| alone misreads
             # quantised noise (it is a whole number of codes: 1.5 codes of noise can read as
             # 1.05), so it only sets a 5-sigma cut for the RMS of what is left.
-            cut = 5.0 * max(1.4826 * float(np.median(np.abs(vals))), code_step)
+            cut = 5.0 * max(1.4826 * float(median(np.abs(vals))), code_step)
             kept = vals[np.abs(vals) <= cut]
             sig = math.sqrt(float(np.mean(kept * kept)) / 2.0) if kept.size else 0.0
         out.append(max(sig * sig, code_step * code_step / 12.0))
@@ -883,7 +884,7 @@ def measure_sfr(
     n_rows, n_cols = work.shape
     row_diff = np.diff(work, axis=0)
     noise = difference_noise_sigma(row_diff)
-    p02, p98 = np.percentile(work, [2.0, 98.0])
+    p02, p98 = percentiles(work, [2.0, 98.0])
     spread = float(p98 - p02)
 
     reasons: list[str] = []
