@@ -16,8 +16,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import tomllib
-from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -129,7 +127,12 @@ def _parse_curves(p: Path) -> list[SimulatedCurve]:
     if suffix not in (".toml", ".json"):
         return load_simulated_curves(p)
     text = p.read_text(encoding="utf-8")
-    data = tomllib.loads(text) if suffix == ".toml" else json.loads(text)
+    if suffix == ".toml":
+        import tomllib  # only for a TOML curve file (the shipped one is JSON): start-up
+
+        data = tomllib.loads(text)
+    else:
+        data = json.loads(text)
     return [
         SimulatedCurve(c["view"], float(c["field_angle_deg"]), c["direction"],
                        np.asarray(c["freq_lp_per_mm"], dtype=np.float64),
@@ -139,8 +142,11 @@ def _parse_curves(p: Path) -> list[SimulatedCurve]:
 
 
 def default_curves_path() -> Path:
-    """The shipped default curve file."""
-    return Path(str(resources.files("benchlab.protocols") / "defaults" / "simulated-mtf.json"))
+    """The shipped default curve file (beside the protocols package, as installed; the
+    package's path, not :mod:`importlib.resources`, whose import costs ~3 ms of start-up)."""
+    import benchlab.protocols
+
+    return Path(benchlab.protocols.__file__).parent / "defaults" / "simulated-mtf.json"
 
 
 def main() -> None:  # pragma: no cover - regenerates the shipped file
