@@ -19,6 +19,7 @@ from test_protocol_helpers import MTF_SMALL, run_sim
 
 import benchlab.protocols.mtf_analysis as mtf_analysis
 from benchlab.analysis.edge_target import edge_specs
+from benchlab.cli.main import ONE_BLAS_THREAD
 from benchlab.forked import SERIAL_ENV, SharedFlags, usable_cpus
 from benchlab.protocols.mtf_analysis import ForwardAhead, analyze_mtf
 from benchlab.protocols.params import MtfParams
@@ -41,6 +42,7 @@ try:
 except ChildProcessError:
     outcome["children"] = "none"
 outcome["chart finder imported"] = "benchlab.analysis.chart_finder" in sys.modules
+outcome["blas threads"] = os.environ.get("OPENBLAS_NUM_THREADS")
 sys.stdout.flush()
 print("\\n" + json.dumps(outcome))
 """
@@ -75,14 +77,17 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 def _analyze(path: Path, *, serial: bool, patch: str = "") -> tuple[dict[str, Any], str]:
-    env = {k: v for k, v in os.environ.items() if k != SERIAL_ENV}
+    env = {k: v for k, v in os.environ.items()
+           if k not in (SERIAL_ENV, *ONE_BLAS_THREAD)}
     if serial:
         env[SERIAL_ENV] = "1"
     code = _PROGRAM.format(patch=patch, args=["--log-level", "debug", "analyze", str(path)])
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=env, timeout=120)
     assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+    outcome = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcome.pop("blas threads") == "1"  # set by the program, before numpy's import
+    return outcome, done.stderr
 
 
 def _files(version: Path) -> dict[str, bytes]:
@@ -232,3 +237,13 @@ def test_a_forward_part_from_elsewhere_is_used_only_when_whole_and_same_estimato
     for wrong in (other, missing):  # another estimator's, an edge missing: computed here
         with pytest.raises(ValueError, match="no bars"):
             analyze_mtf(session, params, None, ForwardAhead(lambda w=wrong: w))
+
+
+def test_analyze_keeps_the_users_blas_threads(small_mtf: Path, tmp_path: Path) -> None:
+    path = _copy(small_mtf, tmp_path)
+    code = _PROGRAM.format(patch="", args=["analyze", str(path)])
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", SERIAL_ENV: "1"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120, check=True)
+    outcome = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcome["status"] == 0 and outcome["blas threads"] == "2"

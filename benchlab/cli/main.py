@@ -54,6 +54,11 @@ COMMAND_OWNERS = {
     "config": "benchlab.cli.config",
 }
 LOG_LEVELS = ("debug", "info", "warning", "error")
+#: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import
+#: and they spin waiting for work (~90 ms of CPU during the import, ~15 ms per 50 ms after),
+#: taking a core from the frame loads and the forked child; the analysis's linear algebra
+#: is a few dozen points (least squares), which gains nothing from them.
+ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Top-level options that take a value as the next word (``--log-level info``).
 _OPTIONS_WITH_VALUE = ("--log-level", "--trace-io")
 
@@ -136,13 +141,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     interpreter's exit over every object of numpy and benchlab took 20-60 ms of a 0.4 s
     ``benchlab analyze SESSION`` (issue 11). Exit handlers and buffered output are unchanged.
     ``analyze`` (one image or a re-analysis: short, few reference cycles) also runs without
-    cycle collection: ~60 passes over the objects of the imports cost it 10-15 ms.
+    cycle collection: ~60 passes over the objects of the imports cost it 10-15 ms, and with
+    one BLAS thread (:data:`ONE_BLAS_THREAD`, unless the user set them).
     """
     import gc
 
     program = argv is None
     if program and command_of(sys.argv[1:]) == "analyze":
         gc.disable()  # not enabled again: the process ends with the command
+        for name in ONE_BLAS_THREAD:  # before numpy is imported (nothing above imports it)
+            os.environ.setdefault(name, "1")
     status = _main(argv)
     if program:
         gc.freeze()
