@@ -10,7 +10,7 @@ import time
 from collections.abc import Mapping, Sequence
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.drivers.errors import BenchlabError
 
@@ -201,47 +201,40 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
-class _Ahead(NamedTuple):
-    """The forward frame's analysis started in a child process, and the flags by which the
-    two processes split the slanted edges."""
-
-    call: ForkedCall[ForwardPart]
-    claims: SharedFlags
-
-
 #: Flags shared with the child: one per slanted edge (there are 12; a 13th and later edge
 #: would be measured by both processes).
 _EDGE_FLAGS = 64
 
 
-def _open_prefetching(folder: Path, estimator: str | None) -> tuple[Session | None,
-                                                                      _Ahead | None]:
+def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
+    Session | None, ForkedCall[ForwardPart] | None, SharedFlags | None
+]:
     """The MTF session at ``folder``, its frames already loading on threads (inflating
     releases the GIL), so the loads overlap the import of the protocols and the analysis
     (start-up, issue 11), and its forward frame analysed in a forked child process
     (:mod:`benchlab.forked`; forked first, while this process has no other thread); None for
     anything else, which :func:`reanalyze` then opens and reports on as always (a folder that
-    is not a session, another procedure)."""
+    is not a session, another procedure). With the child: its call, and the flags by which the
+    two processes split the slanted edges."""
     from benchlab import forked
     from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
     try:
         session = Session.open(folder)
         if session.procedure != "mtf":
-            return None, None
+            return None, None, None
     except (SessionError, OSError, KeyError):
-        return None, None
+        return None, None, None
     claims = forked.SharedFlags(_EDGE_FLAGS)
     call = forked.start(partial(_forward_part, session, estimator, claims),
                         f"{folder}: the forward frame's analysis")
-    ahead = None if call is None else _Ahead(call, claims)
     try:
         session.prefetch_frames(FRAME_LOAD_THREADS)
     except (SessionError, OSError, KeyError):
         if call is not None:
             call.close()
-        return None, None
-    return session, ahead
+        return None, None, None
+    return session, call, claims
 
 
 def _forward_part(session: Session, estimator: str | None, claims: SharedFlags) -> ForwardPart:
@@ -267,7 +260,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
     estimator = getattr(args, "estimator", None)
-    early, ahead = _open_prefetching(Path(target), estimator)
+    early, child, claims = _open_prefetching(Path(target), estimator)
     # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
     # the analysis runs, records once the results are written, overlapping the printing; it
     # never raises, and the process waits for it before it ends. Nothing is recorded when the
@@ -275,16 +268,19 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     recorder = _CatalogueRecorder(Path(target))
     recorder.start()
     try:
-        from benchlab.protocols.mtf_analysis import ForwardAhead
         from benchlab.protocols.runs import reanalyze
 
+        ahead = None
+        if child is not None:  # an MTF session
+            from benchlab.protocols.mtf_analysis import ForwardAhead
+
+            ahead = ForwardAhead(child.result, claims)
         out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
-                        forward_ahead=None if ahead is None
-                        else ForwardAhead(ahead.call.result, ahead.claims))
+                        forward_ahead=ahead)
         recorder.record = True
     finally:
-        if ahead is not None:
-            ahead.call.close()
+        if child is not None:
+            child.close()
         recorder.results_written.set()
         if not recorder.record:
             recorder.join()  # failed: it ends without recording
