@@ -16,7 +16,9 @@ from hypothesis.extra.numpy import arrays
 
 from benchlab.analysis import profilefit
 from benchlab.analysis.bargeometry import (
+    QUICK_MIN_Z,
     detrend,
+    fundamental_is_clear,
     measure_geometry,
     quick_fundamental,
     quick_geometry,
@@ -243,9 +245,19 @@ def test_quick_fundamental_is_quick_geometry_without_its_uncertainties(
     geom = quick_geometry(prep.pixels, prep.noise_sigma, 1 / 6.0, sums=prep.profile_sums)
     parts = quick_fundamental(prep.pixels, prep.noise_sigma, 1 / 6.0, None, prep.profile_sums)
     assert geom is not None and parts is not None
-    theta, f, value, amplitude, _ = parts
-    assert (theta, f, amplitude) == (geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
-    assert math.atan2(value.imag, value.real) / (2 * math.pi) == geom.phase_cycles
+    assert (parts.theta_rad, parts.freq_cycles_per_px, parts.amplitude) == (
+        geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
+    assert parts.phase_cycles == geom.phase_cycles
+    # Without a noise, the noise test is the caller's: the same fundamental, and the test
+    # passes at this noise and fails at one the fundamental does not stand clear of.
+    unchecked = quick_fundamental(prep.pixels, None, 1 / 6.0, None, prep.profile_sums)
+    assert unchecked == parts
+    assert fundamental_is_clear(parts, prep.noise_sigma)
+    n = parts.shape[0] * parts.shape[1]
+    z_limit = parts.amplitude / (QUICK_MIN_Z * math.sqrt(2.0 / n))  # the noise at the limit
+    assert fundamental_is_clear(parts, 0.99 * z_limit)
+    assert not fundamental_is_clear(parts, 1.01 * z_limit)
+    assert not fundamental_is_clear(parts._replace(power=3 * parts.amplitude**2), 0.0)
 
 
 @pytest.mark.parametrize("orientation", [None, "vertical"])
