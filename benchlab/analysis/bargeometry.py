@@ -137,7 +137,9 @@ def detrend(img: FloatArray, sums: tuple[FloatArray, FloatArray] | None = None) 
     # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
     gx = float(add(col_sums * x)) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
     gy = float(add(row_sums * y)) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
-    return img - ((gy * y)[:, None] + (mean + gx * x)[None, :])
+    resid = img - (mean + gy * y)[:, None]
+    resid -= (gx * x)[None, :]
+    return resid
 
 
 def dft_at(img: FloatArray, kx: float, ky: float) -> complex:

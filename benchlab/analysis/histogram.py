@@ -278,7 +278,7 @@ def _read(
     separation = (x_bright - x_dark) / sigma
     split_value = origin + (valley_pos - pad) * width
     if exact:  # pixels at or below the valley's bin centre = counts up to that bin
-        n_low = int(counts[: max(valley_pos - pad + 1, 0)].sum())
+        n_low = int(np.add.reduce(counts[: max(valley_pos - pad + 1, 0)]))
     else:
         n_low = int(np.count_nonzero(values <= split_value + 1e-9 * width))
     side_fraction = min(n_low, values.size - n_low) / values.size
