@@ -139,7 +139,8 @@ class PreparedROI:
             px_per_period=(1.0 / f) if f else None,
             freq_cycles_per_px=f,
             clipped_fraction=self.clipped_fraction,
-            noise_sigma=self.noise_sigma,
+            # Not measured only to be overridden (the noise is measured on first use).
+            noise_sigma=fields["noise_sigma"] if "noise_sigma" in fields else self.noise_sigma,
             aliased=aliased,
             phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
             code_step=self.code_step if self.integer_valued else None,
