@@ -70,8 +70,6 @@ import numpy.typing as npt
 from benchlab.analysis.barmodel import edge_response
 from benchlab.analysis.projection import across_coordinate
 from benchlab.analysis.result import (
-    NYQUIST_CYCLES_PER_PX,
-    PHASE_SENSITIVE_CYCLES_PER_PX,
     Diagnostics,
     ModulationResult,
     eq29_modulation,
