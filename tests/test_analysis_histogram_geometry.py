@@ -82,12 +82,13 @@ def test_quick_geometry_reads_like_the_spectral_search(
 def test_bar_centre_bins_lie_within_the_phase_window() -> None:
     near, wide = histogram._phase_tables(histogram.NOISE_BINS)
     n = histogram.NOISE_BINS
-    mids = (np.arange(n + 1) + 0.5) / n % 1.0
+    mids = (np.arange(n) + 0.5) / n % 1.0
     dist = np.minimum(np.abs(mids - np.rint(mids)), np.abs(mids - 0.5))
     assert np.all(dist[near] <= histogram.PHASE_WINDOW)
     assert np.all(dist[~near] > histogram.PHASE_WINDOW)
     assert np.all(near <= wide) and wide.sum() > near.sum()
     assert near[0] and near[n // 2] and not near[n // 4]  # bar and space centres, not edges
+    assert n & (n - 1) == 0  # a power of two: the phase bin is a cell's low bits
 
 
 def test_selected_pixels_are_bar_and_space_centres() -> None:

@@ -111,7 +111,7 @@ def test_selected_keeps_every_other_fact() -> None:
     sub = prep.selected(pixels, 0.7, 60.0, 180.0)
     assert sub.pixels is pixels
     assert (sub.noise_sigma, sub.vmin, sub.vmax) == (0.7, 60.0, 180.0)
-    same = {"pixels", "noise_sigma", "vmin", "vmax"}
+    same = {"pixels", "known_noise", "vmin", "vmax"}
     for f in dataclasses.fields(prep):
         if f.name not in same:
             assert getattr(sub, f.name) == getattr(prep, f.name), f.name

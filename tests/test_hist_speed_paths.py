@@ -16,14 +16,16 @@ from hypothesis.extra.numpy import arrays
 
 from benchlab.analysis import profilefit
 from benchlab.analysis.bargeometry import (
+    QUICK_MIN_Z,
     detrend,
+    fundamental_is_clear,
     measure_geometry,
     quick_fundamental,
     quick_geometry,
 )
 from benchlab.analysis.estimators import estimate_modulation
 from benchlab.analysis.projection import across_coordinate, bin_profiles, filled_bin_means
-from benchlab.analysis.roi import _axis_and_sums, detect_axis, prepare_roi
+from benchlab.analysis.roi import _axis_and_sums, detect_axis, prepare_roi, robust_noise_sigma
 from benchlab.analysis.synthetic import BarCase, render
 from benchlab.analysis.uncertainty import bootstrap_result
 
@@ -166,6 +168,8 @@ def test_geometry_with_profile_sums_is_the_same(shape: tuple[int, int]) -> None:
     roi = render(BarCase(shape=shape, px_per_period=7.0, angle_deg=31.0, noise_sigma=2.0,
                          shading=0.2), np.random.default_rng(3))
     prep = prepare_roi(roi, freq_cycles_per_px=1 / 7.0)
+    assert prep.profile_sums is None  # measured with the axis, on first use
+    assert prep.axis == detect_axis(prep.pixels)
     assert prep.profile_sums is not None
     img = prep.pixels
     assert quick_geometry(img, prep.noise_sigma, 1 / 7.0, sums=prep.profile_sums) == (
@@ -178,9 +182,9 @@ def test_geometry_with_profile_sums_is_the_same(shape: tuple[int, int]) -> None:
 def test_profile_sums_only_where_the_orientation_was_detected() -> None:
     roi = render(BarCase(shape=(30, 40), px_per_period=6.0, noise_sigma=1.0),
                  np.random.default_rng(0))
-    assert prepare_roi(roi).profile_sums is not None
-    assert prepare_roi(roi, orientation="horizontal").profile_sums is None
-    prep = prepare_roi(roi)
+    assert prepare_roi(roi).measured().profile_sums is not None
+    assert prepare_roi(roi, orientation="horizontal").measured().profile_sums is None
+    prep = prepare_roi(roi).measured()
     same = prep.selected(prep.pixels, 1.0, prep.vmin, prep.vmax)
     assert same.sums_for(same.pixels) is not None
     other = prep.selected(prep.pixels[:, :20], 1.0, prep.vmin, prep.vmax)
@@ -194,7 +198,7 @@ def test_bootstrap_resamples_do_not_reuse_the_roi_profile_sums() -> None:
     the original's, the resamples would read a different, wrong plane)."""
     roi = render(BarCase(shape=(40, 50), px_per_period=8.0, angle_deg=0.0, noise_sigma=3.0,
                          shading=0.25), np.random.default_rng(5))
-    with_sums = prepare_roi(roi, freq_cycles_per_px=0.125)
+    with_sums = prepare_roi(roi, freq_cycles_per_px=0.125).measured()
     assert with_sums.profile_sums is not None
     without = dataclasses.replace(with_sums, profile_sums=None)
     fit = profilefit.profile_fit(with_sums)
@@ -241,6 +245,39 @@ def test_quick_fundamental_is_quick_geometry_without_its_uncertainties(
     geom = quick_geometry(prep.pixels, prep.noise_sigma, 1 / 6.0, sums=prep.profile_sums)
     parts = quick_fundamental(prep.pixels, prep.noise_sigma, 1 / 6.0, None, prep.profile_sums)
     assert geom is not None and parts is not None
-    theta, f, value, amplitude, _ = parts
-    assert (theta, f, amplitude) == (geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
-    assert math.atan2(value.imag, value.real) / (2 * math.pi) == geom.phase_cycles
+    assert (parts.theta_rad, parts.freq_cycles_per_px, parts.amplitude) == (
+        geom.theta_rad, geom.freq_cycles_per_px, geom.amplitude)
+    assert parts.phase_cycles == geom.phase_cycles
+    # Without a noise, the noise test is the caller's: the same fundamental, and the test
+    # passes at this noise and fails at one the fundamental does not stand clear of.
+    unchecked = quick_fundamental(prep.pixels, None, 1 / 6.0, None, prep.profile_sums)
+    assert unchecked == parts
+    assert fundamental_is_clear(parts, prep.noise_sigma)
+    n = parts.shape[0] * parts.shape[1]
+    z_limit = parts.amplitude / (QUICK_MIN_Z * math.sqrt(2.0 / n))  # the noise at the limit
+    assert fundamental_is_clear(parts, 0.99 * z_limit)
+    assert not fundamental_is_clear(parts, 1.01 * z_limit)
+    assert not fundamental_is_clear(parts._replace(power=3 * parts.amplitude**2), 0.0)
+
+
+@pytest.mark.parametrize("orientation", [None, "vertical"])
+def test_axis_and_noise_measured_on_first_use_as_before(orientation: str | None) -> None:
+    """prepare_roi leaves the axis and the noise to their first use (the histogram method
+    with a frequency needs neither); measured then, they are what it used to measure."""
+    roi = render(BarCase(shape=(40, 50), px_per_period=8.0, angle_deg=70.0, noise_sigma=2.0),
+                 np.random.default_rng(6))
+    prep = prepare_roi(roi, freq_cycles_per_px=0.125, orientation=orientation)
+    assert prep.known_noise is None
+    assert prep.known_axis == (None if orientation is None else 0)
+    axis = detect_axis(prep.pixels)
+    assert axis == 0
+    assert prep.noise_sigma == robust_noise_sigma(prep.pixels, axis)
+    assert (prep.known_axis, prep.known_noise) == (axis, prep.noise_sigma)
+    # The code-step floor applies to the lazily measured noise too.
+    flat = prepare_roi(np.full((10, 10), 9, np.uint8))
+    assert flat.noise_sigma == pytest.approx(1 / np.sqrt(12.0))
+    # Given or from frames: known at once.
+    assert prepare_roi(roi, noise_sigma=1.25).known_noise == 1.25
+    frames = np.stack([roi, roi + 1, roi])
+    assert prepare_roi(frames).known_noise is not None
+

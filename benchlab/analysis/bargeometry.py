@@ -31,6 +31,7 @@ import cmath
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -136,7 +137,9 @@ def detrend(img: FloatArray, sums: tuple[FloatArray, FloatArray] | None = None) 
     # x and y sum to zero, so the slopes need no mean removed first; sum x^2 = n(n^2 - 1)/12.
     gx = float(add(col_sums * x)) * 12.0 / (rows * cols * (cols * cols - 1)) if cols > 1 else 0.0
     gy = float(add(row_sums * y)) * 12.0 / (rows * cols * (rows * rows - 1)) if rows > 1 else 0.0
-    return img - ((gy * y)[:, None] + (mean + gx * x)[None, :])
+    resid = img - (mean + gy * y)[:, None]
+    resid -= (gx * x)[None, :]
+    return resid
 
 
 def dft_at(img: FloatArray, kx: float, ky: float) -> complex:
@@ -254,11 +257,13 @@ def structure_tensor_direction(resid: FloatArray) -> tuple[float, float]:
         ``theta`` (radians, in (-pi/2, pi/2], as :class:`BarGeometry`) and the coherence
         ``|J1 - J2| / (J1 + J2)`` of the tensor's eigenvalues (0 = isotropic, 1 = one direction).
     """
-    d1 = resid[1:, 1:] - resid[:-1, :-1]  # along (x, y) = (1, 1)
-    d2 = resid[1:, :-1] - resid[:-1, 1:]  # along (-1, 1)
-    s11 = float(np.einsum("ij,ij->", d1, d1))
-    s22 = float(np.einsum("ij,ij->", d2, d2))
-    s12 = float(np.einsum("ij,ij->", d1, d2))
+    rows, cols = resid.shape
+    cells = np.empty((2, rows - 1, cols - 1))
+    np.subtract(resid[1:, 1:], resid[:-1, :-1], out=cells[0])  # along (x, y) = (1, 1)
+    np.subtract(resid[1:, :-1], resid[:-1, 1:], out=cells[1])  # along (-1, 1)
+    flat = cells.reshape(2, -1)
+    # The three sums in one einsum (numpy's own loop: no BLAS threads on large crops).
+    (s11, s12), (_, s22) = np.einsum("kn,ln->kl", flat, flat).tolist()
     # gx = (d1 - d2) / 2, gy = (d1 + d2) / 2: Jxx - Jyy = -s12, 2 Jxy = (s11 - s22) / 2.
     a, b = -s12, 0.5 * (s11 - s22)
     total = 0.5 * (s11 + s22)
@@ -357,6 +362,21 @@ def _uncertainties(
     return base / max(s_v, 0.5) / f, base / max(s_u, 0.5), base * math.sqrt(2.0) / 2.0
 
 
+class Fundamental(NamedTuple):
+    """The bars' fundamental as :func:`quick_fundamental` measures it."""
+
+    theta_rad: float  #: direction in which the intensity varies, in (-pi/2, pi/2]
+    freq_cycles_per_px: float
+    value: complex  #: the DFT at ``f (cos t, sin t)``, phases from the centre
+    amplitude: float  #: gray units
+    shape: tuple[int, int]  #: the shape measured (a centred crop of large ROIs)
+    power: float  #: mean square of the measured pixels about their plane (gray^2)
+
+    @property
+    def phase_cycles(self) -> float:
+        return math.atan2(self.value.imag, self.value.real) / (2 * math.pi)
+
+
 def quick_geometry(
     img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None = None,
     sums: tuple[FloatArray, FloatArray] | None = None,
@@ -371,9 +391,8 @@ def quick_geometry(
     twice; the phase and amplitude are those of the whole ROI's DFT. No 2-D spectrum, no
     search: what the bar-centre selection of the histogram method needs, at a fraction of the
     cost. It declines ROIs under ``QUICK_MIN_PIXELS`` or ``QUICK_MIN_PERIODS`` periods, a
-    refinement that does not settle, a frequency outside the prior's band, a fundamental
-    under ``QUICK_MIN_Z`` standard errors and one carrying less than
-    ``QUICK_MIN_POWER_SHARE`` of the power above the noise (a side lobe).
+    refinement that does not settle, a frequency outside the prior's band, and a fundamental
+    that is not clear of the noise (:func:`fundamental_is_clear`).
 
     Parameters
     ----------
@@ -397,30 +416,55 @@ def quick_geometry(
     found = quick_fundamental(img, noise_sigma, freq_prior, resid, sums)
     if found is None:
         return None
-    theta, f, value, amplitude, shape = found
-    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    theta_sd, freq_sd, phase_sd = _uncertainties(shape, theta, f, amplitude, noise_sigma)
-    return BarGeometry(theta, f, phase, amplitude, theta_sd, freq_sd, phase_sd)
+    theta_sd, freq_sd, phase_sd = _uncertainties(
+        found.shape, found.theta_rad, found.freq_cycles_per_px, found.amplitude, noise_sigma)
+    return BarGeometry(found.theta_rad, found.freq_cycles_per_px, found.phase_cycles,
+                       found.amplitude, theta_sd, freq_sd, phase_sd)
 
 
-def quick_fundamental(
-    img: FloatArray, noise_sigma: float, freq_prior: float, resid: FloatArray | None,
-    sums: tuple[FloatArray, FloatArray] | None,
-) -> tuple[float, float, complex, float, tuple[int, int]] | None:
-    """:func:`quick_geometry` without its phase and uncertainties (which
-    :func:`measure_geometry`'s start and the histogram method's bin phases do not need).
+def fundamental_is_clear(found: Fundamental, noise_sigma: float) -> bool:
+    """Whether a fundamental from :func:`quick_fundamental` stands clear of the noise: at
+    least ``QUICK_MIN_Z`` standard errors, and at least ``QUICK_MIN_POWER_SHARE`` of the power
+    above the noise (a fundamental holds >= 3/4 of a square wave's, a side lobe or a harmonic
+    of the bars much less).
 
     Parameters
     ----------
-    img, noise_sigma, freq_prior, resid, sums
-        As :func:`quick_geometry`.
+    found : Fundamental
+        From :func:`quick_fundamental`.
+    noise_sigma : float
+        Per-pixel noise (gray units).
 
     Returns
     -------
-    (float, float, complex, float, (int, int)) or None
-        Direction ``theta`` (rad), frequency (cycles/px), the DFT at ``f (cos t, sin t)``
-        (phases from the centre), the fundamental amplitude and the shape measured (a crop
-        of large ROIs); ``None`` where :func:`quick_geometry` declines.
+    bool
+    """
+    n = found.shape[0] * found.shape[1]
+    if found.amplitude < QUICK_MIN_Z * max(noise_sigma, 1e-12) * math.sqrt(2.0 / n):
+        return False
+    above_noise = found.power - noise_sigma**2
+    return found.amplitude * found.amplitude / 2.0 >= QUICK_MIN_POWER_SHARE * above_noise
+
+
+def quick_fundamental(
+    img: FloatArray, noise_sigma: float | None, freq_prior: float, resid: FloatArray | None,
+    sums: tuple[FloatArray, FloatArray] | None,
+) -> Fundamental | None:
+    """:func:`quick_geometry` without its uncertainties (which :func:`measure_geometry`'s
+    start and the histogram method's bin phases do not need).
+
+    Parameters
+    ----------
+    img, freq_prior, resid, sums
+        As :func:`quick_geometry`.
+    noise_sigma : float or None
+        As :func:`quick_geometry`; ``None`` leaves :func:`fundamental_is_clear` to the caller
+        (the histogram method measures the noise about the bars' profile afterwards).
+
+    Returns
+    -------
+    Fundamental or None
+        ``None`` where :func:`quick_geometry` declines.
     """
     rows, cols = img.shape
     n = rows * cols
@@ -459,15 +503,11 @@ def quick_fundamental(
         # The opposite k describes the same bars: its DFT is the conjugate.
         theta = theta + math.pi if theta <= 0 else theta - math.pi
         value = value.conjugate()
-    amplitude = 2.0 * abs(value) / n
-    if amplitude < QUICK_MIN_Z * max(noise_sigma, 1e-12) * math.sqrt(2.0 / n):
+    power = float(np.einsum("ij,ij->", resid, resid)) / n
+    found = Fundamental(theta, f, value, 2.0 * abs(value) / n, (rows, cols), power)
+    if noise_sigma is not None and not fundamental_is_clear(found, noise_sigma):
         return None
-    # A settled k must carry the bars' power (a fundamental holds >= 3/4 of a square wave's),
-    # not a side lobe or harmonic of them.
-    power = float(np.einsum("ij,ij->", resid, resid)) / n - noise_sigma**2
-    if amplitude * amplitude / 2.0 < QUICK_MIN_POWER_SHARE * power:
-        return None
-    return theta, f, value, amplitude, (rows, cols)
+    return found
 
 
 def _spectral_peak(
@@ -543,9 +583,9 @@ def measure_geometry(
                          _centred_crop(resid, QUICK_CROP_PX), None)
     if start is not None:
         # As BarGeometry.k_xy of quick_geometry's result.
-        q_theta, q_f, _, q_amplitude, _ = start
+        q_theta, q_f = start.theta_rad, start.freq_cycles_per_px
         peak: tuple[float, float, float] | None = (
-            q_f * math.cos(q_theta), q_f * math.sin(q_theta), q_amplitude)
+            q_f * math.cos(q_theta), q_f * math.sin(q_theta), start.amplitude)
     else:
         peak = _spectral_peak(resid, freq_prior, f_lo, f_hi)
     if peak is None:

@@ -763,16 +763,7 @@ def _reading_roi(
     longer = posed_bar_set_roi(posed.centre_rc, posed.bar_width_px, posed.theta_deg,
                                margin_px=-READING_END_PX,
                                half_across_widths=WHOLE_PERIODS_HALF_WIDTHS)
-    r0, c0, r1, c1 = longer
-    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]):
-        return None
-    reach = math.dist((r0, c0), (r1, c1))
-    for o in placed:
-        if o is not posed and math.dist(o.centre_rc, posed.centre_rc) <= reach + (
-            o.half_size_px + NEIGHBOUR_MARGIN_PX
-        ) * math.sqrt(2.0) and _box_meets_set(longer, o):
-            return None
-    return longer
+    return longer if _on_frame(longer, shape) and _clear_of_others(longer, posed, placed) else None
 
 
 def _measurement_roi(
@@ -783,17 +774,11 @@ def _measurement_roi(
     Three whole periods across the bars when that box stays on the frame and clear of every
     other set (with :data:`NEIGHBOUR_MARGIN_PX` for its blur), else the bar-set ROI.
     """
-    reach = (WHOLE_PERIODS_HALF_WIDTHS * posed.bar_width_px + 2.0) * math.sqrt(2.0)
-    others = [o for o in placed if o is not posed and math.dist(o.centre_rc, posed.centre_rc)
-              <= reach + (o.half_size_px + NEIGHBOUR_MARGIN_PX) * math.sqrt(2.0)]
     box = posed.whole_period_roi
-    r0, c0, r1, c1 = box
-    if not (0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]) or any(
-        _box_meets_set(box, o) for o in others
-    ):
+    if not (_on_frame(box, shape) and _clear_of_others(box, posed, placed)):
         box = posed.roi
-    if any(_box_meets_set(box, o) for o in others):
-        return box, "a neighbouring bar set reaches into the ROI"
+        if not _clear_of_others(box, posed, placed):
+            return box, "a neighbouring bar set reaches into the ROI"
     p = posed.px_per_period
     r0, c0, r1, c1 = box
     t = math.radians(posed.theta_deg)
@@ -802,6 +787,17 @@ def _measurement_roi(
         return box, (f"not measurable: the ROI spans {span / p:.1f} periods across the bars "
                      f"(< {MIN_ROI_PERIODS:g})")
     return box, None
+
+
+def _on_frame(box: Box, shape: tuple[int, int]) -> bool:
+    """Whether ``box`` (r0, c0, r1, c1; ends exclusive) lies within a frame of ``shape``."""
+    r0, c0, r1, c1 = box
+    return 0 <= r0 and 0 <= c0 and r1 <= shape[0] and c1 <= shape[1]
+
+
+def _clear_of_others(box: Box, posed: PosedBarSet, placed: list[PosedBarSet]) -> bool:
+    """Whether ``box`` meets no set of ``placed`` but ``posed`` (:func:`_box_meets_set`)."""
+    return not any(o is not posed and _box_meets_set(box, o) for o in placed)
 
 
 def _box_meets_set(box: Box, other: PosedBarSet) -> bool:

@@ -40,12 +40,17 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bargeometry import detrend, measure_geometry, quick_fundamental
-from benchlab.analysis.projection import across_coordinate
+from benchlab.analysis.bargeometry import (
+    detrend,
+    fundamental_is_clear,
+    measure_geometry,
+    quick_fundamental,
+)
 from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
 from benchlab.analysis.roi import PreparedROI
 
@@ -66,7 +71,8 @@ MODEL_SD = 0.015
 #: Fewer centre pixels than this: the window is widened (tiny ROIs).
 MIN_CENTRE_PIXELS = 48
 #: Phase bins for the noise estimate (scatter about the phase-binned profile) and the bar and
-#: space centres (a multiple of ``1 / PHASE_WINDOW``: the window is whole bins).
+#: space centres (a multiple of ``1 / PHASE_WINDOW``: the window is whole bins; a power of
+#: two: the bin is the low bits of a cell, see :class:`_Phases`).
 NOISE_BINS = 32
 #: Below this significance of the fundamental (amplitude over its standard error) the ROI
 #: shows no bar pattern: not resolved, whatever its histogram (shading on a flat ROI, or a
@@ -272,7 +278,7 @@ def _read(
     separation = (x_bright - x_dark) / sigma
     split_value = origin + (valley_pos - pad) * width
     if exact:  # pixels at or below the valley's bin centre = counts up to that bin
-        n_low = int(counts[: max(valley_pos - pad + 1, 0)].sum())
+        n_low = int(np.add.reduce(counts[: max(valley_pos - pad + 1, 0)]))
     else:
         n_low = int(np.count_nonzero(values <= split_value + 1e-9 * width))
     side_fraction = min(n_low, values.size - n_low) / values.size
@@ -379,35 +385,86 @@ def _histogram_peak(prep: PreparedROI, n_roi: int | None = None) -> ModulationRe
 
 
 def _phase_tables(n_bins: int) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Which of ``n_bins`` phase bins (bin ``i`` covers ``[i, i + 1) / n_bins`` cycles, one
-    extra bin for ``w`` rounding up to 1) lie within ``PHASE_WINDOW`` and twice that of a bar
-    (0) or space (1/2) centre."""
-    lo = np.arange(n_bins + 1) / n_bins
+    """Which of ``n_bins`` phase bins (bin ``i`` covers ``[i, i + 1) / n_bins`` cycles) lie
+    within ``PHASE_WINDOW`` and twice that of a bar (0) or space (1/2) centre."""
+    lo = np.arange(n_bins) / n_bins
     mid = (lo + 0.5 / n_bins) % 1.0
     dist = np.minimum(np.abs(mid - np.rint(mid)), np.abs(mid - 0.5))
     return dist <= PHASE_WINDOW, dist <= 2 * PHASE_WINDOW
 
 
 _NEAR, _NEAR_WIDE = _phase_tables(NOISE_BINS)
+#: The phase windows of the bar and space centres: ``PHASE_WINDOW``, twice that, all bins.
+_WINDOWS = {"near": _NEAR, "wide": _NEAR_WIDE, "all": np.ones(NOISE_BINS, bool)}
 
 
 def _scatter_about_bins(
-    idx: npt.NDArray[np.intp], flat: npt.NDArray[np.float64], n_bins: int,
-    work: npt.NDArray[np.float64] | None = None,
+    idx: npt.NDArray[np.intp], flat: npt.NDArray[np.float64], n_bins: int
 ) -> float:
     """Pooled scatter of ``flat`` within the bins ``idx`` (the noise about the phase-binned
-    profile: it does not depend on the bar angle); ``work``: a free buffer of its size."""
+    profile: it does not depend on the bar angle)."""
     count = np.bincount(idx, minlength=n_bins)
     sums = np.bincount(idx, flat, n_bins)
-    squares = np.bincount(idx, np.multiply(flat, flat, out=work), n_bins)
-    # Empty bins add 0 - 0; per bin: sum of squares about the bin mean.
-    within = max(float(np.add.reduce(squares - sums * sums / np.maximum(count, 1))), 0.0)
+    # Sum of squares about each bin's mean, pooled (empty bins add 0).
+    squares = float(np.einsum("i,i->", flat, flat))
+    within = max(squares - float(np.einsum("i,i->", sums, sums / np.maximum(count, 1))), 0.0)
     return math.sqrt(within / max(flat.size - int(np.count_nonzero(count)), 1))
 
 
-#: Phase bins of every pixel, which pixels lie on the inner bars, the noise about the
-#: phase-binned profile and the fundamental's significance (``None``: unknown).
-_Phases = tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_], float, float | None]
+class _Phases(NamedTuple):
+    """Where every pixel lies on the bar pattern: ``cell`` = floor(``NOISE_BINS`` (phi +
+    whole cycles)), phi the phase in cycles (0 at bright-bar centres); the phase bin is its
+    low bits. Inner bars and spaces (half a period in from the ROI's ends) are the cells
+    within ``reach`` of ``centre_cell`` (``reach`` ``None``: every cell). Also the noise about
+    the phase-binned profile and the fundamental's significance (``None``: unknown)."""
+
+    cell: npt.NDArray[np.intp]
+    n_cells: int
+    centre_cell: float
+    reach: float | None
+    noise: float
+    z: float | None
+
+    def centres(self, window: str) -> npt.NDArray[np.bool_]:
+        """Which pixels lie on the inner bars and spaces, in the phase bins of ``window``
+        (a key of :data:`_WINDOWS`)."""
+        n = self.n_cells
+        table = _tiled(window, 1 << max(n - 1, 1).bit_length())[:n].copy()
+        if self.reach is not None:
+            # Cells c with |c + 1/2 - centre_cell| <= reach.
+            lo = math.ceil(self.centre_cell - self.reach - 0.5)
+            hi = math.floor(self.centre_cell + self.reach - 0.5)
+            table[: max(lo, 0)] = False
+            table[max(hi + 1, 0) :] = False
+        return table[self.cell]
+
+
+@lru_cache(maxsize=32)
+def _tiled(window: str, n_cells: int) -> npt.NDArray[np.bool_]:
+    """``_WINDOWS[window]`` repeated over ``n_cells`` cells (a multiple of ``NOISE_BINS``:
+    the phase bin of a cell is its low bits), read-only."""
+    table = np.tile(_WINDOWS[window], max(n_cells // NOISE_BINS, 1))
+    table.setflags(write=False)
+    return table
+
+
+def _cells(
+    shape: tuple[int, int], kx: float, ky: float, phase: float, half_f: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.intp], int, float, float | None]:
+    """The cells of :class:`_Phases` for straight bars at ``(kx, ky)`` (cycles/px) and
+    ``phase`` (cycles at the ROI centre), ``half_f`` cycles from the centre to the far ends;
+    also ``NOISE_BINS (phi + whole)`` itself (a free buffer for the caller)."""
+    y, x = _centred_grid(*shape)
+    # Whole cycles added keep every value positive (truncation is then the floor) and are a
+    # multiple of NOISE_BINS (the phase bin stays the low bits).
+    whole = math.ceil(half_f) + 2
+    centre_cell = NOISE_BINS * (phase + whole)
+    scaled = np.add.outer((NOISE_BINS * ky) * y + centre_cell, (NOISE_BINS * kx) * x)
+    cell = scaled.astype(np.intp)
+    n_cells = int(centre_cell + NOISE_BINS * half_f) + 2
+    # Inner bars: |phi - phase| <= half_f - 1/2 (to a cell, 1/NOISE_BINS cycle).
+    reach = NOISE_BINS * (half_f - 0.5) if half_f >= 1.0 else None
+    return scaled, cell, n_cells, centre_cell, reach
 
 
 def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
@@ -421,46 +478,41 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     if img.size < 16 or (f is not None and (f == 0 or f > 0.5)):
         return prep, None
     phases = _axis_phases(prep, f) if prep.orientation_given and f else None
-    if phases is None or (phases[3] is not None and phases[3] < MIN_FUNDAMENTAL_Z):
+    if phases is None or (phases.z is not None and phases.z < MIN_FUNDAMENTAL_Z):
         # No orientation, or no bars along it (a chart rotated against the given
         # orientation): the bars' own geometry.
         measured = _measured_phases(prep, f)
         phases = measured if measured is not None else phases
     if phases is None:
         return prep, None
-    idx, inner, noise, z = phases
+    noise = phases.noise
     if prep.integer_valued:
         noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     if prep.noise_given:
         noise = prep.noise_sigma
-    near = _NEAR[idx]
-    near &= inner
-    values = img[near]
+    values = img[phases.centres("near")]
     if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
-        near = _NEAR_WIDE[idx]
-        near &= inner
-        values = img[near]
+        values = img[phases.centres("wide")]
         if values.size < MIN_CENTRE_PIXELS:
-            values = img[inner]
+            values = img[phases.centres("all")]
     if values.size < 8:
-        return prep.selected(img, noise, prep.vmin, prep.vmax), z
+        return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
     vmin, vmax = float(values.min()), float(values.max())
     if vmax == vmin:
-        return prep.selected(img, noise, prep.vmin, prep.vmax), z
-    return prep.selected(values[None, :], noise, vmin, vmax), z
+        return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
+    return prep.selected(values[None, :], noise, vmin, vmax), phases.z
 
 
 def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
     """Axis-aligned bars of known frequency: the phase of the line-averaged profile."""
     img = prep.pixels
-    rows, cols = img.shape
-    theta = 0.0 if prep.axis == 1 else math.pi / 2
     line = img.mean(axis=1 - prep.axis)
     x = np.arange(line.size, dtype=np.float64) - (line.size - 1) / 2.0
     value = complex(((line - line.mean()) * np.exp(-2j * math.pi * f * x)).sum())
-    phase_1d = f * x + math.atan2(value.imag, value.real) / (2 * math.pi)
-    phi = phase_1d[None, :] if prep.axis == 1 else phase_1d[:, None]
-    phi = np.broadcast_to(phi, img.shape)
+    phase = math.atan2(value.imag, value.real) / (2 * math.pi)
+    kx, ky = (f, 0.0) if prep.axis == 1 else (0.0, f)
+    half_f = f * (line.size - 1) / 2.0
+    _, cell, n_cells, centre_cell, reach = _cells(img.shape, kx, ky, phase, half_f)
     resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
     along = img.shape[1 - prep.axis]
     noise = math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1))
@@ -476,68 +528,61 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
         value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
         z_noise = prep.noise_sigma if prep.noise_given else noise
         z = _significance(2.0 * abs(value) / line.size, z_noise, img.size)
-    w = np.asarray(phi - np.floor(phi))
-    u = np.abs(across_coordinate((rows, cols), theta))
-    half = float(u.max())
-    inner = u <= half - 0.5 / f if half * f >= 1.0 else np.ones(img.shape, bool)
-    return (w * NOISE_BINS).astype(np.intp), inner, noise, z
+    return _Phases(cell, n_cells, centre_cell, reach, noise, z)
 
 
 def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     """The phase from the bars' measured geometry (quick path first); ``None`` without a
     spectral peak."""
     img = prep.pixels
+    # quick_geometry's numbers, without the uncertainties it would add (not needed here); its
+    # noise test follows with the noise about the bars' profile (it does not depend on the
+    # bars' angle, as the neighbour differences of prepare_roi do).
+    quick = quick_fundamental(img, None, f, None, prep.sums_for(img)) if f else None
+    if quick is not None:
+        phases = _phases_at(prep, quick.theta_rad, quick.freq_cycles_per_px,
+                            quick.phase_cycles, quick.amplitude)
+        if fundamental_is_clear(quick, prep.noise_sigma if prep.noise_given else phases.noise):
+            return phases
+    geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False,
+                            sums=prep.sums_for(img))
+    if geom is None:
+        return None
+    return _phases_at(prep, geom.theta_rad, geom.freq_cycles_per_px, geom.phase_cycles,
+                      geom.amplitude)
+
+
+def _phases_at(
+    prep: PreparedROI, theta: float, f: float, phase: float, amplitude: float
+) -> _Phases:
+    """:class:`_Phases` of straight bars at direction ``theta``, frequency ``f``, ``phase``
+    (cycles at the ROI centre) and fundamental ``amplitude``."""
+    img = prep.pixels
     rows, cols = img.shape
     n = img.size
-    sums = prep.sums_for(img)
-    # quick_geometry's numbers, without the uncertainties it would add (not needed here).
-    quick = quick_fundamental(img, prep.noise_sigma, f, None, sums) if f else None
-    if quick is not None:
-        theta, f, value, amplitude, _ = quick
-        phase = math.atan2(value.imag, value.real) / (2 * math.pi)
-    else:
-        geom = measure_geometry(img, prep.noise_sigma, f or None, curvature=False, sums=sums)
-        if geom is None:
-            return None
-        theta, f, phase, amplitude = (geom.theta_rad, geom.freq_cycles_per_px,
-                                      geom.phase_cycles, geom.amplitude)
     kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
-    y, x = _centred_grid(rows, cols)
-    phi = (ky * y)[:, None] + (kx * x + phase)[None, :]
-    # Inner bars: |u| <= half - 1 / (2 f), u = (phi - phase) / f.
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
-    # Phase in cycles modulo 1, in place where possible (few full-size temporaries keep large
-    # ROIs cheap; np.mod is 10x slower than floor and subtract).
-    w = np.floor(phi)
-    np.subtract(phi, w, out=w)
-    w *= NOISE_BINS
-    idx = w.astype(np.intp)
-    if half_f >= 1.0:
-        # In place when phi is not needed after this (the small-ROI noise below uses it).
-        dev = np.subtract(phi, phase, out=phi if n >= 8 * NOISE_BINS else None)
-        inner = np.abs(dev, out=dev) <= half_f - 0.5
-    else:
-        inner = np.ones(img.shape, bool)
+    scaled, cell, n_cells, centre_cell, reach = _cells((rows, cols), kx, ky, phase, half_f)
+    bins = (cell & (NOISE_BINS - 1)).ravel()
     flat = img.ravel()
-    small = n < 8 * NOISE_BINS  # w is needed again below
-    noise = _scatter_about_bins(idx.ravel(), flat, NOISE_BINS + 1,
-                                None if small else w.reshape(-1))
+    noise = _scatter_about_bins(bins, flat, NOISE_BINS)
     z_noise = noise
-    if small:
-        w /= NOISE_BINS
+    if n < 8 * NOISE_BINS:
         # Few pixels per bin, and a geometry from few periods that smears the bins: the
         # least of the noise estimates (coarser bins, the residual of the fundamental,
         # neighbour differences) - none of them is inflated by the bars on a flat ROI.
+        phi = scaled / NOISE_BINS
+        w = phi - np.floor(phi)
         n_z = max(4, n // 8)
         coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
-        fundamental = amplitude * np.cos(2.0 * math.pi * phi)
-        misfit = detrend(img, sums) - fundamental
+        fundamental = amplitude * np.cos(2.0 * math.pi * phi)  # phi + whole cycles
+        misfit = detrend(img) - fundamental
         residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
         z_noise = min(coarse, residual, prep.noise_sigma)
     if prep.integer_valued:
         z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
     z = _significance(amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
-    return idx, inner, noise, z
+    return _Phases(cell, n_cells, centre_cell, reach, noise, z)
 
 
 @lru_cache(maxsize=64)

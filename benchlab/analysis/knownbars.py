@@ -70,15 +70,13 @@ import numpy.typing as npt
 from benchlab.analysis.barmodel import edge_response
 from benchlab.analysis.projection import across_coordinate
 from benchlab.analysis.result import (
-    NYQUIST_CYCLES_PER_PX,
-    PHASE_SENSITIVE_CYCLES_PER_PX,
     Diagnostics,
     ModulationResult,
     eq29_modulation,
     resolved,
     unresolved,
 )
-from benchlab.analysis.roi import detect_code_step, is_integer_valued, saturation_code
+from benchlab.analysis.roi import prepare_roi
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -435,41 +433,28 @@ def fit_three_bars(
     dark_bars: bool | None = None,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
-    arr = np.asarray(roi)
-    if arr.dtype.kind == "b":
-        arr = arr.astype(np.uint8)
-    if arr.dtype.kind not in "uif":
-        raise ValueError(f"ROI must hold numbers, got dtype {arr.dtype}")
-    if arr.ndim not in (2, 3) or arr.size == 0:
-        raise ValueError(f"ROI must be a non-empty 2-D or 3-D array, got shape {arr.shape}")
-    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
-        raise ValueError("ROI contains NaN or infinite pixels")
     if not (bar_width_px > 0 and math.isfinite(bar_width_px)):
         raise ValueError(f"bar_width_px must be a positive number, got {bar_width_px}")
     if not (math.isfinite(theta_deg) and all(math.isfinite(v) for v in centre_rc)):
         raise ValueError("theta_deg and centre_rc must be finite")
-    if max_code is not None and not (max_code > 0 and math.isfinite(max_code)):
-        raise ValueError(f"max_code must be positive, got {max_code}")
     _check_prior(blur_prior_px)
     if not (shift_prior_px > 0 and math.isfinite(shift_prior_px)):
         raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
-    n_frames = arr.shape[0] if arr.ndim == 3 else 1
-    img = arr.astype(np.float64).mean(axis=0) if arr.ndim == 3 else arr.astype(np.float64)
-    integer = is_integer_valued(arr)
-    step = detect_code_step(arr.ravel()) if integer else 0.0
-    top = max_code if max_code is not None else saturation_code(arr, step)
+    period = 2.0 * bar_width_px
+    freq = 1.0 / period
+    # The ROI's checks and shared facts (frames averaged, code step, saturation code), as
+    # every estimator has them; the axis and noise are not measured (not used here).
+    prep = prepare_roi(roi, freq_cycles_per_px=freq, max_code=max_code)
+    img, top = prep.pixels, prep.max_code
+    arr = np.asarray(roi)
     if top is not None:
+        # A pixel clipped in any frame is out of the fit.
         clip_px = arr >= top if arr.ndim == 2 else (arr >= top).any(axis=0)
     else:
         clip_px = np.zeros(img.shape, dtype=bool)
-    period = 2.0 * bar_width_px
-    freq = 1.0 / period
-    diag = Diagnostics(
-        n_pixels=int(img.size), px_per_period=period, freq_cycles_per_px=freq,
-        clipped_fraction=float(clip_px.mean()), aliased=freq > NYQUIST_CYCLES_PER_PX + 1e-12,
-        phase_sensitive=PHASE_SENSITIVE_CYCLES_PER_PX <= freq <= NYQUIST_CYCLES_PER_PX + 1e-12,
-        code_step=(step / n_frames) if integer else None, n_frames=n_frames,
-        bar_angle_deg=theta_deg % 180.0,
+    diag = prep.diagnostics_with(
+        px_per_period=period, clipped_fraction=float(clip_px.mean()),
+        noise_sigma=0.0, bar_angle_deg=theta_deg % 180.0,
         saturation_code=top if clip_px.any() else None,
     )
     if diag.aliased:
@@ -493,7 +478,7 @@ def fit_three_bars(
                         f"needs at least {n_params + 1 + MIN_DOF}")
         return ThreeBarReading(unresolved(NAME, diag, warnings))
     base = np.stack(base_cols, axis=1)
-    quantum_sd = (step / n_frames) / math.sqrt(12.0) if integer else 0.0
+    quantum_sd = prep.code_step / math.sqrt(12.0) if prep.integer_valued else 0.0
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
                       warnings, dark_bars=dark_bars)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a

@@ -39,10 +39,12 @@ class PreparedROI:
     """A validated ROI with the facts every estimator needs (internal; treat as read-only)."""
 
     pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
-    axis: int  # numpy axis along which the intensity varies
+    #: Numpy axis along which the intensity varies; ``None`` until :attr:`axis` detects it.
+    known_axis: int | None
     integer_valued: bool  # values lie on a grid of ``code_step`` (integer codes or their means)
     code_step: float
-    noise_sigma: float
+    #: Per-pixel noise; ``None`` until :attr:`noise_sigma` measures it (along the bars).
+    known_noise: float | None
     noise_given: bool
     max_code: float | None
     clipped_fraction: float
@@ -52,11 +54,39 @@ class PreparedROI:
     n_frames: int
     warnings: tuple[str, ...]
     orientation_given: bool = False
-    #: ``pixels.sum(axis=0)`` and ``pixels.sum(axis=1)`` when the orientation was detected
+    #: ``pixels.sum(axis=0)`` and ``pixels.sum(axis=1)`` once :attr:`axis` was detected
     #: (the bar geometry's plane fit reuses them); ``None`` otherwise. Read them through
     #: :meth:`sums_for`, which knows the array they were summed from.
     profile_sums: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
     sums_source: npt.NDArray[np.float64] | None = None
+
+    @property
+    def axis(self) -> int:
+        """Numpy axis along which the intensity varies: the orientation given, else detected
+        (on first use: the histogram method with a frequency never needs it)."""
+        if self.known_axis is None:
+            self.known_axis, sums = _axis_and_sums(self.pixels)
+            if sums is not None and self.profile_sums is None:
+                self.profile_sums, self.sums_source = sums, self.pixels
+        return self.known_axis
+
+    @property
+    def noise_sigma(self) -> float:
+        """Per-pixel noise (gray units): given, from the frames' spread, or measured on first
+        use from neighbour differences along the bars (:func:`robust_noise_sigma`), never
+        below the code step's quantisation."""
+        if self.known_noise is None:
+            sigma = robust_noise_sigma(self.pixels, self.axis)
+            if self.integer_valued:
+                sigma = max(sigma, (self.code_step or 1.0) / math.sqrt(12.0))
+            self.known_noise = sigma
+        return self.known_noise
+
+    def measured(self) -> PreparedROI:
+        """``self`` with the axis and noise measured (before copies with other pixels, e.g. a
+        bootstrap's resamples, which must share the ROI's own)."""
+        _ = self.axis, self.noise_sigma
+        return self
 
     def sums_for(
         self, img: npt.NDArray[np.float64]
@@ -86,7 +116,7 @@ class PreparedROI:
         and ``noise_sigma``; the other facts unchanged (cheaper than ``dataclasses.replace``,
         which estimators on a 100 us budget feel)."""
         return PreparedROI(
-            pixels, self.axis, self.integer_valued, self.code_step, noise_sigma,
+            pixels, self.known_axis, self.integer_valued, self.code_step, noise_sigma,
             self.noise_given, self.max_code, self.clipped_fraction, vmin, vmax,
             self.freq_cycles_per_px, self.n_frames, self.warnings, self.orientation_given,
             self.profile_sums, self.sums_source,
@@ -109,7 +139,8 @@ class PreparedROI:
             px_per_period=(1.0 / f) if f else None,
             freq_cycles_per_px=f,
             clipped_fraction=self.clipped_fraction,
-            noise_sigma=self.noise_sigma,
+            # Not measured only to be overridden (the noise is measured on first use).
+            noise_sigma=fields["noise_sigma"] if "noise_sigma" in fields else self.noise_sigma,
             aliased=aliased,
             phase_sensitive=f is not None and not aliased and PHASE_SENSITIVE_CYCLES_PER_PX <= f,
             code_step=self.code_step if self.integer_valued else None,
@@ -358,20 +389,16 @@ def prepare_roi(
         # The mean of n frames on a grid of ``code_step`` lies on a grid of code_step / n.
         code_step = code_step / n_frames
 
-    sums = None
-    if axis is None:
-        axis, sums = _axis_and_sums(img)
+    # The axis (when not given) and the noise (when neither given nor from frames) are
+    # measured on first use: see PreparedROI.axis and .noise_sigma.
+    sigma: float | None = None
+    given = noise_sigma is not None
     if noise_sigma is not None:
         sigma = float(noise_sigma)
-        given = True
     elif temporal_sigma is not None:
         sigma = temporal_sigma / math.sqrt(n_frames)
-        given = False
-    else:
-        sigma = robust_noise_sigma(img, axis)
-        given = False
-    if not given and integer_valued:
-        sigma = max(sigma, (code_step or 1.0) / math.sqrt(12.0))
+        if integer_valued:
+            sigma = max(sigma, (code_step or 1.0) / math.sqrt(12.0))
 
     f = freq_cycles_per_px
     if f is not None:
@@ -389,10 +416,10 @@ def prepare_roi(
         warnings.append(f"only {img.size} pixels: sparse histogram, noisy modulation")
     return PreparedROI(
         pixels=img,
-        axis=axis,
+        known_axis=axis,
         integer_valued=integer_valued,
         code_step=code_step,
-        noise_sigma=sigma,
+        known_noise=sigma,
         noise_given=given,
         max_code=max_code_f,
         clipped_fraction=clipped,
@@ -402,6 +429,4 @@ def prepare_roi(
         n_frames=n_frames,
         warnings=tuple(warnings),
         orientation_given=orientation is not None,
-        profile_sums=sums,
-        sums_source=img if sums is not None else None,
     )

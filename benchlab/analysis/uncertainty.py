@@ -41,6 +41,7 @@ def bootstrap_result(
     """
     if n_resamples < 2:
         raise ValueError(f"need at least 2 bootstrap resamples, got {n_resamples}")
+    prep = prep.measured()  # the resamples share the ROI's own axis and noise
     lines_axis = 1 - prep.axis  # lines along the bars are indexed along this axis
     n_lines = prep.pixels.shape[lines_axis]
     if n_lines < 2:
