@@ -15,8 +15,9 @@ kills a child still running and reaps it, so no zombie is left.
 Forking copies only the calling thread, so :func:`fork_usable` allows it only while the
 process has no other Python thread (a lock held by another thread - an import, a logging
 handler - would stay held forever in the child), on a POSIX system that reports its CPU
-affinity (Linux; macOS forks unsafely once its system frameworks are loaded), with two or more
-usable CPUs, and unless ``BENCHLAB_SERIAL`` is set (debugging: everything in one process).
+affinity (Linux; macOS forks unsafely once its system frameworks are loaded), and with two or
+more usable CPUs (one gains nothing). ``BENCHLAB_SERIAL=1`` computes everything in one process;
+``BENCHLAB_SERIAL=0`` forks even on one usable CPU (debugging and tests of the fork path).
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ import threading
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
-#: Set (to anything but ``""`` or ``0``) to compute everything in one process.
+#: ``1`` (anything but ``""`` or ``0``): everything in one process; ``0``: fork even on one
+#: usable CPU (where it is safe); unset: fork on two usable CPUs or more.
 SERIAL_ENV = "BENCHLAB_SERIAL"
 
 T = TypeVar("T")
@@ -49,9 +51,12 @@ def usable_cpus() -> int:
 
 def fork_usable() -> bool:
     """Whether :func:`start` may fork now (see the module docstring for the conditions)."""
-    if os.environ.get(SERIAL_ENV, "") not in ("", "0"):
+    setting = os.environ.get(SERIAL_ENV, "")
+    if setting not in ("", "0"):
         return False
-    return hasattr(os, "fork") and threading.active_count() == 1 and usable_cpus() >= 2
+    safe = (hasattr(os, "fork") and hasattr(os, "sched_getaffinity")
+            and threading.active_count() == 1)
+    return safe and (setting == "0" or usable_cpus() >= 2)
 
 
 class SharedFlags:

@@ -2,15 +2,18 @@
 issue 11): the same results files as in one process (``BENCHLAB_SERIAL=1``), the same error
 and exit status when the forward frame's analysis fails, the analysis completed when the child
 is killed, and no child left behind. Each case is a fresh ``benchlab`` process, as a user
-runs it (a test process may hold threads, and then nothing is forked)."""
+runs it (a test process may hold threads, and then nothing is forked), with
+``BENCHLAB_SERIAL=0`` so that it forks on a machine with one usable CPU too."""
 
 from __future__ import annotations
 
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any, cast
 
@@ -20,7 +23,7 @@ from test_protocol_helpers import MTF_SMALL, run_sim
 import benchlab.protocols.mtf_analysis as mtf_analysis
 from benchlab.analysis.edge_target import edge_specs
 from benchlab.cli.main import ONE_BLAS_THREAD
-from benchlab.forked import SERIAL_ENV, SharedFlags, usable_cpus
+from benchlab.forked import SERIAL_ENV, SharedFlags
 from benchlab.protocols.mtf_analysis import ForwardAhead, analyze_mtf
 from benchlab.protocols.params import MtfParams
 from benchlab.protocols.runs import session_params
@@ -64,7 +67,6 @@ def dying(*args, **kwargs):
     return real(*args, **kwargs)
 m.forward_part = dying
 """
-FORKS = usable_cpus() >= 2 and hasattr(os, "fork")
 
 
 @pytest.fixture(scope="module")
@@ -77,10 +79,8 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 def _analyze(path: Path, *, serial: bool, patch: str = "") -> tuple[dict[str, Any], str]:
-    env = {k: v for k, v in os.environ.items()
-           if k not in (SERIAL_ENV, *ONE_BLAS_THREAD)}
-    if serial:
-        env[SERIAL_ENV] = "1"
+    env = {k: v for k, v in os.environ.items() if k not in ONE_BLAS_THREAD}
+    env[SERIAL_ENV] = "1" if serial else "0"
     code = _PROGRAM.format(patch=patch, args=["--log-level", "debug", "analyze", str(path)])
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=env, timeout=120)
@@ -119,10 +119,9 @@ def test_the_forked_analysis_writes_the_files_of_one_process(small_mtf: Path,
     serial, serial_err = _analyze(path, serial=True)
     parallel, parallel_err = _analyze(path, serial=False)
     # the chart finder is imported by the process that analyses the forward frame only
-    assert serial.pop("chart finder imported") and parallel.pop("chart finder imported") \
-        != FORKS
+    assert serial.pop("chart finder imported") and not parallel.pop("chart finder imported")
     assert serial == parallel == {"status": 0, "children": "none"}
-    assert not _forked(serial_err) and _forked(parallel_err) == FORKS
+    assert not _forked(serial_err) and _forked(parallel_err)
     one, two = _files(path / "results" / "v2"), _files(path / "results" / "v3")
     assert len(one) >= 15 and one == two
     assert one == _files(path / "results" / "v1")  # and the run's own results
@@ -162,7 +161,7 @@ def test_a_killed_child_is_reported_and_the_analysis_completes(small_mtf: Path,
     outcome, err = _analyze(path, serial=False, patch=_CHILD_KILLED)
     assert outcome == {"status": 0, "children": "none", "chart finder imported": True}
     killed = "the forward frame's analysis: the child process was killed by SIGKILL"
-    assert (killed in err) == FORKS and not _forked(err)
+    assert killed in err and not _forked(err)
     assert _files(path / "results" / "v2") == _files(path / "results" / "v1")
 
 
@@ -247,3 +246,60 @@ def test_analyze_keeps_the_users_blas_threads(small_mtf: Path, tmp_path: Path) -
                           env=env, timeout=120, check=True)
     outcome = json.loads(done.stdout.strip().splitlines()[-1])
     assert outcome["status"] == 0 and outcome["blas threads"] == "2"
+
+
+#: The child waits (as a slow analysis would) until it is stopped.
+_CHILD_SLOW = """
+import time
+import benchlab.protocols.mtf_analysis as m
+parent, real = os.getpid(), m.forward_part
+def slow(*args, **kwargs):
+    if os.getpid() != parent:
+        time.sleep(60)
+    return real(*args, **kwargs)
+m.forward_part = slow
+"""
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (Linux /proc)."""
+    out = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(entry.name))
+    return out
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_signal_stops_the_child_too(small_mtf: Path, tmp_path: Path,
+                                           signum: int) -> None:
+    """The user stops ``benchlab analyze`` while the child still works: the parent ends as
+    always (128 + signal, "interrupted", no results) and takes its child with it."""
+    path = _copy(small_mtf, tmp_path)
+    code = _PROGRAM.format(patch=_CHILD_SLOW, args=["analyze", str(path)])
+    env = {**os.environ, SERIAL_ENV: "0"}
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 60
+        children: list[int] = []
+        while not children and time.monotonic() < deadline and parent.poll() is None:
+            children = _children(parent.pid)
+            time.sleep(0.01)
+        assert len(children) == 1, "no forked child seen"
+        parent.send_signal(signum)  # the parent only, not its process group
+        out, err = parent.communicate(timeout=60)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.communicate()
+    assert json.loads(out.strip().splitlines()[-1])["status"] == 128 + signum
+    assert "benchlab: interrupted" in err
+    with pytest.raises(ProcessLookupError):
+        os.kill(children[0], 0)  # stopped and reaped by the parent, not left running
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]

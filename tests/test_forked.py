@@ -111,11 +111,14 @@ def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> Non
         monkeypatch.setenv(forked.SERIAL_ENV, value)
         assert not forked.fork_usable()
         assert forked.start(lambda: 1, "x") is None  # nothing forked
-    monkeypatch.setenv(forked.SERIAL_ENV, "0")
+    monkeypatch.delenv(forked.SERIAL_ENV)
     assert forked.fork_usable()
-    # one usable CPU (an affinity mask, a container limit): nothing to gain
+    # one usable CPU (an affinity mask, a container limit): nothing to gain, unless forced
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {3})
     assert not forked.fork_usable()
+    monkeypatch.setenv(forked.SERIAL_ENV, "0")
+    assert forked.fork_usable()
+    monkeypatch.delenv(forked.SERIAL_ENV)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
     # another thread: a lock it holds would stay held in the child
     stop = threading.Event()
@@ -127,12 +130,15 @@ def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> Non
         stop.set()
         other.join()
     assert forked.fork_usable()
-    # no fork (Windows) or no affinity to ask (macOS): one process
-    monkeypatch.delattr(os, "sched_getaffinity")
-    assert forked.usable_cpus() == 1 and not forked.fork_usable()
-    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.delattr(os, "fork")
-    assert not forked.fork_usable()
+    # no fork (Windows) or no affinity to ask (macOS): one process, even when forced
+    for setting in ("", "0"):
+        monkeypatch.setenv(forked.SERIAL_ENV, setting)
+        with monkeypatch.context() as m:
+            m.delattr(os, "sched_getaffinity")
+            assert forked.usable_cpus() == 1 and not forked.fork_usable()
+        with monkeypatch.context() as m:
+            m.delattr(os, "fork")
+            assert not forked.fork_usable()
 
 
 def test_a_failed_fork_computes_here(monkeypatch: pytest.MonkeyPatch,
