@@ -88,9 +88,9 @@ class ForkedCall(Generic[T]):
 
     def __init__(self, pid: int, read_fd: int, what: str) -> None:
         self.pid = pid
-        self._child_pid = pid
         self.what = what
         self._read_fd: int | None = read_fd
+        self._reaped = False
 
     def result(self) -> T | None:
         """The child's value, or None when it raised or died (compute the value here then).
@@ -108,7 +108,7 @@ class ForkedCall(Generic[T]):
                 _log.warning("%s: the child's result did not unpickle (%s); computing it here",
                              self.what, exc)
                 return None
-            _log.debug("%s: computed in child process %d", self.what, self._child_pid)
+            _log.debug("%s: computed in child process %d", self.what, self.pid)
             return value
         if status == _UNPICKLABLE:
             _log.warning("%s: the child's result does not pickle; computing it here", self.what)
@@ -126,17 +126,17 @@ class ForkedCall(Generic[T]):
 
     def _reap(self, *, kill: bool) -> int | None:
         """The child's exit status (``-signal`` when a signal ended it); None if reaped before."""
-        if self.pid == 0:
+        if self._reaped:
             return None
-        pid, self.pid = self.pid, 0
+        self._reaped = True
         if kill:
             try:
-                os.kill(pid, signal.SIGKILL)
+                os.kill(self.pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
         while True:
             try:
-                _, wait_status = os.waitpid(pid, 0)
+                _, wait_status = os.waitpid(self.pid, 0)
             except ChildProcessError:
                 return None  # reaped by someone else (a SIGCHLD handler)
             except InterruptedError:
