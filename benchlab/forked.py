@@ -10,7 +10,10 @@ an exception, a value that does not pickle, the child killed or crashed - makes
 reaches the user exactly as it does without a child (same exception, message and exit
 status), and a child that died is logged as a warning. A child that dies closes its end of the
 pipe, so the parent never waits for a dead child; :meth:`ForkedCall.close` (on every exit path)
-kills a child still running and reaps it, so no zombie is left.
+kills a child still running and reaps it, so no zombie is left. The stop signals are blocked
+from the fork until the child is registered, and a child its caller lost (a stop signal
+between the fork and the caller's ``finally``) is closed when the interpreter exits, so no
+child outlives the command holding its output open.
 
 Forking copies only the calling thread, so :func:`fork_usable` allows it only while the
 process has no other Python thread (a lock held by another thread - an import, a logging
@@ -22,13 +25,14 @@ more usable CPUs (one gains nothing). ``BENCHLAB_SERIAL=1`` computes everything 
 
 from __future__ import annotations
 
+import atexit
 import logging
 import os
 import pickle
 import signal
 import threading
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 #: ``1`` (anything but ``""`` or ``0``): everything in one process; ``0``: fork even on one
 #: usable CPU (where it is safe); unset: fork on two usable CPUs or more.
@@ -39,6 +43,7 @@ _log = logging.getLogger(__name__)
 #: Child exit statuses: the value was sent / the call raised (the parent computes it again,
 #: raising the same) / the value did not pickle (a programming error: a warning).
 _SENT, _RAISED, _UNPICKLABLE = 0, 3, 4
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def usable_cpus() -> int:
@@ -91,6 +96,7 @@ class ForkedCall(Generic[T]):
         self.what = what
         self._read_fd: int | None = read_fd
         self._reaped = False
+        _live.add(self)
 
     def result(self) -> T | None:
         """The child's value, or None when it raised or died (compute the value here then).
@@ -129,6 +135,7 @@ class ForkedCall(Generic[T]):
         if self._reaped:
             return None
         self._reaped = True
+        _live.discard(self)
         if kill:
             try:
                 os.kill(self.pid, signal.SIGKILL)
@@ -142,6 +149,16 @@ class ForkedCall(Generic[T]):
             except InterruptedError:
                 continue
             return os.waitstatus_to_exitcode(wait_status)
+
+
+#: Children not reaped yet; closed at exit if their caller lost them.
+_live: set[ForkedCall[Any]] = set()
+
+
+@atexit.register
+def _close_lost_children() -> None:
+    for call in list(_live):
+        call.close()
 
 
 def _describe(status: int | None) -> str:
@@ -165,27 +182,43 @@ def start(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
 def fork_call(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
     """:func:`start` without the checks of :func:`fork_usable`; None if the fork failed."""
     read_fd, write_fd = os.pipe()
+    # No stop signal between the fork and the child's registration (a handler raising there
+    # would lose the child): they wait, blocked, until the child is known.
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    job: ForkedCall[T] | None = None
     try:
-        pid = os.fork()
-    except OSError as exc:  # no memory or process slots left: compute in this process
-        os.close(read_fd)
-        os.close(write_fd)
-        _log.warning("%s: cannot fork (%s); computing it in this process", what, exc)
-        return None
-    if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
-        _child(call, read_fd, write_fd)
-    os.close(write_fd)
-    return ForkedCall(pid, read_fd, what)
+        try:
+            pid = os.fork()
+        except OSError as exc:  # no memory or process slots left: compute in this process
+            os.close(read_fd)
+            os.close(write_fd)
+            _log.warning("%s: cannot fork (%s); computing it in this process", what, exc)
+        else:
+            if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
+                _child(call, read_fd, write_fd, mask)
+            os.close(write_fd)
+            job = ForkedCall(pid, read_fd, what)
+    finally:
+        try:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a waiting stop signal acts now
+        except BaseException:
+            if job is not None:
+                job.close()
+            raise
+    return job
 
 
-def _child(call: Callable[[], object], read_fd: int, write_fd: int) -> None:
+def _child(call: Callable[[], object], read_fd: int, write_fd: int,
+           mask: set[int | signal.Signals]) -> None:
     """Compute, send, and leave with :func:`os._exit` whatever happens: never return into the
     caller's stack (its ``finally`` blocks and exit handlers belong to the parent)."""
     status = _RAISED
     try:
         os.close(read_fd)
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        _live.clear()  # the parent's other children are not this process's
+        for sig in _STOP_SIGNALS:
             signal.signal(sig, signal.SIG_DFL)  # a stop signal just ends the child
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         data = b""
         try:
             value = call()

@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, cast
@@ -22,7 +23,7 @@ from test_protocol_helpers import MTF_SMALL, run_sim
 
 import benchlab.protocols.mtf_analysis as mtf_analysis
 from benchlab.analysis.edge_target import edge_specs
-from benchlab.cli.main import ONE_BLAS_THREAD
+from benchlab.cli.main import ONE_BLAS_THREAD, main
 from benchlab.forked import SERIAL_ENV, SharedFlags
 from benchlab.protocols.mtf_analysis import ForwardAhead, analyze_mtf
 from benchlab.protocols.params import MtfParams
@@ -292,6 +293,10 @@ def test_a_stop_signal_stops_the_child_too(small_mtf: Path, tmp_path: Path,
             children = _children(parent.pid)
             time.sleep(0.01)
         assert len(children) == 1, "no forked child seen"
+        # once the parent waits for the child (its own part takes well under a second); a
+        # signal that lands inside the import machinery is another matter (see
+        # test_an_interrupted_analysis_does_not_wait_for_the_catalogue_thread)
+        time.sleep(2.0)
         parent.send_signal(signum)  # the parent only, not its process group
         out, err = parent.communicate(timeout=60)
     finally:
@@ -302,4 +307,31 @@ def test_a_stop_signal_stops_the_child_too(small_mtf: Path, tmp_path: Path,
     assert "benchlab: interrupted" in err
     with pytest.raises(ProcessLookupError):
         os.kill(children[0], 0)  # stopped and reaped by the parent, not left running
+    assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+
+
+def test_an_interrupted_analysis_does_not_wait_for_the_catalogue_thread(
+        small_mtf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stop signal landing in the import machinery can leave the import lock held, and the
+    catalogue thread (importing the catalogue) then never ends: an interrupted analysis
+    returns without waiting for it (a daemon that records nothing)."""
+    from benchlab.cli import procedures
+
+    release = threading.Event()
+    monkeypatch.setattr(procedures._CatalogueRecorder, "run", lambda self: release.wait())
+
+    def interrupted(*args: Any, **kwargs: Any) -> Any:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("benchlab.protocols.runs.reanalyze", interrupted)
+    path = _copy(small_mtf, tmp_path)
+    status: list[int] = []
+    runner = threading.Thread(target=lambda: status.append(main(["analyze", str(path)])))
+    try:
+        runner.start()
+        runner.join(timeout=30)
+        assert not runner.is_alive() and status == [130]
+    finally:
+        release.set()
+        runner.join()
     assert sorted(p.name for p in (path / "results").iterdir()) == ["v1"]

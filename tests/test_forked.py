@@ -143,10 +143,41 @@ def test_a_failed_fork_computes_here(monkeypatch: pytest.MonkeyPatch,
 
     monkeypatch.setattr(os, "fork", no_fork)
     fds_before = len(os.listdir("/proc/self/fd"))
+    mask_before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
     with caplog.at_level(logging.WARNING, logger="benchlab.forked"):
         assert forked.fork_call(lambda: 1, "test call") is None
     assert "test call: cannot fork" in caplog.text
     assert len(os.listdir("/proc/self/fd")) == fds_before  # the pipe closed again
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == mask_before  # signals unblocked
+
+
+def test_stop_signals_wait_during_the_fork_and_the_child_gets_them(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    real_fork = os.fork
+    blocked_at_fork: list[set[int]] = []
+
+    def fork() -> int:
+        blocked_at_fork.append({int(s) for s in signal.pthread_sigmask(signal.SIG_BLOCK, [])})
+        return real_fork()
+
+    monkeypatch.setattr(os, "fork", fork)
+    mask_before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    got, _ = _run(lambda: sorted(int(s) for s in signal.pthread_sigmask(signal.SIG_BLOCK, [])))
+    stops = {int(signal.SIGINT), int(signal.SIGTERM), int(signal.SIGHUP)}
+    assert blocked_at_fork and stops <= blocked_at_fork[0]
+    assert not stops & set(got)  # the child runs with them unblocked (and default)
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == mask_before
+
+
+def test_a_child_its_caller_lost_is_closed_at_exit() -> None:
+    job = forked.fork_call(lambda: time.sleep(60), "lost")
+    assert job is not None
+    pid = job.pid
+    del job  # a stop signal between the fork and the caller's finally
+    t0 = time.monotonic()
+    forked._close_lost_children()  # what the interpreter's exit runs
+    assert _reaped(pid) and time.monotonic() - t0 < 10
+    assert not forked._live
 
 
 def test_flags_claimed_in_the_child_are_seen_by_the_parent() -> None:

@@ -230,10 +230,12 @@ def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
                         f"{folder}: the forward frame's analysis")
     try:
         session.prefetch_frames(FRAME_LOAD_THREADS)
-    except (SessionError, OSError, KeyError):
+    except BaseException as exc:
         if call is not None:
             call.close()
-        return None, None, None
+        if isinstance(exc, SessionError | OSError | KeyError):
+            return None, None, None
+        raise
     return session, call, claims
 
 
@@ -278,11 +280,17 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
                         forward_ahead=ahead)
         recorder.record = True
+    except KeyboardInterrupt:
+        # Stopped: the catalogue thread (a daemon) is left to end without recording, not
+        # waited for: a stop signal raised while this thread is inside the import machinery
+        # can leave the import lock held, and that thread's import then never ends.
+        recorder.abandoned = True
+        raise
     finally:
         if child is not None:
             child.close()
         recorder.results_written.set()
-        if not recorder.record:
+        if not recorder.record and not recorder.abandoned:
             recorder.join()  # failed: it ends without recording
         if early is not None:
             early.stop_prefetch()
@@ -302,6 +310,7 @@ class _CatalogueRecorder(threading.Thread):
         self.folder = folder
         self.results_written = threading.Event()
         self.record = False
+        self.abandoned = False
 
     def run(self) -> None:
         from benchlab.catalog import record_session  # beside the analysis
