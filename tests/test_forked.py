@@ -102,6 +102,9 @@ def test_the_child_ends_on_a_stop_signal_instead_of_running_the_callers_handler(
 def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(forked.SERIAL_ENV, raising=False)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    load = [0.3]
+    monkeypatch.setattr(os, "getloadavg", lambda: (load[0], 1.0, 1.0))
     assert forked.usable_cpus() == 2
     # threads other tests left in this process are not this test's subject
     threads = [1]
@@ -120,6 +123,15 @@ def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> Non
     assert forked.fork_usable()
     monkeypatch.delenv(forked.SERIAL_ENV)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    # a machine already busy (load average at its CPU count): the child would only add CPU
+    load[0] = 1.9
+    assert forked.fork_usable()
+    load[0] = 2.0
+    assert not forked.fork_usable() and forked.machine_busy()
+    monkeypatch.setenv(forked.SERIAL_ENV, "0")
+    assert forked.fork_usable()  # forced
+    monkeypatch.delenv(forked.SERIAL_ENV)
+    load[0] = 0.3
     # another thread: a lock it holds would stay held in the child
     threads[0] = 2
     assert not forked.fork_usable()
