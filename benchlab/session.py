@@ -18,6 +18,7 @@ terminates it and records a ``journal_repaired`` event so the damage stays visib
 from __future__ import annotations
 
 import csv
+import errno
 import fcntl
 import hashlib
 import io
@@ -760,11 +761,17 @@ class Session:
                          "steps_done": steps_done, "steps_total": steps_total}
 
     def result_versions(self) -> list[int]:
-        """Existing results versions, ascending."""
+        """Existing results versions, ascending: ``results/v<N>`` folders holding their
+        summary.json (an empty or partial folder - a crash of older software between
+        claiming a number and filling it - is no version)."""
         if not self.results_dir.is_dir():
             return []
-        found = (_VERSION_DIR.match(p.name) for p in self.results_dir.iterdir() if p.is_dir())
-        return sorted(int(m.group(1)) for m in found if m)
+        found = []
+        for p in self.results_dir.iterdir():
+            m = _VERSION_DIR.match(p.name)
+            if m and (p / "summary.json").is_file():
+                found.append(int(m.group(1)))
+        return sorted(found)
 
     def latest_results(self) -> Path | None:
         """The newest ``results/v<N>`` folder, or None before the first analysis."""
@@ -812,8 +819,8 @@ class Session:
                 stem = result_file_stem(table)
                 write(tmp / f"{stem}.json", json_rows_text(plain_rows))
                 write(tmp / f"{stem}.csv", _csv_text(plain_rows))
+            version = (self.result_versions() or [0])[-1] + 1
             while True:
-                version = (self.result_versions() or [0])[-1] + 1
                 doc = {
                     "version": version,
                     "estimator": estimator,
@@ -831,10 +838,16 @@ class Session:
                     fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:
-                    target.mkdir()  # claim the number; rename onto an empty dir is atomic
-                except FileExistsError:
+                    # Atomic, and only onto a free name (or an empty folder, left by a crash
+                    # of older software): no moment where v<N> exists but is not complete.
+                    os.rename(tmp, target)
+                except OSError as exc:
+                    if not (isinstance(exc, FileExistsError)
+                            or exc.errno in (errno.EEXIST, errno.ENOTEMPTY)):
+                        raise
+                    # Another writer's version, or a folder that is none: the next number.
+                    version = max(version + 1, (self.result_versions() or [0])[-1] + 1)
                     continue
-                os.replace(tmp, target)
                 fsync_dir(self.results_dir)  # the rename itself
                 break
         except BaseException:
