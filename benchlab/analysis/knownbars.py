@@ -478,7 +478,7 @@ def fit_three_bars(
                         f"needs at least {n_params + 1 + MIN_DOF}")
         return ThreeBarReading(unresolved(NAME, diag, warnings))
     base = np.stack(base_cols, axis=1)
-    quantum_sd = prep.code_step / math.sqrt(12.0) if prep.integer_valued else 0.0
+    quantum_sd = prep.quantisation_sd
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
                       warnings, dark_bars=dark_bars)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a

@@ -36,7 +36,8 @@ MAD_TO_SIGMA = 1.4826
 
 @dataclass(slots=True)
 class PreparedROI:
-    """A validated ROI with the facts every estimator needs (internal; treat as read-only)."""
+    """A validated ROI with the facts every estimator needs (internal; callers treat it as
+    read-only: the axis and the noise are filled in on their first use)."""
 
     pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
     #: Numpy axis along which the intensity varies; ``None`` until :attr:`axis` detects it.
@@ -76,11 +77,14 @@ class PreparedROI:
         use from neighbour differences along the bars (:func:`robust_noise_sigma`), never
         below the code step's quantisation."""
         if self.known_noise is None:
-            sigma = robust_noise_sigma(self.pixels, self.axis)
-            if self.integer_valued:
-                sigma = max(sigma, (self.code_step or 1.0) / math.sqrt(12.0))
-            self.known_noise = sigma
+            self.known_noise = max(robust_noise_sigma(self.pixels, self.axis),
+                                   self.quantisation_sd)
         return self.known_noise
+
+    @property
+    def quantisation_sd(self) -> float:
+        """:func:`quantisation_sd` of this ROI's code grid: the floor of any noise estimate."""
+        return quantisation_sd(self.integer_valued, self.code_step)
 
     def measured(self) -> PreparedROI:
         """``self`` with the axis and noise measured (before copies with other pixels, e.g. a
@@ -149,6 +153,13 @@ class PreparedROI:
         )
         shared.update(fields)
         return Diagnostics(**shared)
+
+
+def quantisation_sd(integer_valued: bool, code_step: float) -> float:
+    """Standard deviation of rounding to a grid of ``code_step`` (``code_step / sqrt(12)``)
+    for integer codes (or their means), 0 for continuous data: no noise estimate on such data
+    goes below it (a flat ROI of one code has none it can measure)."""
+    return (code_step or 1.0) / math.sqrt(12.0) if integer_valued else 0.0
 
 
 def orientation_axis(orientation: str | None) -> int | None:
@@ -396,9 +407,8 @@ def prepare_roi(
     if noise_sigma is not None:
         sigma = float(noise_sigma)
     elif temporal_sigma is not None:
-        sigma = temporal_sigma / math.sqrt(n_frames)
-        if integer_valued:
-            sigma = max(sigma, (code_step or 1.0) / math.sqrt(12.0))
+        sigma = max(temporal_sigma / math.sqrt(n_frames),
+                    quantisation_sd(integer_valued, code_step))
 
     f = freq_cycles_per_px
     if f is not None:
