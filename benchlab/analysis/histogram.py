@@ -456,8 +456,9 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     """``prep`` holding only the pixels near the centres of the inner bars and spaces, with the
     noise measured about the phase-binned profile (see the module docstring), and the
     significance of the bars' fundamental (amplitude over its standard error; ``None`` when
-    unknown). ``prep`` is returned unchanged when the bar phase cannot be found (no frequency,
-    too few pixels)."""
+    unknown). ``prep`` is returned unchanged when the bar phase cannot be found (fewer than 16
+    pixels, a zero or aliased frequency, no spectral peak); without a frequency the bars'
+    geometry is searched for."""
     img = prep.pixels
     f = prep.freq_cycles_per_px
     if img.size < 16 or (f is not None and (f == 0 or f > 0.5)):
@@ -519,7 +520,7 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     img = prep.pixels
     # quick_geometry's numbers, without the uncertainties it would add (not needed here); its
     # noise test follows with the noise about the bars' profile (it does not depend on the
-    # bars' angle, as the neighbour differences of prepare_roi do).
+    # bars' angle, as the neighbour differences of PreparedROI.noise_sigma do).
     quick = quick_fundamental(img, None, f, None, prep.sums_for(img)) if f else None
     if quick is not None:
         phases = _phases_at(prep, quick.theta_rad, quick.freq_cycles_per_px,

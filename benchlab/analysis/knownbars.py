@@ -433,6 +433,13 @@ def fit_three_bars(
     dark_bars: bool | None = None,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
+    try:
+        bar_width_px, theta_deg = float(bar_width_px), float(theta_deg)
+        row, col = (float(v) for v in centre_rc)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("bar_width_px and theta_deg must be numbers and centre_rc a (row, "
+                         f"col) pair, got {bar_width_px!r}, {theta_deg!r}, {centre_rc!r}") from exc
+    centre_rc = (row, col)
     if not (bar_width_px > 0 and math.isfinite(bar_width_px)):
         raise ValueError(f"bar_width_px must be a positive number, got {bar_width_px}")
     if not (math.isfinite(theta_deg) and all(math.isfinite(v) for v in centre_rc)):
