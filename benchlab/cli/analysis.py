@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchlab.cli import UsageError
+from benchlab.cli import UsageError, positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
@@ -410,14 +410,15 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         ),
     )
     b.add_argument("--quick", action="store_true", help="300 cases and a short speed table")
-    b.add_argument("--cases", type=int, default=1500, help="number of synthetic ROIs (1500)")
+    b.add_argument("--cases", type=positive_int, default=1500,
+                   help="number of synthetic ROIs (1500)")
     b.add_argument("--seed", type=int, default=0, help="random seed of the cases and noise")
     b.add_argument(
         "--estimators", metavar="A,B", help="comma-separated estimators (default: all)"
     )
     b.add_argument("--no-speed", action="store_true", help="skip the ROI-size speed table")
     b.add_argument(
-        "--worst", type=int, metavar="N",
+        "--worst", type=positive_int, metavar="N",
         help="also list each estimator's N largest errors with the case parameters",
     )
     b.set_defaults(func=benchmark_command)
