@@ -389,7 +389,8 @@ class Session:
 
     def remove_temporary_files(self) -> list[str]:
         """Delete what a kill in the middle of an atomic write left behind (``.*.tmp`` files
-        beside frames and results, ``.v-*.tmp`` result folders) - never a real frame - and
+        beside frames and results, ``.v-*.tmp`` and ``.unwrap-*.tmp`` result folders) - never
+        a real frame - and
         journal them. Only the holder may do this."""
         if not self.held:
             raise SessionError(f"{self.path}: only the session's writer removes temporary files")
@@ -399,7 +400,8 @@ class Session:
                 continue
             for p in sorted(folder.glob(".*.tmp")):
                 rel = p.relative_to(self.path).as_posix()
-                if p.is_dir() and folder == self.results_dir and p.name.startswith(".v-"):
+                if p.is_dir() and folder == self.results_dir and p.name.startswith(
+                        (".v-", ".unwrap-")):
                     shutil.rmtree(p)
                 elif p.is_file() and not p.is_symlink():
                     p.unlink()
@@ -784,10 +786,13 @@ class Session:
         *,
         summary: Mapping[str, Any],
         estimator: str,
+        extra_dirs: Mapping[str, Path] | None = None,
     ) -> Path:
         """Write a new results version: ``<file>.csv`` + ``<file>.json`` per table (file names
         from :data:`RESULT_FILE_STEMS`, e.g. ``forward_view_modulation`` for ``table_4_11``),
-        and summary.json (which maps each table label to its file).
+        and summary.json (which maps each table label to its file). ``extra_dirs``: folders
+        already written under ``results/`` (``name -> folder``), moved into the version as
+        ``name`` before it appears, so the version never exists without them.
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
@@ -814,6 +819,9 @@ class Session:
                 write_new_file(path, text.encode("utf-8"))
 
         try:
+            for name, folder in (extra_dirs or {}).items():
+                _check_name("folder name", name)
+                os.replace(folder, tmp / name)  # same file system: a rename
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)

@@ -74,3 +74,33 @@ def test_a_version_is_never_visible_before_it_is_complete(tmp_path: Path,
     assert v4.name == "v4" and json.loads((v4 / "summary.json").read_text())["version"] == 4
     assert (session.results_dir / "v3" / "t.json").read_text() == "[]"  # never touched
     assert session.result_versions() == [1, 2, 4]
+
+
+def test_extra_folders_arrive_with_the_version(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """``unwrap`` writes its view TIFFs beside a version: they move in before the version
+    appears, so an interruption leaves no version without them (it used to rename them in
+    after the version was visible)."""
+    session = _session(tmp_path)
+    staged = session.results_dir / ".unwrap-x.tmp"
+    staged.mkdir(parents=True)
+    (staged / "a.tiff").write_bytes(b"view")
+    v1 = session.write_results({"t": ROWS}, summary={}, estimator="unwrap",
+                               extra_dirs={"unwrapped": staged})
+    assert (v1 / "unwrapped" / "a.tiff").read_bytes() == b"view" and not staged.exists()
+    staged.mkdir()
+    (staged / "b.tiff").write_bytes(b"view")
+
+    def interrupted(src: object, dst: object) -> None:
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr("benchlab.session.os.rename", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            session.write_results({"t": ROWS}, summary={}, estimator="unwrap",
+                                  extra_dirs={"unwrapped": staged})
+    assert session.result_versions() == [1]
+    assert sorted(p.name for p in session.results_dir.iterdir()) == ["v1"]
+    # What a kill leaves behind is cleaned by the next writer.
+    (session.results_dir / ".unwrap-y.tmp").mkdir()
+    assert session.remove_temporary_files() == ["results/.unwrap-y.tmp"]
