@@ -117,7 +117,7 @@ def test_bad_batch_inputs_are_clean_errors(
     assert "no sessions to analyse" in capsys.readouterr().err
     assert main(["analyze", str(a), str(a), "--roi", "1,2,3,4"]) == 1
     assert "only --estimator applies" in capsys.readouterr().err
-    assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 1
+    assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 2  # a usage error
     assert "unknown estimator" in capsys.readouterr().err
     assert sorted(p.name for p in (a / "results").iterdir()) == ["v1"]  # nothing written
     monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT_S", 0.5)

@@ -3,12 +3,9 @@
 import argparse
 import math
 
-from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.errors import UsageError
 
-
-class UsageError(BenchlabError):
-    """A command-line value that cannot be right (``--freq 0``, ``--roi`` on a session
-    folder): ``benchlab: error: ...`` with exit status 2, like argparse's own usage errors."""
+__all__ = ["UsageError", "non_negative_int", "positive_float", "positive_int"]
 
 
 def positive_int(text: str) -> int:

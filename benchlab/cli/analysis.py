@@ -84,21 +84,24 @@ def parse_roi(text: str | None, shape: tuple[int, ...], path: Path) -> tuple[int
 
     Raises
     ------
+    UsageError
+        Missing or malformed (naming the field).
     AnalysisInputError
-        Naming the ``--roi`` field that is wrong.
+        Outside the image (naming the field).
     """
+    # Missing or malformed: a usage error (exit 2); outside this image: an input error.
     if not text:
-        raise AnalysisInputError(f"--roi R0,C0,R1,C1 is required to analyse an image ({path})")
+        raise UsageError(f"--roi R0,C0,R1,C1 is required to analyse an image ({path})")
     parts = [p.strip() for p in text.split(",")]
     names = ("R0", "C0", "R1", "C1")
     if len(parts) != 4:
-        raise AnalysisInputError(f"--roi must be R0,C0,R1,C1 (4 integers), got {text!r}")
+        raise UsageError(f"--roi must be R0,C0,R1,C1 (4 integers), got {text!r}")
     values = []
     for name, part in zip(names, parts, strict=True):
         try:
             values.append(int(part))
         except ValueError:
-            raise AnalysisInputError(f"--roi {name} must be an integer, got {part!r}") from None
+            raise UsageError(f"--roi {name} must be an integer, got {part!r}") from None
     r0, c0, r1, c1 = values
     height, width = shape[-2], shape[-1]
     for name, v, top in (("R0", r0, height), ("C0", c0, width)):

@@ -71,13 +71,13 @@ def _wait_for_interrupt(hold_s: float | None) -> None:
 def _cmd_led(args: argparse.Namespace) -> int:
     from benchlab.drivers.slc import SlcController
     ceilings = {args.channel: args.ceiling_ma}
+    if args.on and args.current_ma is None:  # before the controller is opened
+        raise UsageError("led --on needs --current-ma")
     with _port_for(args, "led") as port, SlcController(port, ceilings_ma=ceilings) as slc:
         if args.off:
             slc.off(args.channel)
             print(f"led channel {args.channel} off")
             return 0
-        if args.current_ma is None:
-            raise BenchlabError("led --on needs --current-ma")
         slc.on(args.channel, args.current_ma)
         imax_ma, iset_ma = slc.get_current(args.channel)
         held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
@@ -96,6 +96,8 @@ def _cmd_led(args: argparse.Namespace) -> int:
 def _cmd_stage(args: argparse.Namespace) -> int:
     from benchlab.drivers.apt import AptStage
     lo, hi = args.travel_mm
+    if args.action == "move" and args.position_mm is None:  # before the stage is opened
+        raise UsageError("stage move needs a position in mm")
     with _port_for(args, "stage") as port, AptStage(
         port, counts_per_mm=args.counts_per_mm, travel_mm=(lo, hi),
         allow_unhomed=args.allow_unhomed,
@@ -103,8 +105,6 @@ def _cmd_stage(args: argparse.Namespace) -> int:
         if args.action == "home":
             stage.home()
         elif args.action == "move":
-            if args.position_mm is None:
-                raise BenchlabError("stage move needs a position in mm")
             if args.relative:
                 stage.move_by_mm(args.position_mm)
             else:
