@@ -341,9 +341,13 @@ class Bench:
         if self.led is not None:
             self.led.off(channel)
 
-    def home_stage(self) -> None:
-        if self.stage is not None and not self.stage.is_homed:
-            self.stage.home()
+    def home_stage(self, abort: threading.Event | None = None) -> None:
+        """Home the stage unless it is homed, and wait; when ``abort`` is set meanwhile, the
+        stage is stopped at once (homing then ends with the driver's interrupted-move error)."""
+        stage = self.stage
+        if stage is not None and not stage.is_homed:
+            with _stopped_on(stage, abort):
+                stage.home()
 
     def move_stage_mm(self, position_mm: float, abort: threading.Event | None = None) -> None:
         """Move and wait; when ``abort`` is set meanwhile, the stage is stopped at once (the
@@ -351,25 +355,8 @@ class Bench:
         stage = self.stage
         if stage is None:
             raise BenchError("no stage configured ([stage] in the bench file)")
-        if abort is None:
+        with _stopped_on(stage, abort):
             stage.move_to_mm(position_mm, wait=True)
-            return
-        finished = threading.Event()
-
-        def watch() -> None:
-            while not finished.wait(0.02):
-                if abort.is_set():
-                    with contextlib.suppress(DeviceError):
-                        stage.stop(immediate=True, wait=False)
-                    return
-
-        watcher = threading.Thread(target=watch, name="stage-abort-watch", daemon=True)
-        watcher.start()
-        try:
-            stage.move_to_mm(position_mm, wait=True)
-        finally:
-            finished.set()
-            watcher.join()
 
     # -- the mounted target ---------------------------------------------------------------------
     def mount(self, target: object) -> None:
@@ -497,3 +484,29 @@ def open_simulated(
     bench.camera = stack.enter_context(
         MightexCamera.open(serial=cfg.camera.serial, backend=backend, pid=cfg.camera.pid)
     )
+
+
+@contextlib.contextmanager
+def _stopped_on(stage: LinearStage, abort: threading.Event | None) -> Iterator[None]:
+    """While the body waits for a move or homing, stop ``stage`` at once when ``abort`` is set
+    (from any thread: the abort key, a quitting UI); nothing to watch without ``abort``."""
+    if abort is None:
+        yield
+        return
+    finished = threading.Event()
+
+    def watch() -> None:
+        while not finished.wait(0.02):
+            if abort.is_set():
+                with contextlib.suppress(DeviceError):
+                    stage.stop(immediate=True, wait=False)
+                return
+
+    watcher = threading.Thread(target=watch, name="stage-abort-watch", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        finished.set()
+        watcher.join()
+

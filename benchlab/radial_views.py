@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import shutil
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +46,9 @@ from benchlab.analysis.viewsynth import (
 from benchlab.analysis.viewsynth_calibrate import calibrate_from_rings, compare_tables
 from benchlab.drivers.errors import BenchlabError
 from benchlab.storage import atomic_write_bytes, atomic_write_text, sha256_file
+
+if TYPE_CHECKING:
+    from benchlab.session import Session
 
 VIEW_FORMAT = "benchlab-view"
 VIEW_FORMAT_VERSION = 1
@@ -338,12 +340,28 @@ def unwrap_session(
     ViewSynthesisError
         No radial frames, or bad parameters.
     """
+    from benchlab.session import Session
+
+    session = Session.open(Path(session_path))
+    session.hold("benchlab unwrap")  # a live run or analysis writing it is named and refused
+    try:
+        return _unwrap_held(session, table, centre_rc, object_radius_mm, azimuth_deg,
+                            px_per_mm, interpolation, allow_extrapolation)
+    finally:
+        session.release()
+
+
+def _unwrap_held(
+    session: Session, table: RayTraceTable | None, centre_rc: tuple[float, float] | None,
+    object_radius_mm: float, azimuth_deg: tuple[float, float], px_per_mm: float,
+    interpolation: str, allow_extrapolation: bool,
+) -> Path:
+    """:func:`unwrap_session` on a session this process holds."""
     from scipy import ndimage
 
     from benchlab.analysis.geometry import fov_centre
-    from benchlab.session import Session, read_results
+    from benchlab.session import read_results
 
-    session = Session.open(Path(session_path))
     frames: list[tuple[str, str, npt.NDArray[Any]]] = []
     for rel in sorted(session.frames()):
         stem = Path(rel).stem
@@ -409,8 +427,9 @@ def unwrap_session(
             "azimuth_deg", "extrapolated", "z_top_mm")}
         summary["unwrap"].update(centre_method=how, interpolation=interpolation,
                                  carried_from=previous.name if previous else None)
-        version = session.write_results(tables, summary=summary, estimator=estimator)
-        os.replace(staging, version / UNWRAPPED_DIR)
+        # The views move into the version before it appears: never a version without them.
+        version = session.write_results(tables, summary=summary, estimator=estimator,
+                                        extra_dirs={UNWRAPPED_DIR: staging})
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return version

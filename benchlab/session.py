@@ -18,6 +18,7 @@ terminates it and records a ``journal_repaired`` event so the damage stays visib
 from __future__ import annotations
 
 import csv
+import errno
 import fcntl
 import hashlib
 import io
@@ -388,7 +389,8 @@ class Session:
 
     def remove_temporary_files(self) -> list[str]:
         """Delete what a kill in the middle of an atomic write left behind (``.*.tmp`` files
-        beside frames and results, ``.v-*.tmp`` result folders) - never a real frame - and
+        beside frames and results, ``.v-*.tmp`` and ``.unwrap-*.tmp`` result folders) - never
+        a real frame - and
         journal them. Only the holder may do this."""
         if not self.held:
             raise SessionError(f"{self.path}: only the session's writer removes temporary files")
@@ -398,7 +400,8 @@ class Session:
                 continue
             for p in sorted(folder.glob(".*.tmp")):
                 rel = p.relative_to(self.path).as_posix()
-                if p.is_dir() and folder == self.results_dir and p.name.startswith(".v-"):
+                if p.is_dir() and folder == self.results_dir and p.name.startswith(
+                        (".v-", ".unwrap-")):
                     shutil.rmtree(p)
                 elif p.is_file() and not p.is_symlink():
                     p.unlink()
@@ -760,11 +763,17 @@ class Session:
                          "steps_done": steps_done, "steps_total": steps_total}
 
     def result_versions(self) -> list[int]:
-        """Existing results versions, ascending."""
+        """Existing results versions, ascending: ``results/v<N>`` folders holding their
+        summary.json (an empty or partial folder - a crash of older software between
+        claiming a number and filling it - is no version)."""
         if not self.results_dir.is_dir():
             return []
-        found = (_VERSION_DIR.match(p.name) for p in self.results_dir.iterdir() if p.is_dir())
-        return sorted(int(m.group(1)) for m in found if m)
+        found = []
+        for p in self.results_dir.iterdir():
+            m = _VERSION_DIR.match(p.name)
+            if m and (p / "summary.json").is_file():
+                found.append(int(m.group(1)))
+        return sorted(found)
 
     def latest_results(self) -> Path | None:
         """The newest ``results/v<N>`` folder, or None before the first analysis."""
@@ -777,10 +786,13 @@ class Session:
         *,
         summary: Mapping[str, Any],
         estimator: str,
+        extra_dirs: Mapping[str, Path] | None = None,
     ) -> Path:
         """Write a new results version: ``<file>.csv`` + ``<file>.json`` per table (file names
         from :data:`RESULT_FILE_STEMS`, e.g. ``forward_view_modulation`` for ``table_4_11``),
-        and summary.json (which maps each table label to its file).
+        and summary.json (which maps each table label to its file). ``extra_dirs``: folders
+        already written under ``results/`` (``name -> folder``), moved into the version as
+        ``name`` before it appears, so the version never exists without them.
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
@@ -807,13 +819,16 @@ class Session:
                 write_new_file(path, text.encode("utf-8"))
 
         try:
+            for name, folder in (extra_dirs or {}).items():
+                _check_name("folder name", name)
+                os.replace(folder, tmp / name)  # same file system: a rename
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
                 write(tmp / f"{stem}.json", json_rows_text(plain_rows))
                 write(tmp / f"{stem}.csv", _csv_text(plain_rows))
+            version = (self.result_versions() or [0])[-1] + 1
             while True:
-                version = (self.result_versions() or [0])[-1] + 1
                 doc = {
                     "version": version,
                     "estimator": estimator,
@@ -831,10 +846,16 @@ class Session:
                     fsync_tree(tmp)
                 target = self.results_dir / f"v{version}"
                 try:
-                    target.mkdir()  # claim the number; rename onto an empty dir is atomic
-                except FileExistsError:
+                    # Atomic, and only onto a free name (or an empty folder, left by a crash
+                    # of older software): no moment where v<N> exists but is not complete.
+                    os.rename(tmp, target)
+                except OSError as exc:
+                    if not (isinstance(exc, FileExistsError)
+                            or exc.errno in (errno.EEXIST, errno.ENOTEMPTY)):
+                        raise
+                    # Another writer's version, or a folder that is none: the next number.
+                    version = max(version + 1, (self.result_versions() or [0])[-1] + 1)
                     continue
-                os.replace(tmp, target)
                 fsync_dir(self.results_dir)  # the rename itself
                 break
         except BaseException:

@@ -11,6 +11,12 @@ class BenchlabError(Exception):
     """Base of every error benchlab raises on purpose."""
 
 
+class UsageError(BenchlabError):
+    """A value on the command line (or in a call) that cannot be right: an unknown name, a
+    malformed ``--roi``, a count below 1. The command line reports it as ``benchlab: error:
+    ...`` with exit status 2, like argparse's own usage errors."""
+
+
 class DeviceError(BenchlabError):
     """Something went wrong talking to an instrument."""
 

@@ -89,7 +89,6 @@ class SlcController(LightSource):
         self._normal_max_ma = _DEFAULT_NORMAL_MAX_MA
         self._io_lock = threading.RLock()
         self._busy = False
-        self._off_pending = False
         #: An exchange was interrupted (Ctrl-C, SIGTERM) after its command went out: its late
         #: reply must be read before the next command's, or it would be taken for that one.
         self._late_reply = False
@@ -236,7 +235,6 @@ class SlcController(LightSource):
                     ) from None
                 except DeviceError as exc:
                     failures.append(f"channel {ch}: {exc}")
-            self._off_pending = False
         if failures:
             raise DeviceError("LED controller: could not confirm all off: " + "; ".join(failures))
 
@@ -302,8 +300,7 @@ class SlcController(LightSource):
             except IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
             except KeyboardInterrupt:
-                self._off_pending = True
-                self._late_reply = True
+                self._late_reply = True  # its reply comes later: read it before the next
                 raise
             finally:
                 self._busy = False
@@ -352,12 +349,10 @@ class SlcController(LightSource):
 
     # ---- stop signals (Ctrl-C, SIGTERM, SIGHUP) ----------------------------------------------
     def _on_stop_signal(self) -> None:
-        # Between commands: switch off now. Mid-command: the interrupted exchange marks
-        # the off as pending and the context exit / close performs it.
+        # Between commands: switch off now. Mid-command (the port is busy): the interrupted
+        # exchange unwinds to the context exit / close(), which switches every channel off.
         if self._ser is not None and not self._busy:
             try:
                 self.all_off()
             except DeviceError:
                 pass
-        else:
-            self._off_pending = True

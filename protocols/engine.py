@@ -312,7 +312,16 @@ class Runner:
             if step.id not in done:
                 break
             if step.restore is not None:
-                step.restore(StepContext(self, step))
+                try:
+                    step.restore(StepContext(self, step))
+                except RunAborted:
+                    raise
+                except Exception as exc:  # as a failed step: status "failed", resumable
+                    log.info("restoring step %s failed: %s: %s", step.id,
+                             type(exc).__name__, exc)
+                    self.session.log_event("step_failed", step=step.id,
+                                           error=f"restoring: {type(exc).__name__}: {exc}")
+                    raise StepFailed(step, exc) from exc
             if step.kind == "manual":
                 last_manual = step
         if last_manual is not None and last_manual.prompt and self.pending():

@@ -83,7 +83,11 @@ class RadiometryProcedure:
         ctx.bench.configure_camera(bits=self.params.bits)
         ctx.bench.mount(LED_TARGET)
         if ctx.bench.has_stage:
-            ctx.bench.home_stage()
+            try:
+                ctx.bench.home_stage(abort=ctx.runner.abort)
+            except DeviceError:
+                ctx.check_abort()  # stopped by the abort key or a quit: an abort, not a fault
+                raise
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import benchlab
-from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.errors import BenchlabError, UsageError
 from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, record_in_catalogue
 from benchlab.protocols.params import (
     BenchLimits,
@@ -40,7 +40,7 @@ class SessionCompleteError(SessionError):
     """``resume`` of a session that already completed: there is nothing to do."""
 
 
-class UnknownEstimatorError(BenchlabError):
+class UnknownEstimatorError(UsageError):
     """An estimator name that the analysis library does not know."""
 
 

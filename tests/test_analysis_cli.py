@@ -77,21 +77,22 @@ def test_analyze_prints_a_table(tmp_path: Path, bars, capsys) -> None:
 
 
 @pytest.mark.parametrize(
-    ("roi", "message"),
-    [
-        (None, "--roi R0,C0,R1,C1 is required"),
-        ("1,2,3", "4 integers"),
-        ("a,2,3,4", "R0 must be an integer"),
-        ("10,10,5,20", "R1=5 must be > R0=10"),
-        ("0,0,10,999", "C1=999"),
-        ("-1,0,10,10", "R0=-1"),
+    ("roi", "message", "status"),
+    [  # missing or malformed: a usage error (2); outside this image: an input error (1)
+        (None, "--roi R0,C0,R1,C1 is required", 2),
+        ("1,2,3", "4 integers", 2),
+        ("a,2,3,4", "R0 must be an integer", 2),
+        ("10,10,5,20", "R1=5 must be > R0=10", 1),
+        ("0,0,10,999", "C1=999", 1),
+        ("-1,0,10,10", "R0=-1", 1),
     ],
 )
-def test_bad_roi_names_the_field(tmp_path: Path, capsys, roi: str | None, message: str) -> None:
+def test_bad_roi_names_the_field(tmp_path: Path, capsys, roi: str | None, message: str,
+                                 status: int) -> None:
     path = tmp_path / "x.tif"
     tifffile.imwrite(path, np.zeros((30, 40), np.uint8))
     argv = ["analyze", str(path)] + ([] if roi is None else [f"--roi={roi}"])
-    assert main(argv) == 1
+    assert main(argv) == status
     err = capsys.readouterr().err
     assert message in err and err.startswith("benchlab: error:")
 

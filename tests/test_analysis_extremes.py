@@ -185,3 +185,15 @@ def test_negative_levels_after_dark_subtraction_are_labelled() -> None:
     roi = np.tile(np.r_[np.full(8, -20.0), np.full(8, 5.0)], (10, 2))
     for name in NAMES:
         check_labelled(estimate_modulation(roi, estimator=name, freq_cycles_per_px=1 / 16))
+
+
+def test_values_whose_squares_overflow_are_a_value_error() -> None:
+    roi = np.tile([1.0, 3.0, 1.0, 3.0], (8, 4)) * 1e300
+    with pytest.raises(ValueError, match="overflow"):
+        estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=0.5)
+    with pytest.raises(ValueError, match="overflow"):
+        estimate_modulation(-roi, freq_cycles_per_px=0.25)
+    # 1e150 itself is analysed (the bound is inclusive).
+    fine = np.tile([1.0, 1.0, 3.0, 3.0], (8, 4)) * 1e149
+    assert estimate_modulation(fine, estimator="histogram", freq_cycles_per_px=0.25).resolved
+

@@ -8,6 +8,8 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from benchlab.analysis import histogram
 from benchlab.analysis.benchmark import Case, benchmark_cases
@@ -116,3 +118,38 @@ def test_a_chart_rotated_against_the_given_orientation_is_measured() -> None:
     r = estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=1 / 6,
                             orientation="horizontal")
     assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.03)
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.integers(2, 70), cols=st.integers(2, 70), theta=st.floats(-1.6, 1.6),
+       f=st.floats(0.02, 0.5), phase=st.floats(-0.5, 0.5))
+def test_bar_centre_pixels_are_those_of_their_own_phase(
+    rows: int, cols: int, theta: float, f: float, phase: float
+) -> None:
+    """The selection is each pixel's own phase: bin = floor(NOISE_BINS (phi mod 1)) in the
+    window, and |phi - phase| <= half - 1/2 cycle for the inner bars (no whole-bin rounding
+    of that limit: it moved readings by up to 0.04)."""
+    kx, ky = f * math.cos(theta), f * math.sin(theta)
+    half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
+    _, bins, inner = histogram._phase_bins((rows, cols), kx, ky, phase, half_f)
+    y = np.arange(rows)[:, None] - (rows - 1) / 2
+    x = np.arange(cols)[None, :] - (cols - 1) / 2
+    phi = ky * y + kx * x + phase
+    frac = (phi - np.floor(phi)) * histogram.NOISE_BINS
+    want_bins = np.minimum(frac.astype(int), histogram.NOISE_BINS - 1)
+    # Pixels on a bin edge (to rounding) may fall either side.
+    on_edge = np.abs(frac - np.rint(frac)) < 1e-9
+    assert np.array_equal(bins[~on_edge], want_bins[~on_edge])
+    if half_f >= 1.0:
+        assert inner is not None
+        dev = np.abs(phi - phase) - (half_f - 0.5)
+        decided = np.abs(dev) > 1e-9
+        assert np.array_equal(inner[decided], (dev <= 0)[decided])
+    else:
+        assert inner is None
+    phases = histogram._Phases(bins, inner, 1.0, None)
+    near = phases.centres("near")
+    want = histogram._NEAR[bins] & (inner if inner is not None else True)
+    assert np.array_equal(near, want)
+    assert np.array_equal(phases.centres("all"), inner if inner is not None
+                          else np.ones((rows, cols), bool))

@@ -111,10 +111,16 @@ def test_selected_keeps_every_other_fact() -> None:
     sub = prep.selected(pixels, 0.7, 60.0, 180.0)
     assert sub.pixels is pixels
     assert (sub.noise_sigma, sub.vmin, sub.vmax) == (0.7, 60.0, 180.0)
-    same = {"pixels", "known_noise", "vmin", "vmax"}
+    same = {"pixels", "known_noise", "vmin", "vmax", "source"}
     for f in dataclasses.fields(prep):
         if f.name not in same:
             assert getattr(sub, f.name) == getattr(prep, f.name), f.name
+    assert sub.source is prep and sub.selected(pixels, 0.7, 60.0, 180.0).source is prep
+    # A 1 x N selection of horizontal stripes still has the ROI's axis (0), measured on the
+    # ROI's own pixels when first asked for.
+    stripes = prepare_roi(np.repeat([[10], [90], [10], [90]], 6, axis=1).repeat(2, axis=0))
+    centre_px = stripes.selected(stripes.pixels[2:4].reshape(1, -1), 1.0, 10.0, 90.0)
+    assert centre_px.known_axis is None and centre_px.axis == 0 == stripes.known_axis
     assert sub.diagnostics().n_pixels == pixels.size
     assert sub.diagnostics(n_pixels=64).n_pixels == 64
     assert sub.diagnostics(n_pixels=64, bimodality=0.5).bimodality == 0.5

@@ -257,13 +257,20 @@ def test_curved_edge_needs_the_polynomial_fit() -> None:
 
 
 def test_full_scale_and_json_summary() -> None:
-    assert full_scale_of(np.zeros(3, np.uint8)) == 255
+    assert full_scale_of(np.arange(256, dtype=np.uint8)) == 255
     assert full_scale_of(np.array([0, 4095], np.uint16)) == 4095
-    assert full_scale_of(np.array([0, 65520], np.uint16)) == 65520
+    assert full_scale_of(np.arange(0, 65521, 16, dtype=np.uint16)) == 65520  # 12-bit MSB
     assert full_scale_of(np.array([0, 65535], np.uint16)) == 65535
     assert full_scale_of(np.zeros(3)) is None
+    assert full_scale_of(np.array([5, 900], np.int16)) == 4095  # any integer type
     res = measure_sfr(synthetic_edge((60, 60), 5.0, 1.0), bootstrap=5)
     doc = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert doc["freqs_cycles_per_px"][50] == 0.5
     assert doc["mtf"][50] == pytest.approx(res.mtf_nyquist, abs=1e-6)
     assert len(doc["mtf_sigma"]) == len(doc["mtf"])
+
+
+def test_complex_data_is_a_value_error() -> None:
+    edge = synthetic_edge((80, 80), 5.0, 1.0)
+    with pytest.raises(ValueError, match="real numbers"):
+        measure_sfr(edge.astype(complex))

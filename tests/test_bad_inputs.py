@@ -323,3 +323,34 @@ def test_report_out_creates_only_the_last_level(
     one = tmp_path / "reports" / "r.html"
     assert main(["report", str(done_session), "--out", str(one)]) == 0
     assert one.is_file()
+
+
+@pytest.mark.parametrize(("argv", "says"), [
+    (["simulate", "--time-scale", "0", "--for-s", "0.1"], "--time-scale: must be a finite"),
+    (["simulate", "--channels", "0", "--for-s", "0.1"], "--channels: must be >= 1"),
+    (["simulate", "--for-s", "nan"], "--for-s: must be a finite"),
+    (["benchmark", "serial", "--repeat", "0"], "--repeat: must be >= 1"),
+    (["benchmark", "camera", "--frames", "-3"], "--frames: must be >= 1"),
+    (["benchmark", "report", "x", "--repeats", "0"], "--repeats: must be >= 1"),
+    (["benchmark", "analysis", "--cases", "two"], "--cases: not a whole number: 'two'"),
+    (["sfr", "x.tiff", "--roi", "0,0,9,9", "--bootstrap", "-1"], "--bootstrap: must be >= 0"),
+])
+def test_counts_and_scales_out_of_range_are_usage_errors(
+    argv: list[str], says: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A count below 1 (or a bootstrap below 0, a time scale not above 0) is a usage error
+    naming the option, exit 2, before anything runs - not a traceback or a negative fps."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+
+
+def test_simulated_stage_start_outside_its_travel_is_a_usage_error(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["simulate", "--initial-position-mm", "999", "--for-s", "0.1"]) == 2
+    assert "--initial-position-mm 999 is outside the travel 0 .. 50 mm" in capsys.readouterr().err
+    assert main(["simulate", "--travel-mm", "5", "5", "--for-s", "0.1"]) == 2
+    assert "LOW must be below HIGH" in capsys.readouterr().err

@@ -105,8 +105,10 @@ def test_bad_batch_inputs_are_clean_errors(
     a = copy_session(source, tmp_path / "a")
     assert main(["analyze"]) == 2  # usage: nothing to analyse
     assert "needs an image, a session folder, or --all ROOT" in capsys.readouterr().err
-    assert main(["analyze", str(a), str(a), "--jobs", "0"]) == 1
-    assert "--jobs must be >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:  # a usage error, exit 2, before any work
+        main(["analyze", str(a), str(a), "--jobs", "0"])
+    assert usage.value.code == 2
+    assert "argument --jobs: must be >= 1, got 0" in capsys.readouterr().err
     assert main(["analyze", "--all", str(tmp_path / "nowhere")]) == 1
     assert "no such folder of sessions" in capsys.readouterr().err
     empty = tmp_path / "empty"
@@ -115,7 +117,7 @@ def test_bad_batch_inputs_are_clean_errors(
     assert "no sessions to analyse" in capsys.readouterr().err
     assert main(["analyze", str(a), str(a), "--roi", "1,2,3,4"]) == 1
     assert "only --estimator applies" in capsys.readouterr().err
-    assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 1
+    assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 2  # a usage error
     assert "unknown estimator" in capsys.readouterr().err
     assert sorted(p.name for p in (a / "results").iterdir()) == ["v1"]  # nothing written
     monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT_S", 0.5)

@@ -178,7 +178,8 @@ def test_twelve_bit_codes_and_a_stack_read_alike() -> None:
 @pytest.mark.parametrize("kwargs", [
     {"bar_width_px": 0.0}, {"bar_width_px": math.nan}, {"theta_deg": math.inf},
     {"centre_rc": (math.nan, 1.0)}, {"max_code": -1.0}, {"blur_prior_px": (0.3, 0.0)},
-    {"shift_prior_px": 0.0},
+    {"shift_prior_px": 0.0}, {"centre_rc": (5.0,)}, {"bar_width_px": "wide"},
+    {"theta_deg": None},
 ])
 def test_bad_geometry_or_priors_are_value_errors(kwargs: dict[str, object]) -> None:
     args: dict[str, object] = {"centre_rc": (4.0, 4.0), "bar_width_px": 1.5, "theta_deg": 3.0}

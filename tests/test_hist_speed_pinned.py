@@ -1,9 +1,7 @@
 """Readings pinned before the speed work on the histogram and profilefit paths (issue 9): a
 fixed set of benchmark cases and extremes must read what they read before, so an optimisation
 that changes a number fails here. Expected values: ``tests/data/analysis_pinned_readings.json``,
-written by the code before the speed-ups (modulation, resolved, 95 % interval, dark, bright).
-The histogram entries were re-pinned once, when its bar-centre selection moved to whole phase
-cells (11 of 76 readings moved, by at most 2e-4; ``benchmark analysis`` unchanged to 3 decimals)."""
+written by the code before the speed-ups (modulation, resolved, 95 % interval, dark, bright)."""
 
 from __future__ import annotations
 

@@ -142,3 +142,32 @@ def test_retry_in_the_same_process_continues_at_the_failed_step(
 def test_declined_prompt_aborts_cleanly(tmp_path: Path) -> None:
     path = _interrupt(tmp_path, RunAborted, prompt=lambda step, message: step.id != "focus")
     assert Session.open(path).completed_steps() == {"setup", "thread"}
+
+
+def test_a_failure_while_restoring_on_resume_is_a_failed_step(
+    tmp_path: Path, reference: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Resume re-establishes the completed steps' set-up first (camera settings, target,
+    stage); a device error there used to leave session.json at "running" with nothing in
+    the journal. It is a failed step: status "failed", a step_failed event, resumable."""
+    from benchlab.drivers.errors import DeviceError
+
+    def prompt(step: Any, message: str) -> bool:
+        if step.id == "roll-2-sagittal":
+            raise RuntimeError("operator tripped over the cable")
+        return True
+
+    path = _interrupt(tmp_path, StepFailed, prompt=prompt)
+
+    def lost(self: Bench, **kw: Any) -> None:
+        raise DeviceError("camera: no reply (unplugged?)")
+
+    with monkeypatch.context() as m:
+        m.setattr(Bench, "configure_camera", lost)
+        with pytest.raises(StepFailed, match="unplugged"):
+            _resume(path)
+    assert Session.open(path).status == "failed"
+    failed = [e for e in events(path) if e["kind"] == "step_failed"]
+    assert failed[-1]["error"].startswith("restoring: DeviceError: camera: no reply")
+    outcome = _resume(path)  # the camera back: the run completes as if never interrupted
+    assert tables_of(outcome.results_path) == reference

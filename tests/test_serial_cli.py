@@ -86,3 +86,14 @@ def test_benchmark_serial(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["benchmark", "serial", "--repeat", "3"]) == 0
     out = capsys.readouterr().out
     assert "SLC ?CURRENT round trip" in out and "APT 17 mm move" in out
+
+
+def test_missing_values_are_usage_errors_before_any_device_opens(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``led --on`` without a current and ``stage move`` without a position cannot be meant:
+    exit 2, and the port named is never opened (it does not exist)."""
+    assert main(["led", "--port", "/nonexistent/ttyUSB9", "--on"]) == 2
+    assert "led --on needs --current-ma" in capsys.readouterr().err
+    assert main(["stage", "--port", "/nonexistent/ttyUSB9", "move"]) == 2
+    assert "stage move needs a position in mm" in capsys.readouterr().err

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from benchlab.session import RESULT_FILE_STEMS, Session, read_results
 from benchlab.storage import atomic_write_json
 
@@ -43,3 +45,62 @@ def test_every_file_name_says_what_it_holds() -> None:
     stems = list(RESULT_FILE_STEMS.values())
     assert len(set(stems)) == len(stems)
     assert not any(stem.startswith("table_") for stem in stems)
+
+
+def test_a_version_is_never_visible_before_it_is_complete(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C at the rename leaves no results/vN (the number was claimed by an empty folder
+    before, which then became "latest"); folders without summary.json are no version."""
+    session = _session(tmp_path)
+    v1 = session.write_results({"t": ROWS}, summary={}, estimator="histogram")
+
+    def interrupted(src: object, dst: object) -> None:
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr("benchlab.session.os.rename", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            session.write_results({"t": ROWS}, summary={}, estimator="histogram")
+    assert sorted(p.name for p in session.results_dir.iterdir()) == ["v1"]
+    assert session.latest_results() == v1 and session.result_versions() == [1]
+    # What older software left behind: an empty v2 and a v3 without its summary.
+    (session.results_dir / "v2").mkdir()
+    (session.results_dir / "v3").mkdir()
+    (session.results_dir / "v3" / "t.json").write_text("[]")
+    assert session.result_versions() == [1] and session.latest_results() == v1
+    v2 = session.write_results({"t": ROWS}, summary={"n": 2}, estimator="histogram")
+    assert v2.name == "v2" and (v2 / "summary.json").is_file()  # the empty folder replaced
+    v4 = session.write_results({"t": ROWS}, summary={"n": 4}, estimator="histogram")
+    assert v4.name == "v4" and json.loads((v4 / "summary.json").read_text())["version"] == 4
+    assert (session.results_dir / "v3" / "t.json").read_text() == "[]"  # never touched
+    assert session.result_versions() == [1, 2, 4]
+
+
+def test_extra_folders_arrive_with_the_version(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """``unwrap`` writes its view TIFFs beside a version: they move in before the version
+    appears, so an interruption leaves no version without them (it used to rename them in
+    after the version was visible)."""
+    session = _session(tmp_path)
+    staged = session.results_dir / ".unwrap-x.tmp"
+    staged.mkdir(parents=True)
+    (staged / "a.tiff").write_bytes(b"view")
+    v1 = session.write_results({"t": ROWS}, summary={}, estimator="unwrap",
+                               extra_dirs={"unwrapped": staged})
+    assert (v1 / "unwrapped" / "a.tiff").read_bytes() == b"view" and not staged.exists()
+    staged.mkdir()
+    (staged / "b.tiff").write_bytes(b"view")
+
+    def interrupted(src: object, dst: object) -> None:
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr("benchlab.session.os.rename", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            session.write_results({"t": ROWS}, summary={}, estimator="unwrap",
+                                  extra_dirs={"unwrapped": staged})
+    assert session.result_versions() == [1]
+    assert sorted(p.name for p in session.results_dir.iterdir()) == ["v1"]
+    # What a kill leaves behind is cleaned by the next writer.
+    (session.results_dir / ".unwrap-y.tmp").mkdir()
+    assert session.remove_temporary_files() == ["results/.unwrap-y.tmp"]

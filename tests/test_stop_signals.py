@@ -289,3 +289,44 @@ def test_tui_mid_radiometry_signal(
     assert [led.channel_output_ma(ch) for ch in range(1, 5)] == [0.0] * 4
     assert _stage_still(stage)
     _assert_interrupted(sessions, sig)
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGHUP", "q"])
+def test_tui_stage_homing_stops_when_the_app_quits(
+    tmp_path: Path, led: SimulatedSlc, how: str
+) -> None:
+    """Homing from the Devices screen (h) holds the device lock for the whole move: a quit
+    (key or signal) must stop the carriage at once, not wait for it to reach the switch."""
+    stage = SimulatedAptStage(travel_mm=(0.0, 50.0), homed=False, time_scale=1.0,
+                              initial_position_mm=40.0)
+    stage.start()
+    proc, master = _spawn_tui(["--simulate", "--config", str(_bench_file(tmp_path, led, stage)),
+                               "--sessions", str(tmp_path / "sessions")], tmp_path)
+    screen = _Screen(master)
+    try:
+        def connected() -> bool:
+            screen.pump()
+            return b"connected (simulated)" in screen.data
+
+        _wait(connected, "the bench to connect", proc, 60)
+        os.write(master, b"1")
+        time.sleep(0.5)
+        os.write(master, b"h")
+        _wait(lambda: stage.moving and stage.position_mm < 39.8, "the stage to home", proc)
+        if how == "q":
+            os.write(master, b"q")
+        else:
+            proc.send_signal(getattr(signal, how))
+        deadline = time.monotonic() + 15
+        while proc.poll() is None and time.monotonic() < deadline:
+            screen.pump()
+            time.sleep(0.05)
+        want = 0 if how == "q" else _expected_status(getattr(signal, how))
+        assert proc.poll() == want, screen.data[-2000:]
+        assert _stage_still(stage)
+        assert stage.position_mm > 30.0  # stopped near where it was (2 mm/s), not homed
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+        stage.stop()

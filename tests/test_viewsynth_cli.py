@@ -193,6 +193,9 @@ def test_no_centre_and_no_radial_frames_are_clear_errors(
                              devices={}, software_version="test")
     session.save_frame("forward", "forward", np.zeros((64, 64), np.uint8),
                        {"bench": {"target": "usaf"}})
+    assert main(["unwrap", str(session.path)]) == 1  # the writer still holds it
+    assert "session is in use by" in capsys.readouterr().err
+    session.release()
     assert main(["unwrap", str(session.path)]) == 1
     assert "no radial frames to unwrap" in capsys.readouterr().err
     assert Session.open(session.path).result_versions() == []

@@ -412,67 +412,53 @@ def _scatter_about_bins(
 
 
 class _Phases(NamedTuple):
-    """Where every pixel lies on the bar pattern: ``cell`` = floor(``NOISE_BINS`` (phi +
-    whole cycles)), phi the phase in cycles (0 at bright-bar centres); the phase bin is its
-    low bits. Inner bars and spaces (half a period in from the ROI's ends) are the cells
-    within ``reach`` of ``centre_cell`` (``reach`` ``None``: every cell). Also the noise about
-    the phase-binned profile and the fundamental's significance (``None``: unknown)."""
+    """Where every pixel lies on the bar pattern: its phase ``bin`` (of ``NOISE_BINS`` per
+    cycle, bin 0 starting at the bright-bar centres) and whether it lies on the inner bars and
+    spaces (half a period in from the ROI's ends; ``None``: all do). Also the noise about the
+    phase-binned profile and the fundamental's significance (``None``: unknown)."""
 
-    cell: npt.NDArray[np.intp]
-    n_cells: int
-    centre_cell: float
-    reach: float | None
+    bins: npt.NDArray[np.intp]
+    inner_bars: npt.NDArray[np.bool_] | None
     noise: float
     z: float | None
 
     def centres(self, window: str) -> npt.NDArray[np.bool_]:
         """Which pixels lie on the inner bars and spaces, in the phase bins of ``window``
         (a key of :data:`_WINDOWS`)."""
-        n = self.n_cells
-        table = _tiled(window, 1 << max(n - 1, 1).bit_length())[:n].copy()
-        if self.reach is not None:
-            # Cells c with |c + 1/2 - centre_cell| <= reach.
-            lo = math.ceil(self.centre_cell - self.reach - 0.5)
-            hi = math.floor(self.centre_cell + self.reach - 0.5)
-            table[: max(lo, 0)] = False
-            table[max(hi + 1, 0) :] = False
-        return table[self.cell]
+        near = _WINDOWS[window][self.bins]
+        if self.inner_bars is not None:
+            near &= self.inner_bars
+        return near
 
 
-@lru_cache(maxsize=32)
-def _tiled(window: str, n_cells: int) -> npt.NDArray[np.bool_]:
-    """``_WINDOWS[window]`` repeated over ``n_cells`` cells (a multiple of ``NOISE_BINS``:
-    the phase bin of a cell is its low bits), read-only."""
-    table = np.tile(_WINDOWS[window], max(n_cells // NOISE_BINS, 1))
-    table.setflags(write=False)
-    return table
-
-
-def _cells(
+def _phase_bins(
     shape: tuple[int, int], kx: float, ky: float, phase: float, half_f: float
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.intp], int, float, float | None]:
-    """The cells of :class:`_Phases` for straight bars at ``(kx, ky)`` (cycles/px) and
-    ``phase`` (cycles at the ROI centre), ``half_f`` cycles from the centre to the far ends;
-    also ``NOISE_BINS (phi + whole)`` itself (a free buffer for the caller)."""
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
+    """Each pixel's ``NOISE_BINS (phi + whole cycles)`` (phi its phase in cycles) for straight
+    bars at ``(kx, ky)`` (cycles/px) and ``phase`` (cycles at the ROI centre), ``half_f``
+    cycles from the centre to the far ends; its phase bin; and whether it lies on the inner
+    bars, ``|phi - phase| <= half_f - 1/2`` (``None`` when the ROI spans under two)."""
     y, x = _centred_grid(*shape)
     # Whole cycles added keep every value positive (truncation is then the floor) and are a
-    # multiple of NOISE_BINS (the phase bin stays the low bits).
+    # multiple of NOISE_BINS (the phase bin is then the low bits).
     whole = math.ceil(half_f) + 2
-    centre_cell = NOISE_BINS * (phase + whole)
-    scaled = np.add.outer((NOISE_BINS * ky) * y + centre_cell, (NOISE_BINS * kx) * x)
-    cell = scaled.astype(np.intp)
-    n_cells = int(centre_cell + NOISE_BINS * half_f) + 2
-    # Inner bars: |phi - phase| <= half_f - 1/2 (to a cell, 1/NOISE_BINS cycle).
-    reach = NOISE_BINS * (half_f - 0.5) if half_f >= 1.0 else None
-    return scaled, cell, n_cells, centre_cell, reach
+    centre = NOISE_BINS * (phase + whole)
+    scaled = np.add.outer((NOISE_BINS * ky) * y + centre, (NOISE_BINS * kx) * x)
+    bins = scaled.astype(np.intp)
+    bins &= NOISE_BINS - 1
+    inner = None
+    if half_f >= 1.0:
+        inner = np.abs(scaled - centre) <= NOISE_BINS * (half_f - 0.5)
+    return scaled, bins, inner
 
 
 def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     """``prep`` holding only the pixels near the centres of the inner bars and spaces, with the
     noise measured about the phase-binned profile (see the module docstring), and the
     significance of the bars' fundamental (amplitude over its standard error; ``None`` when
-    unknown). ``prep`` is returned unchanged when the bar phase cannot be found (no frequency,
-    too few pixels)."""
+    unknown). ``prep`` is returned unchanged when the bar phase cannot be found (fewer than 16
+    pixels, a zero or aliased frequency, no spectral peak); without a frequency the bars'
+    geometry is searched for."""
     img = prep.pixels
     f = prep.freq_cycles_per_px
     if img.size < 16 or (f is not None and (f == 0 or f > 0.5)):
@@ -485,11 +471,7 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
         phases = measured if measured is not None else phases
     if phases is None:
         return prep, None
-    noise = phases.noise
-    if prep.integer_valued:
-        noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
-    if prep.noise_given:
-        noise = prep.noise_sigma
+    noise = prep.noise_sigma if prep.noise_given else phases.noise
     values = img[phases.centres("near")]
     if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
         values = img[phases.centres("wide")]
@@ -512,10 +494,11 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
     kx, ky = (f, 0.0) if prep.axis == 1 else (0.0, f)
     half_f = f * (line.size - 1) / 2.0
-    _, cell, n_cells, centre_cell, reach = _cells(img.shape, kx, ky, phase, half_f)
+    _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
     resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
     along = img.shape[1 - prep.axis]
-    noise = math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1))
+    noise = max(math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1)),
+                prep.quantisation_sd)
     if along < 2:
         noise = prep.noise_sigma
     z = None
@@ -528,7 +511,7 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
         value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
         z_noise = prep.noise_sigma if prep.noise_given else noise
         z = _significance(2.0 * abs(value) / line.size, z_noise, img.size)
-    return _Phases(cell, n_cells, centre_cell, reach, noise, z)
+    return _Phases(bins, inner, noise, z)
 
 
 def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
@@ -537,7 +520,7 @@ def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
     img = prep.pixels
     # quick_geometry's numbers, without the uncertainties it would add (not needed here); its
     # noise test follows with the noise about the bars' profile (it does not depend on the
-    # bars' angle, as the neighbour differences of prepare_roi do).
+    # bars' angle, as the neighbour differences of PreparedROI.noise_sigma do).
     quick = quick_fundamental(img, None, f, None, prep.sums_for(img)) if f else None
     if quick is not None:
         phases = _phases_at(prep, quick.theta_rad, quick.freq_cycles_per_px,
@@ -562,27 +545,24 @@ def _phases_at(
     n = img.size
     kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
-    scaled, cell, n_cells, centre_cell, reach = _cells((rows, cols), kx, ky, phase, half_f)
-    bins = (cell & (NOISE_BINS - 1)).ravel()
+    scaled, bins, inner = _phase_bins((rows, cols), kx, ky, phase, half_f)
     flat = img.ravel()
-    noise = _scatter_about_bins(bins, flat, NOISE_BINS)
+    noise = max(_scatter_about_bins(bins.ravel(), flat, NOISE_BINS), prep.quantisation_sd)
     z_noise = noise
     if n < 8 * NOISE_BINS:
         # Few pixels per bin, and a geometry from few periods that smears the bins: the
         # least of the noise estimates (coarser bins, the residual of the fundamental,
         # neighbour differences) - none of them is inflated by the bars on a flat ROI.
-        phi = scaled / NOISE_BINS
+        phi = scaled / NOISE_BINS  # + whole cycles
         w = phi - np.floor(phi)
         n_z = max(4, n // 8)
         coarse = _scatter_about_bins((w * n_z).astype(np.intp).ravel(), flat, n_z + 1)
         fundamental = amplitude * np.cos(2.0 * math.pi * phi)  # phi + whole cycles
         misfit = detrend(img) - fundamental
         residual = math.sqrt(float((misfit * misfit).sum()) / max(n - 7, 1))
-        z_noise = min(coarse, residual, prep.noise_sigma)
-    if prep.integer_valued:
-        z_noise = max(z_noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+        z_noise = max(min(coarse, residual, prep.noise_sigma), prep.quantisation_sd)
     z = _significance(amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
-    return _Phases(cell, n_cells, centre_cell, reach, noise, z)
+    return _Phases(bins, inner, noise, z)
 
 
 @lru_cache(maxsize=64)

@@ -433,6 +433,13 @@ def fit_three_bars(
     dark_bars: bool | None = None,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
+    try:
+        bar_width_px, theta_deg = float(bar_width_px), float(theta_deg)
+        row, col = (float(v) for v in centre_rc)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("bar_width_px and theta_deg must be numbers and centre_rc a (row, "
+                         f"col) pair, got {bar_width_px!r}, {theta_deg!r}, {centre_rc!r}") from exc
+    centre_rc = (row, col)
     if not (bar_width_px > 0 and math.isfinite(bar_width_px)):
         raise ValueError(f"bar_width_px must be a positive number, got {bar_width_px}")
     if not (math.isfinite(theta_deg) and all(math.isfinite(v) for v in centre_rc)):
@@ -478,7 +485,7 @@ def fit_three_bars(
                         f"needs at least {n_params + 1 + MIN_DOF}")
         return ThreeBarReading(unresolved(NAME, diag, warnings))
     base = np.stack(base_cols, axis=1)
-    quantum_sd = prep.code_step / math.sqrt(12.0) if prep.integer_valued else 0.0
+    quantum_sd = prep.quantisation_sd
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
                       warnings, dark_bars=dark_bars)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a

@@ -612,9 +612,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # Levels, shading, phase, blur (and duty), and the direction and frequency found.
     n_params = n_lin + 2 + (2 if fit_duty else 1)
     dof = max(n - n_params, 1)
-    noise = math.sqrt(fit.resid_ss / dof)
-    if prep.integer_valued:
-        noise = max(noise, (prep.code_step or 1.0) / math.sqrt(12.0))
+    noise = max(math.sqrt(fit.resid_ss / dof), prep.quantisation_sd)
     if prep.noise_given:
         noise = prep.noise_sigma
 

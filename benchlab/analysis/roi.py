@@ -29,6 +29,8 @@ from benchlab.analysis.result import (
     Diagnostics,
 )
 
+#: Largest pixel magnitude analysed: sums of squares of larger values overflow float64.
+MAX_ABS_VALUE = 1e150
 ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
 #: Normal-consistency factor of the median absolute deviation.
 MAD_TO_SIGMA = 1.4826
@@ -36,7 +38,8 @@ MAD_TO_SIGMA = 1.4826
 
 @dataclass(slots=True)
 class PreparedROI:
-    """A validated ROI with the facts every estimator needs (internal; treat as read-only)."""
+    """A validated ROI with the facts every estimator needs (internal; callers treat it as
+    read-only: the axis and the noise are filled in on their first use)."""
 
     pixels: npt.NDArray[np.float64]  # 2-D, frames averaged
     #: Numpy axis along which the intensity varies; ``None`` until :attr:`axis` detects it.
@@ -59,12 +62,16 @@ class PreparedROI:
     #: :meth:`sums_for`, which knows the array they were summed from.
     profile_sums: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
     sums_source: npt.NDArray[np.float64] | None = None
+    #: The ROI a selection (:meth:`selected`) was taken from: its axis is that ROI's.
+    source: PreparedROI | None = None
 
     @property
     def axis(self) -> int:
         """Numpy axis along which the intensity varies: the orientation given, else detected
         (on first use: the histogram method with a frequency never needs it)."""
-        if self.known_axis is None:
+        if self.known_axis is None and self.source is not None:
+            self.known_axis = self.source.axis  # a selection's pixels show no bar direction
+        elif self.known_axis is None:
             self.known_axis, sums = _axis_and_sums(self.pixels)
             if sums is not None and self.profile_sums is None:
                 self.profile_sums, self.sums_source = sums, self.pixels
@@ -76,11 +83,14 @@ class PreparedROI:
         use from neighbour differences along the bars (:func:`robust_noise_sigma`), never
         below the code step's quantisation."""
         if self.known_noise is None:
-            sigma = robust_noise_sigma(self.pixels, self.axis)
-            if self.integer_valued:
-                sigma = max(sigma, (self.code_step or 1.0) / math.sqrt(12.0))
-            self.known_noise = sigma
+            self.known_noise = max(robust_noise_sigma(self.pixels, self.axis),
+                                   self.quantisation_sd)
         return self.known_noise
+
+    @property
+    def quantisation_sd(self) -> float:
+        """:func:`quantisation_sd` of this ROI's code grid: the floor of any noise estimate."""
+        return quantisation_sd(self.integer_valued, self.code_step)
 
     def measured(self) -> PreparedROI:
         """``self`` with the axis and noise measured (before copies with other pixels, e.g. a
@@ -119,7 +129,7 @@ class PreparedROI:
             pixels, self.known_axis, self.integer_valued, self.code_step, noise_sigma,
             self.noise_given, self.max_code, self.clipped_fraction, vmin, vmax,
             self.freq_cycles_per_px, self.n_frames, self.warnings, self.orientation_given,
-            self.profile_sums, self.sums_source,
+            self.profile_sums, self.sums_source, self.source or self,
         )
 
     def diagnostics(self, n_pixels: int | None = None, **extra: object) -> Diagnostics:
@@ -149,6 +159,13 @@ class PreparedROI:
         )
         shared.update(fields)
         return Diagnostics(**shared)
+
+
+def quantisation_sd(integer_valued: bool, code_step: float) -> float:
+    """Standard deviation of rounding to a grid of ``code_step`` (``code_step / sqrt(12)``)
+    for integer codes (or their means), 0 for continuous data: no noise estimate on such data
+    goes below it (a flat ROI of one code has none it can measure)."""
+    return (code_step or 1.0) / math.sqrt(12.0) if integer_valued else 0.0
 
 
 def orientation_axis(orientation: str | None) -> int | None:
@@ -369,10 +386,14 @@ def prepare_roi(
     else:
         img = stack
 
-    integer_valued = is_integer_valued(raw)
     values = raw.ravel()
     top = values.max()
     raw_max = float(top)
+    raw_min = float(values.min())
+    if kind == "f" and max(raw_max, -raw_min) > MAX_ABS_VALUE:
+        raise ValueError(f"ROI holds values up to {max(raw_max, -raw_min):.3g}: beyond "
+                         f"+-{MAX_ABS_VALUE:g} their squares overflow (rescale the data)")
+    integer_valued = is_integer_valued(raw)
     code_step = detect_code_step(values) if integer_valued else 0.0
     max_code_f = saturation_code(raw, code_step, top) if max_code is None else float(max_code)
     clipped = 0.0
@@ -396,9 +417,8 @@ def prepare_roi(
     if noise_sigma is not None:
         sigma = float(noise_sigma)
     elif temporal_sigma is not None:
-        sigma = temporal_sigma / math.sqrt(n_frames)
-        if integer_valued:
-            sigma = max(sigma, (code_step or 1.0) / math.sqrt(12.0))
+        sigma = max(temporal_sigma / math.sqrt(n_frames),
+                    quantisation_sd(integer_valued, code_step))
 
     f = freq_cycles_per_px
     if f is not None:
@@ -423,7 +443,7 @@ def prepare_roi(
         noise_given=given,
         max_code=max_code_f,
         clipped_fraction=clipped,
-        vmin=float(img.min()) if n_frames > 1 else float(values.min()),  # raw: less to read
+        vmin=float(img.min()) if n_frames > 1 else raw_min,  # raw: less to read
         vmax=float(img.max()) if n_frames > 1 else raw_max,
         freq_cycles_per_px=f,
         n_frames=n_frames,

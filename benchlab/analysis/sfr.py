@@ -56,6 +56,8 @@ import numpy.typing as npt
 
 from benchlab.analysis.projection import across_coordinate, bin_profile, bin_profiles
 from benchlab.analysis.quantiles import median, percentiles
+from benchlab.analysis.result import NYQUIST_CYCLES_PER_PX
+from benchlab.analysis.roi import detect_code_step, infer_max_code
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -87,7 +89,6 @@ FIT_RMS_WARN_PX = 1.0
 MAX_DERIVATIVE_CORRECTION = 10.0
 #: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
 MAX_FREQ_CYCLES_PER_PX = 1.0
-NYQUIST_CYCLES_PER_PX = 0.5
 #: Wide LSF window: flat over +-(FLAT_RISES x the 10-90 % rise + FLAT_EXTRA_PX, at least
 #: FLAT_MIN_PX), cosine taper to
 #: TAPER_FACTOR times that. A Gaussian LSF (rise 2.56 sigma) has > 99.7 % of its area under the
@@ -324,18 +325,14 @@ class SfrResult:
 
 
 def full_scale_of(pixels: npt.NDArray[Any]) -> float | None:
-    """Full-scale code of an image: 255 (uint8), 4095 (12-bit data in uint16), 65520
-    (12-bit MSB-aligned), 65535 (other uint16); None for float data (no clipping check)."""
-    if pixels.dtype == np.uint8:
-        return 255.0
-    if pixels.dtype == np.uint16:
-        top = int(pixels.max()) if pixels.size else 0
-        if top <= 4095:
-            return 4095.0
-        if not np.any(pixels % 16):
-            return 65520.0
-        return 65535.0
-    return None
+    """Full-scale code of integer image data by its dtype and code grid
+    (:func:`benchlab.analysis.roi.infer_max_code`: 255, 4095 for 12-bit data in uint16, 65520
+    MSB-aligned, 65535); None for float data (no clipping check). Not the plateau test of the
+    bar estimators (:func:`benchlab.analysis.roi.saturation_code`): an edge's wide, nearly
+    noise-free bright side is a plateau at its maximum without being clipped."""
+    if pixels.dtype.kind not in "ui" or pixels.size == 0:
+        return None
+    return infer_max_code(pixels, detect_code_step(pixels.ravel()))
 
 
 def _sinc(x: FloatArray) -> FloatArray:
@@ -860,6 +857,8 @@ def measure_sfr(
         Malformed input (not 2-D, non-finite values, bad options).
     """
     raw = np.asarray(pixels)
+    if raw.dtype.kind not in "uifb":
+        raise ValueError(f"ROI must hold real numbers, got dtype {raw.dtype}")
     if raw.ndim != 2:
         raise ValueError(f"ROI must be 2-D, got shape {raw.shape}")
     if min(raw.shape) < 3:

@@ -1,8 +1,41 @@
 """The ``benchlab`` command line."""
 
-from benchlab.drivers.errors import BenchlabError
+import argparse
+import math
+
+from benchlab.drivers.errors import UsageError
+
+__all__ = ["UsageError", "non_negative_int", "positive_float", "positive_int"]
 
 
-class UsageError(BenchlabError):
-    """A command-line value that cannot be right (``--freq 0``, ``--roi`` on a session
-    folder): ``benchlab: error: ...`` with exit status 2, like argparse's own usage errors."""
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1 (a count: frames, repeats, cases, jobs)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (0 switches the feature off, e.g. ``--bootstrap``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0 (a time scale, a duration)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchlab.cli import UsageError
+from benchlab.cli import UsageError, positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
@@ -84,21 +84,24 @@ def parse_roi(text: str | None, shape: tuple[int, ...], path: Path) -> tuple[int
 
     Raises
     ------
+    UsageError
+        Missing or malformed (naming the field).
     AnalysisInputError
-        Naming the ``--roi`` field that is wrong.
+        Outside the image (naming the field).
     """
+    # Missing or malformed: a usage error (exit 2); outside this image: an input error.
     if not text:
-        raise AnalysisInputError(f"--roi R0,C0,R1,C1 is required to analyse an image ({path})")
+        raise UsageError(f"--roi R0,C0,R1,C1 is required to analyse an image ({path})")
     parts = [p.strip() for p in text.split(",")]
     names = ("R0", "C0", "R1", "C1")
     if len(parts) != 4:
-        raise AnalysisInputError(f"--roi must be R0,C0,R1,C1 (4 integers), got {text!r}")
+        raise UsageError(f"--roi must be R0,C0,R1,C1 (4 integers), got {text!r}")
     values = []
     for name, part in zip(names, parts, strict=True):
         try:
             values.append(int(part))
         except ValueError:
-            raise AnalysisInputError(f"--roi {name} must be an integer, got {part!r}") from None
+            raise UsageError(f"--roi {name} must be an integer, got {part!r}") from None
     r0, c0, r1, c1 = values
     height, width = shape[-2], shape[-1]
     for name, v, top in (("R0", r0, height), ("C0", c0, width)):
@@ -410,14 +413,15 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         ),
     )
     b.add_argument("--quick", action="store_true", help="300 cases and a short speed table")
-    b.add_argument("--cases", type=int, default=1500, help="number of synthetic ROIs (1500)")
+    b.add_argument("--cases", type=positive_int, default=1500,
+                   help="number of synthetic ROIs (1500)")
     b.add_argument("--seed", type=int, default=0, help="random seed of the cases and noise")
     b.add_argument(
         "--estimators", metavar="A,B", help="comma-separated estimators (default: all)"
     )
     b.add_argument("--no-speed", action="store_true", help="skip the ROI-size speed table")
     b.add_argument(
-        "--worst", type=int, metavar="N",
+        "--worst", type=positive_int, metavar="N",
         help="also list each estimator's N largest errors with the case parameters",
     )
     b.set_defaults(func=benchmark_command)

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError
 
 #: Above this many sessions the summary lists only the skipped and failed ones (--json: all).
@@ -24,7 +25,7 @@ def add_batch_arguments(p: argparse.ArgumentParser) -> None:
     """The batch options of ``benchlab analyze``."""
     p.add_argument("--all", dest="all_root", metavar="ROOT",
                    help="re-analyse every session folder under ROOT (in parallel)")
-    p.add_argument("--jobs", type=int, metavar="N",
+    p.add_argument("--jobs", type=positive_int, metavar="N",
                    help="worker processes for several sessions (default: every core)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the sessions on a dask cluster (tcp://host:8786) instead of "
@@ -125,13 +126,14 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "results fsync policies; prints wall time, per-session cost, the extrapolation to "
         "10,000 sessions and the workers' peak memory across the batch.",
     )
-    b.add_argument("--sessions", type=int, default=200, help="sessions to fabricate (200)")
-    b.add_argument("--jobs", type=int, metavar="N", help="worker processes (default: all cores)")
+    b.add_argument("--sessions", type=positive_int, default=200, help="sessions to fabricate (200)")
+    b.add_argument("--jobs", type=positive_int, metavar="N",
+                   help="worker processes (default: all cores)")
     b.add_argument("--source", metavar="SESSION", help="session folder to copy (default: one "
                    "simulated MTF run made for the benchmark)")
     b.add_argument("--workdir", metavar="DIR", help="where to fabricate (default: temp folder)")
     b.add_argument("--copy-frames", action="store_true",
                    help="copy the frames instead of hard-linking them")
-    b.add_argument("--fsync-repeats", type=int, default=20, metavar="N",
+    b.add_argument("--fsync-repeats", type=positive_int, default=20, metavar="N",
                    help="re-analyses per fsync policy for the comparison (0: skip)")
     b.set_defaults(func=benchmark_batch_command)

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError, DeviceNotFoundError
 
 if TYPE_CHECKING:  # the driver stack (numpy, pyusb) is imported by the commands that use it
@@ -272,6 +273,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "camera", help="camera frame rate and decode speed (simulated camera via pyusb)",
         description="Frames per second end to end and decode time vs a plain copy, 8 and "
                     "12-bit full frames, simulated camera through the real pyusb code path.")
-    bench.add_argument("--frames", type=int, default=200, help="frames timed per bit depth")
+    bench.add_argument("--frames", type=positive_int, default=200,
+                       help="frames timed per bit depth")
     bench.add_argument("--json", action="store_true", help="print JSON")
     bench.set_defaults(func=_cmd_benchmark)

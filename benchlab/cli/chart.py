@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
@@ -245,7 +246,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
             "forward disc, scale 0.7-1.4, rotation +-15 deg, vignetting, dust, sensor noise, "
             "positive and negative, 8/12-bit) and score the finder against the scene's truth."),
     )
-    b.add_argument("--frames", type=int, default=40, help="random poses (default 40)")
+    b.add_argument("--frames", type=positive_int, default=40, help="random poses (default 40)")
     b.add_argument("--seed", type=int, default=0, help="random seed")
     b.add_argument("--control", type=int, default=8,
                    help="extra poses at rotation 0 scoring the modulation alone (default 8)")

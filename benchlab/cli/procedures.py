@@ -12,6 +12,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
@@ -475,5 +476,5 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "session) several times and print the median wall time and each section's share.",
     )
     brep.add_argument("session", nargs="?", help="session folder (default: simulate one)")
-    brep.add_argument("--repeats", type=int, default=5, help="renders to time (default 5)")
+    brep.add_argument("--repeats", type=positive_int, default=5, help="renders to time (default 5)")
     brep.set_defaults(func=benchmark_report_command)

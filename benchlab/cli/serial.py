@@ -16,6 +16,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+from benchlab.cli import UsageError, positive_float, positive_int
 from benchlab.drivers import shutdown
 from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError
@@ -70,13 +71,13 @@ def _wait_for_interrupt(hold_s: float | None) -> None:
 def _cmd_led(args: argparse.Namespace) -> int:
     from benchlab.drivers.slc import SlcController
     ceilings = {args.channel: args.ceiling_ma}
+    if args.on and args.current_ma is None:  # before the controller is opened
+        raise UsageError("led --on needs --current-ma")
     with _port_for(args, "led") as port, SlcController(port, ceilings_ma=ceilings) as slc:
         if args.off:
             slc.off(args.channel)
             print(f"led channel {args.channel} off")
             return 0
-        if args.current_ma is None:
-            raise BenchlabError("led --on needs --current-ma")
         slc.on(args.channel, args.current_ma)
         imax_ma, iset_ma = slc.get_current(args.channel)
         held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
@@ -95,6 +96,8 @@ def _cmd_led(args: argparse.Namespace) -> int:
 def _cmd_stage(args: argparse.Namespace) -> int:
     from benchlab.drivers.apt import AptStage
     lo, hi = args.travel_mm
+    if args.action == "move" and args.position_mm is None:  # before the stage is opened
+        raise UsageError("stage move needs a position in mm")
     with _port_for(args, "stage") as port, AptStage(
         port, counts_per_mm=args.counts_per_mm, travel_mm=(lo, hi),
         allow_unhomed=args.allow_unhomed,
@@ -102,8 +105,6 @@ def _cmd_stage(args: argparse.Namespace) -> int:
         if args.action == "home":
             stage.home()
         elif args.action == "move":
-            if args.position_mm is None:
-                raise BenchlabError("stage move needs a position in mm")
             if args.relative:
                 stage.move_by_mm(args.position_mm)
             else:
@@ -122,6 +123,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from benchlab.drivers.apt_sim import SimulatedAptStage
     from benchlab.drivers.slc_sim import SimulatedSlc
     lo, hi = args.travel_mm
+    if not lo < hi:
+        raise UsageError(f"--travel-mm: LOW must be below HIGH, got {lo:g} {hi:g}")
+    if not lo <= args.initial_position_mm <= hi:
+        raise UsageError(f"--initial-position-mm {args.initial_position_mm:g} is outside the "
+                         f"travel {lo:g} .. {hi:g} mm")
     led = SimulatedSlc(channels=args.channels)
     stage = SimulatedAptStage(travel_mm=(lo, hi), time_scale=args.time_scale, homed=args.homed,
                               counts_per_mm=args.counts_per_mm,
@@ -273,17 +279,17 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "simulate", help="serve a simulated LED controller and stage on pseudo-terminals",
         description="Start the simulated SLC and APT stage, print 'led PATH' and "
                     "'stage PATH', and serve until Ctrl-C.")
-    sim.add_argument("--time-scale", type=float, default=1.0,
+    sim.add_argument("--time-scale", type=positive_float, default=1.0,
                      help="simulated seconds per wall second for stage motion (default 1)")
-    sim.add_argument("--channels", type=int, default=4, help="LED channels (default 4)")
+    sim.add_argument("--channels", type=positive_int, default=4, help="LED channels (default 4)")
     sim.add_argument("--homed", action="store_true", help="start the stage already homed")
     sim.add_argument("--initial-position-mm", type=float, default=0.0)
-    sim.add_argument("--for-s", type=float, help="serve this long instead of until Ctrl-C")
+    sim.add_argument("--for-s", type=positive_float, help="serve this long instead of until Ctrl-C")
     _add_stage_geometry(sim, 50.0)
     sim.set_defaults(func=_cmd_simulate)
 
     bench = benchmarks.add_parser(
         "serial", help="round-trip times of the serial drivers against their simulators",
         description="Time SLC and APT exchanges over pseudo-terminals and print a table.")
-    bench.add_argument("--repeat", type=int, default=100)
+    bench.add_argument("--repeat", type=positive_int, default=100)
     bench.set_defaults(func=_cmd_benchmark)

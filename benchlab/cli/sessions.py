@@ -16,6 +16,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from benchlab.cli import positive_int
+
 if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
     from benchlab.catalog import Catalog, TrendPoint
 
@@ -201,7 +203,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     ls.add_argument("--sort", default="started_at", help="column to sort by (default "
                     "started_at: id, procedure, status, sample, operator, results_version)")
     ls.add_argument("--ascending", action="store_true", help="oldest / smallest first")
-    ls.add_argument("--limit", type=int, metavar="N", help="at most N sessions")
+    ls.add_argument("--limit", type=positive_int, metavar="N", help="at most N sessions")
     ls.add_argument("--json", action="store_true", help="print a JSON list")
     ls.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
     ls.set_defaults(func=list_command)
@@ -239,7 +241,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Fill a temporary catalogue with N synthetic sessions (the figures of one "
         "real session, varied) and time list and trend queries (min and median of repeats).",
     )
-    b.add_argument("--sessions", type=int, default=10_000, help="synthetic sessions (10000)")
+    b.add_argument("--sessions", type=positive_int, default=10_000,
+                   help="synthetic sessions (10000)")
     b.add_argument("--source", help="a real session folder to copy figures from "
                    "(default: one simulated MTF run made for the benchmark)")
     b.set_defaults(func=benchmark_catalog_command)

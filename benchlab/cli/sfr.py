@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchlab.cli import non_negative_int
 from benchlab.cli.analysis import AnalysisInputError, parse_roi, read_image
 from benchlab.drivers.errors import BenchlabError
 
@@ -366,7 +367,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="also report the MTF at these sensor frequencies (lp/mm, comma-separated)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
-    p.add_argument("--bootstrap", type=int, default=0, metavar="N",
+    p.add_argument("--bootstrap", type=non_negative_int, default=0, metavar="N",
                    help="uncertainty by N bootstrap resamples of the rows instead of the default "
                         "analytic one (the pixel noise propagated; 0 = analytic)")
     p.add_argument("--fit-order", type=int, choices=(1, 2, 3), default=1,

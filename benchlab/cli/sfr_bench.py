@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from benchlab.analysis.sfr import NYQUIST_CYCLES_PER_PX as NYQUIST
+from benchlab.analysis.result import NYQUIST_CYCLES_PER_PX as NYQUIST
 
 #: Criteria (issue 16): edge vs scene truth to Nyquist; Coltman bars vs edge below Nyquist.
 EDGE_TRUTH_TOL = 0.02

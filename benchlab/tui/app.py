@@ -89,6 +89,8 @@ class BenchlabApp(App[None]):
         self.device_lock = threading.RLock()
         #: Set to stop a running procedure (abort key, quit).
         self.abort_event = threading.Event()
+        #: Set once the app quits: stops a stage homing from the Devices screen at once.
+        self.device_stop = threading.Event()
         self._activity = threading.Condition()
         self._active_threads = 0
         #: Set when closing the bench failed (e.g. LEDs not confirmed off); the CLI reports it.
@@ -184,6 +186,7 @@ class BenchlabApp(App[None]):
     def on_unmount(self) -> None:
         """Whatever way the app ends: stop the runner, leave the bench safe and closed."""
         self.abort_event.set()
+        self.device_stop.set()
         self.workers.cancel_all()
         if self.bench is not None:
             self.wait_for_device_threads(timeout_s=10.0)
@@ -220,6 +223,7 @@ class BenchlabApp(App[None]):
     async def quit_now(self) -> None:
         """Stop every worker, leave the bench safe (LEDs off, stage stopped), exit."""
         self.abort_event.set()
+        self.device_stop.set()
         self.workers.cancel_all()
         await asyncio.to_thread(self.wait_for_device_threads)
         await asyncio.to_thread(self._close_bench)

@@ -111,7 +111,7 @@ class DevicesScreen(Screen[None]):
             return
         try:
             with app.device_activity(), app.device_lock:
-                message = services.device_action(app.bench, what)
+                message = services.device_action(app.bench, what, stop=app.device_stop)
         except Exception as exc:  # noqa: BLE001 - shown in plain words
             app.call_from_thread(app.show_error, "Device command failed", exc)
             return

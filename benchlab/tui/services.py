@@ -187,15 +187,16 @@ def describe_devices(bench: Bench, live: bool = True) -> dict[str, list[tuple[st
     return out
 
 
-def device_action(bench: Bench, what: str) -> str:
-    """``"safe"``: LEDs off and stage stopped; ``"home"``: home the stage. Returns a message."""
+def device_action(bench: Bench, what: str, stop: threading.Event | None = None) -> str:
+    """``"safe"``: LEDs off and stage stopped; ``"home"``: home the stage, stopped at once
+    when ``stop`` is set meanwhile (the app quitting). Returns a message."""
     if what == "safe":
         bench.safe_state()
         return "All LEDs off, stage stopped."
     if what == "home":
         if not bench.has_stage:
             return "No stage configured."
-        bench.home_stage()
+        bench.home_stage(abort=stop)
         return "Stage homed."
     raise ValueError(f"unknown device action {what!r}")
 
