@@ -130,3 +130,15 @@ def test_curve_file_is_parsed_once_until_it_changes(tmp_path: Path,
     assert [c.view for c in third].count("radial") == [c.view for c in first].count("radial") + 1
     with pytest.raises(FileNotFoundError):
         rc.load_curves(tmp_path / "missing.toml")
+
+
+def test_startup_benchmark_counts_the_runs_with_a_forked_child(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from benchlab import forked
+    from benchlab.cli import startup
+
+    answers = iter([True, False, True])
+    monkeypatch.setattr(forked, "fork_usable", lambda: next(answers))
+    forks: list[bool] = []
+    wall, cpu = startup._time([sys.executable, "-c", "pass"], 3, forks=forks)
+    assert forks == [True, False, True] and len(wall) == len(cpu) == 3

@@ -38,10 +38,16 @@ def bytecode_environments(pycache: Path) -> dict[str, dict[str, str]]:
 
 
 def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None,
-          env: Mapping[str, str] | None = None) -> tuple[list[float], list[float]]:
+          env: Mapping[str, str] | None = None,
+          forks: list[bool] | None = None) -> tuple[list[float], list[float]]:
     """Wall and CPU (user + system of the child) seconds of ``repeats`` runs of ``argv``;
-    with ``fresh_copy_of``, each run gets its own copy of that session folder (appended)."""
+    with ``fresh_copy_of``, each run gets its own copy of that session folder (appended).
+    ``forks`` collects, per run, whether ``analyze SESSION`` would fork its child then
+    (:func:`benchlab.forked.fork_usable` asked here just before the run: the same
+    ``BENCHLAB_SERIAL``, CPUs and load average)."""
     import time
+
+    from benchlab.forked import fork_usable
 
     wall: list[float] = []
     cpu: list[float] = []
@@ -53,6 +59,8 @@ def _time(argv: Sequence[str], repeats: int, fresh_copy_of: Path | None = None,
                 # A saved session is on disk already (acquisition made it durable); without
                 # this the command's own syncfs would also flush the copy just made here.
                 os.sync()
+            if forks is not None:
+                forks.append(fork_usable())
             before = os.times()
             t0 = time.perf_counter()
             done = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
@@ -76,11 +84,14 @@ def _simulated_session(folder: Path) -> Path:
 
 
 def _cmd_startup(args: argparse.Namespace) -> int:
+    from benchlab.forked import usable_cpus
+
     if args.repeats < 1:
         raise UsageError(f"--repeats must be >= 1, got {args.repeats}")
     me = [sys.executable, "-m", "benchlab.cli.main"]
     commands = [("--help", [*me, "--help"], False), ("analyze SESSION", [*me, "analyze"], True)]
     rows = []
+    forks: list[bool] = []
     with tempfile.TemporaryDirectory(prefix="benchlab-session-") as tmp:
         session = Path(args.session) if args.session else _simulated_session(Path(tmp))
         if not (session / "session.json").is_file():
@@ -90,7 +101,8 @@ def _cmd_startup(args: argparse.Namespace) -> int:
             _time(argv, 1, session if needs_session else None, envs["cached"])
         for how, env in envs.items():
             for name, argv, needs_session in commands:
-                wall, cpu = _time(argv, args.repeats, session if needs_session else None, env)
+                wall, cpu = _time(argv, args.repeats, session if needs_session else None, env,
+                                  forks if needs_session else None)
                 rows.append((name, how, wall, cpu))
     load = os.getloadavg()[0]
     print(f"{'command':<18}{'bytecode':<10}{'wall min':>10}{'wall med':>10}{'cpu min':>10}"
@@ -103,7 +115,11 @@ def _cmd_startup(args: argparse.Namespace) -> int:
           "CPUs (wall time grows with load; CPU time much less).\n"
           "cached: .pyc files cached after one warm-up run, as an installed benchlab has them "
           "(the targets apply here); no .pyc: PYTHONDONTWRITEBYTECODE=1, benchlab's sources "
-          "compiled in every process.")
+          "compiled in every process.\n"
+          f"analyze SESSION had its second process (benchlab.forked) in {sum(forks)} of "
+          f"{len(forks)} runs: it forks with two usable CPUs ({usable_cpus()} here) unless "
+          "the 1-minute load average is at the CPU count or BENCHLAB_SERIAL=1 is set "
+          "(BENCHLAB_SERIAL=0: always).")
     return 0
 
 
