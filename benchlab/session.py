@@ -332,8 +332,6 @@ class Session:
                                    f"got {type(meta[key]).__name__} {meta[key]!r:.60}")
         session = cls(folder, meta)
         session._journal()  # fail now, naming the journal, if it is damaged beyond a torn tail
-        if session_holder(folder) is None:  # a live writer's frames are its own business
-            session._recover_orphan_frames()
         return session
 
     # ------------------------------------------------------------------ ownership
@@ -366,6 +364,9 @@ class Session:
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(record) + "\n").encode("utf-8"), 0)
         self._owner_fd = fd
+        # Frames a killed writer saved but never journalled: only the writer records them
+        # (a reader writing the journal would race a resume that is just starting).
+        self._recover_orphan_frames()
 
     def release(self) -> None:
         """Stop being the session's writer (the lock also goes when the process ends)."""

@@ -201,7 +201,9 @@ class FrameReader:
         if source not in self._sources:
             return False
         if is_long:
-            return 0 < length <= MAX_DATA_LEN and LONG_LEN.get(msg_id, length) == length
+            # Only ids that have a long form, at their one length (a short-only id such as
+            # MOVE_HOMED with bit 7 of byte 4 set is stray bytes, not a message).
+            return 0 < length <= MAX_DATA_LEN and LONG_LEN.get(msg_id) == length
         return msg_id not in LONG_ONLY
 
 

@@ -153,3 +153,34 @@ def test_bar_centre_pixels_are_those_of_their_own_phase(
     assert np.array_equal(near, want)
     assert np.array_equal(phases.centres("all"), inner if inner is not None
                           else np.ones((rows, cols), bool))
+
+
+@pytest.mark.parametrize("ratio", [0.7, 0.75])
+def test_a_side_lobe_the_quick_geometry_settles_on_is_declined(
+    ratio: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A frequency prior 25-30 % low: the quick geometry settles on a side lobe of the bars
+    (about 0.65 of their frequency); the noise test with the noise about the bars' profile
+    declines it (it carries little of the power), the spectral search runs, and the reading
+    is the one an exact prior gives."""
+    from benchlab.analysis import bargeometry
+
+    bar = BarCase(shape=(60, 80), px_per_period=8.0, angle_deg=25.0, noise_sigma=2.0,
+                  phase=0.2)
+    roi = render(bar, np.random.default_rng(1))
+    f_prior = 0.125 * ratio
+    lobe = bargeometry.quick_fundamental(prepare_roi(roi).pixels, None, f_prior, None, None)
+    assert lobe is not None and abs(lobe.freq_cycles_per_px / 0.125 - 0.65) < 0.03
+    searched: list[int] = []
+    real = histogram.measure_geometry
+
+    def spy(*args: object, **kw: object) -> object:
+        searched.append(1)
+        return real(*args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(histogram, "measure_geometry", spy)
+    exact = estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=0.125)
+    assert not searched  # the exact prior: the quick geometry is accepted
+    off = estimate_modulation(roi, estimator="histogram", freq_cycles_per_px=f_prior)
+    assert searched == [1]
+    assert off.resolved and off.modulation == exact.modulation

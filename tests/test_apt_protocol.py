@@ -95,6 +95,20 @@ def test_reader_handles_split_frames_and_both_forms() -> None:
     assert r.dropped_bytes == 0
 
 
+@pytest.mark.parametrize("msg_id", [Msg.MOT_MOVE_HOMED, Msg.MOT_MOVE_STOP, Msg.HW_DISCONNECT])
+def test_a_long_header_for_a_short_only_id_is_stray_bytes(msg_id: Msg) -> None:
+    """Six stray bytes shaped like a long MOVE_HOMED of 20 bytes must not swallow the real
+    MOVE_COMPLETED behind them and turn it into a homed stage (the doc: the long flag is
+    bit 7 of byte 4, and only ids with a long form have one, at one length)."""
+    r = FrameReader(dests={HOST}, sources={UNIT})
+    junk = struct.pack("<HHBB", msg_id, 20, HOST | 0x80, UNIT)
+    done = long(Msg.MOT_MOVE_COMPLETED, DcStatus(345550, 0, 0, StatusBits.HOMED).pack(),
+                dest=HOST, source=UNIT)
+    got = r.feed(junk + done.pack())
+    assert [(m.msg_id, m.data) for m in got] == [(Msg.MOT_MOVE_COMPLETED, done.data)]
+    assert r.dropped_bytes == len(junk)
+
+
 @settings(max_examples=60, deadline=None)
 @given(junk=st.binary(max_size=40))
 def test_reader_resynchronises_after_garbage(junk: bytes) -> None:

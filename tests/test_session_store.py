@@ -196,17 +196,25 @@ def test_a_crash_mid_write_leaves_the_old_files(
     assert json.loads((s.path / "results/v1/t.json").read_text()) == [{"a": 1}]
 
 
-def test_frame_flushed_before_a_crash_is_recovered_on_open(tmp_path: Path) -> None:
+def test_frame_flushed_before_a_crash_is_recovered_by_the_next_writer(tmp_path: Path) -> None:
     s = _new(tmp_path)
     # the frame reached the disk but the process died before its journal line
     storage.save_frame_tiff(s.path / "frames" / "radial-1__frame.tiff", _frame(3), {"gain": 1})
     s.release()  # the writer is gone (its lock with it)
+    journal = (s.path / "events.jsonl").read_bytes()
+    reader = Session.open(s.path)  # a reader (report, list) writes nothing
+    assert reader.step_frames("radial-1") == {}
+    assert (s.path / "events.jsonl").read_bytes() == journal
     reopened = Session.open(s.path)
+    reopened.hold()  # the next writer (resume, re-analysis) records it
     assert set(reopened.step_frames("radial-1")) == {"frame"}
     ev = [e for e in reopened.events() if e["kind"] == "frame_saved"][-1]
     assert ev["recovered"] is True
     assert reopened.verify_frames() == []
-    assert len([e for e in Session.open(s.path).events() if e["kind"] == "frame_saved"]) == 1
+    reopened.release()
+    again = Session.open(s.path)
+    again.hold()
+    assert len([e for e in again.events() if e["kind"] == "frame_saved"]) == 1
 
 
 def test_kill_9_while_journalling_leaves_a_readable_session(tmp_path: Path) -> None:

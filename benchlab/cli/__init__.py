@@ -8,26 +8,25 @@ from benchlab.drivers.errors import UsageError
 __all__ = ["UsageError", "non_negative_int", "positive_float", "positive_int"]
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1 (a count: frames, repeats, cases, jobs)."""
+def _whole_number(text: str, minimum: int) -> int:
+    """``text`` as an integer >= ``minimum``, else argparse's usage error (exit 2)."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {value}")
     return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1 (a count: frames, repeats, cases, jobs)."""
+    return _whole_number(text, 1)
 
 
 def non_negative_int(text: str) -> int:
     """argparse type: an integer >= 0 (0 switches the feature off, e.g. ``--bootstrap``)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
+    return _whole_number(text, 0)
 
 
 def positive_float(text: str) -> float:
