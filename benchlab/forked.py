@@ -20,9 +20,10 @@ process has no other Python thread (a lock held by another thread - an import, a
 handler - would stay held forever in the child), on a POSIX system that reports its CPU
 affinity (Linux; macOS forks unsafely once its system frameworks are loaded), and where it
 gains: two or more usable CPUs, and a machine not already busy (a 1-minute load average below
-its CPU count; on a saturated machine the child's own imports only add CPU time: measured
-~0.05 s slower there, ~0.05 s faster below). ``BENCHLAB_SERIAL=1`` computes everything in one
-process; ``BENCHLAB_SERIAL=0`` forks wherever it is safe (debugging and tests of the fork path).
+its CPU count; on a saturated machine the child's own imports only add CPU time: a
+re-analysis measured 0.05-0.1 s slower at load 2-4 on 2 CPUs, ~0.02 s faster when quiet).
+``BENCHLAB_SERIAL=1`` computes everything in one process; ``BENCHLAB_SERIAL=0`` forks wherever
+it is safe (debugging and tests of the fork path).
 """
 
 from __future__ import annotations
