@@ -117,6 +117,11 @@ def _identity(ctx: ReportContext) -> str:
     return key_value_table(rows)
 
 
+def _partial_mark(ctx: ReportContext) -> str:
+    """The mark every result of an unfinished run carries (README: tables ``[PARTIAL]``)."""
+    return " [PARTIAL]" if ctx.doc.get("partial") else ""
+
+
 def _tables(ctx: ReportContext) -> str:
     summ = ctx.summary
     notes = []
@@ -131,10 +136,14 @@ def _tables(ctx: ReportContext) -> str:
     if notes:
         out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
                    "(row, col); the thesis quotes 1-based ones.</p>")
+    from benchlab.report_mtf import verdict_rows
+
     for name, rows in ctx.tables.items():
         view = TABLE_VIEWS.get(name)
         if view is not None and rows:
-            out.append(f"<h3>{esc(view.title)}</h3>{html_table(rows, view.columns)}")
+            shown = verdict_rows(rows) if name == "table_4_15" else rows
+            out.append(f"<h3>{esc(view.title)}{esc(_partial_mark(ctx))}</h3>"
+                       f"{html_table(shown, view.columns)}")
     return "".join(out)
 
 
@@ -164,7 +173,7 @@ def _ctf(ctx: ReportContext) -> str:
 def _verdict(ctx: ReportContext) -> str:
     from benchlab.report_mtf import verdict_section
 
-    return verdict_section(ctx.tables.get("table_4_15", []))
+    return verdict_section(ctx.tables.get("table_4_15", []), _partial_mark(ctx))
 
 
 def _sfr(ctx: ReportContext) -> str:

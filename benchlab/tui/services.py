@@ -526,7 +526,7 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     """A results table as (title, headers, cells) for a narrow terminal: the known tables use
     the report's headers and number formats, with the modulation columns right after the
     first so that 80 columns show them; unknown tables show every column as stored."""
-    from benchlab.report_tables import TABLE_VIEWS, cell
+    from benchlab.report_tables import TABLE_VIEWS, cell, row_cell
 
     columns, rows = table_rows(data)
     view = TABLE_VIEWS.get(name)
@@ -538,7 +538,7 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     ordered = first + mods + [c for c in rest if c not in mods]
     title = view.title.split(" - ")[0]
     return (title, [h for _, h, _ in ordered],
-            [[cell(r.get(k), f) for k, _, f in ordered] for r in rows])
+            [[row_cell(r, k, f) for k, _, f in ordered] for r in rows])
 
 
 # -- session catalogue ---------------------------------------------------------------------
