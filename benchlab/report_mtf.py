@@ -19,6 +19,7 @@ from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.mtf_compare import SimulatedCurve
 from benchlab.report_html import esc, figure_img
 from benchlab.report_tables import html_table
+from benchlab.table_4_15 import average_of, reading
 
 MC_LEVELS = (("p90", "90 %"), ("p80", "80 %"), ("p50", "50 %"), ("p20", "20 %"),
              ("p10", "10 %"))
@@ -127,28 +128,6 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
     return figure_img(fig, "measured and simulated CTF")
 
 
-def reading(row: dict[str, Any], orient: str) -> float | None:
-    """A Table 4.15 row's sagittal or tangential modulation; None when not resolved.
-
-    Rows from before the ``*_resolved`` flags stored a not-resolved reading as 0 (a resolved
-    Eq. 2.9 contrast is never exactly 0), so 0 without a flag is read as not resolved."""
-    m = row.get(f"{orient}_modulation")
-    flag = row.get(f"{orient}_resolved")
-    if m is None or flag is False or (flag is None and float(m) == 0.0):
-        return None
-    return float(m)
-
-
-def average_of(row: dict[str, Any]) -> tuple[float | None, str]:
-    """The row's Eq. 4.2 average (None when a half is not resolved) and what is missing."""
-    s, t = reading(row, "sagittal"), reading(row, "tangential")
-    if s is None or t is None:
-        return None, " and ".join(o for o, v in (("S", s), ("T", t)) if v is None) + \
-            " not resolved"
-    avg = row.get("averaged_modulation")
-    return (float(avg) if avg is not None else (s + t) / 2.0), ""
-
-
 def _fmt(v: float | None) -> str:
     return "not resolved" if v is None else f"{v:.3f}"
 
@@ -246,17 +225,17 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
         if avg is not None:
             ax.plot(avg, i, "D", color="k", ms=7, label=once("measured average"))
         else:  # no measured average: its lower bound, open, with an arrow to the right
-            s, t = reading(r, "sagittal"), reading(r, "tangential")
-            bound = ((s or 0.0) + (t or 0.0)) / 2.0
+            halves = [reading(r, o) or 0.0 for o in ("sagittal", "tangential")]
+            bound = sum(halves) / 2.0
             ax.plot(bound, i, "D", color="k", mfc="none", ms=7,
                     label=once("average at least (a reading not resolved)"))
             ax.annotate("", xy=(bound + 0.06, i), xytext=(bound, i),
                         arrowprops=dict(arrowstyle="->", color="k"))
             ax.text(0.01, i + 0.3, missing, fontsize=8, color="#c0392b")
         for orient, mark, color in (("sagittal", ">", "#1f5fbf"), ("tangential", "^", "#c0392b")):
-            v = reading(r, orient)
-            if v is not None:
-                ax.plot(v, i, mark, color=color, ms=6, label=once(orient))
+            value = reading(r, orient)
+            if value is not None:
+                ax.plot(value, i, mark, color=color, ms=6, label=once(orient))
             else:  # not resolved: an open marker at the left edge, never a measured 0
                 ax.plot(0.01, i, mark, color=color, mfc="none", ms=7,
                         label=once(f"{orient} not resolved (no value)"))

@@ -281,19 +281,30 @@ class SessionsScreen(Screen[None]):
 
     def _show_trend(self, figure: tuple[str, str, str, str], points: list[Any]) -> None:
         listed = {s.path.name for s in self.sessions}
-        points = [p for p in points if p.session_id in listed and p.value is not None]
+        every = [p for p in points if p.session_id in listed]
+        # Not resolved / aliased readings have no value: left out of the sparkline and of
+        # min / max (never drawn as a measured 0), but counted and named.
+        points = [p for p in every if p.value is not None]
+        missing = [p for p in every if p.value is None]
         self.trend_values = [float(p.value) for p in points]
         view, element, orientation, quantity = figure
         title = " ".join(x for x in (view, element, orientation, quantity) if x)
         self.query_one("#session-sparkline", Sparkline).data = self.trend_values or [0.0]
+        counts: dict[str, int] = {}
+        for p in missing:
+            word = {"unresolved": "not resolved"}.get(p.text, p.text or "no value")
+            counts[word] = counts.get(word, 0) + 1
+        gaps = "; ".join(f"{n} {word}" for word, n in counts.items())
         if not points:
-            text = f"[b]{escape(title)}[/b]: no listed session has it"
+            text = f"[b]{escape(title)}[/b]: no listed session has a value" + (
+                f" ({escape(gaps)})" if gaps else "")
         else:
             lo, hi = min(self.trend_values), max(self.trend_values)
             tail = "  ".join(f"{escape(p.sample or p.session_id)} {p.value:.3f}"
                              for p in points[-4:])
             text = (f"[b]{escape(title)}[/b]  {len(points)} sessions, oldest first; "
-                    f"min {lo:.3f} max {hi:.3f}\nlatest: {tail}")
+                    f"min {lo:.3f} max {hi:.3f}" + (f"; {escape(gaps)} (no value)" if gaps
+                                                    else "") + f"\nlatest: {tail}")
         self.query_one("#session-trend", Static).update(text)
 
     # -- actions ----------------------------------------------------------------------------
