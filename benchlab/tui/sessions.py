@@ -131,14 +131,21 @@ class SessionsScreen(Screen[None]):
         app.call_from_thread(self._show_list, found)
 
     def _show_list(self, found: list[services.SessionSummary]) -> None:
-        self.sessions = found
         table = self.query_one("#session-list", DataTable)
+        # The highlight stays on its session across a reload (a new sort, a re-analysis):
+        # n, w and u act on the highlighted row, so it must not slide onto another session.
+        was = (self.sessions[table.cursor_row].path
+               if 0 <= table.cursor_row < len(self.sessions) else None)
+        self.sessions = found
         table.clear()
         for s in found:
             table.add_row(
                 s.path.name, s.procedure, s.status, s.sample,
                 f"v{s.result_versions}" if s.result_versions else "-", key=str(s.path),
             )
+        at = next((i for i, s in enumerate(found) if s.path == was), None)
+        if at is not None:
+            table.move_cursor(row=at)
         self._status(f"{len(found)} session(s)")
         if self._figure_index >= 0:
             self._trend(self._current_figure())
@@ -315,7 +322,7 @@ class SessionsScreen(Screen[None]):
         self.estimator = names[(i + 1) % len(names)]
 
     def action_reanalyse(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is not None:
             self._status(f"re-analysing {path.name} with {self.estimator}...")
             self._reanalyse(path, self.estimator)
@@ -336,7 +343,7 @@ class SessionsScreen(Screen[None]):
         self._open(path)
 
     def action_report(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is not None:
             self._status(f"writing the report of {path.name}...")
             self._report(path)
@@ -353,7 +360,7 @@ class SessionsScreen(Screen[None]):
         app.call_from_thread(self.notify, f"Report written: {out}")
 
     async def action_resume(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is None:
             return
         app: Any = self.app
