@@ -87,6 +87,9 @@ def reindex_command(args: argparse.Namespace) -> int:
 
 
 def list_command(args: argparse.Namespace) -> int:
+    from benchlab.catalog import check_list_query
+
+    check_list_query(sort=args.sort, since=args.since)  # usage errors before any work
     with _open(args) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
                                 limit=args.limit, devices=args.json)
@@ -166,6 +169,10 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
 
 
 def trend_command(args: argparse.Namespace) -> int:
+    from benchlab.catalog import check_trend_query
+
+    check_trend_query(element=args.element, freq_lp_per_mm=args.freq,
+                      orientation=args.orientation, since=args.since)  # before any work
     with _open(args) as catalog:
         points = catalog.trend(view=args.view, element=args.element,
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
