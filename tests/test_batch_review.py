@@ -82,3 +82,52 @@ def test_catalogue_options_that_cannot_be_meant_exit_2_before_any_work(
         assert not (root / CATALOG_FILE).exists()  # checked before the catalogue is opened
     assert main(["sessions", "list", "--root", str(root), "--sort", "sample"]) == 0
     assert (root / CATALOG_FILE).exists()
+
+
+def _tamper(session: Path) -> None:
+    frame = sorted((session / "frames").iterdir())[0]
+    data = frame.read_bytes()
+    frame.unlink()  # break the hard link: only this copy changes
+    frame.write_bytes(data[:-1] + bytes([data[-1] ^ 1]))
+
+
+def test_footer_claims_verified_frames_only_for_the_sessions_analysed(
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good, bad = copy_session(source, tmp_path / "good"), copy_session(source, tmp_path / "bad")
+    _tamper(bad)
+    assert main(["analyze", str(good), str(bad), "--jobs", "2"]) == 1
+    footer = capsys.readouterr().out.strip().splitlines()[-1]
+    assert footer.startswith("2 sessions: 1 analysed, 0 skipped, 1 failed")
+    assert footer.endswith("(frames of the session analysed verified unchanged)")
+    bad2 = copy_session(source, tmp_path / "bad2")
+    _tamper(bad2)
+    assert main(["analyze", str(bad), str(bad2), "--jobs", "2"]) == 1
+    footer = capsys.readouterr().out.strip().splitlines()[-1]
+    assert footer.startswith("2 sessions: 0 analysed, 0 skipped, 2 failed")
+    assert "verified" not in footer  # their frames changed: nothing verified unchanged
+
+
+def test_partial_results_are_marked_on_every_table_and_verdict(
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import re
+
+    from benchlab.report import render_report
+
+    s = copy_session(source, tmp_path / "s")
+    meta = json.loads((s / "session.json").read_text())
+    (s / "session.json").write_text(json.dumps({**meta, "status": "interrupted"}))
+    lines = (s / "events.jsonl").read_text().splitlines(keepends=True)
+    last = max(i for i, line in enumerate(lines) if '"step_id": "radial-' in line
+               and '"step_completed"' in line)
+    (s / "events.jsonl").write_text("".join(lines[:last] + lines[last + 1:]))
+    assert main(["analyze", str(s)]) == 0
+    capsys.readouterr()
+    text = render_report(s)
+    titles = re.findall(r"<h3>(Table[^<]*)</h3>", text)
+    assert titles and all(t.endswith(" [PARTIAL]") for t in titles)
+    verdicts = re.findall(r"<li class='verdict'>(.*?)</li>", text)
+    assert verdicts and all(v.endswith("[PARTIAL]") for v in verdicts)
+    finished = render_report(source)
+    assert "[PARTIAL]" not in finished and "PARTIAL" not in finished

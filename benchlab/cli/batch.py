@@ -98,9 +98,14 @@ def batch_command(args: argparse.Namespace) -> int:
         print(f"{'session':<{width}}  {'outcome':<8}  detail")
         for name, outcome, detail in rows:
             print(f"{name:<{width}}  {outcome:<8}  {detail}")
-    print(f"\n{n} sessions: {report.count('analysed')} analysed, {report.count('skipped')} "
+    analysed = report.count("analysed")
+    # Only what is true: the frames of the sessions analysed were verified; a failed one may
+    # have failed precisely because its frames changed.
+    verified = ("" if not analysed else " (frames of the session analysed verified unchanged)"
+                if analysed == 1 else f" (frames of the {analysed} analysed verified unchanged)")
+    print(f"\n{n} sessions: {analysed} analysed, {report.count('skipped')} "
           f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
-          f"{report.executor} (frames verified unchanged)")
+          f"{report.executor}{verified}")
     return 1 if report.failed else 0
 
 
