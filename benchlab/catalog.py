@@ -43,7 +43,7 @@ ORIENTATION_ALIASES = {
 #: Columns of a listing (everything but the devices' JSON).
 _LIST_COLUMNS = ("s.id, s.path, s.procedure, s.status, s.operator, s.sample, s.serials, "
                  "s.started_at, s.finished_at, s.software_version, s.results_version, "
-                 "s.estimator, s.report, s.error, s.indexed_at")
+                 "s.estimator, s.report, s.error, s.unreadable_version, s.indexed_at")
 SORT_COLUMNS = ("started_at", "id", "procedure", "status", "sample", "operator",
                 "results_version")
 
@@ -207,11 +207,12 @@ class Catalog:
         conn.execute(
             "INSERT INTO sessions (id, path, procedure, status, operator, sample, devices_json,"
             " serials, started_at, finished_at, software_version, results_version, estimator,"
-            " report, error, indexed_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            " report, error, unreadable_version, indexed_at)"
+            " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
             (r.id, r.path, r.procedure, r.status, r.operator, r.sample,
              json.dumps(r.devices, sort_keys=True), r.serials, r.started_at, r.finished_at,
              r.software_version, latest.version if latest else None,
-             latest.estimator if latest else None, r.report, r.error,
+             latest.estimator if latest else None, r.report, r.error, r.unreadable_version,
              datetime.now(UTC).isoformat(timespec="seconds")),
         )
         conn.executemany(

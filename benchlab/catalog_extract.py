@@ -63,6 +63,9 @@ class SessionRecord:
     software_version: str = ""
     report: str = ""
     error: str = ""
+    #: The newest results version when it cannot be read (``error`` says why); ``latest`` is
+    #: then the newest readable one, and no figures are listed (they would be of an old one).
+    unreadable_version: int | None = None
     results: list[ResultsVersion] = field(default_factory=list)
     figures: list[Figure] = field(default_factory=list)
 
@@ -122,6 +125,8 @@ def read_session_record(path: Path) -> SessionRecord:
                 summary = json.loads((folder_v / "summary.json").read_text(encoding="utf-8"))
         except (OSError, ValueError, SessionError) as exc:
             record.error = f"{folder_v}: {exc}"
+            if version == versions[-1]:
+                record.unreadable_version = version
             continue
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))

@@ -132,3 +132,40 @@ def test_table_4_15_average_over_an_unresolved_reading_has_no_value() -> None:
     got = [(f.value, f.text) for f in figures_of(1, {"table_4_15": [old, new, both]})]
     assert got == [(None, "not available: T not resolved")] * 2 + [
         (0.489, "between the 80% and 50% thresholds (0.27 .. 0.45)")]
+
+
+def test_an_unreadable_latest_version_is_listed_not_hidden(
+    source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    from benchlab.catalog import record_session
+
+    root = tmp_path / "root"
+    s = copy_session(source, root / "s0")
+    copy_session(source, root / "s1")
+    shutil.copytree(s / "results" / "v1", s / "results" / "v2")
+    broken = s / "results" / "v2" / "forward_view_modulation.json"
+    broken.write_text("{not json")
+    assert record_session(s)
+    assert main(["sessions", "list", "--root", str(root), "--json"]) == 0
+    rows = {r["id"]: r for r in json.loads(capsys.readouterr().out)}
+    assert (rows["s0"]["results_version"], rows["s0"]["unreadable_version"]) == (1, 2)
+    assert str(broken) in rows["s0"]["error"] and rows["s0"]["problem"] == "v2 unreadable"
+    assert rows["s1"]["unreadable_version"] is None and rows["s1"]["problem"] == ""
+    assert main(["sessions", "list", "--root", str(root)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    (line,) = [x for x in out if x.startswith("s0 ")]
+    assert line.rstrip().endswith("v2 unreadable")
+    assert any(x.startswith(f"s0: v2 unreadable: {s / 'results' / 'v2'}") for x in out)
+    with Catalog.open(root) as cat:  # no figures of an older version passed off as latest
+        assert cat.show("s0")["figures"] == []
+    from benchlab.tui.services import catalog_sessions
+
+    tui = {x.path.name: x for x in catalog_sessions(root)}  # the TUI's listing says it too
+    assert (tui["s0"].result_versions, tui["s0"].unreadable_version) == (1, 2)
+    shutil.copy2(s / "results" / "v1" / broken.name, broken)  # repaired: listed normally
+    assert record_session(s)
+    with Catalog.open(root) as cat:
+        (row,) = [r for r in cat.sessions() if r["id"] == "s0"]
+        assert (row["results_version"], row["unreadable_version"], row["error"]) == (2, None, "")

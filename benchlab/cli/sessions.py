@@ -93,12 +93,18 @@ def list_command(args: argparse.Namespace) -> int:
     with _open(args) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
                                 limit=args.limit, devices=args.json)
+    for row in rows:  # a newest version that cannot be read is said, never hidden
+        bad = row.get("unreadable_version")
+        row["problem"] = f"v{bad} unreadable" if bad else ("error" if row.get("error") else "")
     if args.json:
         print(json.dumps(rows))
     elif args.csv:
-        _write_csv(rows, LIST_COLUMNS, args.csv)
+        _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv)
     else:
-        print(_table(rows, LIST_COLUMNS) if rows else "no sessions match")
+        print(_table(rows, (*LIST_COLUMNS, "problem")) if rows else "no sessions match")
+        for row in rows:
+            if row.get("error"):
+                print(f"{row['id']}: {row['problem'] or 'error'}: {row['error']}")
     return 0
 
 

@@ -415,6 +415,8 @@ class SessionSummary:
     result_versions: int
     error: str = ""
     sample: str = ""
+    #: The newest results version, when it cannot be read (the catalogue's listing).
+    unreadable_version: int | None = None
 
 
 def list_sessions(root: Path) -> list[SessionSummary]:
@@ -565,7 +567,7 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
             path=root / r["id"], procedure=r["procedure"], status=r["status"],
             started_at=str(r["started_at"])[:19].replace("T", " "), operator=r["operator"],
             steps_done=-1, result_versions=r["results_version"] or 0, error=r["error"],
-            sample=r["sample"],
+            sample=r["sample"], unreadable_version=r.get("unreadable_version"),
         )
         for r in rows
         if not needle or needle in " ".join(str(r[k]) for k in keys).lower()

@@ -141,7 +141,9 @@ class SessionsScreen(Screen[None]):
         for s in found:
             table.add_row(
                 s.path.name, s.procedure, s.status, s.sample,
-                f"v{s.result_versions}" if s.result_versions else "-", key=str(s.path),
+                (f"v{s.result_versions}" if s.result_versions else "-")
+                + (f" (v{s.unreadable_version} unreadable)" if s.unreadable_version else ""),
+                key=str(s.path),
             )
         at = next((i for i, s in enumerate(found) if s.path == was), None)
         if at is not None:
