@@ -166,7 +166,7 @@ def _tables(ctx: ReportContext) -> str:
     if notes:
         out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
                    "(row, col); the thesis quotes 1-based ones.</p>")
-    from benchlab.report_mtf import verdict_rows
+    from benchlab.table_4_15 import verdict_rows
 
     for name, rows in ctx.tables.items():
         view = TABLE_VIEWS.get(name)

@@ -19,7 +19,7 @@ from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.mtf_compare import SimulatedCurve
 from benchlab.report_html import esc, figure_img
 from benchlab.report_tables import html_table
-from benchlab.table_4_15 import average_of, reading
+from benchlab.table_4_15 import average_of, fmt_reading, reading, verdict_rows
 
 MC_LEVELS = (("p90", "90 %"), ("p80", "80 %"), ("p50", "50 %"), ("p20", "20 %"),
              ("p10", "10 %"))
@@ -128,31 +128,6 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
     return figure_img(fig, "measured and simulated CTF")
 
 
-def _fmt(v: float | None) -> str:
-    return "not resolved" if v is None else f"{v:.3f}"
-
-
-def verdict_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Table 4.15 rows as shown: "not resolved" for a missing half, no average and no verdict
-    built on a 0 (older results averaged one in)."""
-    out = []
-    for r in rows:
-        avg, missing = average_of(r)
-        shown = dict(r)
-        for orient in ("sagittal", "tangential"):
-            v = reading(r, orient)
-            shown[f"{orient}_modulation"] = _fmt(v) if v is None else v
-        if missing:
-            s, t = reading(r, "sagittal"), reading(r, "tangential")
-            bound = ((s or 0.0) + (t or 0.0)) / 2.0
-            shown["averaged_modulation"] = f"N/A ({missing})"
-            shown["verdict"] = f"not available: {missing} (average at least {bound:.3f})"
-        else:
-            shown["averaged_modulation"] = avg
-        out.append(shown)
-    return out
-
-
 def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
     """Table 4.15 as an engineer reads it: a headline verdict, every threshold column the
     verdict may cite, the frequency mismatch stated, and the Monte Carlo bands plotted.
@@ -180,8 +155,9 @@ def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
         avg, _ = average_of(r)
         avg_text = f"averaged {avg:.3f}" if avg is not None else "no average"
         lines.append(f"<li class='verdict'><b>{esc(str(r['view']))} view, {mc_f:g} lp/mm</b>: "
-                     f"{avg_text} (S {_fmt(reading(r, 'sagittal'))}, T "
-                     f"{_fmt(reading(r, 'tangential'))}) - {esc(str(v['verdict']))}"
+                     f"{avg_text} (S {fmt_reading(reading(r, 'sagittal'))}, T "
+                     f"{fmt_reading(reading(r, 'tangential'))}) - "
+                     f"{esc(str(v['verdict']))}"
                      f"{esc(note)}{esc(partial)}</li>")
     cols = (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
             ("sagittal_freq_lp_per_mm", "S lp/mm", ".2f"),

@@ -5,7 +5,7 @@ Shared by the report and the catalogue so that both say "not resolved" for the s
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 
@@ -34,3 +34,29 @@ def average_of(row: Mapping[str, Any]) -> tuple[float | None, str]:
         return None, " and ".join(o for o, v in (("S", s), ("T", t)) if v is None) + \
             " not resolved"
     return (float(avg) if isinstance(avg, int | float) else (s + t) / 2.0), ""
+
+
+def fmt_reading(v: float | None) -> str:
+    """A reading as text: three decimals, or "not resolved"."""
+    return "not resolved" if v is None else f"{v:.3f}"
+
+
+def verdict_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Table 4.15 rows as shown: "not resolved" for a missing half, no average and no verdict
+    built on a 0 (older results averaged one in)."""
+    out = []
+    for r in rows:
+        avg, missing = average_of(r)
+        shown = dict(r)
+        for orient in ("sagittal", "tangential"):
+            v = reading(r, orient)
+            shown[f"{orient}_modulation"] = fmt_reading(v) if v is None else v
+        if missing:
+            s, t = reading(r, "sagittal"), reading(r, "tangential")
+            bound = ((s or 0.0) + (t or 0.0)) / 2.0
+            shown["averaged_modulation"] = f"N/A ({missing})"
+            shown["verdict"] = f"not available: {missing} (average at least {bound:.3f})"
+        else:
+            shown["averaged_modulation"] = avg
+        out.append(shown)
+    return out

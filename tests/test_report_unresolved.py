@@ -14,8 +14,9 @@ from many_sessions_helpers import copy_session, real_session
 from benchlab.protocols.mtf_analysis import _monte_carlo_rows
 from benchlab.protocols.params import MtfParams
 from benchlab.report import render_report
-from benchlab.report_mtf import verdict_rows, verdict_section
+from benchlab.report_mtf import verdict_section
 from benchlab.report_tables import TABLE_VIEWS, format_table
+from benchlab.table_4_15 import verdict_rows
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +72,12 @@ def test_old_results_with_a_stored_zero_are_shown_as_not_resolved() -> None:
     assert shown["tangential_modulation"] == "not resolved"
     assert shown["averaged_modulation"] == "N/A (T not resolved)"
     assert ">0.000<" not in html and ">0.389<" not in html
+    from benchlab.tui.services import display_table  # the TUI's table reads the same
+
+    _, headers, cells = display_table("table_4_15", [old])
+    shown_tui = dict(zip(headers, cells[0], strict=True))
+    assert (shown_tui["T"], shown_tui["avg"]) == ("not resolved", "N/A (T not resolved)")
+    assert shown_tui["verdict"] == "not available: T not resolved (average at least 0.389)"
 
 
 def test_tables_say_not_resolved_and_aliased_never_zero() -> None:
