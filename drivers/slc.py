@@ -16,6 +16,7 @@ import logging
 import math
 import re
 import threading
+import time
 from collections.abc import Mapping
 
 import serial
@@ -57,6 +58,8 @@ __all__ = [  # the protocol names are re-exported: callers keep importing them f
 ]
 
 ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
+# After an unanswered command: the line counts as clear once it stayed silent this long.
+LATE_REPLY_QUIET_S = 0.08
 
 
 # Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
@@ -89,8 +92,9 @@ class SlcController(LightSource):
         self._normal_max_ma = _DEFAULT_NORMAL_MAX_MA
         self._io_lock = threading.RLock()
         self._busy = False
-        #: An exchange was interrupted (Ctrl-C, SIGTERM) after its command went out: its late
-        #: reply must be read before the next command's, or it would be taken for that one.
+        #: A command went out but its reply did not (fully) arrive: timeout, unterminated line,
+        #: Ctrl-C / SIGTERM. Its late reply must be read before the next command's, or it
+        #: would be taken for that one.
         self._late_reply = False
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -290,12 +294,14 @@ class SlcController(LightSource):
             self._busy = True
             try:
                 if self._late_reply:
+                    self._drain_late_reply(ser)
                     self._late_reply = False
-                    ser.read_until(REPLY_END)  # at most timeout_s; usually already there
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
-                if ser.in_waiting:
+                if not raw.endswith(REPLY_END):
+                    self._late_reply = True  # silence or a cut-off line: the rest may follow
+                elif ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
             except IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
@@ -319,6 +325,28 @@ class SlcController(LightSource):
         if text.startswith(ARGUMENT_ERROR):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
+
+    def _drain_late_reply(self, ser: serial.Serial) -> None:
+        """Discard the reply of an earlier unanswered command, however late it comes.
+
+        Waits up to ``timeout_s`` for its line end, then reads until the line has stayed quiet
+        for LATE_REPLY_QUIET_S (the doc's "sleep, drain in_waiting" recipe, made robust to a
+        reply that is still on its way). Bounded by twice the timeout even if bytes keep coming.
+        """
+        deadline = time.monotonic() + 2 * self.timeout_s
+        try:
+            ser.timeout = self.timeout_s
+            stale = ser.read_until(REPLY_END)
+            ser.timeout = LATE_REPLY_QUIET_S
+            while time.monotonic() < deadline:
+                more = ser.read(max(1, ser.in_waiting))
+                if not more:
+                    break
+                stale += more
+        finally:
+            ser.timeout = self.timeout_s
+        if stale:
+            log.debug("LED controller: discarded late reply %r", stale)
 
     def _command(self, command: str) -> None:
         text = self._exchange(command)
