@@ -33,6 +33,7 @@ from benchlab.drivers.slc_protocol import (
     ARGUMENT_ERROR,
     BAUD,
     COMMAND_END,
+    CURRENT_STEP_MA,
     EXECUTION_ERROR,
     REPLY_END,
     UNDEFINED,
@@ -45,6 +46,7 @@ from benchlab.drivers.slc_protocol import (
     SlcMode,
     SlcNoReplyError,
     SlcUnknownCommandError,
+    module_family,
     parse_current_reply,
     parse_device_info,
 )
@@ -89,6 +91,7 @@ class SlcController(LightSource):
         self._info: SlcDeviceInfo | None = None
         self._channel_count = 0
         self._unit_ma = 1.0
+        self._step_wire = 1  # wire units per hardware current step (5 on CA modules)
         self._normal_max_ma = _DEFAULT_NORMAL_MAX_MA
         self._io_lock = threading.RLock()
         self._busy = False
@@ -244,8 +247,10 @@ class SlcController(LightSource):
 
     # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
-        # Round down so rounding can never push a value above its checked ceiling.
-        return math.floor(current_ma / self._unit_ma + 1e-9)
+        # Round down - to the hardware's current step too - so neither our rounding nor the
+        # controller's quantisation can push a value above its checked ceiling.
+        wire = math.floor(current_ma / self._unit_ma + 1e-9)
+        return wire - wire % self._step_wire
 
     # ---- open helpers ----------------------------------------------------------------------
     def _echo_off(self) -> None:
@@ -261,9 +266,9 @@ class SlcController(LightSource):
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
     def _configure_family(self, module: str) -> None:
-        m = re.match(r"SLC-([A-Z]{2})\d\d", module.upper())
-        family = m.group(1) if m else ""
+        family = module_family(module)
         self._unit_ma = 0.1 if family in _DECI_MA_FAMILIES else 1.0
+        self._step_wire = round(CURRENT_STEP_MA.get(family, 0) / self._unit_ma) or 1
         self._normal_max_ma = _NORMAL_MAX_MA.get(family, _DEFAULT_NORMAL_MAX_MA)
 
     def _count_channels(self) -> int:

@@ -18,10 +18,12 @@ from benchlab.drivers.sim_dispatch import CommandTable
 from benchlab.drivers.slc_protocol import (
     ACK,
     ARGUMENT_ERROR,
+    CURRENT_STEP_MA,
     EXECUTION_ERROR,
     REPLY_SUFFIX,
     UNDEFINED,
     SlcMode,
+    module_family,
 )
 
 _LINE_SPLIT = re.compile(rb"\n\r|\r\n|\r|\n")
@@ -101,6 +103,8 @@ class SimulatedSlc(PtyDevice):
         self.serial = serial
         self.firmware = firmware
         self.normal_max_ma = normal_max_ma
+        # CA modules drive currents in 5 mA steps, to the nearest step (B.7: 123-127 -> 125).
+        self.current_step_ma = CURRENT_STEP_MA.get(module_family(self.module), 1)
         self.pulsed_max_ma = pulsed_max_ma
         self.echooff_ack = echooff_ack
         self.faults = SlcFaults()
@@ -199,6 +203,10 @@ class SimulatedSlc(PtyDevice):
         if reply is not None:
             self._reply(reply)
 
+    def _quantised(self, current: int) -> int:
+        step = self.current_step_ma
+        return step * round(current / step)
+
     def _chan(self, args: list[int], nargs: int) -> SimChannel | None:
         if len(args) != nargs or not 1 <= args[0] <= self.channel_count:
             return None
@@ -245,7 +253,7 @@ class SimulatedSlc(PtyDevice):
         c = self._chan(args, 3)
         if c is None:
             return ARGUMENT_ERROR
-        imax, iset = args[1], args[2]
+        imax, iset = self._quantised(args[1]), self._quantised(args[2])
         # Iset > Imax is undocumented on hardware; the simulator rejects it as out of range.
         if not (0 <= imax <= self.normal_max_ma and 0 <= iset <= imax):
             return ARGUMENT_ERROR
@@ -255,9 +263,9 @@ class SimulatedSlc(PtyDevice):
     @commands.handles("CURRENT")
     def _cmd_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 2)
-        if c is None or not 0 <= args[1] <= c.normal_imax:
+        if c is None or not 0 <= self._quantised(args[1]) <= c.normal_imax:
             return ARGUMENT_ERROR
-        c.normal_iset = args[1]
+        c.normal_iset = self._quantised(args[1])
         return ACK
 
     @commands.handles("?CURRENT")
