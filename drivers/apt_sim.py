@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from benchlab.drivers.apt_protocol import (
     CHAN1,
@@ -55,6 +55,11 @@ class AptFaults:
     drop_on: int | None = None  # message id that makes the link drop when it arrives
     limit_at_mm: float | None = None  # a limit switch trips here during the next move across it
     out_of_range: int = 0  # next N position-bearing replies carry an impossible position
+    # The next MOVE_COMPLETED carries these extra status bits (e.g. POSITION_ERROR) ...
+    completion_bits: StatusBits = StatusBits(0)
+    # ... / the next move ends this far short of its target and still reports MOVE_COMPLETED
+    # (the servo gave up inside its window, as a stalled or overloaded actuator can).
+    stop_short_mm: float = 0.0
 
 
 class _Profile:
@@ -335,6 +340,9 @@ class SimulatedAptStage(PtyDevice):
             self.faults.limit_at_mm = None
             bits = StatusBits.FWD_HW_LIMIT if end > self._pos_mm else StatusBits.REV_HW_LIMIT
             end = trip
+        elif kind == "move" and self.faults.stop_short_mm:
+            short_mm, self.faults.stop_short_mm = self.faults.stop_short_mm, 0.0
+            end -= short_mm if end >= self._pos_mm else -short_mm
         self._held_limit_bits = StatusBits(0)
         if kind == "home":
             self.homed = False
@@ -373,7 +381,10 @@ class SimulatedAptStage(PtyDevice):
             self._held_limit_bits = motion.limit_bits
             self._reply_long(Msg.MOT_MOVE_STOPPED, self._status(now).pack())
         else:
-            self._reply_long(Msg.MOT_MOVE_COMPLETED, self._status(now).pack())
+            status = self._status(now)
+            extra, self.faults.completion_bits = self.faults.completion_bits, StatusBits(0)
+            self._reply_long(Msg.MOT_MOVE_COMPLETED,
+                             replace(status, bits=status.bits | extra).pack())
 
     def on_tick(self, now_s: float) -> None:
         self._advance(now_s)

@@ -11,13 +11,15 @@ import pytest
 import serial
 
 from benchlab.drivers.apt import (
+    COMPLETION_TOLERANCE_COUNTS,
     AptBadReplyError,
     AptLimitSwitchError,
+    AptMoveFaultError,
     AptNoReplyError,
     AptNotHomedError,
     AptStage,
 )
-from benchlab.drivers.apt_protocol import Msg, short
+from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM, Msg, StatusBits, short
 from benchlab.drivers.apt_sim import UNACKED_UPDATE_LIMIT, SimulatedAptStage
 from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
 from benchlab.drivers.pty_device import ManualClock
@@ -95,6 +97,69 @@ def test_limit_switch_mid_move(sim: SimulatedAptStage, clock: ManualClock) -> No
             st.wait_for_move()
         assert not st.status.is_moving
     assert not sim.moving and sim.position_mm == pytest.approx(12.0)
+
+
+def _move(st: AptStage, sim: SimulatedAptStage, clock: ManualClock, target_mm: float) -> None:
+    n = len(sim.host_messages())
+    st.move_to_mm(target_mm, wait=False)
+    deadline = time.monotonic() + 5
+    while len(sim.host_messages()) == n:  # the move is on its way before time jumps
+        assert time.monotonic() < deadline
+        time.sleep(0.001)
+    clock.advance(60)
+    st.wait_for_move()
+
+
+@pytest.mark.parametrize(
+    ("bits", "named"),
+    [
+        (StatusBits.POSITION_ERROR, "fault POSITION_ERROR"),
+        (StatusBits.ERROR | StatusBits.OVERLOAD, "OVERLOAD|ERROR"),
+        (StatusBits.FWD_HW_LIMIT, "forward limit switch engaged"),
+        (StatusBits.REV_HW_LIMIT, "reverse limit switch engaged"),
+    ],
+)
+def test_move_completed_with_a_fault_or_limit_bit_is_an_error(
+    sim: SimulatedAptStage, clock: ManualClock, bits: StatusBits, named: str
+) -> None:
+    with _open(sim) as st:
+        sim.faults.completion_bits = bits
+        with pytest.raises(AptMoveFaultError, match=named) as info:
+            _move(st, sim, clock, 20.0)
+        assert "move to 20.0 mm reported complete at 20.0000 mm" in str(info.value)
+        _move(st, sim, clock, 30.0)  # the fault was one completion's: the next one is clean
+        assert st.position_mm == pytest.approx(30.0, abs=1e-4)
+    assert not sim.moving
+
+
+def test_move_completed_away_from_the_target_is_an_error(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:
+        sim.faults.stop_short_mm = 0.01  # ~346 counts short, yet MOVE_COMPLETED
+        with pytest.raises(AptMoveFaultError, match=r"-34[56] counts from the target"):
+            _move(st, sim, clock, 20.0)
+        assert sim.position_mm == pytest.approx(19.99, abs=1e-4)
+        sim.faults.stop_short_mm = 0.01
+        st.move_by_mm(-5.0, wait=False)  # relative: checked against its end point, 14.99 mm
+        received(sim, "4804")
+        clock.advance(60)
+        with pytest.raises(AptMoveFaultError, match=r"\+34[56] counts from the target"):
+            st.wait_for_move()
+        assert sim.position_mm == pytest.approx(15.0, abs=1e-4)
+
+
+def test_completion_within_a_few_counts_and_at_the_travel_ends_is_success(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:
+        sim.faults.stop_short_mm = (COMPLETION_TOLERANCE_COUNTS - 1) / Z8_COUNTS_PER_MM
+        _move(st, sim, clock, 20.0)
+        assert sim.position_mm < 20.0  # it did stop short, within the servo's few counts
+        _move(st, sim, clock, 50.0)  # the forward switch sits at this end of travel
+        assert st.status.at_forward_limit
+        _move(st, sim, clock, 0.0)
+        assert st.status.at_reverse_limit
 
 
 def test_physical_end_of_travel_trips_the_limit_switch(clock: ManualClock) -> None:
