@@ -296,3 +296,23 @@ def test_unsolicited_messages_before_a_reply_are_routed(sim: SimulatedAptStage) 
         assert st.position_mm == 0.0
         assert st.dropped_bytes == 0  # valid frames, routed rather than discarded
         assert not st.is_homed  # the unsolicited status (saying 'not homed') was applied
+
+
+def test_reply_late_but_within_timeout_is_the_answer(sim: SimulatedAptStage) -> None:
+    with _open(sim) as st:
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.2
+        t0 = time.monotonic()
+        assert st.position_mm == 0.0
+        assert time.monotonic() - t0 >= 0.2  # the fault really delayed it
+
+
+def test_reply_after_the_timeout_is_not_taken_for_a_later_request(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:  # timeout 0.5 s
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.6
+        with pytest.raises(AptNoReplyError, match="MOT_REQ_POSCOUNTER"):
+            st.position_mm  # noqa: B018
+        _move(st, sim, clock, 10.0)
+        time.sleep(0.4)  # the late GET_POSCOUNTER (0 counts) arrives before the next request
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)
