@@ -46,6 +46,19 @@ def test_reply_timeout_then_recovery() -> None:
         assert cam.grab().meta.width == 64
 
 
+def test_late_reply_is_not_taken_for_the_next_querys() -> None:
+    sim, cam, _ = open_sim()
+    with cam:
+        sim.faults.late_replies = 1
+        with pytest.raises(DeviceTimeoutError, match="firmware version"):
+            cam.firmware_version()
+        # The firmware reply is now waiting: drained first, not read as the buffer status.
+        status = cam.buffer_status()
+        assert (status.width, status.height) == (64, 16)
+        assert cam.firmware_version() == "1.0.6"
+        assert np.all(cam.grab().pixels == 100)
+
+
 def test_garbage_reply_is_a_protocol_error_then_recovery() -> None:
     sim, cam, _ = open_sim()
     with cam:
