@@ -2,7 +2,10 @@
 
 Protocol facts: shared/docs/device-protocols.md section B. Line settings 9600 8N1, commands
 end in LF CR, replies are ``payload + " \\r\\n"``. Every exchange resets the input buffer first
-and drains stray bytes after the reply, the recipe that made the bench unit reliable.
+and drains stray bytes after the reply, the recipe that made the bench unit reliable. The
+line carries no sequence numbers, so after a command goes unanswered (timeout, cut-off line,
+Ctrl-C) the next exchange first waits for and discards its late reply, and if that still has
+not come, refuses a reply that a second line follows (the first may be the late one).
 
 Safety: per-channel current ceilings are checked before anything is sent; every channel is
 switched off (``MODE ch 0``, read back with ``?MODE``) on close, on any exception inside the
@@ -298,14 +301,17 @@ class SlcController(LightSource):
         with self._io_lock:
             self._busy = True
             try:
-                if self._late_reply:
-                    self._drain_late_reply(ser)
-                    self._late_reply = False
+                # A late reply that did not turn up may still come, during this exchange.
+                still_due = self._late_reply and not self._drain_late_reply(ser)
+                self._late_reply = False
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
+                two_replies = False
                 if not raw.endswith(REPLY_END):
                     self._late_reply = True  # silence or a cut-off line: the rest may follow
+                elif still_due:
+                    two_replies = self._another_line_follows(ser)  # reads the second, if any
                 elif ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
             except IO_ERRORS as exc:
@@ -315,6 +321,9 @@ class SlcController(LightSource):
                 raise
             finally:
                 self._busy = False
+        if two_replies:
+            raise SlcBadReplyError(command, f"two replies, the first {raw!r} may answer an "
+                                   "earlier command that timed out")
         if not raw:
             raise SlcNoReplyError(command, self.timeout_s)
         if not raw.endswith(REPLY_END):
@@ -331,8 +340,8 @@ class SlcController(LightSource):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
 
-    def _drain_late_reply(self, ser: serial.Serial) -> None:
-        """Discard the reply of an earlier unanswered command, however late it comes.
+    def _drain_late_reply(self, ser: serial.Serial) -> bool:
+        """Discard the reply of an earlier unanswered command; False if none came.
 
         Waits up to ``timeout_s`` for its line end, then reads until the line has stayed quiet
         for LATE_REPLY_QUIET_S (the doc's "sleep, drain in_waiting" recipe, made robust to a
@@ -352,6 +361,17 @@ class SlcController(LightSource):
             ser.timeout = self.timeout_s
         if stale:
             log.debug("LED controller: discarded late reply %r", stale)
+        return bool(stale)
+
+    def _another_line_follows(self, ser: serial.Serial) -> bool:
+        """After a reply read while a late one was still due: does a second line follow
+        within LATE_REPLY_QUIET_S? Then the first may have been the late one."""
+        try:
+            ser.timeout = LATE_REPLY_QUIET_S
+            extra = ser.read_until(REPLY_END)
+        finally:
+            ser.timeout = self.timeout_s
+        return extra.endswith(REPLY_END)
 
     def _command(self, command: str) -> None:
         text = self._exchange(command)

@@ -204,3 +204,18 @@ def test_simulator_busy_with_a_late_reply_answers_later_commands_in_order(
         first = ser.read_until(b"\r\n")
         assert time.monotonic() - t0 >= 0.3
         assert (first, ser.read_until(b"\r\n")) == (b"#1 \r\n", b"#0 \r\n")
+
+
+def test_reply_later_than_the_next_commands_wait_is_not_taken_for_its_reply(
+    sim: SimulatedSlc,
+) -> None:
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.5) as c:
+        c.on(1, 40)
+        # "#1" comes 1.3 s late: after the timeout (0.5 s) and after the next exchange's wait
+        # for it (to ~1.08 s), while that exchange waits for its own reply (to ~1.58 s).
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 1.3
+        with pytest.raises(SlcNoReplyError, match=r"\?MODE 1"):
+            c.is_on(1)
+        with pytest.raises(SlcBadReplyError, match=r"two replies, the first b'#1 \\r\\n'"):
+            c.is_on(2)  # read "#1", then its own "#0" followed: refused, not answered True
+        assert c.is_on(2) is False and c.is_on(1) is True  # and the line is in step again
