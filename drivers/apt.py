@@ -193,6 +193,9 @@ class AptStage(LinearStage):
         self._bits = StatusBits(0)
         self._vel = VelocityParams(2.0, 1.5)
         self._move_seq: int | None = None  # seq before the outstanding move/home was sent
+        # A stop was sent and nobody waited for its MOVE_STOPPED: it may still be on its way,
+        # and must not be taken for the end of the next move (see _settle).
+        self._stop_unconfirmed = False
         self._move_target_mm: float | None = None
         self.device_errors: list[Message] = []  # HW_RESPONSE / HW_RICHRESPONSE seen
 
@@ -357,6 +360,7 @@ class AptStage(LinearStage):
     # ---- motion -----------------------------------------------------------------------------
     def _do_home(self, timeout_s: float | None) -> None:
         """Home (drive to the reverse limit and zero the counter) and wait until homed."""
+        self._settle()
         seq = self._send(short(Msg.MOT_MOVE_HOME, CHAN1))
         self._move_seq, self._move_target_mm = seq, self.travel_mm[0]
         # Unhomed, the carriage may be anywhere: allow two spans (out and back off the switch).
@@ -369,6 +373,7 @@ class AptStage(LinearStage):
         log.debug("stage: move to %.4f mm", position_mm)
         counts = self._target_counts(position_mm)
         self._check_homed()
+        self._settle()
         seq = self._send(long(Msg.MOT_MOVE_ABSOLUTE, pack_position(counts)))
         self._move_seq, self._move_target_mm = seq, position_mm
         if wait:
@@ -383,6 +388,7 @@ class AptStage(LinearStage):
         if self._move_seq is not None:
             raise DeviceError("stage: a move is still in progress; wait for it or stop first")
         self._check_homed()
+        self._settle()
         reply = self._request(short(Msg.MOT_REQ_POSCOUNTER, CHAN1), Msg.MOT_GET_POSCOUNTER)
         start_counts = unpack_position(reply.data or bytes(6))[1]
         self._mm_checked(start_counts, "MOT_GET_POSCOUNTER")
@@ -449,25 +455,47 @@ class AptStage(LinearStage):
 
     def _do_stop(self, *, immediate: bool, wait: bool, timeout_s: float | None) -> None:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""
+        self._stop_unconfirmed = True
         seq = self._send(short(Msg.MOT_MOVE_STOP, CHAN1,
                                STOP_IMMEDIATE if immediate else STOP_PROFILED))
         self._move_seq = None  # a waiter in another thread still sees MOVE_STOPPED and raises
         if not wait:
             return
-        decel_s = self._vel.max_velocity_mm_s / max(self._vel.acceleration_mm_s2, 1e-9)
         try:
             self._wait_for(lambda m: m.msg_id == Msg.MOT_MOVE_STOPPED, seq,
-                           timeout_s if timeout_s is not None else self.timeout_s + 2 * decel_s,
+                           timeout_s if timeout_s is not None else self._stop_timeout_s(),
                            "MOT_MOVE_STOP")
         except AptNoReplyError:
             # Firmware may stay silent when told to stop while idle: trust the status bits.
             if self.status.is_moving:
                 raise
+        self._stop_unconfirmed = False
+
+    def _stop_timeout_s(self) -> float:
+        """Seconds a stop may take: a reply, and twice a full deceleration."""
+        decel_s = self._vel.max_velocity_mm_s / max(self._vel.acceleration_mm_s2, 1e-9)
+        return self.timeout_s + 2 * decel_s
+
+    def _settle(self) -> None:
+        """Before a move or homing: after a stop nobody waited for, wait until the stage
+        stands still. The cube answers in order, so its MOVE_STOPPED (if it sends one) is
+        then logged before the next command is sent and is never taken for that command's
+        end (it used to end the next move at once, leaving the carriage running)."""
+        if not self._stop_unconfirmed:
+            return
+        deadline = time.monotonic() + self._stop_timeout_s()
+        while self.status.is_moving:  # a round trip each: answers come after earlier news
+            if time.monotonic() > deadline:
+                raise AptMoveInterruptedError("stage: still moving after a stop; not sending "
+                                              "the next move")
+            time.sleep(0.02)
+        self._stop_unconfirmed = False
 
     def _safe_stop(self) -> None:
         """Best-effort immediate stop that never raises (used on error paths)."""
         try:
             if self._ser is not None and self._lost is None:
+                self._stop_unconfirmed = True
                 self._send(short(Msg.MOT_MOVE_STOP, CHAN1, STOP_IMMEDIATE))
         except DeviceError:
             pass

@@ -244,3 +244,26 @@ def test_keepalive_sent_while_updates_flow(clock: ManualClock) -> None:
         assert first_update < first_ack
     finally:
         sim.stop()
+
+
+@pytest.mark.parametrize("how", ["stop", "safe-stop"])
+def test_a_stop_nobody_waited_for_does_not_end_the_next_move(
+    sim: SimulatedAptStage, stage: AptStage, clock: ManualClock, how: str
+) -> None:
+    """``stop(wait=False)`` (the abort watcher) and the error-path stop leave a MOVE_STOPPED
+    on its way; a move sent before it arrived took it for its own end: the driver raised
+    "move stopped" while the carriage ran on to the target (review). The next move now waits
+    until the stage stands still, and ends only with its own completion."""
+    stage.move_to_mm(10.0, wait=False)
+    received(sim, "5304")
+    clock.advance(1.0)
+    assert sim.moving
+    if how == "stop":
+        stage.stop(immediate=True, wait=False)
+    else:
+        stage._safe_stop()
+    stage.move_to_mm(20.0, wait=False)  # sent while that MOVE_STOPPED may be in flight
+    with pump(clock):
+        status = stage.wait_for_move(timeout_s=5.0)
+    assert status is not None and status.position_mm == pytest.approx(20.0, abs=1e-3)
+    assert not sim.moving and sim.position_mm == pytest.approx(20.0, abs=1e-3)

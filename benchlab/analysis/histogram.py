@@ -72,7 +72,7 @@ MODEL_SD = 0.015
 MIN_CENTRE_PIXELS = 48
 #: Phase bins for the noise estimate (scatter about the phase-binned profile) and the bar and
 #: space centres (a multiple of ``1 / PHASE_WINDOW``: the window is whole bins; a power of
-#: two: the bin is the low bits of a cell, see :class:`_Phases`).
+#: two: the bin is the low bits of a scaled phase, see :func:`_phase_bins`).
 NOISE_BINS = 32
 #: Below this significance of the fundamental (amplitude over its standard error) the ROI
 #: shows no bar pattern: not resolved, whatever its histogram (shading on a flat ROI, or a
