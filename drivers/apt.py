@@ -15,6 +15,7 @@ interrupted (timeout, Ctrl-C) and at interpreter exit.
 from __future__ import annotations
 
 import collections
+import contextlib
 import logging
 import math
 import threading
@@ -196,6 +197,8 @@ class AptStage(LinearStage):
         # A stop was sent and nobody waited for its MOVE_STOPPED: it may still be on its way,
         # and must not be taken for the end of the next move (see _settle).
         self._stop_unconfirmed = False
+        # Reply id -> (log seq of a request that timed out, until when its reply may come).
+        self._owed: dict[int, tuple[int, float]] = {}
         self._move_target_mm: float | None = None
         self.device_errors: list[Message] = []  # HW_RESPONSE / HW_RICHRESPONSE seen
 
@@ -562,8 +565,22 @@ class AptStage(LinearStage):
         return seq
 
     def _request(self, msg: Message, reply_id: int) -> Message:
+        owed = self._owed.pop(reply_id, None)
+        if owed is not None:
+            # A request of this kind timed out lately: its reply may still come, and must
+            # not be taken for this one's - so it is waited for (until a timeout after the
+            # first) before this request is sent.
+            after_seq, until = owed
+            with contextlib.suppress(AptNoReplyError):
+                self._wait_for(lambda m: m.msg_id == reply_id, after_seq,
+                               max(until - time.monotonic(), 0.0), f"a late {msg.name} reply")
         seq = self._send(msg)
-        return self._wait_for(lambda m: m.msg_id == reply_id, seq, self.timeout_s, msg.name)
+        try:
+            return self._wait_for(lambda m: m.msg_id == reply_id, seq, self.timeout_s,
+                                  msg.name)
+        except AptNoReplyError:
+            self._owed[reply_id] = (seq, time.monotonic() + self.timeout_s)
+            raise
 
     def _wait_for(self, match: Callable[[Message], bool], after_seq: int, timeout_s: float,
                   what: str) -> Message:

@@ -316,3 +316,22 @@ def test_reply_after_the_timeout_is_not_taken_for_a_later_request(
         _move(st, sim, clock, 10.0)
         time.sleep(0.4)  # the late GET_POSCOUNTER (0 counts) arrives before the next request
         assert st.position_mm == pytest.approx(10.0, abs=1e-4)
+
+
+def test_a_late_reply_is_not_taken_for_the_next_request_of_its_kind(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    """A position request times out; its reply comes later, after the next position request
+    was sent - it used to be taken for that one's answer (0.0 mm after a move to 10 mm). The
+    next request of the kind now first waits out the late reply."""
+    with _open(sim) as st:
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.8  # timeout 0.5 s
+        with pytest.raises(AptNoReplyError, match="MOT_REQ_POSCOUNTER"):
+            st.position_mm  # noqa: B018
+        _move(st, sim, clock, 10.0)
+        clock.advance(60)
+        st.wait_for_move()
+        # This request's own reply is slow too (0.3 s): the old one (0.0 mm) comes first.
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.3
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)  # not the late 0.0
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)
