@@ -157,7 +157,9 @@ def test_ctrl_c_switches_off(sim: SimulatedSlc) -> None:
 def test_late_reply_is_not_taken_for_the_next_commands_reply(sim: SimulatedSlc) -> None:
     with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.3) as c:
         c.on(1, 40)
-        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.35  # "#1" comes 50 ms too late
+        # "#1" comes 150 ms after the 0.3 s timeout (a margin a loaded machine keeps), and
+        # within the next exchange's wait for a late reply (one timeout more).
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.45
         with pytest.raises(SlcNoReplyError, match=r"\?MODE 1"):
             c.is_on(1)
         # The late "#1" must not answer "?MODE 2": channel 2 is dark.
