@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import sqlite3
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -26,7 +27,7 @@ from typing import Any, NamedTuple
 
 from benchlab.catalog_extract import SessionRecord, is_session_folder, read_session_record
 from benchlab.catalog_schema import SCHEMA_VERSION, CatalogSchemaError, migrate
-from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.errors import BenchlabError, UsageError
 
 CATALOG_FILE = "catalog.sqlite"
 #: How long a writer waits for another process's transaction before giving up.
@@ -42,7 +43,7 @@ ORIENTATION_ALIASES = {
 #: Columns of a listing (everything but the devices' JSON).
 _LIST_COLUMNS = ("s.id, s.path, s.procedure, s.status, s.operator, s.sample, s.serials, "
                  "s.started_at, s.finished_at, s.software_version, s.results_version, "
-                 "s.estimator, s.report, s.error, s.indexed_at")
+                 "s.estimator, s.report, s.error, s.unreadable_version, s.indexed_at")
 SORT_COLUMNS = ("started_at", "id", "procedure", "status", "sample", "operator",
                 "results_version")
 
@@ -51,6 +52,11 @@ log = logging.getLogger(__name__)
 
 class CatalogError(BenchlabError):
     """A catalogue query that cannot be answered (bad option, unknown session)."""
+
+
+class CatalogUsageError(CatalogError, UsageError):
+    """A query option that cannot be meant (unknown sort column, a date that is not one, a
+    frequency <= 0): a usage error (exit 2), raised before the catalogue is opened."""
 
 
 class TrendPoint(NamedTuple):
@@ -75,8 +81,8 @@ def normalise_orientation(text: str | None) -> str | None:
         return None
     key = text.strip().lower()
     if key not in ORIENTATION_ALIASES:
-        raise CatalogError(f"--orientation {text!r}: use S (sagittal), T (tangential) or "
-                           "A (averaged)")
+        raise CatalogUsageError(f"--orientation {text!r}: use S (sagittal), T (tangential) "
+                                "or A (averaged)")
     return ORIENTATION_ALIASES[key]
 
 
@@ -201,11 +207,12 @@ class Catalog:
         conn.execute(
             "INSERT INTO sessions (id, path, procedure, status, operator, sample, devices_json,"
             " serials, started_at, finished_at, software_version, results_version, estimator,"
-            " report, error, indexed_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            " report, error, unreadable_version, indexed_at)"
+            " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
             (r.id, r.path, r.procedure, r.status, r.operator, r.sample,
              json.dumps(r.devices, sort_keys=True), r.serials, r.started_at, r.finished_at,
              r.software_version, latest.version if latest else None,
-             latest.estimator if latest else None, r.report, r.error,
+             latest.estimator if latest else None, r.report, r.error, r.unreadable_version,
              datetime.now(UTC).isoformat(timespec="seconds")),
         )
         conn.executemany(
@@ -254,8 +261,7 @@ class Catalog:
 
         ``devices=True`` adds each session's ``devices`` (identities; slower on big lists).
         """
-        if sort not in SORT_COLUMNS:
-            raise CatalogError(f"cannot sort by {sort!r}; choose {', '.join(SORT_COLUMNS)}")
+        check_list_query(sort=sort, since=since)
         self.refresh_running()
         where, args = _session_filters(procedure, since, sample, status)
         columns = "*" if devices else _LIST_COLUMNS
@@ -316,10 +322,8 @@ class Catalog:
         within :data:`FREQ_MATCH_FRACTION`; several figures per session (no element, no
         frequency) are all returned.
         """
-        if element is None and freq_lp_per_mm is None:
-            raise CatalogError("trend needs --element or --freq")
-        if freq_lp_per_mm is not None and not freq_lp_per_mm > 0:
-            raise CatalogError(f"--freq must be > 0 lp/mm, got {freq_lp_per_mm}")
+        check_trend_query(element=element, freq_lp_per_mm=freq_lp_per_mm,
+                          orientation=orientation, since=since)
         where, args = _session_filters(procedure, since, sample, status)
         where = where or "WHERE 1"
         sql = ("SELECT s.id, s.started_at, s.sample, f.version, s.estimator, f.element, "
@@ -355,6 +359,26 @@ class Catalog:
         return [p for p in points if best.get(p.session_id) is p]
 
 
+def check_list_query(*, sort: str = "started_at", since: str | None = None) -> None:
+    """Raise :class:`CatalogUsageError` for a listing that cannot be meant (before any work)."""
+    if sort not in SORT_COLUMNS:
+        raise CatalogUsageError(f"--sort {sort!r}: choose {', '.join(SORT_COLUMNS)}")
+    if since:
+        parse_since(since)
+
+
+def check_trend_query(*, element: str | None, freq_lp_per_mm: float | None,
+                      orientation: str | None, since: str | None = None) -> None:
+    """Raise :class:`CatalogUsageError` for a trend that cannot be meant (before any work)."""
+    if element is None and freq_lp_per_mm is None:
+        raise CatalogUsageError("trend needs --element or --freq")
+    if freq_lp_per_mm is not None and not (freq_lp_per_mm > 0 and math.isfinite(freq_lp_per_mm)):
+        raise CatalogUsageError(f"--freq must be a number > 0 lp/mm, got {freq_lp_per_mm}")
+    normalise_orientation(orientation)
+    if since:
+        parse_since(since)
+
+
 def _dist(p: TrendPoint, freq: float) -> float:
     return abs((p.freq_lp_per_mm or 0.0) - freq)
 
@@ -384,7 +408,8 @@ def parse_since(text: str) -> str:
     try:
         when = datetime.fromisoformat(text.strip())
     except ValueError:
-        raise CatalogError(f"--since {text!r}: give a date YYYY-MM-DD or an ISO time") from None
+        raise CatalogUsageError(f"--since {text!r}: give a date YYYY-MM-DD or an ISO time") \
+            from None
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
     return when.astimezone(UTC).isoformat(timespec="microseconds")
@@ -447,5 +472,6 @@ def record_session(session_path: str | Path) -> bool:
         return False
 
 
-__all__ = ["CATALOG_FILE", "SCHEMA_VERSION", "Catalog", "CatalogError", "TrendPoint",
+__all__ = ["CATALOG_FILE", "SCHEMA_VERSION", "Catalog", "CatalogError", "CatalogUsageError",
+           "TrendPoint", "check_list_query", "check_trend_query",
            "normalise_orientation", "parse_since", "record_session", "session_recorder"]

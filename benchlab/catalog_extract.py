@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.session import SESSION_FILE, SESSION_FORMAT, Session, SessionError, read_results
+from benchlab.table_4_15 import average_of
 
 ORIENTATIONS = ("sagittal", "tangential")
 #: Tables with no figure of merit: image heights (4.13), sampled SFR curves (the largest file
@@ -62,6 +63,9 @@ class SessionRecord:
     software_version: str = ""
     report: str = ""
     error: str = ""
+    #: The newest results version when it cannot be read (``error`` says why); ``latest`` is
+    #: then the newest readable one, and no figures are listed (they would be of an old one).
+    unreadable_version: int | None = None
     results: list[ResultsVersion] = field(default_factory=list)
     figures: list[Figure] = field(default_factory=list)
 
@@ -121,6 +125,8 @@ def read_session_record(path: Path) -> SessionRecord:
                 summary = json.loads((folder_v / "summary.json").read_text(encoding="utf-8"))
         except (OSError, ValueError, SessionError) as exc:
             record.error = f"{folder_v}: {exc}"
+            if version == versions[-1]:
+                record.unreadable_version = version
             continue
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))
@@ -140,9 +146,11 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
                                   lambda r: f"{_num(r.get('object_lp_per_mm')) or 0:g}lp")
         elif name == "table_4_15":
             for r in rows:
+                avg, missing = average_of(r)  # no average when a half is not resolved
                 yield Figure(version, str(r.get("view", "")), "", "averaged",
-                             _num(r.get("mc_freq_lp_per_mm")), "modulation",
-                             _num(r.get("averaged_modulation")), str(r.get("verdict", "")))
+                             _num(r.get("mc_freq_lp_per_mm")), "modulation", _num(avg),
+                             f"not available: {missing}" if missing
+                             else str(r.get("verdict", "")))
         elif name == "table_4_16":
             for r in rows:
                 element = f"{_num(r.get('position_mm')) or 0:g}mm"
@@ -171,10 +179,14 @@ def _bar_table(version: int, view: str, rows: list[Mapping[str, Any]], element: 
     for r in rows:
         for o in ORIENTATIONS:
             resolved = r.get(f"{o}_resolved")
+            aliased = r.get(f"{o}_aliased", r.get("aliased")) is True  # 4.11: one per row
             freq = r.get(f"{o}_image_lp_per_mm", r.get("image_lp_per_mm"))  # radial: per roll
-            yield Figure(version, view, element(r), o, _num(freq),
-                         "modulation", _num(r.get(f"{o}_modulation")),
-                         "" if resolved is None else ("resolved" if resolved else "unresolved"))
+            value = _num(r.get(f"{o}_modulation"))
+            if aliased or resolved is False:
+                value = None  # the 0 stored for it is no measurement: NULL, and say why
+            text = ("aliased" if aliased else "" if resolved is None
+                    else "resolved" if resolved else "unresolved")
+            yield Figure(version, view, element(r), o, _num(freq), "modulation", value, text)
 
 
 def _generic_table(version: int, name: str, rows: list[Mapping[str, Any]]) -> Iterator[Figure]:

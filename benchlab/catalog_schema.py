@@ -70,7 +70,17 @@ CREATE INDEX figures_by_figure ON figures(view, quantity, orientation, element, 
                                           session_id, version, value, text);
 """
 
-MIGRATIONS: tuple[str, ...] = (_V1, _V2)
+#: v3: a reading that is not resolved or aliased has no value (NULL, its text says which); v2
+#: stored the 0 its table holds, which trends drew as a measured 0. (v2 called aliased readings
+#: "unresolved": ``sessions reindex`` relabels them from the folders.) ``unreadable_version``: a
+#: latest results version that cannot be read (``error`` says why); ``results_version`` is then
+#: the newest readable one.
+_V3 = """
+UPDATE figures SET value = NULL WHERE quantity = 'modulation' AND text IN ('unresolved', 'aliased');
+ALTER TABLE sessions ADD COLUMN unreadable_version INTEGER;
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

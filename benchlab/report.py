@@ -57,7 +57,37 @@ ul.headline{font-size:1.05em} .warn{color:#a35c00}
 
 
 class ReportError(BenchlabError):
-    """The session has nothing to report yet (no results)."""
+    """The session has nothing to report yet (no results), or its results lack what a
+    section needs (named: file, row, key)."""
+
+
+class _Row(dict[str, Any]):
+    """A results row that names its file, row and key when a section asks for a key it does
+    not have (a damaged or hand-edited file): ``benchlab: error: ...``, never a traceback."""
+
+    def __init__(self, data: dict[str, Any], path: Path, index: int) -> None:
+        super().__init__(data)
+        self._where = f"{path}: row {index + 1}"
+
+    def __missing__(self, key: str) -> Any:
+        raise ReportError(f"{self._where} has no {key!r}; the report needs it (re-run "
+                          "benchlab analyze on the session to write a new results version)")
+
+
+def _named_rows(results: Path, tables: dict[str, Any], doc: dict[str, Any]
+                ) -> dict[str, list[dict[str, Any]]]:
+    from benchlab.session import result_file_stem
+
+    named = doc.get("table_files")
+    files: dict[str, Any] = named if isinstance(named, dict) else {}
+    out: dict[str, list[dict[str, Any]]] = {}
+    for name, rows in tables.items():
+        if not isinstance(rows, list):
+            continue  # not a table (read_results checks the ones summary.json lists)
+        path = results / f"{files.get(name) or result_file_stem(name)}.json"
+        out[name] = [_Row(r, path, i) if isinstance(r, dict) else r
+                     for i, r in enumerate(rows)]
+    return out
 
 
 @dataclass
@@ -117,6 +147,11 @@ def _identity(ctx: ReportContext) -> str:
     return key_value_table(rows)
 
 
+def _partial_mark(ctx: ReportContext) -> str:
+    """The mark every result of an unfinished run carries (README: tables ``[PARTIAL]``)."""
+    return " [PARTIAL]" if ctx.doc.get("partial") else ""
+
+
 def _tables(ctx: ReportContext) -> str:
     summ = ctx.summary
     notes = []
@@ -131,10 +166,14 @@ def _tables(ctx: ReportContext) -> str:
     if notes:
         out.append("<p class='note'>" + esc("; ".join(notes)) + ". Coordinates are 0-based "
                    "(row, col); the thesis quotes 1-based ones.</p>")
+    from benchlab.table_4_15 import verdict_rows
+
     for name, rows in ctx.tables.items():
         view = TABLE_VIEWS.get(name)
         if view is not None and rows:
-            out.append(f"<h3>{esc(view.title)}</h3>{html_table(rows, view.columns)}")
+            shown = verdict_rows(rows) if name == "table_4_15" else rows
+            out.append(f"<h3>{esc(view.title)}{esc(_partial_mark(ctx))}</h3>"
+                       f"{html_table(shown, view.columns)}")
     return "".join(out)
 
 
@@ -164,7 +203,7 @@ def _ctf(ctx: ReportContext) -> str:
 def _verdict(ctx: ReportContext) -> str:
     from benchlab.report_mtf import verdict_section
 
-    return verdict_section(ctx.tables.get("table_4_15", []))
+    return verdict_section(ctx.tables.get("table_4_15", []), _partial_mark(ctx))
 
 
 def _sfr(ctx: ReportContext) -> str:
@@ -378,7 +417,8 @@ def render_report(session_path: str | Path,
         raise ReportError(f"{session.path}: no results yet (finish the run or resume it, or "
                           "run benchlab analyze on it)")
     tables, doc = read_results(results)
-    ctx = ReportContext(session=session, results_path=results, tables=tables, doc=doc)
+    ctx = ReportContext(session=session, results_path=results,
+                        tables=_named_rows(results, tables, doc), doc=doc)
     procedure = session.meta["procedure"]
     out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>benchlab report "
            f"{esc(session.path.name)}</title><style>{_CSS}</style></head><body>",
@@ -387,7 +427,13 @@ def render_report(session_path: str | Path,
         if section.procedures is not None and procedure not in section.procedures:
             continue
         t0 = time.perf_counter()
-        body = section.render(ctx)
+        try:
+            body = section.render(ctx)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            # A value of the wrong kind in a results file (text where a number belongs, a
+            # short ROI): say where, never a traceback.
+            raise ReportError(f"{results}: the section {section.title!r} cannot be drawn from "
+                              f"these results ({type(exc).__name__}: {exc})") from exc
         if timings is not None:
             timings[section.anchor] = time.perf_counter() - t0
         if body:

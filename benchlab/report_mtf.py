@@ -19,6 +19,7 @@ from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.analysis.mtf_compare import SimulatedCurve
 from benchlab.report_html import esc, figure_img
 from benchlab.report_tables import html_table
+from benchlab.table_4_15 import average_of, fmt_reading, reading, verdict_rows
 
 MC_LEVELS = (("p90", "90 %"), ("p80", "80 %"), ("p50", "50 %"), ("p20", "20 %"),
              ("p10", "10 %"))
@@ -127,14 +128,16 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
     return figure_img(fig, "measured and simulated CTF")
 
 
-def verdict_section(rows: list[dict[str, Any]]) -> str:
+def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
     """Table 4.15 as an engineer reads it: a headline verdict, every threshold column the
-    verdict may cite, the frequency mismatch stated, and the Monte Carlo bands plotted."""
+    verdict may cite, the frequency mismatch stated, and the Monte Carlo bands plotted.
+    ``partial`` (e.g. ``" [PARTIAL]"``) marks results of an unfinished run."""
     if not rows:
         return ("<p class='note'>No Monte Carlo comparison (no measurement near its "
                 "frequencies).</p>")
     lines = []
-    for r in rows:
+    shown = verdict_rows(rows)
+    for r, v in zip(rows, shown, strict=True):
         mc_f, t_f = float(r["mc_freq_lp_per_mm"]), float(r["measured_freq_lp_per_mm"])
         s_f = float(r.get("sagittal_freq_lp_per_mm", t_f))  # older results: one frequency
         apart = [(name, f) for name, f in (("sagittal", s_f), ("tangential", t_f))
@@ -149,11 +152,13 @@ def verdict_section(rows: list[dict[str, Any]]) -> str:
                 share = f"up to {100 * worst:.0f} % apart"
             note = (f"; measured {at} against the prediction at {mc_f:g} lp/mm ({share}: "
                     "compare with care)")
+        avg, _ = average_of(r)
+        avg_text = f"averaged {avg:.3f}" if avg is not None else "no average"
         lines.append(f"<li class='verdict'><b>{esc(str(r['view']))} view, {mc_f:g} lp/mm</b>: "
-                     f"averaged {float(r['averaged_modulation']):.3f} (S "
-                     f"{float(r['sagittal_modulation']):.3f}, T "
-                     f"{float(r['tangential_modulation']):.3f}) - {esc(str(r['verdict']))}"
-                     f"{esc(note)}</li>")
+                     f"{avg_text} (S {fmt_reading(reading(r, 'sagittal'))}, T "
+                     f"{fmt_reading(reading(r, 'tangential'))}) - "
+                     f"{esc(str(v['verdict']))}"
+                     f"{esc(note)}{esc(partial)}</li>")
     cols = (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
             ("sagittal_freq_lp_per_mm", "S lp/mm", ".2f"),
             ("measured_freq_lp_per_mm", "T lp/mm", ".2f"),
@@ -163,8 +168,10 @@ def verdict_section(rows: list[dict[str, Any]]) -> str:
             ("verdict", "verdict", ""))
     return ("<ul class='headline'>" + "".join(lines) + "</ul>"
             + "<p class='note'>Monte Carlo columns: the averaged MTF of a built objective exceeds "
-            "the value with the stated probability.</p>"
-            + html_table(rows, cols) + _bands_figure(rows))
+            "the value with the stated probability. A reading that is not resolved has no "
+            "number: its row has no average and no verdict (the average is at least half the "
+            "other reading).</p>"
+            + html_table(shown, cols) + _bands_figure(rows))
 
 
 def _bands_figure(rows: list[dict[str, Any]]) -> str:
@@ -174,6 +181,14 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 0.9 + 0.7 * len(rows)))
+    seen: set[str] = set()
+
+    def once(label: str) -> str | None:  # one legend entry per kind of marker
+        if label in seen:
+            return None
+        seen.add(label)
+        return label
+
     for i, r in enumerate(rows):
         levels = [(p, float(r[k])) for k, p in MC_LEVELS if r.get(k) is not None]
         vals = [v for _, v in levels]
@@ -182,12 +197,24 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
             for n, (p, v) in enumerate(levels):  # labels alternate above / below: no overlap
                 ax.plot([v, v], [i - 0.25, i + 0.25], color="#555", lw=1)
                 ax.text(v, i + (0.3 if n % 2 == 0 else -0.45), p, ha="center", fontsize=8)
-        ax.plot(float(r["averaged_modulation"]), i, "D", color="k", ms=7,
-                label="measured average" if i == 0 else None)
-        ax.plot(float(r["sagittal_modulation"]), i, ">", color="#1f5fbf", ms=6,
-                label="sagittal" if i == 0 else None)
-        ax.plot(float(r["tangential_modulation"]), i, "^", color="#c0392b", ms=6,
-                label="tangential" if i == 0 else None)
+        avg, missing = average_of(r)
+        if avg is not None:
+            ax.plot(avg, i, "D", color="k", ms=7, label=once("measured average"))
+        else:  # no measured average: its lower bound, open, with an arrow to the right
+            halves = [reading(r, o) or 0.0 for o in ("sagittal", "tangential")]
+            bound = sum(halves) / 2.0
+            ax.plot(bound, i, "D", color="k", mfc="none", ms=7,
+                    label=once("average at least (a reading not resolved)"))
+            ax.annotate("", xy=(bound + 0.06, i), xytext=(bound, i),
+                        arrowprops=dict(arrowstyle="->", color="k"))
+            ax.text(0.01, i + 0.3, missing, fontsize=8, color="#c0392b")
+        for orient, mark, color in (("sagittal", ">", "#1f5fbf"), ("tangential", "^", "#c0392b")):
+            value = reading(r, orient)
+            if value is not None:
+                ax.plot(value, i, mark, color=color, ms=6, label=once(orient))
+            else:  # not resolved: an open marker at the left edge, never a measured 0
+                ax.plot(0.01, i, mark, color=color, mfc="none", ms=7,
+                        label=once(f"{orient} not resolved (no value)"))
     ax.set_yticks(range(len(rows)))
     ax.set_yticklabels([f"{r['view']} {float(r['mc_freq_lp_per_mm']):g} lp/mm" for r in rows])
     ax.set_ylim(-0.6, len(rows) - 0.3)

@@ -87,10 +87,22 @@ def cell(value: Any, fmt: str) -> str:
     return str(value)
 
 
+def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
+    """One cell of a row: a modulation whose reading is aliased or not resolved is said so,
+    never shown as the 0 stored for it."""
+    if key.endswith("_modulation"):
+        orient = key.removesuffix("_modulation")
+        if row.get(f"{orient}_aliased") is True:
+            return "aliased"
+        if row.get(f"{orient}_resolved") is False:
+            return "not resolved"
+    return cell(row.get(key), fmt)
+
+
 def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
     """A plain-text table with aligned columns."""
     header = [h for _, h, _ in columns]
-    body = [[cell(r.get(k), f) for k, _, f in columns] for r in rows]
+    body = [[row_cell(r, k, f) for k, _, f in columns] for r in rows]
     widths = [max(len(x) for x in col) for col in zip(header, *body, strict=False)]
     lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
     lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in body]
@@ -101,7 +113,7 @@ def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> 
     """An HTML table (escaped)."""
     head = "".join(f"<th>{html.escape(h)}</th>" for _, h, _ in columns)
     body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(cell(r.get(k), f))}</td>" for k, _, f in columns)
+        "<tr>" + "".join(f"<td>{html.escape(row_cell(r, k, f))}</td>" for k, _, f in columns)
         + "</tr>"
         for r in rows
     )

@@ -892,7 +892,10 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
 
     Reads both the descriptive file names and the older thesis-table file names
     (``table_4_11.json``), so sessions written before the rename still load.
-    Raises :class:`SessionError` naming the file when a JSON file is unreadable.
+    Raises :class:`SessionError` naming the file when a JSON file is unreadable, when
+    ``summary.json`` is not an object, or when a table it lists (and that was asked for) is
+    missing or is not a list of row objects: a damaged version is an error, never a report or
+    a listing with a table silently left out.
     """
     tables: dict[str, Any] = {}
     summary: dict[str, Any] = {}
@@ -905,10 +908,34 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
         except (OSError, ValueError) as exc:
             raise SessionError(f"{p}: unreadable results file ({exc})") from exc
         if p.stem == "summary":
+            if not isinstance(data, dict):
+                raise SessionError(f"{p}: not a results summary (a JSON object expected, "
+                                   f"found {type(data).__name__})")
             summary = data
         else:
             tables[label] = data
+    listed = summary.get("tables")
+    named = summary.get("table_files")
+    files: dict[str, Any] = named if isinstance(named, dict) else {}
+    for label in listed if isinstance(listed, list) else []:
+        if not isinstance(label, str) or (only is not None and label not in only) \
+                or label in skip:
+            continue
+        path = Path(folder) / f"{files.get(label) or result_file_stem(label)}.json"
+        if label not in tables:
+            raise SessionError(f"{path}: missing (summary.json lists table {label})")
+        rows = tables[label]
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise SessionError(f"{path}: not a table (a JSON list of row objects expected, "
+                               f"found {_json_kind(rows)})")
     return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
+
+
+def _json_kind(value: Any) -> str:
+    if isinstance(value, list):
+        bad = next(v for v in value if not isinstance(v, dict))
+        return f"a list holding {'null' if bad is None else type(bad).__name__}"
+    return "null" if value is None else type(value).__name__
 
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:

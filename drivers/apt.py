@@ -15,6 +15,7 @@ interrupted (timeout, Ctrl-C) and at interpreter exit.
 from __future__ import annotations
 
 import collections
+import contextlib
 import logging
 import math
 import threading
@@ -28,6 +29,7 @@ from benchlab.drivers.apt_protocol import (
     CHAN1,
     DISABLE,
     ENABLE,
+    FAULT_BITS,
     HOST,
     STOP_IMMEDIATE,
     STOP_PROFILED,
@@ -63,6 +65,7 @@ log = logging.getLogger(__name__)
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
 KEEPALIVE_PERIOD_S = 0.9  # the cube wants 0x0492 at least once a second while updates flow
+COMPLETION_TOLERANCE_COUNTS = 5  # a completed move ends this close to its target (~0.15 um, Z8)
 Z8_MAX_VELOCITY_MM_S = 2.6
 Z8_MAX_ACCELERATION_MM_S2 = 4.0
 _STATUS_IDS = (Msg.MOT_GET_DCSTATUSUPDATE, Msg.MOT_MOVE_COMPLETED, Msg.MOT_MOVE_STOPPED)
@@ -83,6 +86,11 @@ class AptLimitSwitchError(DeviceError):
 
 class AptMoveInterruptedError(DeviceError):
     """The move ended in MOVE_STOPPED (a stop request, a disable) instead of completing."""
+
+
+class AptMoveFaultError(DeviceError):
+    """MOVE_COMPLETED arrived, but with a fault bit, an unexpected limit switch, or the
+    carriage away from the target."""
 
 
 class AptNotHomedError(SafetyLimitError):
@@ -189,6 +197,8 @@ class AptStage(LinearStage):
         # A stop was sent and nobody waited for its MOVE_STOPPED: it may still be on its way,
         # and must not be taken for the end of the next move (see _settle).
         self._stop_unconfirmed = False
+        # Reply id -> (log seq of a request that timed out, until when its reply may come).
+        self._owed: dict[int, tuple[int, float]] = {}
         self._move_target_mm: float | None = None
         self.device_errors: list[Message] = []  # HW_RESPONSE / HW_RICHRESPONSE seen
 
@@ -421,7 +431,30 @@ class AptStage(LinearStage):
             raise AptMoveInterruptedError(
                 f"stage: move stopped at {status.position_mm:.4f} mm before reaching "
                 f"{self._move_target_mm} mm")
+        self._check_completed(status)
         return status
+
+    def _check_completed(self, status: AptStatus) -> None:
+        """A MOVE_COMPLETED is success only if it says so: no fault bit, no limit switch
+        engaged short of that end of travel, and the carriage within a few counts of target."""
+        target_mm = self._move_target_mm
+        problems: list[str] = []
+        faults = status.bits & FAULT_BITS
+        if faults:
+            problems.append(f"fault {faults.name}")
+        if target_mm is not None:
+            target, tol = self.units.counts(target_mm), COMPLETION_TOLERANCE_COUNTS
+            if status.at_forward_limit and target < self._hi_counts - tol:
+                problems.append("forward limit switch engaged")
+            if status.at_reverse_limit and target > self._lo_counts + tol:
+                problems.append("reverse limit switch engaged")
+            off = self.units.counts(status.position_mm) - target
+            if abs(off) > tol:
+                problems.append(f"{off:+d} counts from the target")
+        if problems:
+            raise AptMoveFaultError(
+                f"stage: move to {target_mm} mm reported complete at {status.position_mm:.4f} mm "
+                f"but {', '.join(problems)} (status {status.bits!r})")
 
     def _do_stop(self, *, immediate: bool, wait: bool, timeout_s: float | None) -> None:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""
@@ -532,8 +565,22 @@ class AptStage(LinearStage):
         return seq
 
     def _request(self, msg: Message, reply_id: int) -> Message:
+        owed = self._owed.pop(reply_id, None)
+        if owed is not None:
+            # A request of this kind timed out lately: its reply may still come, and must
+            # not be taken for this one's - so it is waited for (until a timeout after the
+            # first) before this request is sent.
+            after_seq, until = owed
+            with contextlib.suppress(AptNoReplyError):
+                self._wait_for(lambda m: m.msg_id == reply_id, after_seq,
+                               max(until - time.monotonic(), 0.0), f"a late {msg.name} reply")
         seq = self._send(msg)
-        return self._wait_for(lambda m: m.msg_id == reply_id, seq, self.timeout_s, msg.name)
+        try:
+            return self._wait_for(lambda m: m.msg_id == reply_id, seq, self.timeout_s,
+                                  msg.name)
+        except AptNoReplyError:
+            self._owed[reply_id] = (seq, time.monotonic() + self.timeout_s)
+            raise
 
     def _wait_for(self, match: Callable[[Message], bool], after_seq: int, timeout_s: float,
                   what: str) -> Message:

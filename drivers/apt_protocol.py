@@ -122,6 +122,11 @@ class StatusBits(IntFlag):
 
 MOVING_BITS = StatusBits.MOVING_FWD | StatusBits.MOVING_REV | StatusBits.HOMING
 LIMIT_BITS = StatusBits.FWD_HW_LIMIT | StatusBits.REV_HW_LIMIT
+#: Bits that mean the controller or motor reported a fault (section C.4).
+FAULT_BITS = (StatusBits.POSITION_ERROR | StatusBits.INSTRUMENT_ERROR | StatusBits.INTERLOCK
+              | StatusBits.OVER_TEMPERATURE | StatusBits.BUS_VOLTAGE_FAULT
+              | StatusBits.COMMUTATION_ERROR | StatusBits.OVERLOAD | StatusBits.ENCODER_FAULT
+              | StatusBits.OVER_CURRENT | StatusBits.BUS_CURRENT_FAULT | StatusBits.ERROR)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from benchlab.drivers.apt_protocol import (
     CHAN1,
@@ -51,10 +51,19 @@ class AptFaults:
     """Fault injection; counters are one-shot and decrement as they fire."""
 
     no_reply: int = 0  # silently ignore the next N host messages
+    # The next N host messages are acted on at once but their replies go out late_reply_s
+    # (wall seconds, like the host's timeout) later; other traffic is not held up.
+    late_reply: int = 0
+    late_reply_s: float = 0.0
     garbage: bytes | None = None  # bytes emitted just before the next reply
     drop_on: int | None = None  # message id that makes the link drop when it arrives
     limit_at_mm: float | None = None  # a limit switch trips here during the next move across it
     out_of_range: int = 0  # next N position-bearing replies carry an impossible position
+    # The next MOVE_COMPLETED carries these extra status bits (e.g. POSITION_ERROR) ...
+    completion_bits: StatusBits = StatusBits(0)
+    # ... / the next move ends this far short of its target and still reports MOVE_COMPLETED
+    # (the servo gave up inside its window, as a stalled or overloaded actuator can).
+    stop_short_mm: float = 0.0
 
 
 class _Profile:
@@ -172,6 +181,8 @@ class SimulatedAptStage(PtyDevice):
         self._last_update_sim_s = -math.inf
         self._last_update_wall_s = -math.inf
         self._reader = FrameReader(dests={UNIT}, sources={HOST})
+        self._late_out: bytearray | None = None  # replies of the message being answered late
+        self._late: list[tuple[float, bytes]] = []  # (send at, monotonic s; bytes) pending
 
     # ---- physical state ---------------------------------------------------------------------
     @property
@@ -210,13 +221,29 @@ class SimulatedAptStage(PtyDevice):
             if self.faults.no_reply > 0:
                 self.faults.no_reply -= 1
                 continue
+            if self.faults.late_reply > 0:
+                self.faults.late_reply -= 1
+                self._late_out = bytearray()
+                try:
+                    self._handle(msg)
+                finally:
+                    out, self._late_out = bytes(self._late_out), None
+                    if out:
+                        self._late.append((time.monotonic() + self.faults.late_reply_s, out))
+                continue
             self._handle(msg)
 
     def _send(self, msg: Message) -> None:
         if self.faults.garbage is not None:
             junk, self.faults.garbage = self.faults.garbage, None
-            self.write(junk)
-        self.write(msg.pack())
+            self._out(junk)
+        self._out(msg.pack())
+
+    def _out(self, data: bytes) -> None:
+        if self._late_out is not None:
+            self._late_out += data
+        else:
+            self.write(data)
 
     def _reply_short(self, msg_id: int, p1: int = 0, p2: int = 0) -> None:
         self._send(short(msg_id, p1, p2, dest=HOST, source=UNIT))
@@ -335,6 +362,9 @@ class SimulatedAptStage(PtyDevice):
             self.faults.limit_at_mm = None
             bits = StatusBits.FWD_HW_LIMIT if end > self._pos_mm else StatusBits.REV_HW_LIMIT
             end = trip
+        elif kind == "move" and self.faults.stop_short_mm:
+            short_mm, self.faults.stop_short_mm = self.faults.stop_short_mm, 0.0
+            end -= short_mm if end >= self._pos_mm else -short_mm
         self._held_limit_bits = StatusBits(0)
         if kind == "home":
             self.homed = False
@@ -373,9 +403,14 @@ class SimulatedAptStage(PtyDevice):
             self._held_limit_bits = motion.limit_bits
             self._reply_long(Msg.MOT_MOVE_STOPPED, self._status(now).pack())
         else:
-            self._reply_long(Msg.MOT_MOVE_COMPLETED, self._status(now).pack())
+            status = self._status(now)
+            extra, self.faults.completion_bits = self.faults.completion_bits, StatusBits(0)
+            self._reply_long(Msg.MOT_MOVE_COMPLETED,
+                             replace(status, bits=status.bits | extra).pack())
 
     def on_tick(self, now_s: float) -> None:
+        while self._late and time.monotonic() >= self._late[0][0]:
+            self.write(self._late.pop(0)[1])
         self._advance(now_s)
         if not self._updates or self._unacked >= UNACKED_UPDATE_LIMIT:
             return

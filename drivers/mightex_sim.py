@@ -101,6 +101,9 @@ class CameraFaults:
 
     #: Next N query replies are never sent (the host's read times out).
     drop_replies: int = 0
+    #: Next N query replies come late: the host's read for each times out, and the reply is
+    #: waiting for its next read (the simulated bus never waits, so "late" counts reads).
+    late_replies: int = 0
     #: Next N query replies are garbled (length byte does not match).
     garbage_replies: int = 0
     #: Next N frame transfers end 4 kB early.
@@ -213,6 +216,7 @@ class SimulatedCamera:
         self._t0 = self.clock.now()
         self._fifo: deque[_Frame] = deque()
         self._replies: deque[bytes] = deque()
+        self._late_reply: bytes | None = None  # misses the next read, then is the next reply
         self._outgoing: deque[_Frame] = deque()
         self._transfer: memoryview | None = None
         self._pending_triggers: list[tuple[float, int]] = []  # (ready time, trigger count)
@@ -305,6 +309,10 @@ class SimulatedCamera:
         if f.garbage_replies > 0:
             f.garbage_replies -= 1
             self._replies.append(b"\x5a\x13\xde\xad\xbe\xef")
+            return
+        if f.late_replies > 0 and self._late_reply is None:
+            f.late_replies -= 1
+            self._late_reply = p.encode_reply(data, f.reply_status)
             return
         self._replies.append(p.encode_reply(data, f.reply_status))
 
@@ -474,6 +482,10 @@ class SimulatedCamera:
         with self._lock:
             if not self.connected:
                 raise DeviceUnplugged
+            if self._late_reply is not None:  # this read times out; the reply lands after it
+                self._replies.appendleft(self._late_reply)
+                self._late_reply = None
+                return None
             return self._replies.popleft()[:size] if self._replies else None
 
     def read_frame_data(self, size: int) -> memoryview | None:

@@ -2,7 +2,10 @@
 
 Protocol facts: shared/docs/device-protocols.md section B. Line settings 9600 8N1, commands
 end in LF CR, replies are ``payload + " \\r\\n"``. Every exchange resets the input buffer first
-and drains stray bytes after the reply, the recipe that made the bench unit reliable.
+and drains stray bytes after the reply, the recipe that made the bench unit reliable. The
+line carries no sequence numbers, so after a command goes unanswered (timeout, cut-off line,
+Ctrl-C) the next exchange first waits for and discards its late reply, and if that still has
+not come, refuses a reply that a second line follows (the first may be the late one).
 
 Safety: per-channel current ceilings are checked before anything is sent; every channel is
 switched off (``MODE ch 0``, read back with ``?MODE``) on close, on any exception inside the
@@ -16,6 +19,7 @@ import logging
 import math
 import re
 import threading
+import time
 from collections.abc import Mapping
 
 import serial
@@ -32,6 +36,7 @@ from benchlab.drivers.slc_protocol import (
     ARGUMENT_ERROR,
     BAUD,
     COMMAND_END,
+    CURRENT_STEP_MA,
     EXECUTION_ERROR,
     REPLY_END,
     UNDEFINED,
@@ -44,6 +49,7 @@ from benchlab.drivers.slc_protocol import (
     SlcMode,
     SlcNoReplyError,
     SlcUnknownCommandError,
+    module_family,
     parse_current_reply,
     parse_device_info,
 )
@@ -57,6 +63,8 @@ __all__ = [  # the protocol names are re-exported: callers keep importing them f
 ]
 
 ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
+# After an unanswered command: the line counts as clear once it stayed silent this long.
+LATE_REPLY_QUIET_S = 0.08
 
 
 # Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
@@ -86,11 +94,13 @@ class SlcController(LightSource):
         self._info: SlcDeviceInfo | None = None
         self._channel_count = 0
         self._unit_ma = 1.0
+        self._step_wire = 1  # wire units per hardware current step (5 on CA modules)
         self._normal_max_ma = _DEFAULT_NORMAL_MAX_MA
         self._io_lock = threading.RLock()
         self._busy = False
-        #: An exchange was interrupted (Ctrl-C, SIGTERM) after its command went out: its late
-        #: reply must be read before the next command's, or it would be taken for that one.
+        #: A command went out but its reply did not (fully) arrive: timeout, unterminated line,
+        #: Ctrl-C / SIGTERM. Its late reply must be read before the next command's, or it
+        #: would be taken for that one.
         self._late_reply = False
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -240,8 +250,10 @@ class SlcController(LightSource):
 
     # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
-        # Round down so rounding can never push a value above its checked ceiling.
-        return math.floor(current_ma / self._unit_ma + 1e-9)
+        # Round down - to the hardware's current step too - so neither our rounding nor the
+        # controller's quantisation can push a value above its checked ceiling.
+        wire = math.floor(current_ma / self._unit_ma + 1e-9)
+        return wire - wire % self._step_wire
 
     # ---- open helpers ----------------------------------------------------------------------
     def _echo_off(self) -> None:
@@ -257,9 +269,9 @@ class SlcController(LightSource):
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
     def _configure_family(self, module: str) -> None:
-        m = re.match(r"SLC-([A-Z]{2})\d\d", module.upper())
-        family = m.group(1) if m else ""
+        family = module_family(module)
         self._unit_ma = 0.1 if family in _DECI_MA_FAMILIES else 1.0
+        self._step_wire = round(CURRENT_STEP_MA.get(family, 0) / self._unit_ma) or 1
         self._normal_max_ma = _NORMAL_MAX_MA.get(family, _DEFAULT_NORMAL_MAX_MA)
 
     def _count_channels(self) -> int:
@@ -289,13 +301,18 @@ class SlcController(LightSource):
         with self._io_lock:
             self._busy = True
             try:
-                if self._late_reply:
-                    self._late_reply = False
-                    ser.read_until(REPLY_END)  # at most timeout_s; usually already there
+                # A late reply that did not turn up may still come, during this exchange.
+                still_due = self._late_reply and not self._drain_late_reply(ser)
+                self._late_reply = False
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
-                if ser.in_waiting:
+                two_replies = False
+                if not raw.endswith(REPLY_END):
+                    self._late_reply = True  # silence or a cut-off line: the rest may follow
+                elif still_due:
+                    two_replies = self._another_line_follows(ser)  # reads the second, if any
+                elif ser.in_waiting:
                     ser.read(ser.in_waiting)  # drain strays after the terminator
             except IO_ERRORS as exc:
                 raise DeviceLostError(f"LED controller lost (command {command!r}): {exc}") from exc
@@ -304,6 +321,9 @@ class SlcController(LightSource):
                 raise
             finally:
                 self._busy = False
+        if two_replies:
+            raise SlcBadReplyError(command, f"two replies, the first {raw!r} may answer an "
+                                   "earlier command that timed out")
         if not raw:
             raise SlcNoReplyError(command, self.timeout_s)
         if not raw.endswith(REPLY_END):
@@ -319,6 +339,39 @@ class SlcController(LightSource):
         if text.startswith(ARGUMENT_ERROR):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
+
+    def _drain_late_reply(self, ser: serial.Serial) -> bool:
+        """Discard the reply of an earlier unanswered command; False if none came.
+
+        Waits up to ``timeout_s`` for its line end, then reads until the line has stayed quiet
+        for LATE_REPLY_QUIET_S (the doc's "sleep, drain in_waiting" recipe, made robust to a
+        reply that is still on its way). Bounded by twice the timeout even if bytes keep coming.
+        """
+        deadline = time.monotonic() + 2 * self.timeout_s
+        try:
+            ser.timeout = self.timeout_s
+            stale = ser.read_until(REPLY_END)
+            ser.timeout = LATE_REPLY_QUIET_S
+            while time.monotonic() < deadline:
+                more = ser.read(max(1, ser.in_waiting))
+                if not more:
+                    break
+                stale += more
+        finally:
+            ser.timeout = self.timeout_s
+        if stale:
+            log.debug("LED controller: discarded late reply %r", stale)
+        return bool(stale)
+
+    def _another_line_follows(self, ser: serial.Serial) -> bool:
+        """After a reply read while a late one was still due: does a second line follow
+        within LATE_REPLY_QUIET_S? Then the first may have been the late one."""
+        try:
+            ser.timeout = LATE_REPLY_QUIET_S
+            extra = ser.read_until(REPLY_END)
+        finally:
+            ser.timeout = self.timeout_s
+        return extra.endswith(REPLY_END)
 
     def _command(self, command: str) -> None:
         text = self._exchange(command)

@@ -23,6 +23,15 @@ ACK = "##"
 EXECUTION_ERROR = "#!"
 ARGUMENT_ERROR = "#?"
 UNDEFINED = "is not defined"
+#: Families whose hardware sets currents in coarser steps than the wire unit (section B.7):
+#: CA drives the nearest 5 mA step (123-127 -> 125), so a value sent can come out higher.
+CURRENT_STEP_MA: dict[str, int] = {"CA": 5}
+
+
+def module_family(module: str) -> str:
+    """Two-letter family of a module number ("SLC-CA04-MU" -> "CA"); "" when not recognised."""
+    m = re.match(r"SLC-([A-Z]{2})\d\d", module.upper())
+    return m.group(1) if m else ""
 
 
 class SlcMode(IntEnum):

@@ -10,6 +10,7 @@ answer ``    VERB is not defined``, and output keeps running when the host close
 from __future__ import annotations
 
 import re
+import time
 from dataclasses import dataclass, field, replace
 
 from benchlab.drivers.pty_device import Clock, PtyDevice
@@ -17,10 +18,12 @@ from benchlab.drivers.sim_dispatch import CommandTable
 from benchlab.drivers.slc_protocol import (
     ACK,
     ARGUMENT_ERROR,
+    CURRENT_STEP_MA,
     EXECUTION_ERROR,
     REPLY_SUFFIX,
     UNDEFINED,
     SlcMode,
+    module_family,
 )
 
 _LINE_SPLIT = re.compile(rb"\n\r|\r\n|\r|\n")
@@ -48,6 +51,11 @@ class SlcFaults:
     """One-shot fault injection; each counter is decremented as it fires."""
 
     no_reply: int = 0  # ignore the next N commands entirely (silence)
+    # The next N commands execute at once but are answered late_reply_s (wall seconds, like
+    # the host's timeout) later; the firmware is busy meanwhile, so commands arriving in
+    # between wait in the UART buffer and are answered after it, in order.
+    late_reply: int = 0
+    late_reply_s: float = 0.0
     garbage: bytes | None = None  # answer the next command with these bytes instead
     drop_on_command: str | None = None  # drop the link when this verb arrives (before acting)
     out_of_range: int = 0  # next N queries answer with impossible values
@@ -95,6 +103,8 @@ class SimulatedSlc(PtyDevice):
         self.serial = serial
         self.firmware = firmware
         self.normal_max_ma = normal_max_ma
+        # CA modules drive currents in 5 mA steps, to the nearest step (B.7: 123-127 -> 125).
+        self.current_step_ma = CURRENT_STEP_MA.get(module_family(self.module), 1)
         self.pulsed_max_ma = pulsed_max_ma
         self.echooff_ack = echooff_ack
         self.faults = SlcFaults()
@@ -102,6 +112,8 @@ class SimulatedSlc(PtyDevice):
         self.channels = [SimChannel() for _ in range(channels)]
         self._stored = _Stored([SimChannel() for _ in range(channels)])
         self._rx = b""
+        self._late_out: bytearray | None = None  # reply of the command being answered late
+        self._late: tuple[float, bytes] | None = None  # (send at, monotonic s; bytes) pending
 
     # ---- physical state for scenes and tests ----------------------------------------------
     def channel_output_ma(self, ch: int) -> float:
@@ -117,7 +129,7 @@ class SimulatedSlc(PtyDevice):
     # ---- protocol --------------------------------------------------------------------------
     def on_bytes(self, data: bytes) -> None:
         self._rx += data
-        while True:
+        while self._late is None:  # busy with a late reply: later lines wait their turn
             m = _LINE_SPLIT.search(self._rx)
             if m is None:
                 return
@@ -130,10 +142,37 @@ class SimulatedSlc(PtyDevice):
                 return
             self._handle_line(line.decode("ascii", errors="replace").strip())
 
+    def on_tick(self, now_s: float) -> None:
+        late = self._late
+        if late is not None and time.monotonic() >= late[0]:
+            self._late = None
+            if late[1]:
+                self.write(late[1])
+            self.on_bytes(b"")  # now answer what arrived meanwhile
+
     def _reply(self, payload: str) -> None:
-        self.write(payload.encode("ascii") + REPLY_SUFFIX)
+        self._out(payload.encode("ascii") + REPLY_SUFFIX)
+
+    def _out(self, data: bytes) -> None:
+        if self._late_out is not None:
+            self._late_out += data
+        else:
+            self.write(data)
 
     def _handle_line(self, line: str) -> None:
+        f = self.faults
+        if f.late_reply > 0 and f.drop_on_command is None and f.no_reply == 0:
+            f.late_reply -= 1
+            self._late_out = bytearray()
+            try:
+                self._execute(line)
+            finally:
+                out, self._late_out = bytes(self._late_out), None
+                self._late = (time.monotonic() + f.late_reply_s, out)
+            return
+        self._execute(line)
+
+    def _execute(self, line: str) -> None:
         words = line.split()
         verb = words[0].upper()
         f = self.faults
@@ -146,7 +185,7 @@ class SimulatedSlc(PtyDevice):
             return
         if f.garbage is not None:
             junk, f.garbage = f.garbage, None
-            self.write(junk)
+            self._out(junk)
             return
         handler = self.commands.handler(self, verb)
         if handler is None or verb in {v.upper() for v in f.undefined}:
@@ -163,6 +202,10 @@ class SimulatedSlc(PtyDevice):
             reply = EXECUTION_ERROR
         if reply is not None:
             self._reply(reply)
+
+    def _quantised(self, current: int) -> int:
+        step = self.current_step_ma
+        return step * round(current / step)
 
     def _chan(self, args: list[int], nargs: int) -> SimChannel | None:
         if len(args) != nargs or not 1 <= args[0] <= self.channel_count:
@@ -210,7 +253,7 @@ class SimulatedSlc(PtyDevice):
         c = self._chan(args, 3)
         if c is None:
             return ARGUMENT_ERROR
-        imax, iset = args[1], args[2]
+        imax, iset = self._quantised(args[1]), self._quantised(args[2])
         # Iset > Imax is undocumented on hardware; the simulator rejects it as out of range.
         if not (0 <= imax <= self.normal_max_ma and 0 <= iset <= imax):
             return ARGUMENT_ERROR
@@ -220,9 +263,9 @@ class SimulatedSlc(PtyDevice):
     @commands.handles("CURRENT")
     def _cmd_CURRENT(self, args: list[int]) -> str:
         c = self._chan(args, 2)
-        if c is None or not 0 <= args[1] <= c.normal_imax:
+        if c is None or not 0 <= self._quantised(args[1]) <= c.normal_imax:
             return ARGUMENT_ERROR
-        c.normal_iset = args[1]
+        c.normal_iset = self._quantised(args[1])
         return ACK
 
     @commands.handles("?CURRENT")

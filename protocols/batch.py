@@ -178,8 +178,13 @@ def run_batch(
     from benchlab.protocols.runs import check_estimator
 
     check_estimator(estimator)
-    # A session named twice is analysed once (two workers would race for one folder).
-    paths = list(dict.fromkeys(str(Path(s)) for s in sessions))
+    # A session named twice is analysed once (two workers would race for one folder): named
+    # by the folder it resolves to, so ROOT/s, ROOT/./s, a symlink to it and --all ROOT's s
+    # are one session. The first spelling given is the one reported.
+    unique: dict[Path, str] = {}
+    for s in sessions:
+        unique.setdefault(Path(s).resolve(), str(Path(s)))
+    paths = list(unique.values())
     if not paths:
         raise BatchError("no sessions to analyse")
     if jobs is not None and jobs < 1:

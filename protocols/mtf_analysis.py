@@ -563,8 +563,9 @@ def _monte_carlo_rows(
     Sagittal and tangential stay beside the average: the thesis's lesson is that the average
     alone hid a poor tangential response.
     """
-    # (frequency, modulation) per view and orientation; aliased readings are no readings.
-    measured: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    # (frequency, modulation, resolved) per view and orientation; aliased readings are no
+    # readings. A not-resolved one stays (it is the finding at its frequency) but is never a 0.
+    measured: dict[tuple[str, str], list[tuple[float, float, bool]]] = {}
     for view, table in (("forward", t411), ("radial", t412)):
         for r in table:
             for orient in ORIENTATIONS:
@@ -572,7 +573,8 @@ def _monte_carlo_rows(
                 f = float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
                 if m is None or r.get(f"{orient}_aliased", r["aliased"]):
                     continue
-                measured.setdefault((view, orient), []).append((f, float(m)))
+                resolved = bool(r.get(f"{orient}_resolved", float(m) != 0.0))
+                measured.setdefault((view, orient), []).append((f, float(m), resolved))
     source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
     for mc in load_monte_carlo_table(source):
@@ -580,19 +582,37 @@ def _monte_carlo_rows(
         for orient in ORIENTATIONS:
             cands = measured.get((mc.view, orient), [])
             if cands:
-                f, m = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
-                if abs(f - mc.freq_lp_per_mm) <= MC_MATCH_FRACTION * mc.freq_lp_per_mm:
-                    picks.append((f, m))
+                pick = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
+                if abs(pick[0] - mc.freq_lp_per_mm) <= MC_MATCH_FRACTION * mc.freq_lp_per_mm:
+                    picks.append(pick)
         if len(picks) < 2:
             continue  # nothing measured near this prediction's frequency in one orientation
-        (f_s, s), (f_t, t) = picks
-        avg = averaged_mtf(s, t)
-        _, verdict = monte_carlo_band(avg.average, mc)
-        out.append({
+        (f_s, s, s_ok), (f_t, t, t_ok) = picks
+        row: dict[str, Any] = {
             "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
-            "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s,
-            "tangential_modulation": t, "averaged_modulation": round(avg.average, 6),
-            **mc.columns(), "verdict": verdict,
+            "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s if s_ok else None,
+            "tangential_modulation": t if t_ok else None,
+        }
+        if s_ok and t_ok:
+            avg = averaged_mtf(s, t)
+            row["averaged_modulation"] = round(avg.average, 6)
+            verdict = monte_carlo_band(avg.average, mc)[1]
+        else:
+            # No number for an unresolved reading: the average is unknown, only bounded below
+            # by the resolved half (a contrast is never negative).
+            row["averaged_modulation"] = None
+            row["averaged_lower_bound"] = round(averaged_mtf(s if s_ok else 0.0,
+                                                             t if t_ok else 0.0).average, 6)
+            verdict = "not available: " + unresolved_note(s_ok, t_ok)
+        out.append({
+            **row, **mc.columns(), "verdict": verdict,
             "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
+            "sagittal_resolved": s_ok, "tangential_resolved": t_ok,
         })
     return out
+
+
+def unresolved_note(sagittal_resolved: bool, tangential_resolved: bool) -> str:
+    """Which half of a Table 4.15 average is missing, in words (``"T not resolved"``)."""
+    missing = [o for o, ok in (("S", sagittal_resolved), ("T", tangential_resolved)) if not ok]
+    return " and ".join(missing) + " not resolved" if missing else ""

@@ -11,13 +11,15 @@ import pytest
 import serial
 
 from benchlab.drivers.apt import (
+    COMPLETION_TOLERANCE_COUNTS,
     AptBadReplyError,
     AptLimitSwitchError,
+    AptMoveFaultError,
     AptNoReplyError,
     AptNotHomedError,
     AptStage,
 )
-from benchlab.drivers.apt_protocol import Msg, short
+from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM, Msg, StatusBits, short
 from benchlab.drivers.apt_sim import UNACKED_UPDATE_LIMIT, SimulatedAptStage
 from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
 from benchlab.drivers.pty_device import ManualClock
@@ -95,6 +97,69 @@ def test_limit_switch_mid_move(sim: SimulatedAptStage, clock: ManualClock) -> No
             st.wait_for_move()
         assert not st.status.is_moving
     assert not sim.moving and sim.position_mm == pytest.approx(12.0)
+
+
+def _move(st: AptStage, sim: SimulatedAptStage, clock: ManualClock, target_mm: float) -> None:
+    n = len(sim.host_messages())
+    st.move_to_mm(target_mm, wait=False)
+    deadline = time.monotonic() + 5
+    while len(sim.host_messages()) == n:  # the move is on its way before time jumps
+        assert time.monotonic() < deadline
+        time.sleep(0.001)
+    clock.advance(60)
+    st.wait_for_move()
+
+
+@pytest.mark.parametrize(
+    ("bits", "named"),
+    [
+        (StatusBits.POSITION_ERROR, "fault POSITION_ERROR"),
+        (StatusBits.ERROR | StatusBits.OVERLOAD, "OVERLOAD|ERROR"),
+        (StatusBits.FWD_HW_LIMIT, "forward limit switch engaged"),
+        (StatusBits.REV_HW_LIMIT, "reverse limit switch engaged"),
+    ],
+)
+def test_move_completed_with_a_fault_or_limit_bit_is_an_error(
+    sim: SimulatedAptStage, clock: ManualClock, bits: StatusBits, named: str
+) -> None:
+    with _open(sim) as st:
+        sim.faults.completion_bits = bits
+        with pytest.raises(AptMoveFaultError, match=named) as info:
+            _move(st, sim, clock, 20.0)
+        assert "move to 20.0 mm reported complete at 20.0000 mm" in str(info.value)
+        _move(st, sim, clock, 30.0)  # the fault was one completion's: the next one is clean
+        assert st.position_mm == pytest.approx(30.0, abs=1e-4)
+    assert not sim.moving
+
+
+def test_move_completed_away_from_the_target_is_an_error(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:
+        sim.faults.stop_short_mm = 0.01  # ~346 counts short, yet MOVE_COMPLETED
+        with pytest.raises(AptMoveFaultError, match=r"-34[56] counts from the target"):
+            _move(st, sim, clock, 20.0)
+        assert sim.position_mm == pytest.approx(19.99, abs=1e-4)
+        sim.faults.stop_short_mm = 0.01
+        st.move_by_mm(-5.0, wait=False)  # relative: checked against its end point, 14.99 mm
+        received(sim, "4804")
+        clock.advance(60)
+        with pytest.raises(AptMoveFaultError, match=r"\+34[56] counts from the target"):
+            st.wait_for_move()
+        assert sim.position_mm == pytest.approx(15.0, abs=1e-4)
+
+
+def test_completion_within_a_few_counts_and_at_the_travel_ends_is_success(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:
+        sim.faults.stop_short_mm = (COMPLETION_TOLERANCE_COUNTS - 1) / Z8_COUNTS_PER_MM
+        _move(st, sim, clock, 20.0)
+        assert sim.position_mm < 20.0  # it did stop short, within the servo's few counts
+        _move(st, sim, clock, 50.0)  # the forward switch sits at this end of travel
+        assert st.status.at_forward_limit
+        _move(st, sim, clock, 0.0)
+        assert st.status.at_reverse_limit
 
 
 def test_physical_end_of_travel_trips_the_limit_switch(clock: ManualClock) -> None:
@@ -231,3 +296,42 @@ def test_unsolicited_messages_before_a_reply_are_routed(sim: SimulatedAptStage) 
         assert st.position_mm == 0.0
         assert st.dropped_bytes == 0  # valid frames, routed rather than discarded
         assert not st.is_homed  # the unsolicited status (saying 'not homed') was applied
+
+
+def test_reply_late_but_within_timeout_is_the_answer(sim: SimulatedAptStage) -> None:
+    with _open(sim) as st:
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.2
+        t0 = time.monotonic()
+        assert st.position_mm == 0.0
+        assert time.monotonic() - t0 >= 0.2  # the fault really delayed it
+
+
+def test_reply_after_the_timeout_is_not_taken_for_a_later_request(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    with _open(sim) as st:  # timeout 0.5 s
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.6
+        with pytest.raises(AptNoReplyError, match="MOT_REQ_POSCOUNTER"):
+            st.position_mm  # noqa: B018
+        _move(st, sim, clock, 10.0)
+        time.sleep(0.4)  # the late GET_POSCOUNTER (0 counts) arrives before the next request
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)
+
+
+def test_a_late_reply_is_not_taken_for_the_next_request_of_its_kind(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    """A position request times out; its reply comes later, after the next position request
+    was sent - it used to be taken for that one's answer (0.0 mm after a move to 10 mm). The
+    next request of the kind now first waits out the late reply."""
+    with _open(sim) as st:
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.8  # timeout 0.5 s
+        with pytest.raises(AptNoReplyError, match="MOT_REQ_POSCOUNTER"):
+            st.position_mm  # noqa: B018
+        _move(st, sim, clock, 10.0)
+        clock.advance(60)
+        st.wait_for_move()
+        # This request's own reply is slow too (0.3 s): the old one (0.0 mm) comes first.
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.3
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)  # not the late 0.0
+        assert st.position_mm == pytest.approx(10.0, abs=1e-4)

@@ -115,7 +115,7 @@ def test_bad_batch_inputs_are_clean_errors(
     empty.mkdir()
     assert main(["analyze", "--all", str(empty)]) == 1
     assert "no sessions to analyse" in capsys.readouterr().err
-    assert main(["analyze", str(a), str(a), "--roi", "1,2,3,4"]) == 1
+    assert main(["analyze", str(a), str(a), "--roi", "1,2,3,4"]) == 2  # usage
     assert "only --estimator applies" in capsys.readouterr().err
     assert main(["analyze", str(a), str(a), "--estimator", "nope"]) == 2  # a usage error
     assert "unknown estimator" in capsys.readouterr().err

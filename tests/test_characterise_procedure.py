@@ -214,8 +214,8 @@ def test_analyze_linearise_records_the_calibration(run: Any,
     assert main([*argv, "--linearise", str(session / "nope.json")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("benchlab: error:") and "nope.json" in err
-    assert main(["analyze", str(session), "--linearise", str(bench_file)]) == 1
-    assert "applies to one image" in capsys.readouterr().err
+    assert main(["analyze", str(session), "--linearise", str(bench_file)]) == 2  # usage
+    assert "--linearise: for one image only" in capsys.readouterr().err
 
 
 def test_led_current_sweep_option(tmp_path: Path) -> None:

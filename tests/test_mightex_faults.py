@@ -46,6 +46,19 @@ def test_reply_timeout_then_recovery() -> None:
         assert cam.grab().meta.width == 64
 
 
+def test_late_reply_is_not_taken_for_the_next_querys() -> None:
+    sim, cam, _ = open_sim()
+    with cam:
+        sim.faults.late_replies = 1
+        with pytest.raises(DeviceTimeoutError, match="firmware version"):
+            cam.firmware_version()
+        # The firmware reply is now waiting: drained first, not read as the buffer status.
+        status = cam.buffer_status()
+        assert (status.width, status.height) == (64, 16)
+        assert cam.firmware_version() == "1.0.6"
+        assert np.all(cam.grab().pixels == 100)
+
+
 def test_garbage_reply_is_a_protocol_error_then_recovery() -> None:
     sim, cam, _ = open_sim()
     with cam:
@@ -136,10 +149,17 @@ def test_stale_frames_from_a_reconfiguration_are_flushed() -> None:
     sim, cam, _ = open_sim()
     with cam:
         sim.faults.stale_frames = 2
-        cam.configure(width=32, height=8, bits=12)
+        sim.command_log.clear()
+        # Same geometry, new bit depth: the camera's own 0x60 flush does not run (nothing
+        # changed for it), so only the driver's clear can remove the two 8-bit frames - which
+        # buffer status cannot tell from 12-bit ones (it reports geometry only).
+        cam.configure(width=64, height=16, bits=12)
+        log = list(sim.command_log)
+        assert log[0][:1] == H("30") and log[1][:1] == H("60")
+        assert log[2:] == [H("33 01 00"), H("35 01 02")]  # the driver's clear, for both
         assert sim.buffered_frames == 0
         frame = cam.grab()
-        assert frame.pixels.shape == (8, 32) and frame.pixels.dtype == np.uint16
+        assert frame.pixels.shape == (16, 64) and frame.pixels.dtype == np.uint16
         assert cam.discarded_frames == 0
 
 

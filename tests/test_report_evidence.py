@@ -102,8 +102,8 @@ def test_a_curve_cut_at_nyquist_gets_its_tail_extrapolated() -> None:
 
 
 MC_ROW = {"view": "radial", "mc_freq_lp_per_mm": 60.0, "measured_freq_lp_per_mm": 52.5,
-          "sagittal_modulation": 0.706, "tangential_modulation": 0.0,
-          "averaged_modulation": 0.353, "p90": 0.21, "p80": 0.27, "p50": 0.45, "p20": 0.61,
+          "sagittal_modulation": 0.706, "tangential_modulation": 0.12,
+          "averaged_modulation": 0.413, "p90": 0.21, "p80": 0.27, "p50": 0.45, "p20": 0.61,
           "p10": 0.63, "verdict": "exceeds the 80 % threshold (0.27)"}
 
 

@@ -108,6 +108,12 @@ class _SlowPort:
         self.arrived = rest
         return line + sep
 
+    def read(self, size: int = 1) -> bytes:
+        self.arrived += b"".join(self.pending)
+        self.pending.clear()
+        out, self.arrived = self.arrived[:size], self.arrived[size:]
+        return out
+
     def close(self) -> None: ...
 
 

@@ -165,6 +165,46 @@ def test_deci_milliamp_family_scales_currents() -> None:
         sim.stop()
 
 
+@pytest.fixture
+def ca_sim() -> Iterator[SimulatedSlc]:
+    s = SimulatedSlc(module="SLC-CA04-MU")  # 5 mA current steps (B.7)
+    s.start()
+    yield s
+    s.stop()
+
+
+def test_ca_simulator_drives_the_nearest_5_ma_step(ca_sim: SimulatedSlc) -> None:
+    import serial
+
+    with serial.Serial(ca_sim.port, 9600, timeout=1.0) as ser:
+        def ask(line: bytes) -> bytes:
+            ser.write(line + b"\n\r")
+            return ser.read_until(b"\r\n")
+
+        assert ask(b"NORMAL 1 123 123") == b"## \r\n"
+        assert ask(b"MODE 1 1") == b"## \r\n"
+        assert ca_sim.channel_output_ma(1) == 125.0  # above the 123 asked for
+        assert ask(b"?CURRENT 1").endswith(b" 125 125 \r\n")
+        assert ask(b"CURRENT 1 122") == b"## \r\n"
+        assert ca_sim.channel_output_ma(1) == 120.0
+        assert ask(b"CURRENT 1 127") == b"## \r\n"
+        assert ca_sim.channel_output_ma(1) == 125.0
+
+
+def test_ca_family_currents_round_down_to_the_5_ma_step(ca_sim: SimulatedSlc) -> None:
+    with SlcController(ca_sim.port, ceilings_ma={1: 123.0, 2: 100.0}) as c:
+        ca_sim.transcript.clear()
+        c.on(1, 123)  # the controller would drive 125 mA for 123: above the ceiling
+        assert ("host", b"NORMAL 1 120 120\n\r") in ca_sim.transcript
+        assert ca_sim.channel_output_ma(1) == 120.0
+        c.set_current(1, 119.9)
+        assert ca_sim.channel_output_ma(1) == 115.0
+        assert c.get_current(1) == (120.0, 115.0)
+        c.on(2, 100)  # already on a step: sent as is
+        assert ca_sim.channel_output_ma(2) == 100.0
+    assert ca_sim.channel_output_ma(1) == 0.0
+
+
 def test_channel_count_probed_when_module_missing() -> None:
     sim = SimulatedSlc(channels=3, module="")  # SDK example: no module field
     sim.start()

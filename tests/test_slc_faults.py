@@ -21,6 +21,7 @@ from benchlab.drivers.slc import (
     SlcNoReplyError,
     SlcUnknownCommandError,
 )
+from benchlab.drivers.slc_protocol import SlcMode
 from benchlab.drivers.slc_sim import SimulatedSlc
 
 pytestmark = pytest.mark.timeout(30)
@@ -150,3 +151,73 @@ def test_ctrl_c_switches_off(sim: SimulatedSlc) -> None:
         time.sleep(0.01)
     assert _all_dark(sim)
     assert b"MODE 1 0\n\r" in sim.host_lines()
+
+
+# ---- late replies: answered after the host's timeout -----------------------------------------
+def test_late_reply_is_not_taken_for_the_next_commands_reply(sim: SimulatedSlc) -> None:
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.3) as c:
+        c.on(1, 40)
+        # "#1" comes 150 ms after the 0.3 s timeout (a margin a loaded machine keeps), and
+        # within the next exchange's wait for a late reply (one timeout more).
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.45
+        with pytest.raises(SlcNoReplyError, match=r"\?MODE 1"):
+            c.is_on(1)
+        # The late "#1" must not answer "?MODE 2": channel 2 is dark.
+        assert c.is_on(2) is False
+        assert sim.channel_output_ma(2) == 0.0
+        assert c.get_current(1) == (100.0, 40.0)
+        assert c.is_on(1) is True
+    assert _all_dark(sim)
+
+
+def test_late_reply_to_a_command_it_executed(sim: SimulatedSlc) -> None:
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.3) as c:
+        c.on(1, 40)
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.4
+        with pytest.raises(SlcNoReplyError, match="MODE 1 0"):
+            c.off(1)
+        assert sim.channel_output_ma(1) == 0.0  # executed, only its "##" was late
+        assert c.is_on(1) is False  # the late "##" is not taken as the query's reply
+        c.on(2, 30)
+        assert sim.channel_output_ma(2) == 30.0
+        assert c.get_current(2) == (100.0, 30.0)
+
+
+def test_reply_late_but_within_timeout_is_the_answer(sim: SimulatedSlc) -> None:
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.5) as c:
+        c.on(1, 40)
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.15
+        t0 = time.monotonic()
+        assert c.get_current(1) == (100.0, 40.0)
+        assert time.monotonic() - t0 >= 0.15  # the fault really delayed it
+        assert c.is_on(2) is False
+
+
+def test_simulator_busy_with_a_late_reply_answers_later_commands_in_order(
+    sim: SimulatedSlc,
+) -> None:
+    import serial
+
+    sim.channels[0].mode = SlcMode.NORMAL
+    sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.3
+    with serial.Serial(sim.port, 9600, timeout=1.0) as ser:
+        t0 = time.monotonic()
+        ser.write(b"?MODE 1\n\r?MODE 2\n\r")
+        first = ser.read_until(b"\r\n")
+        assert time.monotonic() - t0 >= 0.3
+        assert (first, ser.read_until(b"\r\n")) == (b"#1 \r\n", b"#0 \r\n")
+
+
+def test_reply_later_than_the_next_commands_wait_is_not_taken_for_its_reply(
+    sim: SimulatedSlc,
+) -> None:
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.5) as c:
+        c.on(1, 40)
+        # "#1" comes 1.3 s late: after the timeout (0.5 s) and after the next exchange's wait
+        # for it (to ~1.08 s), while that exchange waits for its own reply (to ~1.58 s).
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 1.3
+        with pytest.raises(SlcNoReplyError, match=r"\?MODE 1"):
+            c.is_on(1)
+        with pytest.raises(SlcBadReplyError, match=r"two replies, the first b'#1 \\r\\n'"):
+            c.is_on(2)  # read "#1", then its own "#0" followed: refused, not answered True
+        assert c.is_on(2) is False and c.is_on(1) is True  # and the line is in step again

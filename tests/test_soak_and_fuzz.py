@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import collections
+
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -87,18 +90,64 @@ def test_mightex_replies_raise_only_protocol_error(reply: bytes, expected: int) 
     decoders[expected](data)  # a reply that passed the frame check always decodes
 
 
-@FUZZ
-@given(raw=st.binary(min_size=0, max_size=600), bits=st.sampled_from([8, 12]),
-       short=st.integers(0, 3))
-def test_mightex_frames_raise_only_protocol_error(raw: bytes, bits: int, short: int) -> None:
+def _valid_frame(values: list[int], bits: int, exposure_counts: int) -> bytearray:
+    """An 8x8 frame as the camera sends it: pixels, padding, then the encoded trailer."""
     layout = mp.FrameLayout(8, 8, bits)
     buf = bytearray(layout.total_bytes)
-    buf[: len(raw)] = raw[: layout.total_bytes]
-    try:
-        pixels, _ = mp.decode_frame(buf, layout, layout.total_bytes - short)
-    except ProtocolError:
-        return
-    assert pixels.shape == (8, 8)
+    if bits == 8:
+        buf[: layout.pixel_bytes] = bytes(v & 0xFF for v in values)
+    else:
+        words = np.empty(len(values), dtype=np.uint16)
+        mp.pack_12bit(np.array(values, dtype=np.uint16), words)
+        buf[: layout.pixel_bytes] = words.astype("<u2").tobytes()
+    trailer = mp.FrameTrailer(8, 8, 0, 0, 0, 8, 8, 8, 1234, 0, 0, 0, 100, 0, exposure_counts)
+    buf[layout.trailer_offset:] = mp.encode_trailer(trailer)
+    return buf
+
+
+def test_mightex_frames_decode_exactly_or_raise_protocol_error() -> None:
+    """A valid frame, then random byte mutations and a short transfer: decodes to exactly
+    the bytes' pixels while the length and the trailer's geometry hold, else ProtocolError.
+    Both outcomes must occur, or the fuzz only ever tested one branch."""
+    outcomes: collections.Counter[str] = collections.Counter()
+
+    @FUZZ
+    @given(bits=st.sampled_from([8, 12]), values=st.lists(st.integers(0, 4095), min_size=64,
+                                                          max_size=64),
+           exposure=st.integers(1, 0xFFFFFFFF), short=st.sampled_from([0, 0, 0, 1, 3]),
+           mutations=st.lists(st.tuples(st.sampled_from(["pixels", "geometry", "trailer", "any"]),
+                                        st.integers(0, 10**6), st.integers(0, 255)),
+                              max_size=4))
+    def check(bits: int, values: list[int], exposure: int, short: int,
+              mutations: list[tuple[str, int, int]]) -> None:
+        layout = mp.FrameLayout(8, 8, bits)
+        buf = _valid_frame(values, bits, exposure)
+        t0 = layout.trailer_offset
+        geometry = bytes(buf[t0:t0 + 4])  # the trailer's row and column words
+        regions = {"pixels": (0, layout.pixel_bytes), "geometry": (t0, 4),
+                   "trailer": (t0, mp.TRAILER_BYTES), "any": (0, len(buf))}
+        for region, at, byte in mutations:
+            start, size = regions[region]
+            buf[start + at % size] = byte
+        raw = bytes(buf)
+        if short or raw[layout.trailer_offset:layout.trailer_offset + 4] != geometry:
+            with pytest.raises(ProtocolError):
+                mp.decode_frame(buf, layout, layout.total_bytes - short)
+            outcomes["refused"] += 1
+            return
+        pixels, trailer = mp.decode_frame(buf, layout, layout.total_bytes)
+        if bits == 8:
+            expected = list(raw[:64])
+        else:  # byte 0 holds the 8 MSBs, the low nibble of byte 1 the 4 LSBs
+            expected = [raw[2 * i] << 4 | raw[2 * i + 1] & 0x0F for i in range(64)]
+        assert pixels.shape == (8, 8) and pixels.reshape(-1).tolist() == expected
+        if not mutations:
+            assert expected == [v & 0xFF if bits == 8 else v for v in values]
+            assert trailer.exposure_counts == exposure
+        outcomes["decoded"] += 1
+
+    check()
+    assert outcomes["decoded"] >= 20 and outcomes["refused"] >= 20, outcomes
 
 
 class _ReplyPort:

@@ -194,15 +194,13 @@ def analyze_command(args: argparse.Namespace) -> int:
         image_only = [opt for opt, value in (
             ("--roi", args.roi), ("--freq", args.freq), ("--peaks", args.peaks),
             ("--orientation", args.orientation), ("--bootstrap", args.bootstrap),
+            ("--chart", getattr(args, "chart", None)),
+            ("--linearise", getattr(args, "linearise", None)),
             ("--all-estimators", args.all_estimators or None)) if value is not None]
         if image_only:
             raise UsageError(f"{', '.join(image_only)}: for one image only; a session folder "
                              f"({target}) is re-analysed with its own ROIs (only --estimator)")
         from benchlab.cli.procedures import analyze_session_command
-
-        if getattr(args, "linearise", None):
-            raise AnalysisInputError(f"{target}: --linearise applies to one image; a session "
-                                     "uses the calibration its bench configuration references")
 
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation

@@ -12,13 +12,12 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from benchlab.cli import positive_int
-from benchlab.drivers.errors import BenchlabError
+from benchlab.cli import UsageError, positive_int
 
 #: Above this many sessions the summary lists only the skipped and failed ones (--json: all).
 MAX_LISTED_ANALYSED = 50
 #: Image-only options of ``analyze``; a batch of sessions takes only --estimator.
-_IMAGE_OPTIONS = ("roi", "peaks", "freq", "orientation", "bootstrap")
+_IMAGE_OPTIONS = ("roi", "peaks", "freq", "orientation", "bootstrap", "linearise", "chart")
 
 
 def add_batch_arguments(p: argparse.ArgumentParser) -> None:
@@ -71,11 +70,12 @@ def batch_command(args: argparse.Namespace) -> int:
     gc.enable()  # a batch runs long: collect cycles (the analyze program starts without)
     from benchlab.protocols.batch import find_sessions, run_batch, summary_rows
 
-    used = [f"--{o}" for o in _IMAGE_OPTIONS if getattr(args, o, None)]
+    used = [f"--{o}" for o in _IMAGE_OPTIONS if getattr(args, o, None) is not None]
     if getattr(args, "all_estimators", False):
         used.append("--all-estimators")
-    if used:
-        raise BenchlabError(f"{', '.join(used)}: only --estimator applies to sessions")
+    if used:  # an option that cannot be meant for sessions: a usage error, before any work
+        raise UsageError(f"{', '.join(used)}: for one image only; only --estimator applies "
+                         "to sessions")
     targets = [Path(t) for t in (args.target or [])]
     if args.all_root is not None:
         targets += find_sessions(args.all_root)
@@ -98,9 +98,14 @@ def batch_command(args: argparse.Namespace) -> int:
         print(f"{'session':<{width}}  {'outcome':<8}  detail")
         for name, outcome, detail in rows:
             print(f"{name:<{width}}  {outcome:<8}  {detail}")
-    print(f"\n{n} sessions: {report.count('analysed')} analysed, {report.count('skipped')} "
+    analysed = report.count("analysed")
+    # Only what is true: the frames of the sessions analysed were verified; a failed one may
+    # have failed precisely because its frames changed.
+    verified = ("" if not analysed else " (frames of the session analysed verified unchanged)"
+                if analysed == 1 else f" (frames of the {analysed} analysed verified unchanged)")
+    print(f"\n{n} sessions: {analysed} analysed, {report.count('skipped')} "
           f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
-          f"{report.executor} (frames verified unchanged)")
+          f"{report.executor}{verified}")
     return 1 if report.failed else 0
 
 

@@ -26,6 +26,13 @@ LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
 TREND_COLUMNS = ("session_id", "started_at", "sample", "version", "estimator", "element",
                  "orientation", "freq_lp_per_mm", "value", "text")
 
+#: Trend markers of a figure with no value, by its catalogue text.
+NO_VALUE_MARKERS: dict[str, dict[str, Any]] = {
+    "unresolved": {"marker": "v", "color": "#c0392b", "mfc": "none"},
+    "aliased": {"marker": "x", "color": "#8e44ad"},
+}
+NO_VALUE_WORDS = {"unresolved": "not resolved", "aliased": "aliased"}
+
 
 def _cell(value: Any) -> str:
     if value is None:
@@ -80,15 +87,24 @@ def reindex_command(args: argparse.Namespace) -> int:
 
 
 def list_command(args: argparse.Namespace) -> int:
+    from benchlab.catalog import check_list_query
+
+    check_list_query(sort=args.sort, since=args.since)  # usage errors before any work
     with _open(args) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
                                 limit=args.limit, devices=args.json)
+    for row in rows:  # a newest version that cannot be read is said, never hidden
+        bad = row.get("unreadable_version")
+        row["problem"] = f"v{bad} unreadable" if bad else ("error" if row.get("error") else "")
     if args.json:
         print(json.dumps(rows))
     elif args.csv:
-        _write_csv(rows, LIST_COLUMNS, args.csv)
+        _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv)
     else:
-        print(_table(rows, LIST_COLUMNS) if rows else "no sessions match")
+        print(_table(rows, (*LIST_COLUMNS, "problem")) if rows else "no sessions match")
+        for row in rows:
+            if row.get("error"):
+                print(f"{row['id']}: {row['problem'] or 'error'}: {row['error']}")
     return 0
 
 
@@ -106,8 +122,10 @@ def show_command(args: argparse.Namespace) -> int:
     print(_table(info["results"], ("version", "estimator", "created_at")))
     if info["figures"]:
         print(f"\nfigures of v{info['results_version']}")
-        print(_table(info["figures"], ("view", "element", "orientation", "freq_lp_per_mm",
-                                       "quantity", "value", "text")))
+        figures = [{**f, "value": NO_VALUE_WORDS.get(f["text"], "-")} if f["value"] is None
+                   else f for f in info["figures"]]
+        print(_table(figures, ("view", "element", "orientation", "freq_lp_per_mm",
+                               "quantity", "value", "text")))
     return 0
 
 
@@ -124,16 +142,28 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
     for p in points:
         series.setdefault(f"{p.element or p.orientation} {p.orientation}".strip(), []).append(p)
     for label, pts in series.items():
-        ax.plot([order[p.session_id] for p in pts],
-                [float("nan") if p.value is None else p.value for p in pts],
+        measured = [p for p in pts if p.value is not None]
+        if not measured:
+            continue
+        ax.plot([order[p.session_id] for p in measured], [float(p.value or 0.0) for p in measured],
                 marker="o", label=label)
+    # No value (not resolved, aliased): a labelled marker along the bottom edge, in axes
+    # coordinates, so it is neither drawn as a measured 0 nor stretches the value axis.
+    bottom = ax.get_xaxis_transform()
+    for text, style in NO_VALUE_MARKERS.items():
+        xs = [order[p.session_id] for p in points if p.value is None and p.text == text]
+        if xs:
+            ax.plot(xs, [0.03] * len(xs), ls="none", ms=8, transform=bottom,
+                    label=f"{NO_VALUE_WORDS[text]} (no value)", **style)
+    if any(p.value is None for p in points) and not any(p.value is not None for p in points):
+        ax.set_yticks([])  # nothing measured: no value axis to read a number from
     labels = [next(p.sample or p.session_id for p in points if p.session_id == sid)
               for sid in ids]
     ax.set_xticks(range(len(ids)), labels, rotation=60, ha="right", fontsize=7)
     ax.set_ylabel(quantity)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    if len(series) > 1:
+    if len(series) > 1 or any(p.value is None for p in points):
         ax.legend(fontsize=7)
     fig.tight_layout()
     buf = io.BytesIO()
@@ -145,11 +175,17 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
 
 
 def trend_command(args: argparse.Namespace) -> int:
+    from benchlab.catalog import check_trend_query
+
+    check_trend_query(element=args.element, freq_lp_per_mm=args.freq,
+                      orientation=args.orientation, since=args.since)  # before any work
     with _open(args) as catalog:
         points = catalog.trend(view=args.view, element=args.element,
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
                                quantity=args.quantity, **_filters(args))
     rows = [p._asdict() for p in points]
+    shown = [{**r, "value": NO_VALUE_WORDS.get(r["text"], "-")} if r["value"] is None else r
+             for r in rows]
     what = " ".join(x for x in (args.view, args.element or "",
                                 f"{args.freq:g} lp/mm" if args.freq else "",
                                 args.orientation or "", args.quantity) if x)
@@ -158,7 +194,7 @@ def trend_command(args: argparse.Namespace) -> int:
     elif args.csv:
         _write_csv(rows, TREND_COLUMNS, args.csv)
     else:
-        print(_table(rows, TREND_COLUMNS) if rows else f"no session has {what}")
+        print(_table(shown, TREND_COLUMNS) if rows else f"no session has {what}")
     if points and args.plot != "":
         _plot(points, f"{what} across {len({p.session_id for p in points})} sessions",
               args.quantity, Path(args.plot))

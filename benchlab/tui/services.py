@@ -415,6 +415,8 @@ class SessionSummary:
     result_versions: int
     error: str = ""
     sample: str = ""
+    #: The newest results version, when it cannot be read (the catalogue's listing).
+    unreadable_version: int | None = None
 
 
 def list_sessions(root: Path) -> list[SessionSummary]:
@@ -526,9 +528,13 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     """A results table as (title, headers, cells) for a narrow terminal: the known tables use
     the report's headers and number formats, with the modulation columns right after the
     first so that 80 columns show them; unknown tables show every column as stored."""
-    from benchlab.report_tables import TABLE_VIEWS, cell
+    from benchlab.report_tables import TABLE_VIEWS, cell, row_cell
 
     columns, rows = table_rows(data)
+    if name == "table_4_15":  # "not resolved", never an average built on a stored 0
+        from benchlab.table_4_15 import verdict_rows
+
+        rows = [r for r in verdict_rows(rows)]  # as Mapping rows (typing)
     view = TABLE_VIEWS.get(name)
     if view is None:
         return name, columns, [[cell(r.get(c), ".4g") for c in columns] for r in rows]
@@ -538,7 +544,7 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     ordered = first + mods + [c for c in rest if c not in mods]
     title = view.title.split(" - ")[0]
     return (title, [h for _, h, _ in ordered],
-            [[cell(r.get(k), f) for k, _, f in ordered] for r in rows])
+            [[row_cell(r, k, f) for k, _, f in ordered] for r in rows])
 
 
 # -- session catalogue ---------------------------------------------------------------------
@@ -565,7 +571,7 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
             path=root / r["id"], procedure=r["procedure"], status=r["status"],
             started_at=str(r["started_at"])[:19].replace("T", " "), operator=r["operator"],
             steps_done=-1, result_versions=r["results_version"] or 0, error=r["error"],
-            sample=r["sample"],
+            sample=r["sample"], unreadable_version=r.get("unreadable_version"),
         )
         for r in rows
         if not needle or needle in " ".join(str(r[k]) for k in keys).lower()

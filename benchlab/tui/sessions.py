@@ -131,14 +131,23 @@ class SessionsScreen(Screen[None]):
         app.call_from_thread(self._show_list, found)
 
     def _show_list(self, found: list[services.SessionSummary]) -> None:
-        self.sessions = found
         table = self.query_one("#session-list", DataTable)
+        # The highlight stays on its session across a reload (a new sort, a re-analysis):
+        # n, w and u act on the highlighted row, so it must not slide onto another session.
+        was = (self.sessions[table.cursor_row].path
+               if 0 <= table.cursor_row < len(self.sessions) else None)
+        self.sessions = found
         table.clear()
         for s in found:
             table.add_row(
                 s.path.name, s.procedure, s.status, s.sample,
-                f"v{s.result_versions}" if s.result_versions else "-", key=str(s.path),
+                (f"v{s.result_versions}" if s.result_versions else "-")
+                + (f" (v{s.unreadable_version} unreadable)" if s.unreadable_version else ""),
+                key=str(s.path),
             )
+        at = next((i for i, s in enumerate(found) if s.path == was), None)
+        if at is not None:
+            table.move_cursor(row=at)
         self._status(f"{len(found)} session(s)")
         if self._figure_index >= 0:
             self._trend(self._current_figure())
@@ -281,19 +290,30 @@ class SessionsScreen(Screen[None]):
 
     def _show_trend(self, figure: tuple[str, str, str, str], points: list[Any]) -> None:
         listed = {s.path.name for s in self.sessions}
-        points = [p for p in points if p.session_id in listed and p.value is not None]
+        every = [p for p in points if p.session_id in listed]
+        # Not resolved / aliased readings have no value: left out of the sparkline and of
+        # min / max (never drawn as a measured 0), but counted and named.
+        points = [p for p in every if p.value is not None]
+        missing = [p for p in every if p.value is None]
         self.trend_values = [float(p.value) for p in points]
         view, element, orientation, quantity = figure
         title = " ".join(x for x in (view, element, orientation, quantity) if x)
         self.query_one("#session-sparkline", Sparkline).data = self.trend_values or [0.0]
+        counts: dict[str, int] = {}
+        for p in missing:
+            word = {"unresolved": "not resolved"}.get(p.text, p.text or "no value")
+            counts[word] = counts.get(word, 0) + 1
+        gaps = "; ".join(f"{n} {word}" for word, n in counts.items())
         if not points:
-            text = f"[b]{escape(title)}[/b]: no listed session has it"
+            text = f"[b]{escape(title)}[/b]: no listed session has a value" + (
+                f" ({escape(gaps)})" if gaps else "")
         else:
             lo, hi = min(self.trend_values), max(self.trend_values)
             tail = "  ".join(f"{escape(p.sample or p.session_id)} {p.value:.3f}"
                              for p in points[-4:])
             text = (f"[b]{escape(title)}[/b]  {len(points)} sessions, oldest first; "
-                    f"min {lo:.3f} max {hi:.3f}\nlatest: {tail}")
+                    f"min {lo:.3f} max {hi:.3f}" + (f"; {escape(gaps)} (no value)" if gaps
+                                                    else "") + f"\nlatest: {tail}")
         self.query_one("#session-trend", Static).update(text)
 
     # -- actions ----------------------------------------------------------------------------
@@ -304,7 +324,7 @@ class SessionsScreen(Screen[None]):
         self.estimator = names[(i + 1) % len(names)]
 
     def action_reanalyse(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is not None:
             self._status(f"re-analysing {path.name} with {self.estimator}...")
             self._reanalyse(path, self.estimator)
@@ -325,7 +345,7 @@ class SessionsScreen(Screen[None]):
         self._open(path)
 
     def action_report(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is not None:
             self._status(f"writing the report of {path.name}...")
             self._report(path)
@@ -342,7 +362,7 @@ class SessionsScreen(Screen[None]):
         app.call_from_thread(self.notify, f"Report written: {out}")
 
     async def action_resume(self) -> None:
-        path = self.opened or self._selected()
+        path = self._selected()  # the highlighted row, never the last opened
         if path is None:
             return
         app: Any = self.app
