@@ -72,10 +72,19 @@ CREATE INDEX figures_by_figure ON figures(view, quantity, orientation, element, 
 
 #: v3: a reading that is not resolved or aliased has no value (NULL, its text says which); v2
 #: stored the 0 its table holds, which trends drew as a measured 0. (v2 called aliased readings
-#: "unresolved": ``sessions reindex`` relabels them from the folders.) ``unreadable_version``: a
+#: "unresolved": ``sessions reindex`` relabels them from the folders.) A Table 4.15 average that
+#: v2 took over such a 0 (a not-resolved half within the Monte Carlo match, 20 % of the
+#: frequency) has no value either. ``unreadable_version``: a
 #: latest results version that cannot be read (``error`` says why); ``results_version`` is then
 #: the newest readable one.
 _V3 = """
+UPDATE figures
+SET value = NULL, text = 'not available: a half not resolved (reindex to say which)'
+WHERE orientation = 'averaged' AND quantity = 'modulation' AND EXISTS (
+    SELECT 1 FROM figures AS half WHERE half.session_id = figures.session_id
+    AND half.version = figures.version AND half.view = figures.view
+    AND half.quantity = 'modulation' AND half.text = 'unresolved'
+    AND abs(half.freq_lp_per_mm - figures.freq_lp_per_mm) <= 0.2 * figures.freq_lp_per_mm);
 UPDATE figures SET value = NULL WHERE quantity = 'modulation' AND text IN ('unresolved', 'aliased');
 ALTER TABLE sessions ADD COLUMN unreadable_version INTEGER;
 """

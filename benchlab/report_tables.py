@@ -92,7 +92,8 @@ def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
     never shown as the 0 stored for it."""
     if key.endswith("_modulation"):
         orient = key.removesuffix("_modulation")
-        if row.get(f"{orient}_aliased") is True:
+        # Table 4.12 rows say it per orientation, Table 4.11 rows once (``aliased``).
+        if row.get(f"{orient}_aliased", row.get("aliased")) is True:
             return "aliased"
         if row.get(f"{orient}_resolved") is False:
             return "not resolved"

@@ -435,22 +435,23 @@ class AptStage(LinearStage):
         return status
 
     def _check_completed(self, status: AptStatus) -> None:
-        """A MOVE_COMPLETED is success only if it says so: no fault bit, no limit switch
-        engaged short of that end of travel, and the carriage within a few counts of target."""
+        """A MOVE_COMPLETED is success only if it says so: no fault bit and the carriage
+        within a few counts of the target. A limit switch pressed is named when the carriage
+        is also off target (a real switch is pressed over a zone at each end of travel, so a
+        move to near the end may finish on target with it pressed)."""
         target_mm = self._move_target_mm
         problems: list[str] = []
         faults = status.bits & FAULT_BITS
         if faults:
             problems.append(f"fault {faults.name}")
         if target_mm is not None:
-            target, tol = self.units.counts(target_mm), COMPLETION_TOLERANCE_COUNTS
-            if status.at_forward_limit and target < self._hi_counts - tol:
-                problems.append("forward limit switch engaged")
-            if status.at_reverse_limit and target > self._lo_counts + tol:
-                problems.append("reverse limit switch engaged")
-            off = self.units.counts(status.position_mm) - target
-            if abs(off) > tol:
+            off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
+            if abs(off) > COMPLETION_TOLERANCE_COUNTS:
                 problems.append(f"{off:+d} counts from the target")
+                if status.at_forward_limit:
+                    problems.append("forward limit switch engaged")
+                if status.at_reverse_limit:
+                    problems.append("reverse limit switch engaged")
         if problems:
             raise AptMoveFaultError(
                 f"stage: move to {target_mm} mm reported complete at {status.position_mm:.4f} mm "

@@ -115,11 +115,9 @@ def _move(st: AptStage, sim: SimulatedAptStage, clock: ManualClock, target_mm: f
     [
         (StatusBits.POSITION_ERROR, "fault POSITION_ERROR"),
         (StatusBits.ERROR | StatusBits.OVERLOAD, "OVERLOAD|ERROR"),
-        (StatusBits.FWD_HW_LIMIT, "forward limit switch engaged"),
-        (StatusBits.REV_HW_LIMIT, "reverse limit switch engaged"),
     ],
 )
-def test_move_completed_with_a_fault_or_limit_bit_is_an_error(
+def test_move_completed_with_a_fault_bit_is_an_error(
     sim: SimulatedAptStage, clock: ManualClock, bits: StatusBits, named: str
 ) -> None:
     with _open(sim) as st:
@@ -147,6 +145,23 @@ def test_move_completed_away_from_the_target_is_an_error(
         with pytest.raises(AptMoveFaultError, match=r"\+34[56] counts from the target"):
             st.wait_for_move()
         assert sim.position_mm == pytest.approx(15.0, abs=1e-4)
+
+
+def test_a_limit_switch_pressed_is_named_only_when_the_carriage_is_off_target(
+    sim: SimulatedAptStage, clock: ManualClock
+) -> None:
+    """Real switches are pressed over a zone at each end of travel: a move that ends on its
+    target with a switch pressed is a success (it used to fail whenever the target was more
+    than 5 counts from the configured end); short of the target, the switch is named."""
+    with _open(sim) as st:
+        sim.faults.completion_bits = StatusBits.FWD_HW_LIMIT
+        _move(st, sim, clock, 20.0)  # on target, switch zone reported: fine
+        assert st.position_mm == pytest.approx(20.0, abs=1e-4)
+        sim.faults.completion_bits = StatusBits.REV_HW_LIMIT
+        sim.faults.stop_short_mm = 0.01
+        with pytest.raises(AptMoveFaultError, match="counts from the target, reverse limit "
+                                                    "switch engaged"):
+            _move(st, sim, clock, 30.0)
 
 
 def test_completion_within_a_few_counts_and_at_the_travel_ends_is_success(

@@ -109,13 +109,27 @@ def test_a_v2_catalogue_is_migrated_to_no_value(source: Path, tmp_path: Path) ->
                  "indexed_at) VALUES ('old', '/gone', 'mtf', 'completed', 1, 'then')")
     conn.executemany(
         "INSERT INTO figures (session_id, version, view, element, orientation, "
-        "freq_lp_per_mm, quantity, value, text) VALUES ('old', 1, 'forward', ?, 'tangential', "
-        "?, 'modulation', ?, ?)", [("G2E1", 65.2, 0.47, "resolved"),
-                                   ("G2E5", 103.5, 0.0, "unresolved")])
+        "freq_lp_per_mm, quantity, value, text) VALUES ('old', 1, ?, ?, ?, "
+        "?, 'modulation', ?, ?)", [
+            ("forward", "G2E1", "tangential", 65.2, 0.47, "resolved"),
+            ("forward", "G2E5", "tangential", 103.5, 0.0, "unresolved"),
+            ("radial", "4lp", "tangential", 70.0, 0.0, "unresolved"),
+            ("radial", "4lp", "sagittal", 70.0, 0.778, "resolved"),
+            # Table 4.15 averages: over the 0 above (60 vs 70 lp/mm: the 20 % match), and
+            # one with both halves resolved.
+            ("radial", "", "averaged", 60.0, 0.389, "between the 80% and 50% thresholds"),
+            ("forward", "", "averaged", 40.0, 0.55, "above the 80% threshold"),
+        ])
     conn.close()
     with Catalog.open(root) as cat:
-        figures = {f["element"]: (f["value"], f["text"]) for f in cat.show("old")["figures"]}
-    assert figures == {"G2E1": (0.47, "resolved"), "G2E5": (None, "unresolved")}
+        figures = {(f["view"], f["element"], f["orientation"]): (f["value"], f["text"])
+                   for f in cat.show("old")["figures"]}
+    assert figures[("forward", "G2E1", "tangential")] == (0.47, "resolved")
+    assert figures[("forward", "G2E5", "tangential")] == (None, "unresolved")
+    assert figures[("radial", "4lp", "tangential")] == (None, "unresolved")
+    value, text = figures[("radial", "", "averaged")]
+    assert value is None and text.startswith("not available: a half not resolved")
+    assert figures[("forward", "", "averaged")] == (0.55, "above the 80% threshold")
 
 
 def test_table_4_15_average_over_an_unresolved_reading_has_no_value() -> None:

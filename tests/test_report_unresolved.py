@@ -108,3 +108,19 @@ def test_report_of_old_results_with_an_unresolved_t(source: Path, tmp_path: Path
     assert "T not resolved" in first and "80% and 50%" not in first
     assert "T 0.000" not in first and "averaged" not in first
     assert "[PARTIAL]" not in text  # a finished run's results are not marked
+
+
+def test_an_aliased_forward_reading_is_said_to_be_aliased() -> None:
+    """Table 4.11 rows carry one ``aliased`` for the element (Table 4.12 rows one per
+    orientation): above Nyquist the cell says "aliased", as the catalogue does, not "not
+    resolved"."""
+    from benchlab.report_tables import row_cell
+
+    forward = {"element": "G2E5", "aliased": True, "sagittal_modulation": 0.0,
+               "sagittal_resolved": False}
+    assert row_cell(forward, "sagittal_modulation", ".3f") == "aliased"
+    radial = {"sagittal_aliased": False, "sagittal_resolved": False, "sagittal_modulation": 0.0,
+              "aliased": True}
+    assert row_cell(radial, "sagittal_modulation", ".3f") == "not resolved"
+    fine = {"aliased": False, "sagittal_resolved": True, "sagittal_modulation": 0.41234}
+    assert row_cell(fine, "sagittal_modulation", ".3f") == "0.412"
