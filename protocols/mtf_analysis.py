@@ -460,10 +460,12 @@ def _with_forward_ahead(session: Session, params: MtfParams, est: str,
             raise
     part = ahead.result()
     if part is not None and part.estimator == est:
-        if part.edges is None:
+        if part.edges is None and forward_px is None:
             return centre, centre_method, radial, t412, part  # no forward frame
-        edges = {**part.edges, **mine}
-        if len(edges) == len(edge_specs()):
+        # (The child saw no forward frame but this process has one - e.g. recorded by the
+        # writer's orphan recovery after the fork: computed here below.)
+        edges = {**(part.edges or {}), **mine}
+        if part.edges is not None and len(edges) == len(edge_specs()):
             return centre, centre_method, radial, t412, part._replace(edges=edges)
     return centre, centre_method, radial, t412, forward_part(session, params, est)
 
