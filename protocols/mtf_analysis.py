@@ -404,6 +404,23 @@ def _collect(keys: list[tuple[float, str]],
     return radial
 
 
+def _submit_radial_loads(session: Session, keys: list[tuple[float, str]],
+                         pool: ThreadPoolExecutor) -> list[Future[npt.NDArray[Any] | None]]:
+    """Start loading every radial frame on ``pool`` (one job per key, in order)."""
+    return [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME) for f, o in keys]
+
+
+def _radial_part(
+    keys: list[tuple[float, str]], jobs: list[Future[npt.NDArray[Any] | None]], params: MtfParams,
+    est: str,
+) -> tuple[_Radial, tuple[float, float], str, list[dict[str, Any]]]:
+    """The radial frames once loaded, the optical centre fitted to them and the radial
+    rows (Table 4.12): what both ways of running the forward view share."""
+    radial = _collect(keys, jobs)
+    centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+    return radial, centre, centre_method, _radial_rows(radial, params, est, centre)
+
+
 def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _RadialPart:
     """Everything measured in this process: the centre, Table 4.12 and the forward part."""
     radial_keys = _radial_keys(params)
@@ -419,12 +436,10 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
     with ThreadPoolExecutor(max_workers=1) as forward_pool, \
             ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
         forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
-        radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
-                       for f, o in radial_keys]
+        radial_jobs = _submit_radial_loads(session, radial_keys, pool)
         try:
-            radial = _collect(radial_keys, radial_jobs)
-            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
-            t412 = _radial_rows(radial, params, est, centre)
+            radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
+                                                               params, est)
             forward_px = frame_ready.result()
             measured = (_measure_claimed(forward_px, None, last_first=False)
                         if forward_px is not None else None)
@@ -445,12 +460,10 @@ def _with_forward_ahead(session: Session, params: MtfParams, est: str,
     :func:`_with_forward_thread` (the forward frame's failure first)."""
     radial_keys = _radial_keys(params)
     with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        radial_jobs = [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME)
-                       for f, o in radial_keys]
+        radial_jobs = _submit_radial_loads(session, radial_keys, pool)
         try:
-            radial = _collect(radial_keys, radial_jobs)
-            centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
-            t412 = _radial_rows(radial, params, est, centre)
+            radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
+                                                               params, est)
             forward_px = None if ahead.claims is None else _load(session, FORWARD_STEP,
                                                                  FORWARD_FRAME)
             mine = ({} if forward_px is None
