@@ -36,6 +36,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis import kernels
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Largest square (px) the initial FFT looks at; the refinement uses the whole ROI.
@@ -474,9 +476,19 @@ def quick_fundamental(
         # Straight bars: a centred crop (same centre, so the same phase) measures them as well
         # as the whole ROI, at a fixed cost.
         crop = _centred_crop(img, QUICK_CROP_PX)
-        resid = detrend(crop, sums if crop is img else None)
         rows, cols = crop.shape
         n = rows * cols
+        if kernels.compiled is not None and crop.dtype == np.float64:
+            # The passes below in one compiled call, with the same arithmetic.
+            core = kernels.compiled.quick_core(
+                crop, freq_prior, QUICK_MIN_PERIODS, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS,
+                QUICK_COARSE_MIN_PX, kernels.FUSED_COMPLEX)
+            if core is None:
+                return None
+            kx, ky, re, im, power_sum = core
+            return _found(kx, ky, complex(re, im), freq_prior, (rows, cols), power_sum / n,
+                          noise_sigma)
+        resid = detrend(crop, sums if crop is img else None)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells
     for _ in range(3):  # invert the cell gradients' anisotropy (a near-identity map)
@@ -495,6 +507,17 @@ def quick_fundamental(
     if refined is None:
         return None  # still moving: a poor start (weak or unclear bars)
     kx, ky, value = refined
+    power = float(np.einsum("ij,ij->", resid, resid)) / n
+    return _found(kx, ky, value, freq_prior, (rows, cols), power, noise_sigma)
+
+
+def _found(
+    kx: float, ky: float, value: complex, freq_prior: float, shape: tuple[int, int],
+    power: float, noise_sigma: float | None,
+) -> Fundamental | None:
+    """:func:`quick_fundamental`'s verdict on a settled refinement: the :class:`Fundamental`
+    at ``(kx, ky)`` (DFT ``value``, mean square about the plane ``power``) when within the
+    prior's band and clear of the noise, else ``None``."""
     f = math.hypot(kx, ky)
     if not PRIOR_BAND[0] * freq_prior <= f <= min(PRIOR_BAND[1] * freq_prior, 0.5):
         return None
@@ -503,8 +526,8 @@ def quick_fundamental(
         # The opposite k describes the same bars: its DFT is the conjugate.
         theta = theta + math.pi if theta <= 0 else theta - math.pi
         value = value.conjugate()
-    power = float(np.einsum("ij,ij->", resid, resid)) / n
-    found = Fundamental(theta, f, value, 2.0 * abs(value) / n, (rows, cols), power)
+    n = shape[0] * shape[1]
+    found = Fundamental(theta, f, value, 2.0 * abs(value) / n, shape, power)
     if noise_sigma is not None and not fundamental_is_clear(found, noise_sigma):
         return None
     return found

@@ -45,6 +45,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis import kernels
 from benchlab.analysis.bargeometry import (
     detrend,
     fundamental_is_clear,
@@ -415,16 +416,20 @@ class _Phases(NamedTuple):
     """Where every pixel lies on the bar pattern: its phase ``bin`` (of ``NOISE_BINS`` per
     cycle, bin 0 starting at the bright-bar centres) and whether it lies on the inner bars and
     spaces (half a period in from the ROI's ends; ``None``: all do). Also the noise about the
-    phase-binned profile and the fundamental's significance (``None``: unknown)."""
+    phase-binned profile and the fundamental's significance (``None``: unknown). The compiled
+    kernel gives no bins but the bar-centre pixels :func:`_centre_values` would select, with
+    their minimum and maximum (``chosen``)."""
 
-    bins: npt.NDArray[np.intp]
+    bins: npt.NDArray[np.intp] | None
     inner_bars: npt.NDArray[np.bool_] | None
     noise: float
     z: float | None
+    chosen: tuple[npt.NDArray[np.float64], float, float] | None = None
 
     def centres(self, window: str) -> npt.NDArray[np.bool_]:
         """Which pixels lie on the inner bars and spaces, in the phase bins of ``window``
         (a key of :data:`_WINDOWS`)."""
+        assert self.bins is not None  # only the numpy path asks
         near = _WINDOWS[window][self.bins]
         if self.inner_bars is not None:
             near &= self.inner_bars
@@ -472,14 +477,18 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     if phases is None:
         return prep, None
     noise = prep.noise_sigma if prep.noise_given else phases.noise
-    values = img[phases.centres("near")]
-    if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
-        values = img[phases.centres("wide")]
-        if values.size < MIN_CENTRE_PIXELS:
-            values = img[phases.centres("all")]
+    if phases.chosen is not None:
+        values, vmin, vmax = phases.chosen
+    else:
+        values = img[phases.centres("near")]
+        if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
+            values = img[phases.centres("wide")]
+            if values.size < MIN_CENTRE_PIXELS:
+                values = img[phases.centres("all")]
+        if values.size >= 8:
+            vmin, vmax = float(values.min()), float(values.max())
     if values.size < 8:
         return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
-    vmin, vmax = float(values.min()), float(values.max())
     if vmax == vmin:
         return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
     return prep.selected(values[None, :], noise, vmin, vmax), phases.z
@@ -545,6 +554,8 @@ def _phases_at(
     n = img.size
     kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
+    if kernels.compiled is not None and n >= 8 * NOISE_BINS and img.dtype == np.float64:
+        return _compiled_phases(prep, kx, ky, phase, half_f, amplitude)
     scaled, bins, inner = _phase_bins((rows, cols), kx, ky, phase, half_f)
     flat = img.ravel()
     noise = max(_scatter_about_bins(bins.ravel(), flat, NOISE_BINS), prep.quantisation_sd)
@@ -563,6 +574,31 @@ def _phases_at(
         z_noise = max(min(coarse, residual, prep.noise_sigma), prep.quantisation_sd)
     z = _significance(amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
     return _Phases(bins, inner, noise, z)
+
+
+#: The phase windows as the compiled kernel reads them (a byte per bin).
+_NEAR_BYTES, _WIDE_BYTES = _NEAR.astype(np.uint8).tobytes(), _NEAR_WIDE.astype(np.uint8).tobytes()
+
+
+def _compiled_phases(
+    prep: PreparedROI, kx: float, ky: float, phase: float, half_f: float, amplitude: float
+) -> _Phases:
+    """:func:`_phases_at` (on at least ``8 NOISE_BINS`` pixels) and the bar-centre selection
+    of :func:`_bar_centres` in one compiled pass: the same phase bins, inner-bar test, scatter
+    and windows as :func:`_phase_bins`, :func:`_scatter_about_bins` and
+    :meth:`_Phases.centres`."""
+    assert kernels.compiled is not None
+    img = prep.pixels
+    whole = math.ceil(half_f) + 2  # as _phase_bins
+    centre = NOISE_BINS * (phase + whole)
+    limit = NOISE_BINS * (half_f - 0.5) if half_f >= 1.0 else -1.0
+    out = np.empty(img.size)
+    scatter, m, vmin, vmax = kernels.compiled.phase_select(
+        img, NOISE_BINS * kx, NOISE_BINS * ky, centre, limit, _NEAR_BYTES, _WIDE_BYTES,
+        MIN_CENTRE_PIXELS, out)
+    noise = max(scatter, prep.quantisation_sd)
+    z = _significance(amplitude, prep.noise_sigma if prep.noise_given else noise, img.size)
+    return _Phases(None, None, noise, z, (out[:m], vmin, vmax))
 
 
 @lru_cache(maxsize=64)

@@ -1,0 +1,678 @@
+/* Compiled kernels of the histogram-peak method (benchlab.analysis.histogram, issue 9).
+ *
+ * Each kernel fuses the per-pixel numpy passes of one stage into plain loops and reproduces
+ * numpy's arithmetic step by step - the same products, the same summation order (pairwise
+ * sums of contiguous reductions, row-by-row sums across rows, the unrolled two-lane loop of
+ * einsum's dot product, reduceat's first element plus a pairwise sum), and numpy's complex
+ * product with or without a fused multiply-add (the caller says which numpy uses on this CPU)
+ * - so that on a given machine the readings are those of the numpy code, which stays the
+ * reference and the fallback (benchlab/analysis/kernels.py).
+ *
+ * Inputs are 2-D float64 buffers of any strides (read through the buffer protocol, never
+ * written); scratch memory is allocated here and freed on every path. Build with
+ * -ffp-contract=off: a contracted a * b + c would round differently from numpy.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    const char *data;
+    Py_ssize_t rows, cols;
+    Py_ssize_t rs, cs; /* strides in bytes */
+} Image;
+
+#define PX(im, r, c) (*(const double *)((im)->data + (r) * (im)->rs + (c) * (im)->cs))
+
+static int is_float64_format(const char *fmt)
+{
+    if (fmt == NULL)
+        return 0;
+    if (fmt[0] == '@' || fmt[0] == '=' || fmt[0] == '<')
+        fmt++;
+    return strcmp(fmt, "d") == 0;
+}
+
+/* A 2-D float64 buffer of at least one pixel (any strides). On success the caller releases
+ * ``view``. */
+static int get_image(PyObject *obj, Py_buffer *view, Image *im)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_RECORDS_RO) < 0)
+        return -1;
+    if (view->ndim != 2 || view->itemsize != 8 || !is_float64_format(view->format)) {
+        PyErr_SetString(PyExc_TypeError, "expected a 2-D float64 array");
+        PyBuffer_Release(view);
+        return -1;
+    }
+    im->data = (const char *)view->buf;
+    im->rows = view->shape[0];
+    im->cols = view->shape[1];
+    im->rs = view->strides[0];
+    im->cs = view->strides[1];
+    if (im->rows < 1 || im->cols < 1) {
+        PyErr_SetString(PyExc_ValueError, "expected at least one pixel");
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* numpy's pairwise sum (the inner loop of add.reduce over a run of n values). */
+static double pairwise_sum(const double *a, Py_ssize_t n, Py_ssize_t stride)
+{
+    if (n < 8) {
+        double res = 0.0;
+        for (Py_ssize_t i = 0; i < n; i++)
+            res += a[i * stride];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8], res;
+        Py_ssize_t i;
+        for (int k = 0; k < 8; k++)
+            r[k] = a[k * stride];
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int k = 0; k < 8; k++)
+                r[k] += a[(i + k) * stride];
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++)
+            res += a[i * stride];
+        return res;
+    }
+    Py_ssize_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2, stride) + pairwise_sum(a + n2 * stride, n - n2, stride);
+}
+
+/* numpy's pairwise sum of n complex values (interleaved re, im; ``stride`` in complex
+ * elements): the same recursion on the 2n doubles, real and imaginary parts apart. */
+static void complex_pairwise_sum(const double *a, Py_ssize_t n_doubles, Py_ssize_t stride,
+                                 double *rr, double *ri)
+{
+    /* a[i] for even i: the real part of element i / 2; odd i: its imaginary part. */
+#define CPX(i) a[((i) / 2) * 2 * stride + ((i) % 2)]
+    if (n_doubles < 8) {
+        double sr = 0.0, si = 0.0;
+        for (Py_ssize_t i = 0; i < n_doubles; i += 2) {
+            sr += CPX(i);
+            si += CPX(i + 1);
+        }
+        *rr = sr;
+        *ri = si;
+        return;
+    }
+    if (n_doubles <= 128) {
+        double r[8];
+        Py_ssize_t i;
+        for (int k = 0; k < 8; k++)
+            r[k] = CPX(k);
+        for (i = 8; i < n_doubles - (n_doubles % 8); i += 8)
+            for (int k = 0; k < 8; k++)
+                r[k] += CPX(i + k);
+        double sr = (r[0] + r[2]) + (r[4] + r[6]);
+        double si = (r[1] + r[3]) + (r[5] + r[7]);
+        for (; i < n_doubles; i += 2) {
+            sr += CPX(i);
+            si += CPX(i + 1);
+        }
+        *rr = sr;
+        *ri = si;
+        return;
+    }
+#undef CPX
+    Py_ssize_t n2 = n_doubles / 2;
+    n2 -= n2 % 8;
+    double ar, ai, br, bi;
+    complex_pairwise_sum(a, n2, stride, &ar, &ai);
+    complex_pairwise_sum(a + (n2 / 2) * 2 * stride, n_doubles - n2, stride, &br, &bi);
+    *rr = ar + br;
+    *ri = ai + bi;
+}
+
+/* np.add.reduceat over one segment of complex values: the first plus the pairwise sum of
+ * the rest. ``a`` interleaved, ``stride`` in complex elements. */
+static void segment_sum(const double *a, Py_ssize_t start, Py_ssize_t end, Py_ssize_t stride,
+                        double *out)
+{
+    out[0] = a[start * 2 * stride];
+    out[1] = a[start * 2 * stride + 1];
+    if (end - start > 1) {
+        double rr, ri;
+        complex_pairwise_sum(a + (start + 1) * 2 * stride, 2 * (end - start - 1), stride, &rr,
+                             &ri);
+        out[0] += rr;
+        out[1] += ri;
+    }
+}
+
+/* One buffer of einsum's dot product: two lanes, four pairs per step, the last pair of a
+ * step added first; then the lanes. */
+static double einsum_chunk(const double *a, const double *b, Py_ssize_t n)
+{
+    double acc0 = 0.0, acc1 = 0.0;
+    Py_ssize_t i = 0;
+    for (; n - i >= 8; i += 8) {
+        double t0 = acc0, t1 = acc1;
+        for (int blk = 3; blk >= 0; blk--) {
+            t0 = a[i + 2 * blk] * b[i + 2 * blk] + t0;
+            t1 = a[i + 2 * blk + 1] * b[i + 2 * blk + 1] + t1;
+        }
+        acc0 = t0;
+        acc1 = t1;
+    }
+    for (; i < n; i += 2) {
+        acc0 = a[i] * b[i] + acc0;
+        if (i + 1 < n)
+            acc1 = a[i + 1] * b[i + 1] + acc1;
+    }
+    return acc0 + acc1;
+}
+
+/* np.einsum("i,i->", a, b) on contiguous float64: its iterator hands the loop buffers of
+ * 8192 elements, each one's sum added to the output in turn. */
+static double einsum_dot(const double *a, const double *b, Py_ssize_t n)
+{
+    double out = 0.0;
+    for (Py_ssize_t i = 0; i < n; i += 8192)
+        out = einsum_chunk(a + i, b + i, n - i < 8192 ? n - i : 8192) + out;
+    return out;
+}
+
+/* numpy's complex product: with a fused multiply-add (its AVX2/AVX-512 loops) or without. */
+static inline void cmul(int fused, double ar, double ai, double br, double bi, double *re,
+                        double *im)
+{
+    if (fused) {
+        *re = fma(ar, br, -(ai * bi));
+        *im = fma(ar, bi, ai * br);
+    } else {
+        *re = ar * br - ai * bi;
+        *im = ar * bi + ai * br;
+    }
+}
+
+/* Python's complex product (CPython: never fused). */
+static inline void pymul(double ar, double ai, double br, double bi, double *re, double *im)
+{
+    *re = ar * br - ai * bi;
+    *im = ar * bi + ai * br;
+}
+
+/* Scratch for one quick-geometry call: the residual and the DFT's factors. */
+typedef struct {
+    Py_ssize_t rows, cols;
+    double *resid;   /* rows x cols */
+    double *x, *y;   /* centred coordinates */
+    double *ex, *ey; /* interleaved complex, cols and rows */
+    double *prod;    /* interleaved complex, rows x cols */
+    double *blocks;  /* interleaved complex, rows x 4 */
+} Scratch;
+
+static void scratch_free(Scratch *s)
+{
+    free(s->resid);
+    free(s->x);
+    free(s->y);
+    free(s->ex);
+    free(s->ey);
+    free(s->prod);
+    free(s->blocks);
+}
+
+static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
+{
+    size_t n = (size_t)rows * (size_t)cols;
+    memset(s, 0, sizeof(*s));
+    s->rows = rows;
+    s->cols = cols;
+    s->resid = malloc(n * sizeof(double));
+    s->x = malloc((size_t)cols * sizeof(double));
+    s->y = malloc((size_t)rows * sizeof(double));
+    s->ex = malloc(2 * (size_t)cols * sizeof(double));
+    s->ey = malloc(2 * (size_t)rows * sizeof(double));
+    s->prod = malloc(2 * n * sizeof(double));
+    s->blocks = malloc(8 * (size_t)rows * sizeof(double));
+    if (!s->resid || !s->x || !s->y || !s->ex || !s->ey || !s->prod || !s->blocks) {
+        scratch_free(s);
+        return -1;
+    }
+    for (Py_ssize_t c = 0; c < cols; c++)
+        s->x[c] = (double)c - (double)(cols - 1) / 2.0;
+    for (Py_ssize_t r = 0; r < rows; r++)
+        s->y[r] = (double)r - (double)(rows - 1) / 2.0;
+    return 0;
+}
+
+/* bargeometry.detrend: the image minus its mean and least-squares plane. */
+static int detrend_into(const Image *im, Scratch *s)
+{
+    Py_ssize_t rows = im->rows, cols = im->cols;
+    double *col_sums = malloc((size_t)cols * sizeof(double));
+    double *row_sums = malloc((size_t)rows * sizeof(double));
+    double *tmp = malloc((size_t)(rows > cols ? rows : cols) * sizeof(double));
+    double *row = malloc((size_t)cols * sizeof(double));
+    if (!col_sums || !row_sums || !tmp || !row) {
+        free(col_sums);
+        free(row_sums);
+        free(tmp);
+        free(row);
+        return -1;
+    }
+    /* add.reduce(axis=0): rows added one after the other (a single column: pairwise). */
+    if (cols == 1) {
+        for (Py_ssize_t r = 0; r < rows; r++)
+            tmp[r] = PX(im, r, 0);
+        col_sums[0] = pairwise_sum(tmp, rows, 1);
+    } else {
+        for (Py_ssize_t c = 0; c < cols; c++)
+            col_sums[c] = 0.0 + PX(im, 0, c);
+        for (Py_ssize_t r = 1; r < rows; r++)
+            for (Py_ssize_t c = 0; c < cols; c++)
+                col_sums[c] += PX(im, r, c);
+    }
+    /* add.reduce(axis=1): a pairwise sum per row. */
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        for (Py_ssize_t c = 0; c < cols; c++)
+            row[c] = PX(im, r, c);
+        row_sums[r] = pairwise_sum(row, cols, 1);
+    }
+    double n = (double)(rows * cols);
+    double mean = pairwise_sum(col_sums, cols, 1) / n;
+    double gx = 0.0, gy = 0.0;
+    if (cols > 1) {
+        for (Py_ssize_t c = 0; c < cols; c++)
+            tmp[c] = col_sums[c] * s->x[c];
+        gx = pairwise_sum(tmp, cols, 1) * 12.0 / (double)(rows * cols * (cols * cols - 1));
+    }
+    if (rows > 1) {
+        for (Py_ssize_t r = 0; r < rows; r++)
+            tmp[r] = row_sums[r] * s->y[r];
+        gy = pairwise_sum(tmp, rows, 1) * 12.0 / (double)(rows * cols * (rows * rows - 1));
+    }
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        double level = mean + gy * s->y[r];
+        double *out = s->resid + r * cols;
+        for (Py_ssize_t c = 0; c < cols; c++)
+            out[c] = (PX(im, r, c) - level) - gx * s->x[c];
+    }
+    free(col_sums);
+    free(row_sums);
+    free(tmp);
+    free(row);
+    return 0;
+}
+
+/* exp(-2 pi i k t) for the centred coordinates t (numpy: cos and sin of the product). */
+static void phasors(double k, const double *t, Py_ssize_t n, double *out)
+{
+    double w = (-2.0 * M_PI) * k;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double arg = w * t[i];
+        out[2 * i] = cos(arg);
+        out[2 * i + 1] = sin(arg);
+    }
+}
+
+/* resid * ex[None, :] (a real times a complex: the plain product is numpy's too). */
+static void times_ex(Scratch *s)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const double *res = s->resid + r * cols;
+        double *p = s->prod + 2 * r * cols;
+        for (Py_ssize_t c = 0; c < cols; c++) {
+            double a = res[c], br = s->ex[2 * c], bi = s->ex[2 * c + 1];
+            p[2 * c] = a * br - 0.0 * bi;
+            p[2 * c + 1] = a * bi + 0.0 * br;
+        }
+    }
+}
+
+/* bargeometry._quadrant_sums at (kx, ky): q[0..7] = q00, q01, q10, q11 (re, im). */
+static void quadrant_sums(Scratch *s, int fused, double kx, double ky, double *q)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    Py_ssize_t hc = cols / 2, hr = rows / 2;
+    phasors(kx, s->x, cols, s->ex);
+    phasors(ky, s->y, rows, s->ey);
+    times_ex(s);
+    double *h = s->blocks; /* rows x 2 complex */
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const double *p = s->prod + 2 * r * cols;
+        segment_sum(p, 0, hc, 1, h + 4 * r);
+        segment_sum(p, hc, cols, 1, h + 4 * r + 2);
+        for (int j = 0; j < 2; j++) {
+            double *v = h + 4 * r + 2 * j;
+            cmul(fused, v[0], v[1], s->ey[2 * r], s->ey[2 * r + 1], &v[0], &v[1]);
+        }
+    }
+    for (int j = 0; j < 2; j++) {
+        segment_sum(h + 2 * j, 0, hr, 2, q + 2 * j);
+        segment_sum(h + 2 * j, hr, rows, 2, q + 4 + 2 * j);
+    }
+}
+
+/* bargeometry._drift_refine; returns 1 and sets kx, ky, value when settled, else 0. */
+static int drift_refine(Scratch *s, int fused, double *kx, double *ky, double settled,
+                        int max_passes, double *value)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    double q[8];
+    for (int pass = 0; pass < max_passes; pass++) {
+        quadrant_sums(s, fused, *kx, *ky, q);
+        double q00r = q[0], q00i = q[1], q01r = q[2], q01i = q[3];
+        double q10r = q[4], q10i = q[5], q11r = q[6], q11i = q[7];
+        double ar, ai, br, bi;
+        pymul(q01r, q01i, q00r, -q00i, &ar, &ai);
+        pymul(q11r, q11i, q10r, -q10i, &br, &bi);
+        double dkx = atan2(ai + bi, ar + br) / (M_PI * (double)cols);
+        pymul(q10r, q10i, q00r, -q00i, &ar, &ai);
+        pymul(q11r, q11i, q01r, -q01i, &br, &bi);
+        double dky = atan2(ai + bi, ar + br) / (M_PI * (double)rows);
+        *kx = *kx + dkx;
+        *ky = *ky + dky;
+        if (fabs(dkx) * (double)cols / 2.0 + fabs(dky) * (double)rows / 2.0 < settled) {
+            value[0] = ((q00r + q01r) + q10r) + q11r;
+            value[1] = ((q00i + q01i) + q10i) + q11i;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* bargeometry._coarse_drift_step: one step between neighbouring quarters. */
+static void coarse_drift_step(Scratch *s, int fused, double *kx, double *ky)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    Py_ssize_t col_edges[5], row_edges[5];
+    for (int i = 0; i < 4; i++) {
+        col_edges[i] = (Py_ssize_t)nearbyint((double)(i * cols) / 4.0);
+        row_edges[i] = (Py_ssize_t)nearbyint((double)(i * rows) / 4.0);
+    }
+    col_edges[4] = cols;
+    row_edges[4] = rows;
+    phasors(*kx, s->x, cols, s->ex);
+    phasors(*ky, s->y, rows, s->ey);
+    times_ex(s);
+    double *b = s->blocks; /* rows x 4 complex */
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const double *p = s->prod + 2 * r * cols;
+        for (int k = 0; k < 4; k++) {
+            /* reduceat: an index not below the next one gives the single element. */
+            Py_ssize_t end = col_edges[k] < col_edges[k + 1] ? col_edges[k + 1] : col_edges[k] + 1;
+            double *v = b + 8 * r + 2 * k;
+            segment_sum(p, col_edges[k], end, 1, v);
+            cmul(fused, v[0], v[1], s->ey[2 * r], s->ey[2 * r + 1], &v[0], &v[1]);
+        }
+    }
+    double z[32]; /* 4 x 4 complex */
+    for (int k = 0; k < 4; k++) {
+        Py_ssize_t end = row_edges[k] < row_edges[k + 1] ? row_edges[k + 1] : row_edges[k] + 1;
+        for (int j = 0; j < 4; j++)
+            segment_sum(b + 2 * j, row_edges[k], end, 4, z + 8 * k + 2 * j);
+    }
+    double across[24], down[24];
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 3; j++) {
+            const double *u = z + 8 * i + 2 * (j + 1), *v = z + 8 * i + 2 * j;
+            cmul(fused, u[0], u[1], v[0], -v[1], &across[6 * i + 2 * j],
+                 &across[6 * i + 2 * j + 1]);
+        }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++) {
+            const double *u = z + 8 * (i + 1) + 2 * j, *v = z + 8 * i + 2 * j;
+            cmul(fused, u[0], u[1], v[0], -v[1], &down[8 * i + 2 * j], &down[8 * i + 2 * j + 1]);
+        }
+    double ar, ai, dr, di;
+    complex_pairwise_sum(across, 24, 1, &ar, &ai);
+    complex_pairwise_sum(down, 24, 1, &dr, &di);
+    ar = 0.0 + ar;
+    ai = 0.0 + ai;
+    dr = 0.0 + dr;
+    di = 0.0 + di;
+    *kx = *kx + atan2(ai, ar) / (2.0 * M_PI * (double)cols / 4.0);
+    *ky = *ky + atan2(di, dr) / (2.0 * M_PI * (double)rows / 4.0);
+}
+
+/* bargeometry._cell_gradient_direction */
+static double cell_gradient_direction(double theta, double f)
+{
+    double kx = M_PI * f * cos(theta), ky = M_PI * f * sin(theta);
+    return atan2(cos(kx) * sin(ky), sin(kx) * cos(ky));
+}
+
+/* structure_tensor_direction's theta; -1 on allocation failure. */
+static int structure_theta(Scratch *s, double *theta)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    size_t m = (size_t)(rows - 1) * (size_t)(cols - 1);
+    double *d1 = malloc((m ? m : 1) * sizeof(double));
+    double *d2 = malloc((m ? m : 1) * sizeof(double));
+    if (!d1 || !d2) {
+        free(d1);
+        free(d2);
+        return -1;
+    }
+    size_t k = 0;
+    for (Py_ssize_t r = 0; r + 1 < rows; r++) {
+        const double *top = s->resid + r * cols, *bottom = top + cols;
+        for (Py_ssize_t c = 0; c + 1 < cols; c++, k++) {
+            d1[k] = bottom[c + 1] - top[c];
+            d2[k] = bottom[c] - top[c + 1];
+        }
+    }
+    /* einsum("kn,ln->kl"): one run of the dot loop per output, unbuffered. */
+    double s11 = 0.0 + einsum_chunk(d1, d1, (Py_ssize_t)m);
+    double s12 = 0.0 + einsum_chunk(d1, d2, (Py_ssize_t)m);
+    double s22 = 0.0 + einsum_chunk(d2, d2, (Py_ssize_t)m);
+    free(d1);
+    free(d2);
+    double a = -s12, b = 0.5 * (s11 - s22);
+    double t = 0.5 * atan2(b, a);
+    if (t <= -M_PI / 2 + 1e-12)
+        t += M_PI;
+    *theta = t;
+    return 0;
+}
+
+PyDoc_STRVAR(quick_core_doc,
+"quick_core(img, freq, min_periods, settled_cycles, iterations, coarse_min_px, fused)\n"
+"--\n\n"
+"bargeometry.quick_fundamental's passes over the pixels of ``img`` (2-D float64, at least\n"
+"8 x 8): plane fit, structure tensor, phase-drift refinement. Returns ``(kx, ky, re, im,\n"
+"power_sum)`` (the refined frequency vector, the DFT there, the sum of squares about the\n"
+"plane), or None when the ROI spans too few periods or the refinement does not settle.");
+
+static PyObject *quick_core(PyObject *self, PyObject *args)
+{
+    PyObject *obj;
+    double f, min_periods, settled;
+    int iterations, fused;
+    Py_ssize_t coarse_min_px;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Odddinp", &obj, &f, &min_periods, &settled, &iterations,
+                          &coarse_min_px, &fused))
+        return NULL;
+    Py_buffer view;
+    Image im;
+    if (get_image(obj, &view, &im) < 0)
+        return NULL;
+    if (im.rows < 8 || im.cols < 8) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "quick_core needs at least 8 x 8 pixels");
+        return NULL;
+    }
+    Scratch s;
+    if (scratch_alloc(&s, im.rows, im.cols) < 0) {
+        PyBuffer_Release(&view);
+        return PyErr_NoMemory();
+    }
+    PyObject *result = NULL;
+    double theta_cells, theta;
+    if (detrend_into(&im, &s) < 0 || structure_theta(&s, &theta_cells) < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_ssize_t rows = im.rows, cols = im.cols;
+    theta = theta_cells;
+    for (int i = 0; i < 3; i++)
+        theta += theta_cells - cell_gradient_direction(theta, f);
+    if (f * (fabs(cos(theta)) * (double)cols + fabs(sin(theta)) * (double)rows) < min_periods) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    double kx = f * cos(theta), ky = f * sin(theta), value[2];
+    int ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
+    if (!ok && (rows < cols ? rows : cols) >= coarse_min_px) {
+        kx = f * cos(theta);
+        ky = f * sin(theta);
+        coarse_drift_step(&s, fused, &kx, &ky);
+        ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
+    }
+    if (!ok) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    double power = einsum_dot(s.resid, s.resid, rows * cols);
+    result = Py_BuildValue("(ddddd)", kx, ky, value[0], value[1], power);
+done:
+    scratch_free(&s);
+    PyBuffer_Release(&view);
+    return result;
+}
+
+PyDoc_STRVAR(phase_select_doc,
+"phase_select(img, kx_bins, ky_bins, centre, inner_limit, near, wide, min_pixels, out)\n"
+"--\n\n"
+"histogram._phases_at and the bar-centre selection in one pass: each pixel's scaled phase\n"
+"``ky_bins y + centre + kx_bins x`` (32 bins a cycle), its bin (the low 5 bits), whether it\n"
+"lies on the inner bars (``|scaled - centre| <= inner_limit``; a negative limit: all do);\n"
+"the pooled scatter about the bins' means; and the pixels of the inner bars in the bins\n"
+"``near`` (32 bytes, nonzero = in), else ``wide`` when fewer than ``min_pixels``, else all\n"
+"bins, written in row-major order to ``out`` (float64, at least the pixel count). Returns\n"
+"``(scatter, n_selected, vmin, vmax)``.");
+
+#define N_PHASE_BINS 32
+
+static PyObject *phase_select(PyObject *self, PyObject *args)
+{
+    PyObject *obj, *out_obj;
+    double kx32, ky32, centre, inner_limit;
+    Py_buffer near_view, wide_view;
+    Py_ssize_t min_pixels;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Oddddy*y*nO", &obj, &kx32, &ky32, &centre, &inner_limit,
+                          &near_view, &wide_view, &min_pixels, &out_obj))
+        return NULL;
+    PyObject *result = NULL;
+    Py_buffer view, out_view;
+    Image im;
+    int have_img = 0, have_out = 0;
+    unsigned char *tags = NULL;
+    double *flat = NULL;
+    if (near_view.len != N_PHASE_BINS || wide_view.len != N_PHASE_BINS) {
+        PyErr_SetString(PyExc_ValueError, "near and wide must be 32 bytes");
+        goto done;
+    }
+    if (get_image(obj, &view, &im) < 0)
+        goto done;
+    have_img = 1;
+    if (PyObject_GetBuffer(out_obj, &out_view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0)
+        goto done;
+    have_out = 1;
+    Py_ssize_t rows = im.rows, cols = im.cols, n = rows * cols;
+    if (out_view.itemsize != 8 || out_view.len < n * (Py_ssize_t)sizeof(double)) {
+        PyErr_SetString(PyExc_ValueError, "out must hold a float64 per pixel");
+        goto done;
+    }
+    tags = malloc((size_t)n);
+    flat = malloc((size_t)n * sizeof(double));
+    if (!tags || !flat) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const unsigned char *near = near_view.buf, *wide = wide_view.buf;
+    long long count[N_PHASE_BINS] = {0};
+    double sums[N_PHASE_BINS] = {0.0};
+    Py_ssize_t n_near = 0, n_wide = 0, n_inner = 0;
+    Py_ssize_t k = 0;
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        double yr = (double)r - (double)(rows - 1) / 2.0;
+        double a = ky32 * yr + centre;
+        for (Py_ssize_t c = 0; c < cols; c++, k++) {
+            double xc = (double)c - (double)(cols - 1) / 2.0;
+            double scaled = a + kx32 * xc;
+            int bin = (int)((int64_t)scaled & (N_PHASE_BINS - 1));
+            int inner = inner_limit < 0 || fabs(scaled - centre) <= inner_limit;
+            double v = PX(&im, r, c);
+            flat[k] = v;
+            count[bin]++;
+            sums[bin] += v;
+            tags[k] = (unsigned char)(bin | (inner ? 0x80 : 0));
+            if (inner) {
+                n_inner++;
+                n_near += near[bin] != 0;
+                n_wide += wide[bin] != 0;
+            }
+        }
+    }
+    /* histogram._scatter_about_bins */
+    double squares = einsum_dot(flat, flat, n);
+    double means[N_PHASE_BINS];
+    Py_ssize_t occupied = 0;
+    for (int b = 0; b < N_PHASE_BINS; b++) {
+        means[b] = sums[b] / (double)(count[b] > 1 ? count[b] : 1);
+        occupied += count[b] != 0;
+    }
+    double within = squares - einsum_dot(sums, means, N_PHASE_BINS);
+    if (0.0 > within)
+        within = 0.0;
+    Py_ssize_t dof = n - occupied > 1 ? n - occupied : 1;
+    double scatter = sqrt(within / (double)dof);
+    /* The selection: near, else wide, else every bin of the inner bars. */
+    const unsigned char *table = n_near >= min_pixels ? near : n_wide >= min_pixels ? wide : NULL;
+    double *dst = out_view.buf, vmin = 0.0, vmax = 0.0;
+    Py_ssize_t m = 0;
+    for (k = 0; k < n; k++) {
+        if (!(tags[k] & 0x80) || (table && !table[tags[k] & 0x7f]))
+            continue;
+        double v = flat[k];
+        if (m == 0 || v < vmin)
+            vmin = v;
+        if (m == 0 || v > vmax)
+            vmax = v;
+        dst[m++] = v;
+    }
+    (void)n_inner;
+    result = Py_BuildValue("(dndd)", scatter, m, vmin, vmax);
+done:
+    free(tags);
+    free(flat);
+    if (have_out)
+        PyBuffer_Release(&out_view);
+    if (have_img)
+        PyBuffer_Release(&view);
+    PyBuffer_Release(&near_view);
+    PyBuffer_Release(&wide_view);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"quick_core", quick_core, METH_VARARGS, quick_core_doc},
+    {"phase_select", phase_select, METH_VARARGS, phase_select_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_histkernels",
+    "Compiled kernels of the histogram-peak method (see benchlab.analysis.kernels).", -1,
+    methods, NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__histkernels(void)
+{
+    return PyModule_Create(&module);
+}

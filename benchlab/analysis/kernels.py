@@ -1,0 +1,48 @@
+"""Which path the histogram-peak method runs: the compiled kernels or the numpy reference.
+
+``benchlab.analysis._histkernels`` (C, built by ``pip install`` when a compiler is present; see
+``setup.py``) fuses the per-pixel numpy passes of the method's bar geometry and bar-centre
+selection into single loops, with numpy's own summation order and rounding, so both paths read
+the same numbers. Without it (no compiler at install, or ``BENCHLAB_NUMPY_KERNELS=1`` in the
+environment) the numpy code runs: same readings, about twice the time.
+"""
+
+from __future__ import annotations
+
+import os
+from types import ModuleType
+
+import numpy as np
+
+#: Set to 1 to run the numpy reference even when the compiled kernels are built.
+DISABLE_ENV = "BENCHLAB_NUMPY_KERNELS"
+
+
+def _load() -> ModuleType | None:
+    if os.environ.get(DISABLE_ENV, "") not in ("", "0"):
+        return None
+    try:
+        from benchlab.analysis import _histkernels
+    except ImportError:
+        return None
+    return _histkernels
+
+
+def _numpy_fuses_complex_products() -> bool:
+    """Whether numpy's complex product rounds like a fused multiply-add on this CPU (its AVX2
+    and AVX-512 loops do, its baseline loop does not): the kernels must do as numpy does."""
+    a = complex(1 + 2**-27, 1 + 2**-26)
+    b = complex(1 + 2**-28, 1 - 2**-27)
+    product = complex((np.array([a]) * np.array([b]))[0])
+    return product != a * b  # Python's complex product is never fused
+
+
+#: The compiled module, or ``None``: the numpy reference runs.
+compiled: ModuleType | None = _load()
+#: Passed to the kernels: numpy's complex products are fused here.
+FUSED_COMPLEX = _numpy_fuses_complex_products()
+
+
+def describe() -> str:
+    """``"compiled kernels"`` or ``"numpy fallback"``: the histogram method's path here."""
+    return "compiled kernels" if compiled is not None else "numpy fallback"
