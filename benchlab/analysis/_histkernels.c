@@ -87,47 +87,49 @@ static double pairwise_sum(const double *a, Py_ssize_t n, Py_ssize_t stride)
     return pairwise_sum(a, n2, stride) + pairwise_sum(a + n2 * stride, n - n2, stride);
 }
 
-/* numpy's pairwise sum of n complex values (interleaved re, im; ``stride`` in complex
- * elements): the same recursion on the 2n doubles, real and imaginary parts apart. */
-static void complex_pairwise_sum(const double *a, Py_ssize_t n_doubles, Py_ssize_t stride,
+/* numpy's pairwise sum of ``count`` complex values (interleaved re, im; ``stride`` in
+ * complex elements): its recursion runs on the 2 count doubles, so a block of 8 doubles is
+ * 4 complex values, real and imaginary parts summed apart. */
+static void complex_pairwise_sum(const double *a, Py_ssize_t count, Py_ssize_t stride,
                                  double *rr, double *ri)
 {
-    /* a[i] for even i: the real part of element i / 2; odd i: its imaginary part. */
-#define CPX(i) a[((i) / 2) * 2 * stride + ((i) % 2)]
-    if (n_doubles < 8) {
+    const Py_ssize_t step = 2 * stride;
+    if (count < 4) {
         double sr = 0.0, si = 0.0;
-        for (Py_ssize_t i = 0; i < n_doubles; i += 2) {
-            sr += CPX(i);
-            si += CPX(i + 1);
+        for (Py_ssize_t i = 0; i < count; i++) {
+            sr += a[i * step];
+            si += a[i * step + 1];
         }
         *rr = sr;
         *ri = si;
         return;
     }
-    if (n_doubles <= 128) {
+    if (count <= 64) {
         double r[8];
         Py_ssize_t i;
-        for (int k = 0; k < 8; k++)
-            r[k] = CPX(k);
-        for (i = 8; i < n_doubles - (n_doubles % 8); i += 8)
-            for (int k = 0; k < 8; k++)
-                r[k] += CPX(i + k);
+        for (int k = 0; k < 4; k++) {
+            r[2 * k] = a[k * step];
+            r[2 * k + 1] = a[k * step + 1];
+        }
+        for (i = 4; i < count - (count % 4); i += 4)
+            for (int k = 0; k < 4; k++) {
+                r[2 * k] += a[(i + k) * step];
+                r[2 * k + 1] += a[(i + k) * step + 1];
+            }
         double sr = (r[0] + r[2]) + (r[4] + r[6]);
         double si = (r[1] + r[3]) + (r[5] + r[7]);
-        for (; i < n_doubles; i += 2) {
-            sr += CPX(i);
-            si += CPX(i + 1);
+        for (; i < count; i++) {
+            sr += a[i * step];
+            si += a[i * step + 1];
         }
         *rr = sr;
         *ri = si;
         return;
     }
-#undef CPX
-    Py_ssize_t n2 = n_doubles / 2;
-    n2 -= n2 % 8;
+    Py_ssize_t half = (count - count % 8) / 2; /* numpy: n2 = n / 2 less n2 % 8, in doubles */
     double ar, ai, br, bi;
-    complex_pairwise_sum(a, n2, stride, &ar, &ai);
-    complex_pairwise_sum(a + (n2 / 2) * 2 * stride, n_doubles - n2, stride, &br, &bi);
+    complex_pairwise_sum(a, half, stride, &ar, &ai);
+    complex_pairwise_sum(a + half * step, count - half, stride, &br, &bi);
     *rr = ar + br;
     *ri = ai + bi;
 }
@@ -141,8 +143,7 @@ static void segment_sum(const double *a, Py_ssize_t start, Py_ssize_t end, Py_ss
     out[1] = a[start * 2 * stride + 1];
     if (end - start > 1) {
         double rr, ri;
-        complex_pairwise_sum(a + (start + 1) * 2 * stride, 2 * (end - start - 1), stride, &rr,
-                             &ri);
+        complex_pairwise_sum(a + (start + 1) * 2 * stride, end - start - 1, stride, &rr, &ri);
         out[0] += rr;
         out[1] += ri;
     }
@@ -169,6 +170,39 @@ static double einsum_chunk(const double *a, const double *b, Py_ssize_t n)
             acc1 = a[i + 1] * b[i + 1] + acc1;
     }
     return acc0 + acc1;
+}
+
+/* einsum_chunk of (a, a), (a, b) and (b, b) in one loop. */
+static void einsum_chunk3(const double *a, const double *b, Py_ssize_t n, double *aa,
+                          double *ab, double *bb)
+{
+    double aa0 = 0.0, aa1 = 0.0, ab0 = 0.0, ab1 = 0.0, bb0 = 0.0, bb1 = 0.0;
+    Py_ssize_t i = 0;
+    for (; n - i >= 8; i += 8) {
+        for (int blk = 3; blk >= 0; blk--) {
+            double a0 = a[i + 2 * blk], a1 = a[i + 2 * blk + 1];
+            double b0 = b[i + 2 * blk], b1 = b[i + 2 * blk + 1];
+            aa0 = a0 * a0 + aa0;
+            aa1 = a1 * a1 + aa1;
+            ab0 = a0 * b0 + ab0;
+            ab1 = a1 * b1 + ab1;
+            bb0 = b0 * b0 + bb0;
+            bb1 = b1 * b1 + bb1;
+        }
+    }
+    for (; i < n; i += 2) {
+        aa0 = a[i] * a[i] + aa0;
+        ab0 = a[i] * b[i] + ab0;
+        bb0 = b[i] * b[i] + bb0;
+        if (i + 1 < n) {
+            aa1 = a[i + 1] * a[i + 1] + aa1;
+            ab1 = a[i + 1] * b[i + 1] + ab1;
+            bb1 = b[i + 1] * b[i + 1] + bb1;
+        }
+    }
+    *aa = aa0 + aa1;
+    *ab = ab0 + ab1;
+    *bb = bb0 + bb1;
 }
 
 /* np.einsum("i,i->", a, b) on contiguous float64: its iterator hands the loop buffers of
@@ -204,6 +238,7 @@ static inline void pymul(double ar, double ai, double br, double bi, double *re,
 /* Scratch for one quick-geometry call: the residual and the DFT's factors. */
 typedef struct {
     Py_ssize_t rows, cols;
+    double *img;     /* rows x cols, the input made contiguous */
     double *resid;   /* rows x cols */
     double *x, *y;   /* centred coordinates */
     double *ex, *ey; /* interleaved complex, cols and rows */
@@ -213,6 +248,7 @@ typedef struct {
 
 static void scratch_free(Scratch *s)
 {
+    free(s->img);
     free(s->resid);
     free(s->x);
     free(s->y);
@@ -228,6 +264,7 @@ static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
     memset(s, 0, sizeof(*s));
     s->rows = rows;
     s->cols = cols;
+    s->img = malloc(n * sizeof(double));
     s->resid = malloc(n * sizeof(double));
     s->x = malloc((size_t)cols * sizeof(double));
     s->y = malloc((size_t)rows * sizeof(double));
@@ -235,7 +272,7 @@ static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
     s->ey = malloc(2 * (size_t)rows * sizeof(double));
     s->prod = malloc(2 * n * sizeof(double));
     s->blocks = malloc(8 * (size_t)rows * sizeof(double));
-    if (!s->resid || !s->x || !s->y || !s->ex || !s->ey || !s->prod || !s->blocks) {
+    if (!s->img || !s->resid || !s->x || !s->y || !s->ex || !s->ey || !s->prod || !s->blocks) {
         scratch_free(s);
         return -1;
     }
@@ -246,39 +283,48 @@ static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
     return 0;
 }
 
-/* bargeometry.detrend: the image minus its mean and least-squares plane. */
-static int detrend_into(const Image *im, Scratch *s)
+/* The input, row-major in s->img. */
+static void copy_image(const Image *im, Scratch *s)
 {
-    Py_ssize_t rows = im->rows, cols = im->cols;
+    for (Py_ssize_t r = 0; r < im->rows; r++) {
+        double *dst = s->img + r * im->cols;
+        if (im->cs == (Py_ssize_t)sizeof(double))
+            memcpy(dst, im->data + r * im->rs, (size_t)im->cols * sizeof(double));
+        else
+            for (Py_ssize_t c = 0; c < im->cols; c++)
+                dst[c] = PX(im, r, c);
+    }
+}
+
+/* bargeometry.detrend of s->img into s->resid: minus its mean and least-squares plane. */
+static int detrend_into(Scratch *s)
+{
+    Py_ssize_t rows = s->rows, cols = s->cols;
+    const double *img = s->img;
     double *col_sums = malloc((size_t)cols * sizeof(double));
     double *row_sums = malloc((size_t)rows * sizeof(double));
     double *tmp = malloc((size_t)(rows > cols ? rows : cols) * sizeof(double));
-    double *row = malloc((size_t)cols * sizeof(double));
-    if (!col_sums || !row_sums || !tmp || !row) {
+    if (!col_sums || !row_sums || !tmp) {
         free(col_sums);
         free(row_sums);
         free(tmp);
-        free(row);
         return -1;
     }
     /* add.reduce(axis=0): rows added one after the other (a single column: pairwise). */
     if (cols == 1) {
         for (Py_ssize_t r = 0; r < rows; r++)
-            tmp[r] = PX(im, r, 0);
+            tmp[r] = img[r];
         col_sums[0] = pairwise_sum(tmp, rows, 1);
     } else {
         for (Py_ssize_t c = 0; c < cols; c++)
-            col_sums[c] = 0.0 + PX(im, 0, c);
+            col_sums[c] = 0.0 + img[c];
         for (Py_ssize_t r = 1; r < rows; r++)
             for (Py_ssize_t c = 0; c < cols; c++)
-                col_sums[c] += PX(im, r, c);
+                col_sums[c] += img[r * cols + c];
     }
     /* add.reduce(axis=1): a pairwise sum per row. */
-    for (Py_ssize_t r = 0; r < rows; r++) {
-        for (Py_ssize_t c = 0; c < cols; c++)
-            row[c] = PX(im, r, c);
-        row_sums[r] = pairwise_sum(row, cols, 1);
-    }
+    for (Py_ssize_t r = 0; r < rows; r++)
+        row_sums[r] = pairwise_sum(img + r * cols, cols, 1);
     double n = (double)(rows * cols);
     double mean = pairwise_sum(col_sums, cols, 1) / n;
     double gx = 0.0, gy = 0.0;
@@ -296,23 +342,29 @@ static int detrend_into(const Image *im, Scratch *s)
         double level = mean + gy * s->y[r];
         double *out = s->resid + r * cols;
         for (Py_ssize_t c = 0; c < cols; c++)
-            out[c] = (PX(im, r, c) - level) - gx * s->x[c];
+            out[c] = (img[r * cols + c] - level) - gx * s->x[c];
     }
     free(col_sums);
     free(row_sums);
     free(tmp);
-    free(row);
     return 0;
 }
 
-/* exp(-2 pi i k t) for the centred coordinates t (numpy: cos and sin of the product). */
+/* exp(-2 pi i k t) for the centred coordinates t (numpy: cos and sin of the product). The
+ * coordinates are symmetric about 0 (t[n - 1 - i] = -t[i] exactly, so is the argument):
+ * the second half from the first, cos being even and sin odd in every libm's arithmetic. */
 static void phasors(double k, const double *t, Py_ssize_t n, double *out)
 {
     double w = (-2.0 * M_PI) * k;
-    for (Py_ssize_t i = 0; i < n; i++) {
+    Py_ssize_t half = (n + 1) / 2;
+    for (Py_ssize_t i = 0; i < half; i++) {
         double arg = w * t[i];
         out[2 * i] = cos(arg);
         out[2 * i + 1] = sin(arg);
+    }
+    for (Py_ssize_t i = half; i < n; i++) {
+        out[2 * i] = out[2 * (n - 1 - i)];
+        out[2 * i + 1] = -out[2 * (n - 1 - i) + 1];
     }
 }
 
@@ -427,8 +479,8 @@ static void coarse_drift_step(Scratch *s, int fused, double *kx, double *ky)
             cmul(fused, u[0], u[1], v[0], -v[1], &down[8 * i + 2 * j], &down[8 * i + 2 * j + 1]);
         }
     double ar, ai, dr, di;
-    complex_pairwise_sum(across, 24, 1, &ar, &ai);
-    complex_pairwise_sum(down, 24, 1, &dr, &di);
+    complex_pairwise_sum(across, 12, 1, &ar, &ai);
+    complex_pairwise_sum(down, 12, 1, &dr, &di);
     ar = 0.0 + ar;
     ai = 0.0 + ai;
     dr = 0.0 + dr;
@@ -464,10 +516,13 @@ static int structure_theta(Scratch *s, double *theta)
             d2[k] = bottom[c] - top[c + 1];
         }
     }
-    /* einsum("kn,ln->kl"): one run of the dot loop per output, unbuffered. */
-    double s11 = 0.0 + einsum_chunk(d1, d1, (Py_ssize_t)m);
-    double s12 = 0.0 + einsum_chunk(d1, d2, (Py_ssize_t)m);
-    double s22 = 0.0 + einsum_chunk(d2, d2, (Py_ssize_t)m);
+    /* einsum("kn,ln->kl"): one run of the dot loop per output, unbuffered; the three runs
+     * interleaved (independent chains, each in einsum's own order). */
+    double s11, s12, s22;
+    einsum_chunk3(d1, d2, (Py_ssize_t)m, &s11, &s12, &s22);
+    s11 = 0.0 + s11;
+    s12 = 0.0 + s12;
+    s22 = 0.0 + s22;
     free(d1);
     free(d2);
     double a = -s12, b = 0.5 * (s11 - s22);
@@ -512,7 +567,8 @@ static PyObject *quick_core(PyObject *self, PyObject *args)
     }
     PyObject *result = NULL;
     double theta_cells, theta;
-    if (detrend_into(&im, &s) < 0 || structure_theta(&s, &theta_cells) < 0) {
+    copy_image(&im, &s);
+    if (detrend_into(&s) < 0 || structure_theta(&s, &theta_cells) < 0) {
         PyErr_NoMemory();
         goto done;
     }
