@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from test_hist_speed_pinned import _CASES, _DATA, _same, extreme_rois, reading
 
 from benchlab.analysis import bargeometry, histogram, kernels
@@ -158,6 +159,37 @@ def test_phase_selection_kernel_matches_numpy(
     assert np.array_equal(values, want)
     if want.size:
         assert (vmin, vmax) == (float(want.min()), float(want.max()))
+
+
+@needs_compiled
+@settings(max_examples=400, deadline=None)
+@given(
+    y=arrays(np.float64, st.integers(0, 120), elements=st.sampled_from(
+        [0.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0, 40.0])) | arrays(
+        np.float64, st.integers(0, 120), elements=st.floats(0.0, 50.0)),
+    smooth_it=st.booleans(),
+)
+def test_modes_kernel_matches_find_peaks_and_massive_modes(
+    y: np.ndarray, smooth_it: bool
+) -> None:
+    """Peaks (flat tops and plateaus at the ends included), the merge of light basins and
+    the short path's valley: as ``_find_peaks`` then ``_massive_modes``."""
+    assert COMPILED is not None
+    smooth = np.convolve(y, [0.25, 0.5, 0.25]) if smooth_it and y.size else y
+    peaks, _ = histogram._find_peaks(smooth, 0.0) if smooth.size >= 2 else ([], [])
+    want = (*histogram._massive_modes(smooth, peaks), len(peaks) >= 2)
+    assert COMPILED.modes(smooth, histogram.MIN_MODE_FRACTION) == want
+
+
+@needs_compiled
+def test_modes_kernel_refuses_bad_buffers() -> None:
+    assert COMPILED is not None
+    with pytest.raises(TypeError):
+        COMPILED.modes(np.ones(10, np.float32), 0.04)
+    with pytest.raises(TypeError):
+        COMPILED.modes(np.ones((2, 10)), 0.04)
+    with pytest.raises(ValueError):
+        COMPILED.modes(np.ones(20)[::2], 0.04)  # not contiguous: numpy would copy first
 
 
 @needs_compiled

@@ -314,7 +314,7 @@ static int detrend_into(Scratch *s)
     if (cols == 1) {
         for (Py_ssize_t r = 0; r < rows; r++)
             tmp[r] = img[r];
-        col_sums[0] = pairwise_sum(tmp, rows, 1);
+        col_sums[0] = 0.0 + pairwise_sum(tmp, rows, 1);
     } else {
         for (Py_ssize_t c = 0; c < cols; c++)
             col_sums[c] = 0.0 + img[c];
@@ -324,19 +324,19 @@ static int detrend_into(Scratch *s)
     }
     /* add.reduce(axis=1): a pairwise sum per row. */
     for (Py_ssize_t r = 0; r < rows; r++)
-        row_sums[r] = pairwise_sum(img + r * cols, cols, 1);
+        row_sums[r] = 0.0 + pairwise_sum(img + r * cols, cols, 1);
     double n = (double)(rows * cols);
-    double mean = pairwise_sum(col_sums, cols, 1) / n;
+    double mean = (0.0 + pairwise_sum(col_sums, cols, 1)) / n;
     double gx = 0.0, gy = 0.0;
     if (cols > 1) {
         for (Py_ssize_t c = 0; c < cols; c++)
             tmp[c] = col_sums[c] * s->x[c];
-        gx = pairwise_sum(tmp, cols, 1) * 12.0 / (double)(rows * cols * (cols * cols - 1));
+        gx = (0.0 + pairwise_sum(tmp, cols, 1)) * 12.0 / (double)(rows * cols * (cols * cols - 1));
     }
     if (rows > 1) {
         for (Py_ssize_t r = 0; r < rows; r++)
             tmp[r] = row_sums[r] * s->y[r];
-        gy = pairwise_sum(tmp, rows, 1) * 12.0 / (double)(rows * cols * (rows * rows - 1));
+        gy = (0.0 + pairwise_sum(tmp, rows, 1)) * 12.0 / (double)(rows * cols * (rows * rows - 1));
     }
     for (Py_ssize_t r = 0; r < rows; r++) {
         double level = mean + gy * s->y[r];
@@ -716,9 +716,161 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(modes_doc,
+"modes(smooth, min_fraction)\n"
+"--\n\n"
+"histogram._find_peaks(smooth, 0.0) then histogram._massive_modes on its peaks, for a\n"
+"smoothed histogram (1-D float64): returns ``(modes, valley, many)`` - the massive modes'\n"
+"bins (a list), the valley's bin when two clear modes took the short path (else None), and\n"
+"whether there were at least two local maxima.");
+
+/* np.argmin of y[p..q]: the first minimum. */
+static Py_ssize_t first_min(const double *y, Py_ssize_t p, Py_ssize_t q)
+{
+    Py_ssize_t best = p;
+    for (Py_ssize_t i = p + 1; i <= q; i++)
+        if (y[i] < y[best])
+            best = i;
+    return best;
+}
+
+static PyObject *modes(PyObject *self, PyObject *args)
+{
+    PyObject *obj;
+    double min_fraction;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Od", &obj, &min_fraction))
+        return NULL;
+    Py_buffer view;
+    if (PyObject_GetBuffer(obj, &view, PyBUF_ND | PyBUF_FORMAT | PyBUF_C_CONTIGUOUS) < 0)
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t *peaks = NULL, *cuts = NULL;
+    double *cs = NULL, *mass = NULL, *valleys = NULL;
+    if (view.ndim != 1 || view.itemsize != 8 || !is_float64_format(view.format)) {
+        PyErr_SetString(PyExc_TypeError, "expected a 1-D float64 array");
+        goto done;
+    }
+    const double *y = view.buf;
+    Py_ssize_t n = view.shape[0], n_peaks = 0;
+    peaks = malloc((size_t)(n > 0 ? n : 1) * sizeof(Py_ssize_t));
+    if (!peaks) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    /* _rises and _find_peaks: where a rise ends (y[i-1] < y[i] >= y[i+1]); a single-bin
+     * top is a peak, a flat top one when the first different bin after it is lower (its
+     * middle bin). Heights below 0 (the minimum height) are skipped. */
+    for (Py_ssize_t i = 1; i + 1 < n; i++) {
+        if (!(y[i] > y[i - 1]) || y[i + 1] > y[i])
+            continue;
+        double h = y[i];
+        if (h < 0.0)
+            continue;
+        if (y[i + 1] < h) {
+            peaks[n_peaks++] = i;
+            continue;
+        }
+        Py_ssize_t j = i + 1;
+        while (j < n && y[j] == h)
+            j++;
+        if (j < n && y[j] < h)
+            peaks[n_peaks++] = (i + j - 1) / 2;
+    }
+    int many = n_peaks >= 2;
+    Py_ssize_t valley = -1, n_modes = n_peaks;
+    if (n_peaks >= 2) {
+        /* _massive_modes */
+        double total = 0.0 + pairwise_sum(y, n, 1);
+        cs = malloc((size_t)n * sizeof(double));
+        cuts = malloc((size_t)n_peaks * sizeof(Py_ssize_t));
+        mass = malloc((size_t)n_peaks * sizeof(double));
+        valleys = malloc((size_t)n_peaks * sizeof(double));
+        if (!cs || !cuts || !mass || !valleys) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        double run = 0.0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            run = i ? run + y[i] : y[i];
+            cs[i] = run;
+        }
+        double need = min_fraction * total;
+        if (n_peaks == 2) {
+            Py_ssize_t cut = first_min(y, peaks[0], peaks[1]);
+            double low = cs[cut], high = cs[n - 1] - low;
+            if ((high < low ? high : low) >= need)
+                valley = cut;
+        }
+        if (valley < 0) {
+            for (Py_ssize_t k = 0; k + 1 < n_peaks; k++) {
+                cuts[k] = first_min(y, peaks[k], peaks[k + 1]);
+                valleys[k] = y[cuts[k]];
+            }
+            for (Py_ssize_t k = 0; k < n_peaks; k++) {
+                Py_ssize_t lo = k ? cuts[k - 1] + 1 : 0, hi = k + 1 < n_peaks ? cuts[k] + 1 : n;
+                mass[k] = cs[hi - 1] - (lo ? cs[lo - 1] : 0.0);
+            }
+            /* Merge the lightest basin into the neighbour across its shallower valley. */
+            while (n_modes > 1) {
+                Py_ssize_t light = 0;
+                for (Py_ssize_t k = 1; k < n_modes; k++)
+                    if (mass[k] < mass[light])
+                        light = k;
+                if (mass[light] >= need)
+                    break;
+                double left = light > 0 ? valleys[light - 1] : -INFINITY;
+                double right = light < n_modes - 1 ? valleys[light] : -INFINITY;
+                Py_ssize_t j = left >= right ? light - 1 : light + 1;
+                Py_ssize_t keep = y[peaks[j]] >= y[peaks[light]] ? j : light;
+                double merged = mass[light] + mass[j];
+                Py_ssize_t peak = peaks[keep], lo = light < j ? light : j;
+                peaks[lo] = peak;
+                mass[lo] = merged;
+                for (Py_ssize_t k = lo + 1; k + 1 < n_modes; k++) {
+                    peaks[k] = peaks[k + 1];
+                    mass[k] = mass[k + 1];
+                }
+                for (Py_ssize_t k = lo; k + 2 < n_modes; k++)
+                    valleys[k] = valleys[k + 1];
+                n_modes--;
+            }
+            Py_ssize_t kept = 0;
+            for (Py_ssize_t k = 0; k < n_modes; k++)
+                if (mass[k] >= need)
+                    peaks[kept++] = peaks[k];
+            n_modes = kept;
+        }
+    }
+    PyObject *list = PyList_New(n_modes);
+    if (!list)
+        goto done;
+    for (Py_ssize_t k = 0; k < n_modes; k++) {
+        PyObject *item = PyLong_FromSsize_t(peaks[k]);
+        if (!item) {
+            Py_DECREF(list);
+            goto done;
+        }
+        PyList_SET_ITEM(list, k, item);
+    }
+    if (valley >= 0)
+        result = Py_BuildValue("(NnO)", list, valley, many ? Py_True : Py_False);
+    else
+        result = Py_BuildValue("(NOO)", list, Py_None, many ? Py_True : Py_False);
+done:
+    free(peaks);
+    free(cuts);
+    free(cs);
+    free(mass);
+    free(valleys);
+    PyBuffer_Release(&view);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"quick_core", quick_core, METH_VARARGS, quick_core_doc},
     {"phase_select", phase_select, METH_VARARGS, phase_select_doc},
+    {"modes", modes, METH_VARARGS, modes_doc},
     {NULL, NULL, 0, NULL},
 };
 

@@ -12,3 +12,6 @@ def phase_select(
     inner_limit: float, near: bytes, wide: bytes, min_pixels: int,
     out: npt.NDArray[np.float64], /,
 ) -> tuple[float, int, float, float]: ...
+def modes(
+    smooth: npt.NDArray[np.float64], min_fraction: float, /,
+) -> tuple[list[int], int | None, bool]: ...

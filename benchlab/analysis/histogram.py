@@ -258,10 +258,13 @@ def _read(
     counts, width, exact = binned
     origin = prep.vmin
     smooth, smoothing, pad = _smoothed(prep, counts, width, scale)
-    peaks, heights = _find_peaks(smooth, 0.0)
+    if kernels.compiled is not None:  # the two calls below in one compiled pass
+        peaks, valley_pos_known, many = kernels.compiled.modes(smooth, MIN_MODE_FRACTION)
+    else:
+        peaks, _ = _find_peaks(smooth, 0.0)
+        many = len(peaks) >= 2
+        peaks, valley_pos_known = _massive_modes(smooth, peaks)
     base = {"smoothing_codes": smoothing}
-    many = len(peaks) >= 2
-    peaks, valley_pos_known = _massive_modes(smooth, peaks)
     if len(peaks) < 2:
         warnings.append("histogram unimodal: dark and bright peaks cannot be told apart")
         diag0 = prep.diagnostics(n_pixels=n_roi, bimodality=0.0, **base)
