@@ -661,7 +661,9 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
         for (Py_ssize_t c = 0; c < cols; c++, k++) {
             double xc = (double)c - (double)(cols - 1) / 2.0;
             double scaled = a + kx32 * xc;
-            int bin = (int)((int64_t)scaled & (N_PHASE_BINS - 1));
+            /* numpy's astype(intp) truncates; beyond int64 (or NaN) x86 gives INT64_MIN,
+             * bin 0 - converting such a double in C would be undefined. */
+            int bin = fabs(scaled) < 9.2e18 ? (int)((int64_t)scaled & (N_PHASE_BINS - 1)) : 0;
             int inner = inner_limit < 0 || fabs(scaled - centre) <= inner_limit;
             double v = PX(&im, r, c);
             flat[k] = v;
