@@ -134,6 +134,69 @@ static void complex_pairwise_sum(const double *a, Py_ssize_t count, Py_ssize_t s
     *ri = ai + bi;
 }
 
+/* complex_pairwise_sum of the products res[i] * ex[i] (a real times an interleaved complex,
+ * numpy's product of the real cast to complex), formed on the fly: no product buffer. */
+#define PRE(i) (res[i] * ex[2 * (i)] - 0.0 * ex[2 * (i) + 1])
+#define PIM(i) (res[i] * ex[2 * (i) + 1] + 0.0 * ex[2 * (i)])
+static void product_pairwise_sum(const double *res, const double *ex, Py_ssize_t count,
+                                 double *rr, double *ri)
+{
+    if (count < 4) {
+        double sr = 0.0, si = 0.0;
+        for (Py_ssize_t i = 0; i < count; i++) {
+            sr += PRE(i);
+            si += PIM(i);
+        }
+        *rr = sr;
+        *ri = si;
+        return;
+    }
+    if (count <= 64) {
+        double r[8];
+        Py_ssize_t i;
+        for (int k = 0; k < 4; k++) {
+            r[2 * k] = PRE(k);
+            r[2 * k + 1] = PIM(k);
+        }
+        for (i = 4; i < count - (count % 4); i += 4)
+            for (int k = 0; k < 4; k++) {
+                r[2 * k] += PRE(i + k);
+                r[2 * k + 1] += PIM(i + k);
+            }
+        double sr = (r[0] + r[2]) + (r[4] + r[6]);
+        double si = (r[1] + r[3]) + (r[5] + r[7]);
+        for (; i < count; i++) {
+            sr += PRE(i);
+            si += PIM(i);
+        }
+        *rr = sr;
+        *ri = si;
+        return;
+    }
+    Py_ssize_t half = (count - count % 8) / 2;
+    double ar, ai, br, bi;
+    product_pairwise_sum(res, ex, half, &ar, &ai);
+    product_pairwise_sum(res + half, ex + 2 * half, count - half, &br, &bi);
+    *rr = ar + br;
+    *ri = ai + bi;
+}
+
+/* segment_sum (below) of the products res[i] * ex[i], i in [start, end). */
+static void product_segment_sum(const double *res, const double *ex, Py_ssize_t start,
+                                Py_ssize_t end, double *out)
+{
+    out[0] = res[start] * ex[2 * start] - 0.0 * ex[2 * start + 1];
+    out[1] = res[start] * ex[2 * start + 1] + 0.0 * ex[2 * start];
+    if (end - start > 1) {
+        double rr, ri;
+        product_pairwise_sum(res + start + 1, ex + 2 * (start + 1), end - start - 1, &rr, &ri);
+        out[0] += rr;
+        out[1] += ri;
+    }
+}
+#undef PRE
+#undef PIM
+
 /* np.add.reduceat over one segment of complex values: the first plus the pairwise sum of
  * the rest. ``a`` interleaved, ``stride`` in complex elements. */
 static void segment_sum(const double *a, Py_ssize_t start, Py_ssize_t end, Py_ssize_t stride,
@@ -172,39 +235,6 @@ static double einsum_chunk(const double *a, const double *b, Py_ssize_t n)
     return acc0 + acc1;
 }
 
-/* einsum_chunk of (a, a), (a, b) and (b, b) in one loop. */
-static void einsum_chunk3(const double *a, const double *b, Py_ssize_t n, double *aa,
-                          double *ab, double *bb)
-{
-    double aa0 = 0.0, aa1 = 0.0, ab0 = 0.0, ab1 = 0.0, bb0 = 0.0, bb1 = 0.0;
-    Py_ssize_t i = 0;
-    for (; n - i >= 8; i += 8) {
-        for (int blk = 3; blk >= 0; blk--) {
-            double a0 = a[i + 2 * blk], a1 = a[i + 2 * blk + 1];
-            double b0 = b[i + 2 * blk], b1 = b[i + 2 * blk + 1];
-            aa0 = a0 * a0 + aa0;
-            aa1 = a1 * a1 + aa1;
-            ab0 = a0 * b0 + ab0;
-            ab1 = a1 * b1 + ab1;
-            bb0 = b0 * b0 + bb0;
-            bb1 = b1 * b1 + bb1;
-        }
-    }
-    for (; i < n; i += 2) {
-        aa0 = a[i] * a[i] + aa0;
-        ab0 = a[i] * b[i] + ab0;
-        bb0 = b[i] * b[i] + bb0;
-        if (i + 1 < n) {
-            aa1 = a[i + 1] * a[i + 1] + aa1;
-            ab1 = a[i + 1] * b[i + 1] + ab1;
-            bb1 = b[i + 1] * b[i + 1] + bb1;
-        }
-    }
-    *aa = aa0 + aa1;
-    *ab = ab0 + ab1;
-    *bb = bb0 + bb1;
-}
-
 /* np.einsum("i,i->", a, b) on contiguous float64: its iterator hands the loop buffers of
  * 8192 elements, each one's sum added to the output in turn. */
 static double einsum_dot(const double *a, const double *b, Py_ssize_t n)
@@ -235,44 +265,72 @@ static inline void pymul(double ar, double ai, double br, double bi, double *re,
     *im = ar * bi + ai * br;
 }
 
+/* The residual's memory, kept between calls (the GIL is held throughout a call, so one
+ * buffer serves every call): a fresh block per call of a large ROI costs more in page faults
+ * than the passes over it. Grown as needed, owned by this module. */
+static double *resid_cache = NULL;
+static size_t resid_cache_len = 0;
+
+static double *resid_buffer(size_t n)
+{
+    if (n > resid_cache_len) {
+        double *grown = realloc(resid_cache, n * sizeof(double));
+        if (!grown)
+            return NULL;
+        resid_cache = grown;
+        resid_cache_len = n;
+    }
+    return resid_cache;
+}
+
 /* Scratch for one quick-geometry call: the residual and the DFT's factors. */
 typedef struct {
     Py_ssize_t rows, cols;
-    double *img;     /* rows x cols, the input made contiguous */
-    double *resid;   /* rows x cols */
+    const double *pixels; /* rows x cols, row-major: the input itself or ``img`` */
+    double *img;     /* the input made contiguous when it is not (else NULL) */
+    double *resid;   /* rows x cols (resid_cache) */
     double *x, *y;   /* centred coordinates */
     double *ex, *ey; /* interleaved complex, cols and rows */
-    double *prod;    /* interleaved complex, rows x cols */
     double *blocks;  /* interleaved complex, rows x 4 */
 } Scratch;
 
 static void scratch_free(Scratch *s)
 {
     free(s->img);
-    free(s->resid);
     free(s->x);
     free(s->y);
     free(s->ex);
     free(s->ey);
-    free(s->prod);
     free(s->blocks);
 }
 
-static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
+static int scratch_alloc(Scratch *s, const Image *im)
 {
+    Py_ssize_t rows = im->rows, cols = im->cols;
     size_t n = (size_t)rows * (size_t)cols;
+    int contiguous = im->cs == (Py_ssize_t)sizeof(double) &&
+                     (rows == 1 || im->rs == cols * (Py_ssize_t)sizeof(double));
     memset(s, 0, sizeof(*s));
     s->rows = rows;
     s->cols = cols;
-    s->img = malloc(n * sizeof(double));
-    s->resid = malloc(n * sizeof(double));
+    if (contiguous) {
+        s->pixels = (const double *)im->data;
+    } else {
+        s->img = malloc(n * sizeof(double));
+        if (s->img) {
+            for (Py_ssize_t r = 0; r < rows; r++)
+                for (Py_ssize_t c = 0; c < cols; c++)
+                    s->img[r * cols + c] = PX(im, r, c);
+        }
+        s->pixels = s->img;
+    }
+    s->resid = resid_buffer(n);
     s->x = malloc((size_t)cols * sizeof(double));
     s->y = malloc((size_t)rows * sizeof(double));
     s->ex = malloc(2 * (size_t)cols * sizeof(double));
     s->ey = malloc(2 * (size_t)rows * sizeof(double));
-    s->prod = malloc(2 * n * sizeof(double));
     s->blocks = malloc(8 * (size_t)rows * sizeof(double));
-    if (!s->img || !s->resid || !s->x || !s->y || !s->ex || !s->ey || !s->prod || !s->blocks) {
+    if (!s->pixels || !s->resid || !s->x || !s->y || !s->ex || !s->ey || !s->blocks) {
         scratch_free(s);
         return -1;
     }
@@ -283,24 +341,12 @@ static int scratch_alloc(Scratch *s, Py_ssize_t rows, Py_ssize_t cols)
     return 0;
 }
 
-/* The input, row-major in s->img. */
-static void copy_image(const Image *im, Scratch *s)
-{
-    for (Py_ssize_t r = 0; r < im->rows; r++) {
-        double *dst = s->img + r * im->cols;
-        if (im->cs == (Py_ssize_t)sizeof(double))
-            memcpy(dst, im->data + r * im->rs, (size_t)im->cols * sizeof(double));
-        else
-            for (Py_ssize_t c = 0; c < im->cols; c++)
-                dst[c] = PX(im, r, c);
-    }
-}
-
-/* bargeometry.detrend of s->img into s->resid: minus its mean and least-squares plane. */
+/* bargeometry.detrend of the pixels into s->resid: minus their mean and least-squares
+ * plane. */
 static int detrend_into(Scratch *s)
 {
     Py_ssize_t rows = s->rows, cols = s->cols;
-    const double *img = s->img;
+    const double *img = s->pixels;
     double *col_sums = malloc((size_t)cols * sizeof(double));
     double *row_sums = malloc((size_t)rows * sizeof(double));
     double *tmp = malloc((size_t)(rows > cols ? rows : cols) * sizeof(double));
@@ -368,21 +414,6 @@ static void phasors(double k, const double *t, Py_ssize_t n, double *out)
     }
 }
 
-/* resid * ex[None, :] (a real times a complex: the plain product is numpy's too). */
-static void times_ex(Scratch *s)
-{
-    Py_ssize_t rows = s->rows, cols = s->cols;
-    for (Py_ssize_t r = 0; r < rows; r++) {
-        const double *res = s->resid + r * cols;
-        double *p = s->prod + 2 * r * cols;
-        for (Py_ssize_t c = 0; c < cols; c++) {
-            double a = res[c], br = s->ex[2 * c], bi = s->ex[2 * c + 1];
-            p[2 * c] = a * br - 0.0 * bi;
-            p[2 * c + 1] = a * bi + 0.0 * br;
-        }
-    }
-}
-
 /* bargeometry._quadrant_sums at (kx, ky): q[0..7] = q00, q01, q10, q11 (re, im). */
 static void quadrant_sums(Scratch *s, int fused, double kx, double ky, double *q)
 {
@@ -390,12 +421,11 @@ static void quadrant_sums(Scratch *s, int fused, double kx, double ky, double *q
     Py_ssize_t hc = cols / 2, hr = rows / 2;
     phasors(kx, s->x, cols, s->ex);
     phasors(ky, s->y, rows, s->ey);
-    times_ex(s);
     double *h = s->blocks; /* rows x 2 complex */
     for (Py_ssize_t r = 0; r < rows; r++) {
-        const double *p = s->prod + 2 * r * cols;
-        segment_sum(p, 0, hc, 1, h + 4 * r);
-        segment_sum(p, hc, cols, 1, h + 4 * r + 2);
+        const double *res = s->resid + r * cols;
+        product_segment_sum(res, s->ex, 0, hc, h + 4 * r);
+        product_segment_sum(res, s->ex, hc, cols, h + 4 * r + 2);
         for (int j = 0; j < 2; j++) {
             double *v = h + 4 * r + 2 * j;
             cmul(fused, v[0], v[1], s->ey[2 * r], s->ey[2 * r + 1], &v[0], &v[1]);
@@ -448,15 +478,14 @@ static void coarse_drift_step(Scratch *s, int fused, double *kx, double *ky)
     row_edges[4] = rows;
     phasors(*kx, s->x, cols, s->ex);
     phasors(*ky, s->y, rows, s->ey);
-    times_ex(s);
     double *b = s->blocks; /* rows x 4 complex */
     for (Py_ssize_t r = 0; r < rows; r++) {
-        const double *p = s->prod + 2 * r * cols;
+        const double *res = s->resid + r * cols;
         for (int k = 0; k < 4; k++) {
             /* reduceat: an index not below the next one gives the single element. */
             Py_ssize_t end = col_edges[k] < col_edges[k + 1] ? col_edges[k + 1] : col_edges[k] + 1;
             double *v = b + 8 * r + 2 * k;
-            segment_sum(p, col_edges[k], end, 1, v);
+            product_segment_sum(res, s->ex, col_edges[k], end, v);
             cmul(fused, v[0], v[1], s->ey[2 * r], s->ey[2 * r + 1], &v[0], &v[1]);
         }
     }
@@ -499,32 +528,39 @@ static double cell_gradient_direction(double theta, double f)
 /* structure_tensor_direction's theta; -1 on allocation failure. */
 static int structure_theta(Scratch *s, double *theta)
 {
+    /* The cell differences d1, d2 (row-major over the (rows - 1) x (cols - 1) cells) in
+     * einsum("kn,ln->kl")'s order: one unbuffered run of its dot loop per output - blocks of
+     * 8 in two lanes, the last pair of a block first, then the tail by pairs - the three
+     * outputs' chains interleaved, the differences formed 8 at a time (no buffers). */
     Py_ssize_t rows = s->rows, cols = s->cols;
-    size_t m = (size_t)(rows - 1) * (size_t)(cols - 1);
-    double *d1 = malloc((m ? m : 1) * sizeof(double));
-    double *d2 = malloc((m ? m : 1) * sizeof(double));
-    if (!d1 || !d2) {
-        free(d1);
-        free(d2);
-        return -1;
-    }
-    size_t k = 0;
+    double a1[8], a2[8];
+    double aa[2] = {0.0, 0.0}, ab[2] = {0.0, 0.0}, bb[2] = {0.0, 0.0};
+    int k = 0;
     for (Py_ssize_t r = 0; r + 1 < rows; r++) {
         const double *top = s->resid + r * cols, *bottom = top + cols;
-        for (Py_ssize_t c = 0; c + 1 < cols; c++, k++) {
-            d1[k] = bottom[c + 1] - top[c];
-            d2[k] = bottom[c] - top[c + 1];
+        for (Py_ssize_t c = 0; c + 1 < cols; c++) {
+            a1[k] = bottom[c + 1] - top[c];
+            a2[k] = bottom[c] - top[c + 1];
+            if (++k < 8)
+                continue;
+            k = 0;
+            for (int blk = 3; blk >= 0; blk--)
+                for (int l = 0; l < 2; l++) {
+                    double u = a1[2 * blk + l], v = a2[2 * blk + l];
+                    aa[l] = u * u + aa[l];
+                    ab[l] = u * v + ab[l];
+                    bb[l] = v * v + bb[l];
+                }
         }
     }
-    /* einsum("kn,ln->kl"): one run of the dot loop per output, unbuffered; the three runs
-     * interleaved (independent chains, each in einsum's own order). */
-    double s11, s12, s22;
-    einsum_chunk3(d1, d2, (Py_ssize_t)m, &s11, &s12, &s22);
-    s11 = 0.0 + s11;
-    s12 = 0.0 + s12;
-    s22 = 0.0 + s22;
-    free(d1);
-    free(d2);
+    for (int i = 0; i < k; i++) { /* the tail: lane i % 2 */
+        double u = a1[i], v = a2[i];
+        aa[i % 2] = u * u + aa[i % 2];
+        ab[i % 2] = u * v + ab[i % 2];
+        bb[i % 2] = v * v + bb[i % 2];
+    }
+    double s11 = 0.0 + (aa[0] + aa[1]), s12 = 0.0 + (ab[0] + ab[1]);
+    double s22 = 0.0 + (bb[0] + bb[1]);
     double a = -s12, b = 0.5 * (s11 - s22);
     double t = 0.5 * atan2(b, a);
     if (t <= -M_PI / 2 + 1e-12)
@@ -561,13 +597,12 @@ static PyObject *quick_core(PyObject *self, PyObject *args)
         return NULL;
     }
     Scratch s;
-    if (scratch_alloc(&s, im.rows, im.cols) < 0) {
+    if (scratch_alloc(&s, &im) < 0) {
         PyBuffer_Release(&view);
         return PyErr_NoMemory();
     }
     PyObject *result = NULL;
     double theta_cells, theta;
-    copy_image(&im, &s);
     if (detrend_into(&s) < 0 || structure_theta(&s, &theta_cells) < 0) {
         PyErr_NoMemory();
         goto done;
@@ -628,7 +663,7 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
     Image im;
     int have_img = 0, have_out = 0;
     unsigned char *tags = NULL;
-    double *flat = NULL;
+    double *copy = NULL;
     if (near_view.len != N_PHASE_BINS || wide_view.len != N_PHASE_BINS) {
         PyErr_SetString(PyExc_ValueError, "near and wide must be 32 bytes");
         goto done;
@@ -636,17 +671,31 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
     if (get_image(obj, &view, &im) < 0)
         goto done;
     have_img = 1;
-    if (PyObject_GetBuffer(out_obj, &out_view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0)
+    if (PyObject_GetBuffer(out_obj, &out_view,
+                           PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
         goto done;
     have_out = 1;
     Py_ssize_t rows = im.rows, cols = im.cols, n = rows * cols;
-    if (out_view.itemsize != 8 || out_view.len < n * (Py_ssize_t)sizeof(double)) {
+    if (!is_float64_format(out_view.format) || out_view.len < n * (Py_ssize_t)sizeof(double)) {
         PyErr_SetString(PyExc_ValueError, "out must hold a float64 per pixel");
         goto done;
     }
+    /* The pixels row-major: the input itself when contiguous, else a copy. */
+    const double *flat = (const double *)im.data;
+    if (im.cs != (Py_ssize_t)sizeof(double) ||
+        (rows > 1 && im.rs != cols * (Py_ssize_t)sizeof(double))) {
+        copy = malloc((size_t)n * sizeof(double));
+        if (!copy) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        for (Py_ssize_t r = 0; r < rows; r++)
+            for (Py_ssize_t c = 0; c < cols; c++)
+                copy[r * cols + c] = PX(&im, r, c);
+        flat = copy;
+    }
     tags = malloc((size_t)n);
-    flat = malloc((size_t)n * sizeof(double));
-    if (!tags || !flat) {
+    if (!tags) {
         PyErr_NoMemory();
         goto done;
     }
@@ -665,8 +714,7 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
              * bin 0 - converting such a double in C would be undefined. */
             int bin = fabs(scaled) < 9.2e18 ? (int)((int64_t)scaled & (N_PHASE_BINS - 1)) : 0;
             int inner = inner_limit < 0 || fabs(scaled - centre) <= inner_limit;
-            double v = PX(&im, r, c);
-            flat[k] = v;
+            double v = flat[k];
             count[bin]++;
             sums[bin] += v;
             tags[k] = (unsigned char)(bin | (inner ? 0x80 : 0));
@@ -708,7 +756,7 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
     result = Py_BuildValue("(dndd)", scatter, m, vmin, vmax);
 done:
     free(tags);
-    free(flat);
+    free(copy);
     if (have_out)
         PyBuffer_Release(&out_view);
     if (have_img)
