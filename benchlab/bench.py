@@ -337,6 +337,19 @@ class Bench:
             raise BenchError("no LED controller configured ([led] in the bench file)")
         self.led.on(channel, current_ma)
 
+    def led_current_step_ma(self, channel: int) -> float:
+        """The LED controller's current step on ``channel`` (mA): every current set is a whole
+        multiple of it; another is refused (``SettingOutOfRangeError``)."""
+        if self.led is None:
+            raise BenchError("no LED controller configured ([led] in the bench file)")
+        return self.led.current_step_ma(channel)
+
+    def led_max_current_ma(self, channel: int) -> float | None:
+        """The highest current ``channel`` can be set to: its ceiling on the current step."""
+        if self.led is None:
+            raise BenchError("no LED controller configured ([led] in the bench file)")
+        return self.led.max_current_ma(channel)
+
     def led_off(self, channel: int) -> None:
         if self.led is not None:
             self.led.off(channel)

@@ -49,7 +49,9 @@ from benchlab.drivers.slc_protocol import (
     SlcMode,
     SlcNoReplyError,
     SlcUnknownCommandError,
+    current_unit_ma,
     module_family,
+    normal_max_ma,
     parse_current_reply,
     parse_device_info,
 )
@@ -67,9 +69,6 @@ ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledge
 LATE_REPLY_QUIET_S = 0.08
 
 
-# Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
-_DECI_MA_FAMILIES = ("FA", "FV", "XA", "XV")
-_NORMAL_MAX_MA = {"HA": 2000.0, "HV": 2000.0, "FA": 100.0, "FV": 100.0, "XA": 100.0, "XV": 100.0}
 _DEFAULT_NORMAL_MAX_MA = 1000.0
 _MAX_PROBE_CHANNELS = 16
 
@@ -164,6 +163,12 @@ class SlcController(LightSource):
         ceiling = self._ceilings_ma.get(ch)
         return None if ceiling is None else min(ceiling, self._normal_max_ma)
 
+    def current_step_ma(self, ch: int) -> float:
+        """The module family's current step (B.7): 1 mA, 0.1 mA on FA/FV/XA/XV, 5 mA on CA."""
+        if self._ser is None:
+            raise DeviceError("LED controller is not open")
+        return round(self._step_wire * self._unit_ma, 9)
+
     # ---- channel commands ------------------------------------------------------------------
     def set_mode(self, ch: int, mode: SlcMode | int) -> None:
         """Select a channel's mode. NORMAL is only entered after its currents are verified."""
@@ -189,20 +194,27 @@ class SlcController(LightSource):
             raise SlcBadReplyError(cmd, f"unknown mode {payload!r}") from None
 
     def set_normal(self, ch: int, imax_ma: float, iset_ma: float) -> None:
-        """Store NORMAL-mode ceiling and working current (both checked against the ceiling)."""
+        """Store NORMAL-mode ceiling and working current (both checked against the ceiling).
+
+        Iset must be a whole number of current steps (:meth:`current_step_ma`); Imax, a limit,
+        is rounded down to the step.
+        """
         self._check_channel(ch)
         self._check_current(ch, imax_ma)
         self._check_current(ch, iset_ma)
+        self._check_step(ch, iset_ma)
         if iset_ma > imax_ma:
             raise SettingOutOfRangeError(
                 f"LED channel {ch}: Iset {iset_ma} mA above Imax {imax_ma} mA; nothing sent"
             )
-        self._command(f"NORMAL {ch} {self._wire(imax_ma)} {self._wire(iset_ma)}")
+        self._command(f"NORMAL {ch} {self._wire_limit(imax_ma)} {self._wire(iset_ma)}")
 
     def set_current(self, ch: int, iset_ma: float) -> None:
-        """Change the working current live (takes effect only in NORMAL mode)."""
+        """Change the working current live (takes effect only in NORMAL mode); a whole number
+        of current steps."""
         self._check_channel(ch)
         self._check_current(ch, iset_ma)
+        self._check_step(ch, iset_ma)
         self._command(f"CURRENT {ch} {self._wire(iset_ma)}")
 
     def get_current(self, ch: int) -> tuple[float, float]:
@@ -250,8 +262,12 @@ class SlcController(LightSource):
 
     # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
-        # Round down - to the hardware's current step too - so neither our rounding nor the
-        # controller's quantisation can push a value above its checked ceiling.
+        """A working current in wire units; already checked to be on the current step."""
+        return round(current_ma / self._unit_ma)
+
+    def _wire_limit(self, current_ma: float) -> int:
+        # A limit (Imax) rounds down - to the hardware's current step too - so neither our
+        # rounding nor the controller's quantisation can push it above its checked ceiling.
         wire = math.floor(current_ma / self._unit_ma + 1e-9)
         return wire - wire % self._step_wire
 
@@ -270,9 +286,9 @@ class SlcController(LightSource):
 
     def _configure_family(self, module: str) -> None:
         family = module_family(module)
-        self._unit_ma = 0.1 if family in _DECI_MA_FAMILIES else 1.0
+        self._unit_ma = current_unit_ma(module)
         self._step_wire = round(CURRENT_STEP_MA.get(family, 0) / self._unit_ma) or 1
-        self._normal_max_ma = _NORMAL_MAX_MA.get(family, _DEFAULT_NORMAL_MAX_MA)
+        self._normal_max_ma = normal_max_ma(module)
 
     def _count_channels(self) -> int:
         m = re.match(r"SLC-[A-Z]{2}(\d\d)", self._info.module.upper() if self._info else "")

@@ -74,13 +74,13 @@ def sweep_statistics(
 
 
 def _current_ma(meta: Mapping[str, Any]) -> float:
-    """Relative irradiance of a lit frame: the LED current the controller reported in the
-    bench state (the simulated bench: after the driver's rounding), else the requested one."""
+    """Relative irradiance of a lit frame: the LED current the simulated LED drove (bench
+    state), else the one the controller reported after it was set, else the requested one."""
     state = (meta.get("bench") or {}).get("led_current_ma")
     channel = str(meta.get("led_channel", 1))
     if isinstance(state, Mapping) and state.get(channel) is not None:
         return float(state[channel])
-    return float(meta.get("led_current_ma") or 1.0)
+    return float(meta.get("led_current_set_ma") or meta.get("led_current_ma") or 1.0)
 
 
 def _le_columns(le: Any) -> dict[str, float | None]:
