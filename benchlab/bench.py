@@ -307,9 +307,10 @@ class Bench:
     ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], dict[str, Any]]:
         """One frame at these settings: ``(pixels, metadata)``.
 
-        ``fresh``: the frame is exposed wholly after this call - the buffer is cleared and the
-        frame that was already being exposed is dropped - so it shows the set-up as it is now
-        (a target just mounted, the LED just switched on), not a frame from before the change.
+        Without ``fresh`` the camera's newest buffered frame (``Camera.grab``), possibly
+        exposed before this call. ``fresh``: the frame is exposed wholly after this call - the
+        buffer is cleared and the frame that was already being exposed is dropped - so it shows
+        the set-up as it is now (a target just mounted, the LED just switched on).
         """
         camera = self._open_camera()
         try:

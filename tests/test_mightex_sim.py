@@ -36,13 +36,20 @@ def test_manual_clock_fills_the_buffer_at_the_frame_period() -> None:
             cam.grab(timeout_s=0)  # a manual clock never jumps
         clock.advance(0.125)
         assert cam.buffer_status().frames == 2  # ready at 50 and 100 ms
+        sim.command_log.clear()
         first = cam.grab()
-        assert first.meta.timestamp_ms == 50
+        assert first.meta.timestamp_ms == 100  # the newest; the 50 ms frame cleared unread
+        assert list(sim.command_log) == [bytes.fromhex(h) for h in (
+            "33 01 00", "35 01 01", "33 01 00", "34 01 01")]
+        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 1
         clock.advance(10.0)  # 200 periods: the ring buffer keeps the newest 4
         assert cam.buffer_status().frames == 4
-        stamps = [cam.grab().meta.timestamp_ms for _ in range(4)]
-        assert stamps == sorted(stamps) and stamps[-1] - stamps[0] == 150
-        assert 10_000 <= stamps[-1] <= 10_125
+        assert cam.grab().meta.timestamp_ms == 10_100  # the last of 10.050 .. 10.100 s
+        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 4
+        with pytest.raises(DeviceTimeoutError):
+            cam.grab(timeout_s=0)
+        clock.advance(0.05)
+        assert cam.grab().meta.timestamp_ms == 10_150  # one waiting: read as is
 
 
 def test_virtual_clock_jumps_so_grab_never_waits() -> None:
