@@ -71,6 +71,12 @@ LATE_REPLY_QUIET_S = 0.08
 
 _DEFAULT_NORMAL_MAX_MA = 1000.0
 _MAX_PROBE_CHANNELS = 16
+_MAX_STALE_ACKS = 2
+
+
+def _is_ack(raw: bytes) -> bool:
+    """An acknowledgement line (``## \\r\\n``; ``>##`` with echo on)."""
+    return raw.strip().lstrip(b">") == ACK.encode()
 
 
 class SlcController(LightSource):
@@ -113,7 +119,7 @@ class SlcController(LightSource):
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
             self._echo_off()
-            self._info = parse_device_info(self._query_text("DEVICEINFO"))
+            self._info = parse_device_info(self._device_info_text())
             self._configure_family(self._info.module)
             self._channel_count = self._count_channels()
             self._register_atexit()  # and SIGINT/SIGTERM/SIGHUP: _on_stop_signal
@@ -284,6 +290,16 @@ class SlcController(LightSource):
         except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
+    def _device_info_text(self) -> str:
+        """DEVICEINFO right after ECHOOFF, robust to ECHOOFF's optional ack coming late: an
+        ack line before the reply is skipped; an ack so late that DEVICEINFO timed out is
+        drained (with the reply behind it) by the late-reply rule and DEVICEINFO asked again."""
+        try:
+            return self._query_text("DEVICEINFO", skip_acks=True)
+        except SlcNoReplyError:
+            log.debug("LED controller: no DEVICEINFO reply at open; resynchronising once")
+            return self._query_text("DEVICEINFO", skip_acks=True)
+
     def _configure_family(self, module: str) -> None:
         family = module_family(module)
         self._unit_ma = current_unit_ma(module)
@@ -311,8 +327,13 @@ class SlcController(LightSource):
             raise DeviceError("LED controller is not open")
         return self._ser
 
-    def _exchange(self, command: str) -> str:
-        """Send one command, return the reply payload (stripped), with buffer hygiene."""
+    def _exchange(self, command: str, *, skip_acks: bool = False) -> str:
+        """Send one command, return the reply payload (stripped), with buffer hygiene.
+
+        ``skip_acks``: the command never answers ``##`` (DEVICEINFO), so up to
+        ``_MAX_STALE_ACKS`` ``##`` lines before its reply are the late ack of an earlier
+        command (ECHOOFF at open) and are discarded - the line is back in step.
+        """
         ser = self._port_or_raise()
         with self._io_lock:
             self._busy = True
@@ -323,6 +344,11 @@ class SlcController(LightSource):
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
+                for _ in range(_MAX_STALE_ACKS if skip_acks else 0):
+                    if not (raw.endswith(REPLY_END) and _is_ack(raw)):
+                        break
+                    log.debug("LED controller: discarded a late %r before %r", raw, command)
+                    raw = ser.read_until(REPLY_END)
                 two_replies = False
                 if not raw.endswith(REPLY_END):
                     self._late_reply = True  # silence or a cut-off line: the rest may follow
@@ -402,8 +428,8 @@ class SlcController(LightSource):
             raise SlcBadReplyError(command, f"expected '#<data>', got {text!r}")
         return text[1:].strip()
 
-    def _query_text(self, command: str) -> str:
-        text = self._exchange(command)
+    def _query_text(self, command: str, *, skip_acks: bool = False) -> str:
+        text = self._exchange(command, skip_acks=skip_acks)
         if text.startswith("#"):
             raise SlcBadReplyError(command, f"expected a bare text line, got {text!r}")
         return text

@@ -59,6 +59,9 @@ class SlcFaults:
     # between wait in the UART buffer and are answered after it, in order.
     late_reply: int = 0
     late_reply_s: float = 0.0
+    # ECHOOFF is acknowledged ("##", whatever ``echooff_ack``) this many wall seconds late,
+    # after the host stopped waiting for it (fw 3.1.8 acks it; older firmware does not).
+    late_echooff_ack_s: float = 0.0
     garbage: bytes | None = None  # answer the next command with these bytes instead
     drop_on_command: str | None = None  # drop the link when this verb arrives (before acting)
     out_of_range: int = 0  # next N queries answer with impossible values
@@ -167,6 +170,11 @@ class SimulatedSlc(PtyDevice):
 
     def _handle_line(self, line: str) -> None:
         f = self.faults
+        if f.late_echooff_ack_s > 0 and line.split()[0].upper() == "ECHOOFF":
+            self.echo = False
+            self._late = (time.monotonic() + f.late_echooff_ack_s, ACK.encode() + REPLY_SUFFIX)
+            f.late_echooff_ack_s = 0.0
+            return
         if f.late_reply > 0 and f.drop_on_command is None and f.no_reply == 0:
             f.late_reply -= 1
             self._late_out = bytearray()
