@@ -136,7 +136,9 @@ class Camera(ABC, Generic[M]):
         self._do_set_gain(_finite("gain", gain))
 
     def grab(self, timeout_s: float | None = None) -> Frame[M]:
-        """The next frame taken with the current settings (driver default timeout if None)."""
+        """A frame taken with the current settings: in free-running mode the newest the camera
+        holds (waiting for one if none), in trigger mode the next in order (driver default
+        timeout if None)."""
         return self._do_grab(_timeout(timeout_s))
 
     @abstractmethod
