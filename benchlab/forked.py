@@ -271,16 +271,21 @@ def _child(call: Callable[[], object], read_fd: int, write_fd: int,
             signal.signal(sig, signal.SIG_DFL)  # a stop signal just ends the child
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         data = b""
+        # Warnings are recorded (the filters and "once per place" registries as inherited),
+        # not printed, and shown by the parent if it uses the value: printed by the child as
+        # well, a warning of a call the parent repeats showed twice.
+        caught: _Caught = []
+
+        def record(message: Warning | str, category: type[Warning], filename: str,
+                   lineno: int, file: object = None, line: str | None = None) -> None:
+            caught.append((str(message), category, filename, lineno))
+
+        warnings.showwarning = record
         try:
-            # Warnings are caught here and shown by the parent if it uses the value: printed
-            # by the child as well, a warning of a call the parent repeats showed twice.
-            with warnings.catch_warnings(record=True) as records:
-                value = call()
+            value = call()
         except BaseException:  # the parent computes it again and raises (and warns)
             pass
         else:
-            caught: _Caught = [(str(w.message), w.category, w.filename, w.lineno)
-                               for w in records]
             try:
                 data = pickle.dumps((value, caught), protocol=pickle.HIGHEST_PROTOCOL)
                 status = _SENT

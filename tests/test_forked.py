@@ -264,6 +264,8 @@ def call():
         raise ValueError("child fails")
     return 42
 
+if {before}:
+    call()  # shown here; the same warning at the same place is not shown again (default)
 job = forked.fork_call(call, "warns")
 value = job.result()
 job.close()
@@ -271,10 +273,10 @@ print(value if value is not None else call())
 """
 
 
-@pytest.mark.parametrize("fail", [False, True])
-def test_a_warning_of_the_call_is_shown_once(fail: bool) -> None:
-    out = subprocess.run([sys.executable, "-c", _WARNS.format(fail=fail)], capture_output=True,
-                         text=True, timeout=60, check=True)
+@pytest.mark.parametrize(("fail", "before"), [(False, False), (True, False), (False, True)])
+def test_a_warning_of_the_call_is_shown_once(fail: bool, before: bool) -> None:
+    out = subprocess.run([sys.executable, "-c", _WARNS.format(fail=fail, before=before)],
+                         capture_output=True, text=True, timeout=60, check=True)
     assert out.stdout.strip() == "42"
     # the child's value used: the parent shows the child's warning; the child failed: the
     # parent's own call warns (the child's warning was never printed - it was, twice in all)
