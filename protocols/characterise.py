@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from benchlab.drivers.errors import SettingOutOfRangeError
 from benchlab.protocols.characterise_analysis import (
+    CURRENTS_EVENT,
     TRUTH_EVENT,
     analyze_characterise,
     config_step_id,
@@ -38,7 +39,6 @@ EXPOSURE_STEP_MS = 0.05
 #: The current grid when no controller says otherwise (FA/FV/XA/XV: 0.1 mA); on the bench the
 #: grid is the LED controller's own current step (``LightSource.current_step_ma``).
 CURRENT_STEP_MA = 0.1
-CURRENTS_EVENT = "sweep_currents"
 SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (diffuser or "
                 "back-lit flat target, lens off or defocused), lit by the LED; room dark. Dark "
                 "frames are taken with the LED off.")

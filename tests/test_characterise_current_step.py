@@ -65,6 +65,8 @@ def test_current_sweep_on_a_ca_module_sets_only_its_5_ma_steps(
         assert meta["led_current_set_ma"] == meta["led_current_ma"]
         assert meta["bench"]["led_current_ma"]["1"] == meta["led_current_ma"]
     assert lit > 20
+    (config,) = out.summary["summary"]["configs"]  # results/vN/summary.json says it too
+    assert config["current_step_ma"] == 5.0 and config["currents_set_ma"] == said["currents_ma"]
     row = out.tables["characterisation"][0]
     assert row["system_gain_dn_per_e"] == pytest.approx(0.20475, rel=0.03)  # the truth
     assert row["saturation_reached"] is True
