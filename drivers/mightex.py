@@ -508,7 +508,7 @@ class MightexCamera(Camera[FrameMeta]):
 
         Normal mode: the camera keeps up to ``buffer_count`` frames, oldest first, and 0x34
         sends the oldest; so when several wait, the older ones are cleared unread (0x35 n-1,
-        counted in ``skipped_frames``) and the buffer asked again (0x33), until one is left.
+        counted in ``skipped_frames``) and the buffer asked again (0x33) before reading one.
         A frame already in the buffer may have been exposed before this call: ``Bench.grab``
         (``fresh``) clears the buffer and drops the exposure under way when that matters.
 
@@ -529,6 +529,7 @@ class MightexCamera(Camera[FrameMeta]):
             timeout_s = 2 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
         deadline = time.monotonic() + timeout_s
         discards = 0
+        skipped = False
         while True:
             status = self.buffer_status()
             if status.frames == 0:
@@ -543,9 +544,13 @@ class MightexCamera(Camera[FrameMeta]):
                 self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
                 discards += status.frames
                 self.discarded_frames += status.frames
-            elif status.frames > 1 and s.mode == "normal":
-                self._send(p.encode_clear_buffer(status.frames - 1))  # keep only the newest
+            elif status.frames > 1 and s.mode == "normal" and not skipped:
+                # Keep only the newest. Once per grab: a frame that arrives meanwhile (periods
+                # shorter than a USB round trip) is not chased, the next one read is at most a
+                # period older than the newest.
+                self._send(p.encode_clear_buffer(status.frames - 1))
                 self.skipped_frames += status.frames - 1
+                skipped = True
             else:
                 frame = self._read_frame()
                 t = frame[1]

@@ -140,3 +140,24 @@ def test_reset_restores_power_on_settings() -> None:
     sim.write_command(p.encode_work_mode("trigger", 12))
     sim.write_command(p.encode_reset())
     assert (sim.settings.gain_raw, sim.settings.mode, sim.settings.bits) == (8, 0, 8)
+
+
+def test_grab_clears_older_frames_once_and_does_not_chase_new_ones() -> None:
+    clock = ManualClock()
+    sim = SimulatedCamera(clock=clock, noise=False)
+    with _open(sim) as cam:
+        cam.configure(width=64, height=16, buffer_count=4)
+        cam.set_exposure_ms(50.0)
+        clock.advance(0.175)  # frames at 50, 100, 150 ms
+        send = cam._send
+
+        def send_then_a_frame(data: bytes) -> None:  # a frame arrives after every clear
+            send(data)
+            if data[0] == 0x35:
+                clock.advance(0.05)
+
+        cam._send = send_then_a_frame  # type: ignore[method-assign]
+        sim.command_log.clear()
+        assert cam.grab().meta.timestamp_ms == 150  # the newest when asked; 200 not chased
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34]
+        assert cam.skipped_frames == 2 and sim.buffered_frames == 1
