@@ -12,6 +12,7 @@ import importlib
 import math
 import os
 import sys
+import types
 from fractions import Fraction
 
 import numpy as np
@@ -311,6 +312,14 @@ def test_loader_falls_back_when_the_module_is_absent_or_disabled(
         assert kernels.describe() == "numpy fallback"
         monkeypatch.setenv(kernels.DISABLE_ENV, "0")
         assert (importlib.reload(kernels).compiled is None) == (COMPILED is None)
+        # A stale build (another version of the C source): a warning, the numpy path.
+        stale = types.ModuleType("benchlab.analysis._histkernels")
+        stale.VERSION = kernels.VERSION + 1  # type: ignore[attr-defined]
+        stale.__file__ = "/old/_histkernels.so"
+        monkeypatch.delattr(package, "_histkernels", raising=False)
+        monkeypatch.setitem(sys.modules, "benchlab.analysis._histkernels", stale)
+        with pytest.warns(RuntimeWarning, match="stale compiled kernels.*rebuild"):
+            assert importlib.reload(kernels).compiled is None
     finally:
         monkeypatch.undo()
         importlib.reload(kernels)

@@ -930,7 +930,16 @@ static struct PyModuleDef module = {
     methods, NULL, NULL, NULL, NULL,
 };
 
+/* Bumped with any change of the functions' signatures or meaning: kernels.py runs the numpy
+ * path rather than a stale build. */
+#define KERNELS_VERSION 1
+
 PyMODINIT_FUNC PyInit__histkernels(void)
 {
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m && PyModule_AddIntConstant(m, "VERSION", KERNELS_VERSION) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
 }

@@ -3,6 +3,8 @@
 import numpy as np
 import numpy.typing as npt
 
+VERSION: int
+
 def quick_core(
     img: npt.NDArray[np.float64], freq: float, min_periods: float, settled_cycles: float,
     iterations: int, coarse_min_px: int, fused: bool, /,

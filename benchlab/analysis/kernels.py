@@ -4,18 +4,22 @@
 ``setup.py``) fuses the per-pixel numpy passes of the method's bar geometry and bar-centre
 selection into single loops, with numpy's own summation order and rounding, so both paths read
 the same numbers. Without it (no compiler at install, or ``BENCHLAB_NUMPY_KERNELS=1`` in the
-environment) the numpy code runs: same readings, about twice the time.
+environment, or a build of another version of the C source) the numpy code runs: same
+readings, about 2.5 times the time at 40x50.
 """
 
 from __future__ import annotations
 
 import os
+import warnings
 from types import ModuleType
 
 import numpy as np
 
 #: Set to 1 to run the numpy reference even when the compiled kernels are built.
 DISABLE_ENV = "BENCHLAB_NUMPY_KERNELS"
+#: The version of ``_histkernels.c`` this code calls (its ``KERNELS_VERSION``).
+VERSION = 1
 
 
 def _load() -> ModuleType | None:
@@ -24,6 +28,12 @@ def _load() -> ModuleType | None:
     try:
         from benchlab.analysis import _histkernels
     except ImportError:
+        return None
+    if getattr(_histkernels, "VERSION", None) != VERSION:
+        # A build of another version of the C source (rebuild: pip install -e .): its
+        # functions may not be these; the numpy path is always right.
+        warnings.warn(f"benchlab: stale compiled kernels ({_histkernels.__file__}): numpy "
+                      "path used; rebuild with 'pip install -e .'", RuntimeWarning, stacklevel=2)
         return None
     return _histkernels
 
