@@ -106,12 +106,14 @@ def rois(draw: st.DrawFn) -> tuple[np.ndarray, float]:
 
 
 @needs_compiled
-@settings(max_examples=120, deadline=None)
-@given(case=rois())
-def test_compiled_and_numpy_paths_read_the_same(case: tuple[np.ndarray, float]) -> None:
+@settings(max_examples=150, deadline=None)
+@given(case=rois(), orientation=st.sampled_from([None, None, "horizontal", "vertical"]))
+def test_compiled_and_numpy_paths_read_the_same(
+    case: tuple[np.ndarray, float], orientation: str | None
+) -> None:
     roi, freq = case
     with pytest.MonkeyPatch.context() as mp:
-        compiled, reference = _both_paths(lambda: _result_tuple(roi, freq), mp)
+        compiled, reference = _both_paths(lambda: _result_tuple(roi, freq, orientation), mp)
     assert _close(compiled, reference), (compiled, reference)
 
 
@@ -270,10 +272,13 @@ def test_compiled_path_is_taken(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(bargeometry, "detrend", forbidden)
     monkeypatch.setattr(histogram, "_phase_bins", forbidden)
-    bar = BarCase(shape=(40, 50), px_per_period=8.0, angle_deg=20.0, noise_sigma=2.0)
-    result = estimate_modulation(render(bar, np.random.default_rng(1)), estimator="histogram",
-                                 freq_cycles_per_px=0.125)
-    assert result.resolved
+    monkeypatch.setattr(histogram, "_find_peaks", forbidden)
+    for angle, orientation in ((20.0, None), (0.0, "horizontal")):
+        bar = BarCase(shape=(40, 50), px_per_period=8.0, angle_deg=angle, noise_sigma=2.0)
+        result = estimate_modulation(render(bar, np.random.default_rng(1)),
+                                     estimator="histogram", freq_cycles_per_px=0.125,
+                                     orientation=orientation)
+        assert result.resolved
 
 
 def test_numpy_path_runs_without_the_module(

@@ -506,7 +506,13 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
     kx, ky = (f, 0.0) if prep.axis == 1 else (0.0, f)
     half_f = f * (line.size - 1) / 2.0
-    _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
+    bins: npt.NDArray[np.intp] | None = None
+    inner: npt.NDArray[np.bool_] | None = None
+    chosen = None
+    if kernels.compiled is not None and img.dtype == np.float64:
+        _, chosen = _compiled_selection(img, kx, ky, phase, half_f)  # its scatter: unused
+    else:
+        _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
     resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
     along = img.shape[1 - prep.axis]
     noise = max(math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1)),
@@ -523,7 +529,7 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
         value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
         z_noise = prep.noise_sigma if prep.noise_given else noise
         z = _significance(2.0 * abs(value) / line.size, z_noise, img.size)
-    return _Phases(bins, inner, noise, z)
+    return _Phases(bins, inner, noise, z, chosen)
 
 
 def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
@@ -590,8 +596,20 @@ def _compiled_phases(
     of :func:`_bar_centres` in one compiled pass: the same phase bins, inner-bar test, scatter
     and windows as :func:`_phase_bins`, :func:`_scatter_about_bins` and
     :meth:`_Phases.centres`."""
-    assert kernels.compiled is not None
     img = prep.pixels
+    scatter, chosen = _compiled_selection(img, kx, ky, phase, half_f)
+    noise = max(scatter, prep.quantisation_sd)
+    z = _significance(amplitude, prep.noise_sigma if prep.noise_given else noise, img.size)
+    return _Phases(None, None, noise, z, chosen)
+
+
+def _compiled_selection(
+    img: npt.NDArray[np.float64], kx: float, ky: float, phase: float, half_f: float
+) -> tuple[float, tuple[npt.NDArray[np.float64], float, float]]:
+    """The compiled pass of :func:`_phase_bins` (same arguments), the scatter about the phase
+    bins (:func:`_scatter_about_bins`) and the bar-centre pixels :func:`_bar_centres` selects
+    from them, with their minimum and maximum."""
+    assert kernels.compiled is not None
     whole = math.ceil(half_f) + 2  # as _phase_bins
     centre = NOISE_BINS * (phase + whole)
     limit = NOISE_BINS * (half_f - 0.5) if half_f >= 1.0 else -1.0
@@ -599,9 +617,7 @@ def _compiled_phases(
     scatter, m, vmin, vmax = kernels.compiled.phase_select(
         img, NOISE_BINS * kx, NOISE_BINS * ky, centre, limit, _NEAR_BYTES, _WIDE_BYTES,
         MIN_CENTRE_PIXELS, out)
-    noise = max(scatter, prep.quantisation_sd)
-    z = _significance(amplitude, prep.noise_sigma if prep.noise_given else noise, img.size)
-    return _Phases(None, None, noise, z, (out[:m], vmin, vmax))
+    return scatter, (out[:m], vmin, vmax)
 
 
 @lru_cache(maxsize=64)
