@@ -245,8 +245,9 @@ def _check_step_ids(c: _Checker, positions: tuple[float, ...]) -> None:
         sid = position_step_id(pos)
         if sid in first:
             j = first[sid]
-            c.fail(f"positions.field_mm[{i}]", f"{pos!r} mm is too close to "
-                   f"positions.field_mm[{j}] ({positions[j]!r} mm): both would be step {sid}")
+            how = "repeats" if pos == positions[j] else "is too close to"
+            c.fail(f"positions.field_mm[{i}]", f"{pos!r} mm {how} positions.field_mm[{j}] "
+                   f"({positions[j]!r} mm): both would be step {sid}")
         else:
             first[sid] = i
 
@@ -261,7 +262,8 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
     bits = c.choice("camera.bits", d.bits, (8, 12))
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
-    positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0)
+    positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0,
+                          distinct=False)  # _check_step_ids names each repeat
     offset = c.number("positions.stage_offset_mm", d.stage_offset_mm, -1000.0, 1000.0)
     # Two positions may well see the same irradiance: equal values are allowed here.
     irr = c.numbers("analysis.simulated_irradiance_mw_per_mm2",

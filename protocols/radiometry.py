@@ -11,7 +11,7 @@ never leaves it lit (and the runner's safe state repeats the off).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -187,7 +187,10 @@ class RadiometryProcedure:
                 ctx.session.log_event("frames_clipped", step=ctx.step.id,
                                       clipped_pixels=r.clipped_pixels,
                                       mask_pixels=r.mask_pixels)
-            ctx.report({"position_mm": pos, "measured_mean_gray": r.mean_gray,
+            # a clipped mean is no number: the live view says "clipped", as Table 4.16 will
+            shown: float | str = (r.mean_gray if not r.clipped_pixels else
+                                  f"clipped ({r.clipped_pixels} px at {r.saturation_code:g})")
+            ctx.report({"position_mm": pos, "measured_mean_gray": shown,
                         "mask_pixels": r.mask_pixels, "clipped_pixels": r.clipped_pixels})
 
         return action
@@ -222,15 +225,15 @@ def analyze_radiometry(
         mask, _ = session.load_frame(sid, MASK_FRAME)
         meas, meta = session.load_frame(sid, MEASUREMENT_FRAME)
         try:
-            r = reading(mask, meas, params.mask_threshold_fraction,
-                        bits=meta.get("bits", params.bits), linear=linear)
+            got = reading(mask, meas, params.mask_threshold_fraction,
+                          bits=meta.get("bits", params.bits), linear=linear)
         except ValueError as exc:  # these frames hold no reading: say so, analyse the rest
             files = [frames[n].relative_to(session.path).as_posix()
                      for n in (MASK_FRAME, MEASUREMENT_FRAME)]
             skipped.append({"step": sid, "position_mm": pos, "frames": files,
                             "reason": str(exc)})
             continue
-        rows.append({"position_mm": pos, "simulated": sim, "reading": r})
+        rows.append({"position_mm": pos, "simulated": sim, "reading": got})
     if not rows:
         why = "; ".join(f"{s['step']} ({', '.join(s['frames'])}): {s['reason']}"
                         for s in skipped)

@@ -35,9 +35,13 @@ def test_clipped_rows_have_no_number_and_say_why(tmp_path: Path) -> None:
     the clean rows are normalised among themselves and match the scene's fall-off."""
     params = _params(tmp_path, "i50.toml", RAD_SMALL.read_text().replace(
         "current_ma = 20.0", "current_ma = 50.0"))
-    out = run_sim("radiometry", tmp_path / "s", params)
+    live: list[dict[str, Any]] = []
+    out = run_sim("radiometry", tmp_path / "s", params,
+                  on_result=lambda step, data: live.append(dict(data)))
     rows = {r["position_mm"]: r for r in out.tables["table_4_16"]}
     clipped = rows[18.0]
+    assert [str(d["measured_mean_gray"])[:7] for d in live][1] == "clipped"  # the live view
+    assert isinstance(live[0]["measured_mean_gray"], float)
     assert clipped["clipped_pixels"] > 100
     assert clipped["measured_mean_gray"] is None and clipped["measured_normalised"] is None
     assert clipped["difference"] is None
