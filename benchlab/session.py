@@ -740,8 +740,12 @@ class Session:
         FrameFileError
             If the file is unreadable.
         """
-        path = self.step_frames(step_id).get(name) or self.frame_path(step_id, name)
+        current = self.step_frames(step_id).get(name)
+        path = current or self.frame_path(step_id, name)
         rel = path.relative_to(self.path).as_posix()
+        if current is None and rel in self._rejected():
+            raise SessionError(f"{path}: frame was rejected ({self._rejected()[rel]}); "
+                               "no analysis uses it")
         ahead = self._prefetched.pop(rel, None)
         if ahead is not None and not ahead.cancelled():
             return ahead.result()

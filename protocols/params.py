@@ -268,6 +268,9 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
     # Two positions may well see the same irradiance: equal values are allowed here.
     irr = c.numbers("analysis.simulated_irradiance_mw_per_mm2",
                     d.simulated_irradiance_mw_per_mm2, 0.0, 1e9, distinct=False)
+    if irr and max(irr) <= 0:
+        c.fail("analysis.simulated_irradiance_mw_per_mm2", "needs a value above 0 (Table 4.16 "
+               "normalises to the largest)")
     if len(irr) != len(positions):
         c.fail("analysis.simulated_irradiance_mw_per_mm2",
                f"has {len(irr)} values but positions.field_mm has {len(positions)}")

@@ -242,9 +242,13 @@ def analyze_radiometry(
                             f"{why}")
     # Normalised over the clean rows only: a clipped mean is a lower bound, never a number.
     clean = [r for r in rows if not r["reading"].clipped_pixels]
-    table = ({t.field_position_mm: t for t in radiometry_table(
-        [r["position_mm"] for r in clean], [r["simulated"] for r in clean],
-        [r["reading"].mean_gray for r in clean])} if clean else {})
+    try:
+        table = ({t.field_position_mm: t for t in radiometry_table(
+            [r["position_mm"] for r in clean], [r["simulated"] for r in clean],
+            [r["reading"].mean_gray for r in clean])} if clean else {})
+    except ValueError as exc:  # e.g. every clean row's simulated irradiance is 0
+        raise BenchlabError(f"{session.path}: Table 4.16 cannot be normalised over "
+                            f"{[r['position_mm'] for r in clean]} mm: {exc}") from exc
     top_sim = max((float(r["simulated"]) for r in clean), default=0.0)
     out = []
     warnings = []

@@ -21,7 +21,7 @@ from benchlab.protocols import StepFailed, reanalyze, start_run
 from benchlab.protocols.radiometry import FrameContentError, reading_mask_of
 from benchlab.report import write_report
 from benchlab.scenes.led import LedScene
-from benchlab.session import Session
+from benchlab.session import Session, SessionError
 
 
 def _params(tmp_path: Path, name: str, text: str) -> Path:
@@ -154,6 +154,8 @@ def test_resume_retakes_frames_with_no_led_in_a_real_process(tmp_path: Path) -> 
     names = sorted(p.name for p in (path / "frames").glob("position-45__*"))
     assert names == ["position-45__mask.take2.tiff", "position-45__mask.tiff",
                      "position-45__measurement.take2.tiff", "position-45__measurement.tiff"]
+    with pytest.raises(SessionError, match="rejected .*no LED"):
+        Session.open(path).load_frame("position-45", "mask")
     done = _cli("analyze", str(path))
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr and "partial" in done.stdout

@@ -71,6 +71,10 @@ def test_positions_that_would_be_one_step_are_refused(tmp_path: Path,
 def test_equal_irradiance_values_are_valid(tmp_path: Path) -> None:
     params = _rad(tmp_path, **{"19.40, 14.34": "19.40, 19.40"})
     assert load_params("radiometry", params).simulated_irradiance_mw_per_mm2[3] == 19.4
+    zero = _rad(tmp_path, **{"[22.48, 21.21, 19.40, 14.34, 3.014]": "[0, 0.0, 0.0, 0.0, 0.0]"})
+    with pytest.raises(ParamsError, match="simulated_irradiance_mw_per_mm2: needs a value "
+                                          "above 0"):
+        load_params("radiometry", zero)
 
 
 def test_mask_threshold_fraction_is_open_at_one(tmp_path: Path) -> None:
