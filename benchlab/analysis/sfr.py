@@ -823,6 +823,7 @@ def measure_sfr(
     bootstrap: int = 0,
     seed: int = 0,
     bin_width_px: float = BIN_WIDTH_PX,
+    method: str = "free",
 ) -> SfrResult:
     """Slanted-edge SFR (sine-wave MTF along the edge normal) of one ROI holding one edge.
 
@@ -979,6 +980,18 @@ def measure_sfr(
     spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
                              rise_px=rise_guess)
     mtf, lsf_w, truncated = spec.mtf, spec.lsf, spec.truncated
+    if method != "free":
+        from benchlab.analysis.sfr_model import decide_model
+        ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
+        dec = decide_model(samples.u, samples.esf, model.sample_var(samples),
+                           samples.spread_var, ca, sa, rise_px=rise_guess, centre_px=0.0,
+                           half_px=spec.windows[0].total_half_px)
+        global _LAST_FITS
+        _LAST_FITS = (dec, spec)
+        if dec.fit is not None and (dec.accepted or method == "model"):
+            spec = _Spectrum(dec.fit.mtf(freqs), spec.lsf, spec.mid, spec.truncated,
+                             np.hypot(dec.fit.mtf_sigma(freqs), SIGMA_FLOOR), spec.windows)
+            mtf = spec.mtf
     mtf50 = _mtf50(freqs, mtf)
     mtf_sigma = spec.sigma
     mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)

@@ -1,0 +1,401 @@
+"""A parametric LSF for the slanted-edge SFR: K pixel-integrated Gaussians fitted to the ESF.
+
+Model of the binned ESF at sample ``j`` (position ``u_j`` along the normal, pixel positions in
+its bin spread with variance ``v_j``)::
+
+    ESF(u_j) = c0 + sum_k a_k S(u_j - mu_k; sqrt(sigma_k^2 + v_j))
+
+``S(d; s)`` is a unit step blurred by a Gaussian of width ``s`` and integrated over the square
+pixel whose sides make the edge angle with the normal (the closed form of
+:func:`benchlab.analysis.sfr_synthetic.pixel_integrated_step`); the bin's own spread enters as
+a Gaussian of its variance (a box of 1/4 px differs from it only in the fourth cumulant).
+``a_k >= 0``: an incoherent PSF is non-negative, and so is each component. The system MTF
+along the normal is then, in closed form::
+
+    MTF(f) = |sum_k a_k exp(-2 pi^2 sigma_k^2 f^2 - 2 pi i f mu_k)| / sum_k a_k
+             x |sinc(f cos t) sinc(f sin t)|
+
+The fit is variable projection (the linear ``c0, a_k`` solved by weighted least squares for
+given ``mu_k, log sigma_k``, Kaufman's Jacobian) with Levenberg-Marquardt steps; the sample
+weights are the inverse ESF-sample variances from the pixel noise, so the chi-square and the
+parameter covariance are in absolute units. K grows from 1 while the Bayesian information
+criterion falls (at most :data:`MAX_COMPONENTS`).
+
+This is a model of the LSF's shape; :mod:`benchlab.analysis.sfr` uses it only where the
+model-free reading does not reject it (see there).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.special import ndtr
+
+FloatArray = npt.NDArray[np.float64]
+
+MAX_COMPONENTS = 3
+#: Another component is tried only when the chi-square of the last fit exceeds its degrees of
+#: freedom by this many of its standard deviations (~5 % of fits of a right model): below
+#: that a drop of 3 ln n (~14), which the BIC asks, is rare, and each try costs a fit.
+NEXT_COMPONENT_Z = 1.645
+#: Levenberg-Marquardt iterations per fit, and the relative chi-square change that stops it.
+MAX_ITERATIONS = 20
+CHI2_RTOL = 1e-7
+#: Component widths are kept in [MIN_SIGMA_PX, MAX_SIGMA_PX] (log-parametrised).
+MIN_SIGMA_PX = 0.02
+MAX_SIGMA_PX = 30.0
+_INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
+
+
+def _corners(cos_a: float, sin_a: float) -> tuple[tuple[float, float], ...]:
+    """(offset, sign) of the four corner terms of the pixel-integrated step."""
+    a, b = max(abs(cos_a), abs(sin_a)), min(abs(cos_a), abs(sin_a))
+    b = max(b, 1e-3)
+    return (((a + b) / 2, 1.0), ((a - b) / 2, -1.0), (-(a - b) / 2, -1.0), (-(a + b) / 2, 1.0))
+
+
+def _basis(
+    d: FloatArray, s: FloatArray, corners: tuple[tuple[float, float], ...], ab: float,
+    derivs: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pixel-integrated blurred step ``S(d; s)`` and, if ``derivs``, dS/dd and dS/ds."""
+    val = np.zeros_like(d)
+    dd = np.zeros_like(d) if derivs else val
+    ds = np.zeros_like(d) if derivs else val
+    for off, sign in corners:
+        t = d + off
+        z = t / s
+        cdf = ndtr(z)
+        pdf = _INV_SQRT_2PI * np.exp(-0.5 * z * z)
+        val += sign * (0.5 * (t * t + s * s) * cdf + 0.5 * t * s * pdf)
+        if derivs:
+            dd += sign * (t * cdf + s * pdf)  # d f2 / dt = f1
+            ds += sign * (s * cdf)  # d f2 / ds = s Phi(t / s)
+    return val / ab, dd / ab, ds / ab
+
+
+@dataclass(frozen=True)
+class LsfModelFit:
+    """K pixel-integrated Gaussians fitted to the ESF samples.
+
+    Attributes
+    ----------
+    weights : ndarray
+        ``a_k`` (ESF units; their sum is the step).
+    centres_px, sigmas_px : ndarray
+        ``mu_k`` and ``sigma_k`` (px along the normal).
+    offset : float
+        ``c0``, the dark level.
+    chi2 : float
+        Weighted sum of squared residuals (noise units).
+    n_samples : int
+    cov : ndarray
+        Covariance of ``(c0, a_1..a_K, mu_1..mu_K, log sigma_1..log sigma_K)``.
+    cos_a, sin_a : float
+        Direction cosines of the normal in pixel axes (the pixel aperture).
+    residual : ndarray
+        Data minus model at each fitted sample (ESF units).
+    """
+
+    weights: FloatArray
+    centres_px: FloatArray
+    sigmas_px: FloatArray
+    offset: float
+    chi2: float
+    n_samples: int
+    cov: FloatArray
+    cos_a: float
+    sin_a: float
+    residual: FloatArray  # data - model at each fitted sample (ESF units)
+
+    @property
+    def components(self) -> int:
+        return int(self.weights.size)
+
+    @property
+    def n_params(self) -> int:
+        return 1 + 3 * self.components
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion with the noise known: chi2 + p ln n."""
+        return self.chi2 + self.n_params * math.log(self.n_samples)
+
+    def _psf_part(self, f: FloatArray, params: FloatArray | None = None) -> FloatArray:
+        """``|sum a_k G_k(f)| / sum a_k`` for the parameter vector (default: the fit's)."""
+        k = self.components
+        if params is None:
+            a, mu, sig = self.weights, self.centres_px, self.sigmas_px
+        else:
+            a, mu, sig = params[1:1 + k], params[1 + k:1 + 2 * k], np.exp(params[1 + 2 * k:])
+        g = np.exp(-2.0 * math.pi**2 * np.outer(f * f, sig * sig))
+        ph = 2.0 * math.pi * np.outer(f, mu)
+        re = (g * np.cos(ph)) @ a
+        im = (g * np.sin(ph)) @ a
+        total = float(np.sum(a))
+        return np.asarray(np.hypot(re, im) / total if total > 0 else np.zeros_like(f))
+
+    def _aperture(self, f: FloatArray) -> FloatArray:
+        return np.asarray(np.abs(np.sinc(f * self.cos_a) * np.sinc(f * self.sin_a)))
+
+    def mtf(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
+        """System MTF along the normal (the Gaussians and the pixel aperture)."""
+        f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
+        return np.asarray(self._psf_part(f) * self._aperture(f), dtype=np.float64)
+
+    def mtf_sigma(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
+        """1-sigma of :meth:`mtf` from the parameter covariance (first order, numerical
+        gradient)."""
+        f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
+        k = self.components
+        p0 = np.concatenate(([self.offset], self.weights, self.centres_px,
+                             np.log(self.sigmas_px)))
+        base = self._psf_part(f, p0)
+        grad = np.zeros((p0.size, f.size))
+        for i in range(1, p0.size):
+            h = 1e-6 * max(abs(p0[i]), 1e-3) if i <= k else 1e-5
+            p = p0.copy()
+            p[i] += h
+            grad[i] = (self._psf_part(f, p) - base) / h
+        var = np.einsum("if,ij,jf->f", grad, self.cov, grad)
+        return np.asarray(np.sqrt(np.clip(var, 0.0, None)) * self._aperture(f))
+
+
+def _solve_linear(
+    basis: FloatArray, y: FloatArray, w_sqrt: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Weighted least squares of ``y`` on the columns of ``basis``: the coefficients, the
+    weighted residual, and the weighted design matrix."""
+    a = basis * w_sqrt[:, None]
+    coef, *_ = np.linalg.lstsq(a, y * w_sqrt, rcond=None)
+    return coef, y * w_sqrt - a @ coef, a
+
+
+def _fit(
+    u: FloatArray, y: FloatArray, w_sqrt: FloatArray, spread_var: FloatArray,
+    corners: tuple[tuple[float, float], ...], ab: float, mu0: FloatArray, logsig0: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
+    """Levenberg-Marquardt on (mu, log sigma) with the linear parameters projected out.
+    Returns (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
+    weight, a singular design)."""
+    k = mu0.size
+    mu, ls = mu0.astype(np.float64).copy(), logsig0.astype(np.float64).copy()
+    lo, hi = math.log(MIN_SIGMA_PX), math.log(MAX_SIGMA_PX)
+
+    def evaluate(mu: FloatArray, ls: FloatArray, derivs: bool) -> tuple[
+            FloatArray, FloatArray, float, FloatArray, FloatArray, FloatArray]:
+        cols = [np.ones_like(u)]
+        d_mu, d_ls = [], []
+        for j in range(k):
+            sig = math.exp(ls[j])
+            s = np.sqrt(sig * sig + spread_var)
+            val, dd, ds = _basis(u - mu[j], s, corners, ab, derivs)
+            cols.append(val)
+            if derivs:
+                d_mu.append(-dd)
+                d_ls.append(ds * (sig * sig) / s)
+        basis = np.stack(cols, axis=1)
+        coef, res, a = _solve_linear(basis, y, w_sqrt)
+        chi2 = float(res @ res)
+        dmu = np.stack(d_mu, axis=1) if derivs else basis
+        dls = np.stack(d_ls, axis=1) if derivs else basis
+        return coef, res, chi2, a, dmu, dls
+
+    coef, res, chi2, a, dmu, dls = evaluate(mu, ls, True)
+    lam = 1e-3
+    for _ in range(MAX_ITERATIONS):
+        # Kaufman's variable-projection Jacobian: the model's derivative along the nonlinear
+        # parameters (times their linear coefficient), projected off the linear columns.
+        raw = np.concatenate((dmu * coef[1:], dls * coef[1:]), axis=1) * w_sqrt[:, None]
+        q, _ = np.linalg.qr(a)
+        jac = raw - q @ (q.T @ raw)
+        jtj = jac.T @ jac
+        g = jac.T @ res
+        improved = False
+        for _ in range(8):
+            step = np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-12), g)
+            mu_n = mu + step[:k]
+            ls_n = np.clip(ls + step[k:], lo, hi)
+            c_n, r_n, chi_n, a_n, dmu_n, dls_n = evaluate(mu_n, ls_n, True)
+            if chi_n < chi2:
+                done = chi2 - chi_n <= CHI2_RTOL * max(chi2, 1.0)
+                mu, ls, coef, res, chi2, a, dmu, dls = mu_n, ls_n, c_n, r_n, chi_n, a_n, dmu_n, \
+                    dls_n
+                lam = max(lam / 10.0, 1e-9)
+                improved = True
+                break
+            lam *= 10.0
+        if not improved or done:
+            break
+    if np.any(coef[1:] <= 0):
+        return None
+    # Full covariance of (c0, a, mu, log sigma): the Jacobian of the weighted residual.
+    full = np.concatenate((a, dmu * coef[1:] * w_sqrt[:, None],
+                           dls * coef[1:] * w_sqrt[:, None]), axis=1)
+    try:
+        cov = np.linalg.inv(full.T @ full)
+    except np.linalg.LinAlgError:
+        return None
+    return coef, mu, ls, chi2, cov, res / w_sqrt
+
+
+def fit_lsf_model(
+    u_px: FloatArray, esf: FloatArray, sample_var: FloatArray, spread_var: FloatArray,
+    cos_a: float, sin_a: float, *, rise_px: float, centre_px: float = 0.0,
+    max_components: int = MAX_COMPONENTS,
+) -> list[LsfModelFit]:
+    """Fit 1, 2, ... components while the BIC falls; every successful fit, fewest first.
+
+    Parameters
+    ----------
+    u_px, esf : ndarray
+        ESF samples (position along the normal, px; rising from dark to bright).
+    sample_var : ndarray
+        Noise variance of each sample.
+    spread_var : ndarray
+        Variance of the pixel positions within each sample's bin (px^2).
+    cos_a, sin_a : float
+        Direction cosines of the normal in pixel axes.
+    rise_px : float
+        The ESF's 10-90 % rise (px): the first guess of the width.
+    centre_px : float
+        The first guess of the LSF centre.
+    max_components : int
+
+    Returns
+    -------
+    list of LsfModelFit
+        Empty when not even one component fits.
+    """
+    w_sqrt = 1.0 / np.sqrt(np.maximum(sample_var, 1e-300))
+    corners = _corners(cos_a, sin_a)
+    ab = max(abs(cos_a), abs(sin_a)) * max(min(abs(cos_a), abs(sin_a)), 1e-3)
+    aperture_var = (cos_a * cos_a + sin_a * sin_a) / 12.0
+    sig0 = math.sqrt(max((rise_px / 2.563) ** 2 - aperture_var, 0.05))
+    starts: list[list[tuple[FloatArray, FloatArray]]] = [
+        [(np.array([centre_px]), np.array([math.log(sig0)]))]]
+    fits: list[LsfModelFit] = []
+    n = u_px.size
+    for k in range(1, max_components + 1):
+        best: LsfModelFit | None = None
+        for mu0, ls0 in starts[-1]:
+            got = _fit(u_px, esf, w_sqrt, spread_var, corners, ab, mu0, ls0)
+            if got is None:
+                continue
+            coef, mu, ls, chi2, cov, resid = got
+            fit = LsfModelFit(coef[1:], mu, np.exp(ls), float(coef[0]), chi2, n, cov,
+                              float(abs(cos_a)), float(abs(sin_a)), resid)
+            if best is None or fit.chi2 < best.chi2:
+                best = fit
+        if best is None:
+            break
+        if fits and best.bic >= fits[-1].bic:
+            break
+        fits.append(best)
+        dof = max(best.n_samples - best.n_params, 1)
+        if best.chi2 <= dof + NEXT_COMPONENT_Z * math.sqrt(2.0 * dof):
+            break  # BIC would ask another component for a chi-square drop of 3 ln n
+        # Next: one more component, either a wide one under the core (a halo) or the widest
+        # split in two either side (a flat-topped LSF: box, defocus disc).
+        mu, ls = best.centres_px, np.log(best.sigmas_px)
+        wide = int(np.argmax(best.sigmas_px))
+        halo = (np.append(mu, np.sum(mu * best.weights) / np.sum(best.weights)),
+                np.append(ls, ls[wide] + math.log(3.0)))
+        sw = best.sigmas_px[wide]
+        split_mu = np.concatenate((np.delete(mu, wide), [mu[wide] - sw, mu[wide] + sw]))
+        split_ls = np.concatenate((np.delete(ls, wide), [ls[wide] - math.log(2.0)] * 2))
+        starts.append([halo, (split_mu, split_ls)])
+    return fits
+
+
+#: The fit uses the ESF samples within the model-free LSF window plus this margin (px) of
+#: plateau either side: the far plateaus hold no shape, only cost.
+FIT_MARGIN_PX = 4.0
+#: Gates (the model is used only where neither rejects it): (1) the ESF chi-square over the
+#: fitted samples has a p-value below ESF_GATE_P (a shape the model cannot follow, diluted
+#: over every sample); (2) the spectrum of the residual (data minus model) LSF, which is the
+#: model's MTF error plus noise, stands out of its noise somewhere in (0, Nyquist]:
+#: ``|D(f)|^2 / P(f)`` (exponentially distributed under the model, P known from the pixel
+#: noise) beyond ``ln(M / RESIDUAL_GATE_ALPHA)``, M the number of independent frequencies
+#: (Nyquist x the fitted span): a false alarm in ~1 % of right models.
+ESF_GATE_P = 1e-3
+RESIDUAL_GATE_ALPHA = 0.01
+
+
+@dataclass(frozen=True)
+class ModelDecision:
+    """Whether the LSF model reads this edge, and why.
+
+    Attributes
+    ----------
+    fit : LsfModelFit or None
+        The BIC-chosen fit (None: no component could be fitted).
+    accepted : bool
+    reason : str
+        Why it was rejected ('' when accepted).
+    esf_p_value : float
+        Chi-square p-value of the ESF residuals over the fitted samples.
+    max_z : float
+        Largest ``|free - model| / sd(free - model)`` over (0, Nyquist].
+    """
+
+    fit: LsfModelFit | None
+    accepted: bool
+    reason: str
+    esf_p_value: float
+    max_z: float
+
+
+def residual_spectrum(
+    u_px: FloatArray, residual: FloatArray, sample_var: FloatArray, freqs: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """``|D(f)|^2`` of the residual LSF (the increments of ``residual`` at their midpoints)
+    and its noise power ``P(f) = sum_j |dD/dr_j|^2 var_j``, both unnormalised."""
+    mid = 0.5 * (u_px[1:] + u_px[:-1])
+    phase = np.exp(-2j * math.pi * np.outer(freqs, mid))
+    d = phase @ np.diff(residual)
+    # Sample j enters the increments j-1 (+) and j (-).
+    coef = np.zeros((freqs.size, u_px.size), dtype=np.complex128)
+    coef[:, 1:] += phase
+    coef[:, :-1] -= phase
+    power = (np.abs(coef) ** 2) @ sample_var
+    return np.asarray(np.abs(d) ** 2), np.asarray(power)
+
+
+def decide_model(
+    u_px: FloatArray, esf: FloatArray, sample_var: FloatArray, spread_var: FloatArray,
+    cos_a: float, sin_a: float, *, rise_px: float, centre_px: float, half_px: float,
+    nyquist: float = 0.5,
+) -> ModelDecision:
+    """Fit the model to the samples within ``half_px + FIT_MARGIN_PX`` of ``centre_px`` and
+    test it against them (the two gates above)."""
+    from scipy.stats import chi2 as chi2_dist
+
+    near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
+    un, var = u_px[near], sample_var[near]
+    fits = fit_lsf_model(un, esf[near], var, spread_var[near], cos_a, sin_a, rise_px=rise_px,
+                         centre_px=centre_px)
+    if not fits:
+        return ModelDecision(None, False, "no Gaussian LSF could be fitted", 0.0, math.inf)
+    fit = fits[-1]
+    dof = max(fit.n_samples - fit.n_params, 1)
+    p_value = float(chi2_dist.sf(fit.chi2, dof))
+    span = float(un[-1] - un[0])
+    f = np.arange(1, int(nyquist * span) * 4 + 1) * (nyquist / max(int(nyquist * span) * 4, 1))
+    d2, power = residual_spectrum(un, fit.residual, var, f)
+    ratio = d2 / np.maximum(power, 1e-300)
+    worst = int(np.argmax(ratio))
+    limit = math.log(max(nyquist * span, 1.0) / RESIDUAL_GATE_ALPHA)
+    reasons = []
+    if p_value < ESF_GATE_P:
+        reasons.append(f"the ESF departs from it (chi-square {fit.chi2:.0f} on {dof} degrees "
+                       f"of freedom, p {p_value:.1e})")
+    if ratio[worst] > limit:
+        step = float(np.sum(fit.weights))
+        reasons.append(f"its residual holds {math.sqrt(d2[worst]) / step:.3f} of MTF at "
+                       f"{f[worst]:.3f} cycles/px, {math.sqrt(ratio[worst]):.1f} x its noise")
+    return ModelDecision(fit, not reasons, "; ".join(reasons), p_value,
+                         float(math.sqrt(ratio[worst])))
