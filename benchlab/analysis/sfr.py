@@ -576,6 +576,18 @@ def _clip_outliers(
     return np.where(out, pred + np.clip(res, -limit, limit), work), n
 
 
+def window_matrix(windows: Any, x: FloatArray, f: FloatArray) -> FloatArray:
+    """The frequency-dependent LSF window (a sequence of :class:`LsfWindow`, widest first) at
+    offsets ``x`` (px from its centre) for each frequency ``f``: shape (f, x)."""
+    wide = windows[0]
+    win_f = np.broadcast_to(_tukey(x, wide.flat_half_px, wide.total_half_px), (f.size, x.size))
+    for w in windows[1:]:  # each narrower one takes over above its frequencies
+        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
+        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
+        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
+    return np.asarray(win_f, dtype=np.float64)
+
+
 def _mtf_from_samples(
     s: _Samples,
     flat_half_px: float,
@@ -634,11 +646,7 @@ def _mtf_from_samples(
     inside = np.flatnonzero(win > 0)
     x = mid[inside] - centre
     f = FREQS_CYCLES_PER_PX
-    win_f = np.broadcast_to(win[inside], (f.size, inside.size))  # (freq, increment)
-    for w in windows[1:]:  # each narrower one takes over above its frequencies
-        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
-        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
-        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
+    win_f = window_matrix(windows, x, f)  # (freq, increment)
     phase = (2.0 * math.pi) * np.outer(f, x)
     cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
@@ -914,12 +922,14 @@ def _choose_estimator(
 
     dec = decide_model(samples.u, samples.esf, noise.sample_var(samples), samples.spread_var,
                        cos_a, sin_a, rise_px=rise_px, centre_px=0.0,
-                       half_px=spec.windows[0].total_half_px)
+                       half_px=spec.windows[0].total_half_px,
+                       window=lambda x, f: window_matrix(spec.windows, x, f))
     if dec.fit is None or not dec.accepted:
         return _Choice(spec, "model-free", f"{reason}; LSF model rejected",
                        f"LSF model rejected ({dec.reason}): the model-free reading is given",
                        dec)
     sigma = np.hypot(MODEL_SIGMA_SCALE * dec.fit.mtf_sigma(FREQS_CYCLES_PER_PX), SIGMA_FLOOR)
+    sigma = np.hypot(sigma, dec.misfit_at(FREQS_CYCLES_PER_PX))
     sigma[0] = 0.0
     k = dec.fit.components
     model_spec = _Spectrum(dec.fit.mtf(FREQS_CYCLES_PER_PX), spec.lsf, spec.mid,

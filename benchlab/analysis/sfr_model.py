@@ -28,6 +28,7 @@ model-free reading does not reject it (see there).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -349,6 +350,9 @@ class ModelDecision:
         Chi-square p-value of the ESF residuals over the fitted samples.
     residual_peak : float
         Largest ``|D(f)| / sqrt(P(f))`` of the residual spectrum over (0, Nyquist].
+    misfit_freqs, misfit : ndarray
+        ``sqrt(max(|D|^2 - P, 0))`` over the step: the MTF the residual holds above its
+        noise (the model's error, first order), on the tested frequencies.
     """
 
     fit: LsfModelFit | None
@@ -356,15 +360,27 @@ class ModelDecision:
     reason: str
     esf_p_value: float
     residual_peak: float
+    misfit_freqs: FloatArray
+    misfit: FloatArray
+
+    def misfit_at(self, freqs: FloatArray) -> FloatArray:
+        """The residual's MTF above its noise, at ``freqs`` (held beyond the tested band)."""
+        if self.misfit.size == 0:
+            return np.zeros_like(freqs)
+        return np.asarray(np.interp(freqs, self.misfit_freqs, self.misfit), dtype=np.float64)
 
 
 def residual_spectrum(
     u_px: FloatArray, residual: FloatArray, sample_var: FloatArray, freqs: FloatArray,
+    window: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """``|D(f)|^2`` of the residual LSF (the increments of ``residual`` at their midpoints)
-    and its noise power ``P(f) = sum_j |dD/dr_j|^2 var_j``, both unnormalised."""
+    """``|D(f)|^2`` of the residual LSF (the increments of ``residual`` at their midpoints,
+    times ``window`` (freq, increment) if given) and its noise power
+    ``P(f) = sum_j |dD/dr_j|^2 var_j``, both unnormalised."""
     mid = 0.5 * (u_px[1:] + u_px[:-1])
     phase = np.exp(-2j * math.pi * np.outer(freqs, mid))
+    if window is not None:
+        phase = phase * window
     d = phase @ np.diff(residual)
     # Sample j enters the increments j-1 (+) and j (-).
     coef = np.zeros((freqs.size, u_px.size), dtype=np.complex128)
@@ -378,15 +394,19 @@ def decide_model(
     u_px: FloatArray, esf: FloatArray, sample_var: FloatArray, spread_var: FloatArray,
     cos_a: float, sin_a: float, *, rise_px: float, centre_px: float, half_px: float,
     nyquist: float = 0.5,
+    window: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
 ) -> ModelDecision:
     """Fit the model to the samples within ``half_px + FIT_MARGIN_PX`` of ``centre_px`` and
-    test it against them (the two gates above)."""
+    test it against them (the two gates above). ``window(x, f)``: the model-free reading's
+    LSF window (freq, offset from ``centre_px``), applied to the residual LSF so the test
+    sees what the model-free reading sees, with its noise (narrower at high frequencies)."""
     near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
     un, var = u_px[near], sample_var[near]
     fits = fit_lsf_model(un, esf[near], var, spread_var[near], cos_a, sin_a, rise_px=rise_px,
                          centre_px=centre_px)
     if not fits:
-        return ModelDecision(None, False, "no Gaussian LSF could be fitted", 0.0, math.inf)
+        return ModelDecision(None, False, "no Gaussian LSF could be fitted", 0.0, math.inf,
+                             np.zeros(0), np.zeros(0))
     fit = fits[-1]
     dof = max(fit.n_samples - fit.n_params, 1)
     p_value = float(chdtrc(dof, fit.chi2))
@@ -394,7 +414,9 @@ def decide_model(
     # Two frequencies per independent one (1 / span apart).
     n_f = max(int(2.0 * nyquist * span), 1)
     f = np.arange(1, n_f + 1) * (nyquist / n_f)
-    d2, power = residual_spectrum(un, fit.residual, var, f)
+    mid = 0.5 * (un[1:] + un[:-1])
+    win = None if window is None else window(mid - centre_px, f)
+    d2, power = residual_spectrum(un, fit.residual, var, f, win)
     ratio = d2 / np.maximum(power, 1e-300)
     worst = int(np.argmax(ratio))
     limit = math.log(max(nyquist * span, 1.0) / RESIDUAL_GATE_ALPHA)
@@ -406,5 +428,10 @@ def decide_model(
         step = float(np.sum(fit.weights))
         reasons.append(f"its residual holds {math.sqrt(d2[worst]) / step:.3f} of MTF at "
                        f"{f[worst]:.3f} cycles/px, {math.sqrt(ratio[worst]):.1f} x its noise")
+    # The misfit the residual shows above its noise, as MTF (the model's error to first
+    # order): an allowance added to the model's own 1-sigma, so an accepted but imperfect
+    # model widens its intervals by what the data say it misses.
+    step = float(np.sum(fit.weights))
+    misfit = np.sqrt(np.clip(d2 - power, 0.0, None)) / max(abs(step), 1e-300)
     return ModelDecision(fit, not reasons, "; ".join(reasons), p_value,
-                         float(math.sqrt(ratio[worst])))
+                         float(math.sqrt(ratio[worst])), f, np.asarray(misfit))
