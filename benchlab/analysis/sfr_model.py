@@ -174,8 +174,8 @@ def _solve_linear(
     a = basis * w_sqrt[:, None]
     yw = y * w_sqrt
     # Normal equations: a handful of columns, well scaled (a constant and steps in 0..1).
-    coef = np.linalg.solve(a.T @ a, a.T @ yw)
-    return coef, yw - a @ coef, a
+    coef = np.asarray(np.linalg.solve(a.T @ a, a.T @ yw), dtype=np.float64)
+    return coef, np.asarray(yw - a @ coef, dtype=np.float64), a
 
 
 def _fit(
@@ -249,7 +249,7 @@ def _fit(
         cov = np.linalg.inv(full.T @ full)
     except np.linalg.LinAlgError:
         return None
-    return coef, mu, ls, chi2, cov, res / w_sqrt
+    return coef, mu, ls, chi2, np.asarray(cov, dtype=np.float64), res / w_sqrt
 
 
 def fit_lsf_model(
@@ -289,7 +289,7 @@ def fit_lsf_model(
         [(np.array([centre_px]), np.array([math.log(sig0)]))]]
     fits: list[LsfModelFit] = []
     n = u_px.size
-    for k in range(1, max_components + 1):
+    for _ in range(max_components):
         best: LsfModelFit | None = None
         for mu0, ls0 in starts[-1]:
             got = _fit(u_px, esf, w_sqrt, spread_var, corners, ab, mu0, ls0)
@@ -413,8 +413,8 @@ def decide_model(
     span = float(un[-1] - un[0])
     # Two frequencies per independent one (1 / span apart).
     n_f = max(int(2.0 * nyquist * span), 1)
-    f = np.arange(1, n_f + 1) * (nyquist / n_f)
-    mid = 0.5 * (un[1:] + un[:-1])
+    f = np.arange(1, n_f + 1, dtype=np.float64) * (nyquist / n_f)
+    mid = np.asarray(0.5 * (un[1:] + un[:-1]), dtype=np.float64)
     win = None if window is None else window(mid - centre_px, f)
     d2, power = residual_spectrum(un, fit.residual, var, f, win)
     ratio = d2 / np.maximum(power, 1e-300)
