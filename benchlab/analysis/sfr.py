@@ -386,7 +386,14 @@ def _row_centroids(
 ) -> FloatArray:
     """Centroid per row of the derivative under a Hann window of ``half_width`` around
     ``centres`` (per row). Derivative samples sit at half-pixel positions ``j + 0.5``."""
-    x = np.arange(deriv.shape[1], dtype=np.float64) + 0.5
+    # Only the columns any row's window reaches (the weights are 0 elsewhere): after the
+    # first pass the window spans a few ESF widths, not the ROI.
+    lo = max(0, math.floor(float(np.min(centres)) - half_width - 0.5))
+    hi = min(deriv.shape[1], math.ceil(float(np.max(centres)) + half_width + 0.5))
+    if hi <= lo:
+        return np.full(deriv.shape[0], np.nan)
+    deriv = deriv[:, lo:hi]
+    x = np.arange(lo, hi, dtype=np.float64) + 0.5
     dist = (x[None, :] - centres[:, None]) / half_width
     w = np.where(np.abs(dist) < 1.0, 0.5 * (1.0 + np.cos(math.pi * dist)), 0.0)
     wd = w * deriv
