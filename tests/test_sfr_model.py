@@ -296,3 +296,25 @@ def test_another_component_is_tried_only_after_a_poor_fit(
     monkeypatch.setattr(sfr_model, "NEXT_COMPONENT_Z", -math.inf)
     measure_sfr(img, method="model")
     assert len(calls) >= 3
+
+
+def test_model_floor_bounds_the_model_and_says_where_rows_are_needed() -> None:
+    from benchlab.analysis.sfr_benchmark import (
+        floor_shortfall,
+        model_floor,
+        model_floor_shortfall,
+    )
+
+    # SNR 20 on 100 rows: a wide blur is within the model's reach (the model-free floor is
+    # 4x above), a sharp one is not, even for the right model; 400 rows bring it near 1x.
+    assert model_floor_shortfall(3.0, 20.0, 100) < 0.9 < 4.0 < max(floor_shortfall(3.0, 20.0,
+                                                                                   100))
+    assert model_floor_shortfall(0.3, 20.0, 100) > 1.8
+    assert model_floor_shortfall(0.3, 20.0, 400) == pytest.approx(
+        model_floor_shortfall(0.3, 20.0, 100) / 2.0, rel=0.02)  # sigma ~ 1 / sqrt(rows)
+    # It is a floor of the measured scatter: the largest 1-sigma of the MTF to Nyquist over
+    # 16 edges (sigma 1 px, 21 deg, SNR 20) is near it, not below it by much.
+    got = [measure_sfr(_edge(21.0, 1.0, 20.0, 400 + k)).mtf_at(F_NYQ) for k in range(16)]
+    sd = float(np.max(np.std(np.asarray(got), axis=0, ddof=1)))
+    floor = model_floor(1.0, 20.0).mtf_nyquist_sd
+    assert 0.7 * floor < sd < 1.6 * floor

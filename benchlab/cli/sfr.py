@@ -343,6 +343,9 @@ def benchmark_command(args: argparse.Namespace) -> int:
     if not args.no_frames:
         print(format_frames(run_frames(cases_per_cell=cases, seed=args.seed + 5)))
         print()
+        print(format_frames(run_frames(cases_per_cell=cases, seed=args.seed + 5,
+                                       method="auto")))
+        print()
     print(format_non_gaussian(run_non_gaussian(cases=2 * cases, seed=args.seed + 4)))
     print()
     print("extremes:")
