@@ -318,3 +318,16 @@ def test_model_floor_bounds_the_model_and_says_where_rows_are_needed() -> None:
     sd = float(np.max(np.std(np.asarray(got), axis=0, ddof=1)))
     floor = model_floor(1.0, 20.0).mtf_nyquist_sd
     assert 0.7 * floor < sd < 1.6 * floor
+
+
+def test_the_procedure_tables_and_report_name_the_estimator() -> None:
+    from benchlab.analysis.edge_target import edge_specs
+    from benchlab.protocols.mtf_edges import edge_tables
+    from benchlab.report_sfr import EDGE_COLUMNS
+
+    spec = edge_specs()[0]
+    noisy = measure_sfr(_edge(7.0, 2.0, 20.0, 3))
+    clean = measure_sfr(_edge(7.0, 2.0, 500.0, 3))
+    rows, _ = edge_tables([(spec, noisy), (spec, clean), (spec, "no edge")], (512.0, 640.0))
+    assert [r["estimator"] for r in rows] == ["LSF model", "model-free", None]
+    assert ("estimator", "estimator", "") in EDGE_COLUMNS
