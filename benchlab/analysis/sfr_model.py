@@ -153,6 +153,12 @@ class LsfModelFit:
         gradient)."""
         f = np.asarray(freqs_cycles_per_px, dtype=np.float64)
         k = self.components
+        if k == 1:  # exp(-2 pi^2 sigma^2 f^2) alone: only log sigma moves it
+            sig2 = float(self.sigmas_px[0]) ** 2
+            g = np.exp(-2.0 * math.pi**2 * sig2 * f * f)
+            d = -4.0 * math.pi**2 * sig2 * f * f * g
+            sd = np.abs(d) * math.sqrt(max(float(self.cov[3, 3]), 0.0))
+            return np.asarray(sd * self._aperture(f), dtype=np.float64)
         p0 = np.concatenate(([self.offset], self.weights, self.centres_px,
                              np.log(self.sigmas_px)))
         base = self._psf_part(f, p0)
