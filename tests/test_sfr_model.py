@@ -331,3 +331,18 @@ def test_the_procedure_tables_and_report_name_the_estimator() -> None:
     rows, _ = edge_tables([(spec, noisy), (spec, clean), (spec, "no edge")], (512.0, 640.0))
     assert [r["estimator"] for r in rows] == ["LSF model", "model-free", None]
     assert ("estimator", "estimator", "") in EDGE_COLUMNS
+
+
+def test_sparse_corner_bins_do_not_set_the_edge_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A long, steep edge (500 rows at 27.6 deg: 310 px across): the ROI's corners put a few
+    # pixels in the outermost bins, and one of them crossing 10 % of the step read the rise
+    # as ~200 px (window and LSF over the whole ROI, fit RMS 1.4 px).
+    import benchlab.analysis.sfr as sfr
+
+    img = synthetic_edge((500, 310), 27.6, 0.3, noise_sigma=0.03, bits=8,
+                         rng=np.random.default_rng(3)).astype(np.uint8)
+    res = measure_sfr(img, method="free")
+    assert res.fit.rms_px < 0.2 and res.lsf_windows[0].flat_half_px < 5.0
+    monkeypatch.setattr(sfr, "SPARSE_BIN_FRACTION", 0.0)
+    bad = measure_sfr(img, method="free")
+    assert bad.fit.rms_px > 1.0 and bad.lsf_windows[0].flat_half_px > 100.0

@@ -71,6 +71,13 @@ WARN_ANGLE_DEG = 2.0
 #: (MTF Mapper marks edges under ~25 px and recommends >= 35 px).
 MIN_EDGE_ROWS = 10
 WARN_EDGE_ROWS = 35
+#: Centroid passes after the first, wide one: each narrows the window to a few ESF widths
+#: around the last fit. A third lets a long, steep edge (500 rows at 28 deg drift 260 px
+#: across the ROI) recover from a first fit that the wide window's noise bent by several px.
+EDGE_PASSES = 2
+#: Bins with fewer pixels than this fraction of the median bin are left out of the rise the
+#: edge-fit window is set from (and of the ESF: :func:`_esf_samples`).
+SPARSE_BIN_FRACTION = 0.2
 #: Eq. 2.9 contrast between the ESF plateaus below which a warning is given (sfrmat: 20 %).
 LOW_CONTRAST = 0.2
 #: "No edge" (noise only): the ROI's 2-98 % gray-level spread must exceed this many noise
@@ -488,7 +495,7 @@ def _esf_samples(
     counts = prof.count
     filled = counts > 0
     typical = float(median(counts[filled]))
-    good = counts >= max(1.0, 0.2 * typical)
+    good = counts >= max(1.0, SPARSE_BIN_FRACTION * typical)
     idx = np.flatnonzero(good)
     centre = int(np.argmin(np.abs(prof.u_px)))
     left, right = idx[idx <= centre], idx[idx >= centre]
@@ -1048,14 +1055,17 @@ def measure_sfr(
     coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
     half_window = max(n_cols / 4.0, 4.0)
     rise = float("nan")
-    for _ in range(2):
+    for _ in range(EDGE_PASSES):
         predicted = np.polyval(coeffs, rows - r_mid)
         cents = _row_centroids(deriv, predicted, half_window)
         coeffs, keep = _fit_edge(rows - r_mid, cents, fit_order)
         # Window for the next pass: a few ESF widths around the fitted edge.
         u_tmp = _work_u(work.shape, coeffs, r_mid, polarity)
         coarse = bin_profile(u_tmp, work, 2.0 * bin_width_px)
-        ok = coarse.filled
+        # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin
+        # holds a few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
+        ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
+            median(coarse.count[coarse.filled])))
         rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
         if math.isfinite(rise):
             half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))

@@ -180,8 +180,13 @@ def _solve_linear(
     a = basis * w_sqrt[:, None]
     yw = y * w_sqrt
     # Normal equations: a handful of columns, well scaled (a constant and steps in 0..1).
-    coef = np.asarray(np.linalg.solve(a.T @ a, a.T @ yw), dtype=np.float64)
-    return coef, np.asarray(yw - a @ coef, dtype=np.float64), a
+    with np.errstate(all="ignore"):
+        coef = np.asarray(np.linalg.solve(a.T @ a, a.T @ yw), dtype=np.float64)
+        res = np.asarray(yw - a @ coef, dtype=np.float64)
+    if not (np.all(np.isfinite(coef)) and np.all(np.isfinite(res))):
+        # A trial step that drove a column to nothing (or to overflow): no unique weights.
+        raise np.linalg.LinAlgError("degenerate design")
+    return coef, res, a
 
 
 def _fit(
