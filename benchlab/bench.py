@@ -307,9 +307,10 @@ class Bench:
     ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], dict[str, Any]]:
         """One frame at these settings: ``(pixels, metadata)``.
 
-        ``fresh``: the frame is exposed wholly after this call - the buffer is cleared and the
-        frame that was already being exposed is dropped - so it shows the set-up as it is now
-        (a target just mounted, the LED just switched on), not a frame from before the change.
+        Without ``fresh`` the camera's newest buffered frame (``Camera.grab``), possibly
+        exposed before this call. ``fresh``: the frame is exposed wholly after this call - the
+        buffer is cleared and the frame that was already being exposed is dropped - so it shows
+        the set-up as it is now (a target just mounted, the LED just switched on).
         """
         camera = self._open_camera()
         try:
@@ -336,6 +337,19 @@ class Bench:
         if self.led is None:
             raise BenchError("no LED controller configured ([led] in the bench file)")
         self.led.on(channel, current_ma)
+
+    def led_current_step_ma(self, channel: int) -> float:
+        """The LED controller's current step on ``channel`` (mA): every current set is a whole
+        multiple of it; another is refused (``SettingOutOfRangeError``)."""
+        if self.led is None:
+            raise BenchError("no LED controller configured ([led] in the bench file)")
+        return self.led.current_step_ma(channel)
+
+    def led_max_current_ma(self, channel: int) -> float | None:
+        """The highest current ``channel`` can be set to: its ceiling on the current step."""
+        if self.led is None:
+            raise BenchError("no LED controller configured ([led] in the bench file)")
+        return self.led.max_current_ma(channel)
 
     def led_off(self, channel: int) -> None:
         if self.led is not None:

@@ -139,7 +139,29 @@ class Catalog:
         catalog = cls(root, conn)
         if fresh:
             catalog.reindex()
+        else:
+            catalog._reindex_marked()
         return catalog
+
+    def _reindex_marked(self) -> int:
+        """Re-read the sessions a migration marked (``needs_reindex``: labels an older schema
+        got wrong) from their folders; a folder that is gone keeps its migrated rows, unmarked.
+        Returns how many were re-read."""
+        rows = self.conn.execute(
+            "SELECT id, path FROM sessions WHERE needs_reindex = 1").fetchall()
+        done = 0
+        for session_id, path in rows:
+            folder = Path(path)
+            if is_session_folder(folder):
+                record = self.record(folder)  # a fresh row: unmarked
+                done += 1
+                if record.id == session_id:
+                    continue
+            with self._write() as conn:
+                conn.execute("UPDATE sessions SET needs_reindex = 0 WHERE id = ?", (session_id,))
+        if done:
+            log.info("%s: %d sessions re-read after the schema migration", self.path, done)
+        return done
 
     def close(self) -> None:
         self.conn.close()
@@ -418,6 +440,7 @@ def parse_since(text: str) -> str:
 def _session_dict(row: sqlite3.Row) -> dict[str, Any]:
     out = dict(row)
     out["devices"] = json.loads(out.pop("devices_json") or "{}")
+    out.pop("needs_reindex", None)  # the catalogue's own bookkeeping
     return out
 
 

@@ -72,7 +72,7 @@ CREATE INDEX figures_by_figure ON figures(view, quantity, orientation, element, 
 
 #: v3: a reading that is not resolved or aliased has no value (NULL, its text says which); v2
 #: stored the 0 its table holds, which trends drew as a measured 0. (v2 called aliased readings
-#: "unresolved": ``sessions reindex`` relabels them from the folders.) A Table 4.15 average that
+#: "unresolved": v4 has them re-read from their folders.) A Table 4.15 average that
 #: v2 took over such a 0 (a not-resolved half within the Monte Carlo match, 20 % of the
 #: frequency) has no value either. ``unreadable_version``: a
 #: latest results version that cannot be read (``error`` says why); ``results_version`` is then
@@ -89,7 +89,18 @@ UPDATE figures SET value = NULL WHERE quantity = 'modulation' AND text IN ('unre
 ALTER TABLE sessions ADD COLUMN unreadable_version INTEGER;
 """
 
-MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3)
+#: v4: ``needs_reindex`` marks sessions whose rows the folders must rebuild: every session
+#: with a reading labelled "unresolved", which v2 (and a v3 migrated from it) also called an
+#: aliased one. :meth:`benchlab.catalog.Catalog.open` re-reads marked sessions from their
+#: folders (once: a rebuilt row is unmarked; a folder that is gone keeps its migrated rows).
+_V4 = """
+ALTER TABLE sessions ADD COLUMN needs_reindex INTEGER NOT NULL DEFAULT 0;
+UPDATE sessions SET needs_reindex = 1 WHERE id IN (
+    SELECT session_id FROM figures WHERE text = 'unresolved');
+CREATE INDEX sessions_to_reindex ON sessions(id, path) WHERE needs_reindex = 1;
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

@@ -33,7 +33,9 @@ import logging
 import os
 import pickle
 import signal
+import sys
 import threading
+import warnings
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
@@ -68,10 +70,11 @@ def fork_usable() -> bool:
 
 
 def machine_busy() -> bool:
-    """Whether the 1-minute load average has reached the machine's CPU count (every core
-    already taken by other work on average)."""
+    """Whether the 1-minute load average has reached the CPUs this process may use (its
+    affinity mask: a container or ``taskset`` limit, not the machine's count) - every usable
+    core already taken by other work on average."""
     try:
-        return os.getloadavg()[0] >= (os.cpu_count() or 1)
+        return os.getloadavg()[0] >= usable_cpus()
     except (AttributeError, OSError):
         return False
 
@@ -121,12 +124,14 @@ class ForkedCall(Generic[T]):
         status = self._reap(kill=False)
         if status == _SENT and data:
             try:
-                value: T = pickle.loads(data)
+                value: T
+                value, caught = pickle.loads(data)
             except Exception as exc:  # any unpickling failure: compute here
                 _log.warning("%s: the child's result did not unpickle (%s); computing it here",
                              self.what, exc)
                 return None
             _log.debug("%s: computed in child process %d", self.what, self.pid)
+            _show_warnings(caught)
             return value
         if status == _UNPICKLABLE:
             _log.warning("%s: the child's result does not pickle; computing it here", self.what)
@@ -193,6 +198,7 @@ def start(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
 
 def fork_call(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
     """:func:`start` without the checks of :func:`fork_usable`; None if the fork failed."""
+    parent = os.getpid()
     read_fd, write_fd = os.pipe()
     # No stop signal between the fork and the child's registration (a handler raising there
     # would lose the child): they wait, blocked, until the child is known.
@@ -207,7 +213,7 @@ def fork_call(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
             _log.warning("%s: cannot fork (%s); computing it in this process", what, exc)
         else:
             if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
-                _child(call, read_fd, write_fd, mask)
+                _child(call, read_fd, write_fd, mask, parent)
             os.close(write_fd)
             job = ForkedCall(pid, read_fd, what)
     finally:
@@ -220,25 +226,68 @@ def fork_call(call: Callable[[], T], what: str) -> ForkedCall[T] | None:
     return job
 
 
+#: Warnings the child caught, as sent to the parent: (message, category, filename, lineno).
+_Caught = list[tuple[str, type[Warning], str, int]]
+
+
+def _show_warnings(caught: _Caught) -> None:
+    """Show, in the parent, the warnings the child's call raised: once, and only when the
+    child's value is used (when the child failed, the parent's own call raises them again).
+    The child already applied the warning filters, so they are shown, not filtered again."""
+    for message, category, filename, lineno in caught:
+        warnings.showwarning(message, category, filename, lineno)
+
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: the kernel kills this child when its parent dies (PR_SET_PDEATHSIG), so a
+    SIGKILLed parent leaves no child computing on; then check the parent did not die before
+    that was set (the child was reparented). The kernel acts when the forking *thread* ends:
+    :func:`start` forks only from a single-threaded process, whose one thread is the process."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass  # no prctl: the parent's close() and the broken pipe still end the child
+    if os.getppid() != parent:
+        os._exit(_RAISED)
+
+
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
 def _child(call: Callable[[], object], read_fd: int, write_fd: int,
-           mask: set[int | signal.Signals]) -> None:
+           mask: set[int | signal.Signals], parent: int) -> None:
     """Compute, send, and leave with :func:`os._exit` whatever happens: never return into the
     caller's stack (its ``finally`` blocks and exit handlers belong to the parent)."""
     status = _RAISED
     try:
+        _die_with_parent(parent)
         os.close(read_fd)
         _live.clear()  # the parent's other children are not this process's
         for sig in _STOP_SIGNALS:
             signal.signal(sig, signal.SIG_DFL)  # a stop signal just ends the child
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         data = b""
+        # Warnings are recorded (the filters and "once per place" registries as inherited),
+        # not printed, and shown by the parent if it uses the value: printed by the child as
+        # well, a warning of a call the parent repeats showed twice.
+        caught: _Caught = []
+
+        def record(message: Warning | str, category: type[Warning], filename: str,
+                   lineno: int, file: object = None, line: str | None = None) -> None:
+            caught.append((str(message), category, filename, lineno))
+
+        warnings.showwarning = record
         try:
             value = call()
-        except BaseException:  # the parent computes it again and raises
+        except BaseException:  # the parent computes it again and raises (and warns)
             pass
         else:
             try:
-                data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+                data = pickle.dumps((value, caught), protocol=pickle.HIGHEST_PROTOCOL)
                 status = _SENT
             except BaseException:
                 status = _UNPICKLABLE

@@ -136,7 +136,9 @@ class Camera(ABC, Generic[M]):
         self._do_set_gain(_finite("gain", gain))
 
     def grab(self, timeout_s: float | None = None) -> Frame[M]:
-        """The next frame taken with the current settings (driver default timeout if None)."""
+        """A frame taken with the current settings: in free-running mode the newest the camera
+        holds (waiting for one if none), in trigger mode the next in order (driver default
+        timeout if None)."""
         return self._do_grab(_timeout(timeout_s))
 
     @abstractmethod
@@ -202,10 +204,26 @@ class LightSource(SafeInstrument):
         """The highest current channel ``ch`` may be driven at (None: must stay dark)."""
         return self.ceilings_ma.get(ch)
 
+    @abstractmethod
+    def current_step_ma(self, ch: int) -> float:
+        """The smallest current change channel ``ch`` can make, in mA: every current it drives
+        is a whole multiple of it (known once open)."""
+
+    def max_current_ma(self, ch: int) -> float | None:
+        """The highest current channel ``ch`` can be set to: its ceiling rounded down to the
+        current step (None: no ceiling, must stay dark)."""
+        ceiling = self.ceiling_ma(ch)
+        if ceiling is None:
+            return None
+        step = self.current_step_ma(ch)
+        return round(math.floor(ceiling / step + 1e-9) * step, 9)
+
     def on(self, ch: int, current_ma: float) -> None:
-        """Light channel ``ch`` at ``current_ma``; checked against its ceiling first."""
+        """Light channel ``ch`` at ``current_ma``; checked against its ceiling and its current
+        step first (a current between two steps is refused, never rounded: see README)."""
         self._check_channel(ch)
         self._check_current(ch, current_ma)
+        self._check_step(ch, current_ma)
         self._do_on(ch, float(current_ma))
 
     def off(self, ch: int) -> None:
@@ -249,6 +267,17 @@ class LightSource(SafeInstrument):
         if current_ma > limit:
             raise SafetyLimitError(
                 f"{what}: {current_ma} mA exceeds the ceiling {limit} mA; nothing sent")
+
+    def _check_step(self, ch: int, current_ma: float) -> None:
+        """Refuse a current the hardware cannot drive (between two of its steps): rounding it
+        would light another current than asked - or none at all below the first step."""
+        step = self.current_step_ma(ch)
+        steps = current_ma / step
+        if abs(steps - round(steps)) > 1e-6:
+            lo, hi = (round(k * step, 9) for k in (math.floor(steps), math.floor(steps) + 1))
+            raise SettingOutOfRangeError(
+                f"{self.CHANNEL_NAME} {ch}: {current_ma:g} mA cannot be set, the {self.NAME} "
+                f"drives {step:g} mA steps (nearest: {lo:g} or {hi:g} mA); nothing sent")
 
     @abstractmethod
     def _do_on(self, ch: int, current_ma: float) -> None: ...

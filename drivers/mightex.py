@@ -216,6 +216,8 @@ class MightexCamera(Camera[FrameMeta]):
         self._resync_replies = False
         #: Frames read and dropped because they carried older settings (diagnostics).
         self.discarded_frames = 0
+        #: Older frames a normal-mode grab cleared unread to return the newest (diagnostics).
+        self.skipped_frames = 0
         self._sleep: Callable[[float], None] = time.sleep
         self._lock = threading.RLock()
 
@@ -501,7 +503,14 @@ class MightexCamera(Camera[FrameMeta]):
 
     @_locked
     def _do_grab(self, timeout_s: float | None) -> Frame[FrameMeta]:
-        """The next frame acquired with the current settings.
+        """The newest frame in the camera's buffer (normal mode), or the next frame in order
+        (trigger mode: one per trigger, none lost); waits for one if the buffer is empty.
+
+        Normal mode: the camera keeps up to ``buffer_count`` frames, oldest first, and 0x34
+        sends the oldest; so when several wait, the older ones are cleared unread (0x35 n-1,
+        counted in ``skipped_frames``) and the buffer asked again (0x33) before reading one.
+        A frame already in the buffer may have been exposed before this call: ``Bench.grab``
+        (``fresh``) clears the buffer and drops the exposure under way when that matters.
 
         ``timeout_s`` defaults to twice the frame period plus 5 s.
 
@@ -520,6 +529,7 @@ class MightexCamera(Camera[FrameMeta]):
             timeout_s = 2 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
         deadline = time.monotonic() + timeout_s
         discards = 0
+        skipped = False
         while True:
             status = self.buffer_status()
             if status.frames == 0:
@@ -534,6 +544,13 @@ class MightexCamera(Camera[FrameMeta]):
                 self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
                 discards += status.frames
                 self.discarded_frames += status.frames
+            elif status.frames > 1 and s.mode == "normal" and not skipped:
+                # Keep only the newest. Once per grab: a frame that arrives meanwhile (periods
+                # shorter than a USB round trip) is not chased, the next one read is at most a
+                # period older than the newest.
+                self._send(p.encode_clear_buffer(status.frames - 1))
+                self.skipped_frames += status.frames - 1
+                skipped = True
             else:
                 frame = self._read_frame()
                 t = frame[1]

@@ -169,7 +169,8 @@ def run_soak(
                 if kind == "stale":
                     epoch += 1
                     set_exposure(epoch)  # the change that leaves old frames in the buffer
-            discarded_before = cam.discarded_frames
+            # Stale frames are read and dropped, or cleared unread when newer ones wait.
+            discarded_before = cam.discarded_frames + cam.skipped_frames
             try:
                 frame = cam.grab(timeout_s=5.0)
             except (DeviceTimeoutError, ProtocolError, DeviceLostError) as exc:
@@ -184,7 +185,8 @@ def run_soak(
                     report.reconnects += 1
                 continue
             finally:
-                report.stale_discarded += cam.discarded_frames - discarded_before
+                report.stale_discarded += (cam.discarded_frames + cam.skipped_frames
+                                           - discarded_before)
             pixels = frame.pixels
             delivered.append((report.reconnects, frame.meta.timestamp_ms,
                               frame.meta.exposure_counts, frame.meta.gain_raw,

@@ -49,7 +49,9 @@ from benchlab.drivers.slc_protocol import (
     SlcMode,
     SlcNoReplyError,
     SlcUnknownCommandError,
+    current_unit_ma,
     module_family,
+    normal_max_ma,
     parse_current_reply,
     parse_device_info,
 )
@@ -67,11 +69,14 @@ ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledge
 LATE_REPLY_QUIET_S = 0.08
 
 
-# Families whose current unit is 0.1 mA, and NORMAL-mode maxima per family (section B.7).
-_DECI_MA_FAMILIES = ("FA", "FV", "XA", "XV")
-_NORMAL_MAX_MA = {"HA": 2000.0, "HV": 2000.0, "FA": 100.0, "FV": 100.0, "XA": 100.0, "XV": 100.0}
 _DEFAULT_NORMAL_MAX_MA = 1000.0
 _MAX_PROBE_CHANNELS = 16
+_MAX_STALE_ACKS = 2
+
+
+def _is_ack(raw: bytes) -> bool:
+    """An acknowledgement line (``## \\r\\n``; ``>##`` with echo on)."""
+    return raw.strip().lstrip(b">") == ACK.encode()
 
 
 class SlcController(LightSource):
@@ -114,7 +119,7 @@ class SlcController(LightSource):
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
             self._echo_off()
-            self._info = parse_device_info(self._query_text("DEVICEINFO"))
+            self._info = parse_device_info(self._device_info_text())
             self._configure_family(self._info.module)
             self._channel_count = self._count_channels()
             self._register_atexit()  # and SIGINT/SIGTERM/SIGHUP: _on_stop_signal
@@ -164,6 +169,12 @@ class SlcController(LightSource):
         ceiling = self._ceilings_ma.get(ch)
         return None if ceiling is None else min(ceiling, self._normal_max_ma)
 
+    def current_step_ma(self, ch: int) -> float:
+        """The module family's current step (B.7): 1 mA, 0.1 mA on FA/FV/XA/XV, 5 mA on CA."""
+        if self._ser is None:
+            raise DeviceError("LED controller is not open")
+        return round(self._step_wire * self._unit_ma, 9)
+
     # ---- channel commands ------------------------------------------------------------------
     def set_mode(self, ch: int, mode: SlcMode | int) -> None:
         """Select a channel's mode. NORMAL is only entered after its currents are verified."""
@@ -189,20 +200,27 @@ class SlcController(LightSource):
             raise SlcBadReplyError(cmd, f"unknown mode {payload!r}") from None
 
     def set_normal(self, ch: int, imax_ma: float, iset_ma: float) -> None:
-        """Store NORMAL-mode ceiling and working current (both checked against the ceiling)."""
+        """Store NORMAL-mode ceiling and working current (both checked against the ceiling).
+
+        Iset must be a whole number of current steps (:meth:`current_step_ma`); Imax, a limit,
+        is rounded down to the step.
+        """
         self._check_channel(ch)
         self._check_current(ch, imax_ma)
         self._check_current(ch, iset_ma)
+        self._check_step(ch, iset_ma)
         if iset_ma > imax_ma:
             raise SettingOutOfRangeError(
                 f"LED channel {ch}: Iset {iset_ma} mA above Imax {imax_ma} mA; nothing sent"
             )
-        self._command(f"NORMAL {ch} {self._wire(imax_ma)} {self._wire(iset_ma)}")
+        self._command(f"NORMAL {ch} {self._wire_limit(imax_ma)} {self._wire(iset_ma)}")
 
     def set_current(self, ch: int, iset_ma: float) -> None:
-        """Change the working current live (takes effect only in NORMAL mode)."""
+        """Change the working current live (takes effect only in NORMAL mode); a whole number
+        of current steps."""
         self._check_channel(ch)
         self._check_current(ch, iset_ma)
+        self._check_step(ch, iset_ma)
         self._command(f"CURRENT {ch} {self._wire(iset_ma)}")
 
     def get_current(self, ch: int) -> tuple[float, float]:
@@ -250,8 +268,12 @@ class SlcController(LightSource):
 
     # ---- checks (channel and ceiling: LightSource) ------------------------------------------
     def _wire(self, current_ma: float) -> int:
-        # Round down - to the hardware's current step too - so neither our rounding nor the
-        # controller's quantisation can push a value above its checked ceiling.
+        """A working current in wire units; already checked to be on the current step."""
+        return round(current_ma / self._unit_ma)
+
+    def _wire_limit(self, current_ma: float) -> int:
+        # A limit (Imax) rounds down - to the hardware's current step too - so neither our
+        # rounding nor the controller's quantisation can push it above its checked ceiling.
         wire = math.floor(current_ma / self._unit_ma + 1e-9)
         return wire - wire % self._step_wire
 
@@ -268,11 +290,21 @@ class SlcController(LightSource):
         except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
+    def _device_info_text(self) -> str:
+        """DEVICEINFO right after ECHOOFF, robust to ECHOOFF's optional ack coming late: an
+        ack line before the reply is skipped; an ack so late that DEVICEINFO timed out is
+        drained (with the reply behind it) by the late-reply rule and DEVICEINFO asked again."""
+        try:
+            return self._query_text("DEVICEINFO", skip_acks=True)
+        except SlcNoReplyError:
+            log.debug("LED controller: no DEVICEINFO reply at open; resynchronising once")
+            return self._query_text("DEVICEINFO", skip_acks=True)
+
     def _configure_family(self, module: str) -> None:
         family = module_family(module)
-        self._unit_ma = 0.1 if family in _DECI_MA_FAMILIES else 1.0
+        self._unit_ma = current_unit_ma(module)
         self._step_wire = round(CURRENT_STEP_MA.get(family, 0) / self._unit_ma) or 1
-        self._normal_max_ma = _NORMAL_MAX_MA.get(family, _DEFAULT_NORMAL_MAX_MA)
+        self._normal_max_ma = normal_max_ma(module)
 
     def _count_channels(self) -> int:
         m = re.match(r"SLC-[A-Z]{2}(\d\d)", self._info.module.upper() if self._info else "")
@@ -295,8 +327,13 @@ class SlcController(LightSource):
             raise DeviceError("LED controller is not open")
         return self._ser
 
-    def _exchange(self, command: str) -> str:
-        """Send one command, return the reply payload (stripped), with buffer hygiene."""
+    def _exchange(self, command: str, *, skip_acks: bool = False) -> str:
+        """Send one command, return the reply payload (stripped), with buffer hygiene.
+
+        ``skip_acks``: the command never answers ``##`` (DEVICEINFO), so up to
+        ``_MAX_STALE_ACKS`` ``##`` lines before its reply are the late ack of an earlier
+        command (ECHOOFF at open) and are discarded - the line is back in step.
+        """
         ser = self._port_or_raise()
         with self._io_lock:
             self._busy = True
@@ -307,6 +344,11 @@ class SlcController(LightSource):
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
                 raw = ser.read_until(REPLY_END)
+                for _ in range(_MAX_STALE_ACKS if skip_acks else 0):
+                    if not (raw.endswith(REPLY_END) and _is_ack(raw)):
+                        break
+                    log.debug("LED controller: discarded a late %r before %r", raw, command)
+                    raw = ser.read_until(REPLY_END)
                 two_replies = False
                 if not raw.endswith(REPLY_END):
                     self._late_reply = True  # silence or a cut-off line: the rest may follow
@@ -386,8 +428,8 @@ class SlcController(LightSource):
             raise SlcBadReplyError(command, f"expected '#<data>', got {text!r}")
         return text[1:].strip()
 
-    def _query_text(self, command: str) -> str:
-        text = self._exchange(command)
+    def _query_text(self, command: str, *, skip_acks: bool = False) -> str:
+        text = self._exchange(command, skip_acks=skip_acks)
         if text.startswith("#"):
             raise SlcBadReplyError(command, f"expected a bare text line, got {text!r}")
         return text

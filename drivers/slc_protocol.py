@@ -26,6 +26,24 @@ UNDEFINED = "is not defined"
 #: Families whose hardware sets currents in coarser steps than the wire unit (section B.7):
 #: CA drives the nearest 5 mA step (123-127 -> 125), so a value sent can come out higher.
 CURRENT_STEP_MA: dict[str, int] = {"CA": 5}
+#: Families without the TRIGGER mode (B.7).
+NO_TRIGGER_FAMILIES = ("MA", "CA")
+_NORMAL_MAX_MA = {"HA": 2000.0, "HV": 2000.0, "FA": 100.0, "FV": 100.0, "XA": 100.0,
+                  "XV": 100.0}
+
+
+def current_unit_ma(module: str) -> float:
+    """What one wire unit of current is (B.7): 0.1 mA on FA / FV / XA / XV, else 1 mA."""
+    return 0.1 if module_family(module) in ("FA", "FV", "XA", "XV") else 1.0
+
+
+def normal_max_ma(module: str) -> float:
+    """The NORMAL-mode maximum current of a module (B.7): 1000 mA unless its family says
+    otherwise; MA / CA modules with the -MU suffix drive 1200 mA."""
+    family = module_family(module)
+    if family in ("MA", "CA") and module.upper().split("/")[0].endswith("-MU"):
+        return 1200.0
+    return _NORMAL_MAX_MA.get(family, 1000.0)
 
 
 def module_family(module: str) -> str:

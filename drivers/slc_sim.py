@@ -20,11 +20,14 @@ from benchlab.drivers.slc_protocol import (
     ARGUMENT_ERROR,
     CURRENT_STEP_MA,
     EXECUTION_ERROR,
+    NO_TRIGGER_FAMILIES,
     REPLY_SUFFIX,
     UNDEFINED,
     SlcMode,
+    current_unit_ma,
     module_family,
 )
+from benchlab.drivers.slc_protocol import normal_max_ma as normal_max_ma_of
 
 _LINE_SPLIT = re.compile(rb"\n\r|\r\n|\r|\n")
 # Ten leading calibration fields as seen on a bench unit (one negative); drivers must skip them.
@@ -56,6 +59,9 @@ class SlcFaults:
     # between wait in the UART buffer and are answered after it, in order.
     late_reply: int = 0
     late_reply_s: float = 0.0
+    # ECHOOFF is acknowledged ("##", whatever ``echooff_ack``) this many wall seconds late,
+    # after the host stopped waiting for it (fw 3.1.8 acks it; older firmware does not).
+    late_echooff_ack_s: float = 0.0
     garbage: bytes | None = None  # answer the next command with these bytes instead
     drop_on_command: str | None = None  # drop the link when this verb arrives (before acting)
     out_of_range: int = 0  # next N queries answer with impossible values
@@ -92,7 +98,7 @@ class SimulatedSlc(PtyDevice):
         serial: str = "04-251013-011",
         firmware: str = "3.1.8",
         clock: Clock | None = None,
-        normal_max_ma: int = 1000,
+        normal_max_ma: int | None = None,
         pulsed_max_ma: int = 3500,
         echooff_ack: bool = False,
     ) -> None:
@@ -102,7 +108,10 @@ class SimulatedSlc(PtyDevice):
         self.module = module if module is not None else f"SLC-SA{channels:02d}-U/S"
         self.serial = serial
         self.firmware = firmware
-        self.normal_max_ma = normal_max_ma
+        # NORMAL maximum in wire units (B.7: 1000 mA, 2000 on HA/HV, 100.0 on FA/FV/XA/XV,
+        # 1200 on MA/CA -MU) unless given.
+        self.normal_max_ma = (normal_max_ma if normal_max_ma is not None else round(
+            normal_max_ma_of(self.module) / current_unit_ma(self.module)))
         # CA modules drive currents in 5 mA steps, to the nearest step (B.7: 123-127 -> 125).
         self.current_step_ma = CURRENT_STEP_MA.get(module_family(self.module), 1)
         self.pulsed_max_ma = pulsed_max_ma
@@ -161,6 +170,11 @@ class SimulatedSlc(PtyDevice):
 
     def _handle_line(self, line: str) -> None:
         f = self.faults
+        if f.late_echooff_ack_s > 0 and line.split()[0].upper() == "ECHOOFF":
+            self.echo = False
+            self._late = (time.monotonic() + f.late_echooff_ack_s, ACK.encode() + REPLY_SUFFIX)
+            f.late_echooff_ack_s = 0.0
+            return
         if f.late_reply > 0 and f.drop_on_command is None and f.no_reply == 0:
             f.late_reply -= 1
             self._late_out = bytearray()
@@ -188,7 +202,9 @@ class SimulatedSlc(PtyDevice):
             self._out(junk)
             return
         handler = self.commands.handler(self, verb)
-        if handler is None or verb in {v.upper() for v in f.undefined}:
+        if (handler is None or verb in {v.upper() for v in f.undefined}
+                or (verb.lstrip("?") in ("TRIGGER", "TRIGP")
+                    and module_family(self.module) in NO_TRIGGER_FAMILIES)):
             self._reply(f"    {words[0]} {UNDEFINED}")
             return
         try:

@@ -15,6 +15,7 @@ exposure list and reuses every frame already on disk.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.drivers.errors import SettingOutOfRangeError
 from benchlab.protocols.characterise_analysis import (
+    CURRENTS_EVENT,
     TRUTH_EVENT,
     analyze_characterise,
     config_step_id,
@@ -33,6 +36,8 @@ from benchlab.protocols.engine import Step, StepContext
 
 FLAT_TARGET = "flat"
 EXPOSURE_STEP_MS = 0.05
+#: The current grid when no controller says otherwise (FA/FV/XA/XV: 0.1 mA); on the bench the
+#: grid is the LED controller's own current step (``LightSource.current_step_ma``).
 CURRENT_STEP_MA = 0.1
 SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (diffuser or "
                 "back-lit flat target, lens off or defocused), lit by the LED; room dark. Dark "
@@ -40,15 +45,19 @@ SETUP_PROMPT = ("Characterisation set-up: uniform illumination of the sensor (di
 
 
 def _round_to(value: float, step: float, maximum: float) -> float:
-    return float(min(max(round(value / step) * step, step), maximum))
+    """``value`` on the grid of ``step`` (a whole number of steps, at least one, at most
+    ``maximum``, itself on the grid); rounded to 9 decimals so 3 x 0.1 reads 0.3."""
+    return round(min(max(round(value / step), 1) * step, maximum), 9)
 
 
-def sweep_points(params: CharacteriseParams, x_sat: float) -> list[float]:
+def sweep_points(params: CharacteriseParams, x_sat: float,
+                 current_step_ma: float | None = None) -> list[float]:
     """The swept values (exposure ms, or LED mA with ``vary = "led_current"``) for a
     saturating value ``x_sat``: log-spaced near dark, even in the middle, dense around
-    saturation and beyond; rounded to the camera's 0.05 ms (or 0.1 mA) steps."""
+    saturation and beyond; rounded to the camera's 0.05 ms steps (or the LED controller's
+    ``current_step_ma``: 1 mA on most SLC modules, 5 mA on CA, 0.1 mA on FA; default 0.1)."""
     p = params
-    step, start, maximum = _sweep_axis(p)
+    step, start, maximum = _sweep_axis(p, current_step_ma)
     lo = max(step, min(0.05 * x_sat, start) / 4)
     log_part = np.geomspace(lo, max(0.05 * x_sat, lo * 1.01), p.log_steps)
     lin_part = np.linspace(0.08 * x_sat, 0.85 * x_sat, p.linear_steps)
@@ -62,15 +71,25 @@ def sweep_exposures(params: CharacteriseParams, t_sat_ms: float) -> list[float]:
     return sweep_points(params, t_sat_ms)
 
 
-def _sweep_axis(p: CharacteriseParams) -> tuple[float, float, float]:
-    """(rounding step, probe start, maximum) of the swept quantity."""
+def _sweep_axis(p: CharacteriseParams,
+                current_step_ma: float | None = None) -> tuple[float, float, float]:
+    """(rounding step, probe start, maximum) of the swept quantity. An LED current sweep
+    stays on the controller's current step: the maximum is ``led.current_ma`` rounded down
+    to it, the probe start rounded to it (at least one step)."""
     if p.vary == "led_current":
-        return CURRENT_STEP_MA, p.probe_start_ma, p.led_current_ma
+        step = current_step_ma or CURRENT_STEP_MA
+        maximum = round(math.floor(p.led_current_ma / step + 1e-9) * step, 9)
+        if maximum < step:
+            raise SettingOutOfRangeError(
+                f"led.current_ma {p.led_current_ma:g} mA is below the LED controller's "
+                f"{step:g} mA current step: the current sweep would light nothing")
+        return step, _round_to(p.probe_start_ma, step, maximum), maximum
     return EXPOSURE_STEP_MS, p.probe_start_ms, p.max_exposure_ms
 
 
 def probe_saturation(
     grab: Callable[[str, float, bool], npt.NDArray[Any]], params: CharacteriseParams, bits: int,
+    current_step_ma: float | None = None,
 ) -> tuple[float, bool]:
     """Value of the swept quantity at which the lit frame saturates: double it from the probe
     start until the median stops rising (< 3 % for a doubling) or reaches the top code, then
@@ -79,7 +98,7 @@ def probe_saturation(
     ``grab(name, value, lit)`` returns a saved frame. Returns ``(x_sat, found)``; ``found`` is
     False when even the maximum (exposure or LED current) did not saturate.
     """
-    _, start, maximum = _sweep_axis(params)
+    step, start, maximum = _sweep_axis(params, current_step_ma)
     top = (1 << bits) - 1
     dark = float(np.median(grab("probe-dark", start, False)))
     x = start
@@ -92,7 +111,7 @@ def probe_saturation(
             break
         if x >= maximum:
             return maximum, False
-        x = min(2.0 * x, maximum)
+        x = min(round(2.0 * x, 9), maximum)  # twice a point on the grid is on it
     sat_level = history[-1][1]
     below = [(xx, lv) for xx, lv in history if lv - dark < 0.9 * (sat_level - dark)]
     if not below or below[-1][1] <= dark:
@@ -166,6 +185,7 @@ class CharacteriseProcedure:
             extra = {"gain": gain, "bits": bits, "led_channel": p.led_channel,
                      "vary": p.vary}
             by_current = p.vary == "led_current"
+            step_ma = self._current_step_ma(ctx)
 
             def frames(names: list[str], x: float, lit: bool,
                        more: dict[str, Any]) -> list[npt.NDArray[Any]]:
@@ -175,21 +195,40 @@ class CharacteriseProcedure:
                                     {**extra, **more})
 
             x_sat, found = probe_saturation(
-                lambda name, x, lit: frames([name], x, lit, {})[0], p, bits)
-            values = sweep_points(p, x_sat)
+                lambda name, x, lit: frames([name], x, lit, {})[0], p, bits, step_ma)
+            values = sweep_points(p, x_sat, step_ma)
+            step, _, maximum = _sweep_axis(p, step_ma)
+            x_stack = _round_to(p.stack_fraction * x_sat, step, maximum)
+            if by_current:  # the journal says which currents the sweep set, on which grid
+                ctx.session.log_event(CURRENTS_EVENT, step=ctx.step.id, current_step_ma=step_ma,
+                                      currents_ma=values, stack_current_ma=x_stack)
             ctx.report({"gain": gain, "bits": bits, "vary": p.vary,
                         "saturation_exposure_ms" if not by_current else "saturation_current_ma":
-                        x_sat, "probe_saturated": found, "steps": len(values)})
+                        x_sat, "probe_saturated": found, "steps": len(values),
+                        **({"current_step_ma": step_ma, "currents_ma": values}
+                           if by_current else {})})
             for i, x in enumerate(values):
                 frames([f"e{i:03d}-lit-a", f"e{i:03d}-lit-b"], x, True, {"sweep_index": i})
                 frames([f"e{i:03d}-dark-a", f"e{i:03d}-dark-b"], x, False, {"sweep_index": i})
-            step, _, maximum = _sweep_axis(p)
-            x_stack = _round_to(p.stack_fraction * x_sat, step, maximum)
             n = p.stack_frames
             frames([f"stack-lit-{k:03d}" for k in range(n)], x_stack, True, {"stack": "lit"})
             frames([f"stack-dark-{k:03d}" for k in range(n)], x_stack, False, {"stack": "dark"})
 
         return action
+
+    def _current_step_ma(self, ctx: StepContext) -> float | None:
+        """The LED controller's current step (None without a controller); a fixed current
+        (``vary = "exposure"``) it cannot set is refused here, before any light."""
+        p = self.params
+        if ctx.bench.led is None:
+            return None
+        step = ctx.bench.led_current_step_ma(p.led_channel)
+        steps = p.led_current_ma / step
+        if p.vary != "led_current" and abs(steps - round(steps)) > 1e-6:
+            raise SettingOutOfRangeError(
+                f"led.current_ma {p.led_current_ma:g} mA cannot be set: the LED controller "
+                f"drives {step:g} mA steps")
+        return step
 
     def _frames(self, ctx: StepContext, names: list[str], exposure_ms: float, gain: float,
                 lit: bool, current_ma: float, extra: dict[str, Any]) -> list[npt.NDArray[Any]]:
@@ -201,6 +240,8 @@ class CharacteriseProcedure:
         if lit and missing:
             ctx.check_abort()
             ctx.bench.led_on(p.led_channel, current_ma)
+            if ctx.bench.led is not None:  # the current the controller reports it drives
+                meta["led_current_set_ma"] = ctx.bench.led.current_ma(p.led_channel)
         try:
             return [self._acquire(ctx, n, exposure_ms, gain, meta) for n in names]
         finally:

@@ -32,6 +32,8 @@ from benchlab.protocols.engine import frames_of
 _SWEEP_NAME = re.compile(r"^e(\d{3})-(lit|dark)-([ab])$")
 #: Journal event recording the simulated sensor truth at set-up.
 TRUTH_EVENT = "simulator_truth"
+#: Journal event of an LED current sweep: the controller's step and the currents set.
+CURRENTS_EVENT = "sweep_currents"
 
 
 def config_step_id(gain: float, bits: int) -> str:
@@ -74,13 +76,13 @@ def sweep_statistics(
 
 
 def _current_ma(meta: Mapping[str, Any]) -> float:
-    """Relative irradiance of a lit frame: the LED current the controller reported in the
-    bench state (the simulated bench: after the driver's rounding), else the requested one."""
+    """Relative irradiance of a lit frame: the LED current the simulated LED drove (bench
+    state), else the one the controller reported after it was set, else the requested one."""
     state = (meta.get("bench") or {}).get("led_current_ma")
     channel = str(meta.get("led_channel", 1))
     if isinstance(state, Mapping) and state.get(channel) is not None:
         return float(state[channel])
-    return float(meta.get("led_current_ma") or 1.0)
+    return float(meta.get("led_current_set_ma") or meta.get("led_current_ma") or 1.0)
 
 
 def _le_columns(le: Any) -> dict[str, float | None]:
@@ -112,6 +114,8 @@ def analyze_characterise(
     """Tables and summary of a characterisation session (see the module docstring)."""
     sim = simulator_truth_record(session)
     truth = SensorTruth.from_mapping(sim["truth"]) if sim is not None else None
+    currents = {ev.get("step"): ev for ev in session.events()
+                if ev.get("kind") == CURRENTS_EVENT}  # the last per step (a resume repeats it)
     rows: list[dict[str, Any]] = []
     curve_rows: list[dict[str, Any]] = []
     truth_rows: list[dict[str, Any]] = []
@@ -130,6 +134,9 @@ def analyze_characterise(
         rows.append(row)
         entry: dict[str, Any] = {"gain": gain, "bits": bits, "measured": measured,
                                  "warnings": list(result.warnings)}
+        if sid in currents:  # an LED current sweep: the currents the controller was set to
+            entry["current_step_ma"] = currents[sid]["current_step_ma"]
+            entry["currents_set_ma"] = currents[sid]["currents_ma"]
         for i, pt in enumerate(sorted(points, key=lambda q: q.exposure_quantity)):
             curve_rows.append({
                 "gain": gain, "bits": bits, "exposure_ms": pt.exposure_ms,

@@ -183,3 +183,33 @@ def test_an_unreadable_latest_version_is_listed_not_hidden(
     with Catalog.open(root) as cat:
         (row,) = [r for r in cat.sessions() if r["id"] == "s0"]
         assert (row["results_version"], row["unreadable_version"], row["error"]) == (2, None, "")
+
+
+@pytest.mark.parametrize("from_version", [2, 3])
+def test_sessions_migrated_with_v2_labels_are_reread_from_their_folders(
+        root: Path, from_version: int) -> None:
+    # A v2 catalogue (and a v3 one migrated from it) called p2's aliased reading
+    # "unresolved", with a stored 0; its folder says aliased.
+    conn = sqlite3.connect(root / CATALOG_FILE, isolation_level=None)
+    migrate(conn, target=from_version)
+    for sid, path in (("p2", str((root / "p2").resolve())), ("gone", "/gone")):
+        conn.execute("INSERT INTO sessions (id, path, procedure, status, results_version, "
+                     "indexed_at) VALUES (?, ?, 'mtf', 'completed', 1, 'then')", (sid, path))
+        conn.execute("INSERT INTO figures (session_id, version, view, element, orientation, "
+                     "freq_lp_per_mm, quantity, value, text) VALUES (?, 1, 'forward', 'G2E1',"
+                     " 'tangential', 65.2, 'modulation', ?, 'unresolved')",
+                     (sid, 0.0 if from_version == 2 else None))  # v3 stores no value
+    conn.close()
+    with Catalog.open(root) as cat:
+        g2e1 = {(f["element"], f["orientation"]): (f["value"], f["text"])
+                for f in cat.show("p2")["figures"] if f["view"] == "forward"}
+        assert g2e1[("G2E1", "tangential")] == (None, "aliased")  # was (None, "unresolved")
+        assert g2e1[("G2E1", "sagittal")] == (None, "aliased")
+        # a folder that is gone keeps what the migration made of its rows
+        (gone,) = cat.show("gone")["figures"]
+        assert (gone["value"], gone["text"]) == (None, "unresolved")
+        marked = cat.conn.execute("SELECT count(*) FROM sessions WHERE needs_reindex = 1")
+        assert marked.fetchone()[0] == 0  # done once, not at every open
+        assert cat._reindex_marked() == 0
+    with Catalog.open(root) as cat:  # p0 and p1 were never in this catalogue: not added
+        assert sorted(s["id"] for s in cat.sessions()) == ["gone", "p2"]

@@ -8,6 +8,8 @@ from __future__ import annotations
 import logging
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -57,12 +59,16 @@ def test_the_childs_value_comes_back_unchanged_and_the_child_is_reaped(
 
 def test_an_exception_in_the_child_gives_no_value_and_no_warning(
         caplog: pytest.LogCaptureFixture) -> None:
+    ran = forked.SharedFlags(1)
+
     def fails() -> int:
+        ran.claim(0)
         raise ValueError("bad frame")
 
     with caplog.at_level(logging.DEBUG, logger="benchlab.forked"):
         got, pid = _run(fails)
     assert got is None and _reaped(pid)
+    assert pid != os.getpid() and not ran.claim(0)  # a child existed and ran the call
     assert caplog.records == []  # the caller computes it again and raises the same error
 
 
@@ -74,10 +80,12 @@ def test_an_exception_in_the_child_gives_no_value_and_no_warning(
 ])
 def test_a_child_that_dies_is_reported_and_not_waited_for(
         caplog: pytest.LogCaptureFixture, die: Callable[[], Any], said: str) -> None:
+    ran = forked.SharedFlags(1)
     t0 = time.monotonic()
     with caplog.at_level(logging.WARNING, logger="benchlab.forked"):
-        got, pid = _run(die)
+        got, pid = _run(lambda: (ran.claim(0), die())[1])
     assert got is None and _reaped(pid)
+    assert pid != os.getpid() and not ran.claim(0)  # a child existed and ran the call
     assert time.monotonic() - t0 < 10
     assert [r.getMessage() for r in caplog.records] == [f"test call: {said}; computing it here"]
 
@@ -128,6 +136,13 @@ def test_fork_only_where_safe_and_useful(monkeypatch: pytest.MonkeyPatch) -> Non
     assert forked.fork_usable()
     load[0] = 2.0
     assert not forked.fork_usable() and forked.machine_busy()
+    # busy for this process: 2 of 8 CPUs usable (affinity mask), load 2 (was os.cpu_count())
+    monkeypatch.setattr(os, "cpu_count", lambda: 8)
+    assert forked.machine_busy() and not forked.fork_usable()
+    load[0] = 1.9
+    assert not forked.machine_busy() and forked.fork_usable()
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    load[0] = 2.0
     monkeypatch.setenv(forked.SERIAL_ENV, "0")
     assert forked.fork_usable()  # forced
     monkeypatch.delenv(forked.SERIAL_ENV)
@@ -200,3 +215,69 @@ def test_flags_claimed_in_the_child_are_seen_by_the_parent() -> None:
                                                   True, True]
     assert not flags.claim(7) and flags.claim(8) and flags.claim(8)  # past the flags: always
 
+
+
+_PARENT = """
+import os, sys, time
+from benchlab import forked
+job = forked.fork_call(lambda: time.sleep(60), "orphan")
+print(job.pid, flush=True)
+time.sleep(60)
+"""
+
+
+def _gone(pid: int) -> bool:
+    """No such process, or a zombie (the reaper of orphans has not collected it yet)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
+
+
+def test_the_child_dies_with_a_sigkilled_parent() -> None:
+    parent = subprocess.Popen([sys.executable, "-c", _PARENT], stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        assert parent.stdout is not None
+        child = int(parent.stdout.readline())
+        assert not _gone(child)  # computing
+        parent.kill()  # SIGKILL: no finally, no atexit - only the kernel can end the child
+        parent.wait(10)
+        deadline = time.monotonic() + 5.0
+        while not _gone(child) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert _gone(child)  # without PR_SET_PDEATHSIG it slept on for its 60 s
+    finally:
+        parent.kill()
+        parent.wait(10)
+
+
+_WARNS = """
+import os, warnings
+from benchlab import forked
+parent = os.getpid()
+
+def call():
+    warnings.warn("from the call", UserWarning)
+    if os.getpid() != parent and {fail}:
+        raise ValueError("child fails")
+    return 42
+
+if {before}:
+    call()  # shown here; the same warning at the same place is not shown again (default)
+job = forked.fork_call(call, "warns")
+value = job.result()
+job.close()
+print(value if value is not None else call())
+"""
+
+
+@pytest.mark.parametrize(("fail", "before"), [(False, False), (True, False), (False, True)])
+def test_a_warning_of_the_call_is_shown_once(fail: bool, before: bool) -> None:
+    out = subprocess.run([sys.executable, "-c", _WARNS.format(fail=fail, before=before)],
+                         capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.strip() == "42"
+    # the child's value used: the parent shows the child's warning; the child failed: the
+    # parent's own call warns (the child's warning was never printed - it was, twice in all)
+    assert out.stderr.count("UserWarning: from the call") == 1, out.stderr

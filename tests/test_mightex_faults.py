@@ -129,7 +129,8 @@ def test_stale_frames_after_exposure_change_are_discarded() -> None:
         assert sim.buffered_frames == 3  # exposed with 10 ms, still in the camera
         frame = cam.grab()
         assert frame.meta.exposure_ms == 5.0 and np.all(frame.pixels == 50)
-        assert cam.discarded_frames == 3
+        # The two older ones cleared unread (newest first), the newest read and dropped.
+        assert (cam.skipped_frames, cam.discarded_frames) == (2, 1)
 
 
 def test_stale_frames_of_other_geometry_are_cleared_unread() -> None:

@@ -36,13 +36,20 @@ def test_manual_clock_fills_the_buffer_at_the_frame_period() -> None:
             cam.grab(timeout_s=0)  # a manual clock never jumps
         clock.advance(0.125)
         assert cam.buffer_status().frames == 2  # ready at 50 and 100 ms
+        sim.command_log.clear()
         first = cam.grab()
-        assert first.meta.timestamp_ms == 50
+        assert first.meta.timestamp_ms == 100  # the newest; the 50 ms frame cleared unread
+        assert list(sim.command_log) == [bytes.fromhex(h) for h in (
+            "33 01 00", "35 01 01", "33 01 00", "34 01 01")]
+        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 1
         clock.advance(10.0)  # 200 periods: the ring buffer keeps the newest 4
         assert cam.buffer_status().frames == 4
-        stamps = [cam.grab().meta.timestamp_ms for _ in range(4)]
-        assert stamps == sorted(stamps) and stamps[-1] - stamps[0] == 150
-        assert 10_000 <= stamps[-1] <= 10_125
+        assert cam.grab().meta.timestamp_ms == 10_100  # the last of 10.050 .. 10.100 s
+        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 4
+        with pytest.raises(DeviceTimeoutError):
+            cam.grab(timeout_s=0)
+        clock.advance(0.05)
+        assert cam.grab().meta.timestamp_ms == 10_150  # one waiting: read as is
 
 
 def test_virtual_clock_jumps_so_grab_never_waits() -> None:
@@ -133,3 +140,24 @@ def test_reset_restores_power_on_settings() -> None:
     sim.write_command(p.encode_work_mode("trigger", 12))
     sim.write_command(p.encode_reset())
     assert (sim.settings.gain_raw, sim.settings.mode, sim.settings.bits) == (8, 0, 8)
+
+
+def test_grab_clears_older_frames_once_and_does_not_chase_new_ones() -> None:
+    clock = ManualClock()
+    sim = SimulatedCamera(clock=clock, noise=False)
+    with _open(sim) as cam:
+        cam.configure(width=64, height=16, buffer_count=4)
+        cam.set_exposure_ms(50.0)
+        clock.advance(0.175)  # frames at 50, 100, 150 ms
+        send = cam._send
+
+        def send_then_a_frame(data: bytes) -> None:  # a frame arrives after every clear
+            send(data)
+            if data[0] == 0x35:
+                clock.advance(0.05)
+
+        cam._send = send_then_a_frame  # type: ignore[method-assign]
+        sim.command_log.clear()
+        assert cam.grab().meta.timestamp_ms == 150  # the newest when asked; 200 not chased
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34]
+        assert cam.skipped_frames == 2 and sim.buffered_frames == 1

@@ -32,6 +32,24 @@ def test_led_over_ceiling_is_an_error(capsys: pytest.CaptureFixture[str]) -> Non
     assert "exceeds the ceiling 100.0 mA; nothing sent" in capsys.readouterr().err
 
 
+def test_led_current_between_the_controllers_steps_is_an_error(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.drivers.slc_sim import SimulatedSlc
+
+    sim = SimulatedSlc(module="SLC-CA04-MU")  # 5 mA steps
+    port = sim.start()
+    try:
+        rc = main(["led", "--port", port, "--current-ma", "3", "--on", "--for-s", "0"])
+        assert rc == 1 and sim.channel_output_ma(1) == 0.0
+        assert capsys.readouterr().err.startswith(
+            "benchlab: error: LED channel 1: 3 mA cannot be set, the LED controller drives 5 mA"
+            " steps (nearest: 0 or 5 mA); nothing sent")
+        assert main(["led", "--port", port, "--current-ma", "5", "--on", "--for-s", "0"]) == 0
+        assert "led channel 1 on at 5 mA" in capsys.readouterr().out
+    finally:
+        sim.stop()
+
+
 def test_led_needs_port_or_simulate(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["led", "--off"]) == 1
     assert "--port" in capsys.readouterr().err

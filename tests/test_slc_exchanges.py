@@ -147,8 +147,16 @@ def test_channel_without_ceiling_is_refused(sim: SimulatedSlc) -> None:
         assert sim.transcript == []
 
 
-def test_fractional_currents_round_down(sim: SimulatedSlc, slc: SlcController) -> None:
-    slc.on(1, 99.9)
+def test_a_current_between_steps_is_refused_before_any_byte(
+        sim: SimulatedSlc, slc: SlcController) -> None:
+    assert slc.current_step_ma(1) == 1.0 and slc.max_current_ma(1) == 100.0
+    with pytest.raises(SettingOutOfRangeError, match=r"99.9 mA cannot be set.*1 mA steps "
+                       r"\(nearest: 99 or 100 mA\); nothing sent"):
+        slc.on(1, 99.9)
+    with pytest.raises(SettingOutOfRangeError, match="1 mA steps"):
+        slc.set_current(1, 0.5)
+    assert sim.transcript == [] and sim.channel_output_ma(1) == 0.0
+    slc.on(1, 99.0)
     assert ("host", b"NORMAL 1 100 99\n\r") in sim.transcript
 
 
@@ -191,18 +199,48 @@ def test_ca_simulator_drives_the_nearest_5_ma_step(ca_sim: SimulatedSlc) -> None
         assert ca_sim.channel_output_ma(1) == 125.0
 
 
-def test_ca_family_currents_round_down_to_the_5_ma_step(ca_sim: SimulatedSlc) -> None:
+def test_ca_family_refuses_a_current_between_its_5_ma_steps(ca_sim: SimulatedSlc) -> None:
     with SlcController(ca_sim.port, ceilings_ma={1: 123.0, 2: 100.0}) as c:
+        assert c.current_step_ma(1) == 5.0
+        assert c.max_current_ma(1) == 120.0 and c.max_current_ma(3) is None
         ca_sim.transcript.clear()
-        c.on(1, 123)  # the controller would drive 125 mA for 123: above the ceiling
+        for bad_ma in (3.0, 0.5, 122.0):  # 3 mA used to be sent as 0: nothing lit, no word
+            with pytest.raises(SettingOutOfRangeError, match=r"5 mA steps \(nearest: "):
+                c.on(1, bad_ma)
+        with pytest.raises(SettingOutOfRangeError, match=r"nearest: 0 or 5 mA"):
+            c.on(1, 3.0)
+        with pytest.raises(SafetyLimitError, match="ceiling"):
+            c.on(1, 125)  # on a step but above the 123 mA ceiling
+        assert ca_sim.transcript == [] and ca_sim.channel_output_ma(1) == 0.0
+        c.on(1, 120)  # Imax = the ceiling rounded down to the step: never 125
         assert ("host", b"NORMAL 1 120 120\n\r") in ca_sim.transcript
         assert ca_sim.channel_output_ma(1) == 120.0
-        c.set_current(1, 119.9)
-        assert ca_sim.channel_output_ma(1) == 115.0
-        assert c.get_current(1) == (120.0, 115.0)
-        c.on(2, 100)  # already on a step: sent as is
+        with pytest.raises(SettingOutOfRangeError, match="5 mA steps"):
+            c.set_current(1, 119.9)
+        c.set_current(1, 5)
+        assert ca_sim.channel_output_ma(1) == 5.0 and c.get_current(1) == (120.0, 5.0)
+        c.on(2, 100)
         assert ca_sim.channel_output_ma(2) == 100.0
     assert ca_sim.channel_output_ma(1) == 0.0
+
+
+def test_ca_mu_module_drives_1200_ma_and_has_no_trigger_mode() -> None:
+    sim = SimulatedSlc(module="SLC-CA04-MU")
+    sim.start()
+    try:
+        with SlcController(sim.port, ceilings_ma={1: 1500.0}) as c:
+            assert c.ceiling_ma(1) == 1200.0 and c.max_current_ma(1) == 1200.0
+            c.on(1, 1200)
+            assert sim.channel_output_ma(1) == 1200.0
+        import serial
+
+        with serial.Serial(sim.port, 9600, timeout=1.0) as ser:
+            ser.write(b"TRIGGER 1 100 0\n\r")
+            assert ser.read_until(b"\r\n") == b"    TRIGGER is not defined \r\n"
+    finally:
+        sim.stop()
+    assert SimulatedSlc(module="SLC-CA04-U").normal_max_ma == 1000
+    assert SimulatedSlc(module="SLC-FA04-U").normal_max_ma == 1000  # 100.0 mA in 0.1 mA units
 
 
 def test_channel_count_probed_when_module_missing() -> None:

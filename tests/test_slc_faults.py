@@ -221,3 +221,28 @@ def test_reply_later_than_the_next_commands_wait_is_not_taken_for_its_reply(
         with pytest.raises(SlcBadReplyError, match=r"two replies, the first b'#1 \\r\\n'"):
             c.is_on(2)  # read "#1", then its own "#0" followed: refused, not answered True
         assert c.is_on(2) is False and c.is_on(1) is True  # and the line is in step again
+
+
+@pytest.mark.parametrize("how", ["late_echooff_ack", "late_reply"])
+def test_echooff_ack_arriving_late_at_open_is_skipped(sim: SimulatedSlc, how: str) -> None:
+    # The ack comes after the driver's 0.1 s wait for it, while DEVICEINFO is already sent:
+    # it used to be read as DEVICEINFO's reply (open failed: "expected a bare text line").
+    if how == "late_echooff_ack":
+        sim.faults.late_echooff_ack_s = 0.3
+    else:  # the generic fault on the first command, with the fw 3.1.8 ack
+        sim.echooff_ack = True
+        sim.faults.late_reply, sim.faults.late_reply_s = 1, 0.3
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=1.0) as c:
+        assert c.device_info.serial == "04-251013-011" and c.channel_count == 4
+        c.on(1, 40)  # every later reply belongs to its own command
+        assert c.get_current(1) == (100.0, 40.0) and c.is_on(1)
+    assert (("dev", b"## \r\n") in sim.transcript) and _all_dark(sim)
+
+
+def test_echooff_ack_later_than_the_timeout_resynchronises_open(sim: SimulatedSlc) -> None:
+    sim.faults.late_echooff_ack_s = 0.7  # DEVICEINFO times out (0.5 s) behind it
+    with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.5) as c:
+        assert c.device_info.serial == "04-251013-011"
+        c.on(2, 30)
+        assert c.get_current(2) == (100.0, 30.0)
+    assert sum(b == b"DEVICEINFO\n\r" for b in sim.host_lines()) == 2 and _all_dark(sim)
