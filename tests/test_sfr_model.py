@@ -346,3 +346,25 @@ def test_sparse_corner_bins_do_not_set_the_edge_window(monkeypatch: pytest.Monke
     monkeypatch.setattr(sfr, "SPARSE_BIN_FRACTION", 0.0)
     bad = measure_sfr(img, method="free")
     assert bad.fit.rms_px > 1.0 and bad.lsf_windows[0].flat_half_px > 100.0
+
+
+def test_benchmark_tables_set_the_methods_side_by_side() -> None:
+    from benchlab.analysis.sfr_benchmark import (
+        format_by_length,
+        format_compare,
+        format_min_rows,
+        run_accuracy,
+        run_min_rows,
+    )
+
+    free = run_accuracy(2, seed=1, sigmas_px=(2.0,), snrs=(20.0, 500.0))
+    auto = run_accuracy(2, seed=1, sigmas_px=(2.0,), snrs=(20.0, 500.0), method="auto")
+    assert [b.method for b in free + auto] == ["free"] * 2 + ["auto"] * 2
+    assert auto[0].model_used == 1.0 and auto[1].model_used == 0.0  # SNR 20 / 500
+    assert free[0].mtf_within < auto[0].mtf_within == 1.0
+    text = format_compare(free, auto)
+    assert "passing both criteria: free 1/2, auto" in text and text.count("\n") == 5
+    assert "model 0.99x" in format_by_length({100: auto}) or auto[0].passed
+    rows = run_min_rows(cases_per_cell=2, sigmas_px=(3.0,), lengths=(100, 150))
+    assert rows[0][1] in (100, 150, None) and rows[0][2].method == "auto"
+    assert "3.0" in format_min_rows(rows)

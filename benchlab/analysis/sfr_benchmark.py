@@ -537,9 +537,13 @@ def format_compare(free: list[Bucket], other: list[Bucket]) -> str:
     return "\n".join(lines)
 
 
+#: Edge lengths :func:`run_min_rows` tries, shortest first.
+MIN_ROWS_LENGTHS = (100, 150, 200, 250, 300, 400, 500)
+
+
 def run_min_rows(
     cases_per_cell: int = 25, seed: int = 9, snr: float = 20.0,
-    lengths: tuple[int, ...] = (100, 150, 200, 250, 300, 400, 500), method: str = "auto",
+    lengths: tuple[int, ...] = MIN_ROWS_LENGTHS, method: str = "auto",
     sigmas_px: tuple[float, ...] = SIGMAS_PX,
 ) -> list[tuple[float, int | None, Bucket]]:
     """Per blur, the shortest edge (rows along it, from ``lengths``) read by ``method`` that
@@ -573,9 +577,11 @@ def format_min_rows(rows: list[tuple[float, int | None, Bucket]], snr: float = 2
                      f"{100 * b.mtf50_coverage:>5.1f} "
                      f"{model_floor_shortfall(sigma, snr, ROI_SHAPE[0]):>17.2f}x / "
                      f"{model_floor_shortfall(sigma, snr, b.rows):.2f}x")
-    lines.append("tried 100, 150, 200, 250, 300, 400, 500 rows in turn; model floor: the LSF "
-                 "model's Cramer-Rao floor over what 95 % within the tolerance needs (<= 1: "
-                 "reachable; a pass near 1x is partly luck of the draw)")
+    n = rows[0][2].cases if rows else 0
+    lines.append(f"tried {', '.join(map(str, MIN_ROWS_LENGTHS))} rows in turn, {n} cases "
+                 "each; model floor: the LSF model's Cramer-Rao floor "
+                 "over what 95 % within the tolerance needs (<= 1: reachable; a pass near 1x "
+                 "is partly the luck of the draw)")
     return "\n".join(lines)
 
 
