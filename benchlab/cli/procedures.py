@@ -107,6 +107,20 @@ def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO
         out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
 
 
+def _print_notes(doc: Mapping[str, Any], out: TextIO) -> None:
+    """What a results version warns about (e.g. clipped or skipped radiometry rows) and the
+    response calibration it used."""
+    summ = doc.get("summary") or {}
+    if not isinstance(summ, Mapping):
+        return
+    cal = summ.get("linearised")
+    if isinstance(cal, Mapping):
+        out.write(f"\nlinearised with {cal.get('file')} (sha256 {cal.get('sha256')}"
+                  + (f", session copy {cal['copy']}" if cal.get("copy") else "") + ")\n")
+    for warning in summ.get("warnings") or ():
+        out.write(f"benchlab: warning: {warning}\n")
+
+
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols import RunAborted, StepFailed
@@ -167,6 +181,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    _print_notes(outcome.summary, sys.stdout)
     if outcome.summary.get("summary", {}).get("procedure") == "characterise":
         from benchlab.protocols.characterise import run_notes
 
@@ -343,6 +358,7 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
             print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
     _print_tables(tables, sys.stdout, partial=partial)
+    _print_notes(summary, sys.stdout)
     if partial:
         print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
