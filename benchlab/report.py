@@ -159,6 +159,9 @@ def _tables(ctx: ReportContext) -> str:
                 "chart_offset_px"):
         if summ.get(key) is not None:
             notes.append(f"{key.replace('_', ' ')}: {summ[key]}")
+    chart = summ.get("chart")
+    if isinstance(chart, dict):  # e.g. an implied magnification off the configured one
+        notes += [f"chart finder warning: {w}" for w in chart.get("warnings") or ()]
     centre = summ.get("image_centre_rc")
     if centre:
         notes.append("image centre (row, col): " + ", ".join(f"{float(v):.1f}" for v in centre))

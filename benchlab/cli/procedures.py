@@ -107,6 +107,22 @@ def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO
         out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
 
 
+def chart_notes(summary: Mapping[str, Any]) -> list[str]:
+    """What read the forward view, and the chart finder's warnings (e.g. an implied
+    magnification that differs from the configured one: the frequencies are the found
+    chart's), from a results summary (``summary.json`` or its ``summary``)."""
+    summ = summary.get("summary", summary)
+    if not isinstance(summ, Mapping):
+        return []
+    lines = []
+    if summ.get("forward_estimator"):
+        lines.append(f"forward view read by: {summ['forward_estimator']}")
+    chart = summ.get("chart")
+    if isinstance(chart, Mapping):
+        lines += [f"warning: chart: {w}" for w in chart.get("warnings") or ()]
+    return lines
+
+
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols import RunAborted, StepFailed
@@ -167,6 +183,9 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    notes = chart_notes(outcome.summary)
+    if notes:
+        print("\n" + "\n".join(notes))
     if outcome.summary.get("summary", {}).get("procedure") == "characterise":
         from benchlab.protocols.characterise import run_notes
 
@@ -343,6 +362,9 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
             print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
     _print_tables(tables, sys.stdout, partial=partial)
+    notes = chart_notes(summary)
+    if notes:
+        print("\n" + "\n".join(notes))
     if partial:
         print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
