@@ -33,6 +33,7 @@ from benchlab.analysis.result import (
     NYQUIST_CYCLES_PER_PX,
     ModulationResult,
     eq29_modulation,
+    not_measurable,
     resolved,
     unresolved,
 )
@@ -238,7 +239,7 @@ def sine_fit(prep: PreparedROI) -> ModulationResult:
         f = _fold_alias(f_given) if f_given > NYQUIST_CYCLES_PER_PX else f_given
         if f * n < 1.0:
             warnings.append(f"less than one bar period in {n} px at {f:.4f} cycles/px: cannot fit")
-            return unresolved(name, prep.diagnostics(), warnings)
+            return not_measurable(name, prep.diagnostics(), warnings)
         f = _refine_frequency(profile, f, 0.05)
     k_max = _harmonics(f)
     while k_max > 1 and n - (2 + 2 * k_max) < 2:
