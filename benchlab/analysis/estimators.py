@@ -440,17 +440,34 @@ def _phase_gap(prep: PreparedROI) -> float:
 TINY_ROI_PIXELS = 100
 
 
-def _tiny_model_sd(prep: PreparedROI, series: ModulationResult, fast: bool) -> float:
+def _tiny_model_sd(series: ModulationResult, bars: ModulationResult, gap: float) -> float:
     """Model term (1 sigma) of the harmonic-series reading on a tiny ROI: the sampling-phase
-    term of its largest phase gap, and the disagreement with the bar-pattern model fitted to
-    the same pixels. A handful of lines across cannot tell a sine from a blurred square wave
-    (both fit, e.g. 5 lines at 4.7 px per period: series 0.43, bar model 0.29, truth 0.28), so
-    where the two models read differently the data do not pin the contrast down."""
-    term = _model_sd(series.modulation, _phase_gap(prep), 8)
-    bars = profile_fit(prep, fast)
+    term of its largest phase ``gap``, and the disagreement with the bar-pattern model fitted
+    to the same pixels (``bars``). A handful of lines across cannot tell a sine from a blurred
+    square wave (both fit, e.g. 5 lines at 4.7 px per period: series 0.43, bar model 0.29,
+    truth 0.28), so where the two models read differently the data do not pin the contrast
+    down."""
+    term = _model_sd(series.modulation, gap, 8)
     if bars.resolved:
         term = math.hypot(term, series.modulation - bars.modulation)
     return term
+
+
+#: A tiny ROI's bar-model reading within this (plus twice its noise term) of the contrast of
+#: the harmonic series' levels clamped into the data range confirms that the series rang past
+#: the data (G1E5T: 0.004-0.009 apart); on fine bars the bar model reads 0.1 away (G2E4S).
+CLAMPED_AGREEMENT = 0.01
+
+
+def _levels_outside_data(prep: PreparedROI, r: ModulationResult) -> bool:
+    """Whether a reading's dark or bright level lies outside the ROI's pixel values: a fitted
+    waveform overshooting the data (on the forward view's G1E5T the harmonic series put the
+    dark level at 19.4 below every pixel, min 22, and read 0.814 for a truth of 0.782 - more
+    than the scene's largest possible contrast)."""
+    if r.dark is None or r.bright is None:
+        return False
+    lo, hi = float(np.min(prep.pixels)), float(np.max(prep.pixels))
+    return min(r.dark, r.bright) < lo or max(r.dark, r.bright) > hi
 
 
 #: Bars within this angle (deg) of an image axis are axis-aligned for :func:`_few_periods`.
@@ -512,13 +529,48 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         warns = (*r.warnings, "bar phases sampled in a few clusters: harmonic-series fit")
         if not r.resolved:
             return r.with_updates(estimator=name, warnings=warns)
-        model = _tiny_model_sd(prep, r, fast)
+        bars = profile_fit(prep, fast)
+        model = _tiny_model_sd(r, bars, _phase_gap(prep))
+        if _levels_outside_data(prep, r):
+            # Levels beyond every pixel: the truncated series rings past the plateaus of
+            # coarse bars (G1E5T), or - on fine bars sampled at a few phases - the pixels
+            # never reach the true levels and the series is right (G2E4S). The contrast of
+            # its levels clamped into the data range bounds the overshoot.
+            lo, hi = float(np.min(prep.pixels)), float(np.max(prep.pixels))
+            dark = min(max(float(r.dark or 0.0), lo), hi)
+            bright = min(max(float(r.bright or 0.0), lo), hi)
+            clamped = eq29_modulation(dark, bright) if dark + bright > 0 else 0.0
+            overshoot = abs(r.modulation - clamped)
+            noise = bars.diagnostics.uncertainty_noise or bars.uncertainty
+            if (bars.resolved and not _levels_outside_data(prep, bars)
+                    and abs(bars.modulation - clamped) <= 2.0 * noise + CLAMPED_AGREEMENT):
+                # The bar model (levels within the data) reads the contrast the data's range
+                # gives: the series rang past the plateaus; the bar model reads the set, the
+                # two models' disagreement in its interval.
+                return _with_model_term(_few_periods(prep, bars), model, (
+                    "harmonic-series levels outside the data range: bar-model fit"))
+            model = math.hypot(model, overshoot)  # the series, its interval widened
+            warns = (*warns, "harmonic-series levels outside the data range: interval widened")
         sd = math.hypot(r.uncertainty, model)
         # The terms in the diagnostics too: a bootstrap (noise only) adds the model term back.
         diag = replace(r.diagnostics, uncertainty_noise=r.uncertainty, uncertainty_model=model)
         return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
                         diag, sd, warns, r.fundamental_modulation)
     return _few_periods(prep, profile_fit(prep, fast))
+
+
+def _with_model_term(r: ModulationResult, extra: float, warning: str) -> ModulationResult:
+    """``r`` with ``extra`` added (in quadrature) to its model term and ``warning`` added."""
+    if not r.resolved:
+        return r.with_updates(warnings=(*r.warnings, warning))
+    d = r.diagnostics
+    model = math.hypot(d.uncertainty_model or 0.0, extra)
+    sd = math.hypot(d.uncertainty_noise if d.uncertainty_noise is not None else r.uncertainty,
+                    model)
+    m = r.modulation
+    return r.with_updates(
+        uncertainty=sd, interval=(max(0.0, m - 1.96 * sd), min(1.0, m + 1.96 * sd)),
+        diagnostics=replace(d, uncertainty_model=model), warnings=(*r.warnings, warning))
 
 
 _PREPARED: dict[str, PreparedEstimator] = {
