@@ -3,7 +3,6 @@ lie outside the data without saying so and widening its interval (issue 9, revie
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from test_mtf_truth_seeds import camera_frame
 
