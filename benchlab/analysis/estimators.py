@@ -27,6 +27,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bargeometry import measure_geometry
 from benchlab.analysis.histogram import histogram_peak, manual_peaks
 from benchlab.analysis.profilefit import _model_sd, profile_fit
 from benchlab.analysis.result import (
@@ -573,12 +574,47 @@ def _with_model_term(r: ModulationResult, extra: float, warning: str) -> Modulat
         diagnostics=replace(d, uncertainty_model=model), warnings=(*r.warnings, warning))
 
 
+#: ``sinefit`` and ``variance`` read the bars along an image axis: measured bars more than this
+#: (deg, beyond twice the angle's uncertainty) off the nearest pixel axis get a warning. The
+#: issue's check: sinefit RMSE 0.023 on axis-aligned bars, 0.509 on oblique ones, variance 0.052
+#: and 0.246, with no word of it.
+OBLIQUE_WARN_DEG = 1.0
+
+
+def _oblique_warning(prep: PreparedROI, name: str) -> str | None:
+    """A warning when the bars' measured direction (:func:`measure_geometry`) is more than
+    :data:`OBLIQUE_WARN_DEG` off the pixel axes; None when not, or not measurable."""
+    f = prep.freq_cycles_per_px
+    prior = f if f and 0.0 < f < NYQUIST_CYCLES_PER_PX else None
+    try:
+        geom = measure_geometry(prep.pixels, prep.noise_sigma, prior, curvature=False)
+    except ValueError:
+        return None
+    if geom is None:
+        return None
+    angle = math.degrees(geom.theta_rad)
+    off = abs((angle + 45.0) % 90.0 - 45.0)
+    if off - 2.0 * math.degrees(geom.theta_sd_rad) <= OBLIQUE_WARN_DEG:
+        return None
+    return (f"bars {off:.1f} deg off the pixel axes: {name} reads along an axis, so its "
+            "reading is not the bars' contrast (use profilefit, which measures the direction)")
+
+
+def _axis_checked(estimator: PreparedEstimator, name: str) -> PreparedEstimator:
+    """``estimator`` with :func:`_oblique_warning` added to its result."""
+    def run(prep: PreparedROI) -> ModulationResult:
+        r = estimator(prep)
+        note = _oblique_warning(prep, name)
+        return r if note is None else r.with_updates(warnings=(*r.warnings, note))
+    return run
+
+
 _PREPARED: dict[str, PreparedEstimator] = {
     "profilefit": _profilefit,
     "profilefit-fast": lambda prep: _profilefit(prep, fast=True),
     "histogram": histogram_peak,
-    "sinefit": sine_fit,
-    "variance": variance_minus_noise,
+    "sinefit": _axis_checked(sine_fit, "sinefit"),
+    "variance": _axis_checked(variance_minus_noise, "variance"),
 }
 
 
