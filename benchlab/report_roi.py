@@ -110,6 +110,8 @@ def reading_text(r: RoiReading) -> str:
     if r.aliased:
         return "not resolved (aliased: above Nyquist)"
     if r.modulation is None:
+        if r.warnings.startswith("not measur"):
+            return r.warnings  # the reason says it already
         return "not measurable" + (f" ({r.warnings})" if r.warnings else "")
     if not r.resolved:
         return "not resolved"

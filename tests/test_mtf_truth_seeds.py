@@ -123,3 +123,26 @@ def test_radial_roi_under_one_period_is_not_measurable_never_a_zero() -> None:
     text = format_table([t412], TABLE_VIEWS["table_4_12"].columns)
     assert "not measurable" in text and "not resolved" not in text
     assert text.splitlines()[1].split()[-2:] == ["no", "yes"]  # aliased per orientation
+
+
+def test_report_and_catalogue_say_not_measurable_never_a_zero() -> None:
+    from benchlab.catalog_extract import _bar_table
+    from benchlab.report_roi import RoiReading, reading_text
+
+    row = {"object_lp_per_mm": 0.5, "image_lp_per_mm": 8.75, "sagittal_modulation": None,
+           "sagittal_resolved": False, "sagittal_aliased": False,
+           "sagittal_warnings": "not measurable (ROI spans < 1 bar period); less than one "
+                                "bar period across the ROI (40.1 px)",
+           "tangential_modulation": 0.0, "tangential_resolved": False,
+           "tangential_aliased": False, "tangential_warnings": ""}
+    s = RoiReading.from_row(row, "sagittal", label="radial 0.5 sagittal", view="radial",
+                            roi=[540, 1099, 580, 1149], estimator="profilefit")
+    assert s.state == "not-measurable"
+    assert reading_text(s).startswith("not measurable (ROI spans < 1 bar period)")
+    t = RoiReading.from_row(row, "tangential", label="radial 0.5 tangential", view="radial",
+                            roi=[540, 1099, 580, 1149], estimator="profilefit")
+    assert t.state == "unresolved" and reading_text(t) == "not resolved"
+    figures = {f.orientation: (f.value, f.text)
+               for f in _bar_table(1, "radial", [row], lambda r: "0.5")}
+    assert figures == {"sagittal": (None, "not measurable"),
+                       "tangential": (None, "unresolved")}
