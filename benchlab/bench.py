@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import os
 import threading
 import tomllib
 from collections.abc import Iterator, Mapping
@@ -202,7 +203,9 @@ class BenchConfig:
         cfg = cls.from_dict(data, str(p))
         calib = cfg.camera.response_calibration
         if calib is not None and not Path(calib).is_absolute():  # relative to the bench file
-            cam = dataclasses.replace(cfg.camera, response_calibration=str(p.parent / calib))
+            # absolute: a session records it, and a re-analysis may run from another folder
+            cam = dataclasses.replace(cfg.camera,
+                                      response_calibration=os.path.abspath(p.parent / calib))
             cfg = dataclasses.replace(cfg, camera=cam)
         return cfg
 

@@ -62,7 +62,7 @@ class TableChecker:
 
     def number(
         self, dotted: str, default: float, lo: float | None = None, hi: float | None = None,
-        *, lo_open: bool = False,
+        *, lo_open: bool = False, hi_open: bool = False,
     ) -> float:
         found, value = self.get(dotted, default)
         if not found:
@@ -75,8 +75,9 @@ class TableChecker:
             self.fail(dotted, f"must be finite, got {value}")
             return default
         below = lo is not None and (value <= lo if lo_open else value < lo)
-        if below or (hi is not None and value > hi):
-            rng = f"{'>' if lo_open else '>='} {lo}" if hi is None else f"in [{lo}, {hi}]"
+        if below or (hi is not None and (value >= hi if hi_open else value > hi)):
+            rng = (f"{'>' if lo_open else '>='} {lo}" if hi is None else
+                   f"in {'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}")
             self.fail(dotted, f"must be {rng}, got {value:g}")
             return default
         return value
@@ -109,7 +110,7 @@ class TableChecker:
 
     def numbers(
         self, dotted: str, default: tuple[float, ...], lo: float, hi: float,
-        *, lo_open: bool = False,
+        *, lo_open: bool = False, distinct: bool = True,
     ) -> tuple[float, ...]:
         found, value = self.get(dotted, default)
         if not found:
@@ -129,7 +130,7 @@ class TableChecker:
                 ok = False
             else:
                 out.append(float(v))
-        if ok and len(set(out)) != len(out):
+        if ok and distinct and len(set(out)) != len(out):
             self.fail(dotted, "has duplicate values")
             ok = False
         return tuple(out) if ok else default

@@ -19,7 +19,6 @@ from __future__ import annotations
 import io
 import json
 import shutil
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,7 +44,12 @@ from benchlab.analysis.viewsynth import (
 )
 from benchlab.analysis.viewsynth_calibrate import calibrate_from_rings, compare_tables
 from benchlab.drivers.errors import BenchlabError
-from benchlab.storage import atomic_write_bytes, atomic_write_text, sha256_file
+from benchlab.storage import (
+    atomic_write_bytes,
+    atomic_write_text,
+    make_staging_dir,
+    sha256_file,
+)
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -394,7 +398,7 @@ def _unwrap_held(
     except ValueError as exc:
         raise ViewSynthesisError(f"{session.path}: {exc}") from exc
     session.results_dir.mkdir(exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".unwrap-", suffix=".tmp", dir=session.results_dir))
+    staging = make_staging_dir(session.results_dir, ".unwrap-")
     rows: list[dict[str, Any]] = []
     try:
         for step_id, name, px in frames:

@@ -320,8 +320,11 @@ def _radiometry_figure(ctx: ReportContext) -> str:
     rows = ctx.tables.get("table_4_16", [])
     fig, ax = plt.subplots(figsize=(7, 4.5))
     pos = [r["position_mm"] for r in rows]
-    ax.plot(pos, [r["simulated_normalised"] for r in rows], "s--", label="simulated irradiance")
-    ax.plot(pos, [r["measured_normalised"] for r in rows], "o-", label="measured mean gray")
+    def values(key: str) -> list[float]:  # a clipped row has no number: a gap, not a point
+        return [float("nan") if r[key] is None else float(r[key]) for r in rows]
+
+    ax.plot(pos, values("simulated_normalised"), "s--", label="simulated irradiance")
+    ax.plot(pos, values("measured_normalised"), "o-", label="measured mean gray")
     ax.set_xlabel("LED field position (mm)")
     ax.set_ylabel("normalised to maximum")
     ax.set_ylim(0, 1.1)
@@ -335,7 +338,7 @@ def _radiometry_figure(ctx: ReportContext) -> str:
 def _radiometry_frames(ctx: ReportContext) -> str:
     import cv2
 
-    from benchlab.protocols.radiometry import mask_of, position_step_id
+    from benchlab.protocols.radiometry import position_step_id, reading_mask_of
 
     thr = float(ctx.session.params.get("analysis", {}).get("mask_threshold_fraction", 0.5))
     parts = []
@@ -344,7 +347,10 @@ def _radiometry_frames(ctx: ReportContext) -> str:
         mask_f, meas_f = ctx.frame(sid, "mask"), ctx.frame(sid, "measurement")
         if mask_f is None or meas_f is None:
             continue
-        mask = mask_of(mask_f[0], thr)
+        try:
+            mask = reading_mask_of(mask_f[0], meas_f[0], thr)
+        except ValueError:  # no LED in these frames: the notes above say the row was skipped
+            continue
         rows_idx, cols_idx = np.nonzero(mask)
         meas = meas_f[0]
         if rows_idx.size:
@@ -364,6 +370,27 @@ def _radiometry_frames(ctx: ReportContext) -> str:
                                      f"class='roi-label'>{r['position_mm']:g} mm</text>",
                                      f"LED at {r['position_mm']:g} mm"))
     return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
+
+
+def _radiometry_notes(ctx: ReportContext) -> str:
+    """The response calibration the readings were linearised with (file, sha256, the
+    session's copy) and every warning: clipped rows (no number) and skipped positions."""
+    summ = ctx.summary
+    cal = summ.get("linearised")
+    if isinstance(cal, dict):
+        rows: list[tuple[str, Any]] = [
+            ("response calibration", cal.get("file")), ("sha256", cal.get("sha256")),
+            ("session copy", cal.get("copy") or "- (session recorded before copies)"),
+            ("curve", f"gain {cal.get('gain')}, {cal.get('bits')}-bit, version "
+                      f"{cal.get('version')}")]
+        out = key_value_table(rows)
+    else:
+        out = "<p class='note'>No response calibration: raw codes were averaged.</p>"
+    warnings = [str(w) for w in summ.get("warnings") or ()]
+    if warnings:
+        out += ("<ul class='warnings radiometry-warnings'>"
+                + "".join(f"<li>{esc(w)}</li>" for w in warnings) + "</ul>")
+    return out
 
 
 def _chart(ctx: ReportContext) -> str:
@@ -400,6 +427,8 @@ SECTIONS: list[Section] = [
     Section("Frames with ROIs", _mtf_frames, ("mtf",), "frames"),
     Section("The USAF chart as found", _chart, ("mtf",), "chart"),
     Section("Evidence per ROI", _evidence, ("mtf",), "evidence"),
+    Section("Radiometry: calibration and warnings", _radiometry_notes, ("radiometry",),
+            "radiometry-notes"),
     Section("Radiometric fall-off (fig. 4.21)", _radiometry_figure, ("radiometry",), "falloff"),
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
     Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),

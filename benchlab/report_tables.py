@@ -61,7 +61,7 @@ TABLE_VIEWS: dict[str, TableView] = {
          ("measured_mean_gray", "mean gray", ".2f"),
          ("simulated_normalised", "sim. norm.", ".2f"),
          ("measured_normalised", "meas. norm.", ".2f"), ("difference", "difference", "+.2f"),
-         ("mask_pixels", "mask px", "")),
+         ("mask_pixels", "mask px", ""), ("clipped_pixels", "clipped px", "")),
     ),
     # Camera characterisation (benchlab run characterise): measured, and the simulator's truth.
     **{name: TableView(title, (
@@ -107,6 +107,8 @@ def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
             return "aliased"
         if row.get(f"{orient}_resolved") is False:
             return NOT_MEASURABLE if row.get(key) is None else "not resolved"
+    if row.get(key) is None and row.get("clipped_pixels"):
+        return "clipped"  # a radiometry row whose mean is only a lower bound: no number
     return cell(row.get(key), fmt)
 
 

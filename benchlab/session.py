@@ -29,8 +29,8 @@ import re
 import shutil
 import stat
 import sys
-import tempfile
 import threading
+import time
 from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from datetime import UTC, datetime
@@ -50,6 +50,7 @@ from benchlab.storage import (
     fsync_tree,
     json_rows_text,
     load_frame_tiff,
+    make_staging_dir,
     save_frame_tiff,
     sha256_file,
     write_new_file,
@@ -67,6 +68,9 @@ OWNER_FILE = "owner.lock"
 #: Step ids, frame names and table names become file names: keep them plain.
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
+#: A frame taken again after its earlier takes were rejected: ``<step>__<name>.take2.tiff``.
+_TAKE_MARK = ".take"
+_TAKE_RE = re.compile(r"\.take\d+$")
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
 #: Flush policy of a results version: "syncfs" (files written, then ONE flush of the file
@@ -112,6 +116,25 @@ def session_holder(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
         return None
     finally:
         os.close(fd)
+
+
+#: How long :meth:`Session.hold` keeps trying a lock that is taken: a reader asking who
+#: holds it (:func:`session_holder`) takes it shared for microseconds, which is not "busy".
+HOLD_RETRY_S = 0.05
+
+
+def _lock_exclusive(fd: int) -> bool:
+    """Take the owner lock; False when another process still holds it after
+    :data:`HOLD_RETRY_S`."""
+    deadline = time.monotonic() + HOLD_RETRY_S
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.002)
 
 
 def describe_holder(holder: Mapping[str, Any]) -> str:
@@ -224,6 +247,8 @@ class Session:
         self._events_cache: tuple[tuple[int, ...], list[dict[str, Any]]] | None = None
         #: :meth:`_frame_records` of that journal (same identity).
         self._records_cache: tuple[tuple[int, ...], dict[str, dict[str, Any]]] | None = None
+        #: :meth:`rejected_frames` of that journal (same identity).
+        self._rejected_cache: tuple[tuple[int, ...], dict[str, str]] | None = None
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
@@ -352,9 +377,7 @@ class Session:
             raise SessionError(f"{path}: cannot take the session's owner lock "
                                f"({(exc.strerror or str(exc)).lower()}); is the session "
                                "folder read-only?") from exc
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+        if not _lock_exclusive(fd):
             holder = session_holder(self.path) or {}
             os.close(fd)
             raise SessionBusyError(f"{self.path}: session is in use by {describe_holder(holder)}"
@@ -556,11 +579,13 @@ class Session:
         raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
 
     # ------------------------------------------------------------------ frames
-    def frame_path(self, step_id: str, name: str) -> Path:
-        """Where the frame ``name`` of step ``step_id`` is (or would be) saved."""
+    def frame_path(self, step_id: str, name: str, take: int = 1) -> Path:
+        """Where the frame ``name`` of step ``step_id`` is (or would be) saved; ``take`` > 1:
+        a frame taken again after the earlier ones were rejected (:meth:`reject_frames`)."""
         _check_name("step id", step_id)
         _check_name("frame name", name)
-        return self.frames_dir / f"{step_id}__{name}.tiff"
+        suffix = f"{_TAKE_MARK}{take}" if take > 1 else ""
+        return self.frames_dir / f"{step_id}__{name}{suffix}.tiff"
 
     def save_frame(
         self, step_id: str, name: str, pixels: npt.NDArray[Any], metadata: Mapping[str, Any]
@@ -572,7 +597,15 @@ class Session:
         FrameExistsError
             If this step already saved a frame with this name; the saved one is untouched.
         """
-        path = self.frame_path(step_id, name)
+        if name in self.step_frames(step_id):
+            raise FrameExistsError(f"{self.frame_path(step_id, name)}: frame already saved; "
+                                   "frames are never overwritten")
+        take = 1  # the first file name no frame (rejected or not) has used
+        while (self.frame_path(step_id, name, take).exists()
+               or self.frame_path(step_id, name, take).relative_to(self.path).as_posix()
+               in self._frame_records()):
+            take += 1
+        path = self.frame_path(step_id, name, take)
         meta = {**_plain(metadata), "step_id": step_id, "frame_name": name}
         try:
             save_frame_tiff(path, pixels, meta, overwrite=False)
@@ -619,6 +652,7 @@ class Session:
             if rel in known or "__" not in path.stem:
                 continue
             step_id, name = path.stem.split("__", 1)
+            name = _TAKE_RE.sub("", name)  # a take after rejected frames: the same frame name
             try:
                 load_frame_tiff(path)
             except FrameFileError as exc:
@@ -627,12 +661,39 @@ class Session:
             self._record_frame(path, step_id, name, recovered=True)
 
     def step_frames(self, step_id: str) -> dict[str, Path]:
-        """Frames saved by a step: ``name -> path``."""
+        """Frames saved by a step and not rejected: ``name -> path`` (the latest take)."""
+        rejected = self._rejected()
         return {
             str(ev["name"]): self.path / str(ev["file"])
             for ev in self._frame_records().values()
-            if ev.get("step_id") == step_id
+            if ev.get("step_id") == step_id and str(ev["file"]) not in rejected
         }
+
+    def rejected_frames(self) -> dict[str, str]:
+        """Frames set aside by :meth:`reject_frames`: relative file -> reason. They stay on
+        disk and in the hash checks; no analysis and no resume uses them."""
+        return dict(self._rejected())
+
+    def _rejected(self) -> dict[str, str]:
+        key, events = self._journal()
+        cached = self._rejected_cache
+        if key is not None and cached is not None and cached[0] == key:
+            return cached[1]
+        found = {str(f): str(ev.get("reason", ""))
+                 for ev in events if ev.get("kind") == "frames_rejected"
+                 for f in ev.get("files") or ()}
+        if key is not None:
+            self._rejected_cache = (key, found)
+        return found
+
+    def reject_frames(self, step_id: str, names: Collection[str], reason: str) -> list[str]:
+        """Set aside a step's current frames ``names`` (their content cannot be used, e.g. no
+        LED in them): journalled, never deleted; the step then acquires new ones."""
+        current = self.step_frames(step_id)
+        files = [current[n].relative_to(self.path).as_posix() for n in names if n in current]
+        if files:
+            self.log_event("frames_rejected", step_id=step_id, files=files, reason=reason)
+        return files
 
     def frames(self) -> dict[str, str]:
         """Every recorded frame: relative file -> recorded sha256."""
@@ -679,8 +740,12 @@ class Session:
         FrameFileError
             If the file is unreadable.
         """
-        path = self.frame_path(step_id, name)
+        current = self.step_frames(step_id).get(name)
+        path = current or self.frame_path(step_id, name)
         rel = path.relative_to(self.path).as_posix()
+        if current is None and rel in self._rejected():
+            raise SessionError(f"{path}: frame was rejected ({self._rejected()[rel]}); "
+                               "no analysis uses it")
         ahead = self._prefetched.pop(rel, None)
         if ahead is not None and not ahead.cancelled():
             return ahead.result()
@@ -811,7 +876,7 @@ class Session:
                 raise SessionError(f"{self.path}: frames changed since acquisition: "
                                    f"{', '.join(bad)}; no results written")
         self.results_dir.mkdir(exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=".v-", suffix=".tmp", dir=self.results_dir))
+        tmp = make_staging_dir(self.results_dir, ".v-")
 
         def write(path: Path, text: str) -> None:
             if per_file:

@@ -52,6 +52,16 @@ def _current_umask() -> int:
 #: mkstemp creates files 0600; saved data must follow the umask like any other file so that
 #: analysts in the bench group can read the technician's frames.
 _FILE_MODE = 0o666 & ~_current_umask()
+#: The same for folders: mkdtemp creates them 0700 (a results version would be private).
+_DIR_MODE = 0o777 & ~_current_umask()
+
+
+def make_staging_dir(folder: str | os.PathLike[str], prefix: str, suffix: str = ".tmp") -> Path:
+    """A new, uniquely named folder in ``folder`` (to be filled, then renamed into place) with
+    the mode a plain ``mkdir`` would give it, not mkdtemp's private 0700."""
+    path = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=folder))
+    os.chmod(path, _DIR_MODE)
+    return path
 
 
 class FrameFileError(BenchlabError):

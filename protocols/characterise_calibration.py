@@ -11,6 +11,7 @@ not ours to edit: with ``--simulate`` and no ``--config``, the calibration goes 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import tomllib
@@ -21,7 +22,12 @@ from typing import Any
 
 from benchlab.analysis.photon_transfer import ResponseCurve, linearise
 from benchlab.drivers.errors import BenchlabError
-from benchlab.storage import atomic_write_json, atomic_write_text, sha256_file
+from benchlab.storage import (
+    atomic_write_bytes,
+    atomic_write_json,
+    atomic_write_text,
+    sha256_file,
+)
 
 FORMAT = "benchlab-response-calibration"
 _VERSION_RE = re.compile(r"^response-v(\d+)\.json$")
@@ -110,17 +116,30 @@ def load_calibration(path: str | Path) -> dict[str, Any]:
         if ref is None:
             raise CalibrationError(f"{p}: no [camera] response_calibration")
         p = Path(ref)
+    return parse_calibration(p, _read_bytes(p))
+
+
+def _read_bytes(p: Path) -> bytes:
     try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
+        return p.read_bytes()
     except FileNotFoundError as exc:
         raise CalibrationError(f"{p}: no such response calibration file") from exc
-    except (OSError, ValueError) as exc:
+    except OSError as exc:
+        raise CalibrationError(f"{p}: unreadable response calibration ({exc})") from exc
+
+
+def parse_calibration(p: Path, data: bytes) -> dict[str, Any]:
+    """A calibration document from the bytes of file ``p`` (checked), with ``path`` and the
+    ``sha256`` of exactly those bytes."""
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except ValueError as exc:
         raise CalibrationError(f"{p}: unreadable response calibration ({exc})") from exc
     if not isinstance(doc, Mapping) or doc.get("format") != FORMAT:
         raise CalibrationError(f"{p}: not a benchlab response calibration (format)")
     if not isinstance(doc.get("curves"), list) or not doc["curves"]:
         raise CalibrationError(f"{p}: curves: missing or empty")
-    return {**doc, "path": str(p), "sha256": sha256_file(p)}
+    return {**doc, "path": str(p), "sha256": hashlib.sha256(data).hexdigest()}
 
 
 def curve_for(doc: Mapping[str, Any], gain: float, bits: int) -> ResponseCurve:
@@ -149,14 +168,97 @@ def linearisation_record(doc: Mapping[str, Any], gain: float, bits: int) -> dict
             "gain": gain, "bits": bits}
 
 
+#: Where a session keeps its copy of the calibration it was started with.
+SESSION_CALIBRATION_DIR = "calibration"
+#: ``session.json`` key of the record ``{file, sha256, copy}`` written at session start.
+SESSION_CALIBRATION_KEY = "response_calibration"
+
+
+def read_run_calibration(config: Any) -> tuple[Path, bytes] | None:
+    """The calibration file a bench configuration references, read and checked before a run
+    starts (so a missing or damaged one is refused before any session exists); None when
+    there is none."""
+    ref = config.camera.response_calibration
+    if not ref:
+        return None
+    p = Path(ref).absolute()
+    data = _read_bytes(p)
+    parse_calibration(p, data)
+    return p, data
+
+
+def keep_session_calibration(session: Any, source: Path, data: bytes) -> dict[str, Any]:
+    """Copy the calibration into the session folder (atomic, never overwritten) and record
+    ``{file, sha256, copy}`` in ``session.json``: every analysis of the session uses the copy,
+    whatever the original file becomes."""
+    copy = Path(session.path) / SESSION_CALIBRATION_DIR / source.name
+    copy.parent.mkdir(exist_ok=True)
+    atomic_write_bytes(copy, data, overwrite=False)
+    record = {"file": str(source), "sha256": hashlib.sha256(data).hexdigest(),
+              "copy": copy.relative_to(session.path).as_posix()}
+    session.update_meta(**{SESSION_CALIBRATION_KEY: record})
+    session.log_event("response_calibration_recorded", **record)
+    return record
+
+
+def _earlier_sha256(session: Any) -> str | None:
+    """The calibration sha256 an earlier results version of a session used (sessions started
+    before the calibration was recorded at start): the oldest version that says."""
+    for version in session.result_versions():
+        try:
+            doc = json.loads((session.results_dir / f"v{version}" / "summary.json")
+                             .read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        used = (doc.get("summary") or {}).get("linearised") if isinstance(doc, dict) else None
+        if isinstance(used, Mapping) and used.get("sha256"):
+            return str(used["sha256"])
+    return None
+
+
+def session_calibration(session: Any) -> dict[str, Any] | None:
+    """The calibration document a session was run with, or None when it used none.
+
+    Read from the session's own copy (its sha256 checked against the record); a session
+    started before the copy existed reads the file its bench snapshot names, and is refused
+    when that file differs from the one an earlier results version used.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the file and both sha256 when the calibration is not the one recorded.
+    """
+    rec = session.meta.get(SESSION_CALIBRATION_KEY)
+    if isinstance(rec, Mapping) and rec.get("copy"):
+        copy = Path(session.path) / str(rec["copy"])
+        doc = parse_calibration(copy, _read_bytes(copy))
+        if doc["sha256"] != rec.get("sha256"):
+            raise CalibrationError(
+                f"{copy}: response calibration changed since the session started (recorded "
+                f"sha256 {rec.get('sha256')}, now {doc['sha256']}); not analysed")
+        return {**doc, "path": str(rec.get("file") or copy), "copy": str(rec["copy"])}
+    ref = ((session.params.get("bench") or {}).get("camera") or {}).get("response_calibration")
+    if not ref:
+        return None
+    doc = load_calibration(ref)
+    used = _earlier_sha256(session)
+    if used is not None and used != doc["sha256"]:
+        raise CalibrationError(
+            f"{Path(ref).absolute()}: not the response calibration this session was analysed "
+            f"with (sha256 then {used}, now {doc['sha256']}); not analysed")
+    return {**doc, "path": str(Path(ref).absolute())}
+
+
 def session_linearisation(
     session: Any, gain: float, bits: int
 ) -> tuple[Callable[[Any], Any], dict[str, Any] | None]:
-    """``(linearise_fn, record)`` for a session: the calibration its bench snapshot references,
-    or the identity and None when there is none."""
-    ref = ((session.params.get("bench") or {}).get("camera") or {}).get("response_calibration")
-    if not ref:
+    """``(linearise_fn, record)`` for a session: the calibration it was run with
+    (:func:`session_calibration`), or the identity and None when there is none."""
+    doc = session_calibration(session)
+    if doc is None:
         return (lambda pixels: pixels), None
-    doc = load_calibration(ref)
     curve = curve_for(doc, gain, bits)
-    return (lambda pixels: linearise(pixels, curve)), linearisation_record(doc, gain, bits)
+    record = linearisation_record(doc, gain, bits)
+    if doc.get("copy"):
+        record["copy"] = doc["copy"]
+    return (lambda pixels: linearise(pixels, curve)), record

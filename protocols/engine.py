@@ -12,6 +12,7 @@ reason: normal end, a failed step, abort, Ctrl-C.
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 import time
@@ -135,10 +136,26 @@ class StepContext:
         self.runner.session.save_frame(self.step.id, name, pixels, metadata)
         return pixels
 
+    def reject_frames(self, names: Sequence[str], reason: str) -> None:
+        """Set aside this step's frames ``names`` (their content is unusable): journalled,
+        kept on disk, never analysed; a retry of the step acquires new ones."""
+        self.runner.session.reject_frames(self.step.id, names, reason)
+
     def report(self, data: Mapping[str, Any]) -> None:
         """Hand a partial result (e.g. one ROI's modulation) to the UI."""
         if self.runner.on_result is not None:
             self.runner.on_result(self.step, data)
+
+
+def procedure_steps(procedure: Procedure) -> list[Step]:
+    """A procedure's steps, refused when two share an id (each id names its journal entries
+    and frame files)."""
+    steps = procedure.steps()
+    ids = [s.id for s in steps]
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise BenchlabError(f"{procedure.name}: duplicate step ids {', '.join(dup)}")
+    return steps
 
 
 def _never_prompted(step: Step, message: str) -> bool:
@@ -188,11 +205,8 @@ class Runner:
         self.abort = abort or threading.Event()
         self.on_result = on_result
         self.estimator = estimator
-        self.steps: list[Step] = procedure.steps()
+        self.steps: list[Step] = procedure_steps(procedure)
         self._restored = False
-        ids = [s.id for s in self.steps]
-        if len(set(ids)) != len(ids):  # pragma: no cover - a programming error in a procedure
-            raise ValueError(f"duplicate step ids in {procedure.name}")
 
     # -- state ------------------------------------------------------------------------------
     def completed(self) -> set[str]:
@@ -262,6 +276,10 @@ class Runner:
             if not all_done:
                 record_in_catalogue(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
+        if results is not None and _partial(results):
+            # a resume with every step already done (stopped after the analysis step) after a
+            # re-analysis of the unfinished session: the final results are not partial
+            results = Path(self.procedure.analyze(self.session, self.estimator))
         if results is None:  # every procedure ends with an analysis step that writes them
             raise BenchlabError(f"{self.procedure.name}: the run ended without results")
         self.session.finish()
@@ -329,6 +347,15 @@ class Runner:
             ctx.ask(f"Resuming: check the set-up is still as at '{last_manual.title}': "
                     f"{last_manual.prompt}")
         self.session.log_event("resumed", completed=sorted(done))
+
+
+def _partial(results: Path) -> bool:
+    """Whether a results version says it came from an unfinished session."""
+    try:
+        return bool(json.loads((results / "summary.json").read_text(encoding="utf-8"))
+                    .get("partial"))
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def frames_of(session: Session, step_ids: Sequence[str]) -> dict[str, dict[str, npt.NDArray[Any]]]:

@@ -232,6 +232,26 @@ def _check_bench(
                        f"outside the travel {lo:g}..{hi:g} mm")
 
 
+def position_step_id(position_mm: float) -> str:
+    """The radiometry step of a field position (also its frames' file names)."""
+    return f"position-{position_mm:g}"
+
+
+def _check_step_ids(c: _Checker, positions: tuple[float, ...]) -> None:
+    """Each position is one step, named ``position-<mm :g>``: positions that differ below that
+    precision would be one step twice."""
+    first: dict[str, int] = {}
+    for i, pos in enumerate(positions):
+        sid = position_step_id(pos)
+        if sid in first:
+            j = first[sid]
+            how = "repeats" if pos == positions[j] else "is too close to"
+            c.fail(f"positions.field_mm[{i}]", f"{pos!r} mm {how} positions.field_mm[{j}] "
+                   f"({positions[j]!r} mm): both would be step {sid}")
+        else:
+            first[sid] = i
+
+
 def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
     exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
@@ -242,15 +262,22 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
     bits = c.choice("camera.bits", d.bits, (8, 12))
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
-    positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0)
+    positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0,
+                          distinct=False)  # _check_step_ids names each repeat
     offset = c.number("positions.stage_offset_mm", d.stage_offset_mm, -1000.0, 1000.0)
+    # Two positions may well see the same irradiance: equal values are allowed here.
     irr = c.numbers("analysis.simulated_irradiance_mw_per_mm2",
-                    d.simulated_irradiance_mw_per_mm2, 0.0, 1e9)
+                    d.simulated_irradiance_mw_per_mm2, 0.0, 1e9, distinct=False)
+    if irr and max(irr) <= 0:
+        c.fail("analysis.simulated_irradiance_mw_per_mm2", "needs a value above 0 (Table 4.16 "
+               "normalises to the largest)")
     if len(irr) != len(positions):
         c.fail("analysis.simulated_irradiance_mw_per_mm2",
                f"has {len(irr)} values but positions.field_mm has {len(positions)}")
+    # open at both ends: at 1.0 no pixel is above the peak, so no mask could ever be found
     thr = c.number("analysis.mask_threshold_fraction", d.mask_threshold_fraction, 0.0, 1.0,
-                   lo_open=True)
+                   lo_open=True, hi_open=True)
+    _check_step_ids(c, positions)
     if limits is not None:
         _check_bench(c, limits, channel, current, positions, offset)
     return RadiometryParams(

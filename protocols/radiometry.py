@@ -11,17 +11,25 @@ never leaves it lit (and the runner's safe state repeats the off).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.radiometry import led_mask, mean_in_mask, radiometry_table
+from benchlab.analysis.radiometry import (
+    clipped_in_mask,
+    led_mask,
+    mean_in_mask,
+    radiometry_table,
+    reading_mask,
+)
+from benchlab.analysis.roi import saturation_code
 from benchlab.drivers.errors import BenchlabError, DeviceError
 from benchlab.protocols.engine import Step, StepContext
-from benchlab.protocols.params import RadiometryParams
+from benchlab.protocols.params import RadiometryParams, position_step_id
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -31,24 +39,75 @@ MASK_FRAME = "mask"
 MEASUREMENT_FRAME = "measurement"
 
 
-def position_step_id(position_mm: float) -> str:
-    return f"position-{position_mm:g}"
-
-
 def mask_of(mask_frame: npt.NDArray[Any], threshold_fraction: float) -> npt.NDArray[np.bool_]:
-    """LED mask: pixels of the high-gain frame above ``threshold_fraction`` of the way from its
-    median (the dark background) to its peak; the largest blob only."""
+    """Where the LED is: pixels of the high-gain frame above ``threshold_fraction`` of the way
+    from its median (the dark background) to its peak; the largest blob only. (It only
+    locates the LED: the reading's own mask is :func:`reading_mask_of`.)"""
     img = np.asarray(mask_frame, dtype=np.float64)
     background, peak = float(np.median(img)), float(img.max())
     return led_mask(img, threshold=background + threshold_fraction * (peak - background))
 
 
+def reading_mask_of(mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any],
+                    threshold_fraction: float) -> npt.NDArray[np.bool_]:
+    """The pixels a reading averages (:func:`benchlab.analysis.radiometry.reading_mask`)."""
+    return reading_mask(mask_frame, measurement_frame, threshold_fraction)
+
+
+def saturation_code_of(frame: npt.NDArray[Any], bits: Any = None) -> float:
+    """The code a frame clips at: ``2**bits - 1`` of its recorded bit depth, else what the
+    data say (:func:`benchlab.analysis.roi.saturation_code`), else its maximum."""
+    raw = np.asarray(frame)
+    if isinstance(bits, int) and not isinstance(bits, bool) and 1 <= bits <= 16:
+        top = float(2 ** bits - 1)
+        if raw.size == 0 or float(raw.max()) <= top:
+            return top
+    code = saturation_code(raw, 1.0)
+    return float(code) if code is not None else float(raw.max())
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One position's reading: mean inside the mask, the mask's size, and how many of its
+    pixels are clipped in the measurement frame (then the mean is only a lower bound)."""
+
+    mean_gray: float
+    mask_pixels: int
+    clipped_pixels: int
+    saturation_code: float
+
+
 def reading(
-    mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any], threshold_fraction: float
-) -> tuple[float, int]:
-    """Mean gray of the measurement frame inside the LED mask, and the mask's pixel count."""
-    mask = mask_of(mask_frame, threshold_fraction)
-    return mean_in_mask(measurement_frame, mask), int(mask.sum())
+    mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any], threshold_fraction: float,
+    *, bits: Any = None, linear: Callable[[Any], Any] | None = None,
+) -> Reading:
+    """The reading of one position. ``bits``: the measurement frame's bit depth (its
+    saturation code); ``linear``: the response calibration, applied before the mask and mean
+    (clipping is counted on the raw codes).
+
+    Raises
+    ------
+    ValueError
+        No LED in the frames (:func:`reading_mask_of`).
+    """
+    meas = np.asarray(measurement_frame)
+    values = linear(meas) if linear is not None else meas
+    mask = reading_mask_of(mask_frame, values, threshold_fraction)
+    top = saturation_code_of(meas, bits)
+    return Reading(mean_in_mask(values, mask), int(mask.sum()),
+                   clipped_in_mask(meas, mask, top), top)
+
+
+def clipped_note(r: Reading) -> str:
+    """What a clipped row says instead of a number."""
+    return (f"clipped: {r.clipped_pixels} of {r.mask_pixels} mask pixels at the saturation "
+            f"code {r.saturation_code:g}; the mean ({r.mean_gray:.2f}) is only a lower bound "
+            "- lower the LED current or the exposure")
+
+
+class FrameContentError(BenchlabError):
+    """A position's frames cannot be read (no LED in them): they are journalled as rejected,
+    and a retry acquires new ones."""
 
 
 class RadiometryProcedure:
@@ -118,8 +177,21 @@ class RadiometryProcedure:
                                    gain=p.measurement_gain, extra=extra)
             finally:
                 ctx.bench.led_off(p.led_channel)
-            value, n = reading(mask, meas, p.mask_threshold_fraction)
-            ctx.report({"position_mm": pos, "measured_mean_gray": value, "mask_pixels": n})
+            try:
+                r = reading(mask, meas, p.mask_threshold_fraction, bits=p.bits)
+            except ValueError as exc:  # the frames, not the bench: a retry takes new ones
+                ctx.reject_frames((MASK_FRAME, MEASUREMENT_FRAME), str(exc))
+                raise FrameContentError(f"LED at {pos:g} mm: {exc}; the frames are set aside "
+                                        "and a retry takes new ones") from exc
+            if r.clipped_pixels:
+                ctx.session.log_event("frames_clipped", step=ctx.step.id,
+                                      clipped_pixels=r.clipped_pixels,
+                                      mask_pixels=r.mask_pixels)
+            # a clipped mean is no number: the live view says "clipped", as Table 4.16 will
+            shown: float | str = (r.mean_gray if not r.clipped_pixels else
+                                  f"clipped ({r.clipped_pixels} px at {r.saturation_code:g})")
+            ctx.report({"position_mm": pos, "measured_mean_gray": shown,
+                        "mask_pixels": r.mask_pixels, "clipped_pixels": r.clipped_pixels})
 
         return action
 
@@ -143,31 +215,70 @@ def analyze_radiometry(
     from benchlab.protocols.characterise_calibration import session_linearisation
 
     linear, record = session_linearisation(session, params.measurement_gain, params.bits)
-    rows: list[Mapping[str, Any]] = []
+    rows: list[dict[str, Any]] = []
+    skipped: list[dict[str, Any]] = []
     for pos, sim in zip(params.positions_mm, params.simulated_irradiance_mw_per_mm2, strict=True):
         sid = position_step_id(pos)
-        if not {MASK_FRAME, MEASUREMENT_FRAME} <= set(session.step_frames(sid)):
+        frames = session.step_frames(sid)
+        if not {MASK_FRAME, MEASUREMENT_FRAME} <= set(frames):
             continue  # not measured yet (an interrupted session): its results are partial
         mask, _ = session.load_frame(sid, MASK_FRAME)
-        meas, _ = session.load_frame(sid, MEASUREMENT_FRAME)
-        value, n = reading(mask, linear(meas), params.mask_threshold_fraction)
-        rows.append({"position_mm": pos, "simulated": sim, "measured": value, "mask_pixels": n})
+        meas, meta = session.load_frame(sid, MEASUREMENT_FRAME)
+        try:
+            got = reading(mask, meas, params.mask_threshold_fraction,
+                          bits=meta.get("bits", params.bits), linear=linear)
+        except ValueError as exc:  # these frames hold no reading: say so, analyse the rest
+            files = [frames[n].relative_to(session.path).as_posix()
+                     for n in (MASK_FRAME, MEASUREMENT_FRAME)]
+            skipped.append({"step": sid, "position_mm": pos, "frames": files,
+                            "reason": str(exc)})
+            continue
+        rows.append({"position_mm": pos, "simulated": sim, "reading": got})
     if not rows:
-        raise BenchlabError(f"{session.path}: no LED position measured yet; nothing to analyse")
-    table = radiometry_table([r["position_mm"] for r in rows], [r["simulated"] for r in rows],
-                             [r["measured"] for r in rows])
+        why = "; ".join(f"{s['step']} ({', '.join(s['frames'])}): {s['reason']}"
+                        for s in skipped)
+        raise BenchlabError(f"{session.path}: no LED position measured yet; nothing to analyse"
+                            if not skipped else f"{session.path}: no position has a reading: "
+                            f"{why}")
+    # Normalised over the clean rows only: a clipped mean is a lower bound, never a number.
+    clean = [r for r in rows if not r["reading"].clipped_pixels]
+    try:
+        table = ({t.field_position_mm: t for t in radiometry_table(
+            [r["position_mm"] for r in clean], [r["simulated"] for r in clean],
+            [r["reading"].mean_gray for r in clean])} if clean else {})
+    except ValueError as exc:  # e.g. every clean row's simulated irradiance is 0
+        raise BenchlabError(f"{session.path}: Table 4.16 cannot be normalised over "
+                            f"{[r['position_mm'] for r in clean]} mm: {exc}") from exc
+    top_sim = max((float(r["simulated"]) for r in clean), default=0.0)
     out = []
-    for r, t in zip(rows, table, strict=True):
-        out.append({
+    warnings = []
+    for r in rows:
+        rd: Reading = r["reading"]
+        t = table.get(float(r["position_mm"])) if not rd.clipped_pixels else None
+        sim_norm = (t.simulated_normalised if t else
+                    float(r["simulated"]) / top_sim if top_sim > 0 else None)
+        row: dict[str, Any] = {
             "position_mm": r["position_mm"],
             "simulated_mw_per_mm2": r["simulated"],
-            "measured_mean_gray": round(r["measured"], 4),
-            "simulated_normalised": round(t.simulated_normalised, 4),
-            "measured_normalised": round(t.measured_normalised, 4),
-            "difference": round(t.difference, 4),
-            "mask_pixels": r["mask_pixels"],
-        })
+            "measured_mean_gray": round(rd.mean_gray, 4) if t is not None else None,
+            "simulated_normalised": round(sim_norm, 4) if sim_norm is not None else None,
+            "measured_normalised": round(t.measured_normalised, 4) if t else None,
+            "difference": round(t.difference, 4) if t else None,
+            "mask_pixels": rd.mask_pixels,
+            "clipped_pixels": rd.clipped_pixels,
+            "note": "",
+        }
+        if rd.clipped_pixels:
+            row["note"] = clipped_note(rd)
+            warnings.append(f"{position_step_id(r['position_mm'])}: {row['note']}")
+        out.append(row)
+    for s in skipped:
+        warnings.append(f"{s['step']}: skipped ({', '.join(s['frames'])}): {s['reason']}")
     summary = {"procedure": "radiometry", "positions_mm": list(params.positions_mm),
                "exposure_ms": params.exposure_ms, "mask_gain": params.mask_gain,
-               "measurement_gain": params.measurement_gain, "linearised": record}
+               "measurement_gain": params.measurement_gain, "linearised": record,
+               "normalised_over_mm": [r["position_mm"] for r in clean],
+               "clipped_positions_mm": [r["position_mm"] for r in rows
+                                        if r["reading"].clipped_pixels],
+               "skipped": skipped, "warnings": warnings}
     return {"table_4_16": out}, summary

@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError, UsageError
-from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, record_in_catalogue
+from benchlab.protocols.engine import (
+    ProgressFn,
+    PromptFn,
+    ResultFn,
+    Runner,
+    procedure_steps,
+    record_in_catalogue,
+)
 from benchlab.protocols.params import (
     BenchLimits,
     MtfParams,
@@ -107,14 +114,25 @@ def start_run(
     check_estimator(estimator)
     resolved, source = _resolve_params(procedure, params, bench.config.limits())
     snapshot = {**params_to_dict(resolved), BENCH_KEY: bench.config.to_dict()}
+    procedure_obj = make_procedure(resolved)
+    procedure_steps(procedure_obj)  # its steps are sound before any folder exists
+    calibration = None
+    if isinstance(resolved, RadiometryParams):  # the one procedure that linearises with it
+        from benchlab.protocols.characterise_calibration import read_run_calibration
+
+        calibration = read_run_calibration(bench.config)  # refused before any folder exists
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
         devices=bench.identities(), software_version=benchlab.__version__, sample=sample,
     )
+    if calibration is not None:  # before any frame: what every analysis will use
+        from benchlab.protocols.characterise_calibration import keep_session_calibration
+
+        keep_session_calibration(session, *calibration)
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
                       params_source=source)
     record_in_catalogue(session.path)
-    return Runner(make_procedure(resolved), session, bench, prompt=prompt, progress=progress,
+    return Runner(procedure_obj, session, bench, prompt=prompt, progress=progress,
                   abort=abort, on_result=on_result, estimator=estimator)
 
 
@@ -178,8 +196,11 @@ def reanalyze(session_path: str | Path | Session, estimator: str | None = None, 
         if status != "completed":
             steps = make_procedure(session_params(session)).steps()
             done = session.completed_steps()
-            session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
-                                         len(steps))
+            # Partial when a frame is still to be taken, not because of the status: a run
+            # stopped after its last acquisition (or its analysis) has every frame.
+            if any(st.id not in done for st in steps if st.kind != "analysis"):
+                session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
+                                             len(steps))
         return _reanalyze_held(session, estimator, catalogue, forward_ahead)
     finally:
         session.release()

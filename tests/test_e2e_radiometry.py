@@ -13,7 +13,7 @@ from test_protocol_helpers import RAD_SMALL, events, run_sim, tables_of, yes
 from benchlab.bench import Bench, BenchConfig
 from benchlab.drivers.errors import DeviceError
 from benchlab.protocols import RunAborted, StepFailed, resume_run, start_run
-from benchlab.protocols.radiometry import mask_of
+from benchlab.protocols.radiometry import reading_mask_of
 from benchlab.scenes.led import LedScene
 from benchlab.session import Session
 
@@ -28,7 +28,9 @@ def _check_truth(path: Path, rows: list[dict[str, Any]]) -> None:
         meas, meta_m = session.load_frame(sid, "measurement")
         assert (meta["gain"], meta_m["gain"], meta_m["exposure_ms"]) == (5.0, 1.0, 375.0)
         assert meta_m["bench"]["stage_position_mm"] == pytest.approx(row["position_mm"], abs=1e-3)
-        truth = led.expected_mean_dn8(mask_of(mask_px, 0.5), row["position_mm"], 20.0, 375.0)
+        mask = reading_mask_of(mask_px, meas, 0.5)
+        assert int(mask.sum()) == row["mask_pixels"]
+        truth = led.expected_mean_dn8(mask, row["position_mm"], 20.0, 375.0)
         assert row["measured_mean_gray"] == pytest.approx(truth, abs=1.0)
         expected.append(truth)
     top = max(expected)
@@ -47,10 +49,13 @@ def test_full_default_radiometry_against_truth(tmp_path: Path) -> None:
     assert [r["position_mm"] for r in rows] == [15, 18, 20, 25, 32]
     assert [r["simulated_normalised"] for r in rows] == [1.0, 0.9435, 0.863, 0.6379, 0.1341]
     _check_truth(outcome.session_path, rows)
-    # The LED scene's fall-off (the thesis's measured curve) shows through the pipeline.
-    # (the mask's soft edge dilutes the mean a little: within 0.06 of the plateau ratio).
+    # The LED scene's fall-off (the thesis's measured curve) shows through the pipeline: the
+    # mask is the same fraction of every spot's own level (not a fixed code of the clipped
+    # gain-5 frame, which was up to +0.05 off), so the normalised means are its ratios.
     falloff = [0.78, 1.00, 0.92, 0.77, 0.50]
-    assert [r["measured_normalised"] for r in rows] == pytest.approx(falloff, abs=0.06)
+    assert [r["measured_normalised"] for r in rows] == pytest.approx(falloff, abs=0.01)
+    assert all(r["clipped_pixels"] == 0 for r in rows)
+    assert max(r["mask_pixels"] for r in rows) - min(r["mask_pixels"] for r in rows) < 20
     led_on = [e for e in events(outcome.session_path) if e["kind"] == "frame_saved"]
     assert len(led_on) == 10
 

@@ -60,6 +60,73 @@ def led_mask(
     return mask
 
 
+def reading_mask(
+    locator_frame: npt.ArrayLike,
+    measurement_frame: npt.ArrayLike,
+    threshold_fraction: float,
+    *,
+    plateau_percentile: float = 90.0,
+) -> npt.NDArray[np.bool_]:
+    """The pixels a radiometry reading averages: the LED found in the high-gain frame, its
+    level taken from the measurement frame.
+
+    The high-gain frame only locates the LED (the largest blob above ``threshold_fraction`` of
+    the way from its median to its peak): at gain 5 it is usually clipped, so a threshold at a
+    fraction of *its* peak is a fixed code whose place on the spot's edge moves with the LED's
+    brightness (the mask grows on bright positions). The reading's mask is then the
+    measurement frame's pixels above ``threshold_fraction`` of the way from its median (the
+    dark room) to its plateau (``plateau_percentile`` of the measurement inside the located
+    blob): the same fraction of every spot's own level, so the mean inside it is proportional
+    to that level.
+
+    Parameters
+    ----------
+    locator_frame, measurement_frame : array_like
+        2-D frames of the same shape (high gain, unity gain).
+    threshold_fraction : float
+        In (0, 1).
+    plateau_percentile : float
+        Percentile of the measurement inside the located blob taken as the plateau.
+
+    Raises
+    ------
+    ValueError
+        Frames of different shapes, a fraction outside (0, 1), no LED in either frame, or a
+        measurement no brighter inside the LED than around it.
+    """
+    loc = np.asarray(locator_frame, dtype=np.float64)
+    meas = np.asarray(measurement_frame, dtype=np.float64)
+    if loc.shape != meas.shape:
+        raise ValueError(f"mask frame {loc.shape} and measurement frame {meas.shape} differ "
+                         "in shape")
+    if not 0.0 < threshold_fraction < 1.0:
+        raise ValueError(f"threshold fraction must be in (0, 1), got {threshold_fraction:g}")
+    background, peak = float(np.median(loc)), float(loc.max())
+    located = led_mask(loc, threshold=background + threshold_fraction * (peak - background))
+    dark = float(np.median(meas))
+    plateau = float(np.percentile(meas[located], plateau_percentile))
+    if not plateau > dark:
+        raise ValueError(f"measurement frame is no brighter inside the LED ({plateau:g}) than "
+                         f"its background ({dark:g})")
+    return led_mask(meas, threshold=dark + threshold_fraction * (plateau - dark))
+
+
+def clipped_in_mask(frame: npt.ArrayLike, mask: npt.ArrayLike, saturation_code: float) -> int:
+    """How many pixels of ``frame`` inside ``mask`` are at (or above) ``saturation_code``:
+    a reading with any is a lower bound, not a measurement.
+
+    Raises
+    ------
+    ValueError
+        Shape mismatch.
+    """
+    img = np.asarray(frame)
+    m = np.asarray(mask).astype(bool)
+    if img.shape != m.shape:
+        raise ValueError(f"frame {img.shape} and mask {m.shape} differ in shape")
+    return int(np.count_nonzero(img[m] >= saturation_code))
+
+
 def mean_in_mask(
     frame: npt.ArrayLike, mask: npt.ArrayLike, dark: npt.ArrayLike | None = None
 ) -> float:

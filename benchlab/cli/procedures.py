@@ -123,6 +123,20 @@ def chart_notes(summary: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _print_notes(doc: Mapping[str, Any], out: TextIO) -> None:
+    """What a results version warns about (e.g. clipped or skipped radiometry rows) and the
+    response calibration it used."""
+    summ = doc.get("summary") or {}
+    if not isinstance(summ, Mapping):
+        return
+    cal = summ.get("linearised")
+    if isinstance(cal, Mapping):
+        out.write(f"\nlinearised with {cal.get('file')} (sha256 {cal.get('sha256')}"
+                  + (f", session copy {cal['copy']}" if cal.get("copy") else "") + ")\n")
+    for warning in summ.get("warnings") or ():
+        out.write(f"benchlab: warning: {warning}\n")
+
+
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols import RunAborted, StepFailed
@@ -183,6 +197,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
+    _print_notes(outcome.summary, sys.stdout)
     notes = chart_notes(outcome.summary)
     if notes:
         print("\n" + "\n".join(notes))
@@ -362,6 +377,7 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
             print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
     _print_tables(tables, sys.stdout, partial=partial)
+    _print_notes(summary, sys.stdout)
     notes = chart_notes(summary)
     if notes:
         print("\n" + "\n".join(notes))
