@@ -29,7 +29,8 @@ EDGE_COLUMNS: tuple[Column, ...] = (
     ("image_height_mm", "height mm", ".3f"), ("nearest_field_deg", "field deg", "g"),
     ("edge_angle_deg", "angle deg", ".2f"), ("mtf50_lp_per_mm", "MTF50 lp/mm", ".1f"),
     ("mtf50_sigma_lp_per_mm", "+-", ".1f"), ("mtf_nyquist", "MTF(Nyq)", ".3f"),
-    ("contrast", "contrast", ".3f"), ("status", "status", ""), ("warnings", "warnings", ""),
+    ("contrast", "contrast", ".3f"), ("estimator", "estimator", ""), ("status", "status", ""),
+    ("warnings", "warnings", ""),
 )
 CHECK_COLUMNS: tuple[Column, ...] = (
     ("element", "set", ""), ("orientation", "orientation", ""),

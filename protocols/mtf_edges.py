@@ -5,7 +5,9 @@ Tables (written with the Table 4.10 results):
 
 - ``table_sfr_edges``: one row per nominal edge of the slanted-edge target
   (:mod:`benchlab.analysis.edge_target`): status (``ok`` or why no clean edge is there),
-  angle, MTF50, MTF at Nyquist, plateau levels, image height and nearest field point;
+  angle, MTF50, MTF at Nyquist, plateau levels, the estimator the SFR chose (``model-free``,
+  or ``LSF model`` where the edge is too noisy for the model-free reading: method auto of
+  :func:`benchlab.analysis.sfr.measure_sfr`), image height and nearest field point;
 - ``table_sfr_curves``: each clean edge's MTF (with its 1-sigma, the pixel noise propagated
   analytically: :func:`benchlab.analysis.sfr.measure_sfr`) every 4 lp/mm;
 - ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
@@ -79,7 +81,7 @@ def edge_tables(
             rows.append({**base, "status": f"no clean edge: {res}", "edge_angle_deg": None,
                          "mtf50_cycles_per_px": None, "mtf50_lp_per_mm": None,
                          "mtf_nyquist": None, "dark": None, "bright": None, "contrast": None,
-                         "warnings": ""})
+                         "estimator": None, "warnings": ""})
             continue
         m50 = res.mtf50_cycles_per_px
         rows.append({
@@ -90,6 +92,7 @@ def edge_tables(
             else round(res.mtf50_sigma * _LP_PER_CYCLE_PX, 3),
             "mtf_nyquist": round(res.mtf_nyquist, 5), "dark": round(res.dark, 3),
             "bright": round(res.bright, 3), "contrast": round(res.contrast, 5),
+            "estimator": res.estimator,  # model-free, or the LSF model at low SNR (auto)
             "warnings": "; ".join(res.warnings),
         })
         sig = res.sigma_at(grid_c)

@@ -37,7 +37,7 @@ def _max_over_zero_band(seed: int) -> np.ndarray:
     for i in range(16):
         img = synthetic_edge((100, 100), 8.0 + 2 * i, 3.0, noise_sigma=0.6 / 50, bits=12,
                              rng=rng)
-        res = measure_sfr(img.astype(np.uint16))
+        res = measure_sfr(img.astype(np.uint16), method="free")
         assert float(np.max(edge_truth_mtf(f, 3.0, math.radians(8.0 + 2 * i)))) < 1e-3
         out.append(float(np.max(res.mtf_at(f))))
     return np.asarray(out)
@@ -60,10 +60,10 @@ def test_pooling_leaves_a_sharp_noise_free_edge_alone(
 ) -> None:
     img = synthetic_edge((100, 100), angle_deg, 0.3, offset_px=0.2, bits=8).astype(np.uint8)
     truth = edge_truth_mtf(F_NYQ, 0.3, math.radians(angle_deg))
-    pooled = measure_sfr(img).mtf_at(F_NYQ)
+    pooled = measure_sfr(img, method="free").mtf_at(F_NYQ)
     assert float(np.max(np.abs(pooled - truth))) < 0.01
     monkeypatch.setattr(sfr, "NOISE_BAND_CYCLES_PER_PX", 0.0)
-    assert float(np.max(np.abs(measure_sfr(img).mtf_at(F_NYQ) - pooled))) < 0.002
+    assert float(np.max(np.abs(measure_sfr(img, method="free").mtf_at(F_NYQ) - pooled))) < 0.002
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.006])
@@ -74,10 +74,10 @@ def test_a_box_lsf_with_a_zero_below_nyquist_is_measured_unbiased(
     # pooling must neither fill the zero nor flatten the lobe.
     img = _box_edge(12.0, 3.0, noise, np.random.default_rng(4))
     truth = edge_truth_mtf(F_NYQ, 0.3, math.radians(12.0)) * np.abs(np.sinc(3.0 * F_NYQ))
-    pooled = measure_sfr(img).mtf_at(F_NYQ)
+    pooled = measure_sfr(img, method="free").mtf_at(F_NYQ)
     assert float(np.max(np.abs(pooled - truth))) < (0.002 if noise == 0 else 0.02)
     monkeypatch.setattr(sfr, "NOISE_BAND_CYCLES_PER_PX", 0.0)
-    assert float(np.max(np.abs(measure_sfr(img).mtf_at(F_NYQ) - pooled))) < 0.005
+    assert float(np.max(np.abs(measure_sfr(img, method="free").mtf_at(F_NYQ) - pooled))) < 0.005
 
 
 @pytest.mark.parametrize("sigma", [0.3, 3.0])

@@ -65,9 +65,11 @@ def test_benchmark_scores_non_gaussian_lsfs_against_their_own_truth() -> None:
         run_non_gaussian,
     )
 
-    rows = run_non_gaussian(cases=1, seed=4)
-    assert len(rows) == len(NON_GAUSSIAN) * len(NON_GAUSSIAN_SNRS)
-    noise_free = [r for r in rows if math.isinf(r[1])]
-    assert all(r[2] == 1.0 and r[3] == 1.0 and r[4] < 0.015 for r in noise_free)
+    rows = run_non_gaussian(cases=1, seed=4, snrs=(math.inf, NON_GAUSSIAN_SNRS[-1]))
+    assert len(rows) == len(NON_GAUSSIAN) * 2 * 2  # two SNRs, two methods
+    noise_free = [r for r in rows if math.isinf(r.snr)]
+    assert all(r.mtf_within == 1.0 and r.mtf50_within == 1.0 and r.mtf_err_p95 < 0.015
+               for r in noise_free)
     text = format_non_gaussian(rows)
-    assert "halo" in text and "box 3 px" in text and text.count("\n") == len(rows) + 1
+    assert "halo" in text and "box 3 px" in text and "defocus disc" in text
+    assert text.count("\n") == len(rows) // 2 + 2  # one line per LSF and SNR

@@ -71,6 +71,13 @@ WARN_ANGLE_DEG = 2.0
 #: (MTF Mapper marks edges under ~25 px and recommends >= 35 px).
 MIN_EDGE_ROWS = 10
 WARN_EDGE_ROWS = 35
+#: Centroid passes after the first, wide one: each narrows the window to a few ESF widths
+#: around the last fit. A third lets a long, steep edge (500 rows at 28 deg drift 260 px
+#: across the ROI) recover from a first fit that the wide window's noise bent by several px.
+EDGE_PASSES = 2
+#: Bins with fewer pixels than this fraction of the median bin are left out of the rise the
+#: edge-fit window is set from (and of the ESF: :func:`_esf_samples`).
+SPARSE_BIN_FRACTION = 0.2
 #: Eq. 2.9 contrast between the ESF plateaus below which a warning is given (sfrmat: 20 %).
 LOW_CONTRAST = 0.2
 #: "No edge" (noise only): the ROI's 2-98 % gray-level spread must exceed this many noise
@@ -127,6 +134,9 @@ SIGMA_SCALE = 1.2
 OUTLIER_SIGMAS = 5.0
 OUTLIER_FLOOR_OF_STEP = 0.01
 SIGMA_FLOOR = 0.002
+#: The LSF model's propagated 1-sigma (from the fit's covariance) is scaled by this (the edge
+#: fit and the bin positions it leaves out); coverage per bucket in ``benchlab benchmark sfr``.
+MODEL_SIGMA_SCALE = 1.0
 #: The uncertainty is computed every this many frequency steps (0.02 cycles/px), then
 #: interpolated.
 SIGMA_GRID_STEP = 4
@@ -256,6 +266,15 @@ class SfrResult:
     lsf_windows : tuple of LsfWindow
         The LSF windows chosen from the data (their widths from the measured 10-90 % rise),
         widest first, each with the frequencies where it takes over.
+    estimator : str
+        ``"model-free"`` (the windowed LSF's DFT) or ``"LSF model"`` (K pixel-integrated
+        Gaussians fitted to the ESF, :mod:`benchlab.analysis.sfr_model`).
+    estimator_reason : str
+        Why that one (the method asked for, and for ``auto`` the model-free reading's own
+        accuracy; the model's gates).
+    lsf_model : dict or None
+        The LSF model fitted (components, chi-square, gates), used or not; None when none was
+        tried.
     """
 
     freqs_cycles_per_px: FloatArray
@@ -280,6 +299,9 @@ class SfrResult:
     lsf: FloatArray
     warnings: tuple[str, ...]
     lsf_windows: tuple[LsfWindow, ...] = ()
+    estimator: str = "model-free"
+    estimator_reason: str = ""
+    lsf_model: dict[str, Any] | None = None
 
     def mtf_at(self, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
         """MTF interpolated at the given frequencies (cycles/px, 0..1)."""
@@ -301,6 +323,9 @@ class SfrResult:
             "mtf50_cycles_per_px": self.mtf50_cycles_per_px,
             "mtf50_sigma": self.mtf50_sigma,
             "uncertainty_method": self.uncertainty_method,
+            "estimator": self.estimator,
+            "estimator_reason": self.estimator_reason,
+            "lsf_model": self.lsf_model,
             "mtf_nyquist": self.mtf_nyquist,
             "edge_angle_deg": self.edge_angle_deg,
             "normal_theta_deg": math.degrees(self.normal_theta_rad),
@@ -368,7 +393,14 @@ def _row_centroids(
 ) -> FloatArray:
     """Centroid per row of the derivative under a Hann window of ``half_width`` around
     ``centres`` (per row). Derivative samples sit at half-pixel positions ``j + 0.5``."""
-    x = np.arange(deriv.shape[1], dtype=np.float64) + 0.5
+    # Only the columns any row's window reaches (the weights are 0 elsewhere): after the
+    # first pass the window spans a few ESF widths, not the ROI.
+    lo = max(0, math.floor(float(np.min(centres)) - half_width - 0.5))
+    hi = min(deriv.shape[1], math.ceil(float(np.max(centres)) + half_width + 0.5))
+    if hi <= lo:
+        return np.full(deriv.shape[0], np.nan)
+    deriv = deriv[:, lo:hi]
+    x = np.arange(lo, hi, dtype=np.float64) + 0.5
     dist = (x[None, :] - centres[:, None]) / half_width
     w = np.where(np.abs(dist) < 1.0, 0.5 * (1.0 + np.cos(math.pi * dist)), 0.0)
     wd = w * deriv
@@ -463,7 +495,7 @@ def _esf_samples(
     counts = prof.count
     filled = counts > 0
     typical = float(median(counts[filled]))
-    good = counts >= max(1.0, 0.2 * typical)
+    good = counts >= max(1.0, SPARSE_BIN_FRACTION * typical)
     idx = np.flatnonzero(good)
     centre = int(np.argmin(np.abs(prof.u_px)))
     left, right = idx[idx <= centre], idx[idx >= centre]
@@ -558,6 +590,18 @@ def _clip_outliers(
     return np.where(out, pred + np.clip(res, -limit, limit), work), n
 
 
+def window_matrix(windows: Any, x: FloatArray, f: FloatArray) -> FloatArray:
+    """The frequency-dependent LSF window (a sequence of :class:`LsfWindow`, widest first) at
+    offsets ``x`` (px from its centre) for each frequency ``f``: shape (f, x)."""
+    wide = windows[0]
+    win_f = np.broadcast_to(_tukey(x, wide.flat_half_px, wide.total_half_px), (f.size, x.size))
+    for w in windows[1:]:  # each narrower one takes over above its frequencies
+        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
+        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
+        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
+    return np.asarray(win_f, dtype=np.float64)
+
+
 def _mtf_from_samples(
     s: _Samples,
     flat_half_px: float,
@@ -616,11 +660,7 @@ def _mtf_from_samples(
     inside = np.flatnonzero(win > 0)
     x = mid[inside] - centre
     f = FREQS_CYCLES_PER_PX
-    win_f = np.broadcast_to(win[inside], (f.size, inside.size))  # (freq, increment)
-    for w in windows[1:]:  # each narrower one takes over above its frequencies
-        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
-        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
-        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
+    win_f = window_matrix(windows, x, f)  # (freq, increment)
     phase = (2.0 * math.pi) * np.outer(f, x)
     cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
@@ -815,6 +855,104 @@ def _mtf50(freqs: FloatArray, mtf: FloatArray) -> float | None:
     return linear + root
 
 
+#: ``method`` values of :func:`measure_sfr`.
+METHODS = ("auto", "free", "model")
+#: ``auto``: the model-free reading stands where its own +-1.96 sigma already meets the
+#: issue's accuracy (MTF within AUTO_MTF_TOL at every f <= Nyquist, MTF50 within
+#: AUTO_MTF50_REL_TOL); elsewhere (low SNR, short edges) the LSF model is tried.
+AUTO_MTF_TOL = 0.02
+AUTO_MTF50_REL_TOL = 0.02
+
+
+@dataclass(frozen=True)
+class _Choice:
+    """The estimator chosen for one edge (see :func:`_choose_estimator`)."""
+
+    spec: _Spectrum
+    estimator: str  # "model-free" or "LSF model"
+    reason: str
+    warning: str
+    decision: Any  # sfr_model.ModelDecision or None
+
+    def model_summary(self) -> dict[str, Any] | None:
+        """The LSF model fitted (used or not), JSON-ready; None when none was tried."""
+        d = self.decision
+        if d is None or d.fit is None:
+            return None
+        f = d.fit
+        step = float(np.sum(f.weights))
+        return {"used": self.estimator == "LSF model", "components": f.components,
+                "weights": [round(float(w) / step, 5) for w in f.weights],
+                "centres_px": [round(float(m), 4) for m in f.centres_px],
+                "sigmas_px": [round(float(x), 4) for x in f.sigmas_px],
+                "chi2": round(f.chi2, 2), "dof": f.n_samples - f.n_params,
+                "esf_p_value": d.esf_p_value, "residual_peak_sigmas": round(d.residual_peak, 3),
+                "rejected_because": d.reason or None}
+
+
+def _free_meets_target(spec: _Spectrum) -> tuple[bool, str]:
+    """Whether the model-free reading's own +-1.96 sigma meets the accuracy target."""
+    if spec.sigma is None:
+        return False, "no uncertainty"
+    band = FREQS_CYCLES_PER_PX <= NYQUIST_CYCLES_PER_PX + 1e-9
+    worst = float(np.max(1.96 * spec.sigma[band]))
+    m50 = _mtf50(FREQS_CYCLES_PER_PX, spec.mtf)
+    s50 = _mtf50_sigma(FREQS_CYCLES_PER_PX, spec.mtf, spec.sigma, m50)
+    rel50 = 1.96 * s50 / m50 if (m50 and s50 is not None) else 0.0
+    ok = worst <= AUTO_MTF_TOL and rel50 <= AUTO_MTF50_REL_TOL
+    return ok, (f"model-free +-1.96 sigma {worst:.3f} of MTF to Nyquist, "
+                f"{100 * rel50:.1f} % of MTF50")
+
+
+def _model_fit(
+    spec: _Spectrum, samples: _Samples, noise: _NoiseModel, cos_a: float, sin_a: float,
+    rise_px: float,
+) -> Any:
+    """The BIC-chosen LSF model fit of these samples, no gates (the bootstrap's refit)."""
+    from benchlab.analysis.sfr_model import FIT_MARGIN_PX, fit_lsf_model
+
+    near = np.abs(samples.u) <= spec.windows[0].total_half_px + FIT_MARGIN_PX
+    fits = fit_lsf_model(samples.u[near], samples.esf[near], noise.sample_var(samples)[near],
+                         samples.spread_var[near], cos_a, sin_a, rise_px=rise_px)
+    return fits[-1] if fits else None
+
+
+def _choose_estimator(
+    method: str, spec: _Spectrum, samples: _Samples, noise: _NoiseModel, cos_a: float,
+    sin_a: float, rise_px: float,
+) -> _Choice:
+    """The model-free spectrum ``spec`` or the LSF model's (:mod:`benchlab.analysis.sfr_model`)
+    for ``method`` (see :func:`measure_sfr`)."""
+    if method == "free":
+        return _Choice(spec, "model-free", "requested (method free)", "", None)
+    if method == "auto":
+        ok, why = _free_meets_target(spec)
+        if ok:
+            return _Choice(spec, "model-free", f"auto: {why} meets the target", "", None)
+        reason = f"auto: {why} misses the target"
+    else:
+        reason = "requested (method model)"
+    from benchlab.analysis.sfr_model import decide_model
+
+    dec = decide_model(samples.u, samples.esf, noise.sample_var(samples), samples.spread_var,
+                       cos_a, sin_a, rise_px=rise_px, centre_px=0.0,
+                       half_px=spec.windows[0].total_half_px,
+                       window=lambda x, f: window_matrix(spec.windows, x, f))
+    if dec.fit is None or not dec.accepted:
+        return _Choice(spec, "model-free", f"{reason}; LSF model rejected",
+                       f"LSF model rejected ({dec.reason}): the model-free reading is given",
+                       dec)
+    sigma = np.hypot(MODEL_SIGMA_SCALE * dec.fit.mtf_sigma(FREQS_CYCLES_PER_PX), SIGMA_FLOOR)
+    sigma = np.hypot(sigma, dec.misfit_at(FREQS_CYCLES_PER_PX))
+    sigma[0] = 0.0
+    k = dec.fit.components
+    model_spec = _Spectrum(dec.fit.mtf(FREQS_CYCLES_PER_PX), spec.lsf, spec.mid,
+                           spec.truncated, sigma, spec.windows)
+    return _Choice(model_spec, "LSF model",
+                   f"{reason}; {k} Gaussian{'s' if k > 1 else ''} accepted by both gates",
+                   "", dec)
+
+
 def measure_sfr(
     pixels: npt.ArrayLike,
     *,
@@ -823,6 +961,7 @@ def measure_sfr(
     bootstrap: int = 0,
     seed: int = 0,
     bin_width_px: float = BIN_WIDTH_PX,
+    method: str = "auto",
 ) -> SfrResult:
     """Slanted-edge SFR (sine-wave MTF along the edge normal) of one ROI holding one edge.
 
@@ -867,6 +1006,8 @@ def measure_sfr(
         raise ValueError(f"fit_order must be 1..3, got {fit_order}")
     if bootstrap < 0:
         raise ValueError(f"bootstrap must be >= 0, got {bootstrap}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     img = raw.astype(np.float64)
     if not np.all(np.isfinite(img)):
         raise ValueError("ROI holds a non-finite value")
@@ -914,14 +1055,17 @@ def measure_sfr(
     coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
     half_window = max(n_cols / 4.0, 4.0)
     rise = float("nan")
-    for _ in range(2):
+    for _ in range(EDGE_PASSES):
         predicted = np.polyval(coeffs, rows - r_mid)
         cents = _row_centroids(deriv, predicted, half_window)
         coeffs, keep = _fit_edge(rows - r_mid, cents, fit_order)
         # Window for the next pass: a few ESF widths around the fitted edge.
         u_tmp = _work_u(work.shape, coeffs, r_mid, polarity)
         coarse = bin_profile(u_tmp, work, 2.0 * bin_width_px)
-        ok = coarse.filled
+        # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin
+        # holds a few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
+        ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
+            median(coarse.count[coarse.filled])))
         rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
         if math.isfinite(rise):
             half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
@@ -979,10 +1123,14 @@ def measure_sfr(
     spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
                              rise_px=rise_guess)
     mtf, lsf_w, truncated = spec.mtf, spec.lsf, spec.truncated
+    ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
+    choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
+    spec = choice.spec
+    mtf = spec.mtf
     mtf50 = _mtf50(freqs, mtf)
     mtf_sigma = spec.sigma
     mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
-    method = "analytic"
+    uncertainty = "analytic"
     if bootstrap > 0:
         rng = np.random.default_rng(seed)
         curves = np.empty((bootstrap, freqs.size))
@@ -990,8 +1138,13 @@ def measure_sfr(
         for b in range(bootstrap):
             pick = rng.integers(0, n_rows, n_rows)
             pb = _esf_samples(u[pick], work[pick], bin_width_px, flat_half)
-            mb = _mtf_from_samples(pb, wide_half, model, narrow_half_px=narrow_half,
-                                   rise_px=rise_guess).mtf
+            sb = _mtf_from_samples(pb, wide_half, model, narrow_half_px=narrow_half,
+                                   rise_px=rise_guess)
+            mb = sb.mtf
+            if choice.decision is not None and choice.decision.accepted:
+                fb = _model_fit(sb, pb, model, ca, sa, rise_guess)
+                if fb is not None:
+                    mb = fb.mtf(freqs)
             curves[b] = mb
             m50 = _mtf50(freqs, mb)
             if m50 is not None:
@@ -999,7 +1152,7 @@ def measure_sfr(
         mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if bootstrap > 1 else
                                np.zeros(freqs.size), dtype=np.float64)
         mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
-        method = "bootstrap"
+        uncertainty = "bootstrap"
 
     # 5. Warnings.
     if angle < WARN_ANGLE_DEG:
@@ -1027,6 +1180,8 @@ def measure_sfr(
         warnings.append(f"edge fit RMS {rms:.2f} px: edge bent or noisy (try fit_order 2)")
     if mtf50 is None:
         warnings.append("MTF stays above 0.5 up to 1 cycle/px: MTF50 not defined")
+    if choice.warning:
+        warnings.append(choice.warning)
 
     # 6. The normal in the ROI's own frame (work frame normal is (cos, sin) = (1, -slope)).
     theta_work = math.atan2(-slope * polarity, polarity)
@@ -1038,7 +1193,7 @@ def measure_sfr(
         freqs_cycles_per_px=freqs,
         mtf=mtf,
         mtf_sigma=mtf_sigma,
-        uncertainty_method=method,
+        uncertainty_method=uncertainty,
         mtf50_cycles_per_px=mtf50,
         mtf50_sigma=mtf50_sigma,
         mtf_nyquist=float(np.interp(NYQUIST_CYCLES_PER_PX, freqs, mtf)),
@@ -1057,6 +1212,9 @@ def measure_sfr(
         lsf=lsf_w,
         warnings=tuple(warnings),
         lsf_windows=spec.windows,
+        estimator=choice.estimator,
+        estimator_reason=choice.reason,
+        lsf_model=choice.model_summary(),
     )
 
 
