@@ -39,3 +39,10 @@ def test_bars_on_a_pixel_axis_get_none(name: str, angle: float) -> None:
 def test_profilefit_measures_the_direction_and_needs_no_warning() -> None:
     r = estimate_modulation(bars(30.0), estimator="profilefit", freq_cycles_per_px=1 / 8)
     assert not any("off the pixel axes" in w for w in r.warnings)
+
+
+def test_a_subnormal_frequency_gives_an_answer_not_an_overflow() -> None:
+    # hypothesis found it: int(inf) in the harmonic count (tiny-ROI path of profilefit)
+    r = estimate_modulation(np.array([[0]], np.uint8), estimator="profilefit",
+                            freq_cycles_per_px=5e-324, orientation="horizontal")
+    assert not r.resolved

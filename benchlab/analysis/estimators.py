@@ -109,7 +109,8 @@ def _design(n: int, f: float, orders: npt.NDArray[np.float64]) -> npt.NDArray[np
 
 def _harmonics(f: float) -> int:
     """Harmonics fitted at ``f``: those at least ``NYQUIST_MARGIN`` below Nyquist (>= 1)."""
-    return max(1, min(MAX_HARMONIC, int((NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
+    # min before int: a subnormal frequency makes the ratio infinite (hypothesis: f=5e-324)
+    return max(1, int(min(float(MAX_HARMONIC), (NYQUIST_CYCLES_PER_PX - NYQUIST_MARGIN) / f)))
 
 
 def _harmonic_orders(f: float, n: int, k_max: int) -> npt.NDArray[np.float64]:
