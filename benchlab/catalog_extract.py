@@ -182,10 +182,12 @@ def _bar_table(version: int, view: str, rows: list[Mapping[str, Any]], element: 
             aliased = r.get(f"{o}_aliased", r.get("aliased")) is True  # 4.11: one per row
             freq = r.get(f"{o}_image_lp_per_mm", r.get("image_lp_per_mm"))  # radial: per roll
             value = _num(r.get(f"{o}_modulation"))
+            measured = value is not None  # None and not resolved: no reading was possible
             if aliased or resolved is False:
                 value = None  # the 0 stored for it is no measurement: NULL, and say why
             text = ("aliased" if aliased else "" if resolved is None
-                    else "resolved" if resolved else "unresolved")
+                    else "resolved" if resolved else "unresolved" if measured
+                    else "not measurable")
             yield Figure(version, view, element(r), o, _num(freq), "modulation", value, text)
 
 

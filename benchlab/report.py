@@ -51,7 +51,8 @@ img.plot{max-width:100%} .note{color:#555;font-size:0.9em}
 .roi-body img.crop{image-rendering:pixelated;border:1px solid #888}
 .state{font-size:0.8em;padding:1px 6px;border-radius:3px;color:#fff}
 .state-resolved{background:#2e7d32} .state-unresolved{background:#c0392b}
-.state-aliased{background:#8e44ad} ul.warnings{color:#a35c00;margin:0;font-size:0.9em}
+.state-aliased{background:#8e44ad} .state-not-measurable{background:#7f8c8d}
+ul.warnings{color:#a35c00;margin:0;font-size:0.9em}
 ul.headline{font-size:1.05em} .warn{color:#a35c00}
 """
 
@@ -159,6 +160,9 @@ def _tables(ctx: ReportContext) -> str:
                 "chart_offset_px"):
         if summ.get(key) is not None:
             notes.append(f"{key.replace('_', ' ')}: {summ[key]}")
+    chart = summ.get("chart")
+    if isinstance(chart, dict):  # e.g. an implied magnification off the configured one
+        notes += [f"chart finder warning: {w}" for w in chart.get("warnings") or ()]
     centre = summ.get("image_centre_rc")
     if centre:
         notes.append("image centre (row, col): " + ", ".join(f"{float(v):.1f}" for v in centre))

@@ -45,6 +45,8 @@ class RoiReading:
     def state(self) -> str:
         if self.aliased:
             return "aliased"
+        if not self.resolved and self.modulation is None:
+            return "not-measurable"  # no reading possible (e.g. ROI < 1 bar period)
         return "resolved" if self.resolved else "unresolved"
 
     @classmethod
@@ -107,7 +109,11 @@ def reading_text(r: RoiReading) -> str:
     """The reading in words: value with its 95 % interval, or why there is no value."""
     if r.aliased:
         return "not resolved (aliased: above Nyquist)"
-    if not r.resolved or r.modulation is None:
+    if r.modulation is None:
+        if r.warnings.startswith("not measur"):
+            return r.warnings  # the reason says it already
+        return "not measurable" + (f" ({r.warnings})" if r.warnings else "")
+    if not r.resolved:
         return "not resolved"
     text = f"modulation {r.modulation:.3f}"
     if r.uncertainty is not None and math.isfinite(r.uncertainty):

@@ -23,18 +23,21 @@ _S_T = tuple(
     for col in ((f"{o}_dark", f"{short} dark", ".1f"), (f"{o}_bright", f"{short} bright", ".1f"),
                 (f"{o}_modulation", f"{short} mod.", ".3f"))
 )
+#: Aliasing per orientation (Table 4.12's spokes and rings image at different frequencies).
+_ALIASED = (("sagittal_aliased", "S aliased", ""), ("tangential_aliased", "T aliased", ""))
 
 TABLE_VIEWS: dict[str, TableView] = {
     "table_4_11": TableView(
-        "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9)",
+        "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9); by default each found set "
+        "read by the chart reading (knownbars: its geometry fixed by the found chart)",
         (("element", "element", ""), ("image_lp_per_mm", "image lp/mm", ".3f"), *_S_T,
-         ("aliased", "aliased", "")),
+         *_ALIASED),
     ),
     "table_4_12": TableView(
         "Table 4.12 - radial view, modulation (Eq. 2.9); image lp/mm by Eq. 4.1 (rings, T), "
         "S lp/mm by object / image radius (spokes)",
         (("object_lp_per_mm", "object lp/mm", "g"), ("image_lp_per_mm", "image lp/mm", ".2f"),
-         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, ("aliased", "aliased", "")),
+         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, *_ALIASED),
     ),
     "table_4_13": TableView(
         "Tables 4.13-4.14 - image height and nearest simulated field point",
@@ -87,16 +90,23 @@ def cell(value: Any, fmt: str) -> str:
     return str(value)
 
 
+#: A bar-set cell with no reading (modulation None, not resolved): the ROI could not give one
+#: (less than one bar period, a set the chart finder rejected, ...); its warnings say why.
+NOT_MEASURABLE = "not measurable"
+
+
 def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
-    """One cell of a row: a modulation whose reading is aliased or not resolved is said so,
-    never shown as the 0 stored for it."""
+    """One cell of a row: a modulation whose reading is aliased, not resolved or not
+    measurable is said so, never shown as the 0 stored for it."""
+    if key.endswith("_aliased") and key not in row:  # older rows: one flag per row
+        return cell(row.get("aliased"), fmt)
     if key.endswith("_modulation"):
         orient = key.removesuffix("_modulation")
-        # Table 4.12 rows say it per orientation, Table 4.11 rows once (``aliased``).
+        # Rows say it per orientation (older Table 4.11 rows once: ``aliased``).
         if row.get(f"{orient}_aliased", row.get("aliased")) is True:
             return "aliased"
         if row.get(f"{orient}_resolved") is False:
-            return "not resolved"
+            return NOT_MEASURABLE if row.get(key) is None else "not resolved"
     if row.get(key) is None and row.get("clipped_pixels"):
         return "clipped"  # a radiometry row whose mean is only a lower bound: no number
     return cell(row.get(key), fmt)

@@ -40,7 +40,8 @@ def root(source: Path, tmp_path: Path) -> Path:
                      started_at=f"2026-0{i + 1}-01T00:00:00+00:00")
     _edit_g2e1(root / "p0", tangential_modulation=0.47)
     _edit_g2e1(root / "p1", tangential_modulation=0.0, tangential_resolved=False)
-    _edit_g2e1(root / "p2", tangential_modulation=0.0, tangential_resolved=False, aliased=True)
+    _edit_g2e1(root / "p2", tangential_modulation=0.0, tangential_resolved=False, aliased=True,
+               sagittal_aliased=True, tangential_aliased=True)
     return root
 
 

@@ -95,11 +95,12 @@ def test_forward_view_against_truth(full_run: RunOutcome) -> None:
             measured = row[f"{orient}_modulation"]
             warnings = row[f"{orient}_warnings"]
             if f_px > 0.5:  # G2E5-G3E1: aliased, flagged and excluded from comparisons
-                assert row["aliased"] and "aliased" in warnings
+                assert row["aliased"] and "above Nyquist" in warnings and measured is None
                 continue
             assert not row["aliased"]
-            if f_px >= 0.35:  # G2E2-G2E4: flagged phase-sensitive
-                assert "near Nyquist" in warnings
+            # G2E2-G2E4: a generic estimator flags them phase-sensitive; the chart reading
+            # (the default on a found chart) fixes the phase from the pose
+            assert row[f"{orient}_estimator"] == "chart reading (knownbars)"
             errors[f"{name}{orient[0].upper()}"] = measured - truth
     # The ROIs are the bar sets without the pixels straddling the bar ends (3-10 px square).
     # Every element below Nyquist within 0.03 of the truth (the default estimator).

@@ -49,7 +49,13 @@ from benchlab.analysis.bargeometry import (
 )
 from benchlab.analysis.projection import across_coordinate, filled_bin_means
 from benchlab.analysis.quantiles import percentiles
-from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
+from benchlab.analysis.result import (
+    ModulationResult,
+    eq29_modulation,
+    not_measurable,
+    resolved,
+    unresolved,
+)
 from benchlab.analysis.roi import PreparedROI
 
 NAME = "profilefit"
@@ -573,7 +579,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             f, theta = geom.freq_cycles_per_px, geom.theta_rad
     if span * f < MIN_PERIODS_TRIED:
         warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
-        return unresolved(name, prep.diagnostics(), warnings)
+        return not_measurable(name, prep.diagnostics(), warnings)
 
     n_warnings = len(warnings)
     clipped = _clipped_mask(prep)
@@ -596,7 +602,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
     if span * f < 1.0:
         warnings.append(f"less than one bar period across the ROI ({span:.1f} px)")
-        return unresolved(name, prep.diagnostics(), warnings)
+        return not_measurable(name, prep.diagnostics(), warnings)
     if f_prior and geom is not fit_geom0 and len(warnings) > n_warnings - 1 >= 0 and (
         "disagrees with the given frequency" in warnings[n_warnings - 1]
     ) and frequency_disagreement(geom, f_prior) is None:

@@ -140,6 +140,10 @@ class ModulationResult:
         estimator does not measure it.
     warnings : tuple of str
         Human-readable caveats (aliasing, clipping, few pixels, ...).
+    measurable : bool
+        False when the ROI cannot give a reading at all (it spans less than one bar period):
+        not a finding about the bars, so tables show "not measurable", never the thesis's N/A
+        0 (:func:`not_measurable`).
     """
 
     estimator: str
@@ -153,6 +157,7 @@ class ModulationResult:
     uncertainty_method: str = "analytic"
     fundamental_modulation: float | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    measurable: bool = True
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.modulation):
@@ -180,6 +185,7 @@ class ModulationResult:
             "fundamental_modulation": _json_float(self.fundamental_modulation),
             "warnings": list(self.warnings),
             "diagnostics": self.diagnostics.to_dict(),
+            "measurable": self.measurable,
         }
 
 
@@ -224,6 +230,20 @@ def unresolved(
         interval=(0.0, 0.0),
         warnings=tuple(warnings),
     )
+
+
+#: The reason every estimator gives for an ROI too narrow for one bar period.
+LESS_THAN_ONE_PERIOD = "not measurable (ROI spans < 1 bar period)"
+
+
+def not_measurable(
+    estimator: str, diagnostics: Diagnostics, warnings: tuple[str, ...] | list[str] = ()
+) -> ModulationResult:
+    """No reading possible (the ROI spans less than one bar period): unresolved in form, but
+    ``measurable`` False and :data:`LESS_THAN_ONE_PERIOD` first among the warnings, so that
+    no table takes it for bars that were not told apart."""
+    return replace(unresolved(estimator, diagnostics, (LESS_THAN_ONE_PERIOD, *warnings)),
+                   measurable=False)
 
 
 def resolved(

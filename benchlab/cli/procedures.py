@@ -107,6 +107,22 @@ def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO
         out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
 
 
+def chart_notes(summary: Mapping[str, Any]) -> list[str]:
+    """What read the forward view, and the chart finder's warnings (e.g. an implied
+    magnification that differs from the configured one: the frequencies are the found
+    chart's), from a results summary (``summary.json`` or its ``summary``)."""
+    summ = summary.get("summary", summary)
+    if not isinstance(summ, Mapping):
+        return []
+    lines = []
+    if summ.get("forward_estimator"):
+        lines.append(f"forward view read by: {summ['forward_estimator']}")
+    chart = summ.get("chart")
+    if isinstance(chart, Mapping):
+        lines += [f"warning: chart: {w}" for w in chart.get("warnings") or ()]
+    return lines
+
+
 def _print_notes(doc: Mapping[str, Any], out: TextIO) -> None:
     """What a results version warns about (e.g. clipped or skipped radiometry rows) and the
     response calibration it used."""
@@ -182,6 +198,9 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
     _print_notes(outcome.summary, sys.stdout)
+    notes = chart_notes(outcome.summary)
+    if notes:
+        print("\n" + "\n".join(notes))
     if outcome.summary.get("summary", {}).get("procedure") == "characterise":
         from benchlab.protocols.characterise import run_notes
 
@@ -359,6 +378,9 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
         return 0
     _print_tables(tables, sys.stdout, partial=partial)
     _print_notes(summary, sys.stdout)
+    notes = chart_notes(summary)
+    if notes:
+        print("\n" + "\n".join(notes))
     if partial:
         print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
