@@ -47,6 +47,13 @@ static int get_image(PyObject *obj, Py_buffer *view, Image *im)
         PyBuffer_Release(view);
         return -1;
     }
+    /* Unaligned doubles are undefined behaviour in C: the callers take the numpy path. */
+    if ((uintptr_t)view->buf % sizeof(double) != 0 || view->strides[0] % (Py_ssize_t)sizeof(double) != 0 ||
+        view->strides[1] % (Py_ssize_t)sizeof(double) != 0) {
+        PyErr_SetString(PyExc_ValueError, "expected an aligned float64 array");
+        PyBuffer_Release(view);
+        return -1;
+    }
     im->data = (const char *)view->buf;
     im->rows = view->shape[0];
     im->cols = view->shape[1];
@@ -596,6 +603,12 @@ static PyObject *quick_core(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "quick_core needs at least 8 x 8 pixels");
         return NULL;
     }
+    /* The plane fit's denominators (rows * cols * (cols^2 - 1)) must fit a Py_ssize_t. */
+    if (im.rows > 4096 || im.cols > 4096) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "quick_core takes at most 4096 x 4096 pixels");
+        return NULL;
+    }
     Scratch s;
     if (scratch_alloc(&s, &im) < 0) {
         PyBuffer_Release(&view);
@@ -803,6 +816,13 @@ static PyObject *modes(PyObject *self, PyObject *args)
     }
     const double *y = view.buf;
     Py_ssize_t n = view.shape[0], n_peaks = 0;
+    /* A smoothed histogram is finite; -inf valleys would index before the mode arrays. */
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (!isfinite(y[i])) {
+            PyErr_SetString(PyExc_ValueError, "modes needs finite values");
+            goto done;
+        }
+    }
     peaks = malloc((size_t)(n > 0 ? n : 1) * sizeof(Py_ssize_t));
     if (!peaks) {
         PyErr_NoMemory();

@@ -478,7 +478,7 @@ def quick_fundamental(
         crop = _centred_crop(img, QUICK_CROP_PX)
         rows, cols = crop.shape
         n = rows * cols
-        if kernels.compiled is not None and crop.dtype == np.float64:
+        if kernels.compiled is not None and crop.dtype == np.float64 and crop.flags.aligned:
             # The passes below in one compiled call, with the same arithmetic.
             core = kernels.compiled.quick_core(
                 crop, freq_prior, QUICK_MIN_PERIODS, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS,

@@ -530,7 +530,7 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
     bins: npt.NDArray[np.intp] | None = None
     inner: npt.NDArray[np.bool_] | None = None
     chosen = None
-    if kernels.compiled is not None and img.dtype == np.float64:
+    if kernels.compiled is not None and img.dtype == np.float64 and img.flags.aligned:
         _, chosen = _compiled_selection(img, kx, ky, phase, half_f)  # its scatter: unused
     else:
         _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
@@ -584,7 +584,8 @@ def _phases_at(
     n = img.size
     kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
-    if kernels.compiled is not None and n >= 8 * NOISE_BINS and img.dtype == np.float64:
+    if (kernels.compiled is not None and n >= 8 * NOISE_BINS and img.dtype == np.float64
+            and img.flags.aligned):
         return _compiled_phases(prep, kx, ky, phase, half_f, amplitude)
     scaled, bins, inner = _phase_bins((rows, cols), kx, ky, phase, half_f)
     flat = img.ravel()
