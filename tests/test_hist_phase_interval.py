@@ -9,7 +9,8 @@ from test_mtf_truth_seeds import camera_frame
 
 from benchlab.analysis import chart
 from benchlab.analysis.estimators import estimate_modulation
-from benchlab.analysis.histogram import MODEL_SD, PHASE_GAP_SD
+from benchlab.analysis.histogram import MODEL_SD
+from benchlab.analysis.result import PHASE_GAP_SD, sampling_phase_sd
 from benchlab.scenes.usaf import UsafScene
 
 SCENE = UsafScene()
@@ -35,7 +36,6 @@ def test_forward_sets_on_the_axes_are_covered_at_every_seed(group: int, element:
 def test_the_phase_term_is_the_squared_gap_of_the_sampled_phases() -> None:
     import numpy as np
 
-    from benchlab.analysis.histogram import _sampling_phase_sd
     from benchlab.analysis.roi import prepare_roi
 
     # 5 columns across sagittal bars at 2.2 px per period sample the phases 0, .45, .91, .36,
@@ -43,7 +43,7 @@ def test_the_phase_term_is_the_squared_gap_of_the_sampled_phases() -> None:
     roi = np.tile(np.array([40.0, 160.0, 60.0, 150.0, 45.0])[None, :], (8, 1))
     prep = prepare_roi(roi, freq_cycles_per_px=1 / 2.2, orientation="sagittal")
     assert prep.pixels.shape[prep.axis] == 5
-    assert _sampling_phase_sd(prep, 0.6) == pytest.approx(PHASE_GAP_SD * 0.6 * (4 / 11) ** 2,
-                                                          rel=1e-9)
+    want = PHASE_GAP_SD * 0.6 * (4 / 11) ** 2
+    assert sampling_phase_sd(0.6, prep.line_phase_gap()) == pytest.approx(want, rel=1e-9)
     oblique = prepare_roi(roi, freq_cycles_per_px=1 / 2.2)  # direction not given: dense
-    assert _sampling_phase_sd(oblique, 0.6) == 0.0
+    assert sampling_phase_sd(0.6, oblique.line_phase_gap()) == 0.0

@@ -425,17 +425,6 @@ def _aliased(name: str, prep: PreparedROI) -> ModulationResult:
 
 
 PreparedEstimator = Callable[[PreparedROI], ModulationResult]
-def _phase_gap(prep: PreparedROI) -> float:
-    """Largest gap between the phases of the lines across axis-aligned bars (given orientation
-    and frequency); 0 when either is unknown (the bars are then found at any angle)."""
-    f = prep.freq_cycles_per_px
-    if not f or not prep.orientation_given:
-        return 0.0
-    n = prep.pixels.shape[prep.axis]
-    phases = np.sort(np.mod(f * np.arange(n), 1.0))
-    return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
-
-
 #: Below this many pixels, on axis-aligned bars of given frequency (the forward view's USAF
 #: elements, 3 x 5 to 9 x 10 px), the square-wave model has more freedom than the few lines
 #: across the bars can pin down; the harmonic series of ``sinefit`` is fitted instead.
@@ -532,7 +521,7 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         if not r.resolved:
             return r.with_updates(estimator=name, warnings=warns)
         bars = profile_fit(prep, fast)
-        model = _tiny_model_sd(r, bars, _phase_gap(prep))
+        model = _tiny_model_sd(r, bars, prep.line_phase_gap())
         if _levels_outside_data(prep, r):
             # Levels beyond every pixel: the truncated series rings past the plateaus of
             # coarse bars (G1E5T), or - on fine bars sampled at a few phases - the pixels

@@ -52,7 +52,13 @@ from benchlab.analysis.bargeometry import (
     measure_geometry,
     quick_fundamental,
 )
-from benchlab.analysis.result import ModulationResult, eq29_modulation, resolved, unresolved
+from benchlab.analysis.result import (
+    ModulationResult,
+    eq29_modulation,
+    resolved,
+    sampling_phase_sd,
+    unresolved,
+)
 from benchlab.analysis.roi import PreparedROI
 
 NAME = "histogram"
@@ -319,30 +325,11 @@ def _read(
     dm_db = 2.0 * x_dark / total**2
     # Noise on the two modes, plus the method's own error: a mode of the sampled pixels is not
     # the profile's extreme (blur, mode bias; sized from the benchmark's RMSE), and where the
-    # lines sample the bar phase in a few clusters, not at the extreme (_sampling_phase_sd).
+    # lines sample the bar phase in a few clusters, not at the extreme (sampling phase).
     sd = math.hypot(dm_dd * sd_levels[0], dm_db * sd_levels[1], MODEL_SD,
-                    _sampling_phase_sd(prep.source or prep, modulation))
+                    sampling_phase_sd(modulation, (prep.source or prep).line_phase_gap()))
     result = resolved(NAME, x_dark, x_bright, modulation, diag, sd, warnings)
     return result, False
-
-
-#: Sampling-phase term (1 sigma) per modulation and squared phase gap (cycles^2): the shortfall
-#: of a blurred bar profile sampled up to half the largest gap from its extreme (as
-#: profilefit's ``_model_sd``).
-PHASE_GAP_SD = 0.5
-
-
-def _sampling_phase_sd(roi: PreparedROI, modulation: float) -> float:
-    """Sampling-phase term of the modes' levels: ``PHASE_GAP_SD * modulation * gap**2``, with
-    ``gap`` the largest gap (cycles) between the bar phases the lines across axis-aligned bars
-    of given orientation and frequency sample (e.g. 0.36 on 5 lines at 2.2 px per period);
-    0 otherwise (oblique bars sample every phase)."""
-    f = roi.freq_cycles_per_px
-    if not f or not roi.orientation_given or roi.pixels.ndim != 2:
-        return 0.0
-    phases = np.sort(np.mod(f * np.arange(roi.pixels.shape[roi.axis]), 1.0))
-    gap = float(np.diff(np.concatenate([phases, phases[:1] + 1.0])).max())
-    return PHASE_GAP_SD * modulation * gap * gap
 
 
 def histogram_peak(prep: PreparedROI) -> ModulationResult:

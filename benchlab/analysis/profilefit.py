@@ -54,6 +54,7 @@ from benchlab.analysis.result import (
     eq29_modulation,
     not_measurable,
     resolved,
+    sampling_phase_sd,
     unresolved,
 )
 from benchlab.analysis.roi import PreparedROI
@@ -526,7 +527,7 @@ def _model_sd(
     ``DENSE_PIXELS_PER_BIN`` pixels per bin the whole term shrinks as 1/sqrt(pixels per bin):
     every phase is then sampled many times over and the model's misfit averages out (on the
     analysis benchmark the 200 x 200 ROIs' intervals covered 99 % without it)."""
-    phase_term = 0.5 * modulation * max_gap_cycles**2
+    phase_term = sampling_phase_sd(modulation, max_gap_cycles)
     rel = MODEL_REL_SD if rel_sd is None else rel_sd
     bins = max(n_bins, 1)
     sd = math.hypot(rel * modulation, phase_term) + 0.5 / bins**2

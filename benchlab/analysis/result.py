@@ -189,6 +189,29 @@ class ModulationResult:
         }
 
 
+#: Sampling-phase term (1 sigma) per modulation and squared phase gap (cycles^2): a blurred
+#: bar profile sampled up to half the largest phase gap from its extreme falls short of it.
+PHASE_GAP_SD = 0.5
+
+
+def sampling_phase_sd(modulation: float, max_gap_cycles: float) -> float:
+    """Sampling-phase uncertainty (1 sigma) of a contrast read from lines that sample the bar
+    phase with a largest gap of ``max_gap_cycles``: ``PHASE_GAP_SD * modulation * gap**2``.
+
+    Parameters
+    ----------
+    modulation : float
+        The reading.
+    max_gap_cycles : float
+        Largest gap between sampled bar phases (cycles, 0-1; 0: every phase sampled).
+
+    Returns
+    -------
+    float
+    """
+    return PHASE_GAP_SD * modulation * max_gap_cycles**2
+
+
 def eq29_modulation(dark: float, bright: float) -> float:
     """Eq. 2.9 of the thesis: ``(bright - dark) / (bright + dark)``.
 

@@ -65,6 +65,16 @@ class PreparedROI:
     #: The ROI a selection (:meth:`selected`) was taken from: its axis is that ROI's.
     source: PreparedROI | None = None
 
+    def line_phase_gap(self) -> float:
+        """Largest gap (cycles) between the bar phases the lines across axis-aligned bars of
+        given orientation and frequency sample (e.g. 0.36 on 5 lines at 2.2 px per period);
+        0 when either is unknown (the bars are then found at any angle, every phase sampled)."""
+        f = self.freq_cycles_per_px
+        if not f or not self.orientation_given:
+            return 0.0
+        phases = np.sort(np.mod(f * np.arange(self.pixels.shape[self.axis]), 1.0))
+        return float(np.diff(np.concatenate([phases, [phases[0] + 1.0]])).max())
+
     @property
     def axis(self) -> int:
         """Numpy axis along which the intensity varies: the orientation given, else detected
