@@ -370,14 +370,11 @@ def _sinc(x: FloatArray) -> FloatArray:
 def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     """1 for ``|x| <= flat``, cosine taper to 0 at ``|x| = total``, 0 beyond."""
     ax = np.abs(x)
-    w = np.ones_like(ax)
     if total <= flat:
-        w[ax > flat] = 0.0
-        return w
-    taper = (ax > flat) & (ax < total)
-    w[taper] = 0.5 * (1.0 + np.cos(math.pi * (ax[taper] - flat) / (total - flat)))
-    w[ax >= total] = 0.0
-    return w
+        return np.where(ax > flat, 0.0, 1.0)
+    # cos(0) = 1 and cos(pi) = -1 exactly: 1 on the flat top, 0 beyond the taper.
+    t = np.clip((ax - flat) / (total - flat), 0.0, 1.0)
+    return np.asarray(0.5 * (1.0 + np.cos(math.pi * t)), dtype=np.float64)
 
 
 def difference_noise_sigma(row_diff: FloatArray) -> float:
@@ -640,29 +637,42 @@ def window_terms(windows: Any, x: FloatArray, f: FloatArray) -> tuple[FloatArray
 _DFT_BLOCK = 16
 
 
-def _grid_tables(x: FloatArray, step: float, count: int) -> tuple[FloatArray, FloatArray]:
-    """The coarse (``exp(2 pi i B a step x)``) and fine (``exp(2 pi i b step x)``) tables."""
-    n_a = -(-count // _DFT_BLOCK)
-    coarse = np.exp((2j * math.pi * step * _DFT_BLOCK) * np.outer(np.arange(n_a), x))
-    fine = np.exp((2j * math.pi * step) * np.outer(np.arange(_DFT_BLOCK), x))
-    return coarse, fine
+def _expi(phase: FloatArray) -> npt.NDArray[np.complex128]:
+    """``exp(i phase)`` from its cosine and sine (cheaper than the complex exponential)."""
+    out = np.empty(phase.shape, dtype=np.complex128)
+    out.real = np.cos(phase)
+    out.imag = np.sin(phase)
+    return out
 
 
-def _grid_dft(x: FloatArray, values: FloatArray, step: float, count: int) -> FloatArray:
-    """``sum_x exp(2 pi i k step x) values[j, x]`` for ``k = 0 .. count - 1``: shape
-    (count, J) for ``values`` of shape (J, x)."""
-    coarse, fine = _grid_tables(x, step, count)
-    n_j = values.shape[0]
-    mixed = (fine[:, None, :] * values[None, :, :]).reshape(_DFT_BLOCK * n_j, x.size)
-    out = (coarse @ mixed.T).reshape(coarse.shape[0] * _DFT_BLOCK, n_j)
-    return np.asarray(out[:count])
+@dataclass(frozen=True)
+class _GridTables:
+    """``exp(2 pi i k step x)`` for ``k = 0 .. count - 1`` as the coarse
+    (``exp(2 pi i B a step x)``) and fine (``exp(2 pi i b step x)``) tables, ``k = B a + b``."""
 
+    coarse: npt.NDArray[np.complex128]
+    fine: npt.NDArray[np.complex128]
+    count: int
 
-def _grid_exp(x: FloatArray, step: float, count: int, every: int) -> FloatArray:
-    """``exp(2 pi i k step x)`` for ``k = 0, every, 2 every, ... < count``: (k, x)."""
-    coarse, fine = _grid_tables(x, step, count)
-    k = np.arange(0, count, every)
-    return np.asarray(coarse[k // _DFT_BLOCK] * fine[k % _DFT_BLOCK])
+    @classmethod
+    def of(cls, x: FloatArray, step: float, count: int) -> _GridTables:
+        n_a = -(-count // _DFT_BLOCK)
+        coarse = _expi((2.0 * math.pi * step * _DFT_BLOCK) * np.outer(np.arange(n_a), x))
+        fine = _expi((2.0 * math.pi * step) * np.outer(np.arange(_DFT_BLOCK), x))
+        return cls(coarse, fine, count)
+
+    def dft(self, values: FloatArray) -> npt.NDArray[np.complex128]:
+        """``sum_x exp(2 pi i k step x) values[j, x]``: shape (count, J) for ``values`` of
+        shape (J, x)."""
+        n_j, n_x = values.shape
+        mixed = (self.fine[:, None, :] * values[None, :, :]).reshape(_DFT_BLOCK * n_j, n_x)
+        out = (self.coarse @ mixed.T).reshape(self.coarse.shape[0] * _DFT_BLOCK, n_j)
+        return np.asarray(out[:self.count])
+
+    def rows(self, every: int) -> npt.NDArray[np.complex128]:
+        """The exponentials themselves for ``k = 0, every, 2 every, ...``: (k, x)."""
+        k = np.arange(0, self.count, every)
+        return np.asarray(self.coarse[k // _DFT_BLOCK] * self.fine[k % _DFT_BLOCK])
 
 
 def _mean_sinc(gaps: FloatArray, weight: FloatArray, f: FloatArray) -> FloatArray:
@@ -671,7 +681,8 @@ def _mean_sinc(gaps: FloatArray, weight: FloatArray, f: FloatArray) -> FloatArra
     total = max(float(weight.sum()), 1e-300)
     nz = gaps != 0.0  # sinc(0) = 1 at every frequency
     g, w = gaps[nz], weight[nz]
-    sines = _grid_dft(0.5 * g, (w / g)[None, :], FREQ_STEP_CYCLES_PER_PX, f.size)[:, 0].imag
+    tables = _GridTables.of(0.5 * g, FREQ_STEP_CYCLES_PER_PX, f.size)
+    sines = tables.dft((w / g)[None, :])[:, 0].imag
     out = np.empty(f.size)
     out[0] = float(np.sum(w))
     out[1:] = sines[1:] / (math.pi * f[1:])
@@ -741,7 +752,8 @@ def _mtf_from_samples(
     # X(f) = sum_x exp(2 pi i f x) win(f, x) di(x), the frequency-dependent window a blend
     # sum_j c_j(f) w_j(x) of the fixed ones: one small DFT per window, no (freq, x) window.
     blends, shapes = window_terms(windows, x, f)
-    x_f = np.sum(blends * _grid_dft(x, shapes * di, FREQ_STEP_CYCLES_PER_PX, f.size), axis=1)
+    tables = _GridTables.of(x, FREQ_STEP_CYCLES_PER_PX, f.size)
+    x_f = np.sum(blends * tables.dft(shapes * di), axis=1)
     re, im = x_f.real, x_f.imag
     spectrum = np.hypot(re, im)
     lsf = de * win
@@ -770,9 +782,8 @@ def _mtf_from_samples(
         # SIGMA_GRID_STEP-th frequency, interpolated in between.
         sub = slice(0, None, SIGMA_GRID_STEP)
         fs = f[sub]
-        e_sub = _grid_exp(x, FREQ_STEP_CYCLES_PER_PX, f.size, SIGMA_GRID_STEP)
-        win_sub = window_matrix(windows, x, fs) / x0
-        grad = e_sub * win_sub
+        win_sub = (blends[sub] @ shapes) / x0  # the window at these frequencies
+        grad = tables.rows(SIGMA_GRID_STEP) * win_sub
         gc, gs, wi = grad.real, grad.imag, win_sub  # d(re, im, x0) / d increment / x0
 
         def _on_samples(g: FloatArray) -> FloatArray:
