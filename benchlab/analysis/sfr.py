@@ -643,6 +643,8 @@ def window_terms(windows: Any, x: FloatArray, f: FloatArray) -> tuple[FloatArray
 #: of sines and cosines instead of 201, and a sum over the samples becomes one small matrix
 #: product. Rounding differs from direct evaluation by ~1e-14.
 _DFT_BLOCK = 16
+#: Samples per (coarse x fine) product: 13 x 16 x 256 multiply-adds stay single-threaded.
+_BLAS_CHUNK = 256
 
 
 def _expi(phase: FloatArray) -> npt.NDArray[np.complex128]:
@@ -673,8 +675,15 @@ class _GridTables:
         """``sum_x exp(2 pi i k step x) values[j, x]``: shape (count, J) for ``values`` of
         shape (J, x)."""
         n_j, n_x = values.shape
-        mixed = (self.fine[:, None, :] * values[None, :, :]).reshape(_DFT_BLOCK * n_j, n_x)
-        out = (self.coarse @ mixed.T).reshape(self.coarse.shape[0] * _DFT_BLOCK, n_j)
+        out = np.zeros((self.coarse.shape[0] * _DFT_BLOCK, n_j), dtype=np.complex128)
+        # One window and at most _BLAS_CHUNK samples per product: OpenBLAS runs a complex
+        # product of more than 65536 multiply-adds on several threads, whose wake-up costs
+        # milliseconds on a busy machine (10x the product itself).
+        for j in range(n_j):
+            for lo in range(0, n_x, _BLAS_CHUNK):
+                part = slice(lo, lo + _BLAS_CHUNK)
+                mixed = self.fine[:, part] * values[j, part]
+                out[:, j] += (self.coarse[:, part] @ mixed.T).reshape(-1)
         return np.asarray(out[:self.count])
 
     def rows(self, every: int) -> npt.NDArray[np.complex128]:
