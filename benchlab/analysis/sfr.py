@@ -616,13 +616,8 @@ def _clip_outliers(
 def window_matrix(windows: Any, x: FloatArray, f: FloatArray) -> FloatArray:
     """The frequency-dependent LSF window (a sequence of :class:`LsfWindow`, widest first) at
     offsets ``x`` (px from its centre) for each frequency ``f``: shape (f, x)."""
-    wide = windows[0]
-    win_f = np.broadcast_to(_tukey(x, wide.flat_half_px, wide.total_half_px), (f.size, x.size))
-    for w in windows[1:]:  # each narrower one takes over above its frequencies
-        blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
-        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
-        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
-    return np.asarray(win_f, dtype=np.float64)
+    blends, shapes = window_terms(windows, x, f)
+    return np.asarray(blends @ shapes, dtype=np.float64)
 
 
 def window_terms(windows: Any, x: FloatArray, f: FloatArray) -> tuple[FloatArray, FloatArray]:
