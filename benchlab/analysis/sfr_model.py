@@ -179,10 +179,11 @@ def _solve_linear(
     a = basis * w_sqrt[:, None]
     yw = y * w_sqrt
     # Normal equations: a handful of columns, well scaled (a constant and steps in 0..1).
-    with np.errstate(all="ignore"):
-        coef = np.asarray(np.linalg.solve(a.T @ a, a.T @ yw), dtype=np.float64)
-        res = np.asarray(yw - a @ coef, dtype=np.float64)
-    if not (np.all(np.isfinite(coef)) and np.all(np.isfinite(res))):
+    # (Floating-point warnings are silenced by the caller, :func:`_fit`.)
+    coef = np.asarray(np.linalg.solve(a.T @ a, a.T @ yw), dtype=np.float64)
+    res = np.asarray(yw - a @ coef, dtype=np.float64)
+    # Any NaN or inf makes the sum of squares non-finite (the values are far below 1e150).
+    if not math.isfinite(float(coef @ coef) + float(res @ res)):
         # A trial step that drove a column to nothing (or to overflow): no unique weights.
         raise np.linalg.LinAlgError("degenerate design")
     return coef, res, a
@@ -195,6 +196,15 @@ def _fit(
     """Levenberg-Marquardt on (mu, log sigma) with the linear parameters projected out.
     Returns (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
     weight, a singular design)."""
+    with np.errstate(all="ignore"):  # a wild trial step overflows: refused as degenerate
+        return _fit_quiet(u, y, w_sqrt, spread_var, corners, ab, mu0, logsig0)
+
+
+def _fit_quiet(
+    u: FloatArray, y: FloatArray, w_sqrt: FloatArray, spread_var: FloatArray,
+    corners: tuple[tuple[float, float], ...], ab: float, mu0: FloatArray, logsig0: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
+    """:func:`_fit` with floating-point warnings silenced."""
     k = mu0.size
     mu, ls = mu0.astype(np.float64).copy(), logsig0.astype(np.float64).copy()
     lo, hi = math.log(MIN_SIGMA_PX), math.log(MAX_SIGMA_PX)
