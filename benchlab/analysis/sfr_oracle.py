@@ -26,9 +26,9 @@ from scipy.optimize import least_squares
 
 from benchlab.analysis.sfr import SfrRefused, measure_sfr
 from benchlab.analysis.sfr_benchmark import (
+    _F_CHECK,
     MTF50_TOL,
     MTF_TOL,
-    _F_CHECK,
     Case,
     iter_cases,
 )
