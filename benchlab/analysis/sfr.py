@@ -373,8 +373,10 @@ def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     if total <= flat:
         return np.where(ax > flat, 0.0, 1.0)
     # cos(0) = 1 and cos(pi) = -1 exactly: 1 on the flat top, 0 beyond the taper.
-    t = np.clip((ax - flat) / (total - flat), 0.0, 1.0)
-    return np.asarray(0.5 * (1.0 + np.cos(math.pi * t)), dtype=np.float64)
+    t = (ax - flat) * (math.pi / (total - flat))
+    np.maximum(t, 0.0, out=t)
+    np.minimum(t, math.pi, out=t)
+    return np.asarray(0.5 * (1.0 + np.cos(t)), dtype=np.float64)
 
 
 def difference_noise_sigma(row_diff: FloatArray) -> float:
@@ -558,6 +560,8 @@ FREQ_STEP_CYCLES_PER_PX = 0.005
 FREQS_CYCLES_PER_PX = np.round(
     np.arange(0.0, MAX_FREQ_CYCLES_PER_PX + 1e-9, FREQ_STEP_CYCLES_PER_PX), 6
 )
+#: Index of Nyquist on that grid.
+_NYQUIST_INDEX = int(np.flatnonzero(FREQS_CYCLES_PER_PX <= NYQUIST_CYCLES_PER_PX + 1e-9)[-1])
 
 
 @dataclass(frozen=True)
@@ -659,6 +663,7 @@ def window_terms(windows: Any, x: FloatArray, f: FloatArray) -> tuple[FloatArray
 _DFT_BLOCK = 16
 #: Samples per (coarse x fine) product: 13 x 16 x 256 multiply-adds stay single-threaded.
 _BLAS_CHUNK = 256
+_BLOCK_STEPS = np.arange(_DFT_BLOCK, dtype=np.float64)
 
 
 def _expi(phase: FloatArray) -> npt.NDArray[np.complex128]:
@@ -681,8 +686,9 @@ class _GridTables:
     @classmethod
     def of(cls, x: FloatArray, step: float, count: int) -> _GridTables:
         n_a = -(-count // _DFT_BLOCK)
-        coarse = _expi((2.0 * math.pi * step * _DFT_BLOCK) * np.outer(np.arange(n_a), x))
-        fine = _expi((2.0 * math.pi * step) * np.outer(np.arange(_DFT_BLOCK), x))
+        base = (2.0 * math.pi * step) * x
+        fine = _expi(_BLOCK_STEPS[:, None] * base[None, :])
+        coarse = _expi((_DFT_BLOCK * np.arange(n_a, dtype=np.float64))[:, None] * base[None, :])
         return cls(coarse, fine, count)
 
     def dft(self, values: FloatArray) -> npt.NDArray[np.complex128]:
@@ -1016,6 +1022,7 @@ class _Choice:
     reason: str
     warning: str
     decision: Any  # sfr_model.ModelDecision or None
+    mtf50: tuple[float | None, float | None] | None = None  # (MTF50, 1-sigma) when known
 
     def model_summary(self) -> dict[str, Any] | None:
         """The LSF model fitted (used or not), JSON-ready; None when none was tried."""
@@ -1033,18 +1040,18 @@ class _Choice:
                 "rejected_because": d.reason or None}
 
 
-def _free_meets_target(spec: _Spectrum) -> tuple[bool, str]:
-    """Whether the model-free reading's own +-1.96 sigma meets the accuracy target."""
+def _free_meets_target(spec: _Spectrum) -> tuple[bool, str, tuple[float | None, float | None]]:
+    """Whether the model-free reading's own +-1.96 sigma meets the accuracy target, why, and
+    its MTF50 and 1-sigma (kept: the reading needs them when it stands)."""
     if spec.sigma is None:
-        return False, "no uncertainty"
-    band = FREQS_CYCLES_PER_PX <= NYQUIST_CYCLES_PER_PX + 1e-9
-    worst = float(np.max(1.96 * spec.sigma[band]))
+        return False, "no uncertainty", (None, None)
+    worst = 1.96 * float(np.max(spec.sigma[:_NYQUIST_INDEX + 1]))
     m50 = _mtf50(FREQS_CYCLES_PER_PX, spec.mtf)
     s50 = _mtf50_sigma(FREQS_CYCLES_PER_PX, spec.mtf, spec.sigma, m50)
     rel50 = 1.96 * s50 / m50 if (m50 and s50 is not None) else 0.0
     ok = worst <= AUTO_MTF_TOL and rel50 <= AUTO_MTF50_REL_TOL
     return ok, (f"model-free +-1.96 sigma {worst:.3f} of MTF to Nyquist, "
-                f"{100 * rel50:.1f} % of MTF50")
+                f"{100 * rel50:.1f} % of MTF50"), (m50, s50)
 
 
 def _model_fit(
@@ -1095,9 +1102,9 @@ def _choose_estimator(
     if method == "free":
         return _Choice(spec, "model-free", "requested (method free)", "", None)
     if method == "auto":
-        ok, why = _free_meets_target(spec)
+        ok, why, m50 = _free_meets_target(spec)
         if ok:
-            return _Choice(spec, "model-free", f"auto: {why} meets the target", "", None)
+            return _Choice(spec, "model-free", f"auto: {why} meets the target", "", None, m50)
         reason = f"auto: {why} misses the target"
     else:
         reason = "requested (method model)"
@@ -1303,9 +1310,12 @@ def measure_sfr(
     choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
     spec = choice.spec
     mtf = spec.mtf
-    mtf50 = _mtf50(freqs, mtf)
     mtf_sigma = spec.sigma
-    mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
+    if choice.mtf50 is not None:  # already read off this very spectrum
+        mtf50, mtf50_sigma = choice.mtf50
+    else:
+        mtf50 = _mtf50(freqs, mtf)
+        mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
     uncertainty = "analytic"
     if bootstrap > 0:
         rng = np.random.default_rng(seed)
