@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.kernels import row_major
 from benchlab.analysis.result import (
     CLIPPED_FRACTION_LIMIT,
     NYQUIST_CYCLES_PER_PX,
@@ -357,7 +358,9 @@ def prepare_roi(
         Empty ROI, wrong number of dimensions, non-finite pixels, negative or non-finite
         frequency / noise, unknown orientation.
     """
-    arr = np.asarray(roi)
+    # Row-major: numpy sums in memory order, so a Fortran-order (or transposed, reversed) ROI
+    # would read a few ulps differently from the same pixels in C order.
+    arr = row_major(np.asarray(roi))
     kind = arr.dtype.kind
     if kind == "b":
         arr = arr.astype(np.uint8)
