@@ -130,7 +130,7 @@ class PreparedROI:
     @property
     def contrast_underflows(self) -> bool:
         """Whether the pixel values differ, but by less than :data:`MIN_CONTRAST`: no
-        estimator can read them (a flat ROI, ``vmax == vmin``, is every estimator's own case)."""
+        estimator can read them (a flat ROI, ``vmax == vmin``, is labelled apart)."""
         return 0.0 < self.vmax - self.vmin < MIN_CONTRAST
 
     @property
