@@ -126,8 +126,8 @@ def test_user_bench_file_is_pointed_at_each_new_version(tmp_path: Path, tiny: Pa
 
 
 def test_set_camera_reference_adds_or_replaces_only_that_line() -> None:
-    assert set_camera_reference('[led]\nchannel = 1\n', "c.json").startswith(
-        '[camera]\nresponse_calibration = "c.json"\n')
+    assert set_camera_reference('[led]\nchannel = 1\n', "c.json") == (
+        '[led]\nchannel = 1\n\n[camera]\nresponse_calibration = "c.json"\n')
     text = '[camera]\nserial = "X"\nresponse_calibration = "old.json"\n[led]\nchannel = 2\n'
     out = set_camera_reference(text, "new.json")
     assert out == text.replace("old.json", "new.json")
