@@ -252,25 +252,41 @@ class _Blurred:
         share = (np.zeros_like(sigmas) if disc_shares is None
                  else np.asarray(disc_shares, dtype=np.float64))
         gauss_var = sigmas * sigmas * (1.0 - share)
-        exponent = (2.0 * math.pi**2) * np.outer(gauss_var, self.freqs2)
-        gain = np.exp(-exponent)
+        gain = np.exp(np.outer((-2.0 * math.pi**2) * gauss_var, self.freqs2))
         disc = np.flatnonzero(share > 0)
         if disc.size:
-            # a uniform disc of radius R has a line spread of variance R^2 / 4; its gain is
-            # computed only where the Gaussian part leaves more than e^-GAUSS_CUTOFF (beyond,
-            # the product is below 1e-20 and set to 0): most of a partly Gaussian row
-            radius = 2.0 * sigmas[disc] * np.sqrt(share[disc])
-            keep = exponent[disc] <= GAUSS_CUTOFF
-            x = (2.0 * math.pi) * np.outer(radius, np.sqrt(self.freqs2))
-            rows = gain[disc]
-            rows[~keep] = 0.0
-            rows[keep] *= jinc(x[keep])
-            gain[disc] = rows
+            self._apply_disc(gain, disc, 2.0 * sigmas[disc] * np.sqrt(share[disc]),
+                             gauss_var[disc])
         # the spectrum times a real gain, without a complex copy of the gain
         spec = np.empty(gain.shape, dtype=np.complex128)
         np.multiply(gain, self.spectrum.real, out=spec.real)
         np.multiply(gain, self.spectrum.imag, out=spec.imag)
         return np.fft.irfft(spec, n=self.n, axis=1)
+
+    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
+                    gauss_var: FloatArray) -> None:
+        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
+        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
+        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``: beyond, the product is below
+        1e-20 and set to 0. That leaves a partly Gaussian row a few per cent of its columns."""
+        k_all = self.freqs2.size
+        freqs = np.sqrt(self.freqs2)
+        with np.errstate(divide="ignore"):
+            limit = np.where(gauss_var > 0, GAUSS_CUTOFF / (2.0 * math.pi**2 * gauss_var),
+                             np.inf)
+        cols = np.searchsorted(self.freqs2, limit, side="right")
+        whole = cols >= k_all
+        if whole.any():
+            gain[rows[whole]] *= jinc((2.0 * math.pi) * np.outer(radius[whole], freqs))
+        part = np.flatnonzero(~whole)
+        if part.size:
+            counts = cols[part]
+            row_of = np.repeat(np.arange(part.size), counts)
+            col = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+            at = (rows[part][row_of], col)
+            gain[at] *= jinc((2.0 * math.pi) * radius[part][row_of] * freqs[col])
+            for r, k in zip(rows[part], counts, strict=True):
+                gain[r, k:] = 0.0
 
     def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
         """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
