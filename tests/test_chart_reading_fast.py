@@ -23,9 +23,9 @@ from benchlab.analysis import chart_reading
 from benchlab.analysis.chart_finder import ChartFit, find_chart
 from benchlab.analysis.chart_pose import ChartPose
 from benchlab.analysis.result import ModulationResult
+from benchlab.analysis.threebar_synthetic import PsfSpec, render_three_bars
 from benchlab.drivers.mightex_sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
-from benchlab.analysis.threebar_synthetic import PsfSpec, render_three_bars
 from benchlab.scenes.usaf import UsafScene
 
 #: Largest change of a reading (modulation, its uncertainty and interval) allowed: 1e-4 is
