@@ -92,8 +92,8 @@ def _frames() -> dict[str, tuple[npt.NDArray[Any], ChartFit]]:
     """The procedure's forward frame (8-bit, noise seed 7), and a 12-bit negative chart
     turned 9 degrees, scaled 1.2 and vignetted (oblique bars, the other polarity)."""
     turned = UsafScene(pose=ChartPose((30.0, -40.0), 1.2, 9.0), negative=True, vignetting=0.2)
-    frames = {"procedure": camera_frame(UsafScene(), 7),
-              "turned": _frame_12bit(turned, 3)}
+    frames: dict[str, npt.NDArray[Any]] = {"procedure": camera_frame(UsafScene(), 7),
+                                           "turned": _frame_12bit(turned, 3)}
     return {k: (px, find_chart(px)) for k, px in frames.items()}
 
 
