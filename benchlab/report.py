@@ -133,6 +133,9 @@ def _identity(ctx: ReportContext) -> str:
     if ctx.doc.get("partial"):
         status += (f" - results PARTIAL ({ctx.doc.get('steps_done')} of "
                    f"{ctx.doc.get('steps_total')} steps done)")
+    stale = ctx.session.results_stale()
+    if stale:
+        status += f" - results STALE: {stale}"
     rows: list[tuple[str, Any]] = [
         ("operator", meta.get("operator") or "-"), ("status", status),
         ("started", local_time(meta.get("started_at"))),
@@ -140,6 +143,11 @@ def _identity(ctx: ReportContext) -> str:
         ("software", meta.get("software_version")),
         ("results", f"{ctx.results_path.name} (estimator {ctx.doc.get('estimator')}, "
                     f"{local_time(ctx.doc.get('created_at'))})")]
+    for rt in ctx.session.retakes():  # steps taken again (benchlab resume --retake)
+        what = (", ".join(f"{k} take {v}" for k, v in sorted((rt.get("current") or {}).items()))
+                + " current" if rt["status"] == "adopted" else
+                f"{rt['status']}: the previous takes of {', '.join(rt['steps'])} stay current")
+        rows.append((f"retake {rt['id']}", what + (f" - {rt['reason']}" if rt["reason"] else "")))
     for kind, dev in (meta.get("devices") or {}).items():
         if isinstance(dev, dict):
             rows.append((kind, ", ".join(f"{k} {v}" for k, v in dev.items())))
