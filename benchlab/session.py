@@ -68,9 +68,18 @@ OWNER_FILE = "owner.lock"
 #: Step ids, frame names and table names become file names: keep them plain.
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
-#: A frame taken again after its earlier takes were rejected: ``<step>__<name>.take2.tiff``.
+#: A frame taken again after its earlier takes were rejected, or by a retake (``resume
+#: --retake``): ``<step>__<name>.take2.tiff``; the earlier takes keep their names.
 _TAKE_MARK = ".take"
 _TAKE_RE = re.compile(r"\.take\d+$")
+
+
+def take_of(path: Path) -> int:
+    """The take number of a frame file: N of ``<step>__<name>.take<N>.tiff``, else 1."""
+    m = _TAKE_RE.search(path.stem)
+    return int(m.group(0)[len(_TAKE_MARK):]) if m else 1
+
+
 #: Journal events of a retake (``benchlab resume SESSION --retake STEP``).
 RETAKE_STARTED = "retake_started"
 RETAKE_ADOPTED = "retake_adopted"
@@ -777,9 +786,7 @@ class Session:
     def current_take(self, step_id: str) -> int:
         """The take number of a step's current frames (1: never taken again; the highest
         ``.take<N>`` of its current frame files)."""
-        takes = [int(m.group(0)[len(_TAKE_MARK):]) if (m := _TAKE_RE.search(p.stem)) else 1
-                 for p in self.step_frames(step_id).values()]
-        return max(takes, default=1)
+        return max(map(take_of, self.step_frames(step_id).values()), default=1)
 
     def begin_retake(self, step_ids: Collection[str], reason: str = "",
                      previous_status: str | None = None) -> str:
@@ -834,8 +841,7 @@ class Session:
         adopted = [p.relative_to(self.path).as_posix() for s in sorted(steps)
                    for p in new[s].values()]
         reason = str(self._meta.get("retake", {}).get("reason") or "")
-        takes = {s: max((int(m.group(0)[len(_TAKE_MARK):]) if (m := _TAKE_RE.search(p.stem))
-                         else 1) for p in new[s].values()) for s in sorted(steps)}
+        takes = {s: max(map(take_of, new[s].values())) for s in sorted(steps)}
         self.log_event(RETAKE_ADOPTED, retake=rid, steps=sorted(steps), files=superseded,
                        adopted=adopted, takes=takes,
                        reason=f"superseded by retake {rid}" + (f": {reason}" if reason else ""))

@@ -416,7 +416,10 @@ class Runner:
                 last_manual = step
         if last_manual is not None and last_manual.prompt and self.pending():
             ctx = StepContext(self, last_manual)
-            ctx.ask(f"Resuming: check the set-up is still as at '{last_manual.title}': "
+            first = self.pending()[0].id
+            ctx.ask(f"Retake of {first}: set up as at '{last_manual.title}': "
+                    f"{last_manual.prompt}" if first in self._retake else
+                    f"Resuming: check the set-up is still as at '{last_manual.title}': "
                     f"{last_manual.prompt}")
         self.session.log_event("resumed", completed=sorted(done))
 

@@ -248,6 +248,7 @@ def test_mtf_retake_sets_the_bench_up_again_and_reproduces_the_results(
     assert out.results_path.name == "v2"
     assert any(m.startswith("Before radial-2-sagittal: set up as at 'Roll the 2 lp/mm")
                for m in asked), asked
+    assert asked[0].startswith("Retake of forward: set up as at 'Thread the prototype")
     session = Session.open(first.session_path)
     assert session.current_take("forward") == session.current_take("radial-2-sagittal") == 2
     assert session.current_take("radial-0.5-sagittal") == 1 and session.status == "completed"
