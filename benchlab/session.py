@@ -769,10 +769,14 @@ class Session:
                                 adopted_at=str(ev.get("time", "")))
             elif kind == RETAKE_STOPPED and rid in out and out[rid]["status"] == "running":
                 out[rid].update(status="interrupted", stopped=str(ev.get("status", "")))
+        # Running: the retake this object runs, or the last one while another live process
+        # writes the session; any other that never ended was stopped by a kill.
         live = self._retake[0] if self._retake is not None else None
-        alive = live is not None or session_holder(self.path) is not None
+        last = next(reversed(out), None)
+        other = live is None and not self.held and session_holder(self.path) is not None
         for rec in out.values():
-            if rec["status"] == "running" and not (rec["id"] == live or alive):
+            if rec["status"] == "running" and not (rec["id"] == live
+                                                   or (other and rec["id"] == last)):
                 rec.update(status="interrupted", stopped="writer gone")
         return list(out.values())
 

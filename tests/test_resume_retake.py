@@ -284,3 +284,35 @@ def test_results_are_stale_until_reanalysed(tmp_path: Path,
     v2 = reanalyze(path)
     assert session.results_stale() is None
     assert _row18(v2)["measured_mean_gray"] == pytest.approx(_truth18(session), abs=1.0)
+
+
+def test_retake_while_resuming_an_unfinished_session(tmp_path: Path) -> None:
+    """Stopped before 25 mm; resumed with --retake position-15: 15 mm taken again, 25 mm
+    taken for the first time, then analysed; a killed retake's record is never "running" for
+    a process that holds the session without running it."""
+    from benchlab.protocols import StepFailed
+
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        def progress(done: int, total: int, step: Any) -> None:
+            if step is not None and step.id == "position-25":
+                bench.sim_led.faults.no_reply = 1
+
+        runner = start_run("radiometry", bench=bench, params=RAD_SMALL, root=tmp_path,
+                           prompt=yes, progress=progress)
+        with pytest.raises(StepFailed):
+            runner.run()
+    path = runner.session.path
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        out = resume_run(path, bench=bench, prompt=yes, retake=["position-15"]).run()
+    session = Session.open(path)
+    assert session.status == "completed" and out.results_path.name == "v1"
+    assert {s: session.current_take(s) for s in ("position-15", "position-18",
+                                                 "position-25")} == {
+        "position-15": 2, "position-18": 1, "position-25": 1}
+    assert session.meta["retake"]["previous_status"] == "failed"
+    session.hold()
+    try:  # a retake journalled as started, never ended (kill -9): not running for a holder
+        session.log_event("retake_started", retake="r9", steps=["position-18"])
+        assert session.retakes()[-1]["status"] == "interrupted"
+    finally:
+        session.release()
