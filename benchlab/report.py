@@ -387,8 +387,14 @@ def radiometry_overlays(ctx: ReportContext) -> list[MaskOverlay]:
 def _radiometry_frames(ctx: ReportContext) -> str:
     import cv2
 
+    from benchlab.protocols.characterise_calibration import CalibrationError
+
     parts = []
-    overlays = radiometry_overlays(ctx)
+    try:
+        overlays = radiometry_overlays(ctx)
+    except CalibrationError as exc:  # the linearised image cannot be rebuilt: no mask drawn
+        return (f"<p class='note'>LED masks not drawn: the image the readings averaged "
+                f"cannot be rebuilt ({esc(str(exc))}).</p>")
     for o in overlays:
         rows_idx, cols_idx = np.nonzero(o.mask)
         img_full = o.image

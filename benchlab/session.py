@@ -5,7 +5,9 @@ Layout::
     <root>/<YYYYmmdd-HHMMSS>_<procedure>/
         session.json      who, what, which devices, software version, parameters, start/end
         events.jsonl      append-only journal, one JSON object per line, fsync'd per line
-        frames/           <step_id>__<name>.tiff, lossless, metadata inside, never overwritten
+        frames/           <step_id>__<name>.tiff, lossless, metadata inside, never overwritten;
+                          <step_id>__<name>.take<N>.tiff: a later take (after rejected frames,
+                          or ``resume --retake``), the earlier takes kept beside it
         results/v<N>/     one CSV + JSON per table and summary.json; a re-analysis adds v<N+1>
 
 Every file is written atomically (:mod:`benchlab.storage`); frames are flushed to disk before

@@ -78,3 +78,17 @@ def test_overlay_of_an_uncalibrated_session_says_raw_codes(tmp_path: Path) -> No
         meas_f, _ = ctx.session.load_frame(f"position-{o.position_mm:g}", "measurement")
         assert np.array_equal(o.image, meas_f)
     assert "raw camera codes" in render_report(session)
+
+
+def test_masks_are_not_drawn_when_the_calibration_cannot_be_rebuilt(
+        linearised_session: Path, tmp_path: Path) -> None:
+    """The session's calibration copy changed: no mask of another image is drawn; the
+    section says why."""
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(linearised_session, copy)
+    curve = copy / "calibration" / "response-v1.json"
+    curve.write_text(curve.read_text().replace("150.0", "151.0"))
+    page = render_report(copy)
+    assert "LED masks not drawn" in page and "response-v1.json" in page

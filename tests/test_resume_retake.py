@@ -141,6 +141,8 @@ def test_unknown_or_untaken_step_is_a_usage_error_and_changes_nothing(tmp_path: 
         other = _cli("resume", str(path), "--simulate", "--yes", *args)
         assert other.returncode == 2 and other.stderr.startswith("benchlab: error:"), args
     assert _snapshot(path) == before
+    helped = _cli("resume", "--help")
+    assert "--retake STEP[,STEP...]" in helped.stdout and "--reason TEXT" in helped.stdout
     # a step the (unfinished) session has not taken yet: plain resume takes it
     session = Session.open(path)
     with pytest.raises(RetakeUsageError, match="not an acquisition step"):
