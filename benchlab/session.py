@@ -480,9 +480,10 @@ class Session:
         recorded = str(self._meta["status"])
         if recorded == "running" and not self.held and session_holder(self.path) is None:
             retake = self._meta.get("retake")
-            if isinstance(retake, dict) and retake.get("status") == "running" \
-                    and retake.get("previous_status") == "completed":
-                return "completed"  # a retake was killed: the previous takes are still whole
+            if isinstance(retake, dict) and retake.get("previous_status") == "completed":
+                # a retake of a completed session was killed: its frames are still whole
+                # (the previous takes, or the retake's once adopted; see results_stale)
+                return "completed"
             return "interrupted"
         return recorded
 

@@ -276,7 +276,7 @@ class Runner:
             skipped: list[Step] = []
             for step in self.steps:
                 if step.id in done:
-                    if ran is not None:
+                    if ran is not None and self._retake_steps:
                         skipped.append(step)
                     continue
                 self._check_abort(step)
@@ -347,20 +347,27 @@ class Runner:
         manual step among them."""
         manual: Step | None = None
         for done in skipped:
-            if done.restore is not None:
-                try:
-                    done.restore(StepContext(self, done))
-                except RunAborted:
-                    raise
-                except Exception as exc:
-                    self.session.log_event("step_failed", step=done.id,
-                                           error=f"restoring: {type(exc).__name__}: {exc}")
-                    raise StepFailed(done, exc) from exc
+            self._replay(done)
             if done.kind == "manual" and done.prompt:
                 manual = done
         if manual is not None:
             StepContext(self, manual).ask(f"Before {step.id}: set up as at '{manual.title}': "
                                           f"{manual.prompt}")
+
+    def _replay(self, step: Step) -> None:
+        """Re-establish what a completed step left behind (its ``restore``); a failure is a
+        failed step: status "failed", resumable."""
+        if step.restore is None:
+            return
+        try:
+            step.restore(StepContext(self, step))
+        except RunAborted:
+            raise
+        except Exception as exc:
+            log.info("restoring step %s failed: %s: %s", step.id, type(exc).__name__, exc)
+            self.session.log_event("step_failed", step=step.id,
+                                   error=f"restoring: {type(exc).__name__}: {exc}")
+            raise StepFailed(step, exc) from exc
 
     def _recover(self) -> None:
         try:
@@ -401,17 +408,7 @@ class Runner:
         for step in self.steps:
             if step.id not in done:
                 break
-            if step.restore is not None:
-                try:
-                    step.restore(StepContext(self, step))
-                except RunAborted:
-                    raise
-                except Exception as exc:  # as a failed step: status "failed", resumable
-                    log.info("restoring step %s failed: %s: %s", step.id,
-                             type(exc).__name__, exc)
-                    self.session.log_event("step_failed", step=step.id,
-                                           error=f"restoring: {type(exc).__name__}: {exc}")
-                    raise StepFailed(step, exc) from exc
+            self._replay(step)
             if step.kind == "manual":
                 last_manual = step
         if last_manual is not None and last_manual.prompt and self.pending():

@@ -209,7 +209,10 @@ def resume_run(
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     session.remove_temporary_files()  # a kill in the middle of an atomic write
-    session.update_meta(status="running")
+    # A retake records the status it started from at once: killed before it began, a
+    # completed session still reads as completed (Session.status).
+    session.update_meta(status="running", **({"retake": {
+        "status": "starting", "steps": steps, "previous_status": previous}} if steps else {}))
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
     record_in_catalogue(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,

@@ -283,6 +283,9 @@ def test_results_are_stale_until_reanalysed(tmp_path: Path,
     assert stale is not None and "results v1 predate retake r1 of position-18" in stale
     page = render_report(path)
     assert "results STALE" in page and "position-18 take 2 current - fibre bumped" in page
+    told = _cli("resume", str(path), "--simulate")
+    assert told.returncode == 0 and "results are stale: results v1 predate retake r1" \
+        in told.stdout
     v2 = reanalyze(path)
     assert session.results_stale() is None
     assert _row18(v2)["measured_mean_gray"] == pytest.approx(_truth18(session), abs=1.0)

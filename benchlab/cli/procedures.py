@@ -259,7 +259,9 @@ def _resume_preflight(session_path: Path, retake: list[str]) -> bool:
 
         retake_steps(session, retake)  # an unknown or untaken step: exit 2, nothing changed
     elif session.status == "completed":
-        print(f"{session.path}: session is complete; nothing to resume (unchanged)")
+        stale = session.results_stale()
+        print(f"{session.path}: session is complete; nothing to resume (unchanged)"
+              + (f"; results are stale: {stale}" if stale else ""))
         return True
     holder = session_holder(session_path)
     if holder is not None:
