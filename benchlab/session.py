@@ -895,6 +895,20 @@ class Session:
         return (f"results {latest.name} predate retake {later[-1]['id']} of "
                 f"{', '.join(steps)}; run benchlab analyze {self.path}")
 
+    def current_frames(self) -> list[tuple[str, str, Path]]:
+        """``(step_id, name, path)`` of every frame an analysis uses - each step's current
+        take (:meth:`step_frames`) - in the order they were first recorded."""
+        out: list[tuple[str, str, Path]] = []
+        current: dict[str, dict[str, Path]] = {}
+        for ev in self._frame_records().values():
+            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
+            if step_id not in current:
+                current[step_id] = self.step_frames(step_id)
+            path = current[step_id].pop(name, None)  # once per name: its current take
+            if path is not None:
+                out.append((step_id, name, path))
+        return out
+
     def frames(self) -> dict[str, str]:
         """Every recorded frame: relative file -> recorded sha256."""
         return {f: str(ev["sha256"]) for f, ev in self._frame_records().items()}
@@ -909,14 +923,9 @@ class Session:
         pool = ThreadPoolExecutor(max_workers=max(1, threads),
                                   thread_name_prefix="benchlab-frames")
         self._prefetch_pool = pool
-        current: dict[str, dict[str, Path]] = {}
-        for rel, ev in sorted(self._frame_records().items()):
-            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
-            if step_id not in current:
-                current[step_id] = self.step_frames(step_id)
-            path = current[step_id].get(name)  # the take load_frame hands out
-            if path is not None and path.relative_to(self.path).as_posix() == rel:
-                self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
+        for _, _, path in sorted(self.current_frames(), key=lambda f: f[2]):
+            rel = path.relative_to(self.path).as_posix()  # the take load_frame hands out
+            self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
 
     @property
     def prefetching(self) -> bool:

@@ -254,6 +254,16 @@ def test_mtf_retake_sets_the_bench_up_again_and_reproduces_the_results(
     session = Session.open(first.session_path)
     assert session.current_take("forward") == session.current_take("radial-2-sagittal") == 2
     assert session.current_take("radial-0.5-sagittal") == 1 and session.status == "completed"
+    # unwrap reads each radial step's current take once (never the superseded one)
+    from benchlab.radial_views import load_view_tiff, unwrap_session
+
+    rows = tables_of(unwrap_session(first.session_path, px_per_mm=6.0))["unwrap"]
+    assert sorted(r["step_id"] for r in rows) == [
+        "radial-0.5-sagittal", "radial-0.5-tangential", "radial-2-sagittal",
+        "radial-2-tangential"]
+    (retaken,) = [r for r in rows if r["step_id"] == "radial-2-sagittal"]
+    _, _, meta = load_view_tiff(session.latest_results() / retaken["file"])  # type: ignore
+    assert meta["source"] == "frames/radial-2-sagittal__radial.take2.tiff"
 
 
 def test_results_are_stale_until_reanalysed(tmp_path: Path,
