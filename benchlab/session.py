@@ -816,11 +816,11 @@ class Session:
                        previous_frames={s: sorted(p.relative_to(self.path).as_posix()
                                                   for p in self.step_frames(s).values())
                                         for s in steps})
+        record = {"id": rid, "steps": steps, "reason": reason, "status": "running",
+                  "started_at": _now_iso(), "previous_status": previous_status or self.status,
+                  "previous_takes": previous}
         self._retake = (rid, frozenset(steps))
-        self.update_meta(retake={"id": rid, "steps": steps, "reason": reason,
-                                 "status": "running", "started_at": _now_iso(),
-                                 "previous_status": previous_status or self.status,
-                                 "previous_takes": previous})
+        self.update_meta(status="running", retake=record)
         return rid
 
     @property

@@ -165,7 +165,7 @@ def _wait_for(path: Path, kind: str, proc: subprocess.Popen[str], timeout_s: flo
     raise AssertionError(f"no {kind} of a retake in {timeout_s} s")
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_stopped_retake_leaves_the_previous_take_current(tmp_path: Path, sig: int) -> None:
     """Stopped (SIGTERM: the shutdown path; SIGKILL: nothing runs) after the retake's first
     frame: the previous takes stay current, the session stays completed, results unchanged;
