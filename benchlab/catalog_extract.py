@@ -154,8 +154,15 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
         elif name == "table_4_16":
             for r in rows:
                 element = f"{_num(r.get('position_mm')) or 0:g}mm"
+                clipped = _num(r.get("clipped_pixels"))
+                # A clipped row's mean is only a lower bound: no number, and it says so.
+                text = "clipped" if clipped else ""
                 for q in ("measured_normalised", "difference", "measured_mean_gray"):
-                    yield Figure(version, "radiometry", element, "", None, q, _num(r.get(q)))
+                    value = None if clipped else _num(r.get(q))
+                    yield Figure(version, "radiometry", element, "", None, q, value, text)
+                if clipped is not None:
+                    yield Figure(version, "radiometry", element, "", None, "clipped_pixels",
+                                 clipped, text)
         elif name == "table_sfr_edges":  # slanted-edge SFR per edge
             for r in rows:
                 for q in ("mtf50_lp_per_mm", "mtf_nyquist", "contrast"):

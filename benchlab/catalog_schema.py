@@ -100,7 +100,15 @@ UPDATE sessions SET needs_reindex = 1 WHERE id IN (
 CREATE INDEX sessions_to_reindex ON sessions(id, path) WHERE needs_reindex = 1;
 """
 
-MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4)
+#: v5: a clipped radiometry row (Table 4.16 holds no number for it) is labelled "clipped" and
+#: has a ``clipped_pixels`` figure; v4 listed it with no value and no text, as if nothing had
+#: been measured. Sessions with such rows are re-read from their folders.
+_V5 = """
+UPDATE sessions SET needs_reindex = 1 WHERE id IN (
+    SELECT session_id FROM figures WHERE view = 'radiometry' AND value IS NULL AND text = '');
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4, _V5)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

@@ -401,11 +401,8 @@ def _unwrap_held(
     from benchlab.session import read_results
 
     frames: list[tuple[str, str, npt.NDArray[Any]]] = []
-    for rel in sorted(session.frames()):
-        stem = Path(rel).stem
-        if "__" not in stem:
-            continue
-        step_id, name = stem.split("__", 1)
+    # each step's current take (an earlier take a retake superseded is not unwrapped)
+    for step_id, name, _ in sorted(session.current_frames(), key=lambda f: f[2]):
         pixels, meta = session.load_frame(step_id, name)  # checks the journalled hash
         if _is_radial(meta, name):
             frames.append((step_id, name, np.asarray(pixels)))
@@ -440,7 +437,7 @@ def _unwrap_held(
                 raise ViewSynthesisError(f"{step_id}__{name}: frame shape {px.shape} differs")
             view = apply_maps(px, maps, interpolation)
             file = f"{step_id}__{name}.unwrap.tiff"
-            src = session.frame_path(step_id, name)
+            src = session.step_frames(step_id)[name]  # the current take, as loaded
             meta = {**maps.meta, "centre_method": how, "interpolation": interpolation,
                     "source": src.relative_to(session.path).as_posix(),
                     "source_sha256": sha256_file(src)}

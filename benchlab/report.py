@@ -133,6 +133,9 @@ def _identity(ctx: ReportContext) -> str:
     if ctx.doc.get("partial"):
         status += (f" - results PARTIAL ({ctx.doc.get('steps_done')} of "
                    f"{ctx.doc.get('steps_total')} steps done)")
+    stale = ctx.session.results_stale()
+    if stale:
+        status += f" - results STALE: {stale}"
     rows: list[tuple[str, Any]] = [
         ("operator", meta.get("operator") or "-"), ("status", status),
         ("started", local_time(meta.get("started_at"))),
@@ -140,6 +143,11 @@ def _identity(ctx: ReportContext) -> str:
         ("software", meta.get("software_version")),
         ("results", f"{ctx.results_path.name} (estimator {ctx.doc.get('estimator')}, "
                     f"{local_time(ctx.doc.get('created_at'))})")]
+    for rt in ctx.session.retakes():  # steps taken again (benchlab resume --retake)
+        what = (", ".join(f"{k} take {v}" for k, v in sorted((rt.get("current") or {}).items()))
+                + " current" if rt["status"] == "adopted" else
+                f"{rt['status']}: the previous takes of {', '.join(rt['steps'])} stay current")
+        rows.append((f"retake {rt['id']}", what + (f" - {rt['reason']}" if rt["reason"] else "")))
     for kind, dev in (meta.get("devices") or {}).items():
         if isinstance(dev, dict):
             rows.append((kind, ", ".join(f"{k} {v}" for k, v in dev.items())))
@@ -335,41 +343,88 @@ def _radiometry_figure(ctx: ReportContext) -> str:
     return figure_img(fig, "radiometric fall-off")
 
 
-def _radiometry_frames(ctx: ReportContext) -> str:
-    import cv2
+@dataclass(frozen=True)
+class MaskOverlay:
+    """One radiometry position as the report draws it: the image the reading averaged (the
+    measurement frame, linearised when the results were) and the mask computed on it."""
 
-    from benchlab.protocols.radiometry import position_step_id, reading_mask_of
+    position_mm: float
+    image: npt.NDArray[Any]
+    mask: npt.NDArray[np.bool_]
+    linearised: bool
 
-    thr = float(ctx.session.params.get("analysis", {}).get("mask_threshold_fraction", 0.5))
-    parts = []
+
+def radiometry_overlays(ctx: ReportContext) -> list[MaskOverlay]:
+    """The mask of every Table 4.16 row, computed as the analysis computed it
+    (:func:`benchlab.protocols.radiometry.reading_view`): on the linearised image when the
+    results record a response calibration, else on the raw codes."""
+    from benchlab.protocols.radiometry import position_step_id, reading_view
+    from benchlab.protocols.runs import session_params
+
+    params = session_params(ctx.session)
+    thr = float(getattr(params, "mask_threshold_fraction", 0.5))
+    linear = None
+    if isinstance(ctx.summary.get("linearised"), dict):
+        from benchlab.protocols.characterise_calibration import session_linearisation
+
+        linear, _ = session_linearisation(ctx.session, float(getattr(params, "measurement_gain",
+                                                                     1.0)),
+                                          int(getattr(params, "bits", 8)))
+    out = []
     for r in ctx.tables.get("table_4_16", []):
         sid = position_step_id(r["position_mm"])
         mask_f, meas_f = ctx.frame(sid, "mask"), ctx.frame(sid, "measurement")
         if mask_f is None or meas_f is None:
             continue
         try:
-            mask = reading_mask_of(mask_f[0], meas_f[0], thr)
+            image, mask = reading_view(mask_f[0], meas_f[0], thr, linear=linear)
         except ValueError:  # no LED in these frames: the notes above say the row was skipped
             continue
-        rows_idx, cols_idx = np.nonzero(mask)
-        meas = meas_f[0]
+        out.append(MaskOverlay(float(r["position_mm"]), image, mask, linear is not None))
+    return out
+
+
+def _radiometry_frames(ctx: ReportContext) -> str:
+    import cv2
+
+    from benchlab.protocols.characterise_calibration import CalibrationError
+
+    parts = []
+    try:
+        overlays = radiometry_overlays(ctx)
+    except CalibrationError as exc:  # the linearised image cannot be rebuilt: no mask drawn
+        return (f"<p class='note'>LED masks not drawn: the image the readings averaged "
+                f"cannot be rebuilt ({esc(str(exc))}).</p>")
+    for o in overlays:
+        rows_idx, cols_idx = np.nonzero(o.mask)
+        img_full = o.image
         if rows_idx.size:
-            r0, r1 = max(int(rows_idx.min()) - 30, 0), min(int(rows_idx.max()) + 31, meas.shape[0])
-            c0, c1 = max(int(cols_idx.min()) - 30, 0), min(int(cols_idx.max()) + 31, meas.shape[1])
+            r0 = max(int(rows_idx.min()) - 30, 0)
+            r1 = min(int(rows_idx.max()) + 31, img_full.shape[0])
+            c0 = max(int(cols_idx.min()) - 30, 0)
+            c1 = min(int(cols_idx.max()) + 31, img_full.shape[1])
         else:
-            r0, r1, c0, c1 = 0, meas.shape[0], 0, meas.shape[1]
-        grey = display_8bit(meas[r0:r1, c0:c1])
+            r0, r1, c0, c1 = 0, img_full.shape[0], 0, img_full.shape[1]
+        crop = img_full[r0:r1, c0:c1]
+        # the linearised image is in linear units (not codes): scaled to its own maximum
+        grey = display_8bit(crop, max(float(crop.max()), 1e-12) if o.linearised else None)
         rgb: npt.NDArray[np.uint8] = np.asarray(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR),
                                                 dtype=np.uint8)
-        contours, _ = cv2.findContours(mask[r0:r1, c0:c1].astype(np.uint8), cv2.RETR_EXTERNAL,
-                                       cv2.CHAIN_APPROX_NONE)
+        contours, _ = cv2.findContours(o.mask[r0:r1, c0:c1].astype(np.uint8),
+                                       cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         cv2.drawContours(rgb, contours, -1, (0, 255, 255), 1)
         img, _ = downsample(rgb, 300)
         parts.append(annotated_image(png_data_uri(img), img.shape[1], img.shape[0],
                                      f"<text x='4' y='14' fill='#ff0' font-size='12' "
-                                     f"class='roi-label'>{r['position_mm']:g} mm</text>",
-                                     f"LED at {r['position_mm']:g} mm"))
-    return "".join(parts) + "<p class='note'>Measurement frames; the LED mask outlined.</p>"
+                                     f"class='roi-label'>{o.position_mm:g} mm</text>",
+                                     f"LED at {o.position_mm:g} mm"))
+    linearised = any(o.linearised for o in overlays)
+    shown = ("Measurement frames linearised with the response calibration (the image the "
+             "readings averaged; shown scaled to each crop's maximum)" if linearised else
+             "Measurement frames, raw camera codes (no response calibration: the image the "
+             "readings averaged)")
+    return "".join(parts) + (f"<p class='note'>{shown}; the LED mask outlined, computed on "
+                             "this same image as the analysis computed it.</p>")
 
 
 def _radiometry_notes(ctx: ReportContext) -> str:
@@ -438,20 +493,26 @@ SECTIONS: list[Section] = [
 ]
 
 
-def render_report(session_path: str | Path,
-                  timings: dict[str, float] | None = None) -> str:
-    """The report of a session as one HTML string; ``timings`` (if given) receives the
-    seconds each section took, by anchor (for ``benchlab benchmark report``)."""
-    import time
-
+def report_context(session_path: str | Path) -> ReportContext:
+    """The session at ``session_path`` and its latest results, as the sections read them."""
     session = Session.open(Path(session_path))
     results = session.latest_results()
     if results is None:
         raise ReportError(f"{session.path}: no results yet (finish the run or resume it, or "
                           "run benchlab analyze on it)")
     tables, doc = read_results(results)
-    ctx = ReportContext(session=session, results_path=results,
-                        tables=_named_rows(results, tables, doc), doc=doc)
+    return ReportContext(session=session, results_path=results,
+                         tables=_named_rows(results, tables, doc), doc=doc)
+
+
+def render_report(session_path: str | Path,
+                  timings: dict[str, float] | None = None) -> str:
+    """The report of a session as one HTML string; ``timings`` (if given) receives the
+    seconds each section took, by anchor (for ``benchlab benchmark report``)."""
+    import time
+
+    ctx = report_context(session_path)
+    session, results = ctx.session, ctx.results_path
     procedure = session.meta["procedure"]
     out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>benchlab report "
            f"{esc(session.path.name)}</title><style>{_CSS}</style></head><body>",

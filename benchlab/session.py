@@ -5,7 +5,9 @@ Layout::
     <root>/<YYYYmmdd-HHMMSS>_<procedure>/
         session.json      who, what, which devices, software version, parameters, start/end
         events.jsonl      append-only journal, one JSON object per line, fsync'd per line
-        frames/           <step_id>__<name>.tiff, lossless, metadata inside, never overwritten
+        frames/           <step_id>__<name>.tiff, lossless, metadata inside, never overwritten;
+                          <step_id>__<name>.take<N>.tiff: a later take (after rejected frames,
+                          or ``resume --retake``), the earlier takes kept beside it
         results/v<N>/     one CSV + JSON per table and summary.json; a re-analysis adds v<N+1>
 
 Every file is written atomically (:mod:`benchlab.storage`); frames are flushed to disk before
@@ -68,9 +70,22 @@ OWNER_FILE = "owner.lock"
 #: Step ids, frame names and table names become file names: keep them plain.
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _VERSION_DIR = re.compile(r"^v(\d+)$")
-#: A frame taken again after its earlier takes were rejected: ``<step>__<name>.take2.tiff``.
+#: A frame taken again after its earlier takes were rejected, or by a retake (``resume
+#: --retake``): ``<step>__<name>.take2.tiff``; the earlier takes keep their names.
 _TAKE_MARK = ".take"
 _TAKE_RE = re.compile(r"\.take\d+$")
+
+
+def take_of(path: Path) -> int:
+    """The take number of a frame file: N of ``<step>__<name>.take<N>.tiff``, else 1."""
+    m = _TAKE_RE.search(path.stem)
+    return int(m.group(0)[len(_TAKE_MARK):]) if m else 1
+
+
+#: Journal events of a retake (``benchlab resume SESSION --retake STEP``).
+RETAKE_STARTED = "retake_started"
+RETAKE_ADOPTED = "retake_adopted"
+RETAKE_STOPPED = "retake_stopped"
 #: How a missing number (NaN) is written in results CSV files; JSON uses null.
 CSV_MISSING = "NA"
 #: Flush policy of a results version: "syncfs" (files written, then ONE flush of the file
@@ -247,8 +262,11 @@ class Session:
         self._events_cache: tuple[tuple[int, ...], list[dict[str, Any]]] | None = None
         #: :meth:`_frame_records` of that journal (same identity).
         self._records_cache: tuple[tuple[int, ...], dict[str, dict[str, Any]]] | None = None
-        #: :meth:`rejected_frames` of that journal (same identity).
-        self._rejected_cache: tuple[tuple[int, ...], dict[str, str]] | None = None
+        #: :meth:`rejected_frames` of that journal and the frames retakes made current (same
+        #: identity).
+        self._rejected_cache: tuple[tuple[int, ...], dict[str, str], frozenset[str]] | None = None
+        #: The retake this object is running (:meth:`begin_retake`): its id and steps.
+        self._retake: tuple[str, frozenset[str]] | None = None
         self._owner_fd: int | None = None
         #: Set by :meth:`mark_results_partial`: written into every new results version.
         self._partial: dict[str, Any] | None = None
@@ -461,6 +479,11 @@ class Session:
         """
         recorded = str(self._meta["status"])
         if recorded == "running" and not self.held and session_holder(self.path) is None:
+            retake = self._meta.get("retake")
+            if isinstance(retake, dict) and retake.get("previous_status") == "completed":
+                # a retake of a completed session was killed: its frames are still whole
+                # (the previous takes, or the retake's once adopted; see results_stale)
+                return "completed"
             return "interrupted"
         return recorded
 
@@ -613,7 +636,11 @@ class Session:
             raise FrameExistsError(
                 f"{path}: frame already saved; frames are never overwritten"
             ) from exc
-        self._record_frame(path, step_id, name)
+        retake = self._retake
+        if retake is not None and step_id in retake[1]:
+            self._record_frame(path, step_id, name, retake=retake[0])
+        else:
+            self._record_frame(path, step_id, name)
         return path
 
     def _record_frame(self, path: Path, step_id: str, name: str, **extra: Any) -> None:
@@ -658,16 +685,32 @@ class Session:
             except FrameFileError as exc:
                 self.log_event("frame_unreadable", file=rel, error=str(exc))
                 continue
-            self._record_frame(path, step_id, name, recovered=True)
+            extra: dict[str, Any] = {}
+            if name in self.step_frames(step_id):  # a new take beside a current one: a retake's
+                extra["retake"] = self._last_retake_of(step_id) or "unknown"
+            self._record_frame(path, step_id, name, recovered=True, **extra)
 
     def step_frames(self, step_id: str) -> dict[str, Path]:
-        """Frames saved by a step and not rejected: ``name -> path`` (the latest take)."""
+        """Frames saved by a step and not rejected: ``name -> path`` (the current take).
+
+        A frame taken by a retake (:meth:`begin_retake`) is current once the retake is adopted
+        (:meth:`adopt_retake`); until then only the process running the retake sees it, in
+        place of the step's previous take - an interrupted retake leaves that take current."""
         rejected = self._rejected()
-        return {
-            str(ev["name"]): self.path / str(ev["file"])
-            for ev in self._frame_records().values()
-            if ev.get("step_id") == step_id and str(ev["file"]) not in rejected
-        }
+        adopted = self._adopted()
+        active = self._retake if self._retake is not None and step_id in self._retake[1] \
+            else None
+        out: dict[str, Path] = {}
+        for ev in self._frame_records().values():
+            file = str(ev["file"])
+            if ev.get("step_id") != step_id or file in rejected:
+                continue
+            tag = ev.get("retake")
+            if (tag != active[0]) if active is not None else (tag is not None
+                                                              and file not in adopted):
+                continue
+            out[str(ev["name"])] = self.path / file
+        return out
 
     def rejected_frames(self) -> dict[str, str]:
         """Frames set aside by :meth:`reject_frames`: relative file -> reason. They stay on
@@ -675,16 +718,29 @@ class Session:
         return dict(self._rejected())
 
     def _rejected(self) -> dict[str, str]:
+        return self._set_aside()[0]
+
+    def _adopted(self) -> frozenset[str]:
+        """Frames a retake made current (:meth:`adopt_retake`)."""
+        return self._set_aside()[1]
+
+    def _set_aside(self) -> tuple[dict[str, str], frozenset[str]]:
+        """``(rejected file -> reason, adopted files)``: a retake's adoption rejects the takes
+        it supersedes and adopts its own in one journal line."""
         key, events = self._journal()
         cached = self._rejected_cache
         if key is not None and cached is not None and cached[0] == key:
-            return cached[1]
-        found = {str(f): str(ev.get("reason", ""))
-                 for ev in events if ev.get("kind") == "frames_rejected"
-                 for f in ev.get("files") or ()}
+            return cached[1], cached[2]
+        found: dict[str, str] = {}
+        adopted: set[str] = set()
+        for ev in events:
+            if ev.get("kind") in ("frames_rejected", RETAKE_ADOPTED):
+                for f in ev.get("files") or ():
+                    found[str(f)] = str(ev.get("reason", ""))
+                adopted.update(str(f) for f in ev.get("adopted") or ())
         if key is not None:
-            self._rejected_cache = (key, found)
-        return found
+            self._rejected_cache = (key, found, frozenset(adopted))
+        return found, frozenset(adopted)
 
     def reject_frames(self, step_id: str, names: Collection[str], reason: str) -> list[str]:
         """Set aside a step's current frames ``names`` (their content cannot be used, e.g. no
@@ -694,6 +750,164 @@ class Session:
         if files:
             self.log_event("frames_rejected", step_id=step_id, files=files, reason=reason)
         return files
+
+    # ------------------------------------------------------------------ retakes
+    def retakes(self) -> list[dict[str, Any]]:
+        """Every retake, oldest first: ``id``, ``steps``, ``reason``, ``started_at`` and
+        ``status`` - "adopted" (its takes are current), "running" (a live process is taking
+        them), "interrupted" (stopped before adoption: the previous takes stay current) - with
+        ``current`` (step -> take number) once adopted."""
+        out: dict[str, dict[str, Any]] = {}
+        for ev in self._journal()[1]:
+            rid = ev.get("retake")
+            if not isinstance(rid, str):
+                continue
+            kind = ev.get("kind")
+            if kind == RETAKE_STARTED:
+                out[rid] = {"id": rid, "steps": list(ev.get("steps") or ()),
+                            "reason": str(ev.get("reason") or ""),
+                            "started_at": str(ev.get("time", "")), "status": "running"}
+            elif kind == RETAKE_ADOPTED and rid in out:
+                out[rid].update(status="adopted", current=dict(ev.get("takes") or {}),
+                                adopted_at=str(ev.get("time", "")))
+            elif kind == RETAKE_STOPPED and rid in out and out[rid]["status"] == "running":
+                out[rid].update(status="interrupted", stopped=str(ev.get("status", "")))
+        # Running: the retake this object runs, or the last one while another live process
+        # writes the session; any other that never ended was stopped by a kill.
+        live = self._retake[0] if self._retake is not None else None
+        last = next(reversed(out), None)
+        other = live is None and not self.held and session_holder(self.path) is not None
+        for rec in out.values():
+            if rec["status"] == "running" and not (rec["id"] == live
+                                                   or (other and rec["id"] == last)):
+                rec.update(status="interrupted", stopped="writer gone")
+        return list(out.values())
+
+    def _last_retake_of(self, step_id: str) -> str | None:
+        found = None
+        for ev in self._journal()[1]:
+            if ev.get("kind") == RETAKE_STARTED and step_id in (ev.get("steps") or ()):
+                found = str(ev.get("retake"))
+        return found
+
+    def current_take(self, step_id: str) -> int:
+        """The take number of a step's current frames (1: never taken again; the highest
+        ``.take<N>`` of its current frame files)."""
+        return max(map(take_of, self.step_frames(step_id).values()), default=1)
+
+    def begin_retake(self, step_ids: Collection[str], reason: str = "",
+                     previous_status: str | None = None) -> str:
+        """Start taking ``step_ids`` again (their frames so far are kept, never edited). Until
+        :meth:`adopt_retake`, frames those steps save are the retake's: this object sees them
+        in place of the current takes, every other reader still sees the current takes.
+        Journalled (``retake_started``) and recorded in ``session.json`` (``retake``).
+        ``previous_status``: the session's status before this run set it "running" (a
+        retake of a completed session that is stopped leaves it completed). Only the
+        session's writer may do this. Returns the retake's id."""
+        if not self.held:
+            raise SessionError(f"{self.path}: only the session's writer starts a retake")
+        if self._retake is not None:
+            raise SessionError(f"{self.path}: retake {self._retake[0]} is already running")
+        steps = [_check_name("step id", s) for s in step_ids]
+        rid = f"r{sum(1 for ev in self._journal()[1] if ev.get('kind') == RETAKE_STARTED) + 1}"
+        previous = {s: self.current_take(s) for s in steps}
+        self.log_event(RETAKE_STARTED, retake=rid, steps=steps, reason=reason,
+                       previous_takes=previous,
+                       previous_frames={s: sorted(p.relative_to(self.path).as_posix()
+                                                  for p in self.step_frames(s).values())
+                                        for s in steps})
+        record = {"id": rid, "steps": steps, "reason": reason, "status": "running",
+                  "started_at": _now_iso(), "previous_status": previous_status or self.status,
+                  "previous_takes": previous}
+        self._retake = (rid, frozenset(steps))
+        self.update_meta(status="running", retake=record)
+        return rid
+
+    @property
+    def retake_running(self) -> str | None:
+        """The id of the retake this object runs (not yet adopted), else None."""
+        return self._retake[0] if self._retake is not None else None
+
+    def adopt_retake(self) -> dict[str, int]:
+        """Make the running retake's frames current, in ONE journal line that also sets the
+        takes they supersede aside (kept on disk and in the hash checks, never analysed).
+        Results written before are stale from then on (:meth:`results_stale`). Returns
+        step -> its current take number."""
+        if self._retake is None:
+            raise SessionError(f"{self.path}: no retake is running")
+        rid, steps = self._retake
+        new = {s: self.step_frames(s) for s in sorted(steps)}
+        missing = sorted(s for s, frames in new.items() if not frames)
+        if missing:
+            raise SessionError(f"{self.path}: retake {rid} has no frames for "
+                               f"{', '.join(missing)}; nothing adopted")
+        self._retake = None
+        old = {s: self.step_frames(s) for s in sorted(steps)}
+        superseded = [p.relative_to(self.path).as_posix() for s in sorted(steps)
+                      for n, p in old[s].items() if n in new[s]]
+        adopted = [p.relative_to(self.path).as_posix() for s in sorted(steps)
+                   for p in new[s].values()]
+        reason = str(self._meta.get("retake", {}).get("reason") or "")
+        takes = {s: max(map(take_of, new[s].values())) for s in sorted(steps)}
+        self.log_event(RETAKE_ADOPTED, retake=rid, steps=sorted(steps), files=superseded,
+                       adopted=adopted, takes=takes,
+                       reason=f"superseded by retake {rid}" + (f": {reason}" if reason else ""))
+        meta_takes = dict(self._meta.get("takes") or {})
+        for s in sorted(steps):
+            meta_takes[s] = {"take": takes[s], "retake": rid, "reason": reason,
+                             "frames": sorted(f for f in adopted
+                                              if f.startswith(f"{FRAMES_DIR}/{s}__"))}
+        retake = {**dict(self._meta.get("retake") or {}), "status": "adopted",
+                  "adopted_at": _now_iso(), "current_takes": takes}
+        self.update_meta(takes=meta_takes, retake=retake)
+        return takes
+
+    def stop_retake(self, status: str) -> None:
+        """The running retake ended before adoption (``status``: interrupted, aborted,
+        failed): journalled and recorded; the previous takes stay current, the retake's frames
+        stay on disk beside them, never current."""
+        if self._retake is None:
+            return
+        rid, steps = self._retake
+        self._retake = None
+        self.log_event(RETAKE_STOPPED, retake=rid, steps=sorted(steps), status=status,
+                       message="previous takes stay current")
+        retake = {**dict(self._meta.get("retake") or {}), "status": status,
+                  "stopped_at": _now_iso(), "note": "previous takes stay current"}
+        self.update_meta(retake=retake)
+
+    def results_stale(self) -> str | None:
+        """Why the latest results no longer describe the current frames (a retake adopted
+        after they were written), or None."""
+        latest = self.latest_results()
+        adopted = [r for r in self.retakes() if r["status"] == "adopted"]
+        if latest is None or not adopted:
+            return None
+        try:
+            created = str(json.loads((latest / "summary.json").read_text(encoding="utf-8"))
+                          .get("created_at", ""))
+        except (OSError, ValueError, AttributeError):
+            created = ""
+        later = [r for r in adopted if str(r.get("adopted_at", "")) > created]
+        if not later:
+            return None
+        steps = sorted({s for r in later for s in r["steps"]})
+        return (f"results {latest.name} predate retake {later[-1]['id']} of "
+                f"{', '.join(steps)}; run benchlab analyze {self.path}")
+
+    def current_frames(self) -> list[tuple[str, str, Path]]:
+        """``(step_id, name, path)`` of every frame an analysis uses - each step's current
+        take (:meth:`step_frames`) - in the order they were first recorded."""
+        out: list[tuple[str, str, Path]] = []
+        current: dict[str, dict[str, Path]] = {}
+        for ev in self._frame_records().values():
+            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
+            if step_id not in current:
+                current[step_id] = self.step_frames(step_id)
+            path = current[step_id].pop(name, None)  # once per name: its current take
+            if path is not None:
+                out.append((step_id, name, path))
+        return out
 
     def frames(self) -> dict[str, str]:
         """Every recorded frame: relative file -> recorded sha256."""
@@ -709,14 +923,9 @@ class Session:
         pool = ThreadPoolExecutor(max_workers=max(1, threads),
                                   thread_name_prefix="benchlab-frames")
         self._prefetch_pool = pool
-        for rel, ev in sorted(self._frame_records().items()):
-            step_id, name = str(ev.get("step_id", "")), str(ev.get("name", ""))
-            try:
-                path = self.frame_path(step_id, name)
-            except ValueError:
-                continue  # not a frame load_frame can ask for
-            if path.relative_to(self.path).as_posix() == rel:
-                self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
+        for _, _, path in sorted(self.current_frames(), key=lambda f: f[2]):
+            rel = path.relative_to(self.path).as_posix()  # the take load_frame hands out
+            self._prefetched[rel] = pool.submit(self._load_frame_now, path, rel)
 
     @property
     def prefetching(self) -> bool:

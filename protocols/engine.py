@@ -183,6 +183,15 @@ class Runner:
         Partial results as steps complete.
     estimator : str, optional
         Modulation estimator for the final analysis (default: params, then the library default).
+    retake : sequence of str, optional
+        Completed acquisition steps to take again (``benchlab resume --retake``): run again
+        with the analysis after them, their new frames beside the old ones, made current only
+        when every one of them is taken (:meth:`benchlab.session.Session.adopt_retake`).
+    retake_reason : str
+        Why (journalled and in ``session.json``).
+    previous_status : str, optional
+        The session's status before this run (a stopped retake of a completed session leaves
+        it completed: its previous takes are whole).
     """
 
     def __init__(
@@ -196,6 +205,9 @@ class Runner:
         abort: threading.Event | None = None,
         on_result: ResultFn | None = None,
         estimator: str | None = None,
+        retake: Sequence[str] = (),
+        retake_reason: str = "",
+        previous_status: str | None = None,
     ) -> None:
         self.procedure = procedure
         self.session = session
@@ -207,10 +219,17 @@ class Runner:
         self.estimator = estimator
         self.steps: list[Step] = procedure_steps(procedure)
         self._restored = False
+        #: Retake: the steps to take again (until adopted), and every step to run again
+        #: although the journal has it done (those steps and the analysis), until it has run.
+        self._retake_steps = [s.id for s in self.steps if s.id in set(retake)]
+        self._retake = list(self._retake_steps)  # emptied once adopted
+        self._retake_reason = retake_reason
+        self._previous_status = previous_status
+        self._redo: set[str] = set()
 
     # -- state ------------------------------------------------------------------------------
     def completed(self) -> set[str]:
-        return set(self.session.completed_steps())
+        return set(self.session.completed_steps()) - self._redo
 
     def pending(self) -> list[Step]:
         """Steps not done yet, in order."""
@@ -241,35 +260,58 @@ class Runner:
         total = len(self.steps)
         all_done = False
         try:
+            if self._retake and self.session.retake_running is None:
+                # (again after a failed attempt: every step of it is taken anew)
+                self.session.begin_retake(self._retake, self._retake_reason,
+                                          self._previous_status)
+                self._redo = set(self._retake) | {s.id for s in self.steps
+                                                  if s.kind == "analysis"}
             done = self.completed()
             if done and not self._restored:
                 self._restore(done)  # a new process (resume)
             elif self._restored and hasattr(self.bench, "recover"):
                 self._recover()  # a retry: reconnect what the failure lost
             self._restored = True
+            ran: Step | None = None  # the last step run (a retake skips done steps between)
+            skipped: list[Step] = []
             for step in self.steps:
                 if step.id in done:
+                    if ran is not None and self._retake_steps:
+                        skipped.append(step)
                     continue
                 self._check_abort(step)
+                if skipped:
+                    self._set_up_again(skipped, step)
+                    skipped = []
                 if self.progress is not None:
                     self.progress(len(done), total, step)
                 self._run_step(step)
                 done.add(step.id)
+                self._redo.discard(step.id)
+                ran = step
+                if self._retake and self._retake[-1] == step.id:
+                    takes = self.session.adopt_retake()  # every retaken step has new frames
+                    log.info("retake adopted: %s", takes)
+                    self._retake = []
             if self.progress is not None:
                 self.progress(total, total, None)
             all_done = True
         except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (drivers.shutdown)
             self.session.log_event("interrupted", reason=interrupt_reason(exc))
-            self.session.update_meta(status="interrupted")
+            self._stopped("interrupted")
             raise
         except RunAborted:
             stop_signal = received()  # the UI aborted the run because the process is stopping
             if stop_signal is not None:
                 self.session.log_event("interrupted", reason=signal_name(stop_signal))
-            self.session.update_meta(status="aborted" if stop_signal is None else "interrupted")
+            self._stopped("aborted" if stop_signal is None else "interrupted")
             raise
         except StepFailed:
-            self.session.update_meta(status="failed")
+            self._stopped("failed")
+            raise
+        except Exception:
+            if self._retake_steps:  # e.g. a prompt no one can answer: the retake says so
+                self._stopped("failed")
             raise
         finally:
             self.bench.safe_state()
@@ -289,6 +331,43 @@ class Runner:
             session_path=Path(self.session.path), results_path=Path(results),
             tables=tables, summary=summary, duration_s=time.perf_counter() - t0,
         )
+
+    def _stopped(self, status: str) -> None:
+        """Record why the run stopped. A retake not yet adopted is stopped (its previous takes
+        stay current); a retake of a completed session leaves it completed (its previous
+        takes are whole; :meth:`benchlab.session.Session.results_stale` says when results
+        predate an adopted retake)."""
+        self.session.stop_retake(status)
+        keep = bool(self._retake_steps) and self._previous_status == "completed"
+        self.session.update_meta(status="completed" if keep else status)
+
+    def _set_up_again(self, skipped: list[Step], step: Step) -> None:
+        """Before a step after done ones were skipped (a retake): replay what those steps set
+        up (camera, mounted target) and ask the operator to set the bench up as at the last
+        manual step among them."""
+        manual: Step | None = None
+        for done in skipped:
+            self._replay(done)
+            if done.kind == "manual" and done.prompt:
+                manual = done
+        if manual is not None:
+            StepContext(self, manual).ask(f"Before {step.id}: set up as at '{manual.title}': "
+                                          f"{manual.prompt}")
+
+    def _replay(self, step: Step) -> None:
+        """Re-establish what a completed step left behind (its ``restore``); a failure is a
+        failed step: status "failed", resumable."""
+        if step.restore is None:
+            return
+        try:
+            step.restore(StepContext(self, step))
+        except RunAborted:
+            raise
+        except Exception as exc:
+            log.info("restoring step %s failed: %s: %s", step.id, type(exc).__name__, exc)
+            self.session.log_event("step_failed", step=step.id,
+                                   error=f"restoring: {type(exc).__name__}: {exc}")
+            raise StepFailed(step, exc) from exc
 
     def _recover(self) -> None:
         try:
@@ -329,22 +408,15 @@ class Runner:
         for step in self.steps:
             if step.id not in done:
                 break
-            if step.restore is not None:
-                try:
-                    step.restore(StepContext(self, step))
-                except RunAborted:
-                    raise
-                except Exception as exc:  # as a failed step: status "failed", resumable
-                    log.info("restoring step %s failed: %s: %s", step.id,
-                             type(exc).__name__, exc)
-                    self.session.log_event("step_failed", step=step.id,
-                                           error=f"restoring: {type(exc).__name__}: {exc}")
-                    raise StepFailed(step, exc) from exc
+            self._replay(step)
             if step.kind == "manual":
                 last_manual = step
         if last_manual is not None and last_manual.prompt and self.pending():
             ctx = StepContext(self, last_manual)
-            ctx.ask(f"Resuming: check the set-up is still as at '{last_manual.title}': "
+            first = self.pending()[0].id
+            ctx.ask(f"Retake of {first}: set up as at '{last_manual.title}': "
+                    f"{last_manual.prompt}" if first in self._retake else
+                    f"Resuming: check the set-up is still as at '{last_manual.title}': "
                     f"{last_manual.prompt}")
         self.session.log_event("resumed", completed=sorted(done))
 

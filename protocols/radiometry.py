@@ -54,6 +54,25 @@ def reading_mask_of(mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray
     return reading_mask(mask_frame, measurement_frame, threshold_fraction)
 
 
+def reading_view(
+    mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any], threshold_fraction: float,
+    *, linear: Callable[[Any], Any] | None = None,
+) -> tuple[npt.NDArray[Any], npt.NDArray[np.bool_]]:
+    """``(image, mask)`` of one position: the image a reading averages (the measurement
+    frame, linearised by ``linear`` - the response calibration - when given) and the mask
+    computed on that same image. The analysis and the report's overlay both use this, so the
+    outline drawn is the mask averaged.
+
+    Raises
+    ------
+    ValueError
+        No LED in the frames (:func:`reading_mask_of`).
+    """
+    meas = np.asarray(measurement_frame)
+    values = np.asarray(linear(meas)) if linear is not None else meas
+    return values, reading_mask_of(mask_frame, values, threshold_fraction)
+
+
 def saturation_code_of(frame: npt.NDArray[Any], bits: Any = None) -> float:
     """The code a frame clips at: ``2**bits - 1`` of its recorded bit depth, else what the
     data say (:func:`benchlab.analysis.roi.saturation_code`), else its maximum."""
@@ -91,8 +110,7 @@ def reading(
         No LED in the frames (:func:`reading_mask_of`).
     """
     meas = np.asarray(measurement_frame)
-    values = linear(meas) if linear is not None else meas
-    mask = reading_mask_of(mask_frame, values, threshold_fraction)
+    values, mask = reading_view(mask_frame, meas, threshold_fraction, linear=linear)
     top = saturation_code_of(meas, bits)
     return Reading(mean_in_mask(values, mask), int(mask.sum()),
                    clipped_in_mask(meas, mask, top), top)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -151,6 +152,41 @@ def session_params(session: Session) -> Params:
     return parse_params(session.procedure, snap, str(session.path / "session.json"))
 
 
+class RetakeUsageError(UsageError):
+    """``--retake`` names a step the session's plan has not, or one not taken yet."""
+
+
+def retake_steps(session: Session, steps: Sequence[str]) -> list[str]:
+    """The step ids ``steps`` (``--retake``) checked against the session's plan: each an
+    acquisition step of its procedure, already taken. Returned in plan order, once each.
+    Only reads the session.
+
+    Raises
+    ------
+    RetakeUsageError
+        Naming the unknown id and listing the valid ones, or the step not taken yet.
+    """
+    plan = make_procedure(session_params(session)).steps()
+    valid = [s.id for s in plan if s.kind == "acquire"]
+    wanted = [s.strip() for s in steps]
+    if not wanted or any(not s for s in wanted):
+        raise RetakeUsageError(f"--retake: give step ids separated by commas; valid steps of "
+                               f"{session.path.name}: {', '.join(valid)}")
+    unknown = [s for s in wanted if s not in valid]
+    if unknown:
+        other = [s for s in unknown if s in {st.id for st in plan}]
+        why = (f" ({', '.join(other)}: not an acquisition step, it takes no frames)"
+               if other else "")
+        raise RetakeUsageError(f"--retake: unknown step {', '.join(map(repr, unknown))}{why}; "
+                               f"valid steps of {session.path.name}: {', '.join(valid)}")
+    done = session.completed_steps()
+    fresh = [s for s in wanted if s not in done]
+    if fresh:
+        raise RetakeUsageError(f"--retake: step {', '.join(fresh)} has not been taken yet "
+                               "(benchlab resume without --retake takes it)")
+    return [s for s in valid if s in set(wanted)]
+
+
 def resume_run(
     session_path: str | Path,
     *,
@@ -160,11 +196,19 @@ def resume_run(
     abort: threading.Event | None = None,
     on_result: ResultFn | None = None,
     estimator: str | None = None,
+    retake: Sequence[str] = (),
+    retake_reason: str = "",
 ) -> Runner:
-    """Reopen an interrupted session; ``run()`` continues from its first incomplete step."""
+    """Reopen an interrupted session; ``run()`` continues from its first incomplete step.
+
+    With ``retake`` (step ids, :func:`retake_steps`), also a completed session: ``run()``
+    takes those steps again - their earlier frames kept beside the new ones - and
+    re-analyses; see :class:`benchlab.protocols.engine.Runner`."""
     check_estimator(estimator)
     session = Session.open(Path(session_path))
-    if session.status == "completed":
+    steps = retake_steps(session, retake) if retake else []
+    previous = session.status
+    if previous == "completed" and not steps:
         raise SessionCompleteError(f"{session.path}: session is complete; nothing to resume")
     params = session_params(session)
     session.hold()  # SessionBusyError naming the live process that writes it
@@ -174,11 +218,15 @@ def resume_run(
         raise FramesModifiedError(f"{session.path}: frames changed since acquisition: "
                                   f"{', '.join(bad)}")
     session.remove_temporary_files()  # a kill in the middle of an atomic write
-    session.update_meta(status="running")
+    # A retake records the status it started from at once: killed before it began, a
+    # completed session still reads as completed (Session.status).
+    session.update_meta(status="running", **({"retake": {
+        "status": "starting", "steps": steps, "previous_status": previous}} if steps else {}))
     session.log_event("run_resumed", simulate=bench.simulated, devices=bench.identities())
     record_in_catalogue(session.path)
     return Runner(make_procedure(params), session, bench, prompt=prompt, progress=progress,
-                  abort=abort, on_result=on_result, estimator=estimator)
+                  abort=abort, on_result=on_result, estimator=estimator, retake=steps,
+                  retake_reason=retake_reason, previous_status=previous if steps else None)
 
 
 def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,

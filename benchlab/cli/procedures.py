@@ -143,9 +143,10 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.protocols.runs import check_estimator, resume_run, start_run
 
     progress = _Progress(sys.stderr)
+    retake = _retake_arg(args) if resume else []
     if resume:
         session_path = Path(args.session)
-        if _resume_preflight(session_path):
+        if _resume_preflight(session_path, retake):
             return 0
         if args.config:
             config = BenchConfig.load(args.config, simulate=args.simulate)
@@ -178,7 +179,8 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                           progress=progress,
                           estimator=getattr(args, "estimator", None))
             if resume:
-                runner = resume_run(session_path, **kwargs)
+                runner = resume_run(session_path, retake=retake,
+                                    retake_reason=getattr(args, "reason", None) or "", **kwargs)
             else:
                 runner = start_run(args.procedure, params=params, root=sessions_root,
                                    operator=args.operator, sample=args.sample, **kwargs)
@@ -187,13 +189,12 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     except (StepFailed, RunAborted) as exc:
         progress.line(f"benchlab: {exc}")
         if runner is not None:
-            progress.line(f"bench left safe; continue with: benchlab resume {runner.session.path}"
-                          + (" --simulate" if args.simulate else ""))
+            progress.line("bench left safe; " + _continue_with(runner.session, args, retake))
         return 1
     except KeyboardInterrupt:
         if runner is not None:
-            progress.line(f"interrupted; bench left safe; continue with: benchlab resume "
-                          f"{runner.session.path}" + (" --simulate" if args.simulate else ""))
+            progress.line("interrupted; bench left safe; "
+                          + _continue_with(runner.session, args, retake))
         raise
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
@@ -205,21 +206,62 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         from benchlab.protocols.characterise import run_notes
 
         print("\n" + "\n".join(run_notes(outcome.session_path, outcome.summary)))
+    if retake:
+        from benchlab.session import Session
+
+        done = Session.open(outcome.session_path).retakes()[-1]
+        print(f"\nretake {done['id']} adopted: " + ", ".join(
+            f"{s} take {n}" for s, n in sorted((done.get("current") or {}).items()))
+              + " current; the earlier takes are kept in frames/ (never analysed)")
     print(f"\nsession: {outcome.session_path}")
     print(f"results: {outcome.results_path}")
     print(f"wall time: {elapsed:.1f} s")
     return 0
 
 
-def _resume_preflight(session_path: Path) -> bool:
-    """Before any device is opened: True (nothing to do) for a completed session; a session
+def _retake_arg(args: argparse.Namespace) -> list[str]:
+    """``--retake STEP[,STEP...]`` as a list (empty without it); ``--reason`` needs it."""
+    text = getattr(args, "retake", None)
+    if text is None:
+        if getattr(args, "reason", None):
+            from benchlab.drivers.errors import UsageError
+
+            raise UsageError("--reason: only with --retake (it says why steps are retaken)")
+        return []
+    return text.split(",")
+
+
+def _continue_with(session: Session, args: argparse.Namespace, retake: list[str]) -> str:
+    """What to type next after a stopped run; for a retake, which takes are current."""
+    sim = " --simulate" if args.simulate else ""
+    if not retake:
+        return f"continue with: benchlab resume {session.path}{sim}"
+    last = session.retakes()[-1] if session.retakes() else {}
+    stale = session.results_stale()
+    if last.get("status") == "adopted":
+        told = "the retake's frames are current"
+        return told + (f"; results are stale: {stale}" if stale else "")
+    return (f"retake {last.get('id', '?')} stopped: the previous takes of "
+            f"{', '.join(retake)} stay current; take them again with: benchlab resume "
+            f"{session.path} --retake {','.join(retake)}{sim}")
+
+
+def _resume_preflight(session_path: Path, retake: list[str]) -> bool:
+    """Before any device is opened: True (nothing to do) for a completed session (unless
+    steps are to be retaken: their ids are checked here against the plan); a session
     another live process writes is refused, naming it (opening the bench would switch its
     LEDs off under it)."""
     from benchlab.session import Session, SessionBusyError, describe_holder, session_holder
 
     session = Session.open(session_path)
-    if session.status == "completed":
-        print(f"{session.path}: session is complete; nothing to resume (unchanged)")
+    if retake:
+        from benchlab.protocols.runs import retake_steps
+
+        retake_steps(session, retake)  # an unknown or untaken step: exit 2, nothing changed
+    elif session.status == "completed":
+        stale = session.results_stale()
+        print(f"{session.path}: session is complete; nothing to resume (unchanged)"
+              + (f"; results are stale: {stale}" if stale else ""))
         return True
     holder = session_holder(session_path)
     if holder is not None:
@@ -474,15 +516,27 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     run.set_defaults(func=run_command)
 
     res = commands.add_parser(
-        "resume", help="continue an interrupted session from its first incomplete step",
+        "resume", help="continue an interrupted session from its first incomplete step, or "
+        "retake steps of any session (--retake)",
         description="Continue an interrupted run (Ctrl-C, crash, kill -9) from the first "
-        "incomplete step; nothing acquired is repeated or lost.",
+        "incomplete step; nothing acquired is repeated or lost. With --retake STEP[,STEP...] "
+        "(also of a completed session): take those acquisition steps again (e.g. a bumped "
+        "fibre spoilt a frame), then re-analyse. The earlier frames are never deleted or "
+        "edited: the new ones are saved beside them as <step>__<name>.take<N>.tiff and "
+        "become current only when every retaken step has its new frames (one journal line "
+        "records which take is current, and why); a retake that is stopped leaves the "
+        "previous takes current and says so, and a completed session stays completed.",
     )
     res.add_argument("session", help="session folder")
     res.add_argument("--simulate", action="store_true", help="use the simulated bench")
     res.add_argument("--config", help="bench configuration TOML (default: the session's)")
     res.add_argument("--yes", action="store_true", help="confirm every manual step")
     res.add_argument("--estimator", help="modulation estimator for the final analysis")
+    res.add_argument("--retake", metavar="STEP[,STEP...]",
+                     help="acquisition steps to take again (e.g. position-18 or forward); an "
+                     "unknown id is refused, listing the valid ones")
+    res.add_argument("--reason", metavar="TEXT",
+                     help="why the steps are retaken (journalled, in session.json)")
     res.set_defaults(func=resume_command)
 
     rep = commands.add_parser(

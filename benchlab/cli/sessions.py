@@ -30,8 +30,9 @@ TREND_COLUMNS = ("session_id", "started_at", "sample", "version", "estimator", "
 NO_VALUE_MARKERS: dict[str, dict[str, Any]] = {
     "unresolved": {"marker": "v", "color": "#c0392b", "mfc": "none"},
     "aliased": {"marker": "x", "color": "#8e44ad"},
+    "clipped": {"marker": "^", "color": "#d35400", "mfc": "none"},
 }
-NO_VALUE_WORDS = {"unresolved": "not resolved", "aliased": "aliased"}
+NO_VALUE_WORDS = {"unresolved": "not resolved", "aliased": "aliased", "clipped": "clipped"}
 
 
 def _cell(value: Any) -> str:
