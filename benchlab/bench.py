@@ -253,8 +253,13 @@ class Bench:
                 _open_real(bench, stack)
             try:
                 yield bench
-            finally:
-                bench.safe_state()
+            except BaseException as exc:
+                try:
+                    bench.safe_state()
+                except BenchError as safe_exc:  # keep the error that got us here
+                    exc.add_note(str(safe_exc))
+                raise
+            bench.safe_state()
 
     def recover(self) -> None:
         """Before retrying a failed step: reconnect a camera that was lost (unplugged and
@@ -267,19 +272,23 @@ class Bench:
         """Every LED channel off and the stage stopped; tries both even if one fails."""
         log.debug("safe state: LEDs off, stage stopped")
         errors: list[str] = []
+        done: list[str] = []
         if self.led is not None:
             try:
                 self.led.all_off()
+                done.append("LEDs off")
             except DeviceError as exc:
-                errors.append(f"LEDs: {exc}")
+                errors.append(_named("LEDs", exc))
         if self.stage is not None:
             try:
                 self.stage.stop(immediate=True)
+                done.append("stage stopped")
             except DeviceError as exc:
-                errors.append(f"stage: {exc}")
+                errors.append(_named("stage", exc))
         if errors:
-            log.info("could not reach the safe state: %s", "; ".join(errors))
-            raise BenchError("could not reach the safe state: " + "; ".join(errors))
+            reached = f" ({', '.join(done)})" if done else ""
+            log.info("could not reach the safe state: %s%s", "; ".join(errors), reached)
+            raise BenchError("could not reach the safe state: " + "; ".join(errors) + reached)
 
     # -- identities -----------------------------------------------------------------------------
     def identities(self) -> dict[str, Any]:
@@ -406,6 +415,13 @@ class Bench:
             with contextlib.suppress(DeviceError):
                 st["stage_position_mm"] = self.stage.position_mm
         return st
+
+
+def _named(device: str, exc: BaseException) -> str:
+    """``exc``'s message led by the device it concerns (once: driver messages often are)."""
+    text = str(exc)
+    lead = "LED" if device == "LEDs" else device
+    return text if text.lower().startswith(lead.lower()) else f"{device}: {text}"
 
 
 def _led_output_ma(led: LightSource, channel: int) -> dict[str, float]:

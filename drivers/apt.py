@@ -413,8 +413,17 @@ class AptStage(LinearStage):
         try:
             msg = self._wait_for(lambda m: m.msg_id in _END_OF_MOVE_IDS, seq, timeout,
                                  "move/home completion")
+        except DeviceLostError as exc:
+            # Unplugged mid-move: no stop can reach the controller, which (on its own supply)
+            # finishes the move. Say so, and where it is going.
+            self._move_seq = None
+            target = self._move_target_mm
+            to = "its target" if target is None else f"{target:g} mm"
+            raise DeviceLostError(
+                f"stage lost mid-move to {to} ({self._lost}): it could not be stopped and may "
+                "still be moving; stop it at its controller") from exc
         except BaseException:
-            # Timeout, lost link, Ctrl-C: never leave the actuator running.
+            # Timeout, Ctrl-C: never leave the actuator running.
             self._move_seq = None
             self._safe_stop()
             raise

@@ -58,6 +58,9 @@ class AptFaults:
     garbage: bytes | None = None  # bytes emitted just before the next reply
     drop_on: int | None = None  # message id that makes the link drop when it arrives
     limit_at_mm: float | None = None  # a limit switch trips here during the next move across it
+    # The USB link drops (cable pulled) as the next move passes here; like a real cube on its
+    # own supply, the stage finishes the profiled move with nobody listening.
+    drop_at_mm: float | None = None
     out_of_range: int = 0  # next N position-bearing replies carry an impossible position
     # The next MOVE_COMPLETED carries these extra status bits (e.g. POSITION_ERROR) ...
     completion_bits: StatusBits = StatusBits(0)
@@ -391,7 +394,12 @@ class SimulatedAptStage(PtyDevice):
         motion = self._motion
         if motion is None:
             return
-        self._pos_mm = motion.profile.position(now)
+        was_mm, self._pos_mm = self._pos_mm, motion.profile.position(now)
+        drop = self.faults.drop_at_mm
+        if (drop is not None and motion.kind == "move"
+                and min(was_mm, self._pos_mm) <= drop <= max(was_mm, self._pos_mm)):
+            self.faults.drop_at_mm = None
+            self.drop_connection()
         if not motion.profile.done(now):
             return
         self._pos_mm = motion.profile.end_mm

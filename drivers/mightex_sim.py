@@ -237,6 +237,13 @@ class SimulatedCamera:
         return s.width * s.height / (PIXEL_CLOCK_HZ / 2**s.clock_divider) * 1e3
 
     @property
+    def frames_sent(self) -> int:
+        """Frame transfers begun since power-on of this instance (every read the host made,
+        frames it then dropped included)."""
+        with self._lock:
+            return self._sent_seq
+
+    @property
     def buffered_frames(self) -> int:
         with self._lock:
             self._catch_up()

@@ -7,6 +7,13 @@ line carries no sequence numbers, so after a command goes unanswered (timeout, c
 Ctrl-C) the next exchange first waits for and discards its late reply, and if that still has
 not come, refuses a reply that a second line follows (the first may be the late one).
 
+Echo (ECHOON, B.4): a controller left echoing by a previous program, or switched to echo
+mid-session, sends each command line back before its reply. Opening sends ECHOOFF and checks
+with DEVICEINFO that the reply comes without echo (ECHOOFF once more if not, then
+:class:`SlcEchoError` naming the bytes). Mid-session, an echo is stripped only when it is
+exactly the command line just sent; the reply behind it is used, and ECHOOFF is sent (and
+checked) before the next command.
+
 Safety: per-channel current ceilings are checked before anything is sent; every channel is
 switched off (``MODE ch 0``, read back with ``?MODE``) on close, on any exception inside the
 ``with`` block, on Ctrl-C and at interpreter exit. Closing the port alone does not switch an
@@ -45,6 +52,7 @@ from benchlab.drivers.slc_protocol import (
     SlcBadReplyError,
     SlcCommandError,
     SlcDeviceInfo,
+    SlcEchoError,
     SlcExecutionError,
     SlcMode,
     SlcNoReplyError,
@@ -54,17 +62,19 @@ from benchlab.drivers.slc_protocol import (
     normal_max_ma,
     parse_current_reply,
     parse_device_info,
+    split_echo,
 )
 
 log = logging.getLogger(__name__)
 
 __all__ = [  # the protocol names are re-exported: callers keep importing them from here
     "SlcAckInsteadOfDataError", "SlcArgumentError", "SlcBadReplyError", "SlcCommandError",
-    "SlcController", "SlcDeviceInfo", "SlcExecutionError", "SlcMode", "SlcNoReplyError",
-    "SlcUnknownCommandError", "parse_current_reply", "parse_device_info",
+    "SlcController", "SlcDeviceInfo", "SlcEchoError", "SlcExecutionError", "SlcMode",
+    "SlcNoReplyError", "SlcUnknownCommandError", "parse_current_reply", "parse_device_info",
 ]
 
 ECHOOFF_SETTLE_S = 0.1  # how long to wait for an (optional) ECHOOFF acknowledgement
+ECHOOFF_ATTEMPTS = 2  # ECHOOFF sent this often before a still-echoing controller is refused
 # After an unanswered command: the line counts as clear once it stayed silent this long.
 LATE_REPLY_QUIET_S = 0.08
 
@@ -107,6 +117,11 @@ class SlcController(LightSource):
         #: Ctrl-C / SIGTERM. Its late reply must be read before the next command's, or it
         #: would be taken for that one.
         self._late_reply = False
+        #: The last reply line that came with an echo of its command (b"": none since the
+        #: last check); set, it makes the next exchange switch echo off first.
+        self._echoed_line = b""
+        self._echo_off_running = False
+        self._echo_stuck = False  # echo could not be switched off mid-session: strip only
 
     # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> SlcController:
@@ -118,15 +133,24 @@ class SlcController(LightSource):
         except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller: cannot open {self.port}: {exc}") from exc
         try:
-            self._echo_off()
-            self._info = parse_device_info(self._device_info_text())
+            echo_error: SlcEchoError | None = None
+            try:
+                info_text = self._switch_echo_off()
+            except SlcEchoError as exc:
+                # Still echoing: refuse the controller, but first switch its LEDs off (each
+                # reply is still read, behind the exact echo of its command).
+                echo_error, info_text, self._echo_stuck = exc, exc.reply_text, True
+            self._info = parse_device_info(info_text)
             self._configure_family(self._info.module)
             self._channel_count = self._count_channels()
             self._register_atexit()  # and SIGINT/SIGTERM/SIGHUP: _on_stop_signal
             self.all_off()  # opening the driver must never leave light on from a previous user
+            if echo_error is not None:
+                raise echo_error
             log.info("LED controller %s serial %s on %s: %d channels, all off",
                      self._info.module, self._info.serial, self.port, self._channel_count)
         except BaseException:
+            self._unregister_atexit()
             self._close_port()
             raise
         return self
@@ -290,6 +314,27 @@ class SlcController(LightSource):
         except IO_ERRORS as exc:
             raise DeviceLostError(f"LED controller lost (command 'ECHOOFF'): {exc}") from exc
 
+    def _switch_echo_off(self) -> str:
+        """ECHOOFF, then DEVICEINFO, whose reply shows whether echo is off; ECHOOFF again
+        while it is not. Returns the DEVICEINFO text; :class:`SlcEchoError` (naming the
+        bytes) if the controller still echoes after ECHOOFF_ATTEMPTS tries."""
+        echoed = b""
+        self._echo_off_running = True
+        try:
+            for _ in range(ECHOOFF_ATTEMPTS):
+                self._echo_off()
+                self._echoed_line = b""
+                text = self._device_info_text()
+                echoed, self._echoed_line = self._echoed_line, b""
+                if not echoed:
+                    return text
+                log.warning("LED controller echoes commands (ECHOON): %r; sending ECHOOFF",
+                            echoed)
+        finally:
+            self._echo_off_running = False
+        raise SlcEchoError("DEVICEINFO", f"still echoes commands after ECHOOFF sent "
+                           f"{ECHOOFF_ATTEMPTS} times: got {echoed!r}", text)
+
     def _device_info_text(self) -> str:
         """DEVICEINFO right after ECHOOFF, robust to ECHOOFF's optional ack coming late: an
         ack line before the reply is skipped; an ack so late that DEVICEINFO timed out is
@@ -336,6 +381,8 @@ class SlcController(LightSource):
         """
         ser = self._port_or_raise()
         with self._io_lock:
+            if self._echoed_line and not self._echo_off_running and not self._echo_stuck:
+                self._echo_off_mid_session()
             self._busy = True
             try:
                 # A late reply that did not turn up may still come, during this exchange.
@@ -350,6 +397,10 @@ class SlcController(LightSource):
                     log.debug("LED controller: discarded a late %r before %r", raw, command)
                     raw = ser.read_until(REPLY_END)
                 two_replies = False
+                echo, reply = split_echo(command, raw)
+                if echo:
+                    log.debug("LED controller: stripped the echo %r of %r", echo, command)
+                    self._echoed_line = raw
                 if not raw.endswith(REPLY_END):
                     self._late_reply = True  # silence or a cut-off line: the rest may follow
                 elif still_due:
@@ -371,7 +422,7 @@ class SlcController(LightSource):
         if not raw.endswith(REPLY_END):
             raise SlcBadReplyError(command, f"unterminated reply {raw!r}")
         try:
-            text = raw.decode("ascii").strip()
+            text = reply.decode("ascii").strip()
         except UnicodeDecodeError:
             raise SlcBadReplyError(command, f"non-ASCII reply {raw!r}") from None
         if UNDEFINED in text:
@@ -381,6 +432,18 @@ class SlcController(LightSource):
         if text.startswith(ARGUMENT_ERROR):
             raise SlcArgumentError(command, "argument out of range (#?)")
         return text
+
+    def _echo_off_mid_session(self) -> None:
+        """Echo came on mid-session (another program on the line, a power glitch): switch it
+        off before the next command. If it stays on, say so once (SlcEchoError) and from then
+        on only strip echoes, so switching the LEDs off still works."""
+        echoed, self._echoed_line = self._echoed_line, b""
+        log.warning("LED controller started echoing commands: %r; sending ECHOOFF", echoed)
+        try:
+            self._switch_echo_off()
+        except SlcEchoError:
+            self._echo_stuck = True
+            raise
 
     def _drain_late_reply(self, ser: serial.Serial) -> bool:
         """Discard the reply of an earlier unanswered command; False if none came.

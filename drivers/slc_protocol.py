@@ -90,6 +90,32 @@ class SlcBadReplyError(SlcCommandError):
     """A reply that is garbled or carries impossible values."""
 
 
+class SlcEchoError(SlcCommandError):
+    """The controller keeps echoing commands (ECHOON) although ECHOOFF was sent;
+    ``reply_text`` is the reply found behind the echo."""
+
+    def __init__(self, command: str, message: str, reply_text: str = "") -> None:
+        super().__init__(command, message)
+        self.reply_text = reply_text
+
+
+def split_echo(command: str, raw: bytes) -> tuple[bytes, bytes]:
+    """Split a reply line read with echo on into ``(echo, reply)`` (B.4, SDK "Echo Mode").
+
+    With ECHOON the controller sends the command line back as received, a ``>`` prompt for
+    its CR, the reply, then another ``>`` prompt (which can lead the next line if it came
+    after the drain). ``echo`` is the exact command line (``command`` + LF CR) when ``raw``
+    starts with it - a line that only looks similar is not an echo and stays in ``reply``
+    for the caller to refuse - else ``b""``. Leading prompts are dropped from ``reply``: no
+    reply starts with ``>``.
+    """
+    line = command.encode("ascii") + COMMAND_END
+    body = raw.lstrip(b">")
+    if body.startswith(line):
+        return line, body[len(line):].lstrip(b">")
+    return b"", body
+
+
 class SlcNoReplyError(DeviceTimeoutError):
     """Silence: nothing came back within the timeout."""
 

@@ -3,6 +3,9 @@
 Speaks the RS232 ASCII protocol byte for byte (device-protocols.md section B): commands end in
 LF CR (CR LF and bare CR/LF are accepted too), every reply is ``payload + " \\r\\n"``.
 Quirks reproduced: ECHOOFF is not acknowledged (``echooff_ack=True`` gives the fw 3.1.8 ``##``),
+echo mode (B.4, SDK "Echo Mode": after ECHOON each command line is echoed back as received,
+then a ``>`` prompt for its CR, then the reply, then another ``>`` prompt; the echo setting
+lives in the simulator instance, so it persists across host opens until ECHOOFF or RESET),
 ``?CURRENT`` answers with 12 fields (10 calibration values, then Imax and Iset), unknown verbs
 answer ``    VERB is not defined``, and output keeps running when the host closes the port.
 """
@@ -67,6 +70,12 @@ class SlcFaults:
     out_of_range: int = 0  # next N queries answer with impossible values
     exec_error: int = 0  # next N commands execute but answer "#!"
     undefined: set[str] = field(default_factory=set)  # verbs this "firmware" does not know
+    # Echo switches on when this verb arrives (before the line is echoed and acted on), as if
+    # a terminal program on the same line had sent ECHOON mid-session.
+    echo_on_at: str | None = None
+    # The next N ECHOOFF commands are answered as usual but leave echo on (a controller that
+    # cannot be brought out of echo mode).
+    echooff_ignored: int = 0
 
 
 @dataclass
@@ -101,6 +110,7 @@ class SimulatedSlc(PtyDevice):
         normal_max_ma: int | None = None,
         pulsed_max_ma: int = 3500,
         echooff_ack: bool = False,
+        echo: bool = False,
     ) -> None:
         super().__init__(clock=clock)
         self.channel_count = channels
@@ -117,7 +127,9 @@ class SimulatedSlc(PtyDevice):
         self.pulsed_max_ma = pulsed_max_ma
         self.echooff_ack = echooff_ack
         self.faults = SlcFaults()
-        self.echo = False
+        #: Echo mode (ECHOON): kept across host opens, like the firmware keeps it across
+        #: port closes; ``echo=True`` is a controller a previous program left echoing.
+        self.echo = echo
         self.channels = [SimChannel() for _ in range(channels)]
         self._stored = _Stored([SimChannel() for _ in range(channels)])
         self._rx = b""
@@ -149,7 +161,19 @@ class SimulatedSlc(PtyDevice):
             self.transcript.append(("host", raw))
             if not self.connected:
                 return
-            self._handle_line(line.decode("ascii", errors="replace").strip())
+            text = line.decode("ascii", errors="replace").strip()
+            self._echo_line(text, raw)
+            self._handle_line(text)
+
+    def _echo_line(self, text: str, raw: bytes) -> None:
+        """Echo mode: the line comes back as received (backspaces excepted), then the ``>``
+        prompt for its CR - at once, even when the reply itself is late."""
+        at = self.faults.echo_on_at
+        if at is not None and text.split()[0].upper() == at.upper():
+            self.faults.echo_on_at = None
+            self.echo = True
+        if self.echo:
+            self.write(raw.replace(b"\x08", b"") + (b">" if b"\r" in raw else b""))
 
     def on_tick(self, now_s: float) -> None:
         late = self._late
@@ -179,12 +203,17 @@ class SimulatedSlc(PtyDevice):
             f.late_reply -= 1
             self._late_out = bytearray()
             try:
-                self._execute(line)
+                self._answer(line)
             finally:
                 out, self._late_out = bytes(self._late_out), None
                 self._late = (time.monotonic() + f.late_reply_s, out)
             return
+        self._answer(line)
+
+    def _answer(self, line: str) -> None:
         self._execute(line)
+        if self.echo and self.connected:
+            self._out(b">")  # echo mode: the SDK's "additional prompt" after the response
 
     def _execute(self, line: str) -> None:
         words = line.split()
@@ -236,12 +265,15 @@ class SimulatedSlc(PtyDevice):
 
     @commands.handles("ECHOOFF")
     def _cmd_ECHOOFF(self, args: list[int]) -> str | None:
-        self.echo = False
+        if self.faults.echooff_ignored > 0:
+            self.faults.echooff_ignored -= 1
+        else:
+            self.echo = False
         return ACK if self.echooff_ack else None
 
     @commands.handles("ECHOON")
     def _cmd_ECHOON(self, args: list[int]) -> str | None:
-        self.echo = True  # character echo itself is not simulated
+        self.echo = True
         return ACK
 
     @commands.handles("DEVICEINFO")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -44,10 +45,13 @@ class RunAborted(BenchlabError):
 class StepFailed(BenchlabError):
     """A step raised; the session stays resumable and ``run()`` again retries the step."""
 
-    def __init__(self, step: Step, cause: BaseException) -> None:
+    def __init__(self, step: Step, cause: BaseException, unsafe: str = "") -> None:
         self.step = step
         self.cause = cause
-        super().__init__(f"step {step.id} ({step.title}) failed: {cause}")
+        #: Why the safe state could not be reached afterwards (a device lost), else "".
+        self.unsafe = unsafe
+        super().__init__(f"step {step.id} ({step.title}) failed: {cause}"
+                         + (f"; {unsafe}" if unsafe else ""))
 
 
 @dataclass(frozen=True)
@@ -314,8 +318,10 @@ class Runner:
                 self._stopped("failed")
             raise
         finally:
-            self.bench.safe_state()
-            if not all_done:
+            if all_done:
+                self.bench.safe_state()
+            else:
+                self._safe_state_after(sys.exc_info()[1])
                 record_in_catalogue(self.session.path)  # the catalogue shows why it stopped
         results = self.session.latest_results()
         if results is not None and _partial(results):
@@ -383,6 +389,19 @@ class Runner:
             self.session.log_event("aborted", step=step.id)
             raise RunAborted(f"aborted before step {step.id}")
 
+    def _safe_state_after(self, exc: BaseException | None) -> str:
+        """The safe state on the way out of ``exc``. If a device cannot be made safe (lost
+        mid-move), the reason is noted on ``exc`` and returned: it must not replace the error
+        that got us here, nor stop the journal and catalogue from saying so."""
+        try:
+            self.bench.safe_state()
+        except BenchlabError as safe_exc:
+            if exc is None:
+                raise
+            exc.add_note(str(safe_exc))
+            return str(safe_exc)
+        return ""
+
     def _run_step(self, step: Step) -> None:
         ctx = StepContext(self, step)
         log.info("step %s: %s", step.id, step.title)
@@ -390,16 +409,17 @@ class Runner:
         try:
             step.action(ctx)
         except RunAborted as exc:
-            self.bench.safe_state()
+            self._safe_state_after(exc)
             self.session.log_event("aborted", step=step.id, message=str(exc))
             raise
         except Exception as exc:
             log.info("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
-            self.bench.safe_state()
+            unsafe = self._safe_state_after(exc)
+            extra: dict[str, Any] = {"safe_state": unsafe} if unsafe else {}
             self.session.log_event(
-                "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}"
+                "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}", **extra
             )
-            raise StepFailed(step, exc) from exc
+            raise StepFailed(step, exc, unsafe) from exc
         self.session.mark_step_completed(step.id)
 
     def _restore(self, done: set[str]) -> None:

@@ -115,3 +115,24 @@ def test_missing_values_are_usage_errors_before_any_device_opens(
     assert "led --on needs --current-ma" in capsys.readouterr().err
     assert main(["stage", "--port", "/nonexistent/ttyUSB9", "move"]) == 2
     assert "stage move needs a position in mm" in capsys.readouterr().err
+
+
+def test_simulate_led_echo_starts_the_controller_echoing() -> None:
+    import serial
+
+    child = subprocess.Popen([sys.executable, "-m", "benchlab.cli.main", "simulate",
+                              "--led-echo"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None
+        _, led_port = child.stdout.readline().split()
+        child.stdout.readline()
+        with serial.Serial(led_port, 9600, timeout=0.3) as port:  # a terminal program
+            port.write(b"?MODE 1\n\r")
+            assert port.read(100) == b"?MODE 1\n\r>#0 \r\n>"
+        with SlcController(led_port, ceilings_ma={1: 100}) as slc:  # echo switched off
+            slc.on(1, 20)
+            assert slc.get_current(1) == (100.0, 20.0)
+    finally:
+        os.kill(child.pid, signal.SIGINT)
+        assert child.wait(timeout=20) == 0

@@ -128,7 +128,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if not lo <= args.initial_position_mm <= hi:
         raise UsageError(f"--initial-position-mm {args.initial_position_mm:g} is outside the "
                          f"travel {lo:g} .. {hi:g} mm")
-    led = SimulatedSlc(channels=args.channels)
+    led = SimulatedSlc(channels=args.channels, echo=args.led_echo)
     stage = SimulatedAptStage(travel_mm=(lo, hi), time_scale=args.time_scale, homed=args.homed,
                               counts_per_mm=args.counts_per_mm,
                               initial_position_mm=args.initial_position_mm)
@@ -283,6 +283,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                      help="simulated seconds per wall second for stage motion (default 1)")
     sim.add_argument("--channels", type=positive_int, default=4, help="LED channels (default 4)")
     sim.add_argument("--homed", action="store_true", help="start the stage already homed")
+    sim.add_argument("--led-echo", action="store_true",
+                     help="start the LED controller echoing commands (ECHOON), as a previous "
+                     "program may leave it; the driver switches echo off when it opens")
     sim.add_argument("--initial-position-mm", type=float, default=0.0)
     sim.add_argument("--for-s", type=positive_float, help="serve this long instead of until Ctrl-C")
     _add_stage_geometry(sim, 50.0)

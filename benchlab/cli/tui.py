@@ -46,7 +46,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "second (the display is capped at 20 Hz), the CPU ms per shown frame of the UI thread "
         "and of the whole process, and the rate that CPU cost implies on a quiet machine "
         "(min(20, 1000 / process ms); load on a shared machine lowers the measured rate, "
-        "hardly the CPU time).",
+        "hardly the CPU time), and the camera frames read per frame shown (cam/shown: 1 "
+        "when the view takes the newest frame). Then, on the camera simulator running on "
+        "wall time like a real camera, the grabs per second of the newest frame (the live "
+        "view) and of a fresh frame exposed after the request (measurements).",
     )
     bench.add_argument("--seconds", type=float, default=4.0, help="seconds per case (4)")
     bench.add_argument("--method", action="append", choices=("halfblock", "sixel", "kitty"),

@@ -6,7 +6,12 @@ image encoding: what limits the display rate) and of the whole process (with acq
 the simulated camera). CPU time hardly depends on other load, so ``1000 / all ms`` (capped at
 the display's 20 Hz) is the rate the view reaches on a quiet machine even if acquisition and
 drawing could never overlap (they share the interpreter lock; numpy and OpenCV release it, so
-the real rate is at least this).
+the real rate is at least this). ``cam/shown`` counts the frames read from the (simulated)
+camera per frame shown: the live view takes the newest frame, one read per grab.
+
+A second table times grabs on the camera simulator running on wall time, as a real camera
+does: the newest frame (the live view) against a fresh frame exposed wholly after the request
+(measurements), which waits out the exposure already under way and then a whole new one.
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ class Rate:
     hz: float  #: frames shown per second (wall clock: depends on the machine's load)
     ui_ms: float  #: UI-thread CPU per shown frame
     process_ms: float  #: whole-process CPU per shown frame
+    reads_per_frame: float  #: frames read from the camera per shown frame
 
     @property
     def implied_hz(self) -> float:
@@ -69,13 +75,18 @@ async def _measure(size: tuple[int, int], protocol: str, seconds: float) -> tupl
             screen = app.screen
             assert isinstance(screen, LiveScreen)
             await pilot.pause(1.5)  # warm up: first frames, caches
+            camera = app.bench.sim_camera
+            assert camera is not None  # the simulated bench
             n0, t0 = screen.frames_displayed, time.monotonic()
             ui0, cpu0 = time.thread_time(), time.process_time()  # the app runs on this thread
+            reads0 = camera.frames_sent
             await pilot.pause(seconds)
             n1, t1 = screen.frames_displayed, time.monotonic()
             ui1, cpu1 = time.thread_time(), time.process_time()
+            reads1 = camera.frames_sent
             n = max(1, n1 - n0)
-            return (n1 - n0) / (t1 - t0), 1000 * (ui1 - ui0) / n, 1000 * (cpu1 - cpu0) / n
+            return ((n1 - n0) / (t1 - t0), 1000 * (ui1 - ui0) / n, 1000 * (cpu1 - cpu0) / n,
+                    (reads1 - reads0) / n)
 
 
 def live_view_rates(seconds: float = 4.0, protocols: tuple[str, ...] = (
@@ -84,8 +95,32 @@ def live_view_rates(seconds: float = 4.0, protocols: tuple[str, ...] = (
     for protocol in protocols:
         for size in SIZES:
             with _quiet_stdout() if protocol == "kitty" else contextlib.nullcontext():
-                hz, ui_ms, process_ms = asyncio.run(_measure(size, protocol, seconds))
-            yield Rate(protocol, size, hz, ui_ms, process_ms)
+                hz, ui_ms, process_ms, reads = asyncio.run(_measure(size, protocol, seconds))
+            yield Rate(protocol, size, hz, ui_ms, process_ms, reads)
+
+
+def grab_rates(exposures_ms: tuple[float, ...], seconds: float) -> Iterator[tuple[float, ...]]:
+    """``(exposure ms, newest-frame grabs/s, fresh-frame grabs/s)`` through ``Bench.grab`` on
+    the camera simulator running on wall time (a real camera's frame period)."""
+    from benchlab.bench import Bench, BenchConfig
+    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex_sim import RealTimeClock, SimCameraBackend, SimulatedCamera
+
+    bench = Bench(BenchConfig.load(None, simulate=True), simulated=True)
+    sim = SimulatedCamera(clock=RealTimeClock(), noise=False)
+    with MightexCamera.open(backend=SimCameraBackend([sim])) as camera:
+        bench.camera = camera
+        bench.configure_camera()
+        for exposure_ms in exposures_ms:
+            rates = []
+            for fresh in (False, True):
+                bench.grab(exposure_ms=exposure_ms, gain=1.0, fresh=True)  # settled
+                n, t0 = 0, time.monotonic()
+                while time.monotonic() - t0 < seconds:
+                    bench.grab(exposure_ms=exposure_ms, gain=1.0, fresh=fresh)
+                    n += 1
+                rates.append(n / (time.monotonic() - t0))
+            yield (exposure_ms, *rates)
 
 
 def main(seconds: float, protocols: tuple[str, ...]) -> int:
@@ -93,9 +128,14 @@ def main(seconds: float, protocols: tuple[str, ...]) -> int:
           f"{1 / DISPLAY_INTERVAL_S:g} Hz, acquisition at {MAX_GRAB_RATE_HZ:g} Hz); CPU ms per "
           f"shown frame; 'implied' = min({1 / DISPLAY_INTERVAL_S:g}, 1000 / all ms)")
     print(f"{'method':<10} {'terminal':>9} {'frames/s':>9} {'UI ms':>7} {'all ms':>7} "
-          f"{'implied/s':>9}")
+          f"{'implied/s':>9} {'cam/shown':>9}")
     for r in live_view_rates(seconds, protocols):
         w, h = r.size
         print(f"{r.protocol:<10} {f'{w}x{h}':>9} {r.hz:9.1f} {r.ui_ms:7.1f} "
-              f"{r.process_ms:7.1f} {r.implied_hz:9.1f}", flush=True)
+              f"{r.process_ms:7.1f} {r.implied_hz:9.1f} {r.reads_per_frame:9.2f}", flush=True)
+    print(f"\ngrabs per second, camera simulator on wall time, {seconds:g} s per case: "
+          "newest frame (live view) vs fresh frame (measurements)")
+    print(f"{'exposure ms':>11} {'newest/s':>9} {'fresh/s':>8}")
+    for exposure_ms, newest_hz, fresh_hz in grab_rates((20.0, 100.0), seconds):
+        print(f"{exposure_ms:11g} {newest_hz:9.1f} {fresh_hz:8.1f}", flush=True)
     return 0

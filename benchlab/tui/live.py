@@ -184,7 +184,9 @@ class LiveScreen(Screen[None]):
                 settings = (self.exposure_ms, self.gain)
                 try:
                     with app.device_lock:  # type: ignore[attr-defined]
-                        frame = services.grab(bench, *settings)
+                        # The newest frame, without waiting for a new exposure (frames
+                        # exposed at older settings are dropped by the driver: trailer).
+                        frame = services.grab(bench, *settings, fresh=False)
                     orientation = None if self.orientation == "auto" else self.orientation
                     reading = services.live_reading(
                         frame, self.roi, self.estimator, orientation, index, *settings,

@@ -201,9 +201,17 @@ def device_action(bench: Bench, what: str, stop: threading.Event | None = None) 
     raise ValueError(f"unknown device action {what!r}")
 
 
-def grab(bench: Bench, exposure_ms: float, gain: float) -> tuple[npt.NDArray[Any], dict[str, Any]]:
-    """One frame at these settings: ``(pixels, metadata)``."""
-    pixels, meta = bench.grab(exposure_ms=exposure_ms, gain=gain)
+def grab(
+    bench: Bench, exposure_ms: float, gain: float, *, fresh: bool
+) -> tuple[npt.NDArray[Any], dict[str, Any]]:
+    """One frame at these settings: ``(pixels, metadata)``.
+
+    ``fresh=False`` (the live view): the camera's newest frame, without waiting for a new
+    exposure - the stream runs at the camera's frame rate, not half of it. ``fresh=True``
+    (a reading to act on, e.g. back-focus sharpness): a frame exposed wholly after this call,
+    as a procedure's measurement frames are (``Bench.grab``).
+    """
+    pixels, meta = bench.grab(exposure_ms=exposure_ms, gain=gain, fresh=fresh)
     return np.asarray(pixels), dict(meta or {})
 
 
@@ -395,7 +403,7 @@ def focus_sharpness(bench: Bench, runner: Runner) -> float:
     params = getattr(getattr(runner, "procedure", None), "params", None)
     exposure = float(getattr(params, "exposure_ms", 300.0))
     gain = float(getattr(params, "gain", 1.0))
-    pixels, _ = grab(bench, exposure, gain)
+    pixels, _ = grab(bench, exposure, gain, fresh=True)
     return sharpness(pixels)
 
 
