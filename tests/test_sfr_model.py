@@ -257,7 +257,8 @@ def test_model_fit_rejects_a_singular_start() -> None:
     u, esf, var, spread = _esf(7.0, [(1.0, 1.0)])
     a = math.radians(7.0)
     got = sfr_model._fit(u, esf, 1.0 / np.sqrt(var), spread, sfr_model._corners(
-        math.cos(a), math.sin(a)), math.cos(a) * math.sin(a), np.zeros(2), np.zeros(2))
+        math.cos(a), math.sin(a)), math.cos(a) * math.sin(a), np.zeros(2), np.zeros(2),
+        (float(u[0]), float(u[-1]), sfr_model.MAX_SIGMA_PX))
     assert got is None or np.all(got[0][1:] > 0)
     assert isinstance(fit_lsf_model(u, esf, var, spread, math.cos(a), math.sin(a),
                                     rise_px=1.0)[-1], LsfModelFit)
