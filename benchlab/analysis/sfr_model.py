@@ -217,7 +217,8 @@ def _fit(
     bounds: tuple[float, float, float],
 ) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
     """Levenberg-Marquardt on (mu, log sigma) with the linear parameters projected out, ``mu``
-    kept in ``bounds[:2]`` and sigma in ``[MIN_SIGMA_PX, bounds[2]]`` (steps clipped). Returns (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
+    kept in ``bounds[:2]`` and sigma in ``[MIN_SIGMA_PX, bounds[2]]`` (steps clipped). Returns
+    (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
     weight, a singular design)."""
     with np.errstate(all="ignore"):  # a wild trial step overflows: refused as degenerate
         return _fit_quiet(u, y, w_sqrt, spread_var, corners, ab, mu0, logsig0, bounds)
@@ -477,7 +478,7 @@ def decide_model(
     window: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
 ) -> ModelDecision:
     """Fit the model to the samples within ``half_px + FIT_MARGIN_PX`` of ``centre_px`` and
-    test it against them (the two gates above). ``window(x, f)``: the model-free reading's
+    test it against them (the gates above, and no component on a bound). ``window(x, f)``: the model-free reading's
     LSF window (freq, offset from ``centre_px``), applied to the residual LSF so the test
     sees what the model-free reading sees, with its noise (narrower at high frequencies)."""
     near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
