@@ -478,9 +478,10 @@ def decide_model(
     window: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
 ) -> ModelDecision:
     """Fit the model to the samples within ``half_px + FIT_MARGIN_PX`` of ``centre_px`` and
-    test it against them (the gates above, and no component on a bound). ``window(x, f)``: the model-free reading's
-    LSF window (freq, offset from ``centre_px``), applied to the residual LSF so the test
-    sees what the model-free reading sees, with its noise (narrower at high frequencies)."""
+    test it against them (the gates above, and no component on a bound). ``window(x, f)``:
+    the model-free reading's LSF window (freq, offset from ``centre_px``), applied to the
+    residual LSF so the test sees what the model-free reading sees, with its noise (narrower
+    at high frequencies)."""
     near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
     un, var = u_px[near], sample_var[near]
     fits = fit_lsf_model(un, esf[near], var, spread_var[near], cos_a, sin_a, rise_px=rise_px,
