@@ -157,6 +157,11 @@ def _cells(res: ModulationResult) -> dict[str, Any]:
     }
 
 
+#: Threads of the chart reading (:func:`benchlab.analysis.chart_reading.read_chart`): its
+#: transforms and products release the GIL, so the forward frame's part (in the forked child
+#: of a re-analysis, or on its thread) takes the second core once the rest is done.
+CHART_READING_THREADS = 2
+
 #: What Table 4.11's ``estimator`` says when the chart reading read a set.
 CHART_READING = "chart reading (knownbars)"
 
@@ -244,7 +249,8 @@ def _chart_readings(pixels: npt.NDArray[Any], fit: ChartFit) -> dict[str, Modula
     """Every found set read by the chart reading, by label (``G2E4S``)."""
     from benchlab.analysis.chart_reading import read_chart  # loaded only where used
 
-    return dict(zip([e.label for e in fit.found], read_chart(pixels, fit), strict=True))
+    readings = read_chart(pixels, fit, workers=CHART_READING_THREADS)
+    return dict(zip([e.label for e in fit.found], readings, strict=True))
 
 
 def _not_measured(reason: str) -> dict[str, Any]:

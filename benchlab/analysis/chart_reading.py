@@ -49,7 +49,7 @@ MIN_SUPPORT = 3.0
 
 
 def read_chart(
-    pixels: npt.ArrayLike, fit: ChartFit, max_code: float | None = None
+    pixels: npt.ArrayLike, fit: ChartFit, max_code: float | None = None, workers: int = 1,
 ) -> list[ModulationResult]:
     """Read every found set of ``fit`` in ``pixels`` (see the module docstring).
 
@@ -62,6 +62,10 @@ def read_chart(
         :func:`benchlab.analysis.chart_finder.find_chart`'s answer for that frame.
     max_code : float, optional
         Saturation code (inferred for integer data).
+    workers : int
+        Threads that read the sets (each set's reading is a pure function of its pixels, so
+        the readings are those of one thread; numpy's transforms, products and gathers run
+        without the GIL, so a second core shortens the wall time).
 
     Returns
     -------
@@ -69,15 +73,34 @@ def read_chart(
         One per :attr:`ChartFit.found`, in that order; a set marked
         :attr:`FoundElement.unmeasurable` is read too (callers show the reason instead).
     """
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
     found = fit.found
     dark_bars = fit.polarity == "positive"
-    first = [el.fit_reading(pixels, max_code, dark_bars=dark_bars) for el in found]
-    out = [r.result for r in first]
-    for k in range(len(found)):
+
+    def own(el: FoundElement) -> ThreeBarReading:
+        return el.fit_reading(pixels, max_code, dark_bars=dark_bars)
+
+    def with_prior(k: int) -> ModulationResult:
         prior = blur_prior(found, first, k)
-        if prior is not None:
-            out[k] = first[k].with_blur_prior(prior).result
-    return out
+        return first[k].result if prior is None else first[k].with_blur_prior(prior).result
+
+    if workers == 1 or len(found) < 2:
+        first = [own(el) for el in found]
+        return [with_prior(k) for k in range(len(found))]
+    from concurrent.futures import ThreadPoolExecutor
+
+    # the largest sets first, so that the threads finish together
+    order = sorted(range(len(found)), key=lambda k: -_pixel_count(found[k]))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        done = dict(zip(order, pool.map(lambda k: own(found[k]), order), strict=True))
+        first = [done[k] for k in range(len(found))]
+        return list(pool.map(with_prior, range(len(found))))
+
+
+def _pixel_count(el: FoundElement) -> int:
+    r0, c0, r1, c1 = el.reading_roi or el.measurement_roi
+    return max(r1 - r0, 0) * max(c1 - c0, 0)
 
 
 def _pinned(r: ThreeBarReading) -> bool:

@@ -68,6 +68,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.barmodel import edge_response
+from benchlab.analysis.jinc import jinc
 from benchlab.analysis.projection import across_coordinate
 from benchlab.analysis.result import (
     Diagnostics,
@@ -145,6 +146,9 @@ MISFIT_VAR_FACTOR = 5.0
 #: through its spectrum.
 GRID_STEP_PX = 0.02
 MAX_GRID_POINTS = 1 << 14
+#: A defocus row's disc gain is computed only where its Gaussian part is above e^-this
+#: (1e-20); beyond, the gain is set to 0 (it changes a tabulated pattern by < 1e-20).
+GAUSS_CUTOFF = 46.0
 
 
 def three_bar_pattern(
@@ -195,15 +199,13 @@ def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> F
     -------
     ndarray
         (m, n) gains; 1 at ``f = 0``, negative between the first zeros (``x`` = 3.83-7.02):
-        the contrast reversal of a defocused lens.
+        the contrast reversal of a defocused lens. Within
+        :data:`benchlab.analysis.jinc.JINC_MAX_ERROR` of the exact value (numpy alone:
+        importing ``scipy.special`` for it cost ~0.2 s of a re-analysis).
     """
-    from scipy.special import j1  # only the defocus family needs it
-
     x = 2.0 * math.pi * np.outer(np.asarray(radius_px, dtype=np.float64),
                                  np.asarray(freqs_cycles_per_px, dtype=np.float64))
-    small = x < 1e-6
-    safe = np.where(small, 1.0, x)
-    return np.asarray(np.where(small, 1.0, 2.0 * j1(safe) / safe), dtype=np.float64)
+    return jinc(x)
 
 
 class _Blurred:
@@ -247,26 +249,61 @@ class _Blurred:
         """The blurred pattern on the grid, one row per blur: ``sigmas`` the PSF's equivalent
         sigma (px), ``disc_shares`` the disc's share of its variance (default 0: Gaussian)."""
         sigmas = np.asarray(sigmas, dtype=np.float64)
-        share = np.zeros_like(sigmas) if disc_shares is None else np.asarray(disc_shares)
+        share = (np.zeros_like(sigmas) if disc_shares is None
+                 else np.asarray(disc_shares, dtype=np.float64))
         gauss_var = sigmas * sigmas * (1.0 - share)
-        gain = np.exp(-2.0 * math.pi**2 * np.outer(gauss_var, self.freqs2))
-        disc = share > 0
-        if np.any(disc):
-            # a uniform disc of radius R has a line spread of variance R^2 / 4
-            gain[disc] *= disc_gain(2.0 * sigmas[disc] * np.sqrt(share[disc]),
-                                    np.sqrt(self.freqs2))
-        return np.fft.irfft(self.spectrum[None, :] * gain, n=self.n, axis=1)
+        gain = np.exp(np.outer((-2.0 * math.pi**2) * gauss_var, self.freqs2))
+        disc = np.flatnonzero(share > 0)
+        if disc.size:
+            self._apply_disc(gain, disc, 2.0 * sigmas[disc] * np.sqrt(share[disc]),
+                             gauss_var[disc])
+        # the spectrum times a real gain, without a complex copy of the gain
+        spec = np.empty(gain.shape, dtype=np.complex128)
+        np.multiply(gain, self.spectrum.real, out=spec.real)
+        np.multiply(gain, self.spectrum.imag, out=spec.imag)
+        return np.fft.irfft(spec, n=self.n, axis=1)
+
+    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
+                    gauss_var: FloatArray) -> None:
+        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
+        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
+        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``: beyond, the product is below
+        1e-20 and set to 0. That leaves a partly Gaussian row a few per cent of its columns."""
+        k_all = self.freqs2.size
+        freqs = np.sqrt(self.freqs2)
+        with np.errstate(divide="ignore"):
+            limit = np.where(gauss_var > 0, GAUSS_CUTOFF / (2.0 * math.pi**2 * gauss_var),
+                             np.inf)
+        cols = np.searchsorted(self.freqs2, limit, side="right")
+        whole = cols >= k_all
+        if whole.any():
+            gain[rows[whole]] *= jinc((2.0 * math.pi) * np.outer(radius[whole], freqs))
+        part = np.flatnonzero(~whole)
+        if part.size:
+            counts = cols[part]
+            row_of = np.repeat(np.arange(part.size), counts)
+            col = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+            at = (rows[part][row_of], col)
+            gain[at] *= jinc((2.0 * math.pi) * radius[part][row_of] * freqs[col])
+            for r, k in zip(rows[part], counts, strict=True):
+                gain[r, k:] = 0.0
 
     def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
         """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
         idx, frac = (self.idx, self.frac) if pos is None else self._weights(pos)
-        left, right = tables[:, idx], tables[:, idx + 1]
+        left, right = tables.take(idx, axis=1), tables.take(idx + 1, axis=1)
         return np.asarray(left + frac * (right - left), dtype=np.float64)
 
     def slope(self, tables: FloatArray) -> FloatArray:
         """Each table's derivative at the pixels (the grid step's finite difference)."""
-        return np.asarray((tables[:, self.idx + 1] - tables[:, self.idx]) / self.step,
-                          dtype=np.float64)
+        return self.sample_and_slope(tables)[1]
+
+    def sample_and_slope(self, tables: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`sample` and :meth:`slope` at the pixels, from one gather."""
+        left, right = tables.take(self.idx, axis=1), tables.take(self.idx + 1, axis=1)
+        diff = right - left
+        return (np.asarray(left + self.frac * diff, dtype=np.float64),
+                np.asarray(diff / self.step, dtype=np.float64))
 
 
 @dataclass(frozen=True)
@@ -301,24 +338,29 @@ def _solve_batch(
     """Least squares of ``y`` on the ``base`` columns (n, kb) plus, per blur, the ``extra``
     columns (each (m, n)); ``ridge``: prior precision per coefficient in units of the noise
     variance (0 = free)."""
-    m, n = extra[0].shape
+    m = extra[0].shape[0]
     kb = base.shape[1]
     k = kb + len(extra)
-    design = np.empty((m, n, k))
-    design[:, :, :kb] = base[None, :, :]
-    for j, col in enumerate(extra):
-        design[:, :, kb + j] = col
-    design_t = design.transpose(0, 2, 1)
-    gram = design_t @ design
+    cols = np.stack(extra, axis=1)  # (m, ke, n): the per-blur columns
+    # the normal matrices by blocks: the base columns' block is the same for every blur
+    gram = np.empty((m, k, k))
+    gram[:, :kb, :kb] = base.T @ base
+    cross = cols @ base  # (m, ke, kb)
+    gram[:, kb:, :kb] = cross
+    gram[:, :kb, kb:] = cross.transpose(0, 2, 1)
+    gram[:, kb:, kb:] = cols @ cols.transpose(0, 2, 1)
     if ridge is not None:
         gram[:, np.arange(k), np.arange(k)] += ridge
     try:
         inv = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
         inv = np.linalg.pinv(gram)
-    rhs = design_t @ y
+    rhs = np.empty((m, k))
+    rhs[:, :kb] = base.T @ y
+    rhs[:, kb:] = cols @ y
     coef = (inv @ rhs[:, :, None])[:, :, 0]
-    resid = y[None, :] - (design @ coef[:, :, None])[:, :, 0]
+    fitted = coef[:, :kb] @ base.T + (coef[:, kb:, None] * cols).sum(axis=1)
+    resid = y[None, :] - fitted
     rss = np.einsum("mn,mn->m", resid, resid)
     penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
     return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
@@ -547,8 +589,7 @@ class _FitState:
         t_across = (reuse.t_across if reuse is not None and reuse.t_across is not None
                     else self.across.tables(self.sig_all, self.share_all))
         self.t_across: FloatArray | None = t_across
-        self.p_pix = self.across.sample(t_across)
-        self.s_pix = self.across.slope(t_across)
+        self.p_pix, self.s_pix = self.across.sample_and_slope(t_across)
         self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
         self.t_along: FloatArray | None = reuse.t_along if reuse is not None else (
             self.along.tables(self.sigmas) if self.along is not None else None)
@@ -673,8 +714,8 @@ class _FitState:
         table = self.across.tables(np.array([sigma]), np.array([disc_share]))
         a_pix, a_mid = self.a_best
         probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
-        return _solve_batch(self.base, [self.across.slope(table) * a_pix,
-                                        self.across.sample(table) * a_pix], self.y, self.ridge,
+        p_pix, s_pix = self.across.sample_and_slope(table)
+        return _solve_batch(self.base, [s_pix * a_pix, p_pix * a_pix], self.y, self.ridge,
                             np.array([probe[0]]), np.array([0.5 * (probe[1] + probe[2])]))
 
     def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
