@@ -257,7 +257,8 @@ def test_model_fit_rejects_a_singular_start() -> None:
     u, esf, var, spread = _esf(7.0, [(1.0, 1.0)])
     a = math.radians(7.0)
     got = sfr_model._fit(u, esf, 1.0 / np.sqrt(var), spread, sfr_model._corners(
-        math.cos(a), math.sin(a)), math.cos(a) * math.sin(a), np.zeros(2), np.zeros(2))
+        math.cos(a), math.sin(a)), math.cos(a) * math.sin(a), np.zeros(2), np.zeros(2),
+        (float(u[0]), float(u[-1]), sfr_model.MAX_SIGMA_PX))
     assert got is None or np.all(got[0][1:] > 0)
     assert isinstance(fit_lsf_model(u, esf, var, spread, math.cos(a), math.sin(a),
                                     rise_px=1.0)[-1], LsfModelFit)
@@ -372,3 +373,68 @@ def test_benchmark_tables_set_the_methods_side_by_side() -> None:
     rows = run_min_rows(cases_per_cell=2, sigmas_px=(3.0,), lengths=(100, 150))
     assert rows[0][1] in (100, 150, None) and rows[0][2].method == "auto"
     assert "3.0" in format_min_rows(rows)
+
+
+def test_a_component_wider_than_the_window_is_held_at_the_bound_and_named() -> None:
+    # A Gaussian of sigma 12 px seen through +-10 px: no width above half the span (10 px)
+    # can be told from a tilt; the fit stays at that bound and says so.
+    a = math.radians(7.0)
+    u, esf, var, spread = _esf(7.0, [(1.0, 12.0)])
+    fits = fit_lsf_model(u, esf, var, spread, math.cos(a), math.sin(a), rise_px=20.0)
+    assert fits
+    for fit in fits:
+        assert np.all(fit.sigmas_px <= 10.0 + 1e-9)
+        assert np.all((fit.centres_px >= u[0]) & (fit.centres_px <= u[-1]))
+    assert "the widest the fitted 20.0 px tell from a tilt" in fits[-1].at_bound
+    # The same blur within the window (sigma 2 px) is interior: nothing named.
+    u2, esf2, var2, spread2 = _esf(7.0, [(1.0, 2.0)])
+    inner = fit_lsf_model(u2, esf2, var2, spread2, math.cos(a), math.sin(a), rise_px=5.0)
+    assert inner[-1].at_bound == "" and inner[-1].sigmas_px[0] == pytest.approx(2.0, abs=1e-3)
+
+
+def test_a_component_centred_outside_the_samples_is_refused() -> None:
+    # A step at +14 px seen on +-10 px: the one component that follows it must sit at the
+    # samples' edge, which the decision refuses rather than read.
+    a = math.radians(7.0)
+    u, _, var, spread = _esf(7.0, [(1.0, 1.0)])
+    from benchlab.analysis.sfr_synthetic import pixel_integrated_step
+
+    esf = 0.3 * pixel_integrated_step(u, 1.0, math.cos(a), math.sin(a)) + \
+        0.7 * pixel_integrated_step(u - 14.0, 3.0, math.cos(a), math.sin(a))
+    var = np.full(u.size, 1e-6)
+    dec = sfr_model.decide_model(u, esf, var, spread, math.cos(a), math.sin(a), rise_px=2.0,
+                                 centre_px=0.0, half_px=6.0)
+    assert dec.fit is not None
+    assert np.all((dec.fit.centres_px >= u[0]) & (dec.fit.centres_px <= u[-1]))
+    assert not dec.accepted and "outside what the window can show" in dec.reason
+    assert "on the edge of the fitted samples" in dec.reason
+
+
+def test_defocused_edge_in_a_short_roi_is_not_read_by_a_component_outside_it() -> None:
+    # The reviewer's frame: the forward edge scene at 4 px defocus, 8-bit, seed 4, edge E2L
+    # (ROI 45 x 38 px, the LSF's +-2.5 sigma nearly the ROI's half-width). Unbounded, the model
+    # put 0.93 of the step in a sigma 29 px Gaussian centred at -119 px: MTF50 0.0064
+    # against the truth's 0.0466.
+    from benchlab.drivers.mightex_sim_sensor import SensorModel
+    from benchlab.drivers.sensor import AcquisitionState
+    from benchlab.scenes.world import SimWorld
+
+    world = SimWorld("edge")
+    st = AcquisitionState(300.0, 1.0, 8, 1280, 1024, 0.0, 0, {"defocus_px": 4.0})
+    img = (SensorModel(seed=4).render_dn12(world, st).reshape(1024, 1280) >> 4).astype(np.uint8)
+    scene = world.edges._for_state(st)
+    edge = next(e for e in scene.edges() if e.label == "E2L")
+    r0, c0, r1, c1 = edge.roi
+    sigma = scene.side_sigma_px(edge.square, edge.normal_theta_rad)
+    truth = edge_truth_mtf50(sigma, edge.normal_theta_rad)
+    roi = img[r0:r1, c0:c1]
+    auto = measure_sfr(roi, full_scale=255)
+    free = measure_sfr(roi, full_scale=255, method="free")
+    assert auto.mtf50_cycles_per_px is not None and free.mtf50_cycles_per_px is not None
+    assert auto.mtf50_cycles_per_px == pytest.approx(truth, rel=0.05)
+    assert auto.mtf50_cycles_per_px == pytest.approx(free.mtf50_cycles_per_px, rel=0.05)
+    f = np.array([0.015])
+    assert float(auto.mtf_at(f)[0]) == pytest.approx(float(scene.truth_mtf(edge, f)[0]),
+                                                     abs=0.02)
+    assert auto.estimator == "model-free"
+    assert any("outside what the window can show" in w for w in auto.warnings)

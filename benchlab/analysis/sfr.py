@@ -1127,7 +1127,7 @@ def _choose_estimator(
     k = dec.fit.components
     model_spec = _Spectrum(model_mtf, spec.lsf, spec.mid, spec.truncated, sigma, spec.windows)
     return _Choice(model_spec, "LSF model",
-                   f"{reason}; {k} Gaussian{'s' if k > 1 else ''} accepted by both gates",
+                   f"{reason}; {k} Gaussian{'s' if k > 1 else ''} accepted by its gates",
                    "", dec)
 
 

@@ -46,9 +46,17 @@ NEXT_COMPONENT_Z = 1.645
 #: chi-square's own scatter is sqrt(2 n) ~ 15).
 MAX_ITERATIONS = 20
 CHI2_ATOL = 0.01
-#: Component widths are kept in [MIN_SIGMA_PX, MAX_SIGMA_PX] (log-parametrised).
+#: Component widths are kept in [MIN_SIGMA_PX, MAX_SIGMA_PX] (log-parametrised), and further
+#: below half the fitted span (a Gaussian wider than that is a slope across the window, which
+#: the plateaus cannot tell from a tilt of the step); centres are kept within the fitted
+#: samples (a component outside them is only its own flat tail there). A fit that ends with a
+#: component on one of these bounds has not found an LSF the data support (see
+#: :attr:`LsfModelFit.at_bound`).
 MIN_SIGMA_PX = 0.02
 MAX_SIGMA_PX = 30.0
+#: How close (px in the centre, relative in the width) a component must come to a bound to
+#: count as on it.
+BOUND_TOL_PX = 1e-3
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 
 
@@ -99,6 +107,8 @@ class LsfModelFit:
         Direction cosines of the normal in pixel axes (the pixel aperture).
     residual : ndarray
         Data minus model at each fitted sample (ESF units).
+    at_bound : str
+        Which component sits on a bound of its centre or width, and which ('' when none).
     """
 
     weights: FloatArray
@@ -111,6 +121,7 @@ class LsfModelFit:
     cos_a: float
     sin_a: float
     residual: FloatArray  # data - model at each fitted sample (ESF units)
+    at_bound: str = ""
 
     @property
     def components(self) -> int:
@@ -203,22 +214,27 @@ def _solve_linear(
 def _fit(
     u: FloatArray, y: FloatArray, w_sqrt: FloatArray, spread_var: FloatArray,
     corners: tuple[tuple[float, float], ...], ab: float, mu0: FloatArray, logsig0: FloatArray,
+    bounds: tuple[float, float, float],
 ) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
-    """Levenberg-Marquardt on (mu, log sigma) with the linear parameters projected out.
-    Returns (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
+    """Levenberg-Marquardt on (mu, log sigma) with the linear parameters projected out, ``mu``
+    kept in ``bounds[:2]`` and sigma in ``[MIN_SIGMA_PX, bounds[2]]`` (steps clipped). Returns
+    (coef, mu, log sigma, chi2, full covariance, residual) or None when it fails (a negative
     weight, a singular design)."""
     with np.errstate(all="ignore"):  # a wild trial step overflows: refused as degenerate
-        return _fit_quiet(u, y, w_sqrt, spread_var, corners, ab, mu0, logsig0)
+        return _fit_quiet(u, y, w_sqrt, spread_var, corners, ab, mu0, logsig0, bounds)
 
 
 def _fit_quiet(
     u: FloatArray, y: FloatArray, w_sqrt: FloatArray, spread_var: FloatArray,
     corners: tuple[tuple[float, float], ...], ab: float, mu0: FloatArray, logsig0: FloatArray,
+    bounds: tuple[float, float, float],
 ) -> tuple[FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
     """:func:`_fit` with floating-point warnings silenced."""
     k = mu0.size
-    mu, ls = mu0.astype(np.float64).copy(), logsig0.astype(np.float64).copy()
-    lo, hi = math.log(MIN_SIGMA_PX), math.log(MAX_SIGMA_PX)
+    mu_lo, mu_hi, sig_hi = bounds
+    lo, hi = math.log(MIN_SIGMA_PX), math.log(sig_hi)
+    mu = np.clip(mu0.astype(np.float64), mu_lo, mu_hi)
+    ls = np.clip(logsig0.astype(np.float64), lo, hi)
 
     def evaluate(mu: FloatArray, ls: FloatArray, derivs: bool) -> tuple[
             FloatArray, FloatArray, float, FloatArray, FloatArray, FloatArray]:
@@ -254,7 +270,7 @@ def _fit_quiet(
         improved = False
         for _ in range(8):
             step = np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-12), g)
-            mu_n = mu + step[:k]
+            mu_n = np.clip(mu + step[:k], mu_lo, mu_hi)
             ls_n = np.clip(ls + step[k:], lo, hi)
             try:
                 c_n, r_n, chi_n, a_n, dmu_n, dls_n = evaluate(mu_n, ls_n, True)
@@ -283,6 +299,20 @@ def _fit_quiet(
     return coef, mu, ls, chi2, np.asarray(cov, dtype=np.float64), res / w_sqrt
 
 
+def _at_bound(mu: FloatArray, sigma: FloatArray, bounds: tuple[float, float, float]) -> str:
+    """Which components sit on a bound of the fit ('' when none)."""
+    mu_lo, mu_hi, sig_hi = bounds
+    out = []
+    for j, (m, s) in enumerate(zip(mu, sigma, strict=True)):
+        if m <= mu_lo + BOUND_TOL_PX or m >= mu_hi - BOUND_TOL_PX:
+            out.append(f"component {j + 1} centred at {m:+.1f} px, on the edge of the fitted "
+                       f"samples [{mu_lo:+.1f}, {mu_hi:+.1f}] px")
+        if s >= sig_hi * (1.0 - BOUND_TOL_PX):
+            out.append(f"component {j + 1} of sigma {s:.1f} px, the widest the fitted "
+                       f"{mu_hi - mu_lo:.1f} px tell from a tilt")
+    return "; ".join(out)
+
+
 def fit_lsf_model(
     u_px: FloatArray, esf: FloatArray, sample_var: FloatArray, spread_var: FloatArray,
     cos_a: float, sin_a: float, *, rise_px: float, centre_px: float = 0.0,
@@ -309,8 +339,13 @@ def fit_lsf_model(
     Returns
     -------
     list of LsfModelFit
-        Empty when not even one component fits.
+        Empty when not even one component fits. Centres are bounded to the samples' range,
+        widths to half of it (:attr:`LsfModelFit.at_bound` names a component on a bound).
     """
+    if u_px.size == 0:
+        return []
+    u_lo, u_hi = float(np.min(u_px)), float(np.max(u_px))
+    bounds = (u_lo, u_hi, max(min(MAX_SIGMA_PX, 0.5 * (u_hi - u_lo)), 2.0 * MIN_SIGMA_PX))
     w_sqrt = 1.0 / np.sqrt(np.maximum(sample_var, 1e-300))
     corners = _corners(cos_a, sin_a)
     ab = max(abs(cos_a), abs(sin_a)) * max(min(abs(cos_a), abs(sin_a)), 1e-3)
@@ -323,12 +358,13 @@ def fit_lsf_model(
     for _ in range(max_components):
         best: LsfModelFit | None = None
         for mu0, ls0 in starts[-1]:
-            got = _fit(u_px, esf, w_sqrt, spread_var, corners, ab, mu0, ls0)
+            got = _fit(u_px, esf, w_sqrt, spread_var, corners, ab, mu0, ls0, bounds)
             if got is None:
                 continue
             coef, mu, ls, chi2, cov, resid = got
             fit = LsfModelFit(coef[1:], mu, np.exp(ls), float(coef[0]), chi2, n, cov,
-                              float(abs(cos_a)), float(abs(sin_a)), resid)
+                              float(abs(cos_a)), float(abs(sin_a)), resid,
+                              _at_bound(mu, np.exp(ls), bounds))
             if best is None or fit.chi2 < best.chi2:
                 best = fit
         if best is None:
@@ -442,9 +478,10 @@ def decide_model(
     window: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
 ) -> ModelDecision:
     """Fit the model to the samples within ``half_px + FIT_MARGIN_PX`` of ``centre_px`` and
-    test it against them (the two gates above). ``window(x, f)``: the model-free reading's
-    LSF window (freq, offset from ``centre_px``), applied to the residual LSF so the test
-    sees what the model-free reading sees, with its noise (narrower at high frequencies)."""
+    test it against them (the gates above, and no component on a bound). ``window(x, f)``:
+    the model-free reading's LSF window (freq, offset from ``centre_px``), applied to the
+    residual LSF so the test sees what the model-free reading sees, with its noise (narrower
+    at high frequencies)."""
     near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
     un, var = u_px[near], sample_var[near]
     fits = fit_lsf_model(un, esf[near], var, spread_var[near], cos_a, sin_a, rise_px=rise_px,
@@ -466,6 +503,8 @@ def decide_model(
     worst = int(np.argmax(ratio))
     limit = math.log(max(nyquist * span, 1.0) / RESIDUAL_GATE_ALPHA)
     reasons = []
+    if fit.at_bound:
+        reasons.append(f"it needs a component outside what the window can show ({fit.at_bound})")
     if p_value < ESF_GATE_P:
         reasons.append(f"the ESF departs from it (chi-square {fit.chi2:.0f} on {dof} degrees "
                        f"of freedom, p {p_value:.1e})")
