@@ -12,7 +12,10 @@ Tables (written with the Table 4.10 results):
   analytically: :func:`benchlab.analysis.sfr.measure_sfr`) every 4 lp/mm;
 - ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
   chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
-  -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
+  -> MTF by Coltman's series with the harmonics' MTF (3f, 5f, ...) taken from the edges
+  (:func:`benchlab.analysis.coltman.ctf_to_mtf_with_harmonics`: ``bar_mtf``, what is
+  compared) and, for reference, with Nyquist taken as the cutoff (``bar_mtf_coltman``, off by
+  up to 0.05-0.08 on this bench: the MTF above Nyquist is not 0), beside the edge MTF of the same
   orientation at the bar set's image height (interpolated between the two edges bracketing it)
   and the simulated MTF there (interpolated between the field points' curves), with a verdict
   (agreement within :data:`AGREEMENT_TOLERANCE`).
@@ -28,7 +31,7 @@ import numpy.typing as npt
 
 from benchlab.analysis.chart import Box, ChartLayout
 from benchlab.analysis.chart_pose import ChartPose, posed_bar_sets
-from benchlab.analysis.coltman import ctf_to_mtf
+from benchlab.analysis.coltman import ctf_to_mtf, ctf_to_mtf_with_harmonics
 from benchlab.analysis.edge_target import EdgeSpec, edge_specs
 from benchlab.analysis.frequency import cycles_per_px, nyquist_lp_per_mm
 from benchlab.analysis.geometry import (
@@ -38,7 +41,7 @@ from benchlab.analysis.geometry import (
     roi_centroid,
 )
 from benchlab.analysis.mtf_compare import SimulatedCurve
-from benchlab.analysis.sfr import SfrRefused, SfrResult, measure_sfr
+from benchlab.analysis.sfr import MAX_FREQ_CYCLES_PER_PX, SfrRefused, SfrResult, measure_sfr
 
 #: Three-way agreement: |bar MTF - edge MTF| and |edge MTF - simulated MTF| at most this.
 AGREEMENT_TOLERANCE = 0.05
@@ -188,6 +191,16 @@ def _edge_at_height(
     return label, m, None if s is None else float(s)
 
 
+def _edge_harmonics(edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float,
+                    f_lp: npt.NDArray[np.float64], centre_rc: tuple[float, float]
+                    ) -> npt.NDArray[np.float64]:
+    """The edges' MTF at the height (:func:`_edge_at_height`) at each frequency (lp/mm);
+    0 beyond the SFR's range."""
+    f_c = np.asarray(f_lp, dtype=np.float64) / _LP_PER_CYCLE_PX
+    return np.array([_edge_at_height(edges, height_mm, float(fc), centre_rc)[1]
+                     if fc <= MAX_FREQ_CYCLES_PER_PX else 0.0 for fc in f_c])
+
+
 def edge_vs_bars(
     t411: Sequence[dict[str, Any]],
     measured: Sequence[tuple[EdgeSpec, SfrResult | str]],
@@ -213,10 +226,20 @@ def edge_vs_bars(
         object_mod = ref.contrast
         freqs = [float(r["image_lp_per_mm"]) for r in sets]
         ctf = [float(r[f"{orientation}_modulation"]) / object_mod for r in sets]
+        # Shown for reference: Coltman with Nyquist as the cutoff (MTF taken as 0 above it),
+        # up to 0.05-0.08 off on this bench (the optics x pixel MTF at 3f is ~0.2).
         conv = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=nyq)
-        for r, h, f_lp, c, m_bar, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
+        for r, h, f_lp, c, m_nyq, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
                                              strict=True):
             label, m_edge, sig = _edge_at_height(edges, h, cycles_per_px(f_lp), centre_rc)
+            # Compared: the series with the harmonics' MTF from the edges at that height (the
+            # 4x oversampled curve runs to 1 cycle/px; 0 beyond).
+            def harmonics(fk: npt.NDArray[np.float64], h: float = h,
+                          e: list[tuple[EdgeSpec, SfrResult]] = edges
+                          ) -> npt.NDArray[np.float64]:
+                return _edge_harmonics(e, h, fk, centre_rc)
+
+            m_bar = float(ctf_to_mtf_with_harmonics([f_lp], [c], harmonics)[0])
             m_sim = _simulated(curves, orientation, h, f_lp)
             problems = []
             if abs(m_bar - m_edge) > AGREEMENT_TOLERANCE:
@@ -228,8 +251,10 @@ def edge_vs_bars(
                 "image_lp_per_mm": round(f_lp, 3), "image_height_mm": round(h, 4),
                 "bar_modulation": r[f"{orientation}_modulation"],
                 "object_modulation": round(object_mod, 5), "contrast_from_edge": ref_spec.label,
-                "ctf": round(c, 5), "bar_mtf_coltman": round(float(m_bar), 5),
-                "coltman_method": how, "edge": label, "edge_mtf": round(m_edge, 5),
+                "ctf": round(c, 5),
+                "bar_mtf": round(m_bar, 5),
+                "bar_mtf_coltman": round(float(m_nyq), 5), "coltman_method": how,
+                "edge": label, "edge_mtf": round(m_edge, 5),
                 "edge_mtf_sigma": None if sig is None else round(float(sig), 5),
                 "simulated_mtf": None if m_sim is None else round(m_sim, 5),
                 "verdict": "agree" if not problems else "DISAGREE: " + ", ".join(problems),
