@@ -76,6 +76,9 @@ def load_table(path: str | Path | None) -> RayTraceTable:
 def read_frame(path: str | Path) -> npt.NDArray[Any]:
     """A raw monochrome 8/16-bit frame (TIFF, PNG or BMP; a TIFF stack is averaged).
 
+    A colour frame (a TIFF with colour samples, contiguous or planar; a PNG/BMP with 3 or 4
+    channels) whose channels are equal is read as its first channel; real colour is refused.
+
     Raises
     ------
     ViewSynthesisError
@@ -85,8 +88,13 @@ def read_frame(path: str | Path) -> npt.NDArray[Any]:
     if not p.is_file():
         raise ViewSynthesisError(f"{p}: no such frame file")
     try:
+        colour = False
         if p.suffix.lower() in (".tif", ".tiff"):
-            pixels = np.asarray(tifffile.imread(p))
+            with tifffile.TiffFile(p) as tif:
+                series = tif.series[0]
+                pixels, axes = np.asarray(series.asarray()), series.axes
+            if "S" in axes:  # colour samples (RGB, contiguous or planar): last, like PNG's
+                pixels, colour = np.moveaxis(pixels, axes.index("S"), -1), True
         else:
             import cv2
 
@@ -94,10 +102,10 @@ def read_frame(path: str | Path) -> npt.NDArray[Any]:
             if decoded is None:
                 raise ValueError("OpenCV could not decode it")
             pixels = np.asarray(decoded)
+            colour = pixels.ndim == 3 and pixels.shape[-1] in (3, 4)
     except Exception as exc:  # readers raise many types for corrupt files
         raise ViewSynthesisError(f"{p}: not a readable image ({exc})") from exc
-    if pixels.ndim == 3 and pixels.shape[-1] in (3, 4) and p.suffix.lower() not in (
-            ".tif", ".tiff"):
+    if colour and pixels.ndim == 3 and pixels.shape[-1] in (3, 4):
         if not np.all(pixels[..., :3] == pixels[..., :1]):
             raise ViewSynthesisError(f"{p}: colour image; the radial view is monochrome")
         pixels = pixels[..., 0]
@@ -106,6 +114,15 @@ def read_frame(path: str | Path) -> npt.NDArray[Any]:
     if pixels.ndim != 2 or pixels.size == 0:
         raise ViewSynthesisError(f"{p}: expected a 2-D monochrome frame, got {pixels.shape}")
     return pixels
+
+
+def in_session_frames(path: Path) -> bool:
+    """Whether ``path`` lies in a session's raw ``frames/`` folder (a folder named like the
+    session's, beside its ``session.json``): nothing but acquired frames may be written there."""
+    from benchlab.session import FRAMES_DIR, SESSION_FILE
+
+    folder = path.absolute().parent
+    return folder.name == FRAMES_DIR and (folder.parent / SESSION_FILE).is_file()
 
 
 def encode_view_tiff(view: npt.NDArray[Any], valid: npt.NDArray[np.bool_],
@@ -169,6 +186,17 @@ def _write(out: Path, view: npt.NDArray[Any], maps: ViewMaps, meta: dict[str, An
 def _check_out(out: Path, source: Path) -> None:
     if out.exists() and source.exists() and out.resolve() == source.resolve():
         raise ViewSynthesisError(f"{out}: is the input frame; raw frames are never overwritten")
+    if in_session_frames(out):  # later writers would journal it as an unreadable frame
+        raise ViewSynthesisError(f"{out}: in a session's raw frames/ folder, which holds "
+                                 "acquired frames only; choose another --out")
+
+
+def _check_view(view: npt.NDArray[Any], maps: ViewMaps, source: Path) -> None:
+    """Refuse a view with no valid pixel (a frame that is not the radial view it should be)."""
+    if not np.any(maps.valid):
+        raise ViewSynthesisError(f"{source}: no pixel of the {view.shape[1]}x{view.shape[0]} "
+                                 "view falls on the frame (0 % valid): wrong --centre, frame or "
+                                 "table?; nothing written")
 
 
 def unwrap_file(
@@ -184,7 +212,8 @@ def unwrap_file(
     allow_extrapolation: bool = False,
     overwrite: bool = False,
 ) -> dict[str, Any]:
-    """Unwrap one raw frame to ``out`` (default ``<frame>.unwrap.tiff``); returns the metadata.
+    """Unwrap one raw frame to ``out`` (default ``<frame>.unwrap.tiff`` beside the frame, or in
+    the current folder for a session's raw frame); returns the metadata.
 
     Raises
     ------
@@ -194,6 +223,8 @@ def unwrap_file(
     src = Path(frame_path)
     frame = read_frame(src)
     target = Path(out) if out is not None else src.with_name(src.stem + ".unwrap.tiff")
+    if out is None and in_session_frames(target):  # never beside a session's raw frames
+        target = Path(src.stem + ".unwrap.tiff")
     _check_out(target, src)
     tab = table if table is not None else load_table(None)
     centre, how = _centre(frame, centre_rc, str(src))
@@ -204,6 +235,7 @@ def unwrap_file(
         view = apply_maps(frame, maps, interpolation)
     except ValueError as exc:
         raise ViewSynthesisError(f"{src}: {exc}") from exc
+    _check_view(view, maps, src)
     meta = {**maps.meta, "centre_method": how, "interpolation": interpolation,
             "source": str(src), "source_sha256": sha256_file(src)}
     _write(target, view, maps, meta, overwrite)
@@ -239,6 +271,7 @@ def perspective_file(
         view = apply_maps(frame, maps, interpolation)
     except ValueError as exc:
         raise ViewSynthesisError(f"{src}: {exc}") from exc
+    _check_view(view, maps, src)
     meta = {**maps.meta, "centre_method": how, "interpolation": interpolation,
             "source": str(src), "source_sha256": sha256_file(src)}
     _write(target, view, maps, meta, overwrite)
@@ -281,6 +314,7 @@ def calibrate_radial_file(
     frame = read_frame(src)
     centre, how = _centre(frame, centre_rc, str(src))
     target = Path(out)
+    _check_out(target, src)
     try:
         cal = calibrate_from_rings(frame, object_lp_per_mm=object_lp_per_mm,
                                    object_radius_mm=object_radius_mm, centre_rc=centre,

@@ -95,9 +95,20 @@ def cell(value: Any, fmt: str) -> str:
 NOT_MEASURABLE = "not measurable"
 
 
+#: Characterisation figures that can be flagged as not resolved: key -> the row's
+#: ``<quantity>_unresolved`` reason (clipped black level, quantisation, saturated stack).
+_CHARACTERISE_QUANTITY = {"read_noise_dn": "read_noise", "read_noise_e": "read_noise",
+                          "dark_current_e_per_s": "dark_current", "dsnu_dn": "dsnu",
+                          "prnu_pct": "prnu"}
+
+
 def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
     """One cell of a row: a modulation whose reading is aliased, not resolved or not
-    measurable is said so, never shown as the 0 stored for it."""
+    measurable is said so, never shown as the 0 stored for it; a characterisation figure the
+    frames do not resolve reads ``n/a (unresolved: why)``."""
+    quantity = _CHARACTERISE_QUANTITY.get(key)
+    if quantity is not None and row.get(f"{quantity}_unresolved"):
+        return f"n/a (unresolved: {row[f'{quantity}_unresolved']})"
     if key.endswith("_aliased") and key not in row:  # older rows: one flag per row
         return cell(row.get("aliased"), fmt)
     if key.endswith("_modulation"):

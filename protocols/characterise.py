@@ -36,6 +36,9 @@ from benchlab.protocols.engine import Step, StepContext
 
 FLAT_TARGET = "flat"
 EXPOSURE_STEP_MS = 0.05
+#: A saturated probe start is halved at most this often (600 ms -> 0.15 ms) before the run is
+#: refused.
+MAX_PROBE_HALVINGS = 12
 #: The current grid when no controller says otherwise (FA/FV/XA/XV: 0.1 mA); on the bench the
 #: grid is the LED controller's own current step (``LightSource.current_step_ma``).
 CURRENT_STEP_MA = 0.1
@@ -93,10 +96,17 @@ def probe_saturation(
 ) -> tuple[float, bool]:
     """Value of the swept quantity at which the lit frame saturates: double it from the probe
     start until the median stops rising (< 3 % for a doubling) or reaches the top code, then
-    extrapolate the last clearly unsaturated probe linearly to the saturated level.
+    extrapolate the last clearly unsaturated probe linearly to the saturated level. When no
+    probe is clearly unsaturated (the probe start already saturates), halve it from the probe
+    start (``probe-hNN`` frames, at most :data:`MAX_PROBE_HALVINGS`) until one is.
 
     ``grab(name, value, lit)`` returns a saved frame. Returns ``(x_sat, found)``; ``found`` is
     False when even the maximum (exposure or LED current) did not saturate.
+
+    Raises
+    ------
+    SettingOutOfRangeError
+        Naming ``sweep.probe_start_ms`` (``_ma``) when even the halved probes saturate.
     """
     step, start, maximum = _sweep_axis(params, current_step_ma)
     top = (1 << bits) - 1
@@ -114,10 +124,37 @@ def probe_saturation(
         x = min(round(2.0 * x, 9), maximum)  # twice a point on the grid is on it
     sat_level = history[-1][1]
     below = [(xx, lv) for xx, lv in history if lv - dark < 0.9 * (sat_level - dark)]
-    if not below or below[-1][1] <= dark:
+    if not below:  # the probe start saturates already: halve it until it does not
+        below = _halve_probe(grab, params, (start, step, maximum), dark, sat_level)
+    if below[-1][1] <= dark:
         return history[-1][0], True
     x_ok, level_ok = below[-1]
     return x_ok * (sat_level - dark) / (level_ok - dark), True
+
+
+def _halve_probe(
+    grab: Callable[[str, float, bool], npt.NDArray[Any]], params: CharacteriseParams,
+    axis: tuple[float, float, float], dark: float, sat_level: float,
+) -> list[tuple[float, float]]:
+    """The first probe below the probe start (halved on the grid of ``axis`` = (start, step,
+    maximum), at most :data:`MAX_PROBE_HALVINGS` times) clearly under the saturated level:
+    ``[(x, level)]``."""
+    start, step, maximum = axis
+    field, unit = (("sweep.probe_start_ma", "mA") if params.vary == "led_current"
+                   else ("sweep.probe_start_ms", "ms"))
+    x = start
+    for k in range(1, MAX_PROBE_HALVINGS + 1):
+        half = _round_to(x / 2.0, step, maximum)
+        if half >= x:
+            break  # the grid's smallest value, still saturated
+        x = half
+        level = float(np.median(grab(f"probe-h{k:02d}", x, True)))
+        if level - dark < 0.9 * (sat_level - dark):
+            return [(x, level)]
+    raise SettingOutOfRangeError(
+        f"{field} {start:g} {unit}: the lit frame is saturated there and still at {x:g} {unit} "
+        f"(halved {MAX_PROBE_HALVINGS} times at most, down to the {step:g} {unit} step): lower "
+        f"{field}, the LED current or the light")
 
 
 class CharacteriseProcedure:

@@ -17,6 +17,7 @@ import numpy.typing as npt
 from benchlab.analysis.photon_transfer import (
     SpatialResult,
     SweepPoint,
+    fraction_at_code,
     msb_aligned,
     native_codes,
     pair_statistics,
@@ -53,7 +54,7 @@ def sweep_statistics(
 
     lit = np.stack([codes(n) for n in sorted(frames) if n.startswith("stack-lit-")])
     dark = np.stack([codes(n) for n in sorted(frames) if n.startswith("stack-dark-")])
-    spatial, defects = spatial_nonuniformity(lit, dark)
+    spatial, defects = spatial_nonuniformity(lit, dark, top_code_dn=float((1 << bits) - 1))
     valid = ~defects
     steps: dict[int, set[str]] = {}
     for name in frames:
@@ -69,8 +70,12 @@ def sweep_statistics(
         meta = metas[f"{e}-lit-a"]
         t = float(meta["exposure_ms"])
         mean, var = pair_statistics(codes(f"{e}-lit-a"), codes(f"{e}-lit-b"), valid)
-        dmean, dvar = pair_statistics(codes(f"{e}-dark-a"), codes(f"{e}-dark-b"), valid)
-        points.append(SweepPoint(t, mean, var, dmean, dvar, irradiance=_current_ma(meta)))
+        dark_a, dark_b = codes(f"{e}-dark-a"), codes(f"{e}-dark-b")
+        dmean, dvar = pair_statistics(dark_a, dark_b, valid)
+        # Zero codes of the dark pair: a black level clipped at 0 (EMVA 1288: <= 0.5 %).
+        zeros = fraction_at_code(np.stack([dark_a, dark_b]), 0.0, valid)
+        points.append(SweepPoint(t, mean, var, dmean, dvar, irradiance=_current_ma(meta),
+                                 dark_zero_fraction=zeros))
         exposures.append(t)
     return points, spatial, exposures, aligned
 

@@ -27,6 +27,8 @@ TOLERANCES: dict[str, tuple[str, float]] = {
     "dsnu_dn": ("rel", 0.10),
     "prnu_pct": ("rel", 0.10),
 }
+#: Figures that can be flagged as not resolved: key -> quantity (``<quantity>_resolved``).
+_QUANTITY = {"read_noise_e": "read_noise", "dsnu_dn": "dsnu", "prnu_pct": "prnu"}
 #: The non-linear camera of part 2 (compression from 30 % of full well, 5 % at full well).
 NONLINEAR = {"compression_at_full_well": 0.05, "compression_knee": 0.3}
 RADIOMETRY_EXPOSURE_MS = 750.0
@@ -51,10 +53,11 @@ def figures_rows(summary: Mapping[str, Any], skip: tuple[str, ...] = ()
         truth = cfg.get("simulator_truth") or {}
         for key, (kind, tol) in TOLERANCES.items():
             err = _error(key, cfg["measured"].get(key), truth.get(key))
-            # EMVA set-up rule: dark noise >= 1 DN; below it quantisation biases the dark
-            # statistics (read noise, DSNU), so those figures are not judged.
-            applicable = key not in ("read_noise_e", "dsnu_dn") or bool(
-                cfg["measured"]["read_noise_resolved"])
+            # A figure the frames do not resolve (dark noise < 1 DN: quantisation; a clipped
+            # black level; a saturated PRNU stack) is not given, so it is not judged.
+            quantity = _QUANTITY.get(key)
+            applicable = quantity is None or bool(
+                cfg["measured"].get(f"{quantity}_resolved", True))
             applicable &= key not in skip
             rows.append({"gain": cfg["gain"], "bits": cfg["bits"], "quantity": key,
                          "measured": cfg["measured"].get(key), "truth": truth.get(key),

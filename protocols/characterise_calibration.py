@@ -47,28 +47,89 @@ def _next_version(folder: Path) -> int:
     return max(found, default=0) + 1
 
 
-def set_camera_reference(text: str, value: str) -> str:
-    """Bench TOML text with ``[camera] response_calibration = value`` set (added or replaced);
-    every other line unchanged. The result is parsed back to check it."""
+#: A ``[camera]`` table header line: any spacing, an optional trailing comment.
+_CAMERA_HEADER = re.compile(r"^\s*\[\s*camera\s*\]\s*(#.*)?$")
+#: Any table or array-of-tables header line (the end of the ``[camera]`` section).
+_ANY_HEADER = re.compile(r"^\s*\[")
+_REFERENCE_KEY = re.compile(r"^\s*response_calibration\s*=")
+
+
+def set_camera_reference(text: str, value: str, source: str = "<bench file>") -> str:
+    """Bench TOML text with ``[camera] response_calibration = value`` set (added after the
+    ``[camera]`` header, or that key's line replaced; a ``[camera]`` table appended when the
+    file has none); every other line unchanged.
+
+    The result is checked before it is returned: parsed, it must equal the original with only
+    that key set, and pass the bench configuration's validation.
+
+    Raises
+    ------
+    CalibrationError
+        Naming ``source`` and the key when the text is not valid TOML, when the camera is
+        given as dotted keys (``camera.serial = ...``) or an inline table (``camera = {...}``),
+        which cannot be edited line by line safely, or when the edited text would not check.
+    """
+    from benchlab.bench import BenchConfig, BenchConfigError
+
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CalibrationError(f"{source}: not valid TOML ({exc}); not edited") from exc
+    newline = "\r\n" if "\r\n" in text else "\n"
     line = f"response_calibration = {json.dumps(value)}"
     lines = text.splitlines()
-    header = next((i for i, ln in enumerate(lines) if ln.strip() == "[camera]"), None)
-    if header is None:
-        lines = ["[camera]", line, ""] + lines
+    headers = [i for i, ln in enumerate(lines) if _CAMERA_HEADER.match(ln)]
+    camera = data.get("camera")
+    if "camera" in data and (not isinstance(camera, dict) or len(headers) != 1):
+        raise CalibrationError(
+            f"{source}: camera: given as dotted keys or an inline table, which benchlab cannot "
+            "edit safely to set camera.response_calibration; write it as a [camera] table "
+            "(one key per line); file not edited")
+    if not headers:
+        lines += ["", "[camera]", line]
     else:
-        end = next((i for i in range(header + 1, len(lines))
-                    if lines[i].lstrip().startswith("[")), len(lines))
-        key = next((i for i in range(header + 1, end)
-                    if re.match(r"^\s*response_calibration\s*=", lines[i])), None)
+        header = headers[0]
+        end = next((i for i in range(header + 1, len(lines)) if _ANY_HEADER.match(lines[i])),
+                   len(lines))
+        key = next((i for i in range(header + 1, end) if _REFERENCE_KEY.match(lines[i])), None)
         if key is None:
             lines.insert(header + 1, line)
         else:
             lines[key] = line
-    out = "\n".join(lines) + "\n"
-    parsed = tomllib.loads(out)
-    if parsed.get("camera", {}).get("response_calibration") != value:
-        raise CalibrationError("could not set [camera] response_calibration in the bench file")
+    out = newline.join(lines) + newline
+    expected = {**data, "camera": {**(camera if isinstance(camera, dict) else {}),
+                                   "response_calibration": value}}
+    try:
+        parsed = tomllib.loads(out)
+    except tomllib.TOMLDecodeError as exc:
+        parsed = {"<unparsable>": str(exc)}
+    if parsed != expected:
+        raise CalibrationError(f"{source}: camera.response_calibration: could not be set "
+                               "without changing other keys (a multi-line value?); set it "
+                               "by hand; file not edited")
+    try:
+        BenchConfig.from_dict(parsed, source)
+    except BenchConfigError as exc:
+        raise CalibrationError(f"{source}: {'; '.join(exc.problems)}; file not edited") from exc
     return out
+
+
+def _bench_file(config: Any) -> tuple[Path | None, bool, bool]:
+    """``(source, editable, packaged)``: the bench TOML a configuration was read from, whether
+    it is the user's (edited to reference the calibration) or the packaged simulated bench."""
+    source = Path(config.source) if config.source and not config.source.startswith("<") else None
+    is_file = source is not None and source.suffix == ".toml" and source.is_file()
+    packaged = is_file and source is not None and source.resolve() == _packaged_bench().resolve()
+    return source, is_file and not packaged, packaged
+
+
+def check_bench_editable(config: Any) -> None:
+    """Refuse, before a characterisation starts, a bench file its end could not point at the
+    new calibration (camera as dotted keys or an inline table): :class:`CalibrationError`."""
+    source, editable, _ = _bench_file(config)
+    if editable and source is not None:
+        set_camera_reference(source.read_text(encoding="utf-8"), "calibration/response-v1.json",
+                             str(source))
 
 
 def write_calibration(session: Any, results: Path, config: Any) -> dict[str, Any]:
@@ -78,10 +139,7 @@ def write_calibration(session: Any, results: Path, config: Any) -> dict[str, Any
     curves = summary.get("summary", {}).get("response_curves") or []
     if not curves:
         raise CalibrationError(f"{results}: no response curve to calibrate with")
-    source = Path(config.source) if config.source and not config.source.startswith("<") else None
-    is_file = source is not None and source.suffix == ".toml" and source.is_file()
-    packaged = is_file and source is not None and source.resolve() == _packaged_bench().resolve()
-    editable = is_file and not packaged and source is not None
+    source, editable, packaged = _bench_file(config)
     folder = (source.parent if editable and source is not None
               else Path(session.path).parent) / "calibration"
     folder.mkdir(parents=True, exist_ok=True)
@@ -90,16 +148,21 @@ def write_calibration(session: Any, results: Path, config: Any) -> dict[str, Any
     doc = {"format": FORMAT, "version": version, "session": str(session.path),
            "results": str(results), "results_version": summary.get("version"),
            "camera": session.meta.get("devices", {}).get("camera"), "curves": curves}
-    atomic_write_json(target, doc, overwrite=False)
+    # The edited bench text is built and checked before anything is written: a bench file
+    # that cannot be edited leaves no response file behind (a resume would add another).
     bench_file: Path | None = None
+    bench_text = None
     if editable and source is not None:
         bench_file = source
-        atomic_write_text(bench_file, set_camera_reference(
-            bench_file.read_text(encoding="utf-8"), f"calibration/{target.name}"))
+        bench_text = set_camera_reference(bench_file.read_text(encoding="utf-8"),
+                                          f"calibration/{target.name}", str(bench_file))
     elif packaged:
         bench_file = folder / f"bench-v{version}.toml"
-        text = _packaged_bench().read_text(encoding="utf-8")
-        atomic_write_text(bench_file, set_camera_reference(text, target.name))
+        bench_text = set_camera_reference(_packaged_bench().read_text(encoding="utf-8"),
+                                          target.name, str(_packaged_bench()))
+    atomic_write_json(target, doc, overwrite=False)
+    if bench_file is not None and bench_text is not None:
+        atomic_write_text(bench_file, bench_text)
     # Otherwise (a configuration rebuilt from a session snapshot) there is no file to edit:
     # the calibration is written and its path reported.
     return {"file": str(target), "sha256": sha256_file(target), "version": version,
@@ -185,6 +248,13 @@ def read_run_calibration(config: Any) -> tuple[Path, bytes] | None:
     data = _read_bytes(p)
     parse_calibration(p, data)
     return p, data
+
+
+def check_run_curve(calibration: tuple[Path, bytes], gain: float, bits: int) -> None:
+    """Refuse, before a run starts, a calibration (from :func:`read_run_calibration`) without
+    a curve for the gain and bit depth the run's analysis will linearise:
+    :class:`CalibrationError` naming the file, the gain and bit depth and the curves it has."""
+    curve_for(parse_calibration(*calibration), gain, bits)
 
 
 def keep_session_calibration(session: Any, source: Path, data: bytes) -> dict[str, Any]:

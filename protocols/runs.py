@@ -118,9 +118,18 @@ def start_run(
     procedure_steps(procedure_obj)  # its steps are sound before any folder exists
     calibration = None
     if isinstance(resolved, RadiometryParams):  # the one procedure that linearises with it
-        from benchlab.protocols.characterise_calibration import read_run_calibration
+        from benchlab.protocols.characterise_calibration import (
+            check_run_curve,
+            read_run_calibration,
+        )
 
         calibration = read_run_calibration(bench.config)  # refused before any folder exists
+        if calibration is not None:  # and it has the curve the analysis will need
+            check_run_curve(calibration, resolved.measurement_gain, resolved.bits)
+    elif procedure == "characterise":  # its end edits the bench file: can it?
+        from benchlab.protocols.characterise_calibration import check_bench_editable
+
+        check_bench_editable(bench.config)
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
         devices=bench.identities(), software_version=benchlab.__version__, sample=sample,

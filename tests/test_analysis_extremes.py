@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -81,6 +81,9 @@ def test_any_12bit_roi_gives_a_labelled_answer(roi, msb, name, freq) -> None:
     freq=FREQS,
     noise=st.one_of(st.none(), st.floats(0.0, 100.0)),
 )
+# The rare failure (hypothesis found it again in 178 examples, seed 1): a single-valued tiny ROI,
+# which sinefit read as resolved with modulation -8.7e-17 (dark above bright).
+@example(roi=np.full((1, 9), 2.36026327e-214), name="sinefit", freq=None, noise=None)
 def test_any_float_roi_gives_a_labelled_answer(roi, name, freq, noise) -> None:
     check_labelled(
         estimate_modulation(roi, estimator=name, freq_cycles_per_px=freq, noise_sigma=noise)

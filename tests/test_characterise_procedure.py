@@ -126,8 +126,8 @@ def test_user_bench_file_is_pointed_at_each_new_version(tmp_path: Path, tiny: Pa
 
 
 def test_set_camera_reference_adds_or_replaces_only_that_line() -> None:
-    assert set_camera_reference('[led]\nchannel = 1\n', "c.json").startswith(
-        '[camera]\nresponse_calibration = "c.json"\n')
+    assert set_camera_reference('[led]\nchannel = 1\n', "c.json") == (
+        '[led]\nchannel = 1\n\n[camera]\nresponse_calibration = "c.json"\n')
     text = '[camera]\nserial = "X"\nresponse_calibration = "old.json"\n[led]\nchannel = 2\n'
     out = set_camera_reference(text, "new.json")
     assert out == text.replace("old.json", "new.json")
@@ -243,6 +243,23 @@ def test_report_renders_the_characterisation(run: Any) -> None:
     for alt in ("photon transfer curve", "linearity deviation", "dark signal and dark noise"):
         assert f"alt='{alt}'" in page
     assert "quantisation" in page  # the 8-bit warning is shown
+    # The 8-bit dark figures are not resolved: no number, the reason (noise DN, e-, dark, DSNU).
+    assert page.count("n/a (unresolved: dark noise &lt; 1 DN)") == 4
+
+
+def test_unresolved_8_bit_dark_figures_are_na_in_json_and_csv(run: Any) -> None:
+    r8 = run.tables["characterisation"][1]
+    assert (r8["bits"], r8["read_noise_e"], r8["dark_current_e_per_s"], r8["dsnu_dn"]) == (
+        8, None, None, None)
+    assert (r8["dark_current_resolved"], r8["dsnu_resolved"]) == (False, False)
+    assert r8["dark_current_unresolved"] == "dark noise < 1 DN"
+    assert r8["prnu_pct"] == pytest.approx(1.0, rel=0.15)  # resolved, given
+    import csv
+    with (Path(run.results_path) / "characterisation.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert (rows[1]["read_noise_e"], rows[1]["dark_current_e_per_s"]) == ("NA", "NA")
+    assert rows[1]["dark_current_unresolved"] == "dark noise < 1 DN"
+    assert float(rows[0]["dark_current_e_per_s"]) == pytest.approx(500.0, rel=0.1)
 
 
 def test_sweep_capped_below_saturation_says_so(tmp_path: Path) -> None:

@@ -201,3 +201,65 @@ def test_no_centre_and_no_radial_frames_are_clear_errors(
     assert Session.open(session.path).result_versions() == []
     assert main(["unwrap", str(tmp_path)]) == 1  # a folder that is not a session
     assert "not a session" in capsys.readouterr().err
+
+
+def test_unwrap_of_a_session_frame_never_writes_into_its_frames_folder(
+        mtf_run: RunOutcome, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    session = Session.open(mtf_run.session_path)
+    frames_dir = session.path / "frames"
+    before = sorted(p.name for p in frames_dir.iterdir())
+    src = next(p for p in sorted(frames_dir.glob("*radial*.tiff")))
+    monkeypatch.chdir(tmp_path)
+    # Default --out: the current folder, not beside the raw frame.
+    assert main(["unwrap", str(src), "--px-per-mm", "4", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["out"] == f"{src.stem}.unwrap.tiff" and (tmp_path / info["out"]).is_file()
+    # An explicit --out into frames/ is refused, naming it; nothing written.
+    bad = frames_dir / "view.tiff"
+    assert main(["unwrap", str(src), "--px-per-mm", "4", "--out", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"benchlab: error: {bad}: in a session's raw frames/ folder")
+    assert main(["perspective", str(src), "--yaw-deg", "0", "--pitch-deg", "45", "--fov-deg",
+                 "60", "--size", "40x30", "--out", str(bad)]) == 1
+    assert "raw frames/ folder" in capsys.readouterr().err
+    assert sorted(p.name for p in frames_dir.iterdir()) == before
+    assert Session.open(mtf_run.session_path).verify_frames() == []
+
+
+def test_rgb_tiff_is_read_as_colour_not_as_a_stack(frames: dict[str, Path], tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    mono = tifffile.imread(frames["card"])
+    grey, colour = tmp_path / "grey.tiff", tmp_path / "colour.tiff"
+    tifffile.imwrite(grey, np.stack([mono] * 3, -1), photometric="rgb")
+    tinted = np.stack([mono, mono // 2, mono], -1)
+    tifffile.imwrite(colour, tinted, photometric="rgb")
+    planar = tmp_path / "planar.tiff"  # RGB stored as separate colour planes: (3, rows, cols)
+    tifffile.imwrite(planar, np.stack([mono] * 3), photometric="rgb", planarconfig="separate")
+    args = ["--px-per-mm", "4", "--centre", "560.5,646"]
+    assert main(["unwrap", str(frames["card"]), *args, "--out", str(tmp_path / "m.tiff")]) == 0
+    # Before: the RGB frame was averaged over its rows into a 1280x3 "frame", a blank view.
+    assert main(["unwrap", str(grey), *args, "--out", str(tmp_path / "g.tiff")]) == 0
+    view_m, valid_m, _ = load_view_tiff(tmp_path / "m.tiff")
+    view_g, valid_g, _ = load_view_tiff(tmp_path / "g.tiff")
+    assert np.array_equal(view_g, view_m) and valid_g.mean() > 0.9 and view_g.max() > 100
+    assert main(["unwrap", str(planar), *args, "--out", str(tmp_path / "p.tiff")]) == 0
+    assert np.array_equal(load_view_tiff(tmp_path / "p.tiff")[0], view_m)
+    capsys.readouterr()
+    assert main(["unwrap", str(colour), *args, "--out", str(tmp_path / "c.tiff")]) == 1
+    assert f"{colour}: colour image" in capsys.readouterr().err
+    assert not (tmp_path / "c.tiff").exists()
+    # A TIFF stack of 3 frames stays a stack (averaged), not colour.
+    stack = tmp_path / "stack.tiff"
+    tifffile.imwrite(stack, np.stack([mono] * 3), photometric="minisblack")
+    assert main(["unwrap", str(stack), *args, "--out", str(tmp_path / "s.tiff")]) == 0
+    view_s = load_view_tiff(tmp_path / "s.tiff")[0]  # float32: the stack's mean
+    assert view_s.dtype == np.float32 and np.abs(view_s - view_m).max() <= 0.5
+
+
+def test_a_view_with_no_valid_pixel_is_refused(frames: dict[str, Path], tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "far.tiff"
+    assert main(["unwrap", str(frames["card"]), "--centre", "5000,5000", "--px-per-mm", "4",
+                 "--out", str(out)]) == 1
+    assert "(0 % valid)" in capsys.readouterr().err and not out.exists()

@@ -11,6 +11,21 @@
  * Inputs are 2-D float64 buffers of any strides (read through the buffer protocol, never
  * written); scratch memory is allocated here and freed on every path. Build with
  * -ffp-contract=off: a contracted a * b + c would round differently from numpy.
+ *
+ * The GIL is released around each kernel's loops on a large input (RELEASE_MIN_PIXELS,
+ * RELEASE_MIN_BINS: a 2048 x 2048 ROI held it ~30 ms, stalling the TUI and the acquisition
+ * thread), as numpy's own loops do. Safe because:
+ * - the loops call no Python API: arguments are parsed, buffers acquired and the result built
+ *   with the GIL held; the loops report errors as a status (RUN_*) raised afterwards;
+ * - the buffers stay valid: each Py_buffer holds a reference to its exporter until
+ *   PyBuffer_Release, after the GIL is taken back, and numpy refuses to resize an array that
+ *   is referenced (a bytes object, the phase windows, is immutable);
+ * - the loops only read the inputs; the one buffer written, phase_select's ``out``, is the
+ *   caller's fresh array; module state (the residual's cache) is taken and given back with the
+ *   GIL held. As for numpy's loops, another thread writing into the very array being read
+ *   meanwhile is the caller's race: the analysis never writes its input ROI.
+ * Small inputs keep the GIL: a call of tens of microseconds stalls nobody, and taking the GIL
+ * back from a busy thread can cost a switch interval (5 ms).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -65,6 +80,24 @@ static int get_image(PyObject *obj, Py_buffer *view, Image *im)
         return -1;
     }
     return 0;
+}
+
+/* The GIL is released for images of at least this many pixels (about 0.25 ms of
+ * phase_select or quick_core here) and for histograms of at least this many bins (the merge of
+ * many light basins is quadratic in the peaks). */
+#define RELEASE_MIN_PIXELS ((Py_ssize_t)1 << 16)
+#define RELEASE_MIN_BINS ((Py_ssize_t)1 << 12)
+
+/* PyEval_SaveThread when ``release``, else NULL; undone by reacquire_gil. */
+static PyThreadState *release_gil(int release)
+{
+    return release ? PyEval_SaveThread() : NULL;
+}
+
+static void reacquire_gil(PyThreadState *released)
+{
+    if (released)
+        PyEval_RestoreThread(released);
 }
 
 /* numpy's pairwise sum (the inner loop of add.reduce over a run of n values). */
@@ -272,22 +305,49 @@ static inline void pymul(double ar, double ai, double br, double bi, double *re,
     *im = ar * bi + ai * br;
 }
 
-/* The residual's memory, kept between calls (the GIL is held throughout a call, so one
- * buffer serves every call): a fresh block per call of a large ROI costs more in page faults
- * than the passes over it. Grown as needed, owned by this module. */
+/* The residual's memory, kept between calls: a fresh block per call of a large ROI costs
+ * more in page faults than the passes over it. A call takes it (cache_take) and gives it back
+ * (cache_give) with the GIL held, and owns it in between, grown as needed: calls running at
+ * once in several threads (the GIL released) never share it - a call that finds the cache
+ * taken starts from an empty one, and the larger block is kept when both give theirs back. */
 static double *resid_cache = NULL;
 static size_t resid_cache_len = 0;
 
-static double *resid_buffer(size_t n)
+typedef struct {
+    double *mem;
+    size_t len; /* in doubles */
+} Block;
+
+static Block cache_take(void)
 {
-    if (n > resid_cache_len) {
-        double *grown = realloc(resid_cache, n * sizeof(double));
+    Block b = {resid_cache, resid_cache_len};
+    resid_cache = NULL;
+    resid_cache_len = 0;
+    return b;
+}
+
+static void cache_give(Block b)
+{
+    if (b.len >= resid_cache_len) {
+        free(resid_cache);
+        resid_cache = b.mem;
+        resid_cache_len = b.len;
+    } else {
+        free(b.mem);
+    }
+}
+
+/* At least n doubles of ``b`` (grown; NULL when out of memory, ``b`` then unchanged). */
+static double *block_reserve(Block *b, size_t n)
+{
+    if (n > b->len) {
+        double *grown = realloc(b->mem, n * sizeof(double));
         if (!grown)
             return NULL;
-        resid_cache = grown;
-        resid_cache_len = n;
+        b->mem = grown;
+        b->len = n;
     }
-    return resid_cache;
+    return b->mem;
 }
 
 /* Scratch for one quick-geometry call: the residual and the DFT's factors. */
@@ -295,7 +355,7 @@ typedef struct {
     Py_ssize_t rows, cols;
     const double *pixels; /* rows x cols, row-major: the input itself or ``img`` */
     double *img;     /* the input made contiguous when it is not (else NULL) */
-    double *resid;   /* rows x cols (resid_cache) */
+    double *resid;   /* rows x cols (in the caller's Block) */
     double *x, *y;   /* centred coordinates */
     double *ex, *ey; /* interleaved complex, cols and rows */
     double *blocks;  /* interleaved complex, rows x 4 */
@@ -311,7 +371,7 @@ static void scratch_free(Scratch *s)
     free(s->blocks);
 }
 
-static int scratch_alloc(Scratch *s, const Image *im)
+static int scratch_alloc(Scratch *s, const Image *im, Block *resid)
 {
     Py_ssize_t rows = im->rows, cols = im->cols;
     size_t n = (size_t)rows * (size_t)cols;
@@ -331,7 +391,7 @@ static int scratch_alloc(Scratch *s, const Image *im)
         }
         s->pixels = s->img;
     }
-    s->resid = resid_buffer(n);
+    s->resid = block_reserve(resid, n);
     s->x = malloc((size_t)cols * sizeof(double));
     s->y = malloc((size_t)rows * sizeof(double));
     s->ex = malloc(2 * (size_t)cols * sizeof(double));
@@ -584,6 +644,51 @@ PyDoc_STRVAR(quick_core_doc,
 "power_sum)`` (the refined frequency vector, the DFT there, the sum of squares about the\n"
 "plane), or None when the ROI spans too few periods or the refinement does not settle.");
 
+/* What a kernel's loops report once the GIL is held again (they raise nothing themselves). */
+enum { RUN_OK = 0, RUN_NONE = 1, RUN_NO_MEMORY = -1, RUN_NOT_FINITE = -2 };
+
+/* quick_core's passes, no Python API: RUN_OK with ``out`` = (kx, ky, re, im, power),
+ * RUN_NONE (too few periods, or not settled) or RUN_NO_MEMORY. */
+static int quick_core_run(const Image *im, double f, double min_periods, double settled,
+                          int iterations, Py_ssize_t coarse_min_px, int fused, Block *resid,
+                          double *out)
+{
+    Scratch s;
+    if (scratch_alloc(&s, im, resid) < 0)
+        return RUN_NO_MEMORY;
+    int status = RUN_NONE;
+    double theta_cells, theta;
+    if (detrend_into(&s) < 0 || structure_theta(&s, &theta_cells) < 0) {
+        status = RUN_NO_MEMORY;
+        goto done;
+    }
+    Py_ssize_t rows = im->rows, cols = im->cols;
+    theta = theta_cells;
+    for (int i = 0; i < 3; i++)
+        theta += theta_cells - cell_gradient_direction(theta, f);
+    if (f * (fabs(cos(theta)) * (double)cols + fabs(sin(theta)) * (double)rows) < min_periods)
+        goto done;
+    double kx = f * cos(theta), ky = f * sin(theta), value[2];
+    int ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
+    if (!ok && (rows < cols ? rows : cols) >= coarse_min_px) {
+        kx = f * cos(theta);
+        ky = f * sin(theta);
+        coarse_drift_step(&s, fused, &kx, &ky);
+        ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
+    }
+    if (!ok)
+        goto done;
+    out[0] = kx;
+    out[1] = ky;
+    out[2] = value[0];
+    out[3] = value[1];
+    out[4] = einsum_dot(s.resid, s.resid, rows * cols);
+    status = RUN_OK;
+done:
+    scratch_free(&s);
+    return status;
+}
+
 static PyObject *quick_core(PyObject *self, PyObject *args)
 {
     PyObject *obj;
@@ -609,43 +714,19 @@ static PyObject *quick_core(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "quick_core takes at most 4096 x 4096 pixels");
         return NULL;
     }
-    Scratch s;
-    if (scratch_alloc(&s, &im) < 0) {
-        PyBuffer_Release(&view);
-        return PyErr_NoMemory();
-    }
-    PyObject *result = NULL;
-    double theta_cells, theta;
-    if (detrend_into(&s) < 0 || structure_theta(&s, &theta_cells) < 0) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    Py_ssize_t rows = im.rows, cols = im.cols;
-    theta = theta_cells;
-    for (int i = 0; i < 3; i++)
-        theta += theta_cells - cell_gradient_direction(theta, f);
-    if (f * (fabs(cos(theta)) * (double)cols + fabs(sin(theta)) * (double)rows) < min_periods) {
-        result = Py_NewRef(Py_None);
-        goto done;
-    }
-    double kx = f * cos(theta), ky = f * sin(theta), value[2];
-    int ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
-    if (!ok && (rows < cols ? rows : cols) >= coarse_min_px) {
-        kx = f * cos(theta);
-        ky = f * sin(theta);
-        coarse_drift_step(&s, fused, &kx, &ky);
-        ok = drift_refine(&s, fused, &kx, &ky, settled, iterations, value);
-    }
-    if (!ok) {
-        result = Py_NewRef(Py_None);
-        goto done;
-    }
-    double power = einsum_dot(s.resid, s.resid, rows * cols);
-    result = Py_BuildValue("(ddddd)", kx, ky, value[0], value[1], power);
-done:
-    scratch_free(&s);
+    double out[5];
+    Block resid = cache_take();
+    PyThreadState *released = release_gil(im.rows * im.cols >= RELEASE_MIN_PIXELS);
+    int status = quick_core_run(&im, f, min_periods, settled, iterations, coarse_min_px, fused,
+                                &resid, out);
+    reacquire_gil(released);
+    cache_give(resid);
     PyBuffer_Release(&view);
-    return result;
+    if (status == RUN_NO_MEMORY)
+        return PyErr_NoMemory();
+    if (status == RUN_NONE)
+        Py_RETURN_NONE;
+    return Py_BuildValue("(ddddd)", out[0], out[1], out[2], out[3], out[4]);
 }
 
 PyDoc_STRVAR(phase_select_doc,
@@ -661,61 +742,35 @@ PyDoc_STRVAR(phase_select_doc,
 
 #define N_PHASE_BINS 32
 
-static PyObject *phase_select(PyObject *self, PyObject *args)
+/* phase_select's pass, no Python API: RUN_OK with ``res`` = (scatter, vmin, vmax) and
+ * ``*selected`` values written to ``dst``, or RUN_NO_MEMORY. */
+static int phase_select_run(const Image *im, double kx32, double ky32, double centre,
+                            double inner_limit, const unsigned char *near,
+                            const unsigned char *wide, Py_ssize_t min_pixels, double *dst,
+                            double *res, Py_ssize_t *selected)
 {
-    PyObject *obj, *out_obj;
-    double kx32, ky32, centre, inner_limit;
-    Py_buffer near_view, wide_view;
-    Py_ssize_t min_pixels;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "Oddddy*y*nO", &obj, &kx32, &ky32, &centre, &inner_limit,
-                          &near_view, &wide_view, &min_pixels, &out_obj))
-        return NULL;
-    PyObject *result = NULL;
-    Py_buffer view, out_view;
-    Image im;
-    int have_img = 0, have_out = 0;
-    unsigned char *tags = NULL;
-    double *copy = NULL;
-    if (near_view.len != N_PHASE_BINS || wide_view.len != N_PHASE_BINS) {
-        PyErr_SetString(PyExc_ValueError, "near and wide must be 32 bytes");
-        goto done;
-    }
-    if (get_image(obj, &view, &im) < 0)
-        goto done;
-    have_img = 1;
-    if (PyObject_GetBuffer(out_obj, &out_view,
-                           PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
-        goto done;
-    have_out = 1;
-    Py_ssize_t rows = im.rows, cols = im.cols, n = rows * cols;
-    if (!is_float64_format(out_view.format) || out_view.len < n * (Py_ssize_t)sizeof(double)) {
-        PyErr_SetString(PyExc_ValueError, "out must hold a float64 per pixel");
-        goto done;
-    }
+    Py_ssize_t rows = im->rows, cols = im->cols, n = rows * cols;
     /* The pixels row-major: the input itself when contiguous, else a copy. */
-    const double *flat = (const double *)im.data;
-    if (im.cs != (Py_ssize_t)sizeof(double) ||
-        (rows > 1 && im.rs != cols * (Py_ssize_t)sizeof(double))) {
+    const double *flat = (const double *)im->data;
+    double *copy = NULL;
+    if (im->cs != (Py_ssize_t)sizeof(double) ||
+        (rows > 1 && im->rs != cols * (Py_ssize_t)sizeof(double))) {
         copy = malloc((size_t)n * sizeof(double));
-        if (!copy) {
-            PyErr_NoMemory();
-            goto done;
-        }
+        if (!copy)
+            return RUN_NO_MEMORY;
         for (Py_ssize_t r = 0; r < rows; r++)
             for (Py_ssize_t c = 0; c < cols; c++)
-                copy[r * cols + c] = PX(&im, r, c);
+                copy[r * cols + c] = PX(im, r, c);
         flat = copy;
     }
-    tags = malloc((size_t)n);
+    unsigned char *tags = malloc((size_t)n);
     if (!tags) {
-        PyErr_NoMemory();
-        goto done;
+        free(copy);
+        return RUN_NO_MEMORY;
     }
-    const unsigned char *near = near_view.buf, *wide = wide_view.buf;
     long long count[N_PHASE_BINS] = {0};
     double sums[N_PHASE_BINS] = {0.0};
-    Py_ssize_t n_near = 0, n_wide = 0, n_inner = 0;
+    Py_ssize_t n_near = 0, n_wide = 0;
     Py_ssize_t k = 0;
     for (Py_ssize_t r = 0; r < rows; r++) {
         double yr = (double)r - (double)(rows - 1) / 2.0;
@@ -732,7 +787,6 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
             sums[bin] += v;
             tags[k] = (unsigned char)(bin | (inner ? 0x80 : 0));
             if (inner) {
-                n_inner++;
                 n_near += near[bin] != 0;
                 n_wide += wide[bin] != 0;
             }
@@ -753,7 +807,7 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
     double scatter = sqrt(within / (double)dof);
     /* The selection: near, else wide, else every bin of the inner bars. */
     const unsigned char *table = n_near >= min_pixels ? near : n_wide >= min_pixels ? wide : NULL;
-    double *dst = out_view.buf, vmin = 0.0, vmax = 0.0;
+    double vmin = 0.0, vmax = 0.0;
     Py_ssize_t m = 0;
     for (k = 0; k < n; k++) {
         if (!(tags[k] & 0x80) || (table && !table[tags[k] & 0x7f]))
@@ -765,11 +819,57 @@ static PyObject *phase_select(PyObject *self, PyObject *args)
             vmax = v;
         dst[m++] = v;
     }
-    (void)n_inner;
-    result = Py_BuildValue("(dndd)", scatter, m, vmin, vmax);
-done:
     free(tags);
     free(copy);
+    res[0] = scatter;
+    res[1] = vmin;
+    res[2] = vmax;
+    *selected = m;
+    return RUN_OK;
+}
+
+static PyObject *phase_select(PyObject *self, PyObject *args)
+{
+    PyObject *obj, *out_obj;
+    double kx32, ky32, centre, inner_limit;
+    Py_buffer near_view, wide_view;
+    Py_ssize_t min_pixels;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Oddddy*y*nO", &obj, &kx32, &ky32, &centre, &inner_limit,
+                          &near_view, &wide_view, &min_pixels, &out_obj))
+        return NULL;
+    PyObject *result = NULL;
+    Py_buffer view, out_view;
+    Image im;
+    int have_img = 0, have_out = 0;
+    if (near_view.len != N_PHASE_BINS || wide_view.len != N_PHASE_BINS) {
+        PyErr_SetString(PyExc_ValueError, "near and wide must be 32 bytes");
+        goto done;
+    }
+    if (get_image(obj, &view, &im) < 0)
+        goto done;
+    have_img = 1;
+    if (PyObject_GetBuffer(out_obj, &out_view,
+                           PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        goto done;
+    have_out = 1;
+    Py_ssize_t n = im.rows * im.cols;
+    if (!is_float64_format(out_view.format) || out_view.len < n * (Py_ssize_t)sizeof(double)) {
+        PyErr_SetString(PyExc_ValueError, "out must hold a float64 per pixel");
+        goto done;
+    }
+    double res[3];
+    Py_ssize_t m = 0;
+    PyThreadState *released = release_gil(n >= RELEASE_MIN_PIXELS);
+    int status = phase_select_run(&im, kx32, ky32, centre, inner_limit, near_view.buf,
+                                  wide_view.buf, min_pixels, out_view.buf, res, &m);
+    reacquire_gil(released);
+    if (status == RUN_NO_MEMORY) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_BuildValue("(dndd)", res[0], m, res[1], res[2]);
+done:
     if (have_out)
         PyBuffer_Release(&out_view);
     if (have_img)
@@ -797,37 +897,17 @@ static Py_ssize_t first_min(const double *y, Py_ssize_t p, Py_ssize_t q)
     return best;
 }
 
-static PyObject *modes(PyObject *self, PyObject *args)
+/* modes' loops, no Python API, over the n values y: the massive modes' bins in ``peaks``
+ * (room for n), their count, the valley (-1: none) and ``many``; RUN_OK, RUN_NOT_FINITE or
+ * RUN_NO_MEMORY. */
+static int modes_run(const double *y, Py_ssize_t n, double min_fraction, Py_ssize_t *peaks,
+                     Py_ssize_t *n_out, Py_ssize_t *valley_out, int *many_out)
 {
-    PyObject *obj;
-    double min_fraction;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "Od", &obj, &min_fraction))
-        return NULL;
-    Py_buffer view;
-    if (PyObject_GetBuffer(obj, &view, PyBUF_ND | PyBUF_FORMAT | PyBUF_C_CONTIGUOUS) < 0)
-        return NULL;
-    PyObject *result = NULL;
-    Py_ssize_t *peaks = NULL, *cuts = NULL;
-    double *cs = NULL, *mass = NULL, *valleys = NULL;
-    if (view.ndim != 1 || view.itemsize != 8 || !is_float64_format(view.format)) {
-        PyErr_SetString(PyExc_TypeError, "expected a 1-D float64 array");
-        goto done;
-    }
-    const double *y = view.buf;
-    Py_ssize_t n = view.shape[0], n_peaks = 0;
+    Py_ssize_t n_peaks = 0;
     /* A smoothed histogram is finite; -inf valleys would index before the mode arrays. */
-    for (Py_ssize_t i = 0; i < n; i++) {
-        if (!isfinite(y[i])) {
-            PyErr_SetString(PyExc_ValueError, "modes needs finite values");
-            goto done;
-        }
-    }
-    peaks = malloc((size_t)(n > 0 ? n : 1) * sizeof(Py_ssize_t));
-    if (!peaks) {
-        PyErr_NoMemory();
-        goto done;
-    }
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (!isfinite(y[i]))
+            return RUN_NOT_FINITE;
     /* _rises and _find_peaks: where a rise ends (y[i-1] < y[i] >= y[i+1]); a single-bin
      * top is a peak, a flat top one when the first different bin after it is lower (its
      * middle bin). Heights below 0 (the minimum height) are skipped. */
@@ -847,70 +927,116 @@ static PyObject *modes(PyObject *self, PyObject *args)
         if (j < n && y[j] < h)
             peaks[n_peaks++] = (i + j - 1) / 2;
     }
-    int many = n_peaks >= 2;
-    Py_ssize_t valley = -1, n_modes = n_peaks;
-    if (n_peaks >= 2) {
-        /* _massive_modes */
-        double total = 0.0 + pairwise_sum(y, n, 1);
-        cs = malloc((size_t)n * sizeof(double));
-        cuts = malloc((size_t)n_peaks * sizeof(Py_ssize_t));
-        mass = malloc((size_t)n_peaks * sizeof(double));
-        valleys = malloc((size_t)n_peaks * sizeof(double));
-        if (!cs || !cuts || !mass || !valleys) {
-            PyErr_NoMemory();
+    *many_out = n_peaks >= 2;
+    *valley_out = -1;
+    *n_out = n_peaks;
+    if (n_peaks < 2)
+        return RUN_OK;
+    /* _massive_modes */
+    double total = 0.0 + pairwise_sum(y, n, 1);
+    double *cs = malloc((size_t)n * sizeof(double));
+    Py_ssize_t *cuts = malloc((size_t)n_peaks * sizeof(Py_ssize_t));
+    double *mass = malloc((size_t)n_peaks * sizeof(double));
+    double *valleys = malloc((size_t)n_peaks * sizeof(double));
+    int status = RUN_OK;
+    if (!cs || !cuts || !mass || !valleys) {
+        status = RUN_NO_MEMORY;
+        goto done;
+    }
+    double run = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        run = i ? run + y[i] : y[i];
+        cs[i] = run;
+    }
+    double need = min_fraction * total;
+    if (n_peaks == 2) {
+        Py_ssize_t cut = first_min(y, peaks[0], peaks[1]);
+        double low = cs[cut], high = cs[n - 1] - low;
+        if ((high < low ? high : low) >= need) {
+            *valley_out = cut;
             goto done;
         }
-        double run = 0.0;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            run = i ? run + y[i] : y[i];
-            cs[i] = run;
+    }
+    for (Py_ssize_t k = 0; k + 1 < n_peaks; k++) {
+        cuts[k] = first_min(y, peaks[k], peaks[k + 1]);
+        valleys[k] = y[cuts[k]];
+    }
+    for (Py_ssize_t k = 0; k < n_peaks; k++) {
+        Py_ssize_t lo = k ? cuts[k - 1] + 1 : 0, hi = k + 1 < n_peaks ? cuts[k] + 1 : n;
+        mass[k] = cs[hi - 1] - (lo ? cs[lo - 1] : 0.0);
+    }
+    /* Merge the lightest basin into the neighbour across its shallower valley. */
+    Py_ssize_t n_modes = n_peaks;
+    while (n_modes > 1) {
+        Py_ssize_t light = 0;
+        for (Py_ssize_t k = 1; k < n_modes; k++)
+            if (mass[k] < mass[light])
+                light = k;
+        if (mass[light] >= need)
+            break;
+        double left = light > 0 ? valleys[light - 1] : -INFINITY;
+        double right = light < n_modes - 1 ? valleys[light] : -INFINITY;
+        Py_ssize_t j = left >= right ? light - 1 : light + 1;
+        Py_ssize_t keep = y[peaks[j]] >= y[peaks[light]] ? j : light;
+        double merged = mass[light] + mass[j];
+        Py_ssize_t peak = peaks[keep], lo = light < j ? light : j;
+        peaks[lo] = peak;
+        mass[lo] = merged;
+        for (Py_ssize_t k = lo + 1; k + 1 < n_modes; k++) {
+            peaks[k] = peaks[k + 1];
+            mass[k] = mass[k + 1];
         }
-        double need = min_fraction * total;
-        if (n_peaks == 2) {
-            Py_ssize_t cut = first_min(y, peaks[0], peaks[1]);
-            double low = cs[cut], high = cs[n - 1] - low;
-            if ((high < low ? high : low) >= need)
-                valley = cut;
-        }
-        if (valley < 0) {
-            for (Py_ssize_t k = 0; k + 1 < n_peaks; k++) {
-                cuts[k] = first_min(y, peaks[k], peaks[k + 1]);
-                valleys[k] = y[cuts[k]];
-            }
-            for (Py_ssize_t k = 0; k < n_peaks; k++) {
-                Py_ssize_t lo = k ? cuts[k - 1] + 1 : 0, hi = k + 1 < n_peaks ? cuts[k] + 1 : n;
-                mass[k] = cs[hi - 1] - (lo ? cs[lo - 1] : 0.0);
-            }
-            /* Merge the lightest basin into the neighbour across its shallower valley. */
-            while (n_modes > 1) {
-                Py_ssize_t light = 0;
-                for (Py_ssize_t k = 1; k < n_modes; k++)
-                    if (mass[k] < mass[light])
-                        light = k;
-                if (mass[light] >= need)
-                    break;
-                double left = light > 0 ? valleys[light - 1] : -INFINITY;
-                double right = light < n_modes - 1 ? valleys[light] : -INFINITY;
-                Py_ssize_t j = left >= right ? light - 1 : light + 1;
-                Py_ssize_t keep = y[peaks[j]] >= y[peaks[light]] ? j : light;
-                double merged = mass[light] + mass[j];
-                Py_ssize_t peak = peaks[keep], lo = light < j ? light : j;
-                peaks[lo] = peak;
-                mass[lo] = merged;
-                for (Py_ssize_t k = lo + 1; k + 1 < n_modes; k++) {
-                    peaks[k] = peaks[k + 1];
-                    mass[k] = mass[k + 1];
-                }
-                for (Py_ssize_t k = lo; k + 2 < n_modes; k++)
-                    valleys[k] = valleys[k + 1];
-                n_modes--;
-            }
-            Py_ssize_t kept = 0;
-            for (Py_ssize_t k = 0; k < n_modes; k++)
-                if (mass[k] >= need)
-                    peaks[kept++] = peaks[k];
-            n_modes = kept;
-        }
+        for (Py_ssize_t k = lo; k + 2 < n_modes; k++)
+            valleys[k] = valleys[k + 1];
+        n_modes--;
+    }
+    Py_ssize_t kept = 0;
+    for (Py_ssize_t k = 0; k < n_modes; k++)
+        if (mass[k] >= need)
+            peaks[kept++] = peaks[k];
+    *n_out = kept;
+done:
+    free(cs);
+    free(cuts);
+    free(mass);
+    free(valleys);
+    return status;
+}
+
+static PyObject *modes(PyObject *self, PyObject *args)
+{
+    PyObject *obj;
+    double min_fraction;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Od", &obj, &min_fraction))
+        return NULL;
+    Py_buffer view;
+    if (PyObject_GetBuffer(obj, &view, PyBUF_ND | PyBUF_FORMAT | PyBUF_C_CONTIGUOUS) < 0)
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t *peaks = NULL;
+    if (view.ndim != 1 || view.itemsize != 8 || !is_float64_format(view.format)) {
+        PyErr_SetString(PyExc_TypeError, "expected a 1-D float64 array");
+        goto done;
+    }
+    const double *y = view.buf;
+    Py_ssize_t n = view.shape[0], n_modes = 0, valley = -1;
+    int many = 0;
+    peaks = malloc((size_t)(n > 0 ? n : 1) * sizeof(Py_ssize_t));
+    if (!peaks) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    PyThreadState *released = release_gil(n >= RELEASE_MIN_BINS);
+    int status = modes_run(y, n, min_fraction, peaks, &n_modes, &valley, &many);
+    reacquire_gil(released);
+    if (status == RUN_NOT_FINITE) {
+        PyErr_SetString(PyExc_ValueError, "modes needs finite values");
+        goto done;
+    }
+    if (status == RUN_NO_MEMORY) {
+        PyErr_NoMemory();
+        goto done;
     }
     PyObject *list = PyList_New(n_modes);
     if (!list)
@@ -929,10 +1055,6 @@ static PyObject *modes(PyObject *self, PyObject *args)
         result = Py_BuildValue("(NOO)", list, Py_None, many ? Py_True : Py_False);
 done:
     free(peaks);
-    free(cuts);
-    free(cs);
-    free(mass);
-    free(valleys);
     PyBuffer_Release(&view);
     return result;
 }
@@ -957,7 +1079,9 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC PyInit__histkernels(void)
 {
     PyObject *m = PyModule_Create(&module);
-    if (m && PyModule_AddIntConstant(m, "VERSION", KERNELS_VERSION) < 0) {
+    if (m && (PyModule_AddIntConstant(m, "VERSION", KERNELS_VERSION) < 0 ||
+              PyModule_AddIntConstant(m, "RELEASE_MIN_PIXELS", RELEASE_MIN_PIXELS) < 0 ||
+              PyModule_AddIntConstant(m, "RELEASE_MIN_BINS", RELEASE_MIN_BINS) < 0)) {
         Py_DECREF(m);
         return NULL;
     }

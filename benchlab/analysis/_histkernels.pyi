@@ -4,6 +4,10 @@ import numpy as np
 import numpy.typing as npt
 
 VERSION: int
+#: The GIL is released for images of at least this many pixels ...
+RELEASE_MIN_PIXELS: int
+#: ... and histograms of at least this many bins.
+RELEASE_MIN_BINS: int
 
 def quick_core(
     img: npt.NDArray[np.float64], freq: float, min_periods: float, settled_cycles: float,

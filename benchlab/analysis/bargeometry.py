@@ -475,7 +475,9 @@ def quick_fundamental(
     if resid is None:
         # Straight bars: a centred crop (same centre, so the same phase) measures them as well
         # as the whole ROI, at a fixed cost.
-        crop = _centred_crop(img, QUICK_CROP_PX)
+        # Row-major (a copy of a Fortran-order crop): the compiled and numpy passes then sum in
+        # the same order.
+        crop = kernels.row_major(_centred_crop(img, QUICK_CROP_PX))
         rows, cols = crop.shape
         n = rows * cols
         if kernels.compiled is not None and crop.dtype == np.float64 and crop.flags.aligned:

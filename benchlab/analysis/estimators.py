@@ -38,7 +38,12 @@ from benchlab.analysis.result import (
     resolved,
     unresolved,
 )
-from benchlab.analysis.roi import PreparedROI, prepare_roi
+from benchlab.analysis.roi import (
+    FLAT_WARNING,
+    TINY_CONTRAST_WARNING,
+    PreparedROI,
+    prepare_roi,
+)
 
 #: Significance (in standard errors) for the fundamental to count as resolved.
 FUNDAMENTAL_Z = 5.0
@@ -599,12 +604,28 @@ def _axis_checked(estimator: PreparedEstimator, name: str) -> PreparedEstimator:
     return run
 
 
+def _contrast_checked(estimator: PreparedEstimator, name: str) -> PreparedEstimator:
+    """``estimator``, except on a ROI of one gray level, or whose values span less than
+    :data:`~benchlab.analysis.roi.MIN_CONTRAST` (e.g. values ~1e-200): not resolved, with a
+    warning saying which. Flat float data gave sinefit and variance rounding residue (1e-17)
+    to read as bars above a noise of 0; below the bound the fits' squares underflow
+    (profilefit divided by zero, sinefit read 0.215 for 0.238)."""
+    def run(prep: PreparedROI) -> ModulationResult:
+        if prep.vmax == prep.vmin:
+            return unresolved(name, prep.diagnostics(), (*prep.warnings, FLAT_WARNING))
+        if prep.contrast_underflows:
+            return unresolved(name, prep.diagnostics(), (*prep.warnings, TINY_CONTRAST_WARNING))
+        return estimator(prep)
+    return run
+
+
 _PREPARED: dict[str, PreparedEstimator] = {
-    "profilefit": _profilefit,
-    "profilefit-fast": lambda prep: _profilefit(prep, fast=True),
-    "histogram": histogram_peak,
-    "sinefit": _axis_checked(sine_fit, "sinefit"),
-    "variance": _axis_checked(variance_minus_noise, "variance"),
+    "profilefit": _contrast_checked(_profilefit, "profilefit"),
+    "profilefit-fast": _contrast_checked(lambda prep: _profilefit(prep, fast=True),
+                                         "profilefit-fast"),
+    "histogram": _contrast_checked(histogram_peak, "histogram"),
+    "sinefit": _contrast_checked(_axis_checked(sine_fit, "sinefit"), "sinefit"),
+    "variance": _contrast_checked(_axis_checked(variance_minus_noise, "variance"), "variance"),
 }
 
 

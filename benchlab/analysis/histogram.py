@@ -59,7 +59,7 @@ from benchlab.analysis.result import (
     sampling_phase_sd,
     unresolved,
 )
-from benchlab.analysis.roi import PreparedROI
+from benchlab.analysis.roi import FLAT_WARNING, PreparedROI
 
 NAME = "histogram"
 #: Minimum valley depth 1 - valley/smaller peak for two modes to count as two.
@@ -353,7 +353,7 @@ def histogram_peak(prep: PreparedROI) -> ModulationResult:
         clearly the two modes stood apart, ``smoothing_codes`` which smoothing was used.
     """
     if prep.vmax == prep.vmin:
-        warnings = [*prep.warnings, "single-valued ROI: one gray level, no bars"]
+        warnings = [*prep.warnings, FLAT_WARNING]
         return unresolved(NAME, prep.diagnostics(), warnings)
     n_roi = prep.n_pixels
     centres, z = _bar_centres(prep)

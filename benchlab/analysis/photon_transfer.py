@@ -19,6 +19,12 @@ bright and L dark frames for the spatial non-uniformity. The definitions follow 
 * DSNU / PRNU from averaged stacks, corrected for the residual temporal variance
   (``s^2 = s^2_measured - s^2_stack / L``).
 
+Figures the frames cannot resolve are flagged, never reported as numbers (EMVA 1288 practice):
+a dark level clipped at code 0 (more than 0.5 % of the dark pixels at 0) biases read noise, dark
+current and DSNU low; a dark noise below 1 DN biases read noise and DSNU (quantisation); a dark
+signal moving less than 1 DN over the sweep (or quantised, as above) biases the dark current; a
+bright stack with more than 0.5 % of its pixels at the top code gives no PRNU.
+
 Pixels flagged as defects (hot or dead, far outside the fixed-pattern distribution) are left out
 of every statistic and counted; EMVA 1288 keeps them in its DSNU, so ``dsnu_all_pixels_dn`` is
 reported too.
@@ -47,6 +53,18 @@ K_FIT_MAX_FRACTION = 0.7
 LINEARITY_RANGE = (0.05, 0.95)
 #: A pixel whose mean dark or bright level is this many robust sigmas off is a defect.
 DEFECT_SIGMAS = 8.0
+#: EMVA 1288 practice: at most this fraction of pixels at code 0 in a dark frame (else the
+#: black level is clipped) or at the top code in the PRNU stack (else it is saturated).
+MAX_CLIPPED_FRACTION = 0.005
+#: Below this rise of the dark mean over the sweep (DN) the dark current is not resolved.
+MIN_DARK_SPAN_DN = 1.0
+#: The quantities that can be flagged as not resolved, and their result keys.
+UNRESOLVED_KEYS: dict[str, tuple[str, ...]] = {
+    "read_noise": ("read_noise_dn", "read_noise_e"),
+    "dark_current": ("dark_current_e_per_s", "dark_current_uncertainty_e_per_s"),
+    "dsnu": ("dsnu_dn", "dsnu_all_pixels_dn"),
+    "prnu": ("prnu_pct",),
+}
 
 
 def msb_aligned(frames: Sequence[npt.ArrayLike], bits: int) -> bool:
@@ -110,6 +128,26 @@ def pair_statistics(
     return float(0.5 * (a.mean() + b.mean())), float(np.var(a - b) / 2.0)
 
 
+def fraction_at_code(frames: npt.ArrayLike, code: float,
+                     valid: npt.NDArray[np.bool_] | None = None) -> float:
+    """Fraction of the (valid) pixels of a frame or stack of frames reading exactly ``code``
+    (0: a clipped black level; the top code: saturation).
+
+    Parameters
+    ----------
+    frames : array_like, shape (rows, cols) or (n, rows, cols)
+        Native DN.
+    valid : bool array of shape (rows, cols), optional
+        Pixels to count (defects left out).
+    """
+    arr = np.asarray(frames)
+    if arr.ndim == 2:
+        arr = arr[None]
+    if valid is not None:
+        arr = arr[:, valid]
+    return float(np.count_nonzero(arr == code)) / arr.size if arr.size else 0.0
+
+
 @dataclass(frozen=True)
 class SweepPoint:
     """Statistics of one exposure step (bright pair and dark pair)."""
@@ -122,6 +160,8 @@ class SweepPoint:
     #: Relative irradiance of the step (1 for an exposure sweep; the LED current ratio for a
     #: current sweep); the exposure quantity is ``exposure_ms * irradiance``.
     irradiance: float = 1.0
+    #: Fraction of the dark pair's pixels at code 0 (a clipped black level).
+    dark_zero_fraction: float = 0.0
 
     @property
     def exposure_quantity(self) -> float:
@@ -146,6 +186,10 @@ class SpatialResult:
     defect_pixels: int
     stack_frames: int
     bright_signal_dn: float
+    #: Fraction of the dark stack's (non-defect) pixels at code 0.
+    dark_zero_fraction: float = 0.0
+    #: Fraction of the bright stack's (non-defect) pixels at the top code (0 when not given).
+    bright_top_fraction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -172,9 +216,20 @@ class PhotonTransferResult:
     saturation_index: int | None
     warnings: tuple[str, ...] = ()
     spatial: SpatialResult | None = None
+    #: Highest fraction of dark pixels at code 0 over the sweep's dark pairs and dark stack.
+    dark_zero_fraction: float = 0.0
+    #: Quantities the frames do not resolve (keys of :data:`UNRESOLVED_KEYS`) and why; their
+    #: figures above are biased estimates and :meth:`measured` gives None for them.
+    unresolved: tuple[tuple[str, str], ...] = ()
+
+    def resolved(self, quantity: str) -> bool:
+        """Whether ``quantity`` (``read_noise``, ``dark_current``, ``dsnu``, ``prnu``) is."""
+        return quantity not in dict(self.unresolved)
 
     def measured(self) -> dict[str, Any]:
-        """The issue's result keys (plus uncertainties and flags)."""
+        """The issue's result keys (plus uncertainties and flags); a figure that is not
+        resolved is None, with ``<quantity>_resolved`` False and ``<quantity>_unresolved`` the
+        reason."""
         out: dict[str, Any] = {
             "system_gain_dn_per_e": self.system_gain_dn_per_e,
             "system_gain_uncertainty_dn_per_e": self.system_gain_uncertainty_dn_per_e,
@@ -194,7 +249,16 @@ class PhotonTransferResult:
             "read_noise_resolved": self.read_noise_resolved,
             "saturation_reached": self.saturation_reached,
             "black_level_dn": self.black_level_dn,
+            "dark_level_clipped": self.dark_zero_fraction > MAX_CLIPPED_FRACTION,
+            "dark_zero_pct": 100.0 * self.dark_zero_fraction,
         })
+        reasons = dict(self.unresolved)
+        for quantity, keys in UNRESOLVED_KEYS.items():
+            if quantity != "read_noise":  # read_noise_resolved: above, from the start
+                out[f"{quantity}_resolved"] = quantity not in reasons
+            out[f"{quantity}_unresolved"] = reasons.get(quantity)
+            if quantity in reasons:
+                out.update(dict.fromkeys(keys))
         return out
 
 
@@ -339,14 +403,27 @@ def photon_transfer(
     else:
         s2_dark = float(np.mean(dark_var))
     resolved = s2_dark >= MIN_DARK_NOISE_DN**2
+    unresolved: dict[str, str] = {}
+    zero = max([p.dark_zero_fraction for p in pts]
+               + [spatial.dark_zero_fraction if spatial is not None else 0.0])
+    if zero > MAX_CLIPPED_FRACTION:
+        warnings.append(f"black level clipped: {100 * zero:.3g} % of the dark pixels read 0 "
+                        f"(EMVA 1288: at most {100 * MAX_CLIPPED_FRACTION:g} %): read noise, "
+                        "dark current and DSNU are biased low and not given; raise the black "
+                        "level/offset")
+        unresolved.update(dict.fromkeys(("read_noise", "dark_current", "dsnu"),
+                                        "black level clipped"))
     if s2_dark < DARK_VAR_FLOOR_DN2:
         warnings.append(f"temporal dark variance {max(s2_dark, 0.0):.3g} DN^2 is below the "
-                        f"quantisation limit ({DARK_VAR_FLOOR_DN2} DN^2): read noise is an upper "
-                        "bound (raise the gain or use more bits)")
+                        f"quantisation limit ({DARK_VAR_FLOOR_DN2} DN^2): read noise, DSNU and "
+                        "dark current are not given (raise the gain or use more bits)")
     elif not resolved:
         warnings.append(f"temporal dark noise {math.sqrt(s2_dark):.3g} DN is below "
-                        f"{MIN_DARK_NOISE_DN:g} DN (EMVA set-up rule): read noise and DSNU are "
-                        "biased by quantisation")
+                        f"{MIN_DARK_NOISE_DN:g} DN (EMVA set-up rule): read noise, DSNU and dark "
+                        "current are biased by quantisation and not given")
+    if not resolved:
+        for quantity in ("read_noise", "dsnu", "dark_current"):
+            unresolved.setdefault(quantity, "dark noise < 1 DN")
     s2_dark = max(s2_dark, DARK_VAR_FLOOR_DN2)
     read_dn = math.sqrt(s2_dark)
     read_e = math.sqrt(s2_dark - QUANTISATION_VAR_DN2) / k
@@ -356,8 +433,19 @@ def photon_transfer(
     dark_current_se: float | None = dc_se * 1e3 / k
     if np.unique(t).size < 2:
         dark_current = dark_current_se = None
+        unresolved.pop("dark_current", None)  # not measured at all, not "unresolved"
         warnings.append("one exposure time only (irradiance sweep): no dark current, and the "
                         "read noise includes the dark current's shot noise at that exposure")
+    elif dc_slope * float(t.max() - t.min()) < MIN_DARK_SPAN_DN:
+        warnings.append(f"the dark signal rises {dc_slope * float(t.max() - t.min()):.3g} DN "
+                        f"over the sweep (under {MIN_DARK_SPAN_DN:g} DN): dark current not "
+                        "resolved and not given (longer exposures or a higher gain)")
+        unresolved.setdefault("dark_current", "dark signal < 1 DN over the sweep")
+    if spatial is not None and spatial.bright_top_fraction > MAX_CLIPPED_FRACTION:
+        warnings.append(f"PRNU stack saturated: {100 * spatial.bright_top_fraction:.3g} % of "
+                        f"its pixels at the top code (at most {100 * MAX_CLIPPED_FRACTION:g} %): "
+                        "no PRNU (lower the stack exposure or the light)")
+        unresolved["prnu"] = "stack saturated"
 
     lo, hi = LINEARITY_RANGE
     lin_idx = np.flatnonzero((y >= lo * top) & (y <= hi * top) & (np.arange(y.size) <= i_sat))
@@ -373,7 +461,7 @@ def photon_transfer(
         system_gain_uncertainty_dn_per_e=k_se,
         read_noise_dn=read_dn,
         read_noise_e=read_e,
-        read_noise_resolved=bool(resolved),
+        read_noise_resolved="read_noise" not in unresolved,
         saturation_dn=y_sat,
         saturation_e=(y_sat / k) if y_sat is not None else None,
         saturation_reached=reached,
@@ -389,6 +477,8 @@ def photon_transfer(
         saturation_index=i_sat if reached else None,
         warnings=tuple(warnings),
         spatial=spatial,
+        dark_zero_fraction=zero,
+        unresolved=tuple(sorted(unresolved.items())),
     )
 
 
@@ -409,7 +499,7 @@ def defect_mask(dark_mean: FloatArray, bright_mean: FloatArray, temporal_sd_dn: 
 
 
 def spatial_nonuniformity(
-    bright_stack: npt.ArrayLike, dark_stack: npt.ArrayLike
+    bright_stack: npt.ArrayLike, dark_stack: npt.ArrayLike, top_code_dn: float | None = None,
 ) -> tuple[SpatialResult, npt.NDArray[np.bool_]]:
     """DSNU (DN) and PRNU (%) from L bright and L dark frames of one exposure.
 
@@ -417,6 +507,9 @@ def spatial_nonuniformity(
     ----------
     bright_stack, dark_stack : array_like, shape (L, rows, cols)
         Native DN (see :func:`native_codes`); L >= 2.
+    top_code_dn : float, optional
+        The bit depth's top code: the fraction of bright pixels at it is counted
+        (``bright_top_fraction``; :func:`photon_transfer` flags the PRNU of a saturated stack).
 
     Returns
     -------
@@ -449,6 +542,9 @@ def spatial_nonuniformity(
     return SpatialResult(
         dsnu_dn=math.sqrt(max(s2_dark, 0.0)), dsnu_all_pixels_dn=math.sqrt(max(s2_dark_all, 0.0)),
         prnu_pct=prnu, defect_pixels=int(bad.sum()), stack_frames=n, bright_signal_dn=signal,
+        dark_zero_fraction=fraction_at_code(dark, 0.0, good),
+        bright_top_fraction=(fraction_at_code(bright, top_code_dn, good)
+                             if top_code_dn is not None else 0.0),
     ), bad
 
 

@@ -57,7 +57,7 @@ from benchlab.analysis.result import (
     sampling_phase_sd,
     unresolved,
 )
-from benchlab.analysis.roi import PreparedROI
+from benchlab.analysis.roi import TINY_CONTRAST_WARNING, PreparedROI
 
 NAME = "profilefit"
 FAST_NAME = "profilefit-fast"
@@ -562,6 +562,10 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         return unresolved(name, prep.diagnostics(), warnings)
     if n < 4 or prep.vmax == prep.vmin:
         warnings.append("too few pixels or a single gray level: no bar profile")
+        return unresolved(name, prep.diagnostics(), warnings)
+    if prep.contrast_underflows:
+        # The fit's normal matrix and (dark + bright)^2 underflow: divisions by zero below.
+        warnings.append(TINY_CONTRAST_WARNING)
         return unresolved(name, prep.diagnostics(), warnings)
     geom = measure_geometry(img, prep.noise_sigma, f_prior, curvature=not fast, quick_start=True,
                             sums=prep.sums_for(img))

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.kernels import row_major
 from benchlab.analysis.result import (
     CLIPPED_FRACTION_LIMIT,
     NYQUIST_CYCLES_PER_PX,
@@ -31,6 +32,17 @@ from benchlab.analysis.result import (
 
 #: Largest pixel magnitude analysed: sums of squares of larger values overflow float64.
 MAX_ABS_VALUE = 1e150
+#: Smallest spread of pixel values analysed (``vmax - vmin``): the fits square such differences
+#: and multiply them by derivatives far below 1 (sharp bars), which fall below float64's normal
+#: range (2.2e-308), lose their precision and vanish - profilefit divided by zero up to a
+#: spread of 1e-144, sinefit read 0.215 for 0.238 at 1e-170. Such a ROI reads as flat (see
+#: :attr:`PreparedROI.contrast_underflows`); the margin costs nothing, no camera gives it.
+MIN_CONTRAST = 1e-100
+#: The warning of a ROI of one gray level (``vmax == vmin``).
+FLAT_WARNING = "single-valued ROI: one gray level, no bars"
+#: The warning of a ROI whose pixel values span less than :data:`MIN_CONTRAST`.
+TINY_CONTRAST_WARNING = (f"pixel values span less than {MIN_CONTRAST:g}: their squares "
+                         "underflow float64, no bar profile (rescale the data)")
 ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
 #: Normal-consistency factor of the median absolute deviation.
 MAD_TO_SIGMA = 1.4826
@@ -114,6 +126,12 @@ class PreparedROI:
         """:attr:`profile_sums` if they are the sums of ``img`` (the very array), else None:
         a copy with other pixels (a selection, a bootstrap resample) cannot reuse them."""
         return self.profile_sums if img is self.sums_source else None
+
+    @property
+    def contrast_underflows(self) -> bool:
+        """Whether the pixel values differ, but by less than :data:`MIN_CONTRAST`: no
+        estimator can read them (a flat ROI, ``vmax == vmin``, is labelled apart)."""
+        return 0.0 < self.vmax - self.vmin < MIN_CONTRAST
 
     @property
     def n_pixels(self) -> int:
@@ -357,7 +375,9 @@ def prepare_roi(
         Empty ROI, wrong number of dimensions, non-finite pixels, negative or non-finite
         frequency / noise, unknown orientation.
     """
-    arr = np.asarray(roi)
+    # Row-major: numpy sums in memory order, so a Fortran-order (or transposed, reversed) ROI
+    # would read a few ulps differently from the same pixels in C order.
+    arr = row_major(np.asarray(roi))
     kind = arr.dtype.kind
     if kind == "b":
         arr = arr.astype(np.uint8)

@@ -232,7 +232,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    "negative start needs '=': --azimuth-deg=-90:90)")
     p.add_argument("--px-per-mm", type=float, default=20.0,
                    help="output pixels per object mm (default 20)")
-    p.add_argument("--out", help="output TIFF (default FRAME.unwrap.tiff next to the frame)")
+    p.add_argument("--out", help="output TIFF (default FRAME.unwrap.tiff next to the frame; "
+                   "for a frame in a session's frames/ folder, in the current folder: nothing "
+                   "is ever written into a session's frames/)")
     p.set_defaults(func=unwrap_command)
 
     p = commands.add_parser(
