@@ -170,8 +170,10 @@ def test_both_gates_reject_a_sharpened_edge_and_each_alone_does(
     alone = measure_sfr(img)
     assert alone.estimator == "model-free"
     assert "residual holds" in alone.warnings[-1] and "chi-square" not in alone.warnings[-1]
-    # ... and without both the wrong model would read it: its MTF is off by > 0.03.
+    # ... and without both (and the flat-top gate, which its split mixture also trips) the
+    # wrong model would read it: its MTF is off by > 0.03.
     monkeypatch.setattr(sfr_model, "RESIDUAL_GATE_ALPHA", 1e-300)
+    monkeypatch.setattr(sfr_model, "FLAT_TOP_KURTOSIS", -math.inf)
     wrong = measure_sfr(img)
     assert wrong.estimator == "LSF model"
     assert float(np.max(np.abs(wrong.mtf_at(F_NYQ) - res.mtf_at(F_NYQ)))) > 0.03
@@ -190,10 +192,12 @@ def test_right_models_pass_the_gates() -> None:
 def test_misfit_allowance_widens_an_imperfect_models_intervals(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    # A defocus disc (R 2 px) is no sum of Gaussians; at SNR 50 the gates let the model read
-    # it, and its intervals grow by the misfit its residual shows.
+    # A defocus disc (R 2 px) is no sum of Gaussians; at SNR 50 the ESF and residual gates
+    # let the model read it (the flat-top gate, off here, refuses it), and its intervals grow
+    # by the misfit its residual shows.
     from benchlab.analysis.sfr_benchmark import NON_GAUSSIAN, _non_gaussian_case
 
+    monkeypatch.setattr(sfr_model, "FLAT_TOP_KURTOSIS", -math.inf)
     parts = NON_GAUSSIAN["defocus disc R 2 px (+ 0.3 px Gaussian)"]
     img, _ = _non_gaussian_case(parts, 9.0, 0.3, 0.6 / 50, np.random.default_rng(2))
     res = measure_sfr(img)

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -380,14 +381,13 @@ def _sinc(x: FloatArray) -> FloatArray:
 def _tukey(x: FloatArray, flat: float, total: float) -> FloatArray:
     """1 for ``|x| <= flat``, cosine taper to 0 at ``|x| = total``, 0 beyond."""
     ax = np.abs(x)
-    w = np.ones_like(ax)
     if total <= flat:
-        w[ax > flat] = 0.0
-        return w
-    taper = (ax > flat) & (ax < total)
-    w[taper] = 0.5 * (1.0 + np.cos(math.pi * (ax[taper] - flat) / (total - flat)))
-    w[ax >= total] = 0.0
-    return w
+        return np.where(ax > flat, 0.0, 1.0)
+    # cos(0) = 1 and cos(pi) = -1 exactly: 1 on the flat top, 0 beyond the taper.
+    t = (ax - flat) * (math.pi / (total - flat))
+    np.maximum(t, 0.0, out=t)
+    np.minimum(t, math.pi, out=t)
+    return np.asarray(0.5 * (1.0 + np.cos(t)), dtype=np.float64)
 
 
 def difference_noise_sigma(row_diff: FloatArray) -> float:
@@ -399,20 +399,44 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
     return 1.4826 * mad / math.sqrt(2.0)
 
 
+def _finite_median(a: npt.NDArray[Any]) -> float:
+    """``float(np.median(a))`` of a non-empty array known to be finite (no NaN check): the
+    same order statistics and the same mean of the middle two, without numpy's overhead (a
+    few of these per edge on a few hundred values cost more than the arithmetic)."""
+    flat = a.ravel()
+    n = flat.size
+    k = n // 2
+    if n % 2:
+        return float(np.partition(flat, k)[k])
+    part = np.partition(flat, (k - 1, k))
+    return (float(part[k - 1]) + float(part[k])) / 2.0
+
+
+def _mean(a: npt.NDArray[Any]) -> float:
+    """``float(np.mean(a))`` of a non-empty array (the same sum, the same division)."""
+    return float(a.sum(dtype=np.float64)) / a.size
+
+
 def _row_centroids(
-    deriv: FloatArray, centres: FloatArray, half_width: float
+    deriv: FloatArray, centres: FloatArray | float, half_width: float
 ) -> FloatArray:
     """Centroid per row of the derivative under a Hann window of ``half_width`` around
-    ``centres`` (per row). Derivative samples sit at half-pixel positions ``j + 0.5``."""
+    ``centres`` (per row, or one for every row). Derivative samples sit at half-pixel
+    positions ``j + 0.5``."""
     # Only the columns any row's window reaches (the weights are 0 elsewhere): after the
     # first pass the window spans a few ESF widths, not the ROI.
-    lo = max(0, math.floor(float(np.min(centres)) - half_width - 0.5))
-    hi = min(deriv.shape[1], math.ceil(float(np.max(centres)) + half_width + 0.5))
+    per_row = isinstance(centres, np.ndarray)
+    c_lo = float(np.min(centres)) if per_row else float(centres)
+    c_hi = float(np.max(centres)) if per_row else float(centres)
+    lo = max(0, math.floor(c_lo - half_width - 0.5))
+    hi = min(deriv.shape[1], math.ceil(c_hi + half_width + 0.5))
     if hi <= lo:
         return np.full(deriv.shape[0], np.nan)
     deriv = deriv[:, lo:hi]
     x = np.arange(lo, hi, dtype=np.float64) + 0.5
-    dist = (x[None, :] - centres[:, None]) / half_width
+    # One window for every row when they share the centre (the first, wide pass).
+    dist = ((x[None, :] - np.asarray(centres)[:, None]) if per_row else (x - c_lo)[None, :]) \
+        / half_width
     w = np.where(np.abs(dist) < 1.0, 0.5 * (1.0 + np.cos(math.pi * dist)), 0.0)
     wd = w * deriv
     total = wd.sum(axis=1)
@@ -420,6 +444,14 @@ def _row_centroids(
         c = (wd * x[None, :]).sum(axis=1) / total
     c[~(total > 0)] = np.nan
     return np.asarray(c, dtype=np.float64)
+
+
+def _polyval(coeffs: FloatArray, x: Any) -> Any:
+    """``np.polyval`` (Horner, the same operations) without its generic-input overhead."""
+    y = float(coeffs[0]) + 0.0 * x
+    for c in coeffs[1:]:
+        y = y * x + float(c)
+    return y
 
 
 def _polyfit(x: FloatArray, y: FloatArray, order: int) -> FloatArray:
@@ -446,8 +478,8 @@ def _fit_edge(
         if int(keep.sum()) <= order + 1:
             break
         coeffs, fitted = _polyfit(rows[keep], cents[keep], order), True
-        res = np.abs(cents - np.polyval(coeffs, rows))
-        limit = max(4.0 * 1.4826 * float(median(res[keep])), 0.25)
+        res = np.abs(cents - _polyval(coeffs, rows))
+        limit = max(4.0 * 1.4826 * _finite_median(res[keep]), 0.25)
         new_keep = finite & (res <= limit)
         if np.array_equal(new_keep, keep):
             break
@@ -461,7 +493,7 @@ def _rise_10_90(u: FloatArray, esf: FloatArray) -> float:
     """10-90 % rise distance (px) of a rising ESF (plateaus from its outer fifths)."""
     n = esf.size
     k = max(1, n // 5)
-    lo, hi = float(np.mean(esf[:k])), float(np.mean(esf[-k:]))
+    lo, hi = _mean(esf[:k]), _mean(esf[-k:])
     if hi <= lo:
         return float("nan")
     frac = (esf - lo) / (hi - lo)
@@ -505,7 +537,7 @@ def _esf_samples(
     pos, sq = pos_p.mean, sq_p.mean
     counts = prof.count
     filled = counts > 0
-    typical = float(median(counts[filled]))
+    typical = _finite_median(counts[filled])
     good = counts >= max(1.0, SPARSE_BIN_FRACTION * typical)
     idx = np.flatnonzero(good)
     centre = int(np.argmin(np.abs(prof.u_px)))
@@ -526,7 +558,8 @@ def _esf_samples(
     keep = good[sl]
     centres = prof.u_px[sl]
     core = np.abs(centres) <= core_half_px
-    empty = float(np.mean(~filled[sl][core])) if np.any(core) else 0.0
+    n_core = int(np.count_nonzero(core))
+    empty = (n_core - int(np.count_nonzero(filled[sl][core]))) / n_core if n_core else 0.0
     p, e = pos[sl][keep], prof.mean[sl][keep]
     var = np.clip(sq[sl][keep] - p * p, 0.0, None)
     return _Samples(np.asarray(p, np.float64), np.asarray(e, np.float64),
@@ -538,6 +571,8 @@ FREQ_STEP_CYCLES_PER_PX = 0.005
 FREQS_CYCLES_PER_PX = np.round(
     np.arange(0.0, MAX_FREQ_CYCLES_PER_PX + 1e-9, FREQ_STEP_CYCLES_PER_PX), 6
 )
+#: Index of Nyquist on that grid.
+_NYQUIST_INDEX = int(np.flatnonzero(FREQS_CYCLES_PER_PX <= NYQUIST_CYCLES_PER_PX + 1e-9)[-1])
 
 
 @dataclass(frozen=True)
@@ -585,32 +620,122 @@ def _clip_outliers(
     step, so a sharp, noise-free edge is left alone. Returns the pixels and how many were
     clipped."""
     pred = np.interp(u, s.u, s.esf)
-    curv = np.zeros_like(s.esf)
-    if s.esf.size >= 3:
-        curv[1:-1] = np.abs(np.diff(s.esf, 2))
+    res = work - pred
     # Plus a floor of 1 % of the step: misregistration of a noise-free edge, and a deviation
     # that small moves a bin mean by < 0.1 % of the step.
     floor = OUTLIER_FLOOR_OF_STEP * abs(noise.bright - noise.dark)
-    limit = (OUTLIER_SIGMAS * np.sqrt(noise.pixel_var(pred)) + 0.25 * np.interp(u, s.u, curv)
-             + floor)
-    res = work - pred
-    out = np.abs(res) > limit
+    # The limit is at least this (the pixel variance lies between the plateaus', the
+    # curvature term is >= 0): only the pixels beyond it need their own.
+    least = OUTLIER_SIGMAS * math.sqrt(min(noise.var_dark, noise.var_bright)) + floor
+    cand = np.flatnonzero(np.abs(res).ravel() > least)
+    if cand.size == 0:
+        return work, 0
+    curv = np.zeros_like(s.esf)
+    if s.esf.size >= 3:
+        curv[1:-1] = np.abs(np.diff(s.esf, 2))
+    u_c, pred_c, res_c = u.ravel()[cand], pred.ravel()[cand], res.ravel()[cand]
+    limit = (OUTLIER_SIGMAS * np.sqrt(noise.pixel_var(pred_c))
+             + 0.25 * np.interp(u_c, s.u, curv) + floor)
+    out = np.abs(res_c) > limit
     n = int(out.sum())
     if n == 0:
         return work, 0
-    return np.where(out, pred + np.clip(res, -limit, limit), work), n
+    fixed = np.array(work, dtype=np.float64, order="C")  # a copy in u's (C) order
+    flat = fixed.reshape(-1)
+    hit = cand[out]
+    flat[hit] = pred_c[out] + np.clip(res_c[out], -limit[out], limit[out])
+    return fixed, n
 
 
 def window_matrix(windows: Any, x: FloatArray, f: FloatArray) -> FloatArray:
     """The frequency-dependent LSF window (a sequence of :class:`LsfWindow`, widest first) at
     offsets ``x`` (px from its centre) for each frequency ``f``: shape (f, x)."""
-    wide = windows[0]
-    win_f = np.broadcast_to(_tukey(x, wide.flat_half_px, wide.total_half_px), (f.size, x.size))
-    for w in windows[1:]:  # each narrower one takes over above its frequencies
+    blends, shapes = window_terms(windows, x, f)
+    return np.asarray(blends @ shapes, dtype=np.float64)
+
+
+def window_terms(windows: Any, x: FloatArray, f: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`window_matrix` as a sum of products: ``win(f, x) = sum_j c_j(f) w_j(x)``.
+    Returns ``c`` (f, J) and ``w`` (J, x), J the number of windows (each narrower one blends
+    in over the last: the coefficients are products of the blends)."""
+    coeffs = [np.ones(f.size)]
+    shapes = [_tukey(x, windows[0].flat_half_px, windows[0].total_half_px)]
+    for w in windows[1:]:
         blend = _tukey(f, w.from_cycles_per_px, w.full_from_cycles_per_px)
-        win_w = _tukey(x, w.flat_half_px, w.total_half_px)
-        win_f = blend[:, None] * win_f + (1.0 - blend)[:, None] * win_w
-    return np.asarray(win_f, dtype=np.float64)
+        coeffs = [c * blend for c in coeffs] + [1.0 - blend]
+        shapes.append(_tukey(x, w.flat_half_px, w.total_half_px))
+    return np.stack(coeffs, axis=1), np.stack(shapes)
+
+
+#: The DFT's exponentials on a uniform frequency grid ``k df``, ``k = B a + b``, are products
+#: ``exp(2 pi i B a df x) exp(2 pi i b df x)`` of two small tables (angle addition): ~29 rows
+#: of sines and cosines instead of 201, and a sum over the samples becomes one small matrix
+#: product. Rounding differs from direct evaluation by ~1e-14.
+_DFT_BLOCK = 16
+#: Samples per (coarse x fine) product: 13 x 16 x 256 multiply-adds stay single-threaded.
+_BLAS_CHUNK = 256
+_BLOCK_STEPS = np.arange(_DFT_BLOCK, dtype=np.float64)
+
+
+def _expi(phase: FloatArray) -> npt.NDArray[np.complex128]:
+    """``exp(i phase)`` from its cosine and sine (cheaper than the complex exponential)."""
+    out = np.empty(phase.shape, dtype=np.complex128)
+    out.real = np.cos(phase)
+    out.imag = np.sin(phase)
+    return out
+
+
+@dataclass(frozen=True)
+class _GridTables:
+    """``exp(2 pi i k step x)`` for ``k = 0 .. count - 1`` as the coarse
+    (``exp(2 pi i B a step x)``) and fine (``exp(2 pi i b step x)``) tables, ``k = B a + b``."""
+
+    coarse: npt.NDArray[np.complex128]
+    fine: npt.NDArray[np.complex128]
+    count: int
+
+    @classmethod
+    def of(cls, x: FloatArray, step: float, count: int) -> _GridTables:
+        n_a = -(-count // _DFT_BLOCK)
+        base = (2.0 * math.pi * step) * x
+        fine = _expi(_BLOCK_STEPS[:, None] * base[None, :])
+        coarse = _expi((_DFT_BLOCK * np.arange(n_a, dtype=np.float64))[:, None] * base[None, :])
+        return cls(coarse, fine, count)
+
+    def dft(self, values: FloatArray) -> npt.NDArray[np.complex128]:
+        """``sum_x exp(2 pi i k step x) values[j, x]``: shape (count, J) for ``values`` of
+        shape (J, x)."""
+        n_j, n_x = values.shape
+        out = np.zeros((self.coarse.shape[0] * _DFT_BLOCK, n_j), dtype=np.complex128)
+        # One window and at most _BLAS_CHUNK samples per product: OpenBLAS runs a complex
+        # product of more than 65536 multiply-adds on several threads, whose wake-up costs
+        # milliseconds on a busy machine (10x the product itself).
+        for j in range(n_j):
+            for lo in range(0, n_x, _BLAS_CHUNK):
+                part = slice(lo, lo + _BLAS_CHUNK)
+                mixed = self.fine[:, part] * values[j, part]
+                out[:, j] += (self.coarse[:, part] @ mixed.T).reshape(-1)
+        return np.asarray(out[:self.count])
+
+    def rows(self, every: int) -> npt.NDArray[np.complex128]:
+        """The exponentials themselves for ``k = 0, every, 2 every, ...``: (k, x)."""
+        k = np.arange(0, self.count, every)
+        return np.asarray(self.coarse[k // _DFT_BLOCK] * self.fine[k % _DFT_BLOCK])
+
+
+def _mean_sinc(gaps: FloatArray, weight: FloatArray, f: FloatArray) -> FloatArray:
+    """``sum_g sinc(f g) weight_g / sum_g weight_g`` on the frequency grid ``f`` (``k``
+    FREQ_STEP_CYCLES_PER_PX, from 0): ``sin(pi f g) = Im exp(2 pi i f g / 2)``."""
+    total = max(float(weight.sum()), 1e-300)
+    nz = gaps != 0.0  # sinc(0) = 1 at every frequency
+    g, w = gaps[nz], weight[nz]
+    tables = _GridTables.of(0.5 * g, FREQ_STEP_CYCLES_PER_PX, f.size)
+    sines = tables.dft((w / g)[None, :])[:, 0].imag
+    out = np.empty(f.size)
+    out[0] = float(np.sum(w))
+    out[1:] = sines[1:] / (math.pi * f[1:])
+    out += float(np.sum(weight[~nz]))
+    return np.asarray(out / total, dtype=np.float64)
 
 
 def _mtf_from_samples(
@@ -671,20 +796,23 @@ def _mtf_from_samples(
     inside = np.flatnonzero(win > 0)
     x = mid[inside] - centre
     f = FREQS_CYCLES_PER_PX
-    win_f = window_matrix(windows, x, f)  # (freq, increment)
-    phase = (2.0 * math.pi) * np.outer(f, x)
-    cos_w, sin_w = np.cos(phase) * win_f, np.sin(phase) * win_f
     di = de[inside]
-    re, im = cos_w @ di, sin_w @ di
+    # X(f) = sum_x exp(2 pi i f x) win(f, x) di(x), the frequency-dependent window a blend
+    # sum_j c_j(f) w_j(x) of the fixed ones: one small DFT per window, no (freq, x) window.
+    blends, shapes = window_terms(windows, x, f)
+    tables = _GridTables.of(x, FREQ_STEP_CYCLES_PER_PX, f.size)
+    x_f = np.sum(blends * tables.dft(shapes * di), axis=1)
+    re, im = x_f.real, x_f.imag
     spectrum = np.hypot(re, im)
     lsf = de * win
     li = lsf[inside]
     x0 = float(spectrum[0])
     mtf_raw = spectrum / x0 if x0 > 0 else np.zeros_like(spectrum)
-    # Gaps take few distinct values (one bin, or the pixel lattice's spacing): group them.
-    gaps, which = np.unique(np.round(h[inside], 4), return_inverse=True)
-    weight = np.bincount(which.ravel(), weights=np.abs(li), minlength=gaps.size)
-    gap_response = (_sinc(np.outer(f, gaps)) @ weight) / max(float(weight.sum()), 1e-300)
+    # The 2-point difference over each gap: sinc(f h) averaged with the LSF as weight, the
+    # sines from the same small DFT (sin(pi f h) = Im exp(2 pi i f h / 2)).
+    gaps = np.round(h[inside], 4)
+    weight = np.abs(li)
+    gap_response = _mean_sinc(gaps, weight, f)
     # Each sample's weight: the LSF on the increments either side of it.
     w_inc = np.abs(lsf)
     w_sample = np.zeros(s.u.size)
@@ -702,7 +830,9 @@ def _mtf_from_samples(
         # SIGMA_GRID_STEP-th frequency, interpolated in between.
         sub = slice(0, None, SIGMA_GRID_STEP)
         fs = f[sub]
-        gc, gs, wi = cos_w[sub] / x0, sin_w[sub] / x0, win_f[sub] / x0  # d(re, im, x0) / x0
+        win_sub = (blends[sub] @ shapes) / x0  # the window at these frequencies
+        grad = tables.rows(SIGMA_GRID_STEP) * win_sub
+        gc, gs, wi = grad.real, grad.imag, win_sub  # d(re, im, x0) / d increment / x0
 
         def _on_samples(g: FloatArray) -> FloatArray:
             """Gradient per increment -> per sample (sample k enters increments k-1, k)."""
@@ -746,7 +876,7 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     a plateau is too short to fit.
     """
     n = s.esf.size
-    step = float(median(np.diff(s.u))) if n > 1 else 1.0
+    step = _finite_median(np.diff(s.u)) if n > 1 else 1.0
     m = max(1, int(round(SUPPORT_SPAN_PX / max(step, 1e-6))))
     if n < 4 * m + 8:
         return 0.0
@@ -755,7 +885,7 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     smooth = np.convolve(s.esf, kernel, mode="valid")
     sd = np.sqrt(np.convolve(var, kernel * kernel, mode="valid"))
     at = np.convolve(s.u, kernel, mode="valid")
-    full = np.convolve(s.count >= 0.8 * float(median(s.count)), kernel, mode="valid") > 0.99
+    full = np.convolve(s.count >= 0.8 * _finite_median(s.count), kernel, mode="valid") > 0.99
     centre = int(np.argmin(np.abs(at)))
     floor = SUPPORT_FLOOR_OF_STEP * abs(noise.bright - noise.dark)
     reach = 0.0
@@ -772,7 +902,7 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
         v_line = float(np.mean(sd[outer] ** 2)) * m * (
             1.0 / outer.size + (at - x.mean()) ** 2 / max(sxx, 1e-12))
         limit = np.maximum(SUPPORT_SIGMAS * np.sqrt(sd * sd + v_line), floor)
-        dev = np.abs(smooth - np.polyval(line, at)) > limit
+        dev = np.abs(smooth - _polyval(line, at)) > limit
         walk = dev[centre::-1] if sign < 0 else dev[centre:]  # outwards from the edge
         run = int(np.argmin(walk)) if not walk.all() else walk.size
         last = centre + sign * max(run - 1, 0)
@@ -780,20 +910,28 @@ def _esf_support_half(s: _Samples, noise: _NoiseModel) -> float:
     return reach
 
 
+@lru_cache(maxsize=8)
+def _band_edges(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """First and one-past-last grid index of each frequency's noise band (n frequencies)."""
+    half = int(round(NOISE_BAND_CYCLES_PER_PX / FREQ_STEP_CYCLES_PER_PX))
+    lo = np.clip(np.arange(n) - half, 0, n)
+    hi = np.clip(np.arange(n) + half + 1, 0, n)
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    return lo, hi
+
+
 def _pool_noise_band(excess: FloatArray, power: FloatArray) -> FloatArray:
     """The debiased power ``excess`` (``|X|^2 - P`` over ``X(0)^2``, on the MTF grid) pooled
     over +-NOISE_BAND_CYCLES_PER_PX where that average is within the noise power ``power``
     (see :data:`NOISE_BAND_CYCLES_PER_PX`); unchanged where the signal stands clear of it.
     The band is truncated at the grid's ends."""
-    half = int(round(NOISE_BAND_CYCLES_PER_PX / FREQ_STEP_CYCLES_PER_PX))
-    n = excess.size
+    lo, hi = _band_edges(excess.size)
     c = np.concatenate(([0.0], np.cumsum(excess)))
-    lo = np.clip(np.arange(n) - half, 0, n)
-    hi = np.clip(np.arange(n) + half + 1, 0, n)
     pooled = (c[hi] - c[lo]) / (hi - lo)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(power > 0, (NOISE_BAND_HI * power - pooled)
-                     / ((NOISE_BAND_HI - NOISE_BAND_LO) * power), 0.0)
+    scale = (NOISE_BAND_HI - NOISE_BAND_LO) * power
+    t = np.divide(NOISE_BAND_HI * power - pooled, scale, out=np.zeros_like(power),
+                  where=power > 0)
     s = np.clip(t, 0.0, 1.0)
     return np.asarray(s * pooled + (1.0 - s) * excess, dtype=np.float64)
 
@@ -816,9 +954,10 @@ def _plateau_noise_var(
             # Differences along a plateau are centred on 0. The median of |d| alone misreads
             # quantised noise (it is a whole number of codes: 1.5 codes of noise can read as
             # 1.05), so it only sets a 5-sigma cut for the RMS of what is left.
-            cut = 5.0 * max(1.4826 * float(median(np.abs(vals))), code_step)
-            kept = vals[np.abs(vals) <= cut]
-            sig = math.sqrt(float(np.mean(kept * kept)) / 2.0) if kept.size else 0.0
+            mag = np.abs(vals)
+            cut = 5.0 * max(1.4826 * _finite_median(mag), code_step)
+            kept = vals[mag <= cut]
+            sig = math.sqrt(_mean(kept * kept) / 2.0) if kept.size else 0.0
         out.append(max(sig * sig, code_step * code_step / 12.0))
     return out[0], out[1]
 
@@ -830,11 +969,21 @@ def _mtf50_sigma(
     if sigma is None or mtf50 is None:
         return None
     # Slope over +-2 grid steps (0.01 cycles/px): the chord, not two noisy neighbours.
-    i = int(np.clip(np.searchsorted(freqs, mtf50), 2, freqs.size - 3))
+    i = min(max(int(np.searchsorted(freqs, mtf50)), 2), freqs.size - 3)
     slope = float((mtf[i + 2] - mtf[i - 2]) / (freqs[i + 2] - freqs[i - 2]))
     if slope >= 0:
         return None
     return float(np.interp(mtf50, freqs, sigma) / -slope)
+
+
+def _quadratic_fit(x: FloatArray, y: FloatArray) -> tuple[float, float, float]:
+    """Least-squares ``a x^2 + b x + c`` (``np.polyfit(x, y, 2)`` by its normal equations:
+    a handful of points near x = 0, well conditioned, 20x cheaper)."""
+    x2 = x * x
+    s4, s3, s2, s1 = float(x2 @ x2), float(x2 @ x), float(x2.sum()), float(x.sum())
+    m = np.array([[s4, s3, s2], [s3, s2, s1], [s2, s1, float(x.size)]])
+    a, b, c = np.linalg.solve(m, np.array([float(x2 @ y), float(x @ y), float(y.sum())]))
+    return float(a), float(b), float(c)
 
 
 #: MTF50: a quadratic fitted over +-this (cycles/px) around the first crossing of 0.5.
@@ -855,7 +1004,7 @@ def _mtf50(freqs: FloatArray, mtf: FloatArray) -> float | None:
     if int(near.sum()) < 5:
         return linear
     fc = freqs[near] - linear
-    a, b, c = np.polyfit(fc, mtf[near] - 0.5, 2)
+    a, b, c = _quadratic_fit(fc, mtf[near] - 0.5)
     # The root of a x^2 + b x + c nearest 0 (the quadratic is nearly linear here).
     disc = b * b - 4.0 * a * c
     if disc < 0 or b == 0:
@@ -884,6 +1033,7 @@ class _Choice:
     reason: str
     warning: str
     decision: Any  # sfr_model.ModelDecision or None
+    mtf50: tuple[float | None, float | None] | None = None  # (MTF50, 1-sigma) when known
 
     def model_summary(self) -> dict[str, Any] | None:
         """The LSF model fitted (used or not), JSON-ready; None when none was tried."""
@@ -901,18 +1051,18 @@ class _Choice:
                 "rejected_because": d.reason or None}
 
 
-def _free_meets_target(spec: _Spectrum) -> tuple[bool, str]:
-    """Whether the model-free reading's own +-1.96 sigma meets the accuracy target."""
+def _free_meets_target(spec: _Spectrum) -> tuple[bool, str, tuple[float | None, float | None]]:
+    """Whether the model-free reading's own +-1.96 sigma meets the accuracy target, why, and
+    its MTF50 and 1-sigma (kept: the reading needs them when it stands)."""
     if spec.sigma is None:
-        return False, "no uncertainty"
-    band = FREQS_CYCLES_PER_PX <= NYQUIST_CYCLES_PER_PX + 1e-9
-    worst = float(np.max(1.96 * spec.sigma[band]))
+        return False, "no uncertainty", (None, None)
+    worst = 1.96 * float(np.max(spec.sigma[:_NYQUIST_INDEX + 1]))
     m50 = _mtf50(FREQS_CYCLES_PER_PX, spec.mtf)
     s50 = _mtf50_sigma(FREQS_CYCLES_PER_PX, spec.mtf, spec.sigma, m50)
     rel50 = 1.96 * s50 / m50 if (m50 and s50 is not None) else 0.0
     ok = worst <= AUTO_MTF_TOL and rel50 <= AUTO_MTF50_REL_TOL
     return ok, (f"model-free +-1.96 sigma {worst:.3f} of MTF to Nyquist, "
-                f"{100 * rel50:.1f} % of MTF50")
+                f"{100 * rel50:.1f} % of MTF50"), (m50, s50)
 
 
 def _model_fit(
@@ -928,6 +1078,32 @@ def _model_fit(
     return fits[-1] if fits else None
 
 
+#: An accepted model's interval also allows for its disagreement with the model-free reading
+#: beyond this fraction of that reading's 1-sigma, pooled over +-NOISE_BAND_CYCLES_PER_PX:
+#: ``sqrt(max(<(M - F)^2> - <(k s_F)^2>, 0))``. A model can pass its gates and still miss a
+#: shape the data only hint at (a disc R 1.5 px blurred by 1 px read as one Gaussian: 79-88 %
+#: coverage on the benchmark); the model-free reading is unbiased for any shape, so what it
+#: keeps saying against the model, over a band, is evidence of that miss. The fraction is
+#: below 1 (the full noise subtracted leaves that disc at 87 %): the allowance leans to cover.
+AGREEMENT_NOISE_FRACTION = 0.4
+
+
+def _agreement_allowance(model: FloatArray, free: FloatArray, free_sigma: FloatArray
+                         ) -> FloatArray:
+    """The model's extra 1-sigma from its disagreement with the model-free reading (see
+    :data:`AGREEMENT_NOISE_FRACTION`), on the MTF grid."""
+    lo, hi = _band_edges(model.size)
+    width = hi - lo
+
+    def pooled(x: FloatArray) -> FloatArray:
+        c = np.concatenate(([0.0], np.cumsum(x)))
+        return np.asarray((c[hi] - c[lo]) / width, dtype=np.float64)
+
+    diff2 = (model - free) ** 2
+    noise2 = (AGREEMENT_NOISE_FRACTION * free_sigma) ** 2
+    return np.sqrt(np.clip(pooled(diff2) - pooled(noise2), 0.0, None))
+
+
 def _choose_estimator(
     method: str, spec: _Spectrum, samples: _Samples, noise: _NoiseModel, cos_a: float,
     sin_a: float, rise_px: float,
@@ -937,9 +1113,9 @@ def _choose_estimator(
     if method == "free":
         return _Choice(spec, "model-free", "requested (method free)", "", None)
     if method == "auto":
-        ok, why = _free_meets_target(spec)
+        ok, why, m50 = _free_meets_target(spec)
         if ok:
-            return _Choice(spec, "model-free", f"auto: {why} meets the target", "", None)
+            return _Choice(spec, "model-free", f"auto: {why} meets the target", "", None, m50)
         reason = f"auto: {why} misses the target"
     else:
         reason = "requested (method model)"
@@ -953,12 +1129,14 @@ def _choose_estimator(
         return _Choice(spec, "model-free", f"{reason}; LSF model rejected",
                        f"LSF model rejected ({dec.reason}): the model-free reading is given",
                        dec)
+    model_mtf = dec.fit.mtf(FREQS_CYCLES_PER_PX)
     sigma = np.hypot(MODEL_SIGMA_SCALE * dec.fit.mtf_sigma(FREQS_CYCLES_PER_PX), SIGMA_FLOOR)
     sigma = np.hypot(sigma, dec.misfit_at(FREQS_CYCLES_PER_PX))
+    if spec.sigma is not None:
+        sigma = np.hypot(sigma, _agreement_allowance(model_mtf, spec.mtf, spec.sigma))
     sigma[0] = 0.0
     k = dec.fit.components
-    model_spec = _Spectrum(dec.fit.mtf(FREQS_CYCLES_PER_PX), spec.lsf, spec.mid,
-                           spec.truncated, sigma, spec.windows)
+    model_spec = _Spectrum(model_mtf, spec.lsf, spec.mid, spec.truncated, sigma, spec.windows)
     return _Choice(model_spec, "LSF model",
                    f"{reason}; {k} Gaussian{'s' if k > 1 else ''} accepted by both gates",
                    "", dec)
@@ -1020,21 +1198,24 @@ def measure_sfr(
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     img = raw.astype(np.float64)
-    if not np.all(np.isfinite(img)):
+    if raw.dtype.kind == "f" and not np.all(np.isfinite(img)):
         raise ValueError("ROI holds a non-finite value")
     top = full_scale if full_scale is not None else full_scale_of(raw)
     clipped = 0.0
     if top is not None:
-        clipped = float(np.mean((img <= 0.0) | (img >= top)))
+        clipped = int(np.count_nonzero((img <= 0.0) | (img >= top))) / img.size
 
     # 1. Work frame: the edge crosses the rows (intensity varies along the columns).
-    gx = float(np.mean(np.abs(np.diff(img, axis=1))))
-    gy = float(np.mean(np.abs(np.diff(img, axis=0))))
+    d_cols, d_rows = np.diff(img, axis=1), np.diff(img, axis=0)
+    gx = _mean(np.abs(d_cols))
+    gy = _mean(np.abs(d_rows))
     transposed = gy > gx
     work = img.T if transposed else img
     n_rows, n_cols = work.shape
-    row_diff = np.diff(work, axis=0)
-    noise = difference_noise_sigma(row_diff)
+    # Differences along the edge (between rows of the work frame) and across it.
+    row_diff, col_diff = (d_cols.T, d_rows.T) if transposed else (d_rows, d_cols)
+    d_flat = row_diff.ravel()  # finite: checked above (the public function checks NaN)
+    noise = 1.4826 * _finite_median(np.abs(d_flat - _finite_median(d_flat))) / math.sqrt(2.0)
     p02, p98 = percentiles(work, [2.0, 98.0])
     spread = float(p98 - p02)
 
@@ -1054,20 +1235,21 @@ def measure_sfr(
     # 2. Edge location: polarity from the mean profile, then per-row centroids.
     mean_prof = work.mean(axis=0)
     fifth = max(1, n_cols // 5)
-    step = float(np.mean(mean_prof[-fifth:]) - np.mean(mean_prof[:fifth]))
+    step = _mean(mean_prof[-fifth:]) - _mean(mean_prof[:fifth])
     polarity = 1.0 if step >= 0 else -1.0
-    deriv = polarity * np.diff(work, axis=1)
+    deriv = polarity * col_diff
     dm = np.clip(polarity * np.diff(mean_prof), 0.0, None)
     x_half = np.arange(n_cols - 1, dtype=np.float64) + 0.5
     x0 = float(np.sum(x_half * dm) / np.sum(dm)) if np.sum(dm) > 0 else (n_cols - 1) / 2.0
     rows = np.arange(n_rows, dtype=np.float64)
     r_mid = (n_rows - 1) / 2.0
-    cents = _row_centroids(deriv, np.full(n_rows, x0), max(n_cols / 2.0, 4.0))
+    cents = _row_centroids(deriv, x0, max(n_cols / 2.0, 4.0))
     coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
     half_window = max(n_cols / 4.0, 4.0)
     rise = float("nan")
+    u_tmp = None
     for _ in range(EDGE_PASSES):
-        predicted = np.polyval(coeffs, rows - r_mid)
+        predicted = _polyval(coeffs, rows - r_mid)
         cents = _row_centroids(deriv, predicted, half_window)
         coeffs, keep = _fit_edge(rows - r_mid, cents, fit_order)
         # Window for the next pass: a few ESF widths around the fitted edge.
@@ -1076,20 +1258,21 @@ def measure_sfr(
         # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin
         # holds a few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
         ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
-            median(coarse.count[coarse.filled])))
+            _finite_median(coarse.count[coarse.filled])))
         rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
         if math.isfinite(rise):
             half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
     if int(keep.sum()) <= fit_order + 1:
         raise SfrRefused(["no edge: too few rows have a derivative centroid"])
-    slope = float(np.polyval(np.polyder(coeffs), 0.0))
-    residual = cents[keep] - np.polyval(coeffs, rows[keep] - r_mid)
-    rms = float(np.sqrt(np.mean(residual**2)))
+    slope = float(coeffs[-2])  # d/d(row) at row 0
+    residual = cents[keep] - _polyval(coeffs, rows[keep] - r_mid)
+    rms = math.sqrt(_mean(residual**2))
     fit = EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms, int(keep.sum()))
     angle = math.degrees(math.atan(abs(slope)))
 
     # 3. ESF by projection onto the normal (first: whether there is an edge at all).
-    u = _work_u(work.shape, coeffs, r_mid, polarity)
+    # (the last pass projected on these very coefficients)
+    u = u_tmp if u_tmp is not None else _work_u(work.shape, coeffs, r_mid, polarity)
     rise_guess = rise if math.isfinite(rise) else 4.0
     flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, FLAT_MIN_PX)
     samples = _esf_samples(u, work, bin_width_px, flat_half)
@@ -1100,7 +1283,7 @@ def measure_sfr(
         rise_guess = max(rise_guess, fine_rise)
         flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, FLAT_MIN_PX)
     k = max(1, samples.esf.size // 8)
-    lo_level, hi_level = float(np.mean(samples.esf[:k])), float(np.mean(samples.esf[-k:]))
+    lo_level, hi_level = _mean(samples.esf[:k]), _mean(samples.esf[-k:])
     dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
     step_abs = abs(hi_level - lo_level)
     if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
@@ -1141,9 +1324,12 @@ def measure_sfr(
     choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
     spec = choice.spec
     mtf = spec.mtf
-    mtf50 = _mtf50(freqs, mtf)
     mtf_sigma = spec.sigma
-    mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
+    if choice.mtf50 is not None:  # already read off this very spectrum
+        mtf50, mtf50_sigma = choice.mtf50
+    else:
+        mtf50 = _mtf50(freqs, mtf)
+        mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
     uncertainty = "analytic"
     if bootstrap > 0:
         rng = np.random.default_rng(seed)
@@ -1274,12 +1460,12 @@ def _work_u(
     """Signed distance (px) of each work-frame pixel centre from the fitted edge along its
     normal, positive on the bright side: the shared projection of the straight edge through
     the middle row, plus each row's offset from the line for a curved fit."""
-    slope = float(np.polyval(np.polyder(coeffs), 0.0))
-    x_mid = float(np.polyval(coeffs, 0.0))
+    slope = float(coeffs[-2])  # d/d(row) at row 0
+    x_mid = float(coeffs[-1])
     theta = math.atan2(-slope, 1.0)
     u = across_coordinate(shape, theta, origin_rc=(r_mid, x_mid))
     if coeffs.size > 2:
         rows = np.arange(shape[0], dtype=np.float64) - r_mid
-        bend = np.polyval(coeffs, rows) - (x_mid + slope * rows)
+        bend = _polyval(coeffs, rows) - (x_mid + slope * rows)
         u = u - (bend * math.cos(theta))[:, None]
     return np.asarray(polarity * u, dtype=np.float64)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,6 +85,40 @@ def roi_shape(rows: int, angle_deg: float) -> tuple[int, int]:
     return rows, ROI_SHAPE[1] + math.ceil(extra)
 
 
+@dataclass(frozen=True)
+class Case:
+    """One synthetic ROI of the benchmark and its truth."""
+
+    image: np.ndarray  # integer codes; the float mean of several frames when frames > 1
+    angle_deg: float  # edge angle from vertical (the normal's from the column axis)
+    offset_px: float  # edge offset from the ROI centre along the normal
+    sigma_px: float  # Gaussian PSF
+    full_scale: float | None  # None: from the dtype
+    top: float  # the full-scale code (2^bits - 1)
+    noise: float  # noise sigma, fraction of full scale (0: quantisation only)
+
+
+def draw_case(
+    rng: np.random.Generator, sigma: float, snr: float, bits: int, rows: int = ROI_SHAPE[0],
+    frames: int = 1,
+) -> Case:
+    """One synthetic ROI (see :func:`_case`) with its truth (angle, offset, levels)."""
+    angle = float(rng.uniform(*ANGLE_RANGE_DEG))
+    noise = (BRIGHT - DARK) / snr if math.isfinite(snr) else 0.0
+    shape = roi_shape(rows, angle)
+    offset = float(rng.uniform(-2, 2))
+    dtype = np.uint8 if bits == 8 else np.uint16
+    top = float(2**bits - 1)
+    if frames == 1:
+        img = synthetic_edge(shape, angle, sigma, dark=DARK, bright=BRIGHT, offset_px=offset,
+                             noise_sigma=noise, bits=bits, rng=rng)
+        return Case(img.astype(dtype), angle, offset, sigma, None, top, noise)
+    clean = synthetic_edge(shape, angle, sigma, dark=DARK, bright=BRIGHT, offset_px=offset)
+    stack = np.clip(np.floor((clean + rng.normal(0.0, noise, (frames, *shape))) * top + 0.5),
+                    0.0, top)
+    return Case(stack.mean(axis=0), angle, offset, sigma, top, top, noise)
+
+
 def _case(
     rng: np.random.Generator, sigma: float, snr: float, bits: int, rows: int = ROI_SHAPE[0],
     frames: int = 1,
@@ -91,20 +126,22 @@ def _case(
     """One synthetic ROI: the image (integer codes; the float mean of ``frames`` independently
     noisy, quantised frames when ``frames > 1``), its angle (deg) and its full scale (None:
     from the dtype)."""
-    angle = float(rng.uniform(*ANGLE_RANGE_DEG))
-    noise = (BRIGHT - DARK) / snr if math.isfinite(snr) else 0.0
-    shape = roi_shape(rows, angle)
-    offset = float(rng.uniform(-2, 2))
-    dtype = np.uint8 if bits == 8 else np.uint16
-    if frames == 1:
-        img = synthetic_edge(shape, angle, sigma, dark=DARK, bright=BRIGHT, offset_px=offset,
-                             noise_sigma=noise, bits=bits, rng=rng)
-        return img.astype(dtype), angle, None
-    clean = synthetic_edge(shape, angle, sigma, dark=DARK, bright=BRIGHT, offset_px=offset)
-    top = float(2**bits - 1)
-    stack = np.clip(np.floor((clean + rng.normal(0.0, noise, (frames, *shape))) * top + 0.5),
-                    0.0, top)
-    return stack.mean(axis=0), angle, top
+    c = draw_case(rng, sigma, snr, bits, rows, frames)
+    return c.image, c.angle_deg, c.full_scale
+
+
+def iter_cases(
+    cases_per_cell: int = 20, seed: int = 0, rows: int = ROI_SHAPE[0],
+    sigmas_px: tuple[float, ...] = SIGMAS_PX, snrs: tuple[float, ...] = SNRS,
+) -> Iterator[tuple[float, float, Case]]:
+    """Every (sigma, SNR, case) :func:`run_accuracy` draws with this seed, in its order (the
+    same random stream: the same images)."""
+    rng = np.random.default_rng(seed)
+    for sigma in sigmas_px:
+        for snr in snrs:
+            for bits in BITS:
+                for _ in range(cases_per_cell):
+                    yield sigma, snr, draw_case(rng, sigma, snr, bits, rows)
 
 
 def run_accuracy(
