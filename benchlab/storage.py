@@ -331,6 +331,23 @@ def _metadata_text(tif: tifffile.TiffFile) -> str:
     return tif.pages.first.description or ""
 
 
+def _all_pages(path: Path, tif: Any) -> npt.NDArray[Any]:
+    """Every frame of a TIFF: its one series as tifffile reads it (a benchlab frame, a stack
+    written at once, an ImageJ hyperstack), or, for pages appended one by one (a series per
+    page), every page stacked - shapes and dtypes must match (FrameFileError naming the page
+    and what differs)."""
+    if len(tif.series) <= 1:
+        return np.asarray(tif.asarray())
+    frames = [np.asarray(page.asarray()) for page in tif.pages]
+    first = frames[0]
+    for i, f in enumerate(frames[1:], start=2):
+        if f.shape != first.shape or f.dtype != first.dtype:
+            raise FrameFileError(
+                f"{path}: page {i} is {f.shape} {f.dtype}, page 1 {first.shape} {first.dtype}: "
+                "a multi-page TIFF is read as a stack of same-sized frames")
+    return np.stack(frames)
+
+
 def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     """The pixels of any monochrome TIFF for analysis (a multi-page TIFF gives a stack).
 
@@ -353,8 +370,10 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
             colour = page.photometric in (tifffile.PHOTOMETRIC.RGB,
                                           tifffile.PHOTOMETRIC.PALETTE,
                                           tifffile.PHOTOMETRIC.YCBCR)
-            pixels = np.asarray(tif.asarray())
+            pixels = _all_pages(p, tif)
             description = _metadata_text(tif)
+    except FrameFileError:
+        raise
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data

@@ -35,7 +35,14 @@ from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, 
 from benchlab.analysis.result import ModulationResult
 from benchlab.analysis.sfr import SfrResult
 from benchlab.analysis.thesis_data import thesis_fixture_path
-from benchlab.protocols.mtf_edges import edge_parts_of, edge_parts_tables, measure_edge
+from benchlab.protocols.mtf_edges import (
+    chart_boxes,
+    chart_pose_of,
+    clear_of_chart,
+    edge_parts_of,
+    edge_parts_tables,
+    measure_edge,
+)
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS
 
@@ -411,9 +418,14 @@ def analyze_mtf(
     else:
         centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
     forward = part.view
-    edges_done = (edge_parts_of([part.edges[i] for i in sorted(part.edges)], centre,
-                                params.simulated_mtf_file)
-                  if part.edges is not None else None)
+    edges_done = None
+    if part.edges is not None:
+        measured = [part.edges[i] for i in sorted(part.edges)]
+        pose = (chart_pose_of(next(iter(forward[0].values()))["chart"])
+                if forward is not None and forward[0] else None)
+        if pose is not None:  # the edge ROIs are fixed: a moved chart may lie across them
+            measured = clear_of_chart(measured, chart_boxes(forward_layout(params), pose))
+        edges_done = edge_parts_of(measured, centre, params.simulated_mtf_file)
     nyq = nyquist_lp_per_mm()
 
     t411: list[dict[str, Any]] = []

@@ -12,7 +12,10 @@ Tables (written with the Table 4.10 results):
   analytically: :func:`benchlab.analysis.sfr.measure_sfr`) every 4 lp/mm;
 - ``table_sfr_vs_bars``: per USAF bar set below Nyquist, the bar modulation -> CTF (over the
   chart's own contrast, read off the edge's plateaus: chrome and glass of the same target)
-  -> MTF (Coltman, :func:`benchlab.analysis.ctf_to_mtf`), beside the edge MTF of the same
+  -> MTF by Coltman's series with the harmonics' MTF (3f, 5f, ...) taken from the edges
+  (:func:`benchlab.analysis.coltman.ctf_to_mtf_with_harmonics`: ``bar_mtf``, what is
+  compared) and, for reference, with Nyquist taken as the cutoff (``bar_mtf_coltman``, off by
+  up to 0.05-0.08 on this bench: the MTF above Nyquist is not 0), beside the edge MTF of the same
   orientation at the bar set's image height (interpolated between the two edges bracketing it)
   and the simulated MTF there (interpolated between the field points' curves), with a verdict
   (agreement within :data:`AGREEMENT_TOLERANCE`).
@@ -20,13 +23,15 @@ Tables (written with the Table 4.10 results):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.coltman import ctf_to_mtf
+from benchlab.analysis.chart import Box, ChartLayout
+from benchlab.analysis.chart_pose import ChartPose, posed_bar_sets
+from benchlab.analysis.coltman import ctf_to_mtf, ctf_to_mtf_with_harmonics
 from benchlab.analysis.edge_target import EdgeSpec, edge_specs
 from benchlab.analysis.frequency import cycles_per_px, nyquist_lp_per_mm
 from benchlab.analysis.geometry import (
@@ -36,13 +41,56 @@ from benchlab.analysis.geometry import (
     roi_centroid,
 )
 from benchlab.analysis.mtf_compare import SimulatedCurve
-from benchlab.analysis.sfr import SfrRefused, SfrResult, measure_sfr
+from benchlab.analysis.sfr import MAX_FREQ_CYCLES_PER_PX, SfrRefused, SfrResult, measure_sfr
 
 #: Three-way agreement: |bar MTF - edge MTF| and |edge MTF - simulated MTF| at most this.
 AGREEMENT_TOLERANCE = 0.05
 #: Curve table step, image lp/mm (0 to 192, twice Nyquist).
 CURVE_STEP_LP_PER_MM = 4.0
 _LP_PER_CYCLE_PX = 1.0 / cycles_per_px(1.0)
+#: An edge ROI within this many px of a bar set of the found chart holds other structure: no
+#: clean edge there (the blur reaches ~3 sigma, under 2 px on this bench).
+CHART_CLEARANCE_PX = 4.0
+
+
+def chart_pose_of(chart_info: Mapping[str, Any] | None) -> ChartPose | None:
+    """The found chart's pose from a forward row's ``chart`` summary (None: not found)."""
+    if not chart_info or not chart_info.get("pose"):
+        return None
+    pose = chart_info["pose"]
+    return ChartPose(offset_rc=(float(pose["offset_rc"][0]), float(pose["offset_rc"][1])),
+                     scale=float(pose["scale"]), rotation_deg=float(pose["rotation_deg"]))
+
+
+def chart_boxes(layout: ChartLayout, pose: ChartPose) -> list[tuple[str, Box]]:
+    """Every bar set of the chart at its found pose as ``(label, bounding box)``: the
+    corners' extent plus :data:`CHART_CLEARANCE_PX`, end-exclusive."""
+    out: list[tuple[str, Box]] = []
+    m = CHART_CLEARANCE_PX
+    for posed in posed_bar_sets(layout, pose):
+        rows = [p[0] for p in posed.corners()]
+        cols = [p[1] for p in posed.corners()]
+        out.append((posed.label, (int(np.floor(min(rows) - m)), int(np.floor(min(cols) - m)),
+                                  int(np.ceil(max(rows) + m)) + 1,
+                                  int(np.ceil(max(cols) + m)) + 1)))
+    return out
+
+
+def clear_of_chart(
+    measured: Sequence[tuple[EdgeSpec, SfrResult | str]], boxes: Sequence[tuple[str, Box]]
+) -> list[tuple[EdgeSpec, SfrResult | str]]:
+    """The edges with every one whose ROI overlaps a chart bar set (:func:`chart_boxes`)
+    marked as no clean edge: the edge ROIs are fixed boxes, the chart may sit anywhere."""
+    out: list[tuple[EdgeSpec, SfrResult | str]] = []
+    for spec, res in measured:
+        r0, c0, r1, c1 = spec.roi
+        hits = [label for label, (b0, d0, b1, d1) in boxes
+                if r0 < b1 and b0 < r1 and c0 < d1 and d0 < c1]
+        if hits:
+            res = (f"the found chart's {', '.join(hits[:3])}{' ...' if len(hits) > 3 else ''} "
+                   f"overlap{'s' if len(hits) == 1 else ''} the edge ROI")
+        out.append((spec, res))
+    return out
 
 
 def measure_edges(
@@ -143,6 +191,16 @@ def _edge_at_height(
     return label, m, None if s is None else float(s)
 
 
+def _edge_harmonics(edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float,
+                    f_lp: npt.NDArray[np.float64], centre_rc: tuple[float, float]
+                    ) -> npt.NDArray[np.float64]:
+    """The edges' MTF at the height (:func:`_edge_at_height`) at each frequency (lp/mm);
+    0 beyond the SFR's range."""
+    f_c = np.asarray(f_lp, dtype=np.float64) / _LP_PER_CYCLE_PX
+    return np.array([_edge_at_height(edges, height_mm, float(fc), centre_rc)[1]
+                     if fc <= MAX_FREQ_CYCLES_PER_PX else 0.0 for fc in f_c])
+
+
 def edge_vs_bars(
     t411: Sequence[dict[str, Any]],
     measured: Sequence[tuple[EdgeSpec, SfrResult | str]],
@@ -168,10 +226,20 @@ def edge_vs_bars(
         object_mod = ref.contrast
         freqs = [float(r["image_lp_per_mm"]) for r in sets]
         ctf = [float(r[f"{orientation}_modulation"]) / object_mod for r in sets]
+        # Shown for reference: Coltman with Nyquist as the cutoff (MTF taken as 0 above it),
+        # up to 0.05-0.08 off on this bench (the optics x pixel MTF at 3f is ~0.2).
         conv = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=nyq)
-        for r, h, f_lp, c, m_bar, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
+        for r, h, f_lp, c, m_nyq, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
                                              strict=True):
             label, m_edge, sig = _edge_at_height(edges, h, cycles_per_px(f_lp), centre_rc)
+            # Compared: the series with the harmonics' MTF from the edges at that height (the
+            # 4x oversampled curve runs to 1 cycle/px; 0 beyond).
+            def harmonics(fk: npt.NDArray[np.float64], h: float = h,
+                          e: list[tuple[EdgeSpec, SfrResult]] = edges
+                          ) -> npt.NDArray[np.float64]:
+                return _edge_harmonics(e, h, fk, centre_rc)
+
+            m_bar = float(ctf_to_mtf_with_harmonics([f_lp], [c], harmonics)[0])
             m_sim = _simulated(curves, orientation, h, f_lp)
             problems = []
             if abs(m_bar - m_edge) > AGREEMENT_TOLERANCE:
@@ -183,8 +251,10 @@ def edge_vs_bars(
                 "image_lp_per_mm": round(f_lp, 3), "image_height_mm": round(h, 4),
                 "bar_modulation": r[f"{orientation}_modulation"],
                 "object_modulation": round(object_mod, 5), "contrast_from_edge": ref_spec.label,
-                "ctf": round(c, 5), "bar_mtf_coltman": round(float(m_bar), 5),
-                "coltman_method": how, "edge": label, "edge_mtf": round(m_edge, 5),
+                "ctf": round(c, 5),
+                "bar_mtf": round(m_bar, 5),
+                "bar_mtf_coltman": round(float(m_nyq), 5), "coltman_method": how,
+                "edge": label, "edge_mtf": round(m_edge, 5),
                 "edge_mtf_sigma": None if sig is None else round(float(sig), 5),
                 "simulated_mtf": None if m_sim is None else round(m_sim, 5),
                 "verdict": "agree" if not problems else "DISAGREE: " + ", ".join(problems),
@@ -224,10 +294,14 @@ def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
 
 def forward_edge_tables(
     pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
-    simulated_mtf_file: str = "",
+    simulated_mtf_file: str = "", chart_boxes_px: Sequence[tuple[str, Box]] = (),
 ) -> dict[str, list[dict[str, Any]]]:
-    """The three edge tables of a forward frame (see the module docstring)."""
-    return edge_parts_tables(edge_parts(pixels, centre_rc, simulated_mtf_file), t411, centre_rc)
+    """The three edge tables of a forward frame (see the module docstring); edges whose ROI
+    overlaps one of ``chart_boxes_px`` (:func:`chart_boxes` of the found chart) are not
+    clean."""
+    measured = clear_of_chart(measure_edges(pixels), chart_boxes_px)
+    return edge_parts_tables(edge_parts_of(measured, centre_rc, simulated_mtf_file), t411,
+                             centre_rc)
 
 
 def edge_parts_tables(

@@ -176,3 +176,27 @@ def test_simulated_curves(tmp_path) -> None:
     bad.write_text("view,field_angle_deg,direction,freq_lp_per_mm,mtf\nradial,x,S,1,1\n")
     with pytest.raises(ValueError, match="row 1"):
         load_simulated_curves(bad)
+
+
+def test_coltman_with_measured_harmonics_is_exact_where_nyquist_as_cutoff_is_not() -> None:
+    # The simulated bench's optics x pixel MTF does not vanish above Nyquist (at 3f it is
+    # ~0.2 for a sharp lens): taking Nyquist as the cutoff misconverts a long square wave's
+    # CTF by > 0.03; the harmonics taken from the (edge-measured) MTF recover it exactly.
+    import numpy as np
+
+    from benchlab.analysis.coltman import ctf_to_mtf, ctf_to_mtf_with_harmonics, mtf_to_ctf
+
+    sigma_px, pitch_mm = 0.12, 5.2e-3
+
+    def mtf(f_lp: np.ndarray) -> np.ndarray:
+        nu = np.asarray(f_lp) * pitch_mm
+        return np.exp(-2 * math.pi**2 * sigma_px**2 * nu**2) * np.abs(np.sinc(nu))
+
+    freqs = np.array([51.75, 58.09, 65.2, 73.18, 82.15, 92.21])
+    ctf = mtf_to_ctf(mtf, freqs, max_harmonic=999)
+    exact = ctf_to_mtf_with_harmonics(freqs, ctf, mtf, max_harmonic=999)
+    np.testing.assert_allclose(exact, mtf(freqs), atol=1e-9)
+    nyquist = ctf_to_mtf(freqs, ctf, cutoff_lp_per_mm=1 / (2 * pitch_mm)).mtf
+    assert np.max(np.abs(nyquist - mtf(freqs))) > 0.03
+    with pytest.raises(ValueError, match="equally many"):
+        ctf_to_mtf_with_harmonics([50.0], [0.5, 0.4], mtf)

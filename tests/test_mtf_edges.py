@@ -9,12 +9,16 @@ import numpy as np
 import pytest
 
 from benchlab.analysis.chart import IMAGE_CENTRE_RC
+from benchlab.analysis.edge_target import edge_specs
 from benchlab.analysis.frequency import nyquist_lp_per_mm
 from benchlab.drivers.mightex_sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.protocols.mtf_analysis import analyze_forward_frame
 from benchlab.protocols.mtf_edges import (
     AGREEMENT_TOLERANCE,
+    chart_boxes,
+    chart_pose_of,
+    clear_of_chart,
     edge_tables,
     edge_vs_bars,
     forward_edge_tables,
@@ -97,7 +101,7 @@ def test_three_way_check_agrees_on_the_simulated_bench(forward: np.ndarray) -> N
     assert all(r["coltman_method"] == "pi/4" for r in checks)  # 3f is above Nyquist
     for r in checks:
         assert r["verdict"] == "agree", r
-        assert abs(r["bar_mtf_coltman"] - r["edge_mtf"]) <= AGREEMENT_TOLERANCE
+        assert abs(r["bar_mtf"] - r["edge_mtf"]) <= AGREEMENT_TOLERANCE
         assert r["object_modulation"] == pytest.approx(170 / 210, abs=0.01)  # 20 and 190 DN
 
 
@@ -130,3 +134,40 @@ def test_report_section_counts_disagreements_and_notes_old_results(forward: np.n
     html = render_sfr_section(tables, load_curves(None))
     assert "12 of 12 edges clean; 12 bar readings compared, 1 DISAGREE" in html
     assert html.count("<table>") == 2 and "class='plot'" in html
+
+
+def test_edges_under_a_moved_chart_are_not_clean() -> None:
+    # usaf:dx=110,dy=-90 (the chart finder finds it) lays bars across square E0's and E2's
+    # ROIs. Before the check E0L read "ok" with contrast -0.79 and fed edge MTF 2.26 into the
+    # comparison; now every edge whose ROI meets a bar set of the found chart says why not.
+    from benchlab.analysis.chart import ChartLayout
+    from benchlab.scenes.usaf import usaf_scene_from_spec
+
+    layout = ChartLayout()
+    pose = chart_pose_of({"pose": {"offset_rc": [-90.0, 110.0], "scale": 1.0,
+                                   "rotation_deg": 0.0}})
+    assert pose is not None and chart_pose_of(None) is None
+    pixels = _frame(SimWorld("usaf", usaf=usaf_scene_from_spec("usaf:dx=110,dy=-90")))
+    marked = dict((s.label, r) for s, r in clear_of_chart(measure_edges(pixels),
+                                                          chart_boxes(layout, pose)))
+    for label in ("E0R", "E0B", "E0L"):
+        assert isinstance(marked[label], str) and "found chart's G" in marked[label], label
+    for label in ("E0T", "E1R", "E1B", "E1L", "E1T", "E2T"):
+        assert not isinstance(marked[label], str), label
+    # The nominal pose lies clear of every edge ROI.
+    nominal = chart_pose_of({"pose": {"offset_rc": [0, 0], "scale": 1, "rotation_deg": 0}})
+    assert nominal is not None
+    assert [label for label, box in chart_boxes(layout, nominal)
+            if any(_overlap(box, s.roi) for s in edge_specs())] == []
+    # The tables through the procedure's entry point carry the reason, and no comparison row
+    # uses a marked edge.
+    tables = forward_edge_tables(pixels, _t411(pixels), IMAGE_CENTRE_RC,
+                                 chart_boxes_px=chart_boxes(layout, pose))
+    status = {r["edge"]: r["status"] for r in tables["table_sfr_edges"]}
+    assert status["E0L"].startswith("no clean edge: the found chart's")
+    for row in tables["table_sfr_vs_bars"]:
+        assert "E0L" not in row["edge"] and 0.0 <= row["edge_mtf"] <= 1.0
+
+
+def _overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]

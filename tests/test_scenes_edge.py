@@ -100,3 +100,21 @@ def test_edge_target_is_a_world_target_and_follows_defocus() -> None:
     truth = EdgeScene(defocus_px=1.5).truth_mtf(spec, F_NYQ)
     assert np.abs(res.mtf_at(F_NYQ) - truth).max() < 0.004
     assert res.mtf_nyquist < measure_sfr(sharp[r0:r1, c0:c1]).mtf_nyquist - 0.2
+
+
+def test_chart_over_a_square_multiplies_transmissions_not_subtracts() -> None:
+    # A moved chart (usaf:dx=110,dy=-90) lays bars across square E0: where chrome overlaps
+    # chrome the light passes both (chart x square / bright), not the dark subtracted twice
+    # and clamped at 0 (297 pixels read 0 there: fake clipping).
+    from benchlab.scenes.usaf import usaf_scene_from_spec
+
+    world = SimWorld("usaf", usaf=usaf_scene_from_spec("usaf:dx=110,dy=-90"))
+    composed = world(_state())
+    chart_only = world.usaf.render(H, W)
+    alone = EdgeScene().render(H, W)
+    bright, dark = EdgeScene().bright_rate, EdgeScene().dark_rate
+    sl = (slice(440, 600), slice(600, 800))  # around square E0
+    both_dark = (chart_only[sl] < 0.3 * bright) & (alone[sl] < 0.3 * bright)
+    assert both_dark.sum() > 50  # the bars do cross the square
+    np.testing.assert_allclose(composed[sl], chart_only[sl] * alone[sl] / bright, rtol=1e-12)
+    assert composed[sl].min() >= dark * dark / bright * (1 - 1e-9)

@@ -71,6 +71,10 @@ def test_sfr_plot_is_written_once_and_never_overwritten(
     assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot",
                  str(tmp_path / "x.jpg")]) == 1
     assert ".png, .svg or .pdf" in capsys.readouterr().err
+    missing = tmp_path / "missing" / "x.png"  # was created (folder and all) before
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(missing)]) == 1
+    assert f"folder {missing.parent} does not exist" in capsys.readouterr().err
+    assert not missing.parent.exists()
 
 
 def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(

@@ -147,3 +147,32 @@ def test_results_table_json_is_one_row_a_line_and_the_same_json(tmp_path: Path) 
     assert json_rows_text([]) == "[]\n" and json.loads(json_rows_text([])) == []
     with pytest.raises(ValueError):
         json_rows_text([{"mod": float("nan")}])  # NaN is not JSON: refused as before
+
+
+def test_tiff_written_page_by_page_reads_every_page(tmp_path: Path) -> None:
+    # tifffile append=True (as many tools write stacks) makes one series per page: read as
+    # the first page only before, now as the stack.
+    import tifffile
+
+    from benchlab.storage import read_tiff_pixels
+
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 4096, (6, 5), dtype=np.uint16) for _ in range(3)]
+    path = tmp_path / "pages.tiff"
+    for i, f in enumerate(frames):
+        tifffile.imwrite(path, f, photometric="minisblack", append=i > 0)
+    np.testing.assert_array_equal(read_tiff_pixels(path), np.stack(frames))
+    once = tmp_path / "stack.tiff"
+    tifffile.imwrite(once, np.stack(frames), photometric="minisblack")
+    np.testing.assert_array_equal(read_tiff_pixels(once), np.stack(frames))
+    mixed = tmp_path / "mixed.tiff"
+    tifffile.imwrite(mixed, frames[0], photometric="minisblack")
+    tifffile.imwrite(mixed, frames[1][:4], photometric="minisblack", append=True)
+    with pytest.raises(FrameFileError, match=r"mixed.tiff: page 2 is \(4, 5\) uint16, page 1 "
+                                             r"\(6, 5\) uint16"):
+        read_tiff_pixels(mixed)
+    # A saved session frame (one page + metadata) still reads as that one frame.
+    saved = save_frame_tiff(tmp_path / "f.tiff", frames[0], {"bits": 12})
+    got = read_tiff_pixels(saved)
+    assert got.shape == (6, 5) and np.array_equal(got, frames[0])
+    assert np.array_equal(load_frame_tiff(saved)[0], got)

@@ -6,15 +6,20 @@
   +1, +1/3, -1/5, +1/7, 0, +1/11, -1/13, -1/15, -1/17, +1/19, +1/21 for k = 1..21.
 
 Valid for a linear, shift-invariant system, linear (radiometric) gray levels and a long 50 %-duty
-square wave. The series needs CTF at 3f, 5f, ...: where ``k f`` is above the cutoff ``f_c``
-(MTF = 0 there) the term is exactly zero, so **for f > f_c / 3 the relation is exactly
-MTF = (pi/4) CTF**. Harmonics below the cutoff but beyond the measured range (or above Nyquist,
-where bars alias) are truncated - an assumption that MTF there is small, reported per point.
+square wave. The series needs CTF at 3f, 5f, ...: where ``k f`` is above a true cutoff
+``f_c`` (MTF = 0 there) the term is zero, so for f > f_c / 3 MTF = (pi/4) CTF - exact only
+when the MTF really vanishes above ``f_c``. A pixelated system has no such cutoff at Nyquist:
+the optics x pixel-aperture MTF at 3f is ~0.2 on the simulated bench, and taking Nyquist as
+the cutoff misconverts by up to 0.05-0.08 there. Harmonics below the cutoff but beyond the
+measured range (or above Nyquist, where bars alias) are truncated - an assumption that MTF
+there is small, reported per point. :func:`ctf_to_mtf_with_harmonics` instead takes the
+harmonics from a measured sine-wave MTF (e.g. a slanted edge's, which extends past Nyquist).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +57,8 @@ class CtfToMtf:
     freqs_lp_per_mm, ctf, mtf : ndarray
         Input frequencies and CTF, and the sine-wave MTF.
     method : tuple of str
-        ``"pi/4"`` (f above a *given* cutoff's third: exact), ``"coltman"`` (every needed
+        ``"pi/4"`` (f above a *given* cutoff's third: exact only if the MTF is zero above
+        that cutoff, not for Nyquist on a pixelated system), ``"coltman"`` (every needed
         harmonic measured or above cutoff), or ``"truncated"`` (some harmonic below the cutoff
         - or, with no cutoff given, above the highest measured frequency - was not measured
         and was taken as 0).
@@ -129,6 +135,44 @@ def ctf_to_mtf(
         mtf[i] = math.pi / 4 * total
         methods.append(method)
     return CtfToMtf(f, c, mtf, tuple(methods))
+
+
+def ctf_to_mtf_with_harmonics(
+    freqs_lp_per_mm: npt.ArrayLike, ctf: npt.ArrayLike,
+    harmonic_mtf: Callable[[npt.NDArray[np.float64]], npt.ArrayLike], max_harmonic: int = 99,
+) -> npt.NDArray[np.float64]:
+    """Sine-wave MTF from bar contrast with the harmonics taken from a measured MTF.
+
+    Coltman's forward series solved for its first term:
+    ``MTF(f) = pi/4 CTF(f) - sum_{k >= 3 odd} (-1)^((k-1)/2) MTF(k f) / k``, ``MTF(k f)`` from
+    ``harmonic_mtf`` (a slanted edge's curve, which runs past Nyquist; it should return 0
+    beyond its range). No cutoff is assumed: exact for a long square wave whenever the
+    harmonics' MTF is right.
+
+    Parameters
+    ----------
+    freqs_lp_per_mm, ctf : array_like
+        Where the bar contrast was measured and its value (modulation over the target's own).
+    harmonic_mtf : callable
+        Sine-wave MTF at an array of frequencies (lp/mm).
+    max_harmonic : int
+        Highest odd harmonic.
+
+    Returns
+    -------
+    ndarray
+        The MTF at each frequency.
+    """
+    f = np.asarray(freqs_lp_per_mm, dtype=np.float64).ravel()
+    c = np.asarray(ctf, dtype=np.float64).ravel()
+    if f.size != c.size:
+        raise ValueError("need equally many frequencies and CTF values")
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(c))) or np.any(f <= 0):
+        raise ValueError("frequencies must be positive and all values finite")
+    out = math.pi / 4 * c
+    for k in range(3, max_harmonic + 1, 2):
+        out = out - (-1) ** ((k - 1) // 2) * np.asarray(harmonic_mtf(k * f), np.float64) / k
+    return np.asarray(out, dtype=np.float64)
 
 
 def mtf_to_ctf(

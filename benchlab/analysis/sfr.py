@@ -93,6 +93,17 @@ CLIP_REFUSE_FRACTION = 0.005
 EMPTY_BIN_WARN_FRACTION = 0.05
 #: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
 FIT_RMS_WARN_PX = 1.0
+#: Quality gate (refused above these): the edge-fit RMS residual, px (no clean edge in
+#: ``benchlab benchmark sfr --quick`` exceeds 2.4 px, even at SNR 10; a bar or a corner
+#: crossing the ROI reads 6-10 px), and the fraction of pixels more than OUTLIER_SIGMAS off
+#: the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %).
+FIT_RMS_REFUSE_PX = 3.0
+OUTLIER_REFUSE_FRACTION = 0.01
+#: Clipped below full scale: the bright plateau on one code for at least this fraction of its
+#: pixels, with a noise sigma below CLIPPED_NOISE_RATIO x the dark plateau's (shot noise makes
+#: an unclipped bright side the noisier one) and the dark side's noise at least 0.3 codes.
+CLIPPED_AT_CODE_FRACTION = 0.9
+CLIPPED_NOISE_RATIO = 0.25
 #: Derivative-filter correction cap (ISO 12233 / sfrmat limit the correction to 10).
 MAX_DERIVATIVE_CORRECTION = 10.0
 #: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
@@ -1296,6 +1307,9 @@ def measure_sfr(
     var_dark, var_bright = _plateau_noise_var(row_diff, u, flat_half, noise, code_step)
     model = _NoiseModel(dark, bright, var_dark, var_bright)
     work, n_outliers = _clip_outliers(u, work, samples, model)
+    gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step)
+    if gate:
+        raise SfrRefused(gate)
     if n_outliers:
         samples = _esf_samples(u, work, bin_width_px, flat_half)
     narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
@@ -1402,6 +1416,42 @@ def measure_sfr(
         estimator_reason=choice.reason,
         lsf_model=choice.model_summary(),
     )
+
+
+def _quality_gate(
+    work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
+    n_outliers: int, code_step: float,
+) -> list[str]:
+    """Why the ROI holds no clean, unclipped straight edge (empty when it does): the ESF's
+    far side not brighter than its near side (other structure decided the polarity), an
+    edge fit far worse than a straight edge gives, too many pixels off the ESF (a bar or a
+    corner crossing the ROI), or a bright plateau clipped on one code below full scale."""
+    reasons = []
+    if not noise.bright > noise.dark:
+        reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
+                       f"brighter than its dark side ({noise.dark:.4g}); other structure in "
+                       "the ROI?")
+    if rms_px > FIT_RMS_REFUSE_PX:
+        reasons.append(f"edge fit RMS {rms_px:.2f} px (> {FIT_RMS_REFUSE_PX:g} px): not one "
+                       "straight edge (other structure crossing the ROI?)")
+    if n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
+        reasons.append(f"{100 * n_outliers / work.size:.1f} % of the pixels are more than "
+                       f"{OUTLIER_SIGMAS:g} noise sigmas off the edge profile "
+                       f"(> {100 * OUTLIER_REFUSE_FRACTION:g} %): other structure in the ROI, or a "
+                       "bent edge (try fit_order 2)?")
+    bright = work[u > core_half_px]
+    if bright.size >= 30 and code_step > 0:
+        top = float(bright.max())
+        at_top = float(np.mean(bright == top))
+        sd_dark, sd_bright = math.sqrt(noise.var_dark), math.sqrt(noise.var_bright)
+        floor = math.sqrt(code_step * code_step / 12.0)  # the rounding floor of the variances
+        if (at_top >= CLIPPED_AT_CODE_FRACTION and sd_dark >= 0.3 * code_step
+                and sd_bright <= max(CLIPPED_NOISE_RATIO * sd_dark, floor)):
+            reasons.append(f"bright side clipped at code {top:g} below full scale: "
+                           f"{100 * at_top:.0f} % of its pixels on that code, noise "
+                           f"{sd_bright:.2f} against {sd_dark:.2f} on the dark side (saturated "
+                           "sensor: lower the exposure or gain)")
+    return reasons
 
 
 def _work_u(

@@ -236,6 +236,8 @@ def sfr_command(args: argparse.Namespace) -> int:
             raise AnalysisInputError(f"--plot {plot}: use a .png, .svg or .pdf file name")
         if plot.exists():
             raise AnalysisInputError(f"--plot {plot} already exists; not overwritten")
+        if not plot.parent.is_dir():  # checked before the analysis; no folder is created
+            raise AnalysisInputError(f"--plot {plot}: folder {plot.parent} does not exist")
     if args.bootstrap < 0:
         raise AnalysisInputError(f"--bootstrap must be >= 0, got {args.bootstrap}")
     freqs = _parse_freqs(args.freq)

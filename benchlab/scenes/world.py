@@ -249,6 +249,9 @@ class SimWorld:
         assert scene is not None
         img = scene(state)
         if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
-            img -= self.edges.darkening(state)
-            np.maximum(img, 0.0, out=img)
+            # Composed as transmissions multiply (``chart x (1 - darkening / bright)``): where
+            # a chart bar (or a moved chart) overlaps a square the light passes both chromes,
+            # not subtracted twice and clamped at 0 (fake clipping); on clear glass it is
+            # exactly the chart minus the squares.
+            img -= self.edges.darkening(state) * (img / self.edges.bright_rate)
         return img
