@@ -125,7 +125,8 @@ def _unsaturated(x: FloatArray) -> FloatArray:
         yf = y[far]
         z = 1.0 / (yf * yf)
         out[far] = _split_gaussian(yf) * (_INV_SQRT_2PI - z * _ratio(z, _P, _Q)) / yf
-    np.subtract(1.0, out, out=out, where=x > 0.0)
+    # Not on the centre: its entries are still np.empty's garbage (a NaN there warned).
+    np.subtract(1.0, out, out=out, where=(x > 0.0) & ~centre)
     if centre.any():
         xc = x[centre]
         out[centre] = 0.5 + xc * _ratio(xc * xc, _A, _B)
