@@ -11,6 +11,7 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from test_characterise_procedure import TINY  # one small characterise plan for both files
 from test_protocol_helpers import RAD_SMALL, yes
 
 from benchlab.bench import Bench, BenchConfig
@@ -20,20 +21,6 @@ from benchlab.protocols.characterise_calibration import (
     CalibrationError,
     set_camera_reference,
 )
-
-TINY = """procedure = "characterise"
-[camera]
-gains = [1.0]
-bits = [12]
-width = 32
-height = 32
-[sweep]
-log_steps = 3
-linear_steps = 6
-near_saturation_steps = 4
-[spatial]
-stack_frames = 3
-"""
 
 
 def _packaged_text() -> str:
