@@ -134,6 +134,8 @@ def test_oracle_reads_the_benchmarks_own_cases() -> None:
         assert 0.0 <= b.oracle_both <= min(b.oracle_mtf, b.oracle_mtf50) <= 1.0
     text = format_oracle(buckets)
     assert "oracle: MTF50<=2%" in text and len(text.splitlines()) == 5
+    # Each line ends with the right model's floor over what 95 % needs (0.6 px: 1.64x).
+    assert text.splitlines()[2].endswith("1.64x") and text.splitlines()[3].endswith("1.32x")
 
 
 def test_cli_oracle_prints_its_table(capsys: pytest.CaptureFixture[str]) -> None:

@@ -73,3 +73,33 @@ def test_benchmark_scores_non_gaussian_lsfs_against_their_own_truth() -> None:
     text = format_non_gaussian(rows)
     assert "halo" in text and "box 3 px" in text and "defocus disc" in text
     assert text.count("\n") == len(rows) // 2 + 2  # one line per LSF and SNR
+
+
+def test_wilson_interval_of_a_share() -> None:
+    from benchlab.analysis.sfr_benchmark import wilson_interval
+
+    # Reference values (Wilson 1927, z = 1.96): 47 of 50 -> [0.838, 0.979]; 50 of 50 ->
+    # [0.929, 1]; 0 of 10 -> [0, 0.278].
+    assert wilson_interval(47, 50) == pytest.approx((0.8378, 0.9794), abs=5e-4)
+    lo, hi = wilson_interval(50, 50)
+    assert lo == pytest.approx(0.9287, abs=5e-4) and hi == 1.0
+    assert wilson_interval(0, 10) == pytest.approx((0.0, 0.2775), abs=5e-4)
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+
+
+def test_a_bucket_passes_on_cases_within_both_tolerances_at_once() -> None:
+    from benchlab.analysis.sfr_benchmark import Bucket, format_accuracy, pooled_share
+
+    # 96 % within each tolerance, but the misses are different cases: 92 % within both.
+    split = Bucket(3.0, 20.0, 100, 50, 0, 0.96, 0.96, 0.5, 0.01, 0.97, 0.97, "auto", 1.0,
+                   both_within=0.92)
+    assert not split.passed
+    assert split.both_interval == pytest.approx((0.8116, 0.9685), abs=5e-4)
+    line = format_accuracy([split]).splitlines()[1]
+    assert "92% [81-97]" in line and "FAIL" in line
+    ok = Bucket(3.0, 50.0, 100, 50, 0, 0.98, 1.0, 0.3, 0.01, 0.99, 1.0, "auto", 1.0,
+                both_within=0.98)
+    assert ok.passed
+    not_judged = Bucket(3.0, 10.0, 100, 50, 0, 0.2, 0.2, 3.0, 0.1, 0.9, 0.9, both_within=0.1)
+    share, n = pooled_share([split, ok, not_judged])
+    assert n == 100 and share == pytest.approx(0.95)
