@@ -48,6 +48,7 @@ uneven sample phases, a truncated ESF, any clipping, a poor edge fit, pixels mor
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -370,6 +371,40 @@ def full_scale_of(pixels: npt.NDArray[Any]) -> float | None:
     if pixels.dtype.kind not in "ui" or pixels.size == 0:
         return None
     return infer_max_code(pixels, detect_code_step(pixels.ravel()))
+
+
+def full_scale_of_frame(frame: npt.NDArray[Any], metadata: Mapping[str, Any] | None
+                        ) -> float | None:
+    """Full-scale code of a whole frame from its camera's bit depth, the ``bits`` of its own
+    metadata (:mod:`benchlab.storage`): ``2**bits - 1``, or, for codes MSB-aligned in 16-bit
+    words (some code above that, every code a multiple of ``2**(16 - bits)``), the aligned top
+    (65520 for 12 bits). None - the caller infers it from the data (:func:`full_scale_of`) -
+    without ``bits`` (or one that is not an integer 1..16 the dtype holds), for float data, or
+    when the codes rule that bit depth out. The whole frame, not an ROI: a dark ROI alone does
+    not show the alignment."""
+    bits = None if metadata is None else metadata.get("bits")
+    if isinstance(bits, bool) or not isinstance(bits, int) or frame.dtype.kind not in "ui":
+        return None
+    if not 1 <= bits <= min(16, 8 * frame.dtype.itemsize):
+        return None
+    top = (1 << bits) - 1
+    if frame.size == 0 or int(frame.max()) <= top:
+        return float(top)
+    shift = 16 - bits
+    if frame.dtype == np.uint16 and shift > 0 and not np.any(
+            np.bitwise_and(frame, np.uint16((1 << shift) - 1))):
+        return float(top << shift)
+    return None
+
+
+def _code_step_of(top: float | None) -> float:
+    """Code spacing of integer data with full scale ``top``: ``2**(16 - bits)`` for codes
+    MSB-aligned in 16-bit words (65520: 16 for 12 bits, 65472: 64 for 10 bits), else 1."""
+    if top is not None and 32768.0 <= top < 65535.0 and float(top).is_integer():
+        gap = 65536 - int(top)
+        if gap & (gap - 1) == 0:
+            return float(gap)
+    return 1.0
 
 
 def _sinc(x: FloatArray) -> FloatArray:
@@ -1161,6 +1196,8 @@ def measure_sfr(
         side to the opposite side, a few degrees off a pixel axis.
     full_scale : float, optional
         Saturation code for the clipping check; default from the dtype (:func:`full_scale_of`).
+        The camera's own (:func:`full_scale_of_frame`) is better where known. An MSB-aligned
+        top (65520, 65472, ...) also sets the code step, ``2**(16 - bits)``.
     fit_order : int, default 1
         Polynomial order of the edge fit (1 = straight; 2-3 follow a bent edge).
     bootstrap : int, default 0
@@ -1303,7 +1340,7 @@ def measure_sfr(
     # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
     code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
     if np.issubdtype(raw.dtype, np.integer):
-        code_step = 16.0 if top == 65520.0 else 1.0
+        code_step = _code_step_of(top)
     var_dark, var_bright = _plateau_noise_var(row_diff, u, flat_half, noise, code_step)
     model = _NoiseModel(dark, bright, var_dark, var_bright)
     work, n_outliers = _clip_outliers(u, work, samples, model)
