@@ -33,7 +33,8 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
    cycles per pixel *along the edge normal*, so no cos(angle) rescaling is needed.
 6. MTF50 (the first crossing of 0.5, refined by a local quadratic fit), MTF at chosen
    frequencies and at Nyquist (0.5 cycles/px). Uncertainty: the pixel noise (per level,
-   from row differences on the plateaus) propagated to first order through the MTF, with
+   from row differences on the plateaus, at least the codes' rounding: both reported in
+   :class:`SfrResult`) propagated to first order through the MTF, with
    a scale and floor calibrated for ~95 % coverage of +-1.96 sigma (the benchmark prints
    it); a bootstrap over rows on request.
 
@@ -266,7 +267,19 @@ class SfrResult:
     contrast : float
         Eq. 2.9 contrast ``(bright - dark) / (bright + dark)`` of the plateaus.
     noise_sigma : float
-        Pixel noise (robust, from differences along the edge).
+        Pixel noise (robust, from differences along the edge over the whole ROI: the "no edge"
+        test).
+    noise_dark_sigma, noise_bright_sigma : float
+        The pixel noise per level the analysis used (the analytic uncertainty, the noise power
+        subtracted, the outlier limit): measured on each plateau, at least the codes' rounding.
+    noise_dark_measured, noise_bright_measured : float
+        The same as measured (row differences on the plateau), before that floor.
+    noise_rounding_sigma : float
+        The codes' rounding, ``code step / sqrt(12)`` (0.2887 for plain integer codes, 0 for
+        float data).
+    noise_rounding_floor : tuple of str
+        The sides (``"dark"``, ``"bright"``) whose measured noise was below the rounding, which
+        was used instead.
     clipped_fraction : float
         Fraction of pixels at 0 or at full scale.
     edge_rows : int
@@ -304,6 +317,12 @@ class SfrResult:
     bright: float
     contrast: float
     noise_sigma: float
+    noise_dark_sigma: float
+    noise_bright_sigma: float
+    noise_dark_measured: float
+    noise_bright_measured: float
+    noise_rounding_sigma: float
+    noise_rounding_floor: tuple[str, ...]
     clipped_fraction: float
     edge_rows: int
     fit: EdgeFit
@@ -347,6 +366,12 @@ class SfrResult:
             "bright": self.bright,
             "contrast": self.contrast,
             "noise_sigma": self.noise_sigma,
+            "noise_dark_sigma": self.noise_dark_sigma,
+            "noise_bright_sigma": self.noise_bright_sigma,
+            "noise_dark_measured": self.noise_dark_measured,
+            "noise_bright_measured": self.noise_bright_measured,
+            "noise_rounding_sigma": self.noise_rounding_sigma,
+            "noise_rounding_floor": list(self.noise_rounding_floor),
             "clipped_fraction": self.clipped_fraction,
             "edge_rows": self.edge_rows,
             "fit_rms_px": self.fit.rms_px,
@@ -971,15 +996,39 @@ def _pool_noise_band(excess: FloatArray, power: FloatArray) -> FloatArray:
     return np.asarray(s * pooled + (1.0 - s) * excess, dtype=np.float64)
 
 
-def _plateau_noise_var(
+@dataclass(frozen=True)
+class _PlateauNoise:
+    """Pixel noise on the two sides of the edge: measured (sigma) and the code rounding's
+    variance, the floor of the variances used."""
+
+    measured_dark: float
+    measured_bright: float
+    rounding_var: float
+
+    @property
+    def var_dark(self) -> float:
+        return max(self.measured_dark * self.measured_dark, self.rounding_var)
+
+    @property
+    def var_bright(self) -> float:
+        return max(self.measured_bright * self.measured_bright, self.rounding_var)
+
+    def floored(self) -> tuple[str, ...]:
+        """The sides whose variance is the rounding floor (measured below it)."""
+        return tuple(side for side, sd in (("dark", self.measured_dark),
+                                           ("bright", self.measured_bright))
+                     if sd * sd < self.rounding_var)
+
+
+def _plateau_noise(
     row_diff: FloatArray, u: FloatArray, core_half_px: float, fallback_sigma: float,
     code_step: float,
-) -> tuple[float, float]:
-    """Pixel noise variance on the dark and on the bright side of the edge, from differences
+) -> _PlateauNoise:
+    """Pixel noise on the dark and on the bright side of the edge, from differences
     between neighbouring rows (along the edge) of the pixels clear of the core; the overall
-    robust noise where a side has too few pixels. At least the rounding noise of the codes,
-    ``code_step^2 / 12``: noise-free plateaus round to one code, but across the edge the
-    rounding error varies from pixel to pixel like noise."""
+    robust noise where a side has too few pixels. The variances used are at least the rounding
+    noise of the codes, ``code_step^2 / 12``: noise-free plateaus round to one code, but across
+    the edge the rounding error varies from pixel to pixel like noise."""
     u_pair = 0.5 * (u[1:] + u[:-1])
     out = []
     for side in (u_pair < -core_half_px, u_pair > core_half_px):
@@ -993,8 +1042,8 @@ def _plateau_noise_var(
             cut = 5.0 * max(1.4826 * _finite_median(mag), code_step)
             kept = vals[mag <= cut]
             sig = math.sqrt(_mean(kept * kept) / 2.0) if kept.size else 0.0
-        out.append(max(sig * sig, code_step * code_step / 12.0))
-    return out[0], out[1]
+        out.append(sig)
+    return _PlateauNoise(out[0], out[1], code_step * code_step / 12.0)
 
 
 def _mtf50_sigma(
@@ -1341,8 +1390,8 @@ def measure_sfr(
     code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
     if np.issubdtype(raw.dtype, np.integer):
         code_step = _code_step_of(top)
-    var_dark, var_bright = _plateau_noise_var(row_diff, u, flat_half, noise, code_step)
-    model = _NoiseModel(dark, bright, var_dark, var_bright)
+    plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
+    model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
     work, n_outliers = _clip_outliers(u, work, samples, model)
     gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step)
     if gate:
@@ -1441,6 +1490,13 @@ def measure_sfr(
         bright=bright,
         contrast=float(contrast),
         noise_sigma=noise,
+        noise_dark_sigma=max(plateau_noise.measured_dark, math.sqrt(plateau_noise.rounding_var)),
+        noise_bright_sigma=max(plateau_noise.measured_bright,
+                               math.sqrt(plateau_noise.rounding_var)),
+        noise_dark_measured=plateau_noise.measured_dark,
+        noise_bright_measured=plateau_noise.measured_bright,
+        noise_rounding_sigma=math.sqrt(plateau_noise.rounding_var),
+        noise_rounding_floor=plateau_noise.floored(),
         clipped_fraction=clipped,
         edge_rows=n_rows,
         fit=fit,
