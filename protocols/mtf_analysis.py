@@ -33,7 +33,7 @@ from benchlab.analysis.geometry import (
 )
 from benchlab.analysis.mtf_compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
 from benchlab.analysis.result import ModulationResult
-from benchlab.analysis.sfr import SfrResult
+from benchlab.analysis.sfr import SfrResult, full_scale_of_frame
 from benchlab.analysis.thesis_data import thesis_fixture_path
 from benchlab.protocols.mtf_edges import (
     chart_boxes,
@@ -334,11 +334,20 @@ def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple
     return chart.IMAGE_CENTRE_RC, "nominal"
 
 
-def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
+#: A frame and its metadata (:meth:`benchlab.session.Session.load_frame`).
+_Frame = tuple[npt.NDArray[Any], dict[str, Any]]
+
+
+def _load_frame(session: Session, step_id: str, name: str) -> _Frame | None:
     if name not in session.step_frames(step_id):
         return None
-    pixels, _ = session.load_frame(step_id, name)  # checks the frame's hash against the journal
-    return np.asarray(pixels)
+    pixels, meta = session.load_frame(step_id, name)  # checks its hash against the journal
+    return np.asarray(pixels), meta
+
+
+def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
+    frame = _load_frame(session, step_id, name)
+    return None if frame is None else frame[0]
 
 
 _ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
@@ -383,21 +392,26 @@ def forward_part(session: Session, params: MtfParams, estimator: str | None,
     in another process beside the radial frames (:class:`ForwardAhead`): every edge, or with
     ``claims`` the edges claimed first here."""
     est = mtf_estimator(params, estimator)
-    pixels = _load(session, FORWARD_STEP, FORWARD_FRAME)
-    if pixels is None:
+    frame = _load_frame(session, FORWARD_STEP, FORWARD_FRAME)
+    if frame is None:
         return ForwardPart(est, None, None)
-    view = _forward_rows(pixels, params, est)
-    return ForwardPart(est, view, _measure_claimed(pixels, claims, last_first=False))
+    view = _forward_rows(frame[0], params, est)
+    return ForwardPart(est, view, _measure_claimed(frame, claims, last_first=False))
 
 
-def _measure_claimed(pixels: npt.NDArray[Any], claims: SharedFlags | None, *,
+def _measure_claimed(frame: _Frame, claims: SharedFlags | None, *,
                      last_first: bool) -> _Edges:
-    """Every edge measured (``claims`` None), or every edge claimed here in that order."""
+    """Every edge measured (``claims`` None), or every edge claimed here in that order;
+    clipping is judged against the camera's ceiling, ``2**bits - 1`` from the frame's own
+    metadata (:func:`benchlab.analysis.sfr.full_scale_of_frame`; inferred from each ROI's
+    codes when the metadata has no usable ``bits``)."""
+    pixels, meta = frame
+    full_scale = full_scale_of_frame(pixels, meta)
     specs = list(enumerate(edge_specs()))
     out: _Edges = {}
     for i, spec in reversed(specs) if last_first else specs:
         if claims is None or claims.claim(i):
-            out[i] = (spec, measure_edge(pixels, spec))
+            out[i] = (spec, measure_edge(pixels, spec, full_scale))
     return out
 
 
@@ -512,7 +526,7 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
     # thread waits long for the other; the larger numpy calls release the GIL. Every
     # estimate is a pure function of its frame, so the numbers are those of one thread. A
     # failure is raised as before (the forward frame's first).
-    frame_ready: Future[npt.NDArray[Any] | None] = Future()
+    frame_ready: Future[_Frame | None] = Future()
     with ThreadPoolExecutor(max_workers=1) as forward_pool, \
             ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
         forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
@@ -520,9 +534,9 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
         try:
             radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
                                                                params, est)
-            forward_px = frame_ready.result()
-            measured = (_measure_claimed(forward_px, None, last_first=False)
-                        if forward_px is not None else None)
+            forward_frame = frame_ready.result()
+            measured = (_measure_claimed(forward_frame, None, last_first=False)
+                        if forward_frame is not None else None)
         except BaseException:
             failed = forward_job.exception()
             if failed is not None and not isinstance(failed, CancelledError):
@@ -544,16 +558,16 @@ def _with_forward_ahead(session: Session, params: MtfParams, est: str,
         try:
             radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
                                                                params, est)
-            forward_px = None if ahead.claims is None else _load(session, FORWARD_STEP,
-                                                                 FORWARD_FRAME)
-            mine = ({} if forward_px is None
-                    else _measure_claimed(forward_px, ahead.claims, last_first=True))
+            forward_frame = None if ahead.claims is None else _load_frame(
+                session, FORWARD_STEP, FORWARD_FRAME)
+            mine = ({} if forward_frame is None
+                    else _measure_claimed(forward_frame, ahead.claims, last_first=True))
         except Exception:
             forward_part(session, params, est)  # the forward frame's failure comes first
             raise
     part = ahead.result()
     if part is not None and part.estimator == est:
-        if part.edges is None and forward_px is None:
+        if part.edges is None and forward_frame is None:
             return centre, centre_method, radial, t412, part  # no forward frame
         # (The child saw no forward frame but this process has one - e.g. recorded by the
         # writer's orphan recovery after the fork: computed here below.)
@@ -564,18 +578,19 @@ def _with_forward_ahead(session: Session, params: MtfParams, est: str,
 
 
 def _forward_view(session: Session, params: MtfParams, est: str,
-                  frame_ready: Future[npt.NDArray[Any] | None]) -> _ForwardView | None:
+                  frame_ready: Future[_Frame | None]) -> _ForwardView | None:
     """The forward frame's rows by (element, orientation) and Table 4.11, or None without a
-    forward frame; the frame (or its load's failure) is handed to ``frame_ready`` first."""
+    forward frame; the frame and its metadata (or its load's failure) are handed to
+    ``frame_ready`` first."""
     try:
-        forward = _load(session, FORWARD_STEP, FORWARD_FRAME)
+        forward = _load_frame(session, FORWARD_STEP, FORWARD_FRAME)
     except BaseException as exc:
         frame_ready.set_exception(exc)
         raise
     frame_ready.set_result(forward)
     if forward is None:
         return None
-    return _forward_rows(forward, params, est)
+    return _forward_rows(forward[0], params, est)
 
 
 def _forward_rows(forward: npt.NDArray[Any], params: MtfParams, est: str) -> _ForwardView:

@@ -19,6 +19,9 @@ Tables (written with the Table 4.10 results):
   orientation at the bar set's image height (interpolated between the two edges bracketing it)
   and the simulated MTF there (interpolated between the field points' curves), with a verdict
   (agreement within :data:`AGREEMENT_TOLERANCE`).
+
+Clipping is judged against the camera's ceiling (``full_scale``: from the frame's metadata,
+:func:`benchlab.analysis.sfr.full_scale_of_frame`); without it, guessed from each ROI's codes.
 """
 
 from __future__ import annotations
@@ -94,20 +97,25 @@ def clear_of_chart(
 
 
 def measure_edges(
-    pixels: npt.NDArray[Any], specs: Sequence[EdgeSpec] | None = None
+    pixels: npt.NDArray[Any], specs: Sequence[EdgeSpec] | None = None, *,
+    full_scale: float | None = None,
 ) -> list[tuple[EdgeSpec, SfrResult | str]]:
-    """Each nominal edge's SFR, or the reason there is no clean edge in its ROI."""
-    return [(spec, measure_edge(pixels, spec))
+    """Each nominal edge's SFR, or the reason there is no clean edge in its ROI.
+    ``full_scale``: the camera's ceiling (:func:`benchlab.analysis.sfr.full_scale_of_frame`
+    from the frame's metadata); None infers it from each ROI's codes."""
+    return [(spec, measure_edge(pixels, spec, full_scale))
             for spec in (specs if specs is not None else edge_specs())]
 
 
-def measure_edge(pixels: npt.NDArray[Any], spec: EdgeSpec) -> SfrResult | str:
-    """One nominal edge's SFR, or the reason there is no clean edge in its ROI."""
+def measure_edge(pixels: npt.NDArray[Any], spec: EdgeSpec,
+                 full_scale: float | None = None) -> SfrResult | str:
+    """One nominal edge's SFR, or the reason there is no clean edge in its ROI (clipping
+    judged against ``full_scale``, see :func:`measure_edges`)."""
     r0, c0, r1, c1 = spec.roi
     if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
         return f"ROI {spec.roi} is off the {pixels.shape} frame"
     try:
-        return measure_sfr(pixels[r0:r1, c0:c1])
+        return measure_sfr(pixels[r0:r1, c0:c1], full_scale=full_scale)
     except SfrRefused as exc:
         return "; ".join(exc.reasons)
 
@@ -272,10 +280,12 @@ class EdgeParts(NamedTuple):
 
 
 def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
-               simulated_mtf_file: str = "") -> EdgeParts:
+               simulated_mtf_file: str = "", *, full_scale: float | None = None) -> EdgeParts:
     """The forward frame's edges measured, their two tables and the simulated curves: all
-    but the comparison with the bars, so a re-analysis computes them beside the bar ROIs."""
-    return edge_parts_of(measure_edges(pixels), centre_rc, simulated_mtf_file)
+    but the comparison with the bars, so a re-analysis computes them beside the bar ROIs.
+    ``full_scale``: as for :func:`measure_edges`."""
+    return edge_parts_of(measure_edges(pixels, full_scale=full_scale), centre_rc,
+                         simulated_mtf_file)
 
 
 def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
@@ -294,12 +304,13 @@ def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
 
 def forward_edge_tables(
     pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
-    simulated_mtf_file: str = "", chart_boxes_px: Sequence[tuple[str, Box]] = (),
+    simulated_mtf_file: str = "", chart_boxes_px: Sequence[tuple[str, Box]] = (), *,
+    full_scale: float | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
     """The three edge tables of a forward frame (see the module docstring); edges whose ROI
     overlaps one of ``chart_boxes_px`` (:func:`chart_boxes` of the found chart) are not
-    clean."""
-    measured = clear_of_chart(measure_edges(pixels), chart_boxes_px)
+    clean. ``full_scale``: as for :func:`measure_edges`."""
+    measured = clear_of_chart(measure_edges(pixels, full_scale=full_scale), chart_boxes_px)
     return edge_parts_tables(edge_parts_of(measured, centre_rc, simulated_mtf_file), t411,
                              centre_rc)
 

@@ -206,9 +206,9 @@ def test_the_edges_split_between_two_processes_give_the_tables_of_one(
     measured_here: list[str] = []
     real = mtf_analysis.measure_edge
 
-    def counting(pixels: Any, spec: Any) -> Any:
+    def counting(pixels: Any, spec: Any, *args: Any) -> Any:
         measured_here.append(spec.label)
-        return real(pixels, spec)
+        return real(pixels, spec, *args)
 
     monkeypatch.setattr(mtf_analysis, "measure_edge", counting)
     monkeypatch.setattr(mtf_analysis, "forward_part", _boom)  # never computed here

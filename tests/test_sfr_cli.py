@@ -111,6 +111,73 @@ def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert doc["noise_sigma"] < 0.01 * 4095 * 0.75  # four frames averaged: half the noise
 
 
+ROUNDING = 1.0 / math.sqrt(12.0)  # a 1-code step's rounding sigma, 0.2887
+
+
+def _sfr_noise(path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[str, dict[str, object]]:
+    """``benchlab sfr`` on the whole 100 x 100 image: its noise line and the JSON."""
+    assert main(["sfr", str(path), "--roi", "0,0,100,100"]) == 0
+    (line,) = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("noise")]
+    assert main(["sfr", str(path), "--roi", "0,0,100,100", "--json"]) == 0
+    return line, json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(("bits", "dtype", "step"), [(12, np.uint16, 1), (8, np.uint8, 1),
+                                                     (12, np.uint16, 16)])
+def test_clean_quantised_edge_prints_the_rounding_noise_it_used(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], bits: int, dtype: type,
+        step: int) -> None:
+    """Noise-free codes: nothing measured on the plateaus, and the uncertainty uses the
+    rounding of one code step (step 16: 12-bit codes MSB-aligned in 16 bits)."""
+    codes = synthetic_edge((100, 100), 5.0, 1.0, noise_sigma=0.0, bits=bits).astype(dtype)
+    path = tmp_path / "clean.tiff"
+    tifffile.imwrite(path, codes * dtype(step))
+    line, doc = _sfr_noise(path, capsys)
+    sd = step * ROUNDING
+    assert line == (f"noise (1 sigma)    {sd:.2f} dark / {sd:.2f} bright "
+                    "(code rounding: measured 0.00)")
+    assert doc["noise_dark_sigma"] == pytest.approx(sd, rel=1e-12)
+    assert doc["noise_bright_sigma"] == pytest.approx(sd, rel=1e-12)
+    assert doc["noise_rounding_sigma"] == pytest.approx(sd, rel=1e-12)
+    assert doc["noise_dark_measured"] == doc["noise_bright_measured"] == 0.0
+    assert doc["noise_rounding_floor"] == ["dark", "bright"]
+    assert doc["noise_sigma"] == 0.0
+
+
+def test_noisy_edge_prints_the_measured_noise_and_no_rounding_note(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(4)
+    codes = synthetic_edge((100, 100), 5.0, 1.0, noise_sigma=2e-3, bits=12, rng=rng)
+    path = tmp_path / "noisy.tiff"
+    tifffile.imwrite(path, codes.astype(np.uint16))
+    line, doc = _sfr_noise(path, capsys)
+    truth = math.sqrt((2e-3 * 4095) ** 2 + ROUNDING**2)  # 8.19 codes of noise, rounded
+    for side in ("dark", "bright"):
+        assert doc[f"noise_{side}_sigma"] == doc[f"noise_{side}_measured"]
+        assert doc[f"noise_{side}_sigma"] == pytest.approx(truth, rel=0.06)
+    assert doc["noise_rounding_floor"] == []
+    assert doc["noise_rounding_sigma"] == pytest.approx(ROUNDING, rel=1e-12)
+    assert line == (f"noise (1 sigma)    {doc['noise_dark_sigma']:.2f} dark / "
+                    f"{doc['noise_bright_sigma']:.2f} bright")
+
+
+def test_rounding_note_names_the_side_it_stood_in_for(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Noise on the bright side only (shot noise of a dark side below one code)."""
+    rng = np.random.default_rng(5)
+    clean = synthetic_edge((100, 100), 5.0, 1.0, noise_sigma=0.0, bits=12)
+    noisy = np.round(clean + np.where(clean > 2048, rng.normal(0.0, 3.0, clean.shape), 0.0))
+    path = tmp_path / "bright-noise.tiff"
+    tifffile.imwrite(path, noisy.astype(np.uint16))
+    line, doc = _sfr_noise(path, capsys)
+    assert doc["noise_rounding_floor"] == ["dark"] and doc["noise_dark_measured"] == 0.0
+    assert doc["noise_dark_sigma"] == pytest.approx(ROUNDING, rel=1e-12)
+    assert doc["noise_bright_sigma"] == doc["noise_bright_measured"]
+    assert doc["noise_bright_sigma"] == pytest.approx(math.sqrt(9.0 + 1.0 / 12.0), rel=0.06)
+    assert line == (f"noise (1 sigma)    0.29 dark (code rounding: measured 0.00) / "
+                    f"{doc['noise_bright_sigma']:.2f} bright")
+
+
 def test_accuracy_table_has_every_bucket_and_a_verdict() -> None:
     buckets = run_accuracy(cases_per_cell=1, seed=3)
     assert len(buckets) == 30 and all(b.cases == 2 for b in buckets)

@@ -33,7 +33,8 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
    cycles per pixel *along the edge normal*, so no cos(angle) rescaling is needed.
 6. MTF50 (the first crossing of 0.5, refined by a local quadratic fit), MTF at chosen
    frequencies and at Nyquist (0.5 cycles/px). Uncertainty: the pixel noise (per level,
-   from row differences on the plateaus) propagated to first order through the MTF, with
+   from row differences on the plateaus, at least the codes' rounding: both reported in
+   :class:`SfrResult`) propagated to first order through the MTF, with
    a scale and floor calibrated for ~95 % coverage of +-1.96 sigma (the benchmark prints
    it); a bootstrap over rows on request.
 
@@ -48,6 +49,7 @@ uneven sample phases, a truncated ESF, any clipping, a poor edge fit, pixels mor
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -265,7 +267,19 @@ class SfrResult:
     contrast : float
         Eq. 2.9 contrast ``(bright - dark) / (bright + dark)`` of the plateaus.
     noise_sigma : float
-        Pixel noise (robust, from differences along the edge).
+        Pixel noise (robust, from differences along the edge over the whole ROI: the "no edge"
+        test).
+    noise_dark_sigma, noise_bright_sigma : float
+        The pixel noise per level the analysis used (the analytic uncertainty, the noise power
+        subtracted, the outlier limit): measured on each plateau, at least the codes' rounding.
+    noise_dark_measured, noise_bright_measured : float
+        The same as measured (row differences on the plateau), before that floor.
+    noise_rounding_sigma : float
+        The codes' rounding, ``code step / sqrt(12)`` (0.2887 for plain integer codes, 0 for
+        float data).
+    noise_rounding_floor : tuple of str
+        The sides (``"dark"``, ``"bright"``) whose measured noise was below the rounding, which
+        was used instead.
     clipped_fraction : float
         Fraction of pixels at 0 or at full scale.
     edge_rows : int
@@ -303,6 +317,12 @@ class SfrResult:
     bright: float
     contrast: float
     noise_sigma: float
+    noise_dark_sigma: float
+    noise_bright_sigma: float
+    noise_dark_measured: float
+    noise_bright_measured: float
+    noise_rounding_sigma: float
+    noise_rounding_floor: tuple[str, ...]
     clipped_fraction: float
     edge_rows: int
     fit: EdgeFit
@@ -346,6 +366,12 @@ class SfrResult:
             "bright": self.bright,
             "contrast": self.contrast,
             "noise_sigma": self.noise_sigma,
+            "noise_dark_sigma": self.noise_dark_sigma,
+            "noise_bright_sigma": self.noise_bright_sigma,
+            "noise_dark_measured": self.noise_dark_measured,
+            "noise_bright_measured": self.noise_bright_measured,
+            "noise_rounding_sigma": self.noise_rounding_sigma,
+            "noise_rounding_floor": list(self.noise_rounding_floor),
             "clipped_fraction": self.clipped_fraction,
             "edge_rows": self.edge_rows,
             "fit_rms_px": self.fit.rms_px,
@@ -370,6 +396,40 @@ def full_scale_of(pixels: npt.NDArray[Any]) -> float | None:
     if pixels.dtype.kind not in "ui" or pixels.size == 0:
         return None
     return infer_max_code(pixels, detect_code_step(pixels.ravel()))
+
+
+def full_scale_of_frame(frame: npt.NDArray[Any], metadata: Mapping[str, Any] | None
+                        ) -> float | None:
+    """Full-scale code of a whole frame from its camera's bit depth, the ``bits`` of its own
+    metadata (:mod:`benchlab.storage`): ``2**bits - 1``, or, for codes MSB-aligned in 16-bit
+    words (some code above that, every code a multiple of ``2**(16 - bits)``), the aligned top
+    (65520 for 12 bits). None - the caller infers it from the data (:func:`full_scale_of`) -
+    without ``bits`` (or one that is not an integer 1..16 the dtype holds), for float data, or
+    when the codes rule that bit depth out. The whole frame, not an ROI: a dark ROI alone does
+    not show the alignment."""
+    bits = None if metadata is None else metadata.get("bits")
+    if isinstance(bits, bool) or not isinstance(bits, int) or frame.dtype.kind not in "ui":
+        return None
+    if not 1 <= bits <= min(16, 8 * frame.dtype.itemsize):
+        return None
+    top = (1 << bits) - 1
+    if frame.size == 0 or int(frame.max()) <= top:
+        return float(top)
+    shift = 16 - bits
+    if frame.dtype == np.uint16 and shift > 0 and not np.any(
+            np.bitwise_and(frame, np.uint16((1 << shift) - 1))):
+        return float(top << shift)
+    return None
+
+
+def _code_step_of(top: float | None) -> float:
+    """Code spacing of integer data with full scale ``top``: ``2**(16 - bits)`` for codes
+    MSB-aligned in 16-bit words (65520: 16 for 12 bits, 65472: 64 for 10 bits), else 1."""
+    if top is not None and 32768.0 <= top < 65535.0 and float(top).is_integer():
+        gap = 65536 - int(top)
+        if gap & (gap - 1) == 0:
+            return float(gap)
+    return 1.0
 
 
 def _sinc(x: FloatArray) -> FloatArray:
@@ -936,15 +996,39 @@ def _pool_noise_band(excess: FloatArray, power: FloatArray) -> FloatArray:
     return np.asarray(s * pooled + (1.0 - s) * excess, dtype=np.float64)
 
 
-def _plateau_noise_var(
+@dataclass(frozen=True)
+class _PlateauNoise:
+    """Pixel noise on the two sides of the edge: measured (sigma) and the code rounding's
+    variance, the floor of the variances used."""
+
+    measured_dark: float
+    measured_bright: float
+    rounding_var: float
+
+    @property
+    def var_dark(self) -> float:
+        return max(self.measured_dark * self.measured_dark, self.rounding_var)
+
+    @property
+    def var_bright(self) -> float:
+        return max(self.measured_bright * self.measured_bright, self.rounding_var)
+
+    def floored(self) -> tuple[str, ...]:
+        """The sides whose variance is the rounding floor (measured below it)."""
+        return tuple(side for side, sd in (("dark", self.measured_dark),
+                                           ("bright", self.measured_bright))
+                     if sd * sd < self.rounding_var)
+
+
+def _plateau_noise(
     row_diff: FloatArray, u: FloatArray, core_half_px: float, fallback_sigma: float,
     code_step: float,
-) -> tuple[float, float]:
-    """Pixel noise variance on the dark and on the bright side of the edge, from differences
+) -> _PlateauNoise:
+    """Pixel noise on the dark and on the bright side of the edge, from differences
     between neighbouring rows (along the edge) of the pixels clear of the core; the overall
-    robust noise where a side has too few pixels. At least the rounding noise of the codes,
-    ``code_step^2 / 12``: noise-free plateaus round to one code, but across the edge the
-    rounding error varies from pixel to pixel like noise."""
+    robust noise where a side has too few pixels. The variances used are at least the rounding
+    noise of the codes, ``code_step^2 / 12``: noise-free plateaus round to one code, but across
+    the edge the rounding error varies from pixel to pixel like noise."""
     u_pair = 0.5 * (u[1:] + u[:-1])
     out = []
     for side in (u_pair < -core_half_px, u_pair > core_half_px):
@@ -958,8 +1042,8 @@ def _plateau_noise_var(
             cut = 5.0 * max(1.4826 * _finite_median(mag), code_step)
             kept = vals[mag <= cut]
             sig = math.sqrt(_mean(kept * kept) / 2.0) if kept.size else 0.0
-        out.append(max(sig * sig, code_step * code_step / 12.0))
-    return out[0], out[1]
+        out.append(sig)
+    return _PlateauNoise(out[0], out[1], code_step * code_step / 12.0)
 
 
 def _mtf50_sigma(
@@ -1161,6 +1245,8 @@ def measure_sfr(
         side to the opposite side, a few degrees off a pixel axis.
     full_scale : float, optional
         Saturation code for the clipping check; default from the dtype (:func:`full_scale_of`).
+        The camera's own (:func:`full_scale_of_frame`) is better where known. An MSB-aligned
+        top (65520, 65472, ...) also sets the code step, ``2**(16 - bits)``.
     fit_order : int, default 1
         Polynomial order of the edge fit (1 = straight; 2-3 follow a bent edge).
     bootstrap : int, default 0
@@ -1303,9 +1389,9 @@ def measure_sfr(
     # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
     code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
     if np.issubdtype(raw.dtype, np.integer):
-        code_step = 16.0 if top == 65520.0 else 1.0
-    var_dark, var_bright = _plateau_noise_var(row_diff, u, flat_half, noise, code_step)
-    model = _NoiseModel(dark, bright, var_dark, var_bright)
+        code_step = _code_step_of(top)
+    plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
+    model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
     work, n_outliers = _clip_outliers(u, work, samples, model)
     gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step)
     if gate:
@@ -1404,6 +1490,13 @@ def measure_sfr(
         bright=bright,
         contrast=float(contrast),
         noise_sigma=noise,
+        noise_dark_sigma=max(plateau_noise.measured_dark, math.sqrt(plateau_noise.rounding_var)),
+        noise_bright_sigma=max(plateau_noise.measured_bright,
+                               math.sqrt(plateau_noise.rounding_var)),
+        noise_dark_measured=plateau_noise.measured_dark,
+        noise_bright_measured=plateau_noise.measured_bright,
+        noise_rounding_sigma=math.sqrt(plateau_noise.rounding_var),
+        noise_rounding_floor=plateau_noise.floored(),
         clipped_fraction=clipped,
         edge_rows=n_rows,
         fit=fit,

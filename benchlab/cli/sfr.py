@@ -124,6 +124,24 @@ def _estimator_text(result: Any) -> str:
     return text
 
 
+def _noise_text(result: Any) -> str:
+    """The pixel noise per level the analysis used; where the codes' rounding stood in for a
+    lower measured noise (a clean, quantised edge), said so with what was measured."""
+    floored = result.noise_rounding_floor
+    measured = {"dark": result.noise_dark_measured, "bright": result.noise_bright_measured}
+    used = {"dark": result.noise_dark_sigma, "bright": result.noise_bright_sigma}
+    if len(floored) == 2:  # one note for both; the measured values once if they agree
+        seen = [f"{measured[side]:.2f}" for side in floored]
+        both = seen[0] if seen[0] == seen[1] else " / ".join(seen)
+        return (f"{used['dark']:.2f} dark / {used['bright']:.2f} bright (code rounding: "
+                f"measured {both})")
+    parts = []
+    for side in ("dark", "bright"):
+        note = (f" (code rounding: measured {measured[side]:.2f})" if side in floored else "")
+        parts.append(f"{used[side]:.2f} {side}{note}")
+    return " / ".join(parts)
+
+
 def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
           chosen: list[dict[str, Any]]) -> str:
     import numpy as np
@@ -140,7 +158,8 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
         f"edge               {result.edge_angle_deg:.2f} deg off the pixel axis, intensity "
         f"varies {result.direction}ly, {result.edge_rows} px long",
         f"levels             dark {result.dark:.2f}, bright {result.bright:.2f}, contrast "
-        f"{result.contrast:.3f}, noise {result.noise_sigma:.2f}",
+        f"{result.contrast:.3f}",
+        f"noise (1 sigma)    {_noise_text(result)}",
         f"MTF50              {m50_txt}",
         f"MTF at Nyquist     {result.mtf_nyquist:.4f} (0.5 cycles/px = "
         f"{_lp_per_mm(0.5):.2f} lp/mm)",
@@ -399,8 +418,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
             "centroids, 4x oversampled ESF along the edge normal, windowed LSF, corrected DFT) "
             "in an 8- or 16-bit TIFF/PNG/BMP. The ROI should hold one straight edge crossing it "
             "from side to side, 2-40 deg off the pixel axes. Prints the MTF in cycles/px and "
-            "lp/mm (5.2 um pixels), MTF50, MTF at Nyquist and warnings; a refused edge (near "
-            "0 deg, clipped, too short, no edge) is an error naming the reason."
+            "lp/mm (5.2 um pixels), MTF50, MTF at Nyquist, the pixel noise per level it used "
+            "(measured on the plateaus, at least the codes' rounding: a code step / sqrt(12)) "
+            "and warnings; a refused edge (near 0 deg, clipped, too short, no edge) is an "
+            "error naming the reason."
         ),
     )
     p.add_argument("image", metavar="IMAGE", nargs="+",
@@ -415,7 +436,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
     p.add_argument("--bootstrap", type=non_negative_int, default=0, metavar="N",
                    help="uncertainty by N bootstrap resamples of the rows instead of the default "
-                        "analytic one (the pixel noise propagated; 0 = analytic)")
+                        "analytic one (the pixel noise per level, at least the codes' rounding, "
+                        "propagated; 0 = analytic)")
     p.add_argument("--fit-order", type=int, choices=(1, 2, 3), default=1,
                    help="polynomial order of the edge fit (2-3 follow a bent edge; default 1)")
     p.add_argument("--method", choices=("auto", "free", "model"), default="auto",
