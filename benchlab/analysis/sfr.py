@@ -61,6 +61,13 @@ from benchlab.analysis.projection import across_coordinate, bin_profile, bin_pro
 from benchlab.analysis.quantiles import median, percentiles
 from benchlab.analysis.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.roi import detect_code_step, infer_max_code
+from benchlab.analysis.sfr_shading import (
+    PLATEAU_MARGIN_PX,
+    SHADING_PASSES,
+    Shading,
+    fit_shading,
+    flatten,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -1335,41 +1342,19 @@ def measure_sfr(
     rise = float("nan")
     u_tmp = None
     for _ in range(EDGE_PASSES):
-        predicted = _polyval(coeffs, rows - r_mid)
-        cents = _row_centroids(deriv, predicted, half_window)
-        coeffs, keep = _fit_edge(rows - r_mid, cents, fit_order)
-        # Window for the next pass: a few ESF widths around the fitted edge.
-        u_tmp = _work_u(work.shape, coeffs, r_mid, polarity)
-        coarse = bin_profile(u_tmp, work, 2.0 * bin_width_px)
-        # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin
-        # holds a few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
-        ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
-            _finite_median(coarse.count[coarse.filled])))
-        rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
-        if math.isfinite(rise):
-            half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
+        coeffs, keep, cents, u_tmp, rise, half_window = _edge_pass(
+            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px)
     if int(keep.sum()) <= fit_order + 1:
         raise SfrRefused(["no edge: too few rows have a derivative centroid"])
-    slope = float(coeffs[-2])  # d/d(row) at row 0
-    residual = cents[keep] - _polyval(coeffs, rows[keep] - r_mid)
-    rms = math.sqrt(_mean(residual**2))
-    fit = EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms, int(keep.sum()))
+    fit = _edge_fit_summary(transposed, coeffs, cents, keep, rows - r_mid)
+    slope, rms = fit.slope, fit.rms_px
     angle = math.degrees(math.atan(abs(slope)))
 
     # 3. ESF by projection onto the normal (first: whether there is an edge at all).
     # (the last pass projected on these very coefficients)
     u = u_tmp if u_tmp is not None else _work_u(work.shape, coeffs, r_mid, polarity)
-    rise_guess = rise if math.isfinite(rise) else 4.0
-    flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, FLAT_MIN_PX)
-    samples = _esf_samples(u, work, bin_width_px, flat_half)
-    # The rise again on the ESF samples at their own positions: the coarse bins above can
-    # misread it where the pixel lattice is coarse (45 deg: one position every 0.71 px).
-    fine_rise = _rise_10_90(samples.u, samples.esf)
-    if math.isfinite(fine_rise) and fine_rise > 0:
-        rise_guess = max(rise_guess, fine_rise)
-        flat_half = max(FLAT_RISES * rise_guess + FLAT_EXTRA_PX, FLAT_MIN_PX)
-    k = max(1, samples.esf.size // 8)
-    lo_level, hi_level = _mean(samples.esf[:k]), _mean(samples.esf[-k:])
+    samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
+    lo_level, hi_level = _plateau_levels(samples)
     dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
     step_abs = abs(hi_level - lo_level)
     if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
@@ -1392,16 +1377,55 @@ def measure_sfr(
         code_step = _code_step_of(top)
     plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
     model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
+    # The wide window also covers the LSF's support as the data show it (a halo or flare
+    # around a sharp core: the 10-90 % rise sees only the core).
+    support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
+    # Shading: planes through the plateaus beyond that support; where significant the ROI is
+    # flattened and everything the shading distorted is read again - the edge (its gradient
+    # pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise and
+    # the support - and the planes refitted nearer the edge from that narrower support.
+    raw_work = work
+    shading: Shading | None = None
+    flattened: Shading | None = None
+    for _ in range(SHADING_PASSES):
+        shading = fit_shading(raw_work, u, r_mid, float(coeffs[-1]),
+                              max(flat_half, support) + PLATEAU_MARGIN_PX,
+                              plateau_noise.var_dark, plateau_noise.var_bright)
+        if shading is None or not shading.significant or not shading.correctable:
+            break
+        flattened = shading
+        work = flatten(raw_work, shading)
+        deriv = polarity * np.diff(work, axis=1)
+        for _ in range(EDGE_PASSES):
+            coeffs, keep, cents, u, rise, half_window = _edge_pass(
+                work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px)
+        if int(keep.sum()) <= fit_order + 1:
+            raise SfrRefused(["no edge: too few rows have a derivative centroid"])
+        fit = _edge_fit_summary(transposed, coeffs, cents, keep, rows - r_mid)
+        slope, rms = fit.slope, fit.rms_px
+        angle = math.degrees(math.atan(abs(slope)))
+        samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
+        dark, bright = _plateau_levels(samples)
+        contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+        plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
+        model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
+        support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
+    if flattened is not None:
+        warnings.append(f"{flattened.describe()}; flattened by them (the MTF takes the "
+                        "shading for illumination, not for the lens)")
+    elif shading is not None and shading.significant:
+        warnings.append(f"{shading.describe()}: too strong to flatten (the step falls to "
+                        f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
+                        "centre); the MTF at low frequency may read low - use a smaller ROI "
+                        "or a flat-fielded image")
     work, n_outliers = _clip_outliers(u, work, samples, model)
-    gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step)
+    gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step, raw_work)
     if gate:
         raise SfrRefused(gate)
     if n_outliers:
         samples = _esf_samples(u, work, bin_width_px, flat_half)
+        support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
     narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
-    # The wide window also covers the LSF's support as the data show it (a halo or flare
-    # around a sharp core: the 10-90 % rise sees only the core).
-    support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
     wide_half = max(flat_half, support)
     spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
                              rise_px=rise_guess)
@@ -1511,14 +1535,73 @@ def measure_sfr(
     )
 
 
+def _edge_pass(
+    work: FloatArray, deriv: FloatArray, coeffs: FloatArray, half_window: float,
+    fit_order: int, r_mid: float, polarity: float, bin_width_px: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, float]:
+    """One centroid pass of the edge fit within ``half_window`` of the last fit: the new
+    coefficients, the rows kept, the centroids, every pixel's distance from the edge, the
+    10-90 % rise on a coarse ESF and the window for the next pass (a few ESF widths)."""
+    n_rows, n_cols = work.shape
+    drows = np.arange(n_rows, dtype=np.float64) - r_mid
+    cents = _row_centroids(deriv, _polyval(coeffs, drows), half_window)
+    coeffs, keep = _fit_edge(drows, cents, fit_order)
+    u = _work_u(work.shape, coeffs, r_mid, polarity)
+    coarse = bin_profile(u, work, 2.0 * bin_width_px)
+    # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin holds a
+    # few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
+    ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
+        _finite_median(coarse.count[coarse.filled])))
+    rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
+    if math.isfinite(rise):
+        half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
+    return coeffs, keep, cents, u, rise, half_window
+
+
+def _esf_and_rise(
+    u: FloatArray, work: FloatArray, bin_width_px: float, coarse_rise: float
+) -> tuple[_Samples, float, float]:
+    """The ESF samples, the 10-90 % rise and the wide window's flat half-width from it."""
+    rise = coarse_rise if math.isfinite(coarse_rise) else 4.0
+    flat_half = max(FLAT_RISES * rise + FLAT_EXTRA_PX, FLAT_MIN_PX)
+    samples = _esf_samples(u, work, bin_width_px, flat_half)
+    # The rise again on the ESF samples at their own positions: the coarse bins can misread
+    # it where the pixel lattice is coarse (45 deg: one position every 0.71 px).
+    fine_rise = _rise_10_90(samples.u, samples.esf)
+    if math.isfinite(fine_rise) and fine_rise > 0:
+        rise = max(rise, fine_rise)
+        flat_half = max(FLAT_RISES * rise + FLAT_EXTRA_PX, FLAT_MIN_PX)
+    return samples, rise, flat_half
+
+
+def _plateau_levels(samples: _Samples) -> tuple[float, float]:
+    """Dark and bright levels: the means of the outer eighth of the ESF samples each side."""
+    k = max(1, samples.esf.size // 8)
+    return _mean(samples.esf[:k]), _mean(samples.esf[-k:])
+
+
+def _edge_fit_summary(
+    transposed: bool, coeffs: FloatArray, cents: FloatArray, keep: npt.NDArray[Any],
+    drows: FloatArray,
+) -> EdgeFit:
+    """The edge fit as reported: its slope at the middle row and its RMS residual (px) over
+    the rows it kept."""
+    slope = float(coeffs[-2])  # d/d(row) at row 0
+    residual = cents[keep] - _polyval(coeffs, drows[keep])
+    rms = math.sqrt(_mean(residual**2))
+    return EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms,
+                   int(keep.sum()))
+
+
 def _quality_gate(
     work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
-    n_outliers: int, code_step: float,
+    n_outliers: int, code_step: float, codes: FloatArray | None = None,
 ) -> list[str]:
     """Why the ROI holds no clean, unclipped straight edge (empty when it does): the ESF's
     far side not brighter than its near side (other structure decided the polarity), an
     edge fit far worse than a straight edge gives, too many pixels off the ESF (a bar or a
-    corner crossing the ROI), or a bright plateau clipped on one code below full scale."""
+    corner crossing the ROI), or a bright plateau clipped on one code below full scale
+    (read on ``codes``, the ROI before any flattening, default ``work``)."""
     reasons = []
     if not noise.bright > noise.dark:
         reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
@@ -1532,7 +1615,7 @@ def _quality_gate(
                        f"{OUTLIER_SIGMAS:g} noise sigmas off the edge profile "
                        f"(> {100 * OUTLIER_REFUSE_FRACTION:g} %): other structure in the ROI, or a "
                        "bent edge (try fit_order 2)?")
-    bright = work[u > core_half_px]
+    bright = (work if codes is None else codes)[u > core_half_px]
     if bright.size >= 30 and code_step > 0:
         top = float(bright.max())
         at_top = float(np.mean(bright == top))
