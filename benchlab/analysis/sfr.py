@@ -677,15 +677,52 @@ class _NoiseModel:
 
 
 def _clip_outliers(
-    u: FloatArray, work: FloatArray, s: _Samples, noise: _NoiseModel
+    u: FloatArray, work: FloatArray, s: _Samples, noise: _NoiseModel,
+    bin_width_px: float | None = None,
 ) -> tuple[FloatArray, int]:
     """The pixels with any more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF pulled
     back to that limit (a hot or dead pixel, dust: one such pixel in a bin of ~25 puts a
     spike in the ESF, a dipole in the LSF and a ripple over the whole MTF). Each pixel is
     compared with the ESF interpolated at its own position; the limit also allows for the
     interpolation's own error (a quarter of the local second difference) and 1 % of the
-    step, so a sharp, noise-free edge is left alone. Returns the pixels and how many were
-    clipped."""
+    step, so a sharp, noise-free edge is left alone. With ``bin_width_px``, once any pixel is
+    found, they are all compared with the bins' medians instead: a hot pixel moves its own
+    bin's mean, and against that mean its innocent neighbours read as outliers (20 hot pixels
+    in a noise-free ROI clipped 79). Returns the pixels and how many were clipped."""
+    found = _outliers(u, work, s, noise)
+    if found is not None and bin_width_px is not None:
+        found = _outliers(u, work, _median_samples(u, work, bin_width_px), noise)
+    if found is None:
+        return work, 0
+    hit, pred_c, res_c, limit = found
+    fixed = np.array(work, dtype=np.float64, order="C")  # a copy in u's (C) order
+    fixed.reshape(-1)[hit] = pred_c + np.clip(res_c, -limit, limit)
+    return fixed, int(hit.size)
+
+
+def _median_samples(u: FloatArray, work: FloatArray, bin_width_px: float) -> _Samples:
+    """The ESF as the median of each bin of at least 3 pixels, at the bin centre (an outlier
+    does not move it)."""
+    b = np.floor(u.ravel() / bin_width_px).astype(np.int64)
+    v = np.asarray(work, dtype=np.float64).ravel()
+    order = np.lexsort((v, b))
+    bs, vs = b[order], v[order]
+    starts = np.flatnonzero(np.concatenate(([True], bs[1:] != bs[:-1])))
+    ends = np.concatenate((starts[1:], [bs.size]))
+    count = ends - starts
+    ok = count >= 3
+    starts, count = starts[ok], count[ok]
+    med = 0.5 * (vs[starts + (count - 1) // 2] + vs[starts + count // 2])
+    centre = (bs[starts] + 0.5) * bin_width_px
+    return _Samples(centre.astype(np.float64), med, np.zeros(med.size),
+                    count.astype(np.float64), 0.0)
+
+
+def _outliers(
+    u: FloatArray, work: FloatArray, s: _Samples, noise: _NoiseModel
+) -> tuple[npt.NDArray[np.intp], FloatArray, FloatArray, FloatArray] | None:
+    """The flat indices of the pixels beyond the limit of :func:`_clip_outliers` against the
+    ESF ``s``, their ESF values, residuals and limits; None when there is none."""
     pred = np.interp(u, s.u, s.esf)
     res = work - pred
     # Plus a floor of 1 % of the step: misregistration of a noise-free edge, and a deviation
@@ -696,7 +733,7 @@ def _clip_outliers(
     least = OUTLIER_SIGMAS * math.sqrt(min(noise.var_dark, noise.var_bright)) + floor
     cand = np.flatnonzero(np.abs(res).ravel() > least)
     if cand.size == 0:
-        return work, 0
+        return None
     curv = np.zeros_like(s.esf)
     if s.esf.size >= 3:
         curv[1:-1] = np.abs(np.diff(s.esf, 2))
@@ -704,14 +741,9 @@ def _clip_outliers(
     limit = (OUTLIER_SIGMAS * np.sqrt(noise.pixel_var(pred_c))
              + 0.25 * np.interp(u_c, s.u, curv) + floor)
     out = np.abs(res_c) > limit
-    n = int(out.sum())
-    if n == 0:
-        return work, 0
-    fixed = np.array(work, dtype=np.float64, order="C")  # a copy in u's (C) order
-    flat = fixed.reshape(-1)
-    hit = cand[out]
-    flat[hit] = pred_c[out] + np.clip(res_c[out], -limit[out], limit[out])
-    return fixed, n
+    if not out.any():
+        return None
+    return cand[out], pred_c[out], res_c[out], limit[out]
 
 
 def window_matrix(windows: Any, x: FloatArray, f: FloatArray) -> FloatArray:
@@ -1418,12 +1450,19 @@ def measure_sfr(
                         f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
                         "centre); the MTF at low frequency may read low - use a smaller ROI "
                         "or a flat-fielded image")
-    work, n_outliers = _clip_outliers(u, work, samples, model)
+    work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
     gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step, raw_work)
     if gate:
         raise SfrRefused(gate)
     if n_outliers:
-        samples = _esf_samples(u, work, bin_width_px, flat_half)
+        # Everything read off the ESF before, again without them: a hot pixel's spike in a
+        # plateau bin crosses 10 % far from the edge (the rise, and every window from it,
+        # read 34 px for 100 hot pixels in a 1 px edge) and moves the plateau levels.
+        samples, rise_guess, flat_half = _esf_and_rise(
+            u, work, bin_width_px, _coarse_rise(u, work, bin_width_px))
+        dark, bright = _plateau_levels(samples)
+        contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+        model = _NoiseModel(dark, bright, model.var_dark, model.var_bright)
         support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
     narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
     wide_half = max(flat_half, support)
@@ -1547,15 +1586,20 @@ def _edge_pass(
     cents = _row_centroids(deriv, _polyval(coeffs, drows), half_window)
     coeffs, keep = _fit_edge(drows, cents, fit_order)
     u = _work_u(work.shape, coeffs, r_mid, polarity)
-    coarse = bin_profile(u, work, 2.0 * bin_width_px)
-    # Well-populated bins only (as the ESF keeps): in the corners of a wide ROI a bin holds a
-    # few pixels, and one noisy enough to cross 10 % reads the rise as the ROI.
-    ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
-        _finite_median(coarse.count[coarse.filled])))
-    rise = _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
+    rise = _coarse_rise(u, work, bin_width_px)
     if math.isfinite(rise):
         half_window = float(np.clip(2.0 * rise + 3.0, 4.0, max(n_cols / 2.0, 4.0)))
     return coeffs, keep, cents, u, rise, half_window
+
+
+def _coarse_rise(u: FloatArray, work: FloatArray, bin_width_px: float) -> float:
+    """The 10-90 % rise (px) on an ESF of bins twice the ESF's, well-populated bins only (as
+    the ESF keeps): in the corners of a wide ROI a bin holds a few pixels, and one noisy
+    enough to cross 10 % reads the rise as the ROI."""
+    coarse = bin_profile(u, work, 2.0 * bin_width_px)
+    ok = coarse.filled & (coarse.count >= SPARSE_BIN_FRACTION * float(
+        _finite_median(coarse.count[coarse.filled])))
+    return _rise_10_90(coarse.u_px[ok], coarse.mean[ok])
 
 
 def _esf_and_rise(

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.quantiles import median
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Chi-square drop (2 degrees of freedom: the two slopes) above which a plateau's plane is
@@ -37,6 +39,9 @@ SHADING_CHI2 = 20.0
 #: widens it), the second beyond the support of the flattened one (nearer the edge: more
 #: pixels, a better plane).
 SHADING_PASSES = 2
+#: Plateau pixels further than this many noise sigmas from the first plane are left out of
+#: the second (as the SFR clips its outliers).
+OUTLIER_SIGMAS = 5.0
 #: Each plateau needs at least this many pixels for its plane.
 MIN_PLATEAU_PIXELS = 100
 #: Plateau pixels start this far (px) beyond the LSF's support from the edge.
@@ -89,6 +94,24 @@ class Shading:
 
 
 def _plane(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Plane:
+    """:func:`_plane_lsq`, then again without the pixels more than OUTLIER_SIGMAS noise
+    sigmas off it (hot or dead pixels, dust: one hot pixel pulls a least-squares plane far
+    enough to read as shading on a clean edge)."""
+    plane = _plane_lsq(drow, dcol, z, var)
+    for i in range(3):
+        res = z - plane.at(drow, dcol)
+        limit = OUTLIER_SIGMAS * np.sqrt(var)
+        if i == 0:  # the first plane leans towards the outliers: the clean pixels' spread
+            limit = max(limit, OUTLIER_SIGMAS * 1.4826 * float(median(np.abs(res))))
+        keep = np.abs(res) <= limit
+        if bool(keep.all()) or int(np.count_nonzero(keep)) < MIN_PLATEAU_PIXELS:
+            break
+        drow, dcol, z = drow[keep], dcol[keep], z[keep]
+        plane = _plane_lsq(drow, dcol, z, var)
+    return plane
+
+
+def _plane_lsq(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Plane:
     """Least-squares plane through ``z`` at ``(drow, dcol)``, centred sums (well conditioned
     for any ROI size), and its chi-square drop against the mean."""
     n = z.size
