@@ -35,6 +35,10 @@ FloatArray = npt.NDArray[np.float64]
 #: Chi-square drop (2 degrees of freedom: the two slopes) above which a plateau's plane is
 #: taken as shading rather than noise: p = exp(-20 / 2) = 4.5e-5 per plateau.
 SHADING_CHI2 = 20.0
+#: ... and the plateaus change by at least this fraction of the step across the ROI: a
+#: noise-free ROI's rounding makes a plane of a 0.06 % ESF tail "significant"; a change below
+#: 0.5 % moves the MTF by < 0.002 (the LSF window sees a fraction of it).
+MIN_CHANGE = 0.005
 #: Fits of the planes: the first beyond the support read off the shaded ROI (a tilted plateau
 #: widens it), the second beyond the support of the flattened one (nearer the edge: more
 #: pixels, a better plane).
@@ -78,8 +82,10 @@ class Shading:
 
     @property
     def significant(self) -> bool:
-        """Whether either plateau is a plane rather than a constant (see SHADING_CHI2)."""
-        return max(self.dark.chi2_drop, self.bright.chi2_drop) > SHADING_CHI2
+        """Whether either plateau is a plane rather than a constant (see SHADING_CHI2), by
+        enough to matter (MIN_CHANGE)."""
+        return (max(self.dark.chi2_drop, self.bright.chi2_drop) > SHADING_CHI2
+                and self.max_change >= MIN_CHANGE)
 
     @property
     def correctable(self) -> bool:
