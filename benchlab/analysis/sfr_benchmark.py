@@ -586,16 +586,22 @@ def run_non_gaussian(
     return out
 
 
-def format_non_gaussian(rows: list[NonGaussianBucket]) -> str:
-    """The non-Gaussian table: one line per LSF and SNR, the methods side by side."""
+#: Title of the non-Gaussian table.
+NON_GAUSSIAN_TITLE = ("non-Gaussian LSFs against their own analytic truth (12-bit 100 x 100, "
+                      "angle 2-40 deg; not judged by the issue, a check that nothing is tuned "
+                      "to the Gaussian scene):")
+
+
+def format_non_gaussian(rows: list[NonGaussianBucket], title: str = NON_GAUSSIAN_TITLE,
+                        label: str = "LSF") -> str:
+    """The non-Gaussian table (or another of :class:`NonGaussianBucket` rows: ``title``,
+    first column ``label``): one line per case kind and SNR, the methods side by side."""
     methods = list(dict.fromkeys(r.method for r in rows))
-    head = f"{'LSF':<42} {'SNR':>5}"
+    head = f"{label:<42} {'SNR':>5}"
     for m in methods:
         head += f" | {m + ': MTF<=0.02':>16} {'MTF50<=2%':>9} {'p95 err':>7} {'cover':>6}"
         head += f" {'model':>5}" if m != "free" else ""
-    lines = ["non-Gaussian LSFs against their own analytic truth (12-bit 100 x 100, angle 2-40 "
-             "deg; not judged by the issue, a check that nothing is tuned to the Gaussian "
-             "scene):", head]
+    lines = [title, head]
     keyed = {(r.name, r.snr, r.method): r for r in rows}
     for name, snr in dict.fromkeys((r.name, r.snr) for r in rows):
         snr_txt = f"{snr:>5.0f}" if math.isfinite(snr) else "  inf"

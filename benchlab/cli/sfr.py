@@ -377,6 +377,11 @@ def benchmark_command(args: argparse.Namespace) -> int:
         print()
     print(format_non_gaussian(run_non_gaussian(cases=2 * cases, seed=args.seed + 4)))
     print()
+    from benchlab.analysis.sfr_defects import DEFECTS_TITLE, run_defects
+
+    print(format_non_gaussian(run_defects(cases=2 * cases, seed=args.seed + 6), DEFECTS_TITLE,
+                              "defect"))
+    print()
     print("extremes:")
     for name, outcome in run_extremes(args.seed + 2):
         print(f"  {name}: {outcome}")
