@@ -99,6 +99,40 @@ class Shading:
                 f"beyond {self.beyond_px:.1f} px of the edge)")
 
 
+def _plane_of_sums(
+    r: FloatArray, c: FloatArray, mask: npt.NDArray[np.bool_], work: FloatArray, var: float
+) -> Plane | None:
+    """Least-squares plane through ``work`` where ``mask`` holds, at row offsets ``r`` and
+    column offsets ``c``, from row and column sums (no pixel gathered: the common, uniform
+    case costs a few passes over the ROI); None with fewer than MIN_PLATEAU_PIXELS."""
+    m = mask.astype(np.float64)
+    mz = m * work
+    m_rows, m_cols = m.sum(axis=1), m.sum(axis=0)
+    n = float(m_rows.sum())
+    if n < MIN_PLATEAU_PIXELS:
+        return None
+    z_rows, z_cols = mz.sum(axis=1), mz.sum(axis=0)
+    mr, mc, mz_mean = float(r @ m_rows) / n, float(c @ m_cols) / n, float(z_rows.sum()) / n
+    srr = float((r * r) @ m_rows) - n * mr * mr
+    scc = float((c * c) @ m_cols) - n * mc * mc
+    src = float(r @ (m @ c)) - n * mr * mc
+    srz = float(r @ z_rows) - n * mr * mz_mean
+    scz = float(c @ z_cols) - n * mc * mz_mean
+    return _solve_plane(n, mr, mc, mz_mean, srr, scc, src, srz, scz, var)
+
+
+def _solve_plane(n: float, mr: float, mc: float, mz: float, srr: float, scc: float,
+                 src: float, srz: float, scz: float, var: float) -> Plane:
+    """The plane from its centred sums (see :func:`_plane_lsq`)."""
+    det = srr * scc - src * src
+    if n < 3 or det <= 1e-12 * max(srr * scc, 1e-300):
+        return Plane(mz, 0.0, 0.0, 0.0)  # the pixels lie on a line: only the mean is known
+    b_r = (scc * srz - src * scz) / det
+    b_c = (srr * scz - src * srz) / det
+    drop = (b_r * srz + b_c * scz) / max(var, 1e-300)
+    return Plane(mz - b_r * mr - b_c * mc, b_r, b_c, float(drop))
+
+
 def _plane(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Plane:
     """:func:`_plane_lsq`, then again without the pixels more than OUTLIER_SIGMAS noise
     sigmas off it (hot or dead pixels, dust: one hot pixel pulls a least-squares plane far
@@ -120,18 +154,10 @@ def _plane(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Pla
 def _plane_lsq(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Plane:
     """Least-squares plane through ``z`` at ``(drow, dcol)``, centred sums (well conditioned
     for any ROI size), and its chi-square drop against the mean."""
-    n = z.size
     mr, mc, mz = float(drow.mean()), float(dcol.mean()), float(z.mean())
     r, c, e = drow - mr, dcol - mc, z - mz
-    srr, scc, src = float(r @ r), float(c @ c), float(r @ c)
-    srz, scz = float(r @ e), float(c @ e)
-    det = srr * scc - src * src
-    if n < 3 or det <= 1e-12 * max(srr * scc, 1e-300):
-        return Plane(mz, 0.0, 0.0, 0.0)  # the pixels lie on a line: only the mean is known
-    b_r = (scc * srz - src * scz) / det
-    b_c = (srr * scz - src * srz) / det
-    drop = (b_r * srz + b_c * scz) / max(var, 1e-300)
-    return Plane(mz - b_r * mr - b_c * mc, b_r, b_c, float(drop))
+    return _solve_plane(float(z.size), mr, mc, mz, float(r @ r), float(c @ c), float(r @ c),
+                        float(r @ e), float(c @ e), var)
 
 
 def fit_shading(
@@ -159,13 +185,23 @@ def fit_shading(
         None when a plateau has fewer than :data:`MIN_PLATEAU_PIXELS` pixels.
     """
     rows, cols = work.shape
-    drow = np.broadcast_to((np.arange(rows, dtype=np.float64) - row0)[:, None], work.shape)
-    dcol = np.broadcast_to(np.arange(cols, dtype=np.float64) - col0, work.shape)
+    r = np.arange(rows, dtype=np.float64) - row0
+    c = np.arange(cols, dtype=np.float64) - col0
+    masks = (u < -beyond_px, u > beyond_px)
+    variances = (var_dark, var_bright)
     planes = []
-    for mask, var in ((u < -beyond_px, var_dark), (u > beyond_px, var_bright)):
-        if int(np.count_nonzero(mask)) < MIN_PLATEAU_PIXELS:
+    for mask, var in zip(masks, variances, strict=True):
+        plane = _plane_of_sums(r, c, mask, work, var)
+        if plane is None:
             return None
-        planes.append(_plane(drow[mask], dcol[mask], work[mask], var))
+        planes.append(plane)
+    if max(p.chi2_drop for p in planes) > SHADING_CHI2:
+        # Shading to remove: the planes again without outliers (the sums above are quick
+        # and plain; a hot pixel may have made them).
+        drow = np.broadcast_to(r[:, None], work.shape)
+        dcol = np.broadcast_to(c[None, :], work.shape)
+        planes = [_plane(drow[m], dcol[m], work[m], v)
+                  for m, v in zip(masks, variances, strict=True)]
     dark, bright = planes
     step0 = bright.c0 - dark.c0
     if not step0 > 0:
