@@ -77,6 +77,31 @@ TABLE_VIEWS: dict[str, TableView] = {
 }
 
 
+#: Tables the terminal prints besides :data:`TABLE_VIEWS` (the report gives these their own
+#: section, :mod:`benchlab.report_sfr`): the slanted edges and their cross-check with the bars,
+#: so a run or a re-analysis says at once whether bars, edges and simulation agree.
+TERMINAL_VIEWS: dict[str, TableView] = {
+    **TABLE_VIEWS,
+    "table_sfr_edges": TableView(
+        "Slanted edges (ISO 12233 e-SFR) - MTF50 and MTF at Nyquist per edge",
+        (("edge", "edge", ""), ("orientation", "orient.", ""),
+         ("image_height_mm", "height mm", ".3f"), ("edge_angle_deg", "angle deg", ".2f"),
+         ("mtf50_lp_per_mm", "MTF50 lp/mm", ".1f"), ("mtf50_sigma_lp_per_mm", "+-", ".1f"),
+         ("mtf_nyquist", "MTF(Nyq)", ".3f"), ("estimator", "estimator", ""),
+         ("status", "status", "")),
+    ),
+    "table_sfr_vs_bars": TableView(
+        "Bars (Coltman, sine) vs slanted edge vs simulated MTF, below Nyquist (agree: within "
+        "0.05)",
+        (("element", "set", ""), ("orientation", "orient.", ""),
+         ("image_lp_per_mm", "lp/mm", ".2f"), ("bar_modulation", "bar mod.", ".3f"),
+         ("bar_mtf", "bars->MTF", ".3f"), ("edge_mtf", "edge MTF", ".3f"),
+         ("edge_mtf_sigma", "+-", ".3f"), ("simulated_mtf", "simulated", ".3f"),
+         ("verdict", "verdict", "")),
+    ),
+}
+
+
 def cell(value: Any, fmt: str) -> str:
     """One table cell as text; missing numbers are shown as N/A, never as NaN."""
     if value is None:

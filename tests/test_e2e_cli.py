@@ -72,11 +72,22 @@ def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixtu
                  "--params", str(MTF_SMALL), "--operator", "ana"]) == 0
     out = capsys.readouterr()
     assert "Table 4.11" in out.out and "Table 4.12" in out.out and "wall time" in out.out
+    # The slanted edges and their cross-check with the bars are printed, not only saved.
+    edges = out.out.split("Slanted edges (ISO 12233 e-SFR)")[1].split("\n\n")[0]
+    assert len(edges.splitlines()) == 1 + 1 + 12 and edges.count(" ok") == 12
+    checks = out.out.split("Bars (Coltman, sine) vs slanted edge")[1].split("\n\n")[0]
+    rows = checks.splitlines()[2:]
+    assert len(rows) == 4  # G1E5, G2E1 x S, T
+    for row in rows:  # the printed verdict follows the printed numbers (histogram bars here)
+        cells = row.split()
+        off = abs(float(cells[4]) - float(cells[5]))
+        assert (cells[8] == "agree") == (off <= 0.05 + 5e-4), row
     assert "[--yes]" in out.err  # the manual prompts were shown and answered
     path = only_session(tmp_path)
     assert Session.open(path).meta["operator"] == "ana"
     assert main(["analyze", str(path), "--estimator", "sinefit"]) == 0
-    assert "frames verified unchanged" in capsys.readouterr().out
+    again = capsys.readouterr().out
+    assert "frames verified unchanged" in again and "Slanted edges (ISO 12233 e-SFR)" in again
     assert main(["report", str(path), "--out", str(tmp_path / "r.html")]) == 0
     text = (tmp_path / "r.html").read_text()
     assert "Table 4.11" in text and "data:image/png;base64," in text

@@ -97,11 +97,11 @@ def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
 
 def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO,
                   partial: bool = False) -> None:
-    from benchlab.report_tables import TABLE_VIEWS, format_table
+    from benchlab.report_tables import TERMINAL_VIEWS, format_table
 
     mark = " [PARTIAL: session incomplete]" if partial else ""
     for name, rows in tables.items():
-        view = TABLE_VIEWS.get(name)
+        view = TERMINAL_VIEWS.get(name)
         if view is None or not rows:
             continue
         out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
@@ -404,9 +404,9 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
     if as_json:
         tables, summary = read_results(out)
     else:  # only the tables printed (the SFR curves, the largest file, are not)
-        from benchlab.report_tables import TABLE_VIEWS
+        from benchlab.report_tables import TERMINAL_VIEWS
 
-        tables, summary = read_results(out, TABLE_VIEWS)
+        tables, summary = read_results(out, TERMINAL_VIEWS)
     partial = bool(summary.get("partial"))
     note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
             f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
