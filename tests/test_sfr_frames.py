@@ -177,3 +177,61 @@ def test_cli_refuses_frames_clipped_in_some_frames_only(
     assert float(np.max((bright + dim) / 2)) < 4095
     assert main(["sfr", *map(str, paths), "--roi", "0,0,80,80"]) == 1
     assert "clipped" in capsys.readouterr().err
+
+
+# ---- a frame without the edge, frames of different edges, named by file and page ------------
+def _edge(angle: float, seed: int) -> np.ndarray:
+    return synthetic_edge((100, 100), angle, 1.0, noise_sigma=0.01, bits=12,
+                          rng=np.random.default_rng(seed))
+
+
+def _blank(kind: str, seed: int) -> np.ndarray:
+    """Pure noise at the edge's mean level, or a dark frame (the lens cap on)."""
+    rng = np.random.default_rng(seed)
+    level, sd = (2048.0, 41.0) if kind == "noise" else (20.0, 2.0)
+    return np.round(rng.normal(level, sd, (100, 100))).clip(0, 4095)
+
+
+def _write(tmp_path: Path, **frames: np.ndarray) -> dict[str, str]:
+    out = {}
+    for name, img in frames.items():
+        out[name] = str(tmp_path / f"{name}.tiff")
+        tifffile.imwrite(out[name], img.astype(np.uint16), photometric="minisblack")
+    return out
+
+
+@pytest.mark.parametrize("kind", ["noise", "dark"])
+def test_a_frame_without_the_edge_is_refused_not_averaged(kind: str) -> None:
+    """Two frames of an edge and a blank one: the offset and a gain near 0 fitted the blank
+    frame perfectly, and its mean read contrast 0.40 instead of 0.60."""
+    stack = np.stack([_edge(5.0, 1), _edge(5.0, 2), _blank(kind, 3)])
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(stack, math.radians(5.0))
+    assert exc.value.frame == 2 and exc.value.frames == (2,)
+    assert str(exc.value).startswith("frame 3 of 3: its edge step is 0.00x the other frames' "
+                                     "(allowed 0.5-2x, an exposure change): the edge is not "
+                                     "there")
+
+
+def test_an_exposure_change_within_the_range_passes_and_beyond_it_is_refused() -> None:
+    base = [_edge(5.0, k) for k in range(3)]
+    half = 0.6 * base[2] + 100.0
+    assert average_frames(np.stack([base[0], base[1], half])).frames == 3
+    dim = 0.4 * base[2] + 100.0
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(np.stack([base[0], base[1], dim]))
+    assert exc.value.frame == 2 and "edge step is 0.40x" in str(exc.value)
+    inverted = 4095.0 - base[2]
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(np.stack([base[0], base[1], inverted]))
+    assert exc.value.frame == 2 and "inverted" in str(exc.value)
+
+
+def test_the_normal_defaults_to_the_mean_gradient_direction() -> None:
+    from benchlab.analysis.sfr_frames import edge_normal_of
+
+    assert math.degrees(edge_normal_of(_edge(5.0, 4))) == pytest.approx(5.0, abs=0.5)
+    stack = _frames(4, 20.0, 3, moved={2: 0.3})
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(stack)
+    assert exc.value.frame == 2 and "frame 3 of 4: the edge moved" in str(exc.value)
