@@ -87,7 +87,7 @@ def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(
     tifffile.imwrite(square, (synthetic_edge((80, 80), 0.0, 1.0, bits=8)).astype(np.uint8))
     assert main(["sfr", str(square), "--roi", "0,0,80,80"]) == 1
     assert "pixel axis" in capsys.readouterr().err
-    assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 1
+    assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 2  # reversed: usage
     assert "R1" in capsys.readouterr().err
     assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--freq", "300"]) == 1
     assert "--freq 300 is outside" in capsys.readouterr().err
