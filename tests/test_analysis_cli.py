@@ -82,9 +82,11 @@ def test_analyze_prints_a_table(tmp_path: Path, bars, capsys) -> None:
         (None, "--roi R0,C0,R1,C1 is required", 2),
         ("1,2,3", "4 integers", 2),
         ("a,2,3,4", "R0 must be an integer", 2),
-        ("10,10,5,20", "R1=5 must be > R0=10", 1),
+        ("10,10,5,20", "R1=5 must be > R0=10", 2),  # reversed: cannot be meant
+        ("5,10,5,20", "R1=5 must be > R0=5", 2),  # empty
         ("0,0,10,999", "C1=999", 1),
-        ("-1,0,10,10", "R0=-1", 1),
+        ("-1,0,10,10", "R0=-1 must be >= 0", 2),
+        ("30,0,40,10", "R0=30 is outside 0..29", 1),
     ],
 )
 def test_bad_roi_names_the_field(tmp_path: Path, capsys, roi: str | None, message: str,
@@ -145,3 +147,9 @@ def test_benchmark_table_on_a_small_grid() -> None:
     table = format_table(scores)
     for word in ("bias", "RMSE", "<=.03", "wrong res", "cover95", "oblique", "period 8-20"):
         assert word in table
+
+
+def test_reversed_roi_is_refused_before_the_image_is_read(tmp_path: Path, capsys) -> None:
+    assert main(["analyze", str(tmp_path / "missing.tif"), "--roi", "539,714,489,750"]) == 2
+    err = capsys.readouterr().err
+    assert "--roi R1=489 must be > R0=539" in err and "no such file" not in err

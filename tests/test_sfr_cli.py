@@ -69,7 +69,7 @@ def test_sfr_plot_is_written_once_and_never_overwritten(
     assert "already exists" in capsys.readouterr().err
     assert plot.read_bytes() == data
     assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot",
-                 str(tmp_path / "x.jpg")]) == 1
+                 str(tmp_path / "x.jpg")]) == 2  # a usage error
     assert ".png, .svg or .pdf" in capsys.readouterr().err
     missing = tmp_path / "missing" / "x.png"  # was created (folder and all) before
     assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(missing)]) == 1
@@ -87,10 +87,12 @@ def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(
     tifffile.imwrite(square, (synthetic_edge((80, 80), 0.0, 1.0, bits=8)).astype(np.uint8))
     assert main(["sfr", str(square), "--roi", "0,0,80,80"]) == 1
     assert "pixel axis" in capsys.readouterr().err
-    assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 1
+    assert main(["sfr", str(edge_frame), "--roi", "10,10,5,20"]) == 2  # reversed: usage
     assert "R1" in capsys.readouterr().err
-    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--freq", "300"]) == 1
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E0B"), "--freq", "300"]) == 2
     assert "--freq 300 is outside" in capsys.readouterr().err
+    assert main(["sfr", str(edge_frame), "--roi", "0,0,10,99999"]) == 1  # outside the image
+    assert "C1=99999" in capsys.readouterr().err
     assert main(["sfr", str(tmp_path / "missing.tiff"), "--roi", "0,0,5,5"]) == 1
     assert "no such file" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
@@ -234,3 +236,123 @@ def test_benchmark_extremes_refuse_or_measure_as_the_issue_asks() -> None:
     assert got["clipped edge (bright side 1.3x full scale)"].startswith("refused:")
     assert "short edge" in got["20-row edge, 8 deg"]
     assert got["noise only"].startswith("refused: no edge")
+
+
+# ---- usage errors (exit 2, before any file is read) vs runtime errors (exit 1) ---------------
+@pytest.fixture
+def edge5(tmp_path: Path) -> Path:
+    path = tmp_path / "e5.tiff"
+    img = synthetic_edge((100, 100), 5.0, 1.0, noise_sigma=0.01, bits=12,
+                         rng=np.random.default_rng(11))
+    tifffile.imwrite(path, img.astype(np.uint16))
+    return path
+
+
+@pytest.mark.parametrize(("option", "says"), [
+    (["--freq=-5"], "--freq -5 is outside 0..192.31 lp/mm"),
+    (["--freq", "abc"], "--freq must be numbers in lp/mm, comma-separated, got 'abc'"),
+    (["--freq", "50,,60"], "--freq must be numbers in lp/mm, comma-separated, got '' in "
+                           "'50,,60'"),
+    (["--freq", "nan"], "--freq must be finite numbers in lp/mm, got 'nan'"),
+    (["--freq", "inf"], "--freq must be finite numbers in lp/mm, got 'inf'"),
+    (["--freq", "192.32"], "--freq 192.32 is outside 0..192.31 lp/mm"),
+    (["--plot", "out.jpg"], "--plot out.jpg: use a .png, .svg or .pdf file name"),
+])
+def test_sfr_values_that_cannot_be_meant_exit_2(
+    edge5: Path, capsys: pytest.CaptureFixture[str], option: list[str], says: str
+) -> None:
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100", *option]) == 2
+    err = capsys.readouterr().err
+    assert err == f"benchlab: error: {says}\n" or (err.startswith("benchlab: error: ")
+                                                    and says in err)
+
+
+def test_sfr_usage_errors_come_before_any_file_is_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    missing = str(tmp_path / "missing.tiff")
+    for argv, says in (
+        (["--roi", "539,714,489,750"], "--roi R1=489 must be > R0=539"),
+        (["--roi", "0,0,10,10", "--freq", "abc"], "--freq must be numbers"),
+        (["--roi", "0,0,10,10", "--plot", str(tmp_path / "x.jpg")], ".png, .svg or .pdf"),
+    ):
+        assert main(["sfr", missing, *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert says in err and "no such file" not in err
+
+
+def test_sfr_freq_at_the_printed_bound_is_one_cycle_per_px(
+    edge5: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """1 cycle/px is 192.3077 lp/mm, printed 192.31 (the table's figure): 192.31 is accepted
+    and read as 1 cycle/px; a value above the printed bound is refused."""
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100", "--json",
+                 "--freq", "192.31,0"]) == 0
+    at = json.loads(capsys.readouterr().out)["mtf_at"]
+    assert at[0]["freq_cycles_per_px"] == 1.0 and at[1]["freq_cycles_per_px"] == 0.0
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100", "--freq", "192.311"]) == 2
+    assert "outside 0..192.31 lp/mm" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("rows", "says"), [("abc", "--rows must be whole numbers"),
+                                            ("0", "--rows 0 is outside 20..2000"),
+                                            ("100,2001", "--rows 2001 is outside 20..2000")])
+def test_benchmark_sfr_bad_rows_exit_2(capsys: pytest.CaptureFixture[str], rows: str,
+                                       says: str) -> None:
+    assert main(["benchmark", "sfr", "--rows", rows]) == 2
+    assert says in capsys.readouterr().err
+
+
+def test_bootstrap_of_one_resample_is_a_usage_error(
+    edge5: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["sfr", str(edge5), "--roi", "0,0,100,100", "--bootstrap", "1"])
+    assert exc.value.code == 2
+    assert "argument --bootstrap: 1 resample gives no spread" in capsys.readouterr().err
+
+
+def test_text_says_whether_the_sigmas_are_bootstrapped(
+    edge5: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100", "--bootstrap", "20"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert ("uncertainty        bootstrap over rows, 20 resamples (1 sigma = their spread; "
+            "overstates a sharp edge's noise)") in lines
+    assert any(ln.startswith("cycles/px") and ln.endswith("1 sigma  (bootstrap)")
+               for ln in lines)
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100", "--bootstrap", "2", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["uncertainty_method"] == "bootstrap" and doc["bootstrap_resamples"] == 2
+    assert main(["sfr", str(edge5), "--roi", "0,0,100,100"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "uncertainty        analytic (the pixel noise per level propagated)" in lines
+    assert any(ln.startswith("cycles/px") and ln.endswith("1 sigma") for ln in lines)
+
+
+def test_a_session_folder_is_not_an_image(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    session = tmp_path / "2024_mtf"
+    (session / "frames").mkdir(parents=True)
+    (session / "session.json").write_text("{}")
+    assert main(["sfr", str(session), "--roi", "0,0,10,10"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"benchlab: error: {session}: a session folder; `benchlab sfr` takes "
+                          "image files, not session folders")
+    assert str(session / "frames") in err and "needs session.json" not in err
+    assert main(["sfr", str(tmp_path), "--roi", "0,0,10,10"]) == 1
+    assert f"{tmp_path}: a folder; `benchlab sfr` takes image files" in capsys.readouterr().err
+
+
+def test_help_states_the_ranges_the_benchmark_uses(capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.analysis.sfr_benchmark import MIN_ROWS_LENGTHS
+    from benchlab.cli.sfr import MIN_ROWS_TRIED
+
+    assert MIN_ROWS_TRIED == (MIN_ROWS_LENGTHS[0], MIN_ROWS_LENGTHS[-1])
+    with pytest.raises(SystemExit):
+        main(["benchmark", "sfr", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert (f"shortest edge ({MIN_ROWS_LENGTHS[0]}-{MIN_ROWS_LENGTHS[-1]} rows)" in text
+            and "100-400" not in text)
+    assert "each 20..2000" in text
+    assert "method free and method auto" in text and "(model-free)," not in text

@@ -177,3 +177,139 @@ def test_cli_refuses_frames_clipped_in_some_frames_only(
     assert float(np.max((bright + dim) / 2)) < 4095
     assert main(["sfr", *map(str, paths), "--roi", "0,0,80,80"]) == 1
     assert "clipped" in capsys.readouterr().err
+
+
+# ---- a frame without the edge, frames of different edges, named by file and page ------------
+def _edge(angle: float, seed: int) -> np.ndarray:
+    return synthetic_edge((100, 100), angle, 1.0, noise_sigma=0.01, bits=12,
+                          rng=np.random.default_rng(seed))
+
+
+def _blank(kind: str, seed: int) -> np.ndarray:
+    """Pure noise at the edge's mean level, or a dark frame (the lens cap on)."""
+    rng = np.random.default_rng(seed)
+    level, sd = (2048.0, 41.0) if kind == "noise" else (20.0, 2.0)
+    return np.round(rng.normal(level, sd, (100, 100))).clip(0, 4095)
+
+
+def _write(tmp_path: Path, **frames: np.ndarray) -> dict[str, str]:
+    out = {}
+    for name, img in frames.items():
+        out[name] = str(tmp_path / f"{name}.tiff")
+        tifffile.imwrite(out[name], img.astype(np.uint16), photometric="minisblack")
+    return out
+
+
+@pytest.mark.parametrize("kind", ["noise", "dark"])
+def test_a_frame_without_the_edge_is_refused_not_averaged(kind: str) -> None:
+    """Two frames of an edge and a blank one: the offset and a gain near 0 fitted the blank
+    frame perfectly, and its mean read contrast 0.40 instead of 0.60."""
+    stack = np.stack([_edge(5.0, 1), _edge(5.0, 2), _blank(kind, 3)])
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(stack, math.radians(5.0))
+    assert exc.value.frame == 2 and exc.value.frames == (2,)
+    assert str(exc.value).startswith("frame 3 of 3: its edge step is 0.00x the other frames' "
+                                     "(allowed 0.5-2x, an exposure change): the edge is not "
+                                     "there")
+
+
+def test_an_exposure_change_within_the_range_passes_and_beyond_it_is_refused() -> None:
+    base = [_edge(5.0, k) for k in range(3)]
+    half = 0.6 * base[2] + 100.0
+    assert average_frames(np.stack([base[0], base[1], half])).frames == 3
+    dim = 0.4 * base[2] + 100.0
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(np.stack([base[0], base[1], dim]))
+    assert exc.value.frame == 2 and "edge step is 0.40x" in str(exc.value)
+    inverted = 4095.0 - base[2]
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(np.stack([base[0], base[1], inverted]))
+    assert exc.value.frame == 2 and "inverted" in str(exc.value)
+
+
+def test_the_normal_defaults_to_the_mean_gradient_direction() -> None:
+    from benchlab.analysis.sfr_frames import edge_normal_of
+
+    assert math.degrees(edge_normal_of(_edge(5.0, 4))) == pytest.approx(5.0, abs=0.5)
+    stack = _frames(4, 20.0, 3, moved={2: 0.3})
+    with pytest.raises(FramesDiffer) as exc:
+        average_frames(stack)
+    assert exc.value.frame == 2 and "frame 3 of 4: the edge moved" in str(exc.value)
+
+
+@pytest.mark.parametrize("kind", ["noise", "dark"])
+def test_cli_refuses_the_blank_frame_by_file_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    files = _write(tmp_path, f0=_edge(5.0, 1), f1=_edge(5.0, 2), blank=_blank(kind, 3))
+    plot = tmp_path / "p.png"
+    assert main(["sfr", files["f0"], files["f1"], files["blank"], "--roi", "0,0,100,100",
+                 "--plot", str(plot)]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == "" and not plot.exists()
+    assert captured.err.startswith(f"benchlab: error: {files['blank']} roi 0,0,100,100: frame 3 "
+                                   "of 3: its edge step is 0.00x")
+
+
+@pytest.mark.parametrize("order", [("e5", "noise"), ("noise", "e5")])
+def test_cli_names_the_blank_frame_in_either_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], order: tuple[str, str]
+) -> None:
+    files = _write(tmp_path, e5=_edge(5.0, 1), noise=_blank("noise", 3))
+    assert main(["sfr", *(files[n] for n in order), "--roi", "0,0,100,100"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"benchlab: error: {files['noise']} roi ") and "e5.tiff" not in err
+
+
+def test_cli_frames_of_different_edges_are_reported_as_differing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Edges at 5 and 0 deg: was "e5.tiff: 1.9 % of the pixels ... other structure" (the mean
+    of two different edges measured before the frames were compared)."""
+    files = _write(tmp_path, e5=_edge(5.0, 1), e0=_edge(0.0, 2), f1=_edge(5.0, 3))
+    assert main(["sfr", files["e5"], files["e0"], "--roi", "0,0,100,100"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"benchlab: error: {files['e5']} and {files['e0']} roi 0,0,100,100: "
+                          "frames 1 and 2 of 2 differ from each other by ")
+    assert "not the same scene" in err and "other structure" not in err
+    assert main(["sfr", files["e5"], files["e0"], files["f1"], "--roi", "0,0,100,100"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"benchlab: error: {files['e0']} roi 0,0,100,100: frame 2 of 3 "
+                          "differs from the others by ")
+
+
+def test_cli_names_the_page_of_a_multi_page_tiff(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    stack = np.stack([_edge(5.0, 1), _edge(5.0, 2), _blank("dark", 3), _edge(5.0, 4)])
+    path = tmp_path / "stack.tiff"
+    tifffile.imwrite(path, stack.astype(np.uint16), photometric="minisblack")
+    assert main(["sfr", str(path), "--roi", "0,0,100,100"]) == 1
+    assert capsys.readouterr().err.startswith(f"benchlab: error: {path} page 3 of 4 roi "
+                                              "0,0,100,100: frame 3 of 4: its edge step")
+
+
+def test_cli_refuses_the_same_file_twice(tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    files = _write(tmp_path, e5=_edge(5.0, 1))
+    again = str(tmp_path / "." / "e5.tiff")
+    assert main(["sfr", files["e5"], again, "--roi", "0,0,100,100"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("benchlab: error: ") and "given twice" in err
+    assert main(["sfr", files["e5"], files["e5"], "--roi", "0,0,100,100"]) == 2
+    assert "given twice" in capsys.readouterr().err
+
+
+def test_cli_text_and_plot_title_name_every_frame(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import benchlab.cli.sfr as cli_sfr
+
+    titles: list[str] = []
+    monkeypatch.setattr(cli_sfr, "_plot", lambda result, out, title: titles.append(title))
+    files = _write(tmp_path, a=_edge(5.0, 1), b=_edge(5.0, 2), c=_edge(5.0, 3))
+    assert main(["sfr", files["a"], files["b"], files["c"], "--roi", "0,0,100,100",
+                 "--plot", str(tmp_path / "p.png")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"image              {files['a']}, {files['b']}, {files['c']}"
+    assert titles == ["a.tiff + 2 more roi 0,0,100,100"]

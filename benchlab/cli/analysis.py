@@ -79,19 +79,18 @@ def read_image(path: Path) -> npt.NDArray[Any]:
     return pixels
 
 
-def parse_roi(text: str | None, shape: tuple[int, ...], path: Path) -> tuple[int, int, int, int]:
-    """``R0,C0,R1,C1`` (0-based, end-exclusive numpy slices) checked against the image.
+def roi_values(text: str | None, path: Path | None = None) -> tuple[int, int, int, int]:
+    """``R0,C0,R1,C1`` (0-based, end-exclusive numpy slices) as written, before any image is
+    read: four integers, R0, C0 >= 0, R1 > R0 and C1 > C0.
 
     Raises
     ------
     UsageError
-        Missing or malformed (naming the field).
-    AnalysisInputError
-        Outside the image (naming the field).
+        Missing, malformed, negative or reversed (naming the field).
     """
-    # Missing or malformed: a usage error (exit 2); outside this image: an input error.
     if not text:
-        raise UsageError(f"--roi R0,C0,R1,C1 is required to analyse an image ({path})")
+        where = f" ({path})" if path is not None else ""
+        raise UsageError(f"--roi R0,C0,R1,C1 is required to analyse an image{where}")
     parts = [p.strip() for p in text.split(",")]
     names = ("R0", "C0", "R1", "C1")
     if len(parts) != 4:
@@ -103,16 +102,37 @@ def parse_roi(text: str | None, shape: tuple[int, ...], path: Path) -> tuple[int
         except ValueError:
             raise UsageError(f"--roi {name} must be an integer, got {part!r}") from None
     r0, c0, r1, c1 = values
+    for name, v in (("R0", r0), ("C0", c0)):
+        if v < 0:
+            raise UsageError(f"--roi {name}={v} must be >= 0 (0-based pixel index)")
+    for name, v, start_name, start in (("R1", r1, "R0", r0), ("C1", c1, "C0", c0)):
+        if v <= start:
+            raise UsageError(f"--roi {name}={v} must be > {start_name}={start} (R0,C0,R1,C1: "
+                             "first row and column, then one past the last)")
+    return r0, c0, r1, c1
+
+
+def parse_roi(text: str | None, shape: tuple[int, ...], path: Path) -> tuple[int, int, int, int]:
+    """``R0,C0,R1,C1`` (0-based, end-exclusive numpy slices) checked against the image.
+
+    Raises
+    ------
+    UsageError
+        Missing, malformed, negative or reversed (naming the field; :func:`roi_values`).
+    AnalysisInputError
+        Outside the image (naming the field).
+    """
+    # Malformed or reversed: a usage error (exit 2); outside this image: an input error.
+    r0, c0, r1, c1 = roi_values(text, path)
     height, width = shape[-2], shape[-1]
     for name, v, top in (("R0", r0, height), ("C0", c0, width)):
-        if not 0 <= v < top:
+        if v >= top:
             raise AnalysisInputError(f"--roi {name}={v} is outside 0..{top - 1} of {path}")
-    for name, v, start, top in (("R1", r1, r0, height), ("C1", c1, c0, width)):
-        if not start < v <= top:
+    for name, v, top in (("R1", r1, height), ("C1", c1, width)):
+        if v > top:
             raise AnalysisInputError(
-                f"--roi {name}={v} must be > {names[names.index(name) - 2]}={start} and "
-                f"<= {top} ({'height' if name == 'R1' else 'width'} of {path})"
-            )
+                f"--roi {name}={v} must be <= {top} ({'height' if name == 'R1' else 'width'} "
+                f"of {path})")
     return r0, c0, r1, c1
 
 
@@ -174,6 +194,8 @@ def _check_options(args: argparse.Namespace) -> None:
         raise UsageError(f"--freq must be a bar frequency > 0 lp/mm, got {args.freq:g}")
     if args.bootstrap is not None and args.bootstrap < 1:
         raise UsageError(f"--bootstrap must be a number of resamples >= 1, got {args.bootstrap}")
+    if args.roi is not None:
+        roi_values(args.roi)  # malformed or reversed: before any file is read
 
 
 def analyze_command(args: argparse.Namespace) -> int:

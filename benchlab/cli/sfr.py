@@ -5,19 +5,33 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import math
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from benchlab.cli import non_negative_int
-from benchlab.cli.analysis import AnalysisInputError, parse_roi, read_image
+from benchlab.cli import UsageError, non_negative_int
+from benchlab.cli.analysis import AnalysisInputError, parse_roi, read_image, roi_values
 from benchlab.drivers.errors import BenchlabError
 
 #: Frequencies (cycles/px) listed in the text output.
 TABLE_FREQS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.8, 0.9,
                1.0)
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+#: The first and last edge length of ``sfr_benchmark.MIN_ROWS_LENGTHS`` (for ``--help``, which
+#: must not import the analysis; a test keeps the two in step).
+MIN_ROWS_TRIED = (100, 500)
+
+
+def _bootstrap_count(text: str) -> int:
+    """argparse type of ``--bootstrap``: 0 (the analytic uncertainty) or >= 2 resamples (one
+    resample has no spread)."""
+    value = non_negative_int(text)
+    if value == 1:
+        raise argparse.ArgumentTypeError("1 resample gives no spread: use 0 (the analytic "
+                                         "uncertainty) or at least 2 resamples")
+    return value
 
 
 def _lp_per_mm(cycles_per_px: float) -> float:
@@ -73,20 +87,44 @@ def _plot(result: Any, out: Path, title: str) -> None:
         raise BenchlabError(f"cannot write {out}: {exc.strerror or exc}") from exc
 
 
+def _min_rows_range() -> str:
+    """The edge lengths ``benchmark sfr``'s shortest-edge search tries, e.g. ``100-500``
+    (read from :data:`benchlab.analysis.sfr_benchmark.MIN_ROWS_LENGTHS` without importing
+    numpy for ``--help``: a literal kept in step by a test)."""
+    return f"{MIN_ROWS_TRIED[0]}-{MIN_ROWS_TRIED[-1]}"
+
+
+def _freq_limit() -> float:
+    """The largest ``--freq`` accepted: 1 cycle/px (192.3077 lp/mm) as printed, 2 decimals
+    rounded up (192.31, the figure the MTF table shows for 1 cycle/px)."""
+    return math.ceil(_lp_per_mm(1.0) * 100.0) / 100.0
+
+
 def _parse_freqs(text: str | None) -> list[float]:
-    """``--freq A,B,...`` (lp/mm on the sensor), each >= 0 and at most 2x Nyquist."""
-    if not text:
+    """``--freq A,B,...`` (lp/mm on the sensor), each a finite number in 0..1 cycle/px (the
+    bound as printed, 192.31, is accepted and read as 1 cycle/px).
+
+    Raises
+    ------
+    UsageError
+        Not a number (empty, ``abc``, ``nan``) or outside the range.
+    """
+    if text is None:
         return []
     out = []
-    top = _lp_per_mm(1.0)
+    top, limit = _lp_per_mm(1.0), _freq_limit()
     for part in text.split(","):
         try:
             value = float(part)
         except ValueError:
-            raise AnalysisInputError(f"--freq must be numbers in lp/mm, got {part!r}") from None
-        if not 0.0 <= value <= top:
-            raise AnalysisInputError(f"--freq {part} is outside 0..{top:.2f} lp/mm (1 cycle/px)")
-        out.append(value)
+            where = f" in {text!r}" if "," in text else ""
+            raise UsageError(f"--freq must be numbers in lp/mm, comma-separated, got "
+                             f"{part!r}{where}") from None
+        if not math.isfinite(value):
+            raise UsageError(f"--freq must be finite numbers in lp/mm, got {part!r}")
+        if not 0.0 <= value <= limit:
+            raise UsageError(f"--freq {part} is outside 0..{limit:.2f} lp/mm (1 cycle/px)")
+        out.append(min(value, top))
     return out
 
 
@@ -142,8 +180,16 @@ def _noise_text(result: Any) -> str:
     return " / ".join(parts)
 
 
-def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
-          chosen: list[dict[str, Any]]) -> str:
+def _uncertainty_text(result: Any, bootstrap: int) -> str:
+    """How the 1-sigma figures were obtained."""
+    if result.uncertainty_method == "bootstrap":
+        return (f"bootstrap over rows, {bootstrap} resamples (1 sigma = their spread; "
+                "overstates a sharp edge's noise)")
+    return "analytic (the pixel noise per level propagated)"
+
+
+def _text(result: Any, images: str, roi: tuple[int, int, int, int],
+          chosen: list[dict[str, Any]], bootstrap: int) -> str:
     import numpy as np
 
     m50 = result.mtf50_cycles_per_px
@@ -152,21 +198,24 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
         f"{m50:.4f} cycles/px = {_lp_per_mm(m50):.2f} lp/mm"
         + ("" if result.mtf50_sigma is None
            else f" (+-{result.mtf50_sigma:.4f} c/px, 1 sigma)"))
+    boot = result.uncertainty_method == "bootstrap"
     lines = [
-        f"image              {path}",
+        f"image              {images}",
         f"roi (r0,c0,r1,c1)  {','.join(map(str, roi))}",
         f"edge               {result.edge_angle_deg:.2f} deg off the pixel axis, intensity "
         f"varies {result.direction}ly, {result.edge_rows} px long",
         f"levels             dark {result.dark:.2f}, bright {result.bright:.2f}, contrast "
         f"{result.contrast:.3f}",
         f"noise (1 sigma)    {_noise_text(result)}",
+        f"uncertainty        {_uncertainty_text(result, bootstrap)}",
         f"MTF50              {m50_txt}",
         f"MTF at Nyquist     {result.mtf_nyquist:.4f} (0.5 cycles/px = "
         f"{_lp_per_mm(0.5):.2f} lp/mm)",
         f"LSF windows        {_windows_text(result)}",
         f"estimator          {_estimator_text(result)}",
         "",
-        f"{'cycles/px':>9}  {'lp/mm':>7}  {'MTF':>6}  {'1 sigma':>7}",
+        f"{'cycles/px':>9}  {'lp/mm':>7}  {'MTF':>6}  {'1 sigma':>7}"
+        + ("  (bootstrap)" if boot else ""),
     ]
     for i, (f, m) in enumerate(zip(TABLE_FREQS, result.mtf_at(TABLE_FREQS), strict=True)):
         s = "" if sig is None else f"{sig[i]:.4f}"
@@ -179,35 +228,79 @@ def _text(result: Any, path: Path, roi: tuple[int, int, int, int],
     return "\n".join(lines)
 
 
+def _check_paths(paths: list[Path]) -> None:
+    """Before any image is read: a folder given for an image (a session folder: say where its
+    frames are), and the same file given twice (usage error: not a second frame).
+
+    Raises
+    ------
+    UsageError
+        The same file twice.
+    AnalysisInputError
+        A folder.
+    """
+    for p in paths:
+        if p.is_dir():
+            if (p / "session.json").is_file():
+                raise AnalysisInputError(
+                    f"{p}: a session folder; `benchlab sfr` takes image files, not session "
+                    f"folders - give its frames, e.g. {p / 'frames' / 'NAME.tiff'} (`benchlab "
+                    "analyze SESSION` re-analyses a session's own edges)")
+            raise AnalysisInputError(f"{p}: a folder; `benchlab sfr` takes image files")
+    seen: dict[object, Path] = {}
+    for p in paths:
+        try:
+            st = p.stat()
+            key: object = (st.st_dev, st.st_ino)
+        except OSError:
+            key = str(p.resolve())
+        if key in seen:
+            same = ("" if str(seen[key]) == str(p) else f" (as {seen[key]} and {p})")
+            raise UsageError(f"{p} is given twice{same}: one frame averaged with itself is not "
+                             "a second frame (it would claim noise / sqrt 2)")
+        seen[key] = p
+
+
+def _images_text(paths: list[Path], pages: list[int], short: bool = False) -> str:
+    """The images read: every file (its pages if several); ``short``: the first file's name
+    and how many more."""
+    def one(p: Path, n: int, name: str) -> str:
+        return name if n == 1 else f"{name} ({n} pages)"
+
+    if short:
+        first = one(paths[0], pages[0], paths[0].name)
+        return first if len(paths) == 1 else f"{first} + {len(paths) - 1} more"
+    return ", ".join(one(p, n, str(p)) for p, n in zip(paths, pages, strict=True))
+
+
 def _read_frames(
-    paths: list[Path], roi_text: str
-) -> tuple[Any, tuple[int, int, int, int], float | None, list[Path]]:
+    paths: list[Path], roi: tuple[int, int, int, int]
+) -> tuple[Any, float | None, list[str], list[int]]:
     """The ROI of every frame: one image, a multi-page TIFF or several files of one shape.
-    Returns the region (rows, cols) or (frames, rows, cols), the ROI, the full scale and the
-    file of each frame."""
+    Returns the region (rows, cols) or (frames, rows, cols), the full scale, a label per frame
+    (its file, and page of a multi-page TIFF) and the pages per file."""
     import numpy as np
 
     from benchlab.analysis.sfr import full_scale_of
 
-    regions, sources = [], []
-    roi: tuple[int, int, int, int] | None = None
+    regions, labels, pages = [], [], []
     shape = None
     for p in paths:
         pixels = read_image(p)
         if shape is None:
             shape = pixels.shape[-2:]
-            roi = parse_roi(roi_text, pixels.shape, p)
+            parse_roi(",".join(map(str, roi)), pixels.shape, p)  # within the image
         elif pixels.shape[-2:] != shape:
             raise AnalysisInputError(f"{p}: {pixels.shape[-2]} x {pixels.shape[-1]} px, but "
                                      f"{paths[0]} is {shape[0]} x {shape[1]}: not frames of "
                                      "one scene")
-        assert roi is not None
         r0, c0, r1, c1 = roi
         cut = pixels[..., r0:r1, c0:c1]
         stack = cut.reshape((-1, *cut.shape[-2:]))
         regions.append(stack)
-        sources += [p] * stack.shape[0]
-    assert roi is not None
+        n = stack.shape[0]
+        pages.append(n)
+        labels += [str(p)] if n == 1 else [f"{p} page {k + 1} of {n}" for k in range(n)]
     dtypes = {r.dtype for r in regions}
     if len(dtypes) > 1:
         kinds = ", ".join(sorted(map(str, dtypes)))
@@ -215,12 +308,14 @@ def _read_frames(
                                  "camera setting")
     region = np.concatenate(regions, axis=0)
     top = full_scale_of(region)
-    return (region[0] if region.shape[0] == 1 else region), roi, top, sources
+    return (region[0] if region.shape[0] == 1 else region), top, labels, pages
 
 
-def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -> tuple[Any, Any]:
-    """Frames: the SFR of their mean, and the frames checked against its edge (the same edge,
-    :func:`benchlab.analysis.sfr_frames.average_frames`)."""
+def _average_checked(region: Any, top: float | None, args: argparse.Namespace,
+                     labels: list[str]) -> tuple[Any, Any]:
+    """Frames: checked against each other first (the same edge in each,
+    :func:`benchlab.analysis.sfr_frames.average_frames`: a missing edge step, another scene or
+    a moved edge raises :class:`FramesDiffer` naming the frame), then the SFR of their mean."""
     import dataclasses
 
     import numpy as np
@@ -229,18 +324,33 @@ def _average_checked(region: Any, top: float | None, args: argparse.Namespace) -
     from benchlab.analysis.sfr_frames import average_frames
 
     # Clipping per frame: a pixel clipped in some frames only is not at full scale in the mean.
-    clipped = 0.0 if top is None else float(np.mean((region <= 0) | (region >= top)))
+    per_frame = (np.zeros(region.shape[0]) if top is None else
+                 np.mean((region <= 0) | (region >= top), axis=(1, 2)))
+    clipped = float(np.mean(per_frame))
     if clipped > CLIP_REFUSE_FRACTION:
+        worst = int(np.argmax(per_frame))
         raise SfrRefused([f"{100 * clipped:.1f} % of the frames' pixels are clipped at 0 or "
-                          f"full scale ({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF "
-                          "is flattened"])
-    result = measure_sfr(region.mean(axis=0), full_scale=top, fit_order=args.fit_order,
+                          f"full scale ({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %; most in "
+                          f"{labels[worst]}: {100 * per_frame[worst]:.1f} %): the ESF is "
+                          "flattened"])
+    check = average_frames(region)  # raises when they differ, before the mean is measured
+    result = measure_sfr(check.mean, full_scale=top, fit_order=args.fit_order,
                          bootstrap=args.bootstrap, seed=args.seed, method=args.method)
-    check = average_frames(region, result.normal_theta_rad)  # raises when they differ
     if clipped > 0 and result.clipped_fraction == 0:
         note = f"{100 * clipped:.2f} % of the frames' pixels clipped (0 or {top:g})"
         result = dataclasses.replace(result, warnings=(*result.warnings, note))
     return check, result
+
+
+def _check_plot(plot: Path | None) -> None:
+    """``--plot``: an existing file or a missing folder (runtime errors; checked before the
+    analysis, nothing is created)."""
+    if plot is None:
+        return
+    if plot.exists():
+        raise AnalysisInputError(f"--plot {plot} already exists; not overwritten")
+    if not plot.parent.is_dir():
+        raise AnalysisInputError(f"--plot {plot}: folder {plot.parent} does not exist")
 
 
 def sfr_command(args: argparse.Namespace) -> int:
@@ -248,43 +358,46 @@ def sfr_command(args: argparse.Namespace) -> int:
     from benchlab.analysis.sfr import SfrRefused, measure_sfr
     from benchlab.analysis.sfr_frames import FramesDiffer
 
-    path = Path(args.image[0])
+    paths = [Path(p) for p in args.image]
+    path = paths[0]
     plot = Path(args.plot) if args.plot else None
-    if plot is not None:
-        if plot.suffix.lower() not in PLOT_SUFFIXES:
-            raise AnalysisInputError(f"--plot {plot}: use a .png, .svg or .pdf file name")
-        if plot.exists():
-            raise AnalysisInputError(f"--plot {plot} already exists; not overwritten")
-        if not plot.parent.is_dir():  # checked before the analysis; no folder is created
-            raise AnalysisInputError(f"--plot {plot}: folder {plot.parent} does not exist")
-    if args.bootstrap < 0:
-        raise AnalysisInputError(f"--bootstrap must be >= 0, got {args.bootstrap}")
+    # Usage errors first (exit 2), before any file is read; then the files (exit 1).
+    if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
+        raise UsageError(f"--plot {plot}: use a .png, .svg or .pdf file name")
+    roi = roi_values(args.roi)
     freqs = _parse_freqs(args.freq)
-    region, roi, top, sources = _read_frames([Path(p) for p in args.image], args.roi)
+    _check_paths(paths)
+    _check_plot(plot)
+    region, top, labels, pages = _read_frames(paths, roi)
+    roi_text = ",".join(map(str, roi))
+    several = region.ndim == 3 and region.shape[0] > 1
+    measured = (f"mean of {region.shape[0]} frames ({_images_text(paths, pages, short=True)})"
+                if several else str(path))
     frames_check = None
     try:
-        if region.ndim == 3 and region.shape[0] > 1:
-            frames_check, result = _average_checked(region, top, args)
+        if several:
+            frames_check, result = _average_checked(region, top, args, labels)
         else:
             result = measure_sfr(region.reshape(region.shape[-2:]), full_scale=top,
                                  fit_order=args.fit_order, bootstrap=args.bootstrap,
                                  seed=args.seed, method=args.method)
     except SfrRefused as exc:
-        raise AnalysisInputError(f"{path} roi {','.join(map(str, roi))}: {exc}") from None
+        raise AnalysisInputError(f"{measured} roi {roi_text}: {exc}") from None
     except FramesDiffer as exc:
-        raise AnalysisInputError(f"{sources[exc.frame]} roi {','.join(map(str, roi))}: "
-                                 f"{exc}") from None
+        blamed = " and ".join(labels[k] for k in exc.frames)
+        raise AnalysisInputError(f"{blamed} roi {roi_text}: {exc}") from None
     except ValueError as exc:
-        raise AnalysisInputError(f"{path}: {exc}") from exc
+        raise AnalysisInputError(f"{measured}: {exc}") from exc
     if plot is not None:
-        _plot(result, plot, f"{path.name} roi {','.join(map(str, roi))}")
+        _plot(result, plot, f"{_images_text(paths, pages, short=True)} roi {roi_text}")
     n_frames = 1 if frames_check is None else frames_check.frames
     shift = None if frames_check is None else round(frames_check.max_shift_px, 4)
     if args.json:
         payload = result.to_dict()
         payload.update({
-            "image": str(path), "images": [str(Path(p)) for p in args.image], "roi": list(roi),
+            "image": str(path), "images": [str(p) for p in paths], "roi": list(roi),
             "frames": n_frames, "frames_max_shift_px": shift,
+            "bootstrap_resamples": args.bootstrap,
             "mtf50_lp_per_mm": None if result.mtf50_cycles_per_px is None
             else _lp_per_mm(result.mtf50_cycles_per_px),
             "freqs_lp_per_mm": [round(_lp_per_mm(f), 4) for f in payload["freqs_cycles_per_px"]],
@@ -293,7 +406,8 @@ def sfr_command(args: argparse.Namespace) -> int:
         })
         print(json.dumps(payload, allow_nan=False))
         return 0
-    print(_text(result, path, roi, _at_freqs(result, freqs)))
+    print(_text(result, _images_text(paths, pages), roi, _at_freqs(result, freqs),
+                args.bootstrap))
     if frames_check is not None:
         print(f"frames             {n_frames} averaged (noise / {n_frames ** 0.5:.2f}); the edge "
               f"moved at most {frames_check.max_shift_px:.3f} px between them")
@@ -303,15 +417,22 @@ def sfr_command(args: argparse.Namespace) -> int:
 
 
 def _parse_rows(text: str) -> tuple[int, ...]:
-    """``--rows 100,300``: edge lengths (rows along the edge), each 20..2000."""
+    """``--rows 100,300``: edge lengths (rows along the edge), each 20..2000.
+
+    Raises
+    ------
+    UsageError
+        Not whole numbers, or outside 20..2000.
+    """
     out = []
     for part in text.split(","):
         try:
             value = int(part)
         except ValueError:
-            raise AnalysisInputError(f"--rows must be whole numbers, got {part!r}") from None
+            raise UsageError(f"--rows must be whole numbers (rows along the edge, 20..2000), "
+                             f"got {part!r}") from None
         if not 20 <= value <= 2000:
-            raise AnalysisInputError(f"--rows {part} is outside 20..2000")
+            raise UsageError(f"--rows {part} is outside 20..2000")
         out.append(value)
     return tuple(sorted(set(out)))
 
@@ -430,19 +551,25 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         ),
     )
     p.add_argument("image", metavar="IMAGE", nargs="+",
-                   help="image file (TIFF, PNG or BMP); several files, or a multi-page TIFF, "
-                        "are frames of the same edge: checked (the edge must not move by more "
-                        "than 0.1 px) and averaged, which divides the noise by sqrt(frames)")
+                   help="image file (TIFF, PNG or BMP; not a session folder: give its "
+                        "frames/*.tiff); several files, or a multi-page TIFF, are frames of the "
+                        "same edge: checked (each must show the edge, its step within 0.5-2x "
+                        "the others' - an exposure change; the edge must not move by more than "
+                        "0.1 px) and averaged, which divides the noise by sqrt(frames); a frame "
+                        "that differs is refused by file (and page); the same file twice is "
+                        "refused")
     p.add_argument("--roi", metavar="R0,C0,R1,C1", required=True,
                    help="region: rows R0..R1 and columns C0..C1, 0-based, end-exclusive")
     p.add_argument("--freq", metavar="LP_PER_MM[,...]",
-                   help="also report the MTF at these sensor frequencies (lp/mm, comma-separated)")
+                   help="also report the MTF at these sensor frequencies (lp/mm, "
+                        "comma-separated, each 0..192.31 = 1 cycle/px)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
-    p.add_argument("--bootstrap", type=non_negative_int, default=0, metavar="N",
-                   help="uncertainty by N bootstrap resamples of the rows instead of the default "
-                        "analytic one (the pixel noise per level, at least the codes' rounding, "
-                        "propagated; 0 = analytic)")
+    p.add_argument("--bootstrap", type=_bootstrap_count, default=0, metavar="N",
+                   help="uncertainty by N >= 2 bootstrap resamples of the rows instead of the "
+                        "default analytic one (the pixel noise per level, at least the codes' "
+                        "rounding, propagated; 0 = analytic; 1 is refused: no spread); the "
+                        "text says which was used")
     p.add_argument("--fit-order", type=int, choices=(1, 2, 3), default=1,
                    help="polynomial order of the edge fit (2-3 follow a bent edge; default 1)")
     p.add_argument("--method", choices=("auto", "free", "model"), default="auto",
@@ -467,8 +594,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
             "model-free noise floor per bucket and edge length (--rows), the default method "
             "(auto: the LSF model where the model-free reading misses the target) next to the "
             "model-free one per bucket, the shortest edge that passes at SNR 20, how many "
-            "averaged frames SNR 20 needs (model-free), non-Gaussian LSFs (a defocus disc, a "
-            "box, a halo, a disc with a Gaussian) against their own truth with both methods, "
+            "averaged frames SNR 20 needs (model-free and auto), non-Gaussian LSFs (a defocus "
+            "disc, a box, a halo, a disc with a Gaussian) against their own truth with both "
+            "methods, "
             "the time per 100 x 100 ROI; then the Table 4.10 procedure "
             "on the simulated bench: edge MTF vs the scene's analytic MTF, and "
             "Coltman-converted bars vs edge MTF."
@@ -476,14 +604,15 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     b.add_argument("--quick", action="store_true", help="fewer cases (about 40 s)")
     b.add_argument("--rows", default="100,300", metavar="N[,N...]",
-                   help="edge lengths to score, rows along the edge (each ROI is 100 px across "
-                        "it); default 100,300 (the issue's 100 x 100 ROI and a real target's "
-                        "long edge); the noise floor is printed per length")
+                   help="edge lengths to score, rows along the edge, each 20..2000 (each ROI is "
+                        "100 px across it); default 100,300 (the issue's 100 x 100 ROI and a "
+                        "real target's long edge); the noise floor is printed per length")
     b.add_argument("--no-frames", action="store_true",
-                   help="skip the frames table (how many averaged frames SNR 20 needs)")
+                   help="skip the frames tables (how many averaged frames SNR 20 needs, "
+                        "method free and method auto)")
     b.add_argument("--no-min-rows", action="store_true",
-                   help="skip the search for the shortest edge (100-400 rows) that passes at "
-                        "SNR 20 with the default method")
+                   help=f"skip the search for the shortest edge ({_min_rows_range()} rows) "
+                        "that passes at SNR 20 with the default method")
     b.add_argument("--no-bench", action="store_true", help="skip the simulated-bench part")
     b.add_argument("--seed", type=int, default=0, help="random seed")
     b.add_argument("--oracle", action="store_true",
