@@ -1371,20 +1371,14 @@ def measure_sfr(
     cents = _row_centroids(deriv, x0, max(n_cols / 2.0, 4.0))
     coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
     half_window = max(n_cols / 4.0, 4.0)
-    rise = float("nan")
-    u_tmp = None
-    for _ in range(EDGE_PASSES):
-        coeffs, keep, cents, u_tmp, rise, half_window = _edge_pass(
-            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px)
-    if int(keep.sum()) <= fit_order + 1:
-        raise SfrRefused(["no edge: too few rows have a derivative centroid"])
-    fit = _edge_fit_summary(transposed, coeffs, cents, keep, rows - r_mid)
+    coeffs, u_tmp, rise, half_window, fit = _locate_edge(
+        work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px, transposed)
     slope, rms = fit.slope, fit.rms_px
     angle = math.degrees(math.atan(abs(slope)))
 
     # 3. ESF by projection onto the normal (first: whether there is an edge at all).
     # (the last pass projected on these very coefficients)
-    u = u_tmp if u_tmp is not None else _work_u(work.shape, coeffs, r_mid, polarity)
+    u = u_tmp
     samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
     lo_level, hi_level = _plateau_levels(samples)
     dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
@@ -1427,13 +1421,9 @@ def measure_sfr(
             break
         flattened = shading
         work = flatten(raw_work, shading)
-        deriv = polarity * np.diff(work, axis=1)
-        for _ in range(EDGE_PASSES):
-            coeffs, keep, cents, u, rise, half_window = _edge_pass(
-                work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px)
-        if int(keep.sum()) <= fit_order + 1:
-            raise SfrRefused(["no edge: too few rows have a derivative centroid"])
-        fit = _edge_fit_summary(transposed, coeffs, cents, keep, rows - r_mid)
+        coeffs, u, rise, half_window, fit = _locate_edge(
+            work, polarity * np.diff(work, axis=1), coeffs, half_window, fit_order, r_mid,
+            polarity, bin_width_px, transposed)
         slope, rms = fit.slope, fit.rms_px
         angle = math.degrees(math.atan(abs(slope)))
         samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
@@ -1572,6 +1562,28 @@ def measure_sfr(
         estimator_reason=choice.reason,
         lsf_model=choice.model_summary(),
     )
+
+
+def _locate_edge(
+    work: FloatArray, deriv: FloatArray, coeffs: FloatArray, half_window: float,
+    fit_order: int, r_mid: float, polarity: float, bin_width_px: float, transposed: bool,
+) -> tuple[FloatArray, FloatArray, float, float, EdgeFit]:
+    """:data:`EDGE_PASSES` passes of :func:`_edge_pass` from ``coeffs``: the coefficients,
+    every pixel's distance from the edge, the coarse rise, the window and the fit as
+    reported. Refused when too few rows have a centroid."""
+    rise = float("nan")
+    u: FloatArray | None = None
+    keep = cents = np.zeros(0)
+    for _ in range(EDGE_PASSES):
+        coeffs, keep, cents, u, rise, half_window = _edge_pass(
+            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px)
+    if u is None:
+        u = _work_u(work.shape, coeffs, r_mid, polarity)
+    if int(keep.sum()) <= fit_order + 1:
+        raise SfrRefused(["no edge: too few rows have a derivative centroid"])
+    drows = np.arange(work.shape[0], dtype=np.float64) - r_mid
+    return coeffs, u, rise, half_window, _edge_fit_summary(transposed, coeffs, cents, keep,
+                                                           drows)
 
 
 def _edge_pass(

@@ -19,16 +19,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from benchlab.analysis.sfr import SfrRefused, measure_sfr
 from benchlab.analysis.sfr_benchmark import (
     _F_CHECK,
     ANGLE_RANGE_DEG,
     BRIGHT,
     DARK,
-    MTF50_TOL,
-    MTF_TOL,
     ROI_SHAPE,
     NonGaussianBucket,
+    score_cases,
 )
 from benchlab.analysis.sfr_synthetic import edge_truth_mtf, edge_truth_mtf50, synthetic_edge
 
@@ -100,37 +98,13 @@ def run_defects(
     out = []
     for name in (*DEFECTS, *PIXEL_DEFECTS):
         for snr in snrs:
-            scores: dict[str, tuple[list[float], list[float], list[bool], list[bool]]] = {
-                m: ([], [], [], []) for m in methods}
+            drawn = []
             for _ in range(cases):
                 img, sigma, angle = _case(name, rng, snr)
                 theta = math.radians(angle)
-                truth = edge_truth_mtf(_F_CHECK, sigma, theta)
-                t50 = edge_truth_mtf50(sigma, theta)
-                for m in methods:
-                    errs, m50, cover, used = scores[m]
-                    try:
-                        res = measure_sfr(img, method=m)
-                    except SfrRefused:
-                        errs.append(math.inf)
-                        m50.append(math.inf)
-                        continue
-                    diff = res.mtf_at(_F_CHECK) - truth
-                    errs.append(float(np.max(np.abs(diff))))
-                    got = res.mtf50_cycles_per_px
-                    m50.append(math.inf if got is None else abs(got / t50 - 1))
-                    sig = res.sigma_at(_F_CHECK)
-                    if sig is not None:
-                        cover.extend((np.abs(diff[1:]) <= 1.96 * sig[1:]).tolist())
-                    used.append(res.estimator == "LSF model")
-            for m in methods:
-                errs, m50, cover, used = scores[m]
-                e = np.asarray(errs)
-                out.append(NonGaussianBucket(
-                    name, snr, m, len(errs), float(np.mean(e <= MTF_TOL)),
-                    float(np.mean(np.asarray(m50) <= MTF50_TOL)), float(np.percentile(e, 95)),
-                    float(np.mean(cover)) if cover else math.nan,
-                    float(np.mean(used)) if used else 0.0))
+                drawn.append((img, edge_truth_mtf(_F_CHECK, sigma, theta),
+                              edge_truth_mtf50(sigma, theta)))
+            out += score_cases(name, snr, drawn, methods)
     return out
 
 
