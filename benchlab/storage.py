@@ -360,6 +360,13 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     FrameFileError
         Missing, unreadable or colour file, or codes its metadata rules out, naming it.
     """
+    return read_tiff_frame(path)[0]
+
+
+def read_tiff_frame(path: str | os.PathLike[str]
+                    ) -> tuple[npt.NDArray[Any], dict[str, Any] | None]:
+    """:func:`read_tiff_pixels` and the file's benchlab metadata (None for any other TIFF):
+    what the camera knew of the frame (``bits``: its ceiling) beside the pixels."""
     import tifffile
 
     p = Path(path)
@@ -393,7 +400,8 @@ def read_tiff_pixels(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
         meta = None
     if isinstance(meta, dict) and meta.get("format") == METADATA_FORMAT:
         check_bit_depth(p, pixels, meta)
-    return pixels
+        return pixels, meta
+    return pixels, None
 
 
 def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None

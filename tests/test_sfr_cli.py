@@ -356,3 +356,45 @@ def test_help_states_the_ranges_the_benchmark_uses(capsys: pytest.CaptureFixture
             and "100-400" not in text)
     assert "each 20..2000" in text
     assert "method free and method auto" in text and "(model-free)," not in text
+
+
+def _ten_bit_edge_frame(path: Path, bits: int | None) -> Path:
+    """A benchlab TIFF of one slanted edge from a camera set to 10 bits (uint16 codes; the
+    a strip of the bright side at 1023, where the sensor saturates), with ``bits`` in its
+    metadata (None: a benchlab frame without it)."""
+    from benchlab.storage import METADATA_FORMAT, save_frame_tiff
+
+    img = synthetic_edge((100, 100), 6.0, 1.0, dark=0.2, bright=0.7, noise_sigma=0.01,
+                         rng=np.random.default_rng(3))
+    codes = np.clip(np.round(img * 1023), 0, 1023).astype(np.uint16)
+    codes[:1, 70:] = 1023  # 0.3 % saturated at the camera's top code: warned, not refused
+    meta: dict[str, object] = {"format": METADATA_FORMAT}
+    if bits is not None:
+        meta["bits"] = bits
+    return save_frame_tiff(path, codes, meta)
+
+
+def test_sfr_takes_the_ceiling_from_a_benchlab_frames_bit_depth(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A 10-bit camera's frame in uint16: the codes alone say 4095 and see nothing clipped.
+    ten = _ten_bit_edge_frame(tmp_path / "ten.tiff", 10)
+    assert main(["sfr", str(ten), "--roi", "0,0,100,100", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert any("pixels clipped (0 or 1023)" in w for w in doc["warnings"])
+    plain = _ten_bit_edge_frame(tmp_path / "plain.tiff", None)
+    assert main(["sfr", str(plain), "--roi", "0,0,100,100", "--json"]) == 0
+    plain_warnings = json.loads(capsys.readouterr().out)["warnings"]
+    # Without the metadata the strip is not known as saturation: only odd pixels to the ESF.
+    assert not any("pixels clipped (0 or" in w for w in plain_warnings)
+    assert any(w.startswith("30 pixel(s) more than 5 noise sigmas") for w in plain_warnings)
+
+
+def test_sfr_refuses_frames_of_different_bit_depths(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = _ten_bit_edge_frame(tmp_path / "a.tiff", 10)
+    b = _ten_bit_edge_frame(tmp_path / "b.tiff", 12)
+    assert main(["sfr", str(a), str(b), "--roi", "0,0,100,100"]) == 1
+    err = capsys.readouterr().err
+    assert "different bit depths (a.tiff: 1023, b.tiff: 4095)" in err

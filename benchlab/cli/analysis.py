@@ -37,6 +37,11 @@ def read_image(path: Path) -> npt.NDArray[Any]:
     AnalysisInputError
         Missing, unreadable, colour or unsupported file, naming it.
     """
+    return read_image_and_metadata(path)[0]
+
+
+def read_image_and_metadata(path: Path) -> tuple[npt.NDArray[Any], dict[str, Any] | None]:
+    """:func:`read_image` and, for a benchlab frame (TIFF), its metadata (None otherwise)."""
     import numpy as np
     if not path.exists():
         raise AnalysisInputError(f"{path}: no such file")
@@ -47,11 +52,12 @@ def read_image(path: Path) -> npt.NDArray[Any]:
         raise AnalysisInputError(
             f"{path}: unsupported image type {suffix or '(none)'}; use TIFF, PNG or BMP"
         )
+    meta = None
     try:
         if suffix in (".tif", ".tiff"):
-            from benchlab.storage import read_tiff_pixels
+            from benchlab.storage import read_tiff_frame
 
-            pixels = read_tiff_pixels(path)  # refuses colour and contradicted bit depth
+            pixels, meta = read_tiff_frame(path)  # refuses colour and contradicted bit depth
         else:
             import cv2
 
@@ -76,7 +82,7 @@ def read_image(path: Path) -> npt.NDArray[Any]:
         )
     if pixels.dtype not in (np.uint8, np.uint16):
         raise AnalysisInputError(f"{path}: expected 8- or 16-bit pixels, got {pixels.dtype}")
-    return pixels
+    return pixels, meta
 
 
 def roi_values(text: str | None, path: Path | None = None) -> tuple[int, int, int, int]:

@@ -12,7 +12,12 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.cli import UsageError, non_negative_int
-from benchlab.cli.analysis import AnalysisInputError, parse_roi, read_image, roi_values
+from benchlab.cli.analysis import (
+    AnalysisInputError,
+    parse_roi,
+    read_image_and_metadata,
+    roi_values,
+)
 from benchlab.drivers.errors import BenchlabError
 
 #: Frequencies (cycles/px) listed in the text output.
@@ -281,12 +286,14 @@ def _read_frames(
     (its file, and page of a multi-page TIFF) and the pages per file."""
     import numpy as np
 
-    from benchlab.analysis.sfr import full_scale_of
+    from benchlab.analysis.sfr import full_scale_of, full_scale_of_frame
 
     regions, labels, pages = [], [], []
+    ceilings: dict[Path, float | None] = {}  # per file: the camera's, from its metadata
     shape = None
     for p in paths:
-        pixels = read_image(p)
+        pixels, meta = read_image_and_metadata(p)
+        ceilings[p] = full_scale_of_frame(pixels, meta)
         if shape is None:
             shape = pixels.shape[-2:]
             parse_roi(",".join(map(str, roi)), pixels.shape, p)  # within the image
@@ -307,7 +314,15 @@ def _read_frames(
         raise AnalysisInputError(f"the images mix pixel types ({kinds}): not frames of one "
                                  "camera setting")
     region = np.concatenate(regions, axis=0)
-    top = full_scale_of(region)
+    # A benchlab frame's own bit depth is the camera's ceiling (12-bit data whose ROI never
+    # reached 4095 is still 12-bit, and a 10-bit camera's 1023 is not a guess from codes);
+    # other images, or files that do not all carry it, fall back to the codes.
+    known = set(ceilings.values())
+    if len(known) > 1 and None not in known:
+        detail = ", ".join(f"{p.name}: {c:g}" for p, c in ceilings.items())
+        raise AnalysisInputError(f"the frames were taken at different bit depths ({detail}): "
+                                 "not frames of one camera setting")
+    top = known.pop() if len(known) == 1 and None not in known else full_scale_of(region)
     return (region[0] if region.shape[0] == 1 else region), top, labels, pages
 
 
