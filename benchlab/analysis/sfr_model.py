@@ -317,6 +317,7 @@ def fit_lsf_model(
     u_px: FloatArray, esf: FloatArray, sample_var: FloatArray, spread_var: FloatArray,
     cos_a: float, sin_a: float, *, rise_px: float, centre_px: float = 0.0,
     max_components: int = MAX_COMPONENTS,
+    shows_structure: Callable[[LsfModelFit], bool] | None = None,
 ) -> list[LsfModelFit]:
     """Fit 1, 2, ... components while the BIC falls; every successful fit, fewest first.
 
@@ -335,6 +336,11 @@ def fit_lsf_model(
     centre_px : float
         The first guess of the LSF centre.
     max_components : int
+    shows_structure : callable, optional
+        Asked before another component is tried (only when the chi-square asks for one):
+        whether the last fit's residual shows structure another Gaussian could take up. A
+        chi-square a little high with a residual that looks like noise is the noise's own
+        draw (~5 % of right fits), and each component tried costs two fits.
 
     Returns
     -------
@@ -375,6 +381,8 @@ def fit_lsf_model(
         dof = max(best.n_samples - best.n_params, 1)
         if best.chi2 <= dof + NEXT_COMPONENT_Z * math.sqrt(2.0 * dof):
             break  # BIC would ask another component for a chi-square drop of 3 ln n
+        if shows_structure is not None and not shows_structure(best):
+            break
         # Next: one more component, either a wide one under the core (a halo) or the widest
         # split in two either side (a flat-topped LSF: box, defocus disc).
         mu, ls = best.centres_px, np.log(best.sigmas_px)
@@ -400,6 +408,11 @@ FIT_MARGIN_PX = 4.0
 #: (Nyquist x the fitted span): a false alarm in ~1 % of right models.
 ESF_GATE_P = 1e-3
 RESIDUAL_GATE_ALPHA = 0.01
+#: Another component is tried only where the residual spectrum's peak stands beyond
+#: ``ln(M / MORE_COMPONENTS_ALPHA)`` (a right model's residual does so in ~1 - exp(-0.5) = 39 %
+#: of fits, a model missing a component's worth of shape far more often): a looser test than
+#: the gate, so a shape the gate would refuse still gets its component.
+MORE_COMPONENTS_ALPHA = 0.5
 #: (3) A mixture of two or more components whose LSF is flatter than a Gaussian (excess
 #: kurtosis below FLAT_TOP_KURTOSIS) is refused: the split approximates a flat-topped LSF - a
 #: defocus disc (semicircle, -1 alone), a box (-1.2) - whose MTF has zeros and sign changes no
@@ -484,24 +497,33 @@ def decide_model(
     at high frequencies)."""
     near = np.abs(u_px - centre_px) <= half_px + FIT_MARGIN_PX
     un, var = u_px[near], sample_var[near]
+    span = float(un[-1] - un[0]) if un.size else 0.0
+    # Two frequencies per independent one (1 / span apart).
+    n_f = max(int(2.0 * nyquist * span), 1)
+    f = np.arange(1, n_f + 1, dtype=np.float64) * (nyquist / n_f)
+    mid = np.asarray(0.5 * (un[1:] + un[:-1]), dtype=np.float64)
+    win = None if window is None else window(mid - centre_px, f)
+    independent = max(nyquist * span, 1.0)
+
+    def spectrum(fit: LsfModelFit) -> tuple[FloatArray, FloatArray, FloatArray]:
+        d2, power = residual_spectrum(un, fit.residual, var, f, win)
+        return d2, power, d2 / np.maximum(power, 1e-300)
+
+    def shows_structure(fit: LsfModelFit) -> bool:
+        threshold = math.log(independent) - math.log(MORE_COMPONENTS_ALPHA)  # inf: always
+        return float(np.max(spectrum(fit)[2])) > threshold
+
     fits = fit_lsf_model(un, esf[near], var, spread_var[near], cos_a, sin_a, rise_px=rise_px,
-                         centre_px=centre_px)
+                         centre_px=centre_px, shows_structure=shows_structure)
     if not fits:
         return ModelDecision(None, False, "no Gaussian LSF could be fitted", 0.0, math.inf,
                              np.zeros(0), np.zeros(0))
     fit = fits[-1]
     dof = max(fit.n_samples - fit.n_params, 1)
     p_value = float(chdtrc(dof, fit.chi2))
-    span = float(un[-1] - un[0])
-    # Two frequencies per independent one (1 / span apart).
-    n_f = max(int(2.0 * nyquist * span), 1)
-    f = np.arange(1, n_f + 1, dtype=np.float64) * (nyquist / n_f)
-    mid = np.asarray(0.5 * (un[1:] + un[:-1]), dtype=np.float64)
-    win = None if window is None else window(mid - centre_px, f)
-    d2, power = residual_spectrum(un, fit.residual, var, f, win)
-    ratio = d2 / np.maximum(power, 1e-300)
+    d2, power, ratio = spectrum(fit)
     worst = int(np.argmax(ratio))
-    limit = math.log(max(nyquist * span, 1.0) / RESIDUAL_GATE_ALPHA)
+    limit = math.log(independent / RESIDUAL_GATE_ALPHA)
     reasons = []
     if fit.at_bound:
         reasons.append(f"it needs a component outside what the window can show ({fit.at_bound})")
