@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -98,6 +99,63 @@ def test_sfr_refusals_and_bad_input_are_errors_naming_the_cause(
     with pytest.raises(SystemExit) as exc:
         main(["sfr", str(edge_frame)])  # --roi is required: a usage error
     assert exc.value.code == 2
+
+
+def _corner_roi(label: str, sx: int, sy: int, half: int = 20) -> str:
+    """A box of 2 x ``half`` px centred on one corner of the edge target's square ``label``."""
+    sq = next(e.square for e in edge_specs() if e.square.label == label)
+    x, y, t = sx * sq.side_px / 2, sy * sq.side_px / 2, math.radians(sq.rotation_deg)
+    row = round(sq.centre_rc[0] + x * math.sin(t) + y * math.cos(t))
+    col = round(sq.centre_rc[1] + x * math.cos(t) - y * math.sin(t))
+    return f"{row - half},{col - half},{row + half},{col + half}"
+
+
+@pytest.mark.parametrize(("label", "sx", "sy"), [("E0", 1, 1), ("E1", 1, -1), ("E1", -1, 1),
+                                                 ("E2", 1, 1), ("E2", -1, -1)])
+def test_sfr_says_an_roi_holds_a_corner_of_the_edge_target(
+    edge_frame: Path, capsys: pytest.CaptureFixture[str], label: str, sx: int, sy: int
+) -> None:
+    """Was "edge 0.31 deg from the pixel axis (< 1.5 deg): too few sample phases; tilt the edge
+    2-10 deg" (E2 +1,+1; E1's 0.13 and 1.43 deg), or "30.0 % of the pixels are more than 5 noise
+    sigmas off the edge profile ... (try fit_order 2)?" (E0)."""
+    roi = _corner_roi(label, sx, sy)
+    assert main(["sfr", str(edge_frame), "--roi", roi]) == 1
+    err = capsys.readouterr().err
+    assert re.fullmatch(
+        rf"benchlab: error: {re.escape(str(edge_frame))} roi {roi}: edge refused: the ROI holds "
+        r"a corner \(two edges at (8[5-9]|9[0-5]) deg to each other, \d+ and \d+ px long\), not "
+        r"one edge: put the ROI along one side only, clear of the corner\n", err), err
+    assert "tilt the edge" not in err
+
+
+@pytest.fixture(scope="module")
+def bar_frames(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out = tmp_path_factory.mktemp("sfr_bars")
+    frames = {"bars": out / "bars.tiff", "usaf": out / "usaf.tiff"}
+    assert main(["snap", "--simulate", "--scene", "bars", "--exposure-ms", "300", "--gain", "1",
+                 "--bits", "8", str(frames["bars"])]) == 0
+    assert main(["snap", "--simulate", "--scene", "usaf", "--exposure-ms", "300", "--gain", "1",
+                 "--bits", "12", str(frames["usaf"])]) == 0
+    return frames
+
+
+@pytest.mark.parametrize(("scene", "roi", "says"), [
+    # One dark bar of the 32 px bar target (dark columns 528-543), bright beside it: was "no
+    # edge: ESF step 0.096 is lost in the noise 1.05".
+    ("bars", "450,520,550,560", "the ROI holds a bar or a line (two parallel edges of opposite "
+                                "sign, 98 and 98 px long)"),
+    # Three bars of a USAF element: was "no edge: ESF step 2.84 is lost in the noise 26.2".
+    ("usaf", "665,512,690,538", "the ROI holds bars (6 parallel edges alternating in sign)"),
+])
+def test_sfr_says_an_roi_holds_a_bar_or_bars(
+    bar_frames: dict[str, Path], capsys: pytest.CaptureFixture[str], scene: str, roi: str,
+    says: str
+) -> None:
+    assert main(["sfr", str(bar_frames[scene]), "--roi", roi]) == 1
+    err = capsys.readouterr().err
+    assert err == (f"benchlab: error: {bar_frames[scene]} roi {roi}: edge refused: {says}, not "
+                   "one edge: put the ROI over one edge only, with a plain plateau on each side "
+                   "of it\n")
 
 
 def test_stack_of_frames_is_averaged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -359,15 +417,18 @@ def test_help_states_the_ranges_the_benchmark_uses(capsys: pytest.CaptureFixture
 
 
 def _ten_bit_edge_frame(path: Path, bits: int | None) -> Path:
-    """A benchlab TIFF of one slanted edge from a camera set to 10 bits (uint16 codes; the
-    a strip of the bright side at 1023, where the sensor saturates), with ``bits`` in its
-    metadata (None: a benchlab frame without it)."""
+    """A benchlab TIFF of one slanted edge from a camera set to 10 bits (uint16 codes; 30
+    bright pixels at 1023, where the sensor saturates), with ``bits`` in its metadata (None:
+    a benchlab frame without it)."""
     from benchlab.storage import METADATA_FORMAT, save_frame_tiff
 
     img = synthetic_edge((100, 100), 6.0, 1.0, dark=0.2, bright=0.7, noise_sigma=0.01,
                          rng=np.random.default_rng(3))
     codes = np.clip(np.round(img * 1023), 0, 1023).astype(np.uint16)
-    codes[:1, 70:] = 1023  # 0.3 % saturated at the camera's top code: warned, not refused
+    # 0.3 % of the bright side saturated at the camera's top code (scattered, as pixels whose
+    # full well fills first): warned, not refused.
+    bright_side = np.flatnonzero(img.ravel() > 0.65)
+    codes.ravel()[np.random.default_rng(4).choice(bright_side, 30, replace=False)] = 1023
     meta: dict[str, object] = {"format": METADATA_FORMAT}
     if bits is not None:
         meta["bits"] = bits

@@ -41,9 +41,11 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
 Refused (:class:`SfrRefused`, every reason listed): noise only / no edge, fewer than
 :data:`MIN_EDGE_ROWS` rows, an edge within :data:`MIN_ANGLE_DEG` of a pixel axis or too short
 for its angle to span one phase cycle, more than :data:`CLIP_REFUSE_FRACTION` of the pixels
-clipped. Warned (in :attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle,
-uneven sample phases, a truncated ESF, any clipping, a poor edge fit, pixels more than
-:data:`OUTLIER_SIGMAS` noise sigmas off the ESF (clipped to that limit before the MTF).
+clipped; an ROI holding a bar or a line, bars or a corner is refused as such, in place of the
+reasons its structure caused (:mod:`benchlab.analysis.sfr_structure`). Warned (in
+:attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle, uneven sample phases, a
+truncated ESF, any clipping, a poor edge fit, pixels more than :data:`OUTLIER_SIGMAS` noise
+sigmas off the ESF (clipped to that limit before the MTF).
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ from benchlab.analysis.sfr_shading import (
     fit_shading,
     flatten,
 )
+from benchlab.analysis.sfr_structure import ESF_SPAN_OF_STEP, find_two_edges
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -1371,8 +1374,12 @@ def measure_sfr(
     cents = _row_centroids(deriv, x0, max(n_cols / 2.0, 4.0))
     coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
     half_window = max(n_cols / 4.0, 4.0)
-    coeffs, u_tmp, rise, half_window, fit = _locate_edge(
-        work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px, transposed)
+    try:
+        coeffs, u_tmp, rise, half_window, fit = _locate_edge(
+            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px,
+            transposed)
+    except SfrRefused as exc:
+        raise _refusal(list(exc.reasons), img, noise) from None
     slope, rms = fit.slope, fit.rms_px
     angle = math.degrees(math.atan(abs(slope)))
 
@@ -1384,7 +1391,8 @@ def measure_sfr(
     dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
     step_abs = abs(hi_level - lo_level)
     if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
-        raise SfrRefused([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"])
+        raise _refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"],
+                       img, noise)
     if angle < MIN_ANGLE_DEG:
         reasons.append(f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} deg): "
                        "too few sample phases; tilt the edge 2-10 deg")
@@ -1392,7 +1400,7 @@ def measure_sfr(
         reasons.append(f"edge too short for its angle: {n_rows} px at {angle:.2f} deg shifts "
                        f"{n_rows * abs(slope):.2f} px (< 1 px, one phase cycle)")
     if reasons:
-        raise SfrRefused(reasons)
+        raise _refusal(reasons, img, noise)
     freqs = FREQS_CYCLES_PER_PX.copy()
     contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
 
@@ -1441,9 +1449,12 @@ def measure_sfr(
                         "centre); the MTF at low frequency may read low - use a smaller ROI "
                         "or a flat-fielded image")
     work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
-    gate = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step, raw_work)
-    if gate:
-        raise SfrRefused(gate)
+    structure, clipping = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step,
+                                        raw_work)
+    if structure:
+        raise _refusal(structure, img, noise, also=clipping)
+    if clipping:
+        raise SfrRefused(clipping)
     if n_outliers:
         # Everything read off the ESF before, again without them: a hot pixel's spike in a
         # plateau bin crosses 10 % far from the edge (the rise, and every window from it,
@@ -1459,6 +1470,14 @@ def measure_sfr(
     spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
                              rise_px=rise_guess)
     mtf, lsf_w, truncated = spec.mtf, spec.lsf, spec.truncated
+    if (n_outliers or truncated
+            or float(np.ptp(samples.esf)) > ESF_SPAN_OF_STEP * abs(bright - dark)):
+        # The marks a second edge leaves (a corner's short side, a bar's far edge near the
+        # ROI's end): its pixels clipped off the ESF, or the ESF cut short or reaching past
+        # its plateaus. Where the ROI does hold two edges, it is refused as what it is.
+        found = find_two_edges(img, noise)
+        if found is not None:
+            raise SfrRefused([found.reason()])
     ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
     choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
     spec = choice.spec
@@ -1652,12 +1671,13 @@ def _edge_fit_summary(
 def _quality_gate(
     work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
     n_outliers: int, code_step: float, codes: FloatArray | None = None,
-) -> list[str]:
-    """Why the ROI holds no clean, unclipped straight edge (empty when it does): the ESF's
-    far side not brighter than its near side (other structure decided the polarity), an
-    edge fit far worse than a straight edge gives, too many pixels off the ESF (a bar or a
-    corner crossing the ROI), or a bright plateau clipped on one code below full scale
-    (read on ``codes``, the ROI before any flattening, default ``work``)."""
+) -> tuple[list[str], list[str]]:
+    """Why the ROI holds no clean, unclipped straight edge (both empty when it does): its
+    structure - the ESF's far side not brighter than its near side (other structure decided
+    the polarity), an edge fit far worse than a straight edge gives, too many pixels off the
+    ESF (a bar or a corner crossing the ROI) - and its clipping: a bright plateau clipped on
+    one code below full scale (read on ``codes``, the ROI before any flattening, default
+    ``work``)."""
     reasons = []
     if not noise.bright > noise.dark:
         reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
@@ -1671,6 +1691,7 @@ def _quality_gate(
                        f"{OUTLIER_SIGMAS:g} noise sigmas off the edge profile "
                        f"(> {100 * OUTLIER_REFUSE_FRACTION:g} %): other structure in the ROI, or a "
                        "bent edge (try fit_order 2)?")
+    clipping = []
     bright = (work if codes is None else codes)[u > core_half_px]
     if bright.size >= 30 and code_step > 0:
         top = float(bright.max())
@@ -1679,11 +1700,21 @@ def _quality_gate(
         floor = math.sqrt(code_step * code_step / 12.0)  # the rounding floor of the variances
         if (at_top >= CLIPPED_AT_CODE_FRACTION and sd_dark >= 0.3 * code_step
                 and sd_bright <= max(CLIPPED_NOISE_RATIO * sd_dark, floor)):
-            reasons.append(f"bright side clipped at code {top:g} below full scale: "
-                           f"{100 * at_top:.0f} % of its pixels on that code, noise "
-                           f"{sd_bright:.2f} against {sd_dark:.2f} on the dark side (saturated "
-                           "sensor: lower the exposure or gain)")
-    return reasons
+            clipping.append(f"bright side clipped at code {top:g} below full scale: "
+                            f"{100 * at_top:.0f} % of its pixels on that code, noise "
+                            f"{sd_bright:.2f} against {sd_dark:.2f} on the dark side (saturated "
+                            "sensor: lower the exposure or gain)")
+    return reasons, clipping
+
+
+def _refusal(reasons: list[str], img: FloatArray, noise: float,
+             also: list[str] | None = None) -> SfrRefused:
+    """The refusal of an ROI whose structure may be the cause (no step, an edge near the
+    pixel axis, no centroids, not one straight edge): where the ROI holds two edges - a bar
+    or a line, a corner (:func:`~benchlab.analysis.sfr_structure.find_two_edges`) - that is
+    the reason, said in place of ``reasons``, its symptoms; ``also`` (other causes) is kept."""
+    found = find_two_edges(img, noise)
+    return SfrRefused(([found.reason()] if found is not None else reasons) + (also or []))
 
 
 def _work_u(
