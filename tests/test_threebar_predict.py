@@ -160,3 +160,22 @@ def test_reading_setup_round_trips_through_its_dict() -> None:
         fit_three_bars(np.ones((9, 9)), centre_rc=(4, 4), bar_width_px=1.3, theta_deg=0.0,
                        noise_floor=-1.0)
 
+
+def test_bench_check_prints_the_predicted_comparison_and_its_target() -> None:
+    from benchlab.cli.sfr_bench import BARS_PREDICTED_TOL, BenchCheck, format_bench_check
+
+    def row(element: str, bar: float, pred: float | None) -> dict[str, object]:
+        return {"element": element, "orientation": "sagittal", "image_lp_per_mm": 82.15,
+                "bar_modulation": bar, "bar_modulation_predicted": pred, "ctf": 0.97,
+                "bar_mtf": 0.765, "bar_mtf_coltman": 0.765, "edge_mtf": 0.709,
+                "simulated_mtf": None}
+
+    sharp = BenchCheck(8, 0.5, [], [row("G2E3", 0.792, 0.799), row("G2E4", 0.756, 0.753)], 20.0)
+    text = format_bench_check([sharp])
+    assert "blur x 0.5" in text and BARS_PREDICTED_TOL == 0.02
+    assert ("bars vs the edges' predicted three-bar reading (2 of 2 readings): worst 0.007 "
+            "(pass, target 0.02)") in text
+    assert "worst 0.056 (FAIL, criterion 0.05)" in text  # Coltman, on the same rows
+    unpredicted = BenchCheck(8, 1.0, [], [row("G2E3", 0.792, None)], 20.0)
+    text = format_bench_check([unpredicted])
+    assert "(0 of 1 readings): worst 0.000 (FAIL" in text and "blur x" not in text
