@@ -91,10 +91,11 @@ TERMINAL_VIEWS: dict[str, TableView] = {
          ("status", "status", "")),
     ),
     "table_sfr_vs_bars": TableView(
-        "Bars (Coltman, sine) vs slanted edge vs simulated MTF, below Nyquist (agree: within "
-        "0.05)",
+        "Bars vs slanted edge (the set's predicted reading, else Coltman) vs simulated MTF, "
+        "below Nyquist (agree: within 0.05)",
         (("element", "set", ""), ("orientation", "orient.", ""),
          ("image_lp_per_mm", "lp/mm", ".2f"), ("bar_modulation", "bar mod.", ".3f"),
+         ("bar_modulation_predicted", "predicted", ".3f"),
          ("bar_mtf", "bars->MTF", ".3f"), ("edge_mtf", "edge MTF", ".3f"),
          ("edge_mtf_sigma", "+-", ".3f"), ("simulated_mtf", "simulated", ".3f"),
          ("verdict", "verdict", "")),

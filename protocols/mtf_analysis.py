@@ -48,6 +48,7 @@ from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
     from benchlab.analysis.chart_finder import ChartFit, FoundElement
+    from benchlab.analysis.chart_reading import SetReading
     from benchlab.forked import SharedFlags
     from benchlab.session import Session
 
@@ -210,6 +211,7 @@ def analyze_forward_frame(
             f_img = placed.posed.image_lp_per_mm if placed is not None else f_conf
             roi = forward_roi(params, el, orient, offset, fit)
             used: str | None = None  # what read the set (None: not measured)
+            setup: dict[str, Any] | None = None  # how the chart reading read it
             if not override and placed is not None and not placed.found:
                 cells = _not_measured(f"not measured: {placed.reason}")
             elif not override and readings is not None and placed is not None:
@@ -217,7 +219,10 @@ def analyze_forward_frame(
                 if placed.unmeasurable:
                     cells = _not_measured(placed.unmeasurable)
                 else:
-                    used, cells = CHART_READING, _cells(readings[placed.label])
+                    reading = readings[placed.label]
+                    used, cells = CHART_READING, _cells(reading.result)
+                    dark_bars = fit is not None and fit.polarity == "positive"
+                    setup = _reading_setup(placed, roi, reading, dark_bars)
             elif not _inside(roi, pixels.shape):
                 cells = _not_measured("clipped by the FOV: ROI off the frame")
             else:
@@ -237,8 +242,27 @@ def analyze_forward_frame(
             rows.append({"view": "forward", "element": el.name, "orientation": orient,
                          "image_lp_per_mm": f_img, "aliased": f_img > nyq, "roi": list(roi),
                          "estimator": used, "chart_offset_px": list(offset), "chart": chart_info,
-                         **cells})
+                         "reading_setup": setup, **cells})
     return rows
+
+
+def _reading_setup(placed: FoundElement, roi: Roi, reading: SetReading,
+                   dark_bars: bool) -> dict[str, Any] | None:
+    """How the chart reading read a set (:class:`benchlab.analysis.threebar_predict.ReadingSetup`
+    as a dict: ROI, centre, bar width and angle, polarity, blur prior, noise and ground level),
+    so that the set imaged through a slanted edge's transfer is read the same way
+    (``table_sfr_vs_bars``); None when the reading has no levels."""
+    res = reading.result
+    if not res.measurable or res.dark is None or res.bright is None:
+        return None
+    p = placed.posed
+    prior = reading.blur_prior_px
+    return {"roi": list(roi), "centre_rc": [float(p.centre_rc[0]), float(p.centre_rc[1])],
+            "bar_width_px": float(p.bar_width_px), "theta_deg": float(p.theta_deg),
+            "dark_bars": dark_bars,
+            "blur_prior_px": None if prior is None else [float(prior[0]), float(prior[1])],
+            "noise_sigma": float(res.diagnostics.noise_sigma or 0.0),
+            "ground_level": float(res.bright if dark_bars else res.dark)}
 
 
 def _placed(el: UsafElement, orientation: str, fit: ChartFit | None) -> FoundElement | None:
@@ -252,11 +276,11 @@ def _placed(el: UsafElement, orientation: str, fit: ChartFit | None) -> FoundEle
         return None
 
 
-def _chart_readings(pixels: npt.NDArray[Any], fit: ChartFit) -> dict[str, ModulationResult]:
+def _chart_readings(pixels: npt.NDArray[Any], fit: ChartFit) -> dict[str, SetReading]:
     """Every found set read by the chart reading, by label (``G2E4S``)."""
-    from benchlab.analysis.chart_reading import read_chart  # loaded only where used
+    from benchlab.analysis.chart_reading import read_chart_details  # loaded only where used
 
-    readings = read_chart(pixels, fit, workers=CHART_READING_THREADS)
+    readings = read_chart_details(pixels, fit, workers=CHART_READING_THREADS)
     return dict(zip([e.label for e in fit.found], readings, strict=True))
 
 
@@ -448,7 +472,8 @@ def analyze_mtf(
     edges: dict[str, list[dict[str, Any]]] = {}
     if forward is not None and edges_done is not None:
         per, t411 = forward
-        edges = edge_parts_tables(edges_done, t411, centre)
+        setups = {key: r.get("reading_setup") for key, r in per.items()}
+        edges = edge_parts_tables(edges_done, t411, centre, setups)
         for el in params.forward_elements:
             for orient in ORIENTATIONS:
                 t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",

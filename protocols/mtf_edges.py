@@ -1,5 +1,6 @@
 """Forward frame -> slanted-edge MTF curves, and the three-way check: edge MTF (sine-wave) vs
-simulated MTF (sine-wave) vs the bar readings converted through Coltman.
+simulated MTF (sine-wave) vs the bar readings (against what the edges predict they read, else
+converted through Coltman).
 
 Tables (written with the Table 4.10 results):
 
@@ -18,7 +19,13 @@ Tables (written with the Table 4.10 results):
   up to 0.05-0.08 on this bench: the MTF above Nyquist is not 0), beside the edge MTF of the same
   orientation at the bar set's image height (interpolated between the two edges bracketing it)
   and the simulated MTF there (interpolated between the field points' curves), with a verdict
-  (agreement within :data:`AGREEMENT_TOLERANCE`).
+  (agreement within :data:`AGREEMENT_TOLERANCE`). Coltman's series assumes an endless square
+  wave and a USAF set has three bars: where the chart reading read a set, the set is imaged
+  through the edges' transfer at its height and read by the same estimator the same way
+  (:func:`predicted_bar_modulation`, :mod:`benchlab.analysis.threebar_predict`:
+  ``bar_modulation_predicted``) and "bars vs edge" is judged on ``|bar_modulation -
+  bar_modulation_predicted|``; elsewhere on ``|bar_mtf - edge_mtf|``. The verdict and
+  ``bars_vs_edge_basis`` name the basis (:data:`BASIS_PREDICTED`, :data:`BASIS_COLTMAN`).
 
 Clipping is judged against the camera's ceiling (``full_scale``: from the frame's metadata,
 :func:`benchlab.analysis.sfr.full_scale_of_frame`); without it, guessed from each ROI's codes.
@@ -26,8 +33,9 @@ Clipping is judged against the camera's ceiling (``full_scale``: from the frame'
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from collections.abc import Callable, Mapping, Sequence
+from functools import partial
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +53,9 @@ from benchlab.analysis.geometry import (
 )
 from benchlab.analysis.mtf_compare import SimulatedCurve
 from benchlab.analysis.sfr import MAX_FREQ_CYCLES_PER_PX, SfrRefused, SfrResult, measure_sfr
+
+if TYPE_CHECKING:
+    from benchlab.analysis.threebar_predict import OpticsTransfer, ReadingSetup, Transfer
 
 #: Three-way agreement: |bar MTF - edge MTF| and |edge MTF - simulated MTF| at most this.
 AGREEMENT_TOLERANCE = 0.05
@@ -176,27 +187,40 @@ def _simulated(curves: Sequence[SimulatedCurve], orientation: str, height_mm: fl
     return float(np.interp(height_mm, [h for h, _ in pts], [m for _, m in pts]))
 
 
+def _height_weights(
+    edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float,
+    centre_rc: tuple[float, float],
+) -> list[tuple[str, SfrResult, float]]:
+    """The edges that stand for an image height, with their weights: the two bracketing it
+    (linear in height: the blur changes with height), else the nearest. ``(label, SFR,
+    weight)``."""
+    pts = sorted(((image_height_mm(centre_rc, roi_centroid(s.roi)), s.label, r)
+                  for s, r in edges), key=lambda p: p[0])
+    below = [p for p in pts if p[0] <= height_mm]
+    above = [p for p in pts if p[0] > height_mm]
+    if below and above:
+        (h0, l0, r0), (h1, l1, r1) = below[-1], above[0]
+        w = (height_mm - h0) / (h1 - h0)
+        return [(l0, r0, 1 - w), (l1, r1, w)]
+    _, label, r = min(pts, key=lambda p: abs(p[0] - height_mm))
+    return [(label, r, 1.0)]
+
+
 def _edge_at_height(
     edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float, f_cycles_per_px: float,
     centre_rc: tuple[float, float],
 ) -> tuple[str, float, float | None]:
     """Edge MTF (and 1-sigma) at a frequency for an image height: interpolated linearly in
     height between the two edges bracketing it (the blur changes with height), else the
-    nearest edge. Returns ``(edge label(s), mtf, sigma)``."""
-    pts = sorted(
-        ((image_height_mm(centre_rc, roi_centroid(s.roi)), s.label,
-          float(r.mtf_at(f_cycles_per_px)), r.sigma_at(f_cycles_per_px)) for s, r in edges),
-        key=lambda p: p[0],
-    )
-    below = [p for p in pts if p[0] <= height_mm]
-    above = [p for p in pts if p[0] > height_mm]
-    if below and above:
-        (h0, l0, m0, s0), (h1, l1, m1, s1) = below[-1], above[0]
-        w = (height_mm - h0) / (h1 - h0)
-        sig = None if s0 is None or s1 is None else float((1 - w) * s0 + w * s1)
-        return f"{l0}+{l1}", (1 - w) * m0 + w * m1, sig
-    _, label, m, s = min(pts, key=lambda p: abs(p[0] - height_mm))
-    return label, m, None if s is None else float(s)
+    nearest edge (:func:`_height_weights`). Returns ``(edge label(s), mtf, sigma)``."""
+    parts = _height_weights(edges, height_mm, centre_rc)
+    label = "+".join(lab for lab, _, _ in parts)
+    m = sum(w * float(r.mtf_at(f_cycles_per_px)) for _, r, w in parts)
+    sigmas = [r.sigma_at(f_cycles_per_px) for _, r, _ in parts]
+    known = [float(x) for x in sigmas if x is not None]
+    if len(known) < len(sigmas):
+        return label, m, None
+    return label, m, float(sum(w * x for (_, _, w), x in zip(parts, known, strict=True)))
 
 
 def _edge_harmonics(edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: float,
@@ -209,18 +233,95 @@ def _edge_harmonics(edges: Sequence[tuple[EdgeSpec, SfrResult]], height_mm: floa
                      if fc <= MAX_FREQ_CYCLES_PER_PX else 0.0 for fc in f_c])
 
 
+#: What "bars vs edge" was judged on (``bars_vs_edge_basis``, and named in the verdict).
+BASIS_PREDICTED = "predicted reading"
+BASIS_COLTMAN = "Coltman"
+
+
+def agrees(verdict: str) -> bool:
+    """Whether a ``table_sfr_vs_bars`` verdict is an agreement (``agree``, with or without the
+    basis it names)."""
+    return verdict == "agree" or verdict.startswith("agree ")
+
+
+def predicted_bar_modulation(
+    setup: ReadingSetup, height_mm: float,
+    across_edges: Sequence[tuple[EdgeSpec, SfrResult]],
+    along_edges: Sequence[tuple[EdgeSpec, SfrResult]],
+    contrast: float, centre_rc: tuple[float, float],
+    optics: dict[str, OpticsTransfer] | None = None,
+) -> float | None:
+    """What the bar set read with ``setup`` should read if the optics were what the edges say
+    (:func:`benchlab.analysis.threebar_predict.predict_reading`): the set imaged through the
+    optics of ``across_edges`` (its orientation) at its image height - the edges bracketing
+    it, weighted as :func:`_edge_at_height` weighs their MTFs - and of ``along_edges`` (the
+    other orientation: the bar ends), at the chart's ``contrast``, and read with the chart
+    reading's estimator the way the real set was. None when there is no such reading (no
+    edge, a contrast out of (0, 1), the estimator not resolving the image). ``optics``: each
+    edge's transfer by label, where already computed."""
+    if not across_edges or not 0.0 < contrast < 1.0:
+        return None
+    # loaded only where a set was read by the chart reading (start-up, issue 11)
+    from benchlab.analysis.threebar_predict import mixed, optics_from_edge, predict_reading
+
+    known = optics if optics is not None else {}
+
+    def transfer(edges: Sequence[tuple[EdgeSpec, SfrResult]]) -> Transfer:
+        return mixed([(known[label] if label in known else optics_from_edge(res), w)
+                      for label, res, w in _height_weights(edges, height_mm, centre_rc)])
+
+    try:
+        pred = predict_reading(setup, transfer(across_edges),
+                               transfer(along_edges or across_edges), contrast=contrast)
+    except ValueError:
+        return None
+    return pred.modulation
+
+
+def _setup(setups: Mapping[tuple[str, str], Any] | None, element: str,
+           orientation: str) -> ReadingSetup | None:
+    """The set's reading setup from ``setups`` (a dict is parsed; None: none usable)."""
+    raw = None if setups is None else setups.get((element, orientation))
+    if raw is None:
+        return None
+    from benchlab.analysis.threebar_predict import ReadingSetup
+
+    if isinstance(raw, ReadingSetup):
+        return raw
+    try:
+        return ReadingSetup.from_dict(dict(raw))
+    except (KeyError, TypeError, ValueError, IndexError):
+        return None
+
+
 def edge_vs_bars(
     t411: Sequence[dict[str, Any]],
     measured: Sequence[tuple[EdgeSpec, SfrResult | str]],
     curves: Sequence[SimulatedCurve],
     centre_rc: tuple[float, float],
+    setups: Mapping[tuple[str, str], Any] | None = None,
 ) -> list[dict[str, Any]]:
-    """The three-way comparison rows (bar sets below Nyquist with a clean edge to compare)."""
+    """The three-way comparison rows (bar sets below Nyquist with a clean edge to compare).
+
+    ``setups``: by ``(element, orientation)``, how the chart reading read each set
+    (:class:`benchlab.analysis.threebar_predict.ReadingSetup` or its dict, the forward rows'
+    ``reading_setup``). Where one is given, the set imaged through the edges' transfer and
+    read the same way gives ``bar_modulation_predicted`` and "bars vs edge" is judged on
+    ``|bar_modulation - bar_modulation_predicted|``; elsewhere (another estimator, no chart
+    found) on the Coltman-converted bars against the edge MTF. ``bars_vs_edge_basis`` and the
+    verdict say which."""
     nyq = nyquist_lp_per_mm()
     clean = [(s, r) for s, r in measured if not isinstance(r, str)]
-    out: list[dict[str, Any]] = []
+    rows: list[dict[str, Any]] = []
+    jobs: list[Callable[[], float | None] | None] = []
+    optics: dict[str, OpticsTransfer] = {}
+    if setups and clean:
+        from benchlab.analysis.threebar_predict import optics_from_edge
+
+        optics = {s.label: optics_from_edge(r) for s, r in clean}
     for orientation in ("sagittal", "tangential"):
         edges = [(s, r) for s, r in clean if s.orientation == orientation]
+        others = [(s, r) for s, r in clean if s.orientation != orientation]
         sets = [r for r in t411 if r["image_lp_per_mm"] < nyq
                 and r.get(f"{orientation}_modulation") is not None]
         if not edges or not sets:
@@ -240,8 +341,8 @@ def edge_vs_bars(
         for r, h, f_lp, c, m_nyq, how in zip(sets, heights, freqs, ctf, conv.mtf, conv.method,
                                              strict=True):
             label, m_edge, sig = _edge_at_height(edges, h, cycles_per_px(f_lp), centre_rc)
-            # Compared: the series with the harmonics' MTF from the edges at that height (the
-            # 4x oversampled curve runs to 1 cycle/px; 0 beyond).
+            # The series with the harmonics' MTF from the edges at that height (the 4x
+            # oversampled curve runs to 1 cycle/px; 0 beyond).
             def harmonics(fk: npt.NDArray[np.float64], h: float = h,
                           e: list[tuple[EdgeSpec, SfrResult]] = edges
                           ) -> npt.NDArray[np.float64]:
@@ -249,15 +350,15 @@ def edge_vs_bars(
 
             m_bar = float(ctf_to_mtf_with_harmonics([f_lp], [c], harmonics)[0])
             m_sim = _simulated(curves, orientation, h, f_lp)
-            problems = []
-            if abs(m_bar - m_edge) > AGREEMENT_TOLERANCE:
-                problems.append(f"bars vs edge {m_bar - m_edge:+.3f}")
-            if m_sim is not None and abs(m_edge - m_sim) > AGREEMENT_TOLERANCE:
-                problems.append(f"edge vs simulated {m_edge - m_sim:+.3f}")
-            out.append({
+            setup = _setup(setups, r["element"], orientation)
+            jobs.append(None if setup is None else partial(
+                predicted_bar_modulation, setup, h, edges, others, object_mod, centre_rc,
+                optics))
+            rows.append({
                 "element": r["element"], "orientation": orientation,
                 "image_lp_per_mm": round(f_lp, 3), "image_height_mm": round(h, 4),
                 "bar_modulation": r[f"{orientation}_modulation"],
+                "bar_modulation_predicted": None, "bars_vs_edge_basis": None,
                 "object_modulation": round(object_mod, 5), "contrast_from_edge": ref_spec.label,
                 "ctf": round(c, 5),
                 "bar_mtf": round(m_bar, 5),
@@ -265,9 +366,30 @@ def edge_vs_bars(
                 "edge": label, "edge_mtf": round(m_edge, 5),
                 "edge_mtf_sigma": None if sig is None else round(float(sig), 5),
                 "simulated_mtf": None if m_sim is None else round(m_sim, 5),
-                "verdict": "agree" if not problems else "DISAGREE: " + ", ".join(problems),
+                "verdict": None,
+                # for the verdict, unrounded (dropped below)
+                "_gaps": (m_bar - m_edge, None if m_sim is None else m_edge - m_sim),
             })
-    return out
+    # ~5 ms a set, one thread (two threads took longer: the fits are small)
+    for row, job in zip(rows, jobs, strict=True):
+        predicted = None if job is None else job()
+        coltman_gap, sim_gap = row.pop("_gaps")
+        if predicted is not None:
+            # Compared: the bars against what the set reads imaged through the edges
+            basis, gap = BASIS_PREDICTED, float(row["bar_modulation"]) - predicted
+            row["bar_modulation_predicted"] = round(predicted, 5)
+        else:
+            # Compared: Coltman's series with the edges' harmonics against the edge MTF
+            basis, gap = BASIS_COLTMAN, coltman_gap
+        problems = []
+        if abs(gap) > AGREEMENT_TOLERANCE:
+            problems.append(f"bars vs edge ({basis}) {gap:+.3f}")
+        if sim_gap is not None and abs(sim_gap) > AGREEMENT_TOLERANCE:
+            problems.append(f"edge vs simulated {sim_gap:+.3f}")
+        row["bars_vs_edge_basis"] = basis
+        row["verdict"] = (f"agree ({basis})" if not problems
+                          else "DISAGREE: " + ", ".join(problems))
+    return rows
 
 
 class EdgeParts(NamedTuple):
@@ -305,20 +427,24 @@ def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
 def forward_edge_tables(
     pixels: npt.NDArray[Any], t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
     simulated_mtf_file: str = "", chart_boxes_px: Sequence[tuple[str, Box]] = (), *,
-    full_scale: float | None = None,
+    full_scale: float | None = None, setups: Mapping[tuple[str, str], Any] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
     """The three edge tables of a forward frame (see the module docstring); edges whose ROI
     overlaps one of ``chart_boxes_px`` (:func:`chart_boxes` of the found chart) are not
-    clean. ``full_scale``: as for :func:`measure_edges`."""
+    clean. ``full_scale``: as for :func:`measure_edges`; ``setups``: as for
+    :func:`edge_vs_bars`."""
     measured = clear_of_chart(measure_edges(pixels, full_scale=full_scale), chart_boxes_px)
     return edge_parts_tables(edge_parts_of(measured, centre_rc, simulated_mtf_file), t411,
-                             centre_rc)
+                             centre_rc, setups)
 
 
 def edge_parts_tables(
-    parts: EdgeParts, t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float]
+    parts: EdgeParts, t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
+    setups: Mapping[tuple[str, str], Any] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
     """:func:`forward_edge_tables` from :func:`edge_parts` already computed (a re-analysis
-    measures the edges beside the bar ROIs, then compares them with the bars' Table 4.11)."""
+    measures the edges beside the bar ROIs, then compares them with the bars' Table 4.11);
+    ``setups``: as for :func:`edge_vs_bars`."""
     return {"table_sfr_edges": parts.rows, "table_sfr_curves": parts.curve_rows,
-            "table_sfr_vs_bars": edge_vs_bars(t411, parts.measured, parts.curves, centre_rc)}
+            "table_sfr_vs_bars": edge_vs_bars(t411, parts.measured, parts.curves, centre_rc,
+                                              setups)}

@@ -42,3 +42,19 @@ def test_the_method_column_says_what_it_holds() -> None:
     assert headers["coltman_method"] == "Nyq. method"
     html = render_sfr_section(_tables([_check(0.6, 0.62, "G1E1")]), [])
     assert ">Nyq. method<" in html
+
+
+def test_predicted_reading_column_and_verdicts_with_their_basis() -> None:
+    headers = {key: head for key, head, _ in CHECK_COLUMNS}
+    assert headers["bar_modulation_predicted"] == "predicted"
+    predicted = {**_check(0.6, 0.62, "G1E1"), "bar_modulation_predicted": 0.512,
+                 "bars_vs_edge_basis": "predicted reading",
+                 "verdict": "agree (predicted reading)"}
+    off = {**_check(0.6, 0.62, "G1E2"), "bar_modulation_predicted": 0.43,
+           "bars_vs_edge_basis": "predicted reading",
+           "verdict": "DISAGREE: bars vs edge (predicted reading) +0.070"}
+    old = _check(0.5, 0.52, "G1E3")  # a session analysed before the prediction: no column
+    html = render_sfr_section(_tables([predicted, off, old]), [])
+    assert ">predicted<" in html and ">0.512<" in html and ">N/A<" in html
+    assert "3 bar readings compared, 1 DISAGREE" in html
+    assert "2 of 3 rows predicted" in html

@@ -29,6 +29,7 @@ Pure numpy, no I/O.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -46,6 +47,14 @@ KERNEL_MM = 0.15
 PRIOR_FLOOR_PX = 0.03
 #: Fewest well-determined sets (effective count under the kernel) for a prior.
 MIN_SUPPORT = 3.0
+
+
+class SetReading(NamedTuple):
+    """One set's reading by :func:`read_chart_details`: the result and the blur prior (mean, sd;
+    px) it was concluded under (None: its own pixels alone)."""
+
+    result: ModulationResult
+    blur_prior_px: tuple[float, float] | None
 
 
 def read_chart(
@@ -73,6 +82,15 @@ def read_chart(
         One per :attr:`ChartFit.found`, in that order; a set marked
         :attr:`FoundElement.unmeasurable` is read too (callers show the reason instead).
     """
+    return [r.result for r in read_chart_details(pixels, fit, max_code, workers)]
+
+
+def read_chart_details(
+    pixels: npt.ArrayLike, fit: ChartFit, max_code: float | None = None, workers: int = 1,
+) -> list[SetReading]:
+    """:func:`read_chart` with the blur prior each set was concluded under (what a reading of
+    the same set elsewhere - e.g. imaged through a slanted edge's transfer,
+    :mod:`benchlab.analysis.threebar_predict` - needs to be read the same way)."""
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     found = fit.found
@@ -81,9 +99,10 @@ def read_chart(
     def own(el: FoundElement) -> ThreeBarReading:
         return el.fit_reading(pixels, max_code, dark_bars=dark_bars)
 
-    def with_prior(k: int) -> ModulationResult:
+    def with_prior(k: int) -> SetReading:
         prior = blur_prior(found, first, k)
-        return first[k].result if prior is None else first[k].with_blur_prior(prior).result
+        return SetReading(first[k].result if prior is None
+                          else first[k].with_blur_prior(prior).result, prior)
 
     if workers == 1 or len(found) < 2:
         first = [own(el) for el in found]

@@ -473,8 +473,15 @@ def fit_three_bars(
     blur_prior_px: tuple[float, float] | None = None,
     shift_prior_px: float = SHIFT_PRIOR_PX,
     dark_bars: bool | None = None,
+    noise_floor: float = 0.0,
 ) -> ThreeBarReading:
-    """:func:`read_three_bars` with the blur it used and the blurs the pixels allow."""
+    """:func:`read_three_bars` with the blur it used and the blurs the pixels allow.
+
+    ``noise_floor`` (ROI units, default 0: none): the pixel noise is taken as at least this, as
+    it is taken as at least the codes' rounding. A noise-free image (e.g. a set imaged through
+    a measured transfer: :mod:`benchlab.analysis.threebar_predict`) read with the noise of the
+    frame it stands for weighs its blurs against a blur prior as that frame's reading did;
+    without it, its chi-square would rest on the model's numerical misfit alone."""
     try:
         bar_width_px, theta_deg = float(bar_width_px), float(theta_deg)
         row, col = (float(v) for v in centre_rc)
@@ -489,6 +496,8 @@ def fit_three_bars(
     _check_prior(blur_prior_px)
     if not (shift_prior_px > 0 and math.isfinite(shift_prior_px)):
         raise ValueError(f"shift_prior_px must be a positive number, got {shift_prior_px}")
+    if not (noise_floor >= 0 and math.isfinite(noise_floor)):
+        raise ValueError(f"noise_floor must be a number >= 0, got {noise_floor}")
     period = 2.0 * bar_width_px
     freq = 1.0 / period
     # The ROI's checks and shared facts (frames averaged, code step, saturation code), as
@@ -527,16 +536,17 @@ def fit_three_bars(
                         f"needs at least {n_params + 1 + MIN_DOF}")
         return ThreeBarReading(unresolved(NAME, diag, warnings))
     base = np.stack(base_cols, axis=1)
-    quantum_sd = prep.quantisation_sd
+    quantum_sd = max(prep.quantisation_sd, float(noise_floor))
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
-                      warnings, dark_bars=dark_bars)
+                      warnings, dark_bars=dark_bars, noise_floor=noise_floor)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a
     # second-order bias (0.012 at 0.06 px on 2.3 px periods), so a fitted shift is applied to
     # the coordinates and the fit repeated once.
     shift = state.shift_px()
     if abs(shift) >= REFIT_SHIFT_PX:
         state = _FitState(base, u - shift, v, y, bar_width_px, theta, shift_prior_px,
-                          quantum_sd, diag, warnings, reuse=state, dark_bars=dark_bars)
+                          quantum_sd, diag, warnings, reuse=state, dark_bars=dark_bars,
+                          noise_floor=noise_floor)
     # The tabulated patterns (MBs per set) served only the fits; the reading keeps the state
     # for a later blur prior, which needs the fits alone.
     state.t_across = state.t_along = state.t_along_shape = None
@@ -551,9 +561,11 @@ class _FitState:
         self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
         theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
         warnings: list[str], reuse: _FitState | None = None, dark_bars: bool | None = None,
+        noise_floor: float = 0.0,
     ) -> None:
         """``reuse``: a state of the same set at other ``u`` (a shift applied), whose tabulated
-        patterns serve again (the grid reaches several px beyond any shift)."""
+        patterns serve again (the grid reaches several px beyond any shift); ``noise_floor``:
+        the least noise the priors' scale assumes (:func:`fit_three_bars`)."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
         self.dark_bars = dark_bars
         self.phase_gap = _phase_gap(u, w)
@@ -604,7 +616,8 @@ class _FitState:
         coarse = every[::4]
         first = self._fit(coarse, coarse, a_pix, a_mid, None)
         j = int(np.argmin(first.cost))
-        noise0_sq = max(float(first.cost[j]) / max(n - _n_params(base) - 1, 1), 1e-300)
+        noise0_sq = max(float(first.cost[j]) / max(n - _n_params(base) - 1, 1), 1e-300,
+                        noise_floor**2)
         ground, depth = abs(float(first.coef[j, 0])), abs(float(first.coef[j, -1]))
         sds = [math.inf, SHADING_PRIOR_PER_PX * max(float(np.ptp(u)), 1.0) * ground]
         if base.shape[1] == 3:
