@@ -32,10 +32,12 @@ def _pid(text: str) -> int:
     return value
 
 
-def _sim_backend(pid: int | None, scene: Any = None) -> SimCameraBackend:
+def _sim_backend(pid: int | None, scene: Any = None, seed: int | None = None
+                 ) -> SimCameraBackend:
     from benchlab.drivers import mightex_protocol as proto
     from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
-    cam = SimulatedCamera(scene=scene, pid=proto.DEFAULT_PID if pid is None else pid)
+    cam = SimulatedCamera(scene=scene, pid=proto.DEFAULT_PID if pid is None else pid,
+                          seed=seed)
     return SimCameraBackend([cam])
 
 
@@ -126,14 +128,16 @@ def simulated_snap_scene(name: str) -> Any:
 
 
 def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: str | None = None,
-         pid: int | None = None, simulate: bool = False, scene: str = "bars") -> dict[str, Any]:
-    """Grab one frame and save it as lossless TIFF with its metadata; returns the metadata."""
+         pid: int | None = None, simulate: bool = False, scene: str = "bars",
+         seed: int | None = None) -> dict[str, Any]:
+    """Grab one frame and save it as lossless TIFF with its metadata; returns the metadata.
+    ``seed``: the simulated camera's noise seed (None: a fresh draw every time)."""
     from benchlab import __version__
     from benchlab.drivers.mightex import MightexCamera
     from benchlab.storage import save_frame_tiff
     if out.exists():
         raise BenchlabError(f"{out} already exists; frames are never overwritten")
-    backend = _sim_backend(pid, simulated_snap_scene(scene)) if simulate else None
+    backend = _sim_backend(pid, simulated_snap_scene(scene), seed) if simulate else None
     with MightexCamera.open(serial, backend=backend, pid=pid) as cam:
         cam.configure(bits=bits)
         cam.set_exposure_ms(exposure_ms)
@@ -157,7 +161,8 @@ def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: s
 
 def _cmd_snap(args: argparse.Namespace) -> int:
     meta = snap(Path(args.out), exposure_ms=args.exposure_ms, gain=args.gain, bits=args.bits,
-                serial=args.serial, pid=args.pid, simulate=args.simulate, scene=args.scene)
+                serial=args.serial, pid=args.pid, simulate=args.simulate, scene=args.scene,
+                seed=args.seed)
     cam = meta["camera"]
     print(f"saved {args.out}: {meta['width']}x{meta['height']} {meta['bits']}-bit, exposure "
           f"{meta['exposure_ms']:g} ms, gain {meta['gain']:g}x, {cam['model']} {cam['serial']} "
@@ -264,6 +269,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     snap_p.add_argument("--gain", type=float, required=True,
                         help="gain multiplier 0.125..8 (1 = unity)")
     snap_p.add_argument("--bits", type=int, choices=(8, 12), default=8, help="bit depth")
+    snap_p.add_argument("--seed", type=int, default=None,
+                        help="the simulated camera's noise seed, for a frame that is the same "
+                             "every time (default: a fresh noise draw)")
     snap_p.add_argument("--serial", default=None, help="camera serial number (default: first)")
     snap_p.add_argument("--pid", type=_pid, default=None,
                         help="camera USB product id (default 0x0428)")
