@@ -48,9 +48,10 @@ _COLOURS = {"E0": "tab:blue", "E1": "tab:green", "E2": "tab:purple"}
 
 
 def _agrees(row: Mapping[str, Any]) -> bool:
-    """An agreeing verdict: ``agree``, with or without the basis it names."""
-    verdict = str(row.get("verdict", ""))
-    return verdict == "agree" or verdict.startswith("agree ")
+    """A row whose verdict agrees (:func:`benchlab.protocols.mtf_edges.agrees`)."""
+    from benchlab.protocols.mtf_edges import agrees
+
+    return agrees(str(row.get("verdict", "")))
 
 
 def _figure(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> Figure:

@@ -1402,7 +1402,7 @@ def measure_sfr(
     if reasons:
         raise _refusal(reasons, img, noise)
     freqs = FREQS_CYCLES_PER_PX.copy()
-    contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+    contrast = _contrast(dark, bright)
 
     # 4. Uncertainty: the pixel noise (per level: shot noise makes the bright side noisier)
     # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
@@ -1413,7 +1413,7 @@ def measure_sfr(
     model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
     # The wide window also covers the LSF's support as the data show it (a halo or flare
     # around a sharp core: the 10-90 % rise sees only the core).
-    support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
+    support = _support(samples, model)
     # Shading: planes through the plateaus beyond that support; where significant the ROI is
     # flattened and everything the shading distorted is read again - the edge (its gradient
     # pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise and
@@ -1436,10 +1436,10 @@ def measure_sfr(
         angle = math.degrees(math.atan(abs(slope)))
         samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
         dark, bright = _plateau_levels(samples)
-        contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+        contrast = _contrast(dark, bright)
         plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
         model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
-        support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
+        support = _support(samples, model)
     if flattened is not None:
         warnings.append(f"{flattened.describe()}; flattened by them (the MTF takes the "
                         "shading for illumination, not for the lens)")
@@ -1462,9 +1462,9 @@ def measure_sfr(
         samples, rise_guess, flat_half = _esf_and_rise(
             u, work, bin_width_px, _coarse_rise(u, work, bin_width_px))
         dark, bright = _plateau_levels(samples)
-        contrast = (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+        contrast = _contrast(dark, bright)
         model = _NoiseModel(dark, bright, model.var_dark, model.var_bright)
-        support = _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
+        support = _support(samples, model)
     narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
     wide_half = max(flat_half, support)
     spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
@@ -1562,9 +1562,8 @@ def measure_sfr(
         bright=bright,
         contrast=float(contrast),
         noise_sigma=noise,
-        noise_dark_sigma=max(plateau_noise.measured_dark, math.sqrt(plateau_noise.rounding_var)),
-        noise_bright_sigma=max(plateau_noise.measured_bright,
-                               math.sqrt(plateau_noise.rounding_var)),
+        noise_dark_sigma=math.sqrt(plateau_noise.var_dark),
+        noise_bright_sigma=math.sqrt(plateau_noise.var_bright),
         noise_dark_measured=plateau_noise.measured_dark,
         noise_bright_measured=plateau_noise.measured_bright,
         noise_rounding_sigma=math.sqrt(plateau_noise.rounding_var),
@@ -1647,6 +1646,16 @@ def _esf_and_rise(
         rise = max(rise, fine_rise)
         flat_half = max(FLAT_RISES * rise + FLAT_EXTRA_PX, FLAT_MIN_PX)
     return samples, rise, flat_half
+
+
+def _contrast(dark: float, bright: float) -> float:
+    """Eq. 2.9 contrast of the plateaus (NaN where their sum is not positive)."""
+    return (bright - dark) / (bright + dark) if bright + dark > 0 else float("nan")
+
+
+def _support(samples: _Samples, model: _NoiseModel) -> float:
+    """:func:`_esf_support_half`, 0 where the data-driven support is off."""
+    return _esf_support_half(samples, model) if SUPPORT_SIGMAS > 0 else 0.0
 
 
 def _plateau_levels(samples: _Samples) -> tuple[float, float]:

@@ -507,9 +507,14 @@ def decide_model(
     win = None if window is None else window(mid - centre_px, f)
     independent = max(nyquist * span, 1.0)
 
+    seen: dict[int, tuple[LsfModelFit, tuple[FloatArray, FloatArray, FloatArray]]] = {}
+
     def spectrum(fit: LsfModelFit) -> tuple[FloatArray, FloatArray, FloatArray]:
-        d2, power = residual_spectrum(un, fit.residual, var, f, win)
-        return d2, power, d2 / np.maximum(power, 1e-300)
+        # Once per fit: the test for another component and the gate may ask of the same one.
+        if id(fit) not in seen:
+            d2, power = residual_spectrum(un, fit.residual, var, f, win)
+            seen[id(fit)] = (fit, (d2, power, d2 / np.maximum(power, 1e-300)))
+        return seen[id(fit)][1]
 
     def shows_structure(fit: LsfModelFit) -> bool:
         threshold = math.log(independent) - math.log(MORE_COMPONENTS_ALPHA)  # inf: always
