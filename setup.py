@@ -1,8 +1,8 @@
 """Build of the optional compiled kernels (everything else is in pyproject.toml).
 
-``benchlab.analysis._histkernels`` speeds up the histogram-peak method; ``optional=True``: on a
+``benchlab.analysis.bars._histkernels`` speeds up the histogram-peak method; ``optional=True``: on a
 machine without a C compiler the install still succeeds and the numpy code runs instead
-(``benchlab.analysis.kernels`` picks the path; ``benchlab benchmark analysis`` names it).
+(``benchlab.analysis.bars.kernels`` picks the path; ``benchlab benchmark analysis`` names it).
 """
 
 import sys
@@ -16,8 +16,8 @@ FLAGS = [] if sys.platform == "win32" else ["-O3", "-Wall", "-ffp-contract=off"]
 setup(
     ext_modules=[
         Extension(
-            "benchlab.analysis._histkernels",
-            ["benchlab/analysis/_histkernels.c"],
+            "benchlab.analysis.bars._histkernels",
+            ["benchlab/analysis/bars/_histkernels.c"],
             extra_compile_args=FLAGS,
             optional=True,
         )

@@ -28,14 +28,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
+from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
 
 if TYPE_CHECKING:
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.mightex_sim import SimulatedCamera
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.mightex.sim import SimulatedCamera
+    from benchlab.drivers.slc.sim import SimulatedSlc
     from benchlab.scenes.world import SimWorld
 from benchlab.checks import BenchLimits, ParamsError, TableChecker
 
@@ -438,7 +438,7 @@ def plain_target(target: object) -> object:
 
 
 def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
-    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex.camera import MightexCamera
 
     cfg = bench.config
     missing = [f"{name}.port" for name, dev in (("led", cfg.led), ("stage", cfg.stage))
@@ -449,12 +449,12 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
         serial=cfg.camera.serial, pid=cfg.camera.pid, model=cfg.camera.model or "MCE-B013-U",
     ))
     if cfg.led is not None and cfg.led.port:
-        from benchlab.drivers.slc import SlcController
+        from benchlab.drivers.slc.controller import SlcController
 
         bench.led = stack.enter_context(SlcController(cfg.led.port,
                                                       ceilings_ma=cfg.led.ceilings_ma))
     if cfg.stage is not None and cfg.stage.port:
-        from benchlab.drivers.apt import AptStage
+        from benchlab.drivers.apt.stage import AptStage
 
         bench.stage = stack.enter_context(AptStage(
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
@@ -469,12 +469,12 @@ def open_simulated(
 ) -> None:
     """Build the simulated bench: world + camera firmware on a pyusb backend + SLC and APT
     simulators on pseudo-terminals, with the real drivers connected to them."""
-    from benchlab.drivers.apt import AptStage
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.mightex import MightexCamera
-    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
-    from benchlab.drivers.slc import SlcController
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.apt.stage import AptStage
+    from benchlab.drivers.mightex.camera import MightexCamera
+    from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.slc.controller import SlcController
+    from benchlab.drivers.slc.sim import SimulatedSlc
     from benchlab.scenes.world import SimWorld
 
     cfg = bench.config

@@ -1,7 +1,7 @@
 """Radial view synthesis on files and sessions: the Python API behind ``benchlab unwrap``,
 ``perspective``, ``viewpoint`` and ``calibrate radial``.
 
-Frames in, TIFFs out; the arithmetic is :mod:`benchlab.analysis.viewsynth`. Every output TIFF
+Frames in, TIFFs out; the arithmetic is :mod:`benchlab.analysis.views.synthesis`. Every output TIFF
 has two pages - the view (same dtype as the raw frame) and its validity mask (255 = a real
 raw pixel, 0 = outside the frame or the table: *marked, never invented*) - and the mapping as
 JSON in the first page's ImageDescription: ``format: benchlab-view``, ``view``, the table's
@@ -27,14 +27,15 @@ import numpy as np
 import numpy.typing as npt
 import tifffile
 
-from benchlab.analysis.raytrace import (
+from benchlab.analysis.views.calibrate import calibrate_from_rings, compare_tables
+from benchlab.analysis.views.raytrace import (
     REFERENCE_OBJECT_RADIUS_MM,
     RayTraceError,
     RayTraceTable,
     read_raytrace_table,
     table_to_csv,
 )
-from benchlab.analysis.viewsynth import (
+from benchlab.analysis.views.synthesis import (
     ViewMaps,
     apply_maps,
     fov_centre_of_frame,
@@ -42,7 +43,6 @@ from benchlab.analysis.viewsynth import (
     unwrap_maps,
     viewpoint,
 )
-from benchlab.analysis.viewsynth_calibrate import calibrate_from_rings, compare_tables
 from benchlab.drivers.errors import BenchlabError
 from benchlab.storage import (
     atomic_write_bytes,

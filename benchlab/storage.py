@@ -278,7 +278,7 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
 def pixel_size_um(metadata: Mapping[str, Any]) -> tuple[float, float]:
     """Pixel size ``(x, y)`` in um on the sensor: the pitch times the camera's binning
     (vertical, from its ``bin_code``)."""
-    from benchlab.drivers.mightex_protocol import BIN_ROWS  # here: a re-analysis never needs it
+    from benchlab.drivers.mightex.protocol import BIN_ROWS  # here: a re-analysis never needs it
 
     rows = BIN_ROWS.get(int(metadata.get("bin_code") or 0), 1)
     return PIXEL_PITCH_UM, PIXEL_PITCH_UM * rows

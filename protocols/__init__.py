@@ -60,7 +60,7 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
 
       results_dir = reanalyze("sessions/2026..._mtf", estimator="histogram")
 
-* HTML report: ``benchlab.report.write_report(session_path, out=None)`` -> path.
+* HTML report: ``benchlab.report.render.write_report(session_path, out=None)`` -> path.
 
 Results: ``outcome.tables`` maps table names (``table_4_11``, ``table_4_12``, ``table_4_13``,
 ``table_4_15``; radiometry ``table_4_16``) to lists of row dicts (one dict per table row); the

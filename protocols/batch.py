@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from benchlab.catalog import session_recorder
+from benchlab.catalog.index import session_recorder
 from benchlab.drivers.errors import BenchlabError
 from benchlab.session import SESSION_FILE, Session
 
@@ -33,7 +33,8 @@ Outcome = Literal["analysed", "skipped", "failed"]
 #: How long to try reaching a dask scheduler before giving up.
 SCHEDULER_TIMEOUT_S = 10.0
 #: Modules a forkserver worker imports once, before it takes any session.
-_PRELOAD = ["benchlab.protocols.runs", "benchlab.protocols.mtf", "benchlab.protocols.radiometry"]
+_PRELOAD = ["benchlab.protocols.runs", "benchlab.protocols.mtf.steps",
+            "benchlab.protocols.radiometry"]
 
 
 class BatchError(BenchlabError):

@@ -7,7 +7,7 @@ the values the camera applies (its 0.05 ms exposure and 1/8 gain steps).
 
 from __future__ import annotations
 
-from benchlab.drivers import mightex_protocol as camera
+from benchlab.drivers.mightex import protocol as camera
 
 #: The bench camera (``bench.py`` opens this model unless the bench file says otherwise).
 CAMERA_SPEC = camera.SPECS["MCE-B013-U"]

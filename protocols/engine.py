@@ -460,8 +460,8 @@ def frames_of(session: Session, step_ids: Sequence[str]) -> dict[str, dict[str, 
 
 
 def record_in_catalogue(folder: Path) -> None:
-    """:func:`benchlab.catalog.record_session`, imported when a run records (SQLite and the
+    """:func:`benchlab.catalog.index.record_session`, imported when a run records (SQLite and the
     catalogue are not imported by a re-analysis before its results exist)."""
-    from benchlab.catalog import record_session
+    from benchlab.catalog.index import record_session
 
     record_session(folder)

@@ -24,7 +24,7 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
 )
 
 if TYPE_CHECKING:
-    from benchlab.protocols.characterise_params import CharacteriseParams
+    from benchlab.protocols.characterise.params import CharacteriseParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
@@ -193,7 +193,7 @@ def _check_mtf(c: _Checker) -> MtfParams:
     fov = c.number("analysis.fov_threshold_dn", d.fov_threshold_dn, 0.0, 65535.0)
     estimator = c.string("analysis.estimator", d.estimator)
     if estimator and estimator != "auto":
-        from benchlab.analysis.estimators import ESTIMATORS
+        from benchlab.analysis.bars.estimators import ESTIMATORS
 
         if estimator not in ESTIMATORS:
             c.fail("analysis.estimator", f"unknown estimator {estimator!r}; known: auto, "
@@ -310,7 +310,7 @@ def parse_params(
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
     params: Params
     if procedure == "characterise":
-        from benchlab.protocols.characterise_params import check_characterise
+        from benchlab.protocols.characterise.params import check_characterise
 
         params = check_characterise(checker, limits)
     else:
@@ -348,7 +348,7 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
     if not isinstance(params, MtfParams | RadiometryParams):
-        from benchlab.protocols.characterise_params import characterise_to_dict
+        from benchlab.protocols.characterise.params import characterise_to_dict
 
         return characterise_to_dict(params)
     if isinstance(params, MtfParams):

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars.roi import saturation_code
 from benchlab.analysis.radiometry import (
     clipped_in_mask,
     led_mask,
@@ -26,7 +27,6 @@ from benchlab.analysis.radiometry import (
     radiometry_table,
     reading_mask,
 )
-from benchlab.analysis.roi import saturation_code
 from benchlab.drivers.errors import BenchlabError, DeviceError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams, position_step_id
@@ -75,7 +75,7 @@ def reading_view(
 
 def saturation_code_of(frame: npt.NDArray[Any], bits: Any = None) -> float:
     """The code a frame clips at: ``2**bits - 1`` of its recorded bit depth, else what the
-    data say (:func:`benchlab.analysis.roi.saturation_code`), else its maximum."""
+    data say (:func:`benchlab.analysis.bars.roi.saturation_code`), else its maximum."""
     raw = np.asarray(frame)
     if isinstance(bits, int) and not isinstance(bits, bool) and 1 <= bits <= 16:
         top = float(2 ** bits - 1)
@@ -230,7 +230,7 @@ def analyze_radiometry(
     characterise``), each measurement frame is linearised with it before the reading; the
     summary's ``linearised`` records which file (or None).
     """
-    from benchlab.protocols.characterise_calibration import session_linearisation
+    from benchlab.protocols.characterise.calibration import session_linearisation
 
     linear, record = session_linearisation(session, params.measurement_gain, params.bits)
     rows: list[dict[str, Any]] = []

@@ -31,9 +31,9 @@ from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
-    from benchlab.protocols.characterise import CharacteriseProcedure
-    from benchlab.protocols.mtf import MtfProcedure
-    from benchlab.protocols.mtf_analysis import ForwardAhead
+    from benchlab.protocols.characterise.steps import CharacteriseProcedure
+    from benchlab.protocols.mtf.analysis import ForwardAhead
+    from benchlab.protocols.mtf.steps import MtfProcedure
     from benchlab.protocols.radiometry import RadiometryProcedure
 
 #: Key of the bench configuration inside the session's parameter snapshot.
@@ -54,7 +54,7 @@ class UnknownEstimatorError(UsageError):
 
 def check_estimator(name: str | None) -> None:
     """Refuse an unknown estimator before anything runs."""
-    from benchlab.analysis.estimators import ESTIMATORS
+    from benchlab.analysis.bars.estimators import ESTIMATORS
 
     if name is not None and name != "auto" and name not in ESTIMATORS:
         raise UnknownEstimatorError(
@@ -68,14 +68,14 @@ def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | Chara
     MTF session never loads the characterisation's or the radiometry's analysis (start-up).
     """
     if isinstance(params, MtfParams):
-        from benchlab.protocols.mtf import MtfProcedure
+        from benchlab.protocols.mtf.steps import MtfProcedure
 
         return MtfProcedure(params)
     if isinstance(params, RadiometryParams):
         from benchlab.protocols.radiometry import RadiometryProcedure
 
         return RadiometryProcedure(params)
-    from benchlab.protocols.characterise import CharacteriseProcedure
+    from benchlab.protocols.characterise.steps import CharacteriseProcedure
 
     return CharacteriseProcedure(params)
 
@@ -87,7 +87,7 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
-    from benchlab.protocols.characterise_params import CharacteriseParams
+    from benchlab.protocols.characterise.params import CharacteriseParams
 
     expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
                                                                         RadiometryParams)
@@ -119,7 +119,7 @@ def start_run(
     procedure_steps(procedure_obj)  # its steps are sound before any folder exists
     calibration = None
     if isinstance(resolved, RadiometryParams):  # the one procedure that linearises with it
-        from benchlab.protocols.characterise_calibration import (
+        from benchlab.protocols.characterise.calibration import (
             check_run_curve,
             read_run_calibration,
         )
@@ -128,7 +128,7 @@ def start_run(
         if calibration is not None:  # and it has the curve the analysis will need
             check_run_curve(calibration, resolved.measurement_gain, resolved.bits)
     elif procedure == "characterise":  # its end edits the bench file: can it?
-        from benchlab.protocols.characterise_calibration import check_bench_editable
+        from benchlab.protocols.characterise.calibration import check_bench_editable
 
         check_bench_editable(bench.config)
     session = Session.create(
@@ -136,7 +136,7 @@ def start_run(
         devices=bench.identities(), software_version=benchlab.__version__, sample=sample,
     )
     if calibration is not None:  # before any frame: what every analysis will use
-        from benchlab.protocols.characterise_calibration import keep_session_calibration
+        from benchlab.protocols.characterise.calibration import keep_session_calibration
 
         keep_session_calibration(session, *calibration)
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,
@@ -236,11 +236,11 @@ def reanalyze(session_path: str | Path | Session, estimator: str | None = None, 
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
-    sessions from its parent process, :func:`benchlab.catalog.session_recorder`).
+    sessions from its parent process, :func:`benchlab.catalog.index.session_recorder`).
     ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
     loading its frames before it imports the analysis). ``forward_ahead`` is an MTF
     session's forward frame being analysed elsewhere
-    (:class:`benchlab.protocols.mtf_analysis.ForwardAhead`; the CLI forks a process for it);
+    (:class:`benchlab.protocols.mtf.analysis.ForwardAhead`; the CLI forks a process for it);
     other procedures ignore it.
     """
     check_estimator(estimator)
@@ -282,7 +282,7 @@ def _analyze(procedure: MtfProcedure | RadiometryProcedure | CharacteriseProcedu
              session: Session, estimator: str | None,
              forward_ahead: ForwardAhead | None) -> Path:
     if forward_ahead is not None and isinstance(procedure.params, MtfParams):
-        from benchlab.protocols.mtf import MtfProcedure  # imported by make_procedure
+        from benchlab.protocols.mtf.steps import MtfProcedure  # imported by make_procedure
 
         if isinstance(procedure, MtfProcedure):
             return procedure.analyze(session, estimator, forward_ahead)

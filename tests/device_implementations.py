@@ -39,8 +39,8 @@ class Implementation(Generic[D]):
 # ---- cameras -------------------------------------------------------------------------------
 @contextlib.contextmanager
 def _sim_camera() -> Iterator[Camera]:
-    from benchlab.drivers.mightex import MightexCamera
-    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.mightex.camera import MightexCamera
+    from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
 
     sim = SimulatedCamera(noise=False)
     with MightexCamera.open(backend=SimCameraBackend([sim]), pid=sim.pid) as cam:
@@ -49,7 +49,7 @@ def _sim_camera() -> Iterator[Camera]:
 
 @contextlib.contextmanager
 def _hw_camera(serial: str) -> Iterator[Camera]:
-    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex.camera import MightexCamera
 
     with MightexCamera.open(serial=None if serial == "any" else serial) as cam:
         yield cam
@@ -68,8 +68,8 @@ LED_CEILING_MA = float(os.environ.get("BENCHLAB_HW_LED_CEILING_MA", "10"))
 
 @contextlib.contextmanager
 def _sim_led() -> Iterator[LightSource]:
-    from benchlab.drivers.slc import SlcController
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.slc.controller import SlcController
+    from benchlab.drivers.slc.sim import SimulatedSlc
 
     with SimulatedSlc(channels=4) as sim, \
             SlcController(sim.port, ceilings_ma={1: LED_CEILING_MA}) as led:
@@ -78,7 +78,7 @@ def _sim_led() -> Iterator[LightSource]:
 
 @contextlib.contextmanager
 def _hw_led(port: str) -> Iterator[LightSource]:
-    from benchlab.drivers.slc import SlcController
+    from benchlab.drivers.slc.controller import SlcController
 
     with SlcController(port, ceilings_ma={1: LED_CEILING_MA}) as led:
         yield led
@@ -99,8 +99,8 @@ def stage_travel_mm() -> tuple[float, float]:
 
 @contextlib.contextmanager
 def _sim_stage() -> Iterator[LinearStage]:
-    from benchlab.drivers.apt import AptStage
-    from benchlab.drivers.apt_sim import SimulatedAptStage
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.apt.stage import AptStage
 
     travel = stage_travel_mm()
     with SimulatedAptStage(travel_mm=travel, time_scale=200.0, initial_position_mm=3.0) as sim, \
@@ -110,7 +110,7 @@ def _sim_stage() -> Iterator[LinearStage]:
 
 @contextlib.contextmanager
 def _hw_stage(port: str) -> Iterator[LinearStage]:
-    from benchlab.drivers.apt import AptStage
+    from benchlab.drivers.apt.stage import AptStage
 
     with AptStage(port, travel_mm=stage_travel_mm()) as stage:
         yield stage

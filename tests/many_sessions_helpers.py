@@ -8,7 +8,7 @@ import os
 import shutil
 from pathlib import Path
 
-from test_protocol_helpers import MTF_SMALL, only_session
+from sim_runs import MTF_SMALL, only_session
 
 from benchlab.cli.main import main
 

@@ -10,7 +10,15 @@ from typing import Any
 
 import numpy as np
 
-from benchlab.drivers.mightex_sim_sensor import FlatFieldScene, SensorModel, SensorTruth
+from benchlab.analysis.camera.photon_transfer import (
+    SweepPoint,
+    msb_aligned,
+    native_codes,
+    pair_statistics,
+    photon_transfer,
+    spatial_nonuniformity,
+)
+from benchlab.drivers.mightex.sim_sensor import FlatFieldScene, SensorModel, SensorTruth
 from benchlab.drivers.sensor import AcquisitionState
 
 TRUTH = SensorTruth(dark_offset_dn12=64.0, dark_current_e_per_s=500.0, dsnu_dn12=2.0,
@@ -65,3 +73,22 @@ def make_sweep(truth: SensorTruth = TRUTH, *, gain: float = 1.0, bits: int = 12,
     stack_lit = np.stack([grab(model, rate, t_stack, gain, bits, size) for _ in range(stack)])
     stack_dark = np.stack([grab(model, 0.0, t_stack, gain, bits, size) for _ in range(stack)])
     return Sweep(exposures, lit, dark, stack_lit, stack_dark, t_stack)
+
+
+def analyse(sweep: Sweep, bits: int = 12, transform=lambda a: a):
+    """Photon transfer of a sweep, the way the characterisation analysis pairs its frames."""
+    every = [transform(f) for pair in sweep.lit + sweep.dark for f in pair]
+    aligned = msb_aligned(every, bits)
+
+    def codes(frame):
+        return native_codes(transform(frame), bits, aligned)
+
+    spatial, defects = spatial_nonuniformity(np.stack([codes(f) for f in sweep.stack_lit]),
+                                             np.stack([codes(f) for f in sweep.stack_dark]))
+    valid = ~defects
+    points = []
+    for t, (a, b), (c, d) in zip(sweep.exposures_ms, sweep.lit, sweep.dark, strict=True):
+        m, v = pair_statistics(codes(a), codes(b), valid)
+        dm, dv = pair_statistics(codes(c), codes(d), valid)
+        points.append(SweepPoint(t, m, v, dm, dv))
+    return points, photon_transfer(points, spatial=spatial)

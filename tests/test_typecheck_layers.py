@@ -14,7 +14,7 @@ from mypy import api
 ROOT = Path(__file__).resolve().parents[1]
 
 PROBE = '''\
-from benchlab.drivers.mightex import MightexCamera
+from benchlab.drivers.mightex.camera import MightexCamera
 from benchlab.protocols.params import UsafElement
 
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis import morphology
-from benchlab.analysis.roi import orientation_axis
+from benchlab.analysis.bars.roi import orientation_axis
+from benchlab.analysis.chart import morphology
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 
@@ -56,7 +56,7 @@ def _erode(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
 
 
 def fill_holes(mask: npt.ArrayLike) -> npt.NDArray[np.bool_]:
-    """:func:`benchlab.analysis.morphology.fill_holes` (``scipy.ndimage.binary_fill_holes``'s
+    """:func:`benchlab.analysis.chart.morphology.fill_holes` (``scipy.ndimage.binary_fill_holes``'s
     result in numpy: importing scipy.ndimage or OpenCV for it costs more start-up than a
     re-analysis takes to run)."""
     return morphology.fill_holes(mask)

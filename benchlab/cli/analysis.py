@@ -232,7 +232,7 @@ def analyze_command(args: argparse.Namespace) -> int:
 
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
-    from benchlab.analysis.frequency import cycles_per_px
+    from benchlab.analysis.mtf.frequency import cycles_per_px
 
     if getattr(args, "chart", None):
         from benchlab.cli.chart import analyze_chart_command
@@ -259,7 +259,7 @@ def analyze_command(args: argparse.Namespace) -> int:
         if args.all_estimators:
             results = compare_estimators(region, **kwargs)
         else:
-            from benchlab.analysis.estimators import resolve_estimator
+            from benchlab.analysis.bars.estimators import resolve_estimator
 
             name = resolve_estimator(args.estimator)
             results = {
@@ -291,8 +291,8 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
                ) -> tuple[npt.NDArray[Any], dict[str, Any]]:
     """``--linearise``: the frame through the response calibration of its gain and bit depth
     (gain from the frame's benchlab metadata, else 1; 8-bit for uint8 files, else 12-bit)."""
-    from benchlab.analysis.photon_transfer import linearise, native_codes
-    from benchlab.protocols.characterise_calibration import (
+    from benchlab.analysis.camera.photon_transfer import linearise, native_codes
+    from benchlab.protocols.characterise.calibration import (
         curve_for,
         linearisation_record,
         load_calibration,
@@ -318,7 +318,7 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
-    from benchlab.analysis.benchmark import (
+    from benchlab.benchmarks.bars import (
         Row,
         format_speed,
         format_table,

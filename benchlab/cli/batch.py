@@ -111,7 +111,7 @@ def batch_command(args: argparse.Namespace) -> int:
 
 def benchmark_batch_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark batch``: N fabricated sessions re-analysed on every core."""
-    from benchlab.cli.batch_bench import run_batch_benchmark
+    from benchlab.benchmarks.batch import run_batch_benchmark
 
     def say(text: str) -> None:
         print(text, file=sys.stderr, flush=True)

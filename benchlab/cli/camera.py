@@ -1,7 +1,7 @@
 """Camera commands: ``devices``, ``snap`` and ``benchmark camera``.
 
 ``--simulate`` uses a simulated MCE-B013-U behind the same pyusb code path as the real camera
-(:class:`benchlab.drivers.mightex_sim.SimCameraBackend`).
+(:class:`benchlab.drivers.mightex.sim.SimCameraBackend`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError, DeviceNotFoundError
 
 if TYPE_CHECKING:  # the driver stack (numpy, pyusb) is imported by the commands that use it
-    from benchlab.drivers.mightex_sim import SimCameraBackend
+    from benchlab.drivers.mightex.sim import SimCameraBackend
 
 
 def _pid(text: str) -> int:
@@ -34,8 +34,8 @@ def _pid(text: str) -> int:
 
 def _sim_backend(pid: int | None, scene: Any = None, seed: int | None = None
                  ) -> SimCameraBackend:
-    from benchlab.drivers import mightex_protocol as proto
-    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.mightex import protocol as proto
+    from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
     cam = SimulatedCamera(scene=scene, pid=proto.DEFAULT_PID if pid is None else pid,
                           seed=seed)
     return SimCameraBackend([cam])
@@ -46,7 +46,7 @@ def _sim_backend(pid: int | None, scene: Any = None, seed: int | None = None
 
 def list_devices(simulate: bool, pid: int | None = None) -> tuple[list[dict[str, Any]], list[str]]:
     """Cameras, then serial devices, as dicts (kind, model, serial, firmware, ...) and notes."""
-    from benchlab.drivers.mightex import find_cameras
+    from benchlab.drivers.mightex.camera import find_cameras
     notes: list[str] = []
     rows: list[dict[str, Any]] = []
     try:
@@ -103,7 +103,7 @@ SNAP_SCENES_HELP = (
 
 def simulated_snap_scene(name: str) -> Any:
     """The scene for ``snap --simulate --scene NAME``; a clear error names a bad NAME."""
-    from benchlab.drivers.mightex_sim import bar_target_scene, flat_field_scene
+    from benchlab.drivers.mightex.sim import bar_target_scene, flat_field_scene
     if name == "bars":
         return bar_target_scene()
     if name == "flat":
@@ -133,7 +133,7 @@ def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: s
     """Grab one frame and save it as lossless TIFF with its metadata; returns the metadata.
     ``seed``: the simulated camera's noise seed (None: a fresh draw every time)."""
     from benchlab import __version__
-    from benchlab.drivers.mightex import MightexCamera
+    from benchlab.drivers.mightex.camera import MightexCamera
     from benchlab.storage import save_frame_tiff
     if out.exists():
         raise BenchlabError(f"{out} already exists; frames are never overwritten")
@@ -177,7 +177,7 @@ def _raw_frame(backend: SimCameraBackend) -> tuple[bytes, int]:
     """One raw frame transfer read by plain pyusb calls (the camera must be configured)."""
     import usb.core
 
-    from benchlab.drivers import mightex_protocol as proto
+    from benchlab.drivers.mightex import protocol as proto
     dev = usb.core.find(idVendor=proto.VENDOR_ID, idProduct=proto.DEFAULT_PID, backend=backend)
     dev.write(proto.EP_COMMAND_OUT, proto.encode_query_buffer())
     proto.decode_reply(bytes(dev.read(proto.EP_REPLY_IN, 255)), "buffer query", 6)
@@ -190,9 +190,9 @@ def benchmark_camera(frames: int = 200, decode_repeats: int = 40) -> list[dict[s
     """Full-frame 8- and 12-bit figures: end-to-end fps, decode vs plain copy (medians)."""
     import numpy as np
 
-    from benchlab.drivers import mightex_protocol as proto
-    from benchlab.drivers.mightex import MightexCamera
-    from benchlab.drivers.mightex_sim import SimCameraBackend, SimulatedCamera, flat_field_scene
+    from benchlab.drivers.mightex import protocol as proto
+    from benchlab.drivers.mightex.camera import MightexCamera
+    from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera, flat_field_scene
     results = []
     for bits in (8, 12):
         sim = SimulatedCamera(scene=flat_field_scene(), seed=0)

@@ -13,8 +13,8 @@ from benchlab.cli import positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
-    from benchlab.analysis.chart_finder import ChartFit
-    from benchlab.analysis.result import ModulationResult
+    from benchlab.analysis.bars.result import ModulationResult
+    from benchlab.analysis.chart.finder import ChartFit
 
 CHART_KINDS = ("usaf",)
 
@@ -26,9 +26,9 @@ class ChartNotFound(BenchlabError):
 def locate(path: Path, magnification: float | None = None) -> tuple[Any, ChartFit]:
     """Read an image and find the chart in it; a clear error when there is none
     (``magnification`` default: the forward view's, Eq. 4.1)."""
-    from benchlab.analysis.chart import ChartLayout
-    from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
-    from benchlab.analysis.frequency import FORWARD_MAGNIFICATION
+    from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
+    from benchlab.analysis.chart.layout import ChartLayout
+    from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
     from benchlab.cli.analysis import AnalysisInputError, read_image
 
     if magnification is None:
@@ -79,7 +79,7 @@ def _find_chart_command(args: argparse.Namespace) -> int:
     path = Path(args.frame)
     pixels, fit = locate(path, args.magnification)
     if args.plot:
-        from benchlab.report_chart import chart_png
+        from benchlab.report.chart import chart_png
         from benchlab.storage import atomic_write_bytes
 
         try:
@@ -100,13 +100,13 @@ def measure_chart(pixels: Any, fit: ChartFit, estimator: str | None) -> list[dic
     """Every found element measured: one dict per bar set.
 
     By default (``estimator`` None or ``auto``) the chart's own reading
-    (:func:`benchlab.analysis.chart_reading.read_chart`: each set fitted at the geometry the
+    (:func:`benchlab.analysis.chart.reading.read_chart`: each set fitted at the geometry the
     pose gives it, the blur shared across the chart); a named estimator instead runs the
     generic estimator on each set's ROI with its priors, where the finder deems that reliable
     (:attr:`FoundElement.generic_unreliable`; otherwise the reason, not a number).
     """
     from benchlab.analysis import ESTIMATORS, estimate_modulation
-    from benchlab.analysis.chart_reading import read_chart
+    from benchlab.analysis.chart.reading import read_chart
 
     generic = estimator not in (None, "", "auto")
     if generic and estimator not in ESTIMATORS:
@@ -200,7 +200,7 @@ def analyze_chart_command(args: argparse.Namespace) -> int:
 
 
 def _benchmark_command(args: argparse.Namespace) -> int:
-    from benchlab.chart_benchmark import (
+    from benchlab.benchmarks.chart import (
         format_benchmark,
         format_psf_check,
         run_chart_benchmark,

@@ -12,7 +12,7 @@ import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
-from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
+from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError
 
 APP_NAME = "benchlab"
@@ -127,7 +127,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
 
 def _cmd_show(args: argparse.Namespace) -> int:
     from benchlab.bench import BenchConfig
-    from benchlab.drivers.mightex import udev_rule_path
+    from benchlab.drivers.mightex.camera import udev_rule_path
 
     bench = bench_file_in_force(args.config, simulate=args.simulate)
     sessions = sessions_in_force(None)

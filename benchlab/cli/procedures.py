@@ -18,7 +18,7 @@ from benchlab.drivers.errors import BenchlabError
 if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.forked import ForkedCall, SharedFlags
-    from benchlab.protocols.mtf_analysis import ForwardPart
+    from benchlab.protocols.mtf.analysis import ForwardPart
     from benchlab.session import Session
 
 
@@ -97,7 +97,7 @@ def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
 
 def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO,
                   partial: bool = False) -> None:
-    from benchlab.report_tables import TERMINAL_VIEWS, format_table
+    from benchlab.report.tables import TERMINAL_VIEWS, format_table
 
     mark = " [PARTIAL: session incomplete]" if partial else ""
     for name, rows in tables.items():
@@ -203,7 +203,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     if notes:
         print("\n" + "\n".join(notes))
     if outcome.summary.get("summary", {}).get("procedure") == "characterise":
-        from benchlab.protocols.characterise import run_notes
+        from benchlab.protocols.characterise.steps import run_notes
 
         print("\n" + "\n".join(run_notes(outcome.session_path, outcome.summary)))
     if retake:
@@ -318,7 +318,7 @@ def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
 
 def _forward_part(session: Session, estimator: str | None, claims: SharedFlags) -> ForwardPart:
     """The forward frame's analysis (in the child: the protocols are imported there)."""
-    from benchlab.protocols.mtf_analysis import forward_part
+    from benchlab.protocols.mtf.analysis import forward_part
     from benchlab.protocols.params import MtfParams
     from benchlab.protocols.runs import session_params
 
@@ -351,7 +351,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
 
         ahead = None
         if child is not None:  # an MTF session
-            from benchlab.protocols.mtf_analysis import ForwardAhead
+            from benchlab.protocols.mtf.analysis import ForwardAhead
 
             ahead = ForwardAhead(child.result, claims)
         out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
@@ -390,7 +390,7 @@ class _CatalogueRecorder(threading.Thread):
         self.abandoned = False
 
     def run(self) -> None:
-        from benchlab.catalog import record_session  # beside the analysis
+        from benchlab.catalog.index import record_session  # beside the analysis
 
         self.results_written.wait()
         if self.record:
@@ -404,7 +404,7 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
     if as_json:
         tables, summary = read_results(out)
     else:  # only the tables printed (the SFR curves, the largest file, are not)
-        from benchlab.report_tables import TERMINAL_VIEWS
+        from benchlab.report.tables import TERMINAL_VIEWS
 
         tables, summary = read_results(out, TERMINAL_VIEWS)
     partial = bool(summary.get("partial"))
@@ -430,7 +430,7 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
 
 
 def report_command(args: argparse.Namespace) -> int:
-    from benchlab.report import write_report
+    from benchlab.report.render import write_report
 
     out = write_report(Path(args.session), Path(args.out) if args.out else None)
     print(f"report: {out}")
@@ -439,7 +439,7 @@ def report_command(args: argparse.Namespace) -> int:
 
 def benchmark_characterise_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark characterise``: the characterisation figures (simulated bench)."""
-    from benchlab.protocols.characterise_benchmark import (
+    from benchlab.benchmarks.characterise import (
         all_pass,
         format_benchmark,
         run_benchmark,
@@ -457,7 +457,7 @@ def benchmark_report_command(args: argparse.Namespace) -> int:
     import statistics
     import tempfile
 
-    from benchlab.report import render_report
+    from benchlab.report.render import render_report
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.session:

@@ -18,7 +18,7 @@ from typing import Any
 
 from benchlab.cli import UsageError, positive_float, positive_int
 from benchlab.drivers import shutdown
-from benchlab.drivers.apt_protocol import Z8_COUNTS_PER_MM
+from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError
 
 DEFAULT_CEILING_MA = 100.0
@@ -30,8 +30,8 @@ APT_USB_IDS = {(0x0403, 0xFAF0)}  # Thorlabs APT cubes (FTDI with Thorlabs PID)
 @contextlib.contextmanager
 def _port_for(args: argparse.Namespace, kind: str) -> Iterator[str]:
     """Yield the port to use: a fresh simulator's pty with --simulate, else --port."""
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.slc.sim import SimulatedSlc
     if not args.simulate:
         if not args.port:
             raise BenchlabError(f"{kind}: give --port PATH (or --simulate)")
@@ -69,7 +69,7 @@ def _wait_for_interrupt(hold_s: float | None) -> None:
 
 # ---- led -------------------------------------------------------------------------------------
 def _cmd_led(args: argparse.Namespace) -> int:
-    from benchlab.drivers.slc import SlcController
+    from benchlab.drivers.slc.controller import SlcController
     ceilings = {args.channel: args.ceiling_ma}
     if args.on and args.current_ma is None:  # before the controller is opened
         raise UsageError("led --on needs --current-ma")
@@ -94,7 +94,7 @@ def _cmd_led(args: argparse.Namespace) -> int:
 
 # ---- stage -----------------------------------------------------------------------------------
 def _cmd_stage(args: argparse.Namespace) -> int:
-    from benchlab.drivers.apt import AptStage
+    from benchlab.drivers.apt.stage import AptStage
     lo, hi = args.travel_mm
     if args.action == "move" and args.position_mm is None:  # before the stage is opened
         raise UsageError("stage move needs a position in mm")
@@ -120,8 +120,8 @@ def _cmd_stage(args: argparse.Namespace) -> int:
 
 # ---- simulate --------------------------------------------------------------------------------
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.slc.sim import SimulatedSlc
     lo, hi = args.travel_mm
     if not lo < hi:
         raise UsageError(f"--travel-mm: LOW must be below HIGH, got {lo:g} {hi:g}")
@@ -151,7 +151,7 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
     by USB id and asked for HW_GET_INFO only; other USB-serial ports are listed as
     ``kind="serial"`` without probing, since writing to an unknown instrument is unsafe.
     """
-    from benchlab.drivers.apt import query_info
+    from benchlab.drivers.apt.stage import query_info
     if simulate:
         return _list_simulated()
     from serial.tools import list_ports
@@ -175,10 +175,10 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
 
 
 def _list_simulated() -> list[dict[str, Any]]:
-    from benchlab.drivers.apt import AptStage
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.slc import SlcController
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.apt.stage import AptStage
+    from benchlab.drivers.slc.controller import SlcController
+    from benchlab.drivers.slc.sim import SimulatedSlc
     led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0))
     try:
         led_port, stage_port = led.start(), stage.start()
@@ -199,10 +199,10 @@ def _list_simulated() -> list[dict[str, Any]]:
 
 # ---- benchmark -------------------------------------------------------------------------------
 def _cmd_benchmark(args: argparse.Namespace) -> int:
-    from benchlab.drivers.apt import AptStage
-    from benchlab.drivers.apt_sim import SimulatedAptStage
-    from benchlab.drivers.slc import SlcController
-    from benchlab.drivers.slc_sim import SimulatedSlc
+    from benchlab.drivers.apt.sim import SimulatedAptStage
+    from benchlab.drivers.apt.stage import AptStage
+    from benchlab.drivers.slc.controller import SlcController
+    from benchlab.drivers.slc.sim import SimulatedSlc
     n = args.repeat
     rows: list[tuple[str, list[float]]] = []
     led, stage = SimulatedSlc(), SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True,

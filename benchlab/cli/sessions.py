@@ -1,6 +1,6 @@
 """``benchlab sessions reindex|list|show|trend`` and ``benchlab benchmark catalog``.
 
-Everything reads the catalogue (``ROOT/catalog.sqlite``, :mod:`benchlab.catalog`), which is
+Everything reads the catalogue (``ROOT/catalog.sqlite``, :mod:`benchlab.catalog.index`), which is
 created or rebuilt from the session folders when it is missing or damaged.
 """
 
@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 from benchlab.cli import positive_int
 
 if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
-    from benchlab.catalog import Catalog, TrendPoint
+    from benchlab.catalog.index import Catalog, TrendPoint
 
 LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
                 "results_version", "estimator", "serials")
@@ -66,7 +66,7 @@ def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: s
 
 
 def _open(args: argparse.Namespace) -> Catalog:
-    from benchlab.catalog import Catalog, CatalogError
+    from benchlab.catalog.index import Catalog, CatalogError
 
     root = Path(args.root)
     if not root.is_dir():
@@ -88,7 +88,7 @@ def reindex_command(args: argparse.Namespace) -> int:
 
 
 def list_command(args: argparse.Namespace) -> int:
-    from benchlab.catalog import check_list_query
+    from benchlab.catalog.index import check_list_query
 
     check_list_query(sort=args.sort, since=args.since)  # usage errors before any work
     with _open(args) as catalog:
@@ -176,7 +176,7 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
 
 
 def trend_command(args: argparse.Namespace) -> int:
-    from benchlab.catalog import check_trend_query
+    from benchlab.catalog.index import check_trend_query
 
     check_trend_query(element=args.element, freq_lp_per_mm=args.freq,
                       orientation=args.orientation, since=args.since)  # before any work
@@ -205,7 +205,7 @@ def trend_command(args: argparse.Namespace) -> int:
 
 def benchmark_catalog_command(args: argparse.Namespace) -> int:
     """Query times over a synthetic catalogue of ``--sessions`` sessions."""
-    from benchlab.cli.batch_bench import run_catalog_benchmark
+    from benchlab.benchmarks.batch import run_catalog_benchmark
 
     print(run_catalog_benchmark(n_sessions=args.sessions, source=args.source))
     return 0

@@ -40,7 +40,7 @@ def _bootstrap_count(text: str) -> int:
 
 
 def _lp_per_mm(cycles_per_px: float) -> float:
-    from benchlab.analysis.frequency import cycles_per_px as to_cycles
+    from benchlab.analysis.mtf.frequency import cycles_per_px as to_cycles
 
     return cycles_per_px / to_cycles(1.0)
 
@@ -94,7 +94,7 @@ def _plot(result: Any, out: Path, title: str) -> None:
 
 def _min_rows_range() -> str:
     """The edge lengths ``benchmark sfr``'s shortest-edge search tries, e.g. ``100-500``
-    (read from :data:`benchlab.analysis.sfr_benchmark.MIN_ROWS_LENGTHS` without importing
+    (read from :data:`benchlab.benchmarks.sfr.MIN_ROWS_LENGTHS` without importing
     numpy for ``--help``: a literal kept in step by a test)."""
     return f"{MIN_ROWS_TRIED[0]}-{MIN_ROWS_TRIED[-1]}"
 
@@ -286,7 +286,7 @@ def _read_frames(
     (its file, and page of a multi-page TIFF) and the pages per file."""
     import numpy as np
 
-    from benchlab.analysis.sfr import full_scale_of, full_scale_of_frame
+    from benchlab.analysis.sfr.measure import full_scale_of, full_scale_of_frame
 
     regions, labels, pages = [], [], []
     ceilings: dict[Path, float | None] = {}  # per file: the camera's, from its metadata
@@ -329,14 +329,14 @@ def _read_frames(
 def _average_checked(region: Any, top: float | None, args: argparse.Namespace,
                      labels: list[str]) -> tuple[Any, Any]:
     """Frames: checked against each other first (the same edge in each,
-    :func:`benchlab.analysis.sfr_frames.average_frames`: a missing edge step, another scene or
+    :func:`benchlab.analysis.sfr.frames.average_frames`: a missing edge step, another scene or
     a moved edge raises :class:`FramesDiffer` naming the frame), then the SFR of their mean."""
     import dataclasses
 
     import numpy as np
 
-    from benchlab.analysis.sfr import CLIP_REFUSE_FRACTION, SfrRefused, measure_sfr
-    from benchlab.analysis.sfr_frames import average_frames
+    from benchlab.analysis.sfr.frames import average_frames
+    from benchlab.analysis.sfr.measure import CLIP_REFUSE_FRACTION, SfrRefused, measure_sfr
 
     # Clipping per frame: a pixel clipped in some frames only is not at full scale in the mean.
     per_frame = (np.zeros(region.shape[0]) if top is None else
@@ -370,8 +370,8 @@ def _check_plot(plot: Path | None) -> None:
 
 def sfr_command(args: argparse.Namespace) -> int:
     """``benchlab sfr IMAGE [IMAGE ...] --roi R0,C0,R1,C1``."""
-    from benchlab.analysis.sfr import SfrRefused, measure_sfr
-    from benchlab.analysis.sfr_frames import FramesDiffer
+    from benchlab.analysis.sfr.frames import FramesDiffer
+    from benchlab.analysis.sfr.measure import SfrRefused, measure_sfr
 
     paths = [Path(p) for p in args.image]
     path = paths[0]
@@ -454,7 +454,7 @@ def _parse_rows(text: str) -> tuple[int, ...]:
 
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark sfr [--quick] [--rows N,...] [--no-frames] [--no-bench]``."""
-    from benchlab.analysis.sfr_benchmark import (
+    from benchlab.benchmarks.sfr import (
         format_accuracy,
         format_by_length,
         format_compare,
@@ -473,7 +473,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cases = 6 if args.quick else 25
     if args.oracle:
-        from benchlab.analysis.sfr_oracle import format_oracle, run_oracle
+        from benchlab.benchmarks.sfr_oracle import format_oracle, run_oracle
 
         # The cases of the judged 100-row table (its random stream replayed).
         print(format_oracle(run_oracle(cases_per_cell=2 * cases, seed=args.seed)))
@@ -517,7 +517,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
         print()
     print(format_non_gaussian(run_non_gaussian(cases=2 * cases, seed=args.seed + 4)))
     print()
-    from benchlab.analysis.sfr_defects import DEFECTS_TITLE, run_defects
+    from benchlab.benchmarks.sfr_defects import DEFECTS_TITLE, run_defects
 
     print(format_non_gaussian(run_defects(cases=2 * cases, seed=args.seed + 6), DEFECTS_TITLE,
                               "defect"))
@@ -544,7 +544,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
               f"{t[2]:.2f} ms ({'pass' if t[2] <= 5.0 else 'FAIL'})")
     sys.stdout.flush()
     if not args.no_bench:
-        from benchlab.cli.sfr_bench import format_bench_check, run_bench_check
+        from benchlab.benchmarks.sfr_bench import format_bench_check, run_bench_check
 
         checks = [run_bench_check(bits, seed=args.seed) for bits in (8, 12)]
         print()

@@ -7,7 +7,7 @@ import argparse
 
 def soak_command(args: argparse.Namespace) -> int:
     from benchlab.cli import UsageError
-    from benchlab.drivers.mightex_soak import run_soak
+    from benchlab.drivers.mightex.soak import run_soak
 
     if args.frames < 1:
         raise UsageError(f"--frames must be >= 1, got {args.frames}")

@@ -66,7 +66,7 @@ def _benchmark_tui(args: argparse.Namespace) -> int:
 def run_tui(args: argparse.Namespace) -> int:
     from benchlab.cli.config import bench_file_in_force, sessions_in_force
     from benchlab.drivers import shutdown
-    from benchlab.tui.pixels import choose_image_protocol
+    from benchlab.tui.drawing.pixels import choose_image_protocol
 
     # Ask the terminal what it can show before Textual takes it over.
     image_protocol = choose_image_protocol(getattr(args, "image", None))

@@ -2,7 +2,7 @@
 ``benchmark viewsynth``: view synthesis of the radial view (thesis chapter 5).
 
 The work is in :mod:`benchlab.radial_views` (files and sessions) and
-:mod:`benchlab.analysis.viewsynth` (the maps).
+:mod:`benchlab.analysis.views.synthesis` (the maps).
 """
 
 from __future__ import annotations
@@ -184,7 +184,7 @@ def calibrate_radial_command(args: argparse.Namespace) -> int:
 
 
 def benchmark_command(args: argparse.Namespace) -> int:
-    from benchlab.cli.viewsynth_bench import format_figures, run_benchmark
+    from benchlab.benchmarks.viewsynth import format_figures, run_benchmark
 
     figs, raw = run_benchmark(quick=args.quick)
     if args.json:

@@ -24,9 +24,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
-from benchlab.analysis.chart import RADIAL_ROI_BOX, RadialLayout, box_centroid
-from benchlab.analysis.raytrace import REFERENCE_OBJECT_RADIUS_MM, RayTraceTable
-from benchlab.analysis.viewsynth import cylinder_map
+from benchlab.analysis.chart.layout import RADIAL_ROI_BOX, RadialLayout, box_centroid
+from benchlab.analysis.views.raytrace import REFERENCE_OBJECT_RADIUS_MM, RayTraceTable
+from benchlab.analysis.views.synthesis import cylinder_map
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import PIXEL_APERTURE_VAR_PX2, RADIAL_BLUR, BlurProfile
 from benchlab.scenes.radial import CylinderPixels, cylinder_pixels, default_table

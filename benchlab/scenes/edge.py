@@ -1,6 +1,6 @@
 """Forward view: a slanted-edge target (dark squares turned a few degrees) with a known MTF.
 
-Geometry from :mod:`benchlab.analysis.edge_target`; blur from the forward
+Geometry from :mod:`benchlab.analysis.sfr.target`; blur from the forward
 :class:`~benchlab.scenes.optics.BlurProfile` at the image height of each side's midpoint (as the
 USAF scene blurs each bar set at its own height), Gaussian with the sagittal width along x and
 the tangential width along y. Along a side's normal at angle ``t`` that blur is a Gaussian of
@@ -9,7 +9,7 @@ variance ``sag^2 cos^2 t + tan^2 sin^2 t`` (+ defocus^2), and the pixel aperture
 
 Render: a square is the product of two blurred strips (across each pair of opposite sides),
 each integrated over the pixel in closed form
-(:func:`benchlab.analysis.sfr_synthetic.pixel_integrated_step`). Along a side, away from the
+(:func:`benchlab.synthetic.edges.pixel_integrated_step`). Along a side, away from the
 corners, one strip is exactly 1 over the whole pixel, so the image there is the exact
 pixel-integrated blurred edge; only within a few blur widths of a corner is the product an
 approximation - the measurement ROIs keep clear of the corners.
@@ -26,12 +26,12 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
-from benchlab.analysis.chart import IMAGE_CENTRE_RC, RadialLayout
-from benchlab.analysis.edge_target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
-from benchlab.analysis.sfr_synthetic import edge_truth_mtf, pixel_integrated_step
+from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, RadialLayout
+from benchlab.analysis.sfr.target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile
 from benchlab.scenes.printed import TwoLevelPrint
+from benchlab.synthetic.edges import edge_truth_mtf, pixel_integrated_step
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -43,7 +43,7 @@ class EdgeScene(TwoLevelPrint):
     Parameters
     ----------
     squares
-        The dark squares (default :data:`~benchlab.analysis.edge_target.DEFAULT_SQUARES`).
+        The dark squares (default :data:`~benchlab.analysis.sfr.target.DEFAULT_SQUARES`).
     circles
         Dual-view circles; only the forward disc is lit (for the target on its own).
     optical_centre_rc

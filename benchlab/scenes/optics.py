@@ -3,7 +3,7 @@
 Only what the bar measurements need: a separable Gaussian point spread with one width across
 the sagittal direction and one across the tangential direction, both interpolated from a
 table over image height (astigmatism and field curvature grow off axis, section 2.4). Which
-image direction is "sagittal" follows :mod:`benchlab.analysis.chart`: in the forward view the
+image direction is "sagittal" follows :mod:`benchlab.analysis.chart.layout`: in the forward view the
 sagittal width blurs along columns (x) and the tangential width along rows (y); in the radial
 view the sagittal width blurs around the circle (across spokes) and the tangential width along
 the radius (across rings).

@@ -4,11 +4,11 @@ ray-trace table.
 The pattern lies on an object cylinder around the axis (default 19.88 mm from it, depth 6 mm:
 the thesis's radial set-up, section 5.2.2). Every annulus pixel is an object point: its image
 radius gives the axial position through the same ray-trace table that view synthesis uses
-(:func:`benchlab.analysis.viewsynth.cylinder_map`, default the shipped modelled table) and its
+(:func:`benchlab.analysis.views.synthesis.cylinder_map`, default the shipped modelled table) and its
 image azimuth is the object azimuth. So what the simulated camera sees and what ``unwrap``
 undoes agree by construction.
 
-Orientation (fig. 4.9; :mod:`benchlab.analysis.chart`):
+Orientation (fig. 4.9; :mod:`benchlab.analysis.chart.layout`):
 
 - **sagittal** - the paper is rolled so its bars run along the endoscope axis: *spokes*, the
   intensity varies around the circle. The object period is along the arc of the cylinder, so
@@ -17,7 +17,7 @@ Orientation (fig. 4.9; :mod:`benchlab.analysis.chart`):
   diametrically opposite the reference point.
 - **tangential** - rolled the other way: bars around the cylinder, imaged as *rings*; the
   intensity varies along the radius with the table's axial magnification, which is Eq. 4.1's
-  17.5 at the reference point (:data:`~benchlab.analysis.raytrace.EQ41_RADIAL_MAGNIFICATION`).
+  17.5 at the reference point (:data:`~benchlab.analysis.views.raytrace.EQ41_RADIAL_MAGNIFICATION`).
 
 The thesis applies Eq. 4.1's 17.5 to both roll directions; around the circle the geometry
 gives ``object radius / image radius`` (19.88 / 2.48 = 8.0 at the radial ROI) instead, so
@@ -40,14 +40,14 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
-from benchlab.analysis.chart import RADIAL_ROI_BOX, Orientation, RadialLayout, box_centroid
-from benchlab.analysis.raytrace import (
+from benchlab.analysis.bars.result import eq29_modulation
+from benchlab.analysis.chart.layout import RADIAL_ROI_BOX, Orientation, RadialLayout, box_centroid
+from benchlab.analysis.views.raytrace import (
     REFERENCE_OBJECT_RADIUS_MM,
     RayTraceTable,
     read_raytrace_table,
 )
-from benchlab.analysis.result import eq29_modulation
-from benchlab.analysis.viewsynth import CylinderMap, cylinder_map
+from benchlab.analysis.views.synthesis import CylinderMap, cylinder_map
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import (
     PIXEL_APERTURE_VAR_PX2,

@@ -1,12 +1,12 @@
 """Forward view: the USAF 1951 chart, back-lit, imaged into the central disc.
 
 A positive chart (chrome bars on clear glass) lit from behind: the disc is bright, the bars dark.
-Each bar set is three rectangles from :mod:`benchlab.analysis.chart`, blurred by the forward
+Each bar set is three rectangles from :mod:`benchlab.analysis.chart.layout`, blurred by the forward
 :class:`~benchlab.scenes.optics.BlurProfile` at that set's image height and integrated over the
 pixel aperture, all in closed form. The image is linear in the bars, so the render is the bright
 disc minus each blurred bar; the truth values use the same formulas.
 
-Pose knobs (:class:`~benchlab.analysis.chart_pose.ChartPose`): the chart may be imaged offset,
+Pose knobs (:class:`~benchlab.analysis.chart.pose.ChartPose`): the chart may be imaged offset,
 scaled and rotated. Bars parallel to the pixel axes use the exact separable form above. A
 rotated bar is the product of two slabs, along and across it, each blurred by the Gaussian
 projected on that direction and by the pixel aperture projected on it (a trapezoid: two boxes
@@ -28,9 +28,15 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
-from benchlab.analysis.chart import BarGroup, ChartLayout, Orientation, RadialLayout, usaf_bar_group
-from benchlab.analysis.chart_pose import ChartPose, PosedBarSet, posed_bar_set
-from benchlab.analysis.result import eq29_modulation
+from benchlab.analysis.bars.result import eq29_modulation
+from benchlab.analysis.chart.layout import (
+    BarGroup,
+    ChartLayout,
+    Orientation,
+    RadialLayout,
+    usaf_bar_group,
+)
+from benchlab.analysis.chart.pose import ChartPose, PosedBarSet, posed_bar_set
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
 from benchlab.scenes.printed import TwoLevelPrint
@@ -94,7 +100,7 @@ class UsafScene(TwoLevelPrint):
 
 
     def bar_group(self, group: int, element: int, orientation: Orientation) -> BarGroup:
-        """Geometry of one bar set (see :func:`benchlab.analysis.chart.usaf_bar_group`)."""
+        """Geometry of one bar set (see :func:`benchlab.analysis.chart.layout.usaf_bar_group`)."""
         return usaf_bar_group(self.layout, group, element, orientation)
 
     def bar_set(self, group: int, element: int, orientation: Orientation) -> PosedBarSet:
@@ -182,7 +188,7 @@ class UsafScene(TwoLevelPrint):
         best sampling phase (a pixel centred on the bar and on the spaces): the pre-sampling
         bar contrast. A frame at a non-integer period samples other phases; near Nyquist its
         reading depends on that phase (the estimators flag it), and a measurement ROI must keep
-        off the bar ends (:func:`benchlab.analysis.chart.bar_set_roi`).
+        off the bar ends (:func:`benchlab.analysis.chart.layout.bar_set_roi`).
         """
         if not self.nominal:
             bar, space = self.truth_centre_levels(self.bar_set(group, element, orientation))

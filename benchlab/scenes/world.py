@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.chart import Orientation
+from benchlab.analysis.chart.layout import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
 from benchlab.scenes.edge import EdgeScene

@@ -72,7 +72,7 @@ class BenchlabApp(App[None]):
     ) -> None:
         super().__init__()
         #: How the live view draws frames: "kitty" / "sixel" (real pixels) or "halfblock";
-        #: chosen before the app starts (:func:`benchlab.tui.pixels.choose_image_protocol`).
+        #: chosen before the app starts (:func:`benchlab.tui.drawing.pixels.choose_image_protocol`).
         self.image_protocol = image_protocol
         self.simulate = simulate
         self.config_path = config

@@ -103,8 +103,8 @@ def grab_rates(exposures_ms: tuple[float, ...], seconds: float) -> Iterator[tupl
     """``(exposure ms, newest-frame grabs/s, fresh-frame grabs/s)`` through ``Bench.grab`` on
     the camera simulator running on wall time (a real camera's frame period)."""
     from benchlab.bench import Bench, BenchConfig
-    from benchlab.drivers.mightex import MightexCamera
-    from benchlab.drivers.mightex_sim import RealTimeClock, SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.mightex.camera import MightexCamera
+    from benchlab.drivers.mightex.sim import RealTimeClock, SimCameraBackend, SimulatedCamera
 
     bench = Bench(BenchConfig.load(None, simulate=True), simulated=True)
     sim = SimulatedCamera(clock=RealTimeClock(), noise=False)

@@ -20,15 +20,15 @@ from textual.worker import get_current_worker
 
 from benchlab.bench import plain_target
 from benchlab.tui import services
-from benchlab.tui.chart_overlay import (
+from benchlab.tui.drawing.chart_overlay import (
     ChartFrameView,
     ChartGraphicsFrameView,
     pick_element,
     roi_of,
     set_overlay,
 )
-from benchlab.tui.pixels import GRAPHICS_PREVIEW_SIDE
-from benchlab.tui.unwrap_view import UnwrapPreview
+from benchlab.tui.drawing.pixels import GRAPHICS_PREVIEW_SIDE
+from benchlab.tui.drawing.unwrap_view import UnwrapPreview
 from benchlab.tui.widgets import FrameView, ModeBar, Readout, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -213,7 +213,7 @@ class LiveScreen(Screen[None]):
 
     def _find_chart(self, pixels: Any) -> None:
         """Look for the chart in one frame (acquisition thread); keep the fit or say why not."""
-        from benchlab.analysis.chart_finder import ChartNotFoundError, find_chart
+        from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
 
         self._chart_at = time.monotonic()
         gen = self._chart_gen

@@ -20,7 +20,7 @@ from textual.worker import get_current_worker
 
 from benchlab.tui import services
 from benchlab.tui.dialogs import InputDialog, PromptDialog
-from benchlab.tui.plot import CtfPlot, PlotPoint
+from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
 from benchlab.tui.widgets import ModeBar
 
 if TYPE_CHECKING:

@@ -231,7 +231,7 @@ def max_code_of(pixels: npt.NDArray[Any], meta: Mapping[str, Any]) -> float:
 
 
 def estimator_names() -> list[str]:
-    from benchlab.analysis.estimators import ESTIMATORS
+    from benchlab.analysis.bars.estimators import ESTIMATORS
 
     return list(ESTIMATORS)
 
@@ -243,7 +243,7 @@ def reanalysis_estimators() -> list[str]:
 
 def default_estimator() -> str:
     try:
-        from benchlab.analysis.estimators import DEFAULT_ESTIMATOR
+        from benchlab.analysis.bars.estimators import DEFAULT_ESTIMATOR
     except ImportError:  # pragma: no cover - analysis layer not installed
         return ""
     return DEFAULT_ESTIMATOR
@@ -268,7 +268,7 @@ def live_reading(
 ) -> LiveReading:
     """Everything the live view shows about one frame (runs in the acquisition thread);
     the preview's longest side is at most ``preview_max_side`` pixels."""
-    from benchlab.analysis.estimators import estimate_modulation
+    from benchlab.analysis.bars.estimators import estimate_modulation
     from benchlab.analysis.focus import sharpness
 
     pixels, meta = frame
@@ -324,7 +324,7 @@ def histogram_peaks(
     roi_pixels: npt.NDArray[Any], max_code: float
 ) -> tuple[float | None, float | None]:
     """Dark and bright histogram peaks of the ROI (the histogram estimator's reading)."""
-    from benchlab.analysis.estimators import estimate_modulation
+    from benchlab.analysis.bars.estimators import estimate_modulation
 
     try:
         result = estimate_modulation(roi_pixels, estimator="histogram", max_code=max_code)
@@ -492,7 +492,7 @@ def reanalyse(path: Path, estimator: str | None) -> Path:
 
 def write_report(path: Path) -> Path:
     """The session's HTML report (same as ``benchlab report SESSION``)."""
-    from benchlab.report import write_report as _write
+    from benchlab.report.render import write_report as _write
 
     return Path(_write(path))
 
@@ -503,9 +503,9 @@ CtfBands = dict[str, list[tuple[list[float], list[float]]]]
 def simulated_ctf_bands(points: int = 120) -> tuple[CtfBands, float]:
     """Best and worst simulated CTF over the field points and both directions, per view (the
     band the Run screen's plot draws), and the Nyquist frequency (lp/mm)."""
-    from benchlab.analysis.frequency import nyquist_lp_per_mm
-    from benchlab.report_curves import load_curves
-    from benchlab.report_mtf import simulated_ctf
+    from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
+    from benchlab.protocols.mtf.curves import load_curves
+    from benchlab.report.mtf import simulated_ctf
 
     nyq = nyquist_lp_per_mm()
     grid = np.linspace(0.0, 1.15 * nyq, points)
@@ -536,7 +536,7 @@ def display_table(name: str, data: Any) -> tuple[str, list[str], list[list[str]]
     """A results table as (title, headers, cells) for a narrow terminal: the known tables use
     the report's headers and number formats, with the modulation columns right after the
     first so that 80 columns show them; unknown tables show every column as stored."""
-    from benchlab.report_tables import TABLE_VIEWS, cell, row_cell
+    from benchlab.report.tables import TABLE_VIEWS, cell, row_cell
 
     columns, rows = table_rows(data)
     if name == "table_4_15":  # "not resolved", never an average built on a stored 0
@@ -566,7 +566,7 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
                      descending: bool = True) -> list[SessionSummary]:
     """Sessions from the catalogue (rebuilt from the folders if missing), those whose id,
     sample, procedure, status or operator contain ``text`` (any case)."""
-    from benchlab.catalog import Catalog
+    from benchlab.catalog.index import Catalog
 
     if not root.is_dir():
         return []
@@ -588,7 +588,7 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
 
 def catalog_reindex(root: Path) -> int:
     """Rebuild the catalogue from the session folders; returns the number of sessions."""
-    from benchlab.catalog import Catalog
+    from benchlab.catalog.index import Catalog
 
     with Catalog.open(root) as catalog:
         return catalog.reindex()
@@ -596,7 +596,7 @@ def catalog_reindex(root: Path) -> int:
 
 def catalog_figures(root: Path) -> list[tuple[str, str, str, str]]:
     """Figures a trend can follow: ``(view, element, orientation, quantity)``."""
-    from benchlab.catalog import Catalog
+    from benchlab.catalog.index import Catalog
 
     if not root.is_dir():
         return []
@@ -605,8 +605,8 @@ def catalog_figures(root: Path) -> list[tuple[str, str, str, str]]:
 
 
 def catalog_trend(root: Path, figure: tuple[str, str, str, str]) -> list[Any]:
-    """The figure across sessions, oldest first (:class:`benchlab.catalog.TrendPoint`)."""
-    from benchlab.catalog import Catalog
+    """The figure across sessions, oldest first (:class:`benchlab.catalog.index.TrendPoint`)."""
+    from benchlab.catalog.index import Catalog
 
     view, element, orientation, quantity = figure
     with Catalog.open(root) as catalog:

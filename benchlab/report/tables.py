@@ -1,0 +1,170 @@
+"""How each results table is shown: titles, columns, number formats (text and HTML)."""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+Column = tuple[str, str, str]  # (key, header, format: "", ".3f", ...)
+
+
+@dataclass(frozen=True)
+class TableView:
+    title: str
+    columns: tuple[Column, ...]
+
+
+_S_T = tuple(
+    col
+    for o, short in (("sagittal", "S"), ("tangential", "T"))
+    for col in ((f"{o}_dark", f"{short} dark", ".1f"), (f"{o}_bright", f"{short} bright", ".1f"),
+                (f"{o}_modulation", f"{short} mod.", ".3f"))
+)
+#: Aliasing per orientation (Table 4.12's spokes and rings image at different frequencies).
+_ALIASED = (("sagittal_aliased", "S aliased", ""), ("tangential_aliased", "T aliased", ""))
+
+TABLE_VIEWS: dict[str, TableView] = {
+    "table_4_11": TableView(
+        "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9); by default each found set "
+        "read by the chart reading (knownbars: its geometry fixed by the found chart)",
+        (("element", "element", ""), ("image_lp_per_mm", "image lp/mm", ".3f"), *_S_T,
+         *_ALIASED),
+    ),
+    "table_4_12": TableView(
+        "Table 4.12 - radial view, modulation (Eq. 2.9); image lp/mm by Eq. 4.1 (rings, T), "
+        "S lp/mm by object / image radius (spokes)",
+        (("object_lp_per_mm", "object lp/mm", "g"), ("image_lp_per_mm", "image lp/mm", ".2f"),
+         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, *_ALIASED),
+    ),
+    "table_4_13": TableView(
+        "Tables 4.13-4.14 - image height and nearest simulated field point",
+        (("view", "view", ""), ("test", "test", ""), ("roi_centroid_row", "row", ".1f"),
+         ("roi_centroid_col", "col", ".1f"), ("image_height_px", "height px", ".2f"),
+         ("image_height_mm", "height mm", ".3f"), ("nearest_field_deg", "field deg", "g"),
+         ("nearest_field_height_mm", "field mm", ".2f")),
+    ),
+    "table_4_15": TableView(
+        "Table 4.15 - averaged MTF (Eq. 4.2) against the Monte Carlo prediction",
+        (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
+         ("sagittal_freq_lp_per_mm", "S lp/mm", ".3f"),
+         ("measured_freq_lp_per_mm", "T lp/mm", ".3f"),
+         ("sagittal_modulation", "S", ".3f"), ("tangential_modulation", "T", ".3f"),
+         ("averaged_modulation", "avg", ".3f"), ("p90", "90%>", ".2f"), ("p50", "50%>", ".2f"),
+         ("p10", "10%>", ".2f"), ("verdict", "verdict", "")),
+    ),
+    "table_4_16": TableView(
+        "Table 4.16 - relative radiometry",
+        (("position_mm", "position mm", "g"), ("simulated_mw_per_mm2", "sim. mW/mm2", ".3f"),
+         ("measured_mean_gray", "mean gray", ".2f"),
+         ("simulated_normalised", "sim. norm.", ".2f"),
+         ("measured_normalised", "meas. norm.", ".2f"), ("difference", "difference", "+.2f"),
+         ("mask_pixels", "mask px", ""), ("clipped_pixels", "clipped px", "")),
+    ),
+    # Camera characterisation (benchlab run characterise): measured, and the simulator's truth.
+    **{name: TableView(title, (
+        ("gain", "gain", "g"), ("bits", "bits", ""), ("system_gain_dn_per_e", "K DN/e-", ".5f"),
+        ("read_noise_dn", "noise DN", ".3f"), ("read_noise_e", "noise e-", ".2f"),
+        ("saturation_dn", "sat. DN", ".1f"), ("saturation_e", "sat. e-", ".0f"),
+        ("linearity_error_min_pct", "LE min %", "+.3f"),
+        ("linearity_error_max_pct", "LE max %", "+.3f"),
+        ("dark_current_e_per_s", "dark e-/s", ".1f"), ("dsnu_dn", "DSNU DN", ".3f"),
+        ("prnu_pct", "PRNU %", ".3f"))) for name, title in (
+        ("characterisation", "Camera characterisation (EMVA 1288 photon transfer)"),
+        ("simulator_truth", "Simulator truth (same keys)"))},
+}
+
+
+#: Tables the terminal prints besides :data:`TABLE_VIEWS` (the report gives these their own
+#: section, :mod:`benchlab.report.sfr`): the slanted edges and their cross-check with the bars,
+#: so a run or a re-analysis says at once whether bars, edges and simulation agree.
+TERMINAL_VIEWS: dict[str, TableView] = {
+    **TABLE_VIEWS,
+    "table_sfr_edges": TableView(
+        "Slanted edges (ISO 12233 e-SFR) - MTF50 and MTF at Nyquist per edge",
+        (("edge", "edge", ""), ("orientation", "orient.", ""),
+         ("image_height_mm", "height mm", ".3f"), ("edge_angle_deg", "angle deg", ".2f"),
+         ("mtf50_lp_per_mm", "MTF50 lp/mm", ".1f"), ("mtf50_sigma_lp_per_mm", "+-", ".1f"),
+         ("mtf_nyquist", "MTF(Nyq)", ".3f"), ("estimator", "estimator", ""),
+         ("status", "status", "")),
+    ),
+    "table_sfr_vs_bars": TableView(
+        "Bars vs slanted edge (the set's predicted reading, else Coltman) vs simulated MTF, "
+        "below Nyquist (agree: within 0.05)",
+        (("element", "set", ""), ("orientation", "orient.", ""),
+         ("image_lp_per_mm", "lp/mm", ".2f"), ("bar_modulation", "bar mod.", ".3f"),
+         ("bar_modulation_predicted", "predicted", ".3f"),
+         ("bar_mtf", "bars->MTF", ".3f"), ("edge_mtf", "edge MTF", ".3f"),
+         ("edge_mtf_sigma", "+-", ".3f"), ("simulated_mtf", "simulated", ".3f"),
+         ("verdict", "verdict", "")),
+    ),
+}
+
+
+def cell(value: Any, fmt: str) -> str:
+    """One table cell as text; missing numbers are shown as N/A, never as NaN."""
+    if value is None:
+        return "N/A"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if fmt and isinstance(value, int | float):
+        return format(value, fmt)
+    if isinstance(value, list):
+        return json.dumps(value)
+    return str(value)
+
+
+#: A bar-set cell with no reading (modulation None, not resolved): the ROI could not give one
+#: (less than one bar period, a set the chart finder rejected, ...); its warnings say why.
+NOT_MEASURABLE = "not measurable"
+
+
+#: Characterisation figures that can be flagged as not resolved: key -> the row's
+#: ``<quantity>_unresolved`` reason (clipped black level, quantisation, saturated stack).
+_CHARACTERISE_QUANTITY = {"read_noise_dn": "read_noise", "read_noise_e": "read_noise",
+                          "dark_current_e_per_s": "dark_current", "dsnu_dn": "dsnu",
+                          "prnu_pct": "prnu"}
+
+
+def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
+    """One cell of a row: a modulation whose reading is aliased, not resolved or not
+    measurable is said so, never shown as the 0 stored for it; a characterisation figure the
+    frames do not resolve reads ``n/a (unresolved: why)``."""
+    quantity = _CHARACTERISE_QUANTITY.get(key)
+    if quantity is not None and row.get(f"{quantity}_unresolved"):
+        return f"n/a (unresolved: {row[f'{quantity}_unresolved']})"
+    if key.endswith("_aliased") and key not in row:  # older rows: one flag per row
+        return cell(row.get("aliased"), fmt)
+    if key.endswith("_modulation"):
+        orient = key.removesuffix("_modulation")
+        # Rows say it per orientation (older Table 4.11 rows once: ``aliased``).
+        if row.get(f"{orient}_aliased", row.get("aliased")) is True:
+            return "aliased"
+        if row.get(f"{orient}_resolved") is False:
+            return NOT_MEASURABLE if row.get(key) is None else "not resolved"
+    if row.get(key) is None and row.get("clipped_pixels"):
+        return "clipped"  # a radiometry row whose mean is only a lower bound: no number
+    return cell(row.get(key), fmt)
+
+
+def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
+    """A plain-text table with aligned columns."""
+    header = [h for _, h, _ in columns]
+    body = [[row_cell(r, k, f) for k, _, f in columns] for r in rows]
+    widths = [max(len(x) for x in col) for col in zip(header, *body, strict=False)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in body]
+    return "\n".join(lines)
+
+
+def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
+    """An HTML table (escaped)."""
+    head = "".join(f"<th>{html.escape(h)}</th>" for _, h, _ in columns)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(row_cell(r, k, f))}</td>" for k, _, f in columns)
+        + "</tr>"
+        for r in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"

@@ -1,0 +1,588 @@
+"""pyusb driver for the Mightex MCE-B013-U buffer camera (and its v1.0.5 sibling BTN-B013U).
+
+Typical use::
+
+    with MightexCamera.open() as cam:          # first camera found (VID 0x04B4, PID 0x0428)
+        cam.configure(bits=12)
+        cam.set_exposure_ms(300)
+        cam.set_gain(1.0)
+        frame = cam.grab()                       # frame.pixels (uint16), frame.meta
+
+Pass ``backend=SimCameraBackend([...])`` (``benchlab.drivers.mightex.sim``) to talk to the
+simulated firmware through the very same pyusb calls. Settings are checked before any byte is
+sent; USB failures map to :mod:`benchlab.drivers.errors` types.
+"""
+
+from __future__ import annotations
+
+import array
+import errno
+import functools
+import logging
+import shlex
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass
+from datetime import UTC, datetime
+from importlib import resources
+from pathlib import Path
+from typing import Any, ParamSpec, TypeVar
+
+import numpy.typing as npt
+import usb.core
+import usb.util
+
+from benchlab.drivers import io_trace
+from benchlab.drivers.errors import (
+    DeviceError,
+    DeviceLostError,
+    DeviceNotFoundError,
+    DeviceTimeoutError,
+    ProtocolError,
+    SettingOutOfRangeError,
+)
+from benchlab.drivers.interfaces import Camera, DeviceIdentity, Frame
+from benchlab.drivers.mightex import protocol as p
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "CameraInfo", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
+    "VENDOR_ID",
+]
+
+VENDOR_ID = p.VENDOR_ID
+DEFAULT_PID = p.DEFAULT_PID
+REPLY_TIMEOUT_MS = 500
+#: Polling interval while the camera buffer is empty (real hardware, or trigger mode).
+POLL_INTERVAL_S = 0.002
+#: Bound on frames discarded in one grab (stale settings) before giving up.
+MAX_DISCARDS = 64
+_LIBUSB_NO_DEVICE = -4
+UDEV_RULE = "99-benchlab-mightex.rules"
+_LIBUSB_PIPE = -9
+
+
+@dataclass(frozen=True)
+class CameraInfo:
+    """Identity of one camera; ``error`` is set when it was found but could not be opened."""
+
+    model: str
+    serial: str
+    firmware: str
+    pid: int
+    bus: int | None
+    address: int | None
+    error: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class FrameMeta:
+    """Acquisition metadata of one frame (trailer values plus the host's configuration)."""
+
+    width: int
+    height: int
+    bits: int
+    mode: str
+    bin_code: int
+    gain: float
+    gain_raw: int
+    exposure_ms: float
+    exposure_counts: int
+    frame_time_ms: float
+    timestamp_ms: int
+    trigger_occurred: bool
+    trigger_count: int
+    x_start: int
+    y_start: int
+    received_utc: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary (plain ints, floats, bools and strings)."""
+        return asdict(self)
+
+
+@dataclass
+class _Settings:
+    width: int = 1280
+    height: int = 1024
+    bits: int = 8
+    mode: str = "normal"
+    bin_code: int = 0
+    buffer_count: int = 4
+    exposure_counts: int = 200  # 10 ms
+    gain_raw: int = 8  # unity
+    frame_time_counts: int = 1  # shortest: run as fast as exposure and readout allow
+
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _locked(method: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Serialise a public method: a UI thread and a worker may share one camera."""
+
+    @functools.wraps(method)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with args[0]._lock:  # type: ignore[attr-defined]
+            return method(*args, **kwargs)
+
+    return wrapper
+
+
+@contextmanager
+def _usb_errors(what: str) -> Iterator[None]:
+    """Translate pyusb exceptions into benchlab errors (timeout, lost device, other)."""
+    try:
+        yield
+    except usb.core.USBTimeoutError as exc:
+        raise DeviceTimeoutError(f"camera did not answer ({what})") from exc
+    except usb.core.USBError as exc:
+        if exc.errno in (errno.ENODEV, errno.ENXIO, errno.ESHUTDOWN) or exc.backend_error_code in (
+            _LIBUSB_NO_DEVICE,
+        ):
+            raise DeviceLostError(f"camera disconnected ({what}): {exc}") from exc
+        if exc.errno in (errno.EACCES, errno.EPERM):
+            raise DeviceError(f"no permission to open the camera ({what}). {udev_hint()}") from exc
+        raise DeviceError(f"USB error ({what}): {exc}") from exc
+
+
+def udev_rule_path() -> Path:
+    """The udev rule installed with benchlab (package data of ``benchlab.drivers``)."""
+    return Path(str(resources.files("benchlab.drivers") / "data" / UDEV_RULE))
+
+
+def udev_hint() -> str:
+    """What to run, exactly, so that the camera opens without root (Linux)."""
+    rule = shlex.quote(str(udev_rule_path()))
+    return ("Install the udev rule that came with benchlab, then unplug and replug the camera:\n"
+            f"  sudo install -m 644 {rule} /etc/udev/rules.d/\n"
+            "  sudo udevadm control --reload-rules && sudo udevadm trigger\n"
+            '  sudo groupadd -f plugdev && sudo usermod -aG plugdev "$USER"  # then log out and in')
+
+
+def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
+    try:
+        found = usb.core.find(
+            find_all=True, idVendor=VENDOR_ID, idProduct=DEFAULT_PID if pid is None else pid,
+            backend=backend,
+        )
+        return list(found or [])
+    except usb.core.NoBackendError as exc:
+        raise DeviceNotFoundError(
+            "no USB backend available: install libusb-1.0 (e.g. apt install libusb-1.0-0)"
+        ) from exc
+
+
+def find_cameras(backend: Any = None, pid: int | None = None) -> list[CameraInfo]:
+    """Every matching camera with model, serial and firmware (each is opened briefly).
+
+    Parameters
+    ----------
+    backend : usb.backend.IBackend, optional
+        pyusb backend; ``None`` uses libusb. Pass a ``SimCameraBackend`` for simulated cameras.
+    pid : int, optional
+        USB product ID to match (default 0x0428).
+    """
+    infos = []
+    for dev in _find_devices(backend, pid):
+        try:
+            cam = MightexCamera._from_device(dev, configure=False)
+        except DeviceError as exc:
+            infos.append(CameraInfo("?", "?", "?", dev.idProduct, dev.bus, dev.address, str(exc)))
+            continue
+        infos.append(cam.info)
+        cam.close()
+    return infos
+
+
+class MightexCamera(Camera[FrameMeta]):
+    """One open camera. Use :meth:`open`; close with :meth:`close` or a ``with`` block.
+
+    Frames are :class:`~benchlab.drivers.interfaces.Frame` with :class:`FrameMeta`."""
+
+    def __init__(self, dev: usb.core.Device, spec: p.CameraSpec, info: CameraInfo,
+                 backend: Any) -> None:
+        self._dev: usb.core.Device | None = dev
+        self._spec = spec
+        self.info = info
+        self._backend = backend
+        self._settings = _Settings()
+        self._resync_replies = False
+        #: Frames read and dropped because they carried older settings (diagnostics).
+        self.discarded_frames = 0
+        #: Older frames a normal-mode grab cleared unread to return the newest (diagnostics).
+        self.skipped_frames = 0
+        self._sleep: Callable[[float], None] = time.sleep
+        self._lock = threading.RLock()
+
+    # ------------------------------------------------------------------ opening
+
+    @classmethod
+    def open(
+        cls, serial: str | None = None, backend: Any = None, pid: int | None = None,
+        model: str = "MCE-B013-U",
+    ) -> MightexCamera:
+        """Open the camera with this serial number (or the first one found) and configure it.
+
+        The device's own module number picks the model spec when it is a known model;
+        otherwise ``model`` does. Default acquisition: 1280x1024, 8-bit, normal mode,
+        exposure 10 ms, gain 1, 4 buffered frames.
+
+        Raises
+        ------
+        DeviceNotFoundError
+            No camera matched (the message lists the serials that were found).
+        """
+        p.spec_for(model)  # refuse an unknown model before touching USB
+        devices = _find_devices(backend, pid)
+        seen = []
+        errors = []
+        for dev in devices:
+            try:
+                cam = cls._from_device(dev, configure=False, model=model, backend=backend)
+            except DeviceError as exc:  # busy or unreadable: maybe another camera matches
+                errors.append(f"usb {dev.bus}:{dev.address}: {exc}")
+                continue
+            if serial is None or cam.info.serial == serial:
+                try:
+                    cam._apply_all()
+                except BaseException:
+                    cam.close()
+                    raise
+                log.info("camera %s serial %s firmware %s opened", cam.info.model,
+                         cam.info.serial, cam.info.firmware)
+                return cam
+            seen.append(cam.info.serial)
+            cam.close()
+        if errors and serial is None:
+            raise DeviceError("camera found but could not be opened: " + "; ".join(errors))
+        pid_text = f"0x{DEFAULT_PID if pid is None else pid:04X}"
+        if serial is None:
+            raise DeviceNotFoundError(
+                f"no Mightex camera found (VID 0x{VENDOR_ID:04X}, PID {pid_text}); check the "
+                "cable, the udev rule, or pass --pid"
+            )
+        raise DeviceNotFoundError(
+            f"no camera with serial {serial!r} (PID {pid_text}); found: {', '.join(seen) or 'none'}"
+        )
+
+    @classmethod
+    def _from_device(cls, dev: usb.core.Device, *, configure: bool, model: str = "MCE-B013-U",
+                     backend: Any = None) -> MightexCamera:
+        with _usb_errors("open"):
+            try:
+                if dev.is_kernel_driver_active(p.INTERFACE):
+                    dev.detach_kernel_driver(p.INTERFACE)
+            except (NotImplementedError, usb.core.USBError):
+                pass  # no kernel driver binds this camera on Linux; other OSes lack the call
+            dev.set_configuration()
+            usb.util.claim_interface(dev, p.INTERFACE)
+        cam = cls(dev, p.spec_for(model), CameraInfo(model, "?", "?", dev.idProduct, dev.bus,
+                                                      dev.address), backend)
+        try:
+            fw = cam._wake_up()
+            info = p.decode_device_info(cam._query(p.encode_device_info_query(), "device info",
+                                                   p.DEVICE_INFO_BYTES))
+            spec = p.SPECS.get(info.model, cam._spec)
+            cam._spec = spec
+            cam.info = CameraInfo(info.model or spec.model, info.serial, fw, dev.idProduct,
+                                  dev.bus, dev.address)
+            if configure:
+                cam._apply_all()
+        except BaseException:
+            cam.close()
+            raise
+        return cam
+
+    def _wake_up(self) -> str:
+        """Drop stale replies, then ask for the firmware version until the camera answers."""
+        self._drain_replies()
+        last: Exception | None = None
+        for _ in range(3):  # the first commands after power-up may time out
+            try:
+                return "{}.{}.{}".format(*p.decode_firmware(
+                    self._query(p.encode_firmware_query(), "firmware version", 3)))
+            except DeviceTimeoutError as exc:
+                last = exc
+        raise DeviceTimeoutError("camera did not answer the firmware query 3 times") from last
+
+    @_locked
+    def reopen(self) -> None:
+        """Reconnect to the same serial number (after a lost device) and restore all settings."""
+        settings = self._settings
+        log.info("camera %s: reconnecting", self.info.serial)
+        self.close()
+        fresh = type(self).open(self.info.serial, backend=self._backend, pid=self.info.pid,
+                                model=self._spec.model)
+        self._dev, self._spec, self.info = fresh._dev, fresh._spec, fresh.info
+        fresh._dev = None
+        self._settings = settings
+        self._resync_replies = False
+        self._apply_all()
+
+    def close(self) -> None:
+        """Release the USB interface (safe to call twice, and after the device was lost)."""
+        dev, self._dev = self._dev, None
+        if dev is None:
+            return
+        try:
+            usb.util.dispose_resources(dev)
+        except (usb.core.USBError, ValueError):
+            pass  # already gone
+
+    def __enter__(self) -> MightexCamera:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ transport
+
+    @property
+    def _device(self) -> usb.core.Device:
+        if self._dev is None:
+            raise DeviceLostError("camera is closed; call reopen() or MightexCamera.open()")
+        return self._dev
+
+    def _send(self, data: bytes) -> None:
+        io_trace.record("camera", ">", data)
+        with _usb_errors(f"command 0x{data[0]:02X}"):
+            self._device.write(p.EP_COMMAND_OUT, data, REPLY_TIMEOUT_MS)
+
+    def _drain_replies(self) -> None:
+        for _ in range(8):
+            try:
+                with _usb_errors("drain"):
+                    io_trace.record("camera", "<", self._device.read(p.EP_REPLY_IN, 255, 20))
+            except DeviceTimeoutError:
+                return
+        self._resync_replies = False
+
+    def _query(self, data: bytes, what: str, expected_len: int) -> bytes:
+        if self._resync_replies:  # a late reply to an earlier, failed query may be waiting
+            self._drain_replies()
+            self._resync_replies = False
+        self._send(data)
+        try:
+            with _usb_errors(what):
+                reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
+            io_trace.record("camera", "<", reply)
+            return p.decode_reply(reply, what, expected_len)
+        except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
+            self._resync_replies = True
+            raise
+
+    # ------------------------------------------------------------------ settings
+
+    @property
+    def identity(self) -> DeviceIdentity:
+        return DeviceIdentity(self.info.model, self.info.serial, self.info.firmware)
+
+    @property
+    def spec(self) -> p.CameraSpec:
+        return self._spec
+
+    @property
+    def exposure_ms(self) -> float:
+        """Exposure as set on the camera (rounded to the 0.05 ms step)."""
+        return self._settings.exposure_counts * p.EXPOSURE_STEP_MS
+
+    @property
+    def gain(self) -> float:
+        return self._settings.gain_raw / p.GAIN_RAW_PER_UNITY
+
+    @property
+    def frame_time_ms(self) -> float:
+        return self._settings.frame_time_counts * self._spec.frame_time_unit_ms
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        """Current configuration (JSON-safe)."""
+        s = self._settings
+        return {"width": s.width, "height": s.height, "bits": s.bits, "mode": s.mode,
+                "bin_code": s.bin_code, "buffer_count": s.buffer_count,
+                "exposure_ms": self.exposure_ms, "gain": self.gain,
+                "frame_time_ms": self.frame_time_ms}
+
+    @_locked
+    def _do_configure(self, *, width: int, height: int, bits: int, mode: str,
+                      bin_code: int = 0, buffer_count: int = 4, **unknown: int) -> None:
+        """Set work mode, bit depth, geometry, bin code and buffer depth; flush old frames.
+
+        Options: ``bin_code`` (0 = no decimation) and ``buffer_count`` (frames the camera
+        buffers). Raises ``SettingOutOfRangeError`` (nothing sent) for values the model
+        refuses: width/height multiples of 4 in 8..1280 x 8..1024, bits 8 or 12, buffer 1..24.
+        """
+        if unknown:
+            raise SettingOutOfRangeError(
+                f"camera: unknown option(s) {', '.join(sorted(unknown))}; nothing sent")
+        p.check_geometry(self._spec, width=width, height=height, bits=bits, mode=mode,
+                         bin_code=bin_code, buffer_count=buffer_count)
+        s = self._settings
+        s.width, s.height, s.bits, s.mode = width, height, bits, mode
+        s.bin_code, s.buffer_count = bin_code, buffer_count
+        self._send(p.encode_work_mode(mode, bits))
+        self._send(p.encode_resolution(width, height, bin_code, buffer_count))
+        self.clear_buffer()
+
+    @_locked
+    def _do_set_exposure_ms(self, exposure_ms: float) -> None:
+        """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
+        counts = p.exposure_counts(exposure_ms, self._spec)
+        self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
+        self._settings.exposure_counts = counts
+
+    @_locked
+    def _do_set_gain(self, gain: float) -> None:
+        """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
+        raw = p.gain_raw(gain, self._spec)
+        self._send(p.encode_gain(raw))
+        self._settings.gain_raw = raw
+
+    @_locked
+    def set_frame_time_ms(self, frame_time_ms: float) -> None:
+        """Free-running frame period in normal mode (model unit: 0.1 or 0.05 ms)."""
+        counts = p.frame_time_counts(frame_time_ms, self._spec)
+        self._send(p.encode_frame_time(counts))
+        self._settings.frame_time_counts = counts
+
+    def _apply_all(self) -> None:
+        s = self._settings
+        self.configure(width=s.width, height=s.height, bits=s.bits, mode=s.mode,
+                       bin_code=s.bin_code, buffer_count=s.buffer_count)
+        self._send(p.encode_exposure(s.exposure_counts, self._spec.exposure_bytes))
+        self._send(p.encode_frame_time(s.frame_time_counts))
+        self._send(p.encode_gain(s.gain_raw))
+
+    @_locked
+    def firmware_version(self) -> str:
+        return "{}.{}.{}".format(*p.decode_firmware(
+            self._query(p.encode_firmware_query(), "firmware version", 3)))
+
+    @_locked
+    def device_info(self) -> p.DeviceInfo:
+        return p.decode_device_info(
+            self._query(p.encode_device_info_query(), "device info", p.DEVICE_INFO_BYTES))
+
+    @_locked
+    def buffer_status(self) -> p.BufferStatus:
+        """Frames waiting in the camera and the geometry of the oldest one (command 0x33)."""
+        return p.decode_buffer_status(self._query(p.encode_query_buffer(), "buffer query", 6))
+
+    @_locked
+    def clear_buffer(self) -> int:
+        """Discard every frame waiting in the camera; returns how many there were."""
+        n = self.buffer_status().frames
+        if n:
+            self._send(p.encode_clear_buffer(n))
+        return n
+
+    @_locked
+    def software_trigger(self) -> None:
+        """Expose one frame now (trigger mode only; ignored by the camera otherwise)."""
+        self._send(p.encode_soft_trigger())
+
+    @_locked
+    def reset(self) -> None:
+        """Reset the camera firmware, then restore this driver's settings."""
+        self._send(p.encode_reset())
+        self._apply_all()
+
+    # ------------------------------------------------------------------ frames
+
+    @property
+    def layout(self) -> p.FrameLayout:
+        s = self._settings
+        return p.FrameLayout(s.width, s.height, s.bits)
+
+    @_locked
+    def _do_grab(self, timeout_s: float | None) -> Frame[FrameMeta]:
+        """The newest frame in the camera's buffer (normal mode), or the next frame in order
+        (trigger mode: one per trigger, none lost); waits for one if the buffer is empty.
+
+        Normal mode: the camera keeps up to ``buffer_count`` frames, oldest first, and 0x34
+        sends the oldest; so when several wait, the older ones are cleared unread (0x35 n-1,
+        counted in ``skipped_frames``) and the buffer asked again (0x33) before reading one.
+        A frame already in the buffer may have been exposed before this call: ``Bench.grab``
+        (``fresh``) clears the buffer and drops the exposure under way when that matters.
+
+        ``timeout_s`` defaults to twice the frame period plus 5 s.
+
+        Frames left in the camera from an older configuration (other geometry, exposure or
+        gain, told apart by the 0x33 reply and the frame trailer) are discarded.
+
+        Raises
+        ------
+        DeviceTimeoutError
+            No matching frame within ``timeout_s`` (e.g. trigger mode without a trigger).
+        DeviceLostError, ProtocolError
+            Unplugged mid-transfer; short, oversize or inconsistent frame.
+        """
+        s = self._settings
+        if timeout_s is None:
+            timeout_s = 2 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
+        deadline = time.monotonic() + timeout_s
+        discards = 0
+        skipped = False
+        while True:
+            status = self.buffer_status()
+            if status.frames == 0:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise DeviceTimeoutError(
+                        f"no frame within {timeout_s:g} s (mode {s.mode}, exposure "
+                        f"{self.exposure_ms:g} ms)")
+                self._sleep(min(POLL_INTERVAL_S, remaining))
+                continue
+            if (status.width, status.height, status.bin_code) != (s.width, s.height, s.bin_code):
+                self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
+                discards += status.frames
+                self.discarded_frames += status.frames
+            elif status.frames > 1 and s.mode == "normal" and not skipped:
+                # Keep only the newest. Once per grab: a frame that arrives meanwhile (periods
+                # shorter than a USB round trip) is not chased, the next one read is at most a
+                # period older than the newest.
+                self._send(p.encode_clear_buffer(status.frames - 1))
+                self.skipped_frames += status.frames - 1
+                skipped = True
+            else:
+                frame = self._read_frame()
+                t = frame[1]
+                if t.exposure_counts == s.exposure_counts and t.green_gain == s.gain_raw:
+                    return self._make_frame(*frame)
+                discards += 1
+                self.discarded_frames += 1
+            if discards > MAX_DISCARDS:
+                raise ProtocolError(
+                    f"camera kept sending frames with other settings ({discards} discarded)")
+
+    def _read_frame(self) -> tuple[npt.NDArray[Any], p.FrameTrailer]:
+        layout = self.layout
+        self._send(p.encode_get_image(1))
+        # One fresh buffer per frame: the returned pixels are a view of it (no copy).
+        buf = array.array("B", b"\0") * layout.total_bytes
+        timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
+        with _usb_errors("frame read"):
+            received = self._device.read(p.EP_FRAME_IN, buf, timeout_ms)
+        io_trace.record("camera", "<", memoryview(buf)[:received])
+        return p.decode_frame(buf, layout, received)
+
+    def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:
+        s = self._settings
+        meta = FrameMeta(
+            width=t.row, height=t.column, bits=s.bits, mode=s.mode, bin_code=t.bin_code,
+            gain=t.green_gain / p.GAIN_RAW_PER_UNITY, gain_raw=t.green_gain,
+            exposure_ms=round(t.exposure_counts * p.EXPOSURE_STEP_MS, 6),
+            exposure_counts=t.exposure_counts,
+            frame_time_ms=round(t.frame_time * self._spec.frame_time_unit_ms, 6),
+            timestamp_ms=t.timestamp_ms, trigger_occurred=bool(t.trigger_occurred),
+            trigger_count=t.trigger_count, x_start=t.x_start, y_start=t.y_start,
+            received_utc=datetime.now(UTC).isoformat(timespec="milliseconds"),
+        )
+        return Frame(pixels, meta)

@@ -1,0 +1,757 @@
+"""Frames of a Table 4.10 session -> Tables 4.11-4.15 (pure apart from reading the session).
+
+The same functions serve the live run (partial results per frame) and offline re-analysis, so a
+re-analysis of unchanged frames with the same estimator reproduces the run's tables exactly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from benchlab.analysis.bars.estimators import AUTO, estimate_modulation, resolve_estimator
+from benchlab.analysis.bars.result import ModulationResult
+from benchlab.analysis.chart import layout as chart
+from benchlab.analysis.geometry import (
+    fill_holes,
+    fov_centre,
+    image_height_mm,
+    image_height_px,
+    nearest_field_point,
+    roi_centroid,
+)
+from benchlab.analysis.mtf.compare import averaged_mtf, load_monte_carlo_table, monte_carlo_band
+from benchlab.analysis.mtf.frequency import (
+    azimuthal_image_frequency_lp_per_mm,
+    cycles_per_px,
+    image_frequency_lp_per_mm,
+    nyquist_lp_per_mm,
+    usaf_frequency_lp_per_mm,
+)
+from benchlab.analysis.sfr.measure import SfrResult, full_scale_of_frame
+from benchlab.analysis.sfr.target import EdgeSpec, edge_specs
+from benchlab.analysis.thesis_data import thesis_fixture_path
+from benchlab.protocols.mtf.edges import (
+    chart_boxes,
+    chart_pose_of,
+    clear_of_chart,
+    edge_parts_of,
+    edge_parts_tables,
+    measure_edge,
+)
+from benchlab.protocols.params import MtfParams, Roi, UsafElement
+from benchlab.session import FRAME_LOAD_THREADS
+
+if TYPE_CHECKING:
+    from benchlab.analysis.chart.finder import ChartFit, FoundElement
+    from benchlab.analysis.chart.reading import SetReading
+    from benchlab.forked import SharedFlags
+    from benchlab.session import Session
+
+FORWARD_STEP = "forward"
+FORWARD_FRAME = "forward"
+RADIAL_FRAME = "radial"
+ORIENTATIONS = ("sagittal", "tangential")
+#: "auto" is the library's one default (:data:`benchlab.analysis.bars.estimators.DEFAULT_ESTIMATOR`)
+#: in both views: it measures the bar direction itself, so the oblique spokes and rings of the
+#: radial view need no other estimator.
+#: A measured frequency is compared with a Monte Carlo row within this relative distance (the
+#: thesis paired 73.2 with 70, 35 with 30 and 52.5 with 60 lp/mm: at most 17 % apart).
+MC_MATCH_FRACTION = 0.2
+#: Threads that load a session's frames (decoding releases the GIL; more buys nothing here).
+LOAD_THREADS = FRAME_LOAD_THREADS
+
+
+def radial_step_id(freq_lp_per_mm: float, orientation: str) -> str:
+    """Step id (and frame folder key) of one radial acquisition."""
+    return f"radial-{freq_lp_per_mm:g}-{orientation}"
+
+
+#: A found pose this close to the configured geometry (scale within this fraction, rotation
+#: within this many degrees) places the ROIs as the configured boxes shifted by the whole-pixel
+#: offset, so a chart at its configured place gives exactly the configured ROIs; otherwise the
+#: ROIs are the found, scaled and rotated bar sets.
+NOMINAL_SCALE_TOLERANCE = 0.01
+NOMINAL_ROTATION_DEG = 0.3
+
+
+def _bar_group(el: UsafElement, orientation: str) -> chart.BarGroup:
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    return chart.usaf_bar_group(chart.ChartLayout(), el.group, el.element, orient)
+
+
+def forward_layout(params: MtfParams) -> chart.ChartLayout:
+    """The configured forward-view chart geometry: the prior of the chart finder."""
+    return chart.ChartLayout(magnification=params.forward_magnification)
+
+
+def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> ChartFit | None:
+    """The USAF chart in the forward frame (:func:`benchlab.analysis.chart.finder.find_chart`
+    with the parameter file's geometry as the prior), or None when no chart is found (the ROIs
+    then stay at the configured places and each row says so)."""
+    # Imported here: a re-analysis that has the forward frame analysed in another process
+    # (:func:`analyze_mtf`'s ``ahead``) never loads the chart finder (start-up, issue 11).
+    from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
+
+    try:
+        return find_chart(pixels, forward_layout(params))
+    except ChartNotFoundError:
+        return None
+
+
+def _near_nominal(fit: ChartFit) -> bool:
+    return (abs(fit.pose.scale - 1.0) <= NOMINAL_SCALE_TOLERANCE
+            and abs(fit.pose.rotation_deg) <= NOMINAL_ROTATION_DEG)
+
+
+def _found_element(el: UsafElement, orientation: str, fit: ChartFit | None) -> FoundElement | None:
+    """The found chart's placement of a set when the chart is far from the configured
+    geometry (its ROIs, priors and measurability then apply), else None."""
+    if fit is None or _near_nominal(fit):
+        return None
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    return fit.element(el.group, el.element, orient)
+
+
+def forward_roi(
+    params: MtfParams, el: UsafElement, orientation: str, offset: tuple[int, int] = (0, 0),
+    fit: ChartFit | None = None,
+) -> Roi:
+    """ROI of one bar set: the technician's override, else the bar set located on the chart:
+    its measurement ROI (:func:`benchlab.analysis.chart.layout.bar_set_roi`), every line across the
+    three bars but none straddling the bar ends, which read bar and bright ground at once and
+    biased the modulation low by up to 0.12. With a found chart ``fit`` far from the configured
+    geometry the ROI is the found (scaled, rotated) set's measurement ROI (three whole periods
+    across, :attr:`FoundElement.measurement_roi`); otherwise the configured ROI shifted by
+    ``offset`` (the found offset in whole pixels)."""
+    override = params.forward_roi_overrides.get(f"{el.name}.{orientation}")
+    if override is not None:
+        return override
+    found = _found_element(el, orientation, fit)
+    if found is not None:
+        return found.measurement_roi
+    r0, c0, r1, c1 = _bar_group(el, orientation).roi
+    dr, dc = offset
+    return (r0 + dr, c0 + dc, r1 + dr, c1 + dc)
+
+
+def _measure(
+    pixels: npt.NDArray[Any], roi: Roi, *, estimator: str, freq_cycles_per_px: float,
+    orientation: str | None,
+) -> ModulationResult:
+    r0, c0, r1, c1 = roi
+    if not _inside(roi, pixels.shape):
+        raise ValueError(f"ROI {roi} is off the {pixels.shape} frame")
+    return estimate_modulation(
+        pixels[r0:r1, c0:c1], estimator=estimator, orientation=orientation,
+        freq_cycles_per_px=freq_cycles_per_px,
+    )
+
+
+def _cells(res: ModulationResult) -> dict[str, Any]:
+    if not res.measurable:  # no reading at all (ROI < 1 period): no number, never the N/A 0
+        return _not_measured("; ".join(res.warnings))
+    return {
+        "dark": res.dark,
+        "bright": res.bright,
+        "modulation": round(float(res.modulation), 6),
+        "resolved": res.resolved,
+        "uncertainty": res.uncertainty,
+        "warnings": "; ".join(res.warnings),
+    }
+
+
+#: Threads of the chart reading (:func:`benchlab.analysis.chart.reading.read_chart`): its
+#: transforms and products release the GIL, so the forward frame's part (in the forked child
+#: of a re-analysis, or on its thread) takes the second core once the rest is done.
+CHART_READING_THREADS = 2
+
+#: What Table 4.11's ``estimator`` says when the chart reading read a set.
+CHART_READING = "chart reading (knownbars)"
+
+
+def reads_chart(estimator: str | None) -> bool:
+    """Whether the forward view is read by the chart reading: the default (``auto``) on a
+    found chart. A chart of known layout is read best with its geometry fixed by the found
+    pose (:func:`benchlab.analysis.chart.reading.read_chart`): every Table 4.11 set within
+    0.017 of the simulator's truth at any noise seed, where a generic estimator on the small
+    ROIs of group 1 and 2 read up to 0.06 off. A named estimator is used as named."""
+    return estimator in (None, "", AUTO)
+
+
+def analyze_forward_frame(
+    pixels: npt.NDArray[Any], params: MtfParams, estimator: str | None
+) -> list[dict[str, Any]]:
+    """One row per element and orientation (what a UI shows while the run goes on).
+
+    With the chart found, every set's frequency and aliasing follow from the found pose (the
+    implied magnification, not the configured one), a set the finder rejected is not measured
+    (its reason instead of a number), and by default (:func:`reads_chart`) every found set is
+    read by the chart reading. A technician's ROI override is read by the generic estimator.
+    """
+    est = resolve_estimator(estimator)
+    fit = locate_chart(pixels, params)
+    offset = fit.offset_px if fit is not None else (0, 0)
+    chart_info = _chart_info(fit)
+    readings = _chart_readings(pixels, fit) if fit is not None and reads_chart(estimator) else None
+    nyq = nyquist_lp_per_mm()
+    rows = []
+    for el in params.forward_elements:
+        f_conf = image_frequency_lp_per_mm(usaf_frequency_lp_per_mm(el.group, el.element),
+                                           params.forward_magnification)
+        for orient in ORIENTATIONS:
+            override = f"{el.name}.{orient}" in params.forward_roi_overrides
+            placed = _placed(el, orient, fit)
+            # The found pose's frequency: a wrong configured magnification must not move the
+            # frequencies (nor hide measured sets as aliased).
+            f_img = placed.posed.image_lp_per_mm if placed is not None else f_conf
+            roi = forward_roi(params, el, orient, offset, fit)
+            used: str | None = None  # what read the set (None: not measured)
+            setup: dict[str, Any] | None = None  # how the chart reading read it
+            if not override and placed is not None and not placed.found:
+                cells = _not_measured(f"not measured: {placed.reason}")
+            elif not override and readings is not None and placed is not None:
+                roi = placed.reading_roi or placed.measurement_roi
+                if placed.unmeasurable:
+                    cells = _not_measured(placed.unmeasurable)
+                else:
+                    reading = readings[placed.label]
+                    used, cells = CHART_READING, _cells(reading.result)
+                    dark_bars = fit is not None and fit.polarity == "positive"
+                    setup = _reading_setup(placed, roi, reading, dark_bars)
+            elif not _inside(roi, pixels.shape):
+                cells = _not_measured("clipped by the FOV: ROI off the frame")
+            else:
+                found = None if override else _found_element(el, orient, fit)
+                if found is not None and found.generic_unreliable:
+                    cells = _not_measured(found.generic_unreliable)
+                else:
+                    used = est
+                    # Bars off the pixel axes have their direction measured, not taken as
+                    # the axis.
+                    priors = (found.estimator_priors() if found is not None else
+                              {"freq_cycles_per_px": cycles_per_px(f_img), "orientation": orient})
+                    cells = _cells(_measure(pixels, roi, estimator=est, **priors))
+            if fit is None:
+                note = "chart not found: configured ROI"
+                cells["warnings"] = "; ".join(w for w in (cells["warnings"], note) if w)
+            rows.append({"view": "forward", "element": el.name, "orientation": orient,
+                         "image_lp_per_mm": f_img, "aliased": f_img > nyq, "roi": list(roi),
+                         "estimator": used, "chart_offset_px": list(offset), "chart": chart_info,
+                         "reading_setup": setup, **cells})
+    return rows
+
+
+def _reading_setup(placed: FoundElement, roi: Roi, reading: SetReading,
+                   dark_bars: bool) -> dict[str, Any] | None:
+    """How the chart reading read a set (:class:`benchlab.analysis.chart.threebar.ReadingSetup`
+    as a dict: ROI, centre, bar width and angle, polarity, blur prior, noise and ground level),
+    so that the set imaged through a slanted edge's transfer is read the same way
+    (``table_sfr_vs_bars``); None when the reading has no levels."""
+    res = reading.result
+    if not res.measurable or res.dark is None or res.bright is None:
+        return None
+    p = placed.posed
+    prior = reading.blur_prior_px
+    return {"roi": list(roi), "centre_rc": [float(p.centre_rc[0]), float(p.centre_rc[1])],
+            "bar_width_px": float(p.bar_width_px), "theta_deg": float(p.theta_deg),
+            "dark_bars": dark_bars,
+            "blur_prior_px": None if prior is None else [float(prior[0]), float(prior[1])],
+            "noise_sigma": float(res.diagnostics.noise_sigma or 0.0),
+            "ground_level": float(res.bright if dark_bars else res.dark)}
+
+
+def _placed(el: UsafElement, orientation: str, fit: ChartFit | None) -> FoundElement | None:
+    """The found chart's placement of a set (found or rejected), or None without a chart."""
+    if fit is None:
+        return None
+    orient: chart.Orientation = "sagittal" if orientation == "sagittal" else "tangential"
+    try:
+        return fit.element(el.group, el.element, orient)
+    except KeyError:
+        return None
+
+
+def _chart_readings(pixels: npt.NDArray[Any], fit: ChartFit) -> dict[str, SetReading]:
+    """Every found set read by the chart reading, by label (``G2E4S``)."""
+    from benchlab.analysis.chart.reading import read_chart_details  # loaded only where used
+
+    readings = read_chart_details(pixels, fit, workers=CHART_READING_THREADS)
+    return dict(zip([e.label for e in fit.found], readings, strict=True))
+
+
+def _not_measured(reason: str) -> dict[str, Any]:
+    """A set with no reading: modulation None (the tables say "not measurable") and why."""
+    return {"dark": None, "bright": None, "modulation": None, "resolved": False,
+            "uncertainty": None, "warnings": reason}
+
+
+def _inside(roi: Roi, shape: tuple[int, ...]) -> bool:
+    r0, c0, r1, c1 = roi
+    return 0 <= r0 < r1 <= shape[-2] and 0 <= c0 < c1 <= shape[-1]
+
+
+def _chart_info(fit: ChartFit | None) -> dict[str, Any] | None:
+    """The found chart in brief (pose, magnification, counts, warnings) for the summary."""
+    if fit is None:
+        return None
+    d = fit.to_dict()
+    return {k: d[k] for k in ("pose", "polarity", "configured_magnification",
+                              "implied_magnification", "matched_sets", "residual_px", "found",
+                              "rejected", "warnings")}
+
+
+def radial_image_lp_per_mm(freq_lp_per_mm: float, orientation: str, params: MtfParams,
+                           centre: tuple[float, float]) -> float:
+    """Image frequency of a radial pattern at the radial ROI: Eq. 4.1's axial magnification for
+    tangential bars (rings); object radius / image radius for sagittal bars (spokes), the
+    rotational symmetry's azimuthal magnification."""
+    if orientation != "sagittal":
+        return image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_magnification)
+    r_mm = image_height_mm(centre, roi_centroid(params.radial_roi))
+    return azimuthal_image_frequency_lp_per_mm(freq_lp_per_mm, params.radial_object_radius_mm,
+                                               r_mm)
+
+
+def analyze_radial_frame(
+    pixels: npt.NDArray[Any], freq_lp_per_mm: float, orientation: str, params: MtfParams,
+    estimator: str | None, centre: tuple[float, float] | None = None,
+) -> dict[str, Any]:
+    """Modulation of one radial frame in the common radial ROI. ``centre`` (row, col) is the
+    image centre; by default it is found from this frame's field of view."""
+    est = resolve_estimator(estimator)
+    if centre is None:
+        centre = _centre([pixels], params.fov_threshold_dn)[0]
+    f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
+    res = _measure(pixels, params.radial_roi, estimator=est,
+                   freq_cycles_per_px=cycles_per_px(f_img), orientation=None)
+    return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
+            "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
+            "roi": list(params.radial_roi), **_cells(res)}
+
+
+def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple[
+    tuple[float, float], str
+]:
+    """Optical centre from the radial frames' field-of-view mask (section 4.3.3).
+
+    The lit annulus of every radial frame together traces the field-of-view circle; with its
+    hole (the forward disc) filled, the circle's centre is the optical axis (a circle fit when
+    the frame edge clips it). Falls back to the chart's nominal centre when no mask exists.
+    """
+    if radial_frames:
+        # Lit in any frame = the frames' maximum above the threshold: one comparison instead
+        # of one per frame (each converts the whole frame to float), the same mask.
+        brightest = np.array(radial_frames[0], dtype=np.result_type(*radial_frames), copy=True)
+        for px in radial_frames[1:]:
+            np.maximum(brightest, px, out=brightest)
+        mask = fill_holes(brightest > threshold_dn)
+        try:
+            circle = fov_centre(mask)
+            return circle.centre_rc, circle.method
+        except ValueError:
+            pass
+    return chart.IMAGE_CENTRE_RC, "nominal"
+
+
+#: A frame and its metadata (:meth:`benchlab.session.Session.load_frame`).
+_Frame = tuple[npt.NDArray[Any], dict[str, Any]]
+
+
+def _load_frame(session: Session, step_id: str, name: str) -> _Frame | None:
+    if name not in session.step_frames(step_id):
+        return None
+    pixels, meta = session.load_frame(step_id, name)  # checks its hash against the journal
+    return np.asarray(pixels), meta
+
+
+def _load(session: Session, step_id: str, name: str) -> npt.NDArray[Any] | None:
+    frame = _load_frame(session, step_id, name)
+    return None if frame is None else frame[0]
+
+
+_ForwardView = tuple[dict[tuple[str, str], dict[str, Any]], list[dict[str, Any]]]
+
+
+#: A forward frame's slanted edges measured, by index in :func:`edge_specs`.
+_Edges = dict[int, tuple[EdgeSpec, SfrResult | str]]
+
+
+class ForwardPart(NamedTuple):
+    """What the forward frame alone gives (no radial frame, no centre): its bar sets' rows
+    by (element, orientation) with Table 4.11, and its slanted edges measured (all, or those
+    this process claimed: :class:`ForwardAhead`); None for both without a forward frame.
+    ``estimator`` is the one used (the caller's must match)."""
+
+    estimator: str
+    view: _ForwardView | None
+    edges: _Edges | None
+
+
+class ForwardAhead(NamedTuple):
+    """The forward part computed in another process (:func:`analyze_mtf`'s ``ahead``).
+
+    ``result()`` returns it, or None when it could not be computed there (it is then computed
+    here). With ``claims`` (shared with that process) the slanted edges are split as the two
+    go: the other process measures them from the first after the bar sets, this one from the
+    last after the radial frames, each taking the edges not claimed yet.
+    """
+
+    result: Callable[[], ForwardPart | None]
+    claims: SharedFlags | None = None
+
+
+def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
+    """The estimator of an MTF analysis: the caller's, else the parameter file's, else auto."""
+    return estimator or params.estimator or AUTO
+
+
+def forward_part(session: Session, params: MtfParams, estimator: str | None,
+                 claims: SharedFlags | None = None) -> ForwardPart:
+    """The forward frame's analysis (:class:`ForwardPart`), which a re-analysis may compute
+    in another process beside the radial frames (:class:`ForwardAhead`): every edge, or with
+    ``claims`` the edges claimed first here."""
+    est = mtf_estimator(params, estimator)
+    frame = _load_frame(session, FORWARD_STEP, FORWARD_FRAME)
+    if frame is None:
+        return ForwardPart(est, None, None)
+    view = _forward_rows(frame[0], params, est)
+    return ForwardPart(est, view, _measure_claimed(frame, claims, last_first=False))
+
+
+def _measure_claimed(frame: _Frame, claims: SharedFlags | None, *,
+                     last_first: bool) -> _Edges:
+    """Every edge measured (``claims`` None), or every edge claimed here in that order;
+    clipping is judged against the camera's ceiling, ``2**bits - 1`` from the frame's own
+    metadata (:func:`benchlab.analysis.sfr.measure.full_scale_of_frame`; inferred from each ROI's
+    codes when the metadata has no usable ``bits``)."""
+    pixels, meta = frame
+    full_scale = full_scale_of_frame(pixels, meta)
+    specs = list(enumerate(edge_specs()))
+    out: _Edges = {}
+    for i, spec in reversed(specs) if last_first else specs:
+        if claims is None or claims.claim(i):
+            out[i] = (spec, measure_edge(pixels, spec, full_scale))
+    return out
+
+
+def analyze_mtf(
+    session: Session, params: MtfParams, estimator: str | None,
+    ahead: ForwardAhead | None = None,
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
+    """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``.
+
+    ``ahead``, when given, is the :func:`forward_part` being computed elsewhere (a forked
+    process: :mod:`benchlab.forked`); this process meanwhile loads the radial frames,
+    measures their rows and then its share of the edges. The tables are those of one process.
+    """
+    est = mtf_estimator(params, estimator)
+    if ahead is not None:
+        centre, centre_method, radial, t412, part = _with_forward_ahead(
+            session, params, est, ahead)
+    else:
+        centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
+    forward = part.view
+    edges_done = None
+    if part.edges is not None:
+        measured = [part.edges[i] for i in sorted(part.edges)]
+        pose = (chart_pose_of(next(iter(forward[0].values()))["chart"])
+                if forward is not None and forward[0] else None)
+        if pose is not None:  # the edge ROIs are fixed: a moved chart may lie across them
+            measured = clear_of_chart(measured, chart_boxes(forward_layout(params), pose))
+        edges_done = edge_parts_of(measured, centre, params.simulated_mtf_file)
+    nyq = nyquist_lp_per_mm()
+
+    t411: list[dict[str, Any]] = []
+    t413: list[dict[str, Any]] = []
+    per: dict[tuple[str, str], dict[str, Any]] = {}
+    edges: dict[str, list[dict[str, Any]]] = {}
+    if forward is not None and edges_done is not None:
+        per, t411 = forward
+        setups = {key: r.get("reading_setup") for key, r in per.items()}
+        edges = edge_parts_tables(edges_done, t411, centre, setups)
+        for el in params.forward_elements:
+            for orient in ORIENTATIONS:
+                t413.append(_height_row("forward", f"{el.name}{orient[0].upper()}",
+                                        tuple(per[(el.name, orient)]["roi"]), centre))
+    if radial:
+        t413.append(_height_row("radial", "radial ROI", params.radial_roi, centre))
+
+    t415 = _monte_carlo_rows(t411, t412, params)
+    tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
+    tables.update(edges)  # slanted-edge MTF where a clean edge exists (issue 16)
+    summary = {
+        "procedure": "mtf",
+        "estimator": est,
+        "forward_estimator": _forward_estimator(per, est),
+        "radial_estimator": resolve_estimator(est),
+        "image_centre_rc": list(centre),
+        "image_centre_method": centre_method,
+        "chart_offset_px": next(iter(per.values()))["chart_offset_px"] if per else None,
+        "chart": next(iter(per.values()))["chart"] if per else None,
+        "nyquist_lp_per_mm": nyq,
+        "frames_analysed": (forward is not None) + len(radial),
+    }
+    return tables, summary, est
+
+
+def _forward_estimator(per: dict[tuple[str, str], dict[str, Any]], est: str) -> str:
+    """What read the forward view: the chart reading where it read the found sets."""
+    used = sorted({str(r["estimator"]) for r in per.values() if r["estimator"]})
+    return " and ".join(used) if used else resolve_estimator(est)
+
+
+_Radial = dict[tuple[float, str], npt.NDArray[Any]]
+_RadialPart = tuple[tuple[float, float], str, _Radial, list[dict[str, Any]], ForwardPart]
+
+
+def _radial_keys(params: MtfParams) -> list[tuple[float, str]]:
+    return [(f, orient) for f in params.radial_frequencies_lp_per_mm for orient in ORIENTATIONS]
+
+
+def _collect(keys: list[tuple[float, str]],
+             jobs: list[Future[npt.NDArray[Any] | None]]) -> _Radial:
+    radial: _Radial = {}
+    for key, job in zip(keys, jobs, strict=True):
+        px = job.result()
+        if px is not None:
+            radial[key] = px
+    return radial
+
+
+def _submit_radial_loads(session: Session, keys: list[tuple[float, str]],
+                         pool: ThreadPoolExecutor) -> list[Future[npt.NDArray[Any] | None]]:
+    """Start loading every radial frame on ``pool`` (one job per key, in order)."""
+    return [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME) for f, o in keys]
+
+
+def _radial_part(
+    keys: list[tuple[float, str]], jobs: list[Future[npt.NDArray[Any] | None]], params: MtfParams,
+    est: str,
+) -> tuple[_Radial, tuple[float, float], str, list[dict[str, Any]]]:
+    """The radial frames once loaded, the optical centre fitted to them and the radial
+    rows (Table 4.12): what both ways of running the forward view share."""
+    radial = _collect(keys, jobs)
+    centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
+    return radial, centre, centre_method, _radial_rows(radial, params, est, centre)
+
+
+def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _RadialPart:
+    """Everything measured in this process: the centre, Table 4.12 and the forward part."""
+    radial_keys = _radial_keys(params)
+    # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
+    # several cores the 15 frames of a session load in a fraction of the time. The forward
+    # view's chart finder and bar ROIs run on their own thread beside the radial frames, the
+    # centre and the radial rows; this thread then measures the forward frame's slanted edges
+    # (which need neither the centre nor the chart) while the bar ROIs finish, so neither
+    # thread waits long for the other; the larger numpy calls release the GIL. Every
+    # estimate is a pure function of its frame, so the numbers are those of one thread. A
+    # failure is raised as before (the forward frame's first).
+    frame_ready: Future[_Frame | None] = Future()
+    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
+            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
+        radial_jobs = _submit_radial_loads(session, radial_keys, pool)
+        try:
+            radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
+                                                               params, est)
+            forward_frame = frame_ready.result()
+            measured = (_measure_claimed(forward_frame, None, last_first=False)
+                        if forward_frame is not None else None)
+        except BaseException:
+            failed = forward_job.exception()
+            if failed is not None and not isinstance(failed, CancelledError):
+                raise failed from None
+            raise
+        forward = forward_job.result()
+    return centre, centre_method, radial, t412, ForwardPart(est, forward, measured)
+
+
+def _with_forward_ahead(session: Session, params: MtfParams, est: str,
+                        ahead: ForwardAhead) -> _RadialPart:
+    """The radial frames and this process's share of the edges measured here while ``ahead``
+    computes the forward part. Any failure here, or a forward part that did not come, and the
+    forward part is computed here from the start: what fails is then raised as in
+    :func:`_with_forward_thread` (the forward frame's failure first)."""
+    radial_keys = _radial_keys(params)
+    with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+        radial_jobs = _submit_radial_loads(session, radial_keys, pool)
+        try:
+            radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
+                                                               params, est)
+            forward_frame = None if ahead.claims is None else _load_frame(
+                session, FORWARD_STEP, FORWARD_FRAME)
+            mine = ({} if forward_frame is None
+                    else _measure_claimed(forward_frame, ahead.claims, last_first=True))
+        except Exception:
+            forward_part(session, params, est)  # the forward frame's failure comes first
+            raise
+    part = ahead.result()
+    if part is not None and part.estimator == est:
+        if part.edges is None and forward_frame is None:
+            return centre, centre_method, radial, t412, part  # no forward frame
+        # (The child saw no forward frame but this process has one - e.g. recorded by the
+        # writer's orphan recovery after the fork: computed here below.)
+        edges = {**(part.edges or {}), **mine}
+        if part.edges is not None and len(edges) == len(edge_specs()):
+            return centre, centre_method, radial, t412, part._replace(edges=edges)
+    return centre, centre_method, radial, t412, forward_part(session, params, est)
+
+
+def _forward_view(session: Session, params: MtfParams, est: str,
+                  frame_ready: Future[_Frame | None]) -> _ForwardView | None:
+    """The forward frame's rows by (element, orientation) and Table 4.11, or None without a
+    forward frame; the frame and its metadata (or its load's failure) are handed to
+    ``frame_ready`` first."""
+    try:
+        forward = _load_frame(session, FORWARD_STEP, FORWARD_FRAME)
+    except BaseException as exc:
+        frame_ready.set_exception(exc)
+        raise
+    frame_ready.set_result(forward)
+    if forward is None:
+        return None
+    return _forward_rows(forward[0], params, est)
+
+
+def _forward_rows(forward: npt.NDArray[Any], params: MtfParams, est: str) -> _ForwardView:
+    """The forward frame's rows by (element, orientation) and Table 4.11."""
+    per = {(r["element"], r["orientation"]): r
+           for r in analyze_forward_frame(forward, params, est)}
+    nyq = nyquist_lp_per_mm()
+    t411: list[dict[str, Any]] = []
+    for el in params.forward_elements:
+        s, t = per[(el.name, "sagittal")], per[(el.name, "tangential")]
+        f_img = t["image_lp_per_mm"]
+        # image_lp_per_mm / aliased: the tangential set's (the found pose gives both sets of
+        # an element the same frequency); each orientation also has its own.
+        row: dict[str, Any] = {
+            "element": el.name,
+            "object_lp_per_mm": usaf_frequency_lp_per_mm(el.group, el.element),
+            "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+        }
+        for orient, r in (("sagittal", s), ("tangential", t)):
+            row.update({f"{orient}_{k}": r[k] for k in
+                        ("dark", "bright", "modulation", "resolved", "uncertainty",
+                         "warnings", "estimator")})
+            row[f"{orient}_image_lp_per_mm"] = r["image_lp_per_mm"]
+            row[f"{orient}_aliased"] = r["aliased"]
+            row[f"{orient}_roi"] = r["roi"]
+        t411.append(row)
+    return per, t411
+
+
+def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfParams,
+                 est: str, centre: tuple[float, float]) -> list[dict[str, Any]]:
+    """Table 4.12: one row per radial frequency, both orientations (missing frames say so)."""
+    nyq = nyquist_lp_per_mm()
+    t412: list[dict[str, Any]] = []
+    for f in params.radial_frequencies_lp_per_mm:
+        f_img = image_frequency_lp_per_mm(f, params.radial_magnification)
+        # image_lp_per_mm / aliased: Eq. 4.1 (the thesis's column, the tangential rings); the
+        # sagittal spokes image at the azimuthal magnification, in their own columns.
+        f_sag = radial_image_lp_per_mm(f, "sagittal", params, centre)
+        row: dict[str, Any] = {
+            "object_lp_per_mm": f, "image_lp_per_mm": f_img, "aliased": f_img > nyq,
+            "sagittal_image_lp_per_mm": f_sag, "sagittal_aliased": f_sag > nyq,
+            "tangential_image_lp_per_mm": f_img, "tangential_aliased": f_img > nyq}
+        for orient in ORIENTATIONS:
+            px = radial.get((f, orient))
+            if px is None:
+                row.update({f"{orient}_{k}": None for k in
+                            ("dark", "bright", "modulation", "resolved", "uncertainty")})
+                row[f"{orient}_warnings"] = "frame missing"
+                continue
+            r = analyze_radial_frame(px, f, orient, params, est, centre)
+            row.update({f"{orient}_{k}": r[k] for k in
+                        ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
+        t412.append(row)
+    return t412
+
+
+def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> dict[str, Any]:
+    rc = roi_centroid(roi)
+    h_mm = image_height_mm(centre, rc)
+    fp = nearest_field_point(view, h_mm)
+    return {
+        "view": view, "test": test, "roi_centroid_row": rc[0], "roi_centroid_col": rc[1],
+        "image_height_px": round(image_height_px(centre, rc), 3),
+        "image_height_mm": round(h_mm, 4),
+        "nearest_field_deg": fp.field_angle_deg,
+        "nearest_field_height_mm": fp.image_height_mm,
+    }
+
+
+def _monte_carlo_rows(
+    t411: list[dict[str, Any]], t412: list[dict[str, Any]], params: MtfParams
+) -> list[dict[str, Any]]:
+    """Eq. 4.2 averages near each Monte Carlo frequency, placed among its thresholds by
+    :mod:`benchlab.analysis.mtf.compare` (the one comparison).
+
+    Each orientation is taken at its own measured frequency nearest the prediction's: in the
+    forward view sagittal and tangential bars share one frequency, but the radial view's spokes
+    image at object radius / image radius, not at Eq. 4.1's frequency of the rings (their rows'
+    ``sagittal_image_lp_per_mm``), so pairing a row's S and T would average two frequencies
+    about 2x apart. ``measured_freq_lp_per_mm`` is the tangential reading's frequency (Eq. 4.1,
+    the thesis's column); both frequencies are in the row.
+
+    Sagittal and tangential stay beside the average: the thesis's lesson is that the average
+    alone hid a poor tangential response.
+    """
+    # (frequency, modulation, resolved) per view and orientation; aliased readings are no
+    # readings. A not-resolved one stays (it is the finding at its frequency) but is never a 0.
+    measured: dict[tuple[str, str], list[tuple[float, float, bool]]] = {}
+    for view, table in (("forward", t411), ("radial", t412)):
+        for r in table:
+            for orient in ORIENTATIONS:
+                m = r.get(f"{orient}_modulation")
+                f = float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
+                if m is None or r.get(f"{orient}_aliased", r["aliased"]):
+                    continue
+                resolved = bool(r.get(f"{orient}_resolved", float(m) != 0.0))
+                measured.setdefault((view, orient), []).append((f, float(m), resolved))
+    source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
+    out = []
+    for mc in load_monte_carlo_table(source):
+        picks = []
+        for orient in ORIENTATIONS:
+            cands = measured.get((mc.view, orient), [])
+            if cands:
+                pick = min(cands, key=lambda c: abs(c[0] - mc.freq_lp_per_mm))
+                if abs(pick[0] - mc.freq_lp_per_mm) <= MC_MATCH_FRACTION * mc.freq_lp_per_mm:
+                    picks.append(pick)
+        if len(picks) < 2:
+            continue  # nothing measured near this prediction's frequency in one orientation
+        (f_s, s, s_ok), (f_t, t, t_ok) = picks
+        row: dict[str, Any] = {
+            "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
+            "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s if s_ok else None,
+            "tangential_modulation": t if t_ok else None,
+        }
+        if s_ok and t_ok:
+            avg = averaged_mtf(s, t)
+            row["averaged_modulation"] = round(avg.average, 6)
+            verdict = monte_carlo_band(avg.average, mc)[1]
+        else:
+            # No number for an unresolved reading: the average is unknown, only bounded below
+            # by the resolved half (a contrast is never negative).
+            row["averaged_modulation"] = None
+            row["averaged_lower_bound"] = round(averaged_mtf(s if s_ok else 0.0,
+                                                             t if t_ok else 0.0).average, 6)
+            verdict = "not available: " + unresolved_note(s_ok, t_ok)
+        out.append({
+            **row, **mc.columns(), "verdict": verdict,
+            "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
+            "sagittal_resolved": s_ok, "tangential_resolved": t_ok,
+        })
+    return out
+
+
+def unresolved_note(sagittal_resolved: bool, tangential_resolved: bool) -> str:
+    """Which half of a Table 4.15 average is missing, in words (``"T not resolved"``)."""
+    missing = [o for o, ok in (("S", sagittal_resolved), ("T", tangential_resolved)) if not ok]
+    return " and ".join(missing) + " not resolved" if missing else ""
