@@ -5,8 +5,6 @@ chart - is listed once, in ``__init__.pyi``; lazy_loader imports each name on fi
 (:mod:`benchlab.api`), so ``import benchlab`` (and ``benchlab --help``) costs next to nothing.
 """
 
-from typing import Any
-
 import lazy_loader as lazy
 
 _lazy_getattr, _, _names = lazy.attach_stub(__name__, __file__)
@@ -17,7 +15,7 @@ def __dir__() -> list[str]:
     return list(__all__)
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name != "__version__":
         return _lazy_getattr(name)
     # The version is looked up on first use: importlib.metadata costs start-up time that

@@ -323,7 +323,7 @@ def measure_edge(
 
     Raises
     ------
-    benchlab.analysis.sfr.structure.SfrRefused
+    benchlab.analysis.sfr.measure.SfrRefused
         No usable edge in the ROI (the reasons listed).
     ValueError
         Not 2-D, non-finite values, bad options.
