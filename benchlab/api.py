@@ -124,11 +124,10 @@ def _prompter(answer: Callable[[Prompt], bool] | None) -> Callable[[Step, str], 
     from benchlab.protocols.engine import RunAborted
 
     def prompt(step: Step, message: str) -> bool:
-        asked = Prompt(step.id, step.title, step.kind, message)
         if answer is None:
             raise RunAborted(f"step {step.id} needs the operator ({message}); pass "
                              "answer=... to run_procedure to answer prompts")
-        reply = answer(asked)
+        reply = answer(Prompt(step.id, step.title, step.kind, message))
         if not isinstance(reply, bool):
             raise RunAborted(f"step {step.id}: answer returned {reply!r}, not True (go on) or "
                              "False (abort)")

@@ -179,6 +179,13 @@ def test_unknown_procedure_is_refused_before_anything_is_made(bench: Bench,
     assert not (tmp_path / "s").exists()
 
 
+def test_an_answer_that_is_no_callable_is_refused(bench: Bench, tmp_path: Path) -> None:
+    with pytest.raises(UsageError, match=r"^run_procedure: answer must be a callable taking a "
+                                         r"Prompt, got bool$"):
+        benchlab.run_procedure(bench, "mtf", out=tmp_path / "s", answer=True)  # type: ignore[arg-type]
+    assert not (tmp_path / "s").exists()
+
+
 def test_bad_parameters_are_refused_before_anything_is_made(bench: Bench,
                                                             tmp_path: Path) -> None:
     params = tmp_path / "p.toml"
