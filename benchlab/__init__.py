@@ -1,13 +1,25 @@
-"""benchlab: optical test bench control, measurement procedures and analysis."""
+"""benchlab: optical test bench control, measurement procedures and analysis.
 
-__all__ = ["__version__"]
+The scripting API - open a bench, run a procedure, read a session, measure bars, an edge or a
+chart - is listed once, in ``__init__.pyi``; lazy_loader imports each name on first use
+(:mod:`benchlab.api`), so ``import benchlab`` (and ``benchlab --help``) costs next to nothing.
+"""
+
+import lazy_loader as lazy
+
+_lazy_getattr, _, _names = lazy.attach_stub(__name__, __file__)
+__all__ = [*_names, "__version__"]
 
 
-def __getattr__(name: str) -> str:
+def __dir__() -> list[str]:
+    return list(__all__)
+
+
+def __getattr__(name: str) -> object:
+    if name != "__version__":
+        return _lazy_getattr(name)
     # The version is looked up on first use: importlib.metadata costs start-up time that
     # `benchlab --help` and most commands never need.
-    if name != "__version__":
-        raise AttributeError(f"module 'benchlab' has no attribute {name!r}")
     from importlib.metadata import PackageNotFoundError, version
 
     try:

@@ -15,6 +15,10 @@ Every file is written atomically (:mod:`benchlab.storage`); frames are flushed t
 The journal is the source of truth for resume: a step is done when its ``step_completed`` event
 is on disk. A ``kill -9`` can tear the journal's last line; readers skip it, and the next append
 terminates it and records a ``journal_repaired`` event so the damage stays visible.
+
+Why one module of ~1,200 lines: the folder layout, the journal, frame files and result versions
+are one data contract guarded by one lock file; split, the rules that keep a session truthful
+(what is written before what, what is never overwritten) would be spread over several files.
 """
 
 from __future__ import annotations
@@ -977,6 +981,34 @@ class Session:
         self._verified[rel] = (identity, expected)
         return load_frame_tiff(path, data)
 
+    def frame(self, name: str) -> npt.NDArray[Any]:
+        """The pixels of one recorded frame, its hash checked against the journal first.
+
+        Parameters
+        ----------
+        name : str
+            The frame's file name in ``frames/`` (``"forward__forward.tiff"``), or its path in
+            the session as :meth:`frames` lists it (``"frames/forward__forward.tiff"``).
+
+        Returns
+        -------
+        numpy.ndarray
+            2-D, the frame's own dtype (``uint8``, or ``uint16`` for 10/12-bit frames).
+            :meth:`load_frame` also gives the metadata.
+
+        Raises
+        ------
+        SessionError
+            No such frame recorded (the message lists the recorded ones), the file missing,
+            or its bytes changed since it was saved.
+        """
+        rel = name if name.startswith(f"{FRAMES_DIR}/") else f"{FRAMES_DIR}/{name}"
+        if rel not in self._frame_records():
+            known = ", ".join(Path(f).name for f in self.frames()) or "none"
+            raise SessionError(f"{self.path}: no frame {name!r} in this session; its frames: "
+                               f"{known}")
+        return self._load_frame_now(self.path / rel, rel)[0]
+
     def verify_frames(self, *, trust_loads: bool = False) -> list[str]:
         """Relative paths of recorded frames that are missing or whose sha256 changed.
 
@@ -1054,6 +1086,45 @@ class Session:
         """The newest ``results/v<N>`` folder, or None before the first analysis."""
         versions = self.result_versions()
         return self.results_dir / f"v{versions[-1]}" if versions else None
+
+    def tables(self) -> list[str]:
+        """The tables of the latest results version, by file name (``forward_view_modulation``,
+        ...), in the thesis' table order; empty before the first analysis."""
+        latest = self.latest_results()
+        return [] if latest is None else _table_names(read_results(latest, only=())[1])
+
+    def table(self, name: str) -> list[dict[str, Any]]:
+        """One table of the latest results version: a list of rows (column -> value).
+
+        Parameters
+        ----------
+        name : str
+            Its file name (``"forward_view_modulation"``, see :meth:`tables`) or its thesis
+            label (``"table_4_11"``).
+
+        Returns
+        -------
+        list of dict
+            Read from the table's JSON file, so values keep their types (numbers, booleans,
+            lists); a missing value (NaN when written) is ``None``.
+
+        Raises
+        ------
+        SessionError
+            No results yet, or no such table (the message lists the tables there are), or the
+            file is damaged.
+        """
+        latest = self.latest_results()
+        if latest is None:
+            raise SessionError(f"{self.path}: no results yet (session {self.status}), so no "
+                               f"table {name!r}")
+        label = _LABEL_OF_FILE.get(name, name)
+        tables, summary = read_results(latest, only=(label,))
+        rows = tables.get(label)
+        if label not in _table_labels(summary) or not isinstance(rows, list):
+            raise SessionError(f"{latest}: no table {name!r}; its tables: "
+                               f"{', '.join(_table_names(summary)) or 'none'}")
+        return rows
 
     def write_results(
         self,
@@ -1203,6 +1274,19 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
             raise SessionError(f"{path}: not a table (a JSON list of row objects expected, "
                                f"found {_json_kind(rows)})")
     return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
+
+
+def _table_labels(summary: Mapping[str, Any]) -> list[str]:
+    """The table labels a results ``summary.json`` lists."""
+    listed = summary.get("tables")
+    return [t for t in listed if isinstance(t, str)] if isinstance(listed, list) else []
+
+
+def _table_names(summary: Mapping[str, Any]) -> list[str]:
+    """The file names of the tables a results ``summary.json`` lists."""
+    named = summary.get("table_files")
+    files: Mapping[str, Any] = named if isinstance(named, Mapping) else {}
+    return [str(files.get(t) or result_file_stem(t)) for t in _table_labels(summary)]
 
 
 def _json_kind(value: Any) -> str:

@@ -41,9 +41,15 @@ StepKind = Literal["setup", "manual", "focus", "acquire", "analysis"]
 class RunAborted(BenchlabError):
     """The operator aborted the run (abort event set, or a prompt declined)."""
 
+    #: The session the run was writing (set by :meth:`Runner.run`; status "aborted").
+    session_path: Path | None = None
+
 
 class StepFailed(BenchlabError):
     """A step raised; the session stays resumable and ``run()`` again retries the step."""
+
+    #: The session the run was writing (set by :meth:`Runner.run`; status "failed").
+    session_path: Path | None = None
 
     def __init__(self, step: Step, cause: BaseException, unsafe: str = "") -> None:
         self.step = step
@@ -304,13 +310,15 @@ class Runner:
             self.session.log_event("interrupted", reason=interrupt_reason(exc))
             self._stopped("interrupted")
             raise
-        except RunAborted:
+        except RunAborted as exc:
+            exc.session_path = self.session.path
             stop_signal = received()  # the UI aborted the run because the process is stopping
             if stop_signal is not None:
                 self.session.log_event("interrupted", reason=signal_name(stop_signal))
             self._stopped("aborted" if stop_signal is None else "interrupted")
             raise
-        except StepFailed:
+        except StepFailed as exc:
+            exc.session_path = self.session.path
             self._stopped("failed")
             raise
         except Exception:

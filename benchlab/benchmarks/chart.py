@@ -475,7 +475,7 @@ def _psf_label(p: PsfSpec) -> str:
 
 
 def run_psf_check(seed: int = 0) -> list[dict[str, Any]]:
-    """Read three-bar sets rendered through non-Gaussian PSFs (:mod:`.threebar_synthetic`:
+    """Read three-bar sets rendered through non-Gaussian PSFs (:mod:`~benchlab.synthetic.threebar`:
     Poisson + read noise, 12-bit, the chart reading's ROI) with :func:`.knownbars.read_three_bars`
     and score them against their truth, per PSF, bar-width bucket and bar direction (on a pixel
     axis or oblique, 5-40 deg).

@@ -20,6 +20,9 @@ the LSF passes, and the table says by how much.
 Frames: N frames of the same edge averaged divide the noise by sqrt(N);
 :func:`run_frames` finds, per blur, the fewest frames the SNR 20 edges need (each frame
 quantised on its own, then averaged, as ``benchlab sfr`` averages a stack).
+
+Why one module of ~860 lines: the cases, their truth, the buckets and the printed table are the
+parts of one benchmark, each used only by the others; split, every part would import the rest.
 """
 
 from __future__ import annotations

@@ -6,7 +6,8 @@ bars ``w`` wide, ``5 w`` long, on a ground) supersampled :data:`SUPERSAMPLE` tim
 PSF applied by FFT (Gaussian, uniform disc = defocus, Gaussian with a 10 % wide halo, disc and
 Gaussian together), integrated over each pixel's square footprint (block mean), then optional
 Poisson + read noise and an ADC of ``bits`` bits. The ROI is the one the chart reading uses
-(three whole periods across, bar ends trimmed: :func:`.chart_pose.posed_bar_set_roi`). The
+(three whole periods across, bar ends trimmed:
+:func:`~benchlab.analysis.chart.pose.posed_bar_set_roi`). The
 truth is defined as the simulated bench defines it (Eq. 2.9): the blurred image averaged over a
 pixel-sized box centred on the middle bar and on the spaces either side of it (``u = 0, +-w``,
 ``v = 0``), read from the same supersampled image (bilinear between subsamples). A disc PSF wide

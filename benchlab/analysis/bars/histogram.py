@@ -17,13 +17,13 @@ technician would read the histogram.
 4. Otherwise the answer is the thesis's N/A: not resolved, modulation 0, no levels - never a
    confident number from a single mode.
 
-Before binning, the pixels are chosen from the bar pattern's phase (:mod:`.bargeometry`): only
+Before binning, the pixels are chosen from the bar pattern's phase (:mod:`.geometry`): only
 the centres of the inner bars and spaces (within ``PHASE_WINDOW`` cycles of them, half a period
 in from the ends of the ROI), so background beyond the outer bars and the blurred edges do not
 make modes of their own; and the noise is the scatter of the pixels about the phase-binned
 profile, which does not depend on the bar angle (neighbour differences along an image axis are
 4-80x too high on oblique bars). With the frequency given, the phase comes from
-:func:`.bargeometry.quick_geometry` (structure tensor and phase drift, a few passes over the
+:func:`.geometry.quick_geometry` (structure tensor and phase drift, a few passes over the
 pixels; the 2-D spectral search only when it declines), and one pass of phase bins gives both
 the noise and the bar and space centres (``PHASE_WINDOW`` rounded to whole bins).
 

@@ -12,7 +12,7 @@ fitted:
 2. The imaged set is the three dark bars of width ``w`` at ``u = -2w, 0, 2w`` (the ground beyond
    the outer bars is a space: the model is the finite set, not an endless square wave), blurred
    by a Gaussian PSF of ``sigma`` and integrated over the pixel's footprint at the bar angle
-   (:func:`.barmodel.edge_response`): a pattern ``P(u; sigma)`` between 0 and 1. The bar ends
+   (:func:`.model.edge_response`): a pattern ``P(u; sigma)`` between 0 and 1. The bar ends
    (``v = +-2.5 w``) are blurred the same way along the bars, ``A(v; sigma_v)``, so the ROI may
    run up to and past them.
 3. Pixel values are ``a + b_u u + b_v v + c P'(u) A(v) + s P(u) A(v)``: for fixed blurs a
@@ -56,6 +56,9 @@ misfit term that does not shrink with pixel count (:data:`MISFIT_Z`).
 Pixels at the saturation code are censored: they are left out of the fit (the model carries the
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
 is not significant above the noise, is "not resolved" with the reason.
+
+Why one module of ~860 lines: the model, its linear solve, the blur search and the interval share
+one design matrix and its cached columns, and none of them is used apart from the others.
 """
 
 from __future__ import annotations

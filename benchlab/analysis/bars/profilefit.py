@@ -1,6 +1,6 @@
 """``profilefit``: a model of the imaged bar pattern fitted to the ROI's across-bar profile.
 
-1. The bars' direction, frequency and phase come from the ROI (:mod:`.bargeometry`); a given
+1. The bars' direction, frequency and phase come from the ROI (:mod:`.geometry`); a given
    frequency is only a prior and cross-check.
 2. Every pixel gets its bar phase ``w`` (cycles; the across-bar coordinate ``u = x cos t + y sin
    t`` of :mod:`.projection` times the frequency, plus the curvature of spokes or rings) and is
@@ -9,7 +9,7 @@
    pixels, sample the profile below one pixel.
 3. The binned profile is fitted with the imaged bar pattern: a square wave of bright fraction
    ``duty`` blurred by a Gaussian of ``sigma`` and the exact pixel footprint at the measured
-   angle (:func:`.barmodel.fourier_gains`), between levels ``D`` and ``B``, times a linear
+   angle (:func:`.model.fourier_gains`), between levels ``D`` and ``B``, times a linear
    illumination shading across and along the bars (each bin carries its pixels' mean position,
    so the shading of a bin is exact for linear shading). Levenberg-Marquardt on
    (phase, duty, PSF variance) with the levels and shading solved exactly at each step
@@ -27,6 +27,10 @@
 A ``fast`` variant (``profilefit-fast``) skips the curvature, bins half as finely, fits at most
 32 harmonics, iterates less and refines the geometry once; ``benchlab benchmark analysis``
 states its accuracy cost.
+
+Why one module of ~1,000 lines: the model, the variable-projection fit, the geometry refinement
+and the interval work on one binned profile and its Jacobian; the bar geometry search, the
+projection and the closed-form pattern already live in their own modules.
 """
 
 from __future__ import annotations

@@ -29,6 +29,7 @@ Pure numpy, no I/O.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -55,6 +56,57 @@ class SetReading(NamedTuple):
 
     result: ModulationResult
     blur_prior_px: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class ChartReading:
+    """A frame's chart read whole: the chart as found, and one reading per found bar set.
+
+    Attributes
+    ----------
+    fit : ChartFit
+        The chart as found: pose, polarity, implied magnification, warnings, and every bar set
+        of the layout, found or rejected with the reason (:attr:`ChartFit.rejected`).
+    readings : tuple of ModulationResult
+        One per found set (:attr:`ChartFit.found`, coarse to fine), in that order
+        (:func:`read_chart`). Where the finder marks a set
+        :attr:`~benchlab.analysis.chart.finder.FoundElement.unmeasurable` its reading is no
+        reliable number: :attr:`unmeasurable` says why.
+    """
+
+    fit: ChartFit
+    readings: tuple[ModulationResult, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.readings) != len(self.fit.found):
+            raise ValueError(f"{len(self.readings)} readings for {len(self.fit.found)} found "
+                             "sets: one per found set expected")
+
+    @property
+    def labels(self) -> list[str]:
+        """The thesis label of each reading, in order (``G2E4S``: group 2, element 4,
+        sagittal)."""
+        return [el.label for el in self.fit.found]
+
+    @property
+    def unmeasurable(self) -> dict[str, str]:
+        """Label -> why, for the found sets whose reading is no reliable number."""
+        return {el.label: el.unmeasurable for el in self.fit.found
+                if el.unmeasurable is not None}
+
+    def reading(self, label: str) -> ModulationResult:
+        """The reading of the set labelled ``label`` (see :attr:`labels`).
+
+        Raises
+        ------
+        KeyError
+            The set was not found in the frame, or is not on the chart; the message lists the
+            labels read.
+        """
+        for el, result in zip(self.fit.found, self.readings, strict=True):
+            if el.label == label:
+                return result
+        raise KeyError(f"no reading of bar set {label!r}; read: {', '.join(self.labels)}")
 
 
 def read_chart(
