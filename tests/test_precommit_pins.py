@@ -25,7 +25,7 @@ def _hooks() -> dict[str, tuple[str, dict[str, object]]]:
 
 
 def test_ruff_hook_is_the_pinned_ruff() -> None:
-    rev, _ = _hooks()["ruff"]
+    rev, _ = _hooks()["ruff-check"]
     assert rev == "v" + _pins()["ruff"]
 
 
