@@ -285,6 +285,7 @@ class Catalog:
         descending: bool = True,
         limit: int | None = None,
         devices: bool = False,
+        lot: str | None = None,
     ) -> list[dict[str, Any]]:
         """Sessions matching every given filter, sorted (newest first by default).
 
@@ -292,7 +293,7 @@ class Catalog:
         """
         check_list_query(sort=sort, since=since)
         self.refresh_running()
-        where, args = _session_filters(procedure, since, sample, status)
+        where, args = _session_filters(procedure, since, sample, status, lot)
         columns = "*" if devices else _LIST_COLUMNS
         sql = (f"SELECT {columns} FROM sessions s {where} ORDER BY s.{sort} "
                f"{'DESC' if descending else 'ASC'}, s.id")
@@ -442,7 +443,8 @@ def _dist(p: TrendPoint, freq: float) -> float:
 
 
 def _session_filters(
-    procedure: str | None, since: str | None, sample: str | None, status: str | None
+    procedure: str | None, since: str | None, sample: str | None, status: str | None,
+    lot: str | None = None,
 ) -> tuple[str, list[Any]]:
     clauses: list[str] = []
     args: list[Any] = []
@@ -458,6 +460,9 @@ def _session_filters(
     if status:
         clauses.append("s.status = ?")
         args.append(status)
+    if lot:
+        clauses.append("s.lot = ?")
+        args.append(lot)
     return ("WHERE " + " AND ".join(clauses) if clauses else ""), args
 
 

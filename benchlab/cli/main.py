@@ -53,7 +53,9 @@ COMMAND_OWNERS = {
     "viewpoint": "benchlab.cli.viewsynth", "calibrate": "benchlab.cli.viewsynth",
     "tui": "benchlab.cli.tui",
     "config": "benchlab.cli.config",
-    "verify": "benchlab.cli.verify",
+    "verify": "benchlab.cli.verify", "units": "benchlab.cli.verify",
+    "unit": "benchlab.cli.verify", "lot": "benchlab.cli.verify",
+    "certificate": "benchlab.cli.verify",
 }
 LOG_LEVELS = ("debug", "info", "warning", "error")
 #: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import

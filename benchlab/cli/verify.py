@@ -11,9 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchlab.cli import UsageError
+from benchlab.cli import UsageError, positive_int
 
 if TYPE_CHECKING:
     from benchlab.acceptance.spec import Spec
@@ -113,6 +114,127 @@ def _print_unit(record: dict[str, Any]) -> None:
     print(f"unit verdict: {record['verdict'].upper()}\n")
 
 
+def units_command(args: argparse.Namespace) -> int:
+    from benchlab.catalog.index import Catalog, CatalogError
+
+    root = Path(args.root)
+    if not root.is_dir():
+        raise CatalogError(f"{root}: no such sessions folder (--root)")
+    with Catalog.open(root) as catalog:
+        units = catalog.units(lot=args.lot)
+    if args.json:
+        print(json.dumps(units))
+        return 0
+    if not units:
+        print("no units (sessions carry a serial number with run --serial)")
+        return 0
+    specs = sorted({name for u in units for name in u["verdicts"]})
+    header = ["serial", "lot", "sessions", *specs]
+    cells = [[u["serial"], u["lot"] or "-", str(len(u["sessions"])),
+              *(u["verdicts"][n]["verdict"] if n in u["verdicts"] else "-" for n in specs)]
+             for u in units]
+    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(header)]
+    for line in [header, *cells]:
+        print("  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    return 0
+
+
+def unit_command(args: argparse.Namespace) -> int:
+    """Change a session's serial number or lot: session.json rewritten, the change journalled
+    (old and new values, the reason) and the catalogue updated."""
+    from benchlab.catalog.index import record_session
+    from benchlab.session import Session
+
+    if args.serial is None and args.lot is None:
+        raise UsageError("unit: give --serial, --lot or both")
+    session = Session.open(Path(args.session))
+    meta = session.meta
+    new = {k: v for k, v in (("sample", args.serial), ("lot", args.lot)) if v is not None}
+    old = {k: meta.get(k, "") for k in new}
+    if old == new:
+        print(f"{session.path}: unchanged")
+        return 0
+    session.hold(command="benchlab unit")
+    try:
+        session.log_event("unit_relabelled", old=old, new=new, reason=args.reason)
+        session.update_meta(**new)
+    finally:
+        session.release()
+    record_session(session.path)
+    print(f"{session.path}: " + ", ".join(f"{'serial' if k == 'sample' else k} "
+                                          f"{old[k] or '-'} -> {v or '-'}" for k, v in new.items()))
+    return 0
+
+
+def lot_command(args: argparse.Namespace) -> int:
+    from benchlab.acceptance.lot import lot_statistics
+    from benchlab.acceptance.verify import check_sessions, group_units, verify_unit
+    from benchlab.catalog.index import Catalog, CatalogError
+
+    spec = _load_spec(args.spec)
+    root = Path(args.root)
+    if not root.is_dir():
+        raise CatalogError(f"{root}: no such sessions folder (--root)")
+    with Catalog.open(root) as catalog:
+        paths = [s["path"] for s in catalog.sessions(lot=args.lot, descending=False)]
+    if not paths:
+        raise UsageError(f"no session of lot {args.lot!r} under {root}")
+    units = [verify_unit(g, spec) for g in group_units(check_sessions(paths))]
+    result = lot_statistics(units)
+    result.update(lot=args.lot, spec=spec.header())
+    if args.html:
+        from benchlab.acceptance.lot_report import render_lot_report
+        from benchlab.storage import atomic_write_text
+
+        atomic_write_text(args.html, render_lot_report(result))
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(_lot_text(result))
+    if args.html:
+        print(f"report: {args.html}")
+    return 0
+
+
+def _lot_text(result: dict[str, Any]) -> str:
+    c = result["verdicts"]
+    y = result["yield"]
+    lines = [f"lot {result['lot']}  spec {result['spec']['name']}  "
+             f"rule {result['spec']['decision_rule']}  units {result['units']}",
+             f"pass {c['pass']}  fail {c['fail']}  indeterminate {c['indeterminate']}  yield "
+             + ("-" if y is None else f"{y:.1%} (95 % interval {result['yield_low']:.1%} .. "
+                                       f"{result['yield_high']:.1%}, Clopper-Pearson)"), ""]
+    header = ["limit", "row", "n", "mean", "std", "p05", "p95", "limit", "Cpk", "Cpk 95 %",
+              "drift"]
+    cells = []
+    for q in result["quantities"]:
+        drift = q["drift"]
+        flags = "-" if drift is None else ", ".join(
+            [f"{len(drift['beyond_limits'])} beyond limits"] * bool(drift["beyond_limits"])
+            + [f"run {a}..{b}" for a, b in drift["runs"]]) or "none"
+        cpk_ci = "-" if q["cpk_low"] is None else f"{q['cpk_low']:.2f} .. {q['cpk_high']:.2f}"
+        cells.append([q["limit_id"], q["row"] or "-", str(q["n"]), _fmt(q["mean"]),
+                      _fmt(q["std"]), _fmt(q["p05"]), _fmt(q["p95"]), _limit_text(q),
+                      "-" if q["cpk"] is None else f"{q['cpk']:.2f}", cpk_ci, flags])
+    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(header)]
+    for line in [header, *cells]:
+        lines.append("  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    return "\n".join(lines)
+
+
+def certificate_command(args: argparse.Namespace) -> int:
+    from benchlab.acceptance.certificate import render_certificate
+    from benchlab.acceptance.store import read_verdict
+    from benchlab.storage import atomic_write_text
+
+    folder = Path(args.session)
+    record = read_verdict(folder, args.version)
+    out = Path(args.out) if args.out else folder / f"certificate-v{record['version']}.html"
+    atomic_write_text(out, render_certificate(record, session_id=folder.name))
+    print(f"certificate: {out}  (unit {record['unit']['serial'] or '-'}: {record['verdict']})")
+    return 0
+
+
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction
              ) -> None:
     v = commands.add_parser(
@@ -128,3 +250,47 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     v.add_argument("--no-store", action="store_true",
                    help="decide only; store nothing in the sessions or the catalogue")
     v.set_defaults(func=verify_command)
+
+    u = commands.add_parser(
+        "units", help="list units under test with their latest verdict per spec",
+        description="List the units (sessions' serial numbers) under a sessions folder, with "
+        "their lot and the latest stored verdict per spec (from the catalogue).")
+    u.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    u.add_argument("--lot", help="only the units of this lot")
+    u.add_argument("--json", action="store_true", help="print JSON")
+    u.set_defaults(func=units_command)
+
+    e = commands.add_parser(
+        "unit", help="change a session's serial number or lot (journalled)",
+        description="Change the serial number or lot a session carries. session.json is "
+        "rewritten and the change (old, new, reason) is journalled in events.jsonl; stored "
+        "verdicts keep the values they were decided with.")
+    e.add_argument("session", metavar="SESSION")
+    e.add_argument("--serial", help="new serial number")
+    e.add_argument("--lot", help="new lot")
+    e.add_argument("--reason", required=True, help="why (journalled)")
+    e.set_defaults(func=unit_command)
+
+    lot = commands.add_parser(
+        "lot", help="yield, capability (Cpk) and drift of a lot against a spec",
+        description="Verify every unit of a lot (sessions with --lot LOT) against a spec "
+        "(nothing stored) and print the yield with its binomial interval, per-limit "
+        "distributions, Cpk with its interval and drift flags (individuals control chart).")
+    lot.add_argument("lot", metavar="LOT")
+    lot.add_argument("--spec", required=True, metavar="FILE", help="spec file (TOML)")
+    lot.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    lot.add_argument("--json", action="store_true", help="print JSON")
+    lot.add_argument("--html", metavar="FILE", help="also write an HTML lot report with a "
+                     "control chart per limited quantity")
+    lot.set_defaults(func=lot_command)
+
+    c = commands.add_parser(
+        "certificate", help="the unit's HTML certificate from its stored verdict",
+        description="Render a stored verdict (benchlab verify) as one self-contained HTML "
+        "page to file: unit, spec, rule, every limit's row, frame hashes, software version. "
+        "Print it to PDF from the browser (A4 print style).")
+    c.add_argument("session", metavar="SESSION")
+    c.add_argument("--version", type=positive_int, help="verdict version (default: latest)")
+    c.add_argument("--out", metavar="FILE",
+                   help="output file (default SESSION/certificate-v<N>.html)")
+    c.set_defaults(func=certificate_command)
