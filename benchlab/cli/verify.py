@@ -235,6 +235,26 @@ def certificate_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def benchmark_command(args: argparse.Namespace) -> int:
+    from benchlab.benchmarks.acceptance import FREQ_LP_PER_MM, LIMIT_MIN, rule_figures, timing
+
+    rows = [f.row() for f in rule_figures(args.units, args.seed)]
+    print(f"limit: modulation >= {LIMIT_MIN} at {FREQ_LP_PER_MM:g} lp/mm; {args.units} "
+          "units per lot; coverage 95 %")
+    header = list(rows[0])
+    cells = [[f"{v:.2f}" if isinstance(v, float) else str(v) for v in r.values()] for r in rows]
+    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(header)]
+    for line in [header, *cells]:
+        print("  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    worst = max(r["false accept % of failing"] for r in rows if r["rule"] == "guarded")
+    print(f"guarded: worst false accepts {worst:.2f} % of truly failing units (bound 2.5 %)")
+    if args.lot_units:
+        t = timing(args.lot_units, args.seed)
+        print(f"verify time: {t['per_session_s'] * 1e3:.1f} ms per session (read + decide); "
+              f"{t['lot_s']:.2f} s per {t['lot_units']}-unit lot")
+    return 0 if worst <= 2.5 else 1
+
+
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction
              ) -> None:
     v = commands.add_parser(
@@ -294,3 +314,16 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     c.add_argument("--out", metavar="FILE",
                    help="output file (default SESSION/certificate-v<N>.html)")
     c.set_defaults(func=certificate_command)
+
+    b = benchmarks.add_parser(
+        "acceptance", help="decision rules on simulated lots: false accepts and rejects",
+        description="Judge simulated lots (a lens-variation model with known truth per "
+        "unit) with the guarded and simple rules; print false-accept and false-reject rates "
+        "and the indeterminate share, and the verification time per session and per lot. "
+        "Exit 1 if the guarded rule accepts more than 2.5 %% of truly failing units.")
+    b.add_argument("--units", type=positive_int, default=2000,
+                   help="units per simulated lot (default 2000)")
+    b.add_argument("--lot-units", type=int, default=1000,
+                   help="session folders of the timed lot (default 1000; 0: no timing)")
+    b.add_argument("--seed", type=int, default=0, help="random seed")
+    b.set_defaults(func=benchmark_command)
