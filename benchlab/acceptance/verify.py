@@ -91,10 +91,14 @@ def table_of(results: SessionResults, name: str) -> list[dict[str, Any]] | None:
     return None
 
 
-def row_label(row: Mapping[str, Any], limit: Limit, index: int) -> str:
-    """``element=G2E2`` - the ``where`` columns and the key columns of the row."""
-    names = list(limit.where) + [c for c in KEY_COLUMNS if c in row and c not in limit.where]
-    parts = [f"{c}={_cell(row.get(c))}" for c in names[:3] if c in row]
+def row_label(row: Mapping[str, Any], limit: Limit, index: int, several: bool = True) -> str:
+    """``element=G2E2``: the row's ``where`` columns, and - when the limit matched several
+    rows or has no ``where`` - its first key columns, so each row of a verdict is named."""
+    names = [c for c in limit.where if c in row]
+    if several or not names:
+        keys = [c for c in KEY_COLUMNS if c in row and c not in limit.where]
+        names += keys[:max(1, 2 - len(names))]
+    parts = [f"{c}={_cell(row.get(c))}" for c in names]
     return " ".join(parts) or f"row {index + 1}"
 
 
@@ -155,7 +159,7 @@ def verify_unit(sessions: Sequence[SessionResults], spec: Spec) -> UnitResult:
                 break
             reading = reading_of(row, limit, spec.coverage)
             unit.verdicts.append(decide(reading, limit, rule, table=limit.table,
-                                        row=row_label(row, limit, index),
+                                        row=row_label(row, limit, index, len(matched) > 1),
                                         partial=source.partial))
     return unit
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from benchlab.acceptance.decide import (
     FAIL,
@@ -160,3 +162,23 @@ def test_unit_verdict_combines_worst_first() -> None:
     assert combine([PASS, PASS]) == PASS
     assert combine([]) == INDETERMINATE
     assert math.isfinite(K)
+
+
+@given(reading=st.floats(-10, 10), sigma=st.floats(0, 3), lo=st.floats(-10, 10),
+       width=st.floats(0, 10), two_sided=st.booleans())
+def test_guarded_decisions_are_a_refinement_of_simple(reading: float, sigma: float, lo: float,
+                                                      width: float, two_sided: bool) -> None:
+    """Whatever guarded decides, simple decides the same; and a guarded pass keeps the whole
+    interval inside (a fail keeps it wholly outside)."""
+    limit = Limit(id="L", table="t", column="x", min=lo, max=lo + width if two_sided else None)
+    r = reading_of({"x": reading, "x_uncertainty": sigma}, limit, 0.95)
+    guarded, simple = decide(r, limit, "guarded"), decide(r, limit, "simple")
+    assert r.low is not None and r.high is not None
+    if guarded.verdict != INDETERMINATE:
+        assert simple.verdict == guarded.verdict
+    hi = math.inf if limit.max is None else limit.max
+    if guarded.verdict == PASS:
+        assert lo <= r.low and r.high <= hi
+    if guarded.verdict == FAIL:
+        assert r.high < lo or r.low > hi
+    assert (simple.verdict == PASS) == (lo <= reading <= hi)
