@@ -24,7 +24,8 @@ h1 { font-size: 1.5em; margin-bottom: 0.2em; }
 h2 { font-size: 1.1em; margin-top: 1.5em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; width: 100%; font-size: 0.85em; }
 th, td { border: 1px solid #bbb; padding: 0.2em 0.4em; text-align: left; vertical-align: top; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+tr.note td { border-top: none; padding-top: 0; }
 table.kv th { width: 14em; background: #f4f4f4; }
 .verdict { font-weight: bold; text-transform: uppercase; }
 .unit-verdict { font-size: 1.6em; padding: 0.2em 0.6em; border: 3px solid; display: inline-block; }
@@ -77,17 +78,24 @@ def render_certificate(record: Mapping[str, Any], session_id: str = "") -> str:
     rows_html = []
     for r in record["rows"]:
         why = "; ".join(r.get("notes") or [])
-        if str(r.get("decided_by", "")).startswith("reading"):
+        if str(r.get("decided_by", "")).startswith("reading") and "reading decides" not in why:
             why = ("the reading decided (shared risk)" + ("; " + why if why else ""))
+        interval = ("none" if r.get("low") is None or r.get("high") is None
+                    else f"{_num(r.get('low'))} &ndash; {_num(r.get('high'))}")
         rows_html.append(
             "<tr>" + "".join([
-                f"<td>{esc(r['limit_id'])}</td>", f"<td>{esc(r.get('table', ''))}</td>",
-                f"<td>{esc(r.get('row') or '-')}</td>", f"<td>{esc(r['column'])}</td>",
+                f"<td>{esc(r['limit_id'])}</td>",
+                f"<td>{esc(r.get('table', ''))}<br><small>{esc(r.get('row') or '')}</small>"
+                "</td>", f"<td>{esc(r['column'])}</td>",
                 f"<td class='num'>{_num(r.get('reading'))}</td>",
-                f"<td class='num'>{_num(r.get('low'))} .. {_num(r.get('high'))}</td>",
-                f"<td>{_limit(r)}</td>", f"<td class='num'>{_num(r.get('margin'))}</td>",
-                f"<td>{esc(r.get('rule', ''))}</td>", f"<td>{_badge(r['verdict'])}</td>",
-                f"<td class='notes'>{esc(why)}</td>"]) + "</tr>")
+                f"<td class='num'>{interval}</td>",
+                f"<td class='num'>{_limit(r)}</td>",
+                f"<td class='num'>{_num(r.get('margin'))}</td>",
+                f"<td>{esc(r.get('rule', ''))}</td>", f"<td>{_badge(r['verdict'])}</td>"])
+            + "</tr>")
+        if why:
+            rows_html.append(f"<tr class='note'><td></td><td colspan='8' class='notes'>"
+                             f"{esc(why)}</td></tr>")
     sessions_html, frames_html = [], []
     for s in record.get("sessions", []):
         sessions_html.append(
@@ -110,9 +118,9 @@ def render_certificate(record: Mapping[str, Any], session_id: str = "") -> str:
 <p>Unit verdict: {_badge(record['verdict'], 'verdict unit-verdict')}</p>
 <table class="kv" id="identity">{kv_html}</table>
 <h2>Limits</h2>
-<table id="limits"><thead><tr><th>limit</th><th>table</th><th>row</th><th>quantity</th>
+<table id="limits"><thead><tr><th>limit</th><th>table, row</th><th>quantity</th>
 <th>reading</th><th>interval ({spec.get('coverage', 0.95):.0%})</th><th>limit</th>
-<th>margin</th><th>rule</th><th>verdict</th><th>notes</th></tr></thead>
+<th>margin</th><th>rule</th><th>verdict</th></tr></thead>
 <tbody>{''.join(rows_html)}</tbody></table>
 <p class="notes">Margin: how far the reading lies inside the limit (negative: outside), in the
 quantity's unit. {_rule_text(spec)}.</p>
