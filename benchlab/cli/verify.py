@@ -92,6 +92,9 @@ def verify_command(args: argparse.Namespace) -> int:
                 stored.append({"session": str(s.path), "file": str(path), "version": version})
                 record_session(s.path)
             record["stored"] = stored
+            versions = {item["version"] for item in stored}
+            if len(versions) == 1:  # the version each session's file holds
+                record["version"] = versions.pop()
         records.append(record)
     if args.json:
         print(json.dumps(records if len(records) > 1 else records[0], indent=1))

@@ -12,6 +12,7 @@ from acceptance_sessions import limit, make_session, spec
 from benchlab.acceptance.store import read_verdict, verdict_versions
 from benchlab.catalog.index import Catalog
 from benchlab.cli.main import main
+from benchlab.session import Session
 
 K95 = 1.959963984540054
 
@@ -177,3 +178,27 @@ def test_lot_reports_yield_and_cpk_on_a_simulated_lot(tmp_path: Path,
     assert result["yield"] == pytest.approx(passed / 30)
     assert result["yield_low"] < passed / 30 < result["yield_high"]
     assert "<svg" in html.read_text() and "UCL" in html.read_text()
+
+
+def test_verify_refuses_a_session_another_process_writes(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    s = make_session(tmp_path / "root", "s1")
+    writer = Session.open(s)
+    writer.hold(command="benchlab run mtf")  # a run in progress holds the owner lock
+    try:
+        assert main(["verify", str(s), "--spec", str(spec(tmp_path, limit(0.55)))]) == 1
+    finally:
+        writer.release()
+    assert "session is in use by" in capsys.readouterr().err
+    assert verdict_versions(s) == []
+
+
+def test_unit_needs_a_change(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    s = make_session(tmp_path / "root", "s1", serial="SN1")
+    assert main(["unit", str(s), "--reason", "x"]) == 2
+    assert "give --serial, --lot or both" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exited:  # --reason is required: every change says why
+        main(["unit", str(s), "--lot", "L1"])
+    assert exited.value.code == 2
+    assert "--reason" in capsys.readouterr().err
