@@ -9,6 +9,7 @@ Layout::
                           <step_id>__<name>.take<N>.tiff: a later take (after rejected frames,
                           or ``resume --retake``), the earlier takes kept beside it
         results/v<N>/     one CSV + JSON per table and summary.json; a re-analysis adds v<N+1>
+        verdicts/v<N>.json  acceptance verdicts (benchlab verify); a re-verification adds one
 
 Every file is written atomically (:mod:`benchlab.storage`); frames are flushed to disk before
 :meth:`Session.save_frame` returns, so analysis never runs on a frame that could still be lost.
@@ -68,6 +69,8 @@ SESSION_FILE = "session.json"
 EVENTS_FILE = "events.jsonl"
 FRAMES_DIR = "frames"
 RESULTS_DIR = "results"
+#: Acceptance verdicts (:mod:`benchlab.acceptance.store`), versioned like the results.
+VERDICTS_DIR = "verdicts"
 #: Held (``flock``) by the one process writing the session; the kernel drops it when that
 #: process dies, so a session can never stay "running" for a dead process.
 OWNER_FILE = "owner.lock"
@@ -298,11 +301,13 @@ class Session:
         software_version: str,
         name: str | None = None,
         sample: str = "",
+        lot: str = "",
     ) -> Session:
         """Create ``root/<timestamp>_<procedure>`` (or ``root/<name>``) with status "running".
 
-        ``sample`` identifies the lens or sample under test (optional; the catalogue's trends
-        across prototypes group by it).
+        ``sample`` identifies the lens or sample under test - the unit's serial number -
+        and ``lot`` its production lot (both optional; the catalogue's trends and
+        ``benchlab units`` / ``lot`` group by them).
 
         A folder that already exists is never reused: a numeric suffix is added.
         """
@@ -329,6 +334,7 @@ class Session:
             "procedure": procedure,
             "operator": operator,
             "sample": sample,
+            "lot": lot,
             "devices": _plain(devices),
             "software_version": software_version,
             "params": _plain(params),

@@ -105,6 +105,7 @@ def start_run(
     root: str | Path = "sessions",
     operator: str = "",
     sample: str = "",
+    lot: str = "",
     prompt: PromptFn | None = None,
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,
@@ -134,6 +135,7 @@ def start_run(
     session = Session.create(
         Path(root), procedure=procedure, params=snapshot, operator=operator,
         devices=bench.identities(), software_version=benchlab.__version__, sample=sample,
+        lot=lot,
     )
     if calibration is not None:  # before any frame: what every analysis will use
         from benchlab.protocols.characterise.calibration import keep_session_calibration

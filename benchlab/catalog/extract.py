@@ -15,7 +15,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchlab.session import SESSION_FILE, SESSION_FORMAT, Session, SessionError, read_results
+from benchlab.session import (
+    SESSION_FILE,
+    SESSION_FORMAT,
+    VERDICTS_DIR,
+    Session,
+    SessionError,
+    read_results,
+)
 from benchlab.table_4_15 import average_of
 
 ORIENTATIONS = ("sagittal", "tangential")
@@ -47,6 +54,21 @@ class ResultsVersion:
     created_at: str
 
 
+@dataclass(frozen=True)
+class VerdictRow:
+    """One stored acceptance verdict of the session (``verdicts/v<N>.json``)."""
+
+    version: int
+    created_at: str
+    serial: str
+    lot: str
+    spec_name: str
+    spec_revision: str
+    spec_sha256: str
+    decision_rule: str
+    verdict: str
+
+
 @dataclass
 class SessionRecord:
     """One ``sessions`` row plus its results versions and the key figures of the latest."""
@@ -57,6 +79,7 @@ class SessionRecord:
     status: str
     operator: str = ""
     sample: str = ""
+    lot: str = ""
     devices: dict[str, Any] = field(default_factory=dict)
     started_at: str = ""
     finished_at: str | None = None
@@ -68,6 +91,7 @@ class SessionRecord:
     unreadable_version: int | None = None
     results: list[ResultsVersion] = field(default_factory=list)
     figures: list[Figure] = field(default_factory=list)
+    verdicts: list[VerdictRow] = field(default_factory=list)
 
     @property
     def serials(self) -> str:
@@ -109,7 +133,7 @@ def read_session_record(path: Path) -> SessionRecord:
     record = SessionRecord(
         id=folder.name, path=str(folder), procedure=str(meta.get("procedure", "?")),
         status=status, operator=str(meta.get("operator") or ""),
-        sample=str(meta.get("sample") or ""),
+        sample=str(meta.get("sample") or ""), lot=str(meta.get("lot") or ""),
         devices=devices if isinstance(devices, dict) else {},
         started_at=str(meta.get("started_at") or ""), finished_at=meta.get("finished_at"),
         software_version=str(meta.get("software_version") or ""),
@@ -130,7 +154,27 @@ def read_session_record(path: Path) -> SessionRecord:
             continue
         record.results.append(ResultsVersion(version, str(summary.get("estimator", "")),
                                              str(summary.get("created_at", ""))))
+    record.verdicts.extend(verdicts_of(folder))
     return record
+
+
+def verdicts_of(folder: Path) -> Iterator[VerdictRow]:
+    """The acceptance verdicts stored in the session folder (an unreadable one is skipped:
+    ``benchlab certificate`` names it when asked for it)."""
+    verdicts = folder / VERDICTS_DIR
+    if not verdicts.is_dir():
+        return
+    for path in sorted(verdicts.glob("v*.json")):
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            version = int(path.stem[1:])
+            spec, unit = doc["spec"], doc["unit"]
+            yield VerdictRow(version, str(doc.get("created_at", "")), str(unit["serial"]),
+                             str(unit["lot"]), str(spec["name"]), str(spec.get("revision", "")),
+                             str(spec.get("sha256", "")), str(spec.get("decision_rule", "")),
+                             str(doc["verdict"]))
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
 
 
 def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:

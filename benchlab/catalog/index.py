@@ -41,7 +41,7 @@ ORIENTATION_ALIASES = {
     "a": "averaged", "averaged": "averaged", "avg": "averaged", "": "",
 }
 #: Columns of a listing (everything but the devices' JSON).
-_LIST_COLUMNS = ("s.id, s.path, s.procedure, s.status, s.operator, s.sample, s.serials, "
+_LIST_COLUMNS = ("s.id, s.path, s.procedure, s.status, s.operator, s.sample, s.lot, s.serials, "
                  "s.started_at, s.finished_at, s.software_version, s.results_version, "
                  "s.estimator, s.report, s.error, s.unreadable_version, s.indexed_at")
 SORT_COLUMNS = ("started_at", "id", "procedure", "status", "sample", "operator",
@@ -211,6 +211,7 @@ class Catalog:
         folders = sorted(p for p in self.root.iterdir() if p.is_dir() and is_session_folder(p))
         with self._write() as conn:
             conn.execute("DELETE FROM figures")
+            conn.execute("DELETE FROM verdicts")
             conn.execute("DELETE FROM results")
             conn.execute("DELETE FROM sessions")
             for folder in folders:
@@ -220,18 +221,18 @@ class Catalog:
     @staticmethod
     def _delete(conn: sqlite3.Connection, session_id: str) -> None:
         for table, key in (("figures", "session_id"), ("results", "session_id"),
-                           ("sessions", "id")):
+                           ("verdicts", "session_id"), ("sessions", "id")):
             conn.execute(f"DELETE FROM {table} WHERE {key} = ?", (session_id,))
 
     def _store(self, conn: sqlite3.Connection, r: SessionRecord) -> None:
         self._delete(conn, r.id)
         latest = r.latest
         conn.execute(
-            "INSERT INTO sessions (id, path, procedure, status, operator, sample, devices_json,"
-            " serials, started_at, finished_at, software_version, results_version, estimator,"
-            " report, error, unreadable_version, indexed_at)"
-            " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-            (r.id, r.path, r.procedure, r.status, r.operator, r.sample,
+            "INSERT INTO sessions (id, path, procedure, status, operator, sample, lot,"
+            " devices_json, serials, started_at, finished_at, software_version,"
+            " results_version, estimator, report, error, unreadable_version, indexed_at)"
+            " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            (r.id, r.path, r.procedure, r.status, r.operator, r.sample, r.lot,
              json.dumps(r.devices, sort_keys=True), r.serials, r.started_at, r.finished_at,
              r.software_version, latest.version if latest else None,
              latest.estimator if latest else None, r.report, r.error, r.unreadable_version,
@@ -246,6 +247,12 @@ class Catalog:
             " freq_lp_per_mm, quantity, value, text) VALUES (?,?,?,?,?,?,?,?,?)",
             [(r.id, f.version, f.view, f.element, f.orientation, f.freq_lp_per_mm,
               f.quantity, f.value, f.text) for f in r.figures],
+        )
+        conn.executemany(
+            "INSERT INTO verdicts (session_id, version, created_at, serial, lot, spec_name,"
+            " spec_revision, spec_sha256, decision_rule, verdict) VALUES (?,?,?,?,?,?,?,?,?,?)",
+            [(r.id, v.version, v.created_at, v.serial, v.lot, v.spec_name, v.spec_revision,
+              v.spec_sha256, v.decision_rule, v.verdict) for v in r.verdicts],
         )
 
     # ------------------------------------------------------------------ reading
@@ -278,6 +285,7 @@ class Catalog:
         descending: bool = True,
         limit: int | None = None,
         devices: bool = False,
+        lot: str | None = None,
     ) -> list[dict[str, Any]]:
         """Sessions matching every given filter, sorted (newest first by default).
 
@@ -285,7 +293,7 @@ class Catalog:
         """
         check_list_query(sort=sort, since=since)
         self.refresh_running()
-        where, args = _session_filters(procedure, since, sample, status)
+        where, args = _session_filters(procedure, since, sample, status, lot)
         columns = "*" if devices else _LIST_COLUMNS
         sql = (f"SELECT {columns} FROM sessions s {where} ORDER BY s.{sort} "
                f"{'DESC' if descending else 'ASC'}, s.id")
@@ -316,6 +324,35 @@ class Catalog:
             "FROM figures WHERE session_id = ? AND version = ? ORDER BY rowid",
             (session_id, row["results_version"]))]
         return out
+
+    def units(self, *, lot: str | None = None) -> list[dict[str, Any]]:
+        """Units under test (sessions' serial numbers, ``sample``): lot, sessions, the newest
+        session, and the latest stored verdict per spec (``verdicts``: spec name ->
+        ``{verdict, revision, created_at, session_id, version}``), by serial number."""
+        self.refresh_running()
+        args: list[Any] = []
+        where = "WHERE s.sample != ''"
+        if lot is not None:
+            where += " AND s.lot = ?"
+            args.append(lot)
+        units: dict[str, dict[str, Any]] = {}
+        for row in self.conn.execute(
+                f"SELECT s.sample, s.lot, s.id, s.path, s.procedure, s.started_at FROM sessions s "
+                f"{where} ORDER BY s.sample, s.started_at", args):
+            unit = units.setdefault(row[0], {"serial": row[0], "lot": row[1], "sessions": [],
+                                             "verdicts": {}})
+            unit["lot"] = row[1] or unit["lot"]  # the newest session's lot
+            unit["sessions"].append({"id": row[2], "path": row[3], "procedure": row[4],
+                                     "started_at": row[5]})
+        for row in self.conn.execute(
+                "SELECT s.sample, v.spec_name, v.spec_revision, v.verdict, v.created_at, "
+                "v.session_id, v.version FROM verdicts v JOIN sessions s ON s.id = v.session_id "
+                "ORDER BY v.created_at, v.version"):  # the session's serial now (relabelled)
+            if row[0] in units:  # later rows win: the latest verdict per spec
+                units[row[0]]["verdicts"][row[1]] = {
+                    "revision": row[2], "verdict": row[3], "created_at": row[4],
+                    "session_id": row[5], "version": row[6]}
+        return list(units.values())
 
     def figure_keys(self) -> list[tuple[str, str, str, str]]:
         """Distinct ``(view, element, orientation, quantity)`` of the latest versions."""
@@ -406,7 +443,8 @@ def _dist(p: TrendPoint, freq: float) -> float:
 
 
 def _session_filters(
-    procedure: str | None, since: str | None, sample: str | None, status: str | None
+    procedure: str | None, since: str | None, sample: str | None, status: str | None,
+    lot: str | None = None,
 ) -> tuple[str, list[Any]]:
     clauses: list[str] = []
     args: list[Any] = []
@@ -422,6 +460,9 @@ def _session_filters(
     if status:
         clauses.append("s.status = ?")
         args.append(status)
+    if lot:
+        clauses.append("s.lot = ?")
+        args.append(lot)
     return ("WHERE " + " AND ".join(clauses) if clauses else ""), args
 
 

@@ -108,7 +108,28 @@ UPDATE sessions SET needs_reindex = 1 WHERE id IN (
     SELECT session_id FROM figures WHERE view = 'radiometry' AND value IS NULL AND text = '');
 """
 
-MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4, _V5)
+#: v6: units and lots (issue 28): the unit's lot beside its serial number (``sample``), and
+#: the acceptance verdicts stored in the folders (``verdicts/v<N>.json``), one row per version.
+_V6 = """
+ALTER TABLE sessions ADD COLUMN lot TEXT NOT NULL DEFAULT '';
+CREATE TABLE verdicts (
+    session_id TEXT NOT NULL REFERENCES sessions(id) ON DELETE CASCADE,
+    version INTEGER NOT NULL,
+    created_at TEXT NOT NULL DEFAULT '',
+    serial TEXT NOT NULL DEFAULT '',
+    lot TEXT NOT NULL DEFAULT '',
+    spec_name TEXT NOT NULL,
+    spec_revision TEXT NOT NULL DEFAULT '',
+    spec_sha256 TEXT NOT NULL DEFAULT '',
+    decision_rule TEXT NOT NULL DEFAULT '',
+    verdict TEXT NOT NULL,
+    PRIMARY KEY (session_id, version)
+);
+CREATE INDEX verdicts_by_unit ON verdicts(serial, spec_name, created_at);
+CREATE INDEX sessions_by_lot ON sessions(lot, started_at);
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4, _V5, _V6)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

@@ -183,7 +183,8 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
                                     retake_reason=getattr(args, "reason", None) or "", **kwargs)
             else:
                 runner = start_run(args.procedure, params=params, root=sessions_root,
-                                   operator=args.operator, sample=args.sample, **kwargs)
+                                   operator=args.operator, sample=args.sample,
+                                   lot=args.lot, **kwargs)
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
     except (StepFailed, RunAborted) as exc:
@@ -510,8 +511,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     run.add_argument("--out", help="folder for sessions (default: [paths] sessions of the "
                      "user's bench.toml, else ./sessions)")
     run.add_argument("--operator", default="", help="operator name for session.json")
-    run.add_argument("--sample", default="", metavar="ID",
-                     help="lens or sample under test (the catalogue groups trends by it)")
+    run.add_argument("--sample", "--serial", dest="sample", default="", metavar="ID",
+                     help="serial number of the lens or unit under test (the catalogue "
+                     "groups trends by it; benchlab verify groups sessions into units by it)")
+    run.add_argument("--lot", default="", metavar="LOT",
+                     help="production lot of the unit under test (benchlab lot LOT)")
     run.add_argument("--estimator", help="modulation estimator (default: params / library)")
     run.set_defaults(func=run_command)
 

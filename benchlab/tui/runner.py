@@ -106,6 +106,9 @@ class RunScreen(Screen[None]):
         Binding("a", "abort", "Abort"),
         Binding("t", "retry", "Retry"),
         Binding("v", "next_table", "Table"),
+        # Acceptance (docs/guide/acceptance.md): not in the footer, which 80 columns fill.
+        Binding("n", "unit", "Unit", show=False),
+        Binding("k", "spec", "Spec", show=False),
     ]
 
     procedure: reactive[str] = reactive("mtf")
@@ -123,6 +126,13 @@ class RunScreen(Screen[None]):
         self._tables: list[tuple[str, Mapping[str, Any]]] = []
         self._table_index = 0
         self._prompt: PromptDialog | None = None
+        #: The unit under test (serial number, lot) and the spec its runs are verified against.
+        self.unit_serial = ""
+        self.unit_lot = ""
+        self.spec_file: Path | None = None
+        #: The stored verdict of the last run (with a spec), else None.
+        self.verdict: dict[str, Any] | None = None
+        self.verify_error = ""
 
     def compose(self) -> ComposeResult:
         yield ModeBar("run")
@@ -184,6 +194,10 @@ class RunScreen(Screen[None]):
             f"params {Path(params).name if params else 'defaults'}  "
             f"[b]{self.state}[/b]{where}"
         )
+        if self.unit_serial or self.unit_lot or self.spec_file:
+            text += (f"\nunit {escape(self.unit_serial or '-')}  lot "
+                     f"{escape(self.unit_lot or '-')}  spec "
+                     f"{escape(self.spec_file.name) if self.spec_file else '-'}")
         if self.message:
             text += f"\n{self.message}"
         self.query_one("#run-status", Static).update(text)
@@ -308,7 +322,53 @@ class RunScreen(Screen[None]):
         self._forget_run()
         self._load_checklist()
 
+    def action_unit(self) -> None:
+        """Ask the unit's serial number, then its lot (stored in session.json at the start)."""
+        if self.state == "running":
+            self.notify("A procedure is running.", severity="warning")
+            return
+        self.app.push_screen(InputDialog(
+            "Unit under test: serial number", "Stored in session.json when the run starts "
+            "(empty: none). Enter to go on to the lot, Escape to cancel.", self.unit_serial),
+            self._set_serial)
+
+    def _set_serial(self, value: str | None) -> None:
+        if value is None:
+            return
+        self.unit_serial = value.strip()
+        self.app.push_screen(InputDialog(
+            "Unit under test: lot", "The production lot (empty: none).", self.unit_lot),
+            self._set_lot)
+
+    def _set_lot(self, value: str | None) -> None:
+        if value is not None:
+            self.unit_lot = value.strip()
+        self._refresh_status()
+
+    def action_spec(self) -> None:
+        """Choose the spec file a finished run is verified against (empty: none)."""
+        if self.state == "running":
+            self.notify("A procedure is running.", severity="warning")
+            return
+        self.app.push_screen(InputDialog(
+            "Spec file", "A benchlab.spec TOML file: each run is verified against it when it "
+            "ends (empty: no verification).", str(self.spec_file or "")), self._set_spec)
+
+    def _set_spec(self, value: str | None) -> None:
+        if value is None:
+            return
+        path = Path(value).expanduser() if value.strip() else None
+        if path is not None:
+            try:
+                services.check_spec(path)
+            except Exception as exc:  # noqa: BLE001 - every problem shown, nothing changed
+                self.app.show_error("The spec file cannot be used", exc)  # type: ignore[attr-defined]
+                return
+        self.spec_file = path
+        self._refresh_status()
+
     def _forget_run(self) -> None:
+        self.verdict = None
         self.runner = None
         self.outcome = None
         self.session_path = None
@@ -381,15 +441,30 @@ class RunScreen(Screen[None]):
                         abort=app.abort_event,
                         on_result=self._on_result,
                         operator=app.operator,
+                        sample=self.unit_serial,
+                        lot=self.unit_lot,
                     )
                     call(self._started, self.runner)
                 self.outcome = self.runner.run()
+                self._verify(Path(self.runner.session.path))
             except Exception as exc:  # noqa: BLE001 - every ending is shown to the operator
                 call(self._ended, exc)
             else:
                 call(self._ended, None)
             finally:
                 call(setattr, app, "procedure_running", False)
+
+    def _verify(self, session_path: Path) -> None:
+        """Verify the finished run against the chosen spec (in the run's thread); a failure
+        is said beside the run's success, never turned into a failed run."""
+        self.verdict = None
+        self.verify_error = ""
+        if self.spec_file is None:
+            return
+        try:
+            self.verdict = services.verify_run(session_path, self.spec_file)
+        except Exception as exc:  # noqa: BLE001 - shown to the operator in plain words
+            self.verify_error = services.plain_error(exc)
 
     def _started(self, runner: Runner) -> None:
         self.session_path = Path(runner.session.path)
@@ -408,6 +483,15 @@ class RunScreen(Screen[None]):
             self.message = "[green]Run complete; results saved in the session.[/green]"
             outcome = self.outcome
             self._tables = list((outcome.tables or {}).items()) if outcome else []
+            if self.verdict is not None:  # the verdicts first: what the unit is judged by
+                rows = services.verdict_rows(self.verdict)
+                self._tables.insert(0, ("acceptance", {"rows": rows}))
+                colour = {"pass": "green", "fail": "red"}.get(self.verdict["verdict"], "yellow")
+                self.message += (f"\n[{colour}]Unit verdict: {self.verdict['verdict'].upper()}"
+                                 f"[/{colour}] against {escape(self.verdict['spec']['name'])} "
+                                 f"(verdicts/v{self.verdict['version']}.json)")
+            elif self.verify_error:
+                self.message += f"\n[red]Not verified: {escape(self.verify_error)}[/red]"
             self._table_index = 0
             self._show_table()
             return

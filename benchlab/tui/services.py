@@ -369,8 +369,11 @@ def make_runner(
     on_result: Callable[[Any, Mapping[str, Any]], None],
     estimator: str | None = None,
     operator: str = "",
+    sample: str = "",
+    lot: str = "",
 ) -> Any:
-    """A runner for a fresh run, or for resuming the session at ``resume``."""
+    """A runner for a fresh run, or for resuming the session at ``resume``; ``sample`` and
+    ``lot``: the unit's serial number and lot, stored in session.json."""
     from benchlab.protocols import load_params, resume_run, start_run
 
     if resume is not None:
@@ -381,8 +384,54 @@ def make_runner(
     return start_run(
         procedure, bench=bench, params=load_params(procedure, params), root=root,
         operator=operator, prompt=prompt, progress=progress, abort=abort, on_result=on_result,
-        estimator=estimator,
+        estimator=estimator, sample=sample, lot=lot,
     )
+
+
+def check_spec(path: Path) -> Any:
+    """The checked spec file (:class:`~benchlab.acceptance.spec.SpecError` lists every
+    problem), before a run starts."""
+    from benchlab.acceptance.spec import load_spec
+
+    return load_spec(path)
+
+
+def verify_run(session_path: Path, spec_path: Path) -> dict[str, Any]:
+    """Verify a finished session (with the other sessions of its unit) against a spec,
+    store the verdict as a new version in each, update the catalogue; the stored record."""
+    from benchlab import __version__
+    from benchlab.acceptance.spec import load_spec
+    from benchlab.acceptance.store import record_of, store_verdict
+    from benchlab.acceptance.verify import read_session, verify_unit
+    from benchlab.catalog.index import record_session
+
+    results = read_session(session_path)
+    unit = verify_unit([results], load_spec(spec_path))
+    record = record_of(unit, __version__)
+    for s in unit.sessions:
+        _, record["version"] = store_verdict(s.path, record)
+        record_session(s.path)
+    return record
+
+
+def verdict_rows(record: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """A stored verdict as short rows for the results panel (limit, row, reading, interval,
+    limit, verdict)."""
+    def num(v: Any) -> str:
+        return "-" if v is None else f"{v:.4g}"
+
+    out = []
+    for r in record["rows"]:
+        lo, hi = r.get("min"), r.get("max")
+        limit = (f"{lo:g}..{hi:g}" if lo is not None and hi is not None
+                 else f">={lo:g}" if lo is not None else f"<={hi:g}")
+        verdict = r["verdict"] + ("*" if str(r.get("decided_by", "")).startswith("reading")
+                                  else "")
+        out.append({"limit": r["limit_id"], "row": r.get("row") or "-",
+                    "reading": num(r.get("reading")),
+                    "interval": f"{num(r.get('low'))}..{num(r.get('high'))}",
+                    "spec": limit, "verdict": verdict})
+    return out
 
 
 def run_ending(exc: BaseException) -> str:

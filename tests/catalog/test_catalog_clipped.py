@@ -68,9 +68,12 @@ def test_v4_catalogue_rows_without_text_are_reread(clipped_root: Path, tmp_path:
     conn = sqlite3.connect(root / CATALOG_FILE, isolation_level=None)
     conn.execute("DELETE FROM figures WHERE quantity = 'clipped_pixels'")
     conn.execute("UPDATE figures SET text = '' WHERE view = 'radiometry'")  # what v4 wrote
+    for statement in ("DROP TABLE verdicts", "DROP INDEX sessions_by_lot",  # what v6 added
+                      "ALTER TABLE sessions DROP COLUMN lot"):
+        conn.execute(statement)
     conn.execute("PRAGMA user_version = 4")
     conn.close()
     with Catalog.open(root) as cat:
         (point,) = cat.trend(view="radiometry", element="18mm", quantity="measured_normalised")
-        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == 5
+        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == 6
     assert (point.value, point.text) == (None, "clipped")
