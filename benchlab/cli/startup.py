@@ -136,6 +136,15 @@ def format_timings(times: Mapping[tuple[str, str, str], Timings], repeats: int) 
     return "\n".join(lines)
 
 
+def this_program() -> list[str]:
+    """The command a user types: the ``benchlab`` script beside this interpreter (where pip
+    installed it), else ``python -m benchlab.cli.main``."""
+    script = Path(sys.executable).parent / "benchlab"
+    if script.is_file() and os.access(script, os.X_OK):
+        return [str(script)]
+    return [sys.executable, "-m", "benchlab.cli.main"]
+
+
 def _simulated_session(folder: Path) -> Path:
     done = subprocess.run([sys.executable, "-m", "benchlab.cli.main", "run", "mtf", "--simulate",
                            "--yes", "--out", str(folder)], capture_output=True, text=True)
@@ -148,7 +157,7 @@ def _simulated_session(folder: Path) -> Path:
 def _cmd_startup(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise UsageError(f"--repeats must be >= 1, got {args.repeats}")
-    programs: dict[str, list[str]] = {THIS: [sys.executable, "-m", "benchlab.cli.main"]}
+    programs: dict[str, list[str]] = {THIS: this_program()}
     if args.against:
         other = shutil.which(args.against)
         if other is None:

@@ -178,3 +178,12 @@ def test_startup_benchmark_interleaves_two_installs(tmp_path: Path) -> None:
     table = format_timings(times, 2)
     assert "analyze SESSION (cached): this / old median wall = " in table
     assert table.count("median wall =") == 4
+
+
+def test_startup_benchmark_times_the_command_a_user_types() -> None:
+    """The ``benchlab`` script beside the interpreter (as pip installs it), not ``-m``."""
+    from benchlab.cli.startup import this_program
+
+    script = Path(sys.executable).parent / "benchlab"
+    expected = [str(script)] if script.is_file() else [sys.executable, "-m", "benchlab.cli.main"]
+    assert this_program() == expected
