@@ -187,3 +187,15 @@ def test_startup_benchmark_times_the_command_a_user_types() -> None:
     script = Path(sys.executable).parent / "benchlab"
     expected = [str(script)] if script.is_file() else [sys.executable, "-m", "benchlab.cli.main"]
     assert this_program() == expected
+
+
+def test_startup_benchmark_refuses_a_missing_other_install(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.cli.main import main
+
+    missing = str(tmp_path / "nowhere" / "benchlab")
+    assert main(["benchmark", "startup", "--against", missing]) == 2
+    assert f"--against {missing}: not an executable benchlab command" in capsys.readouterr().err
+    assert main(["benchmark", "startup", "--against", sys.executable,
+                 "--against-label", "this"]) == 2
+    assert "'this' names this install" in capsys.readouterr().err
