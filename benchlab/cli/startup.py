@@ -128,7 +128,8 @@ def format_timings(times: Mapping[tuple[str, str, str], Timings], repeats: int) 
             theirs = times[(command, how, other)]
             ratio = statistics.median(t.wall) / statistics.median(theirs.wall)
             lines.append(f"{command} ({how}): this / {other} median wall = {ratio:.3f}")
-    lines.append(f"{repeats} fresh processes each, interleaved; load average "
+    together = ", interleaved" if others else ""
+    lines.append(f"{repeats} fresh processes each{together}; load average "
                  f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs (wall time grows with "
                  "load; CPU time much less). cached: .pyc files cached after one warm-up run, "
                  "as an installed benchlab has them; no .pyc: PYTHONDONTWRITEBYTECODE=1, "
