@@ -32,7 +32,6 @@ from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
-    from benchlab.protocols.mtf.analysis import ForwardAhead
     from benchlab.protocols.mtf.steps import MtfProcedure
     from benchlab.protocols.radiometry import RadiometryProcedure
 
@@ -232,18 +231,14 @@ def resume_run(
 
 
 def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
-              catalogue: bool = True,
-              forward_ahead: ForwardAhead | None = None) -> Path:
+              catalogue: bool = True) -> Path:
     """Analyse a session's saved frames again into a new results version.
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
     sessions from its parent process, :func:`benchlab.catalog.index.session_recorder`).
     ``session_path`` may be a :class:`Session` already opened (the CLI opens it and starts
-    loading its frames before it imports the analysis). ``forward_ahead`` is an MTF
-    session's forward frame being analysed elsewhere
-    (:class:`benchlab.protocols.mtf.analysis.ForwardAhead`; the CLI forks a process for it);
-    other procedures ignore it.
+    loading its frames before it imports the analysis).
     """
     check_estimator(estimator)
     session = (session_path if isinstance(session_path, Session)
@@ -260,7 +255,7 @@ def reanalyze(session_path: str | Path | Session, estimator: str | None = None, 
             if any(st.id not in done for st in steps if st.kind != "analysis"):
                 session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
                                              len(steps))
-        return _reanalyze_held(session, estimator, catalogue, forward_ahead)
+        return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()
 
@@ -280,19 +275,7 @@ def _prefetch_frames(session: Session) -> None:
         session.prefetch_frames(FRAME_LOAD_THREADS)
 
 
-def _analyze(procedure: MtfProcedure | RadiometryProcedure | CharacteriseProcedure,
-             session: Session, estimator: str | None,
-             forward_ahead: ForwardAhead | None) -> Path:
-    if forward_ahead is not None and isinstance(procedure.params, MtfParams):
-        from benchlab.protocols.mtf.steps import MtfProcedure  # imported by make_procedure
-
-        if isinstance(procedure, MtfProcedure):
-            return procedure.analyze(session, estimator, forward_ahead)
-    return procedure.analyze(session, estimator)
-
-
-def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool,
-                    forward_ahead: ForwardAhead | None) -> Path:
+def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool) -> Path:
     procedure = make_procedure(session_params(session))
     # Frames still loading ahead are checked by their loads (the bytes hashed are the bytes
     # analysed), so the analysis starts while the last frames load; every other frame is
@@ -305,7 +288,7 @@ def _reanalyze_held(session: Session, estimator: str | None, catalogue: bool,
     before = session.frames()
     session.log_event("reanalysis_started", durable=False, estimator=estimator)
     try:
-        out = _analyze(procedure, session, estimator, forward_ahead)
+        out = procedure.analyze(session, estimator)
     except SessionError as exc:  # a load found its frame changed: say so as above
         bad = session.verify_frames()
         if bad:

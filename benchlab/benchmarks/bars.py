@@ -33,7 +33,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from benchlab.analysis.bars import kernels
 from benchlab.analysis.bars.estimators import ESTIMATORS, estimate_modulation
 from benchlab.synthetic.bars import BarCase, render
 
@@ -351,7 +350,4 @@ def format_speed(names: tuple[str, ...], shapes: tuple[tuple[int, int], ...]) ->
         reps = [15 if h * w <= 40_000 else 3 for h, w in shapes]
         vals = [time_per_roi(name, s, r) for s, r in zip(shapes, reps, strict=True)]
         lines.append(f"{name:<14} " + " ".join(f"{v:>10.0f}" for v in vals))
-    if "histogram" in names:
-        # Its speed depends on the path (the readings do not): say which one ran.
-        lines.append(f"histogram path: {kernels.describe()}")
     return "\n".join(lines)

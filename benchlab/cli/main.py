@@ -60,8 +60,8 @@ COMMAND_OWNERS = {
 LOG_LEVELS = ("debug", "info", "warning", "error")
 #: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import
 #: and they spin waiting for work (~90 ms of CPU during the import, ~15 ms per 50 ms after),
-#: taking a core from the frame loads and the forked child; the analysis's linear algebra
-#: is a few dozen points (least squares), which gains nothing from them.
+#: taking a core from the frame loads and the forward view's thread; the analysis's linear
+#: algebra is a few dozen points (least squares), which gains nothing from them.
 ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Top-level options that take a value as the next word (``--log-level info``).
 _OPTIONS_WITH_VALUE = ("--log-level", "--trace-io")

@@ -8,7 +8,6 @@ import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -17,8 +16,6 @@ from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
-    from benchlab.forked import ForkedCall, SharedFlags
-    from benchlab.protocols.mtf.analysis import ForwardPart
     from benchlab.session import Session
 
 
@@ -279,54 +276,21 @@ def resume_command(args: argparse.Namespace) -> int:
     return _run_or_resume(args, resume=True)
 
 
-#: Flags shared with the child: one per slanted edge (there are 12; a 13th and later edge
-#: would be measured by both processes).
-_EDGE_FLAGS = 64
-
-
-def _open_prefetching(folder: Path, estimator: str | None) -> tuple[
-    Session | None, ForkedCall[ForwardPart] | None, SharedFlags | None
-]:
+def _open_prefetching(folder: Path) -> Session | None:
     """The MTF session at ``folder``, its frames already loading on threads (inflating
-    releases the GIL), so the loads overlap the import of the protocols and the analysis
-    (start-up, issue 11), and its forward frame analysed in a forked child process
-    (:mod:`benchlab.forked`; forked first, while this process has no other thread); None for
-    anything else, which :func:`reanalyze` then opens and reports on as always (a folder that
-    is not a session, another procedure). With the child: its call, and the flags by which the
-    two processes split the slanted edges."""
-    from benchlab import forked
+    releases the GIL), so the loads overlap the import of the protocols and the analysis;
+    None for anything else, which :func:`reanalyze` then opens and reports on as always (a
+    folder that is not a session, another procedure)."""
     from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
     try:
         session = Session.open(folder)
         if session.procedure != "mtf":
-            return None, None, None
-    except (SessionError, OSError, KeyError):
-        return None, None, None
-    claims = forked.SharedFlags(_EDGE_FLAGS)
-    call = forked.start(partial(_forward_part, session, estimator, claims),
-                        f"{folder}: the forward frame's analysis")
-    try:
+            return None
         session.prefetch_frames(FRAME_LOAD_THREADS)
-    except BaseException as exc:
-        if call is not None:
-            call.close()
-        if isinstance(exc, SessionError | OSError | KeyError):
-            return None, None, None
-        raise
-    return session, call, claims
-
-
-def _forward_part(session: Session, estimator: str | None, claims: SharedFlags) -> ForwardPart:
-    """The forward frame's analysis (in the child: the protocols are imported there)."""
-    from benchlab.protocols.mtf.analysis import forward_part
-    from benchlab.protocols.params import MtfParams
-    from benchlab.protocols.runs import session_params
-
-    params = session_params(session)
-    if not isinstance(params, MtfParams):
-        raise TypeError(f"{session.path}: not an MTF session")
-    return forward_part(session, params, estimator, claims)
+    except (SessionError, OSError, KeyError):
+        return None
+    return session
 
 
 def analyze_session_command(args: argparse.Namespace) -> int:
@@ -340,7 +304,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
     estimator = getattr(args, "estimator", None)
-    early, child, claims = _open_prefetching(Path(target), estimator)
+    early = _open_prefetching(Path(target))
     # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
     # the analysis runs, records once the results are written, overlapping the printing; it
     # never raises, and the process waits for it before it ends. Nothing is recorded when the
@@ -350,13 +314,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     try:
         from benchlab.protocols.runs import reanalyze
 
-        ahead = None
-        if child is not None:  # an MTF session
-            from benchlab.protocols.mtf.analysis import ForwardAhead
-
-            ahead = ForwardAhead(child.result, claims)
-        out = reanalyze(early or Path(target), estimator=estimator, catalogue=False,
-                        forward_ahead=ahead)
+        out = reanalyze(early or Path(target), estimator=estimator, catalogue=False)
         recorder.record = True
     except KeyboardInterrupt:
         # Stopped: the catalogue thread (a daemon) is left to end without recording, not
@@ -365,8 +323,6 @@ def analyze_session_command(args: argparse.Namespace) -> int:
         recorder.abandoned = True
         raise
     finally:
-        if child is not None:
-            child.close()
         recorder.results_written.set()
         if not recorder.record and not recorder.abandoned:
             recorder.join()  # failed: it ends without recording

@@ -6,7 +6,6 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -49,7 +48,6 @@ from benchlab.session import FRAME_LOAD_THREADS
 if TYPE_CHECKING:
     from benchlab.analysis.chart.finder import ChartFit, FoundElement
     from benchlab.analysis.chart.reading import SetReading
-    from benchlab.forked import SharedFlags
     from benchlab.session import Session
 
 FORWARD_STEP = "forward"
@@ -93,8 +91,8 @@ def locate_chart(pixels: npt.NDArray[Any], params: MtfParams) -> ChartFit | None
     """The USAF chart in the forward frame (:func:`benchlab.analysis.chart.finder.find_chart`
     with the parameter file's geometry as the prior), or None when no chart is found (the ROIs
     then stay at the configured places and each row says so)."""
-    # Imported here: a re-analysis that has the forward frame analysed in another process
-    # (:func:`analyze_mtf`'s ``ahead``) never loads the chart finder (start-up, issue 11).
+    # Imported where used: in a re-analysis the import runs on the forward view's thread,
+    # beside the radial frames' loads (start-up: docs/development/startup.md).
     from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
 
     try:
@@ -166,8 +164,8 @@ def _cells(res: ModulationResult) -> dict[str, Any]:
 
 
 #: Threads of the chart reading (:func:`benchlab.analysis.chart.reading.read_chart`): its
-#: transforms and products release the GIL, so the forward frame's part (in the forked child
-#: of a re-analysis, or on its thread) takes the second core once the rest is done.
+#: transforms and products release the GIL, so the forward frame's part (on its own thread)
+#: takes the second core once the rest is done.
 CHART_READING_THREADS = 2
 
 #: What Table 4.11's ``estimator`` says when the chart reading read a set.
@@ -383,26 +381,12 @@ _Edges = dict[int, tuple[EdgeSpec, SfrResult | str]]
 
 class ForwardPart(NamedTuple):
     """What the forward frame alone gives (no radial frame, no centre): its bar sets' rows
-    by (element, orientation) with Table 4.11, and its slanted edges measured (all, or those
-    this process claimed: :class:`ForwardAhead`); None for both without a forward frame.
-    ``estimator`` is the one used (the caller's must match)."""
+    by (element, orientation) with Table 4.11, and its slanted edges measured; None for both
+    without a forward frame. ``estimator`` is the one used."""
 
     estimator: str
     view: _ForwardView | None
     edges: _Edges | None
-
-
-class ForwardAhead(NamedTuple):
-    """The forward part computed in another process (:func:`analyze_mtf`'s ``ahead``).
-
-    ``result()`` returns it, or None when it could not be computed there (it is then computed
-    here). With ``claims`` (shared with that process) the slanted edges are split as the two
-    go: the other process measures them from the first after the bar sets, this one from the
-    last after the radial frames, each taking the edges not claimed yet.
-    """
-
-    result: Callable[[], ForwardPart | None]
-    claims: SharedFlags | None = None
 
 
 def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
@@ -410,51 +394,23 @@ def mtf_estimator(params: MtfParams, estimator: str | None) -> str:
     return estimator or params.estimator or AUTO
 
 
-def forward_part(session: Session, params: MtfParams, estimator: str | None,
-                 claims: SharedFlags | None = None) -> ForwardPart:
-    """The forward frame's analysis (:class:`ForwardPart`), which a re-analysis may compute
-    in another process beside the radial frames (:class:`ForwardAhead`): every edge, or with
-    ``claims`` the edges claimed first here."""
-    est = mtf_estimator(params, estimator)
-    frame = _load_frame(session, FORWARD_STEP, FORWARD_FRAME)
-    if frame is None:
-        return ForwardPart(est, None, None)
-    view = _forward_rows(frame[0], params, est)
-    return ForwardPart(est, view, _measure_claimed(frame, claims, last_first=False))
-
-
-def _measure_claimed(frame: _Frame, claims: SharedFlags | None, *,
-                     last_first: bool) -> _Edges:
-    """Every edge measured (``claims`` None), or every edge claimed here in that order;
-    clipping is judged against the camera's ceiling, ``2**bits - 1`` from the frame's own
-    metadata (:func:`benchlab.analysis.sfr.measure.full_scale_of_frame`; inferred from each ROI's
-    codes when the metadata has no usable ``bits``)."""
+def _measure_edges(frame: _Frame) -> _Edges:
+    """Every slanted edge measured; clipping is judged against the camera's ceiling,
+    ``2**bits - 1`` from the frame's own metadata
+    (:func:`benchlab.analysis.sfr.measure.full_scale_of_frame`; inferred from each ROI's codes
+    when the metadata has no usable ``bits``)."""
     pixels, meta = frame
     full_scale = full_scale_of_frame(pixels, meta)
-    specs = list(enumerate(edge_specs()))
-    out: _Edges = {}
-    for i, spec in reversed(specs) if last_first else specs:
-        if claims is None or claims.claim(i):
-            out[i] = (spec, measure_edge(pixels, spec, full_scale))
-    return out
+    return {i: (spec, measure_edge(pixels, spec, full_scale))
+            for i, spec in enumerate(edge_specs())}
 
 
 def analyze_mtf(
     session: Session, params: MtfParams, estimator: str | None,
-    ahead: ForwardAhead | None = None,
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any], str]:
-    """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``.
-
-    ``ahead``, when given, is the :func:`forward_part` being computed elsewhere (a forked
-    process: :mod:`benchlab.forked`); this process meanwhile loads the radial frames,
-    measures their rows and then its share of the edges. The tables are those of one process.
-    """
+    """All MTF tables from a session's frames: ``(tables, summary, estimator_used)``."""
     est = mtf_estimator(params, estimator)
-    if ahead is not None:
-        centre, centre_method, radial, t412, part = _with_forward_ahead(
-            session, params, est, ahead)
-    else:
-        centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
+    centre, centre_method, radial, t412, part = _with_forward_thread(session, params, est)
     forward = part.view
     edges_done = None
     if part.edges is not None:
@@ -534,14 +490,14 @@ def _radial_part(
     est: str,
 ) -> tuple[_Radial, tuple[float, float], str, list[dict[str, Any]]]:
     """The radial frames once loaded, the optical centre fitted to them and the radial
-    rows (Table 4.12): what both ways of running the forward view share."""
+    rows (Table 4.12)."""
     radial = _collect(keys, jobs)
     centre, centre_method = _centre(list(radial.values()), params.fov_threshold_dn)
     return radial, centre, centre_method, _radial_rows(radial, params, est, centre)
 
 
 def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _RadialPart:
-    """Everything measured in this process: the centre, Table 4.12 and the forward part."""
+    """The centre, Table 4.12 and the forward part (the forward view on its own thread)."""
     radial_keys = _radial_keys(params)
     # Frames are read, hashed and inflated on threads: zlib and sha256 release the GIL, so on
     # several cores the 15 frames of a session load in a fraction of the time. The forward
@@ -560,8 +516,7 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
             radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
                                                                params, est)
             forward_frame = frame_ready.result()
-            measured = (_measure_claimed(forward_frame, None, last_first=False)
-                        if forward_frame is not None else None)
+            measured = _measure_edges(forward_frame) if forward_frame is not None else None
         except BaseException:
             failed = forward_job.exception()
             if failed is not None and not isinstance(failed, CancelledError):
@@ -569,37 +524,6 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
             raise
         forward = forward_job.result()
     return centre, centre_method, radial, t412, ForwardPart(est, forward, measured)
-
-
-def _with_forward_ahead(session: Session, params: MtfParams, est: str,
-                        ahead: ForwardAhead) -> _RadialPart:
-    """The radial frames and this process's share of the edges measured here while ``ahead``
-    computes the forward part. Any failure here, or a forward part that did not come, and the
-    forward part is computed here from the start: what fails is then raised as in
-    :func:`_with_forward_thread` (the forward frame's failure first)."""
-    radial_keys = _radial_keys(params)
-    with ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
-        radial_jobs = _submit_radial_loads(session, radial_keys, pool)
-        try:
-            radial, centre, centre_method, t412 = _radial_part(radial_keys, radial_jobs,
-                                                               params, est)
-            forward_frame = None if ahead.claims is None else _load_frame(
-                session, FORWARD_STEP, FORWARD_FRAME)
-            mine = ({} if forward_frame is None
-                    else _measure_claimed(forward_frame, ahead.claims, last_first=True))
-        except Exception:
-            forward_part(session, params, est)  # the forward frame's failure comes first
-            raise
-    part = ahead.result()
-    if part is not None and part.estimator == est:
-        if part.edges is None and forward_frame is None:
-            return centre, centre_method, radial, t412, part  # no forward frame
-        # (The child saw no forward frame but this process has one - e.g. recorded by the
-        # writer's orphan recovery after the fork: computed here below.)
-        edges = {**(part.edges or {}), **mine}
-        if part.edges is not None and len(edges) == len(edge_specs()):
-            return centre, centre_method, radial, t412, part._replace(edges=edges)
-    return centre, centre_method, radial, t412, forward_part(session, params, est)
 
 
 def _forward_view(session: Session, params: MtfParams, est: str,

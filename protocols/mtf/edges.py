@@ -414,7 +414,8 @@ def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
 def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
                   centre_rc: tuple[float, float], simulated_mtf_file: str = "") -> EdgeParts:
     """:func:`edge_parts` from the edges already measured (:func:`measure_edges`, which
-    needs no centre: a re-analysis measures them in another process)."""
+    needs no centre: a re-analysis measures them while the forward view's bar sets are
+    read on another thread)."""
     from benchlab.protocols.mtf.curves import load_curves  # the simulated curves' loader
 
     rows, curve_rows = edge_tables(measured, centre_rc)

@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING, Any
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.mtf.analysis import (
     FORWARD_FRAME,
-    ForwardAhead,
     analyze_forward_frame,
     analyze_mtf,
     analyze_radial_frame,
@@ -185,10 +184,7 @@ class MtfProcedure:
         self.analyze(ctx.session, self._estimator(ctx))
 
     # -- offline ------------------------------------------------------------------------------
-    def analyze(self, session: Session, estimator: str | None,
-                ahead: ForwardAhead | None = None) -> Path:
-        """Analyse the session's saved frames into a new results version (``ahead``: the
-        forward frame's part computed elsewhere, :func:`~benchlab.protocols.mtf.analysis.
-        analyze_mtf`)."""
-        tables, summary, used = analyze_mtf(session, self.params, estimator, ahead)
+    def analyze(self, session: Session, estimator: str | None) -> Path:
+        """Analyse the session's saved frames into a new results version."""
+        tables, summary, used = analyze_mtf(session, self.params, estimator)
         return Path(session.write_results(tables, summary=summary, estimator=used))

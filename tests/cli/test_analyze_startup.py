@@ -46,10 +46,9 @@ def test_analyze_session_imports_no_opencv_nor_tifffile(small_mtf: Path, tmp_pat
     code = ("import sys, json; from benchlab.cli.main import main; "
             f"status = main(['analyze', {str(path)!r}]); "
             "print(json.dumps([status, sorted(sys.modules)]))")
-    # in one process: the forward frame's analysis (chart finder) imports nothing heavy either
-    env = {**os.environ, "BENCHLAB_SERIAL": "1"}
+    # the forward frame's analysis (chart finder) imports nothing heavy either
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=True, timeout=120, env=env)
+                          check=True, timeout=120)
     status, loaded = json.loads(done.stdout.strip().splitlines()[-1])
     assert status == 0 and (path / "results" / "v2" / "summary.json").is_file()
     heavy = sorted({m.split(".")[0] for m in loaded} & set(NOT_IMPORTED))

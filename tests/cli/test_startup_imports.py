@@ -142,13 +142,60 @@ def test_curve_file_is_parsed_once_until_it_changes(tmp_path: Path,
         rc.load_curves(tmp_path / "missing.toml")
 
 
-def test_startup_benchmark_counts_the_runs_with_a_forked_child(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    from benchlab import forked
-    from benchlab.cli import startup
+def test_startup_spread_is_median_quartiles_and_range() -> None:
+    from benchlab.cli.startup import spread
 
-    answers = iter([True, False, True])
-    monkeypatch.setattr(forked, "fork_usable", lambda: next(answers))
-    forks: list[bool] = []
-    wall, cpu = startup._time([sys.executable, "-c", "pass"], 3, forks=forks)
-    assert forks == [True, False, True] and len(wall) == len(cpu) == 3
+    assert spread([5.0, 1.0, 4.0, 2.0, 3.0]) == (3.0, 2.0, 4.0, 1.0, 5.0)
+    assert spread([0.7]) == (0.7, 0.7, 0.7, 0.7, 0.7)
+    with pytest.raises(ValueError, match="no values"):
+        spread([])
+
+
+def test_startup_benchmark_interleaves_two_installs(tmp_path: Path) -> None:
+    """Each round runs each command once per install, the order reversed every other round;
+    the warm-up round (cached bytecode only) is not counted; the ratio of medians is printed."""
+    from benchlab.cli.startup import THIS, bytecode_environments, format_timings, interleaved
+
+    log = tmp_path / "order.txt"
+    session = tmp_path / "s"
+    session.mkdir()
+    (session / "session.json").write_text("{}", encoding="utf-8")
+
+    def program(name: str) -> list[str]:  # logs its name and the command it was given
+        code = ("import sys; open(sys.argv[1], 'a').write("
+                f"{name!r} + ' ' + sys.argv[2] + chr(10))")
+        return [sys.executable, "-c", code, str(log)]
+
+    envs = bytecode_environments(tmp_path / "pyc")
+    times = interleaved({THIS: program("A"), "old": program("B")}, session, 2, envs)
+    runs = log.read_text(encoding="utf-8").split("\n")[:-1]
+    assert runs == (["A --help", "B --help", "A analyze", "B analyze"]  # warm-up
+                    + ["B --help", "A --help", "B analyze", "A analyze"] * 2  # round 1
+                    + ["A --help", "B --help", "A analyze", "B analyze"] * 2)  # round 2
+    assert sorted(times) == sorted((c, how, n) for c in ("--help", "analyze SESSION")
+                                   for how in ("cached", "no .pyc") for n in (THIS, "old"))
+    assert all(len(t.wall) == len(t.cpu) == 2 for t in times.values())
+    table = format_timings(times, 2)
+    assert "analyze SESSION (cached): this / old median wall = " in table
+    assert table.count("median wall =") == 4
+
+
+def test_startup_benchmark_times_the_command_a_user_types() -> None:
+    """The ``benchlab`` script beside the interpreter (as pip installs it), not ``-m``."""
+    from benchlab.cli.startup import this_program
+
+    script = Path(sys.executable).parent / "benchlab"
+    expected = [str(script)] if script.is_file() else [sys.executable, "-m", "benchlab.cli.main"]
+    assert this_program() == expected
+
+
+def test_startup_benchmark_refuses_a_missing_other_install(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.cli.main import main
+
+    missing = str(tmp_path / "nowhere" / "benchlab")
+    assert main(["benchmark", "startup", "--against", missing]) == 2
+    assert f"--against {missing}: not an executable benchlab command" in capsys.readouterr().err
+    assert main(["benchmark", "startup", "--against", sys.executable,
+                 "--against-label", "this"]) == 2
+    assert "'this' names this install" in capsys.readouterr().err

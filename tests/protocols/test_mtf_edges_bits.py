@@ -1,6 +1,6 @@
 """The MTF procedure judges its slanted edges' clipping against the camera's ceiling from the
 forward frame's own metadata (``bits``), in the run's analysis and in ``benchlab analyze``
-alike (one process, or the edges split with a forked child); the codes are only a fallback."""
+alike; the codes are only a fallback."""
 
 from __future__ import annotations
 
@@ -15,8 +15,7 @@ from benchlab.analysis.sfr.measure import SfrResult, full_scale_of_frame, measur
 from benchlab.analysis.sfr.target import edge_specs
 from benchlab.drivers.mightex.sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
-from benchlab.forked import SharedFlags
-from benchlab.protocols.mtf.analysis import ForwardAhead, analyze_mtf, forward_part
+from benchlab.protocols.mtf.analysis import analyze_mtf
 from benchlab.protocols.mtf.edges import edge_tables, measure_edges
 from benchlab.protocols.params import MtfParams, load_params
 from benchlab.scenes.world import SimWorld
@@ -124,25 +123,14 @@ def params() -> MtfParams:
 
 def test_the_analysis_reads_bits_from_the_forward_frame(
         dn12: np.ndarray, params: MtfParams, tmp_path: Path) -> None:
-    """``analyze_mtf`` (the run's analysis step and ``benchlab analyze``), in one process and
-    with the edges split with a forked child (:class:`ForwardAhead`), and the child's own
-    :func:`forward_part`: the 10-bit frame's edges are refused as clipped at 1023."""
+    """``analyze_mtf`` (the run's analysis step and ``benchlab analyze``): the 10-bit frame's
+    edges are refused as clipped at 1023."""
     pixels = _ten_bit(dn12, 3.0)
     expected = [f"no clean edge: {_clipped_text(pixels, spec.roi, 1023)}"
                 for spec in edge_specs()]
     session = _session(tmp_path, pixels, {"bits": 10})
     tables, _, _ = analyze_mtf(session, params, None)
     assert [r["status"] for r in tables["table_sfr_edges"]] == expected
-    # The child's share (its forward_part, the first five edges), this process the rest.
-    part = forward_part(session, params, None)
-    assert part.edges is not None
-    assert [f"no clean edge: {res}" for _, res in part.edges.values()] == expected
-    claims = SharedFlags(64)
-    for i in range(5):
-        assert claims.claim(i)
-    theirs = part._replace(edges={i: e for i, e in part.edges.items() if i < 5})
-    split = analyze_mtf(session, params, None, ForwardAhead(lambda: theirs, claims))
-    assert split[0]["table_sfr_edges"] == tables["table_sfr_edges"]
     # The same pixels recorded as 12-bit: measured, every edge ok (no clipping below 4095).
     other = _session(tmp_path, pixels, {"bits": 12})
     tables12, _, _ = analyze_mtf(other, params, None)

@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars import kernels
+from benchlab.analysis.bars.roi import row_major
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -475,21 +475,11 @@ def quick_fundamental(
     if resid is None:
         # Straight bars: a centred crop (same centre, so the same phase) measures them as well
         # as the whole ROI, at a fixed cost.
-        # Row-major (a copy of a Fortran-order crop): the compiled and numpy passes then sum in
-        # the same order.
-        crop = kernels.row_major(_centred_crop(img, QUICK_CROP_PX))
+        # Row-major (a copy of a Fortran-order crop): summed in the same order whatever the
+        # ROI's memory layout.
+        crop = row_major(_centred_crop(img, QUICK_CROP_PX))
         rows, cols = crop.shape
         n = rows * cols
-        if kernels.compiled is not None and crop.dtype == np.float64 and crop.flags.aligned:
-            # The passes below in one compiled call, with the same arithmetic.
-            core = kernels.compiled.quick_core(
-                crop, freq_prior, QUICK_MIN_PERIODS, QUICK_SETTLED_CYCLES, QUICK_ITERATIONS,
-                QUICK_COARSE_MIN_PX, kernels.FUSED_COMPLEX)
-            if core is None:
-                return None
-            kx, ky, re, im, power_sum = core
-            return _found(kx, ky, complex(re, im), freq_prior, (rows, cols), power_sum / n,
-                          noise_sigma)
         resid = detrend(crop, sums if crop is img else None)
     theta_cells, _ = structure_tensor_direction(resid)
     theta = theta_cells

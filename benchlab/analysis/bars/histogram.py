@@ -45,7 +45,6 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars import kernels
 from benchlab.analysis.bars.geometry import (
     detrend,
     fundamental_is_clear,
@@ -182,7 +181,7 @@ def _find_peaks(
 ) -> tuple[list[int], list[float]]:
     """Local maxima at least ``min_height`` high and their heights, flat tops included (their
     middle bin), like :func:`scipy.signal.find_peaks` with ``height`` - in a handful of array
-    operations, since this estimator has a 100 us budget and the candidates are few.
+    operations, as the candidates are few.
     ``rises``: :func:`_rises` of ``y`` if already known."""
     starts, candidate_heights, _ = rises if rises is not None else _rises(y)
     peaks: list[int] = []
@@ -264,12 +263,9 @@ def _read(
     counts, width, exact = binned
     origin = prep.vmin
     smooth, smoothing, pad = _smoothed(prep, counts, width, scale)
-    if kernels.compiled is not None:  # the two calls below in one compiled pass
-        peaks, valley_pos_known, many = kernels.compiled.modes(smooth, MIN_MODE_FRACTION)
-    else:
-        peaks, _ = _find_peaks(smooth, 0.0)
-        many = len(peaks) >= 2
-        peaks, valley_pos_known = _massive_modes(smooth, peaks)
+    peaks, _ = _find_peaks(smooth, 0.0)
+    many = len(peaks) >= 2
+    peaks, valley_pos_known = _massive_modes(smooth, peaks)
     base = {"smoothing_codes": smoothing}
     if len(peaks) < 2:
         warnings.append("histogram unimodal: dark and bright peaks cannot be told apart")
@@ -427,20 +423,16 @@ class _Phases(NamedTuple):
     """Where every pixel lies on the bar pattern: its phase ``bin`` (of ``NOISE_BINS`` per
     cycle, bin 0 starting at the bright-bar centres) and whether it lies on the inner bars and
     spaces (half a period in from the ROI's ends; ``None``: all do). Also the noise about the
-    phase-binned profile and the fundamental's significance (``None``: unknown). The compiled
-    kernel gives no bins but the bar-centre pixels :func:`_centre_values` would select, with
-    their minimum and maximum (``chosen``)."""
+    phase-binned profile and the fundamental's significance (``None``: unknown)."""
 
-    bins: npt.NDArray[np.intp] | None
+    bins: npt.NDArray[np.intp]
     inner_bars: npt.NDArray[np.bool_] | None
     noise: float
     z: float | None
-    chosen: tuple[npt.NDArray[np.float64], float, float] | None = None
 
     def centres(self, window: str) -> npt.NDArray[np.bool_]:
         """Which pixels lie on the inner bars and spaces, in the phase bins of ``window``
         (a key of :data:`_WINDOWS`)."""
-        assert self.bins is not None  # only the numpy path asks
         near = _WINDOWS[window][self.bins]
         if self.inner_bars is not None:
             near &= self.inner_bars
@@ -488,18 +480,14 @@ def _bar_centres(prep: PreparedROI) -> tuple[PreparedROI, float | None]:
     if phases is None:
         return prep, None
     noise = prep.noise_sigma if prep.noise_given else phases.noise
-    if phases.chosen is not None:
-        values, vmin, vmax = phases.chosen
-    else:
-        values = img[phases.centres("near")]
-        if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
-            values = img[phases.centres("wide")]
-            if values.size < MIN_CENTRE_PIXELS:
-                values = img[phases.centres("all")]
-        if values.size >= 8:
-            vmin, vmax = float(values.min()), float(values.max())
+    values = img[phases.centres("near")]
+    if values.size < MIN_CENTRE_PIXELS:  # tiny ROI: a wider window, then all
+        values = img[phases.centres("wide")]
+        if values.size < MIN_CENTRE_PIXELS:
+            values = img[phases.centres("all")]
     if values.size < 8:
         return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
+    vmin, vmax = float(values.min()), float(values.max())
     if vmax == vmin:
         return prep.selected(img, noise, prep.vmin, prep.vmax), phases.z
     return prep.selected(values[None, :], noise, vmin, vmax), phases.z
@@ -514,13 +502,7 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
     phase = math.atan2(value.imag, value.real) / (2 * math.pi)
     kx, ky = (f, 0.0) if prep.axis == 1 else (0.0, f)
     half_f = f * (line.size - 1) / 2.0
-    bins: npt.NDArray[np.intp] | None = None
-    inner: npt.NDArray[np.bool_] | None = None
-    chosen = None
-    if kernels.compiled is not None and img.dtype == np.float64 and img.flags.aligned:
-        _, chosen = _compiled_selection(img, kx, ky, phase, half_f)  # its scatter: unused
-    else:
-        _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
+    _, bins, inner = _phase_bins(img.shape, kx, ky, phase, half_f)
     resid = img - (line[None, :] if prep.axis == 1 else line[:, None])
     along = img.shape[1 - prep.axis]
     noise = max(math.sqrt(float((resid * resid).sum()) / max(img.size - line.size, 1)),
@@ -537,7 +519,7 @@ def _axis_phases(prep: PreparedROI, f: float) -> _Phases:
         value = complex((flat_line * np.exp(-2j * math.pi * f * x)).sum())
         z_noise = prep.noise_sigma if prep.noise_given else noise
         z = _significance(2.0 * abs(value) / line.size, z_noise, img.size)
-    return _Phases(bins, inner, noise, z, chosen)
+    return _Phases(bins, inner, noise, z)
 
 
 def _measured_phases(prep: PreparedROI, f: float | None) -> _Phases | None:
@@ -571,9 +553,6 @@ def _phases_at(
     n = img.size
     kx, ky = f * math.cos(theta), f * math.sin(theta)  # as BarGeometry.k_xy
     half_f = 0.5 * f * (abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)))
-    if (kernels.compiled is not None and n >= 8 * NOISE_BINS and img.dtype == np.float64
-            and img.flags.aligned):
-        return _compiled_phases(prep, kx, ky, phase, half_f, amplitude)
     scaled, bins, inner = _phase_bins((rows, cols), kx, ky, phase, half_f)
     flat = img.ravel()
     noise = max(_scatter_about_bins(bins.ravel(), flat, NOISE_BINS), prep.quantisation_sd)
@@ -592,41 +571,6 @@ def _phases_at(
         z_noise = max(min(coarse, residual, prep.noise_sigma), prep.quantisation_sd)
     z = _significance(amplitude, prep.noise_sigma if prep.noise_given else z_noise, n)
     return _Phases(bins, inner, noise, z)
-
-
-#: The phase windows as the compiled kernel reads them (a byte per bin).
-_NEAR_BYTES, _WIDE_BYTES = _NEAR.astype(np.uint8).tobytes(), _NEAR_WIDE.astype(np.uint8).tobytes()
-
-
-def _compiled_phases(
-    prep: PreparedROI, kx: float, ky: float, phase: float, half_f: float, amplitude: float
-) -> _Phases:
-    """:func:`_phases_at` (on at least ``8 NOISE_BINS`` pixels) and the bar-centre selection
-    of :func:`_bar_centres` in one compiled pass: the same phase bins, inner-bar test, scatter
-    and windows as :func:`_phase_bins`, :func:`_scatter_about_bins` and
-    :meth:`_Phases.centres`."""
-    img = prep.pixels
-    scatter, chosen = _compiled_selection(img, kx, ky, phase, half_f)
-    noise = max(scatter, prep.quantisation_sd)
-    z = _significance(amplitude, prep.noise_sigma if prep.noise_given else noise, img.size)
-    return _Phases(None, None, noise, z, chosen)
-
-
-def _compiled_selection(
-    img: npt.NDArray[np.float64], kx: float, ky: float, phase: float, half_f: float
-) -> tuple[float, tuple[npt.NDArray[np.float64], float, float]]:
-    """The compiled pass of :func:`_phase_bins` (same arguments), the scatter about the phase
-    bins (:func:`_scatter_about_bins`) and the bar-centre pixels :func:`_bar_centres` selects
-    from them, with their minimum and maximum."""
-    assert kernels.compiled is not None
-    whole = math.ceil(half_f) + 2  # as _phase_bins
-    centre = NOISE_BINS * (phase + whole)
-    limit = NOISE_BINS * (half_f - 0.5) if half_f >= 1.0 else -1.0
-    out = np.empty(img.size)
-    scatter, m, vmin, vmax = kernels.compiled.phase_select(
-        img, NOISE_BINS * kx, NOISE_BINS * ky, centre, limit, _NEAR_BYTES, _WIDE_BYTES,
-        MIN_CENTRE_PIXELS, out)
-    return scatter, (out[:m], vmin, vmax)
 
 
 @lru_cache(maxsize=64)

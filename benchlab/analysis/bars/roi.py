@@ -22,13 +22,38 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars.kernels import row_major
 from benchlab.analysis.bars.result import (
     CLIPPED_FRACTION_LIMIT,
     NYQUIST_CYCLES_PER_PX,
     PHASE_SENSITIVE_CYCLES_PER_PX,
     Diagnostics,
 )
+
+
+def row_major(img: npt.NDArray[Any]) -> npt.NDArray[Any]:
+    """``img`` itself when numpy traverses it row by row (C-contiguous, or a view such as a
+    crop whose strides fall from the first axis to the last), else its C-contiguous copy
+    (Fortran order, transposed or reversed views).
+
+    numpy sums an array in its memory order: a Fortran-order ROI would round a few ulps
+    differently (1e-15) from the same pixels in C order, so the same pixels in another layout
+    would read differently. Every estimator reads this array instead.
+
+    Parameters
+    ----------
+    img : ndarray
+        Any array (any number of dimensions, any dtype).
+
+    Returns
+    -------
+    ndarray
+        ``img`` or its copy in C order (same dtype and values).
+    """
+    strides = [s for s, n in zip(img.strides, img.shape, strict=True) if n > 1]
+    if all(s > 0 for s in strides) and strides == sorted(strides, reverse=True):
+        return img
+    return np.ascontiguousarray(img)
+
 
 #: Largest pixel magnitude analysed: sums of squares of larger values overflow float64.
 MAX_ABS_VALUE = 1e150
