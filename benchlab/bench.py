@@ -319,19 +319,15 @@ class Bench:
     ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], dict[str, Any]]:
         """One frame at these settings: ``(pixels, metadata)``.
 
-        Without ``fresh`` the camera's newest buffered frame (``Camera.grab``), possibly
-        exposed before this call. ``fresh``: the frame is exposed wholly after this call - the
-        buffer is cleared and the frame that was already being exposed is dropped - so it shows
-        the set-up as it is now (a target just mounted, the LED just switched on).
+        ``fresh`` (``Camera.grab``'s default): the frame is exposed wholly after this call, so
+        it shows the set-up as it is now (a target just mounted, the LED just switched on).
+        Without ``fresh`` the camera's newest buffered frame, possibly exposed before.
         """
         camera = self._open_camera()
         try:
             camera.set_exposure_ms(exposure_ms)
             camera.set_gain(gain)
-            if fresh:
-                camera.clear_buffer()
-                camera.grab()  # exposure had started before the call: drop it
-            frame = camera.grab()
+            frame = camera.grab(fresh=fresh)
         except DeviceLostError:
             self._camera_lost = True
             raise
