@@ -50,8 +50,8 @@ from benchlab.drivers.mightex import protocol as p
 log = logging.getLogger(__name__)
 
 __all__ = [
-    "CameraInfo", "CameraProfileMismatchError", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
-    "VENDOR_ID",
+    "CameraInfo", "CameraProfileMismatchError", "Frame", "FrameMeta", "MightexCamera",
+    "find_cameras", "DEFAULT_PID", "VENDOR_ID",
 ]
 
 VENDOR_ID = p.VENDOR_ID
