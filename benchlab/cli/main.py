@@ -60,7 +60,7 @@ LOG_LEVELS = ("debug", "info", "warning", "error")
 #: is a few dozen points (least squares), which gains nothing from them.
 ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Top-level options that take a value as the next word (``--log-level info``).
-_OPTIONS_WITH_VALUE = ("--log-level", "--trace-io")
+_OPTIONS_WITH_VALUE = ("--log-level", "--trace-io", "--replay")
 
 
 class _VersionAction(argparse.Action):
@@ -102,7 +102,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
                         help="log messages from this level up to stderr (default warning)")
     parser.add_argument("--trace-io", metavar="FILE",
-                        help="append a byte-level trace of every device exchange to FILE")
+                        help="record every device exchange to FILE, a cassette (.gz: "
+                             "compressed) that --replay plays back")
+    parser.add_argument("--replay", metavar="FILE",
+                        help="answer the drivers with the bytes recorded in the cassette FILE "
+                             "instead of devices (no hardware, no simulator)")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     bench = commands.add_parser(
         "benchmark", help="measure speed and accuracy and print a table",
@@ -127,7 +131,7 @@ def plain_os_error(exc: OSError) -> str:
 
 
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
-_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io"}
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io", "--replay"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -173,6 +177,14 @@ def _main(argv: Sequence[str] | None) -> int:
         from benchlab.drivers import io_trace
 
         io_trace.start(args.trace_io)
+    if args.replay:
+        from benchlab.drivers import replay
+
+        try:
+            replay.start(args.replay)
+        except BenchlabError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
     with shutdown.handling_signals():
         try:
             return int(func(args) or 0)
@@ -180,7 +192,7 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"benchlab: error: {exc}", file=sys.stderr)
             return 2
         except BenchlabError as exc:
-            print(f"benchlab: error: {exc}", file=sys.stderr)
+            print(f"benchlab: error: {_replay_reason() or exc}", file=sys.stderr)
             return 1
         except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -197,6 +209,17 @@ def _main(argv: Sequence[str] | None) -> int:
                 from benchlab.drivers import io_trace
 
                 io_trace.stop()
+            if args.replay:
+                from benchlab.drivers import replay
+
+                replay.stop()
+
+
+def _replay_reason() -> str | None:
+    """While a cassette is replayed, a serial device that dropped the line says why."""
+    from benchlab.drivers import replay
+
+    return replay.divergence() if replay.active() else None
 
 
 def _setup_logging(level: str) -> None:

@@ -178,6 +178,10 @@ def udev_hint() -> str:
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
+    from benchlab.drivers import replay
+
+    if backend is None:
+        backend = replay.usb_backend()  # a cassette replayed: its camera, no USB
     try:
         found = usb.core.find(
             find_all=True, idVendor=VENDOR_ID, idProduct=DEFAULT_PID if pid is None else pid,
@@ -255,6 +259,10 @@ class MightexCamera(Camera[FrameMeta]):
         """
         if model is not None and profile is None:
             profile = p.spec_for(model)  # refuse an unknown model before touching USB
+        if backend is None:
+            from benchlab.drivers import replay
+
+            backend = replay.usb_backend()  # None unless a cassette is replayed
         devices = _find_devices(backend, pid)
         seen = []
         errors = []
@@ -298,6 +306,7 @@ class MightexCamera(Camera[FrameMeta]):
                 pass  # no kernel driver binds this camera on Linux; other OSes lack the call
             dev.set_configuration()
             usb.util.claim_interface(dev, p.INTERFACE)
+        io_trace.opened("camera", vid=dev.idVendor, pid=dev.idProduct)
         start = profile or p.spec_for("MCE-B013-U")
         cam = cls(dev, start, CameraInfo(start.model, "?", "?", dev.idProduct, dev.bus,
                                          dev.address), backend)
@@ -373,15 +382,29 @@ class MightexCamera(Camera[FrameMeta]):
         return self._dev
 
     def _send(self, data: bytes) -> None:
-        io_trace.record("camera", ">", data)
+        io_trace.record("camera", ">", data, p.EP_COMMAND_OUT)
         with _usb_errors(f"command 0x{data[0]:02X}"):
             self._device.write(p.EP_COMMAND_OUT, data, REPLY_TIMEOUT_MS)
+
+    def _read(self, ep: int, size_or_buffer: int | array.array[int], timeout_ms: int,
+              what: str) -> Any:
+        """One bulk read, recorded in the cassette (a timeout too: replay repeats it)."""
+        try:
+            with _usb_errors(what):
+                data = self._device.read(ep, size_or_buffer, timeout_ms)
+        except DeviceTimeoutError:
+            io_trace.timed_out("camera", ep)
+            raise
+        if isinstance(size_or_buffer, int):
+            io_trace.record("camera", "<", data, ep)
+        else:
+            io_trace.record("camera", "<", memoryview(size_or_buffer)[:data], ep)
+        return data
 
     def _drain_replies(self) -> None:
         for _ in range(8):
             try:
-                with _usb_errors("drain"):
-                    io_trace.record("camera", "<", self._device.read(p.EP_REPLY_IN, 255, 20))
+                self._read(p.EP_REPLY_IN, 255, 20, "drain")
             except DeviceTimeoutError:
                 return
         self._resync_replies = False
@@ -392,9 +415,7 @@ class MightexCamera(Camera[FrameMeta]):
             self._resync_replies = False
         self._send(data)
         try:
-            with _usb_errors(what):
-                reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
-            io_trace.record("camera", "<", reply)
+            reply = bytes(self._read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS, what))
             return p.decode_reply(reply, what, expected_len)
         except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
             self._resync_replies = True
@@ -607,9 +628,7 @@ class MightexCamera(Camera[FrameMeta]):
         # One fresh buffer per frame: the returned pixels are a view of it (no copy).
         buf = array.array("B", b"\0") * layout.total_bytes
         timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
-        with _usb_errors("frame read"):
-            received = self._device.read(p.EP_FRAME_IN, buf, timeout_ms)
-        io_trace.record("camera", "<", memoryview(buf)[:received])
+        received = self._read(p.EP_FRAME_IN, buf, timeout_ms, "frame read")
         return p.decode_frame(buf, layout, received)
 
     def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:
