@@ -33,6 +33,7 @@ COMMAND_MODULES = (
     "benchlab.cli.config",  # config init, config show
     "benchlab.cli.startup",  # benchmark startup
     "benchlab.cli.soak",  # benchmark soak
+    "benchlab.cli.doctor",  # doctor (guided bring-up)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module
@@ -52,6 +53,7 @@ COMMAND_OWNERS = {
     "viewpoint": "benchlab.cli.viewsynth", "calibrate": "benchlab.cli.viewsynth",
     "tui": "benchlab.cli.tui",
     "config": "benchlab.cli.config",
+    "doctor": "benchlab.cli.doctor",
 }
 LOG_LEVELS = ("debug", "info", "warning", "error")
 #: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import
