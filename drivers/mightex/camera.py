@@ -549,8 +549,8 @@ class MightexCamera(Camera[FrameMeta]):
     @_locked
     def _do_grab(self, timeout_s: float | None, *, fresh: bool = True) -> Frame[FrameMeta]:
         """Normal mode, ``fresh``: a frame exposed wholly after this call. Frames already in
-        the camera are cleared unread, so is the one being exposed at the call (the first to
-        arrive after the clear); of the frames after it the newest is read. ``fresh=False``
+        the camera are cleared unread; the one being exposed at the call (the first to arrive
+        after the clear) is read and dropped; of the frames after it the newest is returned. ``fresh=False``
         (a live stream): the newest frame the camera holds, maybe exposed before the call.
         Trigger mode: the next frame in order (one per trigger, none lost). Waits for a frame
         if none is there; ``timeout_s`` defaults to three frame periods plus 5 s.
@@ -590,14 +590,17 @@ class MightexCamera(Camera[FrameMeta]):
                 self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
                 self.discarded_frames += status.frames
                 continue
-            if normal and (status.frames > 1 or under_way):
-                # Keep only the newest (or none, if the only one is the one under way).
-                drop = status.frames if status.frames == 1 else status.frames - 1
-                self._send(p.encode_clear_buffer(drop))
-                self.skipped_frames += drop
+            if normal and status.frames == 1 and under_way:
+                # The one under way at the call: read and dropped (not cleared: its trailer
+                # is checked, and 0x35 does not say which frame it discards).
+                self._read_frame()
+                self.skipped_frames += 1
                 under_way = False
-                if status.frames == 1:
-                    continue
+                continue
+            if normal and status.frames > 1:  # keep only the newest: exposed after the call
+                self._send(p.encode_clear_buffer(status.frames - 1))
+                self.skipped_frames += status.frames - 1
+                under_way = False
             pixels, trailer = self._read_frame()
             if self._trailer_fits(trailer):
                 return self._make_frame(pixels, trailer)

@@ -75,10 +75,10 @@ def test_grab_8bit_exact_noise_free_values_and_zero_copy() -> None:
         sim.command_log.clear()
         frame = cam.grab()
         # Fresh: what the camera holds is cleared unread (here the frame that completed as
-        # the virtual clock jumped), then the first frame after that (which may have been
-        # under way at the call), then the next one is read.
+        # the virtual clock jumped), the first frame after that (it may have been under way
+        # at the call) is read and dropped, the next one returned.
         assert list(sim.command_log) == [H("33 01 00"), H("35 01 01"), H("33 01 00"),
-                                         H("35 01 01"), H("33 01 00"), H("34 01 01")]
+                                         H("34 01 01"), H("33 01 00"), H("34 01 01")]
     assert frame.pixels.dtype == np.uint8 and frame.pixels.shape == (1024, 1280)
     assert np.all(frame.pixels == 100)
     assert not frame.pixels.flags.owndata  # a view of the USB receive buffer

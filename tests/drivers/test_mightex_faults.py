@@ -131,9 +131,9 @@ def test_stale_frames_after_exposure_change_are_discarded() -> None:
         skipped = cam.skipped_frames
         frame = cam.grab()
         assert frame.meta.exposure_ms == 5.0 and np.all(frame.pixels == 50)
-        # A fresh grab clears the three unread (and the one under way): one transfer only.
+        # A fresh grab clears the three unread; the one under way is read and dropped.
         assert cam.skipped_frames - skipped == 4 and cam.discarded_frames == 0
-        assert sim.frames_sent == sent + 1
+        assert sim.frames_sent == sent + 2
 
 
 def test_stale_frames_of_other_geometry_are_cleared_unread() -> None:

@@ -25,12 +25,12 @@ def _open(sim: SimulatedCamera) -> MightexCamera:
 
 
 def _advance_on_clear(cam: MightexCamera, clock: ManualClock, dt_s: float) -> None:
-    """Let ``dt_s`` pass after every 0x35 the driver sends (a frame arrives meanwhile)."""
+    """Let ``dt_s`` pass after every 0x35 or 0x34 the driver sends (a frame arrives)."""
     send = cam._send
 
     def send_then_wait(data: bytes) -> None:
         send(data)
-        if data[0] == p.CMD_CLEAR_BUFFER:
+        if data[0] in (p.CMD_CLEAR_BUFFER, p.CMD_GET_IMAGE):
             clock.advance(dt_s)
 
     cam._send = send_then_wait  # type: ignore[method-assign]
@@ -60,8 +60,8 @@ def test_a_full_buffer_drops_new_frames_and_grab_still_returns_a_fresh_one() -> 
         sim.command_log.clear()
         now_ms = round((clock.now() - sim._t0) * 1000)
         fresh = cam.grab()
-        # Cleared: what was buffered, then the frame under way at the call; read: the next.
-        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x35, 0x33, 0x34]
+        # Cleared: what was buffered; read and dropped: the frame under way; read: the next.
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34, 0x33, 0x34]
         assert fresh.meta.timestamp_ms - fresh.meta.exposure_ms >= now_ms - 1
         assert fresh.meta.timestamp_ms > stale.meta.timestamp_ms + 10_000
 
@@ -169,7 +169,7 @@ def test_grab_clears_older_frames_and_does_not_chase_new_ones() -> None:
         clock.advance(0.175)  # frames at 50, 100, 150 ms
         _advance_on_clear(cam, clock, 0.05)  # a frame arrives after every clear
         sim.command_log.clear()
-        # 50..150 cleared, then 200 (under way at the call), 250 read.
+        # 50..150 cleared, then 200 (under way at the call) read and dropped, 250 returned.
         assert cam.grab().meta.timestamp_ms == pytest.approx(t_ms + 250, abs=1)
-        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x35, 0x33, 0x34]
-        assert cam.skipped_frames == 4 and sim.buffered_frames == 0
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34, 0x33, 0x34]
+        assert cam.skipped_frames == 4 and sim.buffered_frames == 1  # 300: not chased

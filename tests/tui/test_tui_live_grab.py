@@ -52,14 +52,11 @@ def test_measurement_frames_are_still_exposed_after_the_request(tmp_path: Path) 
                             prompt=lambda step, message: True).run()
         saved = len(list(Path(outcome.session_path).rglob("*.tif*")))
         assert saved == 6
-        # Each its own frame: the driver clears older ones and the one under way unread.
-        assert camera.frames_sent - sent == saved
+        assert camera.frames_sent - sent >= 2 * saved  # each: the stale one, then its own
 
         sent = camera.frames_sent
-        skipped = bench.camera.skipped_frames  # type: ignore[union-attr]
         services.focus_sharpness(bench, runner=object())  # back-focus reading: fresh too
-        assert camera.frames_sent - sent == 1
-        assert bench.camera.skipped_frames > skipped  # type: ignore[union-attr]
+        assert camera.frames_sent - sent == 2
         sent = camera.frames_sent
         services.grab(bench, 300.0, 1.0, fresh=False)  # the live view's grab, for contrast
         assert camera.frames_sent - sent == 1
