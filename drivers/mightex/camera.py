@@ -550,8 +550,9 @@ class MightexCamera(Camera[FrameMeta]):
     def _do_grab(self, timeout_s: float | None, *, fresh: bool = True) -> Frame[FrameMeta]:
         """Normal mode, ``fresh``: a frame exposed wholly after this call. Frames already in
         the camera are cleared unread; the one being exposed at the call (the first to arrive
-        after the clear) is read and dropped; of the frames after it the newest is returned. ``fresh=False``
-        (a live stream): the newest frame the camera holds, maybe exposed before the call.
+        after the clear) is read and dropped; of the frames after it the newest is returned.
+        ``fresh=False`` (a live stream): the newest frame the camera holds, maybe exposed
+        before the call.
         Trigger mode: the next frame in order (one per trigger, none lost). Waits for a frame
         if none is there; ``timeout_s`` defaults to three frame periods plus 5 s.
 
