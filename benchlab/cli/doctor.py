@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import getpass
-import grp
 import math
 import shutil
 import sys
@@ -162,6 +161,8 @@ class Doctor:
         if not sys.platform.startswith("linux"):
             self.add(step, "skip", "not Linux: no udev rule needed")
             return
+        import grp  # Unix only
+
         rule = Path("/etc/udev/rules.d") / UDEV_RULE
         user = getpass.getuser()
         try:
@@ -171,9 +172,9 @@ class Doctor:
         if rule.exists() and (in_group or user == "root"):
             self.add(step, "ok", f"{rule} installed, {user} may open the camera")
         else:
-            missing = ", ".join(w for w, bad in ((f"{rule}", not rule.exists()),
-                                                  (f"{user} in group plugdev", not in_group))
-                                if bad)
+            missing = ", ".join(w for w, bad in (
+                (f"{rule}", not rule.exists()),
+                (f"{user} in group plugdev", not in_group and user != "root")) if bad)
             self.add(step, "skip" if self.simulate else "FAIL", f"missing: {missing}",
                      "" if self.simulate else udev_hint())
 
