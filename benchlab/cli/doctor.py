@@ -29,15 +29,14 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from benchlab.bench import BenchConfig
-from benchlab.drivers.apt.protocol import ACTUATOR_COUNTS_PER_MM
+# numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
 from benchlab.drivers.errors import BenchlabError, DeviceError
-from benchlab.drivers.mightex import protocol as p
-from benchlab.drivers.mightex.diagnose import depth_findings, period_finding, ratio_finding
+
+if TYPE_CHECKING:
+    from benchlab.bench import BenchConfig
+    from benchlab.drivers.mightex import protocol as p_types
 
 #: Faults ``--simulate --inject NAME`` puts into the simulated bench (what the checks name).
 INJECTIONS = {
@@ -108,7 +107,10 @@ class Doctor:
 
     # ---- simulated bench ------------------------------------------------------------------
     def _start_sims(self, stack: contextlib.ExitStack) -> None:
+        import numpy as np
+
         from benchlab.drivers.apt.sim import SimulatedAptStage
+        from benchlab.drivers.mightex import protocol as p
         from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
         from benchlab.drivers.slc.sim import SimulatedSlc
 
@@ -179,8 +181,9 @@ class Doctor:
                      "" if self.simulate else udev_hint())
 
     # ---- 3: the camera --------------------------------------------------------------------
-    def open_camera(self, stack: contextlib.ExitStack, profile: p.CameraSpec | None = None
-                    ) -> Any:
+    def open_camera(self, stack: contextlib.ExitStack,
+                    profile: p_types.CameraSpec | None = None) -> Any:
+        from benchlab.drivers.mightex import protocol as p
         from benchlab.drivers.mightex.camera import MightexCamera
 
         step = "3 camera enumerates and answers"
@@ -224,6 +227,7 @@ class Doctor:
 
     def check_exposure(self, cam: Any, lit: bool, stack: contextlib.ExitStack) -> Any:
         from benchlab.drivers.mightex.camera import CameraProfileMismatchError
+        from benchlab.drivers.mightex.diagnose import period_finding, ratio_finding
 
         step = "4 exposure unit and linearity"
         try:
@@ -261,12 +265,16 @@ class Doctor:
         return float(min(s for s in steps if s > 0))
 
     def _mean(self, cam: Any, exposure_ms: float) -> float:
+        import numpy as np
+
         cam.set_exposure_ms(exposure_ms)
         return float(np.mean(cam.grab().pixels))
 
     def _fitting_profile(self, cam: Any, stack: contextlib.ExitStack) -> str:
         """Try every other known profile; the first whose exposure round-trips is the fix."""
+        from benchlab.drivers.mightex import protocol as p
         from benchlab.drivers.mightex.camera import CameraProfileMismatchError
+        from benchlab.drivers.mightex.diagnose import period_finding
 
         tried = cam.spec.model
         cam.close()
@@ -291,6 +299,10 @@ class Doctor:
 
     # ---- 5: bit depths --------------------------------------------------------------------
     def check_depths(self, cam: Any) -> None:
+        import numpy as np
+
+        from benchlab.drivers.mightex.diagnose import depth_findings
+
         step = "5 bit depths decode"
         cam.set_exposure_ms(40.0)
         means: dict[int, float] = {}
@@ -404,6 +416,8 @@ class Doctor:
         if moved is None or moved <= 0:
             self.add("8 stage scale", "skip", "no measurement given")
             return
+        from benchlab.drivers.apt.protocol import ACTUATOR_COUNTS_PER_MM
+
         counts = round(distance * cfg.counts_per_mm)
         measured = counts / moved
         name, value = min(ACTUATOR_COUNTS_PER_MM.items(),
@@ -449,6 +463,8 @@ def set_toml_key(text: str, section: str, key: str, value: str | float) -> str:
 def write_learned(path: Path, learned: dict[tuple[str, str], Any]) -> Path | None:
     """Write what the doctor learned into the bench file, after a backup; the new text must
     still be a valid bench file, else nothing is written. Returns the backup's path."""
+    from benchlab.bench import BenchConfig
+
     if not learned:
         return None
     text = path.read_text(encoding="utf-8")
@@ -493,6 +509,8 @@ def _timer() -> Iterator[list[float]]:
 def _cmd_doctor(args: argparse.Namespace) -> int:
     if args.inject and not args.simulate:
         raise BenchlabError("--inject is for the simulated bench: add --simulate")
+    from benchlab.bench import BenchConfig
+
     config = BenchConfig.load(args.config, simulate=args.simulate)
 
     def ask(question: str) -> bool:
