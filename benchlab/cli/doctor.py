@@ -336,7 +336,7 @@ class Doctor:
             return None
         port = self.sims["led"].port if self.simulate else cfg.port
         if not port:
-            self.add(step, "FAIL", "no [led] port",
+            self.add(step, "FAIL", "no [led] port" + _ports_seen(),
                      "set [led] port (a path, or hwgrep://VID:PID or hwgrep://SERIAL). A "
                      "USB-only SLC (-U, a HID device) cannot be driven over serial: use its "
                      "RS232 port (-U/S, -X models)")
@@ -381,8 +381,8 @@ class Doctor:
             return None
         port = self.sims["stage"].port if self.simulate else cfg.port
         if not port:
-            self.add(step, "FAIL", "no [stage] port", "set [stage] port (a path or "
-                     "hwgrep://0403:FAF0 for a Thorlabs cube)")
+            self.add(step, "FAIL", "no [stage] port" + _ports_seen(), "set [stage] port (a "
+                     "path, or hwgrep://0403:FAF0 or hwgrep://SERIAL for a Thorlabs cube)")
             return None
         try:
             stage = stack.enter_context(AptStage(port, counts_per_mm=cfg.counts_per_mm,
@@ -437,6 +437,16 @@ class Doctor:
     def _physical_mm(self) -> float | None:
         sim = self.sims.get("stage")
         return float(sim.position_mm) if sim is not None else None
+
+
+def _ports_seen() -> str:
+    """USB serial ports on this machine, as hwgrep URLs that find them again after a reboot."""
+    from serial.tools import list_ports
+
+    seen = [f"{q.device} ({q.description}; port = \"hwgrep://{q.serial_number}\")"
+            if q.serial_number else f"{q.device} ({q.description})"
+            for q in sorted(list_ports.comports(), key=lambda q: q.device) if q.vid is not None]
+    return "; USB serial ports seen: " + ", ".join(seen) if seen else "; no USB serial port seen"
 
 
 # ---- bench file and report -------------------------------------------------------------------
