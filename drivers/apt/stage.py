@@ -498,7 +498,8 @@ class AptStage(LinearStage):
         if target_mm is not None:
             off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
             if abs(off) > COMPLETION_TOLERANCE_COUNTS:
-                problems.append(f"{off:+d} counts from the target")
+                problems.append(f"{off:+d} counts from the target after {SETTLE_READS} position "
+                                f"re-reads over {SETTLE_READS * SETTLE_WAIT_S:g} s")
                 if status.at_forward_limit:
                     problems.append("forward limit switch engaged")
                 if status.at_reverse_limit:
@@ -506,8 +507,7 @@ class AptStage(LinearStage):
         if problems:
             raise AptMoveFaultError(
                 f"stage: move to {target_mm} mm reported complete at {status.position_mm:.4f} mm "
-                f"but {', '.join(problems)} (status {status.bits!r}; position re-read "
-                f"{SETTLE_READS} times over {SETTLE_READS * SETTLE_WAIT_S:g} s)")
+                f"but {', '.join(problems)} (status {status.bits!r})")
 
     def _do_stop(self, *, immediate: bool, wait: bool, timeout_s: float | None) -> None:
         """Stop (immediate, or profiled at the configured deceleration); wait for MOVE_STOPPED."""

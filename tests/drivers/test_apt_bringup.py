@@ -108,7 +108,8 @@ def test_difference_7_still_off_after_settling_is_a_fault(
         st.move_to_mm(10.0, wait=False)
         _wait(lambda: any(b[:2] == bytes((0x53, 0x04)) for b in sim.host_messages()))
         clock.advance(60)
-        with pytest.raises(AptMoveFaultError, match="re-read 5 times"):
+        with pytest.raises(AptMoveFaultError,
+                           match="counts from the target after 5 position re-reads"):
             st.wait_for_move()
 
 
