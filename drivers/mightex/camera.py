@@ -228,6 +228,8 @@ class MightexCamera(Camera[FrameMeta]):
         self.info = info
         self._backend = backend
         self._settings = _Settings()
+        #: Exposure counts and gain before the last change: frames with them are stale.
+        self._previous = (self._settings.exposure_counts, self._settings.gain_raw)
         self._resync_replies = False
         #: Frames read and dropped because they carried older settings (diagnostics).
         self.discarded_frames = 0
@@ -477,9 +479,10 @@ class MightexCamera(Camera[FrameMeta]):
 
     @_locked
     def _do_set_exposure_ms(self, exposure_ms: float) -> None:
-        """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
+        """Exposure in ms, in the profile's steps (0.05 .. 750 ms on the MCE-B013-U)."""
         counts = p.exposure_counts(exposure_ms, self._spec)
         self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
+        self._remember_previous()
         self._settings.exposure_counts = counts
 
     @_locked
@@ -487,7 +490,12 @@ class MightexCamera(Camera[FrameMeta]):
         """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
         raw = p.gain_raw(gain, self._spec)
         self._send(p.encode_gain(raw))
+        self._remember_previous()
         self._settings.gain_raw = raw
+
+    def _remember_previous(self) -> None:
+        s = self._settings
+        self._previous = (s.exposure_counts, s.gain_raw)
 
     @_locked
     def set_frame_time_ms(self, frame_time_ms: float) -> None:
@@ -611,7 +619,12 @@ class MightexCamera(Camera[FrameMeta]):
                 raise CameraProfileMismatchError(self._mismatch_text(off_settings[-1]))
 
     def _trailer_fits(self, t: p.FrameTrailer) -> bool:
+        """Within the profile's tolerance of the settings - and not a frame exposed with the
+        settings before the last change (the tolerance is for the camera's own limits)."""
         s, spec = self._settings, self._spec
+        current = (s.exposure_counts, s.gain_raw)
+        if (t.exposure_counts, t.green_gain) == self._previous != current:
+            return False
         return (spec.exposure_within_tolerance(s.exposure_counts, t.exposure_counts)
                 and abs(t.green_gain - s.gain_raw) <= spec.gain_tolerance_raw)
 

@@ -110,3 +110,15 @@ def test_difference_4_a_replugged_camera_is_waited_for_while_it_powers_up() -> N
         assert sim.clock.now() - t0 >= 3.0
         assert cam.grab().pixels.shape == (16, 64)
         assert sim.rejected_commands  # the queries made while it powered up
+
+
+def test_the_tolerance_does_not_let_a_frame_of_the_previous_settings_through() -> None:
+    """10 ms -> 10.05 ms is within the trailer tolerance, but frames still carrying 10 ms are
+    stale (left from before the change), not the camera's own adjustment."""
+    sim = SimulatedCamera(noise=False)
+    with _open(sim) as cam:
+        cam.configure(width=64, height=16)
+        sim.faults.stale_frames = 3
+        cam.set_exposure_ms(10.05)
+        frame = cam.grab(fresh=False)  # the newest buffered frame is one of the stale ones
+    assert frame.meta.exposure_counts == 201 and cam.discarded_frames == 1
