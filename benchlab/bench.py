@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
+from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM, actuator_counts_per_mm
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
 
@@ -70,6 +70,8 @@ class StageConfig:
     port: str | None = None
     counts_per_mm: float = Z8_COUNTS_PER_MM
     travel_mm: tuple[float, float] = (0.0, 50.0)
+    #: ``stage.actuator``: "Z8" (34554.96 counts/mm), "Z8-34304" or "Z6" (see apt.protocol).
+    actuator: str | None = None
     velocity_mm_s: float = 2.0
 
 
@@ -119,6 +121,7 @@ class BenchConfig:
                 out["led"]["port"] = self.led.port
         if self.stage is not None:
             out["stage"] = {"counts_per_mm": self.stage.counts_per_mm,
+                            **({"actuator": self.stage.actuator} if self.stage.actuator else {}),
                             "travel_mm": list(self.stage.travel_mm),
                             "velocity_mm_s": self.stage.velocity_mm_s}
             if self.stage.port:
@@ -161,10 +164,21 @@ class BenchConfig:
             if len(travel) != 2 or travel[0] >= travel[1]:
                 c.fail("stage.travel_mm", f"must be [low, high] with low < high, got {travel}")
                 travel = (0.0, 50.0)
+            actuator = c.string("stage.actuator", "")
+            scale = Z8_COUNTS_PER_MM
+            if actuator:
+                try:
+                    scale = actuator_counts_per_mm(actuator)
+                except ValueError as exc:
+                    c.fail("stage.actuator", str(exc))
+            found_scale, _ = c.get("stage.counts_per_mm", None)
+            counts = c.number("stage.counts_per_mm", scale, 0.0, 1e9, lo_open=True)
+            if actuator and found_scale and counts != scale:
+                c.fail("stage.actuator", f"{actuator} means {scale} counts/mm but "
+                       f"stage.counts_per_mm says {counts}: give one of them")
             stage = StageConfig(
                 port=c.string("stage.port", "") or None,
-                counts_per_mm=c.number("stage.counts_per_mm", Z8_COUNTS_PER_MM, 0.0, 1e9,
-                                       lo_open=True),
+                counts_per_mm=counts, actuator=actuator or None,
                 travel_mm=(travel[0], travel[1]),
                 velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
             )
@@ -319,19 +333,15 @@ class Bench:
     ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], dict[str, Any]]:
         """One frame at these settings: ``(pixels, metadata)``.
 
-        Without ``fresh`` the camera's newest buffered frame (``Camera.grab``), possibly
-        exposed before this call. ``fresh``: the frame is exposed wholly after this call - the
-        buffer is cleared and the frame that was already being exposed is dropped - so it shows
-        the set-up as it is now (a target just mounted, the LED just switched on).
+        ``fresh`` (``Camera.grab``'s default): the frame is exposed wholly after this call, so
+        it shows the set-up as it is now (a target just mounted, the LED just switched on).
+        Without ``fresh`` the camera's newest buffered frame, possibly exposed before.
         """
         camera = self._open_camera()
         try:
             camera.set_exposure_ms(exposure_ms)
             camera.set_gain(gain)
-            if fresh:
-                camera.clear_buffer()
-                camera.grab()  # exposure had started before the call: drop it
-            frame = camera.grab()
+            frame = camera.grab(fresh=fresh)
         except DeviceLostError:
             self._camera_lost = True
             raise

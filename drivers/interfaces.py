@@ -135,11 +135,11 @@ class Camera(ABC, Generic[M]):
         """Gain multiplier, 1.0 = unity (the model's range is checked by the driver)."""
         self._do_set_gain(_finite("gain", gain))
 
-    def grab(self, timeout_s: float | None = None) -> Frame[M]:
-        """A frame taken with the current settings: in free-running mode the newest the camera
-        holds (waiting for one if none), in trigger mode the next in order (driver default
-        timeout if None)."""
-        return self._do_grab(_timeout(timeout_s))
+    def grab(self, timeout_s: float | None = None, *, fresh: bool = True) -> Frame[M]:
+        """A frame taken with the current settings: in free-running mode one exposed wholly
+        after this call (``fresh``; ``fresh=False``: the newest the camera holds, for a live
+        stream), in trigger mode the next in order (driver default timeout if None)."""
+        return self._do_grab(_timeout(timeout_s), fresh=fresh)
 
     @abstractmethod
     def clear_buffer(self) -> int:
@@ -170,7 +170,7 @@ class Camera(ABC, Generic[M]):
     def _do_set_gain(self, gain: float) -> None: ...
 
     @abstractmethod
-    def _do_grab(self, timeout_s: float | None) -> Frame[M]: ...
+    def _do_grab(self, timeout_s: float | None, *, fresh: bool = True) -> Frame[M]: ...
 
 
 # ---- light source ------------------------------------------------------------------------------

@@ -1,43 +1,62 @@
-"""Byte-level trace of every device exchange, for support cases (``benchlab --trace-io FILE``).
+"""Every device exchange as a cassette (``benchlab --trace-io FILE``), replayable with
+``benchlab --replay FILE`` (:mod:`benchlab.drivers.replay`).
 
-One line per transfer::
+A cassette is JSON Lines (gzip-compressed when the name ends in ``.gz``). The first line is a
+header; then one line per event, in the order they happened::
 
-    12.345678 led      >     9  4d 4f 44 45 20 31 20 30 0a  |MODE 1 0.|
+    {"cassette": 1, "started": "2026-11-28 10:00:00 +0000"}
+    {"n": 1, "t": 0.0012, "dev": "camera", "dir": ">", "ep": 1, "len": 3, "hex": "01 01 01"}
+    {"n": 2, "t": 0.0013, "dev": "camera", "dir": "<", "ep": 129, "len": 5, "hex": "01 03 01 00 06"}
+    {"n": 9, "t": 0.0150, "dev": "camera", "dir": "<", "ep": 130, "len": 1311232, "b64": "..."}
+    {"n": 4, "t": 0.2000, "dev": "camera", "dir": "<", "ep": 129, "timeout": true}
+    {"n": 5, "t": 0.3000, "dev": "led", "open": "/dev/ttyUSB0", "baud": 9600}
 
-seconds since the trace started, device, direction (``>`` host to device, ``<`` device to
-host), byte count, the bytes in hex and as ASCII. Camera frames (megabytes) are shown by their
-first bytes and their length. Off by default; recording then costs one ``None`` check.
+``dir`` is ``>`` host to device, ``<`` device to host; short transfers are written in hex
+(with their ASCII in ``text``), long ones (frames) in base64. A read that timed out is an
+event too: replay must time out in the same place. ``note`` lines are free text. Off by
+default; recording then costs one ``None`` check.
 """
 
 from __future__ import annotations
 
+import base64
+import gzip
+import json
 import threading
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO, cast
 
-#: Bytes shown of one transfer longer than this (camera frames).
-MAX_SHOWN_BYTES = 64
+CASSETTE_VERSION = 1
+#: Transfers up to this long are written in hex (readable); longer ones in base64.
+MAX_HEX_BYTES = 256
 
 _lock = threading.Lock()
 _out: TextIO | None = None
 _t0 = 0.0
+_n = 0
+
+
+def open_text(path: str | Path, mode: str) -> TextIO:
+    """A cassette file for text I/O, gzip-compressed when its name ends in ``.gz``."""
+    if str(path).endswith(".gz"):
+        return gzip.open(path, mode + "t", encoding="ascii")  # type: ignore[return-value]
+    return cast(TextIO, open(path, mode, encoding="ascii", buffering=1))  # noqa: SIM115
 
 
 def start(path: str | Path) -> None:
-    """Append the trace to ``path`` from now on (line-buffered, so a crash keeps it)."""
-    global _out, _t0
+    """Write a new cassette to ``path`` from now on (line-buffered, so a crash keeps it)."""
+    global _out, _t0, _n
     stop()
-    fh = open(path, "a", encoding="ascii", buffering=1)  # noqa: SIM115 - kept open until stop()
+    fh = open_text(path, "w")
     with _lock:
-        _out, _t0 = fh, time.monotonic()
-        fh.write(f"# benchlab I/O trace started {time.strftime('%Y-%m-%d %H:%M:%S %z')}; "
-                 "columns: seconds device direction(> to device, < from device) bytes hex "
-                 "|ascii|\n")
+        _out, _t0, _n = fh, time.monotonic(), 0
+        fh.write(json.dumps({"cassette": CASSETTE_VERSION,
+                             "started": time.strftime("%Y-%m-%d %H:%M:%S %z")}) + "\n")
 
 
 def stop() -> None:
-    """Close the trace file (safe to call when no trace runs)."""
+    """Close the cassette (safe to call when none is being written)."""
     global _out
     with _lock:
         fh, _out = _out, None
@@ -49,23 +68,49 @@ def active() -> bool:
     return _out is not None
 
 
-def note(device: str, text: str) -> None:
-    """A free-text line (port opened, device lost) between the byte lines."""
+def _write(event: dict[str, Any]) -> None:
+    global _n
     with _lock:
-        if _out is not None:
-            _out.write(f"{time.monotonic() - _t0:11.6f} {device:<8} #  {text}\n")
+        if _out is None:
+            return
+        _n += 1
+        line = {"n": _n, "t": round(time.monotonic() - _t0, 6), **event}
+        _out.write(json.dumps(line) + "\n")
 
 
-def record(device: str, direction: str, data: bytes | bytearray | memoryview) -> None:
-    """One transfer: ``direction`` is ``">"`` (to the device) or ``"<"`` (from it)."""
+def note(device: str, text: str) -> None:
+    """A free-text line (device lost, ...) between the exchanges."""
+    if _out is not None:
+        _write({"dev": device, "note": text})
+
+
+def opened(device: str, **what: Any) -> None:
+    """A device was opened: ``port``/``baud`` (serial) or ``vid``/``pid`` (USB)."""
+    if _out is not None:
+        _write({"dev": device, "open": what})
+
+
+def record(device: str, direction: str, data: bytes | bytearray | memoryview,
+           ep: int | None = None) -> None:
+    """One transfer: ``direction`` is ``">"`` (to the device) or ``"<"`` (from it); ``ep`` the
+    USB endpoint (None on a serial line)."""
     if _out is None:
         return
-    n = len(data)
-    shown = bytes(data[:MAX_SHOWN_BYTES])
-    text = "".join(chr(b) if 32 <= b < 127 else "." for b in shown)
-    more = f" ... (+{n - len(shown)} bytes)" if n > len(shown) else ""
-    line = (f"{time.monotonic() - _t0:11.6f} {device:<8} {direction} {n:5d}  "
-            f"{shown.hex(' ')}{more}  |{text}|\n")
-    with _lock:
-        if _out is not None:
-            _out.write(line)
+    raw = bytes(data)
+    event: dict[str, Any] = {"dev": device, "dir": direction}
+    if ep is not None:
+        event["ep"] = ep
+    event["len"] = len(raw)
+    if len(raw) <= MAX_HEX_BYTES:
+        event["hex"] = raw.hex(" ")
+        event["text"] = "".join(chr(b) if 32 <= b < 127 else "." for b in raw)
+    else:
+        event["b64"] = base64.b64encode(raw).decode("ascii")
+    _write(event)
+
+
+def timed_out(device: str, ep: int | None = None) -> None:
+    """A read that got nothing before its timeout."""
+    if _out is not None:
+        _write({"dev": device, "dir": "<", **({"ep": ep} if ep is not None else {}),
+                "timeout": True})

@@ -36,13 +36,17 @@ def open_serial(url: str, baudrate: int, *, device: str = "serial",
     """Open ``url`` (a device path or any pyserial URL) at ``baudrate`` with ``settings``
     (``bytesize``, ``parity``, ``stopbits``, ``rtscts``, ``timeout``, ``write_timeout``).
 
-    While an I/O trace runs (:mod:`benchlab.drivers.io_trace`), every byte read or written on
-    the port is recorded under ``device``.
+    While a cassette is recorded (:mod:`benchlab.drivers.io_trace`), every byte read or
+    written on the port is recorded under ``device``; while one is replayed
+    (:mod:`benchlab.drivers.replay`), the port is the replaying pseudo-terminal instead.
     """
+    from benchlab.drivers import replay
+
+    url = replay.serial_port_for(device, url)
     port = serial.serial_for_url(url, baudrate, **settings)
     log.debug("%s: opened %s at %d baud", device, url, baudrate)
     if io_trace.active():
-        io_trace.note(device, f"opened {url} at {baudrate} baud")
+        io_trace.opened(device, port=url, baud=baudrate)
         _trace(port, device)
     return port
 

@@ -1,6 +1,42 @@
-"""Shared pytest configuration."""
+"""Shared pytest configuration; ``--hardware bench.toml`` runs the contract suites
+(tests/drivers/test_contract_*.py) on the real devices that bench file names."""
+
+import os
 
 import pytest
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--hardware", metavar="BENCH_TOML",
+        help="run the hardware contract suites on the devices this bench file names (the LED "
+             "is lit at most at min(its ceiling, 10 mA), the stage moves inside its travel); "
+             "without it they are skipped")
+
+
+def hardware_environment(path: str) -> dict[str, str]:
+    """The variables tests/device_implementations.py reads, from a bench file."""
+    from benchlab.bench import BenchConfig
+
+    cfg = BenchConfig.load(path)
+    env = {"BENCHLAB_HW_CAMERA_SERIAL": cfg.camera.serial or "any"}
+    if cfg.camera.model:
+        env["BENCHLAB_HW_CAMERA_MODEL"] = cfg.camera.model
+    if cfg.led is not None and cfg.led.port:
+        env["BENCHLAB_HW_LED_PORT"] = cfg.led.port
+        env["BENCHLAB_HW_LED_CEILING_MA"] = f"{min(cfg.led.ceilings_ma.get(1, 10.0), 10.0):g}"
+    if cfg.stage is not None and cfg.stage.port:
+        lo, hi = cfg.stage.travel_mm
+        env["BENCHLAB_HW_STAGE_PORT"] = cfg.stage.port
+        env["BENCHLAB_HW_STAGE_TRAVEL_MM"] = f"{lo:g},{hi:g}"
+        env["BENCHLAB_HW_STAGE_COUNTS_PER_MM"] = repr(cfg.stage.counts_per_mm)
+    return env
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    path = config.getoption("--hardware")
+    if path:  # before collection imports device_implementations
+        os.environ.update(hardware_environment(path))
 
 
 @pytest.fixture(autouse=True)

@@ -1,14 +1,17 @@
 """Every implementation of each device kind, for the contract suites (tests/test_contract_*.py).
 
-The simulators are always in the list. Real hardware joins when the user names it:
+The simulators are always in the list, and one real device of each kind: it runs when the
+user names the bench, ``pytest --hardware bench.toml tests/drivers/test_contract_*.py``
+(tests/conftest.py turns the bench file into the variables below, which also work alone),
+and is skipped, saying so, otherwise:
 
     BENCHLAB_HW_CAMERA_SERIAL=13-000123 (or "any")   a Mightex camera on USB
+    BENCHLAB_HW_CAMERA_MODEL=MCE-B013-U               its profile (default: by module number)
     BENCHLAB_HW_LED_PORT=/dev/ttyUSB0                 a Mightex SLC; channel 1 is lit at
     BENCHLAB_HW_LED_CEILING_MA=10                     most this many mA (default 10)
     BENCHLAB_HW_STAGE_PORT=/dev/ttyUSB1               a Thorlabs APT cube; it is homed and
     BENCHLAB_HW_STAGE_TRAVEL_MM=0,25                  moved inside this travel (default 0,25)
-
-Without these variables the hardware cases are not generated at all (never skipped).
+    BENCHLAB_HW_STAGE_COUNTS_PER_MM=34554.96          its scale (default: the Z8 table value)
 """
 
 from __future__ import annotations
@@ -17,7 +20,9 @@ import contextlib
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
+
+import pytest
 
 from benchlab.drivers.interfaces import Camera, LightSource, LinearStage
 
@@ -51,14 +56,30 @@ def _sim_camera() -> Iterator[Camera]:
 def _hw_camera(serial: str) -> Iterator[Camera]:
     from benchlab.drivers.mightex.camera import MightexCamera
 
-    with MightexCamera.open(serial=None if serial == "any" else serial) as cam:
+    with MightexCamera.open(serial=None if serial == "any" else serial,
+                            model=os.environ.get("BENCHLAB_HW_CAMERA_MODEL") or None) as cam:
         yield cam
 
 
-CAMERAS: list[Implementation[Camera]] = [Implementation("sim-mightex", _sim_camera, True)]
-if os.environ.get("BENCHLAB_HW_CAMERA_SERIAL"):
-    _serial = os.environ["BENCHLAB_HW_CAMERA_SERIAL"]
-    CAMERAS.append(Implementation(f"hw-mightex-{_serial}", lambda: _hw_camera(_serial), False))
+NO_HARDWARE = "real device: give pytest --hardware bench.toml (tests/device_implementations.py)"
+
+
+@contextlib.contextmanager
+def _not_named() -> Iterator[None]:
+    pytest.skip(NO_HARDWARE)
+    yield
+
+
+def _hardware(kind: str, variable: str, opener: Callable[[str], Any]) -> Implementation[Any]:
+    value = os.environ.get(variable)
+    if not value:
+        return Implementation(f"hw-{kind}", _not_named, False)
+    return Implementation(f"hw-{kind}-{value}", lambda: opener(value), False)
+
+
+CAMERAS: list[Implementation[Camera]] = [
+    Implementation("sim-mightex", _sim_camera, True),
+    _hardware("mightex", "BENCHLAB_HW_CAMERA_SERIAL", _hw_camera)]
 
 
 # ---- light sources -------------------------------------------------------------------------
@@ -85,10 +106,7 @@ def _hw_led(port: str) -> Iterator[LightSource]:
 
 
 LIGHT_SOURCES: list[Implementation[LightSource]] = [
-    Implementation("sim-slc", _sim_led, True)]
-if os.environ.get("BENCHLAB_HW_LED_PORT"):
-    _led_port = os.environ["BENCHLAB_HW_LED_PORT"]
-    LIGHT_SOURCES.append(Implementation(f"hw-slc-{_led_port}", lambda: _hw_led(_led_port), False))
+    Implementation("sim-slc", _sim_led, True), _hardware("slc", "BENCHLAB_HW_LED_PORT", _hw_led)]
 
 
 # ---- linear stages -------------------------------------------------------------------------
@@ -112,11 +130,11 @@ def _sim_stage() -> Iterator[LinearStage]:
 def _hw_stage(port: str) -> Iterator[LinearStage]:
     from benchlab.drivers.apt.stage import AptStage
 
-    with AptStage(port, travel_mm=stage_travel_mm()) as stage:
+    counts = float(os.environ.get("BENCHLAB_HW_STAGE_COUNTS_PER_MM", "34554.96"))
+    with AptStage(port, travel_mm=stage_travel_mm(), counts_per_mm=counts) as stage:
         yield stage
 
 
-STAGES: list[Implementation[LinearStage]] = [Implementation("sim-apt", _sim_stage, True)]
-if os.environ.get("BENCHLAB_HW_STAGE_PORT"):
-    _stage_port = os.environ["BENCHLAB_HW_STAGE_PORT"]
-    STAGES.append(Implementation(f"hw-apt-{_stage_port}", lambda: _hw_stage(_stage_port), False))
+STAGES: list[Implementation[LinearStage]] = [
+    Implementation("sim-apt", _sim_stage, True),
+    _hardware("apt", "BENCHLAB_HW_STAGE_PORT", _hw_stage)]

@@ -51,6 +51,7 @@ sessions = "~/benchlab-sessions"
 [camera]
 # serial = "13-000123"    # which camera, when more than one is connected
 # pid = 0x0428            # USB product id, if `lsusb` shows 04b4:xxxx with another id
+# model = "MCE-B013-U"    # protocol profile; `benchlab doctor` finds the one that fits
 
 [led]
 port = "/dev/ttyUSB0"     # Mightex SLC LED controller (RS232, 9600 8N1)
@@ -64,7 +65,8 @@ channel = 1               # the channel the radiometry LED is on
 [stage]
 port = "/dev/ttyUSB1"     # Thorlabs KDC101 / TDC001 cube (APT, 115200 8N1)
 travel_mm = [0.0, 25.0]   # Z825 actuator; [0.0, 50.0] for an MTS50-Z8 stage
-counts_per_mm = {Z8_COUNTS_PER_MM}  # Z8-series encoder
+actuator = "Z8"           # {Z8_COUNTS_PER_MM} counts/mm; "Z8-34304" for the other published
+                          # Z8 scale (`benchlab doctor` measures which), or counts_per_mm = ...
 velocity_mm_s = 2.0
 """
 

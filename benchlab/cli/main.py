@@ -34,6 +34,7 @@ COMMAND_MODULES = (
     "benchlab.cli.startup",  # benchmark startup
     "benchlab.cli.soak",  # benchmark soak
     "benchlab.cli.verify",  # verify, units, unit, lot, certificate (acceptance per unit)
+    "benchlab.cli.doctor",  # doctor (guided bring-up)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module
@@ -56,6 +57,7 @@ COMMAND_OWNERS = {
     "verify": "benchlab.cli.verify", "units": "benchlab.cli.verify",
     "unit": "benchlab.cli.verify", "lot": "benchlab.cli.verify",
     "certificate": "benchlab.cli.verify",
+    "doctor": "benchlab.cli.doctor",
 }
 LOG_LEVELS = ("debug", "info", "warning", "error")
 #: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import
@@ -64,7 +66,7 @@ LOG_LEVELS = ("debug", "info", "warning", "error")
 #: algebra is a few dozen points (least squares), which gains nothing from them.
 ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Top-level options that take a value as the next word (``--log-level info``).
-_OPTIONS_WITH_VALUE = ("--log-level", "--trace-io")
+_OPTIONS_WITH_VALUE = ("--log-level", "--trace-io", "--replay")
 
 
 class _VersionAction(argparse.Action):
@@ -106,7 +108,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
                         help="log messages from this level up to stderr (default warning)")
     parser.add_argument("--trace-io", metavar="FILE",
-                        help="append a byte-level trace of every device exchange to FILE")
+                        help="record every device exchange to FILE, a cassette (.gz: "
+                             "compressed) that --replay plays back")
+    parser.add_argument("--replay", metavar="FILE",
+                        help="answer the drivers with the bytes recorded in the cassette FILE "
+                             "instead of devices (no hardware, no simulator)")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     bench = commands.add_parser(
         "benchmark", help="measure speed and accuracy and print a table",
@@ -131,7 +137,7 @@ def plain_os_error(exc: OSError) -> str:
 
 
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
-_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io"}
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io", "--replay"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -177,6 +183,14 @@ def _main(argv: Sequence[str] | None) -> int:
         from benchlab.drivers import io_trace
 
         io_trace.start(args.trace_io)
+    if args.replay:
+        from benchlab.drivers import replay
+
+        try:
+            replay.start(args.replay)
+        except BenchlabError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 1
     with shutdown.handling_signals():
         try:
             return int(func(args) or 0)
@@ -184,7 +198,7 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"benchlab: error: {exc}", file=sys.stderr)
             return 2
         except BenchlabError as exc:
-            print(f"benchlab: error: {exc}", file=sys.stderr)
+            print(f"benchlab: error: {_replay_reason() or exc}", file=sys.stderr)
             return 1
         except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -201,6 +215,17 @@ def _main(argv: Sequence[str] | None) -> int:
                 from benchlab.drivers import io_trace
 
                 io_trace.stop()
+            if args.replay:
+                from benchlab.drivers import replay
+
+                replay.stop()
+
+
+def _replay_reason() -> str | None:
+    """While a cassette is replayed, a serial device that dropped the line says why."""
+    from benchlab.drivers import replay
+
+    return replay.divergence() if replay.active() else None
 
 
 def _setup_logging(level: str) -> None:

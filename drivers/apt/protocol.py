@@ -22,7 +22,27 @@ MAX_DATA_LEN = 255  # the length field is 16-bit but no APT packet exceeds 255 b
 
 # DC servo time base: velocity and acceleration scale with T = 2048 / 6 MHz (section C.6).
 T_S = 2048 / 6_000_000
+#: Z8-series encoder counts per mm, as in Thorlabs' unit-conversion table (67.49:1 gearhead,
+#: Kinesis configurations). The same document's POTPARAMS example, pyLabLib and pyAPT use
+#: 34304 (512 counts/rev x 67:1, 1 mm pitch): 0.73 % apart. The bench file's
+#: ``stage.actuator`` picks one; ``benchlab doctor`` settles it with a measured move.
 Z8_COUNTS_PER_MM = 34554.96
+Z8_ALT_COUNTS_PER_MM = 34304.0
+#: Encoder counts per mm by actuator name (``stage.actuator`` in the bench file).
+ACTUATOR_COUNTS_PER_MM: dict[str, float] = {
+    "Z8": Z8_COUNTS_PER_MM,
+    "Z8-34304": Z8_ALT_COUNTS_PER_MM,
+    "Z6": 24600.0,
+}
+
+
+def actuator_counts_per_mm(actuator: str) -> float:
+    """Counts per mm of a named actuator; ``ValueError`` lists the known names."""
+    try:
+        return ACTUATOR_COUNTS_PER_MM[actuator]
+    except KeyError:
+        raise ValueError(f"unknown actuator {actuator!r}: known are "
+                         f"{', '.join(ACTUATOR_COUNTS_PER_MM)}") from None
 
 
 class Msg(IntEnum):

@@ -3,7 +3,8 @@
 Behaviour follows shared/docs/device-protocols.md section C: moves and homes are not
 acknowledged, completion (0x0464 / 0x0444) arrives only after the trapezoidal travel time at
 the configured velocity and acceleration, status updates (0x0491) flow every 100 ms after
-HW_START_UPDATEMSGS and stop after 50 unacknowledged ones (the USB keep-alive rule), limit
+HW_START_UPDATEMSGS; without a keep-alive (0x0492) the cube stops sending unsolicited messages
+after 50 of them - updates and move completions both count - until the next one (USB), limit
 switches sit at the physical ends of travel (a move into one ends in MOVE_STOPPED with the
 limit bit set). The position counter reads 0 at power-up wherever the carriage is; homing
 drives to the reverse limit and zeroes it there.
@@ -43,6 +44,7 @@ from benchlab.drivers.sim_dispatch import CommandTable
 UPDATE_PERIOD_S = 0.1  # 0x0491 period after START_UPDATEMSGS (simulated time)
 UPDATE_MIN_WALL_S = 0.1  # ...but never faster than this in wall time (fast-time mode)
 UNACKED_UPDATE_LIMIT = 50
+_KEEPALIVE_ID = int(Msg.MOT_ACK_DCSTATUSUPDATE).to_bytes(2, "little")
 _EPS_MM = 1e-6
 
 
@@ -67,6 +69,10 @@ class AptFaults:
     # ... / the next move ends this far short of its target and still reports MOVE_COMPLETED
     # (the servo gave up inside its window, as a stalled or overloaded actuator can).
     stop_short_mm: float = 0.0
+    # The next MOVE_COMPLETED goes out while the carriage is still this far short; it reaches
+    # the target after ``settle_reads`` more position requests (the servo settling).
+    settle_short_mm: float = 0.0
+    settle_reads: int = 0
 
 
 class _Profile:
@@ -181,6 +187,9 @@ class SimulatedAptStage(PtyDevice):
         self._updates = False
         self.update_min_wall_s = UPDATE_MIN_WALL_S
         self._unacked = 0
+        #: Unsolicited messages not sent because the host sent no keep-alive.
+        self.suppressed_messages = 0
+        self._settling: tuple[float, int] | None = None  # (target mm, reads left)
         self._last_update_sim_s = -math.inf
         self._last_update_wall_s = -math.inf
         self._reader = FrameReader(dests={UNIT}, sources={HOST})
@@ -206,9 +215,22 @@ class SimulatedAptStage(PtyDevice):
         with self.lock:
             return self._updates and self._unacked < UNACKED_UPDATE_LIMIT
 
-    def host_messages(self) -> list[bytes]:
-        """Every frame the host sent, in order."""
-        return [b for who, b in self.transcript if who == "host"]
+    def host_messages(self, *, keepalives: bool = False) -> list[bytes]:
+        """Every frame the host sent, in order; keep-alives (sent on the host's timer, so at
+        no fixed place in a sequence) only with ``keepalives``."""
+        return [b for who, b in self.transcript
+                if who == "host" and (keepalives or b[:2] != _KEEPALIVE_ID)]
+
+    def _unsolicited(self, msg_id: int, *, long_data: bytes | None = None, p1: int = 0) -> None:
+        """Send a status-type message the host did not ask for, unless 50 went unacknowledged."""
+        if self._unacked >= UNACKED_UPDATE_LIMIT:
+            self.suppressed_messages += 1
+            return
+        self._unacked += 1
+        if long_data is None:
+            self._reply_short(msg_id, p1)
+        else:
+            self._reply_long(msg_id, long_data)
 
     # ---- protocol ---------------------------------------------------------------------------
     def on_bytes(self, data: bytes) -> None:
@@ -406,15 +428,23 @@ class SimulatedAptStage(PtyDevice):
         self._motion = None
         if motion.kind == "home":
             self._zero_mm, self.homed = self._pos_mm, True
-            self._reply_short(Msg.MOT_MOVE_HOMED, CHAN1)
+            self._unsolicited(Msg.MOT_MOVE_HOMED, p1=CHAN1)
         elif motion.limit_bits or motion.kind == "stop":
             self._held_limit_bits = motion.limit_bits
-            self._reply_long(Msg.MOT_MOVE_STOPPED, self._status(now).pack())
+            self._unsolicited(Msg.MOT_MOVE_STOPPED, long_data=self._status(now).pack())
         else:
+            f = self.faults
+            settling = None
+            if f.settle_short_mm:
+                settling = (self._pos_mm, f.settle_reads)
+                self._pos_mm -= f.settle_short_mm if motion.profile.direction > 0 else (
+                    -f.settle_short_mm)
+                f.settle_short_mm, f.settle_reads = 0.0, 0
             status = self._status(now)
-            extra, self.faults.completion_bits = self.faults.completion_bits, StatusBits(0)
-            self._reply_long(Msg.MOT_MOVE_COMPLETED,
-                             replace(status, bits=status.bits | extra).pack())
+            self._settling = settling
+            extra, f.completion_bits = f.completion_bits, StatusBits(0)
+            self._unsolicited(Msg.MOT_MOVE_COMPLETED,
+                              long_data=replace(status, bits=status.bits | extra).pack())
 
     def on_tick(self, now_s: float) -> None:
         while self._late and time.monotonic() >= self._late[0][0]:
@@ -426,14 +456,18 @@ class SimulatedAptStage(PtyDevice):
         if (now_s - self._last_update_sim_s >= UPDATE_PERIOD_S
                 and wall - self._last_update_wall_s >= self.update_min_wall_s):
             self._last_update_sim_s, self._last_update_wall_s = now_s, wall
-            self._unacked += 1
-            self._reply_long(Msg.MOT_GET_DCSTATUSUPDATE, self._status(now_s).pack())
+            self._unsolicited(Msg.MOT_GET_DCSTATUSUPDATE, long_data=self._status(now_s).pack())
 
     # ---- status -----------------------------------------------------------------------------
     def _counter(self) -> int:
         return self.units.counts(self._pos_mm - self._zero_mm)
 
     def _counter_reply(self) -> int:
+        if self._settling is not None:  # each position reply is one step of settling
+            target, left = self._settling
+            self._settling = (target, left - 1) if left > 1 else None
+            if left <= 1:
+                self._pos_mm = target
         if self.faults.out_of_range > 0:
             self.faults.out_of_range -= 1
             return 0x7FFFFFF0  # ~62 m on a Z8: impossible

@@ -64,8 +64,17 @@ log = logging.getLogger(__name__)
 
 BAUD = 115200
 READ_POLL_S = 0.02  # reader thread's serial read timeout
-KEEPALIVE_PERIOD_S = 0.9  # the cube wants 0x0492 at least once a second while updates flow
-COMPLETION_TOLERANCE_COUNTS = 5  # a completed move ends this close to its target (~0.15 um, Z8)
+#: The cube (USB) wants 0x0492 at least once a second, else it stops sending unsolicited
+#: messages - status updates and move completions alike - after ~50 of them. Sent on a timer
+#: from open to close, so it also restarts a cube that stalled.
+KEEPALIVE_PERIOD_S = 0.9
+#: A completed move ends this close to its target (~0.15 um on a Z8). No source gives a
+#: tolerance; clients re-read the position after settling, and so does this driver:
+COMPLETION_TOLERANCE_COUNTS = 5
+SETTLE_READS = 5  # position re-reads after a MOVE_COMPLETED off target ...
+SETTLE_WAIT_S = 0.05  # ... this far apart
+#: The vendor's open routine: wait, purge both buffers, wait, with an RTS pulse around it.
+OPEN_PAUSE_S = 0.05
 Z8_MAX_VELOCITY_MM_S = 2.6
 Z8_MAX_ACCELERATION_MM_S2 = 4.0
 _STATUS_IDS = (Msg.MOT_GET_DCSTATUSUPDATE, Msg.MOT_MOVE_COMPLETED, Msg.MOT_MOVE_STOPPED)
@@ -126,13 +135,27 @@ class VelocityParams:
     acceleration_mm_s2: float
 
 
+def reset_line(ser: serial.Serial) -> None:
+    """The vendor's (and pyLabLib's) open routine: RTS high, wait, purge input and output,
+    wait, RTS low. A pseudo-terminal (the simulator) has no modem lines: the pulse is skipped
+    there, the purge is not."""
+    with contextlib.suppress(OSError):
+        ser.rts = True
+    time.sleep(OPEN_PAUSE_S)
+    ser.reset_input_buffer()
+    ser.reset_output_buffer()
+    time.sleep(OPEN_PAUSE_S)
+    with contextlib.suppress(OSError):
+        ser.rts = False
+
+
 def query_info(port: str, *, timeout_s: float = 1.0) -> HwInfo:
     """Ask a cube for HW_GET_INFO only (no enable, no updates): safe for device listings."""
     frames = FrameReader(dests={HOST}, sources={UNIT, 0x11, *range(0x21, 0x2B)})
     try:
         with open_serial(port, BAUD, device="stage", rtscts=True, timeout=READ_POLL_S,
                          write_timeout=timeout_s) as ser:
-            ser.reset_input_buffer()
+            reset_line(ser)
             ser.write(short(Msg.HW_REQ_INFO).pack())
             deadline = time.monotonic() + timeout_s
             while time.monotonic() < deadline:
@@ -188,8 +211,9 @@ class AptStage(LinearStage):
         self._reader: threading.Thread | None = None
         self._closing = threading.Event()
         self._lost: BaseException | None = None
-        self._last_keepalive = -math.inf
-        self._updates_started = False  # keep-alives only matter once updates were requested
+        self._keepalive: threading.Thread | None = None
+        self.keepalive_period_s = KEEPALIVE_PERIOD_S
+        self._updates_started = False
         self._info: HwInfo | None = None
         self._bits = StatusBits(0)
         self._vel = VelocityParams(2.0, 1.5)
@@ -208,8 +232,7 @@ class AptStage(LinearStage):
             self._ser = open_serial(self.port, BAUD, device="stage", bytesize=8, parity="N",
                                     stopbits=1, rtscts=True, timeout=READ_POLL_S,
                                     write_timeout=self.timeout_s)
-            self._ser.reset_input_buffer()
-            self._ser.reset_output_buffer()
+            reset_line(self._ser)
         except IO_ERRORS as exc:
             self._ser = None
             raise DeviceLostError(f"stage: cannot open {self.port}: {exc}") from exc
@@ -218,6 +241,9 @@ class AptStage(LinearStage):
         self._updates_started = False
         self._reader = threading.Thread(target=self._read_loop, name="apt-reader", daemon=True)
         self._reader.start()
+        self._keepalive = threading.Thread(target=self._keepalive_loop, name="apt-keepalive",
+                                           daemon=True)
+        self._keepalive.start()
         try:
             self._send(short(Msg.HW_NO_FLASH_PROGRAMMING))
             reply = self._request(short(Msg.HW_REQ_INFO), Msg.HW_GET_INFO)
@@ -261,9 +287,10 @@ class AptStage(LinearStage):
 
     def _shutdown_port(self) -> None:
         self._closing.set()
-        if self._reader is not None and self._reader is not threading.current_thread():
-            self._reader.join(timeout=1.0)
-        self._reader = None
+        for thread in (self._reader, self._keepalive):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join(timeout=1.0)
+        self._reader = self._keepalive = None
         ser, self._ser = self._ser, None
         if ser is not None:
             try:
@@ -440,7 +467,22 @@ class AptStage(LinearStage):
             raise AptMoveInterruptedError(
                 f"stage: move stopped at {status.position_mm:.4f} mm before reaching "
                 f"{self._move_target_mm} mm")
+        status = self._settled(status)
         self._check_completed(status)
+        return status
+
+    def _settled(self, status: AptStatus) -> AptStatus:
+        """A MOVE_COMPLETED off target (no fault bit) may come while the servo still settles:
+        re-read the position up to :data:`SETTLE_READS` times before calling it a fault."""
+        target_mm = self._move_target_mm
+        if target_mm is None or status.bits & FAULT_BITS:
+            return status
+        for _ in range(SETTLE_READS):
+            off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
+            if abs(off) <= COMPLETION_TOLERANCE_COUNTS:
+                break
+            time.sleep(SETTLE_WAIT_S)
+            status = AptStatus(self.position_mm, status.velocity_raw, status.bits)
         return status
 
     def _check_completed(self, status: AptStatus) -> None:
@@ -456,7 +498,8 @@ class AptStage(LinearStage):
         if target_mm is not None:
             off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
             if abs(off) > COMPLETION_TOLERANCE_COUNTS:
-                problems.append(f"{off:+d} counts from the target")
+                problems.append(f"{off:+d} counts from the target after {SETTLE_READS} position "
+                                f"re-reads over {SETTLE_READS * SETTLE_WAIT_S:g} s")
                 if status.at_forward_limit:
                     problems.append("forward limit switch engaged")
                 if status.at_reverse_limit:
@@ -633,11 +676,13 @@ class AptStage(LinearStage):
             elif msg.msg_id in (Msg.HW_RESPONSE, Msg.HW_RICHRESPONSE):
                 self.device_errors.append(msg)
             self._cond.notify_all()
-        if msg.msg_id == Msg.MOT_GET_DCSTATUSUPDATE and self._updates_started:
-            now = time.monotonic()
-            if now - self._last_keepalive >= KEEPALIVE_PERIOD_S:
-                self._last_keepalive = now
-                try:
-                    self._send(short(Msg.MOT_ACK_DCSTATUSUPDATE))
-                except DeviceError:
-                    pass  # the loop notices a lost link on its next read
+
+    def _keepalive_loop(self) -> None:
+        """0x0492 every ``keepalive_period_s`` while the port is open (updates or not)."""
+        while not self._closing.wait(self.keepalive_period_s):
+            if self._lost is not None:
+                return
+            try:
+                self._send(short(Msg.MOT_ACK_DCSTATUSUPDATE))
+            except DeviceError:
+                return  # the reader notices a lost link on its next read

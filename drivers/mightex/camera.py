@@ -19,6 +19,7 @@ import array
 import errno
 import functools
 import logging
+import math
 import shlex
 import threading
 import time
@@ -49,20 +50,27 @@ from benchlab.drivers.mightex import protocol as p
 log = logging.getLogger(__name__)
 
 __all__ = [
-    "CameraInfo", "Frame", "FrameMeta", "MightexCamera", "find_cameras", "DEFAULT_PID",
-    "VENDOR_ID",
+    "CameraInfo", "CameraProfileMismatchError", "Frame", "FrameMeta", "MightexCamera",
+    "find_cameras", "DEFAULT_PID", "VENDOR_ID",
 ]
 
 VENDOR_ID = p.VENDOR_ID
 DEFAULT_PID = p.DEFAULT_PID
 REPLY_TIMEOUT_MS = 500
+#: Pause between firmware queries while a camera powers up.
+WAKE_RETRY_S = 0.5
 #: Polling interval while the camera buffer is empty (real hardware, or trigger mode).
 POLL_INTERVAL_S = 0.002
-#: Bound on frames discarded in one grab (stale settings) before giving up.
-MAX_DISCARDS = 64
+#: Frames in a row whose trailer is off the settings (beyond the profile's tolerance) before
+#: a grab calls the profile wrong; the first may come from the settings before the last change.
+MAX_DISCARDS = 3
 _LIBUSB_NO_DEVICE = -4
 UDEV_RULE = "99-benchlab-mightex.rules"
 _LIBUSB_PIPE = -9
+
+
+class CameraProfileMismatchError(ProtocolError):
+    """The camera does not behave as its model's profile says (exposure field, bit depth)."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +109,9 @@ class FrameMeta:
     x_start: int
     y_start: int
     received_utc: str
+    #: What the host set; ``exposure_ms`` / ``gain`` are the trailer's (the frame's truth).
+    set_exposure_ms: float = 0.0
+    set_gain: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dictionary (plain ints, floats, bools and strings)."""
@@ -167,6 +178,10 @@ def udev_hint() -> str:
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
+    from benchlab.drivers import replay
+
+    if backend is None:
+        backend = replay.usb_backend()  # a cassette replayed: its camera, no USB
     try:
         found = usb.core.find(
             find_all=True, idVendor=VENDOR_ID, idProduct=DEFAULT_PID if pid is None else pid,
@@ -213,12 +228,16 @@ class MightexCamera(Camera[FrameMeta]):
         self.info = info
         self._backend = backend
         self._settings = _Settings()
+        #: Exposure counts and gain before the last change: frames with them are stale.
+        self._previous = (self._settings.exposure_counts, self._settings.gain_raw)
         self._resync_replies = False
         #: Frames read and dropped because they carried older settings (diagnostics).
         self.discarded_frames = 0
         #: Older frames a normal-mode grab cleared unread to return the newest (diagnostics).
         self.skipped_frames = 0
         self._sleep: Callable[[float], None] = time.sleep
+        #: The profile's protocol waits; a simulator's backend lends its clock (no real wait).
+        self._wait: Callable[[float], None] = getattr(backend, "sleep", None) or time.sleep
         self._lock = threading.RLock()
 
     # ------------------------------------------------------------------ opening
@@ -226,12 +245,13 @@ class MightexCamera(Camera[FrameMeta]):
     @classmethod
     def open(
         cls, serial: str | None = None, backend: Any = None, pid: int | None = None,
-        model: str = "MCE-B013-U",
+        model: str | None = None, profile: p.CameraSpec | None = None,
     ) -> MightexCamera:
         """Open the camera with this serial number (or the first one found) and configure it.
 
-        The device's own module number picks the model spec when it is a known model;
-        otherwise ``model`` does. Default acquisition: 1280x1024, 8-bit, normal mode,
+        The profile (exposure field, bit depths, waits, trailer tolerance) is ``profile``, else
+        that of ``model``, else that of the device's own module number when known, else the
+        MCE-B013-U's. Default acquisition: 1280x1024, 8-bit, normal mode,
         exposure 10 ms, gain 1, 4 buffered frames.
 
         Raises
@@ -239,13 +259,18 @@ class MightexCamera(Camera[FrameMeta]):
         DeviceNotFoundError
             No camera matched (the message lists the serials that were found).
         """
-        p.spec_for(model)  # refuse an unknown model before touching USB
+        if model is not None and profile is None:
+            profile = p.spec_for(model)  # refuse an unknown model before touching USB
+        if backend is None:
+            from benchlab.drivers import replay
+
+            backend = replay.usb_backend()  # None unless a cassette is replayed
         devices = _find_devices(backend, pid)
         seen = []
         errors = []
         for dev in devices:
             try:
-                cam = cls._from_device(dev, configure=False, model=model, backend=backend)
+                cam = cls._from_device(dev, configure=False, profile=profile, backend=backend)
             except DeviceError as exc:  # busy or unreadable: maybe another camera matches
                 errors.append(f"usb {dev.bus}:{dev.address}: {exc}")
                 continue
@@ -273,8 +298,8 @@ class MightexCamera(Camera[FrameMeta]):
         )
 
     @classmethod
-    def _from_device(cls, dev: usb.core.Device, *, configure: bool, model: str = "MCE-B013-U",
-                     backend: Any = None) -> MightexCamera:
+    def _from_device(cls, dev: usb.core.Device, *, configure: bool,
+                     profile: p.CameraSpec | None = None, backend: Any = None) -> MightexCamera:
         with _usb_errors("open"):
             try:
                 if dev.is_kernel_driver_active(p.INTERFACE):
@@ -283,13 +308,15 @@ class MightexCamera(Camera[FrameMeta]):
                 pass  # no kernel driver binds this camera on Linux; other OSes lack the call
             dev.set_configuration()
             usb.util.claim_interface(dev, p.INTERFACE)
-        cam = cls(dev, p.spec_for(model), CameraInfo(model, "?", "?", dev.idProduct, dev.bus,
-                                                      dev.address), backend)
+        io_trace.opened("camera", vid=dev.idVendor, pid=dev.idProduct)
+        start = profile or p.spec_for("MCE-B013-U")
+        cam = cls(dev, start, CameraInfo(start.model, "?", "?", dev.idProduct, dev.bus,
+                                         dev.address), backend)
         try:
             fw = cam._wake_up()
             info = p.decode_device_info(cam._query(p.encode_device_info_query(), "device info",
                                                    p.DEVICE_INFO_BYTES))
-            spec = p.SPECS.get(info.model, cam._spec)
+            spec = profile or p.SPECS.get(info.model, cam._spec)
             cam._spec = spec
             cam.info = CameraInfo(info.model or spec.model, info.serial, fw, dev.idProduct,
                                   dev.bus, dev.address)
@@ -301,16 +328,22 @@ class MightexCamera(Camera[FrameMeta]):
         return cam
 
     def _wake_up(self) -> str:
-        """Drop stale replies, then ask for the firmware version until the camera answers."""
+        """Drop stale replies, then ask for the firmware version until the camera answers:
+        for the profile's power-up time (~3 s), a query every :data:`WAKE_RETRY_S`."""
         self._drain_replies()
         last: Exception | None = None
-        for _ in range(3):  # the first commands after power-up may time out
+        tries = math.ceil(self._spec.power_up_wait_s / WAKE_RETRY_S) + 2
+        for attempt in range(tries):
             try:
                 return "{}.{}.{}".format(*p.decode_firmware(
                     self._query(p.encode_firmware_query(), "firmware version", 3)))
             except DeviceTimeoutError as exc:
                 last = exc
-        raise DeviceTimeoutError("camera did not answer the firmware query 3 times") from last
+                if attempt + 1 < tries:
+                    self._wait(WAKE_RETRY_S)
+        raise DeviceTimeoutError(
+            f"camera did not answer the firmware query for "
+            f"{tries * WAKE_RETRY_S:g} s ({tries} tries)") from last
 
     @_locked
     def reopen(self) -> None:
@@ -319,7 +352,7 @@ class MightexCamera(Camera[FrameMeta]):
         log.info("camera %s: reconnecting", self.info.serial)
         self.close()
         fresh = type(self).open(self.info.serial, backend=self._backend, pid=self.info.pid,
-                                model=self._spec.model)
+                                profile=self._spec)
         self._dev, self._spec, self.info = fresh._dev, fresh._spec, fresh.info
         fresh._dev = None
         self._settings = settings
@@ -351,15 +384,29 @@ class MightexCamera(Camera[FrameMeta]):
         return self._dev
 
     def _send(self, data: bytes) -> None:
-        io_trace.record("camera", ">", data)
+        io_trace.record("camera", ">", data, p.EP_COMMAND_OUT)
         with _usb_errors(f"command 0x{data[0]:02X}"):
             self._device.write(p.EP_COMMAND_OUT, data, REPLY_TIMEOUT_MS)
+
+    def _read(self, ep: int, size_or_buffer: int | array.array[int], timeout_ms: int,
+              what: str) -> Any:
+        """One bulk read, recorded in the cassette (a timeout too: replay repeats it)."""
+        try:
+            with _usb_errors(what):
+                data = self._device.read(ep, size_or_buffer, timeout_ms)
+        except DeviceTimeoutError:
+            io_trace.timed_out("camera", ep)
+            raise
+        if isinstance(size_or_buffer, int):
+            io_trace.record("camera", "<", data, ep)
+        else:
+            io_trace.record("camera", "<", memoryview(size_or_buffer)[:data], ep)
+        return data
 
     def _drain_replies(self) -> None:
         for _ in range(8):
             try:
-                with _usb_errors("drain"):
-                    io_trace.record("camera", "<", self._device.read(p.EP_REPLY_IN, 255, 20))
+                self._read(p.EP_REPLY_IN, 255, 20, "drain")
             except DeviceTimeoutError:
                 return
         self._resync_replies = False
@@ -370,9 +417,7 @@ class MightexCamera(Camera[FrameMeta]):
             self._resync_replies = False
         self._send(data)
         try:
-            with _usb_errors(what):
-                reply = bytes(self._device.read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS))
-            io_trace.record("camera", "<", reply)
+            reply = bytes(self._read(p.EP_REPLY_IN, 255, REPLY_TIMEOUT_MS, what))
             return p.decode_reply(reply, what, expected_len)
         except (DeviceTimeoutError, ProtocolError, KeyboardInterrupt):  # Ctrl-C, SIGTERM too
             self._resync_replies = True
@@ -390,8 +435,8 @@ class MightexCamera(Camera[FrameMeta]):
 
     @property
     def exposure_ms(self) -> float:
-        """Exposure as set on the camera (rounded to the 0.05 ms step)."""
-        return self._settings.exposure_counts * p.EXPOSURE_STEP_MS
+        """Exposure as set on the camera (rounded to the model's step)."""
+        return round(self._settings.exposure_counts * self._spec.exposure_unit_ms, 9)
 
     @property
     def gain(self) -> float:
@@ -428,14 +473,16 @@ class MightexCamera(Camera[FrameMeta]):
         s.width, s.height, s.bits, s.mode = width, height, bits, mode
         s.bin_code, s.buffer_count = bin_code, buffer_count
         self._send(p.encode_work_mode(mode, bits))
+        self._wait(self._spec.work_mode_wait_s)  # commands right after 0x30 can be lost
         self._send(p.encode_resolution(width, height, bin_code, buffer_count))
         self.clear_buffer()
 
     @_locked
     def _do_set_exposure_ms(self, exposure_ms: float) -> None:
-        """Exposure in ms, 0.05 ms steps (0.05 .. 200000 ms on the MCE-B013-U)."""
+        """Exposure in ms, in the profile's steps (0.05 .. 750 ms on the MCE-B013-U)."""
         counts = p.exposure_counts(exposure_ms, self._spec)
         self._send(p.encode_exposure(counts, self._spec.exposure_bytes))
+        self._remember_previous()
         self._settings.exposure_counts = counts
 
     @_locked
@@ -443,7 +490,12 @@ class MightexCamera(Camera[FrameMeta]):
         """Gain multiplier 0.125 .. 8 in 1/8 steps (1.0 = unity, raw code = gain x 8)."""
         raw = p.gain_raw(gain, self._spec)
         self._send(p.encode_gain(raw))
+        self._remember_previous()
         self._settings.gain_raw = raw
+
+    def _remember_previous(self) -> None:
+        s = self._settings
+        self._previous = (s.exposure_counts, s.gain_raw)
 
     @_locked
     def set_frame_time_ms(self, frame_time_ms: float) -> None:
@@ -490,8 +542,9 @@ class MightexCamera(Camera[FrameMeta]):
 
     @_locked
     def reset(self) -> None:
-        """Reset the camera firmware, then restore this driver's settings."""
+        """Reset the camera firmware, wait for it to power up, restore this driver's settings."""
         self._send(p.encode_reset())
+        self._wake_up()
         self._apply_all()
 
     # ------------------------------------------------------------------ frames
@@ -502,34 +555,36 @@ class MightexCamera(Camera[FrameMeta]):
         return p.FrameLayout(s.width, s.height, s.bits)
 
     @_locked
-    def _do_grab(self, timeout_s: float | None) -> Frame[FrameMeta]:
-        """The newest frame in the camera's buffer (normal mode), or the next frame in order
-        (trigger mode: one per trigger, none lost); waits for one if the buffer is empty.
+    def _do_grab(self, timeout_s: float | None, *, fresh: bool = True) -> Frame[FrameMeta]:
+        """Normal mode, ``fresh``: a frame exposed wholly after this call. Frames already in
+        the camera are cleared unread; the one being exposed at the call (the first to arrive
+        after the clear) is read and dropped; of the frames after it the newest is returned.
+        ``fresh=False`` (a live stream): the newest frame the camera holds, maybe exposed
+        before the call.
+        Trigger mode: the next frame in order (one per trigger, none lost). Waits for a frame
+        if none is there; ``timeout_s`` defaults to three frame periods plus 5 s.
 
-        Normal mode: the camera keeps up to ``buffer_count`` frames, oldest first, and 0x34
-        sends the oldest; so when several wait, the older ones are cleared unread (0x35 n-1,
-        counted in ``skipped_frames``) and the buffer asked again (0x33) before reading one.
-        A frame already in the buffer may have been exposed before this call: ``Bench.grab``
-        (``fresh``) clears the buffer and drops the exposure under way when that matters.
-
-        ``timeout_s`` defaults to twice the frame period plus 5 s.
-
-        Frames left in the camera from an older configuration (other geometry, exposure or
-        gain, told apart by the 0x33 reply and the frame trailer) are discarded.
+        The frame's trailer is its truth (``meta.exposure_ms``, ``meta.gain``): the camera
+        may raise an exposure to its minimum or clamp a gain, within the profile's tolerance.
+        A trailer further off in :data:`MAX_DISCARDS` frames in a row means the camera does not
+        follow this model's profile (exposure field, unit): :class:`CameraProfileMismatchError`.
 
         Raises
         ------
         DeviceTimeoutError
-            No matching frame within ``timeout_s`` (e.g. trigger mode without a trigger).
+            No frame within ``timeout_s`` (e.g. trigger mode without a trigger).
         DeviceLostError, ProtocolError
             Unplugged mid-transfer; short, oversize or inconsistent frame.
         """
         s = self._settings
         if timeout_s is None:
-            timeout_s = 2 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
+            timeout_s = 3 * max(self.exposure_ms, self.frame_time_ms) / 1e3 + 5.0
         deadline = time.monotonic() + timeout_s
-        discards = 0
-        skipped = False
+        normal = s.mode == "normal"
+        under_way = normal and fresh  # the frame being exposed now began before this call
+        if under_way:
+            self.skipped_frames += self.clear_buffer()
+        off_settings: list[p.FrameTrailer] = []
         while True:
             status = self.buffer_status()
             if status.frames == 0:
@@ -542,25 +597,47 @@ class MightexCamera(Camera[FrameMeta]):
                 continue
             if (status.width, status.height, status.bin_code) != (s.width, s.height, s.bin_code):
                 self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
-                discards += status.frames
                 self.discarded_frames += status.frames
-            elif status.frames > 1 and s.mode == "normal" and not skipped:
-                # Keep only the newest. Once per grab: a frame that arrives meanwhile (periods
-                # shorter than a USB round trip) is not chased, the next one read is at most a
-                # period older than the newest.
+                continue
+            if normal and status.frames == 1 and under_way:
+                # The one under way at the call: read and dropped (not cleared: its trailer
+                # is checked, and 0x35 does not say which frame it discards).
+                self._read_frame()
+                self.skipped_frames += 1
+                under_way = False
+                continue
+            if normal and status.frames > 1:  # keep only the newest: exposed after the call
                 self._send(p.encode_clear_buffer(status.frames - 1))
                 self.skipped_frames += status.frames - 1
-                skipped = True
-            else:
-                frame = self._read_frame()
-                t = frame[1]
-                if t.exposure_counts == s.exposure_counts and t.green_gain == s.gain_raw:
-                    return self._make_frame(*frame)
-                discards += 1
-                self.discarded_frames += 1
-            if discards > MAX_DISCARDS:
-                raise ProtocolError(
-                    f"camera kept sending frames with other settings ({discards} discarded)")
+                under_way = False
+            pixels, trailer = self._read_frame()
+            if self._trailer_fits(trailer):
+                return self._make_frame(pixels, trailer)
+            self.discarded_frames += 1
+            off_settings.append(trailer)
+            if len(off_settings) >= MAX_DISCARDS:
+                raise CameraProfileMismatchError(self._mismatch_text(off_settings[-1]))
+
+    def _trailer_fits(self, t: p.FrameTrailer) -> bool:
+        """Within the profile's tolerance of the settings - and not a frame exposed with the
+        settings before the last change (the tolerance is for the camera's own limits)."""
+        s, spec = self._settings, self._spec
+        current = (s.exposure_counts, s.gain_raw)
+        if (t.exposure_counts, t.green_gain) == self._previous != current:
+            return False
+        return (spec.exposure_within_tolerance(s.exposure_counts, t.exposure_counts)
+                and abs(t.green_gain - s.gain_raw) <= spec.gain_tolerance_raw)
+
+    def _mismatch_text(self, t: p.FrameTrailer) -> str:
+        s, spec = self._settings, self._spec
+        return (
+            f"camera frames disagree with the {spec.model} profile: {MAX_DISCARDS} frames in a "
+            f"row carry exposure {t.exposure_counts} counts and gain raw {t.green_gain} in "
+            f"their trailer, but the driver set {s.exposure_counts} counts "
+            f"({s.exposure_counts * spec.exposure_unit_ms:g} ms as a {spec.exposure_bytes}-byte "
+            f"field of {spec.exposure_unit_ms:g} ms units) and gain raw {s.gain_raw}. The camera "
+            "ignored or misread the setting: its exposure field or unit differs. Run `benchlab "
+            "doctor` and set [camera] model to the profile that fits")
 
     def _read_frame(self) -> tuple[npt.NDArray[Any], p.FrameTrailer]:
         layout = self.layout
@@ -568,9 +645,7 @@ class MightexCamera(Camera[FrameMeta]):
         # One fresh buffer per frame: the returned pixels are a view of it (no copy).
         buf = array.array("B", b"\0") * layout.total_bytes
         timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
-        with _usb_errors("frame read"):
-            received = self._device.read(p.EP_FRAME_IN, buf, timeout_ms)
-        io_trace.record("camera", "<", memoryview(buf)[:received])
+        received = self._read(p.EP_FRAME_IN, buf, timeout_ms, "frame read")
         return p.decode_frame(buf, layout, received)
 
     def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:
@@ -578,11 +653,12 @@ class MightexCamera(Camera[FrameMeta]):
         meta = FrameMeta(
             width=t.row, height=t.column, bits=s.bits, mode=s.mode, bin_code=t.bin_code,
             gain=t.green_gain / p.GAIN_RAW_PER_UNITY, gain_raw=t.green_gain,
-            exposure_ms=round(t.exposure_counts * p.EXPOSURE_STEP_MS, 6),
+            exposure_ms=round(t.exposure_counts * self._spec.exposure_unit_ms, 6),
             exposure_counts=t.exposure_counts,
             frame_time_ms=round(t.frame_time * self._spec.frame_time_unit_ms, 6),
             timestamp_ms=t.timestamp_ms, trigger_occurred=bool(t.trigger_occurred),
             trigger_count=t.trigger_count, x_start=t.x_start, y_start=t.y_start,
             received_utc=datetime.now(UTC).isoformat(timespec="milliseconds"),
+            set_exposure_ms=self.exposure_ms, set_gain=self.gain,
         )
         return Frame(pixels, meta)

@@ -10,7 +10,8 @@ Choices where the public sources are silent (documented in the camera README sec
 * geometry: width and height multiples of 4 (S-series rule), at least 8 (gclef clamp), at most
   the sensor size; padding rounds the pixel bytes up to the next multiple of 512;
 * the MT9M001 bin codes are undocumented, so only bin code 0 (no binning) is accepted;
-* frame-time unit: 0.1 ms for protocol v1.0.6 models, 0.05 ms for v1.0.5 models.
+* per-model facts (exposure field, bit depths, timing, buffer policy) are profiles in
+  :mod:`benchlab.drivers.mightex.profile`.
 """
 
 from __future__ import annotations
@@ -23,10 +24,11 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
+from benchlab.drivers.mightex.profile import DEFAULT_PID, SPECS, CameraSpec, spec_for
+
+__all__ = ["DEFAULT_PID", "SPECS", "CameraSpec", "spec_for"]  # re-exported: the profile
 
 VENDOR_ID = 0x04B4
-#: The MCE-B013-U's PID is not public; the BTN-B013U (same sensor) uses 0x0428.
-DEFAULT_PID = 0x0428
 EP_COMMAND_OUT = 0x01
 EP_REPLY_IN = 0x81
 EP_FRAME_IN = 0x82
@@ -63,61 +65,6 @@ _RANGE_SLACK = 1e-9
 BIN_ROWS = {0x00: 1, 0x81: 2, 0x82: 3, 0x83: 4, 0x03: 4}
 
 
-@dataclass(frozen=True)
-class CameraSpec:
-    """What one camera model accepts; selects the exposure encoding and the limits."""
-
-    model: str
-    pid: int
-    protocol: str
-    exposure_bytes: int
-    exposure_max_counts: int
-    frame_time_unit_ms: float
-    bit_depths: tuple[int, ...]
-    max_width: int
-    max_height: int
-    min_size: int = 8
-    size_step: int = 4
-    bin_codes: tuple[int, ...] = (0,)
-    gain_raw_min: int = 1
-    gain_raw_max: int = 64
-    max_buffer_count: int = 24
-
-    @property
-    def exposure_max_ms(self) -> float:
-        return self.exposure_max_counts * EXPOSURE_STEP_MS
-
-    @property
-    def frame_time_max_ms(self) -> float:
-        return 0xFFFF * self.frame_time_unit_ms
-
-
-SPECS: dict[str, CameraSpec] = {
-    # 4-byte exposure (0.05 ms .. 200 s) as in protocol v1.0.6; 8/12-bit modes.
-    "MCE-B013-U": CameraSpec(
-        model="MCE-B013-U", pid=DEFAULT_PID, protocol="1.0.6", exposure_bytes=4,
-        exposure_max_counts=4_000_000, frame_time_unit_ms=0.1, bit_depths=(8, 12),
-        max_width=1280, max_height=1024,
-    ),
-    # Protocol v1.0.5: 2-byte exposure (0.05 .. 750 ms); its 10-bit mode is not implemented.
-    "BTN-B013U": CameraSpec(
-        model="BTN-B013U", pid=0x0428, protocol="1.0.5", exposure_bytes=2,
-        exposure_max_counts=15_000, frame_time_unit_ms=0.05, bit_depths=(8,),
-        max_width=1280, max_height=1024,
-    ),
-}
-
-
-def spec_for(model: str) -> CameraSpec:
-    """The spec of ``model``; raises ``SettingOutOfRangeError`` listing the known models."""
-    try:
-        return SPECS[model]
-    except KeyError:
-        raise SettingOutOfRangeError(
-            f"unknown camera model {model!r}: known models are {', '.join(sorted(SPECS))}"
-        ) from None
-
-
 # --------------------------------------------------------------------------- settings -> raw
 
 
@@ -129,15 +76,15 @@ def _finite(name: str, value: float) -> float:
 
 
 def exposure_counts(exposure_ms: float, spec: CameraSpec) -> int:
-    """Exposure in 0.05 ms counts (nearest step); refuses values outside the model's range."""
+    """Exposure in the model's counts (nearest step); refuses values outside its range."""
     v = _finite("exposure_ms", exposure_ms)
-    lo, hi = EXPOSURE_STEP_MS, spec.exposure_max_ms
+    lo, hi = spec.exposure_unit_ms, spec.exposure_max_ms
     if not lo * (1 - _RANGE_SLACK) <= v <= hi * (1 + _RANGE_SLACK):
         raise SettingOutOfRangeError(
             f"exposure {v:g} ms out of range: {spec.model} accepts {lo:g} .. {hi:g} ms "
-            f"in {EXPOSURE_STEP_MS:g} ms steps"
+            f"in {spec.exposure_unit_ms:g} ms steps"
         )
-    return min(max(round(v / EXPOSURE_STEP_MS), 1), spec.exposure_max_counts)
+    return min(max(round(v / spec.exposure_unit_ms), 1), spec.exposure_max_counts)
 
 
 def gain_raw(gain: float, spec: CameraSpec) -> int:
@@ -450,6 +397,40 @@ def pack_12bit(values: npt.NDArray[np.uint16], out: npt.NDArray[np.uint16]) -> N
     np.bitwise_or(o, low, out=o)
 
 
+def unpack_10bit_inplace(words: npt.NDArray[np.uint16]) -> npt.NDArray[np.uint16]:
+    """Turn packed 10-bit pixels into values 0..1023, in place ([SH]'s BTN-B013U mode).
+
+    Each pixel arrives as two bytes, byte0 = 8 MSBs and byte1 = the 2 LSBs; read as a
+    little-endian u16 ``w = b0 | b1 << 8`` the value is ``(w & 0xFF) << 2 | (w >> 8) & 3``.
+    (Decoded with the 12-bit rule instead, 1023 would read 4083.)
+    """
+    flat = words.reshape(-1)
+    low = np.right_shift(flat, np.uint16(8))
+    np.bitwise_and(low, np.uint16(0x3), out=low)
+    np.bitwise_and(flat, np.uint16(0xFF), out=flat)
+    np.left_shift(flat, np.uint16(2), out=flat)
+    np.bitwise_or(flat, low, out=flat)
+    return words
+
+
+def pack_10bit(values: npt.NDArray[np.uint16], out: npt.NDArray[np.uint16]) -> None:
+    """Inverse of :func:`unpack_10bit_inplace`: ``b0 = v >> 2``, ``b1 = v & 3`` words."""
+    v = values.reshape(-1)
+    o = out.reshape(-1)
+    np.right_shift(v, np.uint16(2), out=o)
+    low = np.bitwise_and(v, np.uint16(0x3))
+    np.left_shift(low, np.uint16(8), out=low)
+    np.bitwise_or(o, low, out=o)
+
+
+def depth_of_transfer(received: int, width: int, height: int) -> str:
+    """What a frame transfer of ``received`` bytes would be at this geometry (for messages)."""
+    for bits in (8, 12):
+        if FrameLayout(width, height, bits).total_bytes == received:
+            return "an 8-bit frame" if bits == 8 else "a 10/12-bit frame"
+    return "no frame of this size"
+
+
 def decode_frame(
     buffer: bytearray | memoryview | object, layout: FrameLayout, received: int
 ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], FrameTrailer]:
@@ -462,7 +443,9 @@ def decode_frame(
     if received != layout.total_bytes:
         raise ProtocolError(
             f"frame transfer was {received} bytes, expected {layout.total_bytes} for "
-            f"{layout.width}x{layout.height} {layout.bits}-bit"
+            f"{layout.width}x{layout.height} {layout.bits}-bit ({received} bytes is "
+            f"{depth_of_transfer(received, layout.width, layout.height)}: if the camera did not "
+            "take the bit depth, its profile differs - run `benchlab doctor`)"
         )
     mv = memoryview(buffer).cast("B")  # type: ignore[arg-type]
     trailer = decode_trailer(mv[layout.trailer_offset:layout.total_bytes])
@@ -475,6 +458,8 @@ def decode_frame(
     pixels: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
     if layout.bits == 8:
         pixels = np.frombuffer(mv, dtype=np.uint8, count=n)
+    elif layout.bits == 10:
+        pixels = unpack_10bit_inplace(np.frombuffer(mv, dtype="<u2", count=n))
     else:
         pixels = unpack_12bit_inplace(np.frombuffer(mv, dtype="<u2", count=n))
     return pixels.reshape(layout.height, layout.width), trailer

@@ -13,10 +13,15 @@ host polls an empty buffer it jumps ahead to the moment the next frame is ready,
 returns at once. :class:`ManualClock` only moves when a test says so; :class:`RealTimeClock`
 follows ``time.monotonic()`` (live view at the camera's true frame rate).
 
-Firmware behaviour where the public sources are silent (choices, not facts): a full buffer
-overwrites its oldest frame; invalid settings are ignored (and listed in
-``rejected_commands``); 0x30 and 0x60 empty the buffer; readout takes width x height pixels at
-48 MHz / 2**divider; timestamps are ms since power-on at the end of the exposure.
+The model's facts come from a device profile (:mod:`benchlab.drivers.mightex.profile`),
+given apart from the driver's: exposure field and unit, bit depths, what a full buffer does
+(default: new frames are dropped), how long the camera ignores commands after the work-mode
+command and after power-up. A test can so build a camera that disagrees with the driver.
+
+Firmware behaviour where the public sources are silent (choices, not facts): invalid settings
+are ignored (and listed in ``rejected_commands``); 0x30 and 0x60 empty the buffer; readout
+takes width x height pixels at 48 MHz / 2**divider; timestamps are ms since power-on at the end
+of the exposure; ``min_exposure_counts`` raises shorter exposures (the trailer says so).
 """
 
 from __future__ import annotations
@@ -175,6 +180,10 @@ class SimulatedCamera:
         Default :class:`VirtualClock`.
     seed : int, optional
         Noise seed. ``noise=False`` renders exact noise-free codes.
+    profile : CameraSpec, optional
+        The model's facts (default: the profile of ``model``); may differ from the driver's.
+    min_exposure_counts : int
+        Shortest exposure the sensor makes; shorter settings are raised to it.
     bench_state : callable, optional
         Returns the mapping passed to the scene as ``AcquisitionState.bench`` (stage, LEDs);
         sampled when each frame is exposed. Settable at any time.
@@ -188,9 +197,14 @@ class SimulatedCamera:
         model: str = "MCE-B013-U", pid: int = p.DEFAULT_PID,
         firmware: tuple[int, int, int] = (1, 0, 6), clock: Clock | None = None,
         seed: int | None = None, bench_state: Callable[[], Mapping[str, Any]] | None = None,
-        noise: bool = True,
+        noise: bool = True, profile: p.CameraSpec | None = None, min_exposure_counts: int = 1,
     ) -> None:
-        self.spec = p.spec_for(model)
+        self.spec = profile if profile is not None else p.spec_for(model)
+        self.min_exposure_counts = min_exposure_counts
+        #: Frames the camera exposed but could not store (buffer full, drop-new policy).
+        self.dropped_frames = 0
+        #: Until this clock time the firmware ignores commands (power-up, after 0x30).
+        self._deaf_until = -float("inf")
         self.scene: Scene = scene if scene is not None else flat_field_scene()
         self.bench_state = bench_state
         self.serial, self.model, self.pid, self.firmware = serial, model, pid, tuple(firmware)
@@ -228,7 +242,7 @@ class SimulatedCamera:
     def period_s(self) -> float:
         """Free-running frame period: the longest of exposure, frame time and readout."""
         s = self.settings
-        exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
+        exposure_ms = s.exposure_counts * self.spec.exposure_unit_ms
         frame_ms = s.frame_time_counts * self.spec.frame_time_unit_ms
         return max(exposure_ms, frame_ms, self._readout_ms()) / 1e3
 
@@ -255,6 +269,9 @@ class SimulatedCamera:
                        trigger_count, self.scene, bench)
         self._frame_index += 1
         if len(self._fifo) >= self.settings.buffer_count:
+            if self.spec.buffer_full == "drop_new":
+                self.dropped_frames += 1
+                return
             self._fifo.popleft()  # ring buffer: the oldest frame is overwritten
         self._fifo.append(frame)
 
@@ -263,6 +280,16 @@ class SimulatedCamera:
         if self.settings.mode == 0:
             period = self.period_s
             due = int((now - self._next_ready) // period) + 1 if now >= self._next_ready else 0
+            room = self.settings.buffer_count - len(self._fifo)
+            if self.spec.buffer_full == "drop_new":
+                skip = max(0, due - max(room, 0))  # no room: exposed, then dropped
+                self.dropped_frames += skip
+                for _ in range(due - skip):
+                    self._capture(self._next_ready, triggered=False)
+                    self._next_ready += period
+                self._next_ready += skip * period
+                self._frame_index += skip
+                return
             skip = max(0, due - self.settings.buffer_count)  # would be overwritten anyway
             if skip:
                 self._next_ready += skip * period
@@ -301,9 +328,10 @@ class SimulatedCamera:
             self.generation += 1
 
     def replug(self) -> None:
-        """Put the camera back on the bus, freshly powered on."""
+        """Put the camera back on the bus, freshly powered on (deaf for the power-up time)."""
         with self._lock:
             self._power_on()
+            self._deaf_until = self.clock.now() + self.spec.power_up_wait_s
             self.connected = True
 
     # ------------------------------------------------------------------ EP 0x01
@@ -333,6 +361,9 @@ class SimulatedCamera:
                 raise DeviceUnplugged
             self.command_log.append(bytes(data))
             self._catch_up()
+            if self.clock.now() < self._deaf_until:  # powering up, or busy after 0x30
+                self.rejected_commands.append(bytes(data))
+                return
             if len(data) == 1 and data[0] in (p.CMD_FIRMWARE, 0x02, p.CMD_DEVICE_INFO):
                 # Bare wake-up bytes used by older clients ([SH]): answer like the full query.
                 self._answer(data[0])
@@ -392,7 +423,7 @@ class SimulatedCamera:
         s = self.settings
         if s.mode == 1:
             self._trigger_count += 1
-            exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
+            exposure_ms = s.exposure_counts * self.spec.exposure_unit_ms
             ready_s = self.clock.now() + (exposure_ms + self._readout_ms()) / 1e3
             self._pending_triggers.append((ready_s, self._trigger_count))
         return True
@@ -402,6 +433,7 @@ class SimulatedCamera:
         if args != b"\x01":
             return False
         self._power_on()
+        self._deaf_until = self.clock.now() + self.spec.power_up_wait_s
         return True
 
     @commands.handles(p.CMD_WORK_MODE)
@@ -412,6 +444,7 @@ class SimulatedCamera:
         if args[0] == 1:
             self._trigger_count = 0
         self._pending_triggers.clear()
+        self._deaf_until = self.clock.now() + self.spec.work_mode_wait_s
         return True
 
     @commands.handles(p.CMD_RESOLUTION)
@@ -443,6 +476,7 @@ class SimulatedCamera:
         counts = int.from_bytes(args, "big")
         if not 1 <= counts <= self.spec.exposure_max_counts:
             return False
+        counts = max(counts, self.min_exposure_counts)  # the trailer tells the host
         self._change(replace(self.settings, exposure_counts=counts))
         return True
 
@@ -525,7 +559,7 @@ class SimulatedCamera:
         s = frame.settings
         layout = p.FrameLayout(s.width, s.height, s.bits)
         payload = bytearray(layout.total_bytes)
-        exposure_ms = s.exposure_counts * p.EXPOSURE_STEP_MS
+        exposure_ms = s.exposure_counts * self.spec.exposure_unit_ms
         state = AcquisitionState(
             exposure_ms=exposure_ms, gain=s.gain_raw / p.GAIN_RAW_PER_UNITY, bits=s.bits,
             width=s.width, height=s.height, time_s=frame.ready_s - exposure_ms / 1e3,

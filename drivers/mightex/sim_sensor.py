@@ -288,12 +288,17 @@ class SensorModel:
         return dn
 
     def render_into(self, payload: bytearray, scene: Scene, state: AcquisitionState) -> None:
-        """Write the pixel bytes of one frame (8-bit = 12-bit >> 4, or packed 12-bit)."""
+        """Write the pixel bytes of one frame (8-bit = 12-bit >> 4, 10-bit = 12-bit >> 2 packed
+        as [SH] reads it, or packed 12-bit)."""
         dn = self.render_dn12(scene, state)
         n = dn.size
         if state.bits == 8:
             out8 = np.frombuffer(payload, dtype=np.uint8, count=n)
             np.right_shift(dn, np.uint16(4), out=out8, casting="unsafe")
+        elif state.bits == 10:
+            # a copy: ``dn`` may be the cached noise-free frame
+            p.pack_10bit(np.right_shift(dn, np.uint16(2)),
+                         np.frombuffer(payload, dtype="<u2", count=n))
         else:
             p.pack_12bit(dn, np.frombuffer(payload, dtype="<u2", count=n))
 

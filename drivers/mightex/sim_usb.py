@@ -15,6 +15,7 @@ raises ``USBError`` with ``errno.ENODEV`` like libusb's "no such device".
 from __future__ import annotations
 
 import errno
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -136,6 +137,18 @@ class SimCameraBackend(usb.backend.IBackend):
         super().__init__()
         self.cameras = list(cameras)
         self._config_value: dict[int, int] = {}
+
+    def sleep(self, seconds: float) -> None:
+        """A protocol wait of the driver (after 0x30, while a camera powers up), spent on the
+        cameras' own clock: simulated clocks move on at once, wall-clock cameras really wait."""
+        waited = False
+        for cam in self.cameras:
+            advance = getattr(cam.clock, "advance", None)
+            if advance is not None:
+                advance(seconds)
+            elif not waited:
+                time.sleep(seconds)
+                waited = True
 
     # ------------------------------------------------------------------ enumeration
 

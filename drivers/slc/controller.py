@@ -84,6 +84,25 @@ _MAX_PROBE_CHANNELS = 16
 _MAX_STALE_ACKS = 2
 
 
+def read_reply_line(ser: serial.Serial, command: str | None = None) -> bytes:
+    """One reply line ending in CR LF (documented) or LF CR (some vendor examples), returned
+    ending in CR LF either way; what came before a timeout otherwise.
+
+    Reads to the LF; an LF with a CR after it ends the line too - unless that line is the
+    echo of ``command`` (ECHOON sends the command back with its LF CR), then the reply that
+    follows the echo is read and returned after it, as received.
+    """
+    raw: bytes = ser.read_until(b"\n")
+    if not raw.endswith(b"\n") or raw.endswith(REPLY_END):
+        return raw
+    cr = ser.read(1)
+    if cr != b"\r":
+        return raw + cr  # a lone LF: not a line end; the caller sees an unterminated line
+    if command is not None and raw.lstrip(b">") == command.encode("ascii") + b"\n":
+        return raw + cr + read_reply_line(ser)
+    return raw[:-1] + REPLY_END
+
+
 def _is_ack(raw: bytes) -> bool:
     """An acknowledgement line (``## \\r\\n``; ``>##`` with echo on)."""
     return raw.strip().lstrip(b">") == ACK.encode()
@@ -308,7 +327,7 @@ class SlcController(LightSource):
             ser.reset_input_buffer()
             ser.write(b"ECHOOFF" + COMMAND_END)
             ser.timeout = min(self.timeout_s, ECHOOFF_SETTLE_S)
-            ser.read_until(REPLY_END)  # an ack may or may not come; either is fine
+            read_reply_line(ser, "ECHOOFF")  # an ack may or may not come; either is fine
             ser.timeout = self.timeout_s
             ser.reset_input_buffer()
         except IO_ERRORS as exc:
@@ -390,12 +409,12 @@ class SlcController(LightSource):
                 self._late_reply = False
                 ser.reset_input_buffer()
                 ser.write(command.encode("ascii") + COMMAND_END)
-                raw = ser.read_until(REPLY_END)
+                raw = read_reply_line(ser, command)
                 for _ in range(_MAX_STALE_ACKS if skip_acks else 0):
                     if not (raw.endswith(REPLY_END) and _is_ack(raw)):
                         break
                     log.debug("LED controller: discarded a late %r before %r", raw, command)
-                    raw = ser.read_until(REPLY_END)
+                    raw = read_reply_line(ser, command)
                 two_replies = False
                 echo, reply = split_echo(command, raw)
                 if echo:
@@ -455,7 +474,7 @@ class SlcController(LightSource):
         deadline = time.monotonic() + 2 * self.timeout_s
         try:
             ser.timeout = self.timeout_s
-            stale = ser.read_until(REPLY_END)
+            stale = read_reply_line(ser)
             ser.timeout = LATE_REPLY_QUIET_S
             while time.monotonic() < deadline:
                 more = ser.read(max(1, ser.in_waiting))
@@ -473,7 +492,7 @@ class SlcController(LightSource):
         within LATE_REPLY_QUIET_S? Then the first may have been the late one."""
         try:
             ser.timeout = LATE_REPLY_QUIET_S
-            extra = ser.read_until(REPLY_END)
+            extra = read_reply_line(ser)
         finally:
             ser.timeout = self.timeout_s
         return extra.endswith(REPLY_END)

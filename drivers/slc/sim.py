@@ -111,8 +111,11 @@ class SimulatedSlc(PtyDevice):
         pulsed_max_ma: int = 3500,
         echooff_ack: bool = False,
         echo: bool = False,
+        reply_end: bytes = b"\r\n",
     ) -> None:
         super().__init__(clock=clock)
+        #: How reply lines end: CR LF as documented, or LF CR as some vendor examples show.
+        self.reply_end = reply_end
         self.channel_count = channels
         # Default module number matches the channel count ("SLC-SA04-U/S" for 4 channels).
         self.module = module if module is not None else f"SLC-SA{channels:02d}-U/S"
@@ -184,7 +187,8 @@ class SimulatedSlc(PtyDevice):
             self.on_bytes(b"")  # now answer what arrived meanwhile
 
     def _reply(self, payload: str) -> None:
-        self._out(payload.encode("ascii") + REPLY_SUFFIX)
+        body = payload.encode("ascii").replace(b" \r\n", b" " + self.reply_end)
+        self._out(body + b" " + self.reply_end)
 
     def _out(self, data: bytes) -> None:
         if self._late_out is not None:

@@ -4,6 +4,7 @@ a udev hint that names the installed rule. XDG_CONFIG_HOME is a temp folder (con
 from __future__ import annotations
 
 import errno
+import json
 import os
 from pathlib import Path
 
@@ -68,31 +69,33 @@ def test_real_bench_without_any_bench_file_says_how_to_make_one(
 
 
 def test_log_level_and_io_trace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    trace = tmp_path / "io.txt"
+    trace = tmp_path / "io.jsonl"
     argv = ["--log-level", "info", "--trace-io", str(trace), "led", "--simulate", "--channel",
             "1", "--current-ma", "5", "--on", "--for-s", "0"]
     assert main(argv) == 0
     err = capsys.readouterr().err
     assert "benchlab.drivers.slc.controller: INFO: LED controller SLC-SA04-U/S" in err
     lines = trace.read_text(encoding="ascii").splitlines()
-    assert lines[0].startswith("# benchlab I/O trace")
-    sent = [ln for ln in lines if " led      > " in ln]
-    got = [ln for ln in lines if " led      < " in ln]
-    assert any("|NORMAL 1 " in ln for ln in sent) and any("|MODE 1 1" in ln for ln in sent)
-    assert any("4d 4f 44 45 20 31 20 31" in ln for ln in sent)  # the bytes, in hex
-    assert any("|## ..|" in ln for ln in got)  # "## \r\n" read back as one line
+    assert json.loads(lines[0])["cassette"] == 1  # a cassette (docs/hardware/replay.md)
+    events = [json.loads(ln) for ln in lines[1:]]
+    sent = [e for e in events if e.get("dev") == "led" and e.get("dir") == ">"]
+    got = [e for e in events if e.get("dev") == "led" and e.get("dir") == "<"]
+    assert any(e["text"].startswith("NORMAL 1 ") for e in sent)
+    assert any(e["text"].startswith("MODE 1 1") for e in sent)
+    assert any(e["hex"].startswith("4d 4f 44 45 20 31 20 31") for e in sent)  # the bytes
+    assert any(e["text"] == "## .." for e in got)  # "## \r\n" read back as one line
     assert main(["led", "--simulate", "--channel", "1", "--off"]) == 0  # trace stopped
     assert len(trace.read_text(encoding="ascii").splitlines()) == len(lines)
 
 
 def test_camera_exchanges_are_traced(tmp_path: Path) -> None:
-    trace = tmp_path / "cam.txt"
+    trace = tmp_path / "cam.jsonl"
     out = tmp_path / "f.tiff"
     assert main(["--trace-io", str(trace), "snap", "--simulate", "--exposure-ms", "5", "--gain",
                  "1", str(out)]) == 0
-    text = trace.read_text(encoding="ascii")
-    assert " camera   > " in text and " camera   < " in text
-    assert "bytes)" in text  # the frame: first bytes and its length
+    events = [json.loads(ln) for ln in trace.read_text(encoding="ascii").splitlines()[1:]]
+    assert {(e.get("dev"), e.get("dir")) for e in events} >= {("camera", ">"), ("camera", "<")}
+    assert any(e.get("ep") == 0x82 and "b64" in e for e in events)  # the frame, whole
 
 
 def test_serial_ports_accept_pyserial_urls(tmp_path: Path) -> None:

@@ -159,7 +159,7 @@ def test_a_limit_switch_pressed_is_named_only_when_the_carriage_is_off_target(
         assert st.position_mm == pytest.approx(20.0, abs=1e-4)
         sim.faults.completion_bits = StatusBits.REV_HW_LIMIT
         sim.faults.stop_short_mm = 0.01
-        with pytest.raises(AptMoveFaultError, match="counts from the target, reverse limit "
+        with pytest.raises(AptMoveFaultError, match="re-reads over 0.25 s, reverse limit "
                                                     "switch engaged"):
             _move(st, sim, clock, 30.0)
 

@@ -33,10 +33,12 @@ def test_open_sends_wake_up_identity_and_full_configuration() -> None:
         assert cam.info.model == "MCE-B013-U"
         assert (cam.info.serial, cam.info.firmware, cam.info.pid) == ("SIM-000001", "1.0.6", 0x428)
         log = list(sim.command_log)
-    # The 0x33 poll finds one frame (the virtual clock jumps to it) and the driver flushes it.
+    # The 0x60 changed nothing (power-on geometry), so the frames of the 100 ms the driver
+    # waited after 0x30 are still there: the 0x33 poll finds 3 and the driver flushes them.
     assert log == [H("01 01 01"), H("21 01 00"), H("30 02 00 08"), H("60 07 05 00 04 00 00 04 00"),
-                   H("33 01 00"), H("35 01 01"), H("63 04 00 00 00 c8"), H("64 02 00 01"),
+                   H("33 01 00"), H("35 01 03"), H("63 02 00 c8"), H("64 02 00 01"),
                    H("62 03 08 08 08")]
+    assert not sim.rejected_commands  # the 0x60 came after the 100 ms the camera needs
 
 
 def test_every_command_is_sent_byte_exact() -> None:
@@ -54,15 +56,16 @@ def test_every_command_is_sent_byte_exact() -> None:
         assert cam.device_info().serial == "SIM-000001"
         cam.reset()
         assert list(sim.command_log) == [
-            H("63 04 00 00 17 70"), H("62 03 14 14 14"), H("64 02 03 e8"),
+            H("63 02 17 70"), H("62 03 14 14 14"), H("64 02 07 d0"),
             H("30 02 01 0c"), H("60 07 02 80 01 e0 00 18 00"), H("33 01 00"),
             H("36 01 00"), H("33 01 00"), H("01 01 01"), H("21 01 00"),
-            H("50 01 01"),  # then the driver restores its settings
+            H("50 01 01"),  # the camera powers up for 3 s: asked every 0.5 s until it answers
+            *[H("01 01 01")] * 7,
             H("30 02 01 0c"), H("60 07 02 80 01 e0 00 18 00"), H("33 01 00"),
-            H("63 04 00 00 17 70"), H("64 02 03 e8"), H("62 03 14 14 14"),
+            H("63 02 17 70"), H("64 02 07 d0"), H("62 03 14 14 14"),
         ]
         assert sim.settings.gain_raw == 20 and sim.settings.exposure_counts == 6000
-        assert not sim.rejected_commands
+        assert list(sim.rejected_commands) == [H("01 01 01")] * 6  # while powering up
 
 
 def test_grab_8bit_exact_noise_free_values_and_zero_copy() -> None:
@@ -71,7 +74,11 @@ def test_grab_8bit_exact_noise_free_values_and_zero_copy() -> None:
         cam.set_exposure_ms(300)
         sim.command_log.clear()
         frame = cam.grab()
-        assert list(sim.command_log) == [H("33 01 00"), H("34 01 01")]
+        # Fresh: what the camera holds is cleared unread (here the frame that completed as
+        # the virtual clock jumped), the first frame after that (it may have been under way
+        # at the call) is read and dropped, the next one returned.
+        assert list(sim.command_log) == [H("33 01 00"), H("35 01 01"), H("33 01 00"),
+                                         H("34 01 01"), H("33 01 00"), H("34 01 01")]
     assert frame.pixels.dtype == np.uint8 and frame.pixels.shape == (1024, 1280)
     assert np.all(frame.pixels == 100)
     assert not frame.pixels.flags.owndata  # a view of the USB receive buffer
@@ -191,8 +198,7 @@ def test_any_pyusb_client_and_bare_wake_up_byte() -> None:
 
 @settings(max_examples=25, deadline=None)
 @given(
-    exposure_counts=st.one_of(st.sampled_from([1, 2, 4_000_000, 3_999_999]),
-                              st.integers(1, 4_000_000)),
+    exposure_counts=st.one_of(st.sampled_from([1, 2, 15_000, 14_999]), st.integers(1, 15_000)),
     gain_raw=st.one_of(st.sampled_from([1, 8, 64]), st.integers(1, 64)),
 )
 def test_exposure_and_gain_limits_reach_the_frame(exposure_counts: int, gain_raw: int) -> None:
@@ -201,7 +207,7 @@ def test_exposure_and_gain_limits_reach_the_frame(exposure_counts: int, gain_raw
         cam.configure(width=64, height=8)
         cam.set_exposure_ms(exposure_counts * 0.05)
         cam.set_gain(gain_raw / 8)
-        assert sim.command_log[-2] == H("63 04") + exposure_counts.to_bytes(4, "big")
+        assert sim.command_log[-2] == H("63 02") + exposure_counts.to_bytes(2, "big")
         assert sim.command_log[-1] == bytes((0x62, 3, gain_raw, gain_raw, gain_raw))
         meta = cam.grab().meta
     assert (meta.exposure_counts, meta.gain_raw) == (exposure_counts, gain_raw)
@@ -210,12 +216,12 @@ def test_exposure_and_gain_limits_reach_the_frame(exposure_counts: int, gain_raw
 
 
 @settings(max_examples=25, deadline=None)
-@given(value=st.one_of(st.floats(-1e6, 0.0499), st.floats(200_000.01, 1e9)))
+@given(value=st.one_of(st.floats(-1e6, 0.0499), st.floats(750.01, 1e9)))
 def test_exposure_out_of_range_sends_nothing(value: float) -> None:
     sim, cam = open_sim()
     with cam:
         before = list(sim.command_log)
-        with pytest.raises(SettingOutOfRangeError, match=r"0\.05 \.\. 200000 ms"):
+        with pytest.raises(SettingOutOfRangeError, match=r"0\.05 \.\. 750 ms"):
             cam.set_exposure_ms(value)
         with pytest.raises(SettingOutOfRangeError, match=r"0\.125 \.\. 8x"):
             cam.set_gain(value if value < 0.1 else 8.5)

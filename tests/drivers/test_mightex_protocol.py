@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from benchlab.drivers.errors import ProtocolError, SettingOutOfRangeError
 from benchlab.drivers.mightex import protocol as p
 
-MCE = p.SPECS["MCE-B013-U"]
+MCE = p.SPECS["MCE-B013-U"]  # the CMOS defaults: 2-byte exposure, 0.05 ms frame time
+V106 = p.SPECS["MCE-B013-U/v1.0.6"]  # the v1.0.6 document: 4-byte exposure, 0.1 ms
 BTN = p.SPECS["BTN-B013U"]
 
 
@@ -47,25 +48,29 @@ def test_command_bytes(encoded: bytes, expected: str) -> None:
 def test_setting_conversions() -> None:
     assert p.exposure_counts(300, MCE) == 6000
     assert p.exposure_counts(0.05, MCE) == 1
-    assert p.exposure_counts(200_000, MCE) == 4_000_000
+    assert p.exposure_counts(200_000, V106) == 4_000_000
+    assert p.exposure_counts(750, MCE) == 15_000
     assert p.exposure_counts(750, BTN) == 15_000
     assert p.exposure_counts(0.074, MCE) == 1  # nearest 0.05 ms step
     assert p.gain_raw(1.0, MCE) == 8
     assert p.gain_raw(0.125, MCE) == 1
     assert p.gain_raw(8, MCE) == 64
-    assert p.frame_time_counts(0.1, MCE) == 1
+    assert p.frame_time_counts(0.1, V106) == 1
+    assert p.frame_time_counts(0.1, MCE) == 2
     assert p.frame_time_counts(100, BTN) == 2000
 
 
 @pytest.mark.parametrize(
     ("call", "message"),
     [
-        (lambda: p.exposure_counts(0.02, MCE), "0.05 .. 200000 ms"),
+        (lambda: p.exposure_counts(0.02, V106), "0.05 .. 200000 ms"),
+        (lambda: p.exposure_counts(750.05, MCE), "0.05 .. 750 ms"),
         (lambda: p.exposure_counts(750.05, BTN), "0.05 .. 750 ms"),
         (lambda: p.exposure_counts(float("nan"), MCE), "finite"),
         (lambda: p.gain_raw(0.1, MCE), "0.125 .. 8x"),
         (lambda: p.gain_raw(8.2, MCE), "raw 1..64"),
-        (lambda: p.frame_time_counts(0.0, MCE), "0.1 .. 6553.5 ms"),
+        (lambda: p.frame_time_counts(0.0, V106), "0.1 .. 6553.5 ms"),
+        (lambda: p.frame_time_counts(0.0, MCE), "0.05 .. 3276.75 ms"),
     ],
 )
 def test_out_of_range_messages_name_the_range(call, message: str) -> None:
@@ -79,7 +84,7 @@ def test_out_of_range_messages_name_the_range(call, message: str) -> None:
         ({"width": 1284}, "width 1284 out of range: MCE-B013-U accepts 8 .. 1280 pixels"),
         ({"width": 4}, "multiples of 4"),
         ({"height": 1026}, "height 1026 out of range"),
-        ({"bits": 10}, "accepts 8 or 12"),
+        ({"bits": 16}, "accepts 8 or 10 or 12"),
         ({"mode": "burst"}, "normal, trigger"),
         ({"bin_code": 0x81}, "0x00"),
         ({"buffer_count": 25}, "1 .. 24 frames"),
@@ -181,3 +186,33 @@ def test_decode_frame_rejects_wrong_length_and_geometry() -> None:
     wrong = array.array("B", bytes(96 + 416) + trailer_8x8)  # an 8x12 transfer, 8x8 trailer
     with pytest.raises(ProtocolError, match="trailer says 8x8, configured 8x12"):
         p.decode_frame(wrong, p.FrameLayout(8, 12, 8), 1024)
+
+
+def test_10bit_decode_is_the_cmos_clients_and_not_the_12bit_rule() -> None:
+    """Difference 2: the MT9M001 is 10-bit; [SH] packs byte0 = 8 MSBs, byte1 = 2 LSBs."""
+    values = np.array([0, 1, 2, 3, 4, 511, 512, 1022, 1023], dtype=np.uint16)
+    words = np.empty_like(values)
+    p.pack_10bit(values, words)
+    raw = words.astype("<u2").tobytes()
+    assert raw[-2:] == bytes((0xFF, 0x03))  # 1023: b0 = 0xFF, b1 = 0x03
+    back = p.unpack_10bit_inplace(np.frombuffer(bytearray(raw), dtype="<u2").copy())
+    assert back.tolist() == values.tolist()
+    as12 = p.unpack_12bit_inplace(np.frombuffer(bytearray(raw), dtype="<u2").copy())
+    assert as12[-1] == 4083  # what the 12-bit decode makes of 1023 (the issue's example)
+
+
+def test_10bit_frame_decodes_through_decode_frame() -> None:
+    layout = p.FrameLayout(8, 8, 10)
+    values = (np.arange(64, dtype=np.uint16) * 16) % 1024
+    buf = bytearray(layout.total_bytes)
+    p.pack_10bit(values, np.frombuffer(buf, dtype="<u2", count=64))
+    buf[layout.trailer_offset:] = p.encode_trailer(p.FrameTrailer(
+        8, 8, 0, 0, 0, 8, 8, 8, 0, 0, 0, 0, 1, 0, 200))
+    pixels, trailer = p.decode_frame(buf, layout, layout.total_bytes)
+    assert pixels.reshape(-1).tolist() == values.tolist() and trailer.exposure_counts == 200
+
+
+def test_a_transfer_of_another_depth_is_named() -> None:
+    layout = p.FrameLayout(64, 16, 10)
+    with pytest.raises(ProtocolError, match="1536 bytes is an 8-bit frame"):
+        p.decode_frame(bytearray(1536), layout, 1536)

@@ -24,43 +24,57 @@ def _open(sim: SimulatedCamera) -> MightexCamera:
     return MightexCamera.open(backend=SimCameraBackend([sim]))
 
 
-def test_manual_clock_fills_the_buffer_at_the_frame_period() -> None:
+def _advance_on_clear(cam: MightexCamera, clock: ManualClock, dt_s: float) -> None:
+    """Let ``dt_s`` pass after every 0x35 or 0x34 the driver sends (a frame arrives)."""
+    send = cam._send
+
+    def send_then_wait(data: bytes) -> None:
+        send(data)
+        if data[0] in (p.CMD_CLEAR_BUFFER, p.CMD_GET_IMAGE):
+            clock.advance(dt_s)
+
+    cam._send = send_then_wait  # type: ignore[method-assign]
+
+
+def test_a_full_buffer_drops_new_frames_and_grab_still_returns_a_fresh_one() -> None:
+    """Difference 5 (the buffer keeps its oldest frames) and the issue-29 defect (a grab
+    after idling returned a frame exposed long before it)."""
     clock = ManualClock()
     sim = SimulatedCamera(clock=clock, noise=False)
     with _open(sim) as cam:
         cam.configure(width=64, height=16, buffer_count=4)
         cam.set_exposure_ms(50.0)  # period = exposure (longer than frame time and readout)
+        t_ms = round((clock.now() - sim._t0) * 1000)
         assert sim.period_s == pytest.approx(0.05)
         assert cam.buffer_status().frames == 0
         with pytest.raises(DeviceTimeoutError):
             cam.grab(timeout_s=0)  # a manual clock never jumps
         clock.advance(0.125)
         assert cam.buffer_status().frames == 2  # ready at 50 and 100 ms
+        clock.advance(10.0)  # 202 periods in all: the first 4 kept, the 198 after dropped
+        assert cam.buffer_status().frames == 4 and sim.dropped_frames == 198
+        stale = cam.grab(fresh=False)  # the newest the camera holds: 10 s old
+        assert stale.meta.timestamp_ms == pytest.approx(t_ms + 200, abs=1)
+        _advance_on_clear(cam, clock, 0.05)
+        clock.advance(0.05)  # a frame was exposed since
         sim.command_log.clear()
-        first = cam.grab()
-        assert first.meta.timestamp_ms == 100  # the newest; the 50 ms frame cleared unread
-        assert list(sim.command_log) == [bytes.fromhex(h) for h in (
-            "33 01 00", "35 01 01", "33 01 00", "34 01 01")]
-        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 1
-        clock.advance(10.0)  # 200 periods: the ring buffer keeps the newest 4
-        assert cam.buffer_status().frames == 4
-        assert cam.grab().meta.timestamp_ms == 10_100  # the last of 10.050 .. 10.100 s
-        assert cam.buffer_status().frames == 0 and cam.skipped_frames == 4
-        with pytest.raises(DeviceTimeoutError):
-            cam.grab(timeout_s=0)
-        clock.advance(0.05)
-        assert cam.grab().meta.timestamp_ms == 10_150  # one waiting: read as is
+        now_ms = round((clock.now() - sim._t0) * 1000)
+        fresh = cam.grab()
+        # Cleared: what was buffered; read and dropped: the frame under way; read: the next.
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34, 0x33, 0x34]
+        assert fresh.meta.timestamp_ms - fresh.meta.exposure_ms >= now_ms - 1
+        assert fresh.meta.timestamp_ms > stale.meta.timestamp_ms + 10_000
 
 
 def test_virtual_clock_jumps_so_grab_never_waits() -> None:
     clock = VirtualClock()
-    sim = SimulatedCamera(clock=clock, noise=False)
-    with _open(sim) as cam:
-        cam.set_exposure_ms(100_000.0)  # 100 s exposures, still instant
+    sim = SimulatedCamera(clock=clock, noise=False, model="MCE-B013-U/v1.0.6")
+    with MightexCamera.open(backend=SimCameraBackend([sim]), model=sim.model) as cam:
+        cam.set_exposure_ms(100_000.0)  # 100 s exposures (4-byte field), still instant
         t0 = clock.now()
         frame = cam.grab()
         assert frame.meta.exposure_ms == 100_000.0
-        assert clock.now() - t0 == pytest.approx(100.0)
+        assert clock.now() - t0 == pytest.approx(300.0)  # cleared, under way, read
 
 
 def test_real_time_clock_follows_monotonic_time() -> None:
@@ -127,7 +141,8 @@ def test_scene_with_wrong_shape_is_reported() -> None:
 
 def test_invalid_commands_are_ignored_and_listed() -> None:
     sim = SimulatedCamera(noise=False)
-    for raw in ("62 03 00 00 00", "63 02 00 01", "60 07 05 01 04 00 00 04 00", "30 02 00 0a",
+    for raw in ("62 03 00 00 00", "63 04 00 00 00 01", "60 07 05 01 04 00 00 04 00",
+                "30 02 00 10",
                 "99 00", "33 05 00"):
         sim.write_command(bytes.fromhex(raw))
     assert len(sim.rejected_commands) == 6
@@ -135,29 +150,26 @@ def test_invalid_commands_are_ignored_and_listed() -> None:
 
 
 def test_reset_restores_power_on_settings() -> None:
-    sim = SimulatedCamera(noise=False)
+    clock = VirtualClock()
+    sim = SimulatedCamera(noise=False, clock=clock)
     sim.write_command(p.encode_gain(40))
     sim.write_command(p.encode_work_mode("trigger", 12))
+    clock.advance(0.1)  # the camera takes nothing for 100 ms after the work-mode command
     sim.write_command(p.encode_reset())
     assert (sim.settings.gain_raw, sim.settings.mode, sim.settings.bits) == (8, 0, 8)
 
 
-def test_grab_clears_older_frames_once_and_does_not_chase_new_ones() -> None:
+def test_grab_clears_older_frames_and_does_not_chase_new_ones() -> None:
     clock = ManualClock()
     sim = SimulatedCamera(clock=clock, noise=False)
     with _open(sim) as cam:
         cam.configure(width=64, height=16, buffer_count=4)
         cam.set_exposure_ms(50.0)
+        t_ms = round((clock.now() - sim._t0) * 1000)
         clock.advance(0.175)  # frames at 50, 100, 150 ms
-        send = cam._send
-
-        def send_then_a_frame(data: bytes) -> None:  # a frame arrives after every clear
-            send(data)
-            if data[0] == 0x35:
-                clock.advance(0.05)
-
-        cam._send = send_then_a_frame  # type: ignore[method-assign]
+        _advance_on_clear(cam, clock, 0.05)  # a frame arrives after every clear
         sim.command_log.clear()
-        assert cam.grab().meta.timestamp_ms == 150  # the newest when asked; 200 not chased
-        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34]
-        assert cam.skipped_frames == 2 and sim.buffered_frames == 1
+        # 50..150 cleared, then 200 (under way at the call) read and dropped, 250 returned.
+        assert cam.grab().meta.timestamp_ms == pytest.approx(t_ms + 250, abs=1)
+        assert [c[0] for c in sim.command_log] == [0x33, 0x35, 0x33, 0x34, 0x33, 0x34]
+        assert cam.skipped_frames == 4 and sim.buffered_frames == 1  # 300: not chased

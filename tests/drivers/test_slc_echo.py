@@ -177,7 +177,8 @@ def test_an_echo_of_another_command_is_not_taken_for_a_reply(sim: SimulatedSlc) 
     with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=0.5) as c:
         c.on(1, 40)
         sim.faults.garbage = b"?MODE 2\n\r>#0 \r\n"  # an echo, but of another line
-        with pytest.raises(SlcBadReplyError, match=r"'\?MODE 2\\n\\r>#0'"):
+        # An LF CR ends a line too (issue 31, #9): the foreign echo is refused as a reply.
+        with pytest.raises(SlcBadReplyError, match=r"got '\?MODE 2' \(command '\?MODE 1'\)"):
             c.is_on(1)
         assert c.is_on(1) is True
     assert _all_dark(sim)

@@ -304,3 +304,18 @@ def test_simulator_profiles_are_multi_line(sim: SimulatedSlc) -> None:
         assert ser.read_until(b"0 0 \r\n") == b"#400 1000 \r\n0 0 \r\n"
         ser.write(b"?TRIGP 2\n\r")  # 99 mA clamped to the TRIGGER Imax of 10 mA
         assert ser.read_until(b"0 0 \r\n") == b"#10 5 \r\n0 0 \r\n"
+
+
+@pytest.mark.parametrize("ending", [b"\r\n", b"\n\r"])
+def test_difference_9_replies_ending_lf_cr_are_accepted(ending: bytes) -> None:
+    """Vendor examples show reply lines ending LF CR as well as CR LF (issue 31, #9)."""
+    sim = SimulatedSlc(channels=2, reply_end=ending)
+    sim.start()
+    try:
+        with SlcController(sim.port, ceilings_ma={1: 50.0}, timeout_s=0.3) as c:
+            assert c.device_info.serial == "04-251013-011"
+            c.on(1, 20)
+            assert c.get_current(1) == (50.0, 20.0) and c.is_on(1)
+            assert sim.transcript[-1][1].endswith(b" " + ending)
+    finally:
+        sim.stop()

@@ -38,13 +38,14 @@ def _sabotaged(monkeypatch: pytest.MonkeyPatch, how: str) -> None:
     count = {"n": 0}
     last: dict[str, Frame] = {}
 
-    def grab(self: MightexCamera, timeout_s: float | None = None) -> Frame:
+    def grab(self: MightexCamera, timeout_s: float | None = None, *,
+             fresh: bool = True) -> Frame:
         count["n"] += 1
         if how == "duplicate" and count["n"] % 97 == 0 and "f" in last:
             return last["f"]
         if how == "drop" and count["n"] % 97 == 0:
-            real(self, timeout_s)  # read a good frame and throw it away
-        frame = real(self, timeout_s)
+            real(self, timeout_s, fresh=fresh)  # read a good frame and throw it away
+        frame = real(self, timeout_s, fresh=fresh)
         if how == "corrupt" and count["n"] % 97 == 0:
             frame.pixels[0, 0] ^= 1
         last["f"] = frame

@@ -299,11 +299,11 @@ def _mtf_file(tmp_path: Path, camera: str) -> Path:
 def test_exposure_and_gain_are_recorded_as_the_camera_applies_them(tmp_path: Path) -> None:
     p = load_params("mtf", _mtf_file(tmp_path, "exposure_ms = 300.03\ngain = 0.125"))
     assert p.exposure_ms == 300.05 and p.gain == 0.125  # 0.05 ms steps; gain 0.125 is valid
-    long = load_params("mtf", _mtf_file(tmp_path, "exposure_ms = 1000.0\ngain = 1.0"))
-    assert long.exposure_ms == 1000.0  # 750 ms was a 2-byte-exposure model's limit
+    long = load_params("mtf", _mtf_file(tmp_path, "exposure_ms = 750.0\ngain = 1.0"))
+    assert long.exposure_ms == 750.0  # the MCE-B013-U's 2-byte exposure field (issue 31)
     with pytest.raises(params_mod.ParamsError, match=r"camera.exposure_ms: must be in \[0.05, "
-                                                      r"200000"):
-        load_params("mtf", _mtf_file(tmp_path, "exposure_ms = 200001.0\ngain = 1.0"))
+                                                      r"750"):
+        load_params("mtf", _mtf_file(tmp_path, "exposure_ms = 1000.0\ngain = 1.0"))
 
 
 # ---- exit statuses are documented ------------------------------------------------------------

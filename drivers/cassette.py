@@ -1,0 +1,99 @@
+"""Reading a cassette (:mod:`benchlab.drivers.io_trace` writes them) and the one error a
+replay raises when the driver does something else than what was recorded."""
+
+from __future__ import annotations
+
+import base64
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from benchlab.drivers.errors import DeviceError
+from benchlab.drivers.io_trace import CASSETTE_VERSION, open_text
+
+#: Shown of a transfer in a divergence message.
+_SHOWN_BYTES = 24
+
+
+class CassetteError(DeviceError):
+    """A cassette file that cannot be read (names the file and the line)."""
+
+
+class ReplayDivergedError(DeviceError):
+    """The driver sent (or read) something else than the cassette recorded at this point."""
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """One recorded event of one device: a transfer, a timed-out read, or an open."""
+
+    n: int  # exchange number in the cassette (1-based, all devices counted)
+    device: str
+    direction: str  # ">" to the device, "<" from it, "open"
+    data: bytes = b""
+    ep: int | None = None
+    timeout: bool = False
+    opened: dict[str, object] | None = None
+
+    def describe(self) -> str:
+        if self.direction == "open":
+            return f"open {self.opened}"
+        if self.timeout:
+            return f"a read that timed out{_ep(self.ep)}"
+        if self.direction == ">":
+            return f"{show(self.data)}{_ep(self.ep)}"
+        return f"a reply {show(self.data)}{_ep(self.ep)}"
+
+
+def _ep(ep: int | None) -> str:
+    return "" if ep is None else f" on EP 0x{ep:02X}"
+
+
+def show(data: bytes) -> str:
+    """Bytes for a message: hex, cut after a few, with the length."""
+    more = f" ... ({len(data)} bytes)" if len(data) > _SHOWN_BYTES else ""
+    return (data[:_SHOWN_BYTES].hex(" ") or "(nothing)") + more
+
+
+def load(path: str | Path) -> list[Exchange]:
+    """Every exchange of a cassette, in order; :class:`CassetteError` names a bad line."""
+    out: list[Exchange] = []
+    try:
+        with open_text(path, "r") as fh:
+            lines = fh.read().splitlines()
+    except OSError as exc:
+        raise CassetteError(f"{path}: cannot read the cassette: {exc}") from exc
+    if not lines:
+        raise CassetteError(f"{path}: empty file, not a cassette")
+    for i, text in enumerate(lines, 1):
+        try:
+            item = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise CassetteError(f"{path}: line {i} is not JSON: {exc}") from None
+        if i == 1:
+            if item.get("cassette") != CASSETTE_VERSION:
+                raise CassetteError(f"{path}: line 1 is not a version-{CASSETTE_VERSION} "
+                                    "cassette header (record one with --trace-io)")
+            continue
+        if "note" in item:
+            continue
+        try:
+            n, device = int(item["n"]), str(item["dev"])
+            if "open" in item:
+                out.append(Exchange(n, device, "open", opened=dict(item["open"])))
+                continue
+            direction = item["dir"]
+            if direction not in (">", "<"):
+                raise ValueError(f"dir {direction!r}")
+            ep = item.get("ep")
+            if item.get("timeout"):
+                out.append(Exchange(n, device, direction, ep=ep, timeout=True))
+                continue
+            data = (bytes.fromhex(item["hex"]) if "hex" in item
+                    else base64.b64decode(item["b64"], validate=True))
+            if len(data) != int(item["len"]):
+                raise ValueError(f"len {item['len']} but {len(data)} bytes")
+        except (KeyError, ValueError, TypeError) as exc:
+            raise CassetteError(f"{path}: line {i}: bad exchange ({exc})") from None
+        out.append(Exchange(n, device, direction, data, ep))
+    return out
