@@ -225,8 +225,8 @@ def honest_reading(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     if not r.resolved:
         fallback = _fallback(prep, r)
         return r if fallback is None else fallback
-    if r.lower_bound or r.dark is None or r.bright is None:
-        return r
+    if r.lower_bound or r.dark is None or r.bright is None or r.modulation < 0.0:
+        return r  # a contrast reversal (knownbars) is no clipped reading
     if r.dark <= 0.0 and r.modulation >= 1.0:
         return r  # dark level 0: exactly 1
     if bright_clipped(prep) and prep.max_code is not None and r.bright <= prep.max_code:
