@@ -166,7 +166,7 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
         ("resolved", "yes" if result.resolved else "no (thesis N/A)"),
         ("dark", num(result.dark)),
         ("bright", num(result.bright)),
-        ("modulation (Eq. 2.9)", f"{result.modulation:.3f}"),
+        ("modulation (Eq. 2.9)", result.shown),
         (
             "uncertainty (1 sigma)",
             f"{result.uncertainty:.3f} [{result.interval[0]:.3f}, {result.interval[1]:.3f}] "
@@ -179,6 +179,8 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
         ("clipped", f"{100 * d.clipped_fraction:.2f}%"),
         ("aliased / phase-sensitive", f"{d.aliased} / {d.phase_sensitive}"),
     ]
+    if result.lower_bound:
+        rows.insert(7, ("lower bound", result.bound_reason))
     if d.bar_angle_deg is not None:
         rows.append(("bar angle (deg)", f"{d.bar_angle_deg:.2f} +- {d.bar_angle_sd_deg or 0:.2f}"))
     if d.uncertainty_model is not None:
