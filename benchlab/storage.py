@@ -412,7 +412,8 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
     of reading the file again, so the pixels are exactly the bytes that were checked.
 
     Raises :class:`FrameFileError` naming the file when it is missing, unreadable, not 2-D,
-    or carries no benchlab metadata.
+    carries no benchlab metadata, or holds codes its ``bits`` rule out
+    (:func:`check_bit_depth`, as :func:`read_tiff_frame` does for the analysis paths).
     """
     p = Path(path)
     try:
@@ -440,4 +441,6 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
         raise FrameFileError(f"{p}: ImageDescription is not benchlab JSON metadata") from exc
     if not isinstance(meta, dict) or meta.get("format") != METADATA_FORMAT:
         raise FrameFileError(f"{p}: TIFF has no benchlab frame metadata")
+    # As every analysis path reads a frame (read_tiff_frame): codes its bits rule out.
+    check_bit_depth(p, pixels, meta)
     return pixels, meta
