@@ -8,12 +8,12 @@ import json
 from pathlib import Path
 
 import pytest
+from sim_runs import RAD_SMALL, events, only_session, run_sim
 
 from benchlab import session as session_mod
 from benchlab.cli.main import main
 from benchlab.protocols.runs import reanalyze
 from benchlab.session import Session
-from tests.sim_runs import RAD_SMALL, events, only_session, run_sim
 
 
 @pytest.fixture(scope="module")
