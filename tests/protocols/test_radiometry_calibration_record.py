@@ -81,6 +81,7 @@ def test_reanalysis_elsewhere_uses_the_sessions_copy_or_refuses(
     assert main(["analyze", str(session)]) == 0
     assert "identical to v1" in capsys.readouterr().out
     assert sorted(p.name for p in (session / "results").iterdir()) == ["v1"]
+    assert _rows(session / "results" / "v1") == v1
 
     # The session's copy changed: refused, naming the file and both sha256; nothing written.
     copy = session / "calibration" / "response-v1.json"

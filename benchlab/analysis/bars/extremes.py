@@ -6,14 +6,14 @@ through :func:`honest_reading`:
 - **Bright level clipped** (more than :data:`~.result.CLIPPED_FRACTION_LIMIT` of the pixels at
   the saturation code): the data only say the bright bars are *at least* that bright, and the
   Eq. 2.9 contrast grows with the bright level (d/dB of (B - D) / (B + D) = 2 D / (B + D)^2
-  >= 0), so a reading whose bright level lies at or below the saturation code is a lower bound
-  of the contrast: ``lower_bound`` with the reason. A reading whose model carried the bright
-  level above the code (``profilefit`` treats saturated pixels as censored) is the model's
-  estimate and stays a value.
+  >= 0), so the reading is a lower bound of the contrast: ``lower_bound`` with the reason.
+  Only a reading whose model carried the bright level above the code (:data:`CENSORING`:
+  ``profilefit`` and ``knownbars`` treat saturated pixels as censored) is the model's estimate
+  and stays a value; a harmonic series or a variance overshooting the code is not.
 - **Dark level clipped at code 0**: the dark level read is at least the true one, so again the
   contrast read is a lower bound (unless it already is 1).
 - **Dark level 0**: the contrast is exactly 1 whatever the bright level, clipped or not - a
-  value, never a bound.
+  value, never a bound (a reading within :data:`ONE_TOLERANCE` of 1 is 1).
 - **Plainly resolved but "not resolved"**: a noise-free or sharp pattern can defeat a fit (all
   bright phases censored, two distinct phases, a residual of exactly 0). When the profile
   across the bars swings through at least one period by :data:`PLAIN_RANGE_SIGMAS` times its
@@ -44,15 +44,35 @@ PLAIN_RANGE_SIGMAS = 20.0
 #: The fallback bound's levels: the profile's extremes moved inwards by this many noise sigmas
 #: (the extreme of a few hundred noisy samples lies ~3 sigma beyond the level).
 EXTREME_MARGIN_SIGMAS = 3.0
+#: Estimators that treat saturated pixels as censored: a model that carries the bright level
+#: above the top code gives a value, not a bound (their other readings of clipped bars are
+#: bounds like everyone's).
+CENSORING = frozenset({"profilefit", "profilefit-fast", "knownbars"})
+#: Pixels within this many noise sigmas of 0 make a dark level of 0 possible.
+ZERO_SIGMAS = 3.0
+#: A contrast within this of 1 is 1 (a dark level of 0 read with rounding residue, 3e-6).
+ONE_TOLERANCE = 1e-5
 #: Swings between the profile's lower and upper quarters that make one full period
 #: (dark-bright-dark) of blurred bars.
 MIN_CROSSINGS = 2
 
 
+#: Full-scale codes of the cameras' bit depths (8, 10, 12, 14, 16 bits; 12-bit MSB-aligned).
+FULL_SCALE_CODES = frozenset({255.0, 1023.0, 4095.0, 16383.0, 65520.0, 65535.0})
+
+
 def bright_clipped(prep: PreparedROI) -> bool:
     """Whether more than :data:`CLIPPED_FRACTION_LIMIT` of the pixels sit at the saturation
-    code (the ROI's warnings already say so)."""
-    return prep.max_code is not None and prep.clipped_fraction > CLIPPED_FRACTION_LIMIT
+    code (the ROI's warnings already say so). A plateau below full scale in noise-free data
+    is no evidence of clipping (every level of sharp noise-free bars is a plateau)."""
+    if prep.max_code is None or prep.clipped_fraction <= CLIPPED_FRACTION_LIMIT:
+        return False
+    return prep.max_code in FULL_SCALE_CODES or not _noise_free(prep)
+
+
+def _noise_free(prep: PreparedROI) -> bool:
+    """No noise measured above the rounding of the codes (or none at all)."""
+    return prep.noise_sigma <= prep.quantisation_sd * 1.0001
 
 
 def dark_clipped(prep: PreparedROI) -> bool:
@@ -61,7 +81,7 @@ def dark_clipped(prep: PreparedROI) -> bool:
     (noise-free data at 0 are not clipped, they are exactly 0)."""
     if prep.vmin != 0.0 or not prep.integer_valued:
         return False
-    if prep.noise_sigma <= prep.quantisation_sd * 1.0001:
+    if _noise_free(prep):
         return False
     at_floor = float(np.count_nonzero(prep.pixels == 0.0)) / prep.pixels.size
     return at_floor > CLIPPED_FRACTION_LIMIT
@@ -227,9 +247,21 @@ def honest_reading(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
         return r if fallback is None else fallback
     if r.lower_bound or r.dark is None or r.bright is None or r.modulation < 0.0:
         return r  # a contrast reversal (knownbars) is no clipped reading
-    if r.dark <= 0.0 and r.modulation >= 1.0:
-        return r  # dark level 0: exactly 1
-    if bright_clipped(prep) and prep.max_code is not None and r.bright <= prep.max_code:
+    near_zero = prep.vmin <= ZERO_SIGMAS * prep.noise_sigma  # the data reach a dark level 0
+    if r.dark < 0.0 and not near_zero:
+        # A dark level below zero where every pixel is well above it: negative light, a fit
+        # that ran off (a censored model on sharp clipped bars read dark -67 for pixels of 96).
+        fallback = _fallback(prep, r.with_updates(warnings=(
+            *r.warnings, f"fitted dark level {r.dark:.3g} below zero, pixels from "
+            f"{prep.vmin:.3g}: reading discarded")))
+        if fallback is not None:
+            return fallback
+    if r.modulation >= 1.0 - ONE_TOLERANCE and near_zero:
+        # Dark level 0 (to rounding): Eq. 2.9 is 1 whatever the bright level - and no contrast
+        # exceeds 1, so a bound there is the value.
+        return r if r.modulation == 1.0 else r.with_updates(modulation=1.0)
+    censored = r.estimator in CENSORING and r.bright > (prep.max_code or math.inf)
+    if bright_clipped(prep) and not censored:
         return _as_bound(r, _bound_reason(prep, bright=True))
     if dark_clipped(prep) and r.modulation < 1.0:
         return _as_bound(r, _bound_reason(prep, bright=False))
