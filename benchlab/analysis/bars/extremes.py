@@ -48,6 +48,9 @@ EXTREME_MARGIN_SIGMAS = 3.0
 #: above the top code gives a value, not a bound (their other readings of clipped bars are
 #: bounds like everyone's).
 CENSORING = frozenset({"profilefit", "profilefit-fast", "knownbars"})
+#: Estimators whose levels are a fitted waveform's extremes (not data): held to the data's
+#: range for a bound (:func:`_within_data`).
+WAVEFORM = frozenset({"sinefit", "variance"})
 #: Pixels within this many noise sigmas of 0 make a dark level of 0 possible.
 ZERO_SIGMAS = 3.0
 #: A contrast within this of 1 is 1 (a dark level of 0 read with rounding residue, 3e-6).
@@ -95,6 +98,20 @@ def _bound_reason(prep: PreparedROI, bright: bool) -> str:
             "contrast is at least the reading")
 
 
+def _within_data(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
+    """``r`` with a fitted waveform's levels held to the data for a bound (:data:`WAVEFORM`):
+    a harmonic series or a crest factor overshoots sharp clipped bars (sinefit put the dark
+    level at 20 below pixels from 64 and read 0.87 for a contrast of 0.75), and a bound from
+    levels beyond every pixel is no bound. Histogram peaks are data already."""
+    if r.estimator not in WAVEFORM or r.dark is None or r.bright is None:
+        return r
+    top = prep.max_code if prep.max_code is not None else prep.vmax
+    dark, bright = max(r.dark, prep.vmin), min(r.bright, top)
+    if (dark, bright) == (r.dark, r.bright) or bright <= dark or dark + bright <= 0.0:
+        return r
+    return r.with_updates(dark=dark, bright=bright, modulation=eq29_modulation(dark, bright))
+
+
 def _as_bound(r: ModulationResult, reason: str) -> ModulationResult:
     """``r`` marked as a lower bound: its number and interval kept, the reason said."""
     return r.with_updates(lower_bound=True, bound_reason=reason,
@@ -122,15 +139,23 @@ _Q25_HALF_NORMAL = 0.31863936 * math.sqrt(2.0)
 
 def _line_noise(prep: PreparedROI, line: npt.NDArray[np.float64]) -> float:
     """Per-pixel noise of a ROI that is one line across the bars: the smaller of the ROI's
-    estimate and the one from the lower quartile of the absolute neighbour differences, never
-    below one code for integer data. The ROI's estimate falls back to differences across the
-    bars there and counts the edges as noise (every other difference at 4 px per period); on
-    whole codes the lower quartile is often 0, hence the floor."""
+    estimate and the one from the lower quartile of the absolute neighbour differences. The
+    ROI's estimate falls back to differences across the bars there and counts the edges as
+    noise (every other difference at 4 px per period). On whole codes the quartile is 0 for
+    noise under ~0.9 codes, whose range over a line stays under the plainness test's
+    :data:`PLAIN_RANGE_SIGMAS` times the codes' rounding."""
     if line.size < 2 or prep.noise_given:
         return prep.noise_sigma
     q25 = float(np.percentile(np.abs(np.diff(line)), 25.0)) / _Q25_HALF_NORMAL
-    floor = 1.0 if prep.integer_valued else 0.0
-    return min(prep.noise_sigma, max(q25, floor))
+    f = prep.freq_cycles_per_px
+    if f and 0.0 < f < 0.5:
+        # A whole number of pixels per period: samples one period apart differ by noise
+        # alone (mixed edge pixels included), e.g. 20 50 60 50 20 at 5 px per period.
+        lag = round(1.0 / f)
+        if abs(lag - 1.0 / f) < 1e-6 and line.size > lag:
+            lagged = np.abs(line[lag:] - line[:-lag])
+            q25 = min(q25, float(np.percentile(lagged, 25.0)) / _Q25_HALF_NORMAL)
+    return min(prep.noise_sigma, q25)
 
 
 #: A profile is two-level (sharp bars) when at least this share of its samples lies within
@@ -146,6 +171,17 @@ def _two_level(profile: npt.NDArray[np.float64], noise: float) -> bool:
     tol = max(3.0 * noise, PLATEAU_TOLERANCE * (hi - lo))
     on = (profile <= lo + tol) | (profile >= hi - tol)
     return float(np.count_nonzero(on)) >= PLATEAU_SHARE * profile.size
+
+
+def _measured_noise(prep: PreparedROI) -> float:
+    """The ROI's noise as measured, without the codes' rounding floor: along the bars, or
+    along the line of a one-pixel-wide ROI (:func:`_line_noise`); the given noise if given."""
+    if prep.noise_given:
+        return prep.noise_sigma
+    img = prep.pixels
+    if min(img.shape) == 1:
+        return _line_noise(prep, img.ravel())
+    return robust_noise_sigma(img, prep.axis)
 
 
 def _plain_profile(prep: PreparedROI) -> tuple[npt.NDArray[np.float64], float, float] | None:
@@ -175,7 +211,9 @@ def _plain_profile(prep: PreparedROI) -> tuple[npt.NDArray[np.float64], float, f
         noise = prep.noise_sigma if prep.noise_given else robust_noise_sigma(img, prep.axis)
         for axis in (prep.axis, 1 - prep.axis):
             candidates.append((img.mean(axis=1 - axis), img.shape[1 - axis], noise))
-        candidates += [(img[rows // 2, :], 1, noise), (img[:, cols // 2], 1, noise)]
+        # Oblique bars average out along an axis, but a line still crosses them sharply.
+        candidates += [(line, 1, min(noise, _line_noise(prep, line)))
+                       for line in (img[rows // 2, :], img[:, cols // 2])]
     for profile, lines, noise_px in candidates:
         if profile.size < 2:
             continue
@@ -247,6 +285,11 @@ def honest_reading(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
         return r if fallback is None else fallback
     if r.lower_bound or r.dark is None or r.bright is None or r.modulation < 0.0:
         return r  # a contrast reversal (knownbars) is no clipped reading
+    if prep.vmin == 0.0 and r.modulation > 0.0 and _measured_noise(prep) == 0.0:
+        # Noise-free pixels at exactly 0: the dark level is 0 (no pixel lies below it), so
+        # Eq. 2.9 is exactly 1 - whatever the bright level and the estimator's smoothing.
+        return r.with_updates(dark=0.0, modulation=1.0, uncertainty=0.0, interval=(1.0, 1.0),
+                              lower_bound=False, bound_reason="")
     near_zero = prep.vmin <= ZERO_SIGMAS * prep.noise_sigma  # the data reach a dark level 0
     if r.dark < 0.0 and not near_zero:
         # A dark level below zero where every pixel is well above it: negative light, a fit
@@ -262,7 +305,7 @@ def honest_reading(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
         return r if r.modulation == 1.0 else r.with_updates(modulation=1.0)
     censored = r.estimator in CENSORING and r.bright > (prep.max_code or math.inf)
     if bright_clipped(prep) and not censored:
-        return _as_bound(r, _bound_reason(prep, bright=True))
+        return _as_bound(_within_data(prep, r), _bound_reason(prep, bright=True))
     if dark_clipped(prep) and r.modulation < 1.0:
         return _as_bound(r, _bound_reason(prep, bright=False))
     return r
