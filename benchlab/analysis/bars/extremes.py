@@ -241,10 +241,9 @@ def _fallback(prep: PreparedROI, r: ModulationResult) -> ModulationResult | None
     bright = float(profile.max()) - margin
     if bright <= dark or bright + dark <= 0.0:
         return None
-    why = r.warnings[-1] if r.warnings else "no reading"
     span = float(profile.max() - profile.min())
     note = (f"bars plainly resolved (profile range {span / noise if noise else math.inf:.3g} "
-            f"noise sigmas) but {r.estimator} could not read them ({why})")
+            f"noise sigmas) but {r.estimator} could not read them (the warning before)")
     if dark == 0.0:
         # A dark level of exactly 0: Eq. 2.9 is 1 whatever the bright level.
         return r.with_updates(dark=0.0, bright=bright, modulation=1.0, resolved=True,
