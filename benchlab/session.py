@@ -55,6 +55,7 @@ from benchlab.storage import (
     flush_folder,
     fsync_dir,
     fsync_tree,
+    json_default,
     json_rows_text,
     load_frame_tiff,
     make_staging_dir,
@@ -287,6 +288,12 @@ class Session:
         #: (:meth:`verify_frames`), so results are never written from changed frames - also
         #: when the analysis started before the last frames had finished loading.
         self.verify_frames_before_results = False
+        #: Set by a re-analysis: :meth:`write_results` adds no version when an existing one
+        #: has the same inputs (frames), settings, software version and byte-identical
+        #: results; it returns that version and sets :attr:`matched_version`.
+        self.reuse_identical_results = False
+        #: The version the last :meth:`write_results` matched instead of writing (or None).
+        self.matched_version: int | None = None
 
     # ------------------------------------------------------------------ create / open
     @classmethod
@@ -1132,6 +1139,20 @@ class Session:
                                f"{', '.join(_table_names(summary)) or 'none'}")
         return rows
 
+    def _identical_version(self, staged: Path, same: Mapping[str, Any]) -> int | None:
+        """The newest existing version with the summary ``same`` (inputs, settings, software
+        version, summary) and byte-identical files to the ``staged`` folder; None if none."""
+        staged_files: dict[str, bytes] | None = None
+        for version in reversed(self.result_versions()):
+            folder = self.results_dir / f"v{version}"
+            if not _same_summary(folder, same):
+                continue
+            if staged_files is None:
+                staged_files = _tree_bytes(staged)
+            if _tree_bytes(folder) == staged_files:
+                return version
+        return None
+
     def write_results(
         self,
         tables: Mapping[str, list[dict[str, Any]]],
@@ -1148,7 +1169,11 @@ class Session:
 
         The version folder is assembled under a temporary name and renamed into place, so a
         crash never leaves a half-written version; existing versions are never touched.
-        NaN is written as ``null`` in JSON and ``NA`` in CSV. With :data:`RESULTS_FSYNC`
+        NaN is written as ``null`` in JSON and ``NA`` in CSV. With :attr:`reuse_identical_results`
+        (a re-analysis) a version whose summary differs only in its number and time and whose
+        files are byte-identical is returned instead (:attr:`matched_version`; journal event
+        ``results_matched``): fifty identical re-analyses leave one version, anything else
+        still adds one. With :data:`RESULTS_FSYNC`
         ``"syncfs"`` (default) or ``"per-version"`` the files are flushed together just before
         the rename (one file-system flush, or one fsync per file), instead of a file and
         directory fsync per file; either way the version is on disk before this returns.
@@ -1179,18 +1204,27 @@ class Session:
                 stem = result_file_stem(table)
                 write(tmp / f"{stem}.json", json_rows_text(plain_rows))
                 write(tmp / f"{stem}.csv", _csv_text(plain_rows))
+            self.matched_version = None
+            same = {
+                "estimator": estimator,
+                "software_version": _software_version(),
+                "tables": sorted(tables),
+                "table_files": {t: result_file_stem(t) for t in sorted(tables)},
+                "frames_sha256": self.frames(),
+                "summary": _plain(summary),
+                **(self._partial or {"partial": False}),
+            }
+            if self.reuse_identical_results:
+                matched = self._identical_version(tmp, same)
+                if matched is not None:
+                    shutil.rmtree(tmp, ignore_errors=True)
+                    self.matched_version = matched
+                    self.log_event("results_matched", durable=False, version=matched,
+                                   estimator=estimator)
+                    return self.results_dir / f"v{matched}"
             version = (self.result_versions() or [0])[-1] + 1
             while True:
-                doc = {
-                    "version": version,
-                    "estimator": estimator,
-                    "created_at": _now_iso(),
-                    "tables": sorted(tables),
-                    "table_files": {t: result_file_stem(t) for t in sorted(tables)},
-                    "frames_sha256": self.frames(),
-                    "summary": _plain(summary),
-                    **(self._partial or {"partial": False}),
-                }
+                doc = {"version": version, "created_at": _now_iso(), **same}
                 atomic_write_json(tmp / "summary.json", doc, durable=per_file)
                 if RESULTS_FSYNC == "syncfs":
                     flush_folder(tmp)
@@ -1216,6 +1250,35 @@ class Session:
         # Not fsync'd: the version is already durable and resume does not read this line.
         self.log_event("results_written", durable=False, version=version, estimator=estimator)
         return target
+
+
+def _software_version() -> str:
+    import benchlab
+
+    return str(benchlab.__version__)
+
+
+def _tree_bytes(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (relative path -> bytes), ``summary.json`` left out."""
+    files = {p.relative_to(folder).as_posix(): p for p in folder.rglob("*") if p.is_file()}
+    return {rel: p.read_bytes() for rel, p in sorted(files.items()) if rel != "summary.json"}
+
+
+def _same_summary(folder: Path, same: Mapping[str, Any]) -> bool:
+    """Whether ``folder``'s summary.json is ``same`` but for its version number and time."""
+    try:
+        doc = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if not isinstance(doc, dict):
+        return False
+    doc.pop("version", None)
+    doc.pop("created_at", None)
+    try:  # through JSON: the stored document's types (lists for tuples, str keys)
+        want = json.loads(json.dumps(same, allow_nan=False, default=json_default))
+    except (TypeError, ValueError):
+        return False
+    return bool(doc == want)
 
 
 #: Result files are named after what they hold; the thesis table stays the table's label

@@ -216,7 +216,7 @@ def atomic_write_json(
     path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True, durable: bool = True
 ) -> Path:
     """Atomically write ``obj`` as indented JSON (NaN is refused: it is not valid JSON)."""
-    text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default)
+    text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=json_default)
     return atomic_write_text(path, text + "\n", overwrite=overwrite, durable=durable)
 
 
@@ -230,11 +230,11 @@ def json_rows_text(rows: list[Any]) -> str:
     if not rows:
         return "[]\n"
     # One encoder for all rows: json.dumps with options builds a new one per call.
-    encode = json.JSONEncoder(allow_nan=False, default=_json_default).encode
+    encode = json.JSONEncoder(allow_nan=False, default=json_default).encode
     return "[\n  " + ",\n  ".join(map(encode, rows)) + "\n]\n"
 
 
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -261,7 +261,7 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     if arr.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"frame dtype must be uint8 or uint16, got {arr.dtype}")
     meta = {"format": METADATA_FORMAT, "version": METADATA_VERSION, **dict(metadata)}
-    info = json.dumps(meta, allow_nan=False, default=_json_default)
+    info = json.dumps(meta, allow_nan=False, default=json_default)
     x_um, y_um = pixel_size_um(meta)
     imagej: dict[str, Any] = {"axes": "YX", "unit": "um", "Info": info}
     bits = meta.get("bits")
@@ -412,7 +412,8 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
     of reading the file again, so the pixels are exactly the bytes that were checked.
 
     Raises :class:`FrameFileError` naming the file when it is missing, unreadable, not 2-D,
-    or carries no benchlab metadata.
+    carries no benchlab metadata, or holds codes its ``bits`` rule out
+    (:func:`check_bit_depth`, as :func:`read_tiff_frame` does for the analysis paths).
     """
     p = Path(path)
     try:
@@ -440,4 +441,6 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
         raise FrameFileError(f"{p}: ImageDescription is not benchlab JSON metadata") from exc
     if not isinstance(meta, dict) or meta.get("format") != METADATA_FORMAT:
         raise FrameFileError(f"{p}: TIFF has no benchlab frame metadata")
+    # As every analysis path reads a frame (read_tiff_frame): codes its bits rule out.
+    check_bit_depth(p, pixels, meta)
     return pixels, meta

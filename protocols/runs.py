@@ -231,8 +231,12 @@ def resume_run(
 
 
 def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
-              catalogue: bool = True) -> Path:
-    """Analyse a session's saved frames again into a new results version.
+              catalogue: bool = True, new_version: bool = False) -> Path:
+    """Analyse a session's saved frames again into a new results version - or, when an
+    existing version has the same frames, settings, software version and byte-identical
+    results, into none: that version's folder is returned (and the journal says
+    ``results_matched``), so repeated re-analyses do not pile up identical versions.
+    ``new_version=True`` always writes one (a benchmark timing the writes).
 
     Frame hashes are checked against the journal before and after: raw frames are only read.
     ``catalogue=False`` leaves the catalogue update to the caller (a batch records all its
@@ -255,6 +259,7 @@ def reanalyze(session_path: str | Path | Session, estimator: str | None = None, 
             if any(st.id not in done for st in steps if st.kind != "analysis"):
                 session.mark_results_partial(status, sum(1 for st in steps if st.id in done),
                                              len(steps))
+        session.reuse_identical_results = not new_version
         return _reanalyze_held(session, estimator, catalogue)
     finally:
         session.release()

@@ -96,7 +96,7 @@ def fsync_comparison(sessions: list[Path], repeats: int) -> list[tuple[str, int,
             with _count_fsyncs() as count:
                 for k in range(repeats):
                     t0 = time.perf_counter()
-                    reanalyze(sessions[k % len(sessions)])
+                    reanalyze(sessions[k % len(sessions)], new_version=True)
                     times.append(time.perf_counter() - t0)
             out.append((policy, count[0] // repeats, min(times), statistics.median(times)))
     finally:

@@ -191,10 +191,11 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
         elif name == "table_4_15":
             for r in rows:
                 avg, missing = average_of(r)  # no average when a half is not resolved
+                bound = r.get("averaged_modulation_lower_bound") is True
                 yield Figure(version, str(r.get("view", "")), "", "averaged",
                              _num(r.get("mc_freq_lp_per_mm")), "modulation", _num(avg),
                              f"not available: {missing}" if missing
-                             else str(r.get("verdict", "")))
+                             else ("lower bound: " if bound else "") + str(r.get("verdict", "")))
         elif name == "table_4_16":
             for r in rows:
                 element = f"{_num(r.get('position_mm')) or 0:g}mm"
@@ -237,8 +238,8 @@ def _bar_table(version: int, view: str, rows: list[Mapping[str, Any]], element: 
             if aliased or resolved is False:
                 value = None  # the 0 stored for it is no measurement: NULL, and say why
             text = ("aliased" if aliased else "" if resolved is None
-                    else "resolved" if resolved else "unresolved" if measured
-                    else "not measurable")
+                    else ("lower bound" if r.get(f"{o}_lower_bound") is True else "resolved")
+                    if resolved else "unresolved" if measured else "not measurable")
             yield Figure(version, view, element(r), o, _num(freq), "modulation", value, text)
 
 

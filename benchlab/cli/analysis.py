@@ -166,7 +166,7 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
         ("resolved", "yes" if result.resolved else "no (thesis N/A)"),
         ("dark", num(result.dark)),
         ("bright", num(result.bright)),
-        ("modulation (Eq. 2.9)", f"{result.modulation:.3f}"),
+        ("modulation (Eq. 2.9)", result.shown),
         (
             "uncertainty (1 sigma)",
             f"{result.uncertainty:.3f} [{result.interval[0]:.3f}, {result.interval[1]:.3f}] "
@@ -179,6 +179,8 @@ def _format_result(result: Any, path: Path, roi: tuple[int, int, int, int]) -> s
         ("clipped", f"{100 * d.clipped_fraction:.2f}%"),
         ("aliased / phase-sensitive", f"{d.aliased} / {d.phase_sensitive}"),
     ]
+    if result.lower_bound:
+        rows.insert(7, ("lower bound", result.bound_reason))
     if d.bar_angle_deg is not None:
         rows.append(("bar angle (deg)", f"{d.bar_angle_deg:.2f} +- {d.bar_angle_sd_deg or 0:.2f}"))
     if d.uncertainty_model is not None:
@@ -315,6 +317,18 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
     return linearise(codes, curve_for(doc, gain, bits)), linearisation_record(doc, gain, bits)
 
 
+def _print_extremes(names: tuple[str, ...], seed: int) -> None:
+    """The extremes bucket's table and the answer each of its buckets expects."""
+    from benchlab.benchmarks.bar_extremes import expected_answers, format_extremes, run_extremes
+
+    t0 = time.perf_counter()
+    outcomes = run_extremes(names, seed)
+    print(format_extremes(outcomes))
+    print(f"{len(outcomes) // len(names)} extreme ROIs per estimator, "
+          f"{time.perf_counter() - t0:.1f} s; ok = the expected answer:")
+    print(expected_answers())
+
+
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
@@ -340,6 +354,9 @@ def benchmark_command(args: argparse.Namespace) -> int:
         raise AnalysisInputError(f"--cases must be at least 10, got {n_cases}")
     if args.worst is not None and args.worst < 1:
         raise AnalysisInputError(f"--worst must be at least 1, got {args.worst}")
+    if args.extremes_only:
+        _print_extremes(names, args.seed)
+        return 0
     t0 = time.perf_counter()
     rows: list[Row] = []
     cases, scores = run_benchmark(n_cases=n_cases, seed=args.seed, estimators=names,
@@ -350,6 +367,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
         print()
         print(format_worst(cases, rows, args.worst))
     print(f"\n{len(cases)} synthetic ROIs (seed {args.seed}) per estimator, {elapsed:.1f} s")
+    print()
+    _print_extremes(names, args.seed)
     if not args.no_speed:
         shapes = ((40, 50), (100, 100), (200, 200)) if args.quick else (
             (40, 50), (100, 100), (200, 200), (500, 500), (1000, 1000))
@@ -446,6 +465,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--estimators", metavar="A,B", help="comma-separated estimators (default: all)"
     )
     b.add_argument("--no-speed", action="store_true", help="skip the ROI-size speed table")
+    b.add_argument("--extremes-only", action="store_true",
+                   help="only the extremes bucket (no noise, no blur, dark level 0, clipping, "
+                        "one-period and 1-px-wide ROIs, float TIFFs, 8-bit data in 16 bits)")
     b.add_argument(
         "--worst", type=positive_int, metavar="N",
         help="also list each estimator's N largest errors with the case parameters",

@@ -8,6 +8,7 @@ import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -303,6 +304,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
     if target is None:
         raise BenchlabError("analyze: no session folder given")
     t0 = time.perf_counter()
+    started = datetime.now(UTC)  # a version created before this is one the analysis matched
     estimator = getattr(args, "estimator", None)
     early = _open_prefetching(Path(target))
     # The catalogue update runs on its own thread: it imports the catalogue (and SQLite) while
@@ -330,7 +332,7 @@ def analyze_session_command(args: argparse.Namespace) -> int:
             early.stop_prefetch()
     elapsed = time.perf_counter() - t0
     try:
-        return _print_reanalysis(args, out, elapsed)
+        return _print_reanalysis(args, out, elapsed, started)
     finally:
         recorder.join()
 
@@ -354,7 +356,21 @@ class _CatalogueRecorder(threading.Thread):
             record_session(self.folder)
 
 
-def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> int:
+def matched_version(summary: Mapping[str, Any], started: datetime) -> int | None:
+    """The version a re-analysis that began at ``started`` matched (its results identical to
+    an existing version's, so none was written): the one returned was created before it."""
+    try:
+        created = datetime.fromisoformat(str(summary.get("created_at")))
+    except ValueError:
+        return None
+    version = summary.get("version")
+    if created < started and isinstance(version, int):
+        return version
+    return None
+
+
+def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float,
+                      started: datetime) -> int:
     from benchlab.session import read_results
 
     as_json = getattr(args, "json", False)
@@ -371,7 +387,8 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
         import json
 
         print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
-                          "partial": partial}))
+                          "partial": partial,
+                          "matched_version": matched_version(summary, started)}))
         if partial:
             print(f"benchlab: note: {note}", file=sys.stderr)
         return 0
@@ -383,6 +400,10 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float) -> in
     if partial:
         print(f"\nbenchlab: note: {note}")
     print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
+    matched = matched_version(summary, started)
+    if matched is not None:
+        print(f"identical to v{matched} (same frames, settings, software version and results): "
+              "no new version written")
     return 0
 
 

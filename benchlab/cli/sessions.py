@@ -35,6 +35,19 @@ NO_VALUE_MARKERS: dict[str, dict[str, Any]] = {
 NO_VALUE_WORDS = {"unresolved": "not resolved", "aliased": "aliased", "clipped": "clipped"}
 
 
+def _shown(figure: dict[str, Any]) -> dict[str, Any]:
+    """A catalogue figure as listed: words for no value, ``>= x`` for a lower bound (a clipped
+    reading, text "lower bound..."), else as stored."""
+    value, text = figure["value"], str(figure.get("text") or "")
+    if value is None:
+        return {**figure, "value": NO_VALUE_WORDS.get(text, "-")}
+    if text.startswith("lower bound"):
+        from benchlab.analysis.bars.result import AT_LEAST
+
+        return {**figure, "value": f"{AT_LEAST} {_cell(value)}"}
+    return figure
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return ""
@@ -123,8 +136,7 @@ def show_command(args: argparse.Namespace) -> int:
     print(_table(info["results"], ("version", "estimator", "created_at")))
     if info["figures"]:
         print(f"\nfigures of v{info['results_version']}")
-        figures = [{**f, "value": NO_VALUE_WORDS.get(f["text"], "-")} if f["value"] is None
-                   else f for f in info["figures"]]
+        figures = [_shown(f) for f in info["figures"]]
         print(_table(figures, ("view", "element", "orientation", "freq_lp_per_mm",
                                "quantity", "value", "text")))
     return 0
@@ -185,8 +197,7 @@ def trend_command(args: argparse.Namespace) -> int:
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
                                quantity=args.quantity, **_filters(args))
     rows = [p._asdict() for p in points]
-    shown = [{**r, "value": NO_VALUE_WORDS.get(r["text"], "-")} if r["value"] is None else r
-             for r in rows]
+    shown = [_shown(r) for r in rows]
     what = " ".join(x for x in (args.view, args.element or "",
                                 f"{args.freq:g} lp/mm" if args.freq else "",
                                 args.orientation or "", args.quantity) if x)

@@ -286,6 +286,7 @@ def _read_frames(
     (its file, and page of a multi-page TIFF) and the pages per file."""
     import numpy as np
 
+    from benchlab.analysis.sfr.frames import duplicate_frames
     from benchlab.analysis.sfr.measure import full_scale_of, full_scale_of_frame
 
     regions, labels, pages = [], [], []
@@ -314,6 +315,13 @@ def _read_frames(
         raise AnalysisInputError(f"the images mix pixel types ({kinds}): not frames of one "
                                  "camera setting")
     region = np.concatenate(regions, axis=0)
+    twice = duplicate_frames(region)
+    if twice is not None:  # two names (or pages) for one frame: refused before any analysis
+        first, second = (labels[k] for k in twice)
+        raise AnalysisInputError(
+            f"{second}: identical pixel for pixel to {first} in roi "
+            f"{','.join(map(str, roi))}: one frame saved twice, not a second exposure "
+            "(averaging them would claim the noise of two frames)")
     # A benchlab frame's own bit depth is the camera's ceiling (12-bit data whose ROI never
     # reached 4095 is still 12-bit, and a 10-bit camera's 1023 is not a guess from codes);
     # other images, or files that do not all carry it, fall back to the codes.

@@ -40,6 +40,7 @@ class RoiReading:
     warnings: str
     estimator: str
     angle_deg: float | None = None  # measured bar direction, when the results carry it
+    lower_bound: bool = False  # the modulation is a lower bound (a clipped reading)
 
     @property
     def state(self) -> str:
@@ -65,7 +66,7 @@ class RoiReading:
             aliased=bool(row.get(f"{orientation}_aliased", row.get("aliased"))),
             uncertainty=f("uncertainty"),
             warnings=str(row.get(f"{orientation}_warnings") or ""), estimator=estimator,
-            angle_deg=angle)
+            angle_deg=angle, lower_bound=row.get(f"{orientation}_lower_bound") is True)
 
 
 def bar_direction_rad(crop: npt.NDArray[np.float64]) -> float:
@@ -115,6 +116,8 @@ def reading_text(r: RoiReading) -> str:
         return "not measurable" + (f" ({r.warnings})" if r.warnings else "")
     if not r.resolved:
         return "not resolved"
+    if r.lower_bound:  # clipped: the contrast is the reading or more, no interval around it
+        return f"modulation \u2265 {r.modulation:.3f} (lower bound: a level is clipped)"
     text = f"modulation {r.modulation:.3f}"
     if r.uncertainty is not None and math.isfinite(r.uncertainty):
         lo = max(0.0, r.modulation - Z95 * r.uncertainty)

@@ -8,6 +8,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from benchlab.analysis.bars.result import format_modulation
+
 Column = tuple[str, str, str]  # (key, header, format: "", ".3f", ...)
 
 
@@ -116,6 +118,20 @@ def cell(value: Any, fmt: str) -> str:
     return str(value)
 
 
+def is_lower_bound(row: Mapping[str, Any], key: str) -> bool:
+    """Whether the row's ``key`` (``modulation``, ``<orient>_modulation`` or
+    ``averaged_modulation``) was stored as a lower bound (a clipped reading): its flag is the
+    key with ``_lower_bound`` for ``_modulation`` (``lower_bound`` alone for ``modulation``),
+    or, for Table 4.15's average, ``averaged_modulation_lower_bound``."""
+    if key == "modulation":
+        return row.get("lower_bound") is True
+    if key == "averaged_modulation":
+        return row.get("averaged_modulation_lower_bound") is True
+    if key.endswith("_modulation"):
+        return row.get(key.removesuffix("_modulation") + "_lower_bound") is True
+    return False
+
+
 #: A bar-set cell with no reading (modulation None, not resolved): the ROI could not give one
 #: (less than one bar period, a set the chart finder rejected, ...); its warnings say why.
 NOT_MEASURABLE = "not measurable"
@@ -144,6 +160,8 @@ def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
             return "aliased"
         if row.get(f"{orient}_resolved") is False:
             return NOT_MEASURABLE if row.get(key) is None else "not resolved"
+    if is_lower_bound(row, key) and isinstance(row.get(key), int | float):
+        return format_modulation(float(row[key]), lower_bound=True, fmt=fmt or ".3f")
     if row.get(key) is None and row.get("clipped_pixels"):
         return "clipped"  # a radiometry row whose mean is only a lower bound: no number
     return cell(row.get(key), fmt)

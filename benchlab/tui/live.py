@@ -18,6 +18,7 @@ from textual.timer import Timer
 from textual.widgets import Footer
 from textual.worker import get_current_worker
 
+from benchlab.analysis.bars.result import format_modulation
 from benchlab.bench import plain_target
 from benchlab.tui import services
 from benchlab.tui.drawing.chart_overlay import (
@@ -293,7 +294,7 @@ class LiveScreen(Screen[None]):
         def num(value: float | None, fmt: str) -> str:
             return "n/a" if value is None else format(value, fmt)
 
-        mod = num(r.modulation, ".3f") if r.resolved else "not resolved"
+        mod = format_modulation(r.modulation, r.resolved, r.lower_bound)
         clipped = num(None if r.clipped_fraction is None else 100 * r.clipped_fraction, ".2f")
         lines = [
             f"{r.roi.label()}",

@@ -84,6 +84,8 @@ class LiveReading:
     note: str = ""
     #: Dark and bright peaks of the ROI histogram (marked on the histogram widget).
     peaks: tuple[float | None, float | None] = (None, None)
+    #: The modulation is a lower bound (clipped bars): shown as ">= x", never as a value.
+    lower_bound: bool = False
 
 
 def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDArray[np.float32]:
@@ -291,12 +293,13 @@ def live_reading(
     )
     note = ""
     dark = bright = modulation = clipped = None
-    resolved = False
+    resolved = lower_bound = False
     try:
         result = estimate_modulation(
             roi_pixels, estimator=estimator, orientation=orientation, max_code=max_code
         )
         modulation, resolved = result.modulation, result.resolved
+        lower_bound = result.lower_bound
         clipped = result.diagnostics.clipped_fraction
         dark, bright = result.dark, result.bright
         if result.warnings:
@@ -317,6 +320,7 @@ def live_reading(
         preview_roi=preview_roi, roi_pixels=roi_pixels, max_code=max_code, dark=dark,
         bright=bright, modulation=modulation, resolved=resolved, clipped_fraction=clipped,
         sharpness=focus, exposure_ms=exposure_ms, gain=gain, note=note, peaks=peaks,
+        lower_bound=lower_bound,
     )
 
 

@@ -160,6 +160,8 @@ def _cells(res: ModulationResult) -> dict[str, Any]:
         "resolved": res.resolved,
         "uncertainty": res.uncertainty,
         "warnings": "; ".join(res.warnings),
+        # Only when set: rows of values stay as they were (a re-analysis matches them).
+        **({"lower_bound": True} if res.lower_bound else {}),
     }
 
 
@@ -562,6 +564,8 @@ def _forward_rows(forward: npt.NDArray[Any], params: MtfParams, est: str) -> _Fo
             row.update({f"{orient}_{k}": r[k] for k in
                         ("dark", "bright", "modulation", "resolved", "uncertainty",
                          "warnings", "estimator")})
+            if r.get("lower_bound"):
+                row[f"{orient}_lower_bound"] = True
             row[f"{orient}_image_lp_per_mm"] = r["image_lp_per_mm"]
             row[f"{orient}_aliased"] = r["aliased"]
             row[f"{orient}_roi"] = r["roi"]
@@ -593,6 +597,8 @@ def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfP
             r = analyze_radial_frame(px, f, orient, params, est, centre)
             row.update({f"{orient}_{k}": r[k] for k in
                         ("dark", "bright", "modulation", "resolved", "uncertainty", "warnings")})
+            if r.get("lower_bound"):
+                row[f"{orient}_lower_bound"] = True
         t412.append(row)
     return t412
 
@@ -628,7 +634,7 @@ def _monte_carlo_rows(
     """
     # (frequency, modulation, resolved) per view and orientation; aliased readings are no
     # readings. A not-resolved one stays (it is the finding at its frequency) but is never a 0.
-    measured: dict[tuple[str, str], list[tuple[float, float, bool]]] = {}
+    measured: dict[tuple[str, str], list[tuple[float, float, bool, bool]]] = {}
     for view, table in (("forward", t411), ("radial", t412)):
         for r in table:
             for orient in ORIENTATIONS:
@@ -637,7 +643,8 @@ def _monte_carlo_rows(
                 if m is None or r.get(f"{orient}_aliased", r["aliased"]):
                     continue
                 resolved = bool(r.get(f"{orient}_resolved", float(m) != 0.0))
-                measured.setdefault((view, orient), []).append((f, float(m), resolved))
+                bound = bool(r.get(f"{orient}_lower_bound"))
+                measured.setdefault((view, orient), []).append((f, float(m), resolved, bound))
     source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
     for mc in load_monte_carlo_table(source):
@@ -650,7 +657,7 @@ def _monte_carlo_rows(
                     picks.append(pick)
         if len(picks) < 2:
             continue  # nothing measured near this prediction's frequency in one orientation
-        (f_s, s, s_ok), (f_t, t, t_ok) = picks
+        (f_s, s, s_ok, s_bound), (f_t, t, t_ok, t_bound) = picks
         row: dict[str, Any] = {
             "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
             "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s if s_ok else None,
@@ -660,6 +667,12 @@ def _monte_carlo_rows(
             avg = averaged_mtf(s, t)
             row["averaged_modulation"] = round(avg.average, 6)
             verdict = monte_carlo_band(avg.average, mc)[1]
+            if s_bound or t_bound:
+                # A half read as a lower bound (clipped): so is the average, and the verdict
+                # places the bound - the true average is there or higher.
+                row.update({"sagittal_lower_bound": s_bound, "tangential_lower_bound": t_bound,
+                            "averaged_modulation_lower_bound": True})
+                verdict = f"at least: {verdict}"
         else:
             # No number for an unresolved reading: the average is unknown, only bounded below
             # by the resolved half (a contrast is never negative).

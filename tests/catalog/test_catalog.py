@@ -36,6 +36,16 @@ def _set_modulation(session: Path, element: str, value: float) -> None:
     path.write_text(json.dumps(rows))
 
 
+def _unlike_any_reanalysis(session: Path) -> None:
+    """Every stored version given a value a re-analysis does not repeat, so that one adds a
+    version (an identical re-analysis matches the version it repeats and adds none)."""
+    for version in (session / "results").iterdir():
+        path = version / "forward_view_modulation.json"
+        rows = json.loads(path.read_text())
+        rows[0]["sagittal_modulation"] = 0.5
+        path.write_text(json.dumps(rows))
+
+
 def test_a_run_an_analysis_and_a_report_update_the_catalogue(
     source: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -215,6 +225,8 @@ for i in range(n):
 def test_concurrent_runs_write_while_a_batch_reads(source: Path, tmp_path: Path) -> None:
     root = tmp_path / "root"
     batch = [copy_session(source, root / f"b{i}") for i in range(4)]
+    for s in batch:
+        _unlike_any_reanalysis(s)
     v = len(list((source / "results").iterdir()))  # results versions of every copy
     Catalog.open(root).close()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
@@ -320,6 +332,8 @@ def test_a_batch_parent_records_each_root_once(
 
     a = [copy_session(source, tmp_path / "a" / f"s{i}") for i in range(3)]
     b = copy_session(source, tmp_path / "b" / "s")
+    for s in (*a, b):
+        _unlike_any_reanalysis(s)
     v = len(list((source / "results").iterdir()))
     Catalog.open(tmp_path / "a").close()  # indexes the copies as they are: version v
     for s in (*a, b):

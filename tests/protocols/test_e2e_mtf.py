@@ -136,12 +136,17 @@ def test_reanalysis_adds_versions_and_never_touches_frames(full_run: RunOutcome)
     session = Session.open(path)
     hashes = session.frames()
     stamps = {f: (path / f).stat().st_mtime_ns for f in hashes}
-    v2 = reanalyze(path)  # same estimator, same frames: the same numbers
-    assert tables_of(v2) == tables_of(full_run.results_path)
+    before = sorted(p.name for p in (path / "results").iterdir())
+    again = reanalyze(path)  # same estimator, same frames: the same numbers
+    assert tables_of(again) == tables_of(full_run.results_path)
     v3 = reanalyze(path, estimator="sinefit")
     assert json.loads((v3 / "summary.json").read_text())["estimator"] == "sinefit"
     assert main(["analyze", str(path), "--estimator", "variance"]) == 0
-    assert [p.name for p in sorted((path / "results").iterdir())] == ["v1", "v2", "v3", "v4"]
+    # Another estimator adds a version; the same one adds one only if no version holds its
+    # results byte for byte (it matches that one otherwise).
+    after = sorted(p.name for p in (path / "results").iterdir())
+    assert set(before) <= set(after)
+    assert len(after) == len(before) + 2 + (again.name not in before)
     session = Session.open(path)
     assert session.frames() == hashes and session.verify_frames() == []
     assert {f: (path / f).stat().st_mtime_ns for f in hashes} == stamps

@@ -72,14 +72,16 @@ def test_reanalysis_elsewhere_uses_the_sessions_copy_or_refuses(
 
     # From B, whose calibration/response-v1.json is another curve: the session's copy is used.
     monkeypatch.chdir(b)
+    # The run's results byte for byte: the re-analysis matches v1 and adds no version.
     assert main(["analyze", str(session)]) == 0
-    assert f"sha256 {sha}" in capsys.readouterr().out
-    assert _rows(session / "results" / "v2") == v1
+    out = capsys.readouterr().out
+    assert f"sha256 {sha}" in out and "identical to v1" in out
     # The original file edited afterwards changes nothing either.
     original.write_text(_calibration([10.0, 150.0, 400.0]))
     assert main(["analyze", str(session)]) == 0
-    assert _rows(session / "results" / "v3") == v1
-    capsys.readouterr()
+    assert "identical to v1" in capsys.readouterr().out
+    assert sorted(p.name for p in (session / "results").iterdir()) == ["v1"]
+    assert _rows(session / "results" / "v1") == v1
 
     # The session's copy changed: refused, naming the file and both sha256; nothing written.
     copy = session / "calibration" / "response-v1.json"
@@ -89,7 +91,7 @@ def test_reanalysis_elsewhere_uses_the_sessions_copy_or_refuses(
     err = capsys.readouterr().err
     assert err.startswith("benchlab: error:") and str(copy) in err
     assert sha in err and now in err
-    assert not (session / "results" / "v4").exists()
+    assert sorted(p.name for p in (session / "results").iterdir()) == ["v1"]
 
 
 def test_session_without_a_copy_is_refused_when_the_file_differs(

@@ -139,8 +139,10 @@ def test_every_frame_taken_is_not_partial_and_resume_finishes_partial_results(
         tmp_path: Path) -> None:
     path = _stopped_after_last_step(tmp_path)
     assert Session.open(path).status == "interrupted"
-    doc = json.loads((reanalyze(path) / "summary.json").read_text())
+    again = reanalyze(path)
+    doc = json.loads((again / "summary.json").read_text())
     assert doc["partial"] is False  # every acquisition step is done
+    assert again.name == "v1"  # the run's own results, byte for byte: no new version
     # Results an older version wrote as partial for such a session: the resume that finds
     # every step done writes final results instead of ending on partial ones.
     session = Session.open(path)
@@ -150,7 +152,7 @@ def test_every_frame_taken_is_not_partial_and_resume_finishes_partial_results(
     session.release()
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
         outcome = resume_run(path, bench=bench, prompt=yes).run()
-    assert outcome.results_path.name == "v4"  # v1 the run, v2 analyze, v3 partial
+    assert outcome.results_path.name == "v3"  # v1 the run (and the re-analysis), v2 partial
     assert outcome.summary["partial"] is False
     assert Session.open(path).status == "completed"
 

@@ -244,3 +244,23 @@ def test_kill_9_while_journalling_leaves_a_readable_session(tmp_path: Path) -> N
     assert len(ticks) > 10 and ticks == list(range(len(ticks)))
     reopened.mark_step_completed("after")
     assert "after" in Session.open(s.path).completed_steps()
+
+
+def test_load_frame_checks_the_bit_depth_as_the_analysis_paths_do(tmp_path: Path) -> None:
+    """A recorded frame whose codes its own ``bits`` rule out (8-bit metadata, codes to 4095)
+    is refused on load, naming the file, the field and the code - as ``benchlab analyze IMAGE``
+    refuses the same file (issue 29); the frame on disk is untouched."""
+    s = _new(tmp_path)
+    ok = s.save_frame("s1", "fine", _frame(), {"bits": 8, "exposure_ms": 1.0})
+    bad_pixels = np.random.default_rng(1).integers(0, 4096, (16, 20), dtype=np.uint16)
+    bad = s.save_frame("s1", "bad", bad_pixels, {"bits": 8, "exposure_ms": 1.0})
+    before = sha256_file(bad)
+    pixels, meta = s.load_frame("s1", "fine")
+    assert pixels.dtype == np.uint8 and meta["bits"] == 8
+    with pytest.raises(storage.FrameFileError, match=r"metadata says 8-bit but the frame holds "
+                                                     r"codes up to \d+ \(> 255\)") as info:
+        s.load_frame("s1", "bad")
+    assert str(bad) in str(info.value)
+    with pytest.raises(storage.FrameFileError, match="metadata says 8-bit"):
+        storage.read_tiff_frame(bad)  # the analysis paths' reader says the same
+    assert sha256_file(bad) == before and ok.is_file()

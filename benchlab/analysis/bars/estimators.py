@@ -27,6 +27,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars.extremes import honest_reading
 from benchlab.analysis.bars.geometry import measure_geometry
 from benchlab.analysis.bars.histogram import histogram_peak, manual_peaks
 from benchlab.analysis.bars.profilefit import _model_sd, profile_fit
@@ -609,13 +610,14 @@ def _contrast_checked(estimator: PreparedEstimator, name: str) -> PreparedEstima
     :data:`~benchlab.analysis.bars.roi.MIN_CONTRAST` (e.g. values ~1e-200): not resolved, with a
     warning saying which. Flat float data gave sinefit and variance rounding residue (1e-17)
     to read as bars above a noise of 0; below the bound the fits' squares underflow
-    (profilefit divided by zero, sinefit read 0.215 for 0.238)."""
+    (profilefit divided by zero, sinefit read 0.215 for 0.238). Every other reading passes
+    :func:`~benchlab.analysis.bars.extremes.honest_reading` (clipping: a bound)."""
     def run(prep: PreparedROI) -> ModulationResult:
         if prep.vmax == prep.vmin:
             return unresolved(name, prep.diagnostics(), (*prep.warnings, FLAT_WARNING))
         if prep.contrast_underflows:
             return unresolved(name, prep.diagnostics(), (*prep.warnings, TINY_CONTRAST_WARNING))
-        return estimator(prep)
+        return honest_reading(prep, estimator(prep))
     return run
 
 

@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars.extremes import honest_reading
 from benchlab.analysis.bars.model import edge_response
 from benchlab.analysis.bars.projection import across_coordinate
 from benchlab.analysis.bars.result import (
@@ -79,7 +80,7 @@ from benchlab.analysis.bars.result import (
     resolved,
     unresolved,
 )
-from benchlab.analysis.bars.roi import prepare_roi
+from benchlab.analysis.bars.roi import PreparedROI, prepare_roi
 from benchlab.analysis.mtf.jinc import jinc
 
 FloatArray = npt.NDArray[np.float64]
@@ -537,7 +538,8 @@ def fit_three_bars(
     if n < n_params + 1 + MIN_DOF:
         warnings.append(f"too few pixels: {n} unclipped, a fit of the levels, shading and blur "
                         f"needs at least {n_params + 1 + MIN_DOF}")
-        return ThreeBarReading(unresolved(NAME, diag, warnings))
+        r = unresolved(NAME, diag, warnings)
+        return ThreeBarReading(honest_reading(prep, r) if noise_floor == 0.0 else r)
     base = np.stack(base_cols, axis=1)
     quantum_sd = max(prep.quantisation_sd, float(noise_floor))
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
@@ -553,6 +555,7 @@ def fit_three_bars(
     # The tabulated patterns (MBs per set) served only the fits; the reading keeps the state
     # for a later blur prior, which needs the fits alone.
     state.t_across = state.t_along = state.t_along_shape = None
+    state.prep = prep if noise_floor == 0.0 else None
     return state.conclude(blur_prior_px)
 
 
@@ -571,6 +574,9 @@ class _FitState:
         the least noise the priors' scale assumes (:func:`fit_three_bars`)."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
         self.dark_bars = dark_bars
+        #: The ROI, for :func:`~benchlab.analysis.bars.extremes.honest_reading` (None: a
+        #: noise-free stand-in read with a noise floor, whose extremes are not its frame's).
+        self.prep: PreparedROI | None = None
         self.phase_gap = _phase_gap(u, w)
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
@@ -774,12 +780,12 @@ class _FitState:
         if not abs(depth) > RESOLVED_Z * depth_sd:
             warnings.append(f"bar depth {abs(depth):.3g} within {RESOLVED_Z:g} standard errors "
                             f"({depth_sd:.3g}) of zero: bars not resolved")
-            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+            return ThreeBarReading(self._honest(unresolved(NAME, diag_fit, warnings)), sigma_best,
                                    self.blur_range, self)
         dark, bright = min(bar, space), max(bar, space)
         if dark < 0 or dark + bright <= 0:
             warnings.append("fitted dark level below zero: contrast undefined")
-            return ThreeBarReading(unresolved(NAME, diag_fit, warnings), sigma_best,
+            return ThreeBarReading(self._honest(unresolved(NAME, diag_fit, warnings)), sigma_best,
                                    self.blur_range, self)
         # Eq. 2.9 with its sign: the level at the bars' centre against the spaces' (dark bars
         # have depth < 0, a negative target's bright bars > 0); negative = contrast reversed
@@ -841,7 +847,12 @@ class _FitState:
                 warnings=tuple(warnings))
         else:
             result = resolved(NAME, dark, bright, min(modulation, 1.0), diag_fit, sd, warnings)
-        return ThreeBarReading(result, sigma_best, self.blur_range, self, share_best)
+        return ThreeBarReading(self._honest(result), sigma_best, self.blur_range, self,
+                               share_best)
+
+    def _honest(self, result: ModulationResult) -> ModulationResult:
+        """``result`` through :func:`~benchlab.analysis.bars.extremes.honest_reading`."""
+        return result if self.prep is None else honest_reading(self.prep, result)
 
 
 def _phase_gap(u: FloatArray, bar_width_px: float) -> float:

@@ -12,6 +12,39 @@ import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+#: The sign a lower bound is shown with (tables, report, catalogue, CLI).
+AT_LEAST = "\u2265"
+#: The same in ASCII, accepted wherever a bound is read back from text.
+AT_LEAST_ASCII = ">="
+
+
+def format_modulation(modulation: float | None, resolved: bool = True,
+                      lower_bound: bool = False, measurable: bool = True,
+                      fmt: str = ".3f") -> str:
+    """A modulation as text: ``"0.970"``, ``"\u2265 0.970"`` for a lower bound, ``"not resolved"``
+    or ``"not measurable"`` - never a bound shown as a plain value.
+
+    Parameters
+    ----------
+    modulation : float or None
+        The reading (``None``: not resolved).
+    resolved, lower_bound, measurable : bool
+        The reading's flags (:class:`ModulationResult`).
+    fmt : str
+        Number format.
+
+    Returns
+    -------
+    str
+    """
+    if not measurable:
+        return "not measurable"
+    if modulation is None or not resolved:
+        return "not resolved"
+    text = format(float(modulation), fmt)
+    return f"{AT_LEAST} {text}" if lower_bound else text
+
+
 #: Frequencies (cycles/px) from which sampling phase visibly changes a bar reading.
 PHASE_SENSITIVE_CYCLES_PER_PX = 0.35
 #: Nyquist frequency in cycles per pixel.
@@ -144,6 +177,15 @@ class ModulationResult:
         False when the ROI cannot give a reading at all (it spans less than one bar period):
         not a finding about the bars, so tables show "not measurable", never the thesis's N/A
         0 (:func:`not_measurable`).
+    lower_bound : bool
+        True when ``modulation`` is a lower bound of the bars' contrast, not an estimate of it:
+        the data cannot say how far the contrast goes beyond it (a bright level clipped at the
+        saturation code, a dark level clipped at 0, or bars plainly resolved that the
+        estimator's model could not fit; :mod:`benchlab.analysis.bars.extremes`). Shown as
+        ``>= 0.970``, never as a plain value; ``bound_reason`` says why. ``interval`` stays the
+        reading's own: the contrast lies at or above its lower end.
+    bound_reason : str
+        Why ``modulation`` is a bound (empty when it is a value).
     """
 
     estimator: str
@@ -158,6 +200,8 @@ class ModulationResult:
     fundamental_modulation: float | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
     measurable: bool = True
+    lower_bound: bool = False
+    bound_reason: str = ""
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.modulation):
@@ -166,6 +210,15 @@ class ModulationResult:
             self.modulation != 0.0 or self.dark is not None or self.bright is not None
         ):
             raise ValueError("an unresolved result has modulation 0 and no dark/bright levels")
+        if self.lower_bound and not (self.resolved and self.bound_reason):
+            raise ValueError("a lower bound is a resolved reading with its reason")
+
+    @property
+    def shown(self) -> str:
+        """The reading as a person reads it: ``"0.970"``, ``">= 0.970"`` for a lower bound,
+        ``"not resolved"`` or ``"not measurable"`` (:func:`format_modulation`)."""
+        return format_modulation(self.modulation, self.resolved, self.lower_bound,
+                                 self.measurable)
 
     def with_updates(self, **changes: Any) -> ModulationResult:
         """Copy with some fields replaced (``diagnostics`` fields via ``diagnostics=...``)."""
@@ -186,6 +239,9 @@ class ModulationResult:
             "warnings": list(self.warnings),
             "diagnostics": self.diagnostics.to_dict(),
             "measurable": self.measurable,
+            "lower_bound": self.lower_bound,
+            "bound_reason": self.bound_reason,
+            "shown": self.shown,
         }
 
 

@@ -306,7 +306,12 @@ def detect_plateau(
 
 def detect_code_step(values: npt.NDArray[np.generic]) -> float:
     """Greatest common spacing of integer codes (1 for ordinary data, 16 for 12-bit data stored
-    MSB-aligned in 16 bits); 1 when fewer than two distinct values."""
+    MSB-aligned in 16 bits); 1 when fewer than two distinct values.
+
+    A stored code step comes from shifting a sensor's codes left by whole bits, so it is a power
+    of two: the largest one dividing the spacing is kept. A noise-free two-level pattern (codes
+    42 and 78) has a spacing of 36, which is the bars' contrast, not a step: taken as one, its
+    rounding noise (10 codes) hid the bars."""
     ints = values if values.dtype.kind in "ui" else values.astype(np.int64)
     head = ints[:64]  # odd and even codes among the first few: spacing 1
     n_odd = np.count_nonzero(np.bitwise_and(head, 1))
@@ -317,7 +322,7 @@ def detect_code_step(values: npt.NDArray[np.generic]) -> float:
         return 1.0
     ints = ints.astype(np.int64)
     step = int(np.gcd.reduce(ints - ints.min()))
-    return float(max(step, 1))
+    return float(max(step & -step, 1))
 
 
 def _diff_sigma(img: npt.NDArray[np.float64], ax: int) -> float:

@@ -28,6 +28,7 @@ reported as such, not as "other structure" in their mean.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -132,6 +133,23 @@ class FramesCheck:
     frames: int
     max_shift_px: float
     gain_spread: float
+
+
+def duplicate_frames(stack: npt.NDArray[np.generic]) -> tuple[int, int] | None:
+    """The first two frames of ``stack`` (frames, rows, cols) that are identical pixel for
+    pixel, or ``None``. Two exposures of a camera never are (the noise differs): identical
+    pixels are one frame saved twice (two file names, a copied page), and averaging them would
+    claim the noise of two frames. (Noise-free synthetic frames are identical by design:
+    :func:`average_frames` takes them; ``benchlab sfr`` refuses such files.)"""
+    seen: dict[bytes, int] = {}
+    for k in range(stack.shape[0]):
+        frame = np.ascontiguousarray(stack[k])
+        key = hashlib.blake2b(frame.tobytes(), digest_size=16).digest()
+        first = seen.get(key)
+        if first is not None and np.array_equal(stack[first], frame):
+            return first, k
+        seen.setdefault(key, k)
+    return None
 
 
 def average_frames(stack: npt.ArrayLike, normal_theta_rad: float | None = None) -> FramesCheck:

@@ -313,3 +313,25 @@ def test_cli_text_and_plot_title_name_every_frame(
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == f"image              {files['a']}, {files['b']}, {files['c']}"
     assert titles == ["a.tiff + 2 more roi 0,0,100,100"]
+
+
+def test_cli_refuses_two_files_with_identical_pixels(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two file names (or a copied page) for one frame: refused, both named, nothing written -
+    averaging them would claim the noise of two frames (issue 29)."""
+    stack = _frames(2, 20.0, 11).astype(np.uint16)
+    a, b, c = tmp_path / "a.tiff", tmp_path / "copy.tiff", tmp_path / "other.tiff"
+    tifffile.imwrite(a, stack[0], photometric="minisblack")
+    tifffile.imwrite(b, stack[0].copy(), photometric="minisblack")
+    tifffile.imwrite(c, stack[1], photometric="minisblack")
+    assert main(["sfr", str(a), str(c), "--roi", "0,0,100,100", "--json"]) == 0
+    capsys.readouterr()
+    assert main(["sfr", str(a), str(c), str(b), "--roi", "0,0,100,100"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert f"{b}: identical pixel for pixel to {a}" in captured.err
+    pages = tmp_path / "pages.tiff"
+    tifffile.imwrite(pages, np.stack([stack[0], stack[0]]), photometric="minisblack")
+    assert main(["sfr", str(pages), "--roi", "0,0,100,100"]) == 1
+    assert "page 2 of 2: identical pixel for pixel to" in capsys.readouterr().err
