@@ -315,13 +315,6 @@ def _read_frames(
         raise AnalysisInputError(f"the images mix pixel types ({kinds}): not frames of one "
                                  "camera setting")
     region = np.concatenate(regions, axis=0)
-    twice = duplicate_frames(region)
-    if twice is not None:  # two names (or pages) for one frame: refused before any analysis
-        first, second = (labels[k] for k in twice)
-        raise AnalysisInputError(
-            f"{second}: identical pixel for pixel to {first} in roi "
-            f"{','.join(map(str, roi))}: one frame saved twice, not a second exposure "
-            "(averaging them would claim the noise of two frames)")
     # A benchlab frame's own bit depth is the camera's ceiling (12-bit data whose ROI never
     # reached 4095 is still 12-bit, and a 10-bit camera's 1023 is not a guess from codes);
     # other images, or files that do not all carry it, fall back to the codes.
@@ -330,6 +323,14 @@ def _read_frames(
         detail = ", ".join(f"{p.name}: {c:g}" for p, c in ceilings.items())
         raise AnalysisInputError(f"the frames were taken at different bit depths ({detail}): "
                                  "not frames of one camera setting")
+    twice = duplicate_frames(region)
+    if twice is not None:  # two names (or pages) for one frame: refused before any analysis
+        # (after the settings check: frames of two settings are refused for that first)
+        first, second = (labels[k] for k in twice)
+        raise AnalysisInputError(
+            f"{second}: identical pixel for pixel to {first} in roi "
+            f"{','.join(map(str, roi))}: one frame saved twice, not a second exposure "
+            "(averaging them would claim the noise of two frames)")
     top = known.pop() if len(known) == 1 and None not in known else full_scale_of(region)
     return (region[0] if region.shape[0] == 1 else region), top, labels, pages
 
