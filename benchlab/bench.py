@@ -229,6 +229,8 @@ class Bench:
         self.sim_led: SimulatedSlc | None = None
         self.sim_stage: SimulatedAptStage | None = None
         self._mounted: object = None
+        #: Where a stage-carried target sits: object distance = this + stage position (mm).
+        self._object_offset_mm: float | None = None
         self._camera_settings: dict[str, Any] = {}
         self._camera_lost = False
 
@@ -392,6 +394,15 @@ class Bench:
         if self.world is not None:
             self.world.mount(target)
 
+    def carry_target(self, object_offset_mm: float | None) -> None:
+        """The mounted target rides on the stage carriage: its object distance is
+        ``object_offset_mm`` + the stage position (depth of field). None: it does not."""
+        self._object_offset_mm = None if object_offset_mm is None else float(object_offset_mm)
+
+    @property
+    def object_offset_mm(self) -> float | None:
+        return self._object_offset_mm
+
     def place_led_by_hand(self, position_mm: float) -> None:
         """The operator moved the LED (no stage): the simulated world follows."""
         if self.world is not None:
@@ -404,6 +415,8 @@ class Bench:
     def state(self) -> dict[str, Any]:
         """What the bench knows about itself right now (frame metadata, scenes)."""
         st: dict[str, Any] = {"target": plain_target(self._mounted)}
+        if self._object_offset_mm is not None:
+            st["object_offset_mm"] = self._object_offset_mm
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}
