@@ -33,6 +33,7 @@ COMMAND_MODULES = (
     "benchlab.cli.config",  # config init, config show
     "benchlab.cli.startup",  # benchmark startup
     "benchlab.cli.soak",  # benchmark soak
+    "benchlab.cli.depth",  # benchmark depth (run depth is in cli.procedures)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module

@@ -68,6 +68,9 @@ class ThroughFocusLens:
         S minus T best-focus vergence on axis (1/mm).
     tilt_per_mm2
         Best-focus vergence gradient (1/mm per mm) along the image x (columns) from the centre.
+    lens_blur_scale
+        Factor on the lens's own blur table (the scene's ``blur``) at best focus: < 1 a
+        sharper lens.
     """
 
     focal_length_mm: float = 2.8
@@ -78,10 +81,11 @@ class ThroughFocusLens:
     astigmatism_per_mm2: float = 0.0
     axial_astigmatism_per_mm: float = 0.0
     tilt_per_mm2: float = 0.0
+    lens_blur_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("focal_length_mm", "pupil_diameter_mm", "best_focus_mm",
-                     "reference_magnification"):
+                     "reference_magnification", "lens_blur_scale"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -154,6 +158,7 @@ class DefocusedUsafScene(UsafScene):
 
     def sigmas_px(self, bars: BarGroup | PosedBarSet) -> tuple[float, float]:
         sig_r, sig_c = super().sigmas_px(bars)
+        sig_r, sig_c = sig_r * self.lens.lens_blur_scale, sig_c * self.lens.lens_blur_scale
         x, y = _image_xy_mm(bars.centre_rc)
         d_t = self.lens.defocus_sigma_px(self.distance_mm, x, y, "tangential")
         d_s = self.lens.defocus_sigma_px(self.distance_mm, x, y, "sagittal")
@@ -168,7 +173,7 @@ class DefocusedEdgeScene(EdgeScene):
     distance_mm: float = 60.0
 
     def side_sigma_px(self, square: SlantedSquare, theta_rad: float) -> float:
-        base = super().side_sigma_px(square, theta_rad)
+        base = super().side_sigma_px(square, theta_rad) * self.lens.lens_blur_scale
         half = square.side_px / 2.0
         mid = (square.centre_rc[0] + half * math.sin(theta_rad),
                square.centre_rc[1] + half * math.cos(theta_rad))

@@ -124,8 +124,7 @@ def truth_rows(params: DepthParams, labels: Sequence[str]) -> list[dict[str, Any
     return rows
 
 
-def truth_astigmatism(params: DepthParams, truth: Sequence[dict[str, Any]]
-                      ) -> dict[tuple[str, float], float]:
+def truth_astigmatism(truth: Sequence[dict[str, Any]]) -> dict[tuple[str, float], float]:
     """S minus T truth best focus per (square, frequency), means over the sides."""
     acc: dict[tuple[str, float, str], list[float]] = {}
     for r in truth:

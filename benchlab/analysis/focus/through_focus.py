@@ -4,23 +4,26 @@ and the depth of field, with 95 % intervals.
 The model. Defocus by an object at distance ``z`` when the lens is focused at ``z*`` spreads a
 point over a blur whose width is proportional to ``|1/z - 1/z*|`` (thin lens, sensor fixed; see
 :mod:`benchlab.scenes.focus`). For a Gaussian blur added in quadrature to the lens's own, the
-MTF at a frequency is ``exp(-k sigma^2)``, so ``ln MTF`` is exactly a parabola in the object
-vergence ``u = 1/z``::
+MTF at a frequency is ``exp(-k sigma^2)``, so ``ln MTF`` is a parabola in the object vergence
+``u = 1/z``. On a bench the field point moves in the image as the magnification changes
+(``h ~ 1/z``), and the lens's own blur and its best focus change with ``h``: ``ln MTF`` becomes
+a low-order polynomial in ``u`` (a quartic when the blur and the best-focus vergence vary with
+``h^2``). So the fit is a polynomial of degree ``degree`` (default 4) in the scaled vergence
+``w = (u - u_mean) / u_half``::
 
-    ln MTF(u) = a + b w + c w^2,    w = u - mean(u),    c < 0
+    ln MTF(u) = sum_k c_k w^k
 
-For other blur shapes this is the second-order expansion about the peak (the fit keeps only
-points whose MTF is at least ``min_mtf``, where the parabola holds best and the logarithm of a
-noisy value is not dominated by noise). The fit is weighted least squares in the log domain
-(weights ``(MTF / sigma)^2``: ``sigma`` is the reading's 1-sigma), the scale of the weights
-estimated from the residuals (reduced chi-square), so intervals hold whether or not the given
-sigmas are right in absolute terms.
+keeping only readings with MTF >= ``min_mtf`` (where the logarithm of a noisy value is not
+dominated by noise), weighted least squares in the log domain (weights ``(MTF / sigma)^2``;
+``sigma`` the reading's 1-sigma), the weights' scale estimated from the residuals (reduced
+chi-square) so intervals hold whether or not the given sigmas are right in absolute terms.
 
-Best focus ``u* = mean(u) - b / (2c)``; the DOF ends are the two roots of the parabola at
-``ln threshold``. Their 95 % intervals are the 2.5 / 97.5 % points of those quantities over
-draws of ``(a, b, c)`` from the fit's multivariate Student-t (``n - 3`` degrees of freedom);
-an end whose root is missing in more than 2.5 % of the draws (threshold above the peak, or
-the far root beyond infinity) gets an open interval on that side (None).
+Best focus is the curve's maximum inside the fitted range; the DOF ends are where it falls to
+the threshold on either side (searched to 50 % of the fitted range beyond it: further is
+reported as not reached). Their 95 % intervals are the 2.5 / 97.5 % points over draws of the
+coefficients from the fit's multivariate Student-t (``n - degree - 1`` degrees of freedom),
+each draw's curve evaluated on a fine vergence grid; an end undefined in more than 2.5 % of
+the draws gets no interval (None).
 
 Pure numpy; no I/O.
 """
@@ -39,7 +42,13 @@ FloatArray = npt.NDArray[np.float64]
 #: Points below this MTF are left out of the fit by default.
 MIN_MTF = 0.05
 #: Monte Carlo draws for the intervals.
-DRAWS = 4000
+DRAWS = 2000
+#: Polynomial degree of ln MTF in vergence.
+DEGREE = 4
+#: Vergence grid points over the fitted range (and as many again beyond it).
+_GRID = 1200
+#: How far past the fitted range (fraction of it, each side) the ends are searched.
+_REACH = 0.5
 
 
 class FocusFitError(ValueError):
@@ -53,11 +62,11 @@ class ThroughFocusFit:
     Attributes
     ----------
     coef : ndarray
-        ``(a, b, c)`` of ``ln MTF = a + b w + c w^2``, ``w = 1/z - u_mean``.
+        Ascending coefficients of ``ln MTF`` in ``w = (1/z - u_mean) / u_half``.
     cov : ndarray
-        Their covariance (3 x 3), scaled by the residuals.
-    u_mean : float
-        Centre of the vergences fitted, 1/mm.
+        Their covariance, scaled by the residuals.
+    u_mean, u_half : float
+        Centre and half-span of the vergences fitted, 1/mm.
     dof : int
         Residual degrees of freedom.
     n_points : int
@@ -71,63 +80,111 @@ class ThroughFocusFit:
     coef: FloatArray
     cov: FloatArray
     u_mean: float
+    u_half: float
     dof: int
     n_points: int
     distance_range_mm: tuple[float, float]
     reduced_chi2: float
 
+    def _w(self, distance_mm: npt.ArrayLike) -> FloatArray:
+        return np.asarray((1.0 / np.asarray(distance_mm, dtype=np.float64) - self.u_mean)
+                          / self.u_half)
+
     def mtf(self, distance_mm: npt.ArrayLike) -> FloatArray:
         """The fitted curve at object distances (mm)."""
-        w = 1.0 / np.asarray(distance_mm, dtype=np.float64) - self.u_mean
-        a, b, c = self.coef
-        return np.asarray(np.exp(a + b * w + c * w * w))
+        return np.asarray(np.exp(np.polynomial.polynomial.polyval(self._w(distance_mm),
+                                                                  self.coef)))
 
-    @property
-    def peak_mtf(self) -> float:
-        a, b, c = self.coef
-        return float(math.exp(a - b * b / (4.0 * c)))
+    def _grid(self) -> FloatArray:
+        n = int(_GRID * (1 + 2 * _REACH))
+        w = np.linspace(-1.0 - 2 * _REACH, 1.0 + 2 * _REACH, n)
+        # vergence must stay > 0 (distance finite); u = u_mean + w u_half
+        return np.asarray(w[self.u_mean + w * self.u_half > 0])
+
+    def summary(self, threshold: float | None = None) -> FloatArray:
+        """``[best_mm, peak_mtf, near_mm, far_mm]`` of the fitted curve (NaN: undefined)."""
+        return _quantities(self.coef[None, :], self, threshold)[0]
 
     @property
     def best_focus_mm(self) -> float:
-        a, b, c = self.coef
-        return 1.0 / (self.u_mean - b / (2.0 * c))
+        return float(self.summary()[0])
+
+    @property
+    def peak_mtf(self) -> float:
+        return float(self.summary()[1])
 
     def ends_mm(self, threshold: float) -> tuple[float | None, float | None]:
-        """(near, far) object distances where the fitted curve crosses ``threshold`` (None:
-        never reaches it; far = inf when the far root lies beyond infinity)."""
-        near, far = _ends(self.coef[None, :], self.u_mean, threshold)
-        return (None if np.isnan(near[0]) else float(near[0]),
-                None if np.isnan(far[0]) else float(far[0]))
+        """(near, far) object distances where the fitted curve falls to ``threshold`` (None:
+        not reached within the search)."""
+        q = self.summary(threshold)
+        return (None if np.isnan(q[2]) else float(q[2]), None if np.isnan(q[3]) else float(q[3]))
 
     def draws(self, n: int = DRAWS, seed: int = 0) -> FloatArray:
-        """Coefficient draws from the fit's multivariate Student-t (n x 3)."""
+        """Coefficient draws from the fit's multivariate Student-t (n x len(coef))."""
         rng = np.random.default_rng(seed)
-        z = rng.multivariate_normal(np.zeros(3), self.cov, size=n, method="eigh")
+        z = rng.multivariate_normal(np.zeros(self.coef.size), self.cov, size=n, method="eigh")
         chi = rng.chisquare(self.dof, size=n) / self.dof
         return np.asarray(self.coef + z / np.sqrt(chi)[:, None])
 
 
-def _ends(coefs: FloatArray, u_mean: float, threshold: float) -> tuple[FloatArray, FloatArray]:
-    """Near / far distances (NaN: no root) for coefficient rows; far is inf when its vergence
-    is <= 0 (beyond infinity)."""
-    a, b, c = coefs[:, 0], coefs[:, 1], coefs[:, 2]
-    disc = b * b - 4.0 * c * (a - math.log(threshold))
-    ok = (c < 0) & (disc >= 0)
-    root = np.sqrt(np.where(ok, disc, 0.0))
+def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
+                ) -> FloatArray:
+    """Per coefficient row: best focus (mm), peak MTF, near and far ends (mm) at
+    ``threshold`` (NaN: undefined). The peak is searched inside the fitted range only."""
+    w = fit._grid()
+    vals = np.polynomial.polynomial.polyval(w, coefs.T)  # rows x grid
+    inside = np.abs(w) <= 1.0
+    idx_in = np.flatnonzero(inside)
+    k = idx_in[np.argmax(vals[:, idx_in], axis=1)]
+    rows = np.arange(coefs.shape[0])
+    # parabolic refinement of the grid maximum
+    k0 = np.clip(k, 1, w.size - 2)
+    y0, y1, y2 = vals[rows, k0 - 1], vals[rows, k0], vals[rows, k0 + 1]
+    den = y0 - 2 * y1 + y2
     with np.errstate(divide="ignore", invalid="ignore"):
-        # c < 0: the larger vergence (near) is (-b - root) / (2c)
-        u_near = u_mean + (-b - root) / (2.0 * c)
-        u_far = u_mean + (-b + root) / (2.0 * c)
-        near = np.where(ok & (u_near > 0), 1.0 / u_near, np.nan)
-        far = np.where(ok, np.where(u_far > 0, 1.0 / u_far, np.inf), np.nan)
-    return near, far
+        shift = np.where(den < 0, 0.5 * (y0 - y2) / den, 0.0)
+    step = w[1] - w[0]
+    w_best = w[k0] + np.clip(shift, -1, 1) * step
+    peak = y1 - 0.25 * (y0 - y2) * np.clip(shift, -1, 1)
+    at_edge = (k == idx_in[0]) | (k == idx_in[-1])  # no maximum inside the range
+    u_best = fit.u_mean + w_best * fit.u_half
+    best = np.where(at_edge | (u_best <= 0), np.nan, 1.0 / u_best)
+    out = np.full((coefs.shape[0], 4), np.nan)
+    out[:, 0] = best
+    out[:, 1] = np.where(at_edge, np.nan, np.exp(peak))
+    if threshold is None:
+        return out
+    lt = math.log(threshold)
+    below = vals < lt
+    for r in range(coefs.shape[0]):
+        if at_edge[r] or peak[r] < lt:
+            continue
+        kr = k[r]
+        # larger vergence = nearer: search upwards in w for the near end
+        up = np.flatnonzero(below[r, kr:])
+        if up.size:
+            j = kr + up[0]
+            out[r, 2] = 1.0 / _cross(w, vals[r], j - 1, j, lt, fit)
+        dn = np.flatnonzero(below[r, :kr + 1][::-1])
+        if dn.size:
+            j = kr - dn[0]
+            u = _cross(w, vals[r], j, j + 1, lt, fit)
+            out[r, 3] = 1.0 / u if u > 0 else np.inf
+    return out
+
+
+def _cross(w: FloatArray, v: FloatArray, i: int, j: int, level: float,
+           fit: ThroughFocusFit) -> float:
+    """Vergence where the curve crosses ``level`` between grid points i and j (linear)."""
+    t = (level - v[i]) / (v[j] - v[i]) if v[j] != v[i] else 0.5
+    return float(fit.u_mean + (w[i] + t * (w[j] - w[i])) * fit.u_half)
 
 
 def fit_through_focus(
     distances_mm: npt.ArrayLike, mtf: npt.ArrayLike, mtf_sigma: npt.ArrayLike | None = None,
-    *, min_mtf: float = MIN_MTF,
+    *, min_mtf: float = MIN_MTF, degree: int = DEGREE,
 ) -> ThroughFocusFit:
-    """Fit ``ln MTF`` as a parabola in object vergence (module docstring).
+    """Fit ``ln MTF`` as a polynomial in object vergence (module docstring).
 
     Parameters
     ----------
@@ -139,12 +196,16 @@ def fit_through_focus(
         1-sigma of each MTF (equal weights when None).
     min_mtf : float
         Readings below this are left out.
+    degree : int
+        Polynomial degree (2: the plain Gaussian-defocus parabola).
 
     Raises
     ------
     FocusFitError
-        Fewer than 5 usable readings, or no peak (the parabola opens upwards).
+        Fewer than ``degree + 3`` usable readings, or no maximum inside the range fitted.
     """
+    if degree < 2:
+        raise ValueError(f"degree must be >= 2, got {degree}")
     z = np.asarray(distances_mm, dtype=np.float64)
     m = np.asarray(mtf, dtype=np.float64)
     if z.shape != m.shape or z.ndim != 1:
@@ -153,41 +214,45 @@ def fit_through_focus(
          else np.asarray(mtf_sigma, dtype=np.float64))
     use = np.isfinite(z) & np.isfinite(m) & np.isfinite(s) & (z > 0) & (m >= min_mtf) & (s > 0)
     n = int(use.sum())
-    if n < 5:
-        raise FocusFitError(f"{n} readings at or above MTF {min_mtf:g}; a through-focus fit "
-                            "needs 5")
+    need = degree + 3
+    if n < need or np.unique(z[use]).size < degree + 2:
+        raise FocusFitError(f"{n} readings at or above MTF {min_mtf:g}; a degree-{degree} "
+                            f"through-focus fit needs {need} at {degree + 2} distances")
     u = 1.0 / z[use]
-    u_mean = float(u.mean())
-    w = u - u_mean
+    u_mean = float((u.max() + u.min()) / 2)
+    u_half = float((u.max() - u.min()) / 2)
+    w = (u - u_mean) / u_half
     y = np.log(m[use])
-    sy = s[use] / m[use]
-    design = np.stack([np.ones_like(w), w, w * w], axis=1)
-    wt = 1.0 / sy
-    coef, *_ = np.linalg.lstsq(design * wt[:, None], y * wt, rcond=None)
+    wt = m[use] / s[use]
+    design = np.vander(w, degree + 1, increasing=True)
+    a = design * wt[:, None]
+    coef, *_ = np.linalg.lstsq(a, y * wt, rcond=None)
     resid = (y - design @ coef) * wt
-    dof = n - 3
+    dof = n - degree - 1
     chi2 = float(resid @ resid) / dof
-    base = np.linalg.inv((design * wt[:, None]).T @ (design * wt[:, None]))
-    if not coef[2] < 0:
-        raise FocusFitError("the readings have no peak in the sweep (the fitted curve opens "
-                            "upwards): widen the range about best focus")
-    return ThroughFocusFit(coef=np.asarray(coef), cov=np.asarray(base * chi2, np.float64),
-                           u_mean=u_mean, dof=dof, n_points=n, distance_range_mm=(float(z[use].min()),
-                                                          float(z[use].max())),
-                           reduced_chi2=chi2)
+    cov = np.linalg.inv(a.T @ a) * chi2
+    fit = ThroughFocusFit(coef=np.asarray(coef, np.float64), cov=np.asarray(cov, np.float64),
+                          u_mean=u_mean, u_half=u_half, dof=dof, n_points=n,
+                          distance_range_mm=(float(z[use].min()), float(z[use].max())),
+                          reduced_chi2=chi2)
+    if np.isnan(fit.best_focus_mm):
+        raise FocusFitError("the readings have no maximum inside the sweep: widen the range "
+                            "about best focus")
+    return fit
 
 
 @dataclass(frozen=True)
 class FocusEstimate:
     """Best focus and the DOF ends at one threshold, each with its 95 % interval.
 
-    ``near_mm`` / ``far_mm`` are None when the fitted curve never reaches the threshold; an
-    interval end is None when it is open (module docstring). ``*_extrapolated`` says the value
-    lies outside the distances fitted.
+    ``near_mm`` / ``far_mm`` are None when the fitted curve does not reach the threshold
+    within the search (``far_mm`` inf: beyond infinity); an interval end is None when
+    undefined (module docstring). ``*_extrapolated`` says the value lies outside the distances
+    fitted.
     """
 
     best_focus_mm: float
-    best_focus_ci95: tuple[float, float]
+    best_focus_ci95: tuple[float | None, float | None]
     peak_mtf: float
     near_mm: float | None
     near_ci95: tuple[float | None, float | None]
@@ -198,9 +263,9 @@ class FocusEstimate:
 
 
 def _interval(values: FloatArray) -> tuple[float | None, float | None]:
-    """2.5 / 97.5 % points; a side with more than 2.5 % of draws undefined (NaN) is open."""
+    """2.5 / 97.5 % points; None, None when more than 2.5 % of draws are undefined (NaN)."""
     bad = np.isnan(values)
-    if bad.mean() > 0.025:  # the end itself is in doubt: no interval to state
+    if bad.mean() > 0.025:
         return (None, None)
     lo, hi = np.percentile(values[~bad], [2.5, 97.5])
     return (float(lo), float(hi) if math.isfinite(hi) else None)
@@ -211,21 +276,13 @@ def focus_estimate(fit: ThroughFocusFit, threshold: float, *, draws: int = DRAWS
     """Best focus and DOF at ``threshold`` with 95 % intervals (module docstring)."""
     if not 0.0 < threshold < 1.0:
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
-    coefs = fit.draws(draws, seed)
-    b, c = coefs[:, 1], coefs[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u_best = fit.u_mean - b / (2.0 * c)
-        best = np.where((c < 0) & (u_best > 0), 1.0 / u_best, np.nan)
-    near_d, far_d = _ends(coefs, fit.u_mean, threshold)
-    b_lo, b_hi = _interval(best)
+    q = _quantities(fit.draws(draws, seed), fit, threshold)
     near, far = fit.ends_mm(threshold)
     lo_z, hi_z = fit.distance_range_mm
     return FocusEstimate(
-        best_focus_mm=fit.best_focus_mm,
-        best_focus_ci95=(b_lo if b_lo is not None else float("nan"),
-                         b_hi if b_hi is not None else float("nan")),
-        peak_mtf=fit.peak_mtf, near_mm=near, near_ci95=_interval(near_d), far_mm=far,
-        far_ci95=_interval(far_d),
+        best_focus_mm=fit.best_focus_mm, best_focus_ci95=_interval(q[:, 0]),
+        peak_mtf=fit.peak_mtf, near_mm=near, near_ci95=_interval(q[:, 2]), far_mm=far,
+        far_ci95=_interval(q[:, 3]),
         near_extrapolated=near is not None and near < lo_z,
         far_extrapolated=far is not None and far > hi_z,
     )
@@ -240,12 +297,8 @@ def difference_interval(a_draws: FloatArray, b_draws: FloatArray) -> tuple[float
 
 
 def best_focus_draws(fit: ThroughFocusFit, *, draws: int = DRAWS, seed: int = 0) -> FloatArray:
-    """Draws of the best-focus distance (NaN where a draw has no peak)."""
-    coefs = fit.draws(draws, seed)
-    b, c = coefs[:, 1], coefs[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u_best = fit.u_mean - b / (2.0 * c)
-        return np.asarray(np.where((c < 0) & (u_best > 0), 1.0 / u_best, np.nan))
+    """Draws of the best-focus distance (NaN where a draw has no maximum inside the range)."""
+    return np.asarray(_quantities(fit.draws(draws, seed), fit, None)[:, 0])
 
 
 def t_quantile(dof: int, p: float = 0.975) -> float:
