@@ -35,7 +35,6 @@ from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
     FocusFitError,
     ThroughFocusFit,
-    best_focus_draws,
     fit_through_focus,
     focus_estimate,
 )
@@ -170,10 +169,10 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
                              "n_points": len(series.get((label, f), [])),
                              "verdict": "not measured", "note": fit})
                 continue
-            est = focus_estimate(fit, thr)
-            seed = zlib.crc32(f"{label}@{f:g}".encode())
+            # one seed per curve: its criteria share the best-focus draws
+            est = focus_estimate(fit, thr, seed=zlib.crc32(f"{label}@{f:g}".encode()))
             if (label, f) not in draws:
-                draws[(label, f)] = best_focus_draws(fit, seed=seed)
+                draws[(label, f)] = est.best_focus_draws
                 heights[(label, f)] = h_ref * k_scale / est.best_focus_mm
             notes = []
             if est.near_extrapolated:

@@ -31,7 +31,7 @@ Pure numpy; no I/O.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -46,7 +46,7 @@ DRAWS = 2000
 #: Polynomial degree of ln MTF in vergence.
 DEGREE = 4
 #: Vergence grid points over the fitted range (and as many again beyond it).
-_GRID = 1200
+_GRID = 500
 #: How far past the fitted range (fraction of it, each side) the ends are searched.
 _REACH = 0.5
 
@@ -132,7 +132,7 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
     """Per coefficient row: best focus (mm), peak MTF, near and far ends (mm) at
     ``threshold`` (NaN: undefined). The peak is searched inside the fitted range only."""
     w = fit._grid()
-    vals = np.polynomial.polynomial.polyval(w, coefs.T)  # rows x grid
+    vals = coefs @ np.vander(w, coefs.shape[1], increasing=True).T  # rows x grid
     inside = np.abs(w) <= 1.0
     idx_in = np.flatnonzero(inside)
     k = idx_in[np.argmax(vals[:, idx_in], axis=1)]
@@ -142,42 +142,46 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
     y0, y1, y2 = vals[rows, k0 - 1], vals[rows, k0], vals[rows, k0 + 1]
     den = y0 - 2 * y1 + y2
     with np.errstate(divide="ignore", invalid="ignore"):
-        shift = np.where(den < 0, 0.5 * (y0 - y2) / den, 0.0)
+        shift = np.clip(np.where(den < 0, 0.5 * (y0 - y2) / den, 0.0), -1, 1)
     step = w[1] - w[0]
-    w_best = w[k0] + np.clip(shift, -1, 1) * step
-    peak = y1 - 0.25 * (y0 - y2) * np.clip(shift, -1, 1)
+    w_best = w[k0] + shift * step
+    peak = y1 - 0.25 * (y0 - y2) * shift
     at_edge = (k == idx_in[0]) | (k == idx_in[-1])  # no maximum inside the range
     u_best = fit.u_mean + w_best * fit.u_half
-    best = np.where(at_edge | (u_best <= 0), np.nan, 1.0 / u_best)
     out = np.full((coefs.shape[0], 4), np.nan)
-    out[:, 0] = best
+    with np.errstate(divide="ignore"):
+        out[:, 0] = np.where(at_edge | (u_best <= 0), np.nan, 1.0 / u_best)
     out[:, 1] = np.where(at_edge, np.nan, np.exp(peak))
     if threshold is None:
         return out
     lt = math.log(threshold)
+    ok = ~at_edge & (peak >= lt)
     below = vals < lt
-    for r in range(coefs.shape[0]):
-        if at_edge[r] or peak[r] < lt:
-            continue
-        kr = k[r]
-        # larger vergence = nearer: search upwards in w for the near end
-        up = np.flatnonzero(below[r, kr:])
-        if up.size:
-            j = kr + up[0]
-            out[r, 2] = 1.0 / _cross(w, vals[r], j - 1, j, lt, fit)
-        dn = np.flatnonzero(below[r, :kr + 1][::-1])
-        if dn.size:
-            j = kr - dn[0]
-            u = _cross(w, vals[r], j, j + 1, lt, fit)
-            out[r, 3] = 1.0 / u if u > 0 else np.inf
+    idx = np.arange(w.size)
+    # larger vergence = nearer: the near end is the first grid point below past the peak
+    up = below & (idx[None, :] > k[:, None])
+    has_up = ok & up.any(axis=1)
+    j = np.argmax(up, axis=1)
+    u_near = _cross(w, vals, rows, j - 1, j, lt, fit)
+    dn = below & (idx[None, :] < k[:, None])
+    has_dn = ok & dn.any(axis=1)
+    i = w.size - 1 - np.argmax(dn[:, ::-1], axis=1)
+    u_far = _cross(w, vals, rows, i, i + 1, lt, fit)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[:, 2] = np.where(has_up & (u_near > 0), 1.0 / u_near, np.nan)
+        out[:, 3] = np.where(has_dn, np.where(u_far > 0, 1.0 / u_far, np.inf), np.nan)
     return out
 
 
-def _cross(w: FloatArray, v: FloatArray, i: int, j: int, level: float,
-           fit: ThroughFocusFit) -> float:
-    """Vergence where the curve crosses ``level`` between grid points i and j (linear)."""
-    t = (level - v[i]) / (v[j] - v[i]) if v[j] != v[i] else 0.5
-    return float(fit.u_mean + (w[i] + t * (w[j] - w[i])) * fit.u_half)
+def _cross(w: FloatArray, v: FloatArray, rows: npt.NDArray[np.intp], i: npt.NDArray[np.intp],
+           j: npt.NDArray[np.intp], level: float, fit: ThroughFocusFit) -> FloatArray:
+    """Vergence where each row's curve crosses ``level`` between grid points i and j."""
+    i = np.clip(i, 0, w.size - 1)
+    j = np.clip(j, 0, w.size - 1)
+    vi, vj = v[rows, i], v[rows, j]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(vj != vi, (level - vi) / (vj - vi), 0.5)
+    return np.asarray(fit.u_mean + (w[i] + t * (w[j] - w[i])) * fit.u_half)
 
 
 def fit_through_focus(
@@ -260,6 +264,9 @@ class FocusEstimate:
     far_ci95: tuple[float | None, float | None]
     near_extrapolated: bool
     far_extrapolated: bool
+    #: The best-focus draws behind ``best_focus_ci95`` (NaN: a draw without a maximum).
+    best_focus_draws: FloatArray = field(default_factory=lambda: np.empty(0), compare=False,
+                                         repr=False)
 
 
 def _interval(values: FloatArray) -> tuple[float | None, float | None]:
@@ -284,7 +291,7 @@ def focus_estimate(fit: ThroughFocusFit, threshold: float, *, draws: int = DRAWS
         peak_mtf=fit.peak_mtf, near_mm=near, near_ci95=_interval(q[:, 2]), far_mm=far,
         far_ci95=_interval(q[:, 3]),
         near_extrapolated=near is not None and near < lo_z,
-        far_extrapolated=far is not None and far > hi_z,
+        far_extrapolated=far is not None and far > hi_z, best_focus_draws=q[:, 0],
     )
 
 

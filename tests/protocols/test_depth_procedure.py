@@ -1,0 +1,80 @@
+"""benchlab run depth on the simulated bench: tables against the scene's truth, segments
+re-mounted, abort and resume without repeating a position, the bench left safe."""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pytest
+from sim_runs import FIXTURES, events, run_sim, tables_of
+
+from benchlab.bench import Bench, BenchConfig
+from benchlab.protocols import RunAborted, resume_run, start_run
+from benchlab.session import Session
+
+SMALL = FIXTURES / "depth-small.toml"
+
+
+def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
+    prompts: list[str] = []
+
+    def prompt(step: Any, message: str) -> bool:
+        prompts.append(step.id)
+        return True
+
+    out = run_sim("depth", tmp_path, SMALL, prompt=prompt)
+    assert prompts == ["setup", "mount-0", "mount-1"]  # a re-mount between the segments
+    tables = tables_of(out.results_path)
+    rows, truth = tables["depth_of_field"], tables["simulator_truth"]
+    assert (out.results_path / "depth_of_field.csv").is_file()
+    assert (out.results_path / "simulator_truth.json").is_file()
+    assert len(rows) == 12 * 3 and len(truth) == len(rows)
+    by_key = {(t["field_point"], t["criterion"]): t for t in truth}
+    judged = 0
+    for r in rows:
+        t = by_key[(r["field_point"], r["criterion"])]
+        assert set(t) <= set(r)  # the truth has the same keys
+        if r["best_focus_mm"] is None:
+            continue
+        lo, hi = r["best_focus_mm_ci95"]
+        judged += 1
+        # the issue's figure: within 0.3 mm or the interval covering the truth
+        assert abs(r["best_focus_mm"] - t["best_focus_mm"]) <= 0.3 or lo <= t["best_focus_mm"] <= hi
+    assert judged >= 20
+    overlap = tables["depth_overlap"]
+    assert {o["distance_mm"] for o in overlap} == {60.0, 62.0}
+    assert out.summary["summary"]["segments"] == 2
+
+
+def test_abort_mid_sweep_leaves_the_bench_safe_and_resume_repeats_nothing(
+        tmp_path: Path) -> None:
+    abort = threading.Event()
+
+    def progress(done: int, total: int, step: Any) -> None:
+        if step is not None and step.id == "s0-z58":
+            abort.set()
+
+    config = BenchConfig.load(None, simulate=True)
+    with Bench.open(config, simulate=True) as bench:
+        runner = start_run("depth", bench=bench, params=SMALL, root=tmp_path,
+                           prompt=lambda s, m: True, progress=progress, abort=abort)
+        with pytest.raises(RunAborted):
+            runner.run()
+        assert bench.sim_stage is not None and not bench.sim_stage.moving
+        assert bench.sim_led is not None and all(
+            bench.sim_led.channel_output_ma(ch) == 0.0
+            for ch in range(1, bench.sim_led.channel_count + 1))
+        path = runner.session.path
+    assert Session.open(path).status == "aborted"
+    before = Session.open(path).frames()
+    with Bench.open(BenchConfig.from_session(path), simulate=True) as bench:
+        resume_run(path, bench=bench, prompt=lambda s, m: True).run()
+    evs = events(path)
+    done = Counter(e["step_id"] for e in evs if e["kind"] == "step_completed")
+    assert max(done.values()) == 1 and "s0-z56" in done and "s1-z68" in done
+    saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
+    assert len(saved) == 11 and max(saved.values()) == 1
+    assert {k: v for k, v in Session.open(path).frames().items() if k in before} == before
