@@ -75,3 +75,19 @@ def test_every_problem_is_listed_at_once(tmp_path: Path) -> None:
     assert str(f) in text
     for field in ("sweep.step_mm", "sweep.stage_start_mm", "criteria[0].frequency_lp_per_mm"):
         assert field in text
+
+
+def test_depth_procedure_is_made_on_demand_and_mtf_never_loads_it() -> None:
+    import subprocess
+    import sys
+
+    from benchlab.protocols.depth.steps import DepthProcedure
+    from benchlab.protocols.runs import make_procedure
+
+    assert isinstance(make_procedure(load_params("depth")), DepthProcedure)
+    code = ("from benchlab.protocols.runs import make_procedure; "
+            "from benchlab.protocols.params import load_params; "
+            "make_procedure(load_params('mtf')); import sys; print('\\n'.join(sys.modules))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True).stdout.split()
+    assert not [m for m in loaded if m.startswith("benchlab.protocols.depth")]
