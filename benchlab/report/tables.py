@@ -87,8 +87,8 @@ TABLE_VIEWS: dict[str, TableView] = {
     "depth_of_field": TableView(
         "Depth of field - best focus and DOF ends per field point (slanted edge), orientation "
         "and criterion, 95 % intervals; verdict against Table 4.1 (+-40 mm)",
-        (*_DEPTH[:3], ("best_focus_mm_ci95", "95 % CI", ""), _DEPTH[3],
-         ("near_mm_ci95", "95 % CI", ""), _DEPTH[4], ("far_mm_ci95", "95 % CI", ""),
+        (*_DEPTH[:4], ("best_focus_mm_ci95", "95 % CI", ""), _DEPTH[4],
+         ("near_mm_ci95", "95 % CI", ""), _DEPTH[5], ("far_mm_ci95", "95 % CI", ""),
          ("peak_mtf", "peak", ".3f"), ("verdict", "verdict", "")),
     ),
     "depth_astigmatism": TableView(

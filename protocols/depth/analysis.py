@@ -33,6 +33,7 @@ import numpy.typing as npt
 from benchlab.analysis.focus.criteria import mtf_threshold
 from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
+    FocusEstimate,
     FocusFitError,
     ThroughFocusFit,
     fit_through_focus,
@@ -71,20 +72,23 @@ def position_summary(avg: npt.NDArray[Any], params: DepthParams, distance_mm: fl
     return out
 
 
-def verdict(best: float, near: float | None, near_ci: Sequence[float | None],
-            far: float | None, far_ci: Sequence[float | None], half_range_mm: float) -> str:
-    """Against Table 4.1: the DOF covers best focus +- ``half_range_mm``? ``meets`` when both
-    interval ends clear it, ``fails`` when either interval misses it, else ``undecided``."""
-    if near is None or far is None:
+def verdict(est: FocusEstimate, threshold: float, half_range_mm: float) -> str:
+    """Against Table 4.1: does the DOF cover best focus +- ``half_range_mm``? ``meets`` when
+    both interval ends clear it, ``fails`` when either interval (or a missing end of a curve
+    that never reaches the threshold) misses it, else ``undecided``."""
+    best = est.best_focus_mm
+    if est.peak_mtf < threshold:
         return "fails (criterion never met)"
     want_near, want_far = best - half_range_mm, best + half_range_mm
-    n_lo, n_hi = near_ci
-    f_lo, f_hi = far_ci
-    if (n_lo is not None and n_lo > want_near) or (f_hi is not None and f_hi < want_far) \
-            or (n_lo is None and near > want_near) or (f_hi is None and far < want_far):
+    n_lo, n_hi = est.near_ci95
+    f_lo, f_hi = est.far_ci95
+    near, far = est.near_mm, est.far_mm
+    if (n_lo is not None and n_lo > want_near) or (f_hi is not None and f_hi < want_far):
         return "fails"
     if n_hi is not None and n_hi <= want_near and f_lo is not None and f_lo >= want_far:
         return "meets"
+    if near is None or far is None:
+        return "undecided (a DOF end beyond the sweep)"
     return "undecided"
 
 
@@ -175,6 +179,8 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
                 draws[(label, f)] = est.best_focus_draws
                 heights[(label, f)] = h_ref * k_scale / est.best_focus_mm
             notes = []
+            if est.peak_mtf >= thr and (est.near_mm is None or est.far_mm is None):
+                notes.append("a DOF end lies beyond the sweep's reach: widen it")
             if est.near_extrapolated:
                 notes.append("near end extrapolated below the sweep")
             if est.far_extrapolated:
@@ -190,9 +196,7 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
                          "far_mm": _r(est.far_mm), "far_mm_ci95": _ci(est.far_ci95),
                          "dof_mm": _r(dof), "peak_mtf": _r(est.peak_mtf, 4),
                          "n_points": fit.n_points,
-                         "verdict": verdict(est.best_focus_mm, est.near_mm, est.near_ci95,
-                                            est.far_mm, est.far_ci95,
-                                            params.design_half_range_mm),
+                         "verdict": verdict(est, thr, params.design_half_range_mm),
                          "note": "; ".join(notes)})
     astig = _astigmatism(draws, orient_of, params)
     curvature = _curvature(draws, heights, orient_of, params)
