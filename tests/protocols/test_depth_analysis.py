@@ -29,3 +29,17 @@ def test_fails_when_an_interval_misses_it_or_the_criterion_is_never_met() -> Non
 def test_an_end_beyond_the_sweep_is_undecided_not_failed() -> None:
     assert verdict(_est(15.0, (14.0, 16.0), None, (None, None)), 0.5,
                    40.0) == "undecided (a DOF end beyond the sweep)"
+
+
+def test_catalogue_keeps_best_focus_and_dof_per_field_point_and_criterion() -> None:
+    from benchlab.catalog.extract import figures_of
+
+    row = {"view": "forward", "field_point": "E0L", "orientation": "sagittal",
+           "criterion": "MTF50>=35", "freq_lp_per_mm": 35.0, "best_focus_mm": 60.1,
+           "near_mm": 46.0, "far_mm": 87.0, "dof_mm": 41.0, "verdict": "undecided"}
+    figs = list(figures_of(1, {"depth_of_field": [row], "depth_curves": [row] * 3}))
+    assert {f.quantity for f in figs} == {"best_focus_mm", "near_mm", "far_mm", "dof_mm"}
+    near = next(f for f in figs if f.quantity == "near_mm")
+    assert (near.view, near.element, near.orientation, near.freq_lp_per_mm, near.value) == (
+        "depth forward", "E0L", "sagittal", 35.0, 46.0)
+    assert near.text == "MTF50>=35: undecided"
