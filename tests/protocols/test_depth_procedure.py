@@ -47,6 +47,13 @@ def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
     overlap = tables["depth_overlap"]
     assert {o["distance_mm"] for o in overlap} == {60.0, 62.0}
     assert out.summary["summary"]["segments"] == 2
+    from benchlab.report.render import render_report
+
+    html = render_report(out.session_path)
+    depth = html[html.index("<section id='depth'>"):]
+    depth = depth[:depth.index("</section>")]
+    # a through-focus figure per criterion, and best focus against image height
+    assert depth.count("data:image/svg+xml") == 4
 
 
 def test_abort_mid_sweep_leaves_the_bench_safe_and_resume_repeats_nothing(
