@@ -72,3 +72,29 @@ def test_benchmark_depth_is_a_command() -> None:
     args = build_parser().parse_args(["benchmark", "depth", "--seeds", "2",
                                       "--variants", "nominal"])
     assert args.seeds == 2 and args.variants == "nominal"
+
+
+def test_ctrl_c_mid_sweep_leaves_the_bench_safe_and_resumable(tmp_path: Path) -> None:
+    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "depth", "--simulate", "--yes",
+           "--params", str(SMALL), "--out", str(tmp_path)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
+            if sessions and _completed(sessions[0]) >= 4:
+                break
+            assert proc.poll() is None, "the run ended before it could be interrupted"
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert "bench left safe" in out + err and "benchlab resume" in out + err
+    path = only_session(tmp_path)
+    assert Session.open(path).status == "interrupted"
+    assert main(["resume", str(path), "--simulate", "--yes"]) == 0
+    saved = Counter(e["file"] for e in events(path) if e["kind"] == "frame_saved")
+    assert len(saved) == 11 and max(saved.values()) == 1
