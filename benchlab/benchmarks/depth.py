@@ -113,6 +113,27 @@ def astig_signs(results: Path) -> list[dict[str, Any]]:
     return out
 
 
+def curvature_checks(results: Path) -> list[dict[str, Any]]:
+    """Per orientation and frequency: is the truth's field curvature (best focus = b0 + k h^2
+    through the truth's field points) inside the measured k's interval?"""
+    import numpy as np
+
+    truth = _load(results, "simulator_truth")
+    out = []
+    for r in _load(results, "depth_field_curvature"):
+        pts = {(t["field_point"], t["image_height_mm"], t["best_focus_mm"]) for t in truth
+               if t["orientation"] == r["orientation"]
+               and t["freq_lp_per_mm"] == r["freq_lp_per_mm"]}
+        lo, hi = r["curvature_mm_per_mm2_ci95"]
+        if len(pts) < 2 or lo is None or hi is None:
+            continue
+        h2 = np.array([p[1] ** 2 for p in pts])
+        b = np.array([p[2] for p in pts])
+        k_true = float(np.polyfit(h2, b, 1)[0])
+        out.append({"covered": lo <= k_true <= hi, "error": r["curvature_mm_per_mm2"] - k_true})
+    return out
+
+
 def summarise(comparisons: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per quantity: judged count, pass rate, coverage, median |error|, not judged."""
     acc: dict[str, dict[str, Any]] = {}
@@ -148,12 +169,14 @@ def run_benchmark(seeds: int = 20, variants: Iterable[str] = tuple(VARIANTS),
         for v in variants:
             comps: list[dict[str, Any]] = []
             signs: list[dict[str, Any]] = []
+            curv: list[dict[str, Any]] = []
             walls = []
             for s in range(seeds):
                 results, wall, _ = run_once(v, 1000 + s, root / v)
                 walls.append(wall)
                 comps += compare(results)
                 signs += astig_signs(results)
+                curv += curvature_checks(results)
                 if progress is not None:
                     progress(f"{v} seed {s}: {wall:.1f} s")
             sig = [x for x in signs if x["significant"]]
@@ -163,6 +186,10 @@ def run_benchmark(seeds: int = 20, variants: Iterable[str] = tuple(VARIANTS),
                 "astig_sign_right": sum(x["sign_right"] for x in sig),
                 "astig_coverage": (sum(x["covered"] for x in signs) / len(signs)
                                    if signs else None),
+                "curvature_coverage": (sum(x["covered"] for x in curv) / len(curv)
+                                       if curv else None),
+                "curvature_median_abs_error": (sorted(abs(x["error"]) for x in curv)[
+                    len(curv) // 2] if curv else None),
                 "median_wall_s": sorted(walls)[len(walls) // 2],
             }
         for name, frames, chart in (("default (2 frames, edges + bar reading)", 2, True),
@@ -199,6 +226,10 @@ def format_benchmark(out: Mapping[str, Any]) -> str:
         lines.append(f"{v:<11} astigmatism S-T: sign right {r['astig_sign_right']} of "
                      f"{r['astig_significant']} significant; interval coverage "
                      f"{_pct(r['astig_coverage'])}; median run {r['median_wall_s']:.1f} s")
+        cme = r["curvature_median_abs_error"]
+        lines.append(f"{'':<11} field curvature k: interval coverage "
+                     f"{_pct(r['curvature_coverage'])}, median |error| "
+                     f"{'n/a' if cme is None else f'{cme:.3f} mm/mm2'}")
     lines.append("")
     for name, t in out["timing"].items():
         lines.append(f"{name:<42} {t['wall_s']:6.1f} s  {t['frames']:4d} frames  best-focus "

@@ -47,6 +47,13 @@ def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
     overlap = tables["depth_overlap"]
     assert {o["distance_mm"] for o in overlap} == {60.0, 62.0}
     assert out.summary["summary"]["segments"] == 2
+    from benchlab.benchmarks.depth import astig_signs, compare, curvature_checks, summarise
+
+    fig = summarise(compare(out.results_path))["best_focus_mm"]
+    assert fig["judged"] == judged and fig["pass_rate"] >= 0.9
+    assert astig_signs(out.results_path) and all(a["sign_right"]
+                                                 for a in astig_signs(out.results_path))
+    assert len(curvature_checks(out.results_path)) == 2 * 3  # orientations x frequencies
     from benchlab.report.render import render_report
 
     html = render_report(out.session_path)
