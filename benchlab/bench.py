@@ -389,8 +389,10 @@ class Bench:
     # -- the mounted target ---------------------------------------------------------------------
     def mount(self, target: object) -> None:
         """A manual set-up step was confirmed: on the simulated bench, mount ``target`` in the
-        world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record."""
+        world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record.
+        A target just mounted is not on the stage carriage until :meth:`carry_target` says so."""
         self._mounted = target
+        self._object_offset_mm = None
         if self.world is not None:
             self.world.mount(target)
 

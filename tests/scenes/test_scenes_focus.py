@@ -69,3 +69,14 @@ def test_world_images_a_stage_carried_chart_at_its_distance() -> None:
     assert np.array_equal(SimWorld("usaf")(AcquisitionState(
         exposure_ms=300.0, gain=1.0, bits=8, width=1280, height=1024, time_s=0.0,
         frame_index=0, bench={"object_offset_mm": 40.0})), plain)
+
+
+def test_mounting_another_target_takes_the_chart_off_the_carriage() -> None:
+    from benchlab.bench import Bench, BenchConfig
+
+    with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
+        bench.mount("usaf")
+        bench.carry_target(40.0)
+        assert bench.state()["object_offset_mm"] == 40.0
+        bench.mount("usaf")  # e.g. the MTF procedure's set-up after a depth run
+        assert "object_offset_mm" not in bench.state()
