@@ -95,8 +95,12 @@ def verdict(est: FocusEstimate, threshold: float, half_range_mm: float) -> str:
 def read_session(session: Session, params: DepthParams
                  ) -> list[tuple[float, int, PositionReading]]:
     """Every taken position's reading: (distance, segment, reading). Positions not taken yet
-    (an interrupted session) are skipped."""
+    (an interrupted session) are skipped. Where the chart is not found (e.g. part of it out of
+    the field at the nearest distances) the edges are placed at the scale the other positions'
+    found poses give for that distance (``K / distance``)."""
     out: list[tuple[float, int, PositionReading]] = []
+    frames_of: dict[tuple[float, int], npt.NDArray[np.float64]] = {}
+    full_scale = 2.0 ** params.bits - 1
     for seg in params.segments():
         for z in seg.distances_mm:
             sid = position_step_id(seg.index, z)
@@ -106,9 +110,16 @@ def read_session(session: Session, params: DepthParams
                 continue
             stack = [session.load_frame(sid, n)[0] for n in names]
             avg = np.mean(np.stack(stack).astype(np.float64), axis=0)
-            out.append((z, seg.index, read_position(
-                avg, params.frequencies_lp_per_mm, full_scale=2.0 ** params.bits - 1,
-                read_bars=params.read_chart)))
+            reading = read_position(avg, params.frequencies_lp_per_mm, full_scale=full_scale,
+                                    read_bars=params.read_chart)
+            if reading.scale is None:
+                frames_of[(z, seg.index)] = avg
+            out.append((z, seg.index, reading))
+    if frames_of and any(r.scale is not None for _, _, r in out):
+        k = _magnification_constant(out)
+        out = [(z, g, r if r.scale is not None else read_position(
+            frames_of[(z, g)], params.frequencies_lp_per_mm, full_scale=full_scale,
+            read_bars=False, fallback_scale=k / z)) for z, g, r in out]
     return out
 
 
