@@ -125,8 +125,9 @@ class DepthProcedure:
                 except DeviceError:
                     ctx.check_abort()  # stopped by the abort key: an abort, not a fault
                     raise
-            else:
+            else:  # no stage: the operator moves the chart (the carriage offset is the distance)
                 ctx.ask(f"Move the chart to {z:g} mm from the prototype.")
+                ctx.bench.carry_target(z)
             extra = {"distance_mm": z, "segment": seg.index, "stage_mm": stage,
                      "object_offset_mm": seg.object_offset_mm}
             frames = [ctx.acquire(frame_name(k), exposure_ms=p.exposure_ms, gain=p.gain,

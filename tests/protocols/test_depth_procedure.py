@@ -92,3 +92,25 @@ def test_abort_mid_sweep_leaves_the_bench_safe_and_resume_repeats_nothing(
     saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
     assert len(saved) == 11 and max(saved.values()) == 1
     assert {k: v for k, v in Session.open(path).frames().items() if k in before} == before
+
+
+def test_without_a_stage_the_operator_moves_the_chart(tmp_path: Path) -> None:
+    cfg_file = tmp_path / "bench.toml"
+    cfg_file.write_text('[camera]\nserial = ""\n')  # no [stage]
+    config = BenchConfig.load(cfg_file, simulate=True)
+    asked: list[str] = []
+
+    def prompt(step: Any, message: str) -> bool:
+        asked.append(message)
+        return True
+
+    with Bench.open(config, simulate=True) as bench:
+        out = start_run("depth", bench=bench, params=SMALL, root=tmp_path / "s",
+                        prompt=prompt).run()
+    assert "Move the chart to 52 mm from the prototype." in asked
+    rows = tables_of(out.results_path)["depth_of_field"]
+    truth = {(t["field_point"], t["criterion"]): t
+             for t in tables_of(out.results_path)["simulator_truth"]}
+    first = rows[0]
+    assert first["best_focus_mm"] == pytest.approx(
+        truth[(first["field_point"], first["criterion"])]["best_focus_mm"], abs=1.0)
