@@ -34,7 +34,7 @@ import numpy.typing as npt
 
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, BarGroup
 from benchlab.analysis.chart.pose import ChartPose, PosedBarSet
-from benchlab.analysis.sfr.target import DEFAULT_SQUARES, SlantedSquare
+from benchlab.analysis.sfr.target import SlantedSquare, scaled_squares
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.usaf import UsafScene
@@ -137,16 +137,6 @@ def _image_xy_mm(point_rc: tuple[float, float]) -> tuple[float, float]:
     r, c = point_rc
     k = PIXEL_PITCH_UM / 1000.0
     return (c - IMAGE_CENTRE_RC[1]) * k, (r - IMAGE_CENTRE_RC[0]) * k
-
-
-def scaled_squares(
-    scale: float, squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES
-) -> tuple[SlantedSquare, ...]:
-    """The slanted-edge squares imaged at ``scale`` (about the optical centre)."""
-    r0, c0 = IMAGE_CENTRE_RC
-    return tuple(dataclasses.replace(
-        q, centre_rc=(r0 + scale * (q.centre_rc[0] - r0), c0 + scale * (q.centre_rc[1] - c0)),
-        side_px=q.side_px * scale) for q in squares)
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.chart.layout import ChartLayout
 from benchlab.analysis.focus.criteria import mtf_threshold
 from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
@@ -177,7 +178,7 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
             base = {"view": VIEW, "field_point": label, "orientation": orient_of[label],
                     "criterion": crit.name, "freq_lp_per_mm": f, "threshold": round(thr, 4)}
             if isinstance(fit, str):
-                rows.append({**base, "image_height_mm": _r(h_ref * k_scale / params.near_mm, 4),
+                rows.append({**base, "image_height_mm": None,
                              "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
                              "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
                              "far_mm_ci95": [None, None], "dof_mm": None, "peak_mtf": None,
@@ -213,7 +214,8 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
     curvature = _curvature(draws, heights, orient_of, params)
     overlap = _overlap(series)
     chart = [{"distance_mm": z, "segment": seg, "scale": _r(r.scale, 4),
-              "magnification": _r(16.3 / r.scale, 3) if r.scale else None, **row}
+              "magnification": _r(ChartLayout().magnification / r.scale, 3) if r.scale
+              else None, **row}
              for z, seg, r in readings for row in r.chart]
     within = [abs(o["z_score"]) <= 2 for o in overlap if o["z_score"] is not None]
     summary = {

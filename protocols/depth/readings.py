@@ -21,10 +21,15 @@ from benchlab.analysis.chart.finder import ChartFit, ChartNotFoundError, find_ch
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC
 from benchlab.analysis.chart.pose import ChartPose
 from benchlab.analysis.sfr.measure import SfrResult
-from benchlab.analysis.sfr.target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
+from benchlab.analysis.sfr.target import (
+    DEFAULT_SQUARES,
+    EdgeSpec,
+    SlantedSquare,
+    edge_specs,
+    scaled_squares,
+)
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.protocols.mtf.edges import measure_edges
-from benchlab.scenes.focus import scaled_squares
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy import stats
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -295,19 +294,6 @@ def focus_estimate(fit: ThroughFocusFit, threshold: float, *, draws: int = DRAWS
     )
 
 
-def difference_interval(a_draws: FloatArray, b_draws: FloatArray) -> tuple[float, float]:
-    """95 % interval of ``a - b`` from independent draws of each (same length)."""
-    d = np.asarray(a_draws) - np.asarray(b_draws)
-    d = d[np.isfinite(d)]
-    lo, hi = np.percentile(d, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
 def best_focus_draws(fit: ThroughFocusFit, *, draws: int = DRAWS, seed: int = 0) -> FloatArray:
     """Draws of the best-focus distance (NaN where a draw has no maximum inside the range)."""
     return np.asarray(_quantities(fit.draws(draws, seed), fit, None)[:, 0])
-
-
-def t_quantile(dof: int, p: float = 0.975) -> float:
-    """Student-t quantile (for callers combining fitted values)."""
-    return float(stats.t.ppf(p, dof))

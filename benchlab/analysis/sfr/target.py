@@ -115,3 +115,14 @@ def edge_specs(squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES) -> list[Edg
             wrapped = math.atan2(n[1], n[0])
             out.append(EdgeSpec(f"{sq.label}{name}", sq, wrapped, mid, roi, orientation))
     return out
+
+
+def scaled_squares(
+    scale: float, squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES
+) -> tuple[SlantedSquare, ...]:
+    """The squares imaged at ``scale`` about the optical centre (the target moved along the
+    axis: its image scales as 1 / object distance)."""
+    r0, c0 = IMAGE_CENTRE_RC
+    return tuple(SlantedSquare(
+        q.label, (r0 + scale * (q.centre_rc[0] - r0), c0 + scale * (q.centre_rc[1] - c0)),
+        q.side_px * scale, q.rotation_deg) for q in squares)
