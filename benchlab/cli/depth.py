@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchlab.cli import positive_int
+from benchlab.cli import positive_float, positive_int
 
 
 def benchmark_depth_command(args: argparse.Namespace) -> int:
@@ -29,8 +29,16 @@ def benchmark_depth_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def benchmark_focus_aid_command(args: argparse.Namespace) -> int:
+    """Readings per second of the live focus aid, and its accuracy cost."""
+    from benchlab.benchmarks.focus_aid import format_benchmark, run_benchmark
+
+    print(format_benchmark(run_benchmark(seconds=args.seconds)))
+    return 0
+
+
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
-    """Add ``benchmark depth``."""
+    """Add ``benchmark depth`` and ``benchmark focus-aid``."""
     del commands  # no top-level command here
     bd = benchmarks.add_parser(
         "depth", help="depth-of-field sweep figures on the simulated bench",
@@ -45,3 +53,14 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     bd.add_argument("--quick", action="store_true", help="3 seeds per variant")
     bd.add_argument("--keep", metavar="DIR", help="keep the sessions in DIR")
     bd.set_defaults(func=benchmark_depth_command)
+
+    bf = benchmarks.add_parser(
+        "focus-aid", help="live focus aid: whole-chart readings per second",
+        description="Read the whole simulated chart (every found set by a fast estimator, the "
+        "slanted edges' MTF50) frame after frame with the pose tracked, at 1280 x 1024 in 8 "
+        "and 12 bit; print readings per second and the difference from the full chart reading "
+        "of the same frames.",
+    )
+    bf.add_argument("--seconds", type=positive_float, default=3.0,
+                    help="seconds timed per configuration (3)")
+    bf.set_defaults(func=benchmark_focus_aid_command)

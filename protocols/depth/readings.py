@@ -10,7 +10,6 @@ read_chart`). Pure functions of the pixels.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,8 +23,8 @@ from benchlab.analysis.sfr.measure import SfrResult
 from benchlab.analysis.sfr.target import (
     DEFAULT_SQUARES,
     EdgeSpec,
-    SlantedSquare,
     edge_specs,
+    posed_squares,
     scaled_squares,
 )
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
@@ -63,13 +62,6 @@ def find_scale(pixels: npt.NDArray[Any], prior_scale: float | None = None) -> tu
     except (ChartNotFoundError, ValueError) as exc:
         return None, None, f"chart not found: {exc}"
     return float(fit.pose.scale), fit, "ok"
-
-
-def posed_squares(pose: ChartPose, origin_rc: tuple[float, float]) -> tuple[SlantedSquare, ...]:
-    """The slanted-edge squares where the chart's found pose puts them (they share its glass)."""
-    return tuple(dataclasses.replace(
-        q, centre_rc=pose.apply(q.centre_rc, origin_rc), side_px=q.side_px * pose.scale,
-        rotation_deg=q.rotation_deg + pose.rotation_deg) for q in DEFAULT_SQUARES)
 
 
 def _height_mm(point_rc: tuple[float, float]) -> float:
