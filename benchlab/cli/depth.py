@@ -13,15 +13,21 @@ from benchlab.cli import positive_float, positive_int
 
 def benchmark_depth_command(args: argparse.Namespace) -> int:
     """Run the benchmark and print its table."""
-    from benchlab.benchmarks.depth import VARIANTS, format_benchmark, run_benchmark
+    from benchlab.benchmarks.depth import (
+        RADIAL_VARIANTS,
+        VARIANTS,
+        format_benchmark,
+        run_benchmark,
+    )
 
-    variants = args.variants.split(",") if args.variants else list(VARIANTS)
-    unknown = [v for v in variants if v not in VARIANTS]
+    known = [*VARIANTS, *RADIAL_VARIANTS]
+    variants = args.variants.split(",") if args.variants else known
+    unknown = [v for v in variants if v not in known]
     if unknown:
         from benchlab.cli import UsageError
 
         raise UsageError(f"--variants: unknown {', '.join(unknown)}; known: "
-                         f"{', '.join(VARIANTS)}")
+                         f"{', '.join(known)}")
     seeds = 3 if args.quick else args.seeds
     out = run_benchmark(seeds, variants, Path(args.keep) if args.keep else None,
                         progress=lambda line: print(line, flush=True))
@@ -43,10 +49,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     bd = benchmarks.add_parser(
         "depth", help="depth-of-field sweep figures on the simulated bench",
         description="Run the depth-of-field procedure on the simulated bench for every seed and "
-        "lens variant (nominal, sharp, astigmatic, tilted) and compare best focus and the DOF "
-        "ends with the scene's closed-form truth: error, 95 %% interval coverage, pass rate "
-        "(within 0.3 mm or covered); the astigmatic difference's sign; then the wall time and "
-        "frames of a default run against a one-frame baseline. About 10 s per run.",
+        "lens variant (forward: nominal, sharp, astigmatic, tilted; radial: radial, "
+        "radial-astigmatic) and compare best focus and the DOF ends with the scene's "
+        "closed-form truth: error, 95 %% interval coverage, pass rate (within 0.3 mm, radial "
+        "0.1 mm, or covered); the astigmatic difference's sign; then the wall time and frames "
+        "of a default run against a one-frame baseline. About 10 s per run.",
     )
     bd.add_argument("--seeds", type=positive_int, default=20, help="seeds per variant (20)")
     bd.add_argument("--variants", help="comma-separated subset of the variants")

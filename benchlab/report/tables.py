@@ -86,7 +86,8 @@ TABLE_VIEWS: dict[str, TableView] = {
     # Depth of field (benchlab run depth).
     "depth_of_field": TableView(
         "Depth of field - best focus and DOF ends per field point (slanted edge), orientation "
-        "and criterion, 95 % intervals; verdict against Table 4.1 (+-40 mm)",
+        "and criterion, 95 % intervals; verdict against Table 4.1 (forward +-40 mm, radial "
+        "+-5 mm)",
         (*_DEPTH[:4], ("best_focus_mm_ci95", "95 % CI", ""), _DEPTH[4],
          ("near_mm_ci95", "95 % CI", ""), _DEPTH[5], ("far_mm_ci95", "95 % CI", ""),
          ("peak_mtf", "peak", ".3f"), ("verdict", "verdict", "")),

@@ -37,6 +37,8 @@ from benchlab.analysis.chart.pose import ChartPose, PosedBarSet
 from benchlab.analysis.sfr.target import SlantedSquare, scaled_squares
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.scenes.edge import EdgeScene
+from benchlab.scenes.optics import BlurProfile
+from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 from benchlab.synthetic.edges import edge_truth_mtf
 
@@ -192,3 +194,28 @@ def scenes_at(lens: ThroughFocusLens, distance_mm: float, usaf: UsafScene,
     fields_e["squares"] = scaled_squares(scale, edges.squares)
     return (DefocusedUsafScene(**fields_u, lens=lens, distance_mm=float(distance_mm)),
             DefocusedEdgeScene(**fields_e, lens=lens, distance_mm=float(distance_mm)))
+
+
+#: The radial view's lens (Table 4.4: EFL 3.52 mm, entrance pupil radius 0.84 mm; best focus
+#: on the thesis's object cylinder, 19.88 mm from the axis). The thin-lens model folds the
+#: mirrors' path into "object distance = object radius"; the ray-trace table gives the
+#: magnification at each radius (15.88-24.88 mm: 2-11 mm from the side wall).
+RADIAL_LENS = {"focal_length_mm": 3.52, "pupil_diameter_mm": 1.68, "best_focus_mm": 19.88,
+               "reference_magnification": 17.5}
+
+
+def defocused_radial(scene: RadialScene, lens: ThroughFocusLens, radius_mm: float
+                     ) -> RadialScene:
+    """The rolled pattern on a cylinder ``radius_mm`` from the axis through ``lens``: the
+    ray-trace table images it at that radius (its magnification), and the defocus blur at each
+    tabulated image height is added in quadrature to the radial blur table."""
+    base = scene.blur
+    h = base.image_height_mm
+    scale = lens.lens_blur_scale
+    sag = tuple(float(np.hypot(s * scale, lens.defocus_sigma_px(radius_mm, x, 0.0, "sagittal")))
+                for x, s in zip(h, base.sigma_sagittal_px, strict=True))
+    tan = tuple(float(np.hypot(t * scale,
+                               lens.defocus_sigma_px(radius_mm, x, 0.0, "tangential")))
+                for x, t in zip(h, base.sigma_tangential_px, strict=True))
+    return dataclasses.replace(scene, object_radius_mm=float(radius_mm),
+                               blur=BlurProfile(h, sag, tan))

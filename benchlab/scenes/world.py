@@ -33,7 +33,7 @@ from benchlab.analysis.chart.layout import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
 from benchlab.scenes.edge import EdgeScene
-from benchlab.scenes.focus import ThroughFocusLens, scenes_at
+from benchlab.scenes.focus import ThroughFocusLens, defocused_radial, scenes_at
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
@@ -109,7 +109,8 @@ class SimWorld:
     through_focus
         The lens's focus behaviour (:mod:`benchlab.scenes.focus`); with it, and a forward target
         on the stage carriage (``object_offset_mm`` in the bench state), the chart and edges
-        are imaged at object distance ``object_offset_mm + stage_position_mm``.
+        are imaged at object distance ``object_offset_mm + stage_position_mm`` (a rolled
+        radial pattern: at that object radius, :func:`benchlab.scenes.focus.defocused_radial`).
     """
 
     def __init__(
@@ -260,6 +261,9 @@ class SimWorld:
             assert self.through_focus is not None
             usaf, edges = scenes_at(self.through_focus, distance, self.usaf, self.edges)
             scene = usaf if spec[0] == "usaf" else edges
+        elif distance is not None and spec[0] == "radial":
+            assert self.through_focus is not None and isinstance(scene, RadialScene)
+            scene = defocused_radial(scene, self.through_focus, distance)
         img = scene(state)
         if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
             # Composed as transmissions multiply (``chart x (1 - darkening / bright)``): where

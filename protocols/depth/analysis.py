@@ -305,11 +305,22 @@ def _overlap(series: dict[tuple[str, float], list[tuple[float, float, float, int
 def analyze_depth(session: Session, params: DepthParams
                   ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
     """The session's tables; a simulated session also gets ``simulator_truth``."""
+    simulated = bool(session.meta.get("devices", {}).get("simulated"))
+    if params.view == "radial":
+        from benchlab.protocols.depth import radial
+
+        rad = radial.read_radial(session, params)
+        if not rad:
+            raise BenchlabError(f"{session.path}: no position taken yet; nothing to analyse")
+        tables, summary = radial.analyze_radial(rad, params)
+        if simulated:
+            tables["simulator_truth"] = radial.truth_rows(params)
+        return tables, summary
     readings = read_session(session, params)
     if not readings:
         raise BenchlabError(f"{session.path}: no position taken yet; nothing to analyse")
     tables, summary = analyze_readings(readings, params)
-    if session.meta.get("devices", {}).get("simulated"):
+    if simulated:
         from benchlab.protocols.depth.truth import truth_rows
 
         tables["simulator_truth"] = truth_rows(params, [r["field_point"] for r in

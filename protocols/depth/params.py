@@ -31,6 +31,8 @@ NYQUIST_LP_PER_MM = 1000.0 / (2 * 5.2)
 DEFAULT_SEGMENT_MM = 48.0
 #: Table 4.1: forward depth of field "+-40 mm or larger" (RMS spot < 12 um).
 DESIGN_HALF_RANGE_MM = 40.0
+#: Table 4.1: radial depth of field "+-5 mm or larger" (RMS spot < 12 um).
+RADIAL_HALF_RANGE_MM = 5.0
 #: Table 4.4: forward depth of field 6-73 mm (RMS spot < 10 um).
 DESIGN_RANGE_MM = (6.0, 73.0)
 
@@ -75,8 +77,34 @@ class DepthParams:
     min_mtf: float = 0.05
     read_chart: bool = True
     design_half_range_mm: float = DESIGN_HALF_RANGE_MM
+    #: Radial view: the rolled patterns (object lp/mm x orientation), each swept in turn, and
+    #: the Eq. 2.9 bar modulation that bounds the DOF; distances are from the side wall.
+    radial_frequencies_lp_per_mm: tuple[float, ...] = (2.0,)
+    radial_orientations: tuple[str, ...] = ("sagittal", "tangential")
+    radial_threshold: float = 0.3
+    wall_radius_mm: float = 13.88
     simulator: Mapping[str, Any] = field(default_factory=dict)
     raw: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def patterns(self) -> tuple[tuple[float, str] | None, ...]:
+        """What is swept: the forward chart once (None), or each radial pattern."""
+        if self.view == "forward":
+            return (None,)
+        return tuple((f, o) for f in self.radial_frequencies_lp_per_mm
+                     for o in self.radial_orientations)
+
+    def lens(self) -> Any:
+        """The simulated lens of the view (``[simulator]`` over the view's defaults)."""
+        from benchlab.scenes.focus import RADIAL_LENS, ThroughFocusLens
+
+        base = RADIAL_LENS if self.view == "radial" else {}
+        return ThroughFocusLens.from_mapping({**base, **self.simulator})
+
+    def object_distance_mm(self, sweep_mm: float) -> float:
+        """The object distance the lens sees at a sweep coordinate (radial: the object
+        radius, the wall distance plus the endoscope radius)."""
+        return sweep_mm + (self.wall_radius_mm if self.view == "radial" else 0.0)
 
     @property
     def distances_mm(self) -> tuple[float, ...]:
@@ -112,10 +140,12 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
     gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, (8, 12))
     frames = c.integer("camera.frames", d.frames, 1, 64)
-    view = c.choice("sweep.view", d.view, ("forward",))
-    near = c.number("sweep.near_mm", d.near_mm, 0.0, 10000.0, lo_open=True)
-    far = c.number("sweep.far_mm", d.far_mm, 0.0, 10000.0, lo_open=True)
-    step = c.number("sweep.step_mm", d.step_mm, 0.0, 1000.0, lo_open=True)
+    view = c.choice("sweep.view", d.view, ("forward", "radial"))
+    # the radial view sweeps the wall distance: Table 4.4's 2-11 mm with margin
+    dn, df, ds = (d.near_mm, d.far_mm, d.step_mm) if view == "forward" else (2.5, 10.5, 0.5)
+    near = c.number("sweep.near_mm", dn, 0.0, 10000.0, lo_open=view == "forward")
+    far = c.number("sweep.far_mm", df, 0.0, 10000.0, lo_open=True)
+    step = c.number("sweep.step_mm", ds, 0.0, 1000.0, lo_open=True)
     overlap = c.number("sweep.overlap_mm", d.overlap_mm, 0.0, 1000.0)
     segment = c.number("sweep.segment_mm", d.segment_mm, 0.0, 10000.0)
     start = c.number("sweep.stage_start_mm", d.stage_start_mm, -10000.0, 10000.0)
@@ -150,14 +180,36 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
     if found and not isinstance(read_chart, bool):
         c.fail("analysis.read_chart", f"must be true or false, got {read_chart!r}")
         read_chart = d.read_chart
-    half = c.number("analysis.design_half_range_mm", d.design_half_range_mm, 0.0, 10000.0,
-                    lo_open=True)
+    # Table 4.1: forward +-40 mm, radial +-5 mm
+    half = c.number("analysis.design_half_range_mm",
+                    d.design_half_range_mm if view == "forward" else RADIAL_HALF_RANGE_MM,
+                    0.0, 10000.0, lo_open=True)
+    rad_f = c.numbers("radial.frequencies_lp_per_mm", d.radial_frequencies_lp_per_mm, 0.0,
+                      100.0, lo_open=True)
+    rad_o = d.radial_orientations
+    found, orients = c.get("radial.orientations", list(rad_o))
+    if found:
+        if (not isinstance(orients, list) or not orients
+                or any(o not in ("sagittal", "tangential") for o in orients)
+                or len(set(orients)) != len(orients)):
+            c.fail("radial.orientations", f"must be a list of distinct 'sagittal' / "
+                   f"'tangential', got {orients!r}")
+        else:
+            rad_o = tuple(orients)
+    rad_t = c.number("radial.threshold", d.radial_threshold, 0.0, 1.0, lo_open=True,
+                     hi_open=True)
+    wall = c.number("radial.wall_radius_mm", d.wall_radius_mm, 0.0, 1000.0)
+    if view == "radial" and "criteria" in c.data:
+        c.fail("criteria", "apply to the forward view's edges; the radial view's DOF is bounded "
+               "by radial.threshold (bar modulation)")
     simulator = _simulator(c)
     return DepthParams(
         exposure_ms=exposure, gain=gain, bits=bits, frames=frames, view=view, near_mm=near,
         far_mm=far, step_mm=step, overlap_mm=overlap, segment_mm=segment, stage_start_mm=start,
         criteria=criteria, min_mtf=min_mtf, read_chart=bool(read_chart),
-        design_half_range_mm=half, simulator=simulator, raw=c.data,
+        design_half_range_mm=half, radial_frequencies_lp_per_mm=rad_f,
+        radial_orientations=rad_o, radial_threshold=rad_t, wall_radius_mm=wall,
+        simulator=simulator, raw=c.data,
     )
 
 
@@ -260,15 +312,20 @@ def depth_to_dict(p: DepthParams) -> dict[str, Any]:
         if cr.kind == "spot":
             row["rms_um"] = cr.rms_um
         crit.append(row)
-    return {
+    out: dict[str, Any] = {
         "procedure": "depth",
         "camera": {"exposure_ms": p.exposure_ms, "gain": p.gain, "bits": p.bits,
                    "frames": p.frames},
         "sweep": {"view": p.view, "near_mm": p.near_mm, "far_mm": p.far_mm,
                   "step_mm": p.step_mm, "overlap_mm": p.overlap_mm,
                   "segment_mm": p.segment_mm, "stage_start_mm": p.stage_start_mm},
-        "criteria": crit,
         "analysis": {"min_mtf": p.min_mtf, "read_chart": p.read_chart,
                      "design_half_range_mm": p.design_half_range_mm},
+        "radial": {"frequencies_lp_per_mm": list(p.radial_frequencies_lp_per_mm),
+                   "orientations": list(p.radial_orientations),
+                   "threshold": p.radial_threshold, "wall_radius_mm": p.wall_radius_mm},
         "simulator": dict(p.simulator),
     }
+    if p.view == "forward":  # the radial view's DOF is bounded by radial.threshold
+        out["criteria"] = crit
+    return out

@@ -40,9 +40,20 @@ def frame_name(k: int) -> str:
     return f"frame-{k}"
 
 
-def position_step_id(segment: int, distance_mm: float) -> str:
+def pattern_prefix(pattern: tuple[float, str] | None) -> str:
+    """Step-id prefix of a radial pattern (``r2S-``); none for the forward chart."""
+    return "" if pattern is None else f"r{pattern[0]:g}{pattern[1][0].upper()}-"
+
+
+def position_step_id(segment: int, distance_mm: float,
+                     pattern: tuple[float, str] | None = None) -> str:
     """The step of one distance of one segment (also its frames' file names)."""
-    return f"s{segment}-z{distance_mm:g}"
+    return f"{pattern_prefix(pattern)}s{segment}-z{distance_mm:g}"
+
+
+def target_of(pattern: tuple[float, str] | None) -> object:
+    """What is mounted: the USAF chart, or a rolled radial pattern."""
+    return TARGET if pattern is None else ("radial", pattern[0], pattern[1])
 
 
 class DepthProcedure:
@@ -64,24 +75,30 @@ class DepthProcedure:
             "edges) on the stage carriage in front of the prototype; back focus set and locked "
             "- it is not touched during the sweep.", restore=self._restore,
         )]
-        for seg in self.segments():
-            first, last = seg.distances_mm[0], seg.distances_mm[-1]
-            steps.append(Step(
-                f"mount-{seg.index}", f"Mount the chart for {first:g}-{last:g} mm", "manual",
-                "section 2.2.4", self._mount(seg),
-                prompt=(f"Segment {seg.index + 1}: mount the chart on the carriage so it is "
-                        f"{first:g} mm from the prototype with the stage at "
-                        f"{seg.stage_mm(first):g} mm (distances {first:g}-{last:g} mm)."),
-                restore=self._mount(seg, ask=False),
-                info={"object_offset_mm": seg.object_offset_mm},
-            ))
-            for z in seg.distances_mm:
+        for pattern in p.patterns:
+            pre = pattern_prefix(pattern)
+            what = ("the chart" if pattern is None else
+                    f"the {pattern[0]:g} lp/mm pattern rolled {pattern[1]}")
+            where = "from the prototype" if pattern is None else "from the side wall"
+            for seg in self.segments():
+                first, last = seg.distances_mm[0], seg.distances_mm[-1]
                 steps.append(Step(
-                    position_step_id(seg.index, z), f"Chart at {z:g} mm: {p.frames} frames",
-                    "acquire", "section 2.2.4", self._position(seg, z),
-                    info={"distance_mm": z, "segment": seg.index,
-                          "stage_mm": seg.stage_mm(z)},
+                    f"{pre}mount-{seg.index}", f"Mount {what} for {first:g}-{last:g} mm",
+                    "manual", "section 2.2.4", self._mount(seg, pattern),
+                    prompt=(f"Segment {seg.index + 1}: mount {what} on the carriage so it is "
+                            f"{first:g} mm {where} with the stage at "
+                            f"{seg.stage_mm(first):g} mm (distances {first:g}-{last:g} mm)."),
+                    restore=self._mount(seg, pattern, ask=False),
+                    info={"object_offset_mm": seg.object_offset_mm},
                 ))
+                for z in seg.distances_mm:
+                    steps.append(Step(
+                        position_step_id(seg.index, z, pattern),
+                        f"{what.capitalize()} at {z:g} mm: {p.frames} frames",
+                        "acquire", "section 2.2.4", self._position(seg, z, pattern),
+                        info={"distance_mm": z, "segment": seg.index,
+                              "stage_mm": seg.stage_mm(z)},
+                    ))
         steps.append(Step("analysis", "Analyse: through-focus curves, best focus, DOF",
                           "analysis", "section 2.2.4", self._analysis))
         return steps
@@ -90,10 +107,8 @@ class DepthProcedure:
     def _restore(self, ctx: StepContext) -> None:
         ctx.bench.configure_camera(bits=self.params.bits)
         world = getattr(ctx.bench, "world", None)
-        if world is not None and world.through_focus is None:
-            from benchlab.scenes.focus import ThroughFocusLens
-
-            world.through_focus = ThroughFocusLens.from_mapping(self.params.simulator)
+        if world is not None:  # the view's lens (a world left by another depth run: replaced)
+            world.through_focus = self.params.lens()
         if ctx.bench.has_stage:
             try:
                 ctx.bench.home_stage(abort=ctx.runner.abort)
@@ -105,16 +120,16 @@ class DepthProcedure:
         ctx.ask(ctx.step.prompt or "")
         self._restore(ctx)
 
-    def _mount(self, seg: Segment, ask: bool = True) -> Any:
+    def _mount(self, seg: Segment, pattern: tuple[float, str] | None, ask: bool = True) -> Any:
         def action(ctx: StepContext) -> None:
             if ask:
                 ctx.ask(ctx.step.prompt or "")
-            ctx.bench.mount(TARGET)
-            ctx.bench.carry_target(seg.object_offset_mm)
+            ctx.bench.mount(target_of(pattern))
+            ctx.bench.carry_target(self.params.object_distance_mm(seg.object_offset_mm))
 
         return action
 
-    def _position(self, seg: Segment, z: float) -> Any:
+    def _position(self, seg: Segment, z: float, pattern: tuple[float, str] | None) -> Any:
         def action(ctx: StepContext) -> None:
             p = self.params
             stage = seg.stage_mm(z)
@@ -126,13 +141,14 @@ class DepthProcedure:
                     ctx.check_abort()  # stopped by the abort key: an abort, not a fault
                     raise
             else:  # no stage: the operator moves the chart (the carriage offset is the distance)
-                ctx.ask(f"Move the chart to {z:g} mm from the prototype.")
-                ctx.bench.carry_target(z)
+                ctx.ask(f"Move the {'chart' if pattern is None else 'pattern'} to {z:g} mm "
+                        f"{'from the prototype' if pattern is None else 'from the side wall'}.")
+                ctx.bench.carry_target(self.params.object_distance_mm(z))
             extra = {"distance_mm": z, "segment": seg.index, "stage_mm": stage,
                      "object_offset_mm": seg.object_offset_mm}
             frames = [ctx.acquire(frame_name(k), exposure_ms=p.exposure_ms, gain=p.gain,
                                   extra=extra) for k in range(p.frames)]
-            if ctx.runner.on_result is not None:
+            if ctx.runner.on_result is not None and pattern is None:
                 from benchlab.protocols.depth.analysis import position_summary
 
                 avg = np.mean(np.stack(frames).astype(np.float64), axis=0)

@@ -95,7 +95,7 @@ def truth_focus(lens: ThroughFocusLens, label: str, crit: Criterion, bounds_mm: 
 
 def truth_rows(params: DepthParams, labels: Sequence[str]) -> list[dict[str, Any]]:
     """The ``depth_of_field`` keys per edge and criterion (module docstring)."""
-    lens = ThroughFocusLens.from_mapping(params.simulator)
+    lens = params.lens()
     bounds = (params.near_mm * 0.5, params.far_mm * 2.0)
     rows = []
     seen: set[str] = set()

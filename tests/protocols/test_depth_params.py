@@ -91,3 +91,18 @@ def test_depth_procedure_is_made_on_demand_and_mtf_never_loads_it() -> None:
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True).stdout.split()
     assert not [m for m in loaded if m.startswith("benchlab.protocols.depth")]
+
+
+def test_radial_view_sweeps_the_wall_distance_with_its_own_defaults() -> None:
+    p = _parse({"sweep": {"view": "radial"}})
+    assert (p.near_mm, p.far_mm, p.step_mm) == (2.5, 10.5, 0.5)
+    assert p.design_half_range_mm == 5.0  # Table 4.1 radial: +-5 mm
+    assert p.patterns == ((2.0, "sagittal"), (2.0, "tangential"))
+    assert p.object_distance_mm(3.0) == pytest.approx(16.88)  # + the endoscope radius
+    assert p.lens().pupil_diameter_mm == 1.68 and p.lens().best_focus_mm == 19.88
+    assert parse_params("depth", params_to_dict(p), "snapshot").patterns == p.patterns
+    with pytest.raises(ParamsError, match="criteria: apply to the forward view"):
+        _parse({"sweep": {"view": "radial"},
+                "criteria": [{"kind": "mtf50", "frequency_lp_per_mm": 35}]})
+    with pytest.raises(ParamsError, match="radial.orientations: must be a list"):
+        _parse({"sweep": {"view": "radial"}, "radial": {"orientations": ["sideways"]}})
