@@ -243,6 +243,8 @@ class Bench:
         self.sim_led: SimulatedSlc | None = None
         self.sim_stage: SimulatedAptStage | None = None
         self._mounted: object = None
+        #: Where a stage-carried target sits: object distance = this + stage position (mm).
+        self._object_offset_mm: float | None = None
         self._camera_settings: dict[str, Any] = {}
         self._camera_lost = False
 
@@ -397,10 +399,21 @@ class Bench:
     # -- the mounted target ---------------------------------------------------------------------
     def mount(self, target: object) -> None:
         """A manual set-up step was confirmed: on the simulated bench, mount ``target`` in the
-        world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record."""
+        world ("usaf", ("radial", lp_per_mm, orientation), "led", "dark"); real bench: record.
+        A target just mounted is not on the stage carriage until :meth:`carry_target` says so."""
         self._mounted = target
+        self._object_offset_mm = None
         if self.world is not None:
             self.world.mount(target)
+
+    def carry_target(self, object_offset_mm: float | None) -> None:
+        """The mounted target rides on the stage carriage: its object distance is
+        ``object_offset_mm`` + the stage position (depth of field). None: it does not."""
+        self._object_offset_mm = None if object_offset_mm is None else float(object_offset_mm)
+
+    @property
+    def object_offset_mm(self) -> float | None:
+        return self._object_offset_mm
 
     def place_led_by_hand(self, position_mm: float) -> None:
         """The operator moved the LED (no stage): the simulated world follows."""
@@ -414,6 +427,8 @@ class Bench:
     def state(self) -> dict[str, Any]:
         """What the bench knows about itself right now (frame metadata, scenes)."""
         st: dict[str, Any] = {"target": plain_target(self._mounted)}
+        if self._object_offset_mm is not None:
+            st["object_offset_mm"] = self._object_offset_mm
         if self.sim_led is not None:
             st["led_current_ma"] = {str(ch): self.sim_led.channel_output_ma(ch)
                                     for ch in range(1, self.sim_led.channel_count + 1)}

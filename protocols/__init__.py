@@ -1,5 +1,6 @@
-"""Measurement procedures: Table 4.10 MTF, section 4.4 relative radiometry, and the camera
-characterisation (EMVA 1288 photon transfer, ``characterise.py``).
+"""Measurement procedures: Table 4.10 MTF, section 4.4 relative radiometry, the camera
+characterisation (EMVA 1288 photon transfer, ``characterise/``) and the depth of field
+(section 2.2.4: the stage carries the chart through focus, ``depth/``).
 
 Python API for scripted sessions (and for the TUI)
 ==================================================
@@ -63,7 +64,8 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
 * HTML report: ``benchlab.report.render.write_report(session_path, out=None)`` -> path.
 
 Results: ``outcome.tables`` maps table names (``table_4_11``, ``table_4_12``, ``table_4_13``,
-``table_4_15``; radiometry ``table_4_16``) to lists of row dicts (one dict per table row); the
+``table_4_15``; radiometry ``table_4_16``; depth ``depth_of_field`` and the others listed in
+``benchlab.protocols.depth.analysis``) to lists of row dicts (one dict per table row); the
 same tables are written as CSV + JSON under ``SESSION/results/vN/`` (``Session.write_results``).
 ``outcome.summary`` is that version's ``summary.json`` (version, estimator, frame hashes, and
 ``summary`` with the headline numbers).

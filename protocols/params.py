@@ -25,10 +25,11 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
 
 if TYPE_CHECKING:
     from benchlab.protocols.characterise.params import CharacteriseParams
+    from benchlab.protocols.depth.params import DepthParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
-PROCEDURES = ("mtf", "radiometry", "characterise")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
 __all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
            "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
@@ -104,7 +105,7 @@ class RadiometryParams:
 
 #: (A string: the characterisation's parameters are imported only where they are used, so an
 #: MTF re-analysis never loads them.)
-Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams"
+Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams | DepthParams"
 
 
 class _Checker(TableChecker):
@@ -313,6 +314,10 @@ def parse_params(
         from benchlab.protocols.characterise.params import check_characterise
 
         params = check_characterise(checker, limits)
+    elif procedure == "depth":
+        from benchlab.protocols.depth.params import check_depth
+
+        params = check_depth(checker, limits)
     else:
         params = (_check_mtf(checker) if procedure == "mtf"
                   else _check_radiometry(checker, limits))
@@ -348,6 +353,10 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
     if not isinstance(params, MtfParams | RadiometryParams):
+        from benchlab.protocols.depth.params import DepthParams, depth_to_dict
+
+        if isinstance(params, DepthParams):
+            return depth_to_dict(params)
         from benchlab.protocols.characterise.params import characterise_to_dict
 
         return characterise_to_dict(params)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError, UsageError
@@ -32,6 +32,7 @@ from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
+    from benchlab.protocols.depth.steps import DepthProcedure
     from benchlab.protocols.mtf.steps import MtfProcedure
     from benchlab.protocols.radiometry import RadiometryProcedure
 
@@ -60,7 +61,11 @@ def check_estimator(name: str | None) -> None:
             f"unknown estimator {name!r}; choose auto, {', '.join(sorted(ESTIMATORS))}")
 
 
-def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | CharacteriseProcedure:
+AnyProcedure: TypeAlias = ("MtfProcedure | RadiometryProcedure | CharacteriseProcedure | "
+                           "DepthProcedure")
+
+
+def make_procedure(params: Params) -> AnyProcedure:
     """The procedure object for a parameter set.
 
     Each procedure module is imported only when its procedure is asked for: re-analysing an
@@ -74,6 +79,12 @@ def make_procedure(params: Params) -> MtfProcedure | RadiometryProcedure | Chara
         from benchlab.protocols.radiometry import RadiometryProcedure
 
         return RadiometryProcedure(params)
+    from benchlab.protocols.depth.params import DepthParams
+
+    if isinstance(params, DepthParams):
+        from benchlab.protocols.depth.steps import DepthProcedure
+
+        return DepthProcedure(params)
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
 
     return CharacteriseProcedure(params)
@@ -87,9 +98,10 @@ def _resolve_params(
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
     from benchlab.protocols.characterise.params import CharacteriseParams
+    from benchlab.protocols.depth.params import DepthParams
 
-    expected = {"mtf": MtfParams, "characterise": CharacteriseParams}.get(procedure,
-                                                                        RadiometryParams)
+    expected = {"mtf": MtfParams, "characterise": CharacteriseParams,
+                "depth": DepthParams}.get(procedure, RadiometryParams)
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])

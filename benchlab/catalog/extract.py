@@ -28,7 +28,8 @@ from benchlab.table_4_15 import average_of
 ORIENTATIONS = ("sagittal", "tangential")
 #: Tables with no figure of merit: image heights (4.13), sampled SFR curves (the largest file
 #: of a version: the catalogue does not read them at all).
-NOT_FIGURES = frozenset({"table_4_13", "table_sfr_curves"})
+NOT_FIGURES = frozenset({"table_4_13", "table_sfr_curves", "depth_curves", "depth_overlap",
+                         "depth_chart"})
 #: A table of another kind with more rows than this is a curve, not key figures.
 MAX_GENERIC_ROWS = 100
 
@@ -220,6 +221,13 @@ def figures_of(version: int, tables: Mapping[str, Any]) -> Iterator[Figure]:
                     yield Figure(version, "sfr_vs_bars", str(r.get("element", "")),
                                  str(r.get("orientation", "")), _num(r.get("image_lp_per_mm")),
                                  q, _num(r.get(q)), str(r.get("verdict", "")))
+        elif name == "depth_of_field":  # best focus and DOF per field point and criterion
+            for r in rows:
+                text = f"{r.get('criterion', '')}: {r.get('verdict', '')}"
+                for q in ("best_focus_mm", "near_mm", "far_mm", "dof_mm"):
+                    yield Figure(version, f"depth {r.get('view', '')}".strip(),
+                                 str(r.get("field_point", "")), str(r.get("orientation", "")),
+                                 _num(r.get("freq_lp_per_mm")), q, _num(r.get(q)), text)
         elif name in NOT_FIGURES or len(rows) > MAX_GENERIC_ROWS:
             continue  # geometry or whole curves: not figures of merit
         else:

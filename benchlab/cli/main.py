@@ -35,6 +35,7 @@ COMMAND_MODULES = (
     "benchlab.cli.soak",  # benchmark soak
     "benchlab.cli.verify",  # verify, units, unit, lot, certificate (acceptance per unit)
     "benchlab.cli.doctor",  # doctor (guided bring-up)
+    "benchlab.cli.depth",  # benchmark depth (run depth is in cli.procedures)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module

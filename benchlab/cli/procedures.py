@@ -479,7 +479,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise"))
+    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise", "depth"))
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
                      "default: the user's, see `benchlab config show`)")

@@ -464,6 +464,12 @@ def _characterise(ctx: ReportContext) -> str:
     return characterise_html(ctx.tables, ctx.summary)
 
 
+def _depth(ctx: ReportContext) -> str:
+    from benchlab.report.depth import depth_section
+
+    return depth_section(ctx.tables, ctx.session.meta.get("params") or {})
+
+
 def _unwrapped(ctx: ReportContext) -> str:
     from benchlab.report.unwrap import render_unwrap_section  # after benchlab unwrap SESSION
 
@@ -488,6 +494,7 @@ SECTIONS: list[Section] = [
     Section("Measurement frames with LED masks", _radiometry_frames, ("radiometry",), "masks"),
     Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),
             "characterisation"),
+    Section("Through focus: curves, DOF, field curvature", _depth, ("depth",), "depth"),
     Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]

@@ -28,6 +28,14 @@ _S_T = tuple(
 #: Aliasing per orientation (Table 4.12's spokes and rings image at different frequencies).
 _ALIASED = (("sagittal_aliased", "S aliased", ""), ("tangential_aliased", "T aliased", ""))
 
+#: Depth-of-field columns shared by the measured table and the simulator's truth.
+_DEPTH: tuple[Column, ...] = (
+    ("field_point", "field pt", ""), ("orientation", "orient.", ""),
+    ("criterion", "criterion", ""), ("best_focus_mm", "best mm", ".2f"),
+    ("near_mm", "near mm", ".2f"), ("far_mm", "far mm", ".2f"),
+    ("image_height_mm", "height mm", ".3f"),
+)
+
 TABLE_VIEWS: dict[str, TableView] = {
     "table_4_11": TableView(
         "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9); by default each found set "
@@ -73,9 +81,33 @@ TABLE_VIEWS: dict[str, TableView] = {
         ("linearity_error_min_pct", "LE min %", "+.3f"),
         ("linearity_error_max_pct", "LE max %", "+.3f"),
         ("dark_current_e_per_s", "dark e-/s", ".1f"), ("dsnu_dn", "DSNU DN", ".3f"),
-        ("prnu_pct", "PRNU %", ".3f"))) for name, title in (
+        ("prnu_pct", "PRNU %", ".3f"), *(_DEPTH if name == "simulator_truth" else ())))
+        for name, title in (
         ("characterisation", "Camera characterisation (EMVA 1288 photon transfer)"),
         ("simulator_truth", "Simulator truth (same keys)"))},
+    # Depth of field (benchlab run depth).
+    "depth_of_field": TableView(
+        "Depth of field - best focus and DOF ends per field point (slanted edge), orientation "
+        "and criterion, 95 % intervals; verdict against Table 4.1 (forward +-40 mm, radial "
+        "+-5 mm)",
+        (*_DEPTH[:4], ("best_focus_mm_ci95", "95 % CI", ""), _DEPTH[4],
+         ("near_mm_ci95", "95 % CI", ""), _DEPTH[5], ("far_mm_ci95", "95 % CI", ""),
+         ("peak_mtf", "peak", ".3f"), ("verdict", "verdict", "")),
+    ),
+    "depth_astigmatism": TableView(
+        "Astigmatic focal difference (S minus T best focus) per field point",
+        (("field_point", "field pt", ""), ("freq_lp_per_mm", "lp/mm", "g"),
+         ("s_minus_t_mm", "S-T mm", "+.3f"), ("s_minus_t_mm_ci95", "95 % CI", ""),
+         ("significant", "significant", "")),
+    ),
+    "depth_field_curvature": TableView(
+        "Field curvature: best focus = b0 + k h^2 per orientation",
+        (("orientation", "orient.", ""), ("freq_lp_per_mm", "lp/mm", "g"),
+         ("curvature_mm_per_mm2", "k mm/mm2", "+.3f"),
+         ("curvature_mm_per_mm2_ci95", "95 % CI", ""),
+         ("best_focus_on_axis_mm", "b0 mm", ".3f"),
+         ("best_focus_on_axis_mm_ci95", "95 % CI", "")),
+    ),
 }
 
 
@@ -167,8 +199,24 @@ def row_cell(row: Mapping[str, Any], key: str, fmt: str) -> str:
     return cell(row.get(key), fmt)
 
 
+def _shown(rows: Sequence[Mapping[str, Any]], key: str) -> bool:
+    """False for a column no row has and :func:`row_cell` cannot derive (all N/A): one view
+    serves tables of several procedures with different keys (``simulator_truth``)."""
+    if not rows or any(key in r for r in rows):
+        return True
+    derived = {"aliased", "clipped_pixels"}
+    quantity = _CHARACTERISE_QUANTITY.get(key)
+    if quantity is not None:
+        derived.add(f"{quantity}_unresolved")
+    if key.endswith("_modulation"):
+        orient = key.removesuffix("_modulation")
+        derived |= {f"{orient}_aliased", f"{orient}_resolved"}
+    return any(k in r for r in rows for k in derived)
+
+
 def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
-    """A plain-text table with aligned columns."""
+    """A plain-text table with aligned columns (columns no row has are left out)."""
+    columns = [c for c in columns if _shown(rows, c[0])]
     header = [h for _, h, _ in columns]
     body = [[row_cell(r, k, f) for k, _, f in columns] for r in rows]
     widths = [max(len(x) for x in col) for col in zip(header, *body, strict=False)]
@@ -178,7 +226,8 @@ def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -
 
 
 def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
-    """An HTML table (escaped)."""
+    """An HTML table (escaped; columns no row has are left out)."""
+    columns = [c for c in columns if _shown(rows, c[0])]
     head = "".join(f"<th>{html.escape(h)}</th>" for _, h, _ in columns)
     body = "".join(
         "<tr>" + "".join(f"<td>{html.escape(row_cell(r, k, f))}</td>" for k, _, f in columns)

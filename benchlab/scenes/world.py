@@ -33,6 +33,7 @@ from benchlab.analysis.chart.layout import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
 from benchlab.scenes.edge import EdgeScene
+from benchlab.scenes.focus import ThroughFocusLens, defocused_radial, scenes_at
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
@@ -105,6 +106,11 @@ class SimWorld:
     flat_e_per_ms_per_ma
         Electron rate per pixel per mA of LED current on the ``"flat"`` target (linear in the
         current, so a current sweep is an irradiance sweep).
+    through_focus
+        The lens's focus behaviour (:mod:`benchlab.scenes.focus`); with it, and a forward target
+        on the stage carriage (``object_offset_mm`` in the bench state), the chart and edges
+        are imaged at object distance ``object_offset_mm + stage_position_mm`` (a rolled
+        radial pattern: at that object radius, :func:`benchlab.scenes.focus.defocused_radial`).
     """
 
     def __init__(
@@ -119,6 +125,7 @@ class SimWorld:
         led_position_mm: float | None = None,
         edges: EdgeScene | None = None,
         flat_e_per_ms_per_ma: float = 20.0,
+        through_focus: ThroughFocusLens | None = None,
     ) -> None:
         self.usaf = usaf if usaf is not None else UsafScene()
         self.edges = edges if edges is not None else EdgeScene()
@@ -132,6 +139,7 @@ class SimWorld:
         self._radial: dict[tuple[float, str], RadialScene] = {}
         self._lock = threading.Lock()
         self._target = self._checked(target)
+        self.through_focus = through_focus
 
     @property
     def target(self) -> Target:
@@ -247,11 +255,28 @@ class SimWorld:
             ).copy()
         scene = self.scene_for(spec)
         assert scene is not None
+        edges = self.edges
+        distance = self.object_distance_mm(bench)
+        if distance is not None and spec[0] in ("usaf", "edge"):
+            assert self.through_focus is not None
+            usaf, edges = scenes_at(self.through_focus, distance, self.usaf, self.edges)
+            scene = usaf if spec[0] == "usaf" else edges
+        elif distance is not None and spec[0] == "radial":
+            assert self.through_focus is not None and isinstance(scene, RadialScene)
+            scene = defocused_radial(scene, self.through_focus, distance)
         img = scene(state)
         if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
             # Composed as transmissions multiply (``chart x (1 - darkening / bright)``): where
             # a chart bar (or a moved chart) overlaps a square the light passes both chromes,
             # not subtracted twice and clamped at 0 (fake clipping); on clear glass it is
             # exactly the chart minus the squares.
-            img -= self.edges.darkening(state) * (img / self.edges.bright_rate)
+            img -= edges.darkening(state) * (img / edges.bright_rate)
         return img
+
+    def object_distance_mm(self, bench: Mapping[str, Any]) -> float | None:
+        """Object distance of a stage-carried forward target (None: not carried, or no
+        through-focus model)."""
+        offset = bench.get("object_offset_mm")
+        if self.through_focus is None or offset is None:
+            return None
+        return float(offset) + float(bench.get("stage_position_mm") or 0.0)

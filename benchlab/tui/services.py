@@ -271,7 +271,7 @@ def live_reading(
     """Everything the live view shows about one frame (runs in the acquisition thread);
     the preview's longest side is at most ``preview_max_side`` pixels."""
     from benchlab.analysis.bars.estimators import estimate_modulation
-    from benchlab.analysis.focus import sharpness
+    from benchlab.analysis.focus.sharpness import sharpness
 
     pixels, meta = frame
     rows, cols = pixels.shape[:2]
@@ -451,7 +451,7 @@ def run_ending(exc: BaseException) -> str:
 
 def focus_sharpness(bench: Bench, runner: Runner) -> float:
     """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
-    from benchlab.analysis.focus import sharpness
+    from benchlab.analysis.focus.sharpness import sharpness
 
     params = getattr(getattr(runner, "procedure", None), "params", None)
     exposure = float(getattr(params, "exposure_ms", 300.0))

@@ -133,7 +133,7 @@ class MtfProcedure:
 
     def _focus(self, ctx: StepContext) -> None:
         # Imported here: it loads OpenCV, which a re-analysis never needs (start-up, issue 11).
-        from benchlab.analysis.focus import sharpness
+        from benchlab.analysis.focus.sharpness import sharpness
 
         p = self.params
         readings: list[float] = []

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, Box, Orientation
+from benchlab.analysis.chart.pose import ChartPose
 
 #: Keep this far (px) from each corner of a side, along the side.
 CORNER_MARGIN_PX = 12.0
@@ -115,3 +116,22 @@ def edge_specs(squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES) -> list[Edg
             wrapped = math.atan2(n[1], n[0])
             out.append(EdgeSpec(f"{sq.label}{name}", sq, wrapped, mid, roi, orientation))
     return out
+
+
+def scaled_squares(
+    scale: float, squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES
+) -> tuple[SlantedSquare, ...]:
+    """The squares imaged at ``scale`` about the optical centre (the target moved along the
+    axis: its image scales as 1 / object distance)."""
+    r0, c0 = IMAGE_CENTRE_RC
+    return tuple(SlantedSquare(
+        q.label, (r0 + scale * (q.centre_rc[0] - r0), c0 + scale * (q.centre_rc[1] - c0)),
+        q.side_px * scale, q.rotation_deg) for q in squares)
+
+
+def posed_squares(pose: ChartPose, origin_rc: tuple[float, float]) -> tuple[SlantedSquare, ...]:
+    """The squares where a found chart pose puts them (they share the chart's glass, so they
+    move, scale and turn with it about its origin)."""
+    return tuple(SlantedSquare(
+        q.label, pose.apply(q.centre_rc, origin_rc), q.side_px * pose.scale,
+        q.rotation_deg + pose.rotation_deg) for q in DEFAULT_SQUARES)
