@@ -54,12 +54,18 @@ async def wait_until(
     """Pause the pilot until ``condition()``; optionally confirm manual-step prompts.
 
     Returns how many prompts were confirmed. The timeout is only a guard against hangs.
+    Each prompt dialog is answered once: on a loaded CPU the dialog can still be on screen
+    after the key press returned (its key not handled yet), and a second "y" would be
+    counted for a prompt that was not there.
     """
     answered = 0
+    last: PromptDialog | None = None
     deadline = time.monotonic() + timeout_s
     while not condition():
-        if answer_prompts and isinstance(pilot.app.screen, PromptDialog):
+        screen = pilot.app.screen
+        if answer_prompts and isinstance(screen, PromptDialog) and screen is not last:
             await pilot.press("y")
+            last = screen
             answered += 1
         await pilot.pause(0.05)
         if time.monotonic() > deadline:
