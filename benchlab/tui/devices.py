@@ -76,11 +76,14 @@ class DevicesScreen(Screen[None]):
             info: dict[str, list[tuple[str, str]]] = {"camera": [], "leds": [], "stage": []}
         else:
             with app.device_activity():
-                if app.procedure_running:  # the runner owns the devices: show cached identity
-                    info = services.describe_devices(bench, live=False)
-                else:
-                    with app.device_lock:
+                # procedure_running is read under the lock: a run sets it before its thread
+                # passes the lock, so a read that got the lock first ends before the run starts
+                with app.device_lock:
+                    live = not app.procedure_running
+                    if live:
                         info = services.describe_devices(bench, live=True)
+                if not live:  # the runner owns the devices: show the cached identity
+                    info = services.describe_devices(bench, live=False)
         if not get_current_worker().is_cancelled:
             app.call_from_thread(self._show, info)
 
@@ -111,6 +114,10 @@ class DevicesScreen(Screen[None]):
             return
         try:
             with app.device_activity(), app.device_lock:
+                if app.procedure_running:  # started while this thread waited for the lock
+                    app.call_from_thread(self.notify, "A procedure is running.",
+                                         severity="warning")
+                    return
                 message = services.device_action(app.bench, what, stop=app.device_stop)
         except Exception as exc:  # noqa: BLE001 - shown in plain words
             app.call_from_thread(app.show_error, "Device command failed", exc)

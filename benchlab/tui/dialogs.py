@@ -31,7 +31,9 @@ PromptDialog Button, ErrorDialog Button { margin-left: 2; }
 class PromptDialog(ModalScreen[bool]):
     """A manual step: the operator does something on the bench, then confirms (or aborts).
 
-    Dismisses with ``True`` (done) or ``False`` (abort the run).
+    Dismisses with ``True`` (done) or ``False`` (abort the run). A live figure may arrive from
+    the run's thread at any moment: before the dialog is composed it is kept and shown when it
+    is, after the dialog is dismissed it is dropped (:meth:`set_live_figure` never raises).
     """
 
     DEFAULT_CSS = DIALOG_CSS
@@ -44,19 +46,34 @@ class PromptDialog(ModalScreen[bool]):
         super().__init__()
         self._title = title
         self._message = message
+        #: The latest live figure, shown once the dialog is composed.
+        self.live_figure = ""
 
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label(self._title, classes="title")
             yield Static(self._message, id="prompt-text", markup=False)
-            yield Static("", id="live-figure")
+            yield Static(self.live_figure, id="live-figure")
             with Horizontal():
                 yield Button("Done [y]", variant="primary", id="done")
                 yield Button("Abort run [a]", variant="error", id="abort")
 
-    def set_live_figure(self, text: str) -> None:
-        """Show a live number (e.g. the sharpness while adjusting back focus)."""
-        self.query_one("#live-figure", Static).update(text)
+    def on_mount(self) -> None:
+        # a figure set between compose and mount is shown too
+        self.set_live_figure(self.live_figure)
+
+    def set_live_figure(self, text: str) -> bool:
+        """Show a live number (e.g. the sharpness while adjusting back focus).
+
+        Returns whether it is on screen now: ``False`` before the dialog is composed (it is
+        kept and shown then) and after it is dismissed (nobody sees it any more).
+        """
+        self.live_figure = text
+        shown = False
+        for figure in self.query("#live-figure").results(Static):
+            figure.update(text)
+            shown = True
+        return shown
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         self.dismiss(event.button.id == "done")

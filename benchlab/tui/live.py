@@ -178,13 +178,16 @@ class LiveScreen(Screen[None]):
                 if bench is None or app.procedure_running:  # type: ignore[attr-defined]
                     time.sleep(0.1)
                     continue
-                if bench.simulated and bench.mounted is None:
-                    with app.device_lock:  # type: ignore[attr-defined]
-                        services.mount_target(bench, SIM_TARGETS[0])
                 started = time.monotonic()
                 settings = (self.exposure_ms, self.gain)
                 try:
                     with app.device_lock:  # type: ignore[attr-defined]
+                        # Checked again under the lock: a run that started while this thread
+                        # waited owns the camera now (it sets the flag, then takes the lock).
+                        if app.procedure_running:  # type: ignore[attr-defined]
+                            continue
+                        if bench.simulated and bench.mounted is None:
+                            services.mount_target(bench, SIM_TARGETS[0])
                         # The newest frame, without waiting for a new exposure (frames
                         # exposed at older settings are dropped by the driver: trailer).
                         frame = services.grab(bench, *settings, fresh=False)

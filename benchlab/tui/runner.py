@@ -21,6 +21,7 @@ from textual.worker import get_current_worker
 from benchlab.tui import services
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
+from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
 if TYPE_CHECKING:
@@ -180,7 +181,7 @@ class RunScreen(Screen[None]):
         except Exception as exc:  # noqa: BLE001 - the plot then shows the points alone
             self.log.warning(f"simulated curves unavailable: {exc!r}")
             return
-        self.app.call_from_thread(self.query_one("#ctf-plot", CtfPlot).set_curves, bands, nyq)
+        call_ui(self.app, lambda: self.query_one("#ctf-plot", CtfPlot).set_curves(bands, nyq))
 
     def _refresh_status(self) -> None:
         if not self.is_mounted:
@@ -213,9 +214,9 @@ class RunScreen(Screen[None]):
                 procedure, self.app.params_files.get(procedure)  # type: ignore[attr-defined]
             )
         except Exception as exc:  # noqa: BLE001 - parameter problems shown in plain words
-            self.app.call_from_thread(self._checklist_error, exc)
+            call_ui(self.app, self._checklist_error, exc)
             return
-        self.app.call_from_thread(self._checklist_loaded, steps)
+        call_ui(self.app, self._checklist_loaded, steps)
 
     def _checklist_loaded(self, steps: list[Any]) -> None:
         self.message = ""
@@ -423,8 +424,10 @@ class RunScreen(Screen[None]):
 
     @work(thread=True, exclusive=True, group="run", exit_on_error=False)
     def _run(self, resume: Path | None) -> None:
+        # Every call into the UI from here goes through call_ui: a display problem is logged
+        # and dropped, so the run's outcome depends on the bench and the data only.
         app: Any = self.app
-        call = app.call_from_thread
+        ending: BaseException | None = None
         with app.device_activity():
             try:
                 with app.device_lock:  # the live view is out of the camera from here on
@@ -444,15 +447,18 @@ class RunScreen(Screen[None]):
                         sample=self.unit_serial,
                         lot=self.unit_lot,
                     )
-                    call(self._started, self.runner)
+                    call_ui(app, self._started, self.runner)
                 self.outcome = self.runner.run()
                 self._verify(Path(self.runner.session.path))
-            except Exception as exc:  # noqa: BLE001 - every ending is shown to the operator
-                call(self._ended, exc)
-            else:
-                call(self._ended, None)
+            except BaseException as exc:  # noqa: BLE001 - every ending is shown to the operator
+                ending = exc
+                if not isinstance(exc, Exception):
+                    raise
             finally:
-                call(setattr, app, "procedure_running", False)
+                # One call ends the run in the UI: state and procedure_running change together
+                # (a retry started right after sees no late "not running" from this thread).
+                if not call_ui(app, self._ended, ending):
+                    call_ui(app, setattr, app, "procedure_running", False)
 
     def _verify(self, session_path: Path) -> None:
         """Verify the finished run against the chosen spec (in the run's thread); a failure
@@ -475,6 +481,7 @@ class RunScreen(Screen[None]):
         self._refresh_status()
 
     def _ended(self, exc: BaseException | None) -> None:
+        self.app.procedure_running = False  # type: ignore[attr-defined]
         running = [s for s, st in self.step_status.items() if st == "running"]
         if exc is None:
             for sid in running:
@@ -519,7 +526,7 @@ class RunScreen(Screen[None]):
     # callbacks from the runner thread ------------------------------------------------------
 
     def _progress(self, done: int, total: int, step: Any) -> None:
-        self.app.call_from_thread(self._on_progress, done, total, step.id if step else None)
+        call_ui(self.app, self._on_progress, done, total, step.id if step else None)
 
     def _on_progress(self, done: int, total: int, step_id: str | None) -> None:
         for sid, status in self.step_status.items():
@@ -531,19 +538,27 @@ class RunScreen(Screen[None]):
 
     def _on_result(self, step: Any, data: Mapping[str, Any]) -> None:
         label = short_step_label(step.table_step or step.id)
-        self.app.call_from_thread(self._add_result, label, dict(data))
+        call_ui(self.app, self._add_result, label, dict(data))
 
     def _prompt_operator(self, step: Any, message: str) -> bool:
-        """Show a manual step and wait for the operator; polls abort and the live figure."""
+        """Show a manual step and wait for the operator; polls abort and the live figure.
+
+        A dialog that cannot be shown is a declined prompt (the run stops, resumable), never a
+        failed step."""
         app: Any = self.app
         answer: concurrent.futures.Future[bool] = concurrent.futures.Future()
         dialog = PromptDialog(f"Step {step.table_step or step.id}: {step.title}", message)
 
+        def answered(ok: bool | None) -> None:
+            if not answer.done():  # a second dismissal (a double key press) changes nothing
+                answer.set_result(bool(ok))
+
         def show() -> None:
             self._prompt = dialog
-            app.push_screen(dialog, callback=lambda ok: answer.set_result(bool(ok)))
+            app.push_screen(dialog, callback=answered)
 
-        app.call_from_thread(show)
+        if not call_ui(app, show):
+            return False
         worker = get_current_worker()
         try:
             while True:
@@ -552,7 +567,7 @@ class RunScreen(Screen[None]):
                 except concurrent.futures.TimeoutError:
                     pass
                 if app.abort_event.is_set() or worker.is_cancelled:
-                    app.call_from_thread(self._close_prompt, dialog)
+                    call_ui(app, self._close_prompt, dialog)
                     return False
                 if step.kind == "focus":
                     self._update_focus_figure(dialog)
@@ -573,4 +588,4 @@ class RunScreen(Screen[None]):
             text = f"sharpness: unavailable ({services.plain_error(exc)})"
         else:
             text = f"sharpness now: {value:.4g}  (turn the back focus to maximise it)"
-        app.call_from_thread(dialog.set_live_figure, text)
+        call_ui(app, dialog.set_live_figure, text)

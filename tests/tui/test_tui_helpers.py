@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from textual.pilot import Pilot
 from textual.widgets import Static
@@ -53,12 +54,18 @@ async def wait_until(
     """Pause the pilot until ``condition()``; optionally confirm manual-step prompts.
 
     Returns how many prompts were confirmed. The timeout is only a guard against hangs.
+    Each prompt dialog is answered once: on a loaded CPU the dialog can still be on screen
+    after the key press returned (its key not handled yet), and a second "y" would be
+    counted for a prompt that was not there.
     """
     answered = 0
+    last: PromptDialog | None = None
     deadline = time.monotonic() + timeout_s
     while not condition():
-        if answer_prompts and isinstance(pilot.app.screen, PromptDialog):
+        screen = pilot.app.screen
+        if answer_prompts and isinstance(screen, PromptDialog) and screen is not last:
             await pilot.press("y")
+            last = screen
             answered += 1
         await pilot.pause(0.05)
         if time.monotonic() > deadline:
@@ -66,8 +73,26 @@ async def wait_until(
     return answered
 
 
+#: Reply timeout of the simulated serial devices in these tests, s. Their simulators are threads
+#: of the test process: on a loaded CPU (tests/tui/stress.sh) one was seen to answer after the
+#: LED driver's 1 s, failing a step for a reason that has nothing to do with the UI.
+SIM_REPLY_TIMEOUT_S = 10.0
+
+
+def patient_simulators(bench: Any) -> None:
+    """Give the simulated LED controller and stage :data:`SIM_REPLY_TIMEOUT_S` to answer."""
+    led, stage = getattr(bench, "led", None), getattr(bench, "stage", None)
+    if led is not None and getattr(bench, "sim_led", None) is not None:
+        led.timeout_s = SIM_REPLY_TIMEOUT_S
+        led._port_or_raise().timeout = SIM_REPLY_TIMEOUT_S  # read timeout set when opened
+    if stage is not None and getattr(bench, "sim_stage", None) is not None:
+        stage.timeout_s = SIM_REPLY_TIMEOUT_S
+
+
 async def connected(pilot: Pilot[None]) -> None:
-    """Wait for the simulated bench; fail at once, with its text, if connecting failed."""
+    """Wait for the simulated bench; fail at once, with its text, if connecting failed.
+
+    The simulators then get :data:`SIM_REPLY_TIMEOUT_S` to answer (see there)."""
     app = pilot.app
 
     def ready() -> bool:
@@ -77,6 +102,8 @@ async def connected(pilot: Pilot[None]) -> None:
         return app.bench is not None  # type: ignore[attr-defined]
 
     await wait_until(pilot, ready, what="bench connected")
+    with app.device_lock:  # type: ignore[attr-defined]
+        patient_simulators(app.bench)  # type: ignore[attr-defined]
 
 
 async def open_live(pilot: Pilot[None], frames: int) -> LiveScreen:

@@ -44,9 +44,14 @@ async def test_live_view_streams_and_obeys_keys(tmp_path: Path) -> None:
 
         # leaving the screen stops acquisition; coming back resumes it
         await pilot.press("1")
-        await pilot.pause(0.3)
+
+        def stopped() -> bool:  # the display timer stopped and the acquisition thread ended
+            return live._timer is None and not any(
+                w.group == "live" and not w.is_finished for w in app.workers)
+
+        await wait_until(pilot, stopped, what="acquisition stopped")
         stopped_at = live.frames_displayed
-        await pilot.pause(0.5)
+        await pilot.pause(0.3)  # an observation window: nothing is left to show a frame
         assert live.frames_displayed == stopped_at
         await pilot.press("2")
         await wait_until(pilot, lambda: live.frames_displayed > stopped_at + 2, what="resume")

@@ -59,13 +59,16 @@ async def test_live_view_sends_real_pixels(tmp_path: Path, protocol: str, introd
         assert (view.last_rgb == np.asarray(ROI_RGB, np.uint8)).all(axis=2).any()  # ROI drawn
         canvas = view.image_widget
         assert canvas is not None and canvas.image is view.last_rgb
-        await pilot.pause(0.2)
-        cols, rows = canvas.content_size
         # the image fits the frame (10 x 20 px cells when the terminal can't say): it fills
-        # the limiting side, or (Sixel) is shown 1:1
-        width, height = view.content_size
-        assert 0 < cols <= width and 0 < rows <= height
-        assert cols == width or rows == height or canvas.shown_px() == (640, 512)
+        # the limiting side, or (Sixel) is shown 1:1 - once the canvas is laid out
+        def laid_out() -> bool:
+            cols, rows = canvas.content_size
+            width, height = view.content_size
+            return (0 < cols <= width and 0 < rows <= height
+                    and (cols == width or rows == height or canvas.shown_px() == (640, 512)))
+
+        await wait_until(pilot, laid_out, what="canvas laid out")
+        cols, rows = canvas.content_size
         text = "".join(seg.text for strip in canvas.render_lines(Region(0, 0, cols, rows))
                        for seg in strip)
         # Kitty's protocol transmits the image straight to the terminal; Sixel travels in
