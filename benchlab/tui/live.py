@@ -201,10 +201,10 @@ class LiveScreen(Screen[None]):
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
                         app.call_from_thread(self._live_error, exc)
-                    for _ in range(10):
+                    for _ in range(10):  # 1 s before retrying, cancellable every 0.1 s
                         if worker.is_cancelled:
                             break
-                    time.sleep(0.1)
+                        time.sleep(0.1)
                     continue
                 if self.chart and time.monotonic() - self._chart_at >= CHART_REFRESH_S:
                     self._find_chart(frame[0])
