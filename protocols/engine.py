@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.drivers.errors import BenchlabError
+from benchlab.drivers.errors import BenchlabError, DeviceError
 from benchlab.drivers.shutdown import interrupt_reason, received, signal_name
 from benchlab.session import Session, read_results
 from benchlab.storage import load_frame_tiff
@@ -118,6 +118,15 @@ class StepContext:
         """Raise :class:`RunAborted` if the abort event is set."""
         if self.runner.abort.is_set():
             raise RunAborted(f"aborted at step {self.step.id}")
+
+    def move_stage_mm(self, target_mm: float) -> None:
+        """Move the stage to ``target_mm``; the abort key stops it and is an abort, not a fault."""
+        self.check_abort()
+        try:
+            self.bench.move_stage_mm(target_mm, abort=self.runner.abort)
+        except DeviceError:
+            self.check_abort()  # stopped by the abort key: an abort, not a fault
+            raise
 
     def ask(self, message: str) -> None:
         """Ask the operator to do something; declining aborts the run."""

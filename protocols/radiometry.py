@@ -175,12 +175,7 @@ class RadiometryProcedure:
             p = self.params
             target = p.stage_target_mm(pos)
             if ctx.bench.has_stage:
-                ctx.check_abort()
-                try:
-                    ctx.bench.move_stage_mm(target, abort=ctx.runner.abort)
-                except DeviceError:
-                    ctx.check_abort()  # stopped by the abort key: an abort, not a fault
-                    raise
+                ctx.move_stage_mm(target)
             else:
                 ctx.ask(f"Move the LED to field position {pos:g} mm.")
                 ctx.bench.place_led_by_hand(pos)

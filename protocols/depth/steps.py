@@ -134,12 +134,7 @@ class DepthProcedure:
             p = self.params
             stage = seg.stage_mm(z)
             if ctx.bench.has_stage:
-                ctx.check_abort()
-                try:
-                    ctx.bench.move_stage_mm(stage, abort=ctx.runner.abort)
-                except DeviceError:
-                    ctx.check_abort()  # stopped by the abort key: an abort, not a fault
-                    raise
+                ctx.move_stage_mm(stage)
             else:  # no stage: the operator moves the chart (the carriage offset is the distance)
                 ctx.ask(f"Move the {'chart' if pattern is None else 'pattern'} to {z:g} mm "
                         f"{'from the prototype' if pattern is None else 'from the side wall'}.")
