@@ -148,7 +148,7 @@ def _line_noise(prep: PreparedROI, line: npt.NDArray[np.float64]) -> float:
         return prep.noise_sigma
     q25 = float(np.percentile(np.abs(np.diff(line)), 25.0)) / _Q25_HALF_NORMAL
     f = prep.freq_cycles_per_px
-    if f and 0.0 < f < 0.5:
+    if f and 1.0 / line.size < f < 0.5:  # a whole period on the line (and 1 / f finite)
         # A whole number of pixels per period: samples one period apart differ by noise
         # alone (mixed edge pixels included), e.g. 20 50 60 50 20 at 5 px per period.
         lag = round(1.0 / f)

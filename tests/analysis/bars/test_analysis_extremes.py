@@ -200,3 +200,11 @@ def test_values_whose_squares_overflow_are_a_value_error() -> None:
     fine = np.tile([1.0, 1.0, 3.0, 3.0], (8, 4)) * 1e149
     assert estimate_modulation(fine, estimator="histogram", freq_cycles_per_px=0.25).resolved
 
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_vanishing_frequency_on_a_one_line_roi_is_answered(name: str) -> None:
+    """A frequency so small that 1 / f overflows (found by hypothesis in CI) on a 1 x 2 ROI."""
+    roi = np.array([[0, 1]], dtype=np.uint16)
+    result = estimate_modulation(roi, estimator=name, freq_cycles_per_px=2.2250738585e-313)
+    check_labelled(result)
