@@ -4,6 +4,13 @@
 import os
 
 import pytest
+from hypothesis import settings
+
+# Property tests draw the same examples on every run (a red CI names a defect, not a lucky draw);
+# `--hypothesis-profile explore` draws new ones (CONTRIBUTING.md: Tests).
+settings.register_profile("repeatable", derandomize=True)
+settings.register_profile("explore", derandomize=False, max_examples=500)
+settings.load_profile("repeatable")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
