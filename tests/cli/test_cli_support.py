@@ -155,7 +155,7 @@ def test_reanalysis_path_imports_no_scipy() -> None:
     import subprocess
     import sys
 
-    code = ("import sys; import benchlab.cli.analysis, benchlab.cli.procedures, "
+    code = ("import sys; import benchlab.cli.frames.analysis, benchlab.cli.runs.procedures, "
             "benchlab.protocols.runs, benchlab.protocols.mtf.analysis, benchlab.report.tables; "
             "from benchlab.protocols.mtf.curves import load_curves; load_curves(None); "
             "heavy = {'scipy.ndimage', 'scipy.stats', 'scipy.interpolate', "

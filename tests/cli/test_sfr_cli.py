@@ -404,7 +404,7 @@ def test_a_session_folder_is_not_an_image(tmp_path: Path,
 
 def test_help_states_the_ranges_the_benchmark_uses(capsys: pytest.CaptureFixture[str]) -> None:
     from benchlab.benchmarks.sfr import MIN_ROWS_LENGTHS
-    from benchlab.cli.sfr import MIN_ROWS_TRIED
+    from benchlab.cli.frames.sfr import MIN_ROWS_TRIED
 
     assert MIN_ROWS_TRIED == (MIN_ROWS_LENGTHS[0], MIN_ROWS_LENGTHS[-1])
     with pytest.raises(SystemExit):

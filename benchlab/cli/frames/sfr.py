@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.cli import UsageError, non_negative_int
-from benchlab.cli.analysis import (
+from benchlab.cli.frames.analysis import (
     AnalysisInputError,
     parse_roi,
     read_image_and_metadata,

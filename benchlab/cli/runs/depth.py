@@ -1,6 +1,6 @@
 """``benchlab benchmark depth``: the depth-of-field sweep against the simulated bench's truth.
 
-(``benchlab run depth`` is the ``run`` command of :mod:`benchlab.cli.procedures`.)
+(``benchlab run depth`` is the ``run`` command of :mod:`benchlab.cli.runs.procedures`.)
 """
 
 from __future__ import annotations
