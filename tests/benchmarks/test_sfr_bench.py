@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from benchlab.benchmarks.sfr_bench import (
+from benchlab.benchmarks.sfr.bench import (
     BARS_PREDICTED_TOL,
     EDGE_TRUTH_TOL,
     BenchCheck,

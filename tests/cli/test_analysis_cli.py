@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from benchlab.benchmarks.bars import format_table, run_benchmark
+from benchlab.benchmarks.bars.estimators import format_table, run_benchmark
 from benchlab.cli.main import main
 from benchlab.synthetic.bars import bar_roi
 

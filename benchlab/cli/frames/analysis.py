@@ -319,7 +319,7 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
 
 def _print_extremes(names: tuple[str, ...], seed: int) -> None:
     """The extremes bucket's table and the answer each of its buckets expects."""
-    from benchlab.benchmarks.bar_extremes import expected_answers, format_extremes, run_extremes
+    from benchlab.benchmarks.bars.extremes import expected_answers, format_extremes, run_extremes
 
     t0 = time.perf_counter()
     outcomes = run_extremes(names, seed)
@@ -332,7 +332,7 @@ def _print_extremes(names: tuple[str, ...], seed: int) -> None:
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
-    from benchlab.benchmarks.bars import (
+    from benchlab.benchmarks.bars.estimators import (
         Row,
         format_speed,
         format_table,

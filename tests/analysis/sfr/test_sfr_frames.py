@@ -13,7 +13,7 @@ import tifffile
 
 from benchlab.analysis.sfr.frames import MAX_SHIFT_PX, FramesDiffer, average_frames
 from benchlab.analysis.sfr.measure import measure_sfr
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     format_by_length,
     format_frames,
     frames_needed_by_floor,
