@@ -183,11 +183,11 @@ def _main(argv: Sequence[str] | None) -> int:
         return 2
     _setup_logging(args.log_level)
     if args.trace_io:
-        from benchlab.drivers import io_trace
+        from benchlab.drivers.trace import io_trace
 
         io_trace.start(args.trace_io)
     if args.replay:
-        from benchlab.drivers import replay
+        from benchlab.drivers.trace import replay
 
         try:
             replay.start(args.replay)
@@ -215,18 +215,18 @@ def _main(argv: Sequence[str] | None) -> int:
             return shutdown.exit_status(exc)
         finally:
             if args.trace_io:
-                from benchlab.drivers import io_trace
+                from benchlab.drivers.trace import io_trace
 
                 io_trace.stop()
             if args.replay:
-                from benchlab.drivers import replay
+                from benchlab.drivers.trace import replay
 
                 replay.stop()
 
 
 def _replay_reason() -> str | None:
     """While a cassette is replayed, a serial device that dropped the line says why."""
-    from benchlab.drivers import replay
+    from benchlab.drivers.trace import replay
 
     return replay.divergence() if replay.active() else None
 
