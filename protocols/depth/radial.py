@@ -1,14 +1,20 @@
 """The radial view's depth of field: each rolled bar pattern moved toward / away from the side
 wall, read at every distance in each field point's ROI
 (:mod:`benchlab.protocols.depth.radial_rois`) and fitted through focus like the forward view's
-edges (:mod:`benchlab.analysis.focus.through_focus`, in the vergence of the object radius =
-wall distance + endoscope radius). Distances in the tables are from the side wall, as the thesis
+edges (:mod:`benchlab.analysis.focus.through_focus`, in the object radius = wall distance +
+endoscope radius). Distances in the tables are from the side wall, as the thesis
 gives them (Table 4.4: 2-11 mm; Table 4.1: +-5 mm or larger).
 
 Per pattern and field point two curves are fitted: the fundamental (sine-wave) modulation, whose
 peak is **best focus** (the Eq. 2.9 modulation is flat near focus), and the Eq. 2.9 modulation,
-whose crossings of ``radial.threshold`` are the **DOF ends**. Per pattern, best focus against
-image height gives the radial **field curvature**
+whose crossings of ``radial.threshold`` are the **DOF ends**. Both are fitted as polynomials in
+the object radius ``R``, not in its vergence ``1/R`` as the forward view's edges are: a
+pattern of fixed *object* frequency is blurred, in object mm, by the image blur (linear in
+``|1/R - u_b|``) times the object mm per pixel (``R / rho`` around the circle), so its blur is
+``|1 - R u_b|``-linear and ``ln`` of its fundamental an exact quadratic in ``R`` for spokes;
+the quartic in vergence left the peak 0.004-0.009 mm off on noise-free frames, in ``R`` < 1e-4.
+
+Per pattern, best focus against image height gives the radial **field curvature**
 (:func:`benchlab.analysis.focus.field.field_curvature`).
 The simulated truth: :mod:`benchlab.protocols.depth.radial_truth`.
 """
@@ -29,6 +35,7 @@ from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
     FocusEstimate,
     FocusFitError,
+    ThroughFocusFit,
     fit_through_focus,
     focus_estimate,
 )
@@ -57,6 +64,12 @@ Position = tuple[Pattern, float, int, tuple[RadialReading | None, ...]]
 #: is ~0.001 on these ROIs, and the rings (0.18 at best) fall below the forward view's 0.05
 #: within +-1 mm of focus, leaving too few points for the fit.
 MIN_FUNDAMENTAL = 0.01
+#: Model term (1 sigma, mm) of every radial best focus and DOF end, added to the fit's
+#: statistical interval: profilefit's fundamental on these ROIs departs from the closed form by
+#: up to 2.5 % in a way that changes with the defocus (the spokes' period changes with R and
+#: across the ROI), which moves the fitted peak by up to 0.0064 mm on noise-free renders of the
+#: simulated bench (three field points, S and T) - where the noise alone gives +-0.0015 mm.
+MODEL_SD_MM = 0.004
 
 
 def _r(v: float | None, nd: int = 3) -> float | None:
@@ -90,18 +103,40 @@ def _seed(*parts: str) -> int:
     return zlib.crc32("|".join(parts).encode())
 
 
+def _in_radius(fit: ThroughFocusFit, threshold: float, seed: int) -> FocusEstimate:
+    """:func:`focus_estimate` of a fit made on ``1 / R``, back in the object radius ``R`` (the
+    order flips: the fit's near end is the far end)."""
+    e = focus_estimate(fit, threshold, seed=seed)
+
+    def inv(v: float | None) -> float | None:
+        return None if v is None else (math.inf if v == 0 else 1.0 / v)
+
+    def ci(pair: tuple[float | None, float | None]) -> tuple[float | None, float | None]:
+        return (inv(pair[1]), inv(pair[0]))
+
+    return FocusEstimate(best_focus_mm=1.0 / e.best_focus_mm,
+                         best_focus_ci95=ci(e.best_focus_ci95), peak_mtf=e.peak_mtf,
+                         near_mm=inv(e.far_mm), near_ci95=ci(e.far_ci95),
+                         far_mm=inv(e.near_mm), far_ci95=ci(e.near_ci95),
+                         near_extrapolated=e.far_extrapolated,
+                         far_extrapolated=e.near_extrapolated,
+                         best_focus_draws=1.0 / e.best_focus_draws)
+
+
 def _estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, seed: int
               ) -> tuple[FocusEstimate, int, str]:
     """Best focus from the fundamental, ends (and peak) from the Eq. 2.9 modulation; object
     radii (mm from the axis). Raises FocusFitError when best focus cannot be fitted."""
     thr = params.radial_threshold
-    radii = [z for z, _ in pts]
+    # fitted in the object radius R (module docstring): handed to the fit as 1 / R, whose
+    # "vergence" is then R
+    inverse = [1.0 / z for z, _ in pts]
     sig = [r.sigma for _, r in pts]
-    fund = fit_through_focus(radii, [r.fundamental for _, r in pts], sig,
+    fund = fit_through_focus(inverse, [r.fundamental for _, r in pts], sig,
                              min_mtf=MIN_FUNDAMENTAL)
-    best = focus_estimate(fund, thr, seed=seed)
+    best = _in_radius(fund, thr, seed)
     try:
-        mod = fit_through_focus(radii, [r.modulation for _, r in pts], sig,
+        mod = fit_through_focus(inverse, [r.modulation for _, r in pts], sig,
                                 min_mtf=params.min_mtf)
     except FocusFitError as exc:
         # too few readings above analysis.min_mtf (bars that never reach the threshold) or no
@@ -111,11 +146,38 @@ def _estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, s
                                     far_mm=None, far_ci95=(None, None), near_extrapolated=False,
                                     far_extrapolated=False),
                 fund.n_points, f"Eq. 2.9 modulation fit: {exc}")
-    ends = focus_estimate(mod, thr, seed=seed + 1)
+    ends = _in_radius(mod, thr, seed + 1)
     return (dataclasses.replace(ends, best_focus_mm=best.best_focus_mm,
                                 best_focus_ci95=best.best_focus_ci95,
                                 best_focus_draws=best.best_focus_draws),
             fund.n_points, "")
+
+
+def _with_model_term(est: FocusEstimate, seed: int) -> FocusEstimate:
+    """``est`` with :data:`MODEL_SD_MM` in its intervals: added to each best-focus draw (so the
+    S - T difference and the field curvature carry it), and in quadrature to each end's
+    interval half-widths."""
+    rng = np.random.default_rng(seed)
+    draws = est.best_focus_draws + rng.normal(0.0, MODEL_SD_MM, est.best_focus_draws.size)
+    finite = draws[np.isfinite(draws)]
+    best_ci: tuple[float | None, float | None] = (None, None)
+    if finite.size and finite.size >= 0.975 * draws.size:
+        lo, hi = np.percentile(finite, [2.5, 97.5])
+        best_ci = (float(lo), float(hi))
+    wide = 1.96 * MODEL_SD_MM
+
+    def widen(value: float | None, ci: tuple[float | None, float | None]
+              ) -> tuple[float | None, float | None]:
+        lo, hi = ci
+        if value is None or not math.isfinite(value):
+            return ci
+        return (None if lo is None else value - math.hypot(value - lo, wide),
+                None if hi is None or not math.isfinite(hi)
+                else value + math.hypot(hi - value, wide))
+
+    return dataclasses.replace(est, best_focus_ci95=best_ci, best_focus_draws=draws,
+                               near_ci95=widen(est.near_mm, est.near_ci95),
+                               far_ci95=widen(est.far_mm, est.far_ci95))
 
 
 def _row(base: dict[str, Any], est: FocusEstimate, n_points: int, note: str,
@@ -169,9 +231,10 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
                     "orientation": pattern[1], "criterion": f"modulation>={thr:g}",
                     "freq_lp_per_mm": pattern[0], "threshold": thr,
                     "image_height_mm": _r(roi_height_mm(box), 4)}
+            seed = _seed(_label(pattern), pattern[1], name)
             try:
                 est, n, note = _estimate([(z, r) for z, r in good if r is not None], params,
-                                         _seed(_label(pattern), pattern[1], name))
+                                         seed)
             except FocusFitError as exc:
                 rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
                              "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
@@ -179,6 +242,7 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
                              "n_points": len(good), "verdict": "not measured",
                              "note": str(exc)})
                 continue
+            est = _with_model_term(est, seed + 2)
             draws[(pattern, box)] = est.best_focus_draws - wall
             rows.append(_row(base, est, n, note, params))
     return ({"depth_of_field": rows, "depth_astigmatism": _astigmatism(draws, params),
