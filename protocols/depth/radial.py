@@ -68,7 +68,8 @@ MIN_FUNDAMENTAL = 0.01
 #: statistical interval: profilefit's fundamental on these ROIs departs from the closed form by
 #: up to 2.5 % in a way that changes with the defocus (the spokes' period changes with R and
 #: across the ROI), which moves the fitted peak by up to 0.0064 mm on noise-free renders of the
-#: simulated bench (three field points, S and T) - where the noise alone gives +-0.0015 mm.
+#: simulated bench (three field points, S and T) - where the noise alone gives 0.001-0.003 mm
+#: (1 sigma).
 MODEL_SD_MM = 0.004
 
 
