@@ -242,25 +242,26 @@ def _pct(v: float | None) -> str:
 
 def format_benchmark(out: Mapping[str, Any]) -> str:
     """The figures as a plain-text table."""
+    w = max([11, *(len(v) for v in out["variants"])])  # the radial variants' names are longer
     lines = [f"depth of field on the simulated bench: {out['seeds']} seeds per variant, "
              f"tolerance {TOLERANCE_MM} mm (radial {RADIAL_TOLERANCE_MM} mm) or the 95 % "
              "interval covering the truth", "",
-             f"{'variant':<11} {'quantity':<14} {'judged':>6} {'pass':>8} {'coverage':>9} "
+             f"{'variant':<{w}} {'quantity':<14} {'judged':>6} {'pass':>8} {'coverage':>9} "
              f"{'med |err|':>10} {'med half-CI':>11} {'extrapol.':>9}"]
     for v, r in out["variants"].items():
         for q, f in r["figures"].items():
             med = f["median_abs_error_mm"]
             half = f["median_half_width_mm"]
-            lines.append(f"{v:<11} {q:<14} {f['judged']:>6} {_pct(f['pass_rate']):>8} "
+            lines.append(f"{v:<{w}} {q:<14} {f['judged']:>6} {_pct(f['pass_rate']):>8} "
                          f"{_pct(f['coverage']):>9} "
                          f"{'n/a' if med is None else f'{med:.3f} mm':>10} "
                          f"{'n/a' if half is None else f'{half:.3f} mm':>11} "
                          f"{f['not_judged']:>9}")
-        lines.append(f"{v:<11} astigmatism S-T: sign right {r['astig_sign_right']} of "
+        lines.append(f"{v:<{w}} astigmatism S-T: sign right {r['astig_sign_right']} of "
                      f"{r['astig_significant']} significant; interval coverage "
                      f"{_pct(r['astig_coverage'])}; median run {r['median_wall_s']:.1f} s")
         cme = r["curvature_median_abs_error"]
-        lines.append(f"{'':<11} field curvature k: interval coverage "
+        lines.append(f"{'':<{w}} field curvature k: interval coverage "
                      f"{_pct(r['curvature_coverage'])}, median |error| "
                      f"{'n/a' if cme is None else f'{cme:.3f} mm/mm2'}")
     lines.append("")

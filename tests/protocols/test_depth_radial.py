@@ -126,3 +126,17 @@ def test_truth_is_quoted_at_each_field_points_centroid() -> None:
     assert float(at_best.across_bar_sigma_px(at_best.reference_radius_px)) == pytest.approx(
         float(template.blur.sagittal_px(h)), abs=0.01)
     assert truth["image_height_mm"] == pytest.approx(h, abs=1e-4)
+
+
+def test_a_sweep_that_misses_focus_is_not_measured_and_nothing_taken_is_refused() -> None:
+    from benchlab.drivers.errors import BenchlabError
+
+    # 7.5-10.5 mm from the wall: the spokes focus at 6.0 mm, outside the sweep
+    params = dataclasses.replace(_params(("sagittal",), (RADIAL_ROI_BOX,)), near_mm=7.5)
+    tables, _ = analyze_radial(_noise_free(params), params)
+    row, = tables["depth_of_field"]
+    assert row["best_focus_mm"] is None and row["verdict"] == "not measured"
+    assert "no maximum inside the sweep" in row["note"]
+    assert tables["depth_astigmatism"] == [] and tables["depth_field_curvature"] == []
+    with pytest.raises(BenchlabError, match="no radial position taken yet"):
+        analyze_radial([], params)
