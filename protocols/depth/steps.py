@@ -156,7 +156,6 @@ class DepthProcedure:
 
     def analyze(self, session: Session, estimator: str | None) -> Path:
         from benchlab.protocols.depth.analysis import analyze_depth
-
         from benchlab.protocols.depth.radial_rois import ESTIMATOR as RADIAL_ESTIMATOR
 
         tables, summary = analyze_depth(session, self.params)
