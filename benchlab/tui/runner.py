@@ -19,6 +19,7 @@ from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.depth_summary import depth_summary_rows
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
 from benchlab.tui.ui_calls import call_ui
@@ -27,11 +28,16 @@ from benchlab.tui.widgets import ModeBar
 if TYPE_CHECKING:
     from benchlab.protocols.engine import Runner
 
-PROCEDURES = ("mtf", "radiometry", "characterise")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
 #: Title of the checklist panel per procedure.
 CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
                     "radiometry": "positions (section 4.4)",
-                    "characterise": "sweeps (EMVA 1288)"}
+                    "characterise": "sweeps (EMVA 1288)",
+                    "depth": "through focus (section 2.2.4)"}
+#: The status line's name of each procedure.
+PROCEDURE_LABELS = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
+                    "characterise": "Camera characterisation (EMVA 1288)",
+                    "depth": "Depth of field (section 2.2.4)"}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 STATUS_MARK = {
     "pending": "  ",
@@ -69,6 +75,15 @@ def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
         what.append(ORIENTATION_SHORT.get(str(data["orientation"]), str(data["orientation"])))
     if "position_mm" in data:
         what.append(f"{_format_value(data['position_mm'])} mm")
+    if "distance_mm" in data:  # a depth-of-field position: the edges' MTF50 per orientation
+        what.append(f"{_format_value(data['distance_mm'])} mm")
+        if "mtf50_sagittal_lp_per_mm" in data or "mtf50_tangential_lp_per_mm" in data:
+            def lp(key: str) -> str:
+                value = data.get(key)
+                return "-" if value is None else f"{float(value):.0f}"
+
+            return " ".join(what), (f"S {lp('mtf50_sagittal_lp_per_mm')} "
+                                    f"T {lp('mtf50_tangential_lp_per_mm')}")
     for key, label in PRIMARY_RESULTS:
         if key in data:
             if key == "modulation" and data.get("resolved") is False:
@@ -186,8 +201,7 @@ class RunScreen(Screen[None]):
     def _refresh_status(self) -> None:
         if not self.is_mounted:
             return
-        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
-                 "characterise": "Camera characterisation (EMVA 1288)"}
+        label = PROCEDURE_LABELS
         params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (
@@ -490,6 +504,11 @@ class RunScreen(Screen[None]):
             self.message = "[green]Run complete; results saved in the session.[/green]"
             outcome = self.outcome
             self._tables = list((outcome.tables or {}).items()) if outcome else []
+            dof = dict(self._tables).get("depth_of_field")
+            if dof is not None:  # the digest first, then the full table
+                digest = depth_summary_rows(services.table_rows(dof)[1])
+                self._tables.insert(0, ("depth of field shared by the field points",
+                                        {"rows": digest}))
             if self.verdict is not None:  # the verdicts first: what the unit is judged by
                 rows = services.verdict_rows(self.verdict)
                 self._tables.insert(0, ("acceptance", {"rows": rows}))

@@ -337,6 +337,30 @@ def histogram_peaks(
     return result.dark, result.bright
 
 
+# -- the live focus aid (whole chart on every frame) -----------------------------------------
+
+
+def focus_tracker(estimator: str = "histogram") -> Any:
+    """A :class:`~benchlab.analysis.focus.live.ChartTracker` (the pose tracked between frames)."""
+    from benchlab.analysis.focus.live import ChartTracker
+
+    return ChartTracker(estimator=estimator)
+
+
+def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | None, str]:
+    """One frame's whole-chart reading: ``(reading, mean edge MTF50, "")``, or ``(None, None,
+    why)`` when the chart is not found (the tracker then looks for it again next frame)."""
+    from benchlab.analysis.chart.finder import ChartNotFoundError
+    from benchlab.analysis.focus.live import mean_edge_mtf50
+
+    try:
+        reading = tracker.read(pixels)
+    except ChartNotFoundError as exc:
+        tracker.reset()
+        return None, None, f"chart not found: {str(exc).split(':')[0]}"
+    return reading, mean_edge_mtf50(reading), ""
+
+
 # -- procedures ------------------------------------------------------------------------------
 
 

@@ -1,0 +1,63 @@
+"""The Run screen's digest of a depth-of-field run: one line per criterion and orientation out
+of the ``depth_of_field`` table (one row per field point there), short enough for 80 columns.
+
+Display only: every number comes from the stored table; nothing is fitted or judged again.
+Per criterion and orientation it shows the median best focus of the field points and their
+range, the DOF all of them share - the largest near end and the smallest far end, each with the
+95 % interval of the field point that sets it - and how many field points each verdict got.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
+
+
+def _num(value: Any) -> str:
+    return "N/A" if value is None else f"{float(value):.1f}"
+
+
+def _ci(value: Any) -> str:
+    if not isinstance(value, list | tuple) or len(value) != 2:
+        return "N/A"
+    return f"[{_num(value[0])}, {_num(value[1])}]"
+
+
+def _verdicts(rows: Sequence[Mapping[str, Any]]) -> str:
+    counts: dict[str, int] = {}
+    for r in rows:
+        word = str(r.get("verdict") or "-").split(" (")[0]
+        counts[word] = counts.get(word, 0) + 1
+    return ", ".join(f"{n} {w}" for w, n in sorted(counts.items()))
+
+
+def depth_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """One display row per (criterion, orientation) of ``depth_of_field`` rows (module
+    docstring); the values are strings ready for the table."""
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for r in rows:
+        key = (str(r.get("criterion", "?")), str(r.get("orientation", "?")))
+        groups.setdefault(key, []).append(r)
+    out: list[dict[str, str]] = []
+    for (criterion, orientation), group in groups.items():
+        best = [float(r["best_focus_mm"]) for r in group if r.get("best_focus_mm") is not None]
+        nears = [r for r in group if r.get("near_mm") is not None]
+        fars = [r for r in group if r.get("far_mm") is not None]
+        near = max(nears, key=lambda r: float(r["near_mm"])) if nears else None
+        far = min(fars, key=lambda r: float(r["far_mm"])) if fars else None
+        out.append({
+            "criterion": criterion,
+            "orient.": ORIENTATION_SHORT.get(orientation, orientation),
+            "best mm": _num(statistics.median(best)) if best else "N/A",
+            "best range": f"{min(best):.1f}-{max(best):.1f}" if best else "N/A",
+            "near mm": _num(near["near_mm"]) if near else "N/A",
+            "near 95 %": _ci(near.get("near_mm_ci95")) if near else "N/A",
+            "far mm": _num(far["far_mm"]) if far else "N/A",
+            "far 95 %": _ci(far.get("far_mm_ci95")) if far else "N/A",
+            "verdicts": _verdicts(group),
+            "points": str(len(group)),
+        })
+    return out
