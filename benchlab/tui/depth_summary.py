@@ -42,7 +42,9 @@ def depth_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]
         key = (str(r.get("criterion", "?")), str(r.get("orientation", "?")))
         groups.setdefault(key, []).append(r)
     out: list[dict[str, str]] = []
-    for (criterion, orientation), group in groups.items():
+    criteria = list(dict.fromkeys(k[0] for k in groups))  # the table's order; S before T
+    for (criterion, orientation), group in sorted(
+            groups.items(), key=lambda kv: (criteria.index(kv[0][0]), kv[0][1])):
         best = [float(r["best_focus_mm"]) for r in group if r.get("best_focus_mm") is not None]
         nears = [r for r in group if r.get("near_mm") is not None]
         fars = [r for r in group if r.get("far_mm") is not None]

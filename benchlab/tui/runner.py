@@ -505,10 +505,11 @@ class RunScreen(Screen[None]):
             outcome = self.outcome
             self._tables = list((outcome.tables or {}).items()) if outcome else []
             dof = dict(self._tables).get("depth_of_field")
-            if dof is not None:  # the digest first, then the full table
+            if dof is not None:  # the digest first, then the full table, then the others
                 digest = depth_summary_rows(services.table_rows(dof)[1])
-                self._tables.insert(0, ("depth of field shared by the field points",
-                                        {"rows": digest}))
+                self._tables = [("depth of field shared by the field points", {"rows": digest}),
+                                ("depth_of_field", dof),
+                                *[t for t in self._tables if t[0] != "depth_of_field"]]
             if self.verdict is not None:  # the verdicts first: what the unit is judged by
                 rows = services.verdict_rows(self.verdict)
                 self._tables.insert(0, ("acceptance", {"rows": rows}))

@@ -94,7 +94,7 @@ def render_focus_aid(view: FocusAidView, width: int) -> Text:
 
     Lines: the status; per element ``G2E4 S|bar| T|bar|`` (modulation 0-1, peak marked);
     the edges' MTF50 in lp/mm per square (``E0 L 91 R 95 T 88 B 90``); the summary value now
-    and its peak; its history as a sparkline. With no current reading (chart not found) only
+    and its peak (lp/mm); its history as a sparkline. With no current reading (chart not found) only
     the status and the history are drawn: bars of an older frame are never shown as current.
     """
     width = max(20, width)
@@ -121,7 +121,7 @@ def render_focus_aid(view: FocusAidView, width: int) -> Text:
     if view.summary_now is not None or view.summary_peak is not None:
         peak = "-" if view.summary_peak is None else f"{view.summary_peak:.1f}"
         now = "-" if view.summary_now is None else f"{view.summary_now:.1f}"
-        out.append(f"\n{view.summary_label} {now} (peak {peak}) lp/mm")
+        out.append(f"\n{view.summary_label} {now} peak {peak}")
     spark = sparkline(view.history, width)
     if spark:
         out.append("\n" + spark, style="cyan")
