@@ -76,6 +76,10 @@ class FocusAidPanel(Static):
         self.note = "looking for the chart..."
         #: Readings drawn since the panel was created (the displayed-readings figure).
         self.readings_shown = 0
+        #: Frames with no reading shown (:meth:`show_problem`).
+        self.problems_shown = 0
+        #: :attr:`readings_shown` when the peaks were last reset (they hold the readings since).
+        self.readings_at_reset = 0
         self._times: deque[float] = deque(maxlen=30)
 
     @property
@@ -99,12 +103,14 @@ class FocusAidPanel(Static):
         """No reading for the last frame (chart not found, a reading error): the bars go, the
         peaks and the history stay for when the chart is back."""
         self.reading, self.summary_now, self.note = None, None, text
+        self.problems_shown += 1
         self._times.clear()
         self._draw()
 
     def reset_peaks(self) -> None:
         """Forget every peak and the history (a new focusing session)."""
         self.peaks = PeakHold(history=self.peaks.history)
+        self.readings_at_reset = self.readings_shown
         self._draw()
 
     def clear(self) -> None:

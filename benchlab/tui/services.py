@@ -357,7 +357,8 @@ def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | Non
         reading = tracker.read(pixels)
     except ChartNotFoundError as exc:
         tracker.reset()
-        return None, None, f"chart not found: {str(exc).split(':')[0]}"
+        detail = str(exc).split(":", 1)[-1].strip()
+        return None, None, f"chart not found: {detail}" if detail else "chart not found"
     return reading, mean_edge_mtf50(reading), ""
 
 

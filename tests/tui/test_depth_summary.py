@@ -10,8 +10,8 @@ def _row(fp: str, orient: str, crit: str, best: float | None, near: float | None
          far: float | None, verdict: str) -> dict[str, object]:
     return {"field_point": fp, "orientation": orient, "criterion": crit,
             "best_focus_mm": best, "near_mm": near, "far_mm": far,
-            "near_mm_ci95": [None if near is None else near - 1, None if near is None else near + 1],
-            "far_mm_ci95": [None if far is None else far - 2, None if far is None else far + 2],
+            "near_mm_ci95": [None, None] if near is None else [near - 1, near + 1],
+            "far_mm_ci95": [None, None] if far is None else [far - 2, far + 2],
             "verdict": verdict}
 
 
