@@ -580,6 +580,12 @@ class RunScreen(Screen[None]):
         if not call_ui(app, show):
             return False
         worker = get_current_worker()
+        # The depth sweep's set-up asks for the back focus set and locked: the whole chart's
+        # edges read while the dialog is up, as the live view's focus aid does.
+        chart_figure = (getattr(getattr(self.runner, "procedure", None), "name", "") == "depth"
+                        and step.id == "setup")
+        tracker = services.focus_tracker() if chart_figure else None
+        best: list[float] = []
         try:
             while True:
                 try:
@@ -591,6 +597,8 @@ class RunScreen(Screen[None]):
                     return False
                 if step.kind == "focus":
                     self._update_focus_figure(dialog)
+                elif tracker is not None:
+                    self._update_chart_figure(dialog, tracker, best)
         finally:
             self._prompt = None
 
@@ -608,4 +616,24 @@ class RunScreen(Screen[None]):
             text = f"sharpness: unavailable ({services.plain_error(exc)})"
         else:
             text = f"sharpness now: {value:.4g}  (turn the back focus to maximise it)"
+        call_ui(app, dialog.set_live_figure, text)
+
+    def _update_chart_figure(self, dialog: PromptDialog, tracker: Any, best: list[float]) -> None:
+        """The edges' mean MTF50 of a fresh frame and the best so far (``best``, kept by the
+        caller) in the prompt; the chart not found is said, never a stale number."""
+        app: Any = self.app
+        try:
+            if self.runner is None:
+                raise RuntimeError("no run in progress")
+            pixels = services.procedure_frame(app.bench, self.runner)
+            reading, mean, why = services.read_focus(tracker, pixels)
+        except Exception as exc:  # noqa: BLE001 - a figure, not a reason to stop the run
+            text = f"edges' MTF50: unavailable ({services.plain_error(exc)})"
+        else:
+            if reading is None or mean is None:
+                text = why or "edges' MTF50: no edge read"
+            else:
+                best[:] = [max([mean, *best])]
+                text = (f"edges' mean MTF50 now {mean:.1f} lp/mm, best {best[0]:.1f} "
+                        "(turn the back focus to the best, then lock it)")
         call_ui(app, dialog.set_live_figure, text)

@@ -474,15 +474,20 @@ def run_ending(exc: BaseException) -> str:
     return "error"
 
 
-def focus_sharpness(bench: Bench, runner: Runner) -> float:
-    """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
-    from benchlab.analysis.focus.sharpness import sharpness
-
+def procedure_frame(bench: Bench, runner: Runner) -> npt.NDArray[Any]:
+    """A fresh frame at the procedure's camera settings (a live figure in a prompt)."""
     params = getattr(getattr(runner, "procedure", None), "params", None)
     exposure = float(getattr(params, "exposure_ms", 300.0))
     gain = float(getattr(params, "gain", 1.0))
     pixels, _ = grab(bench, exposure, gain, fresh=True)
-    return sharpness(pixels)
+    return pixels
+
+
+def focus_sharpness(bench: Bench, runner: Runner) -> float:
+    """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
+    from benchlab.analysis.focus.sharpness import sharpness
+
+    return sharpness(procedure_frame(bench, runner))
 
 
 # -- sessions --------------------------------------------------------------------------------

@@ -3,6 +3,7 @@ prompt between the segments, each position's edge MTF50, the digest and the stor
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -36,7 +37,18 @@ async def test_depth_run_through_the_ui_shows_positions_prompts_and_the_digest(
         assert screen.query_one("#steps").border_title == "through focus (section 2.2.4)"
         assert "Depth of field (section 2.2.4)" in str(screen.query_one("#run-status").render())
         assert "params depth.toml" in str(screen.query_one("#run-status").render())
+        with app.device_lock:  # the chart in front of the camera, as the live view leaves it
+            app.bench.mount("usaf")
         await pilot.press("s")
+
+        def setup_figure() -> bool:  # the set-up prompt reads the chart's edges while it is up
+            dialog = app.screen
+            return isinstance(dialog, PromptDialog) and "mean MTF50 now" in dialog.live_figure
+
+        await wait_until(pilot, setup_figure, what="the set-up prompt's MTF50")
+        figure = app.screen.live_figure  # type: ignore[attr-defined]
+        now, best = (float(w) for w in re.findall(r"\d+\.\d", figure)[:2])
+        assert 20.0 < now <= best < 120.0, figure
         table = screen.query_one("#results-table", DataTable)
         prompts: list[str] = []
         shown: set[tuple[str, ...]] = set()
