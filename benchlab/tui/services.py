@@ -349,9 +349,10 @@ def focus_tracker(estimator: str = "histogram") -> Any:
 
 def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | None, str]:
     """One frame's whole-chart reading: ``(reading, mean edge MTF50, "")``, or ``(None, None,
-    why)`` when the chart is not found (the tracker then looks for it again next frame)."""
+    why)`` when the chart is not found, or nothing could be read where it was tracked (it left
+    the view between two finds); the tracker then looks for it again on the next frame."""
     from benchlab.analysis.chart.finder import ChartNotFoundError
-    from benchlab.analysis.focus.live import mean_edge_mtf50
+    from benchlab.analysis.focus.live import mean_edge_mtf50, nothing_read
 
     try:
         reading = tracker.read(pixels)
@@ -359,6 +360,9 @@ def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | Non
         tracker.reset()
         detail = str(exc).split(":", 1)[-1].strip()
         return None, None, f"chart not found: {detail}" if detail else "chart not found"
+    if nothing_read(reading):
+        tracker.reset()
+        return None, None, "chart not found: nothing read where it was; looking again"
     return reading, mean_edge_mtf50(reading), ""
 
 
