@@ -256,8 +256,9 @@ class LiveScreen(Screen[None]):
             call_ui(self.app, self._focus_read, gen, reading, summary, why)
 
     def _focus_read(self, gen: int, reading: Any, summary: float | None, why: str) -> None:
-        if gen != self._focus_gen or not self.focus_aid:
-            return  # read for a focus aid since switched off
+        app: Any = self.app
+        if gen != self._focus_gen or not self.focus_aid or app.procedure_running:
+            return  # read for a focus aid since switched off, or before a run took the camera
         panel = self.query_one(FocusAidPanel)
         if reading is None:
             panel.show_problem(why)
@@ -418,6 +419,7 @@ class LiveScreen(Screen[None]):
         if el is not None:
             self._picked = fit.found.index(el)
             self._use_element(el)
+
     def action_focus_aid(self) -> None:
         """Show or hide the focus aid; its reader runs only while it is shown."""
         self._focus_gen += 1

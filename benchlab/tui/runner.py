@@ -582,8 +582,9 @@ class RunScreen(Screen[None]):
         worker = get_current_worker()
         # The depth sweep's set-up asks for the back focus set and locked: the whole chart's
         # edges read while the dialog is up, as the live view's focus aid does.
-        chart_figure = (getattr(getattr(self.runner, "procedure", None), "name", "") == "depth"
-                        and step.id == "setup")
+        procedure = getattr(self.runner, "procedure", None)
+        chart_figure = (getattr(procedure, "name", "") == "depth" and step.id == "setup"
+                        and getattr(getattr(procedure, "params", None), "view", "") == "forward")
         tracker = services.focus_tracker() if chart_figure else None
         best: list[float] = []
         try:

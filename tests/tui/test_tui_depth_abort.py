@@ -28,16 +28,15 @@ async def test_abort_mid_sweep_then_retry_repeats_no_position(tmp_path: Path) ->
     async with app.run_test(size=(100, 32)) as pilot:
         await connected(pilot)
         bench = app.bench
-        # Hold the runner inside the third position (one frame a position) until abort.
+        # Hold the runner inside the third position (56 mm: the stage at 56 - 51 mm, segment 0
+        # mounted 51 mm out) until abort. Told by the stage, not by counting grabs: the set-up
+        # prompt grabs frames for its live figure as long as it is up.
         in_position = threading.Event()
         real_grab = bench.grab
-        grabs = 0
 
         def grab(**kwargs: Any) -> Any:
-            nonlocal grabs
-            grabs += 1
             frame = real_grab(**kwargs)
-            if grabs == 3:
+            if abs(bench.sim_stage.position_mm - 5.0) < 0.01 and not in_position.is_set():
                 in_position.set()
                 app.abort_event.wait(30)
             return frame
