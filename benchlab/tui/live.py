@@ -96,11 +96,12 @@ class LiveScreen(Screen[None]):
         Binding("z", "zoom", "Zoom"),
         Binding("t", "target", "Target"),
         Binding("c", "chart", "Chart"),
+        Binding("f", "focus_aid", "Focus"),
         Binding("right_square_bracket", "pick(1)", "Pick", key_display="[]"),
         Binding("left_square_bracket", "pick(-1)", "Pick prev", show=False),
         Binding("u", "unwrap", "Unwrap"),
-        Binding("f", "focus_aid", "Focus aid"),
-        Binding("r", "reset_peaks", "Peaks"),
+        # The peaks' reset is named in the focus-aid panel's title (the footer is full).
+        Binding("r", "reset_peaks", "Reset peaks", show=False),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)

@@ -3,6 +3,7 @@ with a peak hold that follows focus, "chart not found" said, the reader stopped 
 
 from __future__ import annotations
 
+import re
 import threading
 from pathlib import Path
 from typing import Any
@@ -107,8 +108,11 @@ async def test_chart_not_found_is_said_without_bars_and_off_stops_the_reader(
     app = make_app(tmp_path)
     async with app.run_test(size=(100, 34)) as pilot:
         live = await open_live(pilot, 2)
+        text = re.sub(r"<[^>]+>", "", app.export_screenshot()).replace("&#160;", " ")
+        assert "c Chart f Focus" in text  # in the footer
         await pilot.press("f")
         panel = live.query_one(FocusAidPanel)
+        assert panel.border_title == "focus aid (r: reset peaks)"
         await wait_until(pilot, lambda: panel.readings_shown >= 2, what="chart read")
         assert panel.reading is not None
         await pilot.press("t")  # the next simulated target: a radial pattern, no USAF chart
