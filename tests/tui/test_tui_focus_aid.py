@@ -109,7 +109,7 @@ async def test_chart_not_found_is_said_without_bars_and_off_stops_the_reader(
     async with app.run_test(size=(100, 34)) as pilot:
         live = await open_live(pilot, 2)
         text = re.sub(r"<[^>]+>", "", app.export_screenshot()).replace("&#160;", " ")
-        assert "c Chart f Focus" in text  # in the footer
+        assert "c Chartf Focus" in text  # in the footer (tags stripped: no space between keys)
         await pilot.press("f")
         panel = live.query_one(FocusAidPanel)
         assert panel.border_title == "focus aid (r: reset peaks)"
