@@ -174,7 +174,8 @@ class LiveScreen(Screen[None]):
     def on_screen_resume(self) -> None:
         self._timer = self.set_interval(POLL_INTERVAL_S, self._show_latest)
         self._acquire()
-        if self.focus_aid:
+        if self.focus_aid:  # bars from before the screen was left are not current
+            self.query_one(FocusAidPanel).show_problem("looking for the chart...")
             self._read_focus(self._focus_gen)
 
     def on_screen_suspend(self) -> None:

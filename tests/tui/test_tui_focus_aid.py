@@ -115,6 +115,12 @@ async def test_chart_not_found_is_said_without_bars_and_off_stops_the_reader(
         assert panel.border_title == "focus aid (r: reset peaks)"
         await wait_until(pilot, lambda: panel.readings_shown >= 2, what="chart read")
         assert panel.reading is not None
+        # leaving the live view and coming back: the old bars are not shown as current
+        problems = panel.problems_shown
+        await pilot.press("1", "2")
+        await wait_until(pilot, lambda: panel.problems_shown > problems, what="bars dropped")
+        shown = panel.readings_shown
+        await wait_until(pilot, lambda: panel.readings_shown > shown, what="reading again")
         await pilot.press("t")  # the next simulated target: a radial pattern, no USAF chart
         await wait_until(pilot, lambda: panel.problems_shown > 0 and panel.reading is None,
                          what="chart not found")
