@@ -41,6 +41,10 @@ from benchlab.checks import BenchLimits, ParamsError, TableChecker
 
 log = logging.getLogger(__name__)
 
+#: Reply timeout of the in-process LED and stage simulators, s. They are threads of this process:
+#: on a loaded CPU one was seen to answer after a real device's 1 s (issue 30), failing a step
+#: for a reason no bench has. Tests that inject a silent simulator shorten it.
+SIM_REPLY_TIMEOUT_S = 10.0
 #: Simulated seconds per wall second on the simulated bench: stage moves take milliseconds.
 SIM_TIME_SCALE = 2000.0
 
@@ -514,7 +518,8 @@ def open_simulated(
         stack.callback(sim_led.stop)
         bench.sim_led = sim_led
         bench.led = stack.enter_context(
-            SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma)
+            SlcController(sim_led.port, ceilings_ma=cfg.led.ceilings_ma,
+                          timeout_s=SIM_REPLY_TIMEOUT_S)
         )
     if cfg.stage is not None and cfg.stage.port:
         bench.stage = stack.enter_context(AptStage(
@@ -531,6 +536,7 @@ def open_simulated(
         bench.sim_stage = sim_stage
         bench.stage = stack.enter_context(AptStage(
             sim_stage.port, counts_per_mm=cfg.stage.counts_per_mm, travel_mm=cfg.stage.travel_mm,
+            timeout_s=SIM_REPLY_TIMEOUT_S,
         ))
         bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
     cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}

@@ -18,7 +18,7 @@ from typing import Any
 
 import serial
 
-from benchlab.drivers import io_trace
+from benchlab.drivers.trace import io_trace
 
 try:  # pyserial lets termios.error (not an OSError) escape on a hung-up pty/tty
     from termios import error as _TermiosError
@@ -36,11 +36,11 @@ def open_serial(url: str, baudrate: int, *, device: str = "serial",
     """Open ``url`` (a device path or any pyserial URL) at ``baudrate`` with ``settings``
     (``bytesize``, ``parity``, ``stopbits``, ``rtscts``, ``timeout``, ``write_timeout``).
 
-    While a cassette is recorded (:mod:`benchlab.drivers.io_trace`), every byte read or
+    While a cassette is recorded (:mod:`benchlab.drivers.trace.io_trace`), every byte read or
     written on the port is recorded under ``device``; while one is replayed
-    (:mod:`benchlab.drivers.replay`), the port is the replaying pseudo-terminal instead.
+    (:mod:`benchlab.drivers.trace.replay`), the port is the replaying pseudo-terminal instead.
     """
-    from benchlab.drivers import replay
+    from benchlab.drivers.trace import replay
 
     url = replay.serial_port_for(device, url)
     port = serial.serial_for_url(url, baudrate, **settings)

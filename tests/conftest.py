@@ -51,3 +51,12 @@ def _isolated_user_config(tmp_path_factory: pytest.TempPathFactory,
                           monkeypatch: pytest.MonkeyPatch) -> None:
     """No test reads or writes the developer's own benchlab config (platformdirs)."""
     monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path_factory.mktemp("xdg-config")))
+
+
+@pytest.fixture
+def quick_silence(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The simulated bench's LED and stage time out after a real device's 1 s, for tests that
+    make a simulator fall silent (its default is patient: ``SIM_REPLY_TIMEOUT_S``)."""
+    import benchlab.bench
+
+    monkeypatch.setattr(benchlab.bench, "SIM_REPLY_TIMEOUT_S", 1.0)

@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +44,40 @@ def only_session(root: Path) -> Path:
 def events(session: Path) -> list[dict[str, Any]]:
     lines = (session / "events.jsonl").read_text().splitlines()
     return [json.loads(line) for line in lines if line.strip()]
+
+
+def completed_steps(session: Path) -> int:
+    """Steps the journal says completed (0 while the journal is still being created)."""
+    try:
+        return sum(1 for e in events(session) if e["kind"] == "step_completed")
+    except (OSError, ValueError):
+        return 0
+
+
+def signal_mid_run(args: Sequence[str], root: Path, *, after_steps: int, sig: int,
+                   timeout_s: float = 120.0) -> tuple[int, str, str]:
+    """Run ``benchlab ARGS --out ROOT`` in a real process and send it ``sig`` once its session
+    has completed ``after_steps`` steps; returns (exit status, stdout, stderr)."""
+    cmd = [sys.executable, "-m", "benchlab.cli.main", *args, "--out", str(root)]
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, text=True)
+        try:
+            deadline = time.monotonic() + timeout_s
+            while time.monotonic() < deadline:
+                sessions = [p for p in root.iterdir() if (p / "events.jsonl").is_file()]
+                if sessions and completed_steps(sessions[0]) >= after_steps:
+                    break
+                assert proc.poll() is None, "the run ended before the signal"
+                time.sleep(0.005)
+            os.kill(proc.pid, sig)
+            proc.wait(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        out.seek(0)
+        err.seek(0)
+        return proc.returncode, out.read(), err.read()
 
 
 def tables_of(results: Path) -> dict[str, Any]:

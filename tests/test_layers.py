@@ -74,7 +74,7 @@ def test_every_package_is_in_a_layer() -> None:
 def test_an_upward_import_is_found() -> None:
     probe = "import numpy\nfrom benchlab.session import Session\n"
     assert upward_imports("benchlab.analysis.bars.roi", probe) == ["line 2: benchlab.session"]
-    assert upward_imports("benchlab.cli.sfr", probe) == []
+    assert upward_imports("benchlab.cli.frames.sfr", probe) == []
 
 
 @pytest.mark.parametrize(("module", "path"), _sources(), ids=lambda v: str(v))

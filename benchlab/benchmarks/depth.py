@@ -37,10 +37,13 @@ VARIANTS: dict[str, dict[str, float]] = {
     "astigmatic": {"axial_astigmatism_per_mm": 0.0015, "astigmatism_per_mm2": 0.002},
     "tilted": {"tilt_per_mm2": 0.002, "field_curvature_per_mm2": 0.001},
 }
-#: Radial variants: the rolled 2 lp/mm pattern, S and T, moved from the side wall.
+#: Radial variants: the rolled 2 lp/mm pattern, S and T, moved from the side wall, read at the
+#: three default field points (image heights 1.80, 2.13, 2.48 mm); "radial-curved" has field
+#: curvature (best focus about 0.5 mm nearer the wall at 2.48 mm than at 1.80 mm).
 RADIAL_VARIANTS: dict[str, dict[str, float]] = {
     "radial": {},
     "radial-astigmatic": {"axial_astigmatism_per_mm": 0.004},
+    "radial-curved": {"field_curvature_per_mm2": 0.0005},
 }
 ENDS = ("best_focus_mm", "near_mm", "far_mm")
 
@@ -77,14 +80,19 @@ def _load(results: Path, name: str) -> list[dict[str, Any]]:
     return rows
 
 
+def _key(row: Mapping[str, Any]) -> tuple[Any, ...]:
+    return (row["field_point"], row["orientation"], row["freq_lp_per_mm"], row["criterion"])
+
+
 def compare(results: Path, tolerance_mm: float = TOLERANCE_MM) -> list[dict[str, Any]]:
     """One row per depth_of_field row and quantity: measured, interval, truth, error, covered,
     passed (None: not comparable)."""
     measured = _load(results, "depth_of_field")
-    truth = {(r["field_point"], r["criterion"]): r for r in _load(results, "simulator_truth")}
+    # keyed by orientation and frequency too: a radial field point carries an S and a T pattern
+    truth = {_key(r): r for r in _load(results, "simulator_truth")}
     out = []
     for row in measured:
-        t = truth.get((row["field_point"], row["criterion"]))
+        t = truth.get(_key(row))
         if t is None or row["best_focus_mm"] is None:
             continue
         for key in ENDS:
@@ -109,7 +117,11 @@ def astig_signs(results: Path) -> list[dict[str, Any]]:
     from benchlab.protocols.depth.truth import truth_astigmatism
 
     rows = _load(results, "depth_astigmatism")
-    truth = truth_astigmatism(_load(results, "simulator_truth"))
+    truth_rows = _load(results, "simulator_truth")
+    if any(r.get("view") == "radial" for r in truth_rows):
+        truth = _radial_astigmatism(truth_rows)
+    else:
+        truth = truth_astigmatism(truth_rows)
     out = []
     for r in rows:
         t = truth.get((r["field_point"], r["freq_lp_per_mm"]))
@@ -121,6 +133,14 @@ def astig_signs(results: Path) -> list[dict[str, Any]]:
             math.copysign(1, r["s_minus_t_mm"]) == math.copysign(1, t)),
             "covered": lo <= t <= hi})
     return out
+
+
+def _radial_astigmatism(truth: Iterable[Mapping[str, Any]]) -> dict[tuple[str, float], float]:
+    """S minus T truth best focus per radial field point and frequency."""
+    by = {(r["field_point"], r["freq_lp_per_mm"], r["orientation"]): r["best_focus_mm"]
+          for r in truth}
+    return {(fp, f): b - by[(fp, f, "tangential")] for (fp, f, o), b in by.items()
+            if o == "sagittal" and (fp, f, "tangential") in by}
 
 
 def curvature_checks(results: Path) -> list[dict[str, Any]]:
@@ -188,8 +208,7 @@ def run_benchmark(seeds: int = 20,
                 radial = v in RADIAL_VARIANTS
                 comps += compare(results, RADIAL_TOLERANCE_MM if radial else TOLERANCE_MM)
                 signs += astig_signs(results)
-                if not radial:
-                    curv += curvature_checks(results)
+                curv += curvature_checks(results)
                 if progress is not None:
                     progress(f"{v} seed {s}: {wall:.1f} s")
             sig = [x for x in signs if x["significant"]]
@@ -223,25 +242,26 @@ def _pct(v: float | None) -> str:
 
 def format_benchmark(out: Mapping[str, Any]) -> str:
     """The figures as a plain-text table."""
+    w = max([11, *(len(v) for v in out["variants"])])  # the radial variants' names are longer
     lines = [f"depth of field on the simulated bench: {out['seeds']} seeds per variant, "
              f"tolerance {TOLERANCE_MM} mm (radial {RADIAL_TOLERANCE_MM} mm) or the 95 % "
              "interval covering the truth", "",
-             f"{'variant':<11} {'quantity':<14} {'judged':>6} {'pass':>8} {'coverage':>9} "
+             f"{'variant':<{w}} {'quantity':<14} {'judged':>6} {'pass':>8} {'coverage':>9} "
              f"{'med |err|':>10} {'med half-CI':>11} {'extrapol.':>9}"]
     for v, r in out["variants"].items():
         for q, f in r["figures"].items():
             med = f["median_abs_error_mm"]
             half = f["median_half_width_mm"]
-            lines.append(f"{v:<11} {q:<14} {f['judged']:>6} {_pct(f['pass_rate']):>8} "
+            lines.append(f"{v:<{w}} {q:<14} {f['judged']:>6} {_pct(f['pass_rate']):>8} "
                          f"{_pct(f['coverage']):>9} "
                          f"{'n/a' if med is None else f'{med:.3f} mm':>10} "
                          f"{'n/a' if half is None else f'{half:.3f} mm':>11} "
                          f"{f['not_judged']:>9}")
-        lines.append(f"{v:<11} astigmatism S-T: sign right {r['astig_sign_right']} of "
+        lines.append(f"{v:<{w}} astigmatism S-T: sign right {r['astig_sign_right']} of "
                      f"{r['astig_significant']} significant; interval coverage "
                      f"{_pct(r['astig_coverage'])}; median run {r['median_wall_s']:.1f} s")
         cme = r["curvature_median_abs_error"]
-        lines.append(f"{'':<11} field curvature k: interval coverage "
+        lines.append(f"{'':<{w}} field curvature k: interval coverage "
                      f"{_pct(r['curvature_coverage'])}, median |error| "
                      f"{'n/a' if cme is None else f'{cme:.3f} mm/mm2'}")
     lines.append("")

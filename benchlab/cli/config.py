@@ -121,6 +121,10 @@ def _cmd_init(args: argparse.Namespace) -> int:
     path = Path(args.path) if args.path else user_bench_file()
     if path.exists() and not args.force:
         raise BenchlabError(f"{path} already exists; edit it, or pass --force to replace it")
+    if not args.path:  # the user config folder is ours to create; a --path folder is not
+        path.parent.mkdir(parents=True, exist_ok=True)
+    elif not path.parent.is_dir():
+        raise BenchlabError(f"{path}: folder {path.parent} does not exist")
     atomic_write_text(path, template())
     print(f"wrote {path}")
     print("edit the ports and ceilings, then check with: benchlab config show")

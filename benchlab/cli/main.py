@@ -1,6 +1,8 @@
 """Entry point of the ``benchlab`` command.
 
-Each command group lives in its own module exposing ``register(commands, benchmarks)``:
+Each command group lives in its own module, in ``devices/`` (the instruments), ``runs/``
+(procedures, sessions, verdicts) or ``frames/`` (analysis of saved frames), or beside this one
+(``tui``, ``config``, ``startup``). A module exposes ``register(commands, benchmarks)``:
 ``commands`` is the top-level sub-parser collection, ``benchmarks`` the one under
 ``benchlab benchmark``. A registered parser sets ``func=handler`` where
 ``handler(args) -> int`` returns the exit status.
@@ -20,45 +22,45 @@ from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
 COMMAND_MODULES = (
-    "benchlab.cli.camera",  # devices, snap, benchmark camera
-    "benchlab.cli.serial",  # led, stage, simulate
-    "benchlab.cli.analysis",  # analyze IMAGE, benchmark analysis
-    "benchlab.cli.chart",  # find-chart, benchmark chart (analyze --chart usaf)
-    "benchlab.cli.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
-    "benchlab.cli.procedures",  # run, resume, analyze SESSION, report
-    "benchlab.cli.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
-    "benchlab.cli.sessions",  # sessions reindex|list|show|trend, benchmark catalog
-    "benchlab.cli.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
+    "benchlab.cli.devices.camera",  # devices, snap, benchmark camera
+    "benchlab.cli.devices.serial",  # led, stage, simulate
+    "benchlab.cli.frames.analysis",  # analyze IMAGE, benchmark analysis
+    "benchlab.cli.frames.chart",  # find-chart, benchmark chart (analyze --chart usaf)
+    "benchlab.cli.frames.sfr",  # sfr IMAGE (slanted-edge MTF), benchmark sfr
+    "benchlab.cli.runs.procedures",  # run, resume, analyze SESSION, report
+    "benchlab.cli.runs.batch",  # benchmark batch (analyze SESSION... is in cli.analysis)
+    "benchlab.cli.runs.sessions",  # sessions reindex|list|show|trend, benchmark catalog
+    "benchlab.cli.frames.viewsynth",  # unwrap, perspective, viewpoint, calibrate radial
     "benchlab.cli.tui",  # tui (and the no-argument default)
     "benchlab.cli.config",  # config init, config show
     "benchlab.cli.startup",  # benchmark startup
-    "benchlab.cli.soak",  # benchmark soak
-    "benchlab.cli.verify",  # verify, units, unit, lot, certificate (acceptance per unit)
-    "benchlab.cli.doctor",  # doctor (guided bring-up)
-    "benchlab.cli.depth",  # benchmark depth (run depth is in cli.procedures)
+    "benchlab.cli.devices.soak",  # benchmark soak
+    "benchlab.cli.runs.verify",  # verify, units, unit, lot, certificate (acceptance per unit)
+    "benchlab.cli.devices.doctor",  # doctor (guided bring-up)
+    "benchlab.cli.runs.depth",  # benchmark depth (run depth is in cli.procedures)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module
 #: imported, ~45 sub-parsers) costs 50-100 ms of start-up. tests/test_cli_main.py checks
 #: this table against what the modules register.
 COMMAND_OWNERS = {
-    "devices": "benchlab.cli.camera", "snap": "benchlab.cli.camera",
-    "led": "benchlab.cli.serial", "stage": "benchlab.cli.serial",
-    "simulate": "benchlab.cli.serial",
-    "analyze": "benchlab.cli.analysis",
-    "find-chart": "benchlab.cli.chart",
-    "sfr": "benchlab.cli.sfr",
-    "run": "benchlab.cli.procedures", "resume": "benchlab.cli.procedures",
-    "report": "benchlab.cli.procedures",
-    "sessions": "benchlab.cli.sessions",
-    "unwrap": "benchlab.cli.viewsynth", "perspective": "benchlab.cli.viewsynth",
-    "viewpoint": "benchlab.cli.viewsynth", "calibrate": "benchlab.cli.viewsynth",
+    "devices": "benchlab.cli.devices.camera", "snap": "benchlab.cli.devices.camera",
+    "led": "benchlab.cli.devices.serial", "stage": "benchlab.cli.devices.serial",
+    "simulate": "benchlab.cli.devices.serial",
+    "analyze": "benchlab.cli.frames.analysis",
+    "find-chart": "benchlab.cli.frames.chart",
+    "sfr": "benchlab.cli.frames.sfr",
+    "run": "benchlab.cli.runs.procedures", "resume": "benchlab.cli.runs.procedures",
+    "report": "benchlab.cli.runs.procedures",
+    "sessions": "benchlab.cli.runs.sessions",
+    "unwrap": "benchlab.cli.frames.viewsynth", "perspective": "benchlab.cli.frames.viewsynth",
+    "viewpoint": "benchlab.cli.frames.viewsynth", "calibrate": "benchlab.cli.frames.viewsynth",
     "tui": "benchlab.cli.tui",
     "config": "benchlab.cli.config",
-    "verify": "benchlab.cli.verify", "units": "benchlab.cli.verify",
-    "unit": "benchlab.cli.verify", "lot": "benchlab.cli.verify",
-    "certificate": "benchlab.cli.verify",
-    "doctor": "benchlab.cli.doctor",
+    "verify": "benchlab.cli.runs.verify", "units": "benchlab.cli.runs.verify",
+    "unit": "benchlab.cli.runs.verify", "lot": "benchlab.cli.runs.verify",
+    "certificate": "benchlab.cli.runs.verify",
+    "doctor": "benchlab.cli.devices.doctor",
 }
 LOG_LEVELS = ("debug", "info", "warning", "error")
 #: Set to 1 for ``analyze`` (issue 11): numpy's OpenBLAS starts a worker per core at import
@@ -181,11 +183,11 @@ def _main(argv: Sequence[str] | None) -> int:
         return 2
     _setup_logging(args.log_level)
     if args.trace_io:
-        from benchlab.drivers import io_trace
+        from benchlab.drivers.trace import io_trace
 
         io_trace.start(args.trace_io)
     if args.replay:
-        from benchlab.drivers import replay
+        from benchlab.drivers.trace import replay
 
         try:
             replay.start(args.replay)
@@ -213,18 +215,18 @@ def _main(argv: Sequence[str] | None) -> int:
             return shutdown.exit_status(exc)
         finally:
             if args.trace_io:
-                from benchlab.drivers import io_trace
+                from benchlab.drivers.trace import io_trace
 
                 io_trace.stop()
             if args.replay:
-                from benchlab.drivers import replay
+                from benchlab.drivers.trace import replay
 
                 replay.stop()
 
 
 def _replay_reason() -> str | None:
     """While a cassette is replayed, a serial device that dropped the line says why."""
-    from benchlab.drivers import replay
+    from benchlab.drivers.trace import replay
 
     return replay.divergence() if replay.active() else None
 

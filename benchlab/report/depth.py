@@ -59,6 +59,47 @@ def _curves_figure(curves: Sequence[Mapping[str, Any]], dof: Sequence[Mapping[st
     return figure_img(fig, f"through-focus curves, {criterion}")
 
 
+def _radial_curves_figure(curves: Sequence[Mapping[str, Any]],
+                          dof: Sequence[Mapping[str, Any]]) -> str:
+    """The radial view: per field point (ROI), the bar modulation (Eq. 2.9) against the wall
+    distance for S and T, the threshold, the DOF band and the best focus. The points are joined,
+    not refitted: the analysis fits the fundamental in the object radius, a curve of another
+    quantity."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    points = sorted({r["field_point"] for r in dof})
+    fig, axes = plt.subplots(1, len(points), figsize=(4.2 * len(points), 3.6), sharey=True,
+                             squeeze=False)
+    for ax, fp in zip(axes[0], points, strict=True):
+        for r in (x for x in dof if x["field_point"] == fp):
+            pts = sorted((c["distance_mm"], c["modulation"]) for c in curves
+                         if c.get("field_point") == fp and c["orientation"] == r["orientation"]
+                         and c.get("pattern") == r.get("pattern")
+                         and c["modulation"] is not None)
+            if not pts:
+                continue
+            colour = _COLOURS.get(r["orientation"], "k")
+            z, m = zip(*pts, strict=True)
+            ax.plot(z, m, "o-", ms=3, lw=0.8, color=colour,
+                    label=f"{r.get('pattern', '')} {r['orientation'][0].upper()}")
+            if r["near_mm"] is not None and r["far_mm"] is not None:
+                ax.axvspan(r["near_mm"], r["far_mm"], color=colour, alpha=0.05)
+            if r["best_focus_mm"] is not None:
+                ax.axvline(r["best_focus_mm"], color=colour, lw=0.8, ls=":")
+        ax.axhline(dof[0]["threshold"], color="k", lw=0.8, ls="--")
+        height = next(x["image_height_mm"] for x in dof if x["field_point"] == fp)
+        ax.set_title(f"{fp} (image height {height:.2f} mm)", fontsize=9)
+        ax.set_xlabel("distance from the side wall (mm)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0][0].set_ylabel("bar modulation (Eq. 2.9)")
+    fig.tight_layout()
+    return figure_img(fig, "radial through-focus curves")
+
+
 def _curvature_figure(dof: Sequence[Mapping[str, Any]], criterion: str,
                       half_range_mm: float | None) -> str:
     import matplotlib
@@ -100,6 +141,14 @@ def depth_section(tables: Mapping[str, Any], params: Mapping[str, Any]) -> str:
     analysis = params.get("analysis", {}) if isinstance(params, Mapping) else {}
     min_mtf = float(analysis.get("min_mtf", 0.05))
     half = analysis.get("design_half_range_mm")
+    if all(r.get("view") == "radial" for r in dof):
+        return ("<p class='note'>Points: the rolled bar pattern's modulation (Eq. 2.9) in each "
+                "field point's ROI at each distance from the side wall; dashed: the threshold; "
+                "bands: the DOF; dotted: best focus (the peak of the fundamental's fit in the "
+                "object radius). Blue sagittal, red tangential.</p>"
+                + _radial_curves_figure(curves, dof)
+                + "<h3>Field curvature and astigmatism</h3>"
+                + _curvature_figure(dof, dof[0]["criterion"], float(half) if half else None))
     out = ["<p class='note'>Points: the slanted edges' MTF at the criterion's frequency at each "
            "object distance (both segments); lines: the through-focus fit (degree-4 polynomial "
            "of ln MTF in 1/distance); dashed: the criterion's threshold; bands: the DOF. Blue "

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import html
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -87,7 +86,8 @@ TABLE_VIEWS: dict[str, TableView] = {
         ("simulator_truth", "Simulator truth (same keys)"))},
     # Depth of field (benchlab run depth).
     "depth_of_field": TableView(
-        "Depth of field - best focus and DOF ends per field point (slanted edge), orientation "
+        "Depth of field - best focus and DOF ends per field point (slanted edge or radial ROI), "
+        "orientation "
         "and criterion, 95 % intervals; verdict against Table 4.1 (forward +-40 mm, radial "
         "+-5 mm)",
         (*_DEPTH[:4], ("best_focus_mm_ci95", "95 % CI", ""), _DEPTH[4],
@@ -145,8 +145,11 @@ def cell(value: Any, fmt: str) -> str:
         return "yes" if value else "no"
     if fmt and isinstance(value, int | float):
         return format(value, fmt)
-    if isinstance(value, list):
-        return json.dumps(value)
+    if isinstance(value, list):  # an interval: [low, high], N/A where an end is not known
+        if all(v is None for v in value):
+            return "N/A"
+        return "[" + ", ".join("N/A" if v is None else f"{v:g}" if isinstance(v, float)
+                               else str(v) for v in value) + "]"
     return str(value)
 
 

@@ -204,18 +204,27 @@ RADIAL_LENS = {"focal_length_mm": 3.52, "pupil_diameter_mm": 1.68, "best_focus_m
                "reference_magnification": 17.5}
 
 
+#: Image-height step (mm) of the defocused radial blur table: the defocus (with field curvature
+#: ``k h^2``) is evaluated at every step, so the render follows it between the lens table's rows.
+RADIAL_DEFOCUS_STEP_MM = 0.05
+
+
 def defocused_radial(scene: RadialScene, lens: ThroughFocusLens, radius_mm: float
                      ) -> RadialScene:
     """The rolled pattern on a cylinder ``radius_mm`` from the axis through ``lens``: the
     ray-trace table images it at that radius (its magnification), and the defocus blur at each
-    tabulated image height is added in quadrature to the radial blur table."""
+    image height (every :data:`RADIAL_DEFOCUS_STEP_MM` over the radial blur table's range, and
+    its rows) is added in quadrature to the radial blur table there."""
     base = scene.blur
-    h = base.image_height_mm
+    lo, hi = min(base.image_height_mm), max(base.image_height_mm)
+    n = max(2, int(round((hi - lo) / RADIAL_DEFOCUS_STEP_MM)) + 1)
+    h = np.union1d(np.linspace(lo, hi, n), base.image_height_mm)
     scale = lens.lens_blur_scale
-    sag = tuple(float(np.hypot(s * scale, lens.defocus_sigma_px(radius_mm, x, 0.0, "sagittal")))
-                for x, s in zip(h, base.sigma_sagittal_px, strict=True))
-    tan = tuple(float(np.hypot(t * scale,
-                               lens.defocus_sigma_px(radius_mm, x, 0.0, "tangential")))
-                for x, t in zip(h, base.sigma_tangential_px, strict=True))
+    sag_base = base.sagittal_px(h) * scale
+    tan_base = base.tangential_px(h) * scale
+    sag = tuple(float(np.hypot(s, lens.defocus_sigma_px(radius_mm, x, 0.0, "sagittal")))
+                for x, s in zip(h, sag_base, strict=True))
+    tan = tuple(float(np.hypot(t, lens.defocus_sigma_px(radius_mm, x, 0.0, "tangential")))
+                for x, t in zip(h, tan_base, strict=True))
     return dataclasses.replace(scene, object_radius_mm=float(radius_mm),
-                               blur=BlurProfile(h, sag, tan))
+                               blur=BlurProfile(tuple(float(x) for x in h), sag, tan))

@@ -38,8 +38,8 @@ from benchlab.drivers.apt.protocol import (
     short,
     unpack_position,
 )
-from benchlab.drivers.pty_device import Clock, PtyDevice
-from benchlab.drivers.sim_dispatch import CommandTable
+from benchlab.drivers.simulation.dispatch import CommandTable
+from benchlab.drivers.simulation.pty_device import Clock, PtyDevice
 
 UPDATE_PERIOD_S = 0.1  # 0x0491 period after START_UPDATEMSGS (simulated time)
 UPDATE_MIN_WALL_S = 0.1  # ...but never faster than this in wall time (fast-time mode)

@@ -35,7 +35,6 @@ import numpy.typing as npt
 import usb.core
 import usb.util
 
-from benchlab.drivers import io_trace
 from benchlab.drivers.errors import (
     DeviceError,
     DeviceLostError,
@@ -46,6 +45,7 @@ from benchlab.drivers.errors import (
 )
 from benchlab.drivers.interfaces import Camera, DeviceIdentity, Frame
 from benchlab.drivers.mightex import protocol as p
+from benchlab.drivers.trace import io_trace
 
 log = logging.getLogger(__name__)
 
@@ -178,7 +178,7 @@ def udev_hint() -> str:
 
 
 def _find_devices(backend: Any, pid: int | None) -> list[usb.core.Device]:
-    from benchlab.drivers import replay
+    from benchlab.drivers.trace import replay
 
     if backend is None:
         backend = replay.usb_backend()  # a cassette replayed: its camera, no USB
@@ -262,7 +262,7 @@ class MightexCamera(Camera[FrameMeta]):
         if model is not None and profile is None:
             profile = p.spec_for(model)  # refuse an unknown model before touching USB
         if backend is None:
-            from benchlab.drivers import replay
+            from benchlab.drivers.trace import replay
 
             backend = replay.usb_backend()  # None unless a cassette is replayed
         devices = _find_devices(backend, pid)

@@ -3,7 +3,7 @@
 The camera it presents has the recorded VID/PID and the FX2 descriptors of the simulated
 one. Each write must be the next recorded write, each read gets the next recorded read of
 its endpoint (a recorded timeout times out again); anything else raises
-:class:`~benchlab.drivers.cassette.ReplayDivergedError` naming the exchange. No simulator
+:class:`~benchlab.drivers.trace.cassette.ReplayDivergedError` naming the exchange. No simulator
 runs: the frames are the recorded ones, byte for byte.
 """
 
@@ -15,7 +15,6 @@ from typing import Any
 
 import usb.backend
 
-from benchlab.drivers.cassette import Exchange, ReplayDivergedError, show
 from benchlab.drivers.mightex import protocol as p
 from benchlab.drivers.mightex.sim_usb import (
     _ENDPOINTS,
@@ -25,6 +24,7 @@ from benchlab.drivers.mightex.sim_usb import (
     _Interface,
     _timeout,
 )
+from benchlab.drivers.trace.cassette import Exchange, ReplayDivergedError, show
 
 
 @dataclass(frozen=True)

@@ -44,8 +44,8 @@ from benchlab.drivers.mightex.sim_sensor import (
 )
 from benchlab.drivers.mightex.sim_usb import DeviceUnplugged, SimCameraBackend
 from benchlab.drivers.sensor import AcquisitionState, Scene
-from benchlab.drivers.sim_clock import ManualClock
-from benchlab.drivers.sim_dispatch import CommandTable
+from benchlab.drivers.simulation.clock import ManualClock
+from benchlab.drivers.simulation.dispatch import CommandTable
 
 __all__ = [
     "BarTargetScene", "CameraFaults", "Clock", "FlatFieldScene", "ManualClock", "RealTimeClock",

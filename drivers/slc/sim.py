@@ -16,8 +16,8 @@ import re
 import time
 from dataclasses import dataclass, field, replace
 
-from benchlab.drivers.pty_device import Clock, PtyDevice
-from benchlab.drivers.sim_dispatch import CommandTable
+from benchlab.drivers.simulation.dispatch import CommandTable
+from benchlab.drivers.simulation.pty_device import Clock, PtyDevice
 from benchlab.drivers.slc.protocol import (
     ACK,
     ARGUMENT_ERROR,

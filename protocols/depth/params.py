@@ -24,6 +24,7 @@ from benchlab.protocols.camera_limits import (
     camera_exposure_ms,
     camera_gain,
 )
+from benchlab.protocols.depth.radial_rois import DEFAULT_FIELD_ROIS, roi_problem
 
 #: Nyquist of the camera (5.2 um pitch), lp/mm: a criterion above it is refused.
 NYQUIST_LP_PER_MM = 1000.0 / (2 * 5.2)
@@ -83,6 +84,9 @@ class DepthParams:
     radial_orientations: tuple[str, ...] = ("sagittal", "tangential")
     radial_threshold: float = 0.3
     wall_radius_mm: float = 13.88
+    #: Radial view: the field points (ROIs ``(row0, col0, row1, col1)`` at several image
+    #: heights; :mod:`benchlab.protocols.depth.radial_rois`).
+    radial_rois: tuple[tuple[int, int, int, int], ...] = DEFAULT_FIELD_ROIS
     simulator: Mapping[str, Any] = field(default_factory=dict)
     raw: Mapping[str, Any] = field(default_factory=dict)
 
@@ -199,6 +203,7 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
     rad_t = c.number("radial.threshold", d.radial_threshold, 0.0, 1.0, lo_open=True,
                      hi_open=True)
     wall = c.number("radial.wall_radius_mm", d.wall_radius_mm, 0.0, 1000.0)
+    rois = _radial_rois(c, d)
     if view == "radial" and "criteria" in c.data:
         c.fail("criteria", "apply to the forward view's edges; the radial view's DOF is bounded "
                "by radial.threshold (bar modulation)")
@@ -209,7 +214,7 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
         criteria=criteria, min_mtf=min_mtf, read_chart=bool(read_chart),
         design_half_range_mm=half, radial_frequencies_lp_per_mm=rad_f,
         radial_orientations=rad_o, radial_threshold=rad_t, wall_radius_mm=wall,
-        simulator=simulator, raw=c.data,
+        radial_rois=rois, simulator=simulator, raw=c.data,
     )
 
 
@@ -263,6 +268,30 @@ def _criteria(c: Any, d: DepthParams) -> tuple[Criterion, ...]:
             continue
         out.append(crit)
     return tuple(out) if out else d.criteria
+
+
+def _radial_rois(c: Any, d: DepthParams) -> tuple[tuple[int, int, int, int], ...]:
+    found, items = c.get("radial.rois", None)
+    if not found:
+        return d.radial_rois
+    if not isinstance(items, list) or not items:
+        c.fail("radial.rois", "must be a non-empty list of [row0, col0, row1, col1] boxes")
+        return d.radial_rois
+    out: list[tuple[int, int, int, int]] = []
+    for i, item in enumerate(items):
+        key = f"radial.rois[{i}]"
+        before = len(c.problems)
+        box = c.roi(key, d.radial_rois[0], value=item, found=True)
+        if len(c.problems) > before:
+            continue
+        why = roi_problem(box)
+        if why is not None:
+            c.fail(key, f"{list(box)} {why}")
+        elif box in out:
+            c.fail(key, f"repeats {list(box)}")
+        else:
+            out.append(box)
+    return tuple(out) if out else d.radial_rois
 
 
 def _positive(c: Any, key: str, value: Any) -> float | None:
@@ -323,7 +352,8 @@ def depth_to_dict(p: DepthParams) -> dict[str, Any]:
                      "design_half_range_mm": p.design_half_range_mm},
         "radial": {"frequencies_lp_per_mm": list(p.radial_frequencies_lp_per_mm),
                    "orientations": list(p.radial_orientations),
-                   "threshold": p.radial_threshold, "wall_radius_mm": p.wall_radius_mm},
+                   "threshold": p.radial_threshold, "wall_radius_mm": p.wall_radius_mm,
+                   "rois": [list(b) for b in p.radial_rois]},
         "simulator": dict(p.simulator),
     }
     if p.view == "forward":  # the radial view's DOF is bounded by radial.threshold

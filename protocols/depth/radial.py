@@ -1,13 +1,22 @@
 """The radial view's depth of field: each rolled bar pattern moved toward / away from the side
-wall, its Eq. 2.9 modulation read in the common radial ROI (rows 250-290, cols 1000-1050) at
-every distance, and fitted through focus like the forward view's edges
-(:mod:`benchlab.analysis.focus.through_focus`, in the vergence of the object radius = wall
-distance + endoscope radius). The DOF is where the bar modulation stays at or above
-``radial.threshold``; distances in the tables are from the side wall, as the thesis gives them
-(Table 4.4: 2-11 mm; Table 4.1: +-5 mm or larger).
+wall, read at every distance in each field point's ROI
+(:mod:`benchlab.protocols.depth.radial_rois`) and fitted through focus like the forward view's
+edges (:mod:`benchlab.analysis.focus.through_focus`, in the object radius = wall distance +
+endoscope radius). Distances in the tables are from the side wall, as the thesis
+gives them (Table 4.4: 2-11 mm; Table 4.1: +-5 mm or larger).
 
-The modulation is read by the histogram peaks (the radial bars run obliquely through the ROI:
-the MTF procedure's choice for this view), its 1-sigma by the estimator.
+Per pattern and field point two curves are fitted: the fundamental (sine-wave) modulation, whose
+peak is **best focus** (the Eq. 2.9 modulation is flat near focus), and the Eq. 2.9 modulation,
+whose crossings of ``radial.threshold`` are the **DOF ends**. Both are fitted as polynomials in
+the object radius ``R``, not in its vergence ``1/R`` as the forward view's edges are: a
+pattern of fixed *object* frequency is blurred, in object mm, by the image blur (linear in
+``|1/R - u_b|``) times the object mm per pixel (``R / rho`` around the circle), so its blur is
+``|1 - R u_b|``-linear and ``ln`` of its fundamental an exact quadratic in ``R`` for spokes;
+the quartic in vergence left the peak 0.004-0.009 mm off on noise-free frames, in ``R`` < 1e-4.
+
+Per pattern, best focus against image height gives the radial **field curvature**
+(:func:`benchlab.analysis.focus.field.field_curvature`).
+The simulated truth: :mod:`benchlab.protocols.depth.radial_truth`.
 """
 
 from __future__ import annotations
@@ -20,49 +29,42 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars.estimators import estimate_modulation
-from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, RADIAL_ROI_BOX, box_centroid
-from benchlab.analysis.focus.field import astigmatic_difference
+from benchlab.analysis.chart.layout import Box
+from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
+    FocusEstimate,
     FocusFitError,
-    fit_through_focus,
-    focus_estimate,
 )
 from benchlab.drivers.errors import BenchlabError
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.protocols.depth.params import DepthParams
+from benchlab.protocols.depth.radial_fit import estimate, with_model_term
+from benchlab.protocols.depth.radial_rois import (
+    ESTIMATOR,
+    RadialReading,
+    read_rois,
+    roi_height_mm,
+    roi_name,
+)
+from benchlab.protocols.depth.radial_truth import truth_rows
 from benchlab.protocols.depth.steps import frame_name, position_step_id
 
 if TYPE_CHECKING:
     from benchlab.session import Session
 
+__all__ = ["analyze_radial", "read_radial", "truth_rows"]
+
 Pattern = tuple[float, str]
-#: Estimator of the radial bars (oblique through the ROI).
-ESTIMATOR = "histogram"
+#: One taken position: pattern, wall distance, segment, a reading per field point (None: not
+#: resolved).
+Position = tuple[Pattern, float, int, tuple[RadialReading | None, ...]]
 
 
 def _r(v: float | None, nd: int = 3) -> float | None:
     return None if v is None or not math.isfinite(v) else round(float(v), nd)
 
 
-def roi_height_mm() -> float:
-    r, c = box_centroid(RADIAL_ROI_BOX)
-    return float(math.hypot(r - IMAGE_CENTRE_RC[0], c - IMAGE_CENTRE_RC[1])
-                 * PIXEL_PITCH_UM / 1000.0)
-
-
-def read_modulation(pixels: npt.NDArray[Any], full_scale: float) -> tuple[float, float] | None:
-    """(modulation, 1-sigma) in the radial ROI, None when not resolved."""
-    r0, c0, r1, c1 = RADIAL_ROI_BOX
-    res = estimate_modulation(pixels[r0:r1, c0:c1], estimator=ESTIMATOR, max_code=full_scale)
-    if not res.resolved or not res.uncertainty > 0:
-        return None
-    return float(res.modulation), float(res.uncertainty)
-
-
-def read_radial(session: Session, params: DepthParams
-                ) -> list[tuple[Pattern, float, int, tuple[float, float] | None]]:
-    """(pattern, wall distance, segment, reading) of every taken position."""
+def read_radial(session: Session, params: DepthParams) -> list[Position]:
+    """(pattern, wall distance, segment, readings) of every taken position."""
     out = []
     for pattern in params.patterns:
         assert pattern is not None
@@ -76,7 +78,7 @@ def read_radial(session: Session, params: DepthParams
                 stack = [session.load_frame(sid, n)[0] for n in names]
                 avg = np.mean(np.stack(stack).astype(np.float64), axis=0)
                 out.append((pattern, z, seg.index,
-                            read_modulation(avg, 2.0 ** params.bits - 1)))
+                            read_rois(avg, params.radial_rois, 2.0 ** params.bits - 1)))
     return out
 
 
@@ -84,120 +86,126 @@ def _label(pattern: Pattern) -> str:
     return f"{pattern[0]:g}lp/mm"
 
 
-def analyze_radial(readings: Sequence[tuple[Pattern, float, int, tuple[float, float] | None]],
-                   params: DepthParams) -> tuple[dict[str, list[dict[str, Any]]],
-                                                 dict[str, Any]]:
-    """The radial tables (module docstring)."""
+def _seed(*parts: str) -> int:
+    return zlib.crc32("|".join(parts).encode())
+
+
+def _row(base: dict[str, Any], est: FocusEstimate, n_points: int, note: str,
+         params: DepthParams) -> dict[str, Any]:
     from benchlab.protocols.depth.analysis import verdict
 
+    wall = params.wall_radius_mm
+
+    def w(v: float | None) -> float | None:
+        return None if v is None else v - wall
+
+    near, far = w(est.near_mm), w(est.far_mm)
+    notes = [n for n, on in (("near end extrapolated below the sweep", est.near_extrapolated),
+                             ("far end extrapolated beyond the sweep", est.far_extrapolated))
+             if on] + ([note] if note else [])
+    return {**base, "best_focus_mm": _r(est.best_focus_mm - wall),
+            "best_focus_mm_ci95": [_r(w(v)) for v in est.best_focus_ci95],
+            "near_mm": _r(near), "near_mm_ci95": [_r(w(v)) for v in est.near_ci95],
+            "far_mm": _r(far), "far_mm_ci95": [_r(w(v)) for v in est.far_ci95],
+            "dof_mm": _r(far - near) if near is not None and far is not None else None,
+            "peak_mtf": _r(est.peak_mtf, 4), "n_points": n_points,
+            "verdict": verdict(est, params.radial_threshold, params.design_half_range_mm),
+            "note": "; ".join(notes)}
+
+
+def analyze_radial(readings: Sequence[Position], params: DepthParams
+                   ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
+    """The radial tables (module docstring)."""
     if not readings:
         raise BenchlabError("no radial position taken yet; nothing to analyse")
     wall = params.wall_radius_mm
     thr = params.radial_threshold
-    h = roi_height_mm()
+    boxes: tuple[Box, ...] = params.radial_rois
     curves, rows = [], []
-    draws: dict[Pattern, npt.NDArray[np.float64]] = {}
+    draws: dict[tuple[Pattern, Box], npt.NDArray[np.float64]] = {}
     for pattern in params.patterns:
         assert pattern is not None
         pts = [(z, seg, r) for p, z, seg, r in readings if p == pattern]
-        for z, seg, r in pts:
-            curves.append({"distance_mm": z, "segment": seg, "pattern": _label(pattern),
-                           "orientation": pattern[1], "modulation": _r(r[0], 4) if r else None,
-                           "modulation_sigma": _r(r[1], 4) if r else None,
-                           "status": "ok" if r else "not resolved"})
-        good = [(z + wall, r[0], r[1]) for z, _, r in pts if r is not None]
-        base = {"view": "radial", "field_point": _label(pattern), "orientation": pattern[1],
-                "criterion": f"modulation>={thr:g}", "freq_lp_per_mm": pattern[0],
-                "threshold": thr, "image_height_mm": _r(h, 4)}
-        try:
-            fit = fit_through_focus([g[0] for g in good], [g[1] for g in good],
-                                    [g[2] for g in good], min_mtf=params.min_mtf)
-        except FocusFitError as exc:
-            rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
-                         "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
-                         "far_mm_ci95": [None, None], "dof_mm": None, "peak_mtf": None,
-                         "n_points": len(good), "verdict": "not measured", "note": str(exc)})
-            continue
-        est = focus_estimate(fit, thr, seed=zlib.crc32(_label(pattern).encode()
-                                                       + pattern[1].encode()))
-        draws[pattern] = est.best_focus_draws - wall
+        for i, box in enumerate(boxes):
+            name = roi_name(box)
+            for z, seg, rr in pts:
+                r = rr[i] if i < len(rr) else None
+                curves.append({"distance_mm": z, "segment": seg, "pattern": _label(pattern),
+                               "field_point": name, "orientation": pattern[1],
+                               "modulation": _r(r.modulation, 4) if r else None,
+                               "fundamental": _r(r.fundamental, 4) if r else None,
+                               "modulation_sigma": _r(r.sigma, 4) if r else None,
+                               "status": "ok" if r else "not resolved"})
+            good = [(z + wall, rr[i]) for z, _, rr in pts if i < len(rr) and rr[i] is not None]
+            base = {"view": "radial", "field_point": name, "pattern": _label(pattern),
+                    "orientation": pattern[1], "criterion": f"modulation>={thr:g}",
+                    "freq_lp_per_mm": pattern[0], "threshold": thr,
+                    "image_height_mm": _r(roi_height_mm(box), 4)}
+            seed = _seed(_label(pattern), pattern[1], name)
+            try:
+                est, n, note = estimate([(z, r) for z, r in good if r is not None], params,
+                                         seed)
+            except FocusFitError as exc:
+                rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
+                             "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
+                             "far_mm_ci95": [None, None], "dof_mm": None, "peak_mtf": None,
+                             "n_points": len(good), "verdict": "not measured",
+                             "note": str(exc)})
+                continue
+            est = with_model_term(est, seed + 2)
+            draws[(pattern, box)] = est.best_focus_draws - wall
+            rows.append(_row(base, est, n, note, params))
+    return ({"depth_of_field": rows, "depth_astigmatism": _astigmatism(draws, params),
+             "depth_field_curvature": _curvature(draws, params), "depth_curves": curves},
+            {"procedure": "depth", "view": "radial", "positions": len(readings),
+             "frames_per_position": params.frames,
+             "patterns": [_label(p) + " " + p[1] for p in params.patterns if p],
+             "field_points": {roi_name(b): {"box": list(b),
+                                            "image_height_mm": _r(roi_height_mm(b), 4)}
+                              for b in boxes},
+             "segments": len(params.segments()), "estimator": ESTIMATOR,
+             "best_focus_from": "fundamental modulation", "ends_from": "Eq. 2.9 modulation",
+             "wall_radius_mm": wall,
+             "design": {"half_range_mm": params.design_half_range_mm,
+                        "table_4_4_range_mm": [2.0, 11.0]}})
 
-        def w(v: float | None) -> float | None:
-            return None if v is None else v - wall
 
-        near, far = w(est.near_mm), w(est.far_mm)
-        rows.append({**base, "best_focus_mm": _r(est.best_focus_mm - wall),
-                     "best_focus_mm_ci95": [_r(w(v)) for v in est.best_focus_ci95],
-                     "near_mm": _r(near), "near_mm_ci95": [_r(w(v)) for v in est.near_ci95],
-                     "far_mm": _r(far), "far_mm_ci95": [_r(w(v)) for v in est.far_ci95],
-                     "dof_mm": _r(far - near) if near is not None and far is not None else None,
-                     "peak_mtf": _r(est.peak_mtf, 4), "n_points": fit.n_points,
-                     "verdict": verdict(est, thr, params.design_half_range_mm),
-                     "note": "; ".join(n for n, on in (
-                         ("near end extrapolated below the sweep", est.near_extrapolated),
-                         ("far end extrapolated beyond the sweep", est.far_extrapolated))
-                         if on)})
-    astig = []
+def _astigmatism(draws: dict[tuple[Pattern, Box], npt.NDArray[np.float64]],
+                 params: DepthParams) -> list[dict[str, Any]]:
+    """S minus T best focus per field point and frequency, draw by draw."""
+    out = []
     for f in params.radial_frequencies_lp_per_mm:
-        s, t = draws.get((f, "sagittal")), draws.get((f, "tangential"))
-        if s is None or t is None:
-            continue
-        value, ci = astigmatic_difference([s], [t])
-        astig.append({"view": "radial", "field_point": f"{f:g}lp/mm", "freq_lp_per_mm": f,
-                      "s_minus_t_mm": _r(value),
-                      "s_minus_t_mm_ci95": [_r(ci[0]), _r(ci[1])] if ci else [None, None],
-                      "significant": bool(ci is not None and (ci[0] > 0 or ci[1] < 0))})
-    summary = {"procedure": "depth", "view": "radial", "positions": len(readings),
-               "frames_per_position": params.frames,
-               "patterns": [_label(p) + " " + p[1] for p in params.patterns if p],
-               "segments": len(params.segments()), "estimator": ESTIMATOR,
-               "wall_radius_mm": wall, "design": {"half_range_mm": params.design_half_range_mm,
-                                                  "table_4_4_range_mm": [2.0, 11.0]}}
-    return {"depth_of_field": rows, "depth_astigmatism": astig, "depth_curves": curves}, summary
+        for box in params.radial_rois:
+            s, t = draws.get(((f, "sagittal"), box)), draws.get(((f, "tangential"), box))
+            if s is None or t is None:
+                continue
+            value, ci = astigmatic_difference([s], [t])
+            out.append({"view": "radial", "field_point": roi_name(box),
+                        "image_height_mm": _r(roi_height_mm(box), 4), "freq_lp_per_mm": f,
+                        "s_minus_t_mm": _r(value),
+                        "s_minus_t_mm_ci95": [_r(ci[0]), _r(ci[1])] if ci else [None, None],
+                        "significant": bool(ci is not None and (ci[0] > 0 or ci[1] < 0))})
+    return out
 
 
-def truth_rows(params: DepthParams) -> list[dict[str, Any]]:
-    """The radial ``depth_of_field`` keys from the scene's closed form: the defocused
-    pattern's truth modulation at each object radius, searched over the ray-trace table's
-    radii."""
-    from scipy.optimize import brentq, minimize_scalar
-
-    from benchlab.analysis.views.raytrace import read_raytrace_table
-    from benchlab.scenes.focus import defocused_radial
-    from benchlab.scenes.radial import RadialScene
-
-    lens = params.lens()
-    wall = params.wall_radius_mm
-    radii = read_raytrace_table().object_radius_mm
-    lo, hi = float(min(radii)), float(max(radii))
-    thr = params.radial_threshold
-    rows = []
+def _curvature(draws: dict[tuple[Pattern, Box], npt.NDArray[np.float64]],
+               params: DepthParams) -> list[dict[str, Any]]:
+    """Per pattern: best focus = b0 + k h^2 over its field points, draw by draw."""
+    out = []
     for pattern in params.patterns:
         assert pattern is not None
-        template = RadialScene(pattern[0], "sagittal" if pattern[1] == "sagittal"
-                               else "tangential")
-
-        def m(radius: float, template: RadialScene = template) -> float:
-            return defocused_radial(template, lens, radius).truth_modulation()
-
-        res = minimize_scalar(lambda u: -m(1.0 / u), bounds=(1.0 / hi, 1.0 / lo),
-                              method="bounded", options={"xatol": 1e-9})
-        best = 1.0 / float(res.x)
-
-        def cross(a: float, b: float) -> float | None:
-            ga, gb = m(a) - thr, m(b) - thr
-            if ga * gb > 0:
-                return None
-            return float(brentq(lambda r: m(r) - thr, a, b, xtol=1e-7))
-
-        near = cross(lo, best) if m(best) >= thr else None
-        far = cross(best, hi) if m(best) >= thr else None
-        rows.append({"view": "radial", "field_point": _label(pattern),
-                     "orientation": pattern[1], "criterion": f"modulation>={thr:g}",
-                     "freq_lp_per_mm": pattern[0], "threshold": thr,
-                     "image_height_mm": _r(roi_height_mm(), 4),
-                     "best_focus_mm": round(best - wall, 4),
-                     "near_mm": None if near is None else round(near - wall, 4),
-                     "far_mm": None if far is None else round(far - wall, 4),
-                     "dof_mm": None if near is None or far is None else round(far - near, 4)})
-    return rows
+        boxes = [b for b in params.radial_rois if (pattern, b) in draws]
+        try:
+            k, b0, k_ci, b0_ci = field_curvature([roi_height_mm(b) for b in boxes],
+                                                 [draws[(pattern, b)] for b in boxes])
+        except ValueError:  # fewer than two field points fitted
+            continue
+        out.append({"view": "radial", "pattern": _label(pattern), "orientation": pattern[1],
+                    "freq_lp_per_mm": pattern[0], "curvature_mm_per_mm2": _r(k, 4),
+                    "curvature_mm_per_mm2_ci95": ([_r(k_ci[0], 4), _r(k_ci[1], 4)] if k_ci
+                                                  else [None, None]),
+                    "best_focus_on_axis_mm": _r(b0),
+                    "best_focus_on_axis_mm_ci95": ([_r(b0_ci[0]), _r(b0_ci[1])] if b0_ci
+                                                   else [None, None]),
+                    "field_points": len(boxes)})
+    return out

@@ -157,5 +157,9 @@ class DepthProcedure:
     def analyze(self, session: Session, estimator: str | None) -> Path:
         from benchlab.protocols.depth.analysis import analyze_depth
 
+        from benchlab.protocols.depth.radial_rois import ESTIMATOR as RADIAL_ESTIMATOR
+
         tables, summary = analyze_depth(session, self.params)
-        return Path(session.write_results(tables, summary=summary, estimator="edge-sfr"))
+        # what read the through-focus points: the slanted edges, or the radial bars
+        used = RADIAL_ESTIMATOR if self.params.view == "radial" else "edge-sfr"
+        return Path(session.write_results(tables, summary=summary, estimator=used))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from benchlab.benchmarks.bars import format_table, run_benchmark
+from benchlab.benchmarks.bars.estimators import format_table, run_benchmark
 from benchlab.cli.main import main
 from benchlab.synthetic.bars import bar_roi
 
@@ -126,7 +126,7 @@ def test_session_folder_is_handed_to_procedures(tmp_path: Path, monkeypatch) -> 
         seen.append(args)
         return 0
 
-    import benchlab.cli.procedures as procedures
+    import benchlab.cli.runs.procedures as procedures
 
     monkeypatch.setattr(procedures, "analyze_session_command", fake)
     assert main(["analyze", str(tmp_path), "--estimator", "histogram"]) == 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import benchlab
-import benchlab.cli.serial
+import benchlab.cli.devices.serial
 from benchlab.cli.main import main
 from benchlab.storage import load_frame_tiff, sha256_file
 
@@ -16,7 +16,7 @@ from benchlab.storage import load_frame_tiff, sha256_file
 @pytest.fixture
 def no_serial(monkeypatch: pytest.MonkeyPatch) -> None:
     """Only the camera part is under test here: serial listing returns nothing."""
-    monkeypatch.setattr(benchlab.cli.serial, "list_serial_devices", lambda simulate: [],
+    monkeypatch.setattr(benchlab.cli.devices.serial, "list_serial_devices", lambda simulate: [],
                         raising=False)
 
 

@@ -155,7 +155,7 @@ def test_reanalysis_path_imports_no_scipy() -> None:
     import subprocess
     import sys
 
-    code = ("import sys; import benchlab.cli.analysis, benchlab.cli.procedures, "
+    code = ("import sys; import benchlab.cli.frames.analysis, benchlab.cli.runs.procedures, "
             "benchlab.protocols.runs, benchlab.protocols.mtf.analysis, benchlab.report.tables; "
             "from benchlab.protocols.mtf.curves import load_curves; load_curves(None); "
             "heavy = {'scipy.ndimage', 'scipy.stats', 'scipy.interpolate', "
@@ -164,3 +164,16 @@ def test_reanalysis_path_imports_no_scipy() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, timeout=60).stdout.strip()
     assert out == "[]"
+
+
+def test_config_init_makes_the_user_folder_but_not_a_mistyped_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "not" / "yet" / "config"))
+    assert main(["config", "init"]) == 0
+    assert (tmp_path / "not/yet/config/benchlab/bench.toml").read_text(encoding="utf-8") \
+        == template()
+    wrong = tmp_path / "typo" / "bench.toml"
+    assert main(["config", "init", "--path", str(wrong)]) == 1
+    assert f"folder {wrong.parent} does not exist" in capsys.readouterr().err
+    assert not wrong.parent.exists()

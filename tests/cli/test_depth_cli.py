@@ -3,45 +3,24 @@ refused before any session or device; benchmark depth registered."""
 
 from __future__ import annotations
 
-import os
 import signal
-import subprocess
-import sys
-import time
 from collections import Counter
 from pathlib import Path
 
 import pytest
-from sim_runs import FIXTURES, events, only_session
+from sim_runs import FIXTURES, events, only_session, signal_mid_run
 
 from benchlab.cli.main import build_parser, main
 from benchlab.session import Session
 
 SMALL = FIXTURES / "depth-small.toml"
-
-
-def _completed(session: Path) -> int:
-    try:
-        return sum(1 for e in events(session) if e["kind"] == "step_completed")
-    except (OSError, ValueError):
-        return 0
+RUN = ["run", "depth", "--simulate", "--yes", "--params", str(SMALL)]
 
 
 def test_kill_9_mid_sweep_then_resume_repeats_no_position(tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "depth", "--simulate", "--yes",
-           "--params", str(SMALL), "--out", str(tmp_path)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
-            if sessions and _completed(sessions[0]) >= 6:  # setup, mount-0, 4 positions
-                break
-            assert proc.poll() is None, "the run ended before it could be killed"
-            time.sleep(0.01)
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        proc.wait(timeout=30)
+    status, _, _ = signal_mid_run(RUN, tmp_path, after_steps=6,  # setup, mount-0, 4 positions
+                                  sig=signal.SIGKILL)
+    assert status == -signal.SIGKILL
     path = only_session(tmp_path)
     assert Session.open(path).status == "interrupted"
     before = Session.open(path).frames()
@@ -75,23 +54,8 @@ def test_benchmark_depth_is_a_command() -> None:
 
 
 def test_ctrl_c_mid_sweep_leaves_the_bench_safe_and_resumable(tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "depth", "--simulate", "--yes",
-           "--params", str(SMALL), "--out", str(tmp_path)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
-            if sessions and _completed(sessions[0]) >= 4:
-                break
-            assert proc.poll() is None, "the run ended before it could be interrupted"
-            time.sleep(0.005)
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130
+    status, out, err = signal_mid_run(RUN, tmp_path, after_steps=4, sig=signal.SIGINT)
+    assert status == 130
     assert "bench left safe" in out + err and "benchlab resume" in out + err
     path = only_session(tmp_path)
     assert Session.open(path).status == "interrupted"

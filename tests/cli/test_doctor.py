@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from benchlab.bench import BenchConfig
-from benchlab.cli.doctor import set_toml_key
+from benchlab.cli.devices.doctor import set_toml_key
 from benchlab.cli.main import main
 
 BENCH = """[camera]

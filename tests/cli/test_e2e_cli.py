@@ -3,44 +3,23 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
-import subprocess
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 
 import pytest
-from sim_runs import MTF_SMALL, RAD_SMALL, events, only_session
+from sim_runs import MTF_SMALL, RAD_SMALL, events, only_session, signal_mid_run
 
 from benchlab.cli.main import main
 from benchlab.scenes.world import SimWorld
 from benchlab.session import Session
 
 
-def _completed(session: Path) -> int:
-    try:
-        return sum(1 for e in events(session) if e["kind"] == "step_completed")
-    except (OSError, ValueError):
-        return 0
-
-
 def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "mtf", "--simulate", "--yes",
-           "--out", str(tmp_path)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
-            if sessions and _completed(sessions[0]) >= 10:
-                break
-            assert proc.poll() is None, "the run ended before it could be killed"
-            time.sleep(0.01)
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        proc.wait(timeout=30)
+    status, _, _ = signal_mid_run(["run", "mtf", "--simulate", "--yes"], tmp_path,
+                                  after_steps=10, sig=signal.SIGKILL)
+    assert status == -signal.SIGKILL
     path = only_session(tmp_path)
     session = Session.open(path)
     # session.json still says "running", but its writer is dead: the truth is "interrupted"
@@ -128,23 +107,9 @@ def test_unknown_estimator_is_a_clean_error(
 
 
 def test_real_ctrl_c_mid_radiometry_then_resume(tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "benchlab.cli.main", "run", "radiometry", "--simulate", "--yes",
-           "--out", str(tmp_path)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            sessions = [p for p in tmp_path.iterdir() if (p / "events.jsonl").is_file()]
-            if sessions and _completed(sessions[0]) >= 2:
-                break
-            assert proc.poll() is None, "the run ended before it could be interrupted"
-            time.sleep(0.005)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130
+    status, _, err = signal_mid_run(["run", "radiometry", "--simulate", "--yes"], tmp_path,
+                                    after_steps=2, sig=signal.SIGINT)
+    assert status == 130
     assert "benchlab resume" in err
     path = only_session(tmp_path)
     assert Session.open(path).status == "interrupted"

@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
+from benchlab.cli.devices.serial import list_serial_devices
 from benchlab.cli.main import main
-from benchlab.cli.serial import list_serial_devices
 from benchlab.drivers.apt.stage import AptStage
 from benchlab.drivers.slc.controller import SlcController
 

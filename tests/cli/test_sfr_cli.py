@@ -14,7 +14,7 @@ import tifffile
 
 from benchlab.analysis.sfr.measure import measure_sfr
 from benchlab.analysis.sfr.target import edge_specs
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     MTF_TOL,
     SIGMAS_PX,
     format_accuracy,
@@ -403,8 +403,8 @@ def test_a_session_folder_is_not_an_image(tmp_path: Path,
 
 
 def test_help_states_the_ranges_the_benchmark_uses(capsys: pytest.CaptureFixture[str]) -> None:
-    from benchlab.benchmarks.sfr import MIN_ROWS_LENGTHS
-    from benchlab.cli.sfr import MIN_ROWS_TRIED
+    from benchlab.benchmarks.sfr.edges import MIN_ROWS_LENGTHS
+    from benchlab.cli.frames.sfr import MIN_ROWS_TRIED
 
     assert MIN_ROWS_TRIED == (MIN_ROWS_LENGTHS[0], MIN_ROWS_LENGTHS[-1])
     with pytest.raises(SystemExit):

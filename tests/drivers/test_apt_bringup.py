@@ -19,7 +19,7 @@ from benchlab.drivers.apt.protocol import (
 )
 from benchlab.drivers.apt.sim import UNACKED_UPDATE_LIMIT, SimulatedAptStage
 from benchlab.drivers.apt.stage import AptMoveFaultError, AptStage
-from benchlab.drivers.pty_device import ManualClock
+from benchlab.drivers.simulation.pty_device import ManualClock
 
 pytestmark = pytest.mark.timeout(30)
 KEEPALIVE = short(Msg.MOT_ACK_DCSTATUSUPDATE).pack()

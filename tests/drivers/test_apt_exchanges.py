@@ -12,7 +12,7 @@ import pytest
 from benchlab.drivers.apt.protocol import DcStatus, HwInfo, StatusBits, Units, VelParamsRaw
 from benchlab.drivers.apt.sim import SimulatedAptStage
 from benchlab.drivers.apt.stage import AptStage
-from benchlab.drivers.pty_device import ManualClock
+from benchlab.drivers.simulation.pty_device import ManualClock
 
 pytestmark = pytest.mark.timeout(30)
 Z8 = Units(34554.96)

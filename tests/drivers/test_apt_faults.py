@@ -22,7 +22,7 @@ from benchlab.drivers.apt.stage import (
     AptStage,
 )
 from benchlab.drivers.errors import DeviceLostError, SafetyLimitError
-from benchlab.drivers.pty_device import ManualClock
+from benchlab.drivers.simulation.pty_device import ManualClock
 
 pytestmark = pytest.mark.timeout(30)
 H = bytes.fromhex

@@ -13,10 +13,10 @@ import pytest
 import tifffile
 
 from benchlab.cli.main import main
-from benchlab.drivers import io_trace, replay
-from benchlab.drivers.cassette import CassetteError, ReplayDivergedError, load
 from benchlab.drivers.mightex.camera import MightexCamera
 from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
+from benchlab.drivers.trace import io_trace, replay
+from benchlab.drivers.trace.cassette import CassetteError, ReplayDivergedError, load
 
 CASSETTES = Path(__file__).parents[2] / "fixtures" / "cassettes"
 ENTRIES: list[dict[str, Any]] = tomllib.loads(

@@ -8,7 +8,7 @@ from benchlab.drivers.apt.protocol import Msg
 from benchlab.drivers.apt.sim import SimulatedAptStage
 from benchlab.drivers.mightex import protocol as p
 from benchlab.drivers.mightex.sim import SimulatedCamera
-from benchlab.drivers.sim_dispatch import CommandTable
+from benchlab.drivers.simulation.dispatch import CommandTable
 from benchlab.drivers.slc.sim import SimulatedSlc
 
 

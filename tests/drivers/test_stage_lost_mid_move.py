@@ -47,6 +47,7 @@ def test_driver_names_the_lost_move_and_the_stage_finishes_it_alone() -> None:
         assert sim.position_mm == pytest.approx(45.0, abs=1e-4)
 
 
+@pytest.mark.usefixtures("quick_silence")
 def test_bench_keeps_the_lost_stage_error_and_switches_the_led_off() -> None:
     with pytest.raises(DeviceLostError, match=LOST) as info:
         with _sim_bench() as bench:
@@ -61,6 +62,7 @@ def test_bench_keeps_the_lost_stage_error_and_switches_the_led_off() -> None:
     assert "(LEDs off)" in notes and "stage: stage:" not in notes
 
 
+@pytest.mark.usefixtures("quick_silence")
 def test_run_fails_the_step_with_a_clear_error_journalled_and_leds_off(
     tmp_path: Path,
 ) -> None:

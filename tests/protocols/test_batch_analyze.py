@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from many_sessions_helpers import copy_session, real_session, results_files
 
-from benchlab.cli import batch as cli_batch
 from benchlab.cli.main import main
+from benchlab.cli.runs import batch as cli_batch
 from benchlab.protocols import batch
 from benchlab.protocols.batch import BatchError, run_batch
 from benchlab.protocols.runs import reanalyze

@@ -106,3 +106,27 @@ def test_radial_view_sweeps_the_wall_distance_with_its_own_defaults() -> None:
                 "criteria": [{"kind": "mtf50", "frequency_lp_per_mm": 35}]})
     with pytest.raises(ParamsError, match="radial.orientations: must be a list"):
         _parse({"sweep": {"view": "radial"}, "radial": {"orientations": ["sideways"]}})
+
+
+def test_radial_field_points_default_and_round_trip() -> None:
+    p = _parse({"sweep": {"view": "radial"}})
+    assert p.radial_rois == ((330, 895, 370, 945), (291, 946, 331, 996), (250, 1000, 290, 1050))
+    q = _parse({"sweep": {"view": "radial"}, "radial": {"rois": [[300, 960, 330, 990]]}})
+    assert q.radial_rois == ((300, 960, 330, 990),)
+    assert parse_params("depth", params_to_dict(q), "snapshot").radial_rois == q.radial_rois
+
+
+@pytest.mark.parametrize(("rois", "message"), [
+    ([[1000, 1200, 1040, 1290]], r"radial.rois\[0\]: columns 1200..1290 must satisfy"),
+    ([[540, 620, 580, 670]], r"radial.rois\[0\]: \[540, 620, 580, 670\] lies outside the "
+                             r"radial annulus"),
+    ([[250, 1000, 260, 1050]], r"radial.rois\[0\]: \[250, 1000, 260, 1050\] 10 x 50 px is too "
+                               r"small"),
+    ([[250, 1000, 290, 1050], [250, 1000, 290, 1050]], r"radial.rois\[1\]: repeats"),
+    ([[250, 1000, 290]], r"radial.rois\[0\]: must be 4 integers"),
+    ([], r"radial.rois: must be a non-empty list"),
+    ("r250c1000", r"radial.rois: must be a non-empty list"),
+])
+def test_bad_radial_field_points_are_refused_by_name(rois: Any, message: str) -> None:
+    with pytest.raises(ParamsError, match=message):
+        _parse({"sweep": {"view": "radial"}, "radial": {"rois": rois}})

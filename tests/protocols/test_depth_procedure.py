@@ -121,14 +121,28 @@ def test_radial_view_moves_each_rolled_pattern_from_the_side_wall(tmp_path: Path
     steps = [e["step_id"] for e in events(out.session_path) if e["kind"] == "step_completed"]
     assert steps[:3] == ["setup", "r2S-mount-0", "r2S-s0-z3"] and "r2T-mount-0" in steps
     tables = tables_of(out.results_path)
-    rows = {r["orientation"]: r for r in tables["depth_of_field"]}
-    truth = {r["orientation"]: r for r in tables["simulator_truth"]}
-    s, t = rows["sagittal"], truth["sagittal"]
-    lo, hi = s["best_focus_mm_ci95"]
-    # the figure for the radial view: within 0.1 mm or the interval covering it
-    assert abs(s["best_focus_mm"] - t["best_focus_mm"]) <= 0.1 or lo <= t["best_focus_mm"] <= hi
-    lo, hi = s["far_mm_ci95"]
-    assert abs(s["far_mm"] - t["far_mm"]) <= 0.1 or lo <= t["far_mm"] <= hi
-    # the tangential 2 lp/mm rings never reach 0.3 (the thesis's radial T finding)
-    assert truth["tangential"]["near_mm"] is None
-    assert rows["tangential"]["verdict"] in ("not measured", "fails (criterion never met)")
+    key = ("field_point", "orientation")
+    rows = {tuple(r[k] for k in key): r for r in tables["depth_of_field"]}
+    truth = {tuple(r[k] for k in key): r for r in tables["simulator_truth"]}
+    # three field points (image heights 1.80, 2.13, 2.48 mm) x S and T
+    assert set(rows) == set(truth) and len(rows) == 6
+    assert sorted({r["image_height_mm"] for r in rows.values()}) == pytest.approx(
+        [1.796, 2.130, 2.483], abs=1e-3)
+    for (fp, orient), s in rows.items():
+        t = truth[(fp, orient)]
+        lo, hi = s["best_focus_mm_ci95"]
+        # the figure for the radial view: within 0.1 mm or the interval covering it
+        assert (abs(s["best_focus_mm"] - t["best_focus_mm"]) <= 0.1
+                or lo <= t["best_focus_mm"] <= hi), (fp, orient)
+        for end in ("near_mm", "far_mm"):
+            if t[end] is not None and s[end] is not None and "extrapolated" not in s["note"]:
+                lo, hi = s[f"{end}_ci95"]
+                assert abs(s[end] - t[end]) <= 0.1 or lo <= t[end] <= hi, (fp, orient, end)
+    # the 2 lp/mm rings at the common ROI never reach 0.3 (the thesis's radial T finding); at
+    # 1.80 mm (less blur) they do
+    assert truth[("r250c1000", "tangential")]["near_mm"] is None
+    assert rows[("r250c1000", "tangential")]["verdict"] == "fails (criterion never met)"
+    assert truth[("r330c895", "tangential")]["near_mm"] is not None
+    assert {r["orientation"] for r in tables["depth_field_curvature"]} == {"sagittal",
+                                                                            "tangential"}
+    assert len(tables["depth_astigmatism"]) == 3

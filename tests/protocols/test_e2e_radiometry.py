@@ -86,6 +86,7 @@ def _resume_and_check(path: Path) -> None:
     assert len(saved) == len(set(saved)) == 6
 
 
+@pytest.mark.usefixtures("quick_silence")
 def test_led_controller_silent_mid_run(tmp_path: Path) -> None:
     def inject(bench: Bench) -> None:
         bench.sim_led.faults.no_reply = 1
@@ -112,6 +113,7 @@ def test_camera_unplugged_mid_frame_with_the_led_on(tmp_path: Path) -> None:
     _resume_and_check(path)
 
 
+@pytest.mark.usefixtures("quick_silence")
 def test_retry_after_fault_in_the_same_process(tmp_path: Path) -> None:
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
         fired: list[str] = []

@@ -301,6 +301,7 @@ def test_results_are_stale_until_reanalysed(tmp_path: Path,
     assert _row18(v2)["measured_mean_gray"] == pytest.approx(_truth18(session), abs=1.0)
 
 
+@pytest.mark.usefixtures("quick_silence")
 def test_retake_while_resuming_an_unfinished_session(tmp_path: Path) -> None:
     """Stopped before 25 mm; resumed with --retake position-15: 15 mm taken again, 25 mm
     taken for the first time, then analysed; a killed retake's record is never "running" for

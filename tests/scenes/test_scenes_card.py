@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis.views.synthesis import cylinder_map
-from benchlab.cli.camera import simulated_snap_scene
+from benchlab.cli.devices.camera import simulated_snap_scene
 from benchlab.drivers.errors import BenchlabError
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene

@@ -80,3 +80,25 @@ def test_mounting_another_target_takes_the_chart_off_the_carriage() -> None:
         assert bench.state()["object_offset_mm"] == 40.0
         bench.mount("usaf")  # e.g. the MTF procedure's set-up after a depth run
         assert "object_offset_mm" not in bench.state()
+
+
+def test_defocused_radial_follows_field_curvature_between_the_blur_table_rows() -> None:
+    """The defocus is added at every 0.05 mm of image height, not only at the table's rows
+    (1.5, 2.48, 3.0 mm): the blur at 2.0 mm is exactly table (interpolated) (+) defocus."""
+    from benchlab.scenes.focus import RADIAL_LENS, defocused_radial
+    from benchlab.scenes.radial import RadialScene
+
+    lens = ThroughFocusLens(**{**RADIAL_LENS, "field_curvature_per_mm2": 0.001})
+    spokes = RadialScene(2.0, "sagittal")
+    scene = defocused_radial(spokes, lens, 18.0)
+    for h in (1.75, 2.0, 2.8):
+        want = math.hypot(float(spokes.blur.sagittal_px(h)),
+                          lens.defocus_sigma_px(18.0, h, 0.0, "sagittal"))
+        assert float(scene.blur.sagittal_px(h)) == pytest.approx(want, rel=1e-9)
+    # focused where 1/R = u0 + k h^2: at that radius the defocus at h vanishes
+    h = 2.0
+    radius = 1.0 / (1.0 / 19.88 + 0.001 * h * h)
+    sharp = defocused_radial(spokes, lens, radius)
+    assert float(sharp.blur.sagittal_px(h)) == pytest.approx(float(spokes.blur.sagittal_px(h)),
+                                                            rel=1e-9)
+    assert sharp.object_radius_mm == pytest.approx(radius)

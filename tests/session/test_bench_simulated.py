@@ -123,3 +123,18 @@ def test_radiometry_without_a_stage_prompts_the_operator(tmp_path: Path) -> None
     session = Session.open(outcome.session_path)
     assert "stage" not in session.meta["devices"]
     assert sum(e["kind"] == "prompt" for e in events(outcome.session_path)) == 4
+
+
+def test_in_process_simulators_may_answer_late_on_a_loaded_cpu() -> None:
+    """A simulator thread starved for 1.5 s (a busy CPU, issue 30) delays its reply past a real
+    device's 1 s; the simulated bench waits for it instead of failing the step."""
+    with Bench.open(_sim(), simulate=True) as bench:
+        assert bench.sim_led is not None and bench.sim_stage is not None
+        bench.sim_led.faults.late_reply, bench.sim_led.faults.late_reply_s = 1, 1.5
+        t0 = time.monotonic()
+        bench.led_on(1, 20.0)
+        assert time.monotonic() - t0 >= 1.4
+        assert bench.sim_led.channel_output_ma(1) == 20.0
+        bench.sim_stage.faults.late_reply, bench.sim_stage.faults.late_reply_s = 1, 2.5
+        bench.home_stage()
+        assert bench.sim_stage.position_mm == 0.0

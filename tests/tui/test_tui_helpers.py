@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from textual.pilot import Pilot
 from textual.widgets import Static
@@ -73,26 +72,8 @@ async def wait_until(
     return answered
 
 
-#: Reply timeout of the simulated serial devices in these tests, s. Their simulators are threads
-#: of the test process: on a loaded CPU (tests/tui/stress.sh) one was seen to answer after the
-#: LED driver's 1 s, failing a step for a reason that has nothing to do with the UI.
-SIM_REPLY_TIMEOUT_S = 10.0
-
-
-def patient_simulators(bench: Any) -> None:
-    """Give the simulated LED controller and stage :data:`SIM_REPLY_TIMEOUT_S` to answer."""
-    led, stage = getattr(bench, "led", None), getattr(bench, "stage", None)
-    if led is not None and getattr(bench, "sim_led", None) is not None:
-        led.timeout_s = SIM_REPLY_TIMEOUT_S
-        led._port_or_raise().timeout = SIM_REPLY_TIMEOUT_S  # read timeout set when opened
-    if stage is not None and getattr(bench, "sim_stage", None) is not None:
-        stage.timeout_s = SIM_REPLY_TIMEOUT_S
-
-
 async def connected(pilot: Pilot[None]) -> None:
-    """Wait for the simulated bench; fail at once, with its text, if connecting failed.
-
-    The simulators then get :data:`SIM_REPLY_TIMEOUT_S` to answer (see there)."""
+    """Wait for the simulated bench; fail at once, with its text, if connecting failed."""
     app = pilot.app
 
     def ready() -> bool:
@@ -102,8 +83,6 @@ async def connected(pilot: Pilot[None]) -> None:
         return app.bench is not None  # type: ignore[attr-defined]
 
     await wait_until(pilot, ready, what="bench connected")
-    with app.device_lock:  # type: ignore[attr-defined]
-        patient_simulators(app.bench)  # type: ignore[attr-defined]
 
 
 async def open_live(pilot: Pilot[None], frames: int) -> LiveScreen:

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from benchlab.analysis.bars import histogram
 from benchlab.analysis.bars.estimators import estimate_modulation
 from benchlab.analysis.bars.roi import prepare_roi
-from benchlab.benchmarks.bars import Case, benchmark_cases
+from benchlab.benchmarks.bars.estimators import Case, benchmark_cases
 from benchlab.synthetic.bars import BarCase, render
 
 

@@ -265,7 +265,7 @@ def test_histogram_levels_from_inner_bars_not_background() -> None:
 
 
 def test_benchmark_scores_clipped_cases_in_their_own_bucket() -> None:
-    from benchlab.benchmarks.bars import (
+    from benchlab.benchmarks.bars.estimators import (
         benchmark_cases,
         is_clipped_measurable,
         is_measurable,

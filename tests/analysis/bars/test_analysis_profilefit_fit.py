@@ -153,7 +153,7 @@ def test_one_period_across_with_the_spectral_direction_off() -> None:
 def test_benchmark_lists_the_worst_cases() -> None:
     """``benchlab benchmark analysis --worst N``: the N largest errors, largest first, each
     with the reading, interval and case parameters."""
-    from benchlab.benchmarks.bars import (
+    from benchlab.benchmarks.bars.estimators import (
         Row,
         format_worst,
         is_clipped_measurable,

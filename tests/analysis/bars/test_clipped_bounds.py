@@ -13,7 +13,7 @@ import tifffile
 
 from benchlab.analysis.bars.estimators import ESTIMATORS, estimate_modulation
 from benchlab.analysis.bars.result import ModulationResult, format_modulation
-from benchlab.benchmarks.bar_extremes import extreme_cases, format_extremes, run_extremes
+from benchlab.benchmarks.bars.extremes import extreme_cases, format_extremes, run_extremes
 from benchlab.catalog.extract import figures_of
 from benchlab.cli.main import main
 from benchlab.report.roi import RoiReading, reading_text

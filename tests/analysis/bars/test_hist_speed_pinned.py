@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis.bars.estimators import estimate_modulation
-from benchlab.benchmarks.bars import benchmark_cases
+from benchlab.benchmarks.bars.estimators import benchmark_cases
 from benchlab.synthetic.bars import BarCase, render
 
 PINNED = Path(__file__).resolve().parents[2] / "data" / "analysis_pinned_readings.json"

@@ -162,7 +162,7 @@ def test_reading_setup_round_trips_through_its_dict() -> None:
 
 
 def test_bench_check_prints_the_predicted_comparison_and_its_target() -> None:
-    from benchlab.benchmarks.sfr_bench import BARS_PREDICTED_TOL, BenchCheck, format_bench_check
+    from benchlab.benchmarks.sfr.bench import BARS_PREDICTED_TOL, BenchCheck, format_bench_check
 
     def row(element: str, bar: float, pred: float | None) -> dict[str, object]:
         return {"element": element, "orientation": "sagittal", "image_lp_per_mm": 82.15,

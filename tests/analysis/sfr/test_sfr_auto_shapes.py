@@ -12,14 +12,14 @@ import benchlab.analysis.sfr.measure as sfr
 import benchlab.analysis.sfr.model as sfr_model
 from benchlab.analysis.sfr.measure import measure_sfr
 from benchlab.analysis.sfr.model import LsfModelFit
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     _F_CHECK,
     NON_GAUSSIAN,
     _non_gaussian_case,
     iter_cases,
     run_accuracy,
 )
-from benchlab.benchmarks.sfr_oracle import fit_true_model, format_oracle, run_oracle
+from benchlab.benchmarks.sfr.oracle import fit_true_model, format_oracle, run_oracle
 from benchlab.cli.main import main
 from benchlab.synthetic.edges import synthetic_edge
 

@@ -13,7 +13,7 @@ import tifffile
 
 from benchlab.analysis.sfr.frames import MAX_SHIFT_PX, FramesDiffer, average_frames
 from benchlab.analysis.sfr.measure import measure_sfr
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     format_by_length,
     format_frames,
     frames_needed_by_floor,
@@ -303,7 +303,7 @@ def test_cli_refuses_the_same_file_twice(tmp_path: Path,
 def test_cli_text_and_plot_title_name_every_frame(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import benchlab.cli.sfr as cli_sfr
+    import benchlab.cli.frames.sfr as cli_sfr
 
     titles: list[str] = []
     monkeypatch.setattr(cli_sfr, "_plot", lambda result, out, title: titles.append(title))

@@ -195,7 +195,7 @@ def test_misfit_allowance_widens_an_imperfect_models_intervals(
     # A defocus disc (R 2 px) is no sum of Gaussians; at SNR 50 the ESF and residual gates
     # let the model read it (the flat-top gate, off here, refuses it), and its intervals grow
     # by the misfit its residual shows.
-    from benchlab.benchmarks.sfr import NON_GAUSSIAN, _non_gaussian_case
+    from benchlab.benchmarks.sfr.edges import NON_GAUSSIAN, _non_gaussian_case
 
     monkeypatch.setattr(sfr_model, "FLAT_TOP_KURTOSIS", -math.inf)
     parts = NON_GAUSSIAN["defocus disc R 2 px (+ 0.3 px Gaussian)"]
@@ -313,7 +313,7 @@ def test_another_component_is_tried_only_after_a_poor_fit(
 def test_a_halo_edge_still_gets_its_second_component_through_the_residual_test() -> None:
     # 0.5 px core + 10 % in a 4 px halo at SNR 50: the one-Gaussian residual shows the halo,
     # so K = 2 is tried and kept (as the benchmark's halo row, read 100 % within 0.02).
-    from benchlab.benchmarks.sfr import _non_gaussian_case
+    from benchlab.benchmarks.sfr.edges import _non_gaussian_case
 
     rng = np.random.default_rng(8)
     img, truth = _non_gaussian_case(((0.9, 0.5, "", 0.0), (0.1, 4.0, "", 0.0)), 6.0, 0.3,
@@ -326,7 +326,7 @@ def test_a_halo_edge_still_gets_its_second_component_through_the_residual_test()
 
 
 def test_model_floor_bounds_the_model_and_says_where_rows_are_needed() -> None:
-    from benchlab.benchmarks.sfr import (
+    from benchlab.benchmarks.sfr.edges import (
         floor_shortfall,
         model_floor,
         model_floor_shortfall,
@@ -376,7 +376,7 @@ def test_sparse_corner_bins_do_not_set_the_edge_window(monkeypatch: pytest.Monke
 
 
 def test_benchmark_tables_set_the_methods_side_by_side() -> None:
-    from benchlab.benchmarks.sfr import (
+    from benchlab.benchmarks.sfr.edges import (
         format_by_length,
         format_compare,
         format_min_rows,

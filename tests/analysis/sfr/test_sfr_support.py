@@ -58,7 +58,7 @@ def test_noise_and_an_illumination_slope_leave_a_gaussian_window_alone(
 
 
 def test_benchmark_scores_non_gaussian_lsfs_against_their_own_truth() -> None:
-    from benchlab.benchmarks.sfr import (
+    from benchlab.benchmarks.sfr.edges import (
         NON_GAUSSIAN,
         NON_GAUSSIAN_SNRS,
         format_non_gaussian,
@@ -76,7 +76,7 @@ def test_benchmark_scores_non_gaussian_lsfs_against_their_own_truth() -> None:
 
 
 def test_wilson_interval_of_a_share() -> None:
-    from benchlab.benchmarks.sfr import wilson_interval
+    from benchlab.benchmarks.sfr.edges import wilson_interval
 
     # Reference values (Wilson 1927, z = 1.96): 47 of 50 -> [0.838, 0.979]; 50 of 50 ->
     # [0.929, 1]; 0 of 10 -> [0, 0.278].
@@ -88,7 +88,7 @@ def test_wilson_interval_of_a_share() -> None:
 
 
 def test_a_bucket_passes_on_cases_within_both_tolerances_at_once() -> None:
-    from benchlab.benchmarks.sfr import Bucket, format_accuracy, pooled_share
+    from benchlab.benchmarks.sfr.edges import Bucket, format_accuracy, pooled_share
 
     # 96 % within each tolerance, but the misses are different cases: 92 % within both.
     split = Bucket(3.0, 20.0, 100, 50, 0, 0.96, 0.96, 0.5, 0.01, 0.97, 0.97, "auto", 1.0,

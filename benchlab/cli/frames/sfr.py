@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.cli import UsageError, non_negative_int
-from benchlab.cli.analysis import (
+from benchlab.cli.frames.analysis import (
     AnalysisInputError,
     parse_roi,
     read_image_and_metadata,
@@ -94,7 +94,7 @@ def _plot(result: Any, out: Path, title: str) -> None:
 
 def _min_rows_range() -> str:
     """The edge lengths ``benchmark sfr``'s shortest-edge search tries, e.g. ``100-500``
-    (read from :data:`benchlab.benchmarks.sfr.MIN_ROWS_LENGTHS` without importing
+    (read from :data:`benchlab.benchmarks.sfr.edges.MIN_ROWS_LENGTHS` without importing
     numpy for ``--help``: a literal kept in step by a test)."""
     return f"{MIN_ROWS_TRIED[0]}-{MIN_ROWS_TRIED[-1]}"
 
@@ -463,7 +463,7 @@ def _parse_rows(text: str) -> tuple[int, ...]:
 
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark sfr [--quick] [--rows N,...] [--no-frames] [--no-bench]``."""
-    from benchlab.benchmarks.sfr import (
+    from benchlab.benchmarks.sfr.edges import (
         format_accuracy,
         format_by_length,
         format_compare,
@@ -482,7 +482,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cases = 6 if args.quick else 25
     if args.oracle:
-        from benchlab.benchmarks.sfr_oracle import format_oracle, run_oracle
+        from benchlab.benchmarks.sfr.oracle import format_oracle, run_oracle
 
         # The cases of the judged 100-row table (its random stream replayed).
         print(format_oracle(run_oracle(cases_per_cell=2 * cases, seed=args.seed)))
@@ -526,7 +526,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
         print()
     print(format_non_gaussian(run_non_gaussian(cases=2 * cases, seed=args.seed + 4)))
     print()
-    from benchlab.benchmarks.sfr_defects import DEFECTS_TITLE, run_defects
+    from benchlab.benchmarks.sfr.defects import DEFECTS_TITLE, run_defects
 
     print(format_non_gaussian(run_defects(cases=2 * cases, seed=args.seed + 6), DEFECTS_TITLE,
                               "defect"))
@@ -553,7 +553,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
               f"{t[2]:.2f} ms ({'pass' if t[2] <= 5.0 else 'FAIL'})")
     sys.stdout.flush()
     if not args.no_bench:
-        from benchlab.benchmarks.sfr_bench import format_bench_check, run_bench_check
+        from benchlab.benchmarks.sfr.bench import format_bench_check, run_bench_check
 
         checks = [run_bench_check(bits, seed=args.seed) for bits in (8, 12)]
         print()

@@ -1,6 +1,6 @@
 """``benchlab analyze SESSION SESSION...`` / ``analyze --all ROOT``: many sessions at once.
 
-:mod:`benchlab.cli.analysis` hands the command here when more than one session (or ``--all``)
+:mod:`benchlab.cli.frames.analysis` hands the command here when more than one session (or ``--all``)
 is given; one session keeps the single-session path and output.
 """
 

@@ -58,7 +58,7 @@ def list_devices(simulate: bool, pid: int | None = None) -> tuple[list[dict[str,
     except DeviceNotFoundError as exc:  # no libusb: still list the serial devices
         notes.append(f"cameras: {exc}")
     try:
-        from benchlab.cli.serial import list_serial_devices
+        from benchlab.cli.devices.serial import list_serial_devices
     except ImportError:
         notes.append("serial devices: listing not available in this build")
     else:

@@ -25,7 +25,7 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from benchlab.analysis.sfr.measure import SfrRefused, measure_sfr
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     _F_CHECK,
     MTF50_TOL,
     MTF_TOL,
@@ -138,7 +138,7 @@ def run_oracle(
     """Per sigma, the oracle and ``auto`` on the very cases ``run_accuracy(cases_per_cell,
     seed)`` draws for the 100-row edge at ``snr`` (the benchmark's own random stream is
     replayed; the other buckets' cases are drawn and skipped)."""
-    from benchlab.benchmarks.sfr import BRIGHT, DARK
+    from benchlab.benchmarks.sfr.edges import BRIGHT, DARK
 
     got: dict[float, list[tuple[bool, bool, bool, bool]]] = {s: [] for s in sigmas_px}
     for sigma, case_snr, case in iter_cases(cases_per_cell, seed):

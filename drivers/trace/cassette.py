@@ -1,4 +1,4 @@
-"""Reading a cassette (:mod:`benchlab.drivers.io_trace` writes them) and the one error a
+"""Reading a cassette (:mod:`benchlab.drivers.trace.io_trace` writes them) and the one error a
 replay raises when the driver does something else than what was recorded."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from benchlab.drivers.errors import DeviceError
-from benchlab.drivers.io_trace import CASSETTE_VERSION, open_text
+from benchlab.drivers.trace.io_trace import CASSETTE_VERSION, open_text
 
 #: Shown of a transfer in a divergence message.
 _SHOWN_BYTES = 24

@@ -1,6 +1,6 @@
 """Real-looking defects under a slanted edge, scored against the edge's own truth.
 
-The accuracy buckets of :mod:`benchlab.benchmarks.sfr` are clean edges; a bench edge
+The accuracy buckets of :mod:`benchlab.benchmarks.sfr.edges` are clean edges; a bench edge
 is not. Each row here is one defect on 12-bit 100 x 100 Gaussian edges (sigma uniform in
 0.5-2.5 px, angle 2-40 deg, levels 0.2 / 0.8 of full scale) at one SNR, read by each method;
 the truth is the blur's, since no defect belongs to the lens:
@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from benchlab.benchmarks.sfr import (
+from benchlab.benchmarks.sfr.edges import (
     _F_CHECK,
     ANGLE_RANGE_DEG,
     BRIGHT,

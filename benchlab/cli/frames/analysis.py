@@ -1,7 +1,7 @@
 """``benchlab analyze IMAGE`` (one ROI of one image) and ``benchlab benchmark analysis``.
 
 ``benchlab analyze SESSION_FOLDER`` (a folder holding ``session.json``) is handed to the
-procedures layer (:func:`benchlab.cli.procedures.analyze_session_command`).
+procedures layer (:func:`benchlab.cli.runs.procedures.analyze_session_command`).
 """
 
 from __future__ import annotations
@@ -209,7 +209,7 @@ def _check_options(args: argparse.Namespace) -> None:
 def analyze_command(args: argparse.Namespace) -> int:
     """``benchlab analyze TARGET``: a session folder goes to the procedures layer; an image has
     one ROI analysed; several session folders (or ``--all ROOT``) go to the batch."""
-    from benchlab.cli.batch import batch_command, batch_requested
+    from benchlab.cli.runs.batch import batch_command, batch_requested
 
     if batch_requested(args):
         return batch_command(args)
@@ -230,14 +230,14 @@ def analyze_command(args: argparse.Namespace) -> int:
         if image_only:
             raise UsageError(f"{', '.join(image_only)}: for one image only; a session folder "
                              f"({target}) is re-analysed with its own ROIs (only --estimator)")
-        from benchlab.cli.procedures import analyze_session_command
+        from benchlab.cli.runs.procedures import analyze_session_command
 
         return int(analyze_session_command(args))
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.mtf.frequency import cycles_per_px
 
     if getattr(args, "chart", None):
-        from benchlab.cli.chart import analyze_chart_command
+        from benchlab.cli.frames.chart import analyze_chart_command
 
         return analyze_chart_command(args)
     if target.is_dir():
@@ -319,7 +319,7 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
 
 def _print_extremes(names: tuple[str, ...], seed: int) -> None:
     """The extremes bucket's table and the answer each of its buckets expects."""
-    from benchlab.benchmarks.bar_extremes import expected_answers, format_extremes, run_extremes
+    from benchlab.benchmarks.bars.extremes import expected_answers, format_extremes, run_extremes
 
     t0 = time.perf_counter()
     outcomes = run_extremes(names, seed)
@@ -332,7 +332,7 @@ def _print_extremes(names: tuple[str, ...], seed: int) -> None:
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
-    from benchlab.benchmarks.bars import (
+    from benchlab.benchmarks.bars.estimators import (
         Row,
         format_speed,
         format_table,
@@ -440,7 +440,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
         "found element (Table 4.11 layout) instead of one --roi",
     )
-    from benchlab.cli.batch import add_batch_arguments
+    from benchlab.cli.runs.batch import add_batch_arguments
 
     add_batch_arguments(p)
     p.set_defaults(func=analyze_command)

@@ -29,7 +29,7 @@ def locate(path: Path, magnification: float | None = None) -> tuple[Any, ChartFi
     from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
     from benchlab.analysis.chart.layout import ChartLayout
     from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
-    from benchlab.cli.analysis import AnalysisInputError, read_image
+    from benchlab.cli.frames.analysis import AnalysisInputError, read_image
 
     if magnification is None:
         magnification = FORWARD_MAGNIFICATION
@@ -170,7 +170,7 @@ def format_table_411(fit: ChartFit, rows: list[dict[str, Any]]) -> str:
 
 def analyze_chart_command(args: argparse.Namespace) -> int:
     """``benchlab analyze FRAME --chart usaf``: find the chart, measure every found element."""
-    from benchlab.cli.analysis import AnalysisInputError
+    from benchlab.cli.frames.analysis import AnalysisInputError
 
     if args.chart not in CHART_KINDS:
         raise AnalysisInputError(f"--chart {args.chart!r} unknown; choose {', '.join(CHART_KINDS)}")

@@ -17,8 +17,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from benchlab.drivers.cassette import Exchange, ReplayDivergedError, load, show
-from benchlab.drivers.pty_device import PtyDevice
+from benchlab.drivers.simulation.pty_device import PtyDevice
+from benchlab.drivers.trace.cassette import Exchange, ReplayDivergedError, load, show
 
 _APT_KEEPALIVE = bytes.fromhex("92 04 00 00 50 01")
 

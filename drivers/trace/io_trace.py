@@ -1,5 +1,5 @@
 """Every device exchange as a cassette (``benchlab --trace-io FILE``), replayable with
-``benchlab --replay FILE`` (:mod:`benchlab.drivers.replay`).
+``benchlab --replay FILE`` (:mod:`benchlab.drivers.trace.replay`).
 
 A cassette is JSON Lines (gzip-compressed when the name ends in ``.gz``). The first line is a
 header; then one line per event, in the order they happened::

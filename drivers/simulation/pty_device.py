@@ -21,7 +21,7 @@ import tty
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
-from benchlab.drivers.sim_clock import ManualClock
+from benchlab.drivers.simulation.clock import ManualClock
 
 __all__ = ["Clock", "ManualClock", "PtyDevice", "ScaledClock"]
 

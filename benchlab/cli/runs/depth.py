@@ -1,6 +1,6 @@
 """``benchlab benchmark depth``: the depth-of-field sweep against the simulated bench's truth.
 
-(``benchlab run depth`` is the ``run`` command of :mod:`benchlab.cli.procedures`.)
+(``benchlab run depth`` is the ``run`` command of :mod:`benchlab.cli.runs.procedures`.)
 """
 
 from __future__ import annotations
@@ -50,10 +50,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "depth", help="depth-of-field sweep figures on the simulated bench",
         description="Run the depth-of-field procedure on the simulated bench for every seed and "
         "lens variant (forward: nominal, sharp, astigmatic, tilted; radial: radial, "
-        "radial-astigmatic) and compare best focus and the DOF ends with the scene's "
-        "closed-form truth: error, 95 %% interval coverage, pass rate (within 0.3 mm, radial "
-        "0.1 mm, or covered); the astigmatic difference's sign; then the wall time and frames "
-        "of a default run against a one-frame baseline. About 10 s per run.",
+        "radial-astigmatic, radial-curved) and compare best focus and the DOF ends with the "
+        "scene's closed-form truth: error, 95 %% interval coverage, pass rate (within 0.3 mm, "
+        "radial 0.1 mm, or covered); the astigmatic difference's sign; then the wall time and "
+        "frames of a default run against a one-frame baseline. About 10 s per run.",
     )
     bd.add_argument("--seeds", type=positive_int, default=20, help="seeds per variant (20)")
     bd.add_argument("--variants", help="comma-separated subset of the variants")
