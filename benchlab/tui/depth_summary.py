@@ -17,7 +17,7 @@ ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 
 
 def _num(value: Any) -> str:
-    return "N/A" if value is None else f"{float(value):.1f}"
+    return "N/A" if value is None else f"{float(value):.2f}"
 
 
 def _ci(value: Any) -> str:
@@ -35,16 +35,23 @@ def _verdicts(rows: Sequence[Mapping[str, Any]]) -> str:
 
 
 def depth_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
-    """One display row per (criterion, orientation) of ``depth_of_field`` rows (module
-    docstring); the values are strings ready for the table."""
-    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    """One display row per (criterion, frequency, orientation) of ``depth_of_field`` rows
+    (module docstring); the values are strings ready for the table. A criterion read at more
+    than one frequency (radial patterns) is named with its frequency (``"... @2"`` lp/mm)."""
+    groups: dict[tuple[str, float, str], list[Mapping[str, Any]]] = {}
     for r in rows:
-        key = (str(r.get("criterion", "?")), str(r.get("orientation", "?")))
+        freq = r.get("freq_lp_per_mm")
+        key = (str(r.get("criterion", "?")), float(freq) if freq is not None else 0.0,
+               str(r.get("orientation", "?")))
         groups.setdefault(key, []).append(r)
     out: list[dict[str, str]] = []
     criteria = list(dict.fromkeys(k[0] for k in groups))  # the table's order; S before T
-    for (criterion, orientation), group in sorted(
-            groups.items(), key=lambda kv: (criteria.index(kv[0][0]), kv[0][1])):
+    freqs: dict[str, set[float]] = {}
+    for c, f, _ in groups:
+        freqs.setdefault(c, set()).add(f)
+    for (name, freq, orientation), group in sorted(
+            groups.items(), key=lambda kv: (criteria.index(kv[0][0]), kv[0][1], kv[0][2])):
+        criterion = name if len(freqs[name]) == 1 else f"{name} @{freq:g}"
         best = [float(r["best_focus_mm"]) for r in group if r.get("best_focus_mm") is not None]
         nears = [r for r in group if r.get("near_mm") is not None]
         fars = [r for r in group if r.get("far_mm") is not None]
@@ -54,7 +61,7 @@ def depth_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]
             "criterion": criterion,
             "orient.": ORIENTATION_SHORT.get(orientation, orientation),
             "best mm": _num(statistics.median(best)) if best else "N/A",
-            "best range": f"{min(best):.1f}-{max(best):.1f}" if best else "N/A",
+            "best range": f"{min(best):.2f}-{max(best):.2f}" if best else "N/A",
             "near mm": _num(near["near_mm"]) if near else "N/A",
             "near 95 %": _ci(near.get("near_mm_ci95")) if near else "N/A",
             "far mm": _num(far["far_mm"]) if far else "N/A",

@@ -29,9 +29,9 @@ def test_digest_takes_the_shared_range_and_the_interval_of_the_point_that_sets_e
     assert [(d["criterion"], d["orient."]) for d in digest] == [
         ("MTF50>=35", "S"), ("MTF50>=35", "T"), ("spot", "S")]
     s = digest[0]
-    assert s["best mm"] == "60.0" and s["best range"] == "59.0-62.0"  # median of 59, 60, 62
-    assert s["near mm"] == "48.0" and s["near 95 %"] == "[47.0, 49.0]"  # E1L sets the near end
-    assert s["far mm"] == "84.0" and s["far 95 %"] == "[82.0, 86.0]"
+    assert s["best mm"] == "60.00" and s["best range"] == "59.00-62.00"  # median of 59, 60, 62
+    assert s["near mm"] == "48.00" and s["near 95 %"] == "[47.00, 49.00]"  # E1L: the near end
+    assert s["far mm"] == "84.00" and s["far 95 %"] == "[82.00, 86.00]"
     assert s["verdicts"] == "1 fails, 1 meets, 1 undecided" and s["points"] == "3"
     spot = digest[2]
     assert spot["best mm"] == spot["near mm"] == spot["far 95 %"] == "N/A"
@@ -44,3 +44,13 @@ def test_a_depth_position_reads_as_its_distance_and_the_edges_mtf50() -> None:
     assert result_row(data) == ("52 mm", "S 61 T -")
     what, value = result_row({**data, "mtf50_tangential_lp_per_mm": 58.7})
     assert value == "S 61 T 59" and len(what) <= 12 and len(value) <= 12
+
+
+def test_a_criterion_read_at_two_frequencies_gets_a_row_per_frequency() -> None:
+    rows = [{**_row(fp, "sagittal", "modulation>=0.3", best, 3.5, 8.4, "fails"),
+             "freq_lp_per_mm": f}
+            for fp, best, f in (("r330c895", 6.0, 2.0), ("r291c946", 6.1, 2.0),
+                                ("r330c895", 5.5, 4.0))]
+    digest = depth_summary_rows(rows)
+    assert [(d["criterion"], d["best mm"], d["points"]) for d in digest] == [
+        ("modulation>=0.3 @2", "6.05", "2"), ("modulation>=0.3 @4", "5.50", "1")]

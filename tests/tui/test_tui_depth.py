@@ -91,10 +91,9 @@ async def test_depth_run_through_the_ui_shows_positions_prompts_and_the_digest(
         nears = [r["near_mm"] for r in mine if r["near_mm"] is not None]
         fars = [r["far_mm"] for r in mine if r["far_mm"] is not None]
         # (this short sweep leaves some DOF ends beyond its reach: "N/A", never a number)
-        assert first["near mm"] == (f"{max(nears):.1f}" if nears else "N/A")
-        assert first["far mm"] == (f"{min(fars):.1f}" if fars else "N/A")
+        assert first["near mm"] == (f"{max(nears):.2f}" if nears else "N/A")
+        assert first["far mm"] == (f"{min(fars):.2f}" if fars else "N/A")
         assert any(d[4] != "N/A" for d in digest)  # some criterion's ends are within reach
-        print("\n".join("  ".join(d) for d in digest))
         assert first["points"] == str(len(mine))
         # v: the full table as stored (a row per field point and criterion, its intervals)
         await pilot.press("v")
