@@ -12,10 +12,15 @@ camera per frame shown: the live view takes the newest frame, one read per grab.
 A second table times grabs on the camera simulator running on wall time, as a real camera
 does: the newest frame (the live view) against a fresh frame exposed wholly after the request
 (measurements), which waits out the exposure already under way and then a whole new one.
+
+Run as a module, it measures the live view's focus aid instead (:func:`focus_aid_rate`)::
+
+    python -m benchlab.tui.bench_rate [--seconds 10] [--size 120x36]
 """
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import contextlib
 import os
@@ -139,3 +144,71 @@ def main(seconds: float, protocols: tuple[str, ...]) -> int:
     for exposure_ms, newest_hz, fresh_hz in grab_rates((20.0, 100.0), seconds):
         print(f"{exposure_ms:11g} {newest_hz:9.1f} {fresh_hz:8.1f}", flush=True)
     return 0
+
+
+async def focus_aid_rate(seconds: float, size: tuple[int, int] = (120, 36)) -> dict[str, float]:
+    """Whole-chart readings the focus aid's panel shows per second on the simulated bench
+    (1280 x 1024, 8 bit), counted over ``seconds`` after a warm-up, with everything the live
+    view does meanwhile (acquisition at up to 25 frames/s, preview, ROI readout) on the same
+    interpreter; and the frames offered to / dropped by its reader. ``benchlab benchmark
+    focus-aid`` times the reading alone."""
+    from textual.widgets import Static
+
+    from benchlab.tui.app import BenchlabApp
+    from benchlab.tui.dialogs import ErrorDialog
+    from benchlab.tui.focus_aid import FocusAidPanel
+    from benchlab.tui.live import LiveScreen
+
+    with tempfile.TemporaryDirectory() as tmp:
+        app = BenchlabApp(simulate=True, sessions_dir=Path(tmp))
+        async with app.run_test(size=size) as pilot:
+            deadline = time.monotonic() + 60.0
+            while app.bench is None:  # an error dialog (a starved simulator) ends the wait
+                if isinstance(app.screen, ErrorDialog) or time.monotonic() > deadline:
+                    raise RuntimeError("the simulated bench did not connect: "
+                                       f"{app.screen.query_one('#error-text', Static).render()}"
+                                       if isinstance(app.screen, ErrorDialog) else
+                                       "the simulated bench did not connect within 60 s")
+                await pilot.pause(0.05)
+            await pilot.press("2")
+            screen = app.screen
+            assert isinstance(screen, LiveScreen)
+            await pilot.press("f")
+            panel = screen.query_one(FocusAidPanel)
+            deadline = time.monotonic() + 30.0
+            while panel.readings_shown < 5 and time.monotonic() < deadline:
+                await pilot.pause(0.05)  # warm-up: the chart found, caches filled
+            slot = screen._focus_slot
+            n0, off0, drop0, t0 = (panel.readings_shown, slot.offered, slot.dropped,
+                                   time.monotonic())
+            cpu0 = time.process_time()
+            await pilot.pause(seconds)
+            n1, off1, drop1, t1 = (panel.readings_shown, slot.offered, slot.dropped,
+                                   time.monotonic())
+            cpu1 = time.process_time()
+            return {"readings_per_s": (n1 - n0) / (t1 - t0),
+                    "cpu_per_s": (cpu1 - cpu0) / (t1 - t0),
+                    "frames_per_s": (off1 - off0) / (t1 - t0),
+                    "dropped_fraction": (drop1 - drop0) / max(1, off1 - off0),
+                    "sets": float(sum(v is not None for v in panel.reading.modulation.values()))
+                    if panel.reading is not None else 0.0}
+
+
+def focus_aid_main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description="Readings per second of the live view's focus aid (simulated bench).")
+    parser.add_argument("--seconds", type=float, default=10.0, help="measuring window (10 s)")
+    parser.add_argument("--size", default="120x36", help="terminal columns x rows (120x36)")
+    args = parser.parse_args(argv)
+    cols, rows = (int(x) for x in args.size.lower().split("x"))
+    r = asyncio.run(focus_aid_rate(args.seconds, (cols, rows)))
+    print(f"focus aid, simulated bench 1280x1024 8 bit, terminal {cols}x{rows}, "
+          f"{args.seconds:g} s: {r['readings_per_s']:.1f} readings shown/s, "
+          f"{r['frames_per_s']:.1f} frames/s offered, {100 * r['dropped_fraction']:.0f} % "
+          f"dropped, {r['sets']:.0f} sets read; the process got {r['cpu_per_s']:.2f} CPU s/s: "
+          f"{r['readings_per_s'] / max(r['cpu_per_s'], 1e-9):.1f} readings per CPU second")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(focus_aid_main())

@@ -30,6 +30,8 @@ from benchlab.tui.drawing.chart_overlay import (
 )
 from benchlab.tui.drawing.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.drawing.unwrap_view import UnwrapPreview
+from benchlab.tui.focus_aid import FocusAidPanel, FrameSlot
+from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import FrameView, ModeBar, Readout, Roi, RoiHistogram
 
 #: Exposure steps offered by the e / E keys, ms.
@@ -94,9 +96,12 @@ class LiveScreen(Screen[None]):
         Binding("z", "zoom", "Zoom"),
         Binding("t", "target", "Target"),
         Binding("c", "chart", "Chart"),
+        Binding("f", "focus_aid", "Focus"),
         Binding("right_square_bracket", "pick(1)", "Pick", key_display="[]"),
         Binding("left_square_bracket", "pick(-1)", "Pick prev", show=False),
         Binding("u", "unwrap", "Unwrap"),
+        # The peaks' reset is named in the focus-aid panel's title (the footer is full).
+        Binding("r", "reset_peaks", "Reset peaks", show=False),
     ]
 
     exposure_ms: reactive[float] = reactive(300.0)
@@ -111,6 +116,8 @@ class LiveScreen(Screen[None]):
     chart: reactive[bool] = reactive(False)
     #: Show the radial annulus unwrapped (estimated orthographic view, thesis 5.2).
     unwrapped: reactive[bool] = reactive(False)
+    #: The focus aid (f): the whole chart read on every frame the reader can take, as bars.
+    focus_aid: reactive[bool] = reactive(False)
 
     def __init__(self) -> None:
         super().__init__()
@@ -134,6 +141,9 @@ class LiveScreen(Screen[None]):
         self._chart_lock = threading.Lock()
         self._chart_gen = 0  # bumped by the c key: a fit started before it is dropped
         self._unwrap = UnwrapPreview()
+        self._focus_slot = FrameSlot()
+        self._focus_gen = 0  # bumped by the f key: a reading started before it is dropped
+        self._focus_refind = threading.Event()  # set when the target changed: find it again
 
     def compose(self) -> ComposeResult:
         yield ModeBar("live")
@@ -146,12 +156,16 @@ class LiveScreen(Screen[None]):
             with Vertical(id="side"):
                 yield Readout("waiting for the camera...", id="readout")
                 yield RoiHistogram(id="histogram")
+                yield FocusAidPanel(id="focus-aid")
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
         self.query_one("#frame").border_title = "camera"
         self.query_one("#histogram").border_title = "histogram peaks: D dark, B bright"
         self.query_one("#readout").border_title = "ROI"
+        panel = self.query_one(FocusAidPanel)
+        panel.border_title = "focus aid (r: reset peaks)"
+        panel.display = False
         if not self.estimator:
             self.estimator = services.default_estimator()
 
@@ -160,12 +174,17 @@ class LiveScreen(Screen[None]):
     def on_screen_resume(self) -> None:
         self._timer = self.set_interval(POLL_INTERVAL_S, self._show_latest)
         self._acquire()
+        if self.focus_aid:  # bars from before the screen was left are not current
+            self.query_one(FocusAidPanel).show_problem("looking for the chart...")
+            self._read_focus(self._focus_gen)
 
     def on_screen_suspend(self) -> None:
         if self._timer is not None:
             self._timer.stop()
             self._timer = None
         self.workers.cancel_group(self, "live")
+        self.workers.cancel_group(self, "focus-aid")
+        self._focus_slot.clear()
 
     @work(thread=True, exclusive=True, group="live", exit_on_error=False)
     def _acquire(self) -> None:
@@ -206,6 +225,8 @@ class LiveScreen(Screen[None]):
                             break
                         time.sleep(0.1)
                     continue
+                if self.focus_aid:  # the reader takes the newest; an untaken frame is dropped
+                    self._focus_slot.offer(frame[0])
                 if self.chart and time.monotonic() - self._chart_at >= CHART_REFRESH_S:
                     self._find_chart(frame[0])
                 with self._latest_lock:
@@ -214,6 +235,37 @@ class LiveScreen(Screen[None]):
                 spare = 1.0 / MAX_GRAB_RATE_HZ - (time.monotonic() - started)
                 if spare > 0:
                     time.sleep(spare)
+
+    @work(thread=True, exclusive=True, group="focus-aid", exit_on_error=False)
+    def _read_focus(self, gen: int) -> None:
+        """The focus aid's reader: the newest frame's whole-chart reading, to the panel."""
+        worker = get_current_worker()
+        tracker = services.focus_tracker()
+        while not worker.is_cancelled:
+            pixels = self._focus_slot.take(timeout_s=0.1)
+            if pixels is None:
+                continue
+            if self._focus_refind.is_set():
+                self._focus_refind.clear()
+                tracker.reset()
+            try:
+                reading, summary, why = services.read_focus(tracker, pixels)
+            except Exception as exc:  # noqa: BLE001 - said in the panel; the next frame is read
+                tracker.reset()
+                reading, summary, why = None, None, f"no reading: {services.plain_error(exc)}"
+            if worker.is_cancelled:
+                break
+            call_ui(self.app, self._focus_read, gen, reading, summary, why)
+
+    def _focus_read(self, gen: int, reading: Any, summary: float | None, why: str) -> None:
+        app: Any = self.app
+        if gen != self._focus_gen or not self.focus_aid or app.procedure_running:
+            return  # read for a focus aid since switched off, or before a run took the camera
+        panel = self.query_one(FocusAidPanel)
+        if reading is None:
+            panel.show_problem(why)
+        else:
+            panel.show_reading(reading, summary)
 
     def _find_chart(self, pixels: Any) -> None:
         """Look for the chart in one frame (acquisition thread); keep the fit or say why not."""
@@ -251,6 +303,8 @@ class LiveScreen(Screen[None]):
         if self._idle_reason != why:
             self._idle_reason = why
             self.query_one(FrameView).clear()
+            if self.focus_aid:  # no frames: the last bars are not current any more
+                self.query_one(FocusAidPanel).show_problem(why)
             self.query_one(Readout).show(f"[dim]{why}[/dim]", urgent=True)
 
     def _show_latest(self) -> None:
@@ -367,6 +421,30 @@ class LiveScreen(Screen[None]):
         if el is not None:
             self._picked = fit.found.index(el)
             self._use_element(el)
+
+    def action_focus_aid(self) -> None:
+        """Show or hide the focus aid; its reader runs only while it is shown."""
+        self._focus_gen += 1
+        self.focus_aid = not self.focus_aid
+        panel = self.query_one(FocusAidPanel)
+        self.workers.cancel_group(self, "focus-aid")
+        self._focus_slot.clear()
+        panel.clear()
+        panel.display = self.focus_aid
+        self.query_one(Readout).display = not self.focus_aid
+        self.query_one(RoiHistogram).display = not self.focus_aid
+        if self.focus_aid:
+            self._read_focus(self._focus_gen)
+        self.notify("focus aid " + ("on: turn the focus for the longest bars (r: reset peaks)"
+                                    if self.focus_aid else "off"), timeout=1.5)
+
+    def action_reset_peaks(self) -> None:
+        if not self.focus_aid:
+            self.notify("the focus aid is off (f)", severity="warning", timeout=1.5)
+            return
+        self.query_one(FocusAidPanel).reset_peaks()
+        self.notify("peaks reset", timeout=1.5)
+
     def action_unwrap(self) -> None:
         self.unwrapped = not self.unwrapped
         self._unwrap.reset()
@@ -391,6 +469,7 @@ class LiveScreen(Screen[None]):
         try:
             with app.device_lock:
                 services.mount_target(bench, nxt)
+                self._focus_refind.set()
         except Exception as exc:  # noqa: BLE001
             app.call_from_thread(app.show_error, "Could not mount the target", exc)
             return

@@ -19,6 +19,7 @@ from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.depth_summary import depth_summary_rows
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
 from benchlab.tui.ui_calls import call_ui
@@ -27,11 +28,16 @@ from benchlab.tui.widgets import ModeBar
 if TYPE_CHECKING:
     from benchlab.protocols.engine import Runner
 
-PROCEDURES = ("mtf", "radiometry", "characterise")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
 #: Title of the checklist panel per procedure.
 CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
                     "radiometry": "positions (section 4.4)",
-                    "characterise": "sweeps (EMVA 1288)"}
+                    "characterise": "sweeps (EMVA 1288)",
+                    "depth": "through focus (section 2.2.4)"}
+#: The status line's name of each procedure.
+PROCEDURE_LABELS = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
+                    "characterise": "Camera characterisation (EMVA 1288)",
+                    "depth": "Depth of field (section 2.2.4)"}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 STATUS_MARK = {
     "pending": "  ",
@@ -69,6 +75,15 @@ def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
         what.append(ORIENTATION_SHORT.get(str(data["orientation"]), str(data["orientation"])))
     if "position_mm" in data:
         what.append(f"{_format_value(data['position_mm'])} mm")
+    if "distance_mm" in data:  # a depth-of-field position: the edges' MTF50 per orientation
+        what.append(f"{_format_value(data['distance_mm'])} mm")
+        if "mtf50_sagittal_lp_per_mm" in data or "mtf50_tangential_lp_per_mm" in data:
+            def lp(key: str) -> str:
+                value = data.get(key)
+                return "-" if value is None else f"{float(value):.0f}"
+
+            return " ".join(what), (f"S {lp('mtf50_sagittal_lp_per_mm')} "
+                                    f"T {lp('mtf50_tangential_lp_per_mm')}")
     for key, label in PRIMARY_RESULTS:
         if key in data:
             if key == "modulation" and data.get("resolved") is False:
@@ -186,8 +201,7 @@ class RunScreen(Screen[None]):
     def _refresh_status(self) -> None:
         if not self.is_mounted:
             return
-        label = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
-                 "characterise": "Camera characterisation (EMVA 1288)"}
+        label = PROCEDURE_LABELS
         params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (
@@ -490,6 +504,12 @@ class RunScreen(Screen[None]):
             self.message = "[green]Run complete; results saved in the session.[/green]"
             outcome = self.outcome
             self._tables = list((outcome.tables or {}).items()) if outcome else []
+            dof = dict(self._tables).get("depth_of_field")
+            if dof is not None:  # the digest first, then the full table, then the others
+                digest = depth_summary_rows(services.table_rows(dof)[1])
+                self._tables = [("depth of field shared by the field points", {"rows": digest}),
+                                ("depth_of_field", dof),
+                                *[t for t in self._tables if t[0] != "depth_of_field"]]
             if self.verdict is not None:  # the verdicts first: what the unit is judged by
                 rows = services.verdict_rows(self.verdict)
                 self._tables.insert(0, ("acceptance", {"rows": rows}))
@@ -560,6 +580,13 @@ class RunScreen(Screen[None]):
         if not call_ui(app, show):
             return False
         worker = get_current_worker()
+        # The depth sweep's set-up asks for the back focus set and locked: the whole chart's
+        # edges read while the dialog is up, as the live view's focus aid does.
+        procedure = getattr(self.runner, "procedure", None)
+        chart_figure = (getattr(procedure, "name", "") == "depth" and step.id == "setup"
+                        and getattr(getattr(procedure, "params", None), "view", "") == "forward")
+        tracker = services.focus_tracker() if chart_figure else None
+        best: list[float] = []
         try:
             while True:
                 try:
@@ -571,6 +598,8 @@ class RunScreen(Screen[None]):
                     return False
                 if step.kind == "focus":
                     self._update_focus_figure(dialog)
+                elif tracker is not None:
+                    self._update_chart_figure(dialog, tracker, best)
         finally:
             self._prompt = None
 
@@ -588,4 +617,24 @@ class RunScreen(Screen[None]):
             text = f"sharpness: unavailable ({services.plain_error(exc)})"
         else:
             text = f"sharpness now: {value:.4g}  (turn the back focus to maximise it)"
+        call_ui(app, dialog.set_live_figure, text)
+
+    def _update_chart_figure(self, dialog: PromptDialog, tracker: Any, best: list[float]) -> None:
+        """The edges' mean MTF50 of a fresh frame and the best so far (``best``, kept by the
+        caller) in the prompt; the chart not found is said, never a stale number."""
+        app: Any = self.app
+        try:
+            if self.runner is None:
+                raise RuntimeError("no run in progress")
+            pixels = services.procedure_frame(app.bench, self.runner)
+            reading, mean, why = services.read_focus(tracker, pixels)
+        except Exception as exc:  # noqa: BLE001 - a figure, not a reason to stop the run
+            text = f"edges' MTF50: unavailable ({services.plain_error(exc)})"
+        else:
+            if reading is None or mean is None:
+                text = why or "edges' MTF50: no edge read"
+            else:
+                best[:] = [max([mean, *best])]
+                text = (f"edges' mean MTF50 now {mean:.1f} lp/mm, best {best[0]:.1f} "
+                        "(turn the back focus to the best, then lock it)")
         call_ui(app, dialog.set_live_figure, text)

@@ -337,6 +337,35 @@ def histogram_peaks(
     return result.dark, result.bright
 
 
+# -- the live focus aid (whole chart on every frame) -----------------------------------------
+
+
+def focus_tracker(estimator: str = "histogram") -> Any:
+    """A :class:`~benchlab.analysis.focus.live.ChartTracker` (the pose tracked between frames)."""
+    from benchlab.analysis.focus.live import ChartTracker
+
+    return ChartTracker(estimator=estimator)
+
+
+def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | None, str]:
+    """One frame's whole-chart reading: ``(reading, mean edge MTF50, "")``, or ``(None, None,
+    why)`` when the chart is not found, or nothing could be read where it was tracked (it left
+    the view between two finds); the tracker then looks for it again on the next frame."""
+    from benchlab.analysis.chart.finder import ChartNotFoundError
+    from benchlab.analysis.focus.live import mean_edge_mtf50, nothing_read
+
+    try:
+        reading = tracker.read(pixels)
+    except ChartNotFoundError as exc:
+        tracker.reset()
+        detail = str(exc).split(":", 1)[-1].strip()
+        return None, None, f"chart not found: {detail}" if detail else "chart not found"
+    if nothing_read(reading):
+        tracker.reset()
+        return None, None, "chart not found: nothing read where it was; looking again"
+    return reading, mean_edge_mtf50(reading), ""
+
+
 # -- procedures ------------------------------------------------------------------------------
 
 
@@ -449,15 +478,20 @@ def run_ending(exc: BaseException) -> str:
     return "error"
 
 
-def focus_sharpness(bench: Bench, runner: Runner) -> float:
-    """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
-    from benchlab.analysis.focus.sharpness import sharpness
-
+def procedure_frame(bench: Bench, runner: Runner) -> npt.NDArray[Any]:
+    """A fresh frame at the procedure's camera settings (a live figure in a prompt)."""
     params = getattr(getattr(runner, "procedure", None), "params", None)
     exposure = float(getattr(params, "exposure_ms", 300.0))
     gain = float(getattr(params, "gain", 1.0))
     pixels, _ = grab(bench, exposure, gain, fresh=True)
-    return sharpness(pixels)
+    return pixels
+
+
+def focus_sharpness(bench: Bench, runner: Runner) -> float:
+    """Sharpness of a fresh frame at the procedure's camera settings (back-focus step)."""
+    from benchlab.analysis.focus.sharpness import sharpness
+
+    return sharpness(procedure_frame(bench, runner))
 
 
 # -- sessions --------------------------------------------------------------------------------

@@ -126,3 +126,17 @@ class PeakHold:
         if not s or peak is None or peak <= 0:
             return None
         return s[-1] / peak
+
+
+def mean_edge_mtf50(reading: LiveReading) -> float | None:
+    """The mean MTF50 (lp/mm) over the edges that gave one: a single number that peaks at best
+    focus (the focus aid's history); ``None`` when no edge did."""
+    values = [v for v in reading.edge_mtf50_lp_per_mm.values() if v is not None]
+    return float(np.mean(values)) if values else None
+
+
+def nothing_read(reading: LiveReading) -> bool:
+    """Whether a reading got no set resolved and no edge's MTF50: at a tracked pose, the chart
+    has left the view (a defocused chart still resolves its coarse sets)."""
+    return (all(v is None for v in reading.modulation.values())
+            and all(v is None for v in reading.edge_mtf50_lp_per_mm.values()))

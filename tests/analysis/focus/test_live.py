@@ -48,3 +48,19 @@ def test_peak_hold_keeps_the_best_and_the_history() -> None:
     assert list(hold.series["G2E4S"]) == [0.6, 0.5, 0.4]
     assert hold.fraction_of_peak("G2E4S") == pytest.approx(0.4 / 0.6)
     assert hold.fraction_of_peak("G3E1T") is None
+
+
+def test_mean_edge_mtf50_leaves_out_refused_edges_and_says_none_when_all_are() -> None:
+    from benchlab.analysis.focus.live import LiveReading, mean_edge_mtf50
+
+    reading = LiveReading({}, {"E0L": 60.0, "E0R": None, "E0T": 90.0}, False, 0.0)
+    assert mean_edge_mtf50(reading) == 75.0
+    assert mean_edge_mtf50(LiveReading({}, {"E0L": None}, False, 0.0)) is None
+
+
+def test_nothing_read_only_when_no_set_and_no_edge_gave_a_value() -> None:
+    from benchlab.analysis.focus.live import LiveReading, nothing_read
+
+    assert nothing_read(LiveReading({"G0E1S": None}, {"E0L": None}, False, 0.0))
+    assert not nothing_read(LiveReading({"G0E1S": 0.2}, {"E0L": None}, False, 0.0))
+    assert not nothing_read(LiveReading({"G0E1S": None}, {"E0L": 12.0}, False, 0.0))
