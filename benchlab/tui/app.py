@@ -21,6 +21,7 @@ from benchlab.tui.dialogs import ConfirmDialog, ErrorDialog
 from benchlab.tui.live import LiveScreen
 from benchlab.tui.runner import RunScreen
 from benchlab.tui.sessions import SessionsScreen
+from benchlab.tui.ui_calls import call_ui
 
 if TYPE_CHECKING:
     from benchlab.bench import Bench
@@ -112,33 +113,33 @@ class BenchlabApp(App[None]):
         """Open the bench (devices) in a thread; errors become a dialog."""
         if self.bench is not None:
             return
-        self.call_from_thread(setattr, self, "bench_status", "connecting...")
+        call_ui(self, setattr, self, "bench_status", "connecting...")
         with self.device_activity():
             try:
                 opened = services.open_bench(self.config_path, self.simulate, seed=self.seed)
             except Exception as exc:  # noqa: BLE001 - shown to the operator in plain words
-                self.call_from_thread(setattr, self, "bench_status", "disconnected")
-                self.call_from_thread(self.show_error, "Could not connect the bench", exc)
+                call_ui(self, setattr, self, "bench_status", "disconnected")
+                call_ui(self, self.show_error, "Could not connect the bench", exc)
                 return
             if get_current_worker().is_cancelled:
                 opened.close()
                 return
             self._opened, self.bench = opened, opened.bench
         kind = "simulated" if self.simulate else "hardware"
-        self.call_from_thread(setattr, self, "bench_status", f"connected ({kind})")
+        call_ui(self, setattr, self, "bench_status", f"connected ({kind})")
 
     @work(thread=True, exclusive=True, group="bench", exit_on_error=False)
     def disconnect_bench(self) -> None:
         """LEDs off, stage stopped, devices closed."""
         if self.procedure_running:
-            self.call_from_thread(
+            call_ui(self,
                 self.notify, "Abort the running procedure first.", severity="warning"
             )
             return
         error = self._close_bench()
-        self.call_from_thread(setattr, self, "bench_status", "disconnected")
+        call_ui(self, setattr, self, "bench_status", "disconnected")
         if error is not None:
-            self.call_from_thread(self.show_error, "The bench may not be safe", error)
+            call_ui(self, self.show_error, "The bench may not be safe", error)
 
     def _close_bench(self) -> BaseException | None:
         """Safe state and close; an error is kept in :attr:`close_error` and returned."""

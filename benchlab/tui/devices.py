@@ -13,6 +13,7 @@ from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
 REFRESH_S = 1.0
@@ -85,7 +86,7 @@ class DevicesScreen(Screen[None]):
                 if not live:  # the runner owns the devices: show the cached identity
                     info = services.describe_devices(bench, live=False)
         if not get_current_worker().is_cancelled:
-            app.call_from_thread(self._show, info)
+            call_ui(app, self._show, info)
 
     def _show(self, info: dict[str, list[tuple[str, str]]]) -> None:
         for key in ("camera", "leds", "stage"):
@@ -107,20 +108,20 @@ class DevicesScreen(Screen[None]):
     def _device_action(self, what: str) -> None:
         app: Any = self.app
         if app.bench is None:
-            app.call_from_thread(self.notify, "The bench is not connected.", severity="warning")
+            call_ui(app, self.notify, "The bench is not connected.", severity="warning")
             return
         if app.procedure_running:
-            app.call_from_thread(self.notify, "A procedure is running.", severity="warning")
+            call_ui(app, self.notify, "A procedure is running.", severity="warning")
             return
         try:
             with app.device_activity(), app.device_lock:
                 if app.procedure_running:  # started while this thread waited for the lock
-                    app.call_from_thread(self.notify, "A procedure is running.",
+                    call_ui(app, self.notify, "A procedure is running.",
                                          severity="warning")
                     return
                 message = services.device_action(app.bench, what, stop=app.device_stop)
         except Exception as exc:  # noqa: BLE001 - shown in plain words
-            app.call_from_thread(app.show_error, "Device command failed", exc)
+            call_ui(app, app.show_error, "Device command failed", exc)
             return
-        app.call_from_thread(self.notify, message)
-        app.call_from_thread(self._poll)
+        call_ui(app, self.notify, message)
+        call_ui(app, self._poll)

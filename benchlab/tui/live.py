@@ -219,7 +219,7 @@ class LiveScreen(Screen[None]):
                         reading = self._unwrap.apply(reading, frame[0], self._preview_side)
                 except Exception as exc:  # noqa: BLE001 - shown in plain words, then retried
                     if not worker.is_cancelled:
-                        app.call_from_thread(self._live_error, exc)
+                        call_ui(app, self._live_error, exc)
                     for _ in range(10):  # 1 s before retrying, cancellable every 0.1 s
                         if worker.is_cancelled:
                             break
@@ -458,7 +458,7 @@ class LiveScreen(Screen[None]):
         app: Any = self.app
         bench = app.bench
         if bench is None or not bench.simulated or app.procedure_running:
-            app.call_from_thread(
+            call_ui(app,
                 self.notify, "Targets are mounted by hand on a real bench.", severity="warning"
             )
             return
@@ -471,9 +471,9 @@ class LiveScreen(Screen[None]):
                 services.mount_target(bench, nxt)
                 self._focus_refind.set()
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Could not mount the target", exc)
+            call_ui(app, app.show_error, "Could not mount the target", exc)
             return
-        app.call_from_thread(self.notify, f"simulated target: {services.target_words(nxt)}")
+        call_ui(app, self.notify, f"simulated target: {services.target_words(nxt)}")
 
     def action_exposure(self, direction: int) -> None:
         self.exposure_ms = _step(EXPOSURES_MS, self.exposure_ms, direction)

@@ -21,6 +21,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Input, Sparkline, Static
 
 from benchlab.tui import services
+from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
 
@@ -126,9 +127,9 @@ class SessionsScreen(Screen[None]):
         try:
             found = services.catalog_sessions(Path(app.sessions_dir), text, sort, descending)
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Could not list sessions", exc)
+            call_ui(app, app.show_error, "Could not list sessions", exc)
             return
-        app.call_from_thread(self._show_list, found)
+        call_ui(app, self._show_list, found)
 
     def _show_list(self, found: list[services.SessionSummary]) -> None:
         table = self.query_one("#session-list", DataTable)
@@ -178,9 +179,9 @@ class SessionsScreen(Screen[None]):
             # One folder, not the whole root: the listing itself comes from the catalogue.
             info = next(iter(services.list_sessions_of([path])), None)
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, f"Could not open {path.name}", exc)
+            call_ui(app, app.show_error, f"Could not open {path.name}", exc)
             return
-        app.call_from_thread(self._show_session, path, info, tables, summary)
+        call_ui(app, self._show_session, path, info, tables, summary)
 
     def _show_session(
         self,
@@ -251,10 +252,10 @@ class SessionsScreen(Screen[None]):
         try:
             n = services.catalog_reindex(Path(app.sessions_dir))
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Could not rebuild the catalogue", exc)
+            call_ui(app, app.show_error, "Could not rebuild the catalogue", exc)
             return
-        app.call_from_thread(self.notify, f"Catalogue rebuilt: {n} session(s)")
-        app.call_from_thread(self._load)
+        call_ui(app, self.notify, f"Catalogue rebuilt: {n} session(s)")
+        call_ui(app, self._load)
 
     def _current_figure(self) -> tuple[str, str, str, str] | None:
         if not self._figures or self._figure_index < 0:
@@ -267,14 +268,14 @@ class SessionsScreen(Screen[None]):
         try:
             self._figures = services.catalog_figures(Path(app.sessions_dir))
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Could not read the catalogue", exc)
+            call_ui(app, app.show_error, "Could not read the catalogue", exc)
             return
         if not self._figures:
-            app.call_from_thread(self.notify, "No figures yet: analyse a session first.",
+            call_ui(app, self.notify, "No figures yet: analyse a session first.",
                                  severity="warning")
             return
         self._figure_index += 1
-        app.call_from_thread(self._trend, self._current_figure())
+        call_ui(app, self._trend, self._current_figure())
 
     @work(thread=True, exclusive=True, group="sessions-trend-load", exit_on_error=False)
     def _trend(self, figure: tuple[str, str, str, str] | None) -> None:
@@ -284,9 +285,9 @@ class SessionsScreen(Screen[None]):
         try:
             points = services.catalog_trend(Path(app.sessions_dir), figure)
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Could not read the trend", exc)
+            call_ui(app, app.show_error, "Could not read the trend", exc)
             return
-        app.call_from_thread(self._show_trend, figure, points)
+        call_ui(app, self._show_trend, figure, points)
 
     def _show_trend(self, figure: tuple[str, str, str, str], points: list[Any]) -> None:
         listed = {s.path.name for s in self.sessions}
@@ -335,10 +336,10 @@ class SessionsScreen(Screen[None]):
         try:
             out = services.reanalyse(path, estimator or None)
         except Exception as exc:  # noqa: BLE001 - frames untouched; shown in plain words
-            app.call_from_thread(app.show_error, "Re-analysis failed", exc)
+            call_ui(app, app.show_error, "Re-analysis failed", exc)
             return
-        app.call_from_thread(self.notify, f"New results: {out.name} ({estimator})")
-        app.call_from_thread(self._after_change, path)
+        call_ui(app, self.notify, f"New results: {out.name} ({estimator})")
+        call_ui(app, self._after_change, path)
 
     def _after_change(self, path: Path) -> None:
         self._load()
@@ -356,10 +357,10 @@ class SessionsScreen(Screen[None]):
         try:
             out = services.write_report(path)
         except Exception as exc:  # noqa: BLE001
-            app.call_from_thread(app.show_error, "Report failed", exc)
+            call_ui(app, app.show_error, "Report failed", exc)
             return
-        app.call_from_thread(self._status, f"report written: {out}")
-        app.call_from_thread(self.notify, f"Report written: {out}")
+        call_ui(app, self._status, f"report written: {out}")
+        call_ui(app, self.notify, f"Report written: {out}")
 
     async def action_resume(self) -> None:
         path = self._selected()  # the highlighted row, never the last opened

@@ -19,7 +19,7 @@ from textual.app import App
 log = logging.getLogger(__name__)
 
 
-def call_ui(app: App[Any], callback: Callable[..., object], *args: Any) -> bool:
+def call_ui(app: App[Any], callback: Callable[..., object], *args: Any, **kwargs: Any) -> bool:
     """Run ``callback(*args)`` in the app's thread and wait for it; never raise.
 
     Parameters
@@ -28,7 +28,7 @@ def call_ui(app: App[Any], callback: Callable[..., object], *args: Any) -> bool:
         The running app whose event loop runs the callback.
     callback : callable
         UI work: it may query widgets, update them, push screens.
-    *args
+    *args, **kwargs
         Passed to ``callback``.
 
     Returns
@@ -41,7 +41,7 @@ def call_ui(app: App[Any], callback: Callable[..., object], *args: Any) -> bool:
 
     def guarded() -> bool:
         try:
-            callback(*args)
+            callback(*args, **kwargs)
         except Exception as exc:  # noqa: BLE001 - a display problem, never the caller's
             log.warning("UI update %s dropped: %r", name, exc)
             app.log.warning(f"UI update {name} dropped: {exc!r}")
