@@ -74,3 +74,25 @@ def test_unknown_command_still_lists_every_command(capsys: pytest.CaptureFixture
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "invalid choice: 'no-such-command'" in err and "find-chart" in err and "tui" in err
+
+
+def _all_parsers(parser: argparse.ArgumentParser, path: str = "benchlab"
+                 ) -> list[tuple[str, argparse.ArgumentParser]]:
+    out = [(path, parser)]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out += _all_parsers(sub, f"{path} {name}")
+    return out
+
+
+def test_every_help_text_reads_as_printed() -> None:
+    """argparse %-formats argument help but not descriptions: a ``%%`` (or an unexpanded
+    ``%(default)s``) in a description prints as written."""
+    from benchlab.cli.main import build_parser
+
+    parsers = _all_parsers(build_parser())
+    assert len(parsers) > 40
+    bad = {path: [line for line in p.format_help().splitlines() if "%%" in line or "%(" in line]
+           for path, p in parsers}
+    assert {path: lines for path, lines in bad.items() if lines} == {}

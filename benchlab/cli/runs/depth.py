@@ -51,7 +51,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Run the depth-of-field procedure on the simulated bench for every seed and "
         "lens variant (forward: nominal, sharp, astigmatic, tilted; radial: radial, "
         "radial-astigmatic, radial-curved) and compare best focus and the DOF ends with the "
-        "scene's closed-form truth: error, 95 %% interval coverage, pass rate (within 0.3 mm, "
+        "scene's closed-form truth: error, 95 % interval coverage, pass rate (within 0.3 mm, "
         "radial 0.1 mm, or covered); the astigmatic difference's sign; then the wall time and "
         "frames of a default run against a one-frame baseline. About 10 s per run.",
     )

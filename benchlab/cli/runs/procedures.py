@@ -525,7 +525,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Write a self-contained HTML report: tables; measured bar contrast against "
         "the simulated optics converted to CTF (never CTF against MTF); Table 4.15's verdict "
         "with the Monte Carlo bands; frames with their ROIs; for every ROI the evidence (crop, "
-        "histogram with the levels, profile across the bars, reading with its 95 %% interval, "
+        "histogram with the levels, profile across the bars, reading with its 95 % interval, "
         "estimator, warnings); the radiometry fall-off and LED masks; parameters.",
     )
     rep.add_argument("session", help="session folder")

@@ -323,7 +323,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Judge simulated lots (a lens-variation model with known truth per "
         "unit) with the guarded and simple rules; print false-accept and false-reject rates "
         "and the indeterminate share, and the verification time per session and per lot. "
-        "Exit 1 if the guarded rule accepts more than 2.5 %% of truly failing units.")
+        "Exit 1 if the guarded rule accepts more than 2.5 % of truly failing units.")
     b.add_argument("--units", type=positive_int, default=2000,
                    help="units per simulated lot (default 2000)")
     b.add_argument("--lot-units", type=int, default=1000,
