@@ -2,6 +2,7 @@
 (tests/drivers/test_contract_*.py) on the real devices that bench file names."""
 
 import os
+from collections.abc import Iterator
 
 import pytest
 from hypothesis import settings
@@ -60,3 +61,17 @@ def quick_silence(monkeypatch: pytest.MonkeyPatch) -> None:
     import benchlab.bench
 
     monkeypatch.setattr(benchlab.bench, "SIM_REPLY_TIMEOUT_S", 1.0)
+
+
+@pytest.fixture
+def terminal_sigint() -> Iterator[None]:
+    """SIGINT raises KeyboardInterrupt, as in a program started from a terminal. A test runner
+    started in the background by a non-interactive shell inherits SIGINT ignored, and a test of
+    Ctrl-C must not depend on how its runner was started."""
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)

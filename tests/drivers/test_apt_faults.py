@@ -225,6 +225,7 @@ def test_exception_in_context_stops_the_stage(sim: SimulatedAptStage) -> None:
     assert STOP_IMMEDIATE in sim.host_messages()
 
 
+@pytest.mark.usefixtures("terminal_sigint")
 def test_ctrl_c_while_waiting_stops_the_stage(sim: SimulatedAptStage) -> None:
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("needs the main thread")

@@ -112,7 +112,8 @@ def test_exception_in_context_switches_off(sim: SimulatedSlc) -> None:
 
 
 _CHILD = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as started from a terminal
 from benchlab.drivers.slc.controller import SlcController
 c = SlcController(sys.argv[1], ceilings_ma={1: 100}).open()
 c.on(1, 55)
