@@ -29,13 +29,17 @@ def _tmux(*args: str) -> str:
 
 def _wait_for_screen(session: str, predicate, timeout_s: float = 60.0) -> str:  # noqa: ANN001
     deadline = time.monotonic() + timeout_s
-    screen = ""
+    screen = shown = ""
     while time.monotonic() < deadline:
         screen = _tmux("capture-pane", "-p", "-t", session)
         if predicate(screen):
             return screen
+        shown = screen if screen.strip() else shown  # an ended session captures nothing
         time.sleep(0.3)
-    raise AssertionError(f"screen never matched; last screen:\n{screen}")
+    # Say which it was: the program never got there, or its session ended (a crash shows its
+    # text for the 30 s the command sleeps after it).
+    raise AssertionError(f"screen never matched in {timeout_s:g} s; session alive: "
+                         f"{_alive(session)}; last screen with text:\n{shown}")
 
 
 def _alive(session: str) -> bool:
