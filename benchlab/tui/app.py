@@ -132,9 +132,7 @@ class BenchlabApp(App[None]):
     def disconnect_bench(self) -> None:
         """LEDs off, stage stopped, devices closed."""
         if self.procedure_running:
-            call_ui(self,
-                self.notify, "Abort the running procedure first.", severity="warning"
-            )
+            call_ui(self, self.notify, "Abort the running procedure first.", severity="warning")
             return
         error = self._close_bench()
         call_ui(self, setattr, self, "bench_status", "disconnected")

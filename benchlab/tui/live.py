@@ -458,9 +458,8 @@ class LiveScreen(Screen[None]):
         app: Any = self.app
         bench = app.bench
         if bench is None or not bench.simulated or app.procedure_running:
-            call_ui(app,
-                self.notify, "Targets are mounted by hand on a real bench.", severity="warning"
-            )
+            call_ui(app, self.notify, "Targets are mounted by hand on a real bench.",
+                    severity="warning")
             return
         current = plain_target(bench.mounted)
         names = [plain_target(t) for t in SIM_TARGETS]

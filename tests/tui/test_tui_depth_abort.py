@@ -3,23 +3,18 @@ stopped and the LEDs off, and no position is taken twice."""
 
 from __future__ import annotations
 
-import json
 import threading
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import pytest
+from sim_runs import events
 from test_tui_depth import DEPTH_PARAMS
 from test_tui_helpers import connected, make_app, wait_until
 
 from benchlab.session import Session
 from benchlab.tui.runner import RunScreen
-
-
-def _events(session: Path) -> list[dict[str, Any]]:
-    lines = (session / "events.jsonl").read_text(encoding="utf-8").splitlines()
-    return [json.loads(line) for line in lines if line.strip()]
 
 
 @pytest.mark.asyncio
@@ -65,7 +60,7 @@ async def test_abort_mid_sweep_then_retry_repeats_no_position(tmp_path: Path) ->
         await wait_until(pilot, lambda: screen.state != "running", answer_prompts=True,
                          what="retry end")
         assert screen.state == "done", screen.message
-        evs = _events(screen.session_path)
+        evs = events(screen.session_path)
         done = Counter(e["step_id"] for e in evs if e["kind"] == "step_completed")
         assert max(done.values()) == 1 and len(done) == 15
         saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
