@@ -20,6 +20,7 @@ import time
 import tty
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from typing import Self
 
 from benchlab.drivers.simulation.clock import ManualClock
 
@@ -98,7 +99,7 @@ class PtyDevice(ABC):
         self._stop_event.set()
         self._close_fds()
 
-    def __enter__(self) -> PtyDevice:
+    def __enter__(self) -> Self:
         self.start()
         return self
 

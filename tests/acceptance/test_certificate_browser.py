@@ -4,27 +4,14 @@ loads with no console errors, holds the unit verdict and a row per limit, and pr
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
-import pytest
 from acceptance_sessions import limit, make_session, spec
+from headless_browser import chromium, console_errors, needs_chromium
 
 from benchlab.cli.main import main
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--enable-logging=stderr", "--v=0"]
-
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs chromium (.ci/run installs it)")
-
-
-def _chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    assert CHROMIUM is not None
-    return subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args],
-                          capture_output=True, text=True, timeout=90, check=False)
+pytestmark = needs_chromium
 
 
 def test_certificate_renders_in_chromium_and_prints_to_pdf(tmp_path: Path) -> None:
@@ -34,16 +21,15 @@ def test_certificate_renders_in_chromium_and_prints_to_pdf(tmp_path: Path) -> No
     assert main(["verify", str(s), "--spec", str(path)]) == 1  # G1E5 reads 0.8 > 0.7
     page = tmp_path / "cert.html"
     assert main(["certificate", str(s), "--out", str(page)]) == 0
-    dom = _chromium(tmp_path, "--dump-dom", page.as_uri())
+    dom = chromium(tmp_path, "--dump-dom", page.as_uri())
     assert dom.returncode == 0, dom.stderr[-2000:]
-    console = [ln for ln in dom.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln]
-    assert console == []
+    assert console_errors(dom.stderr) == []
     html = dom.stdout
     assert re.search(r"Unit verdict: <span class=\"verdict unit-verdict\"[^>]*>fail</span>", html)
     body = html.split('<table id="limits">')[1].split("</table>")[0]
     assert body.count("<tr>") == 3  # the header and one row per limit
     assert "fwd-G2E2-S" in body and "G1E5-max" in body
     pdf = tmp_path / "cert.pdf"
-    res = _chromium(tmp_path, f"--print-to-pdf={pdf}", "--no-pdf-header-footer", page.as_uri())
+    res = chromium(tmp_path, f"--print-to-pdf={pdf}", "--no-pdf-header-footer", page.as_uri())
     assert res.returncode == 0 and pdf.read_bytes()[:5] == b"%PDF-"
     assert pdf.stat().st_size > 10_000

@@ -61,10 +61,8 @@ def clock() -> ManualClock:
 
 @pytest.fixture
 def sim(clock: ManualClock) -> Iterator[SimulatedAptStage]:
-    s = SimulatedAptStage(clock=clock, travel_mm=(0.0, 50.0), homed=True)
-    s.start()
-    yield s
-    s.stop()
+    with SimulatedAptStage(clock=clock, travel_mm=(0.0, 50.0), homed=True) as s:
+        yield s
 
 
 @pytest.fixture

@@ -28,10 +28,8 @@ CEILINGS = {1: 100.0, 2: 100.0, 3: 100.0, 4: 100.0}
 
 @pytest.fixture
 def sim() -> Iterator[SimulatedSlc]:
-    s = SimulatedSlc()
-    s.start()
-    yield s
-    s.stop()
+    with SimulatedSlc() as s:
+        yield s
 
 
 def _all_dark(sim: SimulatedSlc) -> bool:

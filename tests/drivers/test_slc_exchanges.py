@@ -32,10 +32,8 @@ def _off_and_verify(channels: int) -> list[tuple[str, bytes]]:
 
 @pytest.fixture
 def sim() -> Iterator[SimulatedSlc]:
-    s = SimulatedSlc()
-    s.start()
-    yield s
-    s.stop()
+    with SimulatedSlc() as s:
+        yield s
 
 
 @pytest.fixture

@@ -27,10 +27,8 @@ CURRENT_SWEEP = TINY.replace("[sweep]", '[led]\ncurrent_ma = 250.0\n[sweep]\n'
 
 @pytest.fixture
 def ca_sim() -> Iterator[SimulatedSlc]:
-    sim = SimulatedSlc(module="SLC-CA04-MU")
-    sim.start()
-    yield sim
-    sim.stop()
+    with SimulatedSlc(module="SLC-CA04-MU") as sim:
+        yield sim
 
 
 def _run(root: Path, text: str, sim: SimulatedSlc) -> Any:

@@ -4,37 +4,22 @@ loads with no console errors, a screenshot is taken, and the DOM holds a panel p
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
-import pytest
+from headless_browser import chromium, console_errors, needs_chromium
 from sim_runs import MTF_SMALL, run_sim
 
 from benchlab.report.render import write_report
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--enable-logging=stderr", "--v=0"]
-
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs chromium (.ci/run installs it)")
-
-
-def _chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    assert CHROMIUM is not None
-    return subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args],
-                          capture_output=True, text=True, timeout=90, check=False)
+pytestmark = needs_chromium
 
 
 def test_report_loads_in_chromium_with_a_panel_per_roi(tmp_path: Path) -> None:
     outcome = run_sim("mtf", tmp_path, MTF_SMALL)
     page = write_report(outcome.session_path)
-    dom = _chromium(tmp_path, "--dump-dom", page.as_uri())
+    dom = chromium(tmp_path, "--dump-dom", page.as_uri())
     assert dom.returncode == 0, dom.stderr[-2000:]
-    # Console messages reach stderr as "CONSOLE(...)" / "Uncaught"; a clean page has none.
-    console = [ln for ln in dom.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln]
-    assert console == []
+    assert console_errors(dom.stderr) == []
     html = dom.stdout
     panels = re.findall(r"<div class=\"roi-panel\" data-roi=\"([^\"]+)\" data-state=\"(\w+)\"",
                         html)
@@ -46,6 +31,6 @@ def test_report_loads_in_chromium_with_a_panel_per_roi(tmp_path: Path) -> None:
         assert state in {"resolved", "unresolved", "aliased"}
     assert html.count("class=\"state state-") == len(panels)
     shot = tmp_path / "report.png"
-    res = _chromium(tmp_path, "--window-size=1300,3000", f"--screenshot={shot}", page.as_uri())
+    res = chromium(tmp_path, "--window-size=1300,3000", f"--screenshot={shot}", page.as_uri())
     assert res.returncode == 0 and shot.stat().st_size > 50_000
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

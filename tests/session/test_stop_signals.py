@@ -76,28 +76,22 @@ def _stage_still(stage: SimulatedAptStage) -> bool:
 
 @pytest.fixture
 def led() -> Iterator[SimulatedSlc]:
-    sim = SimulatedSlc()
-    sim.start()
-    yield sim
-    sim.stop()
+    with SimulatedSlc() as sim:
+        yield sim
 
 
 @pytest.fixture
 def stage() -> Iterator[SimulatedAptStage]:
     """Real-time motion: a move lasts long enough to be interrupted."""
-    sim = SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True, time_scale=1.0)
-    sim.start()
-    yield sim
-    sim.stop()
+    with SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True, time_scale=1.0) as sim:
+        yield sim
 
 
 @pytest.fixture
 def fast_stage() -> Iterator[SimulatedAptStage]:
     """200x motion: moves take milliseconds, the run gets to its LED quickly."""
-    sim = SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True, time_scale=200.0)
-    sim.start()
-    yield sim
-    sim.stop()
+    with SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True, time_scale=200.0) as sim:
+        yield sim
 
 
 def _expected_status(sig: signal.Signals) -> int:
