@@ -501,7 +501,7 @@ def open_simulated(
     from benchlab.drivers.apt.sim import SimulatedAptStage
     from benchlab.drivers.apt.stage import AptStage
     from benchlab.drivers.mightex.camera import MightexCamera
-    from benchlab.drivers.mightex.sim import SimCameraBackend, SimulatedCamera
+    from benchlab.drivers.mightex.sim import SIM_CAMERA_SERIAL, SimCameraBackend, SimulatedCamera
     from benchlab.drivers.slc.controller import SlcController
     from benchlab.drivers.slc.sim import SimulatedSlc
     from benchlab.scenes.world import SimWorld
@@ -541,7 +541,7 @@ def open_simulated(
         bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
     cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}
     bench.sim_camera = SimulatedCamera(
-        bench.world, serial=cfg.camera.serial or "SIM-130001", seed=seed, noise=noise,
+        bench.world, serial=cfg.camera.serial or SIM_CAMERA_SERIAL, seed=seed, noise=noise,
         bench_state=bench.state, **cam_kwargs,
     )
     backend = SimCameraBackend([bench.sim_camera])

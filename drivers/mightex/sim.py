@@ -49,9 +49,12 @@ from benchlab.drivers.simulation.dispatch import CommandTable
 
 __all__ = [
     "BarTargetScene", "CameraFaults", "Clock", "FlatFieldScene", "ManualClock", "RealTimeClock",
-    "SentFrame", "SimCameraBackend", "SimulatedCamera", "VirtualClock", "bar_target_scene",
-    "flat_field_scene",
+    "SIM_CAMERA_SERIAL", "SentFrame", "SimCameraBackend", "SimulatedCamera", "VirtualClock",
+    "bar_target_scene", "flat_field_scene",
 ]
+
+#: The simulated camera's serial number, the same wherever a simulated bench is opened.
+SIM_CAMERA_SERIAL = "SIM-130001"
 
 PIXEL_CLOCK_HZ = 48e6
 
@@ -193,7 +196,7 @@ class SimulatedCamera:
     commands: CommandTable[int] = CommandTable()
 
     def __init__(
-        self, scene: Scene | None = None, *, serial: str = "SIM-000001",
+        self, scene: Scene | None = None, *, serial: str = SIM_CAMERA_SERIAL,
         model: str = "MCE-B013-U", pid: int = p.DEFAULT_PID,
         firmware: tuple[int, int, int] = (1, 0, 6), clock: Clock | None = None,
         seed: int | None = None, bench_state: Callable[[], Mapping[str, Any]] | None = None,

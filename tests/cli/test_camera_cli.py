@@ -23,7 +23,7 @@ def no_serial(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_devices_simulated_json(no_serial: None, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["devices", "--simulate", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert rows == [{"kind": "camera", "model": "MCE-B013-U", "serial": "SIM-000001",
+    assert rows == [{"kind": "camera", "model": "MCE-B013-U", "serial": "SIM-130001",
                      "firmware": "1.0.6", "pid": 0x0428, "bus": 1, "address": 2, "error": None,
                      "port": "usb 1:2 pid 0x0428"}]
 
@@ -32,7 +32,7 @@ def test_devices_simulated_table(no_serial: None, capsys: pytest.CaptureFixture[
     assert main(["devices", "--simulate", "--pid", "0x0529"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].split() == ["KIND", "MODEL", "SERIAL", "FIRMWARE", "WHERE"]
-    assert lines[1].split() == ["camera", "MCE-B013-U", "SIM-000001", "1.0.6", "usb", "1:2",
+    assert lines[1].split() == ["camera", "MCE-B013-U", "SIM-130001", "1.0.6", "usb", "1:2",
                                 "pid", "0x0529"]
 
 
@@ -44,7 +44,7 @@ def test_snap_writes_lossless_tiff_with_metadata(tmp_path, capsys) -> None:
     pixels, meta = load_frame_tiff(out)
     assert pixels.dtype == np.uint16 and pixels.shape == (1024, 1280)
     assert (meta["exposure_ms"], meta["gain"], meta["bits"]) == (300.0, 1.0, 12)
-    assert meta["camera"] == {"model": "MCE-B013-U", "serial": "SIM-000001",
+    assert meta["camera"] == {"model": "MCE-B013-U", "serial": "SIM-130001",
                               "firmware": "1.0.6", "pid": 0x0428}
     assert meta["software"] == {"name": "benchlab", "version": benchlab.__version__}
     assert meta["simulated"] is True and "timestamp_ms" in meta

@@ -31,7 +31,7 @@ def test_open_sends_wake_up_identity_and_full_configuration() -> None:
     sim, cam = open_sim()
     with cam:
         assert cam.info.model == "MCE-B013-U"
-        assert (cam.info.serial, cam.info.firmware, cam.info.pid) == ("SIM-000001", "1.0.6", 0x428)
+        assert (cam.info.serial, cam.info.firmware, cam.info.pid) == ("SIM-130001", "1.0.6", 0x428)
         log = list(sim.command_log)
     # The 0x60 changed nothing (power-on geometry), so the frames of the 100 ms the driver
     # waited after 0x30 are still there: the 0x33 poll finds 3 and the driver flushes them.
@@ -53,7 +53,7 @@ def test_every_command_is_sent_byte_exact() -> None:
         # The virtual clock jumps to the end of the triggered exposure: one frame waits.
         assert cam.buffer_status() == p.BufferStatus(1, 640, 480, 0)
         assert cam.firmware_version() == "1.0.6"
-        assert cam.device_info().serial == "SIM-000001"
+        assert cam.device_info().serial == "SIM-130001"
         cam.reset()
         assert list(sim.command_log) == [
             H("63 02 17 70"), H("62 03 14 14 14"), H("64 02 07 d0"),

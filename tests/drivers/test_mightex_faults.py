@@ -107,7 +107,7 @@ def test_unplug_mid_frame_then_reopen_restores_settings() -> None:
         assert np.all(frame.pixels == 200)  # twice the exposure, twice the signal
     # A new driver object opens it too.
     with MightexCamera.open(backend=backend) as again:
-        assert again.info.serial == "SIM-000001"
+        assert again.info.serial == "SIM-130001"
 
 
 def test_unplugged_handle_stays_dead_after_replug() -> None:

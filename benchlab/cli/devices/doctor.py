@@ -131,7 +131,7 @@ class Doctor:
             "camera-no-12bit": replace(mce, bit_depths=(8, 10)),
         }
         chosen = next((profile[k] for k in self.inject if k in profile), mce)
-        cam = SimulatedCamera(light, serial="SIM-130001", seed=1, profile=chosen,
+        cam = SimulatedCamera(light, seed=1, profile=chosen,
                               bench_state=lambda: {"led_ma": slc.channel_output_ma(channel)})
         counts = 34304.0 if "stage-34304" in self.inject else (
             cfg.stage.counts_per_mm if cfg.stage is not None else 34554.96)
