@@ -101,7 +101,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         prog="benchlab",
         description=(
             "Run the endoscope optical test bench: camera, LED controller, stage, the Table 4.10 "
-            "MTF test and the section 4.4 radiometry, with offline analysis. Every command "
+            "MTF test, the section 4.4 radiometry, camera characterisation and depth of field, "
+            "with offline analysis and acceptance per unit. Every command that uses the bench "
             "takes --simulate to use the built-in simulated bench. With no command, opens the "
             "terminal UI."
         ),

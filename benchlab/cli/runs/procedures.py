@@ -474,12 +474,15 @@ def benchmark_report_command(args: argparse.Namespace) -> int:
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add ``run``, ``resume``, ``report`` and ``benchmark report``."""
     run = commands.add_parser(
-        "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry or the camera "
-        "characterisation)",
+        "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry, the camera "
+        "characterisation or depth of field through focus)",
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise", "depth"))
+    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise", "depth"),
+                     help="mtf: the Table 4.10 MTF test; radiometry: section 4.4 relative "
+                     "radiometry; characterise: EMVA 1288 photon transfer of the camera; depth: "
+                     "MTF through focus on the stage (best focus, depth of field)")
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
                      "default: the user's, see `benchlab config show`)")
