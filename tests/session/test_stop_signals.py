@@ -11,6 +11,7 @@ import fcntl
 import json
 import os
 import pty
+import re
 import signal
 import struct
 import subprocess
@@ -30,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[2]
 RAD_SMALL = ROOT / "fixtures" / "params" / "radiometry-small.toml"
 MTF_SMALL = ROOT / "fixtures" / "params" / "mtf-small.toml"
 SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+ANSI_CSI = re.compile(rb"\x1b\[[0-9;?]*[ -/]*[@-~]")  # colours, cursor moves
 
 
 def _wait(predicate: Callable[[], bool], what: str, proc: subprocess.Popen | None = None,
@@ -235,6 +237,18 @@ class _Screen:
         except (BlockingIOError, OSError):
             pass
 
+    def press(self, key: bytes, then_shows: str, proc: subprocess.Popen[bytes]) -> None:
+        """Send a key and wait until the screen draws ``then_shows`` (a key sent while a
+        screen is still switching goes to the old one)."""
+        mark = len(self.data)
+        os.write(self.master, key)
+
+        def shown() -> bool:
+            self.pump()
+            return then_shows.encode() in ANSI_CSI.sub(b"", self.data[mark:])
+
+        _wait(shown, f"{then_shows!r} after the key {key!r}", proc)
+
 
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_tui_mid_radiometry_signal(
@@ -255,10 +269,8 @@ def test_tui_mid_radiometry_signal(
             return check
 
         _wait(seen(b"connected (simulated)"), "the bench to connect", proc, 60)
-        os.write(master, b"3")
-        time.sleep(0.5)
-        os.write(master, b"p")
-        time.sleep(0.5)
+        screen.press(b"3", "Table 4.10 steps", proc)  # the Run screen, MTF chosen
+        screen.press(b"p", "Radiometry (section 4.4)", proc)
         os.write(master, b"s")
         last_key = [time.monotonic()]
 
@@ -303,9 +315,7 @@ def test_tui_stage_homing_stops_when_the_app_quits(
             return b"connected (simulated)" in screen.data
 
         _wait(connected, "the bench to connect", proc, 60)
-        os.write(master, b"1")
-        time.sleep(0.5)
-        os.write(master, b"h")
+        os.write(master, b"h")  # the Devices screen is the first one shown
         _wait(lambda: stage.moving and stage.position_mm < 39.8, "the stage to home", proc)
         if how == "q":
             os.write(master, b"q")
