@@ -4,18 +4,23 @@ Rendered from ``verdicts/v<N>.json`` (never from a second verification), so what
 what was decided: unit and lot, spec name, revision and the sha256 of its file, decision rule
 and coverage, every limit's row (reading, interval, limit, margin, verdict and why), the
 sessions with their results version and every frame's sha256, and the software version.
-Nothing is fetched from outside the page; the print style sheet fits A4 portrait, so the
-browser's Print -> PDF gives the paper copy.
+Nothing is fetched from outside the page; the print style sheet fits A4 portrait. The same
+text is drawn as an A4 PDF by :mod:`benchlab.acceptance.certificate_pdf`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from benchlab.report.html import esc, local_time
 
+SHA_KEY = "Spec file sha256"
+MARGIN_NOTE = ("Margin: how far the reading lies inside the limit (negative: outside), in the "
+               "quantity's unit.")
+SIGNATURES = ("Inspected by, date", "Approved by, date")
 VERDICT_COLOURS = {"pass": "#1e7b34", "fail": "#b3261e", "indeterminate": "#8a5a00"}
 
 _CSS = """
@@ -51,8 +56,79 @@ def _num(value: Any) -> str:
 def _limit(row: Mapping[str, Any]) -> str:
     lo, hi = row.get("min"), row.get("max")
     text = (f"{lo:g} .. {hi:g}" if lo is not None and hi is not None
-            else f"&ge; {lo:g}" if lo is not None else f"&le; {hi:g}")
-    return f"{text} {esc(str(row.get('unit') or ''))}".strip()
+            else f"\u2265 {lo:g}" if lo is not None else f"\u2264 {hi:g}")
+    return f"{text} {row.get('unit') or ''}".strip()
+
+
+@dataclass(frozen=True)
+class LimitLine:
+    """One row of the limits table, as text."""
+
+    limit_id: str
+    table: str
+    row: str
+    column: str
+    reading: str
+    interval: str
+    limit: str
+    margin: str
+    rule: str
+    verdict: str
+    why: str
+
+
+@dataclass(frozen=True)
+class CertificateContent:
+    """What a certificate says, as text: the HTML page and the PDF both draw this."""
+
+    title: str
+    verdict: str
+    identity: tuple[tuple[str, str], ...]
+    coverage: float
+    rule: str
+    limits: tuple[LimitLine, ...]
+    #: (session, procedure, started, results version, software it was acquired with)
+    sessions: tuple[tuple[str, str, str, str, str], ...]
+    #: (session, frame, sha256)
+    frames: tuple[tuple[str, str, str], ...]
+
+
+def certificate_content(record: Mapping[str, Any], session_id: str = "") -> CertificateContent:
+    """The text of the certificate of one stored verdict record."""
+    unit, spec = record["unit"], record["spec"]
+    serial = unit.get("serial") or "(no serial number)"
+    identity = (
+        ("Unit (serial number)", serial), ("Lot", unit.get("lot") or "-"),
+        ("Specification", spec["name"]), ("Revision", spec.get("revision") or "-"),
+        ("Spec file", spec.get("file", "")), (SHA_KEY, spec.get("sha256", "")),
+        ("Spec format", f"{spec.get('format', '')} v{spec.get('format_version', '')}"),
+        ("Decision rule", _rule_text(spec)),
+        ("Verdict record", f"{session_id} verdicts/v{record.get('version', '?')}.json"),
+        ("Decided", local_time(record.get("created_at"))),
+        ("Software", f"benchlab {record.get('software_version', '')}"))
+    limits = []
+    for r in record["rows"]:
+        why = "; ".join(r.get("notes") or [])
+        if str(r.get("decided_by", "")).startswith("reading") and "reading decides" not in why:
+            why = ("the reading decided (shared risk)" + ("; " + why if why else ""))
+        interval = ("none" if r.get("low") is None or r.get("high") is None
+                    else f"{_num(r.get('low'))} \u2013 {_num(r.get('high'))}")
+        limits.append(LimitLine(
+            limit_id=str(r["limit_id"]), table=str(r.get("table", "")), row=str(r.get("row") or ""),
+            column=str(r["column"]), reading=_num(r.get("reading")), interval=interval,
+            limit=_limit(r), margin=_num(r.get("margin")), rule=str(r.get("rule", "")),
+            verdict=str(r["verdict"]), why=why))
+    sessions, frames = [], []
+    for s in record.get("sessions", []):
+        sessions.append((str(s["id"]), str(s.get("procedure", "")), local_time(s.get("started_at")),
+                         f"v{s.get('results_version')}{' (partial)' if s.get('partial') else ''}",
+                         str(s.get("software_version", ""))))
+        frames += [(str(s["id"]), str(name), str(digest))
+                   for name, digest in sorted((s.get("frames_sha256") or {}).items())]
+    return CertificateContent(
+        title=f"Acceptance certificate - {serial}", verdict=str(record["verdict"]),
+        identity=identity, coverage=float(spec.get("coverage", 0.95)), rule=_rule_text(spec),
+        limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames))
 
 
 def _badge(verdict: str, css: str = "verdict") -> str:
@@ -63,80 +139,54 @@ def _badge(verdict: str, css: str = "verdict") -> str:
 
 def render_certificate(record: Mapping[str, Any], session_id: str = "") -> str:
     """The certificate page of one stored verdict record."""
-    unit, spec = record["unit"], record["spec"]
-    serial = unit.get("serial") or "(no serial number)"
-    title = f"Acceptance certificate - {serial}"
-    kv = [("Unit (serial number)", serial), ("Lot", unit.get("lot") or "-"),
-          ("Specification", spec["name"]), ("Revision", spec.get("revision") or "-"),
-          ("Spec file", spec.get("file", "")),
-          ("Spec file sha256", f"<span class='hash'>{esc(spec.get('sha256', ''))}</span>"),
-          ("Spec format", f"{esc(spec.get('format', ''))} v{spec.get('format_version', '')}"),
-          ("Decision rule", _rule_text(spec)),
-          ("Verdict record", f"{esc(session_id)} verdicts/v{record.get('version', '?')}.json"),
-          ("Decided", esc(local_time(record.get("created_at")))),
-          ("Software", f"benchlab {esc(record.get('software_version', ''))}")]
+    c = certificate_content(record, session_id)
     rows_html = []
-    for r in record["rows"]:
-        why = "; ".join(r.get("notes") or [])
-        if str(r.get("decided_by", "")).startswith("reading") and "reading decides" not in why:
-            why = ("the reading decided (shared risk)" + ("; " + why if why else ""))
-        interval = ("none" if r.get("low") is None or r.get("high") is None
-                    else f"{_num(r.get('low'))} &ndash; {_num(r.get('high'))}")
+    for r in c.limits:
         rows_html.append(
             "<tr>" + "".join([
-                f"<td>{esc(r['limit_id'])}</td>",
-                f"<td>{esc(r.get('table', ''))}<br><small>{esc(r.get('row') or '')}</small>"
-                "</td>", f"<td>{esc(r['column'])}</td>",
-                f"<td class='num'>{_num(r.get('reading'))}</td>",
-                f"<td class='num'>{interval}</td>",
-                f"<td class='num'>{_limit(r)}</td>",
-                f"<td class='num'>{_num(r.get('margin'))}</td>",
-                f"<td>{esc(r.get('rule', ''))}</td>", f"<td>{_badge(r['verdict'])}</td>"])
+                f"<td>{esc(r.limit_id)}</td>",
+                f"<td>{esc(r.table)}<br><small>{esc(r.row)}</small></td>",
+                f"<td>{esc(r.column)}</td>", f"<td class='num'>{esc(r.reading)}</td>",
+                f"<td class='num'>{esc(r.interval)}</td>", f"<td class='num'>{esc(r.limit)}</td>",
+                f"<td class='num'>{esc(r.margin)}</td>", f"<td>{esc(r.rule)}</td>",
+                f"<td>{_badge(r.verdict)}</td>"])
             + "</tr>")
-        if why:
+        if r.why:
             rows_html.append(f"<tr class='note'><td></td><td colspan='8' class='notes'>"
-                             f"{esc(why)}</td></tr>")
-    sessions_html, frames_html = [], []
-    for s in record.get("sessions", []):
-        sessions_html.append(
-            f"<tr><td>{esc(s['id'])}</td><td>{esc(s.get('procedure', ''))}</td>"
-            f"<td>{esc(local_time(s.get('started_at')))}</td>"
-            f"<td>v{esc(str(s.get('results_version')))}"
-            f"{' (partial)' if s.get('partial') else ''}</td>"
-            f"<td>{esc(s.get('software_version', ''))}</td></tr>")
-        for name, digest in sorted((s.get("frames_sha256") or {}).items()):
-            frames_html.append(f"<tr><td>{esc(s['id'])}</td><td>{esc(name)}</td>"
-                               f"<td class='hash'>{esc(str(digest))}</td></tr>")
-    kv_html = "".join(f"<tr><th>{esc(k)}</th><td>{v if k in _HTML_VALUES else esc(str(v))}"
-                      f"</td></tr>" for k, v in kv)
+                             f"{esc(r.why)}</td></tr>")
+    sessions_html = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in s) + "</tr>"
+                            for s in c.sessions)
+    frames_html = "".join(f"<tr><td>{esc(sid)}</td><td>{esc(name)}</td>"
+                          f"<td class='hash'>{esc(digest)}</td></tr>"
+                          for sid, name, digest in c.frames)
+    kv_html = "".join(
+        f"<tr><th>{esc(k)}</th><td>"
+        + (f"<span class='hash'>{esc(v)}</span>" if k == SHA_KEY else esc(v)) + "</td></tr>"
+        for k, v in c.identity)
+    title = c.title
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{esc(title)}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <style>{_CSS}</style></head>
 <body>
 <h1>{esc(title)}</h1>
-<p>Unit verdict: {_badge(record['verdict'], 'verdict unit-verdict')}</p>
+<p>Unit verdict: {_badge(c.verdict, 'verdict unit-verdict')}</p>
 <table class="kv" id="identity">{kv_html}</table>
 <h2>Limits</h2>
 <table id="limits"><thead><tr><th>limit</th><th>table, row</th><th>quantity</th>
-<th>reading</th><th>interval ({spec.get('coverage', 0.95):.0%})</th><th>limit</th>
+<th>reading</th><th>interval ({c.coverage:.0%})</th><th>limit</th>
 <th>margin</th><th>rule</th><th>verdict</th></tr></thead>
 <tbody>{''.join(rows_html)}</tbody></table>
-<p class="notes">Margin: how far the reading lies inside the limit (negative: outside), in the
-quantity's unit. {_rule_text(spec)}.</p>
+<p class="notes">{MARGIN_NOTE} {esc(c.rule)}.</p>
 <h2>Sessions</h2>
 <table id="sessions"><thead><tr><th>session</th><th>procedure</th><th>started</th>
-<th>results</th><th>acquired with</th></tr></thead><tbody>{''.join(sessions_html)}</tbody></table>
+<th>results</th><th>acquired with</th></tr></thead><tbody>{sessions_html}</tbody></table>
 <h2>Frames (sha256 at acquisition)</h2>
 <table id="frames"><thead><tr><th>session</th><th>frame</th><th>sha256</th></tr></thead>
-<tbody>{''.join(frames_html)}</tbody></table>
-<div class="sign"><div>Inspected by, date</div><div>Approved by, date</div></div>
+<tbody>{frames_html}</tbody></table>
+<div class="sign">{''.join(f"<div>{esc(t)}</div>" for t in SIGNATURES)}</div>
 </body></html>
 """
-
-
-_HTML_VALUES = {"Spec file sha256", "Spec format", "Decision rule", "Verdict record", "Decided",
-                "Software"}
 
 
 def _rule_text(spec: Mapping[str, Any]) -> str:

@@ -227,13 +227,21 @@ def _lot_text(result: dict[str, Any]) -> str:
 
 def certificate_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.certificate import render_certificate
+    from benchlab.acceptance.certificate_pdf import certificate_pdf
     from benchlab.acceptance.store import read_verdict
-    from benchlab.storage import atomic_write_text
+    from benchlab.storage import atomic_write_bytes, atomic_write_text
 
+    pdf = args.pdf or (args.out is not None and Path(args.out).suffix.lower() == ".pdf")
+    if args.pdf and args.out and Path(args.out).suffix.lower() in (".html", ".htm"):
+        raise UsageError(f"--pdf writes a PDF, but --out names an HTML file: {args.out}")
     folder = Path(args.session)
     record = read_verdict(folder, args.version)
-    out = Path(args.out) if args.out else folder / f"certificate-v{record['version']}.html"
-    atomic_write_text(out, render_certificate(record, session_id=folder.name))
+    out = (Path(args.out) if args.out
+           else folder / f"certificate-v{record['version']}.{'pdf' if pdf else 'html'}")
+    if pdf:
+        atomic_write_bytes(out, certificate_pdf(record, session_id=folder.name))
+    else:
+        atomic_write_text(out, render_certificate(record, session_id=folder.name))
     print(f"certificate: {out}  (unit {record['unit']['serial'] or '-'}: {record['verdict']})")
     return 0
 
@@ -308,14 +316,16 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     lot.set_defaults(func=lot_command)
 
     c = commands.add_parser(
-        "certificate", help="the unit's HTML certificate from its stored verdict",
+        "certificate", help="the unit's certificate (HTML or PDF) from its stored verdict",
         description="Render a stored verdict (benchlab verify) as one self-contained HTML "
-        "page to file: unit, spec, rule, every limit's row, frame hashes, software version. "
-        "Print it to PDF from the browser (A4 print style).")
+        "page, or with --pdf an A4 PDF: unit, spec, rule, every limit's row, frame hashes, "
+        "software version.")
     c.add_argument("session", metavar="SESSION")
     c.add_argument("--version", type=positive_int, help="verdict version (default: latest)")
+    c.add_argument("--pdf", action="store_true",
+                   help="write an A4 PDF (also chosen by an --out name ending in .pdf)")
     c.add_argument("--out", metavar="FILE",
-                   help="output file (default SESSION/certificate-v<N>.html)")
+                   help="output file (default SESSION/certificate-v<N>.html, .pdf with --pdf)")
     c.set_defaults(func=certificate_command)
 
     b = benchmarks.add_parser(
