@@ -79,6 +79,15 @@ def verify_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.verify import check_sessions, group_units, verify_unit
     from benchlab.catalog.index import record_session
 
+    if args.example_spec:
+        from importlib.resources import files
+
+        print(files("benchlab.acceptance").joinpath("example-spec.toml").read_text("utf-8"),
+              end="")
+        return 0
+    if not args.sessions or args.spec is None:
+        raise UsageError("verify: give SESSION... and --spec FILE "
+                         "(--example-spec prints a spec to start from)")
     spec = _load_spec(args.spec)  # every problem of the spec before any session is read
     sessions = check_sessions(args.sessions)
     units: list[UnitResult] = [verify_unit(group, spec) for group in group_units(sessions)]
@@ -275,8 +284,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "limit, the margin and the rule; the verdict is stored in each session (a new "
         "version) and in the catalogue. Exit status: 0 pass, 1 fail, 3 indeterminate "
         "(the worst unit), 2 usage error (a malformed spec).")
-    v.add_argument("sessions", nargs="+", metavar="SESSION", help="session folder(s)")
-    v.add_argument("--spec", required=True, metavar="FILE", help="spec file (TOML)")
+    v.add_argument("sessions", nargs="*", metavar="SESSION", help="session folder(s)")
+    v.add_argument("--spec", metavar="FILE", help="spec file (TOML)")
+    v.add_argument("--example-spec", action="store_true",
+                   help="print a commented example spec file (an MTF and a characterisation "
+                   "limit of each kind) and exit: benchlab verify --example-spec > spec.toml")
     v.add_argument("--json", action="store_true", help="print the verdict record(s) as JSON")
     v.add_argument("--no-store", action="store_true",
                    help="decide only; store nothing in the sessions or the catalogue")

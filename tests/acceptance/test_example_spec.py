@@ -1,0 +1,58 @@
+"""The packaged example spec (``benchlab verify --example-spec``, shown on docs/formats/spec.md)
+reads the real tables: on a simulated MTF and characterisation session of one unit every one of
+its limits finds its rows and is decided."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+from sim_runs import FIXTURES, MTF_SMALL, run_sim
+
+from benchlab.acceptance.spec import load_spec
+from benchlab.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[2]
+CAM_SMALL = FIXTURES / "characterise-small.toml"
+
+
+def test_example_spec_is_printed_as_packaged(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", "--example-spec"]) == 0
+    text = capsys.readouterr().out
+    assert text == (ROOT / "benchlab" / "acceptance" / "example-spec.toml").read_text()
+    assert [lim["id"] for lim in tomllib.loads(text)["limit"]] == [
+        "fwd-G2E2-S", "mtf50-centre", "system-gain", "read-noise", "avg-70"]
+    # The docs page includes the file itself, not a copy.
+    assert '--8<-- "benchlab/acceptance/example-spec.toml"' in (
+        ROOT / "docs" / "formats" / "spec.md").read_text()
+
+
+def test_verify_without_sessions_or_spec_is_a_usage_error(
+    capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["verify"]) == 2
+    assert "give SESSION... and --spec FILE" in capsys.readouterr().err
+    assert main(["verify", "some-session"]) == 2
+
+
+def test_every_example_limit_is_decided_on_simulated_sessions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["verify", "--example-spec"]) == 0
+    spec = tmp_path / "spec.toml"
+    spec.write_text(capsys.readouterr().out)
+    load_spec(spec)
+    small = tmp_path / "mtf.toml"  # the element the example limits
+    small.write_text(MTF_SMALL.read_text().replace('["G1E5", "G2E1"]', '["G2E2"]'))
+    mtf = run_sim("mtf", tmp_path / "s", small, sample="OBJ-1").session_path
+    cam = run_sim("characterise", tmp_path / "s", CAM_SMALL, sample="OBJ-1").session_path
+    status = main(["verify", str(mtf), str(cam), "--spec", str(spec), "--json", "--no-store"])
+    record = json.loads(capsys.readouterr().out)
+    assert status == {"pass": 0, "fail": 1, "indeterminate": 3}[record["verdict"]]
+    assert set(record["limits"]) == {"fwd-G2E2-S", "mtf50-centre", "system-gain",
+                                     "read-noise", "avg-70"}
+    for row in record["rows"]:  # every limit found a reading in the tables it names
+        assert row["reading"] is not None, (row["limit_id"], row["notes"])
+    assert {r["limit_id"] for r in record["rows"]} == set(record["limits"])
