@@ -5,7 +5,11 @@ import math
 
 from benchlab.drivers.errors import UsageError
 
-__all__ = ["UsageError", "non_negative_int", "positive_float", "positive_int"]
+__all__ = ["PROCEDURES", "UsageError", "non_negative_int", "positive_float", "positive_int"]
+
+#: The procedures ``run`` and the TUI offer: benchlab.protocols.params.PROCEDURES, written out
+#: so that building the parser imports no numpy (a test keeps the two equal).
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
 
 
 def _whole_number(text: str, minimum: int) -> int:

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from benchlab.cli import PROCEDURES
+
 
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add the ``tui`` sub-command."""
@@ -13,8 +15,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "tui",
         help="open the terminal UI (the default with no command)",
         description=(
-            "Open the technician's terminal UI: devices, live view, the Table 4.10 MTF and "
-            "radiometry procedures, and saved sessions."
+            "Open the technician's terminal UI: devices, live view (with a focus aid), the "
+            "procedures (Table 4.10 MTF, section 4.4 radiometry, camera characterisation, depth "
+            "of field), and saved sessions."
         ),
     )
     parser.add_argument("--simulate", action="store_true", help="use the simulated bench")
@@ -26,10 +29,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         help="folder of saved sessions (default: [paths] sessions of the user's bench.toml, "
         "else ./sessions)",
     )
-    parser.add_argument("--mtf-params", type=Path, default=None, help="MTF parameter file")
-    parser.add_argument(
-        "--radiometry-params", type=Path, default=None, help="radiometry parameter file"
-    )
+    for procedure in PROCEDURES:
+        parser.add_argument(f"--{procedure}-params", type=Path, default=None, metavar="FILE",
+                            help=f"{procedure} parameter file (default: the packaged one; the "
+                            "Run screen's key o changes it)")
     parser.add_argument("--operator", default="", help="operator name for session.json")
     parser.add_argument(
         "--image", choices=("auto", "kitty", "sixel", "halfblock"), default=None,
@@ -72,11 +75,8 @@ def run_tui(args: argparse.Namespace) -> int:
     image_protocol = choose_image_protocol(getattr(args, "image", None))
     from benchlab.tui.app import BenchlabApp
 
-    params = {
-        name: path
-        for name, path in (("mtf", args.mtf_params), ("radiometry", args.radiometry_params))
-        if path is not None
-    }
+    params = {name: path for name in PROCEDURES
+              if (path := getattr(args, f"{name}_params")) is not None}
     app = BenchlabApp(
         simulate=args.simulate,
         config=bench_file_in_force(args.config, simulate=args.simulate).value,

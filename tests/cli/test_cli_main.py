@@ -96,3 +96,20 @@ def test_every_help_text_reads_as_printed() -> None:
     bad = {path: [line for line in p.format_help().splitlines() if "%%" in line or "%(" in line]
            for path, p in parsers}
     assert {path: lines for path, lines in bad.items() if lines} == {}
+
+
+def test_the_command_line_offers_every_procedure() -> None:
+    """The parser's copy of the procedure names (kept free of numpy) is the protocols' list,
+    and the TUI launcher takes a parameter file for each."""
+    from benchlab.cli import PROCEDURES
+    from benchlab.cli.main import build_parser
+    from benchlab.protocols.params import PROCEDURES as DEFINED
+    from benchlab.tui.runner import PROCEDURES as OFFERED
+
+    assert PROCEDURES == DEFINED == OFFERED
+    parsers = dict(_all_parsers(build_parser()))
+    tui_help = parsers["benchlab tui"].format_help()
+    run_help = parsers["benchlab run"].format_help()
+    for name in DEFINED:
+        assert f"--{name}-params FILE" in tui_help
+        assert f"{name}:" in run_help  # what each procedure is

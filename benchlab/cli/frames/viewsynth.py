@@ -213,10 +213,8 @@ def _view_options(p: argparse.ArgumentParser) -> None:
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
     """Add ``unwrap``, ``perspective``, ``viewpoint``, ``calibrate radial`` and
     ``benchmark viewsynth``."""
-    fmt = argparse.RawDescriptionHelpFormatter
     p = commands.add_parser(
         "unwrap", help="unwrap the radial view (estimated orthographic view, thesis 5.2)",
-        formatter_class=fmt,
         description="Unwrap the radial annulus of a raw frame into the estimated orthographic "
         "view at an assumed object depth: columns are arc length around the axis, rows axial "
         "position (row 0 farthest), both at --px-per-mm. The output TIFF has the view, then a "
@@ -239,7 +237,6 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
 
     p = commands.add_parser(
         "perspective", help="perspective view through the effective viewpoint (thesis 5.1)",
-        formatter_class=fmt,
         description="Synthesize a pinhole view from the radial frame: the pinhole sits at the "
         "table's effective viewpoint on the axis, looks along azimuth --yaw-deg, tilted "
         "--pitch-deg towards the field (+z); rays meet the object cylinder at --depth-mm.\n\n"
@@ -274,7 +271,6 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     cal_sub = cal.add_subparsers(dest="calibration", metavar="WHAT", required=True)
     p = cal_sub.add_parser(
         "radial", help="ray-trace table from a tangential ring frame",
-        formatter_class=fmt,
         description="Fit axial position against image radius from a tangential ring target "
         "(bars around the cylinder) of known frequency at a known depth, write a one-depth "
         "ray-trace table that unwrap accepts at that depth, and report how far it is from the "

@@ -12,7 +12,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from benchlab.cli import positive_int
+from benchlab.cli import PROCEDURES, positive_int
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
@@ -479,7 +479,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
-    run.add_argument("procedure", choices=("mtf", "radiometry", "characterise", "depth"),
+    run.add_argument("procedure", choices=PROCEDURES,
                      help="mtf: the Table 4.10 MTF test; radiometry: section 4.4 relative "
                      "radiometry; characterise: EMVA 1288 photon transfer of the camera; depth: "
                      "MTF through focus on the stage (best focus, depth of field)")
