@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -113,3 +115,30 @@ def test_the_command_line_offers_every_procedure() -> None:
     for name in DEFINED:
         assert f"--{name}-params FILE" in tui_help
         assert f"{name}:" in run_help  # what each procedure is
+
+
+def test_tui_hands_every_procedure_s_parameter_file_to_the_app(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    seen: dict[str, Any] = {}
+
+    class App:  # the launcher's side of BenchlabApp, recording what it was given
+        close_error = stop_signal = None
+        return_code = 0
+
+        def __init__(self, **kwargs: Any) -> None:
+            seen.update(kwargs)
+
+        def run(self) -> None:
+            seen["ran"] = True
+
+        def stop_from_signal(self, signum: int) -> None:
+            raise AssertionError("no signal in this test")
+
+    monkeypatch.setattr("benchlab.tui.app.BenchlabApp", App)
+    args = ["tui", "--simulate", "--image", "halfblock", "--sessions", str(tmp_path)]
+    for name in ("mtf", "radiometry", "characterise", "depth"):
+        args += [f"--{name}-params", str(tmp_path / f"{name}.toml")]
+    assert main(args) == 0
+    assert seen["ran"] and seen["params_files"] == {
+        name: tmp_path / f"{name}.toml" for name in ("mtf", "radiometry", "characterise", "depth")}
