@@ -58,6 +58,8 @@ def read_verdict(session_path: str | Path, version: int | None = None) -> dict[s
     SessionError
         Naming the file when there is none, or it is not a verdict record.
     """
+    if not (Path(session_path) / "session.json").is_file():
+        raise SessionError(f"{session_path}: not a session folder (no session.json)")
     versions = verdict_versions(session_path)
     if not versions:
         raise SessionError(f"{session_path}: no verdict stored (run benchlab verify first)")

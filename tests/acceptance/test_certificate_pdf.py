@@ -116,3 +116,12 @@ def test_no_text_is_drawn_past_the_margins(tmp_path: Path) -> None:
     title = [t.text for t in texts if t.size_pt == 15.0]  # the long serial wraps the title
     assert len(title) > 2
     assert "".join(title).replace(" ", "") == "Acceptancecertificate-SN-" + "\u00b5" * 150
+
+
+def test_certificate_of_a_folder_that_is_no_session_names_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["certificate", str(tmp_path / "nowhere"), "--pdf"]) == 1
+    assert f"{tmp_path / 'nowhere'}: not a session folder (no session.json)" in (
+        capsys.readouterr().err)
+    assert not (tmp_path / "nowhere").exists()
