@@ -125,3 +125,11 @@ def test_certificate_of_a_folder_that_is_no_session_names_it(
     assert f"{tmp_path / 'nowhere'}: not a session folder (no session.json)" in (
         capsys.readouterr().err)
     assert not (tmp_path / "nowhere").exists()
+
+
+def test_a_record_with_no_rows_sessions_or_frames_still_prints(tmp_path: Path) -> None:
+    _, record = _verified(tmp_path)
+    empty = {**copy.deepcopy(record), "rows": [], "sessions": []}
+    (page,) = _text(certificate_pdf(empty, session_id="s1"))
+    assert "Unit verdict: FAIL" in page and "page 1 of 1" in page
+    assert "limit" in page and "sha256" in page  # the empty tables keep their headers
