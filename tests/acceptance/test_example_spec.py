@@ -35,6 +35,8 @@ def test_verify_without_sessions_or_spec_is_a_usage_error(
     assert main(["verify"]) == 2
     assert "give SESSION... and --spec FILE" in capsys.readouterr().err
     assert main(["verify", "some-session"]) == 2
+    assert main(["verify", "--example-spec", "--spec", "x.toml"]) == 2
+    assert "--example-spec prints the example and takes no SESSION" in capsys.readouterr().err
 
 
 def test_every_example_limit_is_decided_on_simulated_sessions(

@@ -82,6 +82,10 @@ def verify_command(args: argparse.Namespace) -> int:
     if args.example_spec:
         from importlib.resources import files
 
+        if args.sessions or args.spec is not None:
+            raise UsageError("verify: --example-spec prints the example and takes no SESSION "
+                             "or --spec")
+
         print(files("benchlab.acceptance").joinpath("example-spec.toml").read_text("utf-8"),
               end="")
         return 0
