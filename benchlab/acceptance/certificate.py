@@ -94,7 +94,20 @@ class CertificateContent:
 
 
 def certificate_content(record: Mapping[str, Any], session_id: str = "") -> CertificateContent:
-    """The text of the certificate of one stored verdict record."""
+    """The text of the certificate of one stored verdict record.
+
+    Parameters
+    ----------
+    record : mapping
+        A verdict record as stored by ``benchlab verify`` (``verdicts/v<N>.json``).
+    session_id : str
+        The session folder's name, printed with the record's version.
+
+    Returns
+    -------
+    CertificateContent
+        Every line of the certificate as text; numbers formatted, limits with their sign.
+    """
     unit, spec = record["unit"], record["spec"]
     serial = unit.get("serial") or "(no serial number)"
     identity = (

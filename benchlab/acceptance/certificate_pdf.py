@@ -254,7 +254,21 @@ def certificate_figures(record: Mapping[str, Any], session_id: str = "") -> list
 
 
 def certificate_pdf(record: Mapping[str, Any], session_id: str = "") -> bytes:
-    """The certificate of one stored verdict record as the bytes of an A4 PDF."""
+    """The certificate of one stored verdict record as the bytes of an A4 PDF.
+
+    Parameters
+    ----------
+    record : mapping
+        A verdict record as stored by ``benchlab verify`` (``verdicts/v<N>.json``).
+    session_id : str
+        The session folder's name, printed with the record's version.
+
+    Returns
+    -------
+    bytes
+        The PDF: text embedded (TrueType), no creation date, so the same record gives the same
+        bytes.
+    """
     from matplotlib.backends.backend_pdf import PdfPages
 
     title = certificate_content(record, session_id).title
