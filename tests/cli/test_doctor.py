@@ -37,6 +37,7 @@ def test_the_simulated_bench_passes_every_check(
     out = capsys.readouterr().out
     assert rc == 0, out
     assert "bring-up passed" in out and "FAIL" not in report
+    assert "plugged in by USB" not in out  # said only when the serial side fails
     for step in ("1 libusb", "3 camera enumerates", "4 exposure unit", "5 bit depths",
                  "6 LED controller", "7 LED on", "8 stage identity", "8 stage homing",
                  "8 stage scale"):
@@ -49,6 +50,8 @@ def test_the_simulated_bench_passes_every_check(
     ("camera-unit", "the camera's exposure unit is 2 x the profile's"),
     ("camera-no-12bit", "12-bit: bits 2 and 3 are never set"),
     ("stage-34304", 'this is Z8-34304 (34304), the bench file assumes 34555'),
+    ("led-usb-hid", "plugged in by USB (HID, which benchlab cannot drive): SLC-MA04-U serial "
+                    "04-251013-021 (usb 1-2, ffff:0001)"),
 ])
 def test_each_injected_fault_is_named(
     fault: str, named: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 # numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
 from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.drivers.slc.usb_hid import SYSFS_USB_DEVICES
 
 if TYPE_CHECKING:
     from benchlab.bench import BenchConfig
@@ -44,6 +45,8 @@ INJECTIONS = {
     "camera-unit": "the camera counts exposure in 0.1 ms, not 0.05 ms",
     "camera-no-12bit": "the camera has no 12-bit mode",
     "led-lf-cr": "the LED controller ends replies LF CR",
+    "led-usb-hid": "the LED controller is plugged in by USB only (HID); its serial port is "
+                   "silent",
     "stage-34304": "the actuator has 34304 counts/mm, the bench file assumes 34554.96",
 }
 EXPOSURE_MS = 100.0  # longer than a full-frame readout (27 ms): the period is the exposure
@@ -72,6 +75,7 @@ class Doctor:
     checks: list[Check] = field(default_factory=list)
     learned: dict[tuple[str, str], Any] = field(default_factory=dict)
     sims: dict[str, Any] = field(default_factory=dict)
+    usb_sysfs: Path = SYSFS_USB_DEVICES  # where USB devices are listed (Linux sysfs)
 
     def add(self, step: str, status: str, detail: str, todo: str = "") -> None:
         self.checks.append(Check(step, status, detail, todo))
@@ -119,6 +123,9 @@ class Doctor:
         slc = SimulatedSlc(reply_end=b"\n\r" if "led-lf-cr" in self.inject else b"\r\n")
         slc.start()
         stack.callback(slc.stop)
+        if "led-usb-hid" in self.inject:
+            slc.faults.no_reply = 1 << 30  # the configured port reaches no controller...
+            self.usb_sysfs = _usb_bus_with_an_slc(stack)  # ...which is on the USB bus
 
         def light(state: Any) -> Any:
             rate = SIM_LED_E_PER_MS_PER_MA * state.bench.get("led_ma", 0.0)
@@ -336,7 +343,7 @@ class Doctor:
             return None
         port = self.sims["led"].port if self.simulate else cfg.port
         if not port:
-            self.add(step, "FAIL", "no [led] port" + _ports_seen(),
+            self.add(step, "FAIL", "no [led] port" + _ports_seen() + self._usb_slcs_seen(),
                      "set [led] port (a path, or hwgrep://VID:PID or hwgrep://SERIAL). A "
                      "USB-only SLC (-U, a HID device) cannot be driven over serial: use its "
                      "RS232 port (-U/S, -X models)")
@@ -344,14 +351,25 @@ class Doctor:
         try:
             led = stack.enter_context(SlcController(port, ceilings_ma=cfg.ceilings_ma))
         except DeviceError as exc:
-            self.add(step, "FAIL", str(exc), "check the port, 9600 8N1, a straight (not null-"
-                     "modem) cable; a -U module is USB HID only and has no serial line")
+            self.add(step, "FAIL", str(exc) + self._usb_slcs_seen(),
+                     "check the port, 9600 8N1, a straight (not null-modem) cable; a -U "
+                     "module is USB HID only and has no serial line")
             return None
         info = led.device_info
         self.add(step, "ok", f"{info.module or '(module not reported)'} serial {info.serial}, "
                  f"firmware {info.driver_version}, {led.channel_count} channels, current step "
                  f"{led.current_step_ma(cfg.channel):g} mA")
         return led
+
+    def _usb_slcs_seen(self) -> str:
+        """The SLCs plugged in by USB (HID), which no serial port reaches; '' if none."""
+        from benchlab.drivers.slc.usb_hid import usb_slcs
+
+        found = usb_slcs(self.usb_sysfs)
+        if not found:
+            return ""
+        return ("; plugged in by USB (HID, which benchlab cannot drive): "
+                + ", ".join(d.describe() for d in found))
 
     def check_led(self, led: Any) -> None:
         step = "7 LED on at its lowest current, off"
@@ -437,6 +455,26 @@ class Doctor:
     def _physical_mm(self) -> float | None:
         sim = self.sims.get("stage")
         return float(sim.position_mm) if sim is not None else None
+
+
+def _usb_bus_with_an_slc(stack: contextlib.ExitStack) -> Path:
+    """A folder laid out like Linux's /sys/bus/usb/devices: a root hub, a USB-only SLC and its
+    HID interface (interfaces carry no product string)."""
+    import tempfile
+
+    root = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="benchlab-sysfs-")))
+    entries = {
+        "usb1": {"manufacturer": "Linux xhci-hcd", "product": "xHCI Host Controller",
+                 "idVendor": "1d6b", "idProduct": "0002"},
+        "1-2": {"manufacturer": "Mightex", "product": "SLC-MA04-U", "serial": "04-251013-021",
+                "idVendor": "ffff", "idProduct": "0001"},  # made-up ids: none is public
+        "1-2:1.0": {"bInterfaceClass": "03"},
+    }
+    for name, attributes in entries.items():
+        (root / name).mkdir()
+        for key, value in attributes.items():
+            (root / name / key).write_text(value + "\n")
+    return root
 
 
 def _ports_seen() -> str:
