@@ -49,16 +49,16 @@ def _hex(text: str) -> int:
         return 0
 
 
-def usb_slcs(sysfs: Path = SYSFS_USB_DEVICES) -> list[UsbSlc]:
+def usb_slcs(sysfs: Path | None = None) -> list[UsbSlc]:
     """Every Mightex SLC on the USB bus, in sysfs order; none where there is no sysfs.
 
     Parameters
     ----------
-    sysfs : Path
-        The folder of USB devices (``/sys/bus/usb/devices``; a test gives its own).
+    sysfs : Path, optional
+        The folder of USB devices (default :data:`SYSFS_USB_DEVICES`; a test gives its own).
     """
     try:
-        devices = sorted(sysfs.iterdir())
+        devices = sorted((sysfs or SYSFS_USB_DEVICES).iterdir())
     except OSError:
         return []
     found = []

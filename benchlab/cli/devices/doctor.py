@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING, Any
 
 # numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
 from benchlab.drivers.errors import BenchlabError, DeviceError
-from benchlab.drivers.slc.usb_hid import SYSFS_USB_DEVICES
 
 if TYPE_CHECKING:
     from benchlab.bench import BenchConfig
@@ -75,7 +74,7 @@ class Doctor:
     checks: list[Check] = field(default_factory=list)
     learned: dict[tuple[str, str], Any] = field(default_factory=dict)
     sims: dict[str, Any] = field(default_factory=dict)
-    usb_sysfs: Path = SYSFS_USB_DEVICES  # where USB devices are listed (Linux sysfs)
+    usb_sysfs: Path | None = None  # where USB devices are listed (default: Linux sysfs)
 
     def add(self, step: str, status: str, detail: str, todo: str = "") -> None:
         self.checks.append(Check(step, status, detail, todo))

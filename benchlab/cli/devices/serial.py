@@ -149,7 +149,8 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
     ``simulate=True`` starts both simulators on pseudo-terminals and identifies them through
     the real drivers (the ports are gone once this returns). On hardware, APT cubes are found
     by USB id and asked for HW_GET_INFO only; other USB-serial ports are listed as
-    ``kind="serial"`` without probing, since writing to an unknown instrument is unsafe.
+    ``kind="serial"`` without probing, since writing to an unknown instrument is unsafe. An SLC
+    plugged in by USB (HID) is listed with the reason benchlab cannot drive it.
     """
     from benchlab.drivers.apt.stage import query_info
     if simulate:
@@ -171,6 +172,11 @@ def list_serial_devices(simulate: bool) -> list[dict[str, Any]]:
             except DeviceError:
                 entry["kind"] = "stage"
         out.append(entry)
+    from benchlab.drivers.slc.usb_hid import usb_slcs
+
+    out += [{"kind": "led", "model": d.product, "serial": d.serial, "firmware": "",
+             "port": f"usb {d.where} {d.vendor_id:04x}:{d.product_id:04x}",
+             "error": "USB HID: benchlab drives the SLC over RS232 only"} for d in usb_slcs()]
     return out
 
 
