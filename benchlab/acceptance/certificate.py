@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from benchlab.acceptance.spec import describe_limit
 from benchlab.report.html import esc, local_time
 
 SHA_KEY = "Spec file sha256"
@@ -54,10 +55,8 @@ def _num(value: Any) -> str:
 
 
 def _limit(row: Mapping[str, Any]) -> str:
-    lo, hi = row.get("min"), row.get("max")
-    text = (f"{lo:g} .. {hi:g}" if lo is not None and hi is not None
-            else f"\u2265 {lo:g}" if lo is not None else f"\u2264 {hi:g}")
-    return f"{text} {row.get('unit') or ''}".strip()
+    return describe_limit(row.get("min"), row.get("max"), row.get("unit") or "",
+                          signs=("\u2265", "\u2264"))
 
 
 @dataclass(frozen=True)

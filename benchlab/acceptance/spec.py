@@ -80,13 +80,21 @@ class Limit:
     decision_rule: str | None = None
 
     def describe(self) -> str:
-        """``0.5 <= value``, ``value <= 3``, ``0.5 <= value <= 3`` (with the unit)."""
-        unit = f" {self.unit}" if self.unit else ""
-        if self.min is not None and self.max is not None:
-            return f"{self.min:g} .. {self.max:g}{unit}"
-        if self.min is not None:
-            return f">= {self.min:g}{unit}"
-        return f"<= {self.max:g}{unit}"
+        """``>= 0.5``, ``<= 3``, ``0.5 .. 3`` (with the unit)."""
+        return describe_limit(self.min, self.max, self.unit)
+
+
+def describe_limit(low: float | None, high: float | None, unit: str = "", *,
+                   signs: tuple[str, str] = (">=", "<=")) -> str:
+    """A limit as text: ``>= 0.5``, ``<= 3``, ``0.5 .. 3``, with the unit; ``signs`` are the
+    at-least and at-most signs (the certificate prints the mathematical ones)."""
+    if low is not None and high is not None:
+        text = f"{low:g} .. {high:g}"
+    elif low is not None:
+        text = f"{signs[0]} {low:g}"
+    else:
+        text = f"{signs[1]} {high:g}"
+    return f"{text} {unit}".rstrip()
 
 
 @dataclass(frozen=True)

@@ -58,3 +58,23 @@ def test_every_example_limit_is_decided_on_simulated_sessions(
     for row in record["rows"]:  # every limit found a reading in the tables it names
         assert row["reading"] is not None, (row["limit_id"], row["notes"])
     assert {r["limit_id"] for r in record["rows"]} == set(record["limits"])
+
+
+def test_spec_alone_is_checked_and_listed(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", "--example-spec"]) == 0
+    spec = tmp_path / "spec.toml"
+    spec.write_text(capsys.readouterr().out)
+    assert main(["verify", "--spec", str(spec)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == (f"{spec}: dual-view objective rev B, rule guarded, coverage 95%, "
+                        "5 limit(s)")
+    assert lines[2] == ("  mtf50-centre: table_sfr_edges.mtf50_lp_per_mm [edge=E0L|E0R] "
+                        ">= 90 lp/mm (guarded)")
+    assert lines[4] == ("  read-noise: characterisation.read_noise_e [gain=1.0 bits=12] "
+                        "<= 10 e- (simple)")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(spec.read_text().replace('decision_rule = "guarded"',
+                                            'decision_rule = "strict"'))
+    assert main(["verify", "--spec", str(bad)]) == 2
+    assert "field 'decision_rule': must be one of guarded, simple" in capsys.readouterr().err

@@ -41,10 +41,9 @@ def _fmt(value: Any) -> str:
 
 
 def _limit_text(row: dict[str, Any]) -> str:
-    lo, hi, unit = row.get("min"), row.get("max"), row.get("unit") or ""
-    text = (f"{lo:g} .. {hi:g}" if lo is not None and hi is not None
-            else f">= {lo:g}" if lo is not None else f"<= {hi:g}")
-    return f"{text} {unit}".strip()
+    from benchlab.acceptance.spec import describe_limit
+
+    return describe_limit(row.get("min"), row.get("max"), row.get("unit") or "")
 
 
 def verdict_table(rows: Sequence[dict[str, Any]]) -> str:
@@ -73,6 +72,19 @@ def worst_status(verdicts: Sequence[str]) -> int:
     return EXIT_STATUS[combine(verdicts)]
 
 
+def spec_summary(spec: Spec) -> str:
+    """What a checked spec file holds: its header line, then one line per limit."""
+    lines = [f"{spec.path}: {spec.name}" + (f" rev {spec.revision}" if spec.revision else "")
+             + f", rule {spec.decision_rule}, coverage {spec.coverage:.0%}, "
+             f"{len(spec.limits)} limit(s)"]
+    for lim in spec.limits:
+        where = " ".join(f"{k}={'|'.join(map(str, v))}" for k, v in lim.where.items())
+        rule = lim.decision_rule or spec.decision_rule
+        lines.append(f"  {lim.id}: {lim.table}.{lim.column}" + (f" [{where}]" if where else "")
+                     + f" {lim.describe()} ({rule})")
+    return "\n".join(lines)
+
+
 def verify_command(args: argparse.Namespace) -> int:
     from benchlab import __version__
     from benchlab.acceptance.store import record_of, store_verdict
@@ -85,14 +97,16 @@ def verify_command(args: argparse.Namespace) -> int:
         if args.sessions or args.spec is not None:
             raise UsageError("verify: --example-spec prints the example and takes no SESSION "
                              "or --spec")
-
         print(files("benchlab.acceptance").joinpath("example-spec.toml").read_text("utf-8"),
               end="")
         return 0
-    if not args.sessions or args.spec is None:
-        raise UsageError("verify: give SESSION... and --spec FILE "
-                         "(--example-spec prints a spec to start from)")
+    if args.spec is None:
+        raise UsageError("verify: give SESSION... and --spec FILE, or --spec FILE alone to check "
+                         "the file (--example-spec prints a spec to start from)")
     spec = _load_spec(args.spec)  # every problem of the spec before any session is read
+    if not args.sessions:
+        print(spec_summary(spec))
+        return 0
     sessions = check_sessions(args.sessions)
     units: list[UnitResult] = [verify_unit(group, spec) for group in group_units(sessions)]
     records = []
@@ -289,7 +303,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "version) and in the catalogue. Exit status: 0 pass, 1 fail, 3 indeterminate "
         "(the worst unit), 2 usage error (a malformed spec).")
     v.add_argument("sessions", nargs="*", metavar="SESSION", help="session folder(s)")
-    v.add_argument("--spec", metavar="FILE", help="spec file (TOML)")
+    v.add_argument("--spec", metavar="FILE",
+                   help="spec file (TOML); without SESSION the file is only checked and listed")
     v.add_argument("--example-spec", action="store_true",
                    help="print a commented example spec file (an MTF and a characterisation "
                    "limit of each kind) and exit: benchlab verify --example-spec > spec.toml")
