@@ -306,8 +306,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     v.add_argument("--spec", metavar="FILE",
                    help="spec file (TOML); without SESSION the file is only checked and listed")
     v.add_argument("--example-spec", action="store_true",
-                   help="print a commented example spec file (an MTF and a characterisation "
-                   "limit of each kind) and exit: benchlab verify --example-spec > spec.toml")
+                   help="print a commented example spec file (bar, slanted-edge and camera limits; "
+                   "both decision rules) and exit: benchlab verify --example-spec > spec.toml")
     v.add_argument("--json", action="store_true", help="print the verdict record(s) as JSON")
     v.add_argument("--no-store", action="store_true",
                    help="decide only; store nothing in the sessions or the catalogue")
