@@ -254,14 +254,8 @@ def certificate_figures(record: Mapping[str, Any], session_id: str = "") -> list
 
 
 def certificate_pdf(record: Mapping[str, Any], session_id: str = "") -> bytes:
-    """The certificate of one stored verdict record as the bytes of an A4 PDF.
-
-    Parameters
-    ----------
-    record : mapping
-        A verdict record as stored by ``benchlab verify`` (``verdicts/v<N>.json``).
-    session_id : str
-        The session folder's name, printed with the record's version.
+    """The certificate of one stored verdict record as the bytes of an A4 PDF; ``record`` and
+    ``session_id`` as for :func:`~benchlab.acceptance.certificate.certificate_content`.
 
     Returns
     -------
