@@ -82,6 +82,7 @@ class CertificateContent:
 
     title: str
     verdict: str
+    record_name: str  # the session and verdict file the certificate was rendered from
     identity: tuple[tuple[str, str], ...]
     coverage: float
     rule: str
@@ -109,13 +110,14 @@ def certificate_content(record: Mapping[str, Any], session_id: str = "") -> Cert
     """
     unit, spec = record["unit"], record["spec"]
     serial = unit.get("serial") or "(no serial number)"
+    record_name = f"{session_id} verdicts/v{record.get('version', '?')}.json"
     identity = (
         ("Unit (serial number)", serial), ("Lot", unit.get("lot") or "-"),
         ("Specification", spec["name"]), ("Revision", spec.get("revision") or "-"),
         ("Spec file", spec.get("file", "")), (SHA_KEY, spec.get("sha256", "")),
         ("Spec format", f"{spec.get('format', '')} v{spec.get('format_version', '')}"),
         ("Decision rule", _rule_text(spec)),
-        ("Verdict record", f"{session_id} verdicts/v{record.get('version', '?')}.json"),
+        ("Verdict record", record_name),
         ("Decided", local_time(record.get("created_at"))),
         ("Software", f"benchlab {record.get('software_version', '')}"))
     limits = []
@@ -139,8 +141,8 @@ def certificate_content(record: Mapping[str, Any], session_id: str = "") -> Cert
                    for name, digest in sorted((s.get("frames_sha256") or {}).items())]
     return CertificateContent(
         title=f"Acceptance certificate - {serial}", verdict=str(record["verdict"]),
-        identity=identity, coverage=float(spec.get("coverage", 0.95)), rule=_rule_text(spec),
-        limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames))
+        record_name=record_name, identity=identity, coverage=float(spec.get("coverage", 0.95)),
+        rule=_rule_text(spec), limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames))
 
 
 def _badge(verdict: str, css: str = "verdict") -> str:

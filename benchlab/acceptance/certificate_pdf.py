@@ -87,7 +87,10 @@ class _Pages:
              bold: bool = False, mono: bool = False, gap_after_in: float = 0.0) -> None:
         """One line of text; a line too long for the text width goes on as many as it needs."""
         height = size_pt * LINE_EM / 72
-        for part in _wrap_to_width(text, size_pt, bold, mono):
+        exact = mono and size_pt == BODY_PT  # the table font: its width is COLUMNS characters
+        parts = (textwrap.wrap(text, COLUMNS) or [""]) if exact else _wrap_to_width(
+            text, size_pt, bold, mono)
+        for part in parts:
             if not self.fits(height):
                 self.new_page()
             self.add(_Text(MARGIN_IN, self.y_in, part, size_pt, colour, bold, mono))
@@ -95,8 +98,7 @@ class _Pages:
         self.y_in += gap_after_in
 
     def paragraph(self, text: str, *, colour: str = GREY) -> None:
-        for part in textwrap.wrap(text, COLUMNS) or [""]:
-            self.line(part, colour=colour, mono=True)
+        self.line(text, colour=colour, mono=True)
 
     def heading(self, text: str) -> None:
         if not self.fits(0.2 + 4 * LINE_IN):  # a heading is not left alone at a page's foot
@@ -230,10 +232,12 @@ def _layout(c: CertificateContent) -> list[list[_Text | _Rule]]:
 
 def certificate_figures(record: Mapping[str, Any], session_id: str = "") -> list[Figure]:
     """The certificate's pages as matplotlib figures (A4 portrait)."""
-    content = certificate_content(record, session_id)
+    return _figures(certificate_content(record, session_id))
+
+
+def _figures(content: CertificateContent) -> list[Figure]:
     pages = _layout(content)
-    record_name = dict(content.identity)["Verdict record"]
-    footer = f"{content.title} - unit verdict {content.verdict} - {record_name}"
+    footer = f"{content.title} - unit verdict {content.verdict} - {content.record_name}"
     w, h = PAGE_IN
     figures = []
     for number, items in enumerate(pages, 1):
@@ -265,13 +269,12 @@ def certificate_pdf(record: Mapping[str, Any], session_id: str = "") -> bytes:
     """
     from matplotlib.backends.backend_pdf import PdfPages
 
-    title = certificate_content(record, session_id).title
-    verdict = str(record["verdict"])
-    metadata = {"Title": title, "Subject": f"unit verdict: {verdict}",
+    content = certificate_content(record, session_id)
+    metadata = {"Title": content.title, "Subject": f"unit verdict: {content.verdict}",
                 "Creator": f"benchlab {record.get('software_version', '')}",
                 "CreationDate": None}
     buffer = io.BytesIO()
     with matplotlib.rc_context(_RC), PdfPages(buffer, metadata=metadata) as pdf:
-        for fig in certificate_figures(record, session_id):
+        for fig in _figures(content):
             pdf.savefig(fig)
     return buffer.getvalue()

@@ -32,7 +32,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     for procedure in PROCEDURES:
         parser.add_argument(f"--{procedure}-params", type=Path, default=None, metavar="FILE",
                             help=f"{procedure} parameter file (default: the packaged one; the "
-                            "Run screen's key o changes it)")
+                            "Run screen's key f changes it)")
     parser.add_argument("--operator", default="", help="operator name for session.json")
     parser.add_argument(
         "--image", choices=("auto", "kitty", "sixel", "halfblock"), default=None,
