@@ -48,6 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.journal import JournalError, JournalReader, file_identity
 from benchlab.storage import (
     FrameFileError,
     atomic_write_json,
@@ -207,11 +208,6 @@ def check_sessions_root(root: str | os.PathLike[str]) -> Path:
     return folder
 
 
-def _file_identity(st: os.stat_result) -> tuple[int, ...]:
-    """What changes when a file is replaced or written: device, inode, size, mtime, ctime."""
-    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
-
-
 def _now_iso() -> str:
     return datetime.now(UTC).isoformat(timespec="microseconds")
 
@@ -266,13 +262,17 @@ class Session:
         self.path = Path(path)
         self._meta = meta
         self._lock = threading.Lock()
-        #: Parsed journal and the file identity it was read from (size, mtime, inode).
-        self._events_cache: tuple[tuple[int, ...], list[dict[str, Any]]] | None = None
-        #: :meth:`_frame_records` of that journal (same identity).
-        self._records_cache: tuple[tuple[int, ...], dict[str, dict[str, Any]]] | None = None
-        #: :meth:`rejected_frames` of that journal and the frames retakes made current (same
-        #: identity).
-        self._rejected_cache: tuple[tuple[int, ...], dict[str, str], frozenset[str]] | None = None
+        #: The journal, parsed as it grows (only appended bytes are read again).
+        self._journal_reader = JournalReader(self.path / EVENTS_FILE)
+        #: Guards the reader and the indexes below (frames are loaded from several threads).
+        self._journal_lock = threading.RLock()
+        #: :meth:`_frame_records` and the same records by step, built from the journal's
+        #: events as they arrive: ``(reader generation, events seen, records, by step)``.
+        self._records_index: tuple[int, int, dict[str, dict[str, Any]],
+                                   dict[str, list[dict[str, Any]]]] | None = None
+        #: :meth:`rejected_frames` and the frames retakes made current, likewise:
+        #: ``(reader generation, events seen, rejected file -> reason, adopted files)``.
+        self._set_aside_index: tuple[int, int, dict[str, str], set[str]] | None = None
         #: The retake this object is running (:meth:`begin_retake`): its id and steps.
         self._retake: tuple[str, frozenset[str]] | None = None
         self._owner_fd: int | None = None
@@ -580,43 +580,17 @@ class Session:
         """
         return [dict(e) for e in self._journal()[1]]
 
-    def _journal(self) -> tuple[tuple[int, ...] | None, list[dict[str, Any]]]:
-        """``(file identity, events)``: the parsed journal, shared with the cache (callers
-        only read it); the identity is None when the file grew while it was read."""
-        try:
-            st = self.events_path.stat()
-            key = _file_identity(st)  # as for frames: any write changes the ctime
-            if self._events_cache is not None and self._events_cache[0] == key:
-                return self._events_cache  # unchanged: no re-parse
-            raw = self.events_path.read_bytes()
-        except FileNotFoundError as exc:
-            raise SessionError(f"{self.events_path}: journal missing") from exc
-        lines = raw.split(b"\n")
-        out: list[dict[str, Any]] = []
-        pending_bad: int | None = None
-        for i, chunk in enumerate(lines):
-            if not chunk.strip():
-                continue
+    def _journal(self) -> tuple[tuple[int, int], list[dict[str, Any]]]:
+        """``(key, events)``: the parsed journal, shared with the reader (callers only read
+        it); ``key`` (reader generation, event count) changes whenever the events do."""
+        with self._journal_lock:
             try:
-                rec = json.loads(chunk.decode("utf-8"))
-                if not isinstance(rec, dict) or "kind" not in rec:
-                    raise ValueError("not an event object")
-            except ValueError:
-                if pending_bad is not None:
-                    break
-                pending_bad = i + 1
-                continue
-            if pending_bad is not None:
-                if rec.get("kind") != "journal_repaired":
-                    break
-                pending_bad = None
-            out.append(rec)
-        else:
-            if len(raw) == st.st_size:  # the file did not grow while it was read
-                self._events_cache = (key, out)
-                return self._events_cache
-            return None, out  # at most a torn final line was skipped
-        raise SessionError(f"{self.events_path}: line {pending_bad} is corrupt")
+                _, events = self._journal_reader.read()
+            except FileNotFoundError as exc:
+                raise SessionError(f"{self.events_path}: journal missing") from exc
+            except JournalError as exc:
+                raise SessionError(str(exc)) from None
+            return (self._journal_reader.generation, len(events)), events
 
     # ------------------------------------------------------------------ frames
     def frame_path(self, step_id: str, name: str, take: int = 1) -> Path:
@@ -641,9 +615,10 @@ class Session:
             raise FrameExistsError(f"{self.frame_path(step_id, name)}: frame already saved; "
                                    "frames are never overwritten")
         take = 1  # the first file name no frame (rejected or not) has used
+        records = self._indexed_records()[0]
         while (self.frame_path(step_id, name, take).exists()
                or self.frame_path(step_id, name, take).relative_to(self.path).as_posix()
-               in self._frame_records()):
+               in records):
             take += 1
         path = self.frame_path(step_id, name, take)
         meta = {**_plain(metadata), "step_id": step_id, "frame_name": name}
@@ -673,19 +648,28 @@ class Session:
     def _frame_records(self) -> dict[str, dict[str, Any]]:
         """``relative file -> frame_saved event`` (first record wins: it is the original hash).
 
-        Kept while the journal file is unchanged: a re-analysis asks for it once per frame
-        load, from several threads (the events are shared: read them, never change them)."""
-        key, events = self._journal()
-        cached = self._records_cache
-        if key is not None and cached is not None and cached[0] == key:
-            return dict(cached[1])
-        recs: dict[str, dict[str, Any]] = {}
-        for ev in events:
-            if ev.get("kind") == "frame_saved" and "file" in ev:
-                recs.setdefault(str(ev["file"]), ev)
-        if key is not None:
-            self._records_cache = (key, recs)
-        return dict(recs)
+        A copy: the events in it are shared with the journal (read them, never change them)."""
+        return dict(self._indexed_records()[0])
+
+    def _indexed_records(self) -> tuple[dict[str, dict[str, Any]],
+                                        dict[str, list[dict[str, Any]]]]:
+        """``(relative file -> frame_saved event, step id -> its events)``, shared (read
+        only). Brought up to date with the events appended since the last call, so saving a
+        frame costs the same whatever the number of frames before it."""
+        with self._journal_lock:
+            (generation, count), events = self._journal()
+            index = self._records_index
+            if index is None or index[0] != generation:
+                index = (generation, 0, {}, {})
+            _, seen, recs, by_step = index
+            for ev in events[seen:count]:
+                if ev.get("kind") == "frame_saved" and "file" in ev:
+                    file = str(ev["file"])
+                    if file not in recs:
+                        recs[file] = ev
+                        by_step.setdefault(str(ev.get("step_id")), []).append(ev)
+            self._records_index = (generation, count, recs, by_step)
+            return recs, by_step
 
     def _recover_orphan_frames(self) -> None:
         known = self._frame_records()
@@ -713,14 +697,15 @@ class Session:
         A frame taken by a retake (:meth:`begin_retake`) is current once the retake is adopted
         (:meth:`adopt_retake`); until then only the process running the retake sees it, in
         place of the step's previous take - an interrupted retake leaves that take current."""
-        rejected = self._rejected()
-        adopted = self._adopted()
+        rejected, adopted = self._set_aside()
         active = self._retake if self._retake is not None and step_id in self._retake[1] \
             else None
         out: dict[str, Path] = {}
-        for ev in self._frame_records().values():
+        with self._journal_lock:
+            step_events = list(self._indexed_records()[1].get(step_id, ()))
+        for ev in step_events:
             file = str(ev["file"])
-            if ev.get("step_id") != step_id or file in rejected:
+            if file in rejected:
                 continue
             tag = ev.get("retake")
             if (tag != active[0]) if active is not None else (tag is not None
@@ -743,21 +728,21 @@ class Session:
 
     def _set_aside(self) -> tuple[dict[str, str], frozenset[str]]:
         """``(rejected file -> reason, adopted files)``: a retake's adoption rejects the takes
-        it supersedes and adopts its own in one journal line."""
-        key, events = self._journal()
-        cached = self._rejected_cache
-        if key is not None and cached is not None and cached[0] == key:
-            return cached[1], cached[2]
-        found: dict[str, str] = {}
-        adopted: set[str] = set()
-        for ev in events:
-            if ev.get("kind") in ("frames_rejected", RETAKE_ADOPTED):
-                for f in ev.get("files") or ():
-                    found[str(f)] = str(ev.get("reason", ""))
-                adopted.update(str(f) for f in ev.get("adopted") or ())
-        if key is not None:
-            self._rejected_cache = (key, found, frozenset(adopted))
-        return found, frozenset(adopted)
+        it supersedes and adopts its own in one journal line. Kept up to date with the
+        events appended since the last call, like :meth:`_indexed_records`."""
+        with self._journal_lock:
+            (generation, count), events = self._journal()
+            index = self._set_aside_index
+            if index is None or index[0] != generation:
+                index = (generation, 0, {}, set())
+            _, seen, found, adopted = index
+            for ev in events[seen:count]:
+                if ev.get("kind") in ("frames_rejected", RETAKE_ADOPTED):
+                    for f in ev.get("files") or ():
+                        found[str(f)] = str(ev.get("reason", ""))
+                    adopted.update(str(f) for f in ev.get("adopted") or ())
+            self._set_aside_index = (generation, count, found, adopted)
+            return dict(found), frozenset(adopted)
 
     def reject_frames(self, step_id: str, names: Collection[str], reason: str) -> list[str]:
         """Set aside a step's current frames ``names`` (their content cannot be used, e.g. no
@@ -984,7 +969,7 @@ class Session:
         try:
             with open(path, "rb") as fh:
                 # identity before reading: a write after it changes the ctime seen later
-                identity = _file_identity(os.fstat(fh.fileno()))
+                identity = file_identity(os.fstat(fh.fileno()))
                 data = fh.read()  # read once: the bytes hashed are the bytes decoded
         except FileNotFoundError:
             raise SessionError(f"{path}: recorded frame is missing") from None
@@ -1050,7 +1035,7 @@ class Session:
                 bad.append(rel)
                 continue
             expected = str(ev["sha256"])
-            identity = _file_identity(st)
+            identity = file_identity(st)
             if not stat.S_ISREG(st.st_mode):
                 bad.append(rel)
             elif self._verified.get(rel) == (identity, expected):

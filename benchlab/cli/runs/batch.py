@@ -122,8 +122,19 @@ def benchmark_batch_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def benchmark_journal_command(args: argparse.Namespace) -> int:
+    """``benchlab benchmark journal``: time per saved frame as one session grows."""
+    from benchlab.benchmarks.journal import format_journal_benchmark, run_journal_benchmark
+
+    if args.frames < args.block:
+        raise UsageError(f"--frames {args.frames} is less than one block (--block {args.block})")
+    print(format_journal_benchmark(run_journal_benchmark(args.frames, block=args.block)))
+    return 0
+
+
 def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubParsersAction) -> None:
-    """Add ``benchmark batch`` (the batch options of ``analyze`` are added with it)."""
+    """Add ``benchmark batch`` and ``benchmark journal`` (the batch options of ``analyze`` are
+    added with them)."""
     b = benchmarks.add_parser(
         "batch", help="batch re-analysis of many sessions: time, per-session cost, memory",
         description="Fabricate N sessions by copying one real simulated MTF run (or --source), "
@@ -142,3 +153,14 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     b.add_argument("--fsync-repeats", type=positive_int, default=20, metavar="N",
                    help="re-analyses per fsync policy for the comparison (0: skip)")
     b.set_defaults(func=benchmark_batch_command)
+
+    j = benchmarks.add_parser(
+        "journal", help="time per saved frame as one session grows to 10,000 frames",
+        description="Save small simulated frames into one new session (in a temporary folder) "
+        "as a procedure does, four per step, and print the time per frame for each block. The "
+        "session's bookkeeping is linear in its frames when the last block costs what the first "
+        "does. The default (10,000 frames) takes about 40 s on one core.",
+    )
+    j.add_argument("--frames", type=positive_int, default=10_000, help="frames to save (10000)")
+    j.add_argument("--block", type=positive_int, default=1000, help="frames per timed block (1000)")
+    j.set_defaults(func=benchmark_journal_command)

@@ -53,7 +53,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "radial-astigmatic, radial-curved) and compare best focus and the DOF ends with the "
         "scene's closed-form truth: error, 95 % interval coverage, pass rate (within 0.3 mm, "
         "radial 0.1 mm, or covered); the astigmatic difference's sign; then the wall time and "
-        "frames of a default run against a one-frame baseline. About 10 s per run.",
+        "frames of a default run against a one-frame baseline. Each run is a whole simulated "
+        "sweep: about 33 s of CPU (`time benchlab run depth --simulate --yes` on a 2-core "
+        "machine, December 2026), so --quick (3 seeds x 7 variants) takes 15-20 minutes.",
     )
     bd.add_argument("--seeds", type=positive_int, default=20, help="seeds per variant (20)")
     bd.add_argument("--variants", help="comma-separated subset of the variants")
