@@ -52,6 +52,12 @@ def _block(header: Sequence[str], body: Sequence[Sequence[str]], right: bool) ->
     return [line(header), *(line(r) for r in body)]
 
 
+def one_line_table(header: Sequence[str], body: Sequence[Sequence[str]], *,
+                   right: bool = True) -> str:
+    """Every row on one line, however wide (``--wide``; files and tests that read rows)."""
+    return "\n".join(_block(header, body, right))
+
+
 def _lead(cells: Sequence[Sequence[str]], n_columns: int) -> int:
     """How many leading columns name a row: the fewest (up to :data:`MAX_LEAD`) whose values
     tell the rows apart (``gain`` and ``bits`` for a characterisation)."""

@@ -61,16 +61,17 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], *, wide: bool = False,
+def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], *, wide: bool = True,
            headers: dict[str, str] | None = None) -> str:
-    """Left-aligned columns folded to the terminal's width (blocks of columns, each led by
-    the first; ``--json`` / ``--csv`` keep every column on one row); ``wide``: one line per
-    row, however long."""
-    from benchlab.report.text_table import fit_table
+    """Left-aligned columns, one line per row (``wide``), or folded to the terminal's width
+    (blocks of columns, each led by the row's name)."""
+    from benchlab.report.text_table import fit_table, one_line_table
 
     cells = [[_cell(r.get(c)) for c in columns] for r in rows]
     names = [(headers or {}).get(c, c) for c in columns]
-    return fit_table(names, cells, right=False, width=10**6 if wide else None)
+    if wide:
+        return one_line_table(names, cells, right=False)
+    return fit_table(names, cells, right=False)
 
 
 def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: str) -> None:
