@@ -55,17 +55,25 @@ def extended_mtf(curve: SimulatedCurve) -> tuple[Callable[[Any], Any], bool]:
     the MTF at 3f, 5f, ...; a curve that ends while the response is still clearly above 0 (a
     Zemax export cut at Nyquist) is continued with a Gaussian, ``ln MTF = c - a f^2``,
     fitted to the last third of its last lobe."""
+    mtf_at, extrapolated, _ = _extended(curve)
+    return mtf_at, extrapolated
+
+
+def _extended(curve: SimulatedCurve) -> tuple[Callable[[Any], Any], bool, float]:
+    """:func:`extended_mtf` and the frequency past which its response is below
+    :data:`SERIES_MTF_FLOOR` (the curve's end when not extrapolated)."""
     f = np.asarray(curve.freqs_lp_per_mm, dtype=np.float64)
     m = signed_mtf(f, np.asarray(curve.mtf, dtype=np.float64))
+    plain = (lambda x: np.interp(x, f, m, right=0.0)), False, float(f[-1])
     if abs(m[-1]) <= TAIL_VANISHED or f.size < 3:
-        return (lambda x: np.interp(x, f, m, right=0.0)), False
+        return plain
     zeros = np.flatnonzero(m == 0.0)
     lobe = slice(int(zeros[-1]) + 1 if zeros.size else 0, None)
     fl, ml = f[lobe], np.abs(m[lobe])
     tail = slice(2 * fl.size // 3, None)
     ok = ml[tail] > 0
     if fl.size < 3 or ok.sum() < 2:
-        return (lambda x: np.interp(x, f, m, right=0.0)), False
+        return plain
     slope, _ = np.polyfit(fl[tail][ok] ** 2, np.log(ml[tail][ok]), 1)
     a = max(-float(slope), 1e-12)
     c = math.log(abs(float(m[-1]))) + a * float(f[-1]) ** 2  # continuous at the last point
@@ -75,18 +83,17 @@ def extended_mtf(curve: SimulatedCurve) -> tuple[Callable[[Any], Any], bool]:
         xa = np.asarray(x, dtype=np.float64)
         return np.where(xa <= f[-1], np.interp(xa, f, m), sign * np.exp(c - a * xa**2))
 
-    mtf_at.support_lp_per_mm = math.sqrt(max(c - math.log(SERIES_MTF_FLOOR), 0.0) / a)  # type: ignore[attr-defined]
-    return mtf_at, True
+    support = math.sqrt(max(c - math.log(SERIES_MTF_FLOOR), 0.0) / a)
+    return mtf_at, True, max(support, float(f[-1]))
 
 
-def _harmonics_needed(mtf_at: Callable[[Any], Any], curve: SimulatedCurve,
-                      freqs_lp_per_mm: np.ndarray) -> int:
-    """The odd harmonic past which every term of the series at the lowest frequency is ~0."""
-    support = float(getattr(mtf_at, "support_lp_per_mm", curve.freqs_lp_per_mm[-1]))
-    f_low = float(np.min(freqs_lp_per_mm[freqs_lp_per_mm > 0], initial=np.inf))
-    if not math.isfinite(f_low):
+def _harmonics_needed(support_lp_per_mm: float, freqs_lp_per_mm: np.ndarray) -> int:
+    """The odd harmonic past which every term of the series at the lowest frequency lies
+    beyond the response (at most :data:`MAX_HARMONIC`)."""
+    positive = freqs_lp_per_mm[freqs_lp_per_mm > 0]
+    if positive.size == 0:
         return 1
-    k = min(MAX_HARMONIC, math.ceil(support / f_low) + 2)
+    k = min(MAX_HARMONIC, math.ceil(support_lp_per_mm / float(positive.min())) + 2)
     return k if k % 2 else k + 1
 
 
@@ -99,8 +106,8 @@ def simulated_ctf(curve: SimulatedCurve, freqs_lp_per_mm: np.ndarray) -> np.ndar
     sampled every 2 lp/mm, come to at most 1.002 (the export's own rounding), held at 1. A
     contrast reversal (negative CTF) is drawn as 0."""
     grid = np.asarray(freqs_lp_per_mm, dtype=np.float64)
-    mtf_at, _ = extended_mtf(curve)
-    k = _harmonics_needed(mtf_at, curve, grid)
+    mtf_at, _, support = _extended(curve)
+    k = _harmonics_needed(support, grid)
     return np.clip(mtf_to_ctf(mtf_at, grid, max_harmonic=k), 0.0, 1.0)
 
 
