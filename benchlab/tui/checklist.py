@@ -3,7 +3,8 @@
 Each step gets a short unique label - its number in the run - and its description, wrapped in
 a column as wide as the panel allows (never cut). The thesis reference of a step (``6 (8)``:
 Table 4.10 step 6, repeated as step 8) is a column of its own only where it tells the steps
-apart; a procedure whose steps all cite one section names it in the panel's title instead.
+apart and the panel has room for it beside the description; a procedure whose steps all cite
+one section names it in the panel's title instead.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ from typing import Any
 
 #: A reference column wider than this is left out (it would squeeze the description).
 REF_MAX_CHARS = 6
-#: The description column never gets narrower than this (the panel scrolls instead).
+#: The reference column is shown only if it leaves the description this wide ...
 WHAT_MIN_CHARS = 16
+#: ... and the description never gets narrower than this (the panel scrolls instead).
+WHAT_FLOOR_CHARS = 8
 #: The status mark before each step's number (2 characters) and every column's padding.
 MARK_CHARS = 2
 CELL_PADDING = 2
@@ -59,9 +62,11 @@ def checklist_layout(steps: Sequence[Any], width_chars: int) -> ChecklistLayout:
     numbers = [n.rjust(num_w) for n in numbers]
     num_w += MARK_CHARS
     used = (num_w + CELL_PADDING) + CELL_PADDING
+    if show_ref and width_chars - used - ref_w - CELL_PADDING < WHAT_MIN_CHARS:
+        show_ref = False  # a narrow panel: the description before the reference
     if show_ref:
         used += ref_w + CELL_PADDING
-    what_w = max(WHAT_MIN_CHARS, width_chars - used)
+    what_w = max(WHAT_FLOOR_CHARS, width_chars - used)
     if show_ref:
         return ChecklistLayout(("#", "ref", "what"), (num_w, ref_w, what_w),
                                [(n, r, s.title) for n, r, s in zip(numbers, refs, steps,

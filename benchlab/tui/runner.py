@@ -19,6 +19,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
+from benchlab.report.text_table import footnoted
 from benchlab.tui import services
 from benchlab.tui.checklist import checklist_layout, numbered, short_step_label
 from benchlab.tui.depth_summary import depth_summary_rows
@@ -306,6 +307,7 @@ class RunScreen(Screen[None]):
         table.clear(columns=True)
         table.fixed_columns = 0
         self._widen_results(False)
+        self.query_one("#results").border_subtitle = ""
         table.add_columns("what", "result")
         self.query_one("#ctf-plot", CtfPlot).clear_points()
         self._tables = []
@@ -332,10 +334,12 @@ class RunScreen(Screen[None]):
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
         title, headers, cells = services.display_table(name, data)
+        cells, notes = footnoted(cells)  # a reason repeated in cells: once, under the table
         table.add_columns(*headers)
         table.fixed_columns = 1  # a wide table scrolls sideways under its first column
         for row in cells:
             table.add_row(*row)
+        self.query_one("#results").border_subtitle = "  ".join(notes)
         self._widen_results(True)
         self.query_one("#results").border_title = (
             f"{title} ({self._table_index % len(self._tables) + 1}/{len(self._tables)}, v: next)"

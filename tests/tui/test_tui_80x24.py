@@ -110,3 +110,41 @@ async def test_depth_run_at_80x24_shows_the_dof_ends_and_keyed_buttons(tmp_path:
         # the checklist beside it still shows whole descriptions
         _, what = _steps_panel(lines)
         assert "Forward-view set-up and camera settings" in what, text
+
+
+CHARACTERISE_PARAMS = (Path(__file__).resolve().parents[2] / "fixtures" / "params"
+                       / "characterise-small.toml").read_text(encoding="utf-8")
+
+
+@pytest.mark.asyncio
+async def test_characterise_results_at_80x24_footnote_the_repeated_reason(
+        tmp_path: Path) -> None:
+    app = make_app(tmp_path, characterise=CHARACTERISE_PARAMS)
+    async with app.run_test(size=SIZE) as pilot:
+        await connected(pilot)
+        await pilot.press("3", "p", "p")
+        screen = app.screen
+        assert isinstance(screen, RunScreen) and screen.procedure == "characterise"
+        await _checklist(pilot, screen, 4)
+        await pilot.press("s")
+        await wait_until(pilot, lambda: screen.state != "running", answer_prompts=True,
+                         what="run end")
+        assert screen.state == "done", screen.message
+        await pilot.pause()
+        await pilot.pause()
+        lines = screen_text(app)
+        text = "\n".join(lines)
+        assert all(len(line) <= SIZE[0] for line in lines)
+        assert "n/a (unresolved" not in text
+        # the 8-bit row: its unresolved figures point to one footnote, on the panel's border
+        row = next(line for line in lines if " 8 " in line and "n/a [1]" in line)
+        assert row.count("n/a [1]") >= 2
+        assert "[1] n/a: unresolved: dark noise < 1 DN" in lines[-3]  # the bottom border
+        table = screen.query_one("#results-table", DataTable)
+        assert table.fixed_columns == 1
+        # every step done, each with its whole description
+        _, what = _steps_panel(lines)
+        steps = procedure_checklist("characterise", app.params_files["characterise"])
+        for step in steps:
+            assert step.title.replace(" ", "") in what.replace(" ", ""), (step.title, what)
+        assert text.count("\u2714") == len(steps)
