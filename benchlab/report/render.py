@@ -205,11 +205,16 @@ def _ctf(ctx: ReportContext) -> str:
         curves, note = [], f"<p class='note'>No simulated curves: {esc(str(exc))}</p>"
     else:
         note = ""
-    return ("<p class='note'>Points: measured bar contrast (Eq. 2.9, the square-wave response, "
-            "CTF) with 1-sigma uncertainty; lines: the simulated sine-wave MTF of the Table 4.14 "
-            "field points converted to CTF with Coltman's series, solid where a test's nearest "
-            "field point. Triangles: not resolved; crosses: aliased (above Nyquist) - neither is "
-            "a measured 0.</p>" + note + ctf_figure(ctx.tables, curves))
+    return ("<p class='note'>Compared: the measured bar contrast (points: Eq. 2.9, the "
+            "square-wave response, CTF, with 1-sigma uncertainty) with the simulated lens "
+            "(lines: the sine-wave MTF of the Table 4.14 field points converted to CTF with "
+            "Coltman's series, each lobe past a zero with its reversed sign, never above 1; "
+            "solid where a test's nearest field point). The points are the lens and the "
+            "target together: they are not divided by the printed patterns' or the chart's own "
+            "contrast, which the curves take as 1, so a target of contrast below 1 puts every "
+            "point below its curve by that factor. Triangles: not resolved; crosses: aliased "
+            "(above Nyquist) - neither is a measured 0. Legends under each panel.</p>"
+            + note + ctf_figure(ctx.tables, curves))
 
 
 def _verdict(ctx: ReportContext) -> str:

@@ -217,15 +217,20 @@ def _shown(rows: Sequence[Mapping[str, Any]], key: str) -> bool:
     return any(k in r for r in rows for k in derived)
 
 
-def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:
-    """A plain-text table with aligned columns (columns no row has are left out)."""
+def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column],
+                 width: int | None = None) -> str:
+    """A plain-text table with aligned columns (columns no row has are left out), one line
+    per row; with ``width`` (a terminal's, :func:`~benchlab.report.text_table.terminal_width`)
+    folded to fit it: repeated reasons as footnotes, blocks of columns led by the row's name
+    (:func:`~benchlab.report.text_table.fit_table`)."""
+    from benchlab.report.text_table import fit_table, one_line_table
+
     columns = [c for c in columns if _shown(rows, c[0])]
     header = [h for _, h, _ in columns]
     body = [[row_cell(r, k, f) for k, _, f in columns] for r in rows]
-    widths = [max(len(x) for x in col) for col in zip(header, *body, strict=False)]
-    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
-    lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in body]
-    return "\n".join(lines)
+    if width is None:
+        return one_line_table(header, body)
+    return fit_table(header, body, width=width)
 
 
 def html_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> str:

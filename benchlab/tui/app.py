@@ -211,7 +211,7 @@ class BenchlabApp(App[None]):
                 "Quit while a run is active?",
                 "Quitting aborts the run: LEDs off, stage stopped. The session keeps every "
                 "frame saved so far and can be resumed (Sessions, u).",
-                yes="Quit [y/q]", no="Keep running [n]"), self._quit_confirmed)
+                yes=("y/q", "Quit"), no=("n", "Keep running")), self._quit_confirmed)
             return
         await self.quit_now()
 

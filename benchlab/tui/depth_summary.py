@@ -2,9 +2,10 @@
 of the ``depth_of_field`` table (one row per field point there), short enough for 80 columns.
 
 Display only: every number comes from the stored table; nothing is fitted or judged again.
-Per criterion and orientation it shows the median best focus of the field points and their
-range, the DOF all of them share - the largest near end and the smallest far end, each with the
-95 % interval of the field point that sets it - and how many field points each verdict got.
+Per criterion and orientation it shows the median best focus of the field points and the DOF
+all of them share - the largest near end and the smallest far end - first, then the range of
+best focus, each end's 95 % interval (of the field point that sets it) and how many field
+points each verdict got.
 """
 
 from __future__ import annotations
@@ -60,11 +61,13 @@ def depth_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, str]
         out.append({
             "criterion": criterion,
             "orient.": ORIENTATION_SHORT.get(orientation, orientation),
+            # The result first (best focus and the DOF ends: what 80 columns show), then
+            # how far the field points spread and the ends' intervals.
             "best mm": _num(statistics.median(best)) if best else "N/A",
-            "best range": f"{min(best):.2f}-{max(best):.2f}" if best else "N/A",
             "near mm": _num(near["near_mm"]) if near else "N/A",
-            "near 95 %": _ci(near.get("near_mm_ci95")) if near else "N/A",
             "far mm": _num(far["far_mm"]) if far else "N/A",
+            "best range": f"{min(best):.2f}-{max(best):.2f}" if best else "N/A",
+            "near 95 %": _ci(near.get("near_mm_ci95")) if near else "N/A",
             "far 95 %": _ci(far.get("far_mm_ci95")) if far else "N/A",
             "verdicts": _verdicts(group),
             "points": str(len(group)),

@@ -5,6 +5,7 @@ from __future__ import annotations
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
@@ -26,6 +27,13 @@ PromptDialog #live-figure { color: $success; text-style: bold; margin-top: 1; }
 PromptDialog Horizontal { height: auto; margin-top: 1; align-horizontal: right; }
 PromptDialog Button, ErrorDialog Button { margin-left: 2; }
 """
+
+
+def key_label(keys: str, text: str) -> Content:
+    """A button label that shows its key: ``key_label("y", "Done")`` reads ``[y] Done``.
+
+    Plain content, not markup: as a markup string ``"[y]"`` is a style tag and vanishes."""
+    return Content(f"[{keys}] {text}")
 
 
 class PromptDialog(ModalScreen[bool]):
@@ -55,8 +63,8 @@ class PromptDialog(ModalScreen[bool]):
             yield Static(self._message, id="prompt-text", markup=False)
             yield Static(self.live_figure, id="live-figure")
             with Horizontal():
-                yield Button("Done [y]", variant="primary", id="done")
-                yield Button("Abort run [a]", variant="error", id="abort")
+                yield Button(key_label("y", "Done"), variant="primary", id="done")
+                yield Button(key_label("a", "Abort run"), variant="error", id="abort")
 
     def on_mount(self) -> None:
         # a figure set between compose and mount is shown too
@@ -94,8 +102,9 @@ class ConfirmDialog(ModalScreen[bool]):
         Binding("n,escape", "answer(False)", "No"),
     ]
 
-    def __init__(self, title: str, message: str, yes: str = "Yes [y]",
-                 no: str = "No [n]") -> None:
+    def __init__(self, title: str, message: str, yes: tuple[str, str] = ("y", "Yes"),
+                 no: tuple[str, str] = ("n", "No")) -> None:
+        """``yes`` / ``no``: each button's (keys, text), shown as ``[keys] text``."""
         super().__init__()
         self._title, self._message, self._yes, self._no = title, message, yes, no
 
@@ -104,8 +113,8 @@ class ConfirmDialog(ModalScreen[bool]):
             yield Label(self._title, classes="title")
             yield Static(self._message, markup=False)
             with Horizontal():
-                yield Button(self._yes, variant="error", id="yes")
-                yield Button(self._no, variant="primary", id="no")
+                yield Button(key_label(*self._yes), variant="error", id="yes")
+                yield Button(key_label(*self._no), variant="primary", id="no")
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         self.dismiss(event.button.id == "yes")
@@ -129,7 +138,7 @@ class ErrorDialog(ModalScreen[None]):
         with Vertical():
             yield Label(self._title, classes="title")
             yield Static(self._message, id="error-text", markup=False)
-            yield Button("Close [enter]", variant="error", id="close")
+            yield Button(key_label("enter", "Close"), variant="error", id="close")
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         self.dismiss(None)

@@ -13,12 +13,15 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.coordinate import Coordinate
+from textual.message import Message
 from textual.reactive import reactive
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
+from benchlab.report.text_table import footnoted
 from benchlab.tui import services
+from benchlab.tui.checklist import checklist_layout, numbered, short_step_label
 from benchlab.tui.depth_summary import depth_summary_rows
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
@@ -39,6 +42,8 @@ PROCEDURE_LABELS = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (sectio
                     "characterise": "Camera characterisation (EMVA 1288)",
                     "depth": "Depth of field (section 2.2.4)"}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
+#: Room kept for the checklist's vertical scrollbar (a long procedure scrolls).
+STEPS_SCROLLBAR_CHARS = 2
 STATUS_MARK = {
     "pending": "  ",
     "running": "\u25b6 ",
@@ -46,12 +51,6 @@ STATUS_MARK = {
     "failed": "\u2718 ",
     "aborted": "\u25a0 ",
 }
-
-
-def short_step_label(label: str) -> str:
-    """``"Table 4.10 step 6 (step 8)"`` -> ``"6 (8)"``; ``"section 4.4"`` -> ``"§4.4"``."""
-    return (label.replace("Table 4.10 step ", "").replace("(step ", "(")
-            .replace("section ", "§"))
 
 
 def _format_value(value: Any) -> str:
@@ -101,6 +100,16 @@ def result_row(data: Mapping[str, Any]) -> tuple[str, str]:
     return " ".join(what), "  ".join(numbers)
 
 
+class ChecklistTable(DataTable[Any]):
+    """The checklist; says when its size changes, so that its rows are laid out again."""
+
+    class Resized(Message):
+        """The checklist's size changed."""
+
+    def on_resize(self) -> None:
+        self.post_message(self.Resized())
+
+
 class RunScreen(Screen[None]):
     """Choose a procedure, start it, answer its prompts, watch results fill in."""
 
@@ -109,6 +118,7 @@ class RunScreen(Screen[None]):
     RunScreen #run-body { height: 1fr; }
     RunScreen #steps { width: 1fr; height: 1fr; border: round $primary; }
     RunScreen #results { width: 1fr; height: 1fr; border: round $primary; }
+    RunScreen #run-body.-tables #results { width: 2fr; }
     RunScreen #results-table { height: 1fr; }
     RunScreen #ctf-plot { height: 9; border-top: solid $primary; }
     RunScreen #progress { height: 1; padding: 0 1; }
@@ -139,6 +149,8 @@ class RunScreen(Screen[None]):
         self.session_path: Path | None = None
         self.step_status: dict[str, str] = {}
         self._step_ids: list[str] = []
+        self._steps: list[Any] = []
+        self._step_numbers: list[str] = []
         self._tables: list[tuple[str, Mapping[str, Any]]] = []
         self._table_index = 0
         self._prompt: PromptDialog | None = None
@@ -154,7 +166,7 @@ class RunScreen(Screen[None]):
         yield ModeBar("run")
         yield Static("", id="run-status")
         with Horizontal(id="run-body"):
-            yield DataTable(id="steps", cursor_type="row", zebra_stripes=False)
+            yield ChecklistTable(id="steps", cursor_type="row", zebra_stripes=False)
             with Vertical(id="results"):
                 yield DataTable(id="results-table", cursor_type="row")
                 yield CtfPlot(id="ctf-plot")
@@ -162,8 +174,6 @@ class RunScreen(Screen[None]):
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
-        steps = self.query_one("#steps", DataTable)
-        steps.add_columns("", "step", "what")
         self.query_one("#results").border_title = "results"
         self._reset_results()
         self._show_procedure()
@@ -239,21 +249,45 @@ class RunScreen(Screen[None]):
     def _checklist_error(self, exc: BaseException) -> None:
         self.query_one("#steps", DataTable).clear()
         self.step_status = {}
+        self._steps, self._step_ids = [], []
         self.message = f"[red]{escape(services.plain_error(exc))}[/red]"
 
     def _show_steps(self, steps: list[Any], done: set[str]) -> None:
-        table = self.query_one("#steps", DataTable)
-        table.clear()
+        self._steps = list(steps)
         self._step_ids = [s.id for s in steps]
         self.step_status = {s.id: ("done" if s.id in done else "pending") for s in steps}
-        for step in steps:
-            table.add_row(
-                STATUS_MARK[self.step_status[step.id]],
-                short_step_label(step.table_step or step.id), step.title,
-                key=step.id,
-            )
+        self._fill_steps()
         progress = self.query_one(ProgressBar)
         progress.update(total=max(1, len(steps)), progress=len(done))
+
+    def _fill_steps(self) -> None:
+        """The checklist at the panel's width: each description whole, wrapped in its column
+        (columns re-made, so a previous procedure's widths do not squeeze this one's)."""
+        table = self.query_one("#steps", DataTable)
+        width = table.scrollable_content_region.width or table.size.width
+        layout = checklist_layout(self._steps, max(0, width - STEPS_SCROLLBAR_CHARS))
+        table.clear(columns=True)
+        for header, w in zip(layout.headers, layout.widths, strict=True):
+            table.add_column(header, key=header, width=w)
+        self._step_numbers = [row[0] for row in layout.rows]
+        for step, (number, *rest) in zip(self._steps, layout.rows, strict=True):
+            table.add_row(numbered(STATUS_MARK[self.step_status[step.id]], number), *rest,
+                          key=step.id, height=None)
+        running = [i for i, sid in enumerate(self._step_ids)
+                   if self.step_status.get(sid) == "running"]
+        if running:
+            table.move_cursor(row=running[0])
+
+    def _widen_results(self, wide: bool) -> None:
+        """The results take two thirds of the width while a finished run's tables are shown
+        (the checklist is laid out again when its width changes)."""
+        body = self.query_one("#run-body")
+        if body.has_class("-tables") != wide:
+            body.set_class(wide, "-tables")
+
+    def on_checklist_table_resized(self) -> None:
+        if self._steps:
+            self._fill_steps()
 
     def _set_step(self, step_id: str, status: str) -> None:
         if step_id not in self.step_status:
@@ -261,7 +295,8 @@ class RunScreen(Screen[None]):
         self.step_status[step_id] = status
         table = self.query_one("#steps", DataTable)
         row = self._step_ids.index(step_id)
-        table.update_cell_at(Coordinate(row, 0), STATUS_MARK[status])
+        table.update_cell_at(Coordinate(row, 0),
+                             numbered(STATUS_MARK[status], self._step_numbers[row]))
         if status == "running":
             table.move_cursor(row=row)
 
@@ -270,6 +305,9 @@ class RunScreen(Screen[None]):
     def _reset_results(self) -> None:
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
+        table.fixed_columns = 0
+        self._widen_results(False)
+        self.query_one("#results").border_subtitle = ""
         table.add_columns("what", "result")
         self.query_one("#ctf-plot", CtfPlot).clear_points()
         self._tables = []
@@ -296,9 +334,13 @@ class RunScreen(Screen[None]):
         table = self.query_one("#results-table", DataTable)
         table.clear(columns=True)
         title, headers, cells = services.display_table(name, data)
+        cells, notes = footnoted(cells)  # a reason repeated in cells: once, under the table
         table.add_columns(*headers)
+        table.fixed_columns = 1  # a wide table scrolls sideways under its first column
         for row in cells:
             table.add_row(*row)
+        self.query_one("#results").border_subtitle = "  ".join(notes)
+        self._widen_results(True)
         self.query_one("#results").border_title = (
             f"{title} ({self._table_index % len(self._tables) + 1}/{len(self._tables)}, v: next)"
         )

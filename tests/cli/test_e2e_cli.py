@@ -46,7 +46,9 @@ def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
             assert row[f"{o}_modulation"] == pytest.approx(truth, abs=0.05)
 
 
-def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("COLUMNS", "200")  # a wide terminal: each table row on one line
     assert main(["run", "mtf", "--simulate", "--yes", "--out", str(tmp_path),
                  "--params", str(MTF_SMALL), "--operator", "ana"]) == 0
     out = capsys.readouterr()

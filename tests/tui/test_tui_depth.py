@@ -84,7 +84,7 @@ async def test_depth_run_through_the_ui_shows_positions_prompts_and_the_digest(
         criteria = {r["criterion"] for r in stored}
         assert len(digest) == 2 * len(criteria)
         header = [str(c.label) for c in table.ordered_columns]
-        assert header[:4] == ["criterion", "orient.", "best mm", "best range"]
+        assert header[:5] == ["criterion", "orient.", "best mm", "near mm", "far mm"]
         first = dict(zip(header, digest[0], strict=True))
         mine = [r for r in stored if r["criterion"] == first["criterion"]
                 and r["orientation"][0].upper() == first["orient."]]

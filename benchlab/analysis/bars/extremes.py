@@ -44,6 +44,8 @@ PLAIN_RANGE_SIGMAS = 20.0
 #: The fallback bound's levels: the profile's extremes moved inwards by this many noise sigmas
 #: (the extreme of a few hundred noisy samples lies ~3 sigma beyond the level).
 EXTREME_MARGIN_SIGMAS = 3.0
+#: How an estimator's warning that it found no bars ends (folded into the fallback's note).
+NOT_RESOLVED = ": bars not resolved"
 #: Estimators that treat saturated pixels as censored: a model that carries the bright level
 #: above the top code gives a value, not a bound (their other readings of clipped bars are
 #: bounds like everyone's).
@@ -242,13 +244,17 @@ def _fallback(prep: PreparedROI, r: ModulationResult) -> ModulationResult | None
     if bright <= dark or bright + dark <= 0.0:
         return None
     span = float(profile.max() - profile.min())
+    # One voice: the estimator's "bars not resolved" becomes the reason in this one line.
+    failed = [w for w in r.warnings if w.endswith(NOT_RESOLVED)]
+    kept = tuple(w for w in r.warnings if w not in failed)
+    why = "; ".join(w.removesuffix(NOT_RESOLVED) for w in failed) or "its reading discarded"
     note = (f"bars plainly resolved (profile range {span / noise if noise else math.inf:.3g} "
-            f"noise sigmas) but {r.estimator} could not read them (the warning before)")
+            f"noise sigmas) but {r.estimator} could not read them ({why})")
     if dark == 0.0:
         # A dark level of exactly 0: Eq. 2.9 is 1 whatever the bright level.
         return r.with_updates(dark=0.0, bright=bright, modulation=1.0, resolved=True,
                               uncertainty=0.0, interval=(1.0, 1.0),
-                              warnings=(*r.warnings, f"{note}: dark level 0, contrast 1"))
+                              warnings=(*kept, f"{note}: dark level 0, contrast 1"))
     m = min(eq29_modulation(dark, bright), 1.0)
     # Noise of the levels propagated through Eq. 2.9 (dM/dD = -2B/S^2, dM/dB = 2D/S^2).
     total = dark + bright
@@ -257,7 +263,7 @@ def _fallback(prep: PreparedROI, r: ModulationResult) -> ModulationResult | None
               "noise sigmas inwards) is a lower bound")
     return r.with_updates(dark=dark, bright=bright, modulation=m, resolved=True, uncertainty=sd,
                           interval=(max(0.0, m - 1.96 * sd), 1.0), lower_bound=True,
-                          bound_reason=reason, warnings=(*r.warnings, f"lower bound: {reason}"))
+                          bound_reason=reason, warnings=(*kept, f"lower bound: {reason}"))
 
 
 def honest_reading(prep: PreparedROI, r: ModulationResult) -> ModulationResult:

@@ -192,3 +192,44 @@ def mtf_from_fundamental(fundamental_modulation: float, object_modulation: float
     if object_modulation <= 0:
         raise ValueError(f"object modulation must be positive, got {object_modulation}")
     return math.pi / 4 * fundamental_modulation / object_modulation
+
+
+#: A local minimum of an MTF modulus curve at or below this is taken as a zero of the OTF.
+ZERO_DIP = 0.05
+
+
+def signed_mtf(freqs_lp_per_mm: npt.ArrayLike, modulus: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """The real OTF that an MTF modulus curve (a lens design program's export) stands for.
+
+    An exported MTF is ``|OTF|``: past a zero the contrast is *reversed* (spurious
+    resolution), yet the modulus bounces back up. Coltman's series adds the harmonics with
+    their sign, so the modulus would count a reversed harmonic as a positive one and the
+    square-wave response could exceed 1, which no contrast can (a blurred square wave stays
+    between its levels). Each local minimum at or below :data:`ZERO_DIP` that the curve
+    rises from again is taken as a zero: the sign flips after it (the minimum itself is 0).
+
+    Parameters
+    ----------
+    freqs_lp_per_mm, modulus : array_like
+        The curve, frequencies increasing.
+
+    Returns
+    -------
+    ndarray
+        The modulus with the sign of each lobe.
+    """
+    f = np.asarray(freqs_lp_per_mm, dtype=np.float64)
+    m = np.asarray(modulus, dtype=np.float64)
+    if f.shape != m.shape:
+        raise ValueError("need as many MTF values as frequencies")
+    out = m.copy()
+    sign = 1.0
+    for i in range(m.size):
+        dip = (0 < i < m.size - 1 and m[i] <= ZERO_DIP and m[i] <= m[i - 1]
+               and m[i] < m[i + 1])
+        if dip:
+            out[i] = 0.0
+            sign = -sign
+        else:
+            out[i] = sign * m[i]
+    return out

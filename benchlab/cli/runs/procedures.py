@@ -96,13 +96,15 @@ def _prompter(yes: bool, progress: _Progress, bench: Bench) -> Any:
 def _print_tables(tables: Mapping[str, Sequence[Mapping[str, Any]]], out: TextIO,
                   partial: bool = False) -> None:
     from benchlab.report.tables import TERMINAL_VIEWS, format_table
+    from benchlab.report.text_table import terminal_width
 
     mark = " [PARTIAL: session incomplete]" if partial else ""
+    width = terminal_width()  # the tables fit the terminal (COLUMNS, else 80)
     for name, rows in tables.items():
         view = TERMINAL_VIEWS.get(name)
         if view is None or not rows:
             continue
-        out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns)}\n")
+        out.write(f"\n{view.title}{mark}\n{format_table(rows, view.columns, width)}\n")
 
 
 def chart_notes(summary: Mapping[str, Any]) -> list[str]:

@@ -23,6 +23,11 @@ if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands
 
 LIST_COLUMNS = ("id", "procedure", "status", "sample", "operator", "started_at",
                 "results_version", "estimator", "serials")
+#: What ``sessions list`` prints by default: within 80 columns (the id holds the start time
+#: and the procedure; ``--wide``, ``--json`` and ``--csv`` give every column).
+NARROW_LIST_COLUMNS = ("id", "status", "sample", "operator", "results_version", "estimator")
+#: Short headers of the narrow listing.
+NARROW_HEADERS = {"results_version": "ver"}
 TREND_COLUMNS = ("session_id", "started_at", "sample", "version", "estimator", "element",
                  "orientation", "freq_lp_per_mm", "value", "text")
 
@@ -56,12 +61,17 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
+def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], *, wide: bool = True,
+           headers: dict[str, str] | None = None) -> str:
+    """Left-aligned columns, one line per row (``wide``), or folded to the terminal's width
+    (blocks of columns, each led by the row's name)."""
+    from benchlab.report.text_table import fit_table, one_line_table
+
     cells = [[_cell(r.get(c)) for c in columns] for r in rows]
-    widths = [max([len(c)] + [len(row[i]) for row in cells]) for i, c in enumerate(columns)]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=True))]
-    lines += ["  ".join(v.ljust(w) for v, w in zip(row, widths, strict=True)) for row in cells]
-    return "\n".join(line.rstrip() for line in lines)
+    names = [(headers or {}).get(c, c) for c in columns]
+    if wide:
+        return one_line_table(names, cells, right=False)
+    return fit_table(names, cells, right=False)
 
 
 def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: str) -> None:
@@ -115,7 +125,12 @@ def list_command(args: argparse.Namespace) -> int:
     elif args.csv:
         _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv)
     else:
-        print(_table(rows, (*LIST_COLUMNS, "problem")) if rows else "no sessions match")
+        columns = LIST_COLUMNS if args.wide else NARROW_LIST_COLUMNS
+        if any(r["problem"] for r in rows):
+            columns = (*columns, "problem")
+        print(_table(rows, columns, wide=args.wide,
+                     headers=None if args.wide else NARROW_HEADERS) if rows
+              else "no sessions match")
         for row in rows:
             if row.get("error"):
                 print(f"{row['id']}: {row['problem'] or 'error'}: {row['error']}")
@@ -252,6 +267,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                     "started_at: id, procedure, status, sample, operator, results_version)")
     ls.add_argument("--ascending", action="store_true", help="oldest / smallest first")
     ls.add_argument("--limit", type=positive_int, metavar="N", help="at most N sessions")
+    ls.add_argument("--wide", action="store_true", help="every column (procedure, start "
+                    "time, serials too), one line per session however wide; by default the "
+                    "table fits the terminal (COLUMNS, else 80)")
     ls.add_argument("--json", action="store_true", help="print a JSON list")
     ls.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
     ls.set_defaults(func=list_command)
