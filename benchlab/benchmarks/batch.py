@@ -84,7 +84,7 @@ def _count_fsyncs() -> Iterator[list[int]]:
 def fsync_comparison(sessions: list[Path], repeats: int) -> list[tuple[str, int, float, float]]:
     """Each results fsync policy on the same sessions, in this process, one at a time:
     ``(policy, fsyncs per re-analysis, min s, median s)``."""
-    import benchlab.session as session_mod
+    import benchlab.session.results as session_mod
     from benchlab.protocols.runs import reanalyze
 
     out = []

@@ -13,6 +13,7 @@ import pytest
 from many_sessions_helpers import copy_session, real_session
 
 import benchlab.session as session_mod
+import benchlab.session.results as session_results
 from benchlab.catalog.index import CATALOG_FILE, Catalog, record_session
 from benchlab.catalog.schema import SCHEMA_VERSION, migrate
 from benchlab.cli.main import main
@@ -272,7 +273,7 @@ def test_results_are_fsynced_once_per_version_with_the_same_bytes(
                         lambda fd: (syncfs_calls.append(fd), real_syncfs(fd))[1])
     got = {}
     for policy in ("per-file", "per-version", "syncfs"):
-        monkeypatch.setattr(session_mod, "RESULTS_FSYNC", policy)
+        monkeypatch.setattr(session_results, "RESULTS_FSYNC", policy)
         s = session_mod.Session.open(copy_session(source, tmp_path / policy))
         calls.clear()
         syncfs_calls.clear()
@@ -313,7 +314,7 @@ def test_a_failed_file_system_flush_is_an_error_and_leaves_no_version(
             return -1
 
     monkeypatch.setattr(storage_mod, "_libc", lambda: FailingLibc())
-    monkeypatch.setattr(session_mod, "RESULTS_FSYNC", "syncfs")
+    monkeypatch.setattr(session_results, "RESULTS_FSYNC", "syncfs")
     s = session_mod.Session.open(copy_session(source, tmp_path / "s"))
     before = s.result_versions()
     with pytest.raises(OSError) as info:

@@ -22,7 +22,7 @@ from sim_runs import MTF_SMALL, run_sim
 
 import benchlab.analysis.chart.finder as chart_finder
 import benchlab.analysis.chart.morphology as morphology
-import benchlab.session as session_module
+import benchlab.session.frames as session_module
 import benchlab.storage as storage
 from benchlab.cli.main import main
 from benchlab.protocols.runs import reanalyze

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import benchlab.journal as journal_mod
+import benchlab.session.journal_reader as journal_mod
 from benchlab.benchmarks.journal import format_journal_benchmark, run_journal_benchmark
-from benchlab.journal import JournalError, JournalReader
+from benchlab.session.journal_reader import JournalError, JournalReader
 from benchlab.session import Session, SessionError
 
 

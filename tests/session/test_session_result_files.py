@@ -58,7 +58,7 @@ def test_a_version_is_never_visible_before_it_is_complete(tmp_path: Path,
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr("benchlab.session.os.rename", interrupted)
+        m.setattr("benchlab.session.results.os.rename", interrupted)
         with pytest.raises(KeyboardInterrupt):
             session.write_results({"t": ROWS}, summary={}, estimator="histogram")
     assert sorted(p.name for p in session.results_dir.iterdir()) == ["v1"]
@@ -95,7 +95,7 @@ def test_extra_folders_arrive_with_the_version(tmp_path: Path,
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr("benchlab.session.os.rename", interrupted)
+        m.setattr("benchlab.session.results.os.rename", interrupted)
         with pytest.raises(KeyboardInterrupt):
             session.write_results({"t": ROWS}, summary={}, estimator="unwrap",
                                   extra_dirs={"unwrapped": staged})
