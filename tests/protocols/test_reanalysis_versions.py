@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from sim_runs import RAD_SMALL, events, only_session, run_sim
 
-from benchlab.session import results as session_mod
 from benchlab.cli.main import main
 from benchlab.protocols.runs import reanalyze
 from benchlab.session import Session
+from benchlab.session import results as session_mod
 
 
 @pytest.fixture(scope="module")

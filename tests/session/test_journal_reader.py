@@ -12,8 +12,8 @@ import pytest
 
 import benchlab.session.journal_reader as journal_mod
 from benchlab.benchmarks.journal import format_journal_benchmark, run_journal_benchmark
-from benchlab.session.journal_reader import JournalError, JournalReader
 from benchlab.session import Session, SessionError
+from benchlab.session.journal_reader import JournalError, JournalReader
 
 
 def _line(kind: str, **data: object) -> bytes:

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchlab.session import results as session_mod
 from benchlab import storage
 from benchlab.session import FrameExistsError, Session, SessionError
+from benchlab.session import results as session_mod
 from benchlab.storage import load_frame_tiff, sha256_file
 
 
