@@ -225,7 +225,7 @@ def analyze_radiometry(
     characterise``), each measurement frame is linearised with it before the reading; the
     summary's ``linearised`` records which file (or None).
     """
-    from benchlab.protocols.characterise.calibration import session_linearisation
+    from benchlab.calibration import session_linearisation
 
     linear, record = session_linearisation(session, params.measurement_gain, params.bits)
     rows: list[dict[str, Any]] = []

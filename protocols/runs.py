@@ -131,7 +131,7 @@ def start_run(
     procedure_steps(procedure_obj)  # its steps are sound before any folder exists
     calibration = None
     if isinstance(resolved, RadiometryParams):  # the one procedure that linearises with it
-        from benchlab.protocols.characterise.calibration import (
+        from benchlab.calibration import (
             check_run_curve,
             read_run_calibration,
         )
@@ -140,7 +140,7 @@ def start_run(
         if calibration is not None:  # and it has the curve the analysis will need
             check_run_curve(calibration, resolved.measurement_gain, resolved.bits)
     elif procedure == "characterise":  # its end edits the bench file: can it?
-        from benchlab.protocols.characterise.calibration import check_bench_editable
+        from benchlab.calibration import check_bench_editable
 
         check_bench_editable(bench.config)
     session = Session.create(
@@ -149,7 +149,7 @@ def start_run(
         lot=lot,
     )
     if calibration is not None:  # before any frame: what every analysis will use
-        from benchlab.protocols.characterise.calibration import keep_session_calibration
+        from benchlab.calibration import keep_session_calibration
 
         keep_session_calibration(session, *calibration)
     session.log_event("run_started", simulate=bench.simulated, estimator=estimator,

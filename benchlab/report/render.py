@@ -370,7 +370,7 @@ def radiometry_overlays(ctx: ReportContext) -> list[MaskOverlay]:
     thr = float(getattr(params, "mask_threshold_fraction", 0.5))
     linear = None
     if isinstance(ctx.summary.get("linearised"), dict):
-        from benchlab.protocols.characterise.calibration import session_linearisation
+        from benchlab.calibration import session_linearisation
 
         linear, _ = session_linearisation(ctx.session, float(getattr(params, "measurement_gain",
                                                                      1.0)),
@@ -392,7 +392,7 @@ def radiometry_overlays(ctx: ReportContext) -> list[MaskOverlay]:
 def _radiometry_frames(ctx: ReportContext) -> str:
     import cv2
 
-    from benchlab.protocols.characterise.calibration import CalibrationError
+    from benchlab.calibration import CalibrationError
 
     parts = []
     try:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.calibration import write_calibration
 from benchlab.drivers.errors import SettingOutOfRangeError
 from benchlab.protocols.characterise.analysis import (
     CURRENTS_EVENT,
@@ -30,7 +31,6 @@ from benchlab.protocols.characterise.analysis import (
     analyze_characterise,
     config_step_id,
 )
-from benchlab.protocols.characterise.calibration import write_calibration
 from benchlab.protocols.characterise.params import CharacteriseParams
 from benchlab.protocols.engine import Step, StepContext
 

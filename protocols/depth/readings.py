@@ -3,7 +3,7 @@
 The chart is found in the frame (:func:`benchlab.analysis.chart.finder.find_chart`): its pose's
 scale is the image scale at that distance (the magnification changes as ``1 / distance``). The
 slanted-edge squares are placed at that scale about the optical centre, each side measured by the
-SFR (:func:`benchlab.protocols.mtf.edges.measure_edges`), and, when asked, every found bar set
+SFR (:func:`benchlab.analysis.sfr.target_edges.measure_edges`), and, when asked, every found bar set
 below Nyquist is read at its image frequency there (:func:`benchlab.analysis.chart.reading.
 read_chart`). Pure functions of the pixels.
 """
@@ -27,8 +27,8 @@ from benchlab.analysis.sfr.target import (
     posed_squares,
     scaled_squares,
 )
+from benchlab.analysis.sfr.target_edges import measure_edges
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
-from benchlab.protocols.mtf.edges import measure_edges
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from benchlab.analysis.mtf.frequency import (
 )
 from benchlab.analysis.sfr.measure import SfrResult, full_scale_of_frame
 from benchlab.analysis.sfr.target import EdgeSpec, edge_specs
+from benchlab.analysis.sfr.target_edges import measure_edge
 from benchlab.analysis.thesis_data import thesis_fixture_path
 from benchlab.protocols.mtf.edges import (
     chart_boxes,
@@ -40,7 +41,6 @@ from benchlab.protocols.mtf.edges import (
     clear_of_chart,
     edge_parts_of,
     edge_parts_tables,
-    measure_edge,
 )
 from benchlab.protocols.params import MtfParams, Roi, UsafElement
 from benchlab.session import FRAME_LOAD_THREADS

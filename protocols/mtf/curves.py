@@ -157,11 +157,10 @@ def _parse_curves(p: Path) -> list[SimulatedCurve]:
 
 
 def default_curves_path() -> Path:
-    """The shipped default curve file (beside the protocols package, as installed; the
-    package's path, not :mod:`importlib.resources`, whose import costs ~3 ms of start-up)."""
-    import benchlab.protocols
-
-    return Path(benchlab.protocols.__file__).parent / "defaults" / "simulated-mtf.json"
+    """The shipped default curve file (in the protocols package's ``defaults/``, as installed;
+    found from this file's path, not :mod:`importlib.resources`, whose import costs ~3 ms of
+    start-up)."""
+    return Path(__file__).resolve().parents[1] / "defaults" / "simulated-mtf.json"
 
 
 def main() -> None:  # pragma: no cover - regenerates the shipped file

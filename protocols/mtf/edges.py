@@ -52,8 +52,9 @@ from benchlab.analysis.geometry import (
 from benchlab.analysis.mtf.coltman import ctf_to_mtf, ctf_to_mtf_with_harmonics
 from benchlab.analysis.mtf.compare import SimulatedCurve
 from benchlab.analysis.mtf.frequency import cycles_per_px, nyquist_lp_per_mm
-from benchlab.analysis.sfr.measure import MAX_FREQ_CYCLES_PER_PX, SfrRefused, SfrResult, measure_sfr
-from benchlab.analysis.sfr.target import EdgeSpec, edge_specs
+from benchlab.analysis.sfr.measure import MAX_FREQ_CYCLES_PER_PX, SfrResult
+from benchlab.analysis.sfr.target import EdgeSpec
+from benchlab.analysis.sfr.target_edges import measure_edges
 
 if TYPE_CHECKING:
     from benchlab.analysis.chart.threebar import OpticsTransfer, ReadingSetup, Transfer
@@ -106,30 +107,6 @@ def clear_of_chart(
                    f"overlap{'s' if len(hits) == 1 else ''} the edge ROI")
         out.append((spec, res))
     return out
-
-
-def measure_edges(
-    pixels: npt.NDArray[Any], specs: Sequence[EdgeSpec] | None = None, *,
-    full_scale: float | None = None,
-) -> list[tuple[EdgeSpec, SfrResult | str]]:
-    """Each nominal edge's SFR, or the reason there is no clean edge in its ROI.
-    ``full_scale``: the camera's ceiling (:func:`benchlab.analysis.sfr.measure.full_scale_of_frame`
-    from the frame's metadata); None infers it from each ROI's codes."""
-    return [(spec, measure_edge(pixels, spec, full_scale))
-            for spec in (specs if specs is not None else edge_specs())]
-
-
-def measure_edge(pixels: npt.NDArray[Any], spec: EdgeSpec,
-                 full_scale: float | None = None) -> SfrResult | str:
-    """One nominal edge's SFR, or the reason there is no clean edge in its ROI (clipping
-    judged against ``full_scale``, see :func:`measure_edges`)."""
-    r0, c0, r1, c1 = spec.roi
-    if r0 < 0 or c0 < 0 or r1 > pixels.shape[0] or c1 > pixels.shape[1]:
-        return f"ROI {spec.roi} is off the {pixels.shape} frame"
-    try:
-        return measure_sfr(pixels[r0:r1, c0:c1], full_scale=full_scale)
-    except SfrRefused as exc:
-        return "; ".join(exc.reasons)
 
 
 def edge_tables(

@@ -18,12 +18,12 @@ from sim_runs import (
 )
 
 from benchlab.bench import Bench, BenchConfig
-from benchlab.protocols import start_run
-from benchlab.protocols.characterise.calibration import (
+from benchlab.calibration import (
     FORMAT,
     CalibrationError,
     set_camera_reference,
 )
+from benchlab.protocols import start_run
 
 
 def _packaged_text() -> str:

@@ -13,15 +13,15 @@ import pytest
 from sim_runs import FIXTURES, RAD_SMALL, TINY, events, run_sim, yes
 
 from benchlab.bench import Bench, BenchConfig
-from benchlab.cli.main import main
-from benchlab.drivers.mightex.sim_sensor import SensorTruth
-from benchlab.protocols import ParamsError, RunAborted, load_params, reanalyze, resume_run
-from benchlab.protocols.characterise.calibration import (
+from benchlab.calibration import (
     CalibrationError,
     curve_for,
     load_calibration,
     set_camera_reference,
 )
+from benchlab.cli.main import main
+from benchlab.drivers.mightex.sim_sensor import SensorTruth
+from benchlab.protocols import ParamsError, RunAborted, load_params, reanalyze, resume_run
 from benchlab.protocols.characterise.steps import sweep_exposures
 from benchlab.protocols.engine import Step
 from benchlab.protocols.params import BenchLimits, parse_params

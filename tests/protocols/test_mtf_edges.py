@@ -11,6 +11,7 @@ import pytest
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
 from benchlab.analysis.sfr.target import edge_specs
+from benchlab.analysis.sfr.target_edges import measure_edges
 from benchlab.drivers.mightex.sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.protocols.mtf.analysis import analyze_forward_frame
@@ -26,7 +27,6 @@ from benchlab.protocols.mtf.edges import (
     edge_tables,
     edge_vs_bars,
     forward_edge_tables,
-    measure_edges,
 )
 from benchlab.protocols.params import load_params
 from benchlab.scenes.edge import EdgeScene

@@ -13,10 +13,11 @@ from sim_runs import MTF_SMALL
 
 from benchlab.analysis.sfr.measure import SfrResult, full_scale_of_frame, measure_sfr
 from benchlab.analysis.sfr.target import edge_specs
+from benchlab.analysis.sfr.target_edges import measure_edges
 from benchlab.drivers.mightex.sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.protocols.mtf.analysis import analyze_mtf
-from benchlab.protocols.mtf.edges import edge_tables, measure_edges
+from benchlab.protocols.mtf.edges import edge_tables
 from benchlab.protocols.params import MtfParams, load_params
 from benchlab.scenes.world import SimWorld
 from benchlab.session import Session

@@ -13,8 +13,8 @@ import pytest
 from sim_runs import RAD_SMALL
 
 from benchlab.bench import BenchConfig
+from benchlab.calibration import FORMAT, set_camera_reference
 from benchlab.cli.main import main
-from benchlab.protocols.characterise.calibration import FORMAT, set_camera_reference
 
 
 def _calibration(linear_dn: list[float]) -> str:

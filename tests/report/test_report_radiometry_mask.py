@@ -12,8 +12,8 @@ import pytest
 from sim_runs import RAD_SMALL
 
 from benchlab.bench import BenchConfig
+from benchlab.calibration import FORMAT, set_camera_reference
 from benchlab.cli.main import main
-from benchlab.protocols.characterise.calibration import FORMAT, set_camera_reference
 from benchlab.protocols.radiometry import reading_mask_of
 from benchlab.report.render import radiometry_overlays, render_report, report_context
 

@@ -101,7 +101,8 @@ def _edge_tables_cpu_ms(frame: Path, repeats: int = 15) -> float:
 
     import tifffile
 
-    from benchlab.protocols.mtf.edges import edge_tables, measure_edges
+    from benchlab.analysis.sfr.target_edges import measure_edges
+    from benchlab.protocols.mtf.edges import edge_tables
 
     pixels = tifffile.imread(frame)
     centre = (pixels.shape[0] / 2.0, pixels.shape[1] / 2.0)

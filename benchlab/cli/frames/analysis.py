@@ -294,7 +294,7 @@ def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path
     """``--linearise``: the frame through the response calibration of its gain and bit depth
     (gain from the frame's benchlab metadata, else 1; 8-bit for uint8 files, else 12-bit)."""
     from benchlab.analysis.camera.photon_transfer import linearise, native_codes
-    from benchlab.protocols.characterise.calibration import (
+    from benchlab.calibration import (
         curve_for,
         linearisation_record,
         load_calibration,
