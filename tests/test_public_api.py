@@ -333,8 +333,10 @@ def _stub_names() -> dict[str, str]:
 
 def test_every_public_name_is_its_modules_object() -> None:
     names = _stub_names()
-    assert sorted(names) == ["ChartReading", "Prompt", "measure_bars", "measure_chart",
-                             "measure_edge", "open_bench", "open_session", "run_procedure"]
+    assert sorted(names) == ["Bench", "ChartReading", "ModulationResult", "Prompt",
+                             "RunOutcome", "Session", "SfrResult", "measure_bars",
+                             "measure_chart", "measure_edge", "open_bench", "open_session",
+                             "run_procedure"]
     assert sorted(benchlab.__all__) == sorted([*names, "__version__"]) == dir(benchlab)
     for name, module in names.items():
         assert getattr(benchlab, name) is getattr(importlib.import_module(module), name), name
