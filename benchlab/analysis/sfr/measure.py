@@ -68,6 +68,7 @@ from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bi
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
 from benchlab.analysis.quantiles import median, percentiles
+from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
 from benchlab.analysis.sfr.shading import (
     PLATEAU_MARGIN_PX,
     SHADING_PASSES,
@@ -75,7 +76,7 @@ from benchlab.analysis.sfr.shading import (
     fit_shading,
     flatten,
 )
-from benchlab.analysis.sfr.structure import ESF_SPAN_OF_STEP, find_two_edges
+from benchlab.analysis.sfr.structure import ESF_SPAN_OF_STEP, find_second_edge, find_two_edges
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -1453,9 +1454,18 @@ def measure_sfr(
                         f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
                         "centre); the MTF at low frequency may read low - use a smaller ROI "
                         "or a flat-fielded image")
+    located = work
     work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
-    structure, clipping = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step,
-                                        raw_work)
+    structure, clipping = _quality_gate(work, u, flat_half, model, rms, code_step, raw_work)
+    stray_warning = None
+    if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
+        cents = _row_centroids(polarity * np.diff(located, axis=1),
+                               _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid),
+                               half_window)
+        refusal, stray_warning = _stray_pixels(img, noise, n_outliers, work.size, cents,
+                                               fit_order)
+        if refusal is not None:
+            raise SfrRefused([refusal] + clipping)
     if structure:
         raise _refusal(structure, img, noise, also=clipping)
     if clipping:
@@ -1483,6 +1493,11 @@ def measure_sfr(
         found = find_two_edges(img, noise)
         if found is not None:
             raise SfrRefused([found.reason()])
+    # A second step of the same sign leaves none of those marks: the ESF reads it as one wide
+    # edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently).
+    second = find_second_edge(img, noise)
+    if second is not None:
+        raise SfrRefused([second.reason()])
     ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
     choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
     spec = choice.spec
@@ -1533,7 +1548,9 @@ def measure_sfr(
                         f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
                         "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
                         "MTF near Nyquist less reliable (aliasing)")
-    if n_outliers:
+    if stray_warning is not None:
+        warnings.append(stray_warning)
+    elif n_outliers:
         warnings.append(f"{n_outliers} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas off "
                         "the edge profile clipped to it (hot or dead pixels, dust?)")
     if truncated:
@@ -1684,14 +1701,13 @@ def _edge_fit_summary(
 
 def _quality_gate(
     work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
-    n_outliers: int, code_step: float, codes: FloatArray | None = None,
+    code_step: float, codes: FloatArray | None = None,
 ) -> tuple[list[str], list[str]]:
     """Why the ROI holds no clean, unclipped straight edge (both empty when it does): its
     structure - the ESF's far side not brighter than its near side (other structure decided
-    the polarity), an edge fit far worse than a straight edge gives, too many pixels off the
-    ESF (a bar or a corner crossing the ROI) - and its clipping: a bright plateau clipped on
-    one code below full scale (read on ``codes``, the ROI before any flattening, default
-    ``work``)."""
+    the polarity), an edge fit far worse than a straight edge gives - and its clipping: a
+    bright plateau clipped on one code below full scale (read on ``codes``, the ROI before any
+    flattening, default ``work``). Pixels off the ESF are judged by :func:`_stray_pixels`."""
     reasons = []
     if not noise.bright > noise.dark:
         reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
@@ -1699,12 +1715,7 @@ def _quality_gate(
                        "the ROI?")
     if rms_px > FIT_RMS_REFUSE_PX:
         reasons.append(f"edge fit RMS {rms_px:.2f} px (> {FIT_RMS_REFUSE_PX:g} px): not one "
-                       "straight edge (other structure crossing the ROI?)")
-    if n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        reasons.append(f"{100 * n_outliers / work.size:.1f} % of the pixels are more than "
-                       f"{OUTLIER_SIGMAS:g} noise sigmas off the edge profile "
-                       f"(> {100 * OUTLIER_REFUSE_FRACTION:g} %): other structure in the ROI, or a "
-                       "bent edge (try fit_order 2)?")
+                       "straight edge: other structure in the ROI (a second edge crossing it?)")
     clipping = []
     bright = (work if codes is None else codes)[u > core_half_px]
     if bright.size >= 30 and code_step > 0:
@@ -1721,13 +1732,37 @@ def _quality_gate(
     return reasons, clipping
 
 
+def _stray_pixels(
+    img: FloatArray, noise: float, n_outliers: int, n_pixels: int, cents: FloatArray,
+    fit_order: int,
+) -> tuple[str | None, str | None]:
+    """More than :data:`OUTLIER_REFUSE_FRACTION` of the pixels off the ESF: the refusal when a
+    second edge (:func:`find_two_edges`, :func:`find_second_edge`) or, on a straight fit, a
+    bent edge (:func:`~benchlab.analysis.sfr.robust.edge_bow`) put them there, naming which;
+    else the warning that they were taken for compression or sensor structure (clipped to
+    the limit, the edge read; :mod:`benchlab.analysis.sfr.robust`). Returns (refusal,
+    warning), one of them None."""
+    found = find_two_edges(img, noise) or find_second_edge(img, noise)
+    if found is not None:
+        return found.reason(), None
+    if fit_order == 1:
+        bow, bow_sigma = edge_bow(np.arange(cents.size, dtype=np.float64), cents)
+        if is_bent(bow, bow_sigma):
+            return bent_reason(bow, int(np.count_nonzero(np.isfinite(cents)))), None
+    share = 100.0 * n_outliers / n_pixels
+    return None, (f"{share:.1f} % of the pixels more than {OUTLIER_SIGMAS:g} noise sigmas off "
+                  "the edge profile, with no second edge and no bend: taken for compression "
+                  "or sensor structure (JPEG blocks, fixed pattern) and clipped to that limit; "
+                  "the MTF's 1-sigma holds the pixel noise only")
+
+
 def _refusal(reasons: list[str], img: FloatArray, noise: float,
              also: list[str] | None = None) -> SfrRefused:
     """The refusal of an ROI whose structure may be the cause (no step, an edge near the
     pixel axis, no centroids, not one straight edge): where the ROI holds two edges - a bar
     or a line, a corner (:func:`~benchlab.analysis.sfr.structure.find_two_edges`) - that is
     the reason, said in place of ``reasons``, its symptoms; ``also`` (other causes) is kept."""
-    found = find_two_edges(img, noise)
+    found = find_two_edges(img, noise) or find_second_edge(img, noise)
     return SfrRefused(([found.reason()] if found is not None else reasons) + (also or []))
 
 
