@@ -408,3 +408,39 @@ def usaf_scene_from_spec(spec: str) -> UsafScene:
         raise ValueError("usaf knob negative must be 0 or 1")
     pose = ChartPose((values["dy"], values["dx"]), values["scale"], values["rot"])
     return UsafScene(pose=pose, vignetting=values["vignetting"], negative=values["negative"] == 1.0)
+
+
+def render_chart_image(
+    layout: ChartLayout,
+    pose: ChartPose,
+    height: int,
+    width: int,
+    *,
+    blur_px: float = 0.7,
+    dark: float = 0.1,
+    bright: float = 0.9,
+) -> FloatArray:
+    """A chart of any layout (e.g. the whole chart,
+    :func:`benchlab.analysis.chart.whole_layout.whole_chart_layout`) imaged at ``pose`` onto a
+    uniformly lit ``height x width`` frame: levels as fractions of full scale, every bar blurred
+    by an isotropic Gaussian ``blur_px`` and integrated over the pixel aperture
+    (:func:`_rotated_bar`). No noise, no vignetting: the test frame of a microscope or a lab
+    camera that sees part of the chart. Bars off the frame cost nothing.
+    """
+    bar_sum = np.zeros((height, width))
+    for g, e in layout.elements:
+        for orientation in ("sagittal", "tangential"):
+            posed = posed_bar_set(layout, pose, g, e, orientation)  # type: ignore[arg-type]
+            for centre, half_len, half_w in posed.bars():
+                reach = half_len + 6.0 * blur_px + 2.0
+                r0 = max(int(np.floor(centre[0] - reach)), 0)
+                r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
+                c0 = max(int(np.floor(centre[1] - reach)), 0)
+                c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
+                if r0 >= r1 or c0 >= c1:
+                    continue
+                rows = np.arange(r0, r1, dtype=np.float64)[:, None]
+                cols = np.arange(c0, c1, dtype=np.float64)[None, :]
+                bar_sum[r0:r1, c0:c1] += _rotated_bar(
+                    rows, cols, centre, half_len, half_w, posed.theta_deg, blur_px, blur_px)
+    return np.asarray(bright - (bright - dark) * np.clip(bar_sum, 0.0, 1.0), dtype=np.float64)

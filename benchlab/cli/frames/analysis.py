@@ -233,6 +233,8 @@ def analyze_command(args: argparse.Namespace) -> int:
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.mtf.frequency import cycles_per_px
 
+    if getattr(args, "magnification", None) is not None and not getattr(args, "chart", None):
+        raise UsageError("--magnification applies with --chart only")
     if getattr(args, "chart", None):
         from benchlab.cli.frames.chart import analyze_chart_command
 
@@ -436,6 +438,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--chart", metavar="KIND",
         help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
         "found element (Table 4.11 layout) instead of one --roi",
+    )
+    p.add_argument(
+        "--magnification", type=float, default=None, metavar="M",
+        help="with --chart: Eq. 4.1 object-to-image frequency factor (default 16.3, the forward "
+        "view; ~1/M under an objective of magnification M); where the forward view's chart is "
+        "not found, a hint naming the groups of the whole chart (groups -2 to 7)",
     )
     from benchlab.cli.runs.batch import add_batch_arguments
 
