@@ -73,6 +73,9 @@ class UsafScene(TwoLevelPrint):
         A negative target: bright bars (``bright_dn8``) on a dark ground (``dark_dn8``).
     vignetting
         Fractional fall-off of the lit disc at its edge (0 = flat), quadratic in radius.
+    full_field
+        Light the whole frame, not the forward disc: a microscope's or a lab camera's view
+        (with the whole chart as ``layout``, ``usaf:whole=M``).
     """
 
     layout: ChartLayout = field(default_factory=ChartLayout)
@@ -87,6 +90,7 @@ class UsafScene(TwoLevelPrint):
     pose: ChartPose = field(default_factory=ChartPose)
     negative: bool = False
     vignetting: float = 0.0
+    full_field: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.vignetting < 1.0:
@@ -247,6 +251,8 @@ class UsafScene(TwoLevelPrint):
         return rows
 
     def _disc(self, rows: FloatArray, cols: FloatArray) -> FloatArray:
+        if self.full_field:
+            return np.ones(np.broadcast_shapes(rows.shape, cols.shape))
         cr, cc = self.circles.centre_rc
         radius = np.hypot(rows - cr, cols - cc)
         edge = math.hypot(self.disc_edge_sigma_px, self.defocus_px)
@@ -370,6 +376,8 @@ USAF_SPEC_KNOBS = {
     "rot": "rotation, deg (clockwise on screen +)",
     "vignetting": "fractional fall-off at the disc edge, 0 <= v < 1",
     "negative": "1 = negative target (bright bars on a dark ground)",
+    "whole": "M > 0: the whole chart (groups -2 to 7) at Eq. 4.1 magnification M over the whole "
+             "frame (0.25: a microscope's groups 4-7); 0 = the forward view's chart",
 }
 
 
@@ -385,7 +393,8 @@ def usaf_scene_from_spec(spec: str) -> UsafScene:
     head, _, rest = spec.partition(":")
     if head != "usaf":
         raise ValueError(f"not a usaf scene spec: {spec!r}")
-    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0}
+    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0,
+              "whole": 0.0}
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, text = item.partition("=")
         key = key.strip()
@@ -406,7 +415,16 @@ def usaf_scene_from_spec(spec: str) -> UsafScene:
         raise ValueError(f"usaf knob vignetting={values['vignetting']:g} must be in [0, 1)")
     if values["negative"] not in (0.0, 1.0):
         raise ValueError("usaf knob negative must be 0 or 1")
+    if values["whole"] < 0:
+        raise ValueError(f"usaf knob whole={values['whole']:g} must be >= 0")
     pose = ChartPose((values["dy"], values["dx"]), values["scale"], values["rot"])
+    if values["whole"] > 0:
+        from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC
+        from benchlab.analysis.chart.whole_layout import whole_chart_layout
+
+        return UsafScene(layout=whole_chart_layout(values["whole"], origin_rc=IMAGE_CENTRE_RC),
+                         pose=pose, vignetting=values["vignetting"],
+                         negative=values["negative"] == 1.0, full_field=True)
     return UsafScene(pose=pose, vignetting=values["vignetting"], negative=values["negative"] == 1.0)
 
 

@@ -672,10 +672,12 @@ def _fit_pose(
 
 def refined_hypotheses(
     cands: _Candidates, model: dict[str, Any], layout: ChartLayout,
-    scale_range: tuple[float, float], top: int,
+    scale_range: tuple[float, float], top: int, any_rotation: bool = False,
 ) -> list[tuple[ChartPose, int, float]]:
     """The ``top`` best-scored poses of every candidate / layout-set pairing (scale within
-    ``scale_range``), each refined (:func:`_refine`): (pose, sets matched, residual px)."""
+    ``scale_range``), each refined (:func:`_refine`): (pose, sets matched, residual px).
+    A bar's angle gives the rotation modulo 180 deg: rotations within +-90 deg are tried, and
+    with ``any_rotation`` those half a turn further too."""
     if cands.n < 2:
         return []
     origin = layout.origin_rc
@@ -687,6 +689,9 @@ def refined_hypotheses(
     if ci.size == 0:
         return []
     phi = (cands.angle_deg[ci] - model["angle"][si] + 90.0) % 180.0 - 90.0
+    if any_rotation:
+        ci, si, k = np.tile(ci, 2), np.tile(si, 2), np.tile(k, 2)
+        phi = np.concatenate([phi, phi + 180.0])
     rad = np.radians(phi)
     py, px = model["centre"][si, 0], model["centre"][si, 1]
     off = np.stack([

@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.chart.finder import (
+    LIT_FRACTION,
     MAGNIFICATION_TOLERANCE,
     MIN_MATCHED_SETS,
     ChartFit,
@@ -53,7 +54,7 @@ from benchlab.analysis.chart.finder import (
     refined_hypotheses,
 )
 from benchlab.analysis.chart.pose import ChartPose, posed_bar_set
-from benchlab.analysis.chart.whole_layout import whole_chart_layout
+from benchlab.analysis.chart.whole_layout import WHOLE_CHART_GROUPS, whole_chart_layout
 from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
 from benchlab.analysis.quantiles import percentile
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
@@ -80,6 +81,11 @@ LAYER_SCALE = 4.0
 #: Best-scored pose hypotheses refined (a view of two elements fits a few element shifts
 #: equally well: the hint chooses among them).
 HYPOTHESES = 48
+#: Sets with bars this wide (px) are plain to see: one the pose puts in the lit frame with no
+#: candidate on it counts against that pose.
+PLAIN_BAR_PX = (2.5, 200.0)
+#: One layer assignment is chosen on the evidence when it leads the others by this many sets.
+EVIDENCE_MARGIN = 4
 #: An alternative layer assignment counts when it matches at least this share of the best
 #: one's sets.
 ALTERNATIVE_SHARE = 0.9
@@ -141,7 +147,7 @@ def find_whole_chart(
     for scale_range in ranges:
         for pol in (("positive", "negative") if polarity is None else (polarity,)):
             cands, lit = _pyramid_candidates(img, pol)
-            found = _nearest_hint(cands, model, lay, scale_range, hint)
+            found = _nearest_hint(cands, model, lay, scale_range, hint, lit, img.shape)
             if found is None:
                 continue
             pose, matched, resid = found
@@ -175,12 +181,16 @@ def _with_warnings(fit: ChartFit, hint: float, hinted: bool, tolerance: float) -
     groups = fit.groups_found
     if groups:
         lo, hi = groups[0], groups[-1]
-        warnings.append(
-            f"the chart repeats itself every two groups at 4x the size: groups {lo} to {hi} "
-            f"are named for the magnification nearest {'the hint' if hinted else 'the default'} "
-            f"{hint:.4g} (implied {implied:.4g}); at {implied * LAYER_SCALE:.4g} they would "
-            f"be groups {lo + 2} to {hi + 2}, at {implied / LAYER_SCALE:.4g} groups {lo - 2} "
-            f"to {hi - 2}")
+        # two groups finer (object frequencies x 4) at the same image size: magnification / 4
+        others = [f"groups {lo + 2 * j} to {hi + 2 * j} at {implied / LAYER_SCALE ** j:.4g}"
+                  for j in (-4, -3, -2, -1, 1, 2, 3, 4)
+                  if lo + 2 * j >= WHOLE_CHART_GROUPS[0] and hi + 2 * j <= WHOLE_CHART_GROUPS[-1]]
+        if others:
+            warnings.append(
+                f"the chart repeats itself every two groups at 4x the size: groups {lo} to {hi} "
+                f"are named for the magnification nearest "
+                f"{'the hint' if hinted else 'the default'} {hint:.4g} (implied {implied:.4g}); "
+                f"the same view fits {'; '.join(others)}")
     if not hinted:
         warnings.append("no magnification given: pass --magnification (a hint within 2x) to "
                         "name the groups with certainty")
@@ -192,14 +202,17 @@ def _with_warnings(fit: ChartFit, hint: float, hinted: bool, tolerance: float) -
 
 def _nearest_hint(
     cands: _Candidates, model: dict[str, Any], lay: Any, scale_range: tuple[float, float],
-    hint: float,
+    hint: float, lit: _Lit, shape: tuple[int, ...],
 ) -> tuple[ChartPose, int, float] | None:
     """The best-scored poses (:func:`~.finder.refined_hypotheses`) and their self-similar
     alternatives (scale x 4^j, same offset and rotation: the layers two groups apart), each
-    refined; among those matching at least :data:`ALTERNATIVE_SHARE` of the most sets, the
-    one whose implied magnification is nearest the hint. None when no pose matches
+    refined. Among those matching at least :data:`ALTERNATIVE_SHARE` of the most sets, the
+    evidence decides first - sets matched less sets that should be plain to see but are not
+    there (:func:`_missing`): the finest layer has no smaller copy inside it, the coarsest no
+    larger one around it - where one alternative leads by :data:`EVIDENCE_MARGIN`; else the
+    implied magnification nearest the hint. None when no pose matches
     :data:`~.finder.MIN_MATCHED_SETS` sets."""
-    options = refined_hypotheses(cands, model, lay, scale_range, HYPOTHESES)
+    options = refined_hypotheses(cands, model, lay, scale_range, HYPOTHESES, any_rotation=True)
     if not options:
         return None
     best = max(options, key=lambda o: (o[1], -o[2]))
@@ -213,8 +226,35 @@ def _nearest_hint(
     if top < MIN_MATCHED_SETS:
         return None
     good = [o for o in options if o[1] >= ALTERNATIVE_SHARE * top]
+    evidence = [o[1] - _missing(cands, lay, o[0], lit, shape) for o in good]
+    lead = max(evidence)
+    if sum(1 for e in evidence if e > lead - EVIDENCE_MARGIN) == 1:
+        return good[evidence.index(lead)]
     return min(good, key=lambda o: (abs(math.log(lay.magnification / o[0].scale / hint)),
                                     -o[1], o[2]))
+
+
+def _missing(cands: _Candidates, lay: Any, pose: ChartPose, lit: _Lit,
+             shape: tuple[int, ...]) -> int:
+    """Sets the pose puts wholly inside the lit frame with bars wide enough to be found
+    (:data:`PLAIN_BAR_PX`) that no candidate of their width and angle sits on."""
+    n = 0
+    for g, e in lay.elements:
+        for o in ("sagittal", "tangential"):
+            p = posed_bar_set(lay, pose, g, e, o)  # type: ignore[arg-type]
+            if not PLAIN_BAR_PX[0] <= p.bar_width_px <= PLAIN_BAR_PX[1]:
+                continue
+            corners = p.corners()
+            if not all(0 <= r <= shape[0] - 1 and 0 <= c <= shape[1] - 1 for r, c in corners):
+                continue
+            if lit.at([*corners, p.centre_rc]) < LIT_FRACTION:
+                continue
+            d = np.hypot(cands.centre_rc[:, 0] - p.centre_rc[0],
+                         cands.centre_rc[:, 1] - p.centre_rc[1])
+            near = (d < 0.6 * p.bar_width_px + 0.75) & (
+                np.abs(np.log(cands.width_px / p.bar_width_px)) < 0.3)
+            n += not bool(near.any())
+    return n
 
 
 def _pyramid_candidates(img: npt.NDArray[np.float32], pol: Polarity

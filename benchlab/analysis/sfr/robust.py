@@ -72,8 +72,10 @@ def edge_bow(rows: npt.ArrayLike, centroids: npt.ArrayLike) -> tuple[float, floa
     for _ in range(3):
         tk = t[keep]
         a_mat = np.stack([np.ones_like(tk), tk, tk * tk - float(np.mean(tk * tk))], axis=1)
-        coef, *_ = np.linalg.lstsq(a_mat, y[keep], rcond=None)
-        res_all = y - (coef[0] + coef[1] * t + coef[2] * (t * t - float(np.mean(tk * tk))))
+        coef = np.asarray(np.linalg.lstsq(a_mat, y[keep], rcond=None)[0], dtype=np.float64)
+        res_all = np.asarray(
+            y - (coef[0] + coef[1] * t + coef[2] * (t * t - float(np.mean(tk * tk)))),
+            dtype=np.float64)
         res = res_all[keep]
         scale = 1.4826 * float(np.median(np.abs(res - np.median(res))))
         new_keep = keep & (np.abs(res_all) <= max(_ROW_OUTLIER_SIGMAS * scale, 1e-9))

@@ -46,13 +46,14 @@ def decode_image(path: Path) -> npt.NDArray[Any]:
     """
     from PIL import Image
 
-    with Image.open(path) as im:
-        im.load()
-        mode = im.mode
+    with Image.open(path) as opened:
+        opened.load()
+        mode = opened.mode
         if mode == "1":
-            return np.asarray(im.convert("L"), dtype=np.uint8)
+            return np.asarray(opened.convert("L"), dtype=np.uint8)
+        im: Image.Image = opened
         if mode == "P":
-            im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+            im = opened.convert("RGBA" if "transparency" in opened.info else "RGB")
             mode = im.mode
         arr = np.asarray(im)
     if mode in ("L", "LA"):
