@@ -53,3 +53,23 @@ def test_analyze_reads_the_elements_of_a_microscope_jpeg(
     assert 0.1 < fine < rows["G6E1S"]["result"]["modulation"]
     assert main(["analyze", str(scope_jpeg), "--magnification", "0.3", "--roi", "0,0,9,9"]) == 2
     assert "--magnification applies with --chart only" in capsys.readouterr().err
+
+
+def test_the_simulated_bench_shows_the_whole_chart_and_find_chart_finds_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``usaf:whole=0.25``: a microscope's view of groups 4-7 over the whole frame. Without a
+    hint the forward view's finder fits 3 sets by coincidence; the whole chart fits 43 and is
+    taken (its groups then named for 16.3, with the other readings in a warning)."""
+    frame = tmp_path / "scope.tiff"
+    assert main(["snap", "--simulate", "--seed", "1", "--exposure-ms", "300", "--gain", "1",
+                 "--scene", "usaf:whole=0.25,rot=20", str(frame)]) == 0
+    capsys.readouterr()
+    assert main(["find-chart", str(frame), "--json", "--magnification", "0.3"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["groups_found"] == [4, 5, 6, 7]
+    assert doc["implied_magnification"] == pytest.approx(0.25, rel=0.01)
+    assert main(["find-chart", str(frame)]) == 0
+    out = capsys.readouterr().out
+    assert "groups in view: -2, -1, 0, 1 (whole chart, groups -2 to 7)" in out
+    assert "groups 4 to 7 at 0.25" in out and "no magnification given" in out
