@@ -42,11 +42,14 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
 Refused (:class:`SfrRefused`, every reason listed): noise only / no edge, fewer than
 :data:`MIN_EDGE_ROWS` rows, an edge within :data:`MIN_ANGLE_DEG` of a pixel axis or too short
 for its angle to span one phase cycle, more than :data:`CLIP_REFUSE_FRACTION` of the pixels
-clipped; an ROI holding a bar or a line, bars or a corner is refused as such, in place of the
-reasons its structure caused (:mod:`benchlab.analysis.sfr.structure`). Warned (in
-:attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle, uneven sample phases, a
-truncated ESF, any clipping, a poor edge fit, pixels more than :data:`OUTLIER_SIGMAS` noise
-sigmas off the ESF (clipped to that limit before the MTF).
+clipped; an ROI holding a bar or a line, bars, a corner or a second step of the same sign is
+refused as such, in place of the reasons its structure caused
+(:mod:`benchlab.analysis.sfr.structure`), and a bent edge read with a straight fit as bent
+(:mod:`benchlab.analysis.sfr.robust`). Warned (in :attr:`SfrResult.warnings`): low contrast,
+short edge, near-axis angle, uneven sample phases, a truncated ESF, any clipping, a poor edge
+fit, pixels more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF (clipped to that limit
+before the MTF; more than :data:`OUTLIER_REFUSE_FRACTION` of them, with no second edge and no
+bend, are taken for compression or sensor structure).
 
 Why one module of ~1,700 lines: the ISO 12233 steps hand intermediate arrays (edge fit, ESF bins,
 LSF support, windows) from one to the next and the refusals need all of them; the LSF model,
@@ -111,10 +114,12 @@ CLIP_REFUSE_FRACTION = 0.005
 EMPTY_BIN_WARN_FRACTION = 0.05
 #: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
 FIT_RMS_WARN_PX = 1.0
-#: Quality gate (refused above these): the edge-fit RMS residual, px (no clean edge in
+#: Quality gate (refused above it): the edge-fit RMS residual, px (no clean edge in
 #: ``benchlab benchmark sfr --quick`` exceeds 2.4 px, even at SNR 10; a bar or a corner
-#: crossing the ROI reads 6-10 px), and the fraction of pixels more than OUTLIER_SIGMAS off
-#: the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %).
+#: crossing the ROI reads 6-10 px). Above OUTLIER_REFUSE_FRACTION of the pixels more than
+#: OUTLIER_SIGMAS off the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %;
+#: JPEG at quality 75: 1-3 %) the ROI is looked at for a second edge or a bend, and refused
+#: only for one of them (:func:`_stray_pixels`).
 FIT_RMS_REFUSE_PX = 3.0
 OUTLIER_REFUSE_FRACTION = 0.01
 #: Clipped below full scale: the bright plateau on one code for at least this fraction of its
