@@ -59,17 +59,18 @@ def test_the_simulated_bench_shows_the_whole_chart_and_find_chart_finds_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``usaf:whole=0.25``: a microscope's view of groups 4-7 over the whole frame. Without a
-    hint the forward view's finder fits 3 sets by coincidence; the whole chart fits 43 and is
-    taken (its groups then named for 16.3, with the other readings in a warning)."""
+    hint the forward view's finder fits a few sets by coincidence; the whole chart fits ~40 and
+    is taken (its groups then named for 16.3 - 64x the truth, six groups coarser - with the
+    other readings in a warning)."""
     frame = tmp_path / "scope.tiff"
     assert main(["snap", "--simulate", "--seed", "1", "--exposure-ms", "300", "--gain", "1",
                  "--scene", "usaf:whole=0.25,rot=20", str(frame)]) == 0
     capsys.readouterr()
     assert main(["find-chart", str(frame), "--json", "--magnification", "0.3"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["groups_found"] == [4, 5, 6, 7]
+    assert {4, 5, 6, 7} <= set(doc["groups_found"]) <= {3, 4, 5, 6, 7}  # a corner of group 3
     assert doc["implied_magnification"] == pytest.approx(0.25, rel=0.01)
     assert main(["find-chart", str(frame)]) == 0
     out = capsys.readouterr().out
-    assert "groups in view: -2, -1, 0, 1 (whole chart, groups -2 to 7)" in out
-    assert "groups 4 to 7 at 0.25" in out and "no magnification given" in out
+    assert "groups in view: -2, -1, 0, 1" in out and "(whole chart, groups -2 to 7)" in out
+    assert "implied magnification 16 " in out and "no magnification given" in out
