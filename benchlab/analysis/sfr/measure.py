@@ -49,7 +49,8 @@ refused as such, in place of the reasons its structure caused
 short edge, near-axis angle, uneven sample phases, a truncated ESF, any clipping, a poor edge
 fit, pixels more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF (clipped to that limit
 before the MTF; more than :data:`OUTLIER_REFUSE_FRACTION` of them, with no second edge and no
-bend, are taken for compression or sensor structure).
+bend, and an edge fit within :data:`FIT_RMS_WARN_PX`, are taken for compression or sensor
+structure).
 
 Why one module of ~1,700 lines: the ISO 12233 steps hand intermediate arrays (edge fit, ESF bins,
 LSF support, windows) from one to the next and the refusals need all of them; the LSF model,
@@ -79,7 +80,12 @@ from benchlab.analysis.sfr.shading import (
     fit_shading,
     flatten,
 )
-from benchlab.analysis.sfr.structure import ESF_SPAN_OF_STEP, find_second_edge, find_two_edges
+from benchlab.analysis.sfr.structure import (
+    ESF_SPAN_OF_STEP,
+    find_other_edge,
+    find_second_edge,
+    find_two_edges,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -122,6 +128,7 @@ FIT_RMS_WARN_PX = 1.0
 #: only for one of them (:func:`_stray_pixels`).
 FIT_RMS_REFUSE_PX = 3.0
 OUTLIER_REFUSE_FRACTION = 0.01
+
 #: Clipped below full scale: the bright plateau on one code for at least this fraction of its
 #: pixels, with a noise sigma below CLIPPED_NOISE_RATIO x the dark plateau's (shot noise makes
 #: an unclipped bright side the noisier one) and the dark side's noise at least 0.3 codes.
@@ -1464,11 +1471,12 @@ def measure_sfr(
     structure, clipping = _quality_gate(work, u, flat_half, model, rms, code_step, raw_work)
     stray_warning = None
     if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        cents = _row_centroids(polarity * np.diff(located, axis=1),
-                               _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid),
-                               half_window)
+        at = _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid)
+        cents = _row_centroids(polarity * np.diff(located, axis=1), at, half_window)
+        # rows whose window the ROI cuts: their centroids lean inwards, which reads as a bow
+        cents[(at - half_window < 0.0) | (at + half_window > located.shape[1] - 1.0)] = np.nan
         refusal, stray_warning = _stray_pixels(img, noise, n_outliers, work.size, cents,
-                                               fit_order)
+                                               fit_order, rms)
         if refusal is not None:
             raise SfrRefused([refusal] + clipping)
     if structure:
@@ -1739,17 +1747,26 @@ def _quality_gate(
 
 def _stray_pixels(
     img: FloatArray, noise: float, n_outliers: int, n_pixels: int, cents: FloatArray,
-    fit_order: int,
+    fit_order: int, rms_px: float = 0.0,
 ) -> tuple[str | None, str | None]:
     """More than :data:`OUTLIER_REFUSE_FRACTION` of the pixels off the ESF: the refusal when a
-    second edge (:func:`find_two_edges`, :func:`find_second_edge`) or, on a straight fit, a
+    second edge (:func:`find_two_edges`, :func:`find_second_edge`, :func:`find_other_edge`)
+    or, on a straight fit, a
     bent edge (:func:`~benchlab.analysis.sfr.robust.edge_bow`) put them there, naming which;
     else the warning that they were taken for compression or sensor structure (clipped to
     the limit, the edge read; :mod:`benchlab.analysis.sfr.robust`). Returns (refusal,
-    warning), one of them None."""
-    found = find_two_edges(img, noise) or find_second_edge(img, noise)
+    warning), one of them None. An edge fit scattering more than :data:`FIT_RMS_WARN_PX` (an
+    edge crossing only a corner of the ROI, or no single edge) is refused too: the stray pixels
+    are then not the edge's own structure."""
+    found = (find_two_edges(img, noise) or find_second_edge(img, noise)
+             or find_other_edge(img, noise))
     if found is not None:
         return found.reason(), None
+    if rms_px > FIT_RMS_WARN_PX:
+        return (f"not one clean edge across the ROI: the per-row edge positions scatter "
+                f"{rms_px:.2f} px RMS about the fit (> {FIT_RMS_WARN_PX:g} px) and "
+                f"{100 * n_outliers / n_pixels:.1f} % of the pixels lie off the edge profile; "
+                "does the edge cross the ROI from one side to the opposite one?"), None
     if fit_order == 1:
         bow, bow_sigma = edge_bow(np.arange(cents.size, dtype=np.float64), cents)
         if is_bent(bow, bow_sigma):

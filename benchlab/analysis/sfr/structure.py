@@ -94,8 +94,9 @@ class TwoEdges:
     ----------
     kind : str
         ``"bar"`` (two parallel edges of opposite sign: a bar or a line), ``"bars"`` (more
-        parallel edges, alternating in sign), ``"corner"`` or ``"second edge"`` (two parallel
-        edges of the same sign: a step beside the edge; :func:`find_second_edge`).
+        parallel edges, alternating in sign), ``"corner"``, ``"second edge"`` (two parallel
+        edges of the same sign: a step beside the edge; :func:`find_second_edge`) or
+        ``"other edge"`` (any edge in another direction: :func:`find_other_edge`).
     angle_deg : float
         Angle between the two groups' normals (~180 for bars, ~90 at a square's corner).
     lengths_px : tuple of float
@@ -117,6 +118,10 @@ class TwoEdges:
             return (f"the ROI holds bars ({len(self.lengths_px)} parallel edges alternating "
                     "in sign), not one edge: put the ROI over one edge only, with a plain "
                     "plateau on each side of it")
+        if self.kind == "other edge":
+            return (f"the ROI holds a second edge (at {self.angle_deg:.0f} deg to the edge; "
+                    f"edges {lengths} px long), not one edge: put the ROI over one edge only, "
+                    "clear of other shapes")
         if self.kind == "second edge":
             return (f"the ROI holds a second edge (two parallel edges of the same sign, "
                     f"{lengths} px long), not one edge: put the ROI over one edge only, "
@@ -322,3 +327,45 @@ def find_second_edge(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | No
     if strip(0.5 * (a1 + a2)) < SECOND_EDGE_DIP * min(strip(a1), strip(a2)):
         return TwoEdges("second edge", 0.0, tuple(e.length_px for e in edges))
     return None
+
+
+def find_other_edge(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | None:
+    """Any straight edge beside the strongest one, in another direction, else None.
+
+    The strong pixels (as :func:`find_two_edges` selects them) outside the strongest
+    direction's group, split into straight edges; one at least :data:`MIN_EDGE_PX` long is a
+    second edge (a corner of another shape reaching into the ROI, a bar crossing it). Broader
+    than :func:`find_two_edges`, which names only bars and corners and leaves the rest to the
+    caller: :func:`benchlab.analysis.sfr.measure.measure_sfr` asks it only where many pixels
+    lie off the edge profile, to tell a second edge from compression or sensor structure
+    (whose gradients stay below the strong pixels' threshold, 30 % of the peak).
+    """
+    img = np.asarray(pixels, dtype=np.float64)
+    if img.ndim != 2 or min(img.shape) < MIN_EDGE_PX + 2:
+        return None
+    gx, gy = _sobel(img)
+    mag2 = (gx * gx + gy * gy).ravel()
+    rank = min(PEAK_RANK, mag2.size)
+    peak2 = float(np.partition(mag2, mag2.size - rank)[mag2.size - rank])
+    if not peak2 > 0.0:
+        return None
+    floor = STRONG_SIGMAS * SOBEL_NOISE_GAIN * max(noise_sigma, 0.0)
+    sel = np.flatnonzero(mag2 >= max(STRONG_OF_PEAK**2 * peak2, floor * floor))
+    if sel.size < 2 * MIN_EDGE_PX:
+        return None
+    theta = np.arctan2(gy.ravel()[sel], gx.ravel()[sel])
+    w = np.sqrt(mag2[sel])
+    r_i, c_i = np.divmod(sel, gx.shape[1])
+    rows, cols = r_i.astype(np.float64), c_i.astype(np.float64)
+    main, member = _direction(theta, w, np.ones(sel.size, dtype=bool))
+    free = ~member
+    if np.count_nonzero(free) < MIN_EDGE_PX:
+        return None
+    other, second = _direction(theta, w, free)
+    edges, _ = _edges(other, rows[second], cols[second], w[second])
+    if not edges:
+        return None
+    first, _ = _edges(main, rows[member], cols[member], w[member])
+    apart = abs(math.degrees(math.remainder(main - other, 2.0 * math.pi)))
+    lengths = tuple(sorted((e.length_px for e in first + edges), reverse=True))
+    return TwoEdges("other edge", apart, lengths)
