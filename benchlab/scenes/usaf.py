@@ -73,6 +73,9 @@ class UsafScene(TwoLevelPrint):
         A negative target: bright bars (``bright_dn8``) on a dark ground (``dark_dn8``).
     vignetting
         Fractional fall-off of the lit disc at its edge (0 = flat), quadratic in radius.
+    full_field
+        Light the whole frame, not the forward disc: a microscope's or a lab camera's view
+        (with the whole chart as ``layout``, ``usaf:whole=M``).
     """
 
     layout: ChartLayout = field(default_factory=ChartLayout)
@@ -87,6 +90,7 @@ class UsafScene(TwoLevelPrint):
     pose: ChartPose = field(default_factory=ChartPose)
     negative: bool = False
     vignetting: float = 0.0
+    full_field: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.vignetting < 1.0:
@@ -247,6 +251,8 @@ class UsafScene(TwoLevelPrint):
         return rows
 
     def _disc(self, rows: FloatArray, cols: FloatArray) -> FloatArray:
+        if self.full_field:
+            return np.ones(np.broadcast_shapes(rows.shape, cols.shape))
         cr, cc = self.circles.centre_rc
         radius = np.hypot(rows - cr, cols - cc)
         edge = math.hypot(self.disc_edge_sigma_px, self.defocus_px)
@@ -370,6 +376,8 @@ USAF_SPEC_KNOBS = {
     "rot": "rotation, deg (clockwise on screen +)",
     "vignetting": "fractional fall-off at the disc edge, 0 <= v < 1",
     "negative": "1 = negative target (bright bars on a dark ground)",
+    "whole": "M > 0: the whole chart (groups -2 to 7) at Eq. 4.1 magnification M over the whole "
+             "frame (0.25: a microscope's groups 4-7); 0 = the forward view's chart",
 }
 
 
@@ -385,7 +393,8 @@ def usaf_scene_from_spec(spec: str) -> UsafScene:
     head, _, rest = spec.partition(":")
     if head != "usaf":
         raise ValueError(f"not a usaf scene spec: {spec!r}")
-    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0}
+    values = {"dx": 0.0, "dy": 0.0, "scale": 1.0, "rot": 0.0, "vignetting": 0.0, "negative": 0.0,
+              "whole": 0.0}
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, text = item.partition("=")
         key = key.strip()
@@ -406,5 +415,50 @@ def usaf_scene_from_spec(spec: str) -> UsafScene:
         raise ValueError(f"usaf knob vignetting={values['vignetting']:g} must be in [0, 1)")
     if values["negative"] not in (0.0, 1.0):
         raise ValueError("usaf knob negative must be 0 or 1")
+    if values["whole"] < 0:
+        raise ValueError(f"usaf knob whole={values['whole']:g} must be >= 0")
     pose = ChartPose((values["dy"], values["dx"]), values["scale"], values["rot"])
+    if values["whole"] > 0:
+        from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC
+        from benchlab.analysis.chart.whole_layout import whole_chart_layout
+
+        return UsafScene(layout=whole_chart_layout(values["whole"], origin_rc=IMAGE_CENTRE_RC),
+                         pose=pose, vignetting=values["vignetting"],
+                         negative=values["negative"] == 1.0, full_field=True)
     return UsafScene(pose=pose, vignetting=values["vignetting"], negative=values["negative"] == 1.0)
+
+
+def render_chart_image(
+    layout: ChartLayout,
+    pose: ChartPose,
+    height: int,
+    width: int,
+    *,
+    blur_px: float = 0.7,
+    dark: float = 0.1,
+    bright: float = 0.9,
+) -> FloatArray:
+    """A chart of any layout (e.g. the whole chart,
+    :func:`benchlab.analysis.chart.whole_layout.whole_chart_layout`) imaged at ``pose`` onto a
+    uniformly lit ``height x width`` frame: levels as fractions of full scale, every bar blurred
+    by an isotropic Gaussian ``blur_px`` and integrated over the pixel aperture
+    (:func:`_rotated_bar`). No noise, no vignetting: the test frame of a microscope or a lab
+    camera that sees part of the chart. Bars off the frame cost nothing.
+    """
+    bar_sum = np.zeros((height, width))
+    for g, e in layout.elements:
+        for orientation in ("sagittal", "tangential"):
+            posed = posed_bar_set(layout, pose, g, e, orientation)  # type: ignore[arg-type]
+            for centre, half_len, half_w in posed.bars():
+                reach = half_len + 6.0 * blur_px + 2.0
+                r0 = max(int(np.floor(centre[0] - reach)), 0)
+                r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
+                c0 = max(int(np.floor(centre[1] - reach)), 0)
+                c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
+                if r0 >= r1 or c0 >= c1:
+                    continue
+                rows = np.arange(r0, r1, dtype=np.float64)[:, None]
+                cols = np.arange(c0, c1, dtype=np.float64)[None, :]
+                bar_sum[r0:r1, c0:c1] += _rotated_bar(
+                    rows, cols, centre, half_len, half_w, posed.theta_deg, blur_px, blur_px)
+    return np.asarray(bright - (bright - dark) * np.clip(bar_sum, 0.0, 1.0), dtype=np.float64)

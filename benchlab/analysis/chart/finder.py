@@ -86,6 +86,8 @@ MATCH_LOG_WIDTH = 0.18
 MATCH_ANGLE_DEG = 12.0
 #: A pose needs at least this many layout sets matched to candidates.
 MIN_MATCHED_SETS = 3
+#: Pose hypotheses scored at once (memory: hypotheses x layout sets x candidates).
+POSE_CHUNK = 512
 #: Correlation with the three-bar pattern below which a placed set is "ambiguous".
 MIN_CONFIDENCE = 0.5
 #: The lit field: local ground above this fraction of the frame's lit level.
@@ -272,6 +274,11 @@ class ChartFit:
         return [e for e in self.elements if e.found]
 
     @property
+    def groups_found(self) -> list[int]:
+        """The USAF groups with at least one confirmed bar set, coarse to fine."""
+        return sorted({e.posed.group for e in self.found})
+
+    @property
     def rejected(self) -> list[FoundElement]:
         """The rejected elements with their reasons."""
         return [e for e in self.elements if not e.found]
@@ -302,6 +309,7 @@ class ChartFit:
             "candidates": self.candidates, "matched_sets": self.matched_sets,
             "residual_px": round(self.residual_px, 3),
             "found": len(self.found), "rejected": len(self.rejected),
+            "groups_found": self.groups_found,
             "warnings": list(self.warnings),
             "elements": [e.to_dict() for e in self.elements],
         }
@@ -653,37 +661,60 @@ def _fit_pose(
         refined = _refine(cands, model, origin, prior)
         if refined is not None and _confident(refined[1], cands.n):
             return refined
+    best: tuple[ChartPose, int, float] | None = None
+    for refined in refined_hypotheses(cands, model, layout, scale_range, 8):
+        if best is None or (refined[1], -refined[2]) > (best[1], -best[2]):
+            best = refined
+    if best is None or best[1] < MIN_MATCHED_SETS:
+        return None
+    return best
+
+
+def refined_hypotheses(
+    cands: _Candidates, model: dict[str, Any], layout: ChartLayout,
+    scale_range: tuple[float, float], top: int, any_rotation: bool = False,
+) -> list[tuple[ChartPose, int, float]]:
+    """The ``top`` best-scored poses of every candidate / layout-set pairing (scale within
+    ``scale_range``), each refined (:func:`_refine`): (pose, sets matched, residual px).
+    A bar's angle gives the rotation modulo 180 deg: rotations within +-90 deg are tried, and
+    with ``any_rotation`` those half a turn further too."""
+    if cands.n < 2:
+        return []
+    origin = layout.origin_rc
     grid_c, grid_s = np.meshgrid(np.arange(cands.n), np.arange(len(model["keys"])), indexing="ij")
     ci, si = grid_c.ravel(), grid_s.ravel()
     k = cands.width_px[ci] / model["width"][si]
     keep = (k >= scale_range[0]) & (k <= scale_range[1])
     ci, si, k = ci[keep], si[keep], k[keep]
     if ci.size == 0:
-        return None
+        return []
     phi = (cands.angle_deg[ci] - model["angle"][si] + 90.0) % 180.0 - 90.0
+    if any_rotation:
+        ci, si, k = np.tile(ci, 2), np.tile(si, 2), np.tile(k, 2)
+        phi = np.concatenate([phi, phi + 180.0])
     rad = np.radians(phi)
     py, px = model["centre"][si, 0], model["centre"][si, 1]
     off = np.stack([
         cands.centre_rc[ci, 0] - origin[0] - k * (px * np.sin(rad) + py * np.cos(rad)),
         cands.centre_rc[ci, 1] - origin[1] - k * (px * np.cos(rad) - py * np.sin(rad)),
     ], axis=1)
-    pos, wid, ang = _predict(model, origin, k, phi, off)
-    matched, _, _ = _match(cands, pos, wid, ang, MATCH_DIST_WIDTHS)
-    score = matched.sum(axis=1)
-    order = np.argsort(-score, kind="stable")[:8]
-    best: tuple[ChartPose, int, float] | None = None
-    for h in order:
+    # In chunks of hypotheses: the whole chart's 120 sets x ~100 candidates per hypothesis
+    # would otherwise need gigabytes (the scores are the same either way).
+    score = np.zeros(k.size, dtype=np.int64)
+    for h0 in range(0, k.size, POSE_CHUNK):
+        sl = slice(h0, h0 + POSE_CHUNK)
+        pos, wid, ang = _predict(model, origin, k[sl], phi[sl], off[sl])
+        matched, _, _ = _match(cands, pos, wid, ang, MATCH_DIST_WIDTHS)
+        score[sl] = matched.sum(axis=1)
+    out: list[tuple[ChartPose, int, float]] = []
+    for h in np.argsort(-score, kind="stable")[:top]:
         if score[h] < 2:
             break
         pose = ChartPose((float(off[h, 0]), float(off[h, 1])), float(k[h]), float(phi[h]))
         refined = _refine(cands, model, origin, pose)
-        if refined is None:
-            continue
-        if best is None or (refined[1], -refined[2]) > (best[1], -best[2]):
-            best = refined
-    if best is None or best[1] < MIN_MATCHED_SETS:
-        return None
-    return best
+        if refined is not None:
+            out.append(refined)
+    return out
 
 
 def _refine(

@@ -133,6 +133,9 @@ class ChartLayout:
         ``(group, element) -> (x_mm, y_mm)`` element centres on the chart, relative to the origin.
     sagittal_left
         Elements whose sagittal (vertical-bar) set is left of their tangential set.
+    set_gap_bar_widths
+        Gap between an element's two sets, in its bar widths (their centres are 5 + this
+        apart).
     """
 
     origin_rc: tuple[float, float] = IMAGE_CENTRE_RC
@@ -143,6 +146,7 @@ class ChartLayout:
         default_factory=lambda: {**COARSE_ELEMENT_CENTRES_MM, **THESIS_ELEMENT_CENTRES_MM}
     )
     sagittal_left: frozenset[tuple[int, int]] = THESIS_SAGITTAL_LEFT | COARSE_SAGITTAL_LEFT
+    set_gap_bar_widths: float = SET_GAP_BAR_WIDTHS
 
     def __hash__(self) -> int:  # the mapping field is not hashable by itself
         return hash(
@@ -153,6 +157,7 @@ class ChartLayout:
                 self.pixel_pitch_um,
                 tuple(sorted(self.element_centres_mm.items())),
                 self.sagittal_left,
+                self.set_gap_bar_widths,
             )
         )
 
@@ -293,7 +298,7 @@ def usaf_bar_group(
         raise KeyError(f"G{group}E{element} is not on the chart (have {layout.elements})")
     x_mm, y_mm = layout.element_centres_mm[(group, element)]
     w = layout.object_mm_to_px(usaf_bar_width_mm(group, element))
-    half_offset = (5.0 + SET_GAP_BAR_WIDTHS) * w / 2.0
+    half_offset = (5.0 + layout.set_gap_bar_widths) * w / 2.0
     side = 1.0 if orientation == "sagittal" else -1.0
     if (group, element) in layout.sagittal_left:
         side = -side

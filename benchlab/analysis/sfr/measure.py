@@ -42,11 +42,15 @@ Steps (ISO 12233 / sfrmat in outline; the implementation is benchlab's own):
 Refused (:class:`SfrRefused`, every reason listed): noise only / no edge, fewer than
 :data:`MIN_EDGE_ROWS` rows, an edge within :data:`MIN_ANGLE_DEG` of a pixel axis or too short
 for its angle to span one phase cycle, more than :data:`CLIP_REFUSE_FRACTION` of the pixels
-clipped; an ROI holding a bar or a line, bars or a corner is refused as such, in place of the
-reasons its structure caused (:mod:`benchlab.analysis.sfr.structure`). Warned (in
-:attr:`SfrResult.warnings`): low contrast, short edge, near-axis angle, uneven sample phases, a
-truncated ESF, any clipping, a poor edge fit, pixels more than :data:`OUTLIER_SIGMAS` noise
-sigmas off the ESF (clipped to that limit before the MTF).
+clipped; an ROI holding a bar or a line, bars, a corner or a second step of the same sign is
+refused as such, in place of the reasons its structure caused
+(:mod:`benchlab.analysis.sfr.structure`), and a bent edge read with a straight fit as bent
+(:mod:`benchlab.analysis.sfr.robust`). Warned (in :attr:`SfrResult.warnings`): low contrast,
+short edge, near-axis angle, uneven sample phases, a truncated ESF, any clipping, a poor edge
+fit, pixels more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF (clipped to that limit
+before the MTF; more than :data:`OUTLIER_REFUSE_FRACTION` of them, with no second edge and no
+bend, and an edge fit within :data:`FIT_RMS_WARN_PX`, are taken for compression or sensor
+structure).
 
 Why one module of ~1,700 lines: the ISO 12233 steps hand intermediate arrays (edge fit, ESF bins,
 LSF support, windows) from one to the next and the refusals need all of them; the LSF model,
@@ -68,6 +72,7 @@ from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bi
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
 from benchlab.analysis.quantiles import median, percentiles
+from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
 from benchlab.analysis.sfr.shading import (
     PLATEAU_MARGIN_PX,
     SHADING_PASSES,
@@ -75,7 +80,12 @@ from benchlab.analysis.sfr.shading import (
     fit_shading,
     flatten,
 )
-from benchlab.analysis.sfr.structure import ESF_SPAN_OF_STEP, find_two_edges
+from benchlab.analysis.sfr.structure import (
+    ESF_SPAN_OF_STEP,
+    find_other_edge,
+    find_second_edge,
+    find_two_edges,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -110,12 +120,15 @@ CLIP_REFUSE_FRACTION = 0.005
 EMPTY_BIN_WARN_FRACTION = 0.05
 #: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
 FIT_RMS_WARN_PX = 1.0
-#: Quality gate (refused above these): the edge-fit RMS residual, px (no clean edge in
+#: Quality gate (refused above it): the edge-fit RMS residual, px (no clean edge in
 #: ``benchlab benchmark sfr --quick`` exceeds 2.4 px, even at SNR 10; a bar or a corner
-#: crossing the ROI reads 6-10 px), and the fraction of pixels more than OUTLIER_SIGMAS off
-#: the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %).
+#: crossing the ROI reads 6-10 px). Above OUTLIER_REFUSE_FRACTION of the pixels more than
+#: OUTLIER_SIGMAS off the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %;
+#: JPEG at quality 75: 1-3 %) the ROI is looked at for a second edge or a bend, and refused
+#: only for one of them (:func:`_stray_pixels`).
 FIT_RMS_REFUSE_PX = 3.0
 OUTLIER_REFUSE_FRACTION = 0.01
+
 #: Clipped below full scale: the bright plateau on one code for at least this fraction of its
 #: pixels, with a noise sigma below CLIPPED_NOISE_RATIO x the dark plateau's (shot noise makes
 #: an unclipped bright side the noisier one) and the dark side's noise at least 0.3 codes.
@@ -1453,9 +1466,19 @@ def measure_sfr(
                         f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
                         "centre); the MTF at low frequency may read low - use a smaller ROI "
                         "or a flat-fielded image")
+    located = work
     work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
-    structure, clipping = _quality_gate(work, u, flat_half, model, rms, n_outliers, code_step,
-                                        raw_work)
+    structure, clipping = _quality_gate(work, u, flat_half, model, rms, code_step, raw_work)
+    stray_warning = None
+    if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
+        at = _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid)
+        cents = _row_centroids(polarity * np.diff(located, axis=1), at, half_window)
+        # rows whose window the ROI cuts: their centroids lean inwards, which reads as a bow
+        cents[(at - half_window < 0.0) | (at + half_window > located.shape[1] - 1.0)] = np.nan
+        refusal, stray_warning = _stray_pixels(img, noise, n_outliers, work.size, cents,
+                                               fit_order, rms)
+        if refusal is not None:
+            raise SfrRefused([refusal] + clipping)
     if structure:
         raise _refusal(structure, img, noise, also=clipping)
     if clipping:
@@ -1483,6 +1506,11 @@ def measure_sfr(
         found = find_two_edges(img, noise)
         if found is not None:
             raise SfrRefused([found.reason()])
+    # A second step of the same sign leaves none of those marks: the ESF reads it as one wide
+    # edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently).
+    second = find_second_edge(img, noise)
+    if second is not None:
+        raise SfrRefused([second.reason()])
     ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
     choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
     spec = choice.spec
@@ -1533,7 +1561,9 @@ def measure_sfr(
                         f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
                         "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
                         "MTF near Nyquist less reliable (aliasing)")
-    if n_outliers:
+    if stray_warning is not None:
+        warnings.append(stray_warning)
+    elif n_outliers:
         warnings.append(f"{n_outliers} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas off "
                         "the edge profile clipped to it (hot or dead pixels, dust?)")
     if truncated:
@@ -1684,14 +1714,13 @@ def _edge_fit_summary(
 
 def _quality_gate(
     work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
-    n_outliers: int, code_step: float, codes: FloatArray | None = None,
+    code_step: float, codes: FloatArray | None = None,
 ) -> tuple[list[str], list[str]]:
     """Why the ROI holds no clean, unclipped straight edge (both empty when it does): its
     structure - the ESF's far side not brighter than its near side (other structure decided
-    the polarity), an edge fit far worse than a straight edge gives, too many pixels off the
-    ESF (a bar or a corner crossing the ROI) - and its clipping: a bright plateau clipped on
-    one code below full scale (read on ``codes``, the ROI before any flattening, default
-    ``work``)."""
+    the polarity), an edge fit far worse than a straight edge gives - and its clipping: a
+    bright plateau clipped on one code below full scale (read on ``codes``, the ROI before any
+    flattening, default ``work``). Pixels off the ESF are judged by :func:`_stray_pixels`."""
     reasons = []
     if not noise.bright > noise.dark:
         reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
@@ -1699,12 +1728,7 @@ def _quality_gate(
                        "the ROI?")
     if rms_px > FIT_RMS_REFUSE_PX:
         reasons.append(f"edge fit RMS {rms_px:.2f} px (> {FIT_RMS_REFUSE_PX:g} px): not one "
-                       "straight edge (other structure crossing the ROI?)")
-    if n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        reasons.append(f"{100 * n_outliers / work.size:.1f} % of the pixels are more than "
-                       f"{OUTLIER_SIGMAS:g} noise sigmas off the edge profile "
-                       f"(> {100 * OUTLIER_REFUSE_FRACTION:g} %): other structure in the ROI, or a "
-                       "bent edge (try fit_order 2)?")
+                       "straight edge: other structure in the ROI (a second edge crossing it?)")
     clipping = []
     bright = (work if codes is None else codes)[u > core_half_px]
     if bright.size >= 30 and code_step > 0:
@@ -1721,13 +1745,46 @@ def _quality_gate(
     return reasons, clipping
 
 
+def _stray_pixels(
+    img: FloatArray, noise: float, n_outliers: int, n_pixels: int, cents: FloatArray,
+    fit_order: int, rms_px: float = 0.0,
+) -> tuple[str | None, str | None]:
+    """More than :data:`OUTLIER_REFUSE_FRACTION` of the pixels off the ESF: the refusal when a
+    second edge (:func:`find_two_edges`, :func:`find_second_edge`, :func:`find_other_edge`)
+    or, on a straight fit, a
+    bent edge (:func:`~benchlab.analysis.sfr.robust.edge_bow`) put them there, naming which;
+    else the warning that they were taken for compression or sensor structure (clipped to
+    the limit, the edge read; :mod:`benchlab.analysis.sfr.robust`). Returns (refusal,
+    warning), one of them None. An edge fit scattering more than :data:`FIT_RMS_WARN_PX` (an
+    edge crossing only a corner of the ROI, or no single edge) is refused too: the stray pixels
+    are then not the edge's own structure."""
+    found = (find_two_edges(img, noise) or find_second_edge(img, noise)
+             or find_other_edge(img, noise))
+    if found is not None:
+        return found.reason(), None
+    if rms_px > FIT_RMS_WARN_PX:
+        return (f"not one clean edge across the ROI: the per-row edge positions scatter "
+                f"{rms_px:.2f} px RMS about the fit (> {FIT_RMS_WARN_PX:g} px) and "
+                f"{100 * n_outliers / n_pixels:.1f} % of the pixels lie off the edge profile; "
+                "does the edge cross the ROI from one side to the opposite one?"), None
+    if fit_order == 1:
+        bow, bow_sigma = edge_bow(np.arange(cents.size, dtype=np.float64), cents)
+        if is_bent(bow, bow_sigma):
+            return bent_reason(bow, int(np.count_nonzero(np.isfinite(cents)))), None
+    share = 100.0 * n_outliers / n_pixels
+    return None, (f"{share:.1f} % of the pixels more than {OUTLIER_SIGMAS:g} noise sigmas off "
+                  "the edge profile, with no second edge and no bend: taken for compression "
+                  "or sensor structure (JPEG blocks, fixed pattern) and clipped to that limit; "
+                  "the MTF's 1-sigma holds the pixel noise only")
+
+
 def _refusal(reasons: list[str], img: FloatArray, noise: float,
              also: list[str] | None = None) -> SfrRefused:
     """The refusal of an ROI whose structure may be the cause (no step, an edge near the
     pixel axis, no centroids, not one straight edge): where the ROI holds two edges - a bar
     or a line, a corner (:func:`~benchlab.analysis.sfr.structure.find_two_edges`) - that is
     the reason, said in place of ``reasons``, its symptoms; ``also`` (other causes) is kept."""
-    found = find_two_edges(img, noise)
+    found = find_two_edges(img, noise) or find_second_edge(img, noise)
     return SfrRefused(([found.reason()] if found is not None else reasons) + (also or []))
 
 

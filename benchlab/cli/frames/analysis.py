@@ -20,7 +20,7 @@ from benchlab.drivers.errors import BenchlabError
 if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
     import numpy.typing as npt
 
-IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".bmp")
+IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".bmp", ".jpg", ".jpeg")
 ORIENTATION_CHOICES = ("sagittal", "tangential", "horizontal", "vertical")
 
 
@@ -29,8 +29,10 @@ class AnalysisInputError(BenchlabError, ValueError):
 
 
 def read_image(path: Path) -> npt.NDArray[Any]:
-    """A monochrome 8- or 16-bit image (TIFF, PNG or BMP) as a 2-D array; a multi-page TIFF
-    gives a (frames, rows, cols) stack, which the estimators average.
+    """A monochrome 8- or 16-bit image (TIFF, PNG, BMP or JPEG) as a 2-D array; a multi-page
+    TIFF gives a (frames, rows, cols) stack, which the estimators average. PNG, BMP and JPEG
+    are decoded by Pillow (:func:`benchlab.cli.frames.imagefile.decode_image`: a colour JPEG
+    is read as its luminance).
 
     Raises
     ------
@@ -50,7 +52,7 @@ def read_image_and_metadata(path: Path) -> tuple[npt.NDArray[Any], dict[str, Any
     suffix = path.suffix.lower()
     if suffix not in IMAGE_SUFFIXES:
         raise AnalysisInputError(
-            f"{path}: unsupported image type {suffix or '(none)'}; use TIFF, PNG or BMP"
+            f"{path}: unsupported image type {suffix or '(none)'}; use TIFF, PNG, BMP or JPEG"
         )
     meta = None
     try:
@@ -59,23 +61,18 @@ def read_image_and_metadata(path: Path) -> tuple[npt.NDArray[Any], dict[str, Any
 
             pixels, meta = read_tiff_frame(path)  # refuses colour and contradicted bit depth
         else:
-            import cv2
+            from benchlab.cli.frames.imagefile import decode_image
 
-            decoded = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-            if decoded is None:
-                raise ValueError("OpenCV could not decode it")
-            pixels = decoded
+            pixels = decode_image(path)
     except BenchlabError:
         raise
     except Exception as exc:  # readers raise many types for corrupt files
+        from benchlab.cli.frames.imagefile import ColourImageError
+
+        if isinstance(exc, ColourImageError):
+            raise AnalysisInputError(f"{path}: {exc}") from exc
         raise AnalysisInputError(f"{path}: not a readable image ({exc})") from exc
     pixels = np.asarray(pixels)
-    if pixels.ndim == 3 and pixels.shape[-1] in (3, 4) and suffix not in (".tif", ".tiff"):
-        colour = pixels[..., :3]
-        if np.all(colour == colour[..., :1]):
-            pixels = colour[..., 0]
-        else:
-            raise AnalysisInputError(f"{path}: colour image; benchlab analyses monochrome frames")
     if pixels.ndim not in (2, 3) or pixels.size == 0:
         raise AnalysisInputError(
             f"{path}: expected a 2-D monochrome image, got shape {pixels.shape}"
@@ -236,6 +233,8 @@ def analyze_command(args: argparse.Namespace) -> int:
     from benchlab.analysis import ESTIMATORS, compare_estimators, estimate_modulation
     from benchlab.analysis.mtf.frequency import cycles_per_px
 
+    if getattr(args, "magnification", None) is not None and not getattr(args, "chart", None):
+        raise UsageError("--magnification applies with --chart only")
     if getattr(args, "chart", None):
         from benchlab.cli.frames.chart import analyze_chart_command
 
@@ -439,6 +438,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "--chart", metavar="KIND",
         help="usaf: find the USAF 1951 chart (any place, scale, rotation) and measure every "
         "found element (Table 4.11 layout) instead of one --roi",
+    )
+    p.add_argument(
+        "--magnification", type=float, default=None, metavar="M",
+        help="with --chart: Eq. 4.1 object-to-image frequency factor (default 16.3, the forward "
+        "view; ~1/M under an objective of magnification M); where the forward view's chart is "
+        "not found, a hint naming the groups of the whole chart (groups -2 to 7)",
     )
     from benchlab.cli.runs.batch import add_batch_arguments
 

@@ -23,27 +23,61 @@ class ChartNotFound(BenchlabError):
     """No chart in the frame (printed as ``benchlab: error: FRAME: no chart found: ...``)."""
 
 
-def locate(path: Path, magnification: float | None = None) -> tuple[Any, ChartFit]:
-    """Read an image and find the chart in it; a clear error when there is none
-    (``magnification`` default: the forward view's, Eq. 4.1)."""
-    from benchlab.analysis.chart.finder import ChartNotFoundError, find_chart
+def locate(path: Path, magnification: float | None = None, whole: bool = False
+           ) -> tuple[Any, ChartFit]:
+    """Read an image and find the chart in it; a clear error when there is none.
+
+    First the forward view's chart (groups 0-3 at its configured place, 0.5-2x the
+    ``magnification``, default 16.3, Eq. 4.1); where that finds none or fits fewer than
+    :data:`~benchlab.analysis.chart.finder.CONFIDENT_MIN_SETS` sets (or with ``whole``), the
+    whole chart, groups -2 to 7, at any scale and rotation
+    (:func:`benchlab.analysis.chart.whole.find_whole_chart`; ``magnification`` a hint that
+    names the groups), whichever fits more sets.
+    """
+    from benchlab.analysis.chart.finder import (
+        CONFIDENT_MIN_SETS,
+        ChartNotFoundError,
+        find_chart,
+    )
     from benchlab.analysis.chart.layout import ChartLayout
+    from benchlab.analysis.chart.whole import find_whole_chart
     from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
     from benchlab.cli.frames.analysis import AnalysisInputError, read_image
 
-    if magnification is None:
-        magnification = FORWARD_MAGNIFICATION
-
-    if not magnification > 0:
+    if magnification is not None and not magnification > 0:
         raise AnalysisInputError(f"--magnification must be > 0, got {magnification}")
     pixels = read_image(path)
     try:
-        fit = find_chart(pixels, ChartLayout(magnification=magnification))
+        forward = None
+        if not whole:
+            try:
+                forward = find_chart(pixels, ChartLayout(
+                    magnification=magnification or FORWARD_MAGNIFICATION))
+            except ChartNotFoundError:
+                pass  # not the forward view's chart: the whole chart at any scale
+            if forward is not None and forward.matched_sets >= CONFIDENT_MIN_SETS:
+                return pixels, forward
+        try:
+            fit = find_whole_chart(pixels, magnification)
+        except ChartNotFoundError:
+            if forward is None:
+                raise
+            return pixels, forward
+        # a forward fit on a few sets may be a coincidence in another part of the chart
+        return pixels, (forward if forward is not None
+                        and forward.matched_sets >= fit.matched_sets else fit)
     except ChartNotFoundError as exc:
         raise ChartNotFound(f"{path}: {exc}") from None
     except ValueError as exc:
         raise AnalysisInputError(f"{path}: {exc}") from exc
-    return pixels, fit
+
+
+def groups_line(fit: ChartFit) -> str:
+    """One line: the USAF groups with a confirmed set, and the chart model searched."""
+    groups = fit.groups_found
+    model = "whole chart, groups -2 to 7" if _is_whole(fit) else "forward-view chart"
+    shown = ", ".join(str(g) for g in groups) if groups else "none confirmed"
+    return f"groups in view: {shown} ({model})"
 
 
 def pose_line(fit: ChartFit) -> str:
@@ -61,8 +95,13 @@ def format_elements(fit: ChartFit) -> str:
     """The table of placed elements, found first, then rejected with reasons."""
     head = (f"{'set':<7} {'status':<8} {'conf':>4}  {'centre (r, c)':>16}  {'roi r0,c0,r1,c1':<19} "
             f"{'obj lp/mm':>9} {'img lp/mm':>9} {'px/period':>9} {'measured':>8}")
-    lines = [pose_line(fit), *(f"warning: {w}" for w in fit.warnings), "", head]
-    for el in [*fit.found, *fit.rejected]:
+    lines = [pose_line(fit), groups_line(fit), *(f"warning: {w}" for w in fit.warnings), "",
+             head]
+    listed = [*fit.found, *fit.rejected]
+    if _is_whole(fit):  # the whole chart: most of its 120 sets are far off any frame
+        off = [e for e in fit.rejected if e.reason and "runs off the frame" in e.reason]
+        listed = [e for e in listed if e not in off]
+    for el in listed:
         p = el.posed
         meas = "-" if el.measured_px_per_period is None else f"{el.measured_px_per_period:.2f}"
         roi = ",".join(map(str, el.roi))
@@ -72,12 +111,20 @@ def format_elements(fit: ChartFit) -> str:
             f"{p.object_lp_per_mm:>9.3f} {p.image_lp_per_mm:>9.2f} {p.px_per_period:>9.2f} "
             f"{meas:>8}" + (f"  {el.reason or el.unmeasurable}"
                             if el.reason or el.unmeasurable else ""))
+    if _is_whole(fit) and len(listed) < len(fit.elements):
+        lines.append(f"({len(fit.elements) - len(listed)} sets of the whole chart run off the "
+                     "frame: not listed; --json lists every set)")
     return "\n".join(lines)
+
+
+def _is_whole(fit: ChartFit) -> bool:
+    """Whether the fit is of the whole chart (groups -2 to 7), not the forward view's."""
+    return any(g < 0 or g > 3 for g, _ in fit.layout.elements)
 
 
 def _find_chart_command(args: argparse.Namespace) -> int:
     path = Path(args.frame)
-    pixels, fit = locate(path, args.magnification)
+    pixels, fit = locate(path, args.magnification, args.whole)
     if args.plot:
         from benchlab.report.chart import chart_png
         from benchlab.storage import atomic_write_bytes
@@ -150,7 +197,7 @@ def format_table_411(fit: ChartFit, rows: list[dict[str, Any]]) -> str:
             return f"{'N/A':>9} {0.0:>7.2f}"
         return f"{res['dark']:>4.0f}/{res['bright']:<4.0f} {res['modulation']:>7.2f}"
 
-    lines = [pose_line(fit), *(f"warning: {w}" for w in fit.warnings), "",
+    lines = [pose_line(fit), groups_line(fit), *(f"warning: {w}" for w in fit.warnings), "",
              f"{'element':<8} {'obj lp/mm':>9} {'img lp/mm':>9}  {'S dark/bright':>13} "
              f"{'S mod':>5}  {'T dark/bright':>13} {'T mod':>5}"]
     for name, pair in by.items():
@@ -162,9 +209,15 @@ def format_table_411(fit: ChartFit, rows: list[dict[str, Any]]) -> str:
     if unmeasured:
         lines.append("")
         lines.append("found, not measured: " + "; ".join(unmeasured))
-    if fit.rejected:
+    shown = fit.rejected
+    if _is_whole(fit):
+        shown = [e for e in shown if not (e.reason and "runs off the frame" in e.reason)]
+    if shown:
         lines.append("")
-        lines.append("not measured: " + "; ".join(f"{e.label} {e.reason}" for e in fit.rejected))
+        lines.append("not measured: " + "; ".join(f"{e.label} {e.reason}" for e in shown))
+    if len(shown) < len(fit.rejected):
+        lines.append(f"({len(fit.rejected) - len(shown)} sets of the whole chart run off the "
+                     "frame: not listed)")
     return "\n".join(lines)
 
 
@@ -181,7 +234,8 @@ def analyze_chart_command(args: argparse.Namespace) -> int:
         if getattr(args, option, None) is not None:
             raise AnalysisInputError(f"--{option} does not apply with --chart: every found "
                                      "element has its own ROI, frequency and orientation")
-    pixels, fit = locate(path)
+    pixels, fit = locate(path, getattr(args, "magnification", None),
+                         bool(getattr(args, "whole_chart", False)))
     try:
         rows = measure_chart(pixels, fit, args.estimator)
     except ValueError as exc:
@@ -208,6 +262,16 @@ def _benchmark_command(args: argparse.Namespace) -> int:
     )
 
     t0 = time.perf_counter()
+    if args.whole:
+        from benchlab.benchmarks.whole_chart import (
+            format_whole_chart_benchmark,
+            run_whole_chart_benchmark,
+        )
+
+        print(format_whole_chart_benchmark(run_whole_chart_benchmark(frames=args.frames,
+                                                                     seed=args.seed)))
+        print(f"\n{time.perf_counter() - t0:.1f} s")
+        return 0
     if args.psf_check:
         print(format_psf_check(run_psf_check(seed=args.seed)))
         print(f"\nseed {args.seed}, {time.perf_counter() - t0:.1f} s")
@@ -225,18 +289,25 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     p = commands.add_parser(
         "find-chart", help="locate and label every USAF 1951 element in a frame",
         description=(
-            "Find the USAF 1951 chart in an 8- or 16-bit TIFF/PNG/BMP frame at any offset, scale "
-            "(0.5-2x the configured magnification) and rotation, positive or negative target. "
-            "Prints the pose, the implied magnification against the configured one, and every "
-            "bar set: found (with confidence, ROI, object and image frequency, px per period) "
-            "or rejected with the reason (clipped by the FOV, above Nyquist, too small, "
-            "ambiguous). Exit status 1 with 'no chart found' when there is none."),
+            "Find the USAF 1951 chart in an 8- or 16-bit TIFF/PNG/BMP/JPEG frame at any offset, "
+            "scale and rotation, positive or negative target. First the forward view's chart "
+            "(0.5-2x the configured magnification); where there is none, the whole chart "
+            "(groups -2 to 7, e.g. groups 4-7 under a microscope) at any scale, "
+            "--magnification then a hint that names the groups. Prints the pose, the implied "
+            "magnification, the groups in view and every bar set: found (with confidence, ROI, "
+            "object and image frequency, px per period) or rejected with the reason (clipped by "
+            "the FOV, above Nyquist, too small, ambiguous). Exit status 1 with 'no chart found' "
+            "when there is none. Example: benchlab find-chart scope.jpg --magnification 0.25"),
     )
     p.add_argument("frame", metavar="FRAME", help="image file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="write a PNG of the frame with the found chart")
     p.add_argument("--magnification", type=float, default=None,
-                   help="configured object-to-image frequency factor, Eq. 4.1 (default 16.3)")
+                   help="object-to-image frequency factor, Eq. 4.1 (image lp/mm = object lp/mm x "
+                        "it; default 16.3, the forward view; ~1/M under an objective of "
+                        "magnification M): the forward chart's scale, the whole chart's hint")
+    p.add_argument("--whole", action="store_true",
+                   help="search the whole chart (groups -2 to 7) at any scale straight away")
     p.set_defaults(func=_find_chart_command)
 
     b = benchmarks.add_parser(
@@ -255,4 +326,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                         "(defocus disc, Gaussian + halo, disc + Gaussian) and print, per PSF, "
                         "bar width and direction, the share within 0.03, the 95 %% interval "
                         "coverage and the contrast reversals called reversed (~15 s)")
+    b.add_argument("--whole", action="store_true",
+                   help="instead: the whole-chart finder (groups -2 to 7) on --frames random "
+                        "frames at 0.2-10x the scale of a microscope's groups 4-7, any "
+                        "rotation, half of them JPEG: found, magnification, groups named, sets "
+                        "labelled, time")
     b.set_defaults(func=_benchmark_command)
