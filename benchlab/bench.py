@@ -28,7 +28,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM, actuator_counts_per_mm
+from benchlab.drivers.apt.protocol import (
+    ACTUATOR_TRAVEL_MM,
+    COMPLETION_TOLERANCE_COUNTS,
+    Z8_COUNTS_PER_MM,
+    actuator_counts_per_mm,
+)
+from benchlab.drivers.mightex.profile import TIMESTAMP_UNITS_MS, TRAILER_ORDERS
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
 
@@ -60,6 +66,21 @@ class CameraConfig:
     model: str | None = None
     #: Response calibration file (``benchlab run characterise``), absolute once loaded.
     response_calibration: str | None = None
+    #: Profile facts ``benchlab doctor`` settled on this bench (None: the model's own).
+    trailer_order: str | None = None
+    timestamp_unit_ms: float | None = None
+    #: The bit depths whose frames decode on this camera (``benchlab doctor`` writes them);
+    #: runs take their default depths from here and refuse the others.
+    bit_depths: tuple[int, ...] | None = None
+
+    def profile(self) -> Any:
+        """The camera profile: the model's (MCE-B013-U by default) with the facts above."""
+        from benchlab.drivers.mightex import protocol as p
+
+        spec = p.spec_for(self.model or "MCE-B013-U")
+        facts = {"trailer_order": self.trailer_order, "timestamp_unit_ms": self.timestamp_unit_ms,
+                 "bit_depths": self.bit_depths}
+        return dataclasses.replace(spec, **{k: v for k, v in facts.items() if v is not None})
 
 
 @dataclass(frozen=True)
@@ -73,10 +94,12 @@ class LedConfig:
 class StageConfig:
     port: str | None = None
     counts_per_mm: float = Z8_COUNTS_PER_MM
-    travel_mm: tuple[float, float] = (0.0, 50.0)
+    travel_mm: tuple[float, float] = (0.0, 25.0)
     #: ``stage.actuator``: "Z8" (34554.96 counts/mm), "Z8-34304" or "Z6" (see apt.protocol).
     actuator: str | None = None
     velocity_mm_s: float = 2.0
+    #: A completed move must end this close to its target (``stage.tolerance_counts``).
+    tolerance_counts: int = COMPLETION_TOLERANCE_COUNTS
 
 
 @dataclass(frozen=True)
@@ -141,6 +164,9 @@ class BenchConfig:
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
             response_calibration=c.string("camera.response_calibration", "") or None,
+            trailer_order=c.choice("camera.trailer_order", None, TRAILER_ORDERS),
+            timestamp_unit_ms=c.choice("camera.timestamp_unit_ms", None, TIMESTAMP_UNITS_MS),
+            bit_depths=_bit_depths(c),
         )
         led = None
         found, _ = c.get("led", None)
@@ -164,11 +190,12 @@ class BenchConfig:
         stage = None
         found, _ = c.get("stage", None)
         if found:
-            travel = c.numbers("stage.travel_mm", (0.0, 50.0), -1000.0, 1000.0)
+            actuator = c.string("stage.actuator", "")
+            default_travel = (0.0, ACTUATOR_TRAVEL_MM.get(actuator, ACTUATOR_TRAVEL_MM["Z8"]))
+            travel = c.numbers("stage.travel_mm", default_travel, -1000.0, 1000.0)
             if len(travel) != 2 or travel[0] >= travel[1]:
                 c.fail("stage.travel_mm", f"must be [low, high] with low < high, got {travel}")
-                travel = (0.0, 50.0)
-            actuator = c.string("stage.actuator", "")
+                travel = default_travel
             scale = Z8_COUNTS_PER_MM
             if actuator:
                 try:
@@ -185,6 +212,8 @@ class BenchConfig:
                 counts_per_mm=counts, actuator=actuator or None,
                 travel_mm=(travel[0], travel[1]),
                 velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
+                tolerance_counts=c.integer("stage.tolerance_counts",
+                                           COMPLETION_TOLERANCE_COUNTS, 1, 100_000),
             )
         sessions = c.string("paths.sessions", "")
         c.unknown_keys()
@@ -574,3 +603,15 @@ def _stopped_on(stage: LinearStage, abort: threading.Event | None) -> Iterator[N
         finished.set()
         watcher.join()
 
+
+
+def _bit_depths(c: TableChecker) -> tuple[int, ...] | None:
+    """``camera.bit_depths``: a non-empty list of 8, 10 and 12 (None when absent)."""
+    found, value = c.get("camera.bit_depths", None)
+    if not found:
+        return None
+    if (not isinstance(value, list) or not value
+            or any(v not in (8, 10, 12) or isinstance(v, bool) for v in value)):
+        c.fail("camera.bit_depths", f"must be a list of 8, 10 and 12, got {value!r}")
+        return None
+    return tuple(int(v) for v in value)

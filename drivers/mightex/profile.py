@@ -27,6 +27,11 @@ from benchlab.drivers.errors import SettingOutOfRangeError
 #: The MCE-B013-U's PID is not public; the BTN-B013U (same sensor) uses 0x0428.
 DEFAULT_PID = 0x0428
 BUFFER_FULL_POLICIES = ("drop_new", "overwrite_oldest")
+#: The trailer's first two words: line length then line count ([GC]'s CCD layout, assumed for
+#: the CMOS camera), or the other way round. Only a non-square frame tells them apart.
+TRAILER_ORDERS = ("row_column", "column_row")
+#: Timestamp units the vendor guide gives: 1 ms in its text, 0.1 ms in its worked example.
+TIMESTAMP_UNITS_MS = (1.0, 0.1)
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,12 @@ class CameraSpec:
     exposure_tolerance_ms: float = 1.0
     exposure_tolerance_fraction: float = 0.02
     gain_tolerance_raw: int = 1
+    #: Order of the trailer's first two words (:data:`TRAILER_ORDERS`); ``benchlab doctor``
+    #: settles it with a full 1280 x 1024 frame.
+    trailer_order: str = "row_column"
+    #: Unit of the trailer's 16-bit timestamp, ms (:data:`TIMESTAMP_UNITS_MS`); ``benchlab
+    #: doctor`` settles it against the host clock.
+    timestamp_unit_ms: float = 1.0
 
     def __post_init__(self) -> None:
         if self.buffer_full not in BUFFER_FULL_POLICIES:
@@ -71,6 +82,14 @@ class CameraSpec:
             raise SettingOutOfRangeError(
                 f"camera profile {self.model}: exposure_bytes must be 2 or 4, "
                 f"got {self.exposure_bytes!r}")
+        if self.trailer_order not in TRAILER_ORDERS:
+            raise SettingOutOfRangeError(
+                f"camera profile {self.model}: trailer_order {self.trailer_order!r} is not one "
+                f"of {', '.join(TRAILER_ORDERS)}")
+        if self.timestamp_unit_ms not in TIMESTAMP_UNITS_MS:
+            raise SettingOutOfRangeError(
+                f"camera profile {self.model}: timestamp_unit_ms {self.timestamp_unit_ms!r} is "
+                f"not one of {', '.join(map(str, TIMESTAMP_UNITS_MS))}")
 
     @property
     def exposure_max_ms(self) -> float:
