@@ -80,7 +80,7 @@ ROI = 256  # linearity and depths read a 256 x 256 frame when the camera takes i
 SIM_LED_E_PER_MS_PER_MA = 40.0
 SIM_STAGE_TIME_SCALE = 2000.0  # the simulated stage moves this much faster than real time
 #: Free-running frames timed against the host clock when the timestamp unit is in question.
-TIMESTAMP_FRAMES = 10
+TIMESTAMP_FRAMES = 5
 #: A dial gauge's own error (a 0.01 mm gauge: about +-0.01 mm over the move), mm.
 GAUGE_ERROR_MM = 0.01
 #: A measured scale is taken as a known actuator's within this fraction.
@@ -129,7 +129,7 @@ class Doctor:
         try:
             return check()
         except (BenchlabError, OSError) as exc:
-            self.add(step, "FAIL", _one_line(exc), meaning)
+            self.add(step, "FAIL", _replay_reason() or _one_line(exc), meaning)
             return None
 
     def skip(self, steps: tuple[str, ...], why: str) -> None:
@@ -138,34 +138,43 @@ class Doctor:
 
     # ---- the run --------------------------------------------------------------------------
     def run(self) -> None:
-        with contextlib.ExitStack() as stack:
-            if self.simulate and not self.replaying:
-                self._start_sims(stack)
-            self.attempt("1 libusb backend", "", self.check_usb_backend)
-            self.attempt("2 udev rule and group", "", self.check_udev)
-            cam = self.attempt("3 camera enumerates and answers", "check the cable and power; "
-                               "`benchlab devices` lists what is on the bus",
-                               lambda: self.open_camera(stack))
-            led = self.attempt("6 LED controller identity", "check the port, 9600 8N1 and a "
-                               "straight (not null-modem) cable", lambda: self.open_led(stack))
-            if cam is not None:
-                self._camera_checks(cam, led, stack)
-            else:
-                self.skip(("4 exposure unit and linearity", "5 bit depths decode"),
-                          "no camera (step 3 failed)")
-            if led is not None:
-                self.attempt("7 LED on at its lowest current, off", "the controller took the "
-                             "identity query but not the output commands: check the channel",
-                             lambda: self.check_led(led))
-            else:
-                self.skip(("7 LED on at its lowest current, off",), "no LED controller (step 6)")
-            stage = self.attempt("8 stage identity", "check the port and the cube's power",
-                                 lambda: self.open_stage(stack))
-            if stage is not None:
-                self.check_stage(stage)
-            else:
-                self.skip(("8 stage homing", "8 stage scale"), "no stage (step 8 identity)")
-            self.current_step = None
+        stack = contextlib.ExitStack()
+        try:
+            self._run(stack)
+        finally:  # devices closed (LED off, stage stopped); an error there is a check too
+            running = self.current_step
+            self.attempt("9 devices closed", "switch the LED off and check the stage at their "
+                         "controllers", stack.close)
+            self.current_step = running
+
+    def _run(self, stack: contextlib.ExitStack) -> None:
+        if self.simulate and not self.replaying:
+            self._start_sims(stack)
+        self.attempt("1 libusb backend", "", self.check_usb_backend)
+        self.attempt("2 udev rule and group", "", self.check_udev)
+        cam = self.attempt("3 camera enumerates and answers", "check the cable and power; "
+                           "`benchlab devices` lists what is on the bus",
+                           lambda: self.open_camera(stack))
+        led = self.attempt("6 LED controller identity", "check the port, 9600 8N1 and a "
+                           "straight (not null-modem) cable", lambda: self.open_led(stack))
+        if cam is not None:
+            self._camera_checks(cam, led, stack)
+        else:
+            self.skip(("4 exposure unit and linearity", "5 bit depths decode"),
+                      "no camera (step 3 failed)")
+        if led is not None:
+            self.attempt("7 LED on at its lowest current, off", "the controller took the "
+                         "identity query but not the output commands: check the channel",
+                         lambda: self.check_led(led))
+        else:
+            self.skip(("7 LED on at its lowest current, off",), "no LED controller (step 6)")
+        stage = self.attempt("8 stage identity", "check the port and the cube's power",
+                             lambda: self.open_stage(stack))
+        if stage is not None:
+            self.check_stage(stage)
+        else:
+            self.skip(("8 stage homing", "8 stage scale"), "no stage (step 8 identity)")
+        self.current_step = None
 
     def _camera_checks(self, cam: Any, led: Any, stack: contextlib.ExitStack) -> None:
         lit = bool(self.attempt("4 light for the camera checks", "the LED controller did "
@@ -372,7 +381,7 @@ class Doctor:
         return self._ask("uncover the lens so some room light falls on the sensor; done?")
 
     def _ask(self, question: str) -> bool:
-        return bool(self.outside.get("ask", lambda: self.ask(question)))
+        return bool(self.outside.get(f"ask: {question}", lambda: self.ask(question)))
 
     def _measure(self, question: str) -> float | None:
         return self.outside.get("measure", lambda: self.measure(question))
@@ -387,11 +396,11 @@ class Doctor:
         except TrailerGeometryError as exc:
             if not exc.swapped:
                 raise
+            w, h = exc.configured
         assumed = cam.spec.trailer_order
         other = "column_row" if assumed == "row_column" else "row_column"
         self.learned[("camera", "trailer_order")] = other
         cam.use_profile(replace(cam.spec, trailer_order=other))
-        w, h = exc.configured
         self.add("3 frame trailer order", "FAIL", f"a full {w}x{h} frame's trailer gives the "
                  f"line count first ({h}, {w}): not the {assumed} order assumed",
                  f'set [camera] trailer_order = "{other}" (written to the bench file)')
@@ -424,7 +433,7 @@ class Doctor:
             self.add(step, "FAIL", finding, "the exposure unit of the camera's profile is "
                      "wrong: report the camera model and firmware (issue tracker)")
             return cam
-        width = self._region(cam)
+        region = self._region(cam)
         if not lit:
             self.add(step, "warn", f"frame period {period:g} ms at {EXPOSURE_MS:g} ms (unit "
                      "right); linearity not checked (no light)")
@@ -437,7 +446,7 @@ class Doctor:
         else:
             self.add(step, "ok", f"frame period {period:g} ms at a set {EXPOSURE_MS:g} ms; dark "
                      f"{dark:.1f}, 20/40 ms signal ratio {(long - dark) / (short - dark):.3f} "
-                     f"({width}x{width} frames)")
+                     f"({region} frames)")
         return cam
 
     _fitted: Any = None
@@ -449,9 +458,9 @@ class Doctor:
                      f"read; its trailer gives {s['width']}x{s['height']} "
                      f"({cam.spec.trailer_order} order, as assumed)")
 
-    def _region(self, cam: Any) -> int:
+    def _region(self, cam: Any) -> str:
         """Linearity and depths read a 256 x 256 region; a camera that refuses it is read
-        at full frame (returns the width used)."""
+        at full frame (returns the geometry used, "WxH")."""
         from benchlab.drivers.mightex.camera import CameraRoiRefusedError
 
         spec = cam.spec
@@ -463,8 +472,8 @@ class Doctor:
             self.add("4 region of interest", "FAIL", f"{_one_line(exc)}: the checks go on "
                      "at full frame", "nothing to set in the bench file; procedures that set a "
                      "region of interest fail on this camera: report the model and firmware")
-            return int(spec.max_width)
-        return ROI
+            return f"{spec.max_width}x{spec.max_height}"
+        return f"{ROI}x{ROI}"
 
     def _period_ms(self, cam: Any) -> float:
         """Shortest trailer-timestamp step between consecutive free-running frames, in ms.
@@ -737,6 +746,8 @@ class Doctor:
         name, value = min(ACTUATOR_COUNTS_PER_MM.items(),
                           key=lambda kv: abs(kv[1] / measured - 1))
         off = abs(value / measured - 1)
+        moved_how = (f"a relative move of {distance:g} mm from home (travel {lo:g}..{hi:g} "
+                     "mm)")
         how_sure = (f"a {GAUGE_ERROR_MM:g} mm gauge error over {moved:.3f} mm is "
                     f"{100 * GAUGE_ERROR_MM / moved:.2f} %; the known scales are 0.73 % apart"
                     if start is None else "measured by the simulator's carriage")
@@ -745,9 +756,9 @@ class Doctor:
                      f"known actuator within {100 * SCALE_MATCH:g} % ({how_sure})",
                      "set [stage] counts_per_mm to the measured value")
         elif math.isclose(value, cfg.counts_per_mm):
-            self.add(step, "ok", f"{measured:.1f} counts/mm measured over {moved:.3f} mm: "
-                     f"{name} ({value:g}, {100 * off:.2f} % off), as the bench file says "
-                     f"({how_sure})")
+            self.add(step, "ok", f"{measured:.1f} counts/mm measured over {moved:.3f} mm by "
+                     f"{moved_how}: {name} ({value:g}, {100 * off:.2f} % off), as the bench "
+                     f"file says ({how_sure})")
         else:
             self.learned[("stage", "actuator")] = name
             self.add(step, "FAIL", f"{measured:.1f} counts/mm measured: this is "
@@ -772,6 +783,13 @@ class Doctor:
         if sim is None and not (self.replaying and self.simulate):
             return None
         return self.outside.get("carriage-mm", lambda: float(sim.position_mm))
+
+
+def _replay_reason() -> str | None:
+    """While a cassette is replayed, why a serial device dropped the line (it diverged)."""
+    from benchlab.drivers.trace import replay
+
+    return replay.divergence() if replay.active() else None
 
 
 def _one_line(exc: BaseException) -> str:
