@@ -34,9 +34,9 @@ from benchlab.drivers.apt.protocol import (
     Z8_COUNTS_PER_MM,
     actuator_counts_per_mm,
 )
-from benchlab.drivers.mightex.profile import TIMESTAMP_UNITS_MS, TRAILER_ORDERS
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
+from benchlab.drivers.mightex.profile import TIMESTAMP_UNITS_MS, TRAILER_ORDERS
 
 if TYPE_CHECKING:
     from benchlab.drivers.apt.sim import SimulatedAptStage
@@ -78,9 +78,13 @@ class CameraConfig:
         from benchlab.drivers.mightex import protocol as p
 
         spec = p.spec_for(self.model or "MCE-B013-U")
-        facts = {"trailer_order": self.trailer_order, "timestamp_unit_ms": self.timestamp_unit_ms,
-                 "bit_depths": self.bit_depths}
-        return dataclasses.replace(spec, **{k: v for k, v in facts.items() if v is not None})
+        if self.trailer_order is not None:
+            spec = dataclasses.replace(spec, trailer_order=self.trailer_order)
+        if self.timestamp_unit_ms is not None:
+            spec = dataclasses.replace(spec, timestamp_unit_ms=self.timestamp_unit_ms)
+        if self.bit_depths is not None:
+            spec = dataclasses.replace(spec, bit_depths=self.bit_depths)
+        return spec
 
 
 @dataclass(frozen=True)

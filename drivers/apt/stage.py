@@ -27,9 +27,9 @@ import serial
 
 from benchlab.drivers.apt.protocol import (
     CHAN1,
+    COMPLETION_TOLERANCE_COUNTS,
     DISABLE,
     ENABLE,
-    COMPLETION_TOLERANCE_COUNTS,
     FAULT_BITS,
     HOST,
     STOP_IMMEDIATE,

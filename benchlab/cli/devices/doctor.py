@@ -409,12 +409,12 @@ class Doctor:
     def check_exposure(self, cam: Any, lit: bool, stack: contextlib.ExitStack) -> Any:
         """Frame period (full frame), timestamp unit, profile, region of interest and
         linearity; returns the camera to go on with (None when no profile fits)."""
+        from benchlab.drivers.errors import DeviceTimeoutError
         from benchlab.drivers.mightex.camera import (
             CameraProfileMismatchError,
             FrameEndpointTimeoutError,
         )
         from benchlab.drivers.mightex.diagnose import period_finding, ratio_finding
-        from benchlab.drivers.errors import DeviceTimeoutError
 
         step = "4 exposure unit and linearity"
         spec = cam.spec
@@ -782,7 +782,7 @@ class Doctor:
         sim = self.sims.get("stage")
         if sim is None and not (self.replaying and self.simulate):
             return None
-        return self.outside.get("carriage-mm", lambda: float(sim.position_mm))
+        return self.outside.get("carriage-mm", lambda: float(sim.position_mm))  # type: ignore[union-attr]
 
 
 def _replay_reason() -> str | None:
@@ -868,7 +868,7 @@ def report_path(args: argparse.Namespace) -> Path:
         return cassette.with_name(cassette.name.split(".")[0] + "-replayed.md")
     if args.config:
         return Path(args.config).resolve().parent / "bringup-report.md"
-    from benchlab.cli.config import user_config_dir, user_bench_file
+    from benchlab.cli.config import user_bench_file, user_config_dir
 
     if not args.simulate and user_bench_file().exists():
         return user_config_dir() / "bringup-report.md"
