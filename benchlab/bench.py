@@ -154,7 +154,8 @@ class BenchConfig:
             out["stage"] = {"counts_per_mm": self.stage.counts_per_mm,
                             **({"actuator": self.stage.actuator} if self.stage.actuator else {}),
                             "travel_mm": list(self.stage.travel_mm),
-                            "velocity_mm_s": self.stage.velocity_mm_s}
+                            "velocity_mm_s": self.stage.velocity_mm_s,
+                            "tolerance_counts": self.stage.tolerance_counts}
             if self.stage.port:
                 out["stage"]["port"] = self.stage.port
         return out
@@ -270,6 +271,8 @@ class Bench:
 
     def __init__(self, config: BenchConfig, *, simulated: bool) -> None:
         self.config = config
+        #: The camera's frames at this bit depth are still to be checked for never-set bits.
+        self._depth_unchecked = False
         self.simulated = simulated
         self.camera: Camera[FrameMetadata] | None = None
         self.led: LightSource | None = None
@@ -361,8 +364,20 @@ class Bench:
     def configure_camera(self, *, bits: int = 8, width: int = 1280,
                          height: int = 1024) -> dict[str, Any]:
         """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
-        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame).
+
+        A depth the bench file's ``[camera] bit_depths`` (what ``benchlab doctor`` found to
+        decode) leaves out is refused; the frames of a depth above 8 are checked for bits
+        that are never set (a mode the sensor does not really have) until one shows enough
+        signal to tell."""
+        allowed = self.config.camera.bit_depths
+        if allowed is not None and bits not in allowed:
+            raise BenchError(
+                f"bit depth {bits} is not one this camera decodes: {self.config.source} "
+                f"[camera] bit_depths = {list(allowed)} (settled by `benchlab doctor`); "
+                "measure at one of those")
         self._open_camera().configure(width=width, height=height, bits=bits, mode="normal")
+        self._depth_unchecked = bits > 8
         self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
@@ -384,10 +399,24 @@ class Bench:
         except DeviceLostError:
             self._camera_lost = True
             raise
+        if self._depth_unchecked:
+            self._check_depth(frame.pixels, frame.meta.bits)
         meta = dict(frame.meta.to_dict())
         meta.update({"requested_exposure_ms": exposure_ms, "requested_gain": gain,
                      "bench": self.state(), "simulated": self.simulated})
         return frame.pixels, meta
+
+    def _check_depth(self, pixels: npt.NDArray[Any], bits: int) -> None:
+        """Refuse a bit depth whose frame shows bits that are never set (once one frame has
+        the signal spread to tell)."""
+        from benchlab.drivers.mightex.diagnose import never_set_bits_finding
+
+        finding, decided = never_set_bits_finding(pixels, bits)
+        if finding:
+            raise BenchError(f"{bits}-bit frames: {finding}. This is not a real {bits}-bit "
+                             "mode: measure at a depth `benchlab doctor` found to decode "
+                             "(it writes [camera] bit_depths into the bench file)")
+        self._depth_unchecked = not decided
 
     # -- LED and stage --------------------------------------------------------------------------
     @property
@@ -508,7 +537,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
     if missing:
         raise BenchError(f"{cfg.source}: {', '.join(missing)} required on the real bench")
     bench.camera = stack.enter_context(MightexCamera.open(
-        serial=cfg.camera.serial, pid=cfg.camera.pid, model=cfg.camera.model or "MCE-B013-U",
+        serial=cfg.camera.serial, pid=cfg.camera.pid, profile=cfg.camera.profile(),
     ))
     if cfg.led is not None and cfg.led.port:
         from benchlab.drivers.slc.controller import SlcController
@@ -521,6 +550,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
         bench.stage = stack.enter_context(AptStage(
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
             travel_mm=cfg.stage.travel_mm,
+            completion_tolerance_counts=cfg.stage.tolerance_counts,
         ))
         bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
 

@@ -39,6 +39,12 @@ class BenchLimits:
     stage_travel_mm: tuple[float, float] | None = None
 
 
+#: Bit depths a procedure may ask the camera for: those some camera profile decodes (the
+#: MCE-B013-U's 8, 10, 12). A bench's own are its bench file's ``[camera] bit_depths``,
+#: checked when the run configures the camera.
+CAMERA_BIT_DEPTHS = (8, 10, 12)
+
+
 class TableChecker:
     """Reads typed values out of a nested mapping, collecting every problem."""
 
