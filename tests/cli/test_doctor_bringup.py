@@ -30,7 +30,9 @@ FAULTS: dict[str, tuple[int, str, tuple[str, ...]]] = {
     "camera-grab-timeout": (1, "no frame came on EP 0x82", ("5 bit depths decode",)),
     "camera-exposure-4byte-ignored-length": (1, 'set [camera] model = "MCE-B013-U/v1.0.6"',
                                              ()),
-    "stage-home-timeout": (1, "stage: no reply to move/home completion", ("8 stage scale",)),
+    "stage-home-timeout": (1, "the controller never reported homed within 2.04 s, the time "
+                              "homing from anywhere in 50 mm takes at its home velocity of 2 "
+                              "mm/s (read from it)", ("8 stage scale",)),
     "stage-travel-offset": (0, "by a relative move of 20 mm from home (travel 2..27 mm): Z8 "
                                "(34555, 0.00 % off), as the bench file says", ()),
     "stage-parks-off": (0, "the move settled +12 counts off its target (within the bench "

@@ -705,9 +705,21 @@ class Doctor:
         if not self._ask("home the stage (it drives to its reverse limit)?"):
             self.add("8 stage homing", "skip", "not homed (answered no)")
             return False
+        from benchlab.drivers.errors import DeviceTimeoutError
+
         home = stage.get_home_params()
         timeout_s = stage.home_timeout_s(home) / self.stage_time_scale + stage.timeout_s
-        stage.home(timeout_s=timeout_s)
+        try:
+            stage.home(timeout_s=timeout_s)
+        except DeviceTimeoutError as exc:
+            lo, hi = stage.travel_mm
+            fast = (f"; simulated time runs {self.stage_time_scale:g}x fast"
+                    if self.stage_time_scale != 1 else "")
+            raise DeviceTimeoutError(
+                f"the controller never reported homed within {timeout_s:.3g} s, the time "
+                f"homing from anywhere in {hi - lo:g} mm takes at its home velocity of "
+                f"{home.velocity_mm_s:g} mm/s (read from it){fast}; the stage was stopped "
+                f"({_one_line(exc)})") from exc
         self.add("8 stage homing", "ok", f"homed at {stage.position_mm:.4f} mm (home velocity "
                  f"{home.velocity_mm_s:g} mm/s read from the controller)")
         return True
