@@ -139,6 +139,7 @@ class BenchConfig:
         return BenchLimits(
             led_ceilings_ma=dict(self.led.ceilings_ma) if self.led is not None else None,
             stage_travel_mm=self.stage.travel_mm if self.stage is not None else None,
+            camera_bit_depths=self.camera.bit_depths,
         )
 
     # -- (de)serialisation ----------------------------------------------------------------------

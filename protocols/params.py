@@ -261,6 +261,8 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
     meas_gain = camera_gain(c.number("camera.measurement_gain", d.measurement_gain,
                                      *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, CAMERA_BIT_DEPTHS)
+    if limits is not None and (problem := limits.bits_problem(bits)):
+        c.fail("camera.bits", problem)
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
     positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0,

@@ -68,7 +68,9 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
     d = CharacteriseParams()
     gains = c.numbers("camera.gains", d.gains, *_GAIN_RANGE)
     found, raw_bits = c._get("camera.bits", list(d.bits))
-    bits = d.bits
+    settled = getattr(limits, "camera_bit_depths", None)
+    # Default: the depths the doctor found to decode on this bench, deepest first.
+    bits = tuple(sorted(settled, reverse=True)) if settled else d.bits
     if found:
         if (not isinstance(raw_bits, list) or not raw_bits
                 or any(b not in CAMERA_BIT_DEPTHS or isinstance(b, bool) for b in raw_bits)
@@ -77,6 +79,10 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
                    f"{' / '.join(map(str, CAMERA_BIT_DEPTHS))}, got {raw_bits!r}")
         else:
             bits = tuple(int(b) for b in raw_bits)
+            for b in bits:
+                problem = limits.bits_problem(b) if limits is not None else None
+                if problem:
+                    c.fail("camera.bits", problem)
     width = c.integer("camera.width", d.width, 8, 1280)
     height = c.integer("camera.height", d.height, 8, 1024)
     for name, value in (("camera.width", width), ("camera.height", height)):

@@ -144,6 +144,8 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
                                            *EXPOSURE_RANGE_MS))
     gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
     bits = c.choice("camera.bits", d.bits, CAMERA_BIT_DEPTHS)
+    if limits is not None and (problem := limits.bits_problem(bits)):
+        c.fail("camera.bits", problem)
     frames = c.integer("camera.frames", d.frames, 1, 64)
     view = c.choice("sweep.view", d.view, ("forward", "radial"))
     # the radial view sweeps the wall distance: Table 4.4's 2-11 mm with margin

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchlab.bench import Bench, BenchConfig, BenchError
-from benchlab.checks import ParamsError
+from benchlab.checks import BenchLimits, ParamsError
 from benchlab.drivers.mightex.diagnose import never_set_bits_finding
 from benchlab.drivers.mightex.sim import flat_field_scene
 from benchlab.protocols.params import parse_params
@@ -57,3 +57,13 @@ def test_never_set_bits_are_told_only_from_frames_with_spread() -> None:
         "the lowest 2 bits never change: the data has 10 significant bits, not 12 "
         "(MSB-aligned)")
     assert never_set_bits_finding(np.full(4096, 2000), 12) == (None, False)  # flat: undecided
+
+
+def test_the_settled_depths_are_the_characterisations_default_and_checked_up_front() -> None:
+    limits = BenchLimits(led_ceilings_ma={1: 50.0}, camera_bit_depths=(8, 10))
+    assert parse_params("characterise", {}, limits=limits).bits == (10, 8)  # type: ignore[union-attr]
+    assert parse_params("characterise", {}).bits == (12, 8)  # type: ignore[union-attr]
+    for procedure, bits in (("characterise", [12]), ("radiometry", 12), ("depth", 12)):
+        with pytest.raises(ParamsError, match=r"camera.bits: 12 bits is not a depth this "
+                                              r"bench's camera decodes"):
+            parse_params(procedure, {"camera": {"bits": bits}}, limits=limits)
