@@ -143,3 +143,25 @@ def test_a_replay_that_diverges_says_where_and_still_writes_the_report(
     assert re.search(r"\[FAIL\] 3 camera enumerates and answers: .*replay diverged at "
                      r"exchange \d+: read EP 0x81", out)
     assert again.is_file() and "| 8 stage scale | ok |" in again.read_text(encoding="utf-8")
+
+
+def test_the_facts_settled_go_into_the_bench_file_and_the_next_run_passes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bench = tmp_path / "bench.toml"
+    bench.write_text('[camera]\nserial = ""\n\n[led]\nchannel = 1\n\n[stage]\n'
+                     "travel_mm = [0.0, 25.0]\n", encoding="utf-8")
+    faults = ("camera-pid", "camera-trailer-swapped", "camera-timestamp-100us",
+              "camera-no-12bit")
+    run = ["doctor", "--simulate", "--yes", "--config", str(bench)]
+    for fault in faults:
+        run += ["--inject", fault]
+    assert main(run) == 1
+    text = bench.read_text(encoding="utf-8")
+    for line in ("pid = 0x0528", 'trailer_order = "column_row"', "timestamp_unit_ms = 0.1",
+                 "bit_depths = [8, 10]"):
+        assert line in text
+    report = (tmp_path / "bringup-report.md").read_text(encoding="utf-8")
+    assert report.count("| FAIL |") == 4
+    capsys.readouterr()
+    assert main(run) == 0, capsys.readouterr().out  # the same camera, now as the file says

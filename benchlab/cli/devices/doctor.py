@@ -109,6 +109,8 @@ class Doctor:
     #: The step running now (the report names it when the run is interrupted).
     current_step: str | None = None
     stage_time_scale: float = 1.0
+    #: The camera opened with the profile that fits, when the configured one did not.
+    _fitted: Any = field(default=None, init=False, repr=False)
 
     def add(self, step: str, status: str, detail: str, todo: str = "") -> None:
         self.checks.append(Check(step, status, detail, todo))
@@ -155,6 +157,8 @@ class Doctor:
         cam = self.attempt("3 camera enumerates and answers", "check the cable and power; "
                            "`benchlab devices` lists what is on the bus",
                            lambda: self.open_camera(stack))
+        if cam is not None and ("camera", "pid") in self.learned:  # the rule for the camera
+            self.attempt("2 udev rule and group", "", self.check_udev)  # actually plugged in
         led = self.attempt("6 LED controller identity", "check the port, 9600 8N1 and a "
                            "straight (not null-modem) cable", lambda: self.open_led(stack))
         if cam is not None:
@@ -218,15 +222,16 @@ class Doctor:
             rate = SIM_LED_E_PER_MS_PER_MA * state.bench.get("led_ma", 0.0)
             return np.full((state.height, state.width), rate)
 
-        mce = p.SPECS["MCE-B013-U"]
-        profile = {
-            "camera-profile": p.SPECS["MCE-B013-U/v1.0.6"],
-            "camera-unit": replace(mce, exposure_unit_ms=0.1),
-            "camera-no-12bit": replace(mce, bit_depths=(8, 10)),
-            "camera-trailer-swapped": replace(mce, trailer_order="column_row"),
-            "camera-timestamp-100us": replace(mce, timestamp_unit_ms=0.1),
+        chosen = p.SPECS["MCE-B013-U/v1.0.6" if "camera-profile" in self.inject
+                         else "MCE-B013-U"]
+        facts: dict[str, dict[str, Any]] = {  # what the simulated camera is (they combine)
+            "camera-unit": {"exposure_unit_ms": 0.1},
+            "camera-no-12bit": {"bit_depths": (8, 10)},
+            "camera-trailer-swapped": {"trailer_order": "column_row"},
+            "camera-timestamp-100us": {"timestamp_unit_ms": 0.1},
         }
-        chosen = next((profile[k] for k in self.inject if k in profile), mce)
+        for name in self.inject:
+            chosen = replace(chosen, **facts.get(name, {}))
         cam = SimulatedCamera(light, seed=1, profile=chosen,
                               pid=0x0528 if "camera-pid" in self.inject else p.DEFAULT_PID,
                               bench_state=lambda: {"led_ma": slc.channel_output_ma(channel)})
@@ -268,7 +273,7 @@ class Doctor:
         from benchlab.drivers.mightex import protocol as p
         from benchlab.drivers.mightex.camera import udev_hint, udev_rule_line
 
-        pid = self.config.camera.pid or p.DEFAULT_PID
+        pid = self.learned.get(("camera", "pid"), self.config.camera.pid or p.DEFAULT_PID)
         facts = self.outside.get("udev", lambda: _udev_facts(p.VENDOR_ID, pid))
         if facts is None:
             self.add(step, "skip", "not Linux: no udev rule needed")
@@ -449,8 +454,6 @@ class Doctor:
                      f"({region} frames)")
         return cam
 
-    _fitted: Any = None
-
     def _full_frame_ok(self, cam: Any) -> None:
         if not any(c.step == "3 frame trailer order" for c in self.checks):
             s = cam.settings
@@ -594,6 +597,10 @@ class Doctor:
         configured = self.config.camera.bit_depths or cam.spec.bit_depths
         if good and tuple(good) != tuple(configured):
             self.learned[("camera", "bit_depths")] = good
+        elif problems and good:  # the bench file already leaves the others out
+            self.add(step, "ok", f"{', '.join(map(str, good))} bits decode; the others do not, "
+                     f"as the bench file's bit_depths = {good} says ({'; '.join(problems)})")
+            return
         if problems:
             self.add(step, "FAIL", "; ".join(problems), f"set [camera] bit_depths = {good} "
                      "(written to the bench file): runs then refuse the others")
@@ -888,8 +895,7 @@ def report_path(args: argparse.Namespace) -> Path:
         "bringup-report.md")
 
 
-def _prompts(yes: bool, recorded: bool = False) -> tuple[Callable[[str], bool],
-                                                          Callable[[str], float | None]]:
+def _prompts(yes: bool) -> tuple[Callable[[str], bool], Callable[[str], float | None]]:
     def ask(question: str) -> bool:
         if yes:
             print(f"  ? {question} yes (--yes)")
