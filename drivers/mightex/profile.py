@@ -9,13 +9,19 @@ Sources (tags of ``shared/docs/device-protocols.md``; every fact and its source 
 
 * MCE-B013-U (MT9M001 CMOS): no public document names it. Its defaults follow the CMOS
   buffer-camera client [SH] (BTN-B013U, same sensor): a 2-byte exposure field in 0.05 ms
-  units (max 750 ms), a 10-bit mode (the MT9M001 is natively 10-bit), 0.05 ms frame-time
-  units. The 8 and 12-bit modes are the v1.0.6 document's [GC]; 12 bits on a 10-bit sensor
-  is assumed, and ``benchlab doctor`` checks it on the bench.
+  units (max 750 ms), a 10-bit mode (that the MT9M001 is natively 10-bit is its data sheet's,
+  not a protocol source's: assumed), 0.05 ms frame-time units. The 8 and 12-bit modes are the
+  v1.0.6 document's [GC], written for the CCD camera; 12 bits on this sensor is assumed, and
+  ``benchlab doctor`` checks every depth on the bench (``[camera] bit_depths``).
+* The trailer layout is [GC]'s CCD struct: assumed for this camera. Its row/column order and
+  its timestamp unit (1 ms in the vendor guide's text, 0.1 ms in its worked example) are
+  profile facts ``benchlab doctor`` settles (``trailer_order``, ``timestamp_unit_ms``).
 * Timing: ~100 ms after the work-mode command and ~3 s after power-up before the camera
-  answers reliably ([CU]/[SS] wait 0.2 s after the clock command, [SH] 2 s after set-up).
-* Buffer full: [GC] reports "camera buffer full" and new frames are not stored; the older
-  overwrite policy of the simulator was a guess.
+  answers reliably: assumed ([SS] asks > 200 ms after the clock command, [SH] sleeps 2 s
+  after set-up; no document gives a figure for these two).
+* Buffer full: assumed that new frames are dropped ([GC] prints "camera buffer full" but no
+  source says which frames a full buffer keeps); a grab clears the buffer first, so either
+  policy gives the same frames.
 """
 
 from __future__ import annotations
