@@ -701,14 +701,14 @@ class Doctor:
     def check_stage(self, stage: Any) -> None:
         homed = self.attempt("8 stage homing", "the stage did not report homed: check that "
                              "the actuator's cable is in and nothing blocks the reverse end",
-                             lambda: self._home(stage))
+                             lambda: self.check_homing(stage))
         if not homed:
             self.skip(("8 stage scale",), "the stage is not homed (step 8 homing)")
             return
         self.attempt("8 stage scale", "the measured move did not end as commanded",
-                     lambda: self._scale(stage))
+                     lambda: self.check_scale(stage))
 
-    def _home(self, stage: Any) -> bool:
+    def check_homing(self, stage: Any) -> bool:
         if not self._ask("home the stage (it drives to its reverse limit)?"):
             self.add("8 stage homing", "skip", "not homed (answered no)")
             return False
@@ -731,7 +731,7 @@ class Doctor:
                  f"{home.velocity_mm_s:g} mm/s read from the controller)")
         return True
 
-    def _scale(self, stage: Any) -> bool:
+    def check_scale(self, stage: Any) -> bool:
         """A relative move from home, measured (a zeroed dial gauge; the simulator's carriage
         on the simulated bench): the counts/mm of the actuator."""
         from benchlab.drivers.apt.protocol import ACTUATOR_COUNTS_PER_MM
@@ -742,6 +742,10 @@ class Doctor:
         lo, hi = cfg.travel_mm
         start_mm = stage.position_mm
         distance = round(min(SCALE_MOVE_MAX_MM, 0.8 * (hi - lo), hi - start_mm), 3)
+        if distance <= 0:
+            self.add(step, "skip", f"the scale was NOT measured: home ({start_mm:g} mm) is not "
+                     f"below the travel's upper end ({hi:g} mm)", "check [stage] travel_mm")
+            return True
         gauge = self.sims.get("stage") is not None or (
             self.replaying and self.simulate)
         if not gauge and not self._ask("zero the dial gauge against the carriage now; done?"):
