@@ -165,3 +165,14 @@ def test_the_facts_settled_go_into_the_bench_file_and_the_next_run_passes(
     assert report.count("| FAIL |") == 4
     capsys.readouterr()
     assert main(run) == 0, capsys.readouterr().out  # the same camera, now as the file says
+
+
+def test_a_bad_bench_file_is_named_in_the_report_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bench = tmp_path / "bench.toml"
+    bench.write_text("[stage]\ntolerance_counts = 0\n", encoding="utf-8")
+    assert main(["doctor", "--simulate", "--yes", "--config", str(bench)]) == 1
+    assert "stage.tolerance_counts" in capsys.readouterr().err
+    report = (tmp_path / "bringup-report.md").read_text(encoding="utf-8")
+    assert "| 0 bench file | FAIL |" in report and "stage.tolerance_counts" in report

@@ -940,7 +940,16 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
         cassette: Path | None = None
     else:
         simulate, inject = bool(args.simulate), tuple(args.inject or ())
-        config = BenchConfig.load(args.config, simulate=simulate)
+        try:
+            config = BenchConfig.load(args.config, simulate=simulate)
+        except BenchlabError as exc:  # nothing checked, but the report says why
+            source = str(args.config or "(packaged simulated bench)")
+            report.write_text(report_markdown(
+                [Check("0 bench file", "FAIL", _one_line(exc), "fix the named field")],
+                RunSummary(source, simulate, {k: INJECTIONS[k] for k in inject}, {}, None)),
+                encoding="utf-8")
+            print(f"report written to {report}")
+            raise
         cassette = Path(args.trace_io) if getattr(args, "trace_io", None) else (
             report.with_name(report.stem + ".cassette.jsonl.gz"))
         if not io_trace.active():
