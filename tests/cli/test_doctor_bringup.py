@@ -5,6 +5,7 @@ runs, the report is always written, and the recorded cassette replays the run by
 
 from __future__ import annotations
 
+import base64
 import gzip
 import json
 import re
@@ -53,18 +54,17 @@ def _rows(report: str) -> list[tuple[str, str]]:
 
 def _traffic(cassette: Path) -> dict[tuple[str, str], bytes]:
     """Every byte each device sent and got, in order (keep-alives and timeouts left out)."""
-    out: dict[tuple[str, str], bytes] = {}
+    parts: dict[tuple[str, str], list[bytes]] = {}
     with gzip.open(cassette, "rt") if cassette.suffix == ".gz" else open(cassette) as fh:
         for line in list(fh)[1:]:
             item = json.loads(line)
             if "dir" not in item or item.get("timeout"):
                 continue
-            data = bytes.fromhex(item["hex"]) if "hex" in item else __import__(
-                "base64").b64decode(item["b64"])
-            data = data.replace(bytes.fromhex("92 04 00 00 50 01"), b"")  # APT keep-alive
-            key = (item["dev"], item["dir"])
-            out[key] = out.get(key, b"") + data
-    return out
+            data = (bytes.fromhex(item["hex"]) if "hex" in item
+                    else base64.b64decode(item["b64"]))
+            parts.setdefault((item["dev"], item["dir"]), []).append(data)
+    keepalive = bytes.fromhex("92 04 00 00 50 01")  # APT keep-alives: on a timer, left out
+    return {key: b"".join(chunks).replace(keepalive, b"") for key, chunks in parts.items()}
 
 
 @pytest.mark.parametrize("fault", sorted(FAULTS))
