@@ -176,3 +176,17 @@ def test_a_bad_bench_file_is_named_in_the_report_too(
     assert "stage.tolerance_counts" in capsys.readouterr().err
     report = (tmp_path / "bringup-report.md").read_text(encoding="utf-8")
     assert "| 0 bench file | FAIL |" in report and "stage.tolerance_counts" in report
+
+
+def test_no_camera_on_the_bus_is_one_fail_and_the_run_goes_on() -> None:
+    from benchlab.bench import BenchConfig
+    from benchlab.cli.devices.doctor import Doctor
+
+    doctor = Doctor(BenchConfig(), False, lambda q: True, lambda q: None, say=lambda s: None)
+    doctor.run()  # this machine: no camera (and maybe no libusb); no LED, no stage configured
+    camera = [c for c in doctor.checks if c.step == "3 camera enumerates and answers"]
+    assert [c.status for c in camera] == ["FAIL"]
+    assert "no USB device of vendor 0x04B4 or naming Mightex is on the bus" in camera[0].detail
+    steps = [(c.step, c.status) for c in doctor.checks]
+    assert ("4 exposure unit and linearity", "skip") in steps
+    assert ("6 LED controller identity", "skip") in steps and ("8 stage identity", "skip") in steps

@@ -315,7 +315,7 @@ class Doctor:
         except DeviceNotFoundError as exc:
             other = self._camera_elsewhere(step, exc, pid or p.DEFAULT_PID)
             if other is None:
-                raise
+                return None  # its FAIL line is written
             self.learned[("camera", "pid")] = other
             cam = MightexCamera.open(cfg.serial, backend=self._backend(), pid=other,
                                      profile=profile)
@@ -329,14 +329,14 @@ class Doctor:
         return cam
 
     def _configured_profile(self) -> p_types.CameraSpec:
-        """The bench file's camera profile, with the facts settled so far in this run."""
-        from benchlab.drivers.mightex import protocol as p
-
-        model = self.learned.get(("camera", "model"), self.config.camera.model or "MCE-B013-U")
-        spec = p.spec_for(model)
-        facts = {k: self.learned.get(("camera", k), getattr(self.config.camera, k, None))
-                 for k in ("trailer_order", "timestamp_unit_ms")}
-        return replace(spec, **{k: v for k, v in facts.items() if v is not None})
+        """The bench file's camera profile, with the facts settled so far in this run (all
+        of the model's bit depths: step 5 checks each again)."""
+        settled = {k: v for (section, k), v in self.learned.items()
+                   if section == "camera" and k in ("model", "trailer_order",
+                                                    "timestamp_unit_ms")}
+        spec: p_types.CameraSpec = replace(self.config.camera, bit_depths=None,
+                                           **settled).profile()
+        return spec
 
     def _camera_elsewhere(self, step: str, exc: Exception, pid: int) -> int | None:
         """The camera not found at ``pid``: list every device of the vendor (or naming
