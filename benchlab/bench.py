@@ -28,9 +28,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM, actuator_counts_per_mm
+from benchlab.drivers.apt.protocol import (
+    ACTUATOR_TRAVEL_MM,
+    COMPLETION_TOLERANCE_COUNTS,
+    Z8_COUNTS_PER_MM,
+    actuator_counts_per_mm,
+)
 from benchlab.drivers.errors import BenchlabError, DeviceError, DeviceLostError
 from benchlab.drivers.interfaces import Camera, FrameMetadata, LightSource, LinearStage
+from benchlab.drivers.mightex.profile import TIMESTAMP_UNITS_MS, TRAILER_ORDERS
 
 if TYPE_CHECKING:
     from benchlab.drivers.apt.sim import SimulatedAptStage
@@ -60,6 +66,25 @@ class CameraConfig:
     model: str | None = None
     #: Response calibration file (``benchlab run characterise``), absolute once loaded.
     response_calibration: str | None = None
+    #: Profile facts ``benchlab doctor`` settled on this bench (None: the model's own).
+    trailer_order: str | None = None
+    timestamp_unit_ms: float | None = None
+    #: The bit depths whose frames decode on this camera (``benchlab doctor`` writes them);
+    #: runs take their default depths from here and refuse the others.
+    bit_depths: tuple[int, ...] | None = None
+
+    def profile(self) -> Any:
+        """The camera profile: the model's (MCE-B013-U by default) with the facts above."""
+        from benchlab.drivers.mightex import protocol as p
+
+        spec = p.spec_for(self.model or "MCE-B013-U")
+        if self.trailer_order is not None:
+            spec = dataclasses.replace(spec, trailer_order=self.trailer_order)
+        if self.timestamp_unit_ms is not None:
+            spec = dataclasses.replace(spec, timestamp_unit_ms=self.timestamp_unit_ms)
+        if self.bit_depths is not None:
+            spec = dataclasses.replace(spec, bit_depths=self.bit_depths)
+        return spec
 
 
 @dataclass(frozen=True)
@@ -73,10 +98,12 @@ class LedConfig:
 class StageConfig:
     port: str | None = None
     counts_per_mm: float = Z8_COUNTS_PER_MM
-    travel_mm: tuple[float, float] = (0.0, 50.0)
+    travel_mm: tuple[float, float] = (0.0, 25.0)
     #: ``stage.actuator``: "Z8" (34554.96 counts/mm), "Z8-34304" or "Z6" (see apt.protocol).
     actuator: str | None = None
     velocity_mm_s: float = 2.0
+    #: A completed move must end this close to its target (``stage.tolerance_counts``).
+    tolerance_counts: int = COMPLETION_TOLERANCE_COUNTS
 
 
 @dataclass(frozen=True)
@@ -112,6 +139,7 @@ class BenchConfig:
         return BenchLimits(
             led_ceilings_ma=dict(self.led.ceilings_ma) if self.led is not None else None,
             stage_travel_mm=self.stage.travel_mm if self.stage is not None else None,
+            camera_bit_depths=self.camera.bit_depths,
         )
 
     # -- (de)serialisation ----------------------------------------------------------------------
@@ -127,7 +155,8 @@ class BenchConfig:
             out["stage"] = {"counts_per_mm": self.stage.counts_per_mm,
                             **({"actuator": self.stage.actuator} if self.stage.actuator else {}),
                             "travel_mm": list(self.stage.travel_mm),
-                            "velocity_mm_s": self.stage.velocity_mm_s}
+                            "velocity_mm_s": self.stage.velocity_mm_s,
+                            "tolerance_counts": self.stage.tolerance_counts}
             if self.stage.port:
                 out["stage"]["port"] = self.stage.port
         return out
@@ -141,6 +170,9 @@ class BenchConfig:
             pid=(c.integer("camera.pid", 0, 0, 0xFFFF) or None),
             model=c.string("camera.model", "") or None,
             response_calibration=c.string("camera.response_calibration", "") or None,
+            trailer_order=c.choice("camera.trailer_order", None, TRAILER_ORDERS),
+            timestamp_unit_ms=c.choice("camera.timestamp_unit_ms", None, TIMESTAMP_UNITS_MS),
+            bit_depths=_bit_depths(c),
         )
         led = None
         found, _ = c.get("led", None)
@@ -164,11 +196,12 @@ class BenchConfig:
         stage = None
         found, _ = c.get("stage", None)
         if found:
-            travel = c.numbers("stage.travel_mm", (0.0, 50.0), -1000.0, 1000.0)
+            actuator = c.string("stage.actuator", "")
+            default_travel = (0.0, ACTUATOR_TRAVEL_MM.get(actuator, ACTUATOR_TRAVEL_MM["Z8"]))
+            travel = c.numbers("stage.travel_mm", default_travel, -1000.0, 1000.0)
             if len(travel) != 2 or travel[0] >= travel[1]:
                 c.fail("stage.travel_mm", f"must be [low, high] with low < high, got {travel}")
-                travel = (0.0, 50.0)
-            actuator = c.string("stage.actuator", "")
+                travel = default_travel
             scale = Z8_COUNTS_PER_MM
             if actuator:
                 try:
@@ -185,6 +218,8 @@ class BenchConfig:
                 counts_per_mm=counts, actuator=actuator or None,
                 travel_mm=(travel[0], travel[1]),
                 velocity_mm_s=c.number("stage.velocity_mm_s", 2.0, 0.0, 100.0, lo_open=True),
+                tolerance_counts=c.integer("stage.tolerance_counts",
+                                           COMPLETION_TOLERANCE_COUNTS, 1, 100_000),
             )
         sessions = c.string("paths.sessions", "")
         c.unknown_keys()
@@ -237,6 +272,8 @@ class Bench:
 
     def __init__(self, config: BenchConfig, *, simulated: bool) -> None:
         self.config = config
+        #: The camera's frames at this bit depth are still to be checked for never-set bits.
+        self._depth_unchecked = False
         self.simulated = simulated
         self.camera: Camera[FrameMetadata] | None = None
         self.led: LightSource | None = None
@@ -328,8 +365,20 @@ class Bench:
     def configure_camera(self, *, bits: int = 8, width: int = 1280,
                          height: int = 1024) -> dict[str, Any]:
         """Table 4.10 step 1: continuous (normal) mode, full 1280 x 1024 (no decimation) unless
-        a smaller frame is asked for (the characterisation reads a 128 x 128 frame)."""
+        a smaller frame is asked for (the characterisation reads a 128 x 128 frame).
+
+        A depth the bench file's ``[camera] bit_depths`` (what ``benchlab doctor`` found to
+        decode) leaves out is refused; the frames of a depth above 8 are checked for bits
+        that are never set (a mode the sensor does not really have) until one shows enough
+        signal to tell."""
+        allowed = self.config.camera.bit_depths
+        if allowed is not None and bits not in allowed:
+            raise BenchError(
+                f"bit depth {bits} is not one this camera decodes: {self.config.source} "
+                f"[camera] bit_depths = {list(allowed)} (settled by `benchlab doctor`); "
+                "measure at one of those")
         self._open_camera().configure(width=width, height=height, bits=bits, mode="normal")
+        self._depth_unchecked = bits > 8
         self._camera_settings = {"mode": "normal (continuous)", "width": width, "height": height,
                                  "decimation": "off", "bits": bits}
         return dict(self._camera_settings)
@@ -351,10 +400,24 @@ class Bench:
         except DeviceLostError:
             self._camera_lost = True
             raise
+        if self._depth_unchecked:
+            self._check_depth(frame.pixels, frame.meta.bits)
         meta = dict(frame.meta.to_dict())
         meta.update({"requested_exposure_ms": exposure_ms, "requested_gain": gain,
                      "bench": self.state(), "simulated": self.simulated})
         return frame.pixels, meta
+
+    def _check_depth(self, pixels: npt.NDArray[Any], bits: int) -> None:
+        """Refuse a bit depth whose frame shows bits that are never set (once one frame has
+        the signal spread to tell)."""
+        from benchlab.drivers.mightex.diagnose import never_set_bits_finding
+
+        finding, decided = never_set_bits_finding(pixels, bits)
+        if finding:
+            raise BenchError(f"{bits}-bit frames: {finding}. This is not a real {bits}-bit "
+                             "mode: measure at a depth `benchlab doctor` found to decode "
+                             "(it writes [camera] bit_depths into the bench file)")
+        self._depth_unchecked = not decided
 
     # -- LED and stage --------------------------------------------------------------------------
     @property
@@ -475,7 +538,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
     if missing:
         raise BenchError(f"{cfg.source}: {', '.join(missing)} required on the real bench")
     bench.camera = stack.enter_context(MightexCamera.open(
-        serial=cfg.camera.serial, pid=cfg.camera.pid, model=cfg.camera.model or "MCE-B013-U",
+        serial=cfg.camera.serial, pid=cfg.camera.pid, profile=cfg.camera.profile(),
     ))
     if cfg.led is not None and cfg.led.port:
         from benchlab.drivers.slc.controller import SlcController
@@ -488,6 +551,7 @@ def _open_real(bench: Bench, stack: contextlib.ExitStack) -> None:
         bench.stage = stack.enter_context(AptStage(
             cfg.stage.port, counts_per_mm=cfg.stage.counts_per_mm,
             travel_mm=cfg.stage.travel_mm,
+            completion_tolerance_counts=cfg.stage.tolerance_counts,
         ))
         bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
 
@@ -574,3 +638,15 @@ def _stopped_on(stage: LinearStage, abort: threading.Event | None) -> Iterator[N
         finished.set()
         watcher.join()
 
+
+
+def _bit_depths(c: TableChecker) -> tuple[int, ...] | None:
+    """``camera.bit_depths``: a non-empty list of 8, 10 and 12 (None when absent)."""
+    found, value = c.get("camera.bit_depths", None)
+    if not found:
+        return None
+    if (not isinstance(value, list) or not value
+            or any(v not in (8, 10, 12) or isinstance(v, bool) for v in value)):
+        c.fail("camera.bit_depths", f"must be a list of 8, 10 and 12, got {value!r}")
+        return None
+    return tuple(int(v) for v in value)

@@ -37,6 +37,23 @@ class BenchLimits:
 
     led_ceilings_ma: Mapping[int, float] | None = None
     stage_travel_mm: tuple[float, float] | None = None
+    #: The bit depths the bench's camera decodes (bench file ``[camera] bit_depths``, written
+    #: by ``benchlab doctor``); None: not settled, any of :data:`CAMERA_BIT_DEPTHS`.
+    camera_bit_depths: tuple[int, ...] | None = None
+
+    def bits_problem(self, bits: int) -> str | None:
+        """Why the bench's camera cannot measure at ``bits`` (None: it can)."""
+        depths = self.camera_bit_depths
+        if depths is None or bits in depths:
+            return None
+        return (f"{bits} bits is not a depth this bench's camera decodes (bench file "
+                f"[camera] bit_depths = {list(depths)}, settled by `benchlab doctor`)")
+
+
+#: Bit depths a procedure may ask the camera for: those some camera profile decodes (the
+#: MCE-B013-U's 8, 10, 12). A bench's own are its bench file's ``[camera] bit_depths``,
+#: checked when the run configures the camera.
+CAMERA_BIT_DEPTHS = (8, 10, 12)
 
 
 class TableChecker:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-from benchlab.checks import BenchLimits, ParamsError, TableChecker
+from benchlab.checks import CAMERA_BIT_DEPTHS, BenchLimits, ParamsError, TableChecker
 from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
     CAMERA_SPEC,
     EXPOSURE_RANGE_MS,
@@ -139,7 +139,7 @@ def _check_mtf(c: _Checker) -> MtfParams:
     exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
                                            *EXPOSURE_RANGE_MS))
     gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
-    bits = c.choice("camera.bits", d.bits, (8, 12))
+    bits = c.choice("camera.bits", d.bits, CAMERA_BIT_DEPTHS)
     focus_frames = c.integer("focus.frames", d.focus_frames, 1, 1000)
     fwd_mag = c.number("forward.magnification", d.forward_magnification, 0.0, 1000.0, lo_open=True)
     elements: list[UsafElement] = []
@@ -260,7 +260,9 @@ def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> Radiome
     mask_gain = camera_gain(c.number("camera.mask_gain", d.mask_gain, *GAIN_RANGE))
     meas_gain = camera_gain(c.number("camera.measurement_gain", d.measurement_gain,
                                      *GAIN_RANGE))
-    bits = c.choice("camera.bits", d.bits, (8, 12))
+    bits = c.choice("camera.bits", d.bits, CAMERA_BIT_DEPTHS)
+    if limits is not None and (problem := limits.bits_problem(bits)):
+        c.fail("camera.bits", problem)
     channel = c.integer("led.channel", d.led_channel, 1, 16)
     current = c.number("led.current_ma", d.led_current_ma, 0.0, 5000.0, lo_open=True)
     positions = c.numbers("positions.field_mm", d.positions_mm, -1000.0, 1000.0,

@@ -34,6 +34,13 @@ ACTUATOR_COUNTS_PER_MM: dict[str, float] = {
     "Z8-34304": Z8_ALT_COUNTS_PER_MM,
     "Z6": 24600.0,
 }
+#: Travel of each actuator, mm: a stage section without ``travel_mm`` gets (0, this). The Z8
+#: default is the Z825's 25 mm (a Z812 has 12 mm: give travel_mm); the Z606 has 6 mm.
+ACTUATOR_TRAVEL_MM: dict[str, float] = {"Z8": 25.0, "Z8-34304": 25.0, "Z6": 6.0}
+#: A completed move must end this close to its target, counts (about 0.9 um on a Z8): a
+#: servo can park a few tens of counts off inside its own window. No source gives a number;
+#: the bench file's ``stage.tolerance_counts`` overrides it.
+COMPLETION_TOLERANCE_COUNTS = 30
 
 
 def actuator_counts_per_mm(actuator: str) -> float:
@@ -66,6 +73,8 @@ class Msg(IntEnum):
     MOT_GET_VELPARAMS = 0x0415
     MOT_REQ_STATUSBITS = 0x0429
     MOT_GET_STATUSBITS = 0x042A
+    MOT_REQ_HOMEPARAMS = 0x0441
+    MOT_GET_HOMEPARAMS = 0x0442
     MOT_MOVE_HOME = 0x0443
     MOT_MOVE_HOMED = 0x0444
     MOT_MOVE_RELATIVE = 0x0448
@@ -87,6 +96,7 @@ LONG_LEN: dict[int, int] = {
     Msg.MOT_GET_POSCOUNTER: 6,
     Msg.MOT_SET_VELPARAMS: 14,
     Msg.MOT_GET_VELPARAMS: 14,
+    Msg.MOT_GET_HOMEPARAMS: 14,
     Msg.MOT_GET_STATUSBITS: 6,
     Msg.MOT_MOVE_RELATIVE: 6,
     Msg.MOT_MOVE_ABSOLUTE: 6,
@@ -274,6 +284,30 @@ class VelParamsRaw:
     def unpack(cls, data: bytes) -> VelParamsRaw:
         chan, vmin, acc, vmax = _VELPARAMS.unpack(data[: _VELPARAMS.size])
         return cls(acc, vmax, vmin, chan)
+
+
+_HOMEPARAMS = struct.Struct("<HHHii")
+
+
+@dataclass(frozen=True)
+class HomeParamsRaw:
+    """MOT_GET_HOMEPARAMS (0x0442): direction, limit switch, home velocity (velocity units
+    as in VELPARAMS) and offset distance (counts) of the controller's homing move."""
+
+    direction: int
+    limit_switch: int
+    velocity_raw: int
+    offset_counts: int
+    chan: int = CHAN1
+
+    def pack(self) -> bytes:
+        return _HOMEPARAMS.pack(self.chan, self.direction, self.limit_switch,
+                                self.velocity_raw, self.offset_counts)
+
+    @classmethod
+    def unpack(cls, data: bytes) -> HomeParamsRaw:
+        chan, direction, switch, vel, offset = _HOMEPARAMS.unpack(data[: _HOMEPARAMS.size])
+        return cls(direction, switch, vel, offset, chan)
 
 
 def pack_position(counts: int, chan: int = CHAN1) -> bytes:

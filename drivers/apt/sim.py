@@ -26,6 +26,7 @@ from benchlab.drivers.apt.protocol import (
     Z8_COUNTS_PER_MM,
     DcStatus,
     FrameReader,
+    HomeParamsRaw,
     HwInfo,
     Message,
     Msg,
@@ -73,6 +74,13 @@ class AptFaults:
     # the target after ``settle_reads`` more position requests (the servo settling).
     settle_short_mm: float = 0.0
     settle_reads: int = 0
+    # Lasting behaviours (not consumed), first-day failures of a real stage:
+    #: The reverse limit switch never trips: homing drives into the end stop and never
+    #: reports MOVE_HOMED (the carriage stands there, HOMING set, until stopped).
+    home_never: bool = False
+    #: Every completed move parks this many counts past its target (a servo that settles
+    #: inside a wider window than the host assumed).
+    park_off_counts: int = 0
 
 
 class _Profile:
@@ -166,8 +174,11 @@ class SimulatedAptStage(PtyDevice):
         homed: bool = False,
         model: str = "KDC101",
         firmware: tuple[int, int, int] = (3, 0, 10),
+        home_velocity_mm_s: float | None = None,
     ) -> None:
         super().__init__(clock=clock, time_scale=time_scale)
+        #: The controller's home velocity (MOT_GET_HOMEPARAMS); default: the move velocity.
+        self.home_velocity_mm_s = home_velocity_mm_s
         self.units = Units(counts_per_mm)
         self.travel_mm = (float(travel_mm[0]), float(travel_mm[1]))
         self.velocity_mm_s = velocity_mm_s
@@ -351,6 +362,16 @@ class SimulatedAptStage(PtyDevice):
             self.velocity_mm_s = self.units.vel_mm_s(raw.max_vel_raw)
             self.acceleration_mm_s2 = self.units.acc_mm_s2(raw.accel_raw)
 
+    @commands.handles(Msg.MOT_REQ_HOMEPARAMS)
+    def _req_home_params(self, msg: Message, now: float) -> None:
+        raw = HomeParamsRaw(direction=2, limit_switch=1,  # reverse, to the reverse switch
+                            velocity_raw=self.units.vel_raw(self._home_velocity()),
+                            offset_counts=0)
+        self._reply_long(Msg.MOT_GET_HOMEPARAMS, raw.pack())
+
+    def _home_velocity(self) -> float:
+        return self.home_velocity_mm_s or self.velocity_mm_s
+
     @commands.handles(Msg.MOT_MOVE_HOME)
     def _move_home(self, msg: Message, now: float) -> None:
         self._start(now, self.travel_mm[0] - 1.0, "home")  # runs into the reverse switch
@@ -393,7 +414,10 @@ class SimulatedAptStage(PtyDevice):
         self._held_limit_bits = StatusBits(0)
         if kind == "home":
             self.homed = False
-        profile = _Profile(self._pos_mm, end, self.velocity_mm_s, self.acceleration_mm_s2, now)
+        if kind == "move" and self.faults.park_off_counts:
+            end += self.units.mm(self.faults.park_off_counts) * (1 if end >= self._pos_mm else -1)
+        velocity = self._home_velocity() if kind == "home" else self.velocity_mm_s
+        profile = _Profile(self._pos_mm, end, velocity, self.acceleration_mm_s2, now)
         self._motion = _Motion(profile, kind, bits)
 
     def _stop_motion(self, now: float, *, immediate: bool) -> None:
@@ -424,6 +448,9 @@ class SimulatedAptStage(PtyDevice):
             self.drop_connection()
         if not motion.profile.done(now):
             return
+        if motion.kind == "home" and self.faults.home_never:
+            self._pos_mm = motion.profile.end_mm  # at the end stop, the switch silent: no
+            return  # MOVE_HOMED; the motion stays "under way" (HOMING) until a stop
         self._pos_mm = motion.profile.end_mm
         self._motion = None
         if motion.kind == "home":

@@ -27,6 +27,7 @@ import serial
 
 from benchlab.drivers.apt.protocol import (
     CHAN1,
+    COMPLETION_TOLERANCE_COUNTS,
     DISABLE,
     ENABLE,
     FAULT_BITS,
@@ -37,6 +38,7 @@ from benchlab.drivers.apt.protocol import (
     Z8_COUNTS_PER_MM,
     DcStatus,
     FrameReader,
+    HomeParamsRaw,
     HwInfo,
     Message,
     Msg,
@@ -68,9 +70,9 @@ READ_POLL_S = 0.02  # reader thread's serial read timeout
 #: messages - status updates and move completions alike - after ~50 of them. Sent on a timer
 #: from open to close, so it also restarts a cube that stalled.
 KEEPALIVE_PERIOD_S = 0.9
-#: A completed move ends this close to its target (~0.15 um on a Z8). No source gives a
-#: tolerance; clients re-read the position after settling, and so does this driver:
-COMPLETION_TOLERANCE_COUNTS = 5
+#: A completed move ends this close to its target by default (protocol's
+#: COMPLETION_TOLERANCE_COUNTS; the ``completion_tolerance_counts`` argument overrides it).
+#: Clients re-read the position after settling, and so does this driver:
 SETTLE_READS = 5  # position re-reads after a MOVE_COMPLETED off target ...
 SETTLE_WAIT_S = 0.05  # ... this far apart
 #: The vendor's open routine: wait, purge both buffers, wait, with an RTS pulse around it.
@@ -130,6 +132,16 @@ class AptStatus:
 
 
 @dataclass(frozen=True)
+class HomeParams:
+    """The controller's homing move: velocity, offset from the switch, direction, switch."""
+
+    velocity_mm_s: float
+    offset_mm: float
+    direction: int
+    limit_switch: int
+
+
+@dataclass(frozen=True)
 class VelocityParams:
     max_velocity_mm_s: float
     acceleration_mm_s2: float
@@ -185,6 +197,7 @@ class AptStage(LinearStage):
         updates: bool = True,
         max_velocity_mm_s: float = Z8_MAX_VELOCITY_MM_S,
         max_acceleration_mm_s2: float = Z8_MAX_ACCELERATION_MM_S2,
+        completion_tolerance_counts: int = COMPLETION_TOLERANCE_COUNTS,
     ) -> None:
         lo, hi = float(travel_mm[0]), float(travel_mm[1])
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -202,6 +215,8 @@ class AptStage(LinearStage):
         self.updates = updates
         self.max_velocity_mm_s = max_velocity_mm_s
         self.max_acceleration_mm_s2 = max_acceleration_mm_s2
+        #: A completed move must end this close to its target (else AptMoveFaultError).
+        self.completion_tolerance_counts = int(completion_tolerance_counts)
         self._ser: serial.Serial | None = None
         self._write_lock = threading.RLock()
         self._cond = threading.Condition()
@@ -388,14 +403,31 @@ class AptStage(LinearStage):
         self.set_velocity_params(velocity_mm_s, self.get_velocity_params().acceleration_mm_s2)
 
     # ---- motion -----------------------------------------------------------------------------
+    def get_home_params(self) -> HomeParams:
+        """The controller's homing move (MOT_REQ_HOMEPARAMS): its velocity and offset."""
+        reply = self._request(short(Msg.MOT_REQ_HOMEPARAMS, CHAN1), Msg.MOT_GET_HOMEPARAMS)
+        raw = HomeParamsRaw.unpack(reply.data or bytes(14))
+        if raw.velocity_raw <= 0:
+            raise AptBadReplyError(f"stage: impossible home parameters {raw}")
+        return HomeParams(self.units.vel_mm_s(raw.velocity_raw),
+                          self.units.mm(raw.offset_counts), raw.direction, raw.limit_switch)
+
+    def home_timeout_s(self, home: HomeParams) -> float:
+        """Seconds homing may take at the controller's own home velocity: unhomed, the
+        carriage may be anywhere, so two spans (out, and back off the switch), plus half."""
+        span = self.travel_mm[1] - self.travel_mm[0]
+        v, a = home.velocity_mm_s, self._vel.acceleration_mm_s2
+        return 1.5 * ((2 * span + abs(home.offset_mm)) / max(v, 1e-9) + v / max(a, 1e-9))
+
     def _do_home(self, timeout_s: float | None) -> None:
-        """Home (drive to the reverse limit and zero the counter) and wait until homed."""
+        """Home (drive to the reverse limit and zero the counter) and wait until homed; the
+        default timeout follows the controller's home velocity, read first."""
+        if timeout_s is None:
+            timeout_s = self.home_timeout_s(self.get_home_params()) + self.timeout_s
         self._settle()
         seq = self._send(short(Msg.MOT_MOVE_HOME, CHAN1))
         self._move_seq, self._move_target_mm = seq, self.travel_mm[0]
-        # Unhomed, the carriage may be anywhere: allow two spans (out and back off the switch).
-        span = self.travel_mm[1] - self.travel_mm[0]
-        self.wait_for_move(timeout_s if timeout_s is not None else self._travel_timeout(2 * span))
+        self.wait_for_move(timeout_s)
 
     def _do_move_to_mm(self, position_mm: float, *, wait: bool,
                        timeout_s: float | None) -> None:
@@ -479,7 +511,7 @@ class AptStage(LinearStage):
             return status
         for _ in range(SETTLE_READS):
             off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
-            if abs(off) <= COMPLETION_TOLERANCE_COUNTS:
+            if abs(off) <= self.completion_tolerance_counts:
                 break
             time.sleep(SETTLE_WAIT_S)
             status = AptStatus(self.position_mm, status.velocity_raw, status.bits)
@@ -497,7 +529,7 @@ class AptStage(LinearStage):
             problems.append(f"fault {faults.name}")
         if target_mm is not None:
             off = self.units.counts(status.position_mm) - self.units.counts(target_mm)
-            if abs(off) > COMPLETION_TOLERANCE_COUNTS:
+            if abs(off) > self.completion_tolerance_counts:
                 problems.append(f"{off:+d} counts from the target after {SETTLE_READS} position "
                                 f"re-reads over {SETTLE_READS * SETTLE_WAIT_S:g} s")
                 if status.at_forward_limit:

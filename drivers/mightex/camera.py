@@ -51,7 +51,9 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "CameraInfo", "CameraProfileMismatchError", "Frame", "FrameMeta", "MightexCamera",
-    "find_cameras", "DEFAULT_PID", "VENDOR_ID",
+    "find_cameras", "DEFAULT_PID", "VENDOR_ID", "CameraRoiRefusedError", "UsbDeviceSeen",
+    "FrameEndpointTimeoutError",
+    "udev_rule_line", "vendor_devices",
 ]
 
 VENDOR_ID = p.VENDOR_ID
@@ -64,6 +66,11 @@ POLL_INTERVAL_S = 0.002
 #: Frames in a row whose trailer is off the settings (beyond the profile's tolerance) before
 #: a grab calls the profile wrong; the first may come from the settings before the last change.
 MAX_DISCARDS = 3
+#: Reads of the frame endpoint that drain surplus bytes after a frame of the wrong size (at
+#: most; each reads up to :data:`DRAIN_CHUNK_BYTES` and the drain ends at the first timeout).
+MAX_DRAIN_READS = 64
+DRAIN_CHUNK_BYTES = 1 << 16
+DRAIN_TIMEOUT_MS = 50
 _LIBUSB_NO_DEVICE = -4
 UDEV_RULE = "99-benchlab-mightex.rules"
 _LIBUSB_PIPE = -9
@@ -71,6 +78,73 @@ _LIBUSB_PIPE = -9
 
 class CameraProfileMismatchError(ProtocolError):
     """The camera does not behave as its model's profile says (exposure field, bit depth)."""
+
+
+class FrameEndpointTimeoutError(DeviceTimeoutError):
+    """The camera said a frame was waiting, but none came on the frame endpoint (EP 0x82)."""
+
+
+class CameraRoiRefusedError(ProtocolError):
+    """The camera keeps sending frames of another geometry than the one set (0x60 refused)."""
+
+
+@dataclass(frozen=True)
+class UsbDeviceSeen:
+    """A USB device that may be the camera: the vendor's id, or strings naming Mightex."""
+
+    vid: int
+    pid: int
+    bus: int | None
+    address: int | None
+    manufacturer: str
+    product: str
+    serial: str
+
+    def describe(self) -> str:
+        strings = " ".join(x for x in (self.manufacturer, self.product) if x) or "(no strings)"
+        return (f"{self.vid:04x}:{self.pid:04x} {strings}"
+                + (f" serial {self.serial}" if self.serial else "")
+                + (f" (usb {self.bus}:{self.address})" if self.bus is not None else ""))
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def udev_rule_line(vid: int, pid: int) -> str:
+    """The udev rule line that gives the plugdev group this device (as the packaged rule)."""
+    return (f'SUBSYSTEM=="usb", ATTR{{idVendor}}=="{vid:04x}", ATTR{{idProduct}}=="{pid:04x}", '
+            'MODE="0660", GROUP="plugdev", TAG+="uaccess"')
+
+
+def vendor_devices(backend: Any = None) -> list[UsbDeviceSeen]:
+    """Every USB device with the camera vendor's id (any product id), or whose manufacturer
+    or product string names Mightex; strings that cannot be read (no permission) are ''."""
+    from benchlab.drivers.trace import replay
+
+    if backend is None:
+        backend = replay.usb_backend()
+    try:
+        devices = list(usb.core.find(find_all=True, backend=backend) or [])
+    except usb.core.NoBackendError:
+        return []
+    seen = []
+    for dev in devices:
+        strings = [_usb_string(dev, i) for i in (dev.iManufacturer, dev.iProduct,
+                                                 dev.iSerialNumber)]
+        names_mightex = any("mightex" in x.lower() for x in strings[:2])
+        if dev.idVendor == VENDOR_ID or names_mightex:
+            seen.append(UsbDeviceSeen(dev.idVendor, dev.idProduct, dev.bus, dev.address,
+                                      *strings))
+    return seen
+
+
+def _usb_string(dev: Any, index: int) -> str:
+    if not index:
+        return ""
+    try:
+        return str(usb.util.get_string(dev, index) or "")
+    except (usb.core.USBError, ValueError, NotImplementedError):
+        return ""  # no permission to open it, or no language table
 
 
 @dataclass(frozen=True)
@@ -103,7 +177,8 @@ class FrameMeta:
     exposure_ms: float
     exposure_counts: int
     frame_time_ms: float
-    timestamp_ms: int
+    #: Trailer timestamp in ms (raw word x the profile's ``timestamp_unit_ms``), wraps.
+    timestamp_ms: float
     trigger_occurred: bool
     trigger_count: int
     x_start: int
@@ -238,6 +313,10 @@ class MightexCamera(Camera[FrameMeta]):
         self._sleep: Callable[[float], None] = time.sleep
         #: The profile's protocol waits; a simulator's backend lends its clock (no real wait).
         self._wait: Callable[[float], None] = getattr(backend, "sleep", None) or time.sleep
+        #: The host's clock for timing frames: a simulator's backend lends its own.
+        self._now: Callable[[], float] = getattr(backend, "now", None) or time.monotonic
+        #: Bytes read and dropped from the frame endpoint after wrong-size frames.
+        self.drained_bytes = 0
         self._lock = threading.RLock()
 
     # ------------------------------------------------------------------ opening
@@ -433,6 +512,15 @@ class MightexCamera(Camera[FrameMeta]):
     def spec(self) -> p.CameraSpec:
         return self._spec
 
+    def use_profile(self, spec: p.CameraSpec) -> None:
+        """Read the camera with another profile from now on (facts settled on the bench, e.g.
+        the trailer order); nothing is sent."""
+        self._spec = spec
+
+    def host_time_s(self) -> float:
+        """The host's clock, seconds (a simulated camera's own clock when simulated)."""
+        return self._now()
+
     @property
     def exposure_ms(self) -> float:
         """Exposure as set on the camera (rounded to the model's step)."""
@@ -585,6 +673,7 @@ class MightexCamera(Camera[FrameMeta]):
         if under_way:
             self.skipped_frames += self.clear_buffer()
         off_settings: list[p.FrameTrailer] = []
+        other_geometry = 0
         while True:
             status = self.buffer_status()
             if status.frames == 0:
@@ -598,6 +687,12 @@ class MightexCamera(Camera[FrameMeta]):
             if (status.width, status.height, status.bin_code) != (s.width, s.height, s.bin_code):
                 self._send(p.encode_clear_buffer(status.frames))  # older geometry: unreadable
                 self.discarded_frames += status.frames
+                other_geometry += 1
+                if other_geometry >= MAX_DISCARDS:  # new frames keep coming in another one
+                    raise CameraRoiRefusedError(
+                        f"camera keeps sending {status.width}x{status.height} frames (bin "
+                        f"0x{status.bin_code:02X}) after {s.width}x{s.height} was set: it did "
+                        "not take the resolution command (0x60)")
                 continue
             if normal and status.frames == 1 and under_way:
                 # The one under way at the call: read and dropped (not cleared: its trailer
@@ -645,8 +740,28 @@ class MightexCamera(Camera[FrameMeta]):
         # One fresh buffer per frame: the returned pixels are a view of it (no copy).
         buf = array.array("B", b"\0") * layout.total_bytes
         timeout_ms = 1000 + layout.total_bytes // 20_000  # >= 20 MB/s on USB 2.0
-        received = self._read(p.EP_FRAME_IN, buf, timeout_ms, "frame read")
-        return p.decode_frame(buf, layout, received)
+        try:
+            received = self._read(p.EP_FRAME_IN, buf, timeout_ms, "frame read")
+        except DeviceTimeoutError as exc:
+            raise FrameEndpointTimeoutError(
+                f"no frame came on EP 0x{p.EP_FRAME_IN:02X} within {timeout_ms} ms, although "
+                "the camera's buffer query said one was waiting") from exc
+        try:
+            return p.decode_frame(buf, layout, received, self._spec.trailer_order)
+        except ProtocolError:
+            # A frame of another size than expected: what is left of it (or of the next one)
+            # would be read as the start of the following frame. Drain the endpoint first.
+            self._drain_frames()
+            raise
+
+    def _drain_frames(self) -> None:
+        """Read the frame endpoint until it times out (or :data:`MAX_DRAIN_READS` reads)."""
+        for _ in range(MAX_DRAIN_READS):
+            try:
+                chunk = self._read(p.EP_FRAME_IN, DRAIN_CHUNK_BYTES, DRAIN_TIMEOUT_MS, "drain")
+            except DeviceTimeoutError:
+                return
+            self.drained_bytes += len(chunk)
 
     def _make_frame(self, pixels: npt.NDArray[Any], t: p.FrameTrailer) -> Frame:
         s = self._settings
@@ -656,9 +771,15 @@ class MightexCamera(Camera[FrameMeta]):
             exposure_ms=round(t.exposure_counts * self._spec.exposure_unit_ms, 6),
             exposure_counts=t.exposure_counts,
             frame_time_ms=round(t.frame_time * self._spec.frame_time_unit_ms, 6),
-            timestamp_ms=t.timestamp_ms, trigger_occurred=bool(t.trigger_occurred),
+            timestamp_ms=_timestamp_ms(t.timestamp_ms, self._spec.timestamp_unit_ms),
+            trigger_occurred=bool(t.trigger_occurred),
             trigger_count=t.trigger_count, x_start=t.x_start, y_start=t.y_start,
             received_utc=datetime.now(UTC).isoformat(timespec="milliseconds"),
             set_exposure_ms=self.exposure_ms, set_gain=self.gain,
         )
         return Frame(pixels, meta)
+
+
+def _timestamp_ms(counts: int, unit_ms: float) -> float:
+    """A trailer timestamp in ms (an int when the unit is 1 ms, as it was recorded before)."""
+    return counts if unit_ms == 1.0 else round(counts * unit_ms, 1)

@@ -23,19 +23,12 @@ def depth_findings(pixels: npt.NDArray[np.integer], bits: int) -> list[str]:
     values = np.asarray(pixels).ravel().astype(np.int64)
     top = (1 << bits) - 1
     found: list[str] = []
-    vmax, vmin = int(values.max()), int(values.min())
+    vmax = int(values.max())
     if vmax > top:
         return [f"codes up to {vmax} in a {bits}-bit frame (max {top}): wrong decode"]
-    spread = vmax - vmin
-    if bits > 8 and spread >= 16:
-        ored = int(np.bitwise_or.reduce(values - vmin))
-        low_zero = (ored & -ored).bit_length() - 1 if ored else 0
-        if bits == 12 and vmax >= 64 and not np.any(values & 0b1100):
-            found.append("bits 2 and 3 are never set: 10-bit data packed as the CMOS client "
-                         "does, decoded with the 12-bit rule (1023 reads 4083)")
-        elif low_zero >= 2:
-            found.append(f"the lowest {low_zero} bits never change: the data has "
-                         f"{bits - low_zero} significant bits, not {bits} (MSB-aligned)")
+    never_set, _ = never_set_bits_finding(values, bits)
+    if never_set:
+        found.append(never_set)
     lo, hi = np.percentile(values, [1, 99])
     span = int(hi - lo) + 1
     if not found and span >= 64 and values.size >= 8 * span:
@@ -46,6 +39,27 @@ def depth_findings(pixels: npt.NDArray[np.integer], bits: int) -> list[str]:
     if np.mean(values == top) > 0.5:
         found.append(f"more than half the pixels at {top}: saturated, lower the light")
     return found
+
+
+def never_set_bits_finding(pixels: npt.NDArray[np.integer], bits: int
+                           ) -> tuple[str | None, bool]:
+    """Bits of a frame deeper than 8 bits that are never set: the 10-bit client's packing
+    read with the 12-bit rule (bits 2 and 3), or MSB-aligned data with fewer significant
+    bits (the lowest ones). Returns ``(finding or None, decided)``; ``decided`` is False when
+    the frame has too little spread (< 16 codes) to tell."""
+    values = np.asarray(pixels).ravel().astype(np.int64)
+    vmax, vmin = int(values.max()), int(values.min())
+    if bits <= 8 or vmax - vmin < 16:
+        return None, bits <= 8
+    ored = int(np.bitwise_or.reduce(values - vmin))
+    low_zero = (ored & -ored).bit_length() - 1 if ored else 0
+    if bits == 12 and vmax >= 64 and not np.any(values & 0b1100):
+        return ("bits 2 and 3 are never set: 10-bit data packed as the CMOS client does, "
+                "decoded with the 12-bit rule (1023 reads 4083)"), True
+    if low_zero >= 2:
+        return (f"the lowest {low_zero} bits never change: the data has {bits - low_zero} "
+                f"significant bits, not {bits} (MSB-aligned)"), True
+    return None, True
 
 
 def period_finding(exposure_ms: float, period_ms: float) -> str | None:

@@ -9,13 +9,19 @@ Sources (tags of ``shared/docs/device-protocols.md``; every fact and its source 
 
 * MCE-B013-U (MT9M001 CMOS): no public document names it. Its defaults follow the CMOS
   buffer-camera client [SH] (BTN-B013U, same sensor): a 2-byte exposure field in 0.05 ms
-  units (max 750 ms), a 10-bit mode (the MT9M001 is natively 10-bit), 0.05 ms frame-time
-  units. The 8 and 12-bit modes are the v1.0.6 document's [GC]; 12 bits on a 10-bit sensor
-  is assumed, and ``benchlab doctor`` checks it on the bench.
+  units (max 750 ms), a 10-bit mode (that the MT9M001 is natively 10-bit is its data sheet's,
+  not a protocol source's: assumed), 0.05 ms frame-time units. The 8 and 12-bit modes are the
+  v1.0.6 document's [GC], written for the CCD camera; 12 bits on this sensor is assumed, and
+  ``benchlab doctor`` checks every depth on the bench (``[camera] bit_depths``).
+* The trailer layout is [GC]'s CCD struct: assumed for this camera. Its row/column order and
+  its timestamp unit (1 ms in the vendor guide's text, 0.1 ms in its worked example) are
+  profile facts ``benchlab doctor`` settles (``trailer_order``, ``timestamp_unit_ms``).
 * Timing: ~100 ms after the work-mode command and ~3 s after power-up before the camera
-  answers reliably ([CU]/[SS] wait 0.2 s after the clock command, [SH] 2 s after set-up).
-* Buffer full: [GC] reports "camera buffer full" and new frames are not stored; the older
-  overwrite policy of the simulator was a guess.
+  answers reliably: assumed ([SS] asks > 200 ms after the clock command, [SH] sleeps 2 s
+  after set-up; no document gives a figure for these two).
+* Buffer full: assumed that new frames are dropped ([GC] prints "camera buffer full" but no
+  source says which frames a full buffer keeps); a grab clears the buffer first, so either
+  policy gives the same frames.
 """
 
 from __future__ import annotations
@@ -27,6 +33,11 @@ from benchlab.drivers.errors import SettingOutOfRangeError
 #: The MCE-B013-U's PID is not public; the BTN-B013U (same sensor) uses 0x0428.
 DEFAULT_PID = 0x0428
 BUFFER_FULL_POLICIES = ("drop_new", "overwrite_oldest")
+#: The trailer's first two words: line length then line count ([GC]'s CCD layout, assumed for
+#: the CMOS camera), or the other way round. Only a non-square frame tells them apart.
+TRAILER_ORDERS = ("row_column", "column_row")
+#: Timestamp units the vendor guide gives: 1 ms in its text, 0.1 ms in its worked example.
+TIMESTAMP_UNITS_MS = (1.0, 0.1)
 
 
 @dataclass(frozen=True)
@@ -61,6 +72,12 @@ class CameraSpec:
     exposure_tolerance_ms: float = 1.0
     exposure_tolerance_fraction: float = 0.02
     gain_tolerance_raw: int = 1
+    #: Order of the trailer's first two words (:data:`TRAILER_ORDERS`); ``benchlab doctor``
+    #: settles it with a full 1280 x 1024 frame.
+    trailer_order: str = "row_column"
+    #: Unit of the trailer's 16-bit timestamp, ms (:data:`TIMESTAMP_UNITS_MS`); ``benchlab
+    #: doctor`` settles it against the host clock.
+    timestamp_unit_ms: float = 1.0
 
     def __post_init__(self) -> None:
         if self.buffer_full not in BUFFER_FULL_POLICIES:
@@ -71,6 +88,14 @@ class CameraSpec:
             raise SettingOutOfRangeError(
                 f"camera profile {self.model}: exposure_bytes must be 2 or 4, "
                 f"got {self.exposure_bytes!r}")
+        if self.trailer_order not in TRAILER_ORDERS:
+            raise SettingOutOfRangeError(
+                f"camera profile {self.model}: trailer_order {self.trailer_order!r} is not one "
+                f"of {', '.join(TRAILER_ORDERS)}")
+        if self.timestamp_unit_ms not in TIMESTAMP_UNITS_MS:
+            raise SettingOutOfRangeError(
+                f"camera profile {self.model}: timestamp_unit_ms {self.timestamp_unit_ms!r} is "
+                f"not one of {', '.join(map(str, TIMESTAMP_UNITS_MS))}")
 
     @property
     def exposure_max_ms(self) -> float:

@@ -318,19 +318,38 @@ class FrameTrailer:
     exposure_counts: int
 
 
-def encode_trailer(t: FrameTrailer) -> bytes:
+class TrailerGeometryError(ProtocolError):
+    """A frame trailer's geometry differs from the configured one (``trailer`` is the
+    (first, second) word pair as received, ``configured`` the (width, height))."""
+
+    def __init__(self, message: str, trailer: tuple[int, int],
+                 configured: tuple[int, int]) -> None:
+        super().__init__(message)
+        self.trailer, self.configured = trailer, configured
+
+    @property
+    def swapped(self) -> bool:
+        """Whether the trailer gives the same geometry with its words the other way round."""
+        return self.trailer == self.configured[::-1] != self.configured
+
+
+def encode_trailer(t: FrameTrailer, order: str = "row_column") -> bytes:
+    first, second = (t.row, t.column) if order == "row_column" else (t.column, t.row)
     head = _TRAILER.pack(
-        t.row, t.column, t.bin_code, t.x_start, t.y_start, t.red_gain, t.green_gain,
+        first, second, t.bin_code, t.x_start, t.y_start, t.red_gain, t.green_gain,
         t.blue_gain, t.timestamp_ms & 0xFFFF, t.trigger_occurred, t.trigger_count & 0xFFFF,
         t.user_mark, t.frame_time, t.clock, t.exposure_counts,
     )
     return head + bytes(TRAILER_BYTES - len(head))
 
 
-def decode_trailer(raw: bytes | memoryview) -> FrameTrailer:
+def decode_trailer(raw: bytes | memoryview, order: str = "row_column") -> FrameTrailer:
+    """The trailer; ``order`` is the profile's :attr:`~CameraSpec.trailer_order`."""
     if len(raw) != TRAILER_BYTES:
         raise ProtocolError(f"frame trailer is {len(raw)} bytes, expected {TRAILER_BYTES}")
-    return FrameTrailer(*_TRAILER.unpack_from(raw))
+    first, second, *rest = _TRAILER.unpack_from(raw)
+    row, column = (first, second) if order == "row_column" else (second, first)
+    return FrameTrailer(row, column, *rest)
 
 
 @dataclass(frozen=True)
@@ -432,13 +451,15 @@ def depth_of_transfer(received: int, width: int, height: int) -> str:
 
 
 def decode_frame(
-    buffer: bytearray | memoryview | object, layout: FrameLayout, received: int
+    buffer: bytearray | memoryview | object, layout: FrameLayout, received: int,
+    trailer_order: str = "row_column",
 ) -> tuple[npt.NDArray[np.uint8] | npt.NDArray[np.uint16], FrameTrailer]:
     """Split one received frame into pixels (a view of ``buffer``, no copy) and its trailer.
 
     ``buffer`` must be writable (12-bit frames are unpacked in place). Raises
-    :class:`ProtocolError` if ``received`` differs from the layout's transfer size or the
-    trailer's geometry differs from ``layout``.
+    :class:`ProtocolError` if ``received`` differs from the layout's transfer size, and
+    :class:`TrailerGeometryError` if the trailer's geometry (read in ``trailer_order``)
+    differs from ``layout``.
     """
     if received != layout.total_bytes:
         raise ProtocolError(
@@ -448,12 +469,12 @@ def decode_frame(
             "take the bit depth, its profile differs - run `benchlab doctor`)"
         )
     mv = memoryview(buffer).cast("B")  # type: ignore[arg-type]
-    trailer = decode_trailer(mv[layout.trailer_offset:layout.total_bytes])
+    trailer = decode_trailer(mv[layout.trailer_offset:layout.total_bytes], trailer_order)
     if (trailer.row, trailer.column) != (layout.width, layout.height):
-        raise ProtocolError(
+        raise TrailerGeometryError(
             f"frame trailer says {trailer.row}x{trailer.column}, configured "
-            f"{layout.width}x{layout.height}"
-        )
+            f"{layout.width}x{layout.height} (trailer read in {trailer_order} order)",
+            (trailer.row, trailer.column), (layout.width, layout.height))
     n = layout.width * layout.height
     pixels: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
     if layout.bits == 8:

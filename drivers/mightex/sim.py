@@ -122,6 +122,14 @@ class CameraFaults:
     stale_frames: int = 0
     #: Result byte of good replies; any non-zero value is legal (0x08 was seen in the field).
     reply_status: int = 0x01
+    # Firmware behaviours that last (not consumed), each a first-day failure on a real bench:
+    #: The firmware takes only the full sensor resolution; any other 0x60 is ignored.
+    refuse_roi: bool = False
+    #: Frames are exposed and counted in the buffer (0x33) but never sent on EP 0x82.
+    frames_never_sent: bool = False
+    #: The firmware reads a 4-byte exposure (0x63) whatever the length byte says: the bytes
+    #: past a 2-byte command are what its command buffer still holds from earlier commands.
+    exposure_reads_4_bytes: bool = False
 
 
 @dataclass
@@ -223,6 +231,8 @@ class SimulatedCamera:
         self.sent_frames: list[SentFrame] | None = None
         self._sent_seq = 0
         self._sending: SentFrame | None = None
+        #: The firmware's command buffer (EP 0x01): each command overwrites its start.
+        self._command_buffer = bytearray(64)
         self._lock = threading.RLock()
         self._power_on()
 
@@ -363,6 +373,7 @@ class SimulatedCamera:
             if not self.connected:
                 raise DeviceUnplugged
             self.command_log.append(bytes(data))
+            self._command_buffer[:len(data)] = data[:len(self._command_buffer)]
             self._catch_up()
             if self.clock.now() < self._deaf_until:  # powering up, or busy after 0x30
                 self.rejected_commands.append(bytes(data))
@@ -456,6 +467,9 @@ class SimulatedCamera:
             return False
         s = self.settings
         width, height = int.from_bytes(args[0:2], "big"), int.from_bytes(args[2:4], "big")
+        if self.faults.refuse_roi and (width, height) != (self.spec.max_width,
+                                                           self.spec.max_height):
+            return False
         try:
             p.check_geometry(self.spec, width=width, height=height, bits=s.bits,
                              mode=p.MODE_NAMES[s.mode], bin_code=args[4], buffer_count=args[5])
@@ -474,6 +488,10 @@ class SimulatedCamera:
 
     @commands.handles(p.CMD_EXPOSURE)
     def _exposure(self, args: bytes) -> bool:
+        if self.faults.exposure_reads_4_bytes:  # the length byte is not looked at
+            counts = int.from_bytes(self._command_buffer[2:6], "big")
+            self._change(replace(self.settings, exposure_counts=max(counts, 1)))
+            return True
         if len(args) != self.spec.exposure_bytes:
             return False
         counts = int.from_bytes(args, "big")
@@ -538,7 +556,7 @@ class SimulatedCamera:
             if not self.connected:
                 raise DeviceUnplugged
             if self._transfer is None:
-                if not self._outgoing:
+                if not self._outgoing or self.faults.frames_never_sent:
                     return None
                 self._transfer = self._render(self._outgoing.popleft())
             if self.faults.unplug_mid_frame:
@@ -569,7 +587,7 @@ class SimulatedCamera:
             frame_index=frame.index, bench=frame.bench,
         )
         self.sensor.render_into(payload, frame.scene, state)
-        timestamp_ms = int((frame.ready_s - self._t0) * 1000)
+        timestamp_ms = int((frame.ready_s - self._t0) * 1000 / self.spec.timestamp_unit_ms)
         payload[layout.trailer_offset:] = p.encode_trailer(p.FrameTrailer(
             row=s.width, column=s.height, bin_code=s.bin_code, x_start=0, y_start=0,
             red_gain=s.gain_raw, green_gain=s.gain_raw, blue_gain=s.gain_raw,
@@ -577,7 +595,7 @@ class SimulatedCamera:
             trigger_occurred=int(frame.trigger_occurred), trigger_count=frame.trigger_count,
             user_mark=0, frame_time=s.frame_time_counts, clock=s.clock_divider,
             exposure_counts=s.exposure_counts,
-        ))
+        ), self.spec.trailer_order)
         view = memoryview(payload)
         if self.sent_frames is not None:
             self._sending = SentFrame(

@@ -150,6 +150,10 @@ class SimCameraBackend(usb.backend.IBackend):
                 time.sleep(seconds)
                 waited = True
 
+    def now(self) -> float:
+        """The host's clock as the cameras see it: the first camera's clock, seconds."""
+        return self.cameras[0].clock.now() if self.cameras else time.monotonic()
+
     # ------------------------------------------------------------------ enumeration
 
     def enumerate_devices(self) -> Iterator[_SimDevice]:

@@ -190,7 +190,7 @@ def run_soak(
                 report.stale_discarded += (cam.discarded_frames + cam.skipped_frames
                                            - discarded_before)
             pixels = frame.pixels
-            delivered.append((report.reconnects, frame.meta.timestamp_ms,
+            delivered.append((report.reconnects, int(frame.meta.timestamp_ms),
                               frame.meta.exposure_counts, frame.meta.gain_raw,
                               hashlib.sha256(pixels.tobytes()).hexdigest()))
             if pending is not None:

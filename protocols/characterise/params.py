@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from benchlab.checks import CAMERA_BIT_DEPTHS
 from benchlab.drivers.mightex.sim_sensor import SensorTruth
 from benchlab.protocols.camera_limits import EXPOSURE_RANGE_MS as _EXPOSURE_RANGE_MS
 from benchlab.protocols.camera_limits import GAIN_RANGE as _GAIN_RANGE
@@ -67,14 +68,21 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
     d = CharacteriseParams()
     gains = c.numbers("camera.gains", d.gains, *_GAIN_RANGE)
     found, raw_bits = c._get("camera.bits", list(d.bits))
-    bits = d.bits
+    settled = getattr(limits, "camera_bit_depths", None)
+    # Default: the depths the doctor found to decode on this bench, deepest first.
+    bits = tuple(sorted(settled, reverse=True)) if settled else d.bits
     if found:
         if (not isinstance(raw_bits, list) or not raw_bits
-                or any(b not in (8, 12) or isinstance(b, bool) for b in raw_bits)
+                or any(b not in CAMERA_BIT_DEPTHS or isinstance(b, bool) for b in raw_bits)
                 or len(set(raw_bits)) != len(raw_bits)):
-            c.fail("camera.bits", f"must be a list of distinct 8 / 12, got {raw_bits!r}")
+            c.fail("camera.bits", "must be a list of distinct "
+                   f"{' / '.join(map(str, CAMERA_BIT_DEPTHS))}, got {raw_bits!r}")
         else:
             bits = tuple(int(b) for b in raw_bits)
+            for b in bits:
+                problem = limits.bits_problem(b) if limits is not None else None
+                if problem:
+                    c.fail("camera.bits", problem)
     width = c.integer("camera.width", d.width, 8, 1280)
     height = c.integer("camera.height", d.height, 8, 1024)
     for name, value in (("camera.width", width), ("camera.height", height)):

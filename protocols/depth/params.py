@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from benchlab.analysis.focus.criteria import KINDS, Criterion, CriterionKind
+from benchlab.checks import CAMERA_BIT_DEPTHS
 from benchlab.protocols.camera_limits import (
     EXPOSURE_RANGE_MS,
     GAIN_RANGE,
@@ -142,7 +143,9 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
     exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
                                            *EXPOSURE_RANGE_MS))
     gain = camera_gain(c.number("camera.gain", d.gain, *GAIN_RANGE))
-    bits = c.choice("camera.bits", d.bits, (8, 12))
+    bits = c.choice("camera.bits", d.bits, CAMERA_BIT_DEPTHS)
+    if limits is not None and (problem := limits.bits_problem(bits)):
+        c.fail("camera.bits", problem)
     frames = c.integer("camera.frames", d.frames, 1, 64)
     view = c.choice("sweep.view", d.view, ("forward", "radial"))
     # the radial view sweeps the wall distance: Table 4.4's 2-11 mm with margin

@@ -201,8 +201,11 @@ def test_home_waits_for_homed(clock: ManualClock) -> None:
                 st.home()
             assert st.is_homed and st.position_mm == 0.0
             assert sim.position_mm == 0.0 and sim.homed
-            assert sim.transcript[:2] == [("host", H("430401005001")),
-                                          ("dev", H("440401000150"))]
+            # The home parameters first: the wait follows the home velocity (issue 36).
+            assert sim.transcript[0] == ("host", H("410401005001"))
+            assert sim.transcript[1][1][:6] == H("42040e008150")
+            assert sim.transcript[2:4] == [("host", H("430401005001")),
+                                           ("dev", H("440401000150"))]
     finally:
         sim.stop()
 

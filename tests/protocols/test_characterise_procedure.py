@@ -149,7 +149,7 @@ def test_abort_mid_sweep_leaves_led_off_and_resume_finishes(tmp_path: Path, tiny
 
 
 def test_parameter_problems_are_all_listed() -> None:
-    bad = {"procedure": "characterise", "camera": {"bits": [10], "width": 66, "gains": [9.0]},
+    bad = {"procedure": "characterise", "camera": {"bits": [14], "width": 66, "gains": [9.0]},
            "led": {"current_ma": 80.0}, "sweep": {"log_steps": 1}, "simulator": {"gain": 2},
            "typo": 1}
     with pytest.raises(ParamsError) as err:

@@ -49,20 +49,46 @@ def list_devices(simulate: bool, pid: int | None = None) -> tuple[list[dict[str,
     from benchlab.drivers.mightex.camera import find_cameras
     notes: list[str] = []
     rows: list[dict[str, Any]] = []
+    backend = _sim_backend(pid) if simulate else None
     try:
-        cams = find_cameras(backend=_sim_backend(pid) if simulate else None, pid=pid)
+        cams = find_cameras(backend=backend, pid=pid)
         for info in cams:
             row = {"kind": "camera", **info.to_dict()}
             row["port"] = f"usb {info.bus}:{info.address} pid 0x{info.pid:04X}"
             rows.append(row)
     except DeviceNotFoundError as exc:  # no libusb: still list the serial devices
         notes.append(f"cameras: {exc}")
+    other_rows, other_notes = cameras_elsewhere(backend, pid)
+    rows += other_rows
+    notes += other_notes
     try:
         from benchlab.cli.devices.serial import list_serial_devices
     except ImportError:
         notes.append("serial devices: listing not available in this build")
     else:
         rows.extend(list_serial_devices(simulate))
+    return rows, notes
+
+
+def cameras_elsewhere(backend: Any, pid: int | None) -> tuple[list[dict[str, Any]], list[str]]:
+    """USB devices of the camera's vendor id (or naming Mightex) with another product id than
+    the one searched, as rows, and for each a note with the bench-file and udev lines that
+    make it the camera."""
+    from benchlab.drivers.mightex import protocol as proto
+    from benchlab.drivers.mightex.camera import udev_rule_line, vendor_devices
+
+    wanted = proto.DEFAULT_PID if pid is None else pid
+    rows: list[dict[str, Any]] = []
+    notes: list[str] = []
+    for d in vendor_devices(backend):
+        if d.pid == wanted:
+            continue
+        rows.append({"kind": "camera?", "model": d.product or "?", "serial": d.serial or "?",
+                     "firmware": "", "port": f"usb {d.bus}:{d.address} "
+                     f"{d.vid:04x}:{d.pid:04x}", **{"usb": d.to_dict()}})
+        notes.append(f"{d.describe()} was not searched (PID 0x{wanted:04X}): if it is the "
+                     f"camera, put `pid = 0x{d.pid:04X}` under [camera] in the bench file and "
+                     f"add the udev rule line: {udev_rule_line(d.vid, d.pid)}")
     return rows, notes
 
 
