@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 from benchlab.tiff_strips import decode_frame
 
 if TYPE_CHECKING:

@@ -16,10 +16,14 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-#: Sensor constants of the simulated MT9M001 (MCE-B013-U): 1280 x 1024, 5.2 um pixels.
-SENSOR_WIDTH_PX = 1280
-SENSOR_HEIGHT_PX = 1024
-PIXEL_PITCH_UM = 5.2
+from benchlab.drivers.mightex.profile import (  # noqa: F401 (the simulator's geometry)
+    PIXEL_PITCH_UM,
+    SENSOR_HEIGHT_PX,
+    SENSOR_WIDTH_PX,
+)
+
+#: Sensor constants of the simulated MT9M001 (MCE-B013-U). The geometry is the camera
+#: profile's (:data:`benchlab.drivers.mightex.profile.BENCH_CAMERA`), read from there.
 FULL_WELL_E = 20000.0
 READ_NOISE_E = 8.0
 ADC_BITS = 12

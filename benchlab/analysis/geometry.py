@@ -16,7 +16,7 @@ import numpy.typing as npt
 from benchlab.analysis.bars.roi import orientation_axis
 from benchlab.analysis.chart import morphology
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
 RoiBox = tuple[int, int, int, int]
 

@@ -53,6 +53,8 @@ class CameraSpec:
     bit_depths: tuple[int, ...]
     max_width: int
     max_height: int
+    #: Sensor pixel pitch, um (the MT9M001: 5.2 um square pixels, binning 1).
+    pixel_pitch_um: float = 5.2
     exposure_unit_ms: float = 0.05
     min_size: int = 8
     size_step: int = 4
@@ -134,6 +136,13 @@ SPECS: dict[str, CameraSpec] = {
     ),
 }
 
+
+#: The bench's camera (the thesis's MCE-B013-U): its sensor geometry is what analysis assumes
+#: of a frame whose metadata does not say, and what the simulated camera is built with.
+BENCH_CAMERA = SPECS["MCE-B013-U"]
+PIXEL_PITCH_UM = BENCH_CAMERA.pixel_pitch_um
+SENSOR_WIDTH_PX = BENCH_CAMERA.max_width
+SENSOR_HEIGHT_PX = BENCH_CAMERA.max_height
 
 def spec_for(model: str) -> CameraSpec:
     """The profile of ``model``; raises ``SettingOutOfRangeError`` listing the known models."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from benchlab.analysis.focus.criteria import KINDS, Criterion, CriterionKind
+from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
 from benchlab.checks import CAMERA_BIT_DEPTHS
 from benchlab.protocols.camera_limits import (
     EXPOSURE_RANGE_MS,
@@ -27,8 +28,8 @@ from benchlab.protocols.camera_limits import (
 )
 from benchlab.protocols.depth.radial_rois import DEFAULT_FIELD_ROIS, roi_problem
 
-#: Nyquist of the camera (5.2 um pitch), lp/mm: a criterion above it is refused.
-NYQUIST_LP_PER_MM = 1000.0 / (2 * 5.2)
+#: Nyquist of the camera (its profile's pitch), lp/mm: a criterion above it is refused.
+NYQUIST_LP_PER_MM = nyquist_lp_per_mm()
 #: Segment length when neither the file nor a bench gives one (an MTS50 from 1 mm).
 DEFAULT_SEGMENT_MM = 48.0
 #: Table 4.1: forward depth of field "+-40 mm or larger" (RMS spot < 12 um).

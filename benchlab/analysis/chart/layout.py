@@ -41,7 +41,7 @@ from benchlab.analysis.mtf.frequency import (
     usaf_bar_width_mm,
     usaf_frequency_lp_per_mm,
 )
-from benchlab.drivers.sensor import PIXEL_PITCH_UM, SENSOR_HEIGHT_PX, SENSOR_WIDTH_PX
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM, SENSOR_HEIGHT_PX, SENSOR_WIDTH_PX
 
 Orientation = Literal["sagittal", "tangential"]
 ORIENTATIONS: tuple[Orientation, Orientation] = ("sagittal", "tangential")

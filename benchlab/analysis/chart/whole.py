@@ -57,7 +57,7 @@ from benchlab.analysis.chart.pose import ChartPose, posed_bar_set
 from benchlab.analysis.chart.whole_layout import WHOLE_CHART_GROUPS, whole_chart_layout
 from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
 from benchlab.analysis.quantiles import percentile
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -38,7 +38,7 @@ from collections.abc import Mapping
 
 from benchlab.analysis.chart.layout import ChartLayout
 from benchlab.analysis.mtf.frequency import usaf_bar_width_mm
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
 #: Groups on the whole chart, coarse to fine (the R3L3S1N's -2 to 7).
 WHOLE_CHART_GROUPS: tuple[int, ...] = tuple(range(-2, 8))

@@ -30,8 +30,9 @@ from benchlab.analysis.bars.estimators import estimate_modulation
 from benchlab.analysis.chart.finder import ChartFit, ChartNotFoundError, find_chart
 from benchlab.analysis.sfr.measure import SfrRefused, measure_sfr
 from benchlab.analysis.sfr.target import edge_specs, posed_squares
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
-PIXEL_PITCH_MM = 5.2e-3
+PIXEL_PITCH_MM = PIXEL_PITCH_UM / 1000.0
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from benchlab.drivers.sensor import PIXEL_PITCH_UM
+from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
 #: Object-to-image frequency factors of the prototype (Eq. 4.1): 20.1/1.23 and 16.63/0.95.
 FORWARD_MAGNIFICATION = 16.3
