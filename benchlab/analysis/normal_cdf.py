@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 #: ``|x| <= THRESHOLD``: the central approximation (where Phi = 0.75).
 THRESHOLD = 0.66291

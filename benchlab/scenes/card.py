@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import RADIAL_ROI_BOX, RadialLayout, box_centroid
 from benchlab.analysis.views.raytrace import REFERENCE_OBJECT_RADIUS_MM, RayTraceTable
 from benchlab.analysis.views.synthesis import cylinder_map
@@ -31,7 +32,6 @@ from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import PIXEL_APERTURE_VAR_PX2, RADIAL_BLUR, BlurProfile
 from benchlab.scenes.radial import CylinderPixels, cylinder_pixels, default_table
 
-FloatArray = npt.NDArray[np.float64]
 Rect = tuple[float, float, float, float]  # x0, x1, y0, y1 on the card, mm
 
 

@@ -26,14 +26,13 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, RadialLayout
 from benchlab.analysis.sfr.target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile
 from benchlab.scenes.printed import TwoLevelPrint
 from benchlab.synthetic.edges import edge_truth_mtf, pixel_integrated_step
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, BarGroup
 from benchlab.analysis.chart.pose import ChartPose, PosedBarSet
 from benchlab.analysis.sfr.target import SlantedSquare, scaled_squares
@@ -41,8 +42,6 @@ from benchlab.scenes.optics import BlurProfile
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 from benchlab.synthetic.edges import edge_truth_mtf
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Sign of the astigmatic terms per orientation.
 _SIGN = {"sagittal": 1.0, "tangential": -1.0}

@@ -19,11 +19,11 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import RADIAL_ROI_BOX, RadialLayout, box_centroid
 from benchlab.analysis.mtf.frequency import RADIAL_MAGNIFICATION
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState, rate_for_dn8
 
-FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 

@@ -19,10 +19,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 from scipy.special import ndtr
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 #: Variance of a 1-px box, px^2: the Gaussian stand-in for the pixel aperture in the annulus.
 PIXEL_APERTURE_VAR_PX2 = 1.0 / 12.0

@@ -40,6 +40,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.result import eq29_modulation
 from benchlab.analysis.chart.layout import RADIAL_ROI_BOX, Orientation, RadialLayout, box_centroid
 from benchlab.analysis.views.raytrace import (
@@ -57,7 +58,6 @@ from benchlab.scenes.optics import (
 )
 from benchlab.scenes.printed import TwoLevelPrint
 
-FloatArray = npt.NDArray[np.float64]
 #: The object frequencies of the thesis's printed radial targets (Table 4.12), lp/mm.
 RADIAL_TARGETS_LP_PER_MM = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
 

@@ -25,9 +25,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 from scipy.special import ndtr
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.result import eq29_modulation
 from benchlab.analysis.chart.layout import (
     BarGroup,
@@ -40,8 +40,6 @@ from benchlab.analysis.chart.pose import ChartPose, PosedBarSet, posed_bar_set
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
 from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
 from benchlab.scenes.printed import TwoLevelPrint
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

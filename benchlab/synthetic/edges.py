@@ -22,7 +22,7 @@ import numpy.typing as npt
 from scipy.optimize import brentq
 from scipy.special import ndtr
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 #: Below this |sin a| (or |cos a|) the pixel is integrated as a 1-D box (error O(sin^2 a)).
 _THIN_BOX = 1e-3

@@ -24,10 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.result import eq29_modulation
 from benchlab.analysis.chart.pose import WHOLE_PERIODS_HALF_WIDTHS, posed_bar_set_roi
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Subsamples per px of the rendering.
 SUPERSAMPLE = 12

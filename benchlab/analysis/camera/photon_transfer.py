@@ -40,7 +40,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
+
 #: Quantisation noise variance, DN^2.
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
 #: EMVA reference implementation floor of the temporal dark variance, DN^2.

@@ -29,7 +29,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 #: Below this the power series (its largest term at 8 is ~23: ~1e-14 lost to cancellation).
 SERIES_MAX_X = 8.0

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage, signal
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.views.raytrace import (
     ENDOSCOPE_RADIUS_MM,
     MIN_POINTS_PER_DEPTH,
@@ -30,7 +31,6 @@ from benchlab.analysis.views.raytrace import (
 )
 from benchlab.analysis.views.synthesis import cylinder_map
 
-FloatArray = npt.NDArray[np.float64]
 #: Radial sampling step of the ring profile, px.
 _STEP_PX = 0.25
 #: Points written per depth (as the thesis's database).

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
+
 BoolArray = npt.NDArray[np.bool_]
 
 

@@ -44,10 +44,9 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 REQUIRED_COLUMNS = ("depth_mm", "object_radius_mm", "object_z_mm", "image_radius_mm")
 OPTIONAL_COLUMNS = ("field_deg",)

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.views.raytrace import (
     OPERATIONAL_IMAGE_RADIUS_MM,
     SVP_TOLERANCE_MM,
@@ -40,7 +41,6 @@ from benchlab.analysis.views.raytrace import (
     RayTraceTable,
 )
 
-FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 #: ``--interpolation`` names and the OpenCV flags they select.
 INTERPOLATIONS = ("nearest", "linear", "cubic", "lanczos")

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.sfr.measure import SfrRefused, measure_sfr
 from benchlab.benchmarks.sfr.edges import (
     _F_CHECK,
@@ -40,8 +41,6 @@ from benchlab.synthetic.edges import (
     edge_truth_mtf50,
     pixel_integrated_step,
 )
-
-FloatArray = npt.NDArray[np.float64]
 
 #: The buckets the oracle scores (issue 16's SNR 20 on the 100-row edge, every blur: the sharp
 #: ones beyond the right model's floor, the wide ones near it).
