@@ -197,7 +197,7 @@ def run_procedure(
     >>> run.session_path  # doctest: +SKIP
     PosixPath('sessions/20260101-120000_mtf')
     """
-    from benchlab.protocols.params import PROCEDURES
+    from benchlab.procedures import PROCEDURES
     from benchlab.protocols.runs import start_run
 
     if procedure not in PROCEDURES:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 from benchlab.checks import CAMERA_BIT_DEPTHS, BenchLimits, ParamsError, TableChecker
+from benchlab.procedures import PROCEDURES, entry, entry_of
 from benchlab.protocols.camera_limits import (  # the driver's limits: one source of truth
     CAMERA_SPEC,
     EXPOSURE_RANGE_MS,
@@ -29,8 +30,8 @@ if TYPE_CHECKING:
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
-__all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
+__all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "PROCEDURES",
+           "ParamsError",
            "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
 
@@ -134,7 +135,7 @@ class _Checker(TableChecker):
         return default if bad else (r0, c0, r1, c1)
 
 
-def _check_mtf(c: _Checker) -> MtfParams:
+def check_mtf(c: _Checker, limits: BenchLimits | None = None) -> MtfParams:
     d = MtfParams()
     exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
                                            *EXPOSURE_RANGE_MS))
@@ -253,7 +254,7 @@ def _check_step_ids(c: _Checker, positions: tuple[float, ...]) -> None:
             first[sid] = i
 
 
-def _check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
+def check_radiometry(c: _Checker, limits: BenchLimits | None = None) -> RadiometryParams:
     d = RadiometryParams()
     exposure = camera_exposure_ms(c.number("camera.exposure_ms", d.exposure_ms,
                                            *EXPOSURE_RANGE_MS))
@@ -303,26 +304,16 @@ def parse_params(
     limits: BenchLimits | None = None,
 ) -> Params:
     """Validate a parsed parameter mapping; :class:`ParamsError` lists every problem."""
-    if procedure not in PROCEDURES:
-        raise ParamsError(source, [f"procedure: unknown procedure {procedure!r}; "
-                                   f"known: {', '.join(PROCEDURES)}"])
+    try:
+        procedure_entry = entry(procedure)
+    except KeyError as exc:
+        raise ParamsError(source, [f"procedure: {exc.args[0]}"]) from None
     checker = _Checker(data)
     checker.seen.add("procedure")
     declared = data.get("procedure", procedure)
     if declared != procedure:
         checker.fail("procedure", f"file is for {declared!r}, not {procedure!r}")
-    params: Params
-    if procedure == "characterise":
-        from benchlab.protocols.characterise.params import check_characterise
-
-        params = check_characterise(checker, limits)
-    elif procedure == "depth":
-        from benchlab.protocols.depth.params import check_depth
-
-        params = check_depth(checker, limits)
-    else:
-        params = (_check_mtf(checker) if procedure == "mtf"
-                  else _check_radiometry(checker, limits))
+    params: Params = procedure_entry.load("check")(checker, limits)
     checker.unknown_keys()
     if checker.problems:
         raise ParamsError(source, checker.problems)
@@ -354,40 +345,43 @@ def params_to_dict(params: Params) -> dict[str, Any]:
     This is what a session records, so a resume or re-analysis never depends on defaults that a
     later benchlab version may have changed; ``parse_params`` reads it back unchanged.
     """
-    if not isinstance(params, MtfParams | RadiometryParams):
-        from benchlab.protocols.depth.params import DepthParams, depth_to_dict
+    try:
+        return dict(entry_of(params).load("to_dict")(params))
+    except TypeError as exc:
+        raise ParamsError("<params>", [f"procedure: {exc}"]) from None
 
-        if isinstance(params, DepthParams):
-            return depth_to_dict(params)
-        from benchlab.protocols.characterise.params import characterise_to_dict
 
-        return characterise_to_dict(params)
-    if isinstance(params, MtfParams):
-        rois: dict[str, dict[str, list[int]]] = {}
-        for key, box in params.forward_roi_overrides.items():
-            el, orient = key.split(".")
-            rois.setdefault(el, {})[orient] = list(box)
-        forward: dict[str, Any] = {
-            "magnification": params.forward_magnification,
-            "elements": [e.name for e in params.forward_elements],
-        }
-        if rois:
-            forward["roi"] = rois
-        return {
-            "procedure": "mtf",
-            "camera": {"exposure_ms": params.exposure_ms, "gain": params.gain,
-                       "bits": params.bits},
-            "focus": {"frames": params.focus_frames},
-            "forward": forward,
-            "radial": {"magnification": params.radial_magnification,
-                       "object_radius_mm": params.radial_object_radius_mm,
-                       "frequencies_lp_per_mm": list(params.radial_frequencies_lp_per_mm),
-                       "roi": list(params.radial_roi)},
-            "analysis": {"estimator": params.estimator,
-                         "fov_threshold_dn": params.fov_threshold_dn,
-                         "monte_carlo_file": params.monte_carlo_file,
-                         "simulated_mtf_file": params.simulated_mtf_file},
-        }
+def mtf_to_dict(params: MtfParams) -> dict[str, Any]:
+    """:func:`params_to_dict` of the MTF test."""
+    rois: dict[str, dict[str, list[int]]] = {}
+    for key, box in params.forward_roi_overrides.items():
+        el, orient = key.split(".")
+        rois.setdefault(el, {})[orient] = list(box)
+    forward: dict[str, Any] = {
+        "magnification": params.forward_magnification,
+        "elements": [e.name for e in params.forward_elements],
+    }
+    if rois:
+        forward["roi"] = rois
+    return {
+        "procedure": "mtf",
+        "camera": {"exposure_ms": params.exposure_ms, "gain": params.gain,
+                   "bits": params.bits},
+        "focus": {"frames": params.focus_frames},
+        "forward": forward,
+        "radial": {"magnification": params.radial_magnification,
+                   "object_radius_mm": params.radial_object_radius_mm,
+                   "frequencies_lp_per_mm": list(params.radial_frequencies_lp_per_mm),
+                   "roi": list(params.radial_roi)},
+        "analysis": {"estimator": params.estimator,
+                     "fov_threshold_dn": params.fov_threshold_dn,
+                     "monte_carlo_file": params.monte_carlo_file,
+                     "simulated_mtf_file": params.simulated_mtf_file},
+    }
+
+
+def radiometry_to_dict(params: RadiometryParams) -> dict[str, Any]:
+    """:func:`params_to_dict` of the relative radiometry."""
     return {
         "procedure": "radiometry",
         "camera": {"exposure_ms": params.exposure_ms, "mask_gain": params.mask_gain,

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, TypeAlias
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError, UsageError
+from benchlab.procedures import entry, entry_of
 from benchlab.protocols.engine import (
     ProgressFn,
     PromptFn,
@@ -66,28 +67,22 @@ AnyProcedure: TypeAlias = ("MtfProcedure | RadiometryProcedure | CharacterisePro
 
 
 def make_procedure(params: Params) -> AnyProcedure:
-    """The procedure object for a parameter set.
+    """The procedure object for a parameter set (:mod:`benchlab.procedures`).
 
     Each procedure module is imported only when its procedure is asked for: re-analysing an
     MTF session never loads the characterisation's or the radiometry's analysis (start-up).
+
+    Raises
+    ------
+    ParamsError
+        For parameters of no registered procedure.
     """
-    if isinstance(params, MtfParams):
-        from benchlab.protocols.mtf.steps import MtfProcedure
-
-        return MtfProcedure(params)
-    if isinstance(params, RadiometryParams):
-        from benchlab.protocols.radiometry import RadiometryProcedure
-
-        return RadiometryProcedure(params)
-    from benchlab.protocols.depth.params import DepthParams
-
-    if isinstance(params, DepthParams):
-        from benchlab.protocols.depth.steps import DepthProcedure
-
-        return DepthProcedure(params)
-    from benchlab.protocols.characterise.steps import CharacteriseProcedure
-
-    return CharacteriseProcedure(params)
+    try:
+        procedure = entry_of(params)
+    except TypeError as exc:
+        raise ParamsError("<params>", [f"procedure: {exc}"]) from None
+    made: AnyProcedure = procedure.load("procedure_class")(params)
+    return made
 
 
 def _resolve_params(
@@ -97,11 +92,10 @@ def _resolve_params(
     if params is None or isinstance(params, str | Path):
         source = str(params) if params is not None else f"default {procedure}.toml"
         return load_params(procedure, params, limits), source
-    from benchlab.protocols.characterise.params import CharacteriseParams
-    from benchlab.protocols.depth.params import DepthParams
-
-    expected = {"mtf": MtfParams, "characterise": CharacteriseParams,
-                "depth": DepthParams}.get(procedure, RadiometryParams)
+    try:
+        expected = entry(procedure).load("params_class")
+    except KeyError as exc:
+        raise ParamsError("<params>", [f"procedure: {exc.args[0]}"]) from None
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])

@@ -7,9 +7,8 @@ from benchlab.drivers.errors import UsageError
 
 __all__ = ["PROCEDURES", "UsageError", "non_negative_int", "positive_float", "positive_int"]
 
-#: The procedures ``run`` and the TUI offer: benchlab.protocols.params.PROCEDURES, written out
-#: so that building the parser imports no numpy (a test keeps the two equal).
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
+#: The procedures ``run`` and the TUI offer (the registry imports nothing heavy).
+from benchlab.procedures import PROCEDURES  # noqa: E402
 
 
 def _whole_number(text: str, minimum: int) -> int:

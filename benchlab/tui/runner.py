@@ -19,6 +19,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
+from benchlab.procedures import PROCEDURES, REGISTRY
 from benchlab.report.text_table import footnoted
 from benchlab.tui import services
 from benchlab.tui.checklist import checklist_layout, numbered, short_step_label
@@ -31,16 +32,10 @@ from benchlab.tui.widgets import ModeBar
 if TYPE_CHECKING:
     from benchlab.protocols.engine import Runner
 
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
 #: Title of the checklist panel per procedure.
-CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
-                    "radiometry": "positions (section 4.4)",
-                    "characterise": "sweeps (EMVA 1288)",
-                    "depth": "through focus (section 2.2.4)"}
+CHECKLIST_TITLES = {name: e.checklist_title for name, e in REGISTRY.items()}
 #: The status line's name of each procedure.
-PROCEDURE_LABELS = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
-                    "characterise": "Camera characterisation (EMVA 1288)",
-                    "depth": "Depth of field (section 2.2.4)"}
+PROCEDURE_LABELS = {name: e.label for name, e in REGISTRY.items()}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 #: Room kept for the checklist's vertical scrollbar (a long procedure scrolls).
 STEPS_SCROLLBAR_CHARS = 2
