@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 # numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
+from benchlab.cli.output import add_output_option, check_output, forced, write_output
 from benchlab.drivers.errors import BenchlabError, DeviceError
 
 if TYPE_CHECKING:
@@ -558,6 +559,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
         raise BenchlabError("--inject is for the simulated bench: add --simulate")
     from benchlab.bench import BenchConfig
 
+    report = check_output(args.report, force=forced(args), option="--report")  # before the bench
     config = BenchConfig.load(args.config, simulate=args.simulate)
 
     def ask(question: str) -> bool:
@@ -579,14 +581,14 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
     doctor = Doctor(config, args.simulate, ask, measure, tuple(args.inject or ()))
     with _timer() as elapsed:
         doctor.run()
-    report = Path(args.report)
-    report.write_text(report_markdown(doctor, config.source), encoding="utf-8")
+    write_output(report, report_markdown(doctor, config.source), force=forced(args),
+                 option="--report")
     if args.config and doctor.learned:
         backup = write_learned(Path(args.config), doctor.learned)
         print(f"wrote what was learned to {args.config} (backup {backup})")
     fails = sum(c.status == "FAIL" for c in doctor.checks)
     print(f"{'bring-up passed' if not fails else f'{fails} check(s) failed'} in "
-          f"{elapsed[0]:.1f} s; report {report}")
+          f"{elapsed[0]:.1f} s; report {report.absolute()}")
     return 1 if fails else 0
 
 
@@ -608,6 +610,6 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     doc.add_argument("--inject", action="append", choices=sorted(INJECTIONS),
                      help="with --simulate: give a simulated device this fault (repeatable): "
                           + "; ".join(f"{k}: {v}" for k, v in INJECTIONS.items()))
-    doc.add_argument("--report", default="bringup-report.md",
-                     help="where the bring-up report goes (default ./bringup-report.md)")
+    add_output_option(doc, "--report", default="bringup-report.md",
+                      help="where the bring-up report goes (default ./bringup-report.md)")
     doc.set_defaults(func=_cmd_doctor)

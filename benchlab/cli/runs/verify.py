@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
+from benchlab.cli.output import add_output_option, check_output, forced, write_output
 
 if TYPE_CHECKING:
     from benchlab.acceptance.spec import Spec
@@ -205,6 +206,8 @@ def lot_command(args: argparse.Namespace) -> int:
     root = Path(args.root)
     if not root.is_dir():
         raise CatalogError(f"{root}: no such sessions folder (--root)")
+    if args.html:  # before any work
+        check_output(args.html, force=forced(args), option="--html")
     with Catalog.open(root) as catalog:
         paths = [s["path"] for s in catalog.sessions(lot=args.lot, descending=False)]
     if not paths:
@@ -214,9 +217,8 @@ def lot_command(args: argparse.Namespace) -> int:
     result.update(lot=args.lot, spec=spec.header())
     if args.html:
         from benchlab.acceptance.lot_report import render_lot_report
-        from benchlab.storage import atomic_write_text
 
-        atomic_write_text(args.html, render_lot_report(result))
+        write_output(args.html, render_lot_report(result), force=forced(args), option="--html")
     if args.json:
         print(json.dumps(result))
         return 0
@@ -256,7 +258,6 @@ def certificate_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.certificate import render_certificate
     from benchlab.acceptance.certificate_pdf import certificate_pdf
     from benchlab.acceptance.store import read_verdict
-    from benchlab.storage import atomic_write_bytes, atomic_write_text
 
     pdf = args.pdf or (args.out is not None and Path(args.out).suffix.lower() == ".pdf")
     if args.pdf and args.out and Path(args.out).suffix.lower() in (".html", ".htm"):
@@ -265,10 +266,14 @@ def certificate_command(args: argparse.Namespace) -> int:
     record = read_verdict(folder, args.version)
     out = (Path(args.out) if args.out
            else folder / f"certificate-v{record['version']}.{'pdf' if pdf else 'html'}")
+    option = "--out" if args.out else "certificate"
+    check_output(out, force=forced(args), option=option)  # before rendering
     if pdf:
-        atomic_write_bytes(out, certificate_pdf(record, session_id=folder.name))
+        write_output(out, certificate_pdf(record, session_id=folder.name), force=forced(args),
+                     option=option)
     else:
-        atomic_write_text(out, render_certificate(record, session_id=folder.name))
+        write_output(out, render_certificate(record, session_id=folder.name),
+                     force=forced(args), option=option)
     print(f"certificate: {out}  (unit {record['unit']['serial'] or '-'}: {record['verdict']})")
     return 0
 
@@ -342,8 +347,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     lot.add_argument("--spec", required=True, metavar="FILE", help="spec file (TOML)")
     lot.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
     lot.add_argument("--json", action="store_true", help="print JSON")
-    lot.add_argument("--html", metavar="FILE", help="also write an HTML lot report with a "
-                     "control chart per limited quantity")
+    add_output_option(lot, "--html", metavar="FILE", help="also write an HTML lot report with "
+                      "a control chart per limited quantity")
     lot.set_defaults(func=lot_command)
 
     c = commands.add_parser(
@@ -355,8 +360,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     c.add_argument("--version", type=positive_int, help="verdict version (default: latest)")
     c.add_argument("--pdf", action="store_true",
                    help="write an A4 PDF (also chosen by an --out name ending in .pdf)")
-    c.add_argument("--out", metavar="FILE",
-                   help="output file (default SESSION/certificate-v<N>.html, .pdf with --pdf)")
+    add_output_option(c, "--out", metavar="FILE",
+                      help="output file (default SESSION/certificate-v<N>.html, .pdf with --pdf)")
     c.set_defaults(func=certificate_command)
 
     b = benchmarks.add_parser(
