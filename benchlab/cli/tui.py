@@ -85,7 +85,6 @@ def run_tui(args: argparse.Namespace) -> int:
     )
     with shutdown.handling_signals(on_signal=app.stop_from_signal):
         app.run()
-    app.signal_exit.finished()
     if app.close_error is not None:
         from benchlab.tui.services import plain_error
 
