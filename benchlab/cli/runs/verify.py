@@ -116,8 +116,9 @@ def verify_command(args: argparse.Namespace) -> int:
         if not args.no_store:
             stored = []
             for s in unit.sessions:
-                path, version = store_verdict(s.path, record)
-                stored.append({"session": str(s.path), "file": str(path), "version": version})
+                path, version, written = store_verdict(s.path, record)
+                stored.append({"session": str(s.path), "file": str(path), "version": version,
+                               "new": written})
                 record_session(s.path)
             record["stored"] = stored
             versions = {item["version"] for item in stored}
@@ -141,7 +142,8 @@ def _print_unit(record: dict[str, Any]) -> None:
           f"rule {spec['decision_rule']}  coverage {spec['coverage']:.0%}")
     print(verdict_table(record["rows"]))
     for item in record.get("stored", []):
-        print(f"stored: {item['file']}")
+        print(f"stored: {item['file']}" if item["new"] else
+              f"identical to {item['file']}: no new version written")
     print(f"unit verdict: {record['verdict'].upper()}\n")
 
 
@@ -306,13 +308,17 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "the same serial number are one unit. Every row gives the reading, its interval, the "
         "limit, the margin and the rule; the verdict is stored in each session (a new "
         "version) and in the catalogue. Exit status: 0 pass, 1 fail, 3 indeterminate "
-        "(the worst unit), 2 usage error (a malformed spec).")
+        "(the worst unit), 2 usage error: a malformed spec, or one naming a table, column or "
+        "where value the results do not have (docs/formats/results.md); nothing is stored "
+        "then. A verification identical to the newest stored one stores no new version.")
     v.add_argument("sessions", nargs="*", metavar="SESSION", help="session folder(s)")
     v.add_argument("--spec", metavar="FILE",
                    help="spec file (TOML); without SESSION the file is only checked and listed")
     v.add_argument("--example-spec", action="store_true",
-                   help="print a commented example spec file (bar, slanted-edge and camera limits; "
-                   "both decision rules) and exit: benchlab verify --example-spec > spec.toml")
+                   help="print a commented example spec file and exit: benchlab verify "
+                   "--example-spec > spec.toml. Its bar and slanted-edge limits (both decision "
+                   "rules) are decided on an MTF session alone; its camera limits, for a unit "
+                   "that also has a characterisation session, are commented out")
     v.add_argument("--json", action="store_true", help="print the verdict record(s) as JSON")
     v.add_argument("--no-store", action="store_true",
                    help="decide only; store nothing in the sessions or the catalogue")
