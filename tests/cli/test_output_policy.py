@@ -19,7 +19,7 @@ from acceptance_sessions import limit, spec
 from sim_runs import MTF_SMALL, run_sim
 
 from benchlab.cli.main import build_parser, main
-from benchlab.cli.output import OutputFile
+from benchlab.cli.output import OutputFile, session_part
 
 #: Options that take a value and say they write, but name a folder benchlab fills with new
 #: sessions or files of its own (never replacing one): not output files.
@@ -198,3 +198,16 @@ def test_default_outputs_are_not_replaced_either(bench: Bench, tmp_path: Path,
     assert report.read_bytes() == first
     assert main(["report", str(bench.session), "--force"]) == 0
     report.unlink()
+
+
+def test_which_paths_belong_to_a_session(bench: Bench, tmp_path: Path) -> None:
+    s = bench.session
+    assert session_part(s / "frames" / "new.tiff") == f"frames/ of session {s}"
+    assert session_part(s / "results" / "v9" / "x.json") == f"results/ of session {s}"
+    assert session_part(s / "events.jsonl") == f"the events.jsonl of session {s}"
+    assert session_part(bench.root / "catalog.sqlite-wal") == \
+        f"the sessions catalogue of {bench.root}"
+    # the session folder's other files are the user's to name (reports, certificates)
+    assert session_part(s / "report.html") is None
+    assert session_part(s / "notes" / "session.json") is None  # not the session's own file
+    assert session_part(tmp_path / "session.json") is None

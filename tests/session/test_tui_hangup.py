@@ -118,13 +118,18 @@ def test_closing_the_terminal_ends_the_tui(
     assert _all_off(sim_led) and _stage_still(sim_stage)
 
 
+@pytest.mark.parametrize("times", [1, 2], ids=["once", "again-during-shutdown"])
 def test_sigterm_on_the_live_screen_ends_the_tui(
-    tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage
+    tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage, times: int
 ) -> None:
     (tmp_path / "sessions").mkdir()
     proc, master, screen = _open_screen(tmp_path, sim_led, sim_stage, "live", ctty=False)
     try:
         proc.send_signal(signal.SIGTERM)
+        if times == 2:  # a second signal while the first one's shutdown runs
+            time.sleep(0.1)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
         took = _ended_within(proc, screen)
     finally:
         os.close(master)
