@@ -211,3 +211,14 @@ def test_which_paths_belong_to_a_session(bench: Bench, tmp_path: Path) -> None:
     assert session_part(s / "report.html") is None
     assert session_part(s / "notes" / "session.json") is None  # not the session's own file
     assert session_part(tmp_path / "session.json") is None
+
+
+def test_snap_never_adds_a_frame_to_a_session(bench: Bench,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``snap OUT`` (a positional: a new frame, never replaced) refuses a session's frames/,
+    where a frame nobody journalled would pass for an acquired one."""
+    before = _tree_digest(bench.session)
+    target = bench.session / "frames" / "extra__forward.tiff"
+    assert main(["snap", "--simulate", "--exposure-ms", "10", "--gain", "1", str(target)]) == 2
+    assert f"snap {target}: is part of frames/ of session" in capsys.readouterr().err
+    assert not target.exists() and _tree_digest(bench.session) == before
