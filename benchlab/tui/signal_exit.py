@@ -28,7 +28,8 @@ ORDERLY_EXIT_S = 2.5
 DEVICE_THREADS_S = 1.0
 #: Seconds it waits for the device lock before closing the bench without it.
 DEVICE_LOCK_S = 1.0
-#: The process is gone within this many seconds of the first stop signal.
+#: The process is gone within this many seconds of the first stop signal (the three waits
+#: above add up to 4.5 s).
 EXIT_DEADLINE_S = 5.0
 
 
@@ -73,7 +74,6 @@ class SignalExit:
         error = app.force_close_bench(DEVICE_LOCK_S)
         if self._done.is_set():
             return
-        detach_from_terminal()
         _say(f"benchlab: stopped by {signal.Signals(signum).name}; "
              + ("bench left safe" if error is None
                 else f"closing the bench failed: {error}") + "\n")
