@@ -202,3 +202,41 @@ def test_tmux_kill_session_mid_radiometry_ends_the_tui(
     assert took < DEADLINE_S, f"still running {took:.1f} s after kill-session"
     assert _all_off(sim_led) and _stage_still(sim_stage)
     _assert_interrupted(sessions, signal.SIGHUP)
+
+
+def test_the_watchdog_makes_the_bench_safe_when_the_quit_hangs(
+    tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage
+) -> None:
+    """The app's event loop never runs the quit (as when Textual blocks on a dead terminal):
+    the watchdog alone switches the LED off, closes the bench and ends the process."""
+    bench = _bench_file(tmp_path, sim_led, sim_stage)
+    code = (
+        "import signal, sys, time\n"
+        "from pathlib import Path\n"
+        "from benchlab.tui import services\n"
+        "from benchlab.tui.app import BenchlabApp\n"
+        f"config = Path({str(bench)!r})\n"
+        "app = BenchlabApp(simulate=True, config=config, autoconnect=False)\n"
+        "app._opened = services.open_bench(config, True)\n"
+        "app.bench = app._opened.bench\n"
+        "app.bench.led_on(1, 20.0)\n"
+        "print('lit', flush=True)\n"
+        "app.stop_from_signal(signal.SIGTERM)  # what the handler calls; no loop runs the quit\n"
+        "time.sleep(60)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline() == "lit\n"
+        assert sim_led.channel_output_ma(1) == 20.0
+        start = time.monotonic()
+        _, err = proc.communicate(timeout=DEADLINE_S + 10)
+        took = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert 2.0 < took < DEADLINE_S  # the orderly quit's grace, then the watchdog
+    assert "benchlab: stopped by SIGTERM; bench left safe" in err
+    assert _all_off(sim_led) and _stage_still(sim_stage)
