@@ -101,8 +101,11 @@ def trial(screen: str, how: str) -> tuple[float, int | None, str]:
             os.close(master)
         note = ""
         if screen == "run":
-            reasons = [e.get("reason") for e in _journal(sessions) if e["kind"] == "interrupted"]
-            note = "interrupted " + ",".join(map(str, reasons)) if reasons else "NOT interrupted"
+            journal = _journal(sessions)
+            reasons = [e.get("reason") for e in journal if e["kind"] == "interrupted"]
+            last = " > ".join(e["kind"] for e in journal[-3:])
+            note = ("interrupted " + ",".join(map(str, reasons)) if reasons
+                    else f"NOT interrupted (journal ends: {last})")
         return took, proc.returncode, note
 
 

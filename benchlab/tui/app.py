@@ -7,7 +7,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from textual import work
 from textual.app import App
@@ -102,13 +102,6 @@ class BenchlabApp(App[None]):
         self._signal_loop: asyncio.AbstractEventLoop | None = None
         #: Ends the process if the orderly quit after a stop signal hangs (a closed terminal).
         self.signal_exit = SignalExit(self)
-
-    def run(self, *args: Any, **kwargs: Any) -> Any:
-        """Textual's run; once it returns, the signal watchdog stands down."""
-        try:
-            return super().run(*args, **kwargs)
-        finally:
-            self.signal_exit.finished()
 
     def on_mount(self) -> None:
         self._signal_loop = asyncio.get_running_loop()
