@@ -17,19 +17,25 @@ A spec is a TOML file of format ``benchlab.spec``, version 1 (docs/formats/spec.
 
 :func:`load_spec` checks the whole file before anything else is read and raises one
 :class:`SpecError` listing every problem (file, limit id, field), so a quality engineer fixes
-the file in one pass.
+the file in one pass. Names are checked against the results tables the procedures write
+(:mod:`benchlab.acceptance.results_schema`): an unknown table or column, a limit on a text
+column or a ``where`` value of the wrong type is a problem of the file, never a verdict.
 """
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from benchlab.acceptance.results_schema import LIST, NUMBER, RESULTS_SCHEMA, TEXT
 from benchlab.drivers.errors import BenchlabError
+from benchlab.session import RESULT_FILE_STEMS
 
 SPEC_FORMAT = "benchlab.spec"
 SPEC_VERSIONS = (1,)
@@ -42,6 +48,10 @@ _LIMIT_FIELDS = frozenset({"id", "table", "where", "column", "min", "max", "unce
                            "ci95", "unit", "description", "decision_rule"})
 #: A ``where`` value: one cell value, or a list of them (the row matches any).
 Scalar = str | int | float | bool
+#: Largest spec file read (bytes): a spec is a page of limits; a bigger file is a mistake.
+MAX_SPEC_BYTES = 1 << 20
+#: Longest text of a name-like field (id, name, revision, unit): they are shown in tables.
+MAX_NAME_CHARS = 200
 
 
 class SpecError(BenchlabError):
@@ -129,6 +139,10 @@ def load_spec(path: str | Path) -> Spec:
         When the file cannot be read at all (the CLI names it).
     """
     path = Path(path)
+    size = path.stat().st_size
+    if size > MAX_SPEC_BYTES:
+        raise SpecError(path, [f"the file is {size} bytes; a spec is at most "
+                               f"{MAX_SPEC_BYTES} bytes (1 MiB)"])
     data = path.read_bytes()
     try:
         doc = tomllib.loads(data.decode("utf-8"))
@@ -154,7 +168,12 @@ def parse_spec(doc: dict[str, Any], path: Path, sha256: str = "") -> Spec:
     name = doc.get("name")
     if not isinstance(name, str) or not name.strip():
         problems.append("field 'name': required, a non-empty string")
+    elif len(name) > MAX_NAME_CHARS:
+        problems.append(f"field 'name': {len(name)} characters; at most {MAX_NAME_CHARS}")
     revision = _optional_text(doc, "revision", "", problems)
+    if len(revision) > MAX_NAME_CHARS:
+        problems.append(f"field 'revision': {len(revision)} characters; at most "
+                        f"{MAX_NAME_CHARS}")
     description = _optional_text(doc, "description", "", problems)
     rule = doc.get("decision_rule", "guarded")
     if rule not in DECISION_RULES:
@@ -202,6 +221,8 @@ def _parse_limit(raw: Any, index: int, problems: list[str]) -> Limit | None:
         bad(key, f"unknown (expected one of {', '.join(sorted(_LIMIT_FIELDS))})")
     if not isinstance(ident, str) or not ident.strip():
         bad("id", "required, a non-empty string")
+    elif len(ident) > MAX_NAME_CHARS:
+        bad("id", f"{len(ident)} characters; at most {MAX_NAME_CHARS}")
     for key in ("table", "column"):
         if not isinstance(raw.get(key), str) or not raw[key].strip():
             bad(key, "required, a non-empty string")
@@ -242,6 +263,8 @@ def _parse_limit(raw: Any, index: int, problems: list[str]) -> Limit | None:
                 bad(f"where.{column}", "must be a string, number or boolean, or a list of them")
                 continue
             where[column] = tuple(values)
+    if len(problems) == before:
+        _check_names(raw, where, bad)
     if len(problems) > before:
         return None
     return Limit(id=str(ident).strip(), table=str(raw["table"]).strip(),
@@ -249,6 +272,64 @@ def _parse_limit(raw: Any, index: int, problems: list[str]) -> Limit | None:
                  uncertainty=raw.get("uncertainty"), ci95=raw.get("ci95"),
                  unit=str(raw.get("unit", "")), description=str(raw.get("description", "")),
                  decision_rule=raw.get("decision_rule"))
+
+
+def _check_names(raw: dict[str, Any], where: dict[str, tuple[Scalar, ...]],
+                 bad: Callable[[str, str], None]) -> None:
+    """The limit's table, columns and ``where`` against the results schema."""
+    table = str(raw["table"]).strip()
+    stem = RESULT_FILE_STEMS.get(table, table)
+    if stem not in RESULTS_SCHEMA:
+        bad("table", f"no results table {table!r}{_did_you_mean(table, _table_names())} "
+            "(the tables: docs/formats/results.md)")
+        return
+    columns = RESULTS_SCHEMA[stem]
+    if columns is None:
+        return  # rows vary with what was found: only the name is checked
+
+    def kind_of(field_name: str, column: str) -> str | None:
+        kind = columns.get(column)
+        if kind is None:
+            bad(field_name, f"{table} has no column {column!r}"
+                f"{_did_you_mean(column, list(columns))}")
+        return kind
+
+    column = str(raw["column"]).strip()
+    kind = kind_of("column", column)
+    if kind is not None and kind != NUMBER:
+        bad("column", f"{table}.{column} holds {kind}, not a number: a limit needs a number")
+    for key, allowed in (("uncertainty", (NUMBER,)), ("ci95", (NUMBER, LIST))):
+        if isinstance(raw.get(key), str):
+            kind = kind_of(key, raw[key].strip())
+            if kind is not None and kind not in allowed:
+                bad(key, f"{table}.{raw[key]} holds {kind}, not an interval")
+    for key, values in where.items():
+        kind = kind_of(f"where.{key}", key)
+        if kind is None:
+            continue
+        wrong = [v for v in values if not _of_kind(v, kind)]
+        if kind == LIST:
+            bad(f"where.{key}", f"{table}.{key} holds lists; a row cannot be picked by it")
+        elif wrong:
+            hint = " (text goes in quotes)" if kind == TEXT else ""
+            bad(f"where.{key}", f"{table}.{key} holds {kind}; got {wrong[0]!r}{hint}")
+
+
+def _of_kind(value: Scalar, kind: str) -> bool:
+    if kind == TEXT:
+        return isinstance(value, str)
+    if kind == NUMBER:
+        return _is_number(value)
+    return isinstance(value, bool)
+
+
+def _table_names() -> list[str]:
+    return [*RESULTS_SCHEMA, *RESULT_FILE_STEMS]
+
+
+def _did_you_mean(name: str, choices: list[str]) -> str:
+    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.75)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _optional_text(doc: dict[str, Any], key: str, default: str, problems: list[str]) -> str:

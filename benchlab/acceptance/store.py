@@ -1,7 +1,11 @@
 """Verdicts stored in the session folder: ``verdicts/v<N>.json``, one file per verification.
 
 A re-verification (a new spec revision, a re-analysis) adds ``v<N+1>``; a written version is
-never edited or replaced (created with ``link(2)``, which refuses an existing name). The
+never edited or replaced (created with ``link(2)``, which refuses an existing name). A
+verification whose record equals the newest version's (all but its time) adds nothing: fifty
+identical verifies leave one version, as fifty identical re-analyses leave one results
+version. The journal line names the version and the spec by file and SHA-256; the spec's
+content lives in the verdict file only. The
 record holds everything a certificate shows - unit, spec (name, revision, sha256 of the
 file), rule, every row, the sessions with their results version and frame hashes, and the
 software version that decided - so a certificate is rendered from the stored record, not
@@ -77,19 +81,43 @@ def read_verdict(session_path: str | Path, version: int | None = None) -> dict[s
     return doc
 
 
-def store_verdict(session_path: str | Path, record: dict[str, Any]) -> tuple[Path, int]:
-    """Write ``record`` as the session's next verdict version and journal it.
+#: Keys of a record that may differ between two verifications that decided the same.
+_VOLATILE_KEYS = ("created_at", "version", "stored")
+
+
+def same_verdict(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Whether two records decided the same (everything but their time and version)."""
+    def strip(r: dict[str, Any]) -> str:
+        return json.dumps({k: v for k, v in r.items() if k not in _VOLATILE_KEYS},
+                          sort_keys=True, default=str)
+
+    return strip(a) == strip(b)
+
+
+def store_verdict(session_path: str | Path, record: dict[str, Any]
+                  ) -> tuple[Path, int, bool]:
+    """Write ``record`` as the session's next verdict version and journal it, unless the
+    newest version holds the same verdict.
 
     The writer takes the session's owner lock for the write, so a verification never mixes
     into a run or a re-analysis in progress (:class:`~benchlab.session.SessionBusyError`).
-    Returns the file and its version.
+    Returns the file, its version and whether it was written (False: the newest version
+    already held this verdict; nothing written, nothing journalled).
     """
     session = Session.open(Path(session_path))
     session.hold(command="benchlab verify")
     try:
         folder = session.path / VERDICTS_DIR
+        versions = verdict_versions(session.path)
+        if versions:
+            try:
+                newest = read_verdict(session.path, versions[-1])
+            except SessionError:
+                newest = None  # unreadable: a new version is written beside it
+            if newest is not None and same_verdict(newest, record):
+                return folder / f"v{versions[-1]}.json", versions[-1], False
         folder.mkdir(exist_ok=True)
-        version = (verdict_versions(session.path) or [0])[-1] + 1
+        version = (versions or [0])[-1] + 1
         while True:
             path = folder / f"v{version}.json"
             try:
@@ -97,8 +125,9 @@ def store_verdict(session_path: str | Path, record: dict[str, Any]) -> tuple[Pat
                 break
             except FileExistsError:
                 version += 1
-        session.log_event("verdict_written", version=version, spec=record["spec"]["name"],
-                          verdict=record["verdict"])
+        spec = record["spec"]
+        session.log_event("verdict_written", version=version, spec_file=spec.get("file"),
+                          spec_sha256=spec.get("sha256"), verdict=record["verdict"])
     finally:
         session.release()
-    return path, version
+    return path, version, True

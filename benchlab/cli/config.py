@@ -12,6 +12,7 @@ import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
+from benchlab.cli.output import add_output_option
 from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError
 
@@ -116,16 +117,16 @@ def sessions_in_force(option: str | Path | None, option_name: str = "--out") -> 
 
 
 def _cmd_init(args: argparse.Namespace) -> int:
-    from benchlab.storage import atomic_write_text
+    from benchlab.cli.output import check_output, write_output
 
     path = Path(args.path) if args.path else user_bench_file()
-    if path.exists() and not args.force:
-        raise BenchlabError(f"{path} already exists; edit it, or pass --force to replace it")
+    option = "--path" if args.path else "config init"
+    check_output(path, force=args.force, option=option)
     if not args.path:  # the user config folder is ours to create; a --path folder is not
         path.parent.mkdir(parents=True, exist_ok=True)
     elif not path.parent.is_dir():
         raise BenchlabError(f"{path}: folder {path.parent} does not exist")
-    atomic_write_text(path, template())
+    write_output(path, template(), force=args.force, option=option)
     print(f"wrote {path}")
     print("edit the ports and ceilings, then check with: benchlab config show")
     return 0
@@ -180,8 +181,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                           description="Write a commented bench.toml (ports, ceilings, travel, "
                           "sessions folder) to the user config folder; never replaces an "
                           "existing file unless --force.")
-    init.add_argument("--path", help="write here instead of the user config folder")
-    init.add_argument("--force", action="store_true", help="replace an existing file")
+    add_output_option(init, "--path", help="write here instead of the user config folder")
     init.set_defaults(func=_cmd_init)
     show = sub.add_parser("show", help="print the configuration in force and where it came from",
                           description="Print the bench file, sessions folder, devices, limits "

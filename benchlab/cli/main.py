@@ -18,6 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from benchlab.cli import UsageError
+from benchlab.cli.output import FORCE_NOTE, GLOBAL_FORCE_DEST, OutputFile, check_output, forced
 from benchlab.drivers import shutdown
 from benchlab.drivers.errors import BenchlabError
 
@@ -111,9 +112,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         help="print the version and exit")
     parser.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
                         help="log messages from this level up to stderr (default warning)")
-    parser.add_argument("--trace-io", metavar="FILE",
+    parser.add_argument("--trace-io", metavar="FILE", action=OutputFile,
                         help="record every device exchange to FILE, a cassette (.gz: "
-                             "compressed) that --replay plays back")
+                             f"compressed) that --replay plays back; {FORCE_NOTE}")
+    parser.add_argument("--force", action="store_true", dest=GLOBAL_FORCE_DEST,
+                        help="let --trace-io replace an existing file (sub-commands that "
+                             "write files take their own --force)")
     parser.add_argument("--replay", metavar="FILE",
                         help="answer the drivers with the bytes recorded in the cassette FILE "
                              "instead of devices (no hardware, no simulator)")
@@ -141,7 +145,8 @@ def plain_os_error(exc: OSError) -> str:
 
 
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
-_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io", "--replay"}
+_TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io", "--replay",
+                      "--force"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -185,6 +190,12 @@ def _main(argv: Sequence[str] | None) -> int:
     _setup_logging(args.log_level)
     if args.trace_io:
         from benchlab.drivers.trace import io_trace
+
+        try:
+            check_output(args.trace_io, force=forced(args), option="--trace-io")
+        except UsageError as exc:
+            print(f"benchlab: error: {exc}", file=sys.stderr)
+            return 2
 
         io_trace.start(args.trace_io)
     if args.replay:

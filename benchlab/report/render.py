@@ -549,12 +549,14 @@ def render_report(session_path: str | Path,
     return "".join(out)
 
 
-def write_report(session_path: str | Path, out: str | Path | None = None) -> Path:
-    """Write the HTML report (default ``SESSION/report.html``); returns its path."""
+def write_report(session_path: str | Path, out: str | Path | None = None, *,
+                 overwrite: bool = True) -> Path:
+    """Write the HTML report (default ``SESSION/report.html``) atomically; returns its path.
+    ``overwrite=False``: an existing file is kept (``FileExistsError``)."""
     from benchlab.catalog.index import record_session
     from benchlab.storage import atomic_write_text
 
     target = Path(out) if out is not None else Path(session_path) / "report.html"
-    written = atomic_write_text(target, render_report(session_path))
+    written = atomic_write_text(target, render_report(session_path), overwrite=overwrite)
     record_session(Path(session_path))
     return written

@@ -21,6 +21,7 @@ from benchlab.tui.dialogs import ConfirmDialog, ErrorDialog
 from benchlab.tui.live import LiveScreen
 from benchlab.tui.runner import RunScreen
 from benchlab.tui.sessions import SessionsScreen
+from benchlab.tui.signal_exit import SignalExit
 from benchlab.tui.ui_calls import call_ui
 
 if TYPE_CHECKING:
@@ -99,6 +100,8 @@ class BenchlabApp(App[None]):
         #: The stop signal (SIGTERM, SIGHUP, SIGINT) that ended the app, if one did.
         self.stop_signal: int | None = None
         self._signal_loop: asyncio.AbstractEventLoop | None = None
+        #: Ends the process if the orderly quit after a stop signal hangs (a closed terminal).
+        self.signal_exit = SignalExit(self)
 
     def on_mount(self) -> None:
         self._signal_loop = asyncio.get_running_loop()
@@ -153,6 +156,25 @@ class BenchlabApp(App[None]):
                 return exc
             return None
 
+    def force_close_bench(self, lock_timeout_s: float) -> BaseException | None:
+        """Safe state and close from the signal watchdog: waits ``lock_timeout_s`` for the
+        device lock, then closes without it (a thread stuck mid-exchange must not keep the
+        LEDs lit); returns the error of the close, if any."""
+        locked = self.device_lock.acquire(timeout=lock_timeout_s)
+        try:
+            opened, self._opened, self.bench = self._opened, None, None
+            if opened is None:
+                return None
+            try:
+                opened.close()
+            except Exception as exc:  # noqa: BLE001 - reported by the watchdog
+                self.close_error = exc
+                return exc
+            return None
+        finally:
+            if locked:
+                self.device_lock.release()
+
     @contextmanager
     def device_activity(self) -> Iterator[None]:
         """Wrap a thread worker's device work so quitting waits for it to wind down."""
@@ -194,8 +216,11 @@ class BenchlabApp(App[None]):
     def stop_from_signal(self, signum: int) -> None:
         """SIGTERM / SIGHUP / SIGINT (see :mod:`benchlab.drivers.shutdown`): quit at once, as a
         confirmed ``q`` does (nobody is there to confirm) - runner aborted, LEDs off, stage
-        stopped. Runs inside the signal handler, so it only schedules the quit."""
-        self.stop_signal = signum
+        stopped. Runs inside the signal handler, so it only schedules the quit, and starts
+        the watchdog that ends the process within seconds if the quit hangs
+        (:mod:`benchlab.tui.signal_exit`)."""
+        self.stop_signal = self.stop_signal or signum
+        self.signal_exit.on_signal(signum)
         loop = self._signal_loop
         if loop is None or loop.is_closed():
             return  # not mounted yet or already closed: on_unmount / the bench context clean up

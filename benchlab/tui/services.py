@@ -442,7 +442,7 @@ def verify_run(session_path: Path, spec_path: Path) -> dict[str, Any]:
     unit = verify_unit([results], load_spec(spec_path))
     record = record_of(unit, __version__)
     for s in unit.sessions:
-        _, record["version"] = store_verdict(s.path, record)
+        _, record["version"], _ = store_verdict(s.path, record)
         record_session(s.path)
     return record
 

@@ -117,7 +117,7 @@ def test_trend_table_csv_and_png(source: Path, tmp_path: Path,
     text = capsys.readouterr().out
     assert [line.split()[0] for line in text.splitlines()[1:]] == ["p0", "p1", "p2"]
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
-    assert main([*args, "--csv", str(csv_out)]) == 0
+    assert main([*args, "--csv", str(csv_out), "--force"]) == 0  # the plot again (issue 38)
     rows = csv_out.read_text().splitlines()
     assert [float(r.split(",")[8]) for r in rows[1:]] == values
     with Catalog.open(root) as cat:

@@ -34,8 +34,8 @@ def test_config_init_writes_a_commented_valid_bench_file(capsys: pytest.CaptureF
     assert cfg.sessions_dir == Path("~/benchlab-sessions").expanduser()
     # never replaced unless asked
     path.write_text(text + "\n# my edit\n", encoding="utf-8")
-    assert main(["config", "init"]) == 1
-    assert "already exists" in capsys.readouterr().err
+    assert main(["config", "init"]) == 2  # a usage error naming the file (issue 38)
+    assert f"config init {path}: already exists" in capsys.readouterr().err
     assert path.read_text(encoding="utf-8").endswith("# my edit\n")
     assert main(["config", "init", "--force"]) == 0
     assert path.read_text(encoding="utf-8") == template()

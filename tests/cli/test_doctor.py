@@ -26,7 +26,7 @@ travel_mm = [0.0, 50.0]
 
 def _doctor(tmp_path: Path, *extra: str) -> tuple[int, str, str]:
     report = tmp_path / "report.md"
-    rc = main(["doctor", "--simulate", "--yes", "--report", str(report), *extra])
+    rc = main(["doctor", "--simulate", "--yes", "--report", str(report), "--force", *extra])
     return rc, report.read_text(encoding="utf-8"), str(report)
 
 

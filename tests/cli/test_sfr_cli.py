@@ -66,8 +66,8 @@ def test_sfr_plot_is_written_once_and_never_overwritten(
     data = plot.read_bytes()
     assert data.startswith(b"\x89PNG")
     capsys.readouterr()
-    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(plot)]) == 1
-    assert "already exists" in capsys.readouterr().err
+    assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot", str(plot)]) == 2
+    assert f"--plot {plot}: already exists" in capsys.readouterr().err  # usage (issue 38)
     assert plot.read_bytes() == data
     assert main(["sfr", str(edge_frame), "--roi", _roi("E1L"), "--plot",
                  str(tmp_path / "x.jpg")]) == 2  # a usage error

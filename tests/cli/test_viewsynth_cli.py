@@ -57,8 +57,8 @@ def test_unwrap_frame_writes_view_mask_and_mapping(frames: dict[str, Path], tmp_
     with tifffile.TiffFile(out) as tif:
         assert len(tif.pages) == 2
     # the same output again is refused unless --overwrite
-    assert main(["unwrap", str(src), "--out", str(out)]) == 1
-    assert "exists" in capsys.readouterr().err
+    assert main(["unwrap", str(src), "--out", str(out)]) == 2  # a usage error (issue 38)
+    assert f"--out {out}: already exists" in capsys.readouterr().err
     assert main(["unwrap", str(src), "--out", str(out), "--overwrite"]) == 0
 
 
@@ -71,7 +71,7 @@ def test_unwrap_errors_name_the_problem(frames: dict[str, Path], tmp_path: Path,
         (["unwrap", src, "--centre", "12", "--out", str(tmp_path / "b.tiff")], "--centre '12'"),
         (["unwrap", src, "--azimuth-deg", "90:10"], "need 0 < END - START <= 360"),
         (["unwrap", str(tmp_path / "none.tiff")], "none.tiff: no such frame file"),
-        (["unwrap", src, "--out", src], "is the input frame"),
+        (["unwrap", src, "--out", src, "--force"], "is the input frame"),
         (["unwrap", src, "--table", str(tmp_path / "t.csv")], "t.csv: cannot read"),
     ]
     for argv, message in cases:
@@ -217,12 +217,12 @@ def test_unwrap_of_a_session_frame_never_writes_into_its_frames_folder(
     assert info["out"] == f"{src.stem}.unwrap.tiff" and (tmp_path / info["out"]).is_file()
     # An explicit --out into frames/ is refused, naming it; nothing written.
     bad = frames_dir / "view.tiff"
-    assert main(["unwrap", str(src), "--px-per-mm", "4", "--out", str(bad)]) == 1
+    assert main(["unwrap", str(src), "--px-per-mm", "4", "--out", str(bad)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"benchlab: error: {bad}: in a session's raw frames/ folder")
+    assert err.startswith(f"benchlab: error: --out {bad}: is part of frames/ of session")
     assert main(["perspective", str(src), "--yaw-deg", "0", "--pitch-deg", "45", "--fov-deg",
-                 "60", "--size", "40x30", "--out", str(bad)]) == 1
-    assert "raw frames/ folder" in capsys.readouterr().err
+                 "60", "--size", "40x30", "--out", str(bad), "--force"]) == 2
+    assert "is part of frames/ of session" in capsys.readouterr().err
     assert sorted(p.name for p in frames_dir.iterdir()) == before
     assert Session.open(mtf_run.session_path).verify_frames() == []
 

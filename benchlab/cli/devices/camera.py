@@ -15,7 +15,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchlab.cli import positive_int
+from benchlab.cli import UsageError, positive_int
+from benchlab.cli.output import session_part
 from benchlab.drivers.errors import BenchlabError, DeviceNotFoundError
 
 if TYPE_CHECKING:  # the driver stack (numpy, pyusb) is imported by the commands that use it
@@ -161,6 +162,10 @@ def snap(out: Path, *, exposure_ms: float, gain: float, bits: int = 8, serial: s
     from benchlab import __version__
     from benchlab.drivers.mightex.camera import MightexCamera
     from benchlab.storage import save_frame_tiff
+    part = session_part(out)
+    if part is not None:
+        raise UsageError(f"snap {out}: is part of {part}, which only benchlab's session "
+                         "commands write; nothing written (name a file outside it)")
     if out.exists():
         raise BenchlabError(f"{out} already exists; frames are never overwritten")
     backend = _sim_backend(pid, simulated_snap_scene(scene), seed) if simulate else None

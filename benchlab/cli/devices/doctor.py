@@ -38,7 +38,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-# numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
 from benchlab.cli.devices.doctor_record import Outside, read_notes
 from benchlab.cli.devices.doctor_report import (
     Check,
@@ -47,6 +46,9 @@ from benchlab.cli.devices.doctor_report import (
     set_toml_key,
     write_learned,
 )
+
+# numpy and the drivers load when the command runs: `benchlab --help` builds every parser.
+from benchlab.cli.output import add_output_option, check_output, forced
 from benchlab.drivers.errors import BenchlabError, DeviceError
 
 if TYPE_CHECKING:
@@ -882,10 +884,12 @@ def apply_injected_config(config: BenchConfig, inject: tuple[str, ...]) -> Bench
 
 
 def report_path(args: argparse.Namespace) -> Path:
-    """``--report``; else the bench file's folder; else (the packaged simulated bench) the
-    user's config folder - never silently the current folder."""
+    """``--report`` (never a session's file; an existing file only with ``--force``); else the
+    bench file's folder; else (the packaged simulated bench) the user's config folder - never
+    silently the current folder. The default report is the doctor's own: a new run replaces
+    it."""
     if args.report:
-        return Path(args.report)
+        return check_output(args.report, force=forced(args), option="--report")
     if getattr(args, "replay", None):
         cassette = Path(args.replay)
         return cassette.with_name(cassette.name.split(".")[0] + "-replayed.md")
@@ -1019,11 +1023,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     doc.add_argument("--inject", action="append", choices=sorted(INJECTIONS),
                      help="with --simulate: give a simulated device this fault (repeatable): "
                           + "; ".join(f"{k}: {v}" for k, v in INJECTIONS.items()))
-    doc.add_argument("--report", metavar="PATH",
-                     help="where the bring-up report goes (default: bringup-report.md next to "
-                          "the bench file; with the packaged simulated bench, in the user "
-                          "config folder); the recording goes beside it "
-                          "(NAME.cassette.jsonl.gz)")
+    add_output_option(doc, "--report", metavar="PATH",
+                      help="where the bring-up report goes (default: bringup-report.md next to "
+                           "the bench file; with the packaged simulated bench, in the user "
+                           "config folder); the recording goes beside it "
+                           "(NAME.cassette.jsonl.gz)")
     doc.add_argument("--replay", metavar="CASSETTE", default=argparse.SUPPRESS,
                      help="run the bring-up recorded in CASSETTE again, without devices: the "
                           "same exchanges byte for byte, the same answers, the same report "

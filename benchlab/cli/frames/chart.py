@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import positive_int
+from benchlab.cli.output import add_output_option, check_output, forced, write_output
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
@@ -124,13 +125,15 @@ def _is_whole(fit: ChartFit) -> bool:
 
 def _find_chart_command(args: argparse.Namespace) -> int:
     path = Path(args.frame)
+    if args.plot:  # before the analysis
+        check_output(args.plot, force=forced(args), option="--plot")
     pixels, fit = locate(path, args.magnification, args.whole)
     if args.plot:
         from benchlab.report.chart import chart_png
-        from benchlab.storage import atomic_write_bytes
 
         try:
-            atomic_write_bytes(Path(args.plot), chart_png(pixels, fit, str(path)))
+            write_output(args.plot, chart_png(pixels, fit, str(path)), force=forced(args),
+                         option="--plot")
         except OSError as exc:
             raise BenchlabError(f"cannot write {args.plot}: {exc.strerror or exc}") from exc
     if args.json:
@@ -301,7 +304,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     )
     p.add_argument("frame", metavar="FRAME", help="image file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", metavar="FILE", help="write a PNG of the frame with the found chart")
+    add_output_option(p, "--plot", metavar="FILE",
+                      help="write a PNG of the frame with the found chart")
     p.add_argument("--magnification", type=float, default=None,
                    help="object-to-image frequency factor, Eq. 4.1 (image lp/mm = object lp/mm x "
                         "it; default 16.3, the forward view; ~1/M under an objective of "

@@ -18,6 +18,7 @@ from benchlab.cli.frames.analysis import (
     read_image_and_metadata,
     roi_values,
 )
+from benchlab.cli.output import add_output_option, check_output, write_output
 from benchlab.drivers.errors import BenchlabError
 
 #: Frequencies (cycles/px) listed in the text output.
@@ -45,13 +46,11 @@ def _lp_per_mm(cycles_per_px: float) -> float:
     return cycles_per_px / to_cycles(1.0)
 
 
-def _plot(result: Any, out: Path, title: str) -> None:
+def _plot(result: Any, out: Path, title: str, force: bool) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from benchlab.storage import atomic_write_bytes
 
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     axes[0].plot(result.esf_u_px, result.esf, ".", ms=2)
@@ -85,9 +84,7 @@ def _plot(result: Any, out: Path, title: str) -> None:
     fig.savefig(buf, format=out.suffix.lower().lstrip("."), dpi=90)
     plt.close(fig)
     try:
-        atomic_write_bytes(out, buf.getvalue(), overwrite=False)
-    except FileExistsError:
-        raise BenchlabError(f"{out} already exists; not overwritten") from None
+        write_output(out, buf.getvalue(), force=force, option="--plot")
     except OSError as exc:
         raise BenchlabError(f"cannot write {out}: {exc.strerror or exc}") from exc
 
@@ -367,12 +364,10 @@ def _average_checked(region: Any, top: float | None, args: argparse.Namespace,
 
 
 def _check_plot(plot: Path | None) -> None:
-    """``--plot``: an existing file or a missing folder (runtime errors; checked before the
-    analysis, nothing is created)."""
+    """``--plot``: a missing folder (a runtime error; checked before the analysis, nothing
+    is created). The output policy was applied first, with the usage errors."""
     if plot is None:
         return
-    if plot.exists():
-        raise AnalysisInputError(f"--plot {plot} already exists; not overwritten")
     if not plot.parent.is_dir():
         raise AnalysisInputError(f"--plot {plot}: folder {plot.parent} does not exist")
 
@@ -386,6 +381,8 @@ def sfr_command(args: argparse.Namespace) -> int:
     path = paths[0]
     plot = Path(args.plot) if args.plot else None
     # Usage errors first (exit 2), before any file is read; then the files (exit 1).
+    if plot is not None:  # the output policy (benchlab.cli.output) before the name's suffix
+        check_output(plot, force=args.force, option="--plot")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise UsageError(f"--plot {plot}: use a .png, .svg or .pdf file name")
     roi = roi_values(args.roi)
@@ -413,7 +410,8 @@ def sfr_command(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise AnalysisInputError(f"{measured}: {exc}") from exc
     if plot is not None:
-        _plot(result, plot, f"{_images_text(paths, pages, short=True)} roi {roi_text}")
+        _plot(result, plot, f"{_images_text(paths, pages, short=True)} roi {roi_text}",
+              args.force)
     n_frames = 1 if frames_check is None else frames_check.frames
     shift = None if frames_check is None else round(frames_check.max_shift_px, 4)
     if args.json:
@@ -592,7 +590,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="also report the MTF at these sensor frequencies (lp/mm, "
                         "comma-separated, each 0..192.31 = 1 cycle/px)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", metavar="FILE", help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
+    add_output_option(p, "--plot", metavar="FILE",
+                      help="save ESF, LSF and MTF plots (.png/.svg/.pdf)")
     p.add_argument("--bootstrap", type=_bootstrap_count, default=0, metavar="N",
                    help="uncertainty by N >= 2 bootstrap resamples of the rows instead of the "
                         "default analytic one (the pixel noise per level, at least the codes' "

@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchlab.cli.output import add_output_option, check_output
 from benchlab.drivers.errors import BenchlabError
 
 DEPTH_HELP = ("assumed distance of the object from the endoscope axis, mm (default 19.88, the "
@@ -101,6 +102,8 @@ def unwrap_command(args: argparse.Namespace) -> int:
         lines.append(f"results: {version}  (frames untouched)")
         _print(info, args.json, lines)
         return 0
+    if args.out:
+        check_output(args.out, force=args.overwrite, option="--out")
     info = rv.unwrap_file(target, out=args.out, overwrite=args.overwrite,
                           **common)  # type: ignore[arg-type]
     rows, cols = info["frame_shape"]
@@ -121,6 +124,7 @@ def unwrap_command(args: argparse.Namespace) -> int:
 def perspective_command(args: argparse.Namespace) -> int:
     from benchlab import radial_views as rv
 
+    check_output(args.out, force=args.overwrite, option="--out")
     info = rv.perspective_file(
         Path(args.frame), out=args.out, yaw_deg=args.yaw_deg, pitch_deg=args.pitch_deg,
         fov_deg=args.fov_deg, size_wh=parse_size(args.size), table=_table(args),
@@ -160,6 +164,7 @@ def viewpoint_command(args: argparse.Namespace) -> int:
 def calibrate_radial_command(args: argparse.Namespace) -> int:
     from benchlab import radial_views as rv
 
+    check_output(args.out, force=args.overwrite, option="--out")
     info = rv.calibrate_radial_file(
         Path(args.frame), object_lp_per_mm=args.object_lp_per_mm, object_radius_mm=args.depth_mm,
         out=args.out, centre_rc=parse_centre(args.centre),
@@ -206,7 +211,8 @@ def _view_options(p: argparse.ArgumentParser) -> None:
                    help="cv2.remap interpolation (default linear = bilinear)")
     p.add_argument("--allow-extrapolation", action="store_true",
                    help="accept a depth outside the table (flagged in the output metadata)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    p.add_argument("--force", "--overwrite", dest="overwrite", action="store_true",
+                   help="replace an existing --out file")
     p.add_argument("--json", action="store_true", help="print the mapping as JSON")
 
 
@@ -230,9 +236,9 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    "negative start needs '=': --azimuth-deg=-90:90)")
     p.add_argument("--px-per-mm", type=float, default=20.0,
                    help="output pixels per object mm (default 20)")
-    p.add_argument("--out", help="output TIFF (default FRAME.unwrap.tiff next to the frame; "
-                   "for a frame in a session's frames/ folder, in the current folder: nothing "
-                   "is ever written into a session's frames/)")
+    add_output_option(p, "--out", help="output TIFF (default FRAME.unwrap.tiff next to the "
+                      "frame; for a frame in a session's frames/ folder, in the current folder: "
+                      "nothing is ever written into a session's frames/)")
     p.set_defaults(func=unwrap_command)
 
     p = commands.add_parser(
@@ -250,7 +256,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="viewing elevation towards +z, degrees (-90..90)")
     p.add_argument("--fov-deg", type=float, required=True, help="horizontal field of view")
     p.add_argument("--size", required=True, metavar="WxH", help="output size in pixels")
-    p.add_argument("--out", required=True, help="output TIFF")
+    add_output_option(p, "--out", required=True, help="output TIFF")
     p.set_defaults(func=perspective_command)
 
     p = commands.add_parser(
@@ -283,13 +289,14 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="printed frequency of the ring target")
     p.add_argument("--depth-mm", type=float, required=True,
                    help="distance of the target from the axis, mm")
-    p.add_argument("--out", required=True, metavar="TABLE.csv", help="table to write")
+    p.add_argument("--force", "--overwrite", dest="overwrite", action="store_true",
+                   help="replace an existing --out")
+    add_output_option(p, "--out", required=True, metavar="TABLE.csv", help="table to write")
     p.add_argument("--centre", metavar="R,C", help="optical centre (default: FOV mask)")
     p.add_argument("--table", metavar="CSV", help="table to compare with (default: shipped)")
     p.add_argument("--axial-outward", action="store_true",
                    help="axial position grows outward in the image (default: inward, as the "
                    "shipped table)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=calibrate_radial_command)
 

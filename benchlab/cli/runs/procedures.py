@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.cli import PROCEDURES, positive_int
+from benchlab.cli.output import add_output_option
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
@@ -410,9 +411,18 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float,
 
 
 def report_command(args: argparse.Namespace) -> int:
+    from benchlab.cli.output import check_output, forced
     from benchlab.report.render import write_report
 
-    out = write_report(Path(args.session), Path(args.out) if args.out else None)
+    session = Path(args.session)
+    force = forced(args)
+    target = check_output(args.out or session / "report.html", force=force,
+                          option="--out" if args.out else "report")
+    try:
+        out = write_report(session, target, overwrite=force)
+    except FileExistsError:  # appeared while the report was rendered
+        check_output(target, force=False, option="--out" if args.out else "report")
+        raise
     print(f"report: {out}")
     return 0
 
@@ -534,7 +544,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "estimator, warnings); the radiometry fall-off and LED masks; parameters.",
     )
     rep.add_argument("session", help="session folder")
-    rep.add_argument("--out", help="output file (default SESSION/report.html)")
+    add_output_option(rep, "--out", help="output file (default SESSION/report.html)")
     rep.set_defaults(func=report_command)
 
     bch = benchmarks.add_parser(

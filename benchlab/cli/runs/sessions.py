@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import positive_int
+from benchlab.cli.output import add_output_option, check_output, forced, write_output
 
 if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
     from benchlab.catalog.index import Catalog, TrendPoint
@@ -74,7 +75,8 @@ def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], *, wide: bool
     return fit_table(names, cells, right=False)
 
 
-def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: str) -> None:
+def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: str,
+               force: bool) -> None:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore",
                             lineterminator="\n")
@@ -83,9 +85,7 @@ def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: s
     if target == "-":
         sys.stdout.write(buf.getvalue())
     else:
-        from benchlab.storage import atomic_write_text
-
-        atomic_write_text(target, buf.getvalue())
+        write_output(target, buf.getvalue(), force=force, option="--csv")
 
 
 def _open(args: argparse.Namespace) -> Catalog:
@@ -114,6 +114,8 @@ def list_command(args: argparse.Namespace) -> int:
     from benchlab.catalog.index import check_list_query
 
     check_list_query(sort=args.sort, since=args.since)  # usage errors before any work
+    if args.csv and args.csv != "-" and not args.json:
+        check_output(args.csv, force=forced(args), option="--csv")
     with _open(args) as catalog:
         rows = catalog.sessions(**_filters(args), sort=args.sort, descending=not args.ascending,
                                 limit=args.limit, devices=args.json)
@@ -123,7 +125,7 @@ def list_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(rows))
     elif args.csv:
-        _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv)
+        _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv, forced(args))
     else:
         columns = LIST_COLUMNS if args.wide else NARROW_LIST_COLUMNS
         if any(r["problem"] for r in rows):
@@ -157,7 +159,8 @@ def show_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path) -> None:
+def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path,
+          force: bool) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,9 +200,7 @@ def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    from benchlab.storage import atomic_write_bytes
-
-    atomic_write_bytes(target, buf.getvalue())
+    write_output(target, buf.getvalue(), force=force, option="--plot")
 
 
 def trend_command(args: argparse.Namespace) -> int:
@@ -207,6 +208,10 @@ def trend_command(args: argparse.Namespace) -> int:
 
     check_trend_query(element=args.element, freq_lp_per_mm=args.freq,
                       orientation=args.orientation, since=args.since)  # before any work
+    if args.csv and args.csv != "-" and not args.json:
+        check_output(args.csv, force=forced(args), option="--csv")
+    if args.plot:
+        check_output(args.plot, force=forced(args), option="--plot")
     with _open(args) as catalog:
         points = catalog.trend(view=args.view, element=args.element,
                                orientation=args.orientation, freq_lp_per_mm=args.freq,
@@ -219,13 +224,13 @@ def trend_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(rows))
     elif args.csv:
-        _write_csv(rows, TREND_COLUMNS, args.csv)
+        _write_csv(rows, TREND_COLUMNS, args.csv, forced(args))
     else:
         print(_table(shown, TREND_COLUMNS) if rows else f"no session has {what}")
     if points and args.plot != "":
         _plot(points, f"{what} across {len({p.session_id for p in points})} sessions",
-              args.quantity, Path(args.plot))
-        print(f"plot: {args.plot}", file=sys.stderr)
+              args.quantity, Path(args.plot), forced(args))
+        print(f"plot: {Path(args.plot).absolute()}", file=sys.stderr)  # default: the cwd
     return 0
 
 
@@ -271,7 +276,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                     "time, serials too), one line per session however wide; by default the "
                     "table fits the terminal (COLUMNS, else 80)")
     ls.add_argument("--json", action="store_true", help="print a JSON list")
-    ls.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
+    add_output_option(ls, "--csv", metavar="FILE",
+                      help="write CSV for spreadsheets ('-': stdout)")
     ls.set_defaults(func=list_command)
 
     sh = sub.add_parser("show", help="one session: devices, results versions, key figures",
@@ -296,10 +302,12 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     t.add_argument("--freq", type=float, metavar="LP_PER_MM", help="image frequency, lp/mm")
     t.add_argument("--quantity", default="modulation",
                    help="figure name (default modulation; radiometry: measured_normalised)")
-    t.add_argument("--plot", default="trend.png", metavar="FILE.png",
-                   help="PNG plot to write (default trend.png; '' for none)")
+    add_output_option(t, "--plot", default="trend.png", metavar="FILE.png",
+                      help="PNG plot to write (default trend.png in the current folder; '' for "
+                      "none)")
     t.add_argument("--json", action="store_true", help="print a JSON list")
-    t.add_argument("--csv", metavar="FILE", help="write CSV for spreadsheets ('-': stdout)")
+    add_output_option(t, "--csv", metavar="FILE",
+                      help="write CSV for spreadsheets ('-': stdout)")
     t.set_defaults(func=trend_command)
 
     b = benchmarks.add_parser(

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
+from benchlab.cli.output import add_output_option, check_output, forced, write_output
 
 if TYPE_CHECKING:
     from benchlab.acceptance.spec import Spec
@@ -115,8 +116,9 @@ def verify_command(args: argparse.Namespace) -> int:
         if not args.no_store:
             stored = []
             for s in unit.sessions:
-                path, version = store_verdict(s.path, record)
-                stored.append({"session": str(s.path), "file": str(path), "version": version})
+                path, version, written = store_verdict(s.path, record)
+                stored.append({"session": str(s.path), "file": str(path), "version": version,
+                               "new": written})
                 record_session(s.path)
             record["stored"] = stored
             versions = {item["version"] for item in stored}
@@ -140,7 +142,8 @@ def _print_unit(record: dict[str, Any]) -> None:
           f"rule {spec['decision_rule']}  coverage {spec['coverage']:.0%}")
     print(verdict_table(record["rows"]))
     for item in record.get("stored", []):
-        print(f"stored: {item['file']}")
+        print(f"stored: {item['file']}" if item["new"] else
+              f"identical to {item['file']}: no new version written")
     print(f"unit verdict: {record['verdict'].upper()}\n")
 
 
@@ -205,6 +208,8 @@ def lot_command(args: argparse.Namespace) -> int:
     root = Path(args.root)
     if not root.is_dir():
         raise CatalogError(f"{root}: no such sessions folder (--root)")
+    if args.html:  # before any work
+        check_output(args.html, force=forced(args), option="--html")
     with Catalog.open(root) as catalog:
         paths = [s["path"] for s in catalog.sessions(lot=args.lot, descending=False)]
     if not paths:
@@ -214,9 +219,8 @@ def lot_command(args: argparse.Namespace) -> int:
     result.update(lot=args.lot, spec=spec.header())
     if args.html:
         from benchlab.acceptance.lot_report import render_lot_report
-        from benchlab.storage import atomic_write_text
 
-        atomic_write_text(args.html, render_lot_report(result))
+        write_output(args.html, render_lot_report(result), force=forced(args), option="--html")
     if args.json:
         print(json.dumps(result))
         return 0
@@ -256,7 +260,6 @@ def certificate_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.certificate import render_certificate
     from benchlab.acceptance.certificate_pdf import certificate_pdf
     from benchlab.acceptance.store import read_verdict
-    from benchlab.storage import atomic_write_bytes, atomic_write_text
 
     pdf = args.pdf or (args.out is not None and Path(args.out).suffix.lower() == ".pdf")
     if args.pdf and args.out and Path(args.out).suffix.lower() in (".html", ".htm"):
@@ -265,10 +268,14 @@ def certificate_command(args: argparse.Namespace) -> int:
     record = read_verdict(folder, args.version)
     out = (Path(args.out) if args.out
            else folder / f"certificate-v{record['version']}.{'pdf' if pdf else 'html'}")
+    option = "--out" if args.out else "certificate"
+    check_output(out, force=forced(args), option=option)  # before rendering
     if pdf:
-        atomic_write_bytes(out, certificate_pdf(record, session_id=folder.name))
+        write_output(out, certificate_pdf(record, session_id=folder.name), force=forced(args),
+                     option=option)
     else:
-        atomic_write_text(out, render_certificate(record, session_id=folder.name))
+        write_output(out, render_certificate(record, session_id=folder.name),
+                     force=forced(args), option=option)
     print(f"certificate: {out}  (unit {record['unit']['serial'] or '-'}: {record['verdict']})")
     return 0
 
@@ -301,13 +308,17 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "the same serial number are one unit. Every row gives the reading, its interval, the "
         "limit, the margin and the rule; the verdict is stored in each session (a new "
         "version) and in the catalogue. Exit status: 0 pass, 1 fail, 3 indeterminate "
-        "(the worst unit), 2 usage error (a malformed spec).")
+        "(the worst unit), 2 usage error: a malformed spec, or one naming a table, column or "
+        "where value the results do not have (docs/formats/results.md); nothing is stored "
+        "then. A verification identical to the newest stored one stores no new version.")
     v.add_argument("sessions", nargs="*", metavar="SESSION", help="session folder(s)")
     v.add_argument("--spec", metavar="FILE",
                    help="spec file (TOML); without SESSION the file is only checked and listed")
     v.add_argument("--example-spec", action="store_true",
-                   help="print a commented example spec file (bar, slanted-edge and camera limits; "
-                   "both decision rules) and exit: benchlab verify --example-spec > spec.toml")
+                   help="print a commented example spec file and exit: benchlab verify "
+                   "--example-spec > spec.toml. Its bar and slanted-edge limits (both decision "
+                   "rules) are decided on an MTF session alone; its camera limits, for a unit "
+                   "that also has a characterisation session, are commented out")
     v.add_argument("--json", action="store_true", help="print the verdict record(s) as JSON")
     v.add_argument("--no-store", action="store_true",
                    help="decide only; store nothing in the sessions or the catalogue")
@@ -342,8 +353,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     lot.add_argument("--spec", required=True, metavar="FILE", help="spec file (TOML)")
     lot.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
     lot.add_argument("--json", action="store_true", help="print JSON")
-    lot.add_argument("--html", metavar="FILE", help="also write an HTML lot report with a "
-                     "control chart per limited quantity")
+    add_output_option(lot, "--html", metavar="FILE", help="also write an HTML lot report with "
+                      "a control chart per limited quantity")
     lot.set_defaults(func=lot_command)
 
     c = commands.add_parser(
@@ -355,8 +366,8 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     c.add_argument("--version", type=positive_int, help="verdict version (default: latest)")
     c.add_argument("--pdf", action="store_true",
                    help="write an A4 PDF (also chosen by an --out name ending in .pdf)")
-    c.add_argument("--out", metavar="FILE",
-                   help="output file (default SESSION/certificate-v<N>.html, .pdf with --pdf)")
+    add_output_option(c, "--out", metavar="FILE",
+                      help="output file (default SESSION/certificate-v<N>.html, .pdf with --pdf)")
     c.set_defaults(func=certificate_command)
 
     b = benchmarks.add_parser(

@@ -306,7 +306,7 @@ def test_cli_text_and_plot_title_name_every_frame(
     import benchlab.cli.frames.sfr as cli_sfr
 
     titles: list[str] = []
-    monkeypatch.setattr(cli_sfr, "_plot", lambda result, out, title: titles.append(title))
+    monkeypatch.setattr(cli_sfr, "_plot", lambda result, out, title, force: titles.append(title))
     files = _write(tmp_path, a=_edge(5.0, 1), b=_edge(5.0, 2), c=_edge(5.0, 3))
     assert main(["sfr", files["a"], files["b"], files["c"], "--roi", "0,0,100,100",
                  "--plot", str(tmp_path / "p.png")]) == 0
