@@ -8,11 +8,11 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Grid
-from textual.screen import Screen
 from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from benchlab.tui import services
+from benchlab.tui.screen import BenchScreen
 from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
@@ -27,7 +27,7 @@ def format_rows(rows: list[tuple[str, str]]) -> str:
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
 
-class DevicesScreen(Screen[None]):
+class DevicesScreen(BenchScreen):
     """Camera, LED controller and stage: identity, state, errors in plain words."""
 
     DEFAULT_CSS = """
@@ -93,10 +93,10 @@ class DevicesScreen(Screen[None]):
             self.query_one(f"#{key}", Static).update(format_rows(info.get(key, [])))
 
     def action_connect(self) -> None:
-        self.app.connect_bench()  # type: ignore[attr-defined]
+        self.app.connect_bench()
 
     def action_disconnect(self) -> None:
-        self.app.disconnect_bench()  # type: ignore[attr-defined]
+        self.app.disconnect_bench()
 
     def action_safe(self) -> None:
         self._device_action("safe")

@@ -13,7 +13,6 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
-from textual.screen import Screen
 from textual.timer import Timer
 from textual.widgets import Footer
 from textual.worker import get_current_worker
@@ -31,6 +30,7 @@ from benchlab.tui.drawing.chart_overlay import (
 from benchlab.tui.drawing.pixels import GRAPHICS_PREVIEW_SIDE
 from benchlab.tui.drawing.unwrap_view import UnwrapPreview
 from benchlab.tui.focus_aid import FocusAidPanel, FrameSlot
+from benchlab.tui.screen import BenchScreen
 from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import FrameView, ModeBar, Readout, Roi, RoiHistogram
 
@@ -70,7 +70,7 @@ def _step(values: tuple[float, ...], current: float, direction: int) -> float:
     return next((v for v in reversed(values) if v < current - 1e-9), values[0])
 
 
-class LiveScreen(Screen[None]):
+class LiveScreen(BenchScreen):
     """Continuous acquisition while this screen is shown; the newest frame wins."""
 
     DEFAULT_CSS = """
@@ -191,19 +191,19 @@ class LiveScreen(Screen[None]):
         worker = get_current_worker()
         app = self.app
         index = self._shown_index + 1  # frame numbers never repeat across restarts
-        with app.device_activity():  # type: ignore[attr-defined]
+        with app.device_activity():
             while not worker.is_cancelled:
-                bench = app.bench  # type: ignore[attr-defined]
-                if bench is None or app.procedure_running:  # type: ignore[attr-defined]
+                bench = app.bench
+                if bench is None or app.procedure_running:
                     time.sleep(0.1)
                     continue
                 started = time.monotonic()
                 settings = (self.exposure_ms, self.gain)
                 try:
-                    with app.device_lock:  # type: ignore[attr-defined]
+                    with app.device_lock:
                         # Checked again under the lock: a run that started while this thread
                         # waited owns the camera now (it sets the flag, then takes the lock).
-                        if app.procedure_running:  # type: ignore[attr-defined]
+                        if app.procedure_running:
                             continue
                         if bench.simulated and bench.mounted is None:
                             services.mount_target(bench, SIM_TARGETS[0])

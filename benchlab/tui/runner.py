@@ -15,7 +15,6 @@ from textual.containers import Horizontal, Vertical
 from textual.coordinate import Coordinate
 from textual.message import Message
 from textual.reactive import reactive
-from textual.screen import Screen
 from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
@@ -26,6 +25,7 @@ from benchlab.tui.checklist import checklist_layout, numbered, short_step_label
 from benchlab.tui.depth_summary import depth_summary_rows
 from benchlab.tui.dialogs import InputDialog, PromptDialog
 from benchlab.tui.drawing.plot import CtfPlot, PlotPoint
+from benchlab.tui.screen import BenchScreen
 from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
@@ -105,7 +105,7 @@ class ChecklistTable(DataTable[Any]):
         self.post_message(self.Resized())
 
 
-class RunScreen(Screen[None]):
+class RunScreen(BenchScreen):
     """Choose a procedure, start it, answer its prompts, watch results fill in."""
 
     DEFAULT_CSS = """
@@ -207,7 +207,7 @@ class RunScreen(Screen[None]):
         if not self.is_mounted:
             return
         label = PROCEDURE_LABELS
-        params = self.app.params_files.get(self.procedure)  # type: ignore[attr-defined]
+        params = self.app.params_files.get(self.procedure)
         where = f"  session {self.session_path.name}" if self.session_path else ""
         text = (
             f"[b]{label.get(self.procedure, self.procedure)}[/b]  "
@@ -230,7 +230,7 @@ class RunScreen(Screen[None]):
         procedure = self.procedure
         try:
             steps = services.procedure_checklist(
-                procedure, self.app.params_files.get(procedure)  # type: ignore[attr-defined]
+                procedure, self.app.params_files.get(procedure)
             )
         except Exception as exc:  # noqa: BLE001 - parameter problems shown in plain words
             call_ui(self.app, self._checklist_error, exc)
@@ -414,7 +414,7 @@ class RunScreen(Screen[None]):
             try:
                 services.check_spec(path)
             except Exception as exc:  # noqa: BLE001 - every problem shown, nothing changed
-                self.app.show_error("The spec file cannot be used", exc)  # type: ignore[attr-defined]
+                self.app.show_error("The spec file cannot be used", exc)
                 return
         self.spec_file = path
         self._refresh_status()
@@ -431,7 +431,7 @@ class RunScreen(Screen[None]):
     def action_start(self) -> None:
         if self.state == "running":
             return
-        if self.app.bench is None:  # type: ignore[attr-defined]
+        if self.app.bench is None:
             self.notify("Connect the bench first (Devices, c).", severity="error")
             return
         if self.state in ("done", "aborted", "failed"):
@@ -447,7 +447,7 @@ class RunScreen(Screen[None]):
     def action_abort(self) -> None:
         if self.state != "running":
             return
-        self.app.abort_event.set()  # type: ignore[attr-defined]
+        self.app.abort_event.set()
         self.message = "aborting: LEDs off, stage stopped..."
 
     def action_next_table(self) -> None:
@@ -532,7 +532,7 @@ class RunScreen(Screen[None]):
         self._refresh_status()
 
     def _ended(self, exc: BaseException | None) -> None:
-        self.app.procedure_running = False  # type: ignore[attr-defined]
+        self.app.procedure_running = False
         running = [s for s, st in self.step_status.items() if st == "running"]
         if exc is None:
             for sid in running:
@@ -574,11 +574,11 @@ class RunScreen(Screen[None]):
             self.state = "failed"
             cause = getattr(exc, "cause", exc)
             self.message = f"[red]{escape(services.plain_error(cause))}[/red]\n t: retry the step"
-            self.app.show_error("A step failed", cause)  # type: ignore[attr-defined]
+            self.app.show_error("A step failed", cause)
         else:
             self.state = "failed" if self.runner is not None else "idle"
             self.message = f"[red]{escape(services.plain_error(exc))}[/red]"
-            self.app.show_error("The run could not continue", exc)  # type: ignore[attr-defined]
+            self.app.show_error("The run could not continue", exc)
 
     # callbacks from the runner thread ------------------------------------------------------
 

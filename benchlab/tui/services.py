@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import errno
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,8 +22,14 @@ from benchlab.drivers import errors
 from benchlab.tui.widgets import Roi
 
 if TYPE_CHECKING:
+    from contextlib import AbstractContextManager
+
+    from benchlab.acceptance.spec import Spec
+    from benchlab.analysis.focus.live import ChartTracker
+    from benchlab.analysis.focus.live import LiveReading as ChartLiveReading
     from benchlab.bench import Bench
-    from benchlab.protocols.engine import Runner
+    from benchlab.catalog.index import TrendPoint
+    from benchlab.protocols.engine import ProgressFn, PromptFn, ResultFn, Runner, Step
 
 
 def plain_error(exc: BaseException) -> str:
@@ -111,7 +117,7 @@ def preview_of(pixels: npt.NDArray[np.generic], max_side: int = 320) -> npt.NDAr
 class OpenedBench:
     """An open bench and the context that closes it (safe state first)."""
 
-    def __init__(self, bench: Bench, context: Any) -> None:
+    def __init__(self, bench: Bench, context: AbstractContextManager[Bench]) -> None:
         self.bench = bench
         self._context = context
 
@@ -251,7 +257,7 @@ def default_estimator() -> str:
     return DEFAULT_ESTIMATOR
 
 
-def mount_target(bench: Bench, target: Any) -> None:
+def mount_target(bench: Bench, target: object) -> None:
     """Mount a target in the simulated world (what a manual set-up step does)."""
     bench.mount(target)
 
@@ -340,14 +346,15 @@ def histogram_peaks(
 # -- the live focus aid (whole chart on every frame) -----------------------------------------
 
 
-def focus_tracker(estimator: str = "histogram") -> Any:
+def focus_tracker(estimator: str = "histogram") -> ChartTracker:
     """A :class:`~benchlab.analysis.focus.live.ChartTracker` (the pose tracked between frames)."""
     from benchlab.analysis.focus.live import ChartTracker
 
     return ChartTracker(estimator=estimator)
 
 
-def read_focus(tracker: Any, pixels: npt.NDArray[Any]) -> tuple[Any, float | None, str]:
+def read_focus(tracker: ChartTracker, pixels: npt.NDArray[Any]
+               ) -> tuple[ChartLiveReading | None, float | None, str]:
     """One frame's whole-chart reading: ``(reading, mean edge MTF50, "")``, or ``(None, None,
     why)`` when the chart is not found, or nothing could be read where it was tracked (it left
     the view between two finds); the tracker then looks for it again on the next frame."""
@@ -380,7 +387,7 @@ class ChecklistStep:
     info: Mapping[str, Any] = field(default_factory=dict)
 
 
-def procedure_checklist(procedure: str, params_file: Path | None) -> list[Any]:
+def procedure_checklist(procedure: str, params_file: Path | None) -> list[Step]:
     """The steps a run of ``procedure`` would take with these parameters (validated)."""
     from benchlab.protocols import load_params
     from benchlab.protocols.runs import make_procedure
@@ -396,15 +403,15 @@ def make_runner(
     bench: Bench,
     params: Path | None,
     root: Path,
-    prompt: Callable[[Any, str], bool],
-    progress: Callable[[int, int, Any], None],
+    prompt: PromptFn,
+    progress: ProgressFn,
     abort: threading.Event,
-    on_result: Callable[[Any, Mapping[str, Any]], None],
+    on_result: ResultFn,
     estimator: str | None = None,
     operator: str = "",
     sample: str = "",
     lot: str = "",
-) -> Any:
+) -> Runner:
     """A runner for a fresh run, or for resuming the session at ``resume``; ``sample`` and
     ``lot``: the unit's serial number and lot, stored in session.json."""
     from benchlab.protocols import load_params, resume_run, start_run
@@ -421,7 +428,7 @@ def make_runner(
     )
 
 
-def check_spec(path: Path) -> Any:
+def check_spec(path: Path) -> Spec:
     """The checked spec file (:class:`~benchlab.acceptance.spec.SpecError` lists every
     problem), before a run starts."""
     from benchlab.acceptance.spec import load_spec
@@ -607,7 +614,7 @@ def simulated_ctf_bands(points: int = 120) -> tuple[CtfBands, float]:
     return bands, nyq
 
 
-def target_words(target: Any) -> str:
+def target_words(target: object) -> str:
     """A mounted simulated target in words (for the operator, never a Python list)."""
     t = plain_target(target)
     if isinstance(t, list) and t and t[0] == "radial":
@@ -691,7 +698,7 @@ def catalog_figures(root: Path) -> list[tuple[str, str, str, str]]:
         return [k for k in catalog.figure_keys() if k[1]]
 
 
-def catalog_trend(root: Path, figure: tuple[str, str, str, str]) -> list[Any]:
+def catalog_trend(root: Path, figure: tuple[str, str, str, str]) -> list[TrendPoint]:
     """The figure across sessions, oldest first (:class:`benchlab.catalog.index.TrendPoint`)."""
     from benchlab.catalog.index import Catalog
 

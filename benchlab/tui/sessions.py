@@ -17,15 +17,15 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.reactive import reactive
-from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Input, Sparkline, Static
 
 from benchlab.tui import services
+from benchlab.tui.screen import BenchScreen
 from benchlab.tui.ui_calls import call_ui
 from benchlab.tui.widgets import ModeBar
 
 
-class SessionsScreen(Screen[None]):
+class SessionsScreen(BenchScreen):
     """Saved sessions under the sessions folder."""
 
     DEFAULT_CSS = """
@@ -106,7 +106,7 @@ class SessionsScreen(Screen[None]):
     def _status(self, extra: str = "") -> None:
         if not self.is_mounted:
             return
-        root = self.app.sessions_dir  # type: ignore[attr-defined]
+        root = self.app.sessions_dir
         sort, _ = services.CATALOG_SORTS[self._sort_index]
         text = (f"folder [b]{root}[/b]  re-analysis method [b]{self.estimator or 'default'}[/b]"
                 f"  sorted by [b]{sort}[/b]")
