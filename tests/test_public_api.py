@@ -61,6 +61,7 @@ def small_run(bench: Bench, tmp_path_factory: pytest.TempPathFactory
 # --------------------------------------------------------------------------- a run, read back
 
 
+@pytest.mark.slow
 def test_a_run_answers_prompts_and_returns_its_outcome(
         small_run: tuple[RunOutcome, list[benchlab.Prompt]]) -> None:
     run, asked = small_run
@@ -301,6 +302,7 @@ def test_measure_chart_refuses_a_frame_without_a_chart() -> None:
         benchlab.measure_chart(noise, magnification=0)
 
 
+@pytest.mark.slow
 def test_a_chart_reading_is_looked_up_by_label() -> None:
     from benchlab.scenes.usaf import UsafScene
 

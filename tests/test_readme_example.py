@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 README = Path(__file__).resolve().parents[1] / "README.md"
 
 
@@ -28,6 +30,7 @@ def test_the_block_uses_only_the_public_api() -> None:
     assert used == {"open_bench", "run_procedure", "open_session", "measure_chart"}
 
 
+@pytest.mark.slow
 def test_the_readme_example_runs_and_prints_the_session(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-c", readme_example()], cwd=tmp_path,
                           capture_output=True, text=True, timeout=120)

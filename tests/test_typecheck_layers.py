@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from mypy import api
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,6 +37,7 @@ def test_layout_symlinks_point_at_top_level_folders() -> None:
         assert link.resolve() == (ROOT / name).resolve()
 
 
+@pytest.mark.slow
 def test_wrong_cross_layer_call_is_a_type_error(tmp_path: Path) -> None:
     probe = tmp_path / "probe_cross_layer.py"
     probe.write_text(PROBE, encoding="utf-8")

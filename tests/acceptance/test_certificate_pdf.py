@@ -38,6 +38,7 @@ def _text(pdf: bytes) -> list[str]:
     return [page.extract_text() for page in pypdf.PdfReader(io.BytesIO(pdf)).pages]
 
 
+@pytest.mark.slow
 def test_pdf_certificate_holds_the_verdict_every_limit_and_the_hashes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -90,6 +91,7 @@ def _long_record(record: dict[str, Any], rows: int) -> dict[str, Any]:
     return long
 
 
+@pytest.mark.slow
 def test_long_tables_break_across_pages_with_the_header_repeated(tmp_path: Path) -> None:
     _, record = _verified(tmp_path)
     pages = _text(certificate_pdf(_long_record(record, 150), session_id="s1"))
@@ -101,6 +103,7 @@ def test_long_tables_break_across_pages_with_the_header_repeated(tmp_path: Path)
     assert all(f"L{i:03d}-" in every_row for i in range(150))
 
 
+@pytest.mark.slow
 def test_no_text_is_drawn_past_the_margins(tmp_path: Path) -> None:
     _, record = _verified(tmp_path)
     pages = _layout(certificate_content(_long_record(record, 40), session_id="s1"))
@@ -127,6 +130,7 @@ def test_certificate_of_a_folder_that_is_no_session_names_it(
     assert not (tmp_path / "nowhere").exists()
 
 
+@pytest.mark.slow
 def test_a_record_with_no_rows_sessions_or_frames_still_prints(tmp_path: Path) -> None:
     _, record = _verified(tmp_path)
     empty = {**copy.deepcopy(record), "rows": [], "sessions": []}

@@ -65,6 +65,7 @@ def test_the_example_spec_passes_an_mtf_session_as_the_readme_shows(
     assert "unit verdict: PASS" in out and "indeterminate" not in out
 
 
+@pytest.mark.slow
 def test_every_example_limit_is_decided_on_simulated_sessions(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

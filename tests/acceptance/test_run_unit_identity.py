@@ -12,6 +12,7 @@ from sim_runs import RAD_SMALL, only_session
 from benchlab.cli.main import main
 
 
+@pytest.mark.slow
 def test_run_stores_serial_and_lot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "sessions"
     assert main(["run", "radiometry", "--simulate", "--yes", "--params", str(RAD_SMALL),

@@ -37,6 +37,7 @@ def test_fov_centre_whole_circle_is_the_centroid() -> None:
     assert c.radius_px == pytest.approx(300, rel=0.01)
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None)
 @given(r0=st.floats(500, 900), c0=st.floats(300, 900), radius=st.floats(300, 500))
 def test_fov_centre_of_a_clipped_circle(r0: float, c0: float, radius: float) -> None:

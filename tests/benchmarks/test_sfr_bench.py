@@ -19,6 +19,7 @@ def check() -> BenchCheck:
     return run_bench_check(bits=8, seed=3)
 
 
+@pytest.mark.slow
 def test_every_edge_follows_the_scene_truth_to_nyquist(check: BenchCheck) -> None:
     assert len(check.edge_rows) == 12
     assert all(r["status"] == "ok" for r in check.edge_rows)

@@ -47,6 +47,7 @@ def _unlike_any_reanalysis(session: Path) -> None:
         path.write_text(json.dumps(rows))
 
 
+@pytest.mark.slow
 def test_a_run_an_analysis_and_a_report_update_the_catalogue(
     source: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -223,6 +224,7 @@ for i in range(n):
 """
 
 
+@pytest.mark.slow
 def test_concurrent_runs_write_while_a_batch_reads(source: Path, tmp_path: Path) -> None:
     root = tmp_path / "root"
     batch = [copy_session(source, root / f"b{i}") for i in range(4)]

@@ -26,6 +26,7 @@ def clipped_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+@pytest.mark.slow
 def test_clipped_position_is_recorded_as_clipped(clipped_root: Path) -> None:
     with Catalog.open(clipped_root) as cat:
         cat.reindex()

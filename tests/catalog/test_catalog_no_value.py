@@ -45,6 +45,7 @@ def root(source: Path, tmp_path: Path) -> Path:
     return root
 
 
+@pytest.mark.slow
 def test_trend_has_no_value_for_unresolved_and_aliased(
     root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,

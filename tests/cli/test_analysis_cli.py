@@ -133,6 +133,7 @@ def test_session_folder_is_handed_to_procedures(tmp_path: Path, monkeypatch) -> 
     assert seen and seen[0].target == str(tmp_path) and seen[0].estimator == "histogram"
 
 
+@pytest.mark.slow
 def test_benchmark_table_on_a_small_grid() -> None:
     cases, scores = run_benchmark(n_cases=40, seed=1, workers=1,
                                   estimators=("profilefit", "histogram"))

@@ -81,6 +81,7 @@ def small_mtf(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return run_sim("mtf", tmp_path_factory.mktemp("mtf"), MTF_SMALL).session_path
 
 
+@pytest.mark.slow
 def test_cli_and_api_reanalysis_match_the_run_and_accept_an_open_session(
     small_mtf: Path,
 ) -> None:

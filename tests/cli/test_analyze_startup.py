@@ -41,6 +41,7 @@ def _copy(src: Path, dst: Path) -> Path:
     return Path(shutil.copytree(src, dst / src.name))
 
 
+@pytest.mark.slow
 def test_analyze_session_imports_no_opencv_nor_tifffile(small_mtf: Path, tmp_path: Path) -> None:
     path = _copy(small_mtf, tmp_path)
     code = ("import sys, json; from benchlab.cli.main import main; "

@@ -39,6 +39,7 @@ def small_mtf(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return run_sim("mtf", tmp_path_factory.mktemp("mtf"), MTF_SMALL).session_path
 
 
+@pytest.mark.slow
 def test_a_forward_view_warning_is_printed_once(small_mtf: Path) -> None:
     done = subprocess.run([sys.executable, "-c", _PROGRAM, str(small_mtf)],
                           capture_output=True, text=True, timeout=120)

@@ -3,9 +3,12 @@ fast reading agrees with the full chart reading, and the table prints every row.
 
 from __future__ import annotations
 
+import pytest
+
 from benchlab.benchmarks.focus_aid import ESTIMATORS, format_benchmark, run_benchmark
 
 
+@pytest.mark.slow
 def test_focus_aid_rows_agree_with_the_full_chart_reading() -> None:
     rows = run_benchmark(seconds=0.05, frames=2)
     assert [(r["bits"], r["estimator"]) for r in rows] == [

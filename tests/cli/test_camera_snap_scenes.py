@@ -48,6 +48,7 @@ def test_unknown_scene_is_refused_by_name(
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_snap_seed_gives_the_same_simulated_frame_every_time(tmp_path: Path) -> None:
     import tifffile
 

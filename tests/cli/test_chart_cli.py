@@ -57,6 +57,7 @@ def test_find_chart_table_and_plot(posed_frame: Path, tmp_path: Path,
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and plot.stat().st_size > 20_000
 
 
+@pytest.mark.slow
 def test_analyze_chart_measures_every_found_element(posed_frame: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
@@ -124,6 +125,7 @@ def test_help_texts() -> None:
         assert exc.value.code == 0
 
 
+@pytest.mark.slow
 def test_benchmark_chart_scores_a_frame(capsys: pytest.CaptureFixture[str]) -> None:
     from benchlab.benchmarks.chart import run_chart_benchmark
 

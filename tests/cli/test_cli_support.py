@@ -119,6 +119,7 @@ def test_permission_error_names_the_installed_rule_and_commands() -> None:
     assert "sudo udevadm control --reload-rules && sudo udevadm trigger" in text
 
 
+@pytest.mark.slow
 def test_benchmark_startup_times_both_commands(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     from benchlab.session import Session

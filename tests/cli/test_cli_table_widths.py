@@ -35,6 +35,7 @@ def characterised(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return root, out.getvalue()
 
 
+@pytest.mark.slow
 def test_characterise_tables_fit_80_columns_with_one_footnote(
         characterised: tuple[Path, str]) -> None:
     _, text = characterised

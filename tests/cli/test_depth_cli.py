@@ -17,6 +17,7 @@ SMALL = FIXTURES / "depth-small.toml"
 RUN = ["run", "depth", "--simulate", "--yes", "--params", str(SMALL)]
 
 
+@pytest.mark.slow
 def test_kill_9_mid_sweep_then_resume_repeats_no_position(tmp_path: Path) -> None:
     status, _, _ = signal_mid_run(RUN, tmp_path, after_steps=6,  # setup, mount-0, 4 positions
                                   sig=signal.SIGKILL)
@@ -53,6 +54,7 @@ def test_benchmark_depth_is_a_command() -> None:
     assert args.seeds == 2 and args.variants == "nominal"
 
 
+@pytest.mark.slow
 def test_ctrl_c_mid_sweep_leaves_the_bench_safe_and_resumable(tmp_path: Path) -> None:
     status, out, err = signal_mid_run(RUN, tmp_path, after_steps=4, sig=signal.SIGINT)
     assert status == 130

@@ -53,6 +53,7 @@ def test_the_simulated_bench_passes_every_check(
     ("led-usb-hid", "plugged in by USB (HID, which benchlab cannot drive): SLC-MA04-U serial "
                     "04-251013-021 (usb 1-2, ffff:0001)"),
 ])
+@pytest.mark.slow
 def test_each_injected_fault_is_named(
     fault: str, named: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -16,6 +16,7 @@ from benchlab.scenes.world import SimWorld
 from benchlab.session import Session
 
 
+@pytest.mark.slow
 def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
     status, _, _ = signal_mid_run(["run", "mtf", "--simulate", "--yes"], tmp_path,
                                   after_steps=10, sig=signal.SIGKILL)
@@ -46,6 +47,7 @@ def test_kill_9_mid_run_then_resume(tmp_path: Path) -> None:
             assert row[f"{o}_modulation"] == pytest.approx(truth, abs=0.05)
 
 
+@pytest.mark.slow
 def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                      monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("COLUMNS", "200")  # a wide terminal: each table row on one line
@@ -78,6 +80,7 @@ def test_run_analyze_report_commands(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert "Table 4.11" in text and "data:image/png;base64," in text
 
 
+@pytest.mark.slow
 def test_radiometry_command_and_resume_of_a_finished_session(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -108,6 +111,7 @@ def test_unknown_estimator_is_a_clean_error(
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_real_ctrl_c_mid_radiometry_then_resume(tmp_path: Path) -> None:
     status, _, err = signal_mid_run(["run", "radiometry", "--simulate", "--yes"], tmp_path,
                                     after_steps=2, sig=signal.SIGINT)

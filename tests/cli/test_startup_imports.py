@@ -151,6 +151,7 @@ def test_startup_spread_is_median_quartiles_and_range() -> None:
         spread([])
 
 
+@pytest.mark.slow
 def test_startup_benchmark_interleaves_two_installs(tmp_path: Path) -> None:
     """Each round runs each command once per install, the order reversed every other round;
     the warm-up round (cached bytecode only) is not counted; the ratio of medians is printed."""

@@ -38,6 +38,7 @@ def frames(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return out
 
 
+@pytest.mark.slow
 def test_unwrap_frame_writes_view_mask_and_mapping(frames: dict[str, Path], tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     src = frames["card"]
@@ -112,6 +113,7 @@ def test_perspective_and_viewpoint_commands(frames: dict[str, Path], tmp_path: P
     assert "effective viewpoint z = -6.399" in text and "SVP spread 16." in text
 
 
+@pytest.mark.slow
 def test_ring_calibration_recovers_the_table(frames: dict[str, Path], tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     pixels = tifffile.imread(frames["rings"])
@@ -153,6 +155,7 @@ def mtf_run(tmp_path_factory: pytest.TempPathFactory) -> RunOutcome:
     return run_sim("mtf", tmp_path_factory.mktemp("mtf"), MTF_SMALL)
 
 
+@pytest.mark.slow
 def test_unwrap_session_adds_a_results_version_frames_untouched(
         mtf_run: RunOutcome, capsys: pytest.CaptureFixture[str]) -> None:
     session = Session.open(mtf_run.session_path)

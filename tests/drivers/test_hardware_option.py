@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from conftest import hardware_environment
 
 from benchlab.drivers.slc.sim import SimulatedSlc
@@ -27,6 +28,7 @@ def test_the_bench_file_names_the_devices_and_their_limits(tmp_path: Path) -> No
         "BENCHLAB_HW_STAGE_COUNTS_PER_MM": "34304.0"}
 
 
+@pytest.mark.slow
 def test_the_light_source_contract_runs_on_the_named_port(tmp_path: Path) -> None:
     with SimulatedSlc(channels=4) as sim:
         bench = tmp_path / "bench.toml"

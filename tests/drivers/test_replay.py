@@ -34,6 +34,7 @@ def _no_replay_left() -> Any:
     io_trace.stop()
 
 
+@pytest.mark.slow
 def test_a_snap_replays_pixel_identical_without_a_simulator(tmp_path: Path) -> None:
     cassette, a, b = tmp_path / "snap.jsonl.gz", tmp_path / "a.tiff", tmp_path / "b.tiff"
     assert main(["--trace-io", str(cassette), "snap", "--simulate", "--seed", "5",

@@ -106,6 +106,7 @@ def _valid_frame(values: list[int], bits: int, exposure_counts: int) -> bytearra
     return buf
 
 
+@pytest.mark.slow
 def test_mightex_frames_decode_exactly_or_raise_protocol_error() -> None:
     """A valid frame, then random byte mutations and a short transfer: decodes to exactly
     the bytes' pixels while the length and the trailer's geometry hold, else ProtocolError.
@@ -172,6 +173,7 @@ class _ReplyPort:
     def close(self) -> None: ...
 
 
+@pytest.mark.slow
 @settings(max_examples=120, deadline=None)
 @given(reply=st.one_of(st.binary(max_size=60),
                        st.binary(max_size=40).map(lambda b: b"#" + b + b"\n\r"),

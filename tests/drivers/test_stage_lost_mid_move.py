@@ -62,6 +62,7 @@ def test_bench_keeps_the_lost_stage_error_and_switches_the_led_off() -> None:
     assert "(LEDs off)" in notes and "stage: stage:" not in notes
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("quick_silence")
 def test_run_fails_the_step_with_a_clear_error_journalled_and_leds_off(
     tmp_path: Path,

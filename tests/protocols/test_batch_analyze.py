@@ -25,6 +25,7 @@ def _frame_hashes(session: Path) -> dict[str, str]:
     return {p.name: sha256_file(p) for p in sorted((session / "frames").iterdir())}
 
 
+@pytest.mark.slow
 def test_batch_equals_single_session_analysis(source: Path, tmp_path: Path) -> None:
     batch = [copy_session(source, tmp_path / "batch" / f"s{i}") for i in range(2)]
     single = copy_session(source, tmp_path / "single" / "s")
@@ -142,6 +143,7 @@ def test_dask_scheduler_runs_the_same_analysis(source: Path, tmp_path: Path) -> 
         assert results_files(Path(item.results)) == expected
 
 
+@pytest.mark.slow
 def test_benchmark_batch_prints_its_figures_and_the_flush_policies(
         source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["benchmark", "batch", "--sessions", "2", "--jobs", "1", "--source",

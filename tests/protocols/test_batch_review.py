@@ -31,6 +31,7 @@ def _analyses(session: Path) -> int:
     return sum(json.loads(line).get("kind") == "reanalysis_started" for line in lines if line)
 
 
+@pytest.mark.slow
 def test_one_session_named_by_several_spellings_is_analysed_once(
     source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -115,6 +116,7 @@ def test_footer_claims_verified_frames_only_for_the_sessions_analysed(
     assert "verified" not in footer  # their frames changed: nothing verified unchanged
 
 
+@pytest.mark.slow
 def test_partial_results_are_marked_on_every_table_and_verdict(
     source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

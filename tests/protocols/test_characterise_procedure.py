@@ -45,6 +45,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Any:
     return run_sim("characterise", root, SMALL)
 
 
+@pytest.mark.slow
 def test_results_carry_every_key_and_the_simulator_truth(run: Any) -> None:
     rows = run.tables["characterisation"]
     assert [(r["gain"], r["bits"]) for r in rows] == [(1.0, 12), (1.0, 8)]
@@ -97,6 +98,7 @@ def test_reanalysis_reproduces_the_results(run: Any) -> None:
     assert tables["characterisation"] == run.tables["characterisation"]
 
 
+@pytest.mark.slow
 def test_user_bench_file_is_pointed_at_each_new_version(tmp_path: Path, tiny: Path) -> None:
     bench = tmp_path / "bench.toml"
     shutil.copy(Path(BenchConfig.load(None, simulate=True).source), bench)
@@ -168,6 +170,7 @@ def test_cli_run_prints_the_session(tmp_path: Path, tiny: Path,
     assert "results:" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_radiometry_records_and_applies_the_calibration(run: Any, tmp_path: Path) -> None:
     bench_file = Path(run.session_path).parent / "calibration" / "bench-v1.toml"
     plain = run_sim("radiometry", tmp_path / "a", RAD_SMALL)
@@ -221,6 +224,7 @@ def test_led_current_sweep_option(tmp_path: Path) -> None:
     assert 0 < min(signals) < 0.05 * max(signals)  # dim (1 mA) and bright points both
 
 
+@pytest.mark.slow
 def test_report_renders_the_characterisation(run: Any) -> None:
     from benchlab.report.render import render_report
 

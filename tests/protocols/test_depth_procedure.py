@@ -18,6 +18,7 @@ from benchlab.session import Session
 SMALL = FIXTURES / "depth-small.toml"
 
 
+@pytest.mark.slow
 def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
     prompts: list[str] = []
 
@@ -63,6 +64,7 @@ def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
     assert depth.count("data:image/svg+xml") == 4
 
 
+@pytest.mark.slow
 def test_abort_mid_sweep_leaves_the_bench_safe_and_resume_repeats_nothing(
         tmp_path: Path) -> None:
     abort = threading.Event()
@@ -94,6 +96,7 @@ def test_abort_mid_sweep_leaves_the_bench_safe_and_resume_repeats_nothing(
     assert {k: v for k, v in Session.open(path).frames().items() if k in before} == before
 
 
+@pytest.mark.slow
 def test_without_a_stage_the_operator_moves_the_chart(tmp_path: Path) -> None:
     cfg_file = tmp_path / "bench.toml"
     cfg_file.write_text('[camera]\nserial = ""\n')  # no [stage]
@@ -116,6 +119,7 @@ def test_without_a_stage_the_operator_moves_the_chart(tmp_path: Path) -> None:
         truth[(first["field_point"], first["criterion"])]["best_focus_mm"], abs=1.0)
 
 
+@pytest.mark.slow
 def test_radial_view_moves_each_rolled_pattern_from_the_side_wall(tmp_path: Path) -> None:
     out = run_sim("depth", tmp_path, FIXTURES / "depth-radial-small.toml")
     steps = [e["step_id"] for e in events(out.session_path) if e["kind"] == "step_completed"]

@@ -45,6 +45,7 @@ def _noise_free(params: DepthParams) -> list:
     return out
 
 
+@pytest.mark.slow
 def test_best_focus_of_a_noise_free_sweep_is_the_truth_within_0_02_mm() -> None:
     params = _params(("sagittal",), (RADIAL_ROI_BOX,))
     tables, summary = analyze_radial(_noise_free(params), params)
@@ -77,6 +78,7 @@ def test_the_eq29_modulation_is_flat_about_focus_but_the_fundamental_peaks() -> 
     assert sig[1] < 0.7 * min(sig[0], sig[2])  # the blur (and so the fundamental) is not flat
 
 
+@pytest.mark.slow
 def test_field_points_give_radial_field_curvature_against_the_truth() -> None:
     rois = ((330, 895, 370, 945), RADIAL_ROI_BOX)
     params = _params(("sagittal",), rois, field_curvature_per_mm2=0.0005)
@@ -98,6 +100,7 @@ def test_field_points_give_radial_field_curvature_against_the_truth() -> None:
     assert lo < curv["curvature_mm_per_mm2"] < hi
 
 
+@pytest.mark.slow
 def test_rings_below_the_threshold_get_best_focus_but_no_dof() -> None:
     params = _params(("tangential",), (RADIAL_ROI_BOX,))
     tables, _ = analyze_radial(_noise_free(params), params)
@@ -128,6 +131,7 @@ def test_truth_is_quoted_at_each_field_points_centroid() -> None:
     assert truth["image_height_mm"] == pytest.approx(h, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_a_sweep_that_misses_focus_is_not_measured_and_nothing_taken_is_refused() -> None:
     from benchlab.drivers.errors import BenchlabError
 

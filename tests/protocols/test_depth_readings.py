@@ -24,6 +24,7 @@ def _frame(target: str, distance_mm: float) -> np.ndarray:
     return np.round(20.0 + 170.0 * rate / rate.max() + noise)  # the chart's 20 / 190 levels
 
 
+@pytest.mark.slow
 def test_edges_are_read_where_the_found_chart_puts_them() -> None:
     z = 70.0
     r = read_position(_frame("usaf", z), (35.0,), full_scale=255.0, read_bars=True)

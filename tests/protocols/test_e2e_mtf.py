@@ -27,6 +27,7 @@ def _rows(outcome: RunOutcome, table: str) -> list[dict[str, Any]]:
     return list(outcome.tables[table])
 
 
+@pytest.mark.slow
 def test_every_table_4_10_step_ran_once_and_frames_are_lossless(full_run: RunOutcome) -> None:
     session = Session.open(full_run.session_path)
     evs = events(full_run.session_path)

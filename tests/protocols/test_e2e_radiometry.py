@@ -43,6 +43,7 @@ def _safe(bench: Bench) -> None:
     assert not bench.sim_stage.moving
 
 
+@pytest.mark.slow
 def test_full_default_radiometry_against_truth(tmp_path: Path) -> None:
     outcome = run_sim("radiometry", tmp_path)
     rows = outcome.tables["table_4_16"]
@@ -86,6 +87,7 @@ def _resume_and_check(path: Path) -> None:
     assert len(saved) == len(set(saved)) == 6
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("quick_silence")
 def test_led_controller_silent_mid_run(tmp_path: Path) -> None:
     def inject(bench: Bench) -> None:
@@ -96,6 +98,7 @@ def test_led_controller_silent_mid_run(tmp_path: Path) -> None:
     _resume_and_check(path)
 
 
+@pytest.mark.slow
 def test_stage_limit_switch_mid_move(tmp_path: Path) -> None:
     def inject(bench: Bench) -> None:
         bench.sim_stage.faults.limit_at_mm = 20.0
@@ -104,6 +107,7 @@ def test_stage_limit_switch_mid_move(tmp_path: Path) -> None:
     _resume_and_check(path)
 
 
+@pytest.mark.slow
 def test_camera_unplugged_mid_frame_with_the_led_on(tmp_path: Path) -> None:
     def inject(bench: Bench) -> None:
         bench.sim_camera.faults.unplug_mid_frame = True
@@ -113,6 +117,7 @@ def test_camera_unplugged_mid_frame_with_the_led_on(tmp_path: Path) -> None:
     _resume_and_check(path)
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("quick_silence")
 def test_retry_after_fault_in_the_same_process(tmp_path: Path) -> None:
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
@@ -134,6 +139,7 @@ def test_retry_after_fault_in_the_same_process(tmp_path: Path) -> None:
     assert tables_of(outcome.results_path)["table_4_16"] == outcome.tables["table_4_16"]
 
 
+@pytest.mark.slow
 def test_abort_during_a_stage_move_stops_it(tmp_path: Path) -> None:
     abort = threading.Event()
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True,
@@ -152,6 +158,7 @@ def test_abort_during_a_stage_move_stops_it(tmp_path: Path) -> None:
     assert "position-25" not in Session.open(runner.session.path).completed_steps()
 
 
+@pytest.mark.slow
 def test_retry_after_the_camera_is_plugged_back_in(tmp_path: Path) -> None:
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:
         fired: list[str] = []

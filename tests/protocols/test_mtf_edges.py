@@ -125,6 +125,7 @@ def test_a_bar_reading_that_does_not_fit_is_flagged(forward: np.ndarray) -> None
     assert f"bars vs edge ({BASIS_COLTMAN})" in bad[0]["verdict"]
 
 
+@pytest.mark.slow
 def test_chart_read_sets_are_judged_on_their_predicted_reading(forward: np.ndarray) -> None:
     # The default (chart) reading: each set imaged through the edges' transfer at its height
     # and read by the same estimator at the same ROI, blur prior and noise. On the simulated
@@ -170,6 +171,7 @@ def test_frame_without_the_edge_target_reports_why_and_compares_nothing() -> Non
     assert all(isinstance(res, str) and "off the" in res for _, res in off)
 
 
+@pytest.mark.slow
 def test_report_section_counts_disagreements_and_notes_old_results(forward: np.ndarray) -> None:
     from benchlab.report.sfr import render_sfr_section
 

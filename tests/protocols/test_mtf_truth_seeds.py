@@ -37,6 +37,7 @@ def off_by(rows: list[dict[str, object]], scene: UsafScene) -> dict[str, float]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [None, 2, 7, 8, 9])
 def test_table_4_11_reads_every_set_within_003_of_truth_at_any_seed(seed: int | None) -> None:
     # Before: the small G1/G2 ROIs (< 100 px) were read by a harmonic series whose dark level
@@ -51,6 +52,7 @@ def test_table_4_11_reads_every_set_within_003_of_truth_at_any_seed(seed: int | 
     assert {r["estimator"] for r in rows if r["modulation"] is not None} == {CHART_READING}
 
 
+@pytest.mark.slow
 def test_defocused_chart_sets_are_read_not_called_unresolved() -> None:
     # Before: G2E1T/G2E2S/G2E2T "not resolved" vs truths 0.078/0.043/0.039 (the small-ROI
     # noise estimate held the bar ends' blur).

@@ -47,6 +47,7 @@ def _check_nothing_repeated(path: Path) -> None:
     assert Session.open(path).verify_frames() == []
 
 
+@pytest.mark.slow
 def test_exception_at_a_step_then_resume(tmp_path: Path, reference: dict[str, Any]) -> None:
     def prompt(step: Any, message: str) -> bool:
         if step.id == "roll-2-sagittal":
@@ -144,6 +145,7 @@ def test_declined_prompt_aborts_cleanly(tmp_path: Path) -> None:
     assert Session.open(path).completed_steps() == {"setup", "thread"}
 
 
+@pytest.mark.slow
 def test_a_failure_while_restoring_on_resume_is_a_failed_step(
     tmp_path: Path, reference: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -48,6 +48,7 @@ def test_relative_reference_is_absolute_at_load(bench_dirs: tuple[Path, Path],
     assert ref == str(a / "calibration" / "response-v1.json")
 
 
+@pytest.mark.slow
 def test_reanalysis_elsewhere_uses_the_sessions_copy_or_refuses(
         bench_dirs: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
@@ -94,6 +95,7 @@ def test_reanalysis_elsewhere_uses_the_sessions_copy_or_refuses(
     assert sorted(p.name for p in (session / "results").iterdir()) == ["v1"]
 
 
+@pytest.mark.slow
 def test_session_without_a_copy_is_refused_when_the_file_differs(
         bench_dirs: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:

@@ -30,6 +30,7 @@ def _params(tmp_path: Path, name: str, text: str) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_clipped_rows_have_no_number_and_say_why(tmp_path: Path) -> None:
     """At 50 mA (allowed) the brightest positions clip at 255: flagged, not normalised;
     the clean rows are normalised among themselves and match the scene's fall-off."""
@@ -88,6 +89,7 @@ def test_reading_mask_ignores_a_clipped_locator_frame() -> None:
         reading_mask(locator, np.zeros_like(meas), 0.5)
 
 
+@pytest.mark.slow
 def test_dark_frames_are_rejected_and_taken_again_on_retry(tmp_path: Path) -> None:
     """The LED failed to light at 18 mm (frames with no LED): the step fails, its frames are
     journalled as rejected and kept; the retry takes new ones and the results use those."""
@@ -133,6 +135,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_resume_retakes_frames_with_no_led_in_a_real_process(tmp_path: Path) -> None:
     """The LED at 45 mm is out of view: each run of the step takes new frames (rejecting the
     last), never reuses the bad ones; the old ones stay on disk; analyze names what it

@@ -31,6 +31,7 @@ def _copy(src: Path, dst: Path) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_fifty_identical_reanalyses_leave_one_version(radiometry_session: Path,
                                                       tmp_path: Path) -> None:
     path = _copy(radiometry_session, tmp_path)
@@ -45,6 +46,7 @@ def test_fifty_identical_reanalyses_leave_one_version(radiometry_session: Path,
     assert len(matched) == 50 and {e["version"] for e in matched} == {1}
 
 
+@pytest.mark.slow
 def test_a_different_estimator_or_software_version_adds_a_version(
     radiometry_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -60,6 +62,7 @@ def test_a_different_estimator_or_software_version_adds_a_version(
     assert Session.open(path).result_versions() == [1, 2, 3, 4]
 
 
+@pytest.mark.slow
 def test_results_that_differ_add_a_version(radiometry_session: Path, tmp_path: Path) -> None:
     """Same frames, settings and software: a result file edited in v1 (results differ) means
     a new version, never a match with different bytes."""

@@ -76,6 +76,7 @@ def retaken(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, s
     return path, before, done
 
 
+@pytest.mark.slow
 def test_retake_of_a_completed_session_in_a_real_process(
         retaken: tuple[Path, dict[str, str], subprocess.CompletedProcess[str]]) -> None:
     path, before, done = retaken
@@ -128,6 +129,7 @@ def test_the_new_take_is_analysed_and_recorded(
         "r1", ["position-18"], "adopted", {"position-18": 2})
 
 
+@pytest.mark.slow
 def test_unknown_or_untaken_step_is_a_usage_error_and_changes_nothing(tmp_path: Path) -> None:
     path = run_sim("radiometry", tmp_path, RAD_SMALL).session_path
     before = _snapshot(path)
@@ -165,6 +167,7 @@ def _wait_for(path: Path, kind: str, proc: subprocess.Popen[str], timeout_s: flo
     raise AssertionError(f"no {kind} of a retake in {timeout_s} s")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_stopped_retake_leaves_the_previous_take_current(tmp_path: Path, sig: int) -> None:
     """Stopped (SIGTERM: the shutdown path; SIGKILL: nothing runs) after the retake's first
@@ -210,6 +213,7 @@ def test_stopped_retake_leaves_the_previous_take_current(tmp_path: Path, sig: in
                   )["measured_mean_gray"] == pytest.approx(_truth18(session), abs=1.0)
 
 
+@pytest.mark.slow
 def test_abort_mid_retake_leaves_the_bench_safe_and_the_old_take(tmp_path: Path) -> None:
     path = _bumped_session(tmp_path)
     abort = threading.Event()
@@ -232,6 +236,7 @@ def test_abort_mid_retake_leaves_the_bench_safe_and_the_old_take(tmp_path: Path)
     assert session.latest_results() == path / "results" / "v1"
 
 
+@pytest.mark.slow
 def test_mtf_retake_sets_the_bench_up_again_and_reproduces_the_results(
         tmp_path: Path) -> None:
     """Noise-free: retaking the forward frame and one radial roll (their set-ups replayed,
@@ -266,6 +271,7 @@ def test_mtf_retake_sets_the_bench_up_again_and_reproduces_the_results(
     assert meta["source"] == "frames/radial-2-sagittal__radial.take2.tiff"
 
 
+@pytest.mark.slow
 def test_results_are_stale_until_reanalysed(tmp_path: Path,
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     """The retake was adopted but its analysis failed: the session is still completed (its
@@ -301,6 +307,7 @@ def test_results_are_stale_until_reanalysed(tmp_path: Path,
     assert _row18(v2)["measured_mean_gray"] == pytest.approx(_truth18(session), abs=1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("quick_silence")
 def test_retake_while_resuming_an_unfinished_session(tmp_path: Path) -> None:
     """Stopped before 25 mm; resumed with --retake position-15: 15 mm taken again, 25 mm

@@ -65,6 +65,7 @@ def _points(ax: Any) -> list[Line2D]:
             and ln.get_linestyle() in ("None", "none", "")]
 
 
+@pytest.mark.slow
 def test_no_simulated_square_wave_curve_exceeds_one(figure: Figure) -> None:
     curves = [ln for ax in figure.axes for ln in _curves(ax)]
     assert len(curves) == 16  # 4 forward + 4 radial field points, S and T each

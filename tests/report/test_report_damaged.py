@@ -27,6 +27,7 @@ def _report_fails(session: Path, capsys: pytest.CaptureFixture[str]) -> str:
     return err
 
 
+@pytest.mark.slow
 def test_a_row_without_a_key_the_report_needs(
     source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -37,6 +38,7 @@ def test_a_row_without_a_key_the_report_needs(
     assert f"{table}: row 1 has no 'image_lp_per_mm'" in err
 
 
+@pytest.mark.slow
 def test_a_value_of_the_wrong_kind_names_the_section(
     source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -7,6 +7,8 @@ import base64
 import re
 from typing import Any
 
+import pytest
+
 from benchlab.report.depth import depth_section
 from benchlab.report.tables import cell
 
@@ -26,6 +28,7 @@ def _curves(fp: str, orientation: str, peak: float) -> list[dict[str, Any]]:
              "modulation_sigma": 0.002, "status": "ok"} for z in (3.0, 4.5, 6.0, 7.5, 9.0)]
 
 
+@pytest.mark.slow
 def test_a_radial_session_gets_its_curves_per_field_point() -> None:
     dof = [_dof("r330c895", "sagittal", 1.7962, 6.0), _dof("r330c895", "tangential", 1.7962, 5.9),
            _dof("r250c1000", "sagittal", 2.4827, 6.0), _dof("r250c1000", "tangential", 2.4827,

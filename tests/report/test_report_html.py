@@ -24,6 +24,7 @@ from benchlab.report.render import ReportError, render_report, write_report
 from benchlab.session import Session
 
 
+@pytest.mark.slow
 def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Path) -> None:
     outcome = run_sim("mtf", tmp_path, MTF_SMALL)
     hashes = Session.open(outcome.session_path).frames()
@@ -56,6 +57,7 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     assert Session.open(outcome.session_path).verify_frames() == []
 
 
+@pytest.mark.slow
 def test_radiometry_report_has_the_fall_off(tmp_path: Path) -> None:
     outcome = run_sim("radiometry", tmp_path, RAD_SMALL)
     text = render_report(outcome.session_path)
@@ -121,6 +123,7 @@ def test_forward_curves_are_the_forward_scenes_truth() -> None:
         gaussian_mtf(0.3, 10.0, aperture="disc")
 
 
+@pytest.mark.slow
 def test_a_csv_curve_file_from_the_params_is_used(tmp_path: Path) -> None:
     csv = tmp_path / "zemax.csv"
     csv.write_text("view,field_angle_deg,direction,freq_lp_per_mm,mtf\n"

@@ -41,6 +41,7 @@ def linearised_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return session
 
 
+@pytest.mark.slow
 def test_overlay_mask_is_the_analysis_mask(linearised_session: Path) -> None:
     ctx = report_context(linearised_session)
     assert ctx.summary["linearised"] is not None
@@ -64,6 +65,7 @@ def test_overlay_mask_is_the_analysis_mask(linearised_session: Path) -> None:
     assert "linearised with the response calibration" in page
 
 
+@pytest.mark.slow
 def test_overlay_of_an_uncalibrated_session_says_raw_codes(tmp_path: Path) -> None:
     assert main(["run", "radiometry", "--simulate", "--yes", "--params", str(RAD_SMALL),
                  "--out", str(tmp_path / "s")]) == 0

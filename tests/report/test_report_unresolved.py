@@ -90,6 +90,7 @@ def test_tables_say_not_resolved_and_aliased_never_zero() -> None:
     assert "0.000" not in text
 
 
+@pytest.mark.slow
 def test_report_of_old_results_with_an_unresolved_t(source: Path, tmp_path: Path) -> None:
     s = copy_session(source, tmp_path / "s")
     latest = s / "results" / "v1"

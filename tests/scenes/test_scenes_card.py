@@ -37,6 +37,7 @@ def test_grid_lines_fall_where_the_table_sends_them() -> None:
     assert img.max() == pytest.approx(card.paper_rate, rel=0.01)  # blank paper outside the card
 
 
+@pytest.mark.slow
 def test_card_depth_moves_it_and_off_table_depths_are_refused() -> None:
     near, far = CardScene(object_radius_mm=16.88), CardScene(object_radius_mm=23.88)
     assert not np.array_equal(near.render(H, W), far.render(H, W))

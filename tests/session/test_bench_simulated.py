@@ -100,6 +100,7 @@ def test_real_bench_needs_ports_before_opening_anything(tmp_path: Path) -> None:
             pass
 
 
+@pytest.mark.slow
 def test_radiometry_without_a_stage_prompts_the_operator(tmp_path: Path) -> None:
     cfg = BenchConfig.from_dict({"led": {"channel": 1, "ceiling_ma": {"1": 50.0}}})
     asked: list[str] = []

@@ -96,6 +96,7 @@ def _session(root: Path) -> Session:
                           software_version="t")
 
 
+@pytest.mark.slow
 def test_saving_frames_parses_each_journal_line_once(tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """Before issue 39 every save re-parsed the whole journal: 200 frames cost ~20,000 parses."""
@@ -141,6 +142,7 @@ def test_session_names_a_corrupt_journal_line(tmp_path: Path) -> None:
         Session.open(session.path)
 
 
+@pytest.mark.slow
 def test_journal_benchmark_reports_flat_bookkeeping(tmp_path: Path) -> None:
     result = run_journal_benchmark(400, block=200, root=tmp_path)
     assert result.n_frames == 400 and len(result.ms_per_frame) == 2

@@ -135,6 +135,7 @@ def _stopped_after_last_step(root: Path) -> Path:
     return Path(runner.session.path)
 
 
+@pytest.mark.slow
 def test_every_frame_taken_is_not_partial_and_resume_finishes_partial_results(
         tmp_path: Path) -> None:
     path = _stopped_after_last_step(tmp_path)
@@ -157,6 +158,7 @@ def test_every_frame_taken_is_not_partial_and_resume_finishes_partial_results(
     assert Session.open(path).status == "completed"
 
 
+@pytest.mark.slow
 def test_a_run_stopped_before_its_frames_is_still_partial(tmp_path: Path) -> None:
     out = run_sim("radiometry", tmp_path, RAD_SMALL)
     meta = json.loads((out.session_path / "session.json").read_text())

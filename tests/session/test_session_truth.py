@@ -67,6 +67,7 @@ def _copy(src: Path, dst: Path) -> Path:
     return Path(shutil.copytree(src, dst / src.name))
 
 
+@pytest.mark.slow
 def test_dead_writer_shows_interrupted_everywhere(
     killed_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -87,6 +88,7 @@ def test_dead_writer_shows_interrupted_everywhere(
     assert "interrupted - results PARTIAL" in html
 
 
+@pytest.mark.slow
 def test_complete_session_analysis_is_not_partial(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -160,6 +162,7 @@ def test_resume_removes_temporary_files_of_a_killed_write(
     assert Session.open(path).status == "completed"
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_tui_lists_a_dead_writer_s_session_as_interrupted_with_partial_results(
     killed_session: Path, tmp_path: Path

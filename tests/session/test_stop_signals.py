@@ -117,6 +117,7 @@ def test_led_switches_off_on_every_stop_signal(led: SimulatedSlc, sig: signal.Si
 
 
 # ---- benchlab stage --------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_stage_stops_on_every_stop_signal(stage: SimulatedAptStage, sig: signal.Signals) -> None:
     proc = _benchlab("stage", "--port", stage.port, "--travel-mm", "0", "50", "move", "40",
@@ -156,6 +157,7 @@ def _assert_interrupted(root: Path, sig: signal.Signals) -> None:
     assert reasons == [sig.name]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_run_radiometry_led_on_then_signal(
     tmp_path: Path, led: SimulatedSlc, fast_stage: SimulatedAptStage, sig: signal.Signals
@@ -174,6 +176,7 @@ def test_run_radiometry_led_on_then_signal(
     _assert_interrupted(out, sig)
 
 
+@pytest.mark.slow
 def test_run_radiometry_stage_moving_then_sigterm(
     tmp_path: Path, led: SimulatedSlc, stage: SimulatedAptStage
 ) -> None:
@@ -190,6 +193,7 @@ def test_run_radiometry_stage_moving_then_sigterm(
     _assert_interrupted(out, signal.SIGTERM)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_run_mtf_signal_mid_run(
     tmp_path: Path, led: SimulatedSlc, stage: SimulatedAptStage, sig: signal.Signals
@@ -250,6 +254,7 @@ class _Screen:
         _wait(shown, f"{then_shows!r} after the key {key!r}", proc)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_tui_mid_radiometry_signal(
     tmp_path: Path, led: SimulatedSlc, fast_stage: SimulatedAptStage, sig: signal.Signals
@@ -297,6 +302,7 @@ def test_tui_mid_radiometry_signal(
     _assert_interrupted(sessions, sig)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["SIGTERM", "SIGHUP", "q"])
 def test_tui_stage_homing_stops_when_the_app_quits(
     tmp_path: Path, led: SimulatedSlc, how: str

@@ -10,6 +10,7 @@ from benchlab.session import Session
 from benchlab.tui.runner import RunScreen
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_characterise_run_through_the_ui(tmp_path) -> None:
     app = make_app(tmp_path, characterise=TINY)

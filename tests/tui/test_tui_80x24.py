@@ -68,6 +68,7 @@ async def test_every_procedures_checklist_is_readable_at_80x24(tmp_path: Path) -
                 assert step.title in what, (procedure, step.title, what)
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_depth_run_at_80x24_shows_the_dof_ends_and_keyed_buttons(tmp_path: Path) -> None:
     app = make_app(tmp_path, depth=DEPTH_PARAMS)
@@ -116,6 +117,7 @@ CHARACTERISE_PARAMS = (Path(__file__).resolve().parents[2] / "fixtures" / "param
                        / "characterise-small.toml").read_text(encoding="utf-8")
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_characterise_results_at_80x24_footnote_the_repeated_reason(
         tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from benchlab.scenes.usaf import UsafScene
 from benchlab.tui.drawing.chart_overlay import ChartFrameView, pick_element, roi_of
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_chart_overlay_and_picking(tmp_path: Path) -> None:
     app = make_app(tmp_path)

@@ -23,6 +23,7 @@ def _rows(table: DataTable) -> list[tuple[str, ...]]:
     return [tuple(str(c) for c in table.get_row_at(r)) for r in range(table.row_count)]
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_depth_run_through_the_ui_shows_positions_prompts_and_the_digest(
         tmp_path: Path) -> None:

@@ -17,6 +17,7 @@ from benchlab.session import Session
 from benchlab.tui.runner import RunScreen
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_abort_mid_sweep_then_retry_repeats_no_position(tmp_path: Path) -> None:
     app = make_app(tmp_path, depth=DEPTH_PARAMS)

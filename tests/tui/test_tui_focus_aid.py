@@ -57,6 +57,7 @@ def _carry(app: Any, distance_mm: float) -> None:
         bench.carry_target(distance_mm - bench.sim_stage.position_mm)
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_bars_follow_focus_and_the_peak_hold_is_the_best_reading(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -102,6 +103,7 @@ async def test_bars_follow_focus_and_the_peak_hold_is_the_best_reading(
         assert max(values[SUMMARY_KEY]) > 1.3 * values[SUMMARY_KEY][0]
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_chart_not_found_is_said_without_bars_and_off_stops_the_reader(
         tmp_path: Path) -> None:

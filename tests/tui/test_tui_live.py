@@ -11,6 +11,7 @@ from textual.widgets import Static
 from benchlab.tui.widgets import UPPER_HALF, FrameView
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_live_view_streams_and_obeys_keys(tmp_path: Path) -> None:
     app = make_app(tmp_path)

@@ -83,6 +83,7 @@ class _RacedPrompt(PromptDialog):
         return shown
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_focus_figure_before_mount_and_after_dismiss_the_run_completes(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

@@ -14,6 +14,7 @@ from benchlab.tui.drawing.plot import CtfPlot, render_plot
 from benchlab.tui.runner import STATUS_MARK, RunScreen
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_run_screen_is_readable_at_80x24_and_plots_the_readings(tmp_path: Path) -> None:
     app = make_app(tmp_path, mtf=MTF_PARAMS)
@@ -65,6 +66,7 @@ def _results_json(session: Session, table: str) -> list[dict]:
     return data["rows"] if isinstance(data, dict) else data
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_mtf_run_through_the_ui_writes_a_complete_session(tmp_path: Path) -> None:
     app = make_app(tmp_path, mtf=MTF_PARAMS)
@@ -102,6 +104,7 @@ async def test_mtf_run_through_the_ui_writes_a_complete_session(tmp_path: Path) 
         assert first[1] == f"{forward[0]['sagittal_modulation']:.3f}"  # S mod. second
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_radiometry_run_through_the_ui(tmp_path: Path) -> None:
     app = make_app(tmp_path, radiometry=RADIOMETRY_PARAMS)

@@ -25,6 +25,7 @@ frequencies_lp_per_mm = [2]
 """
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_interrupted_run_resumed_reanalysed_and_reported(tmp_path: Path) -> None:
     app = make_app(tmp_path, mtf=TINY_MTF)

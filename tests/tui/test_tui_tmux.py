@@ -48,6 +48,7 @@ def _alive(session: str) -> bool:
                           timeout=30, check=False).returncode == 0
 
 
+@pytest.mark.slow
 def test_benchlab_simulate_runs_in_tmux_and_quits(tmp_path: Path) -> None:
     session = f"benchlab-smoke-{uuid.uuid4().hex[:8]}"
     done = tmp_path / "exit-status"
@@ -78,6 +79,7 @@ def test_benchlab_simulate_runs_in_tmux_and_quits(tmp_path: Path) -> None:
             _tmux("kill-session", "-t", session)
 
 
+@pytest.mark.slow
 def test_q_during_a_run_asks_before_quitting_in_tmux(tmp_path: Path) -> None:
     session = f"benchlab-quit-{uuid.uuid4().hex[:8]}"
     done = tmp_path / "exit-status"

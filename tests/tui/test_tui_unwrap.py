@@ -8,6 +8,7 @@ import pytest
 from test_tui_helpers import make_app, open_live, wait_until
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_u_toggles_the_unwrapped_radial_view(tmp_path: Path) -> None:
     app = make_app(tmp_path)

@@ -117,6 +117,7 @@ def test_one_pixel_roi(name: str) -> None:
     assert any("pixels" in w or "samples" in w or "period" in w for w in r.warnings)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_whole_frame_roi(name: str) -> None:
     roi, case = bar_roi(0, shape=(1024, 1280), px_per_period=20.0, noise_sigma=3.0)

@@ -91,6 +91,7 @@ def test_histogram_peak_identical_to_straightforward_path(
     assert sum(r.resolved for r in fast) > 50  # the comparison covers real readings
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(y=arrays(np.float64, st.integers(1, 40), elements=st.sampled_from([0.0, 1.0, 2.0, 3.0])))
 def test_rises_maximum_is_the_array_maximum(y: np.ndarray) -> None:

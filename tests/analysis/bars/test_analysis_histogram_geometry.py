@@ -38,6 +38,7 @@ def _benchmark_roi(index: int) -> tuple[np.ndarray, Case, dict[str, object]]:
 FLAT_CALLED_RESOLVED = (1236, 1299, 1335)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", FLAT_CALLED_RESOLVED)
 def test_flat_rois_are_not_resolved(index: int) -> None:
     roi, case, kwargs = _benchmark_roi(index)

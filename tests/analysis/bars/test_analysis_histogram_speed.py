@@ -62,6 +62,7 @@ def _reference_massive_modes(smooth: np.ndarray, peaks: list[int]) -> list[int]:
     return [int(m[0]) for m in modes if m[1] >= limit]
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None)
 @given(y=arrays(np.float64, st.integers(3, 80), elements=st.floats(0.0, 50.0)))
 def test_massive_modes_match_the_merge_loop(y: np.ndarray) -> None:

@@ -264,6 +264,7 @@ def test_histogram_levels_from_inner_bars_not_background() -> None:
     assert r.resolved and r.modulation == pytest.approx(case.truth, abs=0.02)
 
 
+@pytest.mark.slow
 def test_benchmark_scores_clipped_cases_in_their_own_bucket() -> None:
     from benchlab.benchmarks.bars.estimators import (
         benchmark_cases,

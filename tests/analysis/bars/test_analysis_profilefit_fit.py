@@ -150,6 +150,7 @@ def test_one_period_across_with_the_spectral_direction_off() -> None:
     assert r.interval[0] <= case.truth <= r.interval[1]
 
 
+@pytest.mark.slow
 def test_benchmark_lists_the_worst_cases() -> None:
     """``benchlab benchmark analysis --worst N``: the N largest errors, largest first, each
     with the reading, interval and case parameters."""

@@ -145,6 +145,7 @@ def done_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["analyze"], ["report"], ["resume", "--simulate", "--yes"],
                                   ["report", "--out"]], ids=["analyze", "report", "resume",
                                                              "report-out"])

@@ -81,6 +81,7 @@ _DATA = json.loads(PINNED.read_text())
 _CASES = benchmark_cases(1500, 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("row", _DATA["benchmark"], ids=lambda r: f"case{r['case']}")
 def test_benchmark_case_reads_as_pinned(row: dict[str, object]) -> None:
     index = int(row["case"])  # type: ignore[call-overload]
@@ -91,6 +92,7 @@ def test_benchmark_case_reads_as_pinned(row: dict[str, object]) -> None:
         assert _same(got, row[name]), (name, got, row[name])  # type: ignore[arg-type]
 
 
+@pytest.mark.slow
 def test_extremes_read_as_pinned() -> None:
     pinned = _DATA["extremes"]
     rois = extreme_rois()

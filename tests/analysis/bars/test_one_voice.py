@@ -4,9 +4,12 @@ line what was used instead and why."""
 
 from __future__ import annotations
 
+import pytest
+
 from benchlab.benchmarks.bars.extremes import run_extremes
 
 
+@pytest.mark.slow
 def test_no_value_carries_a_not_resolved_warning() -> None:
     outcomes = run_extremes()
     values = [o for o in outcomes if o.result.resolved]

@@ -43,6 +43,7 @@ def test_levels_outside_the_data_fall_back_or_widen(seed: int | None) -> None:
         assert abs(m - truth) <= 1.96 * res.uncertainty
 
 
+@pytest.mark.slow
 def test_most_seeds_read_g1e5t_with_the_bar_model_within_001() -> None:
     close = [abs(m - t) <= 0.01 for t, _, _, m, _ in (read(s, *G1E5T) for s in range(1, 7))]
     assert sum(close) >= 5

@@ -73,6 +73,7 @@ def test_nominal_chart_is_found_where_the_layout_puts_it() -> None:
     ChartPose((-30.0, 70.0), 0.7, -15.0),
     ChartPose((12.5, 8.25), 1.1, 4.0),
 ])
+@pytest.mark.slow
 def test_any_offset_scale_and_rotation_with_vignetting_and_dust(pose: ChartPose) -> None:
     scene = UsafScene(pose=pose, vignetting=0.3)
     rng = np.random.default_rng(3)
@@ -159,6 +160,7 @@ def test_a_set_without_its_bars_is_rejected_as_ambiguous() -> None:
     assert fit.element(1, 2, "sagittal").found
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["flat", "dark", "noise", "disc"])
 def test_no_chart_found(kind: str) -> None:
     rng = np.random.default_rng(9)

@@ -40,6 +40,7 @@ def noiseless_roi(
     return img[r0:r1, c0:c1], geometry, scene.truth_modulation(g, e, o)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rotation", [6.0, -13.0])
 def test_fine_oblique_sets_of_a_rotated_chart_read_within_003(rotation: float) -> None:
     """Normal path: every found set at 2-2.5 px per period (8 and 12-bit frames) is read within
@@ -65,6 +66,7 @@ def test_fine_oblique_sets_of_a_rotated_chart_read_within_003(rotation: float) -
     assert fine >= 6
 
 
+@pytest.mark.slow
 def test_the_rule_keeps_generic_estimators_off_fine_oblique_sets() -> None:
     """Oblique sets are read down to Nyquist because the chart reading fixes the geometry; the
     generic estimators still need GENERIC_MIN_OBLIQUE_PX_PER_PERIOD: on these sets they miss
@@ -214,6 +216,7 @@ def test_blur_prior_comes_from_pinned_sets_near_in_image_height() -> None:
     assert r.result.resolved
 
 
+@pytest.mark.slow
 def test_a_stack_of_frames_reads_like_its_mean() -> None:
     scene = UsafScene(pose=ChartPose((0.0, 0.0), 1.1, 8.0))
     stack = np.stack([frame(scene, 12, seed=s) for s in (1, 2)])
@@ -261,6 +264,7 @@ def test_the_blur_shared_across_the_chart_reads_fine_sets_on_the_axes() -> None:
     assert abs(own.modulation - truth) > 0.06
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("scale", "label"), [(1.0, (2, 4, "sagittal")),
                                               (0.8, (2, 2, "tangential"))])
 def test_few_sampled_phases_widen_the_interval(scale: float, label: tuple[int, int, str]) -> None:
@@ -289,6 +293,7 @@ def test_a_small_pose_error_is_fitted_as_a_shift() -> None:
         assert r.modulation == pytest.approx(truth, abs=0.002)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("negative", [False, True])
 def test_read_chart_reads_every_set_with_the_charts_polarity(
     negative: bool, monkeypatch: pytest.MonkeyPatch

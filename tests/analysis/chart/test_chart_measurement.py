@@ -108,6 +108,7 @@ def test_a_neighbour_is_kept_out_of_the_roi() -> None:
     assert _measurement_roi(edge, [edge], shape)[0] == edge.roi
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pose", [ChartPose((10.0, -15.0), 1.1, 7.0),
                                   ChartPose((-20.0, 25.0), 0.9, -11.0)])
 def test_rotated_chart_read_within_003_down_to_nyquist(pose: ChartPose) -> None:

@@ -114,6 +114,7 @@ def _compare(ours: list[ModulationResult], ref: list[ModulationResult],
             np.testing.assert_allclose(a.interval, b.interval, rtol=0, atol=MODULATION_TOL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["procedure", "turned"])
 def test_the_fast_chart_reading_reads_what_the_exact_one_read(
     frames: dict[str, tuple[npt.NDArray[Any], ChartFit]], name: str,

@@ -19,6 +19,7 @@ from benchlab.report.render import render_report
 from benchlab.scenes.usaf import UsafScene
 
 
+@pytest.mark.slow
 def test_rotated_scaled_chart_gets_its_rois_and_the_report_shows_it(tmp_path: Path) -> None:
     pose = ChartPose((14.0, -22.0), 1.15, 9.0)
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True) as bench:

@@ -19,6 +19,7 @@ def frame() -> np.ndarray:
         return bench.grab(exposure_ms=300.0, gain=1.0)[0]
 
 
+@pytest.mark.slow
 def test_the_chart_is_found_once_then_tracked(frame: np.ndarray) -> None:
     tracker = ChartTracker(refind_every=3)
     found = [tracker.read(frame).refound for _ in range(7)]

@@ -39,6 +39,7 @@ def test_noise_free_curve_gives_the_closed_form_best_focus_and_ends() -> None:
     assert not est.near_extrapolated and not est.far_extrapolated
 
 
+@pytest.mark.slow
 def test_intervals_cover_the_truth_about_95_percent_of_noisy_sweeps() -> None:
     rng = np.random.default_rng(5)
     near, far = ends(0.5)

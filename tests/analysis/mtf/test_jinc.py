@@ -35,6 +35,7 @@ def _scipy_jinc(x: np.ndarray) -> np.ndarray:
     return out
 
 
+@pytest.mark.slow
 def test_bessel_j0_j1_match_scipy_to_near_double_precision() -> None:
     j0, j1 = bessel_j0_j1(GRID)
     assert np.max(np.abs(j0 - scipy_j0(GRID))) <= 3e-14

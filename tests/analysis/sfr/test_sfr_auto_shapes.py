@@ -117,6 +117,7 @@ def test_oracle_recovers_the_blur_of_a_noiseless_edge() -> None:
     assert (fit.dark, fit.bright) == pytest.approx((0.2, 0.8), abs=1e-7)
 
 
+@pytest.mark.slow
 def test_oracle_reads_the_benchmarks_own_cases() -> None:
     # iter_cases replays run_accuracy's random stream: the very images it scores.
     drawn = [(s, snr, c) for s, snr, c in iter_cases(1, 3, sigmas_px=(0.6,), snrs=(20.0, 50.0))]
@@ -138,6 +139,7 @@ def test_oracle_reads_the_benchmarks_own_cases() -> None:
     assert text.splitlines()[2].endswith("1.64x") and text.splitlines()[3].endswith("1.32x")
 
 
+@pytest.mark.slow
 def test_cli_oracle_prints_its_table(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["benchmark", "sfr", "--oracle", "--quick", "--seed", "1"]) == 0
     out = capsys.readouterr().out
