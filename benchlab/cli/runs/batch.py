@@ -161,6 +161,6 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "session's bookkeeping is linear in its frames when the last block costs what the first "
         "does. The default (10,000 frames) takes about 40 s on one core.",
     )
-    j.add_argument("--frames", type=positive_int, default=10_000, help="frames to save (10000)")
+    j.add_argument("--frames", type=positive_int, default=10_000, help="how many frames (10000)")
     j.add_argument("--block", type=positive_int, default=1000, help="frames per timed block (1000)")
     j.set_defaults(func=benchmark_journal_command)
