@@ -108,6 +108,11 @@ REFINE_MAX_PIXELS = 20_000
 REFINE_MAX_THETA_RAD = math.radians(6.0)
 REFINE_MAX_FREQ_REL = 0.15
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
+#: Given a frequency, bars whose sampling alias (1 - f cycles/px) lies fewer than this many
+#: Rayleigh steps (1 / span cycles/px) from f: the spectral peak is pulled by its alias (issue
+#: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
+#: so the given frequency rules.
+ALIAS_RAYLEIGH_STEPS = 2.5
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
@@ -600,7 +605,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # As in _apply_priors: on a few dozen pixels, or under two periods, the priors rule.
     few = prep.n_pixels < PRIORS_RULE_PIXELS
     fix_theta = prep.orientation_given and (few or abs(math.sin(2 * theta)) < 1e-12)
-    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0)
+    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0 or alias_unresolved(
+        f_prior, span))
     for _ in range(1 if fast else REFINE_ROUNDS):
         better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
         if better is None:
@@ -972,6 +978,13 @@ def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     return out
 
 
+def alias_unresolved(f_prior: float, span_px: float) -> bool:
+    """Whether bars of the given frequency ``f_prior`` (cycles/px) and their sampling alias
+    ``1 - f_prior`` lie fewer than :data:`ALIAS_RAYLEIGH_STEPS` Rayleigh steps apart over
+    ``span_px``: the ROI cannot measure the period then, and the given one rules."""
+    return (1.0 - 2.0 * f_prior) * span_px < ALIAS_RAYLEIGH_STEPS
+
+
 def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> BarGeometry:
     """Cross-check the measured geometry with the given frequency and orientation."""
     f_prior = prep.freq_cycles_per_px
@@ -1000,7 +1013,8 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
             # Under two periods the data cannot pin the period down: the prior rules.
             return replace(geom, freq_cycles_per_px=f_prior)
         message = frequency_disagreement(geom, f_prior)
-        if message and prep.n_pixels >= PRIORS_RULE_PIXELS:
+        if message and prep.n_pixels >= PRIORS_RULE_PIXELS and not alias_unresolved(
+                f_prior, span):
             warnings.append(message)
         else:
             # Consistent with the given frequency, which is known better (chart design and
