@@ -113,6 +113,10 @@ REFINE_MAX_FREQ_REL = 0.15
 #: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
 #: so the given frequency rules.
 ALIAS_RAYLEIGH_STEPS = 2.5
+#: From this frequency (cycles/px; 2.1 px per period) on, the reading is a lower bound
+#: (:func:`_sampled_phases_bound`): the bar phases drift across the ROI too slowly for the
+#: sampling to pin the bars' shape (sharp 2.03 px bars, 40 x 50 px: 0.70 for 0.80).
+NEAR_NYQUIST_CYCLES = 1.0 / 2.1
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
@@ -687,7 +691,31 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
                                  uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
+    if f >= NEAR_NYQUIST_CYCLES:
+        return _sampled_phases_bound(
+            resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental),
+            at_bins, sd_noise, max_gap, f)
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+def _sampled_phases_bound(
+    r: ModulationResult, at_bins: FloatArray, sd_noise: float, max_gap: float, f_px: float
+) -> ModulationResult:
+    """``r`` as a lower bound: the contrast of the fitted profile at the phases sampled, less
+    two noise sigmas. Bars within a few percent of 2 px per period are sampled at phases that
+    drift by less than a period across the ROI: the fit extrapolates the unsampled ones (issue
+    37: 0.310 [0.21, 0.41] for 0.75 at 2.0-2.05 px), while the sampled levels lie within the
+    imaged pattern's range, so their contrast never exceeds the bars'."""
+    lo, hi = float(at_bins.min()), float(at_bins.max())
+    if hi <= lo or hi + lo <= 0.0:
+        return r
+    m = max(0.0, min(eq29_modulation(lo, hi), r.modulation) - 2.0 * sd_noise)
+    reason = (f"{1.0 / f_px:.2f} px per period, within 5 % of 2 (largest gap between the bar "
+              f"phases sampled {max_gap:.2f} periods): the contrast at the phases sampled is a "
+              "lower bound")
+    return r.with_updates(dark=lo, bright=hi, modulation=m, interval=(m, 1.0),
+                          uncertainty=sd_noise, lower_bound=True, bound_reason=reason,
+                          warnings=(*r.warnings, f"lower bound: {reason}"))
 
 
 @dataclass
