@@ -553,7 +553,75 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         diag = replace(r.diagnostics, uncertainty_noise=r.uncertainty, uncertainty_model=model)
         return resolved(name, float(r.dark or 0.0), float(r.bright or 0.0), r.modulation,
                         diag, sd, warns, r.fundamental_modulation)
-    return _few_periods(prep, profile_fit(prep, fast))
+    return _integer_period(prep, _few_periods(prep, profile_fit(prep, fast)))
+
+
+#: Whole periods (px) at which axis-aligned lines sample only this many bar phases: the bars'
+#: blur cannot be told from their contrast (:func:`_integer_period`).
+INTEGER_PERIODS_PX = (3, 4, 5)
+#: ... when the phases drift by less than this (cycles) across the ROI (48.08 lp/mm at 5.2 um
+#: is 3.9997 px per period).
+PHASE_DRIFT_CYCLES = 0.05
+
+
+def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float64], float] | None:
+    """The mean level of each of the ``period`` bar phases sampled by the lines across
+    axis-aligned bars (a linear shading across them removed), and the standard error of one
+    level; ``None`` when a phase is sampled by fewer than two lines."""
+    profile = bar_profile(prep)
+    n = profile.size
+    if n < 2 * period + 2:
+        return None
+    x = np.arange(n, dtype=np.float64)
+    design = np.zeros((n, period + 1))
+    design[np.arange(n), np.arange(n) % period] = 1.0
+    design[:, period] = (x - x.mean()) / n
+    coef, *_ = np.linalg.lstsq(design, profile, rcond=None)
+    resid = profile - design @ coef
+    dof = max(n - period - 1, 1)
+    line_sd = max(math.sqrt(float(resid @ resid) / dof),
+                  prep.noise_sigma / math.sqrt(prep.pixels.shape[1 - prep.axis]))
+    return coef[:period], line_sd / math.sqrt(n // period)
+
+
+def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
+    """``r``, or on axis-aligned bars of a given whole period of 3-5 px the contrast of the
+    phase levels sampled (:func:`_phase_levels`) when the fit reads higher.
+
+    Lines at a whole period sample the same few bar phases: a sharp pattern and a blurred one
+    of higher contrast give the same samples, and the fit picks one (issue 37: the row
+    ``80 50 170 200`` repeated, sharp bars of levels 50 and 200, read 0.700 for 0.600). The
+    samples' contrast is that of sharp bars - and a lower end for blurred ones - so it is the
+    reading, with the interval reaching up to the fit's."""
+    f = prep.freq_cycles_per_px
+    if not r.resolved or r.lower_bound or not f or not prep.orientation_given:
+        return r
+    period = round(1.0 / f)
+    n_lines = prep.pixels.shape[prep.axis]
+    if period not in INTEGER_PERIODS_PX or abs(f - 1.0 / period) * n_lines > PHASE_DRIFT_CYCLES:
+        return r
+    found = _phase_levels(prep, period)
+    if found is None:
+        return r
+    levels, se = found
+    dark, bright = float(levels.min()), float(levels.max())
+    if bright <= dark or dark + bright <= 0.0:
+        return r
+    m = eq29_modulation(dark, bright)
+    if m >= r.modulation:
+        return r
+    sd = 2.0 * se * math.hypot(bright, dark) / (dark + bright) ** 2
+    d = r.diagnostics
+    sd_model = max(0.0, (r.interval[1] - m) / 1.96)
+    return r.with_updates(
+        dark=dark, bright=bright, modulation=m, uncertainty=math.hypot(sd, sd_model),
+        interval=(max(0.0, m - 1.96 * sd), max(r.interval[1], min(1.0, m + 1.96 * sd))),
+        diagnostics=replace(d, uncertainty_noise=sd, uncertainty_model=sd_model),
+        warnings=(*r.warnings, (
+            f"whole period of {period} px on axis-aligned bars: the lines sample {period} bar "
+            f"phases, which cannot tell sharp bars from blurred ones; the reading is the "
+            f"sampled phases' contrast (sharp bars), up to the fit's {r.modulation:.3f} "
+            "(blurred) in the interval")))
 
 
 def _with_model_term(r: ModulationResult, extra: float, warning: str) -> ModulationResult:

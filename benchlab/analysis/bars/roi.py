@@ -278,6 +278,10 @@ def saturation_code(
 PLATEAU_MIN_FRACTION = 0.005
 #: ... and at least this many times as many as in the code step just below it.
 PLATEAU_RATIO = 2.0
+#: ... and some pixel lies within this many code steps below it (for float data: this share of
+#: the data's range), else the top is one level of noise-free sharp bars.
+NEAR_TOP_STEPS = 8
+NEAR_TOP_RANGE = 0.03
 
 
 def detect_plateau(
@@ -301,7 +305,15 @@ def detect_plateau(
         n_below = int(np.count_nonzero((values >= top - step) & (values < top)))
     else:
         n_below = 0
-    return float(top) if n_top >= PLATEAU_RATIO * max(n_below, 1) else None
+    if n_top < PLATEAU_RATIO * max(n_below, 1):
+        return None
+    # Noise-free sharp bars sit on plateaus at every level, the top one included: the top is
+    # saturation only when the data approach it (noise or blur put pixels just below it).
+    # Issue 37: 8-bit bars of codes 50 and 200 were called "52 % clipped at code 200".
+    near = NEAR_TOP_STEPS * step if step > 0 else NEAR_TOP_RANGE * float(top - values.min())
+    if not np.any((values < top) & (values >= top - near)):
+        return None
+    return float(top)
 
 
 def detect_code_step(values: npt.NDArray[np.generic]) -> float:
