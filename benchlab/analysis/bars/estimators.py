@@ -561,7 +561,7 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
 INTEGER_PERIODS_PX = (3, 4, 5)
 #: ... when the phases drift by less than this (cycles) across the ROI (48.08 lp/mm at 5.2 um
 #: is 3.9997 px per period).
-PHASE_DRIFT_CYCLES = 0.05
+PHASE_DRIFT_CYCLES = 0.01
 
 
 def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float64], float] | None:
@@ -584,15 +584,66 @@ def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float6
     return coef[:period], line_sd / math.sqrt(n // period)
 
 
+#: Duty cycles and phases (per period) tried by :func:`_sharp_levels`, and the weight of the
+#: prior holding the duty near 0.5 (in noise variances; it decides only where the samples
+#: cannot, e.g. three phases at 3 px per period).
+_SHARP_DUTIES = np.linspace(0.2, 0.8, 61)
+_SHARP_PHASES = np.linspace(0.0, 1.0, 240, endpoint=False)
+SHARP_DUTY_PRIOR_SD = 0.1
+
+
+def _coverage(period: int, duty: npt.NDArray[np.float64], phase: npt.NDArray[np.float64]
+              ) -> npt.NDArray[np.float64]:
+    """Bright fraction of pixels ``0..period-1`` (unit width, centred on whole coordinates)
+    under sharp bars of ``duty`` starting at ``phase`` periods; shape (duties, phases, pixels)."""
+    x = np.arange(period, dtype=np.float64)
+    start = phase[None, :, None] * period
+    width = duty[:, None, None] * period
+    cover = np.zeros((duty.size, phase.size, period))
+    for shift in (-1.0, 0.0, 1.0):  # the bars of the neighbouring periods
+        lo = np.maximum(x - 0.5, start + shift * period)
+        hi = np.minimum(x + 0.5, start + shift * period + width)
+        cover += np.clip(hi - lo, 0.0, None)
+    return np.minimum(cover, 1.0)
+
+
+def _sharp_levels(levels: npt.NDArray[np.float64], se: float) -> tuple[float, float] | None:
+    """Dark and bright levels of the sharp bars (pixel-integrated, any duty 0.2-0.8 and phase)
+    that best give the phase ``levels`` sampled at a whole period, a duty prior deciding where
+    they cannot; as the pattern's extremes: a bar narrower than a pixel never shows its
+    level (the truth's definition), so the levels are those a pixel sees at the best phase."""
+    period = levels.size
+    cover = _coverage(period, _SHARP_DUTIES, _SHARP_PHASES)
+    mean_c = cover.mean(axis=2, keepdims=True)
+    dc = cover - mean_c
+    dy = levels - levels.mean()
+    var_c = (dc * dc).sum(axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(var_c > 0, (dc * dy).sum(axis=2) / var_c, 0.0)
+    resid = ((dy - slope[..., None] * dc) ** 2).sum(axis=2)
+    prior = ((_SHARP_DUTIES[:, None] - 0.5) / SHARP_DUTY_PRIOR_SD) ** 2 * max(se, 1e-12) ** 2
+    cost = np.where(slope > 0, resid + prior, np.inf)
+    i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    if not np.isfinite(cost[i, j]):
+        return None
+    amp = float(slope[i, j])  # bright - dark
+    dark = float(levels.mean()) - amp * float(mean_c[i, j, 0])
+    width = float(_SHARP_DUTIES[i]) * period
+    top = min(width, 1.0)  # most of a pixel the bright bar covers
+    floor = max(0.0, 1.0 - (period - width))  # least (a dark gap narrower than a pixel)
+    return dark + floor * amp, dark + top * amp
+
+
 def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     """``r``, or on axis-aligned bars of a given whole period of 3-5 px the contrast of the
-    phase levels sampled (:func:`_phase_levels`) when the fit reads higher.
+    sharp bars that give the phase levels sampled (:func:`_phase_levels`,
+    :func:`_sharp_levels`), the interval reaching the fit's.
 
-    Lines at a whole period sample the same few bar phases: a sharp pattern and a blurred one
-    of higher contrast give the same samples, and the fit picks one (issue 37: the row
+    Lines at a whole period sample the same few bar phases: sharp bars and blurred ones of
+    higher contrast give the same samples, and the fit picks one (issue 37: the row
     ``80 50 170 200`` repeated, sharp bars of levels 50 and 200, read 0.700 for 0.600). The
-    samples' contrast is that of sharp bars - and a lower end for blurred ones - so it is the
-    reading, with the interval reaching up to the fit's."""
+    sharp reading is the lower end of what the samples allow; the fit's reading (blurred
+    bars) stays in the interval."""
     f = prep.freq_cycles_per_px
     if not r.resolved or r.lower_bound or not f or not prep.orientation_given:
         return r
@@ -604,24 +655,26 @@ def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     if found is None:
         return r
     levels, se = found
-    dark, bright = float(levels.min()), float(levels.max())
+    sharp = _sharp_levels(levels, se)
+    if sharp is None:
+        return r
+    dark, bright = sharp
     if bright <= dark or dark + bright <= 0.0:
         return r
-    m = eq29_modulation(dark, bright)
-    if m >= r.modulation:
-        return r
+    m = min(eq29_modulation(dark, bright), 1.0)
     sd = 2.0 * se * math.hypot(bright, dark) / (dark + bright) ** 2
     d = r.diagnostics
-    sd_model = max(0.0, (r.interval[1] - m) / 1.96)
+    lo = min(m - 1.96 * sd, r.interval[0])
+    hi = max(m + 1.96 * sd, r.interval[1])
+    sd_model = max(0.0, (max(hi - m, m - lo) / 1.96) ** 2 - sd**2) ** 0.5
     return r.with_updates(
         dark=dark, bright=bright, modulation=m, uncertainty=math.hypot(sd, sd_model),
-        interval=(max(0.0, m - 1.96 * sd), max(r.interval[1], min(1.0, m + 1.96 * sd))),
+        interval=(max(0.0, lo), min(1.0, hi)),
         diagnostics=replace(d, uncertainty_noise=sd, uncertainty_model=sd_model),
         warnings=(*r.warnings, (
             f"whole period of {period} px on axis-aligned bars: the lines sample {period} bar "
-            f"phases, which cannot tell sharp bars from blurred ones; the reading is the "
-            f"sampled phases' contrast (sharp bars), up to the fit's {r.modulation:.3f} "
-            "(blurred) in the interval")))
+            f"phases, which cannot tell sharp bars from blurred ones; the reading is that of "
+            f"sharp bars, the fit's {r.modulation:.3f} (blurred) in the interval")))
 
 
 def _with_model_term(r: ModulationResult, extra: float, warning: str) -> ModulationResult:
@@ -685,8 +738,37 @@ def _contrast_checked(estimator: PreparedEstimator, name: str) -> PreparedEstima
             return unresolved(name, prep.diagnostics(), (*prep.warnings, FLAT_WARNING))
         if prep.contrast_underflows:
             return unresolved(name, prep.diagnostics(), (*prep.warnings, TINY_CONTRAST_WARNING))
-        return honest_reading(prep, estimator(prep))
+        two = _two_codes(prep, name)
+        return two if two is not None else honest_reading(prep, estimator(prep))
     return run
+
+
+#: Each of the two codes of a two-code ROI holds at least this share of the pixels.
+TWO_CODE_MIN_SHARE = 0.1
+
+
+def _two_codes(prep: PreparedROI, name: str) -> ModulationResult | None:
+    """The exact reading of a noise-free ROI of two codes, each on at least
+    :data:`TWO_CODE_MIN_SHARE` of the pixels (bars with their edges on pixel boundaries):
+    any blur or an edge inside a pixel would give a code between them, so the two codes are
+    the bars' levels and Eq. 2.9 of them is the contrast, known to the codes' rounding. A fit
+    of a blurred model to such data overshoots (issue 37: 50 / 200 read 0.627, or ">= 0.600"
+    when the top code was taken for saturation). ``None`` for any other ROI."""
+    if not prep.integer_valued or prep.n_frames > 1 or prep.freq_cycles_per_px == 0:
+        return None
+    px = prep.pixels
+    lo, hi = prep.vmin, prep.vmax
+    n_lo = int(np.count_nonzero(px == lo))
+    n_hi = int(np.count_nonzero(px == hi))
+    if n_lo + n_hi != px.size or min(n_lo, n_hi) < TWO_CODE_MIN_SHARE * px.size:
+        return None
+    if hi + lo <= 0.0 or (prep.max_code is not None and hi >= prep.max_code):
+        return None  # a top at full scale may be clipped: the estimators' bound rules
+    m = eq29_modulation(lo, hi)
+    sd = 2.0 * prep.quantisation_sd * math.hypot(lo, hi) / (lo + hi) ** 2
+    return resolved(name, lo, hi, m, prep.diagnostics(), sd, (
+        *prep.warnings, "two codes only (sharp bars, edges on pixel boundaries): the levels "
+        "are the two codes"))
 
 
 _PREPARED: dict[str, PreparedEstimator] = {

@@ -113,7 +113,7 @@ REFINE_MAX_FREQ_REL = 0.15
 #: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
 #: so the given frequency rules.
 ALIAS_RAYLEIGH_STEPS = 2.5
-#: From this frequency (cycles/px; 2.1 px per period) on, the reading is a lower bound
+#: Above this frequency (cycles/px; under 2.1 px per period), the reading is a lower bound
 #: (:func:`_sampled_phases_bound`): the bar phases drift across the ROI too slowly for the
 #: sampling to pin the bars' shape (sharp 2.03 px bars, 40 x 50 px: 0.70 for 0.80).
 NEAR_NYQUIST_CYCLES = 1.0 / 2.1
@@ -691,7 +691,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
                                  uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
-    if f >= NEAR_NYQUIST_CYCLES:
+    if f > NEAR_NYQUIST_CYCLES * (1.0 + 1e-9):
         return _sampled_phases_bound(
             resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental),
             at_bins, sd_noise, max_gap, f)
