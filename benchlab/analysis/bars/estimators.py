@@ -590,6 +590,8 @@ def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float6
 _SHARP_DUTIES = np.linspace(0.2, 0.8, 61)
 _SHARP_PHASES = np.linspace(0.0, 1.0, 240, endpoint=False)
 SHARP_DUTY_PRIOR_SD = 0.1
+#: Relative model term of the sharp reading (bars not quite sharp: PSF sigma up to ~0.2 px).
+SHARP_MODEL_REL_SD = 0.01
 
 
 def _coverage(period: int, duty: npt.NDArray[np.float64], phase: npt.NDArray[np.float64]
@@ -607,31 +609,40 @@ def _coverage(period: int, duty: npt.NDArray[np.float64], phase: npt.NDArray[np.
     return np.minimum(cover, 1.0)
 
 
-def _sharp_levels(levels: npt.NDArray[np.float64], se: float) -> tuple[float, float] | None:
-    """Dark and bright levels of the sharp bars (pixel-integrated, any duty 0.2-0.8 and phase)
+def _sharp_levels(levels: npt.NDArray[np.float64], se: float
+                  ) -> tuple[float, float, float, float] | None:
+    """Dark and bright levels of the sharp bars (pixel-integrated, duty 0.2-0.8, any phase)
     that best give the phase ``levels`` sampled at a whole period, a duty prior deciding where
-    they cannot; as the pattern's extremes: a bar narrower than a pixel never shows its
-    level (the truth's definition), so the levels are those a pixel sees at the best phase."""
+    they cannot, and the least and largest contrast of the sharp bars of duty 0.3-0.7 that give
+    them within two standard errors (``se``: of one level). The levels are the pattern's
+    extremes as a pixel sees them at the best phase (a bar narrower than a pixel never shows
+    its level: the truth's definition). ``None`` when no bars fit."""
     period = levels.size
     cover = _coverage(period, _SHARP_DUTIES, _SHARP_PHASES)
-    mean_c = cover.mean(axis=2, keepdims=True)
-    dc = cover - mean_c
+    mean_c = cover.mean(axis=2)
+    dc = cover - mean_c[..., None]
     dy = levels - levels.mean()
     var_c = (dc * dc).sum(axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(var_c > 0, (dc * dy).sum(axis=2) / var_c, 0.0)
     resid = ((dy - slope[..., None] * dc) ** 2).sum(axis=2)
-    prior = ((_SHARP_DUTIES[:, None] - 0.5) / SHARP_DUTY_PRIOR_SD) ** 2 * max(se, 1e-12) ** 2
-    cost = np.where(slope > 0, resid + prior, np.inf)
+    se2 = max(se, 1e-12) ** 2
+    prior = ((_SHARP_DUTIES[:, None] - 0.5) / SHARP_DUTY_PRIOR_SD) ** 2 * se2
+    ok = slope > 0
+    cost = np.where(ok, resid + prior, np.inf)
     i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
     if not np.isfinite(cost[i, j]):
         return None
-    amp = float(slope[i, j])  # bright - dark
-    dark = float(levels.mean()) - amp * float(mean_c[i, j, 0])
-    width = float(_SHARP_DUTIES[i]) * period
-    top = min(width, 1.0)  # most of a pixel the bright bar covers
-    floor = max(0.0, 1.0 - (period - width))  # least (a dark gap narrower than a pixel)
-    return dark + floor * amp, dark + top * amp
+    width = _SHARP_DUTIES[:, None] * period
+    dark = levels.mean() - slope * mean_c + np.maximum(0.0, 1.0 - (period - width)) * slope
+    bright = levels.mean() - slope * mean_c + np.minimum(width, 1.0) * slope
+    with np.errstate(divide="ignore", invalid="ignore"):
+        contrast = (bright - dark) / (bright + dark)
+    near = (ok & (resid <= float(resid[ok].min()) + 4.0 * se2) & (bright + dark > 0)
+            & (np.abs(_SHARP_DUTIES[:, None] - 0.5) <= 2.0 * SHARP_DUTY_PRIOR_SD + 1e-9))
+    near[i, j] = True
+    return (float(dark[i, j]), float(bright[i, j]), float(contrast[near].min()),
+            float(contrast[near].max()))
 
 
 def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
@@ -658,14 +669,16 @@ def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     sharp = _sharp_levels(levels, se)
     if sharp is None:
         return r
-    dark, bright = sharp
+    dark, bright, m_least, m_most = sharp
     if bright <= dark or dark + bright <= 0.0:
         return r
     m = min(eq29_modulation(dark, bright), 1.0)
-    sd = 2.0 * se * math.hypot(bright, dark) / (dark + bright) ** 2
+    # Noise, and a model term for bars not quite sharp (as the profile fit's).
+    sd = math.hypot(2.0 * se * math.hypot(bright, dark) / (dark + bright) ** 2,
+                    SHARP_MODEL_REL_SD * m)
     d = r.diagnostics
-    lo = min(m - 1.96 * sd, r.interval[0])
-    hi = max(m + 1.96 * sd, r.interval[1])
+    lo = min(m - 1.96 * sd, m_least - 1.96 * sd, r.interval[0])
+    hi = max(m + 1.96 * sd, m_most + 1.96 * sd, r.interval[1])
     sd_model = max(0.0, (max(hi - m, m - lo) / 1.96) ** 2 - sd**2) ** 0.5
     return r.with_updates(
         dark=dark, bright=bright, modulation=m, uncertainty=math.hypot(sd, sd_model),
@@ -745,6 +758,9 @@ def _contrast_checked(estimator: PreparedEstimator, name: str) -> PreparedEstima
 
 #: Each of the two codes of a two-code ROI holds at least this share of the pixels.
 TWO_CODE_MIN_SHARE = 0.1
+#: ... and the codes lie at least this far apart (gray units): blurred bars spanning a few
+#: codes would show codes between them.
+TWO_CODE_MIN_GAP = 4.0
 
 
 def _two_codes(prep: PreparedROI, name: str) -> ModulationResult | None:
@@ -762,6 +778,8 @@ def _two_codes(prep: PreparedROI, name: str) -> ModulationResult | None:
     n_hi = int(np.count_nonzero(px == hi))
     if n_lo + n_hi != px.size or min(n_lo, n_hi) < TWO_CODE_MIN_SHARE * px.size:
         return None
+    if hi - lo < TWO_CODE_MIN_GAP:
+        return None  # adjacent codes: blurred bars under the rounding look the same
     if hi + lo <= 0.0 or (prep.max_code is not None and hi >= prep.max_code):
         return None  # a top at full scale may be clipped: the estimators' bound rules
     m = eq29_modulation(lo, hi)

@@ -691,15 +691,21 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
                                  uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
-    if f > NEAR_NYQUIST_CYCLES * (1.0 + 1e-9):
+    if f > NEAR_NYQUIST_CYCLES * (1.0 + 1e-9) or (not f_prior and alias_unresolved(f, span)):
+        # Bins' data means, each held 2 noise sigmas inwards: the model at the phases
+        # sampled can still overshoot sharp bars (2.02 px: 0.471 for 0.446).
+        margin = 2.0 * noise / np.sqrt(np.maximum(fitter.sw * fitter.sw, 1e-300))
+        data_lo = float(np.min(fitter.y + margin))
+        data_hi = float(np.max(fitter.y - margin))
         return _sampled_phases_bound(
             resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental),
-            at_bins, sd_noise, max_gap, f)
+            at_bins, (data_lo, data_hi), sd_noise, max_gap, f)
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
 
 
 def _sampled_phases_bound(
-    r: ModulationResult, at_bins: FloatArray, sd_noise: float, max_gap: float, f_px: float
+    r: ModulationResult, at_bins: FloatArray, data: tuple[float, float], sd_noise: float,
+    max_gap: float, f_px: float
 ) -> ModulationResult:
     """``r`` as a lower bound: the contrast of the fitted profile at the phases sampled, less
     two noise sigmas. Bars within a few percent of 2 px per period are sampled at phases that
@@ -709,10 +715,13 @@ def _sampled_phases_bound(
     lo, hi = float(at_bins.min()), float(at_bins.max())
     if hi <= lo or hi + lo <= 0.0:
         return r
-    m = max(0.0, min(eq29_modulation(lo, hi), r.modulation) - 2.0 * sd_noise)
-    reason = (f"{1.0 / f_px:.2f} px per period, within 5 % of 2 (largest gap between the bar "
-              f"phases sampled {max_gap:.2f} periods): the contrast at the phases sampled is a "
-              "lower bound")
+    m = min(eq29_modulation(lo, hi), r.modulation) - 2.0 * sd_noise
+    if data[1] > data[0] and data[0] + data[1] > 0.0:
+        m = min(m, eq29_modulation(*data))
+    m = max(0.0, m)
+    reason = (f"{1.0 / f_px:.2f} px per period, near 2 (largest gap between the bar phases "
+              f"sampled {max_gap:.2f} periods): the contrast at the phases sampled is a lower "
+              "bound")
     return r.with_updates(dark=lo, bright=hi, modulation=m, interval=(m, 1.0),
                           uncertainty=sd_noise, lower_bound=True, bound_reason=reason,
                           warnings=(*r.warnings, f"lower bound: {reason}"))
