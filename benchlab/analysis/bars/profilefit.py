@@ -60,7 +60,7 @@ from benchlab.analysis.bars.result import (
     sampling_phase_sd,
     unresolved,
 )
-from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI
+from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI, quiet_noise_sigma
 from benchlab.analysis.quantiles import percentiles
 
 NAME = "profilefit"
@@ -113,6 +113,12 @@ REFINE_MAX_FREQ_REL = 0.15
 #: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
 #: so the given frequency rules.
 ALIAS_RAYLEIGH_STEPS = 2.5
+#: A fit residual over this many times the pixel noise (neighbour differences along the
+#: bars) is the model's misfit: warned about, the pixel noise reported.
+MISFIT_RATIO = 4.0
+#: ... never judged against a pixel noise below this (gray units): noise-free data leave a
+#: model residual of a fraction of a code.
+MISFIT_MIN_NOISE = 0.5
 #: Above this frequency (cycles/px; under 2.1 px per period), the reading is a lower bound
 #: (:func:`_sampled_phases_bound`): the bar phases drift across the ROI too slowly for the
 #: sampling to pin the bars' shape (sharp 2.03 px bars, 40 x 50 px: 0.70 for 0.80).
@@ -640,6 +646,18 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     noise = max(math.sqrt(fit.resid_ss / dof), prep.quantisation_sd)
     if prep.noise_given:
         noise = prep.noise_sigma
+    reported_noise = noise
+    quiet = quiet_noise_sigma(img)
+    pixel_noise = prep.noise_sigma if quiet is None else max(
+        min(prep.noise_sigma, quiet), prep.quantisation_sd, MISFIT_MIN_NOISE)
+    if not prep.noise_given and n >= PRIORS_RULE_PIXELS and noise > MISFIT_RATIO * pixel_noise:
+        # The residual is the model's misfit, not the pixels' noise (issue 37: 40 DN for 3 on
+        # a 26 px ROI over a three-bar element and its ground); the interval keeps it.
+        reported_noise = pixel_noise
+        warnings.append(
+            f"fit residual {noise:.3g} is {noise / pixel_noise:.0f} x the pixel noise "
+            f"({pixel_noise:.3g}): the ROI holds more than a bar pattern (ground around a "
+            "finite bar set?); crop it to the bars")
 
     cov = noise**2 * _scaled_pinv(jtj)
     total = bright + dark
@@ -655,7 +673,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
     # The reading's fields go into prep.diagnostics (dataclasses.replace costs ~10 us a call).
     fields = dict(
-        noise_sigma=noise,
+        noise_sigma=reported_noise,
         px_per_period=period,
         freq_cycles_per_px=f,
         bar_angle_deg=math.degrees(theta),

@@ -9,8 +9,8 @@ to show (issue 37), each bucket seeded and scored against the exact truth of
   given for half of them.
 - *period 2.0-2.1 px*, with and without the frequency: a value whose interval holds the truth,
   or a lower bound.
-- *integer period 3-5 px, sharp*: axis-aligned bars at exactly 3, 4 or 5 px per period, PSF
-  sigma 0-0.2 px, orientation and frequency given.
+- *integer period 3 / 4 / 5 px, sharp*: axis-aligned bars at exactly 3, 4 or 5 px per period,
+  duty 0.4-0.6, PSF sigma 0-0.2 px, orientation and frequency given (half as many cases each).
 - *two-code*: noise-free bars with their edges on pixel boundaries (two codes in the ROI).
 - *over-exposed*: the bright level 1.2-2.5 x full scale, scored against the unclipped truth:
   a value within 0.03 or a lower bound.
@@ -42,8 +42,8 @@ BOUND_TOL = 0.01
 #: A "resolved 1.000" below this truth is a false one.
 FALSE_ONE_TRUTH = 0.9
 BUCKETS = ("near-Nyquist narrow ROI", "period 2.0-2.1 px, freq", "period 2.0-2.1 px, blind",
-           "integer period 3-5 px, sharp", "two-code", "over-exposed",
-           "bar structure vs noise")
+           "integer period 3 px, sharp", "integer period 4 px, sharp",
+           "integer period 5 px, sharp", "two-code", "over-exposed", "bar structure vs noise")
 
 
 @dataclass(frozen=True)
@@ -82,7 +82,8 @@ def _axis_case(rng: np.random.Generator, bucket: str, period: float, across: int
 
 
 def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
-    """``per_bucket`` seeded cases in every bucket of :data:`BUCKETS` (in that order)."""
+    """``per_bucket`` seeded cases in every bucket of :data:`BUCKETS` (in that order; half as
+    many in each whole-period bucket)."""
     rng = np.random.default_rng(seed)
     out: list[LimitCase] = []
     for i in range(per_bucket):
@@ -96,13 +97,15 @@ def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
             out.append(_axis_case(rng, bucket, float(rng.uniform(2.0, 2.1)), across, along,
                                   float(rng.uniform(0.0, 0.6)), give_orientation=i % 2 == 0,
                                   give_freq=give_freq))
-    for i in range(per_bucket):
-        across, along = ((50, 40), (40, 50), (100, 20), (64, 64))[i % 4]
-        c = _axis_case(rng, BUCKETS[3], float(3 + i % 3), across, along,
-                       float(rng.uniform(0.0, 0.2)), give_orientation=True, snr=(20.0, 200.0))
-        assert c.bar is not None
-        bar = replace(c.bar, duty=float(rng.uniform(0.4, 0.6)))
-        out.append(replace(c, bar=bar, truth=bar.truth))
+    for period in (3, 4, 5):
+        for i in range(per_bucket // 2):
+            across, along = ((50, 40), (40, 50), (100, 20), (64, 64))[i % 4]
+            c = _axis_case(rng, BUCKETS[period], float(period), across, along,
+                           float(rng.uniform(0.0, 0.2)), give_orientation=True,
+                           snr=(20.0, 200.0))
+            assert c.bar is not None
+            bar = replace(c.bar, duty=float(rng.uniform(0.4, 0.6)))
+            out.append(replace(c, bar=bar, truth=bar.truth))
     for i in range(per_bucket):
         bits = 12 if i % 3 == 0 else 8
         top = 4095 if bits == 12 else 255
@@ -114,7 +117,7 @@ def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
         width = int(rng.integers(max(14, 2 * (bright_px + dark_px)), 60))
         line = tuple(row[start:start + width])
         codes = tuple(line for _ in range(int(rng.integers(5, 41))))
-        out.append(LimitCase(BUCKETS[4], None, codes, eq29_modulation(lo, hi),
+        out.append(LimitCase(BUCKETS[6], None, codes, eq29_modulation(lo, hi),
                              1.0 / (bright_px + dark_px), "horizontal" if i % 2 else None, 0.0))
     for i in range(per_bucket):
         axis = i % 3 == 0
@@ -138,7 +141,7 @@ def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
             bar = replace(bar, psf_sigma_px=bar.psf_sigma_px / 2.0)
         orient = ("horizontal" if bar.theta_rad < 0.1 else "vertical") if axis else None
         scale = 16.0 if bits == 12 else 1.0
-        out.append(LimitCase(BUCKETS[5], bar, None, bar.truth, bar.freq_cycles_per_px, orient,
+        out.append(LimitCase(BUCKETS[7], bar, None, bar.truth, bar.freq_cycles_per_px, orient,
                              bar.noise_sigma * scale))
     for _ in range(per_bucket):
         bar = BarCase(shape=(26, 26), px_per_period=float(rng.uniform(4.0, 12.0)),
@@ -146,7 +149,7 @@ def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
                       psf_sigma_px=float(rng.uniform(0.0, 0.7)), phase=float(rng.uniform()),
                       noise_sigma=float(rng.uniform(1.0, 4.0)),
                       angle_deg=float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.5, 4.0)))
-        out.append(LimitCase(BUCKETS[6], bar, None, bar.truth, bar.freq_cycles_per_px, None,
+        out.append(LimitCase(BUCKETS[8], bar, None, bar.truth, bar.freq_cycles_per_px, None,
                              bar.noise_sigma))
     return out
 
@@ -220,7 +223,7 @@ def format_limits(outcomes: list[LimitOutcome]) -> str:
             f"{sum(not o.result.resolved for o in got):>5} {rmse:>6} {within:>6} {cov:>5} "
             f"{sum(o.ok for o in got):>4} {sum(o.false_one for o in got):>7} "
             f"{'-' if math.isnan(over) else f'{over:+.3f}':>11}")
-        if bucket == BUCKETS[6]:
+        if bucket == BUCKETS[8]:
             ratio = np.array([o.result.diagnostics.noise_sigma / o.case.noise for o in got
                               if o.case.noise > 0])
             lines.append(f"{'':<30} reported / true noise: median {np.median(ratio):.2f}, "
