@@ -1040,6 +1040,29 @@ def alias_unresolved(f_prior: float, span_px: float) -> bool:
     return (1.0 - 2.0 * f_prior) * span_px < ALIAS_RAYLEIGH_STEPS
 
 
+def narrow_roi_note(shape: tuple[int, int], px_per_period: float | None,
+                    bar_angle_deg: float | None, freq_given: bool) -> str | None:
+    """A warning when an ROI of ``shape`` (rows, cols) is too narrow across bars of
+    ``px_per_period`` at ``bar_angle_deg`` (direction of intensity variation, from the
+    columns) for their period to be measured (:func:`alias_unresolved`), with the width that
+    would do; ``None`` when it is wide enough, or when the frequency is given (then it rules).
+
+    The live view reads without a frequency: its default 12 x 10 px ROI on 2.2 px bars can only
+    give a bound (issue 37); 28 px across reads them."""
+    if freq_given or not px_per_period or px_per_period < 2.0:
+        return None  # aliased bars are said so by the reading
+    theta = math.radians(bar_angle_deg or 0.0)
+    rows, cols = shape
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    f = 1.0 / px_per_period
+    if not alias_unresolved(f, span):
+        return None
+    wider = (f"make it >= {math.ceil(ALIAS_RAYLEIGH_STEPS / (1.0 - 2.0 * f))} px across the "
+             "bars or give the frequency") if 1.0 - 2.0 * f > 1e-3 else "give the frequency"
+    return (f"ROI too narrow for {px_per_period:.2f} px bars: {span:.0f} px across cannot "
+            f"measure their period near Nyquist (a bound at best); {wider}")
+
+
 def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> BarGeometry:
     """Cross-check the measured geometry with the given frequency and orientation."""
     f_prior = prep.freq_cycles_per_px
