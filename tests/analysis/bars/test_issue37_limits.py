@@ -174,3 +174,37 @@ def test_periodic_bars_give_no_misfit_warning() -> None:
         r = estimate_modulation(roi, freq_cycles_per_px=case.freq_cycles_per_px)
         assert not any("holds more than a bar pattern" in w for w in r.warnings)
         assert r.diagnostics.noise_sigma == pytest.approx(3.0, rel=0.5)
+
+
+#: Over-exposed cases of the limits benchmark (``limit_cases()[i]``, rounded), each with the
+#: orientation given and its truth: before, e.g. 0.937 [0.00, 1.00] for 0.487 (#351) and 0.977
+#: for 0.841 (#363) - values, neither right nor bounds.
+_OVER_EXPOSED = [
+    (dict(shape=(40, 50), px_per_period=7.4548, modulation=0.6576, mean=375.969,
+          psf_sigma_px=1.1732, phase=0.3636, duty=0.5007, angle_deg=0.0, noise_sigma=4.9958),
+     "horizontal"),
+    (dict(shape=(40, 50), px_per_period=26.1153, modulation=0.4869, mean=311.047,
+          psf_sigma_px=0.4412, phase=0.839, duty=0.5578, angle_deg=90.0, noise_sigma=10.6338),
+     "vertical"),
+    (dict(shape=(20, 100), px_per_period=20.6141, modulation=0.5997, mean=361.984,
+          psf_sigma_px=1.2545, phase=0.2155, bits=12, msb_aligned=True, duty=0.5705,
+          angle_deg=31.016, noise_sigma=1.9402), None),
+    (dict(shape=(40, 50), px_per_period=14.0732, modulation=0.8412, mean=305.918,
+          psf_sigma_px=0.147, phase=0.1796, duty=0.5249, angle_deg=0.0, noise_sigma=7.2577),
+     "horizontal"),
+]
+
+
+@pytest.mark.parametrize(("params", "orientation"), _OVER_EXPOSED)
+def test_over_exposed_bars_read_a_right_value_or_a_bound(
+    params: dict[str, object], orientation: str | None,
+) -> None:
+    for seed in range(3):
+        roi, case = bar_roi(seed, **params)
+        r = estimate_modulation(roi, freq_cycles_per_px=case.freq_cycles_per_px,
+                                orientation=orientation)
+        assert r.resolved
+        if r.lower_bound:
+            assert r.modulation <= case.truth + 0.01
+        else:
+            assert r.modulation == pytest.approx(case.truth, abs=0.03), (seed, r.interval)
