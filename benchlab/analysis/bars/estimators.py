@@ -583,7 +583,8 @@ def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float6
     dof = max(n - period - 1, 1)
     line_sd = max(math.sqrt(float(resid @ resid) / dof),
                   prep.noise_sigma / math.sqrt(prep.pixels.shape[1 - prep.axis]))
-    return coef[:period], line_sd / math.sqrt(n // period)
+    levels: npt.NDArray[np.float64] = np.asarray(coef[:period], dtype=np.float64)
+    return levels, line_sd / math.sqrt(n // period)
 
 
 #: Duty cycles and phases (per period) tried by :func:`_sharp_levels`, and the weight of the

@@ -615,8 +615,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # As in _apply_priors: on a few dozen pixels, or under two periods, the priors rule.
     few = prep.n_pixels < PRIORS_RULE_PIXELS
     fix_theta = prep.orientation_given and (few or abs(math.sin(2 * theta)) < 1e-12)
-    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0 or alias_unresolved(
-        f_prior, span))
+    fix_freq = bool(f_prior) and (few or span * (f_prior or 0.0) < 2.0 or alias_unresolved(
+        f_prior or 0.0, span))
     for _ in range(1 if fast else REFINE_ROUNDS):
         better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
         if better is None:

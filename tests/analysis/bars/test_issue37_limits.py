@@ -149,7 +149,8 @@ def _three_bars(width_px: float, angle_deg: float, n: int = 26) -> np.ndarray:
         img[(np.abs(u - 2 * width_px * k) < width_px / 2) & (np.abs(v) < 2.5 * width_px)] = 40.0
     f = np.fft.fftfreq(size, 1 / ss)
     fx, fy = np.meshgrid(f, f)
-    img = np.real(np.fft.ifft2(np.fft.fft2(img) * np.exp(-2 * (math.pi * 0.6) ** 2 * (fx**2 + fy**2))))
+    gain = np.exp(-2 * (math.pi * 0.6) ** 2 * (fx**2 + fy**2))
+    img = np.real(np.fft.ifft2(np.fft.fft2(img) * gain))
     img = img.reshape(n, ss, n, ss).mean(axis=(1, 3))
     noisy = img + np.random.default_rng(0).normal(0.0, 3.0, img.shape)
     return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
