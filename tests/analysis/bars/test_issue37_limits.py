@@ -209,3 +209,13 @@ def test_over_exposed_bars_read_a_right_value_or_a_bound(
             assert r.modulation <= case.truth + 0.01
         else:
             assert r.modulation == pytest.approx(case.truth, abs=0.03), (seed, r.interval)
+
+
+def test_the_limits_benchmark_table_names_every_bucket() -> None:
+    from benchlab.benchmarks.bars.limits import BUCKETS, format_limits, run_limits
+
+    outcomes = run_limits(per_bucket=2)
+    table = format_limits(outcomes)
+    assert all(bucket in table for bucket in BUCKETS)
+    assert "reported / true noise" in table
+    assert not any(o.false_one for o in outcomes)
