@@ -107,7 +107,6 @@ REFINE_MAX_PIXELS = 20_000
 #: Largest direction (rad) and relative frequency correction applied.
 REFINE_MAX_THETA_RAD = math.radians(6.0)
 REFINE_MAX_FREQ_REL = 0.15
-#: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 #: Given a frequency, bars whose sampling alias (1 - f cycles/px) lies fewer than this many
 #: Rayleigh steps (1 / span cycles/px) from f: the spectral peak is pulled by its alias (issue
 #: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
@@ -123,6 +122,7 @@ MISFIT_MIN_NOISE = 0.5
 #: (:func:`_sampled_phases_bound`): the bar phases drift across the ROI too slowly for the
 #: sampling to pin the bars' shape (sharp 2.03 px bars, 40 x 50 px: 0.70 for 0.80).
 NEAR_NYQUIST_CYCLES = 1.0 / 2.1
+#: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)

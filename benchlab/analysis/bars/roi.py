@@ -282,6 +282,9 @@ PLATEAU_RATIO = 2.0
 #: the data's range), else the top is one level of noise-free sharp bars.
 NEAR_TOP_STEPS = 8
 NEAR_TOP_RANGE = 0.03
+#: ... or the ROI holds at least this many levels below it (noise-free sharp bars at a whole
+#: period of P px hold at most P).
+FEW_LEVELS = 8
 
 
 def detect_plateau(
@@ -311,12 +314,15 @@ def detect_plateau(
     if n_top < PLATEAU_RATIO * max(n_below, 1):
         return None
     # Noise-free sharp bars sit on plateaus at every level, the top one included: the top is
-    # saturation only when the data approach it (noise or blur put pixels just below it).
-    # Issue 37: 8-bit bars of codes 50 and 200 were called "52 % clipped at code 200".
+    # saturation only when the data approach it (noise puts pixels just below it) or hold
+    # more than a few levels (blurred edges ramping up into it). Issue 37: 8-bit bars of
+    # codes 50 and 200 were called "52 % clipped at code 200".
     near = NEAR_TOP_STEPS * step if step > 0 else NEAR_TOP_RANGE * float(top - values.min())
     below = values[values < top]
-    if not np.any(below >= top - near) or np.all(below == below.min()):
-        return None  # nothing near the top, or two codes only (a two-level pattern)
+    if below.size and np.all(below == below.min()):
+        return None  # two codes only: a two-level pattern
+    if not np.any(below >= top - near) and np.unique(below).size < FEW_LEVELS:
+        return None  # a few levels, none near the top: sharp noise-free bars
     return float(top)
 
 
@@ -369,6 +375,8 @@ def robust_noise_sigma(img: npt.NDArray[np.float64], axis: int | None) -> float:
     return min(estimates) if estimates else 0.0
 
 
+#: Side (px) of the centred crop :func:`quiet_noise_sigma` reads at most.
+QUIET_CROP_PX = 64
 #: Lower quartile of |N(0, 2 sigma^2)| over sigma.
 _Q25_DIFF = 0.31863936 * math.sqrt(2.0)
 
@@ -379,6 +387,10 @@ def quiet_noise_sigma(img: npt.NDArray[np.float64]) -> float | None:
     direction that runs along them, and edges, bar ends and ground may spoil up to three in
     four of its differences. ``None`` with fewer than 16 differences in every direction."""
     rows, cols = img.shape
+    if rows > QUIET_CROP_PX or cols > QUIET_CROP_PX:  # a centred crop: the cost stays flat
+        r0, c0 = max(0, (rows - QUIET_CROP_PX) // 2), max(0, (cols - QUIET_CROP_PX) // 2)
+        img = img[r0:r0 + QUIET_CROP_PX, c0:c0 + QUIET_CROP_PX]
+        rows, cols = img.shape
     pairs = []
     if rows >= 2:
         pairs.append(img[1:, :] - img[:-1, :])
@@ -387,7 +399,12 @@ def quiet_noise_sigma(img: npt.NDArray[np.float64]) -> float | None:
     if rows >= 2 and cols >= 2:
         # Diagonal neighbours are sqrt(2) px apart: still neighbours for the noise.
         pairs += [img[1:, 1:] - img[:-1, :-1], img[1:, :-1] - img[:-1, 1:]]
-    found = [float(np.percentile(np.abs(d), 25.0)) / _Q25_DIFF for d in pairs if d.size >= 16]
+    found = []
+    for d in pairs:
+        if d.size >= 16:
+            flat = np.abs(d).ravel()
+            k = (flat.size - 1) // 4  # the lower quartile (np.percentile costs ~20 us more)
+            found.append(float(np.partition(flat, k)[k]) / _Q25_DIFF)
     return min(found) if found else None
 
 
