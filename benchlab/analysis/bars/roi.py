@@ -295,8 +295,12 @@ def detect_plateau(
     A clipped bright level piles pixels up exactly on the top code, whatever the bit depth or
     pedestal; an unclipped noise tail thins out towards the maximum. So the maximum counts as
     saturation when it holds at least ``PLATEAU_MIN_FRACTION`` of the pixels (and 3) and
-    ``PLATEAU_RATIO`` times as many as the code step below it. ``top``: ``values.max()`` if
-    already known (the numpy scalar: comparisons keep the data's precision).
+    ``PLATEAU_RATIO`` times as many as either of the two code steps below it - and the data
+    lead up to it: pixels within ``NEAR_TOP_STEPS`` code steps below, or ``FEW_LEVELS`` levels
+    or more (blurred edges). Noise-free sharp bars (two codes, or a few levels none near the
+    top) sit on a plateau at every level: their top is one of them, not saturation (issue 37).
+    ``top``: ``values.max()`` if already known (the numpy scalar: comparisons keep the data's
+    precision).
     """
     if top is None:
         top = values.max()
