@@ -277,6 +277,7 @@ def live_reading(
     """Everything the live view shows about one frame (runs in the acquisition thread);
     the preview's longest side is at most ``preview_max_side`` pixels."""
     from benchlab.analysis.bars.estimators import estimate_modulation
+    from benchlab.analysis.bars.profilefit import narrow_roi_note
     from benchlab.analysis.focus.sharpness import sharpness
 
     pixels, meta = frame
@@ -310,6 +311,10 @@ def live_reading(
         dark, bright = result.dark, result.bright
         if result.warnings:
             note = result.warnings[0]
+        narrow = narrow_roi_note(roi_pixels.shape[-2:], result.diagnostics.px_per_period,
+                                 result.diagnostics.bar_angle_deg, freq_given=False)
+        if narrow is not None:
+            note = narrow  # first: the reading cannot be honest whatever else it says
     except ValueError as exc:
         note = str(exc)
     peaks = (dark, bright) if estimator == "histogram" else histogram_peaks(roi_pixels, max_code)

@@ -60,7 +60,7 @@ from benchlab.analysis.bars.result import (
     sampling_phase_sd,
     unresolved,
 )
-from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI
+from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI, quiet_noise_sigma
 from benchlab.analysis.quantiles import percentiles
 
 NAME = "profilefit"
@@ -107,6 +107,24 @@ REFINE_MAX_PIXELS = 20_000
 #: Largest direction (rad) and relative frequency correction applied.
 REFINE_MAX_THETA_RAD = math.radians(6.0)
 REFINE_MAX_FREQ_REL = 0.15
+#: Given a frequency, bars whose sampling alias (1 - f cycles/px) lies fewer than this many
+#: Rayleigh steps (1 / span cycles/px) from f: the spectral peak is pulled by its alias (issue
+#: 37: 2.1-2.3 px bars across 10-14 px measured at 2.00-2.34 px, read "1.000" or 0.2-0.4 low),
+#: so the given frequency rules.
+ALIAS_RAYLEIGH_STEPS = 2.5
+#: A fit residual over this many times the pixel noise (neighbour differences along the
+#: bars) is the model's misfit: warned about, the pixel noise reported.
+MISFIT_RATIO = 4.0
+#: ... never judged against a pixel noise below this (gray units): noise-free data leave a
+#: model residual of a fraction of a code.
+MISFIT_MIN_NOISE = 0.5
+#: Above this frequency (cycles/px; under 2.1 px per period), the reading is a lower bound
+#: (:func:`_sampled_phases_bound`): the bar phases drift across the ROI too slowly for the
+#: sampling to pin the bars' shape (sharp 2.03 px bars, 40 x 50 px: 0.70 for 0.80).
+NEAR_NYQUIST_CYCLES = 1.0 / 2.1
+#: A profile spanning this many noise sigmas of its lines' mean shows bars (noise alone over a
+#: few dozen lines spans ~6; as :data:`~.extremes.PLAIN_RANGE_SIGMAS`).
+PLAIN_SPAN_SIGMAS = 20.0
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
@@ -596,11 +614,16 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     fit_geom0 = geom
     if isinstance(fit, str):
         warnings.append(fit)
+        if f > NEAR_NYQUIST_CYCLES * (1.0 + 1e-9):
+            bound = _alternation_bound(prep, name, f, warnings)
+            if bound is not None:
+                return bound
         return unresolved(name, prep.diagnostics(), warnings)
     # As in _apply_priors: on a few dozen pixels, or under two periods, the priors rule.
     few = prep.n_pixels < PRIORS_RULE_PIXELS
     fix_theta = prep.orientation_given and (few or abs(math.sin(2 * theta)) < 1e-12)
-    fix_freq = bool(f_prior) and (few or span * f_prior < 2.0)
+    fix_freq = bool(f_prior) and (few or span * (f_prior or 0.0) < 2.0 or alias_unresolved(
+        f_prior or 0.0, span))
     for _ in range(1 if fast else REFINE_ROUNDS):
         better = _refined(prep, fit, fast, clipped, fix_theta, fix_freq)
         if better is None:
@@ -630,6 +653,18 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     noise = max(math.sqrt(fit.resid_ss / dof), prep.quantisation_sd)
     if prep.noise_given:
         noise = prep.noise_sigma
+    reported_noise = noise
+    quiet = quiet_noise_sigma(img)
+    pixel_noise = prep.noise_sigma if quiet is None else max(
+        min(prep.noise_sigma, quiet), prep.quantisation_sd, MISFIT_MIN_NOISE)
+    if not prep.noise_given and n >= PRIORS_RULE_PIXELS and noise > MISFIT_RATIO * pixel_noise:
+        # The residual is the model's misfit, not the pixels' noise (issue 37: 40 DN for 3 on
+        # a 26 px ROI over a three-bar element and its ground); the interval keeps it.
+        reported_noise = pixel_noise
+        warnings.append(
+            f"fit residual {noise:.3g} is {noise / pixel_noise:.0f} x the pixel noise "
+            f"({pixel_noise:.3g}): the ROI holds more than a bar pattern (ground around a "
+            "finite bar set?); crop it to the bars")
 
     cov = noise**2 * _scaled_pinv(jtj)
     total = bright + dark
@@ -645,7 +680,7 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     z = float(a1_test) / se_a1 if se_a1 > 0 else (math.inf if a1_test > 0 else 0.0)
     # The reading's fields go into prep.diagnostics (dataclasses.replace costs ~10 us a call).
     fields = dict(
-        noise_sigma=noise,
+        noise_sigma=reported_noise,
         px_per_period=period,
         freq_cycles_per_px=f,
         bar_angle_deg=math.degrees(theta),
@@ -681,7 +716,64 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
                                  uncertainty_model=sd_model)
     fundamental = a1 / mean_level if mean_level > 0 else None
+    if f > NEAR_NYQUIST_CYCLES * (1.0 + 1e-9) or (not f_prior and alias_unresolved(f, span)):
+        # Bins' data means, each held 2 noise sigmas inwards: the model at the phases
+        # sampled can still overshoot sharp bars (2.02 px: 0.471 for 0.446).
+        margin = 2.0 * noise / np.sqrt(np.maximum(fitter.sw * fitter.sw, 1e-300))
+        data_lo = float(np.min(fitter.y + margin))
+        data_hi = float(np.max(fitter.y - margin))
+        return _sampled_phases_bound(
+            resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental),
+            at_bins, (data_lo, data_hi), sd_noise, max_gap, f)
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+def _alternation_bound(
+    prep: PreparedROI, name: str, f: float, warnings: list[str]
+) -> ModulationResult | None:
+    """A lower bound for bars at about 2 px per period whose phases the fit cannot resolve
+    (e.g. measured at exactly 2 px: two phases): the contrast of the line-averaged profile's
+    extremes, each moved 3 noise sigmas inwards - sampled levels lie within the imaged bars'
+    range. ``None`` unless that range spans :data:`PLAIN_SPAN_SIGMAS` noise sigmas (issue 37:
+    blind 2.03 px bars read "not resolved")."""
+    img = prep.pixels
+    axis = prep.axis
+    profile = img.mean(axis=1 - axis)
+    sd = prep.noise_sigma / math.sqrt(img.shape[1 - axis])
+    lo, hi = float(profile.min()) + 3.0 * sd, float(profile.max()) - 3.0 * sd
+    if profile.size < 4 or hi <= lo or lo + hi <= 0.0 or hi - lo < PLAIN_SPAN_SIGMAS * sd:
+        return None
+    m = eq29_modulation(lo, hi)
+    reason = (f"{1.0 / f:.2f} px per period, near 2, bar phases not resolved by the fit: the "
+              "contrast of the profile's extremes (3 noise sigmas inwards) is a lower bound")
+    sd_m = 2.0 * sd * math.hypot(lo, hi) / (lo + hi) ** 2
+    return resolved(name, lo, hi, m, prep.diagnostics(), sd_m, warnings).with_updates(
+        interval=(m, 1.0), lower_bound=True, bound_reason=reason,
+        warnings=(*warnings, f"lower bound: {reason}"))
+
+
+def _sampled_phases_bound(
+    r: ModulationResult, at_bins: FloatArray, data: tuple[float, float], sd_noise: float,
+    max_gap: float, f_px: float
+) -> ModulationResult:
+    """``r`` as a lower bound: the contrast of the fitted profile at the phases sampled, less
+    two noise sigmas. Bars within a few percent of 2 px per period are sampled at phases that
+    drift by less than a period across the ROI: the fit extrapolates the unsampled ones (issue
+    37: 0.310 [0.21, 0.41] for 0.75 at 2.0-2.05 px), while the sampled levels lie within the
+    imaged pattern's range, so their contrast never exceeds the bars'."""
+    lo, hi = float(at_bins.min()), float(at_bins.max())
+    if hi <= lo or hi + lo <= 0.0:
+        return r
+    m = min(eq29_modulation(lo, hi), r.modulation) - 2.0 * sd_noise
+    if data[1] > data[0] and data[0] + data[1] > 0.0:
+        m = min(m, eq29_modulation(*data))
+    m = max(0.0, m)
+    reason = (f"{1.0 / f_px:.2f} px per period, near 2 (largest gap between the bar phases "
+              f"sampled {max_gap:.2f} periods): the contrast at the phases sampled is a lower "
+              "bound")
+    return r.with_updates(dark=lo, bright=hi, modulation=m, interval=(m, 1.0),
+                          uncertainty=sd_noise, lower_bound=True, bound_reason=reason,
+                          warnings=(*r.warnings, f"lower bound: {reason}"))
 
 
 @dataclass
@@ -972,6 +1064,36 @@ def _scaled_pinv(jtj: FloatArray) -> FloatArray:
     return out
 
 
+def alias_unresolved(f_prior: float, span_px: float) -> bool:
+    """Whether bars of the given frequency ``f_prior`` (cycles/px) and their sampling alias
+    ``1 - f_prior`` lie fewer than :data:`ALIAS_RAYLEIGH_STEPS` Rayleigh steps apart over
+    ``span_px``: the ROI cannot measure the period then, and the given one rules."""
+    return (1.0 - 2.0 * f_prior) * span_px < ALIAS_RAYLEIGH_STEPS
+
+
+def narrow_roi_note(shape: tuple[int, int], px_per_period: float | None,
+                    bar_angle_deg: float | None, freq_given: bool) -> str | None:
+    """A warning when an ROI of ``shape`` (rows, cols) is too narrow across bars of
+    ``px_per_period`` at ``bar_angle_deg`` (direction of intensity variation, from the
+    columns) for their period to be measured (:func:`alias_unresolved`), with the width that
+    would do; ``None`` when it is wide enough, or when the frequency is given (then it rules).
+
+    The live view reads without a frequency: its default 12 x 10 px ROI on 2.2 px bars can only
+    give a bound (issue 37); 28 px across reads them."""
+    if freq_given or not px_per_period or px_per_period < 2.0:
+        return None  # aliased bars are said so by the reading
+    theta = math.radians(bar_angle_deg or 0.0)
+    rows, cols = shape
+    span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
+    f = 1.0 / px_per_period
+    if not alias_unresolved(f, span):
+        return None
+    wider = (f"make it >= {math.ceil(ALIAS_RAYLEIGH_STEPS / (1.0 - 2.0 * f))} px across the "
+             "bars or give the frequency") if 1.0 - 2.0 * f > 1e-3 else "give the frequency"
+    return (f"ROI too narrow for {px_per_period:.2f} px bars: {span:.0f} px across cannot "
+            f"measure their period near Nyquist (a bound at best); {wider}")
+
+
 def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> BarGeometry:
     """Cross-check the measured geometry with the given frequency and orientation."""
     f_prior = prep.freq_cycles_per_px
@@ -1000,7 +1122,8 @@ def _apply_priors(prep: PreparedROI, geom: BarGeometry, warnings: list[str]) -> 
             # Under two periods the data cannot pin the period down: the prior rules.
             return replace(geom, freq_cycles_per_px=f_prior)
         message = frequency_disagreement(geom, f_prior)
-        if message and prep.n_pixels >= PRIORS_RULE_PIXELS:
+        if message and prep.n_pixels >= PRIORS_RULE_PIXELS and not alias_unresolved(
+                f_prior, span):
             warnings.append(message)
         else:
             # Consistent with the given frequency, which is known better (chart design and

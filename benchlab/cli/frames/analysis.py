@@ -328,6 +328,18 @@ def _print_extremes(names: tuple[str, ...], seed: int) -> None:
     print(expected_answers())
 
 
+def _print_limits(seed: int) -> None:
+    """The limits buckets' table (the default estimator)."""
+    from benchlab.benchmarks.bars.limits import format_limits, run_limits
+
+    t0 = time.perf_counter()
+    outcomes = run_limits(seed=seed)
+    print(format_limits(outcomes))
+    print(f"{len(outcomes)} limit ROIs (seed {seed}), default estimator, "
+          f"{time.perf_counter() - t0:.1f} s; ok = a value within 0.03 whose interval holds "
+          "the truth, or a lower bound at most 0.01 above it")
+
+
 def benchmark_command(args: argparse.Namespace) -> int:
     """``benchlab benchmark analysis``: the estimator speed/accuracy table per condition bucket."""
     from benchlab.analysis import ESTIMATORS
@@ -356,6 +368,9 @@ def benchmark_command(args: argparse.Namespace) -> int:
     if args.extremes_only:
         _print_extremes(names, args.seed)
         return 0
+    if args.limits_only:
+        _print_limits(args.seed)
+        return 0
     t0 = time.perf_counter()
     rows: list[Row] = []
     cases, scores = run_benchmark(n_cases=n_cases, seed=args.seed, estimators=names,
@@ -368,6 +383,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
     print(f"\n{len(cases)} synthetic ROIs (seed {args.seed}) per estimator, {elapsed:.1f} s")
     print()
     _print_extremes(names, args.seed)
+    print()
+    _print_limits(args.seed)
     if not args.no_speed:
         shapes = ((40, 50), (100, 100), (200, 200)) if args.quick else (
             (40, 50), (100, 100), (200, 200), (500, 500), (1000, 1000))
@@ -473,6 +490,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     b.add_argument("--extremes-only", action="store_true",
                    help="only the extremes bucket (no noise, no blur, dark level 0, clipping, "
                         "one-period and 1-px-wide ROIs, float TIFFs, 8-bit data in 16 bits)")
+    b.add_argument("--limits-only", action="store_true",
+                   help="only the limits buckets of the default estimator, 60 ROIs each "
+                        "(near-Nyquist bars in narrow ROIs, 2.0-2.1 px with and without the "
+                        "frequency, sharp bars at 3-5 px periods, two-code patterns, "
+                        "over-exposed bars, bar structure vs noise)")
     b.add_argument(
         "--worst", type=positive_int, metavar="N",
         help="also list each estimator's N largest errors with the case parameters",

@@ -50,13 +50,14 @@ def test_a_clipped_bright_level_is_a_bound_with_its_reason(name: str) -> None:
     assert doc["bound_reason"] == r.bound_reason
 
 
-def test_unclipped_readings_are_values_and_a_plain_sharp_pattern_a_tight_bound() -> None:
+def test_unclipped_readings_are_values_and_a_two_code_pattern_its_codes_contrast() -> None:
     r = estimate_modulation(_bars(50, 200), estimator="histogram", freq_cycles_per_px=0.05)
     assert r.resolved and not r.lower_bound and r.shown == "0.600"
-    # The profile fit cannot fit noise-free sharp bars; the profile's extremes bound them.
+    # Two codes, neither at full scale: the levels are the codes, a value (issue 37 point 4;
+    # code 200 of an 8-bit frame is no saturation).
     r = estimate_modulation(_bars(50, 200), freq_cycles_per_px=0.05)
-    assert r.resolved and r.lower_bound and r.modulation == pytest.approx(0.6)
-    assert "plainly resolved" in r.bound_reason
+    assert r.resolved and not r.lower_bound and r.shown == "0.600"
+    assert r.diagnostics.clipped_fraction == 0.0
 
 
 def test_a_bound_without_its_reason_is_refused() -> None:
