@@ -36,9 +36,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.roi import row_major
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Largest square (px) the initial FFT looks at; the refinement uses the whole ROI.
 FFT_CROP_PX = 128

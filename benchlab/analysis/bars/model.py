@@ -22,9 +22,9 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.normal_cdf import ndtr
 
-FloatArray = npt.NDArray[np.float64]
 #: Below this footprint side (px) a box is treated as a delta (first-order exact).
 _THIN_BOX_PX = 1e-3
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars import model as barmodel
 from benchlab.analysis.bars.geometry import (
     BarGeometry,
@@ -131,7 +132,6 @@ _GRID_N = 256
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
 _TWO_PI = 2.0 * math.pi
 
-FloatArray = npt.NDArray[np.float64]
 
 
 def _load_lapack() -> Any:
