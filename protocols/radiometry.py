@@ -74,13 +74,16 @@ def reading_view(
 
 
 def saturation_code_of(frame: npt.NDArray[Any], bits: Any = None) -> float:
-    """The code a frame clips at: ``2**bits - 1`` of its recorded bit depth, else what the
-    data say (:func:`benchlab.analysis.bars.roi.saturation_code`), else its maximum."""
+    """The code a frame clips at: its full scale from its recorded bit depth
+    (:func:`~benchlab.analysis.sfr.measure.full_scale_of_frame`, as every analysis judges it),
+    else what the data say (:func:`benchlab.analysis.bars.roi.saturation_code`), else its
+    maximum."""
+    from benchlab.analysis.sfr.measure import full_scale_of_frame
+
     raw = np.asarray(frame)
-    if isinstance(bits, int) and not isinstance(bits, bool) and 1 <= bits <= 16:
-        top = float(2 ** bits - 1)
-        if raw.size == 0 or float(raw.max()) <= top:
-            return top
+    top = full_scale_of_frame(raw, {"bits": bits})
+    if top is not None:
+        return float(top)
     code = saturation_code(raw, 1.0)
     return float(code) if code is not None else float(raw.max())
 

@@ -224,15 +224,15 @@ def grab(
 
 
 def max_code_of(pixels: npt.NDArray[Any], meta: Mapping[str, Any]) -> float:
-    """Full-scale code of a frame: from its bit depth, else from its dtype."""
-    bits = meta.get("bits")
-    if isinstance(bits, int) and bits > 0:
-        if pixels.dtype == np.uint16 and bits == 12 and int(pixels.max(initial=0)) > 4095:
-            return 65535.0
-        return float(2**bits - 1)
-    if pixels.dtype == np.uint8:
-        return 255.0
-    return float(max(4095, int(pixels.max(initial=0))))
+    """Full-scale code of a frame, as every analysis judges clipping: from its bit depth
+    (:func:`~benchlab.analysis.sfr.measure.full_scale_of_frame`; 65520 for 12-bit codes
+    MSB-aligned in 16-bit words), else from its dtype and code grid, else its maximum."""
+    from benchlab.analysis.sfr.measure import full_scale_of, full_scale_of_frame
+
+    top = full_scale_of_frame(pixels, meta)
+    if top is None:
+        top = full_scale_of(pixels)
+    return float(top) if top is not None else float(np.max(pixels, initial=0))
 
 
 # -- analysis for the live view ---------------------------------------------------------------
