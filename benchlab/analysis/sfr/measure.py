@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -70,7 +70,7 @@ import numpy.typing as npt
 
 from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bin_profiles
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
-from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
+from benchlab.analysis.bars.roi import MAD_TO_SIGMA, detect_code_step, infer_max_code
 from benchlab.analysis.quantiles import median, percentiles
 from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
 from benchlab.analysis.sfr.shading import (
@@ -484,7 +484,7 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
         return 0.0
     d = row_diff.ravel()
     mad = float(median(np.abs(d - median(d))))
-    return 1.4826 * mad / math.sqrt(2.0)
+    return MAD_TO_SIGMA * mad / math.sqrt(2.0)
 
 
 def _finite_median(a: npt.NDArray[Any]) -> float:
@@ -567,7 +567,7 @@ def _fit_edge(
             break
         coeffs, fitted = _polyfit(rows[keep], cents[keep], order), True
         res = np.abs(cents - _polyval(coeffs, rows))
-        limit = max(4.0 * 1.4826 * _finite_median(res[keep]), 0.25)
+        limit = max(4.0 * MAD_TO_SIGMA * _finite_median(res[keep]), 0.25)
         new_keep = finite & (res <= limit)
         if np.array_equal(new_keep, keep):
             break
@@ -1099,7 +1099,7 @@ def _plateau_noise(
             # quantised noise (it is a whole number of codes: 1.5 codes of noise can read as
             # 1.05), so it only sets a 5-sigma cut for the RMS of what is left.
             mag = np.abs(vals)
-            cut = 5.0 * max(1.4826 * _finite_median(mag), code_step)
+            cut = 5.0 * max(MAD_TO_SIGMA * _finite_median(mag), code_step)
             kept = vals[mag <= cut]
             sig = math.sqrt(_mean(kept * kept) / 2.0) if kept.size else 0.0
         out.append(sig)
@@ -1330,6 +1330,68 @@ def measure_sfr(
     ValueError
         Malformed input (not 2-D, non-finite values, bad options).
     """
+    roi = _prepare_roi(pixels, full_scale, fit_order, bootstrap, method)
+    edge = _find_edge(roi, fit_order, bin_width_px)
+    esf = _read_esf(roi, edge, roi.work, bin_width_px, check_usable=True)
+    edge, esf, shading_warning = _correct_shading(roi, edge, esf, fit_order, bin_width_px)
+    esf, outliers = _clip_outliers_and_check(roi, edge, esf, fit_order, bin_width_px)
+    free = _mtf_from_samples(esf.samples, esf.wide_half_px, esf.model,
+                             narrow_half_px=esf.narrow_half_px, rise_px=esf.rise_px)
+    _refuse_second_edge(roi, esf, free, outliers.count)
+    choice = _choose_estimator(method, free, esf.samples, esf.model, *edge.direction_cosines,
+                               esf.rise_px)
+    reading = _read_mtf50(choice)
+    if bootstrap > 0:
+        reading = _bootstrap(roi, edge, esf, choice, reading.mtf50, bootstrap, seed,
+                             bin_width_px)
+    warnings = ([] if shading_warning is None else [shading_warning]) + _warnings(
+        roi, edge, esf, free.truncated, outliers, reading.mtf50, choice)
+    return _result(roi, edge, esf, free, choice, reading, warnings)
+
+
+@dataclass(frozen=True)
+class _Roi:
+    """The validated ROI, in its work frame (the edge crossing the rows), with what the
+    whole-ROI checks read: full scale, clipping, pixel noise."""
+
+    img: FloatArray  # the ROI as given, float64
+    top: float | None  # full-scale code (None: no clipping check)
+    code_step: float  # spacing of the codes: 1 (16 MSB-aligned 12-bit), 0 for float data
+    clipped: float  # fraction of the pixels at 0 or full scale
+    transposed: bool  # True: a near-horizontal edge, the work frame is the ROI transposed
+    work: FloatArray  # the work frame
+    row_diff: FloatArray  # differences along the edge (between rows of the work frame)
+    col_diff: FloatArray  # differences across it
+    noise: float  # robust pixel noise from ``row_diff`` (the "no edge" test)
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of the work frame: the edge's length in pixels."""
+        return int(self.work.shape[0])
+
+    @property
+    def r_mid(self) -> float:
+        """The middle row of the work frame, the origin of the edge polynomial."""
+        return (self.n_rows - 1) / 2.0
+
+    def refusal(self, reasons: list[str], also: list[str] | None = None) -> SfrRefused:
+        """:func:`_refusal` of this ROI."""
+        return _refusal(reasons, self.img, self.noise, also)
+
+
+def _prepare_roi(
+    pixels: npt.ArrayLike, full_scale: float | None, fit_order: int, bootstrap: int, method: str
+) -> _Roi:
+    """Step 1: the options and the ROI checked, the work frame chosen and the whole-ROI
+    refusals (no edge in the noise, too few rows, too much clipping).
+
+    Raises
+    ------
+    ValueError
+        Malformed input or options (see :func:`measure_sfr`).
+    SfrRefused
+        An ROI too small, noise only, too short an edge or clipped.
+    """
     raw = np.asarray(pixels)
     if raw.dtype.kind not in "uifb":
         raise ValueError(f"ROI must hold real numbers, got dtype {raw.dtype}")
@@ -1350,267 +1412,398 @@ def measure_sfr(
     clipped = 0.0
     if top is not None:
         clipped = int(np.count_nonzero((img <= 0.0) | (img >= top))) / img.size
+    # Integer codes: a step of 1, or 16 for 12-bit data MSB-aligned in 16 bits.
+    code_step = _code_step_of(top) if np.issubdtype(raw.dtype, np.integer) else 0.0
 
-    # 1. Work frame: the edge crosses the rows (intensity varies along the columns).
+    # The work frame: the edge crosses the rows (intensity varies along the columns).
     d_cols, d_rows = np.diff(img, axis=1), np.diff(img, axis=0)
-    gx = _mean(np.abs(d_cols))
-    gy = _mean(np.abs(d_rows))
-    transposed = gy > gx
+    transposed = _mean(np.abs(d_rows)) > _mean(np.abs(d_cols))
     work = img.T if transposed else img
-    n_rows, n_cols = work.shape
-    # Differences along the edge (between rows of the work frame) and across it.
     row_diff, col_diff = (d_cols.T, d_rows.T) if transposed else (d_rows, d_cols)
-    d_flat = row_diff.ravel()  # finite: checked above (the public function checks NaN)
-    noise = 1.4826 * _finite_median(np.abs(d_flat - _finite_median(d_flat))) / math.sqrt(2.0)
+    d_flat = row_diff.ravel()  # finite: checked above
+    noise = MAD_TO_SIGMA * _finite_median(np.abs(d_flat - _finite_median(d_flat))) / math.sqrt(
+        2.0)
     p02, p98 = percentiles(work, [2.0, 98.0])
     spread = float(p98 - p02)
-
-    reasons: list[str] = []
-    warnings: list[str] = []
     if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
         raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
                           f"{NOISE_SPREAD_RATIO:g} x the noise {noise:.3g} (noise only?)"])
-    if n_rows < MIN_EDGE_ROWS:
-        reasons.append(f"edge only {n_rows} px long (< {MIN_EDGE_ROWS} px)")
+    reasons = []
+    if work.shape[0] < MIN_EDGE_ROWS:
+        reasons.append(f"edge only {work.shape[0]} px long (< {MIN_EDGE_ROWS} px)")
     if clipped > CLIP_REFUSE_FRACTION:
         reasons.append(f"{100 * clipped:.1f} % of the pixels are clipped at 0 or full scale "
                        f"({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF is flattened")
     if reasons:
         raise SfrRefused(reasons)
+    return _Roi(img, top, code_step, clipped, transposed, work, row_diff, col_diff, noise)
 
-    # 2. Edge location: polarity from the mean profile, then per-row centroids.
+
+@dataclass(frozen=True)
+class _Edge:
+    """The edge located in a work frame (see :func:`_locate_edge`)."""
+
+    polarity: float  # +1: the work frame brightens along the columns, -1: it darkens
+    coeffs: FloatArray  # the edge polynomial (column against row - r_mid)
+    u: FloatArray  # every pixel's signed distance from the edge, px, bright side positive
+    rise_px: float  # 10-90 % rise on the coarse ESF (NaN where unread)
+    half_window: float  # the centroid window of the last pass, px
+    fit: EdgeFit  # the fit as reported
+
+    @property
+    def angle_deg(self) -> float:
+        """Angle between the edge and the pixel axis, deg."""
+        return math.degrees(math.atan(abs(self.fit.slope)))
+
+    @property
+    def direction_cosines(self) -> tuple[float, float]:
+        """``(cos, |sin|)`` of the angle between the edge normal and the work frame's rows."""
+        slope = self.fit.slope
+        return 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
+
+
+def _find_edge(roi: _Roi, fit_order: int, bin_width_px: float) -> _Edge:
+    """Step 2: the edge's polarity from the mean profile, a first straight fit to the
+    per-row centroids of the whole profile, then :func:`_locate_edge`'s narrower passes.
+
+    Raises
+    ------
+    SfrRefused
+        Too few rows with a centroid (or the structure that caused it, :func:`_refusal`).
+    """
+    work = roi.work
+    n_rows, n_cols = work.shape
     mean_prof = work.mean(axis=0)
     fifth = max(1, n_cols // 5)
     step = _mean(mean_prof[-fifth:]) - _mean(mean_prof[:fifth])
     polarity = 1.0 if step >= 0 else -1.0
-    deriv = polarity * col_diff
+    deriv = polarity * roi.col_diff
     dm = np.clip(polarity * np.diff(mean_prof), 0.0, None)
     x_half = np.arange(n_cols - 1, dtype=np.float64) + 0.5
     x0 = float(np.sum(x_half * dm) / np.sum(dm)) if np.sum(dm) > 0 else (n_cols - 1) / 2.0
     rows = np.arange(n_rows, dtype=np.float64)
-    r_mid = (n_rows - 1) / 2.0
     cents = _row_centroids(deriv, x0, max(n_cols / 2.0, 4.0))
-    coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
-    half_window = max(n_cols / 4.0, 4.0)
+    coeffs, _ = _fit_edge(rows - roi.r_mid, cents, 1)
     try:
-        coeffs, u_tmp, rise, half_window, fit = _locate_edge(
-            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px,
-            transposed)
+        return _locate_edge(work, deriv, coeffs, max(n_cols / 4.0, 4.0), fit_order, roi.r_mid,
+                            polarity, bin_width_px, roi.transposed)
     except SfrRefused as exc:
-        raise _refusal(list(exc.reasons), img, noise) from None
-    slope, rms = fit.slope, fit.rms_px
-    angle = math.degrees(math.atan(abs(slope)))
+        raise roi.refusal(list(exc.reasons)) from None
 
-    # 3. ESF by projection onto the normal (first: whether there is an edge at all).
-    # (the last pass projected on these very coefficients)
-    u = u_tmp
-    samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
-    lo_level, hi_level = _plateau_levels(samples)
-    dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
-    step_abs = abs(hi_level - lo_level)
-    if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
-        raise _refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"],
-                       img, noise)
-    if angle < MIN_ANGLE_DEG:
-        reasons.append(f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} deg): "
-                       "too few sample phases; tilt the edge 2-10 deg")
-    elif n_rows * abs(slope) < 1.0:
-        reasons.append(f"edge too short for its angle: {n_rows} px at {angle:.2f} deg shifts "
-                       f"{n_rows * abs(slope):.2f} px (< 1 px, one phase cycle)")
-    if reasons:
-        raise _refusal(reasons, img, noise)
-    freqs = FREQS_CYCLES_PER_PX.copy()
-    contrast = _contrast(dark, bright)
 
-    # 4. Uncertainty: the pixel noise (per level: shot noise makes the bright side noisier)
-    # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
-    code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
-    if np.issubdtype(raw.dtype, np.integer):
-        code_step = _code_step_of(top)
-    plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
+@dataclass(frozen=True)
+class _Esf:
+    """The ESF read off a work frame about a located edge, with the levels and the noise the
+    MTF needs (see :func:`_read_esf`)."""
+
+    work: FloatArray  # the work frame it was read from (flattened, outliers clipped)
+    samples: _Samples
+    rise_px: float  # 10-90 % rise (the wide window's width)
+    flat_half: float  # the wide window's flat half-width from the rise, px
+    dark: float
+    bright: float
+    plateau_noise: _PlateauNoise
+    model: _NoiseModel
+    support: float  # the LSF's support as the data show it, px (0: off)
+
+    @property
+    def contrast(self) -> float:
+        """Eq. 2.9 contrast of the plateaus (:func:`_contrast`)."""
+        return _contrast(self.dark, self.bright)
+
+    @property
+    def wide_half_px(self) -> float:
+        """Flat half-width of the wide LSF window: the rise's, or the data's support."""
+        return max(self.flat_half, self.support)
+
+    @property
+    def narrow_half_px(self) -> float:
+        """Flat half-width of the narrow LSF window on the core."""
+        return max(NARROW_RISES * self.rise_px + NARROW_EXTRA_PX, NARROW_MIN_PX)
+
+    def without_outliers(self, u: FloatArray, work: FloatArray, bin_width_px: float) -> _Esf:
+        """Everything read off the ESF again from ``work`` (the outliers clipped), the noise
+        per level kept: a hot pixel's spike in a plateau bin crosses 10 % far from the edge
+        (the rise, and every window from it, read 34 px for 100 hot pixels in a 1 px edge)
+        and moves the plateau levels."""
+        samples, rise, flat_half = _esf_and_rise(u, work, bin_width_px,
+                                                 _coarse_rise(u, work, bin_width_px))
+        dark, bright = _plateau_levels(samples)
+        model = _NoiseModel(dark, bright, self.model.var_dark, self.model.var_bright)
+        return _Esf(work, samples, rise, flat_half, dark, bright, self.plateau_noise, model,
+                    _support(samples, model))
+
+
+def _read_esf(
+    roi: _Roi, edge: _Edge, work: FloatArray, bin_width_px: float, *, check_usable: bool = False
+) -> _Esf:
+    """Step 3: the ESF projected onto the edge normal and binned, its plateau levels, the
+    pixel noise per level (row differences on the plateaus: shot noise makes the bright side
+    noisier) and the LSF's support as the data show it (a halo or flare around a sharp core:
+    the 10-90 % rise sees only the core). ``check_usable``: first refuse a step lost in the
+    noise or an edge too near the pixel axis (:func:`_refuse_unusable_edge`)."""
+    samples, rise, flat_half = _esf_and_rise(edge.u, work, bin_width_px, edge.rise_px)
+    dark, bright = _plateau_levels(samples)  # u runs from the dark side to the bright side
+    if check_usable:
+        _refuse_unusable_edge(roi, edge, dark, bright)
+    plateau_noise = _plateau_noise(roi.row_diff, edge.u, flat_half, roi.noise, roi.code_step)
     model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
-    # The wide window also covers the LSF's support as the data show it (a halo or flare
-    # around a sharp core: the 10-90 % rise sees only the core).
-    support = _support(samples, model)
-    # Shading: planes through the plateaus beyond that support; where significant the ROI is
-    # flattened and everything the shading distorted is read again - the edge (its gradient
-    # pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise and
-    # the support - and the planes refitted nearer the edge from that narrower support.
-    raw_work = work
+    return _Esf(work, samples, rise, flat_half, dark, bright, plateau_noise, model,
+                _support(samples, model))
+
+
+def _refuse_unusable_edge(roi: _Roi, edge: _Edge, dark: float, bright: float) -> None:
+    """Refuse a step lost in the noise, an edge within :data:`MIN_ANGLE_DEG` of the pixel
+    axis and one too short for its angle to span a phase cycle (:func:`_refusal`: or the
+    structure that caused it)."""
+    step_abs = abs(bright - dark)
+    if step_abs <= MIN_STEP_NOISE_RATIO * roi.noise / math.sqrt(max(1, roi.n_rows)):
+        raise roi.refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise "
+                           f"{roi.noise:.3g}"])
+    angle, shift = edge.angle_deg, roi.n_rows * abs(edge.fit.slope)
+    if angle < MIN_ANGLE_DEG:
+        raise roi.refusal([f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} "
+                           "deg): too few sample phases; tilt the edge 2-10 deg"])
+    if shift < 1.0:
+        raise roi.refusal([f"edge too short for its angle: {roi.n_rows} px at {angle:.2f} deg "
+                           f"shifts {shift:.2f} px (< 1 px, one phase cycle)"])
+
+
+def _correct_shading(
+    roi: _Roi, edge: _Edge, esf: _Esf, fit_order: int, bin_width_px: float
+) -> tuple[_Edge, _Esf, str | None]:
+    """Step 4: planes through the plateaus beyond the LSF's support; where significant the
+    ROI is flattened and everything the shading distorted is read again - the edge (its
+    gradient pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise
+    and the support - and the planes refitted nearer the edge from that narrower support.
+    Returns the edge, the ESF and the warning (None: no significant shading)."""
     shading: Shading | None = None
     flattened: Shading | None = None
     for _ in range(SHADING_PASSES):
-        shading = fit_shading(raw_work, u, r_mid, float(coeffs[-1]),
-                              max(flat_half, support) + PLATEAU_MARGIN_PX,
-                              plateau_noise.var_dark, plateau_noise.var_bright)
+        shading = fit_shading(roi.work, edge.u, roi.r_mid, float(edge.coeffs[-1]),
+                              esf.wide_half_px + PLATEAU_MARGIN_PX,
+                              esf.plateau_noise.var_dark, esf.plateau_noise.var_bright)
         if shading is None or not shading.significant or not shading.correctable:
             break
         flattened = shading
-        work = flatten(raw_work, shading)
-        coeffs, u, rise, half_window, fit = _locate_edge(
-            work, polarity * np.diff(work, axis=1), coeffs, half_window, fit_order, r_mid,
-            polarity, bin_width_px, transposed)
-        slope, rms = fit.slope, fit.rms_px
-        angle = math.degrees(math.atan(abs(slope)))
-        samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
-        dark, bright = _plateau_levels(samples)
-        contrast = _contrast(dark, bright)
-        plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
-        model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
-        support = _support(samples, model)
+        work = flatten(roi.work, shading)
+        edge = _locate_edge(work, edge.polarity * np.diff(work, axis=1), edge.coeffs,
+                            edge.half_window, fit_order, roi.r_mid, edge.polarity, bin_width_px,
+                            roi.transposed)
+        esf = _read_esf(roi, edge, work, bin_width_px)
     if flattened is not None:
-        warnings.append(f"{flattened.describe()}; flattened by them (the MTF takes the "
-                        "shading for illumination, not for the lens)")
-    elif shading is not None and shading.significant:
-        warnings.append(f"{shading.describe()}: too strong to flatten (the step falls to "
-                        f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
-                        "centre); the MTF at low frequency may read low - use a smaller ROI "
-                        "or a flat-fielded image")
-    located = work
-    work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
-    structure, clipping = _quality_gate(work, u, flat_half, model, rms, code_step, raw_work)
+        return edge, esf, (f"{flattened.describe()}; flattened by them (the MTF takes the "
+                           "shading for illumination, not for the lens)")
+    if shading is not None and shading.significant:
+        return edge, esf, (f"{shading.describe()}: too strong to flatten (the step falls to "
+                           f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
+                           "centre); the MTF at low frequency may read low - use a smaller "
+                           "ROI or a flat-fielded image")
+    return edge, esf, None
+
+
+@dataclass(frozen=True)
+class _Outliers:
+    """Pixels more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF, clipped to it."""
+
+    count: int
+    warning: str | None  # many, taken for compression or sensor structure (else None)
+
+
+def _clip_outliers_and_check(
+    roi: _Roi, edge: _Edge, esf: _Esf, fit_order: int, bin_width_px: float
+) -> tuple[_Esf, _Outliers]:
+    """Step 5: the pixels off the ESF clipped, and the refusals that need the whole reading
+    (:func:`_quality_gate`: other structure, a bright side clipped below full scale;
+    :func:`_stray_pixels`: many pixels off the ESF from a second edge or a bend); the ESF
+    read again without the outliers where there were any."""
+    located = esf.work
+    work, n_outliers = _clip_outliers(edge.u, located, esf.samples, esf.model, bin_width_px)
+    structure, clipping = _quality_gate(work, edge.u, esf.flat_half, esf.model,
+                                        edge.fit.rms_px, roi.code_step, roi.work)
     stray_warning = None
     if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        at = _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid)
-        cents = _row_centroids(polarity * np.diff(located, axis=1), at, half_window)
-        # rows whose window the ROI cuts: their centroids lean inwards, which reads as a bow
-        cents[(at - half_window < 0.0) | (at + half_window > located.shape[1] - 1.0)] = np.nan
-        refusal, stray_warning = _stray_pixels(img, noise, n_outliers, work.size, cents,
-                                               fit_order, rms)
+        refusal, stray_warning = _stray_pixels(roi.img, roi.noise, n_outliers, work.size,
+                                               _stray_centroids(roi, edge, located), fit_order,
+                                               edge.fit.rms_px)
         if refusal is not None:
             raise SfrRefused([refusal] + clipping)
     if structure:
-        raise _refusal(structure, img, noise, also=clipping)
+        raise roi.refusal(structure, also=clipping)
     if clipping:
         raise SfrRefused(clipping)
     if n_outliers:
-        # Everything read off the ESF before, again without them: a hot pixel's spike in a
-        # plateau bin crosses 10 % far from the edge (the rise, and every window from it,
-        # read 34 px for 100 hot pixels in a 1 px edge) and moves the plateau levels.
-        samples, rise_guess, flat_half = _esf_and_rise(
-            u, work, bin_width_px, _coarse_rise(u, work, bin_width_px))
-        dark, bright = _plateau_levels(samples)
-        contrast = _contrast(dark, bright)
-        model = _NoiseModel(dark, bright, model.var_dark, model.var_bright)
-        support = _support(samples, model)
-    narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
-    wide_half = max(flat_half, support)
-    spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
-                             rise_px=rise_guess)
-    mtf, lsf_w, truncated = spec.mtf, spec.lsf, spec.truncated
-    if (n_outliers or truncated
-            or float(np.ptp(samples.esf)) > ESF_SPAN_OF_STEP * abs(bright - dark)):
-        # The marks a second edge leaves (a corner's short side, a bar's far edge near the
-        # ROI's end): its pixels clipped off the ESF, or the ESF cut short or reaching past
-        # its plateaus. Where the ROI does hold two edges, it is refused as what it is.
-        found = find_two_edges(img, noise)
+        esf = esf.without_outliers(edge.u, work, bin_width_px)
+    else:
+        esf = replace(esf, work=work)
+    return esf, _Outliers(n_outliers, stray_warning)
+
+
+def _stray_centroids(roi: _Roi, edge: _Edge, located: FloatArray) -> FloatArray:
+    """Per-row edge centroids on ``located`` (the frame the edge was found on) for the bend
+    test, NaN on the rows whose window the ROI cuts: their centroids lean inwards, which
+    reads as a bow."""
+    at = _polyval(edge.coeffs, np.arange(roi.n_rows, dtype=np.float64) - roi.r_mid)
+    cents = _row_centroids(edge.polarity * np.diff(located, axis=1), at, edge.half_window)
+    cut = (at - edge.half_window < 0.0) | (at + edge.half_window > located.shape[1] - 1.0)
+    cents[cut] = np.nan
+    return np.asarray(cents, dtype=np.float64)
+
+
+def _refuse_second_edge(roi: _Roi, esf: _Esf, free: _Spectrum, n_outliers: int) -> None:
+    """Step 6: refuse an ROI holding a second edge. The marks one leaves (a corner's short
+    side, a bar's far edge near the ROI's end): its pixels clipped off the ESF, or the ESF
+    cut short or reaching past its plateaus; a second step of the same sign leaves none of
+    them: the ESF reads it as one wide edge (two equal steps 8 px apart read an MTF50 of
+    0.04 cycles/px, silently), so it is always looked for."""
+    if (n_outliers or free.truncated
+            or float(np.ptp(esf.samples.esf)) > ESF_SPAN_OF_STEP * abs(esf.bright - esf.dark)):
+        found = find_two_edges(roi.img, roi.noise)
         if found is not None:
             raise SfrRefused([found.reason()])
-    # A second step of the same sign leaves none of those marks: the ESF reads it as one wide
-    # edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently).
-    second = find_second_edge(img, noise)
+    second = find_second_edge(roi.img, roi.noise)
     if second is not None:
         raise SfrRefused([second.reason()])
-    ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
-    choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """The MTF's uncertainty and its MTF50 (see :func:`_read_mtf50`, :func:`_bootstrap`)."""
+
+    mtf_sigma: FloatArray | None
+    mtf50: float | None
+    mtf50_sigma: float | None
+    method: str  # "analytic" or "bootstrap"
+
+
+def _read_mtf50(choice: _Choice) -> _Reading:
+    """Step 8: MTF50 and the analytic uncertainty of the chosen spectrum."""
     spec = choice.spec
-    mtf = spec.mtf
-    mtf_sigma = spec.sigma
     if choice.mtf50 is not None:  # already read off this very spectrum
         mtf50, mtf50_sigma = choice.mtf50
     else:
-        mtf50 = _mtf50(freqs, mtf)
-        mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
-    uncertainty = "analytic"
-    if bootstrap > 0:
-        rng = np.random.default_rng(seed)
-        curves = np.empty((bootstrap, freqs.size))
-        m50s = []
-        for b in range(bootstrap):
-            pick = rng.integers(0, n_rows, n_rows)
-            pb = _esf_samples(u[pick], work[pick], bin_width_px, flat_half)
-            sb = _mtf_from_samples(pb, wide_half, model, narrow_half_px=narrow_half,
-                                   rise_px=rise_guess)
-            mb = sb.mtf
-            if choice.decision is not None and choice.decision.accepted:
-                fb = _model_fit(sb, pb, model, ca, sa, rise_guess)
-                if fb is not None:
-                    mb = fb.mtf(freqs)
-            curves[b] = mb
-            m50 = _mtf50(freqs, mb)
-            if m50 is not None:
-                m50s.append(m50)
-        mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if bootstrap > 1 else
-                               np.zeros(freqs.size), dtype=np.float64)
-        mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
-        uncertainty = "bootstrap"
+        mtf50 = _mtf50(FREQS_CYCLES_PER_PX, spec.mtf)
+        mtf50_sigma = _mtf50_sigma(FREQS_CYCLES_PER_PX, spec.mtf, spec.sigma, mtf50)
+    return _Reading(spec.sigma, mtf50, mtf50_sigma, "analytic")
 
-    # 5. Warnings.
+
+def _bootstrap(
+    roi: _Roi, edge: _Edge, esf: _Esf, choice: _Choice, mtf50: float | None, resamples: int,
+    seed: int, bin_width_px: float,
+) -> _Reading:
+    """The uncertainty from ``resamples`` bootstraps over rows (the edge fit kept; the LSF
+    model refitted where the chosen reading is the model's), MTF50 as read (``mtf50``)."""
+    freqs = FREQS_CYCLES_PER_PX
+    rng = np.random.default_rng(seed)
+    curves = np.empty((resamples, freqs.size))
+    m50s = []
+    for b in range(resamples):
+        pick = rng.integers(0, roi.n_rows, roi.n_rows)
+        pb = _esf_samples(edge.u[pick], esf.work[pick], bin_width_px, esf.flat_half)
+        sb = _mtf_from_samples(pb, esf.wide_half_px, esf.model,
+                               narrow_half_px=esf.narrow_half_px, rise_px=esf.rise_px)
+        mb = sb.mtf
+        if choice.decision is not None and choice.decision.accepted:
+            fb = _model_fit(sb, pb, esf.model, *edge.direction_cosines, esf.rise_px)
+            if fb is not None:
+                mb = fb.mtf(freqs)
+        curves[b] = mb
+        m50 = _mtf50(freqs, mb)
+        if m50 is not None:
+            m50s.append(m50)
+    mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if resamples > 1 else
+                           np.zeros(freqs.size), dtype=np.float64)
+    mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
+    return _Reading(mtf_sigma, mtf50, mtf50_sigma, "bootstrap")
+
+
+def _warnings(
+    roi: _Roi, edge: _Edge, esf: _Esf, truncated: bool, outliers: _Outliers,
+    mtf50: float | None, choice: _Choice,
+) -> list[str]:
+    """Step 9: what makes the reading less reliable without refusing it, in report order."""
+    angle, n_rows, clipped = edge.angle_deg, roi.n_rows, roi.clipped
+    warnings = []
     if angle < WARN_ANGLE_DEG:
         warnings.append(f"edge only {angle:.2f} deg from the pixel axis (2-10 deg recommended)")
     if n_rows < WARN_EDGE_ROWS:
         warnings.append(f"short edge: {n_rows} px along it (>= {WARN_EDGE_ROWS} px recommended); "
                         "expect more noise in the MTF")
     if clipped > 0:
-        warnings.append(f"{100 * clipped:.2f} % of the pixels clipped (0 or {top:g})")
+        warnings.append(f"{100 * clipped:.2f} % of the pixels clipped (0 or {roi.top:g})")
+    contrast = esf.contrast
     if math.isfinite(contrast) and contrast < LOW_CONTRAST:
         warnings.append(f"low contrast {contrast:.2f} (< {LOW_CONTRAST:g}): noisy, and sensitive "
                         "to any offset or non-linearity")
-    if samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
-        warnings.append(f"{100 * samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
+    if esf.samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
+        warnings.append(f"{100 * esf.samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
                         f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
                         "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
                         "MTF near Nyquist less reliable (aliasing)")
-    if stray_warning is not None:
-        warnings.append(stray_warning)
-    elif n_outliers:
-        warnings.append(f"{n_outliers} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas off "
-                        "the edge profile clipped to it (hot or dead pixels, dust?)")
+    if outliers.warning is not None:
+        warnings.append(outliers.warning)
+    elif outliers.count:
+        warnings.append(f"{outliers.count} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas "
+                        "off the edge profile clipped to it (hot or dead pixels, dust?)")
     if truncated:
         warnings.append("ESF truncated: the ROI is narrow for this blur (widen it across the "
                         "edge); the MTF at low frequency may be off")
-    if rms > FIT_RMS_WARN_PX:
-        warnings.append(f"edge fit RMS {rms:.2f} px: edge bent or noisy (try fit_order 2)")
+    if edge.fit.rms_px > FIT_RMS_WARN_PX:
+        warnings.append(f"edge fit RMS {edge.fit.rms_px:.2f} px: edge bent or noisy "
+                        "(try fit_order 2)")
     if mtf50 is None:
         warnings.append("MTF stays above 0.5 up to 1 cycle/px: MTF50 not defined")
     if choice.warning:
         warnings.append(choice.warning)
+    return warnings
 
-    # 6. The normal in the ROI's own frame (work frame normal is (cos, sin) = (1, -slope)).
-    theta_work = math.atan2(-slope * polarity, polarity)
+
+def _normal_theta(edge: _Edge, transposed: bool) -> float:
+    """The edge normal (dark to bright) in the ROI's own frame, rad; in the work frame it is
+    ``(cos, sin) = (1, -slope)`` times the polarity."""
+    theta_work = math.atan2(-edge.fit.slope * edge.polarity, edge.polarity)
     if transposed:
-        theta = math.atan2(math.cos(theta_work), math.sin(theta_work))
-    else:
-        theta = theta_work
+        return math.atan2(math.cos(theta_work), math.sin(theta_work))
+    return theta_work
+
+
+def _result(
+    roi: _Roi, edge: _Edge, esf: _Esf, free: _Spectrum, choice: _Choice, reading: _Reading,
+    warnings: list[str],
+) -> SfrResult:
+    """Step 10: the :class:`SfrResult` of the pipeline's steps."""
+    freqs = FREQS_CYCLES_PER_PX.copy()
+    mtf = choice.spec.mtf
+    noise = esf.plateau_noise
     return SfrResult(
         freqs_cycles_per_px=freqs,
         mtf=mtf,
-        mtf_sigma=mtf_sigma,
-        uncertainty_method=uncertainty,
-        mtf50_cycles_per_px=mtf50,
-        mtf50_sigma=mtf50_sigma,
+        mtf_sigma=reading.mtf_sigma,
+        uncertainty_method=reading.method,
+        mtf50_cycles_per_px=reading.mtf50,
+        mtf50_sigma=reading.mtf50_sigma,
         mtf_nyquist=float(np.interp(NYQUIST_CYCLES_PER_PX, freqs, mtf)),
-        edge_angle_deg=angle,
-        normal_theta_rad=theta,
-        direction="vertical" if transposed else "horizontal",
-        dark=dark,
-        bright=bright,
-        contrast=float(contrast),
-        noise_sigma=noise,
-        noise_dark_sigma=math.sqrt(plateau_noise.var_dark),
-        noise_bright_sigma=math.sqrt(plateau_noise.var_bright),
-        noise_dark_measured=plateau_noise.measured_dark,
-        noise_bright_measured=plateau_noise.measured_bright,
-        noise_rounding_sigma=math.sqrt(plateau_noise.rounding_var),
-        noise_rounding_floor=plateau_noise.floored(),
-        clipped_fraction=clipped,
-        edge_rows=n_rows,
-        fit=fit,
-        esf_u_px=samples.u,
-        esf=samples.esf,
-        lsf=lsf_w,
+        edge_angle_deg=edge.angle_deg,
+        normal_theta_rad=_normal_theta(edge, roi.transposed),
+        direction="vertical" if roi.transposed else "horizontal",
+        dark=esf.dark,
+        bright=esf.bright,
+        contrast=float(esf.contrast),
+        noise_sigma=roi.noise,
+        noise_dark_sigma=math.sqrt(noise.var_dark),
+        noise_bright_sigma=math.sqrt(noise.var_bright),
+        noise_dark_measured=noise.measured_dark,
+        noise_bright_measured=noise.measured_bright,
+        noise_rounding_sigma=math.sqrt(noise.rounding_var),
+        noise_rounding_floor=noise.floored(),
+        clipped_fraction=roi.clipped,
+        edge_rows=roi.n_rows,
+        fit=edge.fit,
+        esf_u_px=esf.samples.u,
+        esf=esf.samples.esf,
+        lsf=free.lsf,
         warnings=tuple(warnings),
-        lsf_windows=spec.windows,
+        lsf_windows=choice.spec.windows,
         estimator=choice.estimator,
         estimator_reason=choice.reason,
         lsf_model=choice.model_summary(),
@@ -1620,10 +1813,10 @@ def measure_sfr(
 def _locate_edge(
     work: FloatArray, deriv: FloatArray, coeffs: FloatArray, half_window: float,
     fit_order: int, r_mid: float, polarity: float, bin_width_px: float, transposed: bool,
-) -> tuple[FloatArray, FloatArray, float, float, EdgeFit]:
-    """:data:`EDGE_PASSES` passes of :func:`_edge_pass` from ``coeffs``: the coefficients,
-    every pixel's distance from the edge, the coarse rise, the window and the fit as
-    reported. Refused when too few rows have a centroid."""
+) -> _Edge:
+    """The edge: :data:`EDGE_PASSES` passes of :func:`_edge_pass` from ``coeffs`` (the
+    coefficients, every pixel's distance from the edge, the coarse rise, the window and the
+    fit as reported). Refused when too few rows have a centroid."""
     rise = float("nan")
     u: FloatArray | None = None
     keep = cents = np.zeros(0)
@@ -1635,8 +1828,8 @@ def _locate_edge(
     if int(keep.sum()) <= fit_order + 1:
         raise SfrRefused(["no edge: too few rows have a derivative centroid"])
     drows = np.arange(work.shape[0], dtype=np.float64) - r_mid
-    return coeffs, u, rise, half_window, _edge_fit_summary(transposed, coeffs, cents, keep,
-                                                           drows)
+    return _Edge(polarity, coeffs, u, rise, half_window,
+                 _edge_fit_summary(transposed, coeffs, cents, keep, drows))
 
 
 def _edge_pass(
