@@ -1393,18 +1393,7 @@ def _prepare_roi(
         An ROI too small, noise only, too short an edge or clipped.
     """
     raw = np.asarray(pixels)
-    if raw.dtype.kind not in "uifb":
-        raise ValueError(f"ROI must hold real numbers, got dtype {raw.dtype}")
-    if raw.ndim != 2:
-        raise ValueError(f"ROI must be 2-D, got shape {raw.shape}")
-    if min(raw.shape) < 3:
-        raise SfrRefused([f"ROI {raw.shape[0]} x {raw.shape[1]} px is too small for an edge"])
-    if not 1 <= fit_order <= 3:
-        raise ValueError(f"fit_order must be 1..3, got {fit_order}")
-    if bootstrap < 0:
-        raise ValueError(f"bootstrap must be >= 0, got {bootstrap}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    _check_input(raw, fit_order, bootstrap, method)
     img = raw.astype(np.float64)
     if raw.dtype.kind == "f" and not np.all(np.isfinite(img)):
         raise ValueError("ROI holds a non-finite value")
@@ -1437,6 +1426,30 @@ def _prepare_roi(
     if reasons:
         raise SfrRefused(reasons)
     return _Roi(img, top, code_step, clipped, transposed, work, row_diff, col_diff, noise)
+
+
+def _check_input(raw: npt.NDArray[Any], fit_order: int, bootstrap: int, method: str) -> None:
+    """The ROI's dtype and shape and the options, in this order (see :func:`measure_sfr`).
+
+    Raises
+    ------
+    ValueError
+        Not real numbers, not 2-D, or an option out of range.
+    SfrRefused
+        An ROI under 3 px on a side.
+    """
+    if raw.dtype.kind not in "uifb":
+        raise ValueError(f"ROI must hold real numbers, got dtype {raw.dtype}")
+    if raw.ndim != 2:
+        raise ValueError(f"ROI must be 2-D, got shape {raw.shape}")
+    if min(raw.shape) < 3:
+        raise SfrRefused([f"ROI {raw.shape[0]} x {raw.shape[1]} px is too small for an edge"])
+    if not 1 <= fit_order <= 3:
+        raise ValueError(f"fit_order must be 1..3, got {fit_order}")
+    if bootstrap < 0:
+        raise ValueError(f"bootstrap must be >= 0, got {bootstrap}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
 
 
 @dataclass(frozen=True)
@@ -1721,7 +1734,15 @@ def _warnings(
     roi: _Roi, edge: _Edge, esf: _Esf, truncated: bool, outliers: _Outliers,
     mtf50: float | None, choice: _Choice,
 ) -> list[str]:
-    """Step 9: what makes the reading less reliable without refusing it, in report order."""
+    """Step 9: what makes the reading less reliable without refusing it, in report order:
+    the ROI's (:func:`_roi_warnings`), then the reading's (:func:`_reading_warnings`)."""
+    return (_roi_warnings(roi, edge, esf)
+            + _reading_warnings(edge, truncated, outliers, mtf50, choice))
+
+
+def _roi_warnings(roi: _Roi, edge: _Edge, esf: _Esf) -> list[str]:
+    """Warnings about the ROI as taken: the edge's angle and length, clipping, contrast and
+    the pixel lattice's sampling of the ESF."""
     angle, n_rows, clipped = edge.angle_deg, roi.n_rows, roi.clipped
     warnings = []
     if angle < WARN_ANGLE_DEG:
@@ -1740,6 +1761,15 @@ def _warnings(
                         f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
                         "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
                         "MTF near Nyquist less reliable (aliasing)")
+    return warnings
+
+
+def _reading_warnings(
+    edge: _Edge, truncated: bool, outliers: _Outliers, mtf50: float | None, choice: _Choice
+) -> list[str]:
+    """Warnings about the reading: pixels off the ESF, a truncated ESF, a poor edge fit, no
+    MTF50, a rejected LSF model."""
+    warnings = []
     if outliers.warning is not None:
         warnings.append(outliers.warning)
     elif outliers.count:
