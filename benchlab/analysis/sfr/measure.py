@@ -52,9 +52,13 @@ before the MTF; more than :data:`OUTLIER_REFUSE_FRACTION` of them, with no secon
 bend, and an edge fit within :data:`FIT_RMS_WARN_PX`, are taken for compression or sensor
 structure).
 
-Why one module of ~1,700 lines: the ISO 12233 steps hand intermediate arrays (edge fit, ESF bins,
-LSF support, windows) from one to the next and the refusals need all of them; the LSF model,
-shading, structure refusals and multi-frame averaging already live in their own modules.
+Code layout: :func:`measure_sfr` reads as the pipeline, one named function per step
+(:func:`_prepare_roi`, :func:`_find_edge`, :func:`_read_esf`, :func:`_correct_shading`,
+:func:`_clip_outliers_and_check`, :func:`_refuse_second_edge`, :func:`_choose_estimator`,
+:func:`_read_mtf50`, :func:`_warnings`, :func:`_result`), handing small frozen dataclasses
+(:class:`_Roi`, :class:`_Edge`, :class:`_Esf`) from one to the next; the numerics they call
+follow. The LSF model, shading, structure refusals and multi-frame averaging live in their own
+modules.
 """
 
 from __future__ import annotations
@@ -1252,8 +1256,8 @@ def _choose_estimator(
     method: str, spec: _Spectrum, samples: _Samples, noise: _NoiseModel, cos_a: float,
     sin_a: float, rise_px: float,
 ) -> _Choice:
-    """The model-free spectrum ``spec`` or the LSF model's (:mod:`benchlab.analysis.sfr.model`)
-    for ``method`` (see :func:`measure_sfr`)."""
+    """Step 7: the model-free spectrum ``spec`` or the LSF model's
+    (:mod:`benchlab.analysis.sfr.model`) for ``method`` (see :func:`measure_sfr`)."""
     if method == "free":
         return _Choice(spec, "model-free", "requested (method free)", "", None)
     if method == "auto":
@@ -1318,6 +1322,10 @@ def measure_sfr(
         Random seed of the bootstrap.
     bin_width_px : float, default 0.25
         ESF bin width (0.25 = 4x oversampling).
+    method : {"auto", "free", "model"}, default "auto"
+        The MTF estimator: ``free`` the windowed LSF's DFT, ``model`` the LSF model where its
+        gates accept it, ``auto`` the model-free reading where its own uncertainty meets the
+        accuracy target (:data:`AUTO_MTF_TOL`, :data:`AUTO_MTF50_REL_TOL`), else the model.
 
     Returns
     -------
@@ -1330,16 +1338,22 @@ def measure_sfr(
     ValueError
         Malformed input (not 2-D, non-finite values, bad options).
     """
+    # The pipeline; each step's function says what it reads and why it refuses.
+    # 1. The ROI in its work frame: full scale, clipping, pixel noise.
     roi = _prepare_roi(pixels, full_scale, fit_order, bootstrap, method)
+    # 2. The edge line. 3. The ESF about it, its levels and noise.
     edge = _find_edge(roi, fit_order, bin_width_px)
     esf = _read_esf(roi, edge, roi.work, bin_width_px, check_usable=True)
+    # 4. Shading flattened (edge and ESF read again). 5. Outliers clipped, structure refused.
     edge, esf, shading_warning = _correct_shading(roi, edge, esf, fit_order, bin_width_px)
     esf, outliers = _clip_outliers_and_check(roi, edge, esf, fit_order, bin_width_px)
+    # 6. The model-free MTF; a second edge refused. 7. The LSF model where it is needed.
     free = _mtf_from_samples(esf.samples, esf.wide_half_px, esf.model,
                              narrow_half_px=esf.narrow_half_px, rise_px=esf.rise_px)
     _refuse_second_edge(roi, esf, free, outliers.count)
     choice = _choose_estimator(method, free, esf.samples, esf.model, *edge.direction_cosines,
                                esf.rise_px)
+    # 8. MTF50 and the uncertainty (analytic, or a bootstrap on request). 9. Warnings.
     reading = _read_mtf50(choice)
     if bootstrap > 0:
         reading = _bootstrap(roi, edge, esf, choice, reading.mtf50, bootstrap, seed,
@@ -1664,11 +1678,12 @@ def _stray_centroids(roi: _Roi, edge: _Edge, located: FloatArray) -> FloatArray:
 
 
 def _refuse_second_edge(roi: _Roi, esf: _Esf, free: _Spectrum, n_outliers: int) -> None:
-    """Step 6: refuse an ROI holding a second edge. The marks one leaves (a corner's short
-    side, a bar's far edge near the ROI's end): its pixels clipped off the ESF, or the ESF
-    cut short or reaching past its plateaus; a second step of the same sign leaves none of
-    them: the ESF reads it as one wide edge (two equal steps 8 px apart read an MTF50 of
-    0.04 cycles/px, silently), so it is always looked for."""
+    """Step 6 (after the model-free MTF, :func:`_mtf_from_samples`): refuse an ROI holding
+    a second edge. The marks one leaves (a corner's short side, a bar's far edge near the
+    ROI's end): its pixels clipped off the ESF, or the ESF cut short or reaching past its
+    plateaus; a second step of the same sign leaves none of them: the ESF reads it as one wide
+    edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently), so it is
+    always looked for."""
     if (n_outliers or free.truncated
             or float(np.ptp(esf.samples.esf)) > ESF_SPAN_OF_STEP * abs(esf.bright - esf.dark)):
         found = find_two_edges(roi.img, roi.noise)
@@ -1704,8 +1719,9 @@ def _bootstrap(
     roi: _Roi, edge: _Edge, esf: _Esf, choice: _Choice, mtf50: float | None, resamples: int,
     seed: int, bin_width_px: float,
 ) -> _Reading:
-    """The uncertainty from ``resamples`` bootstraps over rows (the edge fit kept; the LSF
-    model refitted where the chosen reading is the model's), MTF50 as read (``mtf50``)."""
+    """Step 8 on request: the uncertainty from ``resamples`` bootstraps over rows (the edge
+    fit kept; the LSF model refitted where the chosen reading is the model's), MTF50 as read
+    (``mtf50``)."""
     freqs = FREQS_CYCLES_PER_PX
     rng = np.random.default_rng(seed)
     curves = np.empty((resamples, freqs.size))
