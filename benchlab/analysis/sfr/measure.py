@@ -76,7 +76,15 @@ from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bi
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import MAD_TO_SIGMA, detect_code_step, infer_max_code
 from benchlab.analysis.quantiles import median, percentiles
-from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
+from benchlab.analysis.sfr.refusals import (
+    FIT_RMS_WARN_PX,
+    OUTLIER_REFUSE_FRACTION,
+    OUTLIER_SIGMAS,
+    SfrRefused,
+    quality_gate,
+    stray_pixels,
+    structure_refusal,
+)
 from benchlab.analysis.sfr.shading import (
     PLATEAU_MARGIN_PX,
     SHADING_PASSES,
@@ -86,7 +94,6 @@ from benchlab.analysis.sfr.shading import (
 )
 from benchlab.analysis.sfr.structure import (
     ESF_SPAN_OF_STEP,
-    find_other_edge,
     find_second_edge,
     find_two_edges,
 )
@@ -122,22 +129,6 @@ MIN_STEP_NOISE_RATIO = 6.0
 CLIP_REFUSE_FRACTION = 0.005
 #: Empty ESF bins in the LSF core (a coarse pixel lattice) above this fraction: a warning.
 EMPTY_BIN_WARN_FRACTION = 0.05
-#: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
-FIT_RMS_WARN_PX = 1.0
-#: Quality gate (refused above it): the edge-fit RMS residual, px (no clean edge in
-#: ``benchlab benchmark sfr --quick`` exceeds 2.4 px, even at SNR 10; a bar or a corner
-#: crossing the ROI reads 6-10 px). Above OUTLIER_REFUSE_FRACTION of the pixels more than
-#: OUTLIER_SIGMAS off the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %;
-#: JPEG at quality 75: 1-3 %) the ROI is looked at for a second edge or a bend, and refused
-#: only for one of them (:func:`_stray_pixels`).
-FIT_RMS_REFUSE_PX = 3.0
-OUTLIER_REFUSE_FRACTION = 0.01
-
-#: Clipped below full scale: the bright plateau on one code for at least this fraction of its
-#: pixels, with a noise sigma below CLIPPED_NOISE_RATIO x the dark plateau's (shot noise makes
-#: an unclipped bright side the noisier one) and the dark side's noise at least 0.3 codes.
-CLIPPED_AT_CODE_FRACTION = 0.9
-CLIPPED_NOISE_RATIO = 0.25
 #: Derivative-filter correction cap (ISO 12233 / sfrmat limit the correction to 10).
 MAX_DERIVATIVE_CORRECTION = 10.0
 #: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
@@ -176,8 +167,6 @@ CORE_TAPER = 1.8
 #: sfr`` prints the coverage): the first-order propagation leaves out the data-dependent
 #: choices (edge fit, window width and centre), worth ~15 % more scatter at SNR 20-100.
 SIGMA_SCALE = 1.2
-#: Pixels further than this many noise sigmas from the ESF are clipped to it (hot, dead, dust).
-OUTLIER_SIGMAS = 5.0
 OUTLIER_FLOOR_OF_STEP = 0.01
 SIGMA_FLOOR = 0.002
 #: The LSF model's propagated 1-sigma (from the fit's covariance) is scaled by this (the edge
@@ -229,14 +218,6 @@ class LsfWindow:
     total_half_px: float
     from_cycles_per_px: float
     full_from_cycles_per_px: float
-
-
-class SfrRefused(ValueError):
-    """The ROI holds no edge the SFR can be measured on; ``reasons`` says why (all of them)."""
-
-    def __init__(self, reasons: list[str]) -> None:
-        self.reasons = tuple(reasons)
-        super().__init__("edge refused: " + "; ".join(reasons))
 
 
 @dataclass(frozen=True)
@@ -1389,8 +1370,8 @@ class _Roi:
         return (self.n_rows - 1) / 2.0
 
     def refusal(self, reasons: list[str], also: list[str] | None = None) -> SfrRefused:
-        """:func:`_refusal` of this ROI."""
-        return _refusal(reasons, self.img, self.noise, also)
+        """:func:`structure_refusal` of this ROI."""
+        return structure_refusal(reasons, self.img, self.noise, also)
 
 
 def _prepare_roi(
@@ -1496,7 +1477,8 @@ def _find_edge(roi: _Roi, fit_order: int, bin_width_px: float) -> _Edge:
     Raises
     ------
     SfrRefused
-        Too few rows with a centroid (or the structure that caused it, :func:`_refusal`).
+        Too few rows with a centroid (or the structure that caused it:
+        :func:`~benchlab.analysis.sfr.refusals.structure_refusal`).
     """
     work = roi.work
     n_rows, n_cols = work.shape
@@ -1581,8 +1563,8 @@ def _read_esf(
 
 def _refuse_unusable_edge(roi: _Roi, edge: _Edge, dark: float, bright: float) -> None:
     """Refuse a step lost in the noise, an edge within :data:`MIN_ANGLE_DEG` of the pixel
-    axis and one too short for its angle to span a phase cycle (:func:`_refusal`: or the
-    structure that caused it)."""
+    axis and one too short for its angle to span a phase cycle (or the structure that caused
+    it: :func:`structure_refusal`)."""
     step_abs = abs(bright - dark)
     if step_abs <= MIN_STEP_NOISE_RATIO * roi.noise / math.sqrt(max(1, roi.n_rows)):
         raise roi.refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise "
@@ -1641,16 +1623,16 @@ def _clip_outliers_and_check(
     roi: _Roi, edge: _Edge, esf: _Esf, fit_order: int, bin_width_px: float
 ) -> tuple[_Esf, _Outliers]:
     """Step 5: the pixels off the ESF clipped, and the refusals that need the whole reading
-    (:func:`_quality_gate`: other structure, a bright side clipped below full scale;
-    :func:`_stray_pixels`: many pixels off the ESF from a second edge or a bend); the ESF
+    (:func:`quality_gate`: other structure, a bright side clipped below full scale;
+    :func:`stray_pixels`: many pixels off the ESF from a second edge or a bend); the ESF
     read again without the outliers where there were any."""
     located = esf.work
     work, n_outliers = _clip_outliers(edge.u, located, esf.samples, esf.model, bin_width_px)
-    structure, clipping = _quality_gate(work, edge.u, esf.flat_half, esf.model,
+    structure, clipping = quality_gate(work, edge.u, esf.flat_half, esf.model,
                                         edge.fit.rms_px, roi.code_step, roi.work)
     stray_warning = None
     if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        refusal, stray_warning = _stray_pixels(roi.img, roi.noise, n_outliers, work.size,
+        refusal, stray_warning = stray_pixels(roi.img, roi.noise, n_outliers, work.size,
                                                _stray_centroids(roi, edge, located), fit_order,
                                                edge.fit.rms_px)
         if refusal is not None:
@@ -1949,82 +1931,6 @@ def _edge_fit_summary(
     rms = math.sqrt(_mean(residual**2))
     return EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms,
                    int(keep.sum()))
-
-
-def _quality_gate(
-    work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
-    code_step: float, codes: FloatArray | None = None,
-) -> tuple[list[str], list[str]]:
-    """Why the ROI holds no clean, unclipped straight edge (both empty when it does): its
-    structure - the ESF's far side not brighter than its near side (other structure decided
-    the polarity), an edge fit far worse than a straight edge gives - and its clipping: a
-    bright plateau clipped on one code below full scale (read on ``codes``, the ROI before any
-    flattening, default ``work``). Pixels off the ESF are judged by :func:`_stray_pixels`."""
-    reasons = []
-    if not noise.bright > noise.dark:
-        reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
-                       f"brighter than its dark side ({noise.dark:.4g}); other structure in "
-                       "the ROI?")
-    if rms_px > FIT_RMS_REFUSE_PX:
-        reasons.append(f"edge fit RMS {rms_px:.2f} px (> {FIT_RMS_REFUSE_PX:g} px): not one "
-                       "straight edge: other structure in the ROI (a second edge crossing it?)")
-    clipping = []
-    bright = (work if codes is None else codes)[u > core_half_px]
-    if bright.size >= 30 and code_step > 0:
-        top = float(bright.max())
-        at_top = float(np.mean(bright == top))
-        sd_dark, sd_bright = math.sqrt(noise.var_dark), math.sqrt(noise.var_bright)
-        floor = math.sqrt(code_step * code_step / 12.0)  # the rounding floor of the variances
-        if (at_top >= CLIPPED_AT_CODE_FRACTION and sd_dark >= 0.3 * code_step
-                and sd_bright <= max(CLIPPED_NOISE_RATIO * sd_dark, floor)):
-            clipping.append(f"bright side clipped at code {top:g} below full scale: "
-                            f"{100 * at_top:.0f} % of its pixels on that code, noise "
-                            f"{sd_bright:.2f} against {sd_dark:.2f} on the dark side (saturated "
-                            "sensor: lower the exposure or gain)")
-    return reasons, clipping
-
-
-def _stray_pixels(
-    img: FloatArray, noise: float, n_outliers: int, n_pixels: int, cents: FloatArray,
-    fit_order: int, rms_px: float = 0.0,
-) -> tuple[str | None, str | None]:
-    """More than :data:`OUTLIER_REFUSE_FRACTION` of the pixels off the ESF: the refusal when a
-    second edge (:func:`find_two_edges`, :func:`find_second_edge`, :func:`find_other_edge`)
-    or, on a straight fit, a
-    bent edge (:func:`~benchlab.analysis.sfr.robust.edge_bow`) put them there, naming which;
-    else the warning that they were taken for compression or sensor structure (clipped to
-    the limit, the edge read; :mod:`benchlab.analysis.sfr.robust`). Returns (refusal,
-    warning), one of them None. An edge fit scattering more than :data:`FIT_RMS_WARN_PX` (an
-    edge crossing only a corner of the ROI, or no single edge) is refused too: the stray pixels
-    are then not the edge's own structure."""
-    found = (find_two_edges(img, noise) or find_second_edge(img, noise)
-             or find_other_edge(img, noise))
-    if found is not None:
-        return found.reason(), None
-    if rms_px > FIT_RMS_WARN_PX:
-        return (f"not one clean edge across the ROI: the per-row edge positions scatter "
-                f"{rms_px:.2f} px RMS about the fit (> {FIT_RMS_WARN_PX:g} px) and "
-                f"{100 * n_outliers / n_pixels:.1f} % of the pixels lie off the edge profile; "
-                "does the edge cross the ROI from one side to the opposite one?"), None
-    if fit_order == 1:
-        bow, bow_sigma = edge_bow(np.arange(cents.size, dtype=np.float64), cents)
-        if is_bent(bow, bow_sigma):
-            return bent_reason(bow, int(np.count_nonzero(np.isfinite(cents)))), None
-    share = 100.0 * n_outliers / n_pixels
-    return None, (f"{share:.1f} % of the pixels more than {OUTLIER_SIGMAS:g} noise sigmas off "
-                  "the edge profile, with no second edge and no bend: taken for compression "
-                  "or sensor structure (JPEG blocks, fixed pattern) and clipped to that limit; "
-                  "the MTF's 1-sigma holds the pixel noise only")
-
-
-def _refusal(reasons: list[str], img: FloatArray, noise: float,
-             also: list[str] | None = None) -> SfrRefused:
-    """The refusal of an ROI whose structure may be the cause (no step, an edge near the
-    pixel axis, no centroids, not one straight edge): where the ROI holds two edges - a bar
-    or a line, a corner (:func:`~benchlab.analysis.sfr.structure.find_two_edges`) - that is
-    the reason, said in place of ``reasons``, its symptoms; ``also`` (other causes) is kept."""
-    found = find_two_edges(img, noise) or find_second_edge(img, noise)
-    return SfrRefused(([found.reason()] if found is not None else reasons) + (also or []))
 
 
 def _work_u(
