@@ -57,8 +57,8 @@ Code layout: :func:`measure_sfr` reads as the pipeline, one named function per s
 :func:`_clip_outliers_and_check`, :func:`_refuse_second_edge`, :func:`_choose_estimator`,
 :func:`_read_mtf50`, :func:`_warnings`, :func:`_result`), handing small frozen dataclasses
 (:class:`_Roi`, :class:`_Edge`, :class:`_Esf`) from one to the next; the numerics they call
-follow. The LSF model, shading, structure refusals and multi-frame averaging live in their own
-modules.
+follow. The refusals once the ESF is read (:mod:`benchlab.analysis.sfr.refusals`), the LSF
+model, shading, structure refusals and multi-frame averaging live in their own modules.
 """
 
 from __future__ import annotations
@@ -1351,7 +1351,7 @@ class _Roi:
 
     img: FloatArray  # the ROI as given, float64
     top: float | None  # full-scale code (None: no clipping check)
-    code_step: float  # spacing of the codes: 1 (16 MSB-aligned 12-bit), 0 for float data
+    code_step: float  # spacing of integer codes (16 for 12 bits MSB-aligned); 0: float data
     clipped: float  # fraction of the pixels at 0 or full scale
     transposed: bool  # True: a near-horizontal edge, the work frame is the ROI transposed
     work: FloatArray  # the work frame
@@ -1405,8 +1405,8 @@ def _prepare_roi(
     work = img.T if transposed else img
     row_diff, col_diff = (d_cols.T, d_rows.T) if transposed else (d_rows, d_cols)
     d_flat = row_diff.ravel()  # finite: checked above
-    noise = MAD_TO_SIGMA * _finite_median(np.abs(d_flat - _finite_median(d_flat))) / math.sqrt(
-        2.0)
+    mad = _finite_median(np.abs(d_flat - _finite_median(d_flat)))
+    noise = MAD_TO_SIGMA * mad / math.sqrt(2.0)
     p02, p98 = percentiles(work, [2.0, 98.0])
     spread = float(p98 - p02)
     if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
@@ -1465,7 +1465,7 @@ class _Edge:
 
     @property
     def direction_cosines(self) -> tuple[float, float]:
-        """``(cos, |sin|)`` of the angle between the edge normal and the work frame's rows."""
+        """``(cos, |sin|)`` of the edge's angle from the pixel axis."""
         slope = self.fit.slope
         return 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
 
