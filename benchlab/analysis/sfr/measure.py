@@ -52,16 +52,20 @@ before the MTF; more than :data:`OUTLIER_REFUSE_FRACTION` of them, with no secon
 bend, and an edge fit within :data:`FIT_RMS_WARN_PX`, are taken for compression or sensor
 structure).
 
-Why one module of ~1,700 lines: the ISO 12233 steps hand intermediate arrays (edge fit, ESF bins,
-LSF support, windows) from one to the next and the refusals need all of them; the LSF model,
-shading, structure refusals and multi-frame averaging already live in their own modules.
+Code layout: :func:`measure_sfr` reads as the pipeline, one named function per step
+(:func:`_prepare_roi`, :func:`_find_edge`, :func:`_read_esf`, :func:`_correct_shading`,
+:func:`_clip_outliers_and_check`, :func:`_refuse_second_edge`, :func:`_choose_estimator`,
+:func:`_read_mtf50`, :func:`_warnings`, :func:`_result`), handing small frozen dataclasses
+(:class:`_Roi`, :class:`_Edge`, :class:`_Esf`) from one to the next; the numerics they call
+follow. The refusals once the ESF is read (:mod:`benchlab.analysis.sfr.refusals`), the LSF
+model, shading, structure refusals and multi-frame averaging live in their own modules.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -70,9 +74,17 @@ import numpy.typing as npt
 
 from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bin_profiles
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
-from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
+from benchlab.analysis.bars.roi import MAD_TO_SIGMA, detect_code_step, infer_max_code
 from benchlab.analysis.quantiles import median, percentiles
-from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
+from benchlab.analysis.sfr.refusals import (
+    FIT_RMS_WARN_PX,
+    OUTLIER_REFUSE_FRACTION,
+    OUTLIER_SIGMAS,
+    SfrRefused,
+    quality_gate,
+    stray_pixels,
+    structure_refusal,
+)
 from benchlab.analysis.sfr.shading import (
     PLATEAU_MARGIN_PX,
     SHADING_PASSES,
@@ -82,7 +94,6 @@ from benchlab.analysis.sfr.shading import (
 )
 from benchlab.analysis.sfr.structure import (
     ESF_SPAN_OF_STEP,
-    find_other_edge,
     find_second_edge,
     find_two_edges,
 )
@@ -118,22 +129,6 @@ MIN_STEP_NOISE_RATIO = 6.0
 CLIP_REFUSE_FRACTION = 0.005
 #: Empty ESF bins in the LSF core (a coarse pixel lattice) above this fraction: a warning.
 EMPTY_BIN_WARN_FRACTION = 0.05
-#: Edge-fit RMS residual (px) above which the edge is reported as not straight / noisy.
-FIT_RMS_WARN_PX = 1.0
-#: Quality gate (refused above it): the edge-fit RMS residual, px (no clean edge in
-#: ``benchlab benchmark sfr --quick`` exceeds 2.4 px, even at SNR 10; a bar or a corner
-#: crossing the ROI reads 6-10 px). Above OUTLIER_REFUSE_FRACTION of the pixels more than
-#: OUTLIER_SIGMAS off the ESF (benchmark at most 0.01 %; other structure in the ROI: 2-45 %;
-#: JPEG at quality 75: 1-3 %) the ROI is looked at for a second edge or a bend, and refused
-#: only for one of them (:func:`_stray_pixels`).
-FIT_RMS_REFUSE_PX = 3.0
-OUTLIER_REFUSE_FRACTION = 0.01
-
-#: Clipped below full scale: the bright plateau on one code for at least this fraction of its
-#: pixels, with a noise sigma below CLIPPED_NOISE_RATIO x the dark plateau's (shot noise makes
-#: an unclipped bright side the noisier one) and the dark side's noise at least 0.3 codes.
-CLIPPED_AT_CODE_FRACTION = 0.9
-CLIPPED_NOISE_RATIO = 0.25
 #: Derivative-filter correction cap (ISO 12233 / sfrmat limit the correction to 10).
 MAX_DERIVATIVE_CORRECTION = 10.0
 #: Reported frequency range, cycles/px (twice Nyquist, as sfrmat reports with 4x bins).
@@ -172,8 +167,6 @@ CORE_TAPER = 1.8
 #: sfr`` prints the coverage): the first-order propagation leaves out the data-dependent
 #: choices (edge fit, window width and centre), worth ~15 % more scatter at SNR 20-100.
 SIGMA_SCALE = 1.2
-#: Pixels further than this many noise sigmas from the ESF are clipped to it (hot, dead, dust).
-OUTLIER_SIGMAS = 5.0
 OUTLIER_FLOOR_OF_STEP = 0.01
 SIGMA_FLOOR = 0.002
 #: The LSF model's propagated 1-sigma (from the fit's covariance) is scaled by this (the edge
@@ -225,14 +218,6 @@ class LsfWindow:
     total_half_px: float
     from_cycles_per_px: float
     full_from_cycles_per_px: float
-
-
-class SfrRefused(ValueError):
-    """The ROI holds no edge the SFR can be measured on; ``reasons`` says why (all of them)."""
-
-    def __init__(self, reasons: list[str]) -> None:
-        self.reasons = tuple(reasons)
-        super().__init__("edge refused: " + "; ".join(reasons))
 
 
 @dataclass(frozen=True)
@@ -484,7 +469,7 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
         return 0.0
     d = row_diff.ravel()
     mad = float(median(np.abs(d - median(d))))
-    return 1.4826 * mad / math.sqrt(2.0)
+    return MAD_TO_SIGMA * mad / math.sqrt(2.0)
 
 
 def _finite_median(a: npt.NDArray[Any]) -> float:
@@ -567,7 +552,7 @@ def _fit_edge(
             break
         coeffs, fitted = _polyfit(rows[keep], cents[keep], order), True
         res = np.abs(cents - _polyval(coeffs, rows))
-        limit = max(4.0 * 1.4826 * _finite_median(res[keep]), 0.25)
+        limit = max(4.0 * MAD_TO_SIGMA * _finite_median(res[keep]), 0.25)
         new_keep = finite & (res <= limit)
         if np.array_equal(new_keep, keep):
             break
@@ -1099,7 +1084,7 @@ def _plateau_noise(
             # quantised noise (it is a whole number of codes: 1.5 codes of noise can read as
             # 1.05), so it only sets a 5-sigma cut for the RMS of what is left.
             mag = np.abs(vals)
-            cut = 5.0 * max(1.4826 * _finite_median(mag), code_step)
+            cut = 5.0 * max(MAD_TO_SIGMA * _finite_median(mag), code_step)
             kept = vals[mag <= cut]
             sig = math.sqrt(_mean(kept * kept) / 2.0) if kept.size else 0.0
         out.append(sig)
@@ -1252,8 +1237,8 @@ def _choose_estimator(
     method: str, spec: _Spectrum, samples: _Samples, noise: _NoiseModel, cos_a: float,
     sin_a: float, rise_px: float,
 ) -> _Choice:
-    """The model-free spectrum ``spec`` or the LSF model's (:mod:`benchlab.analysis.sfr.model`)
-    for ``method`` (see :func:`measure_sfr`)."""
+    """Step 7: the model-free spectrum ``spec`` or the LSF model's
+    (:mod:`benchlab.analysis.sfr.model`) for ``method`` (see :func:`measure_sfr`)."""
     if method == "free":
         return _Choice(spec, "model-free", "requested (method free)", "", None)
     if method == "auto":
@@ -1318,6 +1303,10 @@ def measure_sfr(
         Random seed of the bootstrap.
     bin_width_px : float, default 0.25
         ESF bin width (0.25 = 4x oversampling).
+    method : {"auto", "free", "model"}, default "auto"
+        The MTF estimator: ``free`` the windowed LSF's DFT, ``model`` the LSF model where its
+        gates accept it, ``auto`` the model-free reading where its own uncertainty meets the
+        accuracy target (:data:`AUTO_MTF_TOL`, :data:`AUTO_MTF50_REL_TOL`), else the model.
 
     Returns
     -------
@@ -1330,7 +1319,120 @@ def measure_sfr(
     ValueError
         Malformed input (not 2-D, non-finite values, bad options).
     """
+    # The pipeline; each step's function says what it reads and why it refuses.
+    # 1. The ROI in its work frame: full scale, clipping, pixel noise.
+    roi = _prepare_roi(pixels, full_scale, fit_order, bootstrap, method)
+    # 2. The edge line. 3. The ESF about it, its levels and noise.
+    edge = _find_edge(roi, fit_order, bin_width_px)
+    esf = _read_esf(roi, edge, roi.work, bin_width_px, check_usable=True)
+    # 4. Shading flattened (edge and ESF read again). 5. Outliers clipped, structure refused.
+    edge, esf, shading_warning = _correct_shading(roi, edge, esf, fit_order, bin_width_px)
+    esf, outliers = _clip_outliers_and_check(roi, edge, esf, fit_order, bin_width_px)
+    # 6. The model-free MTF; a second edge refused. 7. The LSF model where it is needed.
+    free = _mtf_from_samples(esf.samples, esf.wide_half_px, esf.model,
+                             narrow_half_px=esf.narrow_half_px, rise_px=esf.rise_px)
+    _refuse_second_edge(roi, esf, free, outliers.count)
+    choice = _choose_estimator(method, free, esf.samples, esf.model, *edge.direction_cosines,
+                               esf.rise_px)
+    # 8. MTF50 and the uncertainty (analytic, or a bootstrap on request). 9. Warnings.
+    reading = _read_mtf50(choice)
+    if bootstrap > 0:
+        reading = _bootstrap(roi, edge, esf, choice, reading.mtf50, bootstrap, seed,
+                             bin_width_px)
+    warnings = ([] if shading_warning is None else [shading_warning]) + _warnings(
+        roi, edge, esf, free.truncated, outliers, reading.mtf50, choice)
+    return _result(roi, edge, esf, free, choice, reading, warnings)
+
+
+@dataclass(frozen=True)
+class _Roi:
+    """The validated ROI, in its work frame (the edge crossing the rows), with what the
+    whole-ROI checks read: full scale, clipping, pixel noise."""
+
+    img: FloatArray  # the ROI as given, float64
+    top: float | None  # full-scale code (None: no clipping check)
+    code_step: float  # spacing of integer codes (16 for 12 bits MSB-aligned); 0: float data
+    clipped: float  # fraction of the pixels at 0 or full scale
+    transposed: bool  # True: a near-horizontal edge, the work frame is the ROI transposed
+    work: FloatArray  # the work frame
+    row_diff: FloatArray  # differences along the edge (between rows of the work frame)
+    col_diff: FloatArray  # differences across it
+    noise: float  # robust pixel noise from ``row_diff`` (the "no edge" test)
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of the work frame: the edge's length in pixels."""
+        return int(self.work.shape[0])
+
+    @property
+    def r_mid(self) -> float:
+        """The middle row of the work frame, the origin of the edge polynomial."""
+        return (self.n_rows - 1) / 2.0
+
+    def refusal(self, reasons: list[str], also: list[str] | None = None) -> SfrRefused:
+        """:func:`structure_refusal` of this ROI."""
+        return structure_refusal(reasons, self.img, self.noise, also)
+
+
+def _prepare_roi(
+    pixels: npt.ArrayLike, full_scale: float | None, fit_order: int, bootstrap: int, method: str
+) -> _Roi:
+    """Step 1: the options and the ROI checked, the work frame chosen and the whole-ROI
+    refusals (no edge in the noise, too few rows, too much clipping).
+
+    Raises
+    ------
+    ValueError
+        Malformed input or options (see :func:`measure_sfr`).
+    SfrRefused
+        An ROI too small, noise only, too short an edge or clipped.
+    """
     raw = np.asarray(pixels)
+    _check_input(raw, fit_order, bootstrap, method)
+    img = raw.astype(np.float64)
+    if raw.dtype.kind == "f" and not np.all(np.isfinite(img)):
+        raise ValueError("ROI holds a non-finite value")
+    top = full_scale if full_scale is not None else full_scale_of(raw)
+    clipped = 0.0
+    if top is not None:
+        clipped = int(np.count_nonzero((img <= 0.0) | (img >= top))) / img.size
+    # Integer codes: a step of 1, or 16 for 12-bit data MSB-aligned in 16 bits.
+    code_step = _code_step_of(top) if np.issubdtype(raw.dtype, np.integer) else 0.0
+
+    # The work frame: the edge crosses the rows (intensity varies along the columns).
+    d_cols, d_rows = np.diff(img, axis=1), np.diff(img, axis=0)
+    transposed = _mean(np.abs(d_rows)) > _mean(np.abs(d_cols))
+    work = img.T if transposed else img
+    row_diff, col_diff = (d_cols.T, d_rows.T) if transposed else (d_rows, d_cols)
+    d_flat = row_diff.ravel()  # finite: checked above
+    mad = _finite_median(np.abs(d_flat - _finite_median(d_flat)))
+    noise = MAD_TO_SIGMA * mad / math.sqrt(2.0)
+    p02, p98 = percentiles(work, [2.0, 98.0])
+    spread = float(p98 - p02)
+    if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
+        raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
+                          f"{NOISE_SPREAD_RATIO:g} x the noise {noise:.3g} (noise only?)"])
+    reasons = []
+    if work.shape[0] < MIN_EDGE_ROWS:
+        reasons.append(f"edge only {work.shape[0]} px long (< {MIN_EDGE_ROWS} px)")
+    if clipped > CLIP_REFUSE_FRACTION:
+        reasons.append(f"{100 * clipped:.1f} % of the pixels are clipped at 0 or full scale "
+                       f"({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF is flattened")
+    if reasons:
+        raise SfrRefused(reasons)
+    return _Roi(img, top, code_step, clipped, transposed, work, row_diff, col_diff, noise)
+
+
+def _check_input(raw: npt.NDArray[Any], fit_order: int, bootstrap: int, method: str) -> None:
+    """The ROI's dtype and shape and the options, in this order (see :func:`measure_sfr`).
+
+    Raises
+    ------
+    ValueError
+        Not real numbers, not 2-D, or an option out of range.
+    SfrRefused
+        An ROI under 3 px on a side.
+    """
     if raw.dtype.kind not in "uifb":
         raise ValueError(f"ROI must hold real numbers, got dtype {raw.dtype}")
     if raw.ndim != 2:
@@ -1343,274 +1445,393 @@ def measure_sfr(
         raise ValueError(f"bootstrap must be >= 0, got {bootstrap}")
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    img = raw.astype(np.float64)
-    if raw.dtype.kind == "f" and not np.all(np.isfinite(img)):
-        raise ValueError("ROI holds a non-finite value")
-    top = full_scale if full_scale is not None else full_scale_of(raw)
-    clipped = 0.0
-    if top is not None:
-        clipped = int(np.count_nonzero((img <= 0.0) | (img >= top))) / img.size
 
-    # 1. Work frame: the edge crosses the rows (intensity varies along the columns).
-    d_cols, d_rows = np.diff(img, axis=1), np.diff(img, axis=0)
-    gx = _mean(np.abs(d_cols))
-    gy = _mean(np.abs(d_rows))
-    transposed = gy > gx
-    work = img.T if transposed else img
+
+@dataclass(frozen=True)
+class _Edge:
+    """The edge located in a work frame (see :func:`_locate_edge`)."""
+
+    polarity: float  # +1: the work frame brightens along the columns, -1: it darkens
+    coeffs: FloatArray  # the edge polynomial (column against row - r_mid)
+    u: FloatArray  # every pixel's signed distance from the edge, px, bright side positive
+    rise_px: float  # 10-90 % rise on the coarse ESF (NaN where unread)
+    half_window: float  # the centroid window of the last pass, px
+    fit: EdgeFit  # the fit as reported
+
+    @property
+    def angle_deg(self) -> float:
+        """Angle between the edge and the pixel axis, deg."""
+        return math.degrees(math.atan(abs(self.fit.slope)))
+
+    @property
+    def direction_cosines(self) -> tuple[float, float]:
+        """``(cos, |sin|)`` of the edge's angle from the pixel axis."""
+        slope = self.fit.slope
+        return 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
+
+
+def _find_edge(roi: _Roi, fit_order: int, bin_width_px: float) -> _Edge:
+    """Step 2: the edge's polarity from the mean profile, a first straight fit to the
+    per-row centroids of the whole profile, then :func:`_locate_edge`'s narrower passes.
+
+    Raises
+    ------
+    SfrRefused
+        Too few rows with a centroid (or the structure that caused it:
+        :func:`~benchlab.analysis.sfr.refusals.structure_refusal`).
+    """
+    work = roi.work
     n_rows, n_cols = work.shape
-    # Differences along the edge (between rows of the work frame) and across it.
-    row_diff, col_diff = (d_cols.T, d_rows.T) if transposed else (d_rows, d_cols)
-    d_flat = row_diff.ravel()  # finite: checked above (the public function checks NaN)
-    noise = 1.4826 * _finite_median(np.abs(d_flat - _finite_median(d_flat))) / math.sqrt(2.0)
-    p02, p98 = percentiles(work, [2.0, 98.0])
-    spread = float(p98 - p02)
-
-    reasons: list[str] = []
-    warnings: list[str] = []
-    if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
-        raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
-                          f"{NOISE_SPREAD_RATIO:g} x the noise {noise:.3g} (noise only?)"])
-    if n_rows < MIN_EDGE_ROWS:
-        reasons.append(f"edge only {n_rows} px long (< {MIN_EDGE_ROWS} px)")
-    if clipped > CLIP_REFUSE_FRACTION:
-        reasons.append(f"{100 * clipped:.1f} % of the pixels are clipped at 0 or full scale "
-                       f"({top:g}) (> {100 * CLIP_REFUSE_FRACTION:g} %): the ESF is flattened")
-    if reasons:
-        raise SfrRefused(reasons)
-
-    # 2. Edge location: polarity from the mean profile, then per-row centroids.
     mean_prof = work.mean(axis=0)
     fifth = max(1, n_cols // 5)
     step = _mean(mean_prof[-fifth:]) - _mean(mean_prof[:fifth])
     polarity = 1.0 if step >= 0 else -1.0
-    deriv = polarity * col_diff
+    deriv = polarity * roi.col_diff
     dm = np.clip(polarity * np.diff(mean_prof), 0.0, None)
     x_half = np.arange(n_cols - 1, dtype=np.float64) + 0.5
     x0 = float(np.sum(x_half * dm) / np.sum(dm)) if np.sum(dm) > 0 else (n_cols - 1) / 2.0
     rows = np.arange(n_rows, dtype=np.float64)
-    r_mid = (n_rows - 1) / 2.0
     cents = _row_centroids(deriv, x0, max(n_cols / 2.0, 4.0))
-    coeffs, keep = _fit_edge(rows - r_mid, cents, 1)
-    half_window = max(n_cols / 4.0, 4.0)
+    coeffs, _ = _fit_edge(rows - roi.r_mid, cents, 1)
     try:
-        coeffs, u_tmp, rise, half_window, fit = _locate_edge(
-            work, deriv, coeffs, half_window, fit_order, r_mid, polarity, bin_width_px,
-            transposed)
+        return _locate_edge(work, deriv, coeffs, max(n_cols / 4.0, 4.0), fit_order, roi.r_mid,
+                            polarity, bin_width_px, roi.transposed)
     except SfrRefused as exc:
-        raise _refusal(list(exc.reasons), img, noise) from None
-    slope, rms = fit.slope, fit.rms_px
-    angle = math.degrees(math.atan(abs(slope)))
+        raise roi.refusal(list(exc.reasons)) from None
 
-    # 3. ESF by projection onto the normal (first: whether there is an edge at all).
-    # (the last pass projected on these very coefficients)
-    u = u_tmp
-    samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
-    lo_level, hi_level = _plateau_levels(samples)
-    dark, bright = lo_level, hi_level  # u runs from the dark side to the bright side
-    step_abs = abs(hi_level - lo_level)
-    if step_abs <= MIN_STEP_NOISE_RATIO * noise / math.sqrt(max(1, n_rows)):
-        raise _refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise {noise:.3g}"],
-                       img, noise)
-    if angle < MIN_ANGLE_DEG:
-        reasons.append(f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} deg): "
-                       "too few sample phases; tilt the edge 2-10 deg")
-    elif n_rows * abs(slope) < 1.0:
-        reasons.append(f"edge too short for its angle: {n_rows} px at {angle:.2f} deg shifts "
-                       f"{n_rows * abs(slope):.2f} px (< 1 px, one phase cycle)")
-    if reasons:
-        raise _refusal(reasons, img, noise)
-    freqs = FREQS_CYCLES_PER_PX.copy()
-    contrast = _contrast(dark, bright)
 
-    # 4. Uncertainty: the pixel noise (per level: shot noise makes the bright side noisier)
-    # propagated through the MTF; or, on request, a bootstrap over rows (edge fit kept).
-    code_step = 0.0  # integer codes: 1, or 16 for 12-bit data MSB-aligned in 16 bits
-    if np.issubdtype(raw.dtype, np.integer):
-        code_step = _code_step_of(top)
-    plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
+@dataclass(frozen=True)
+class _Esf:
+    """The ESF read off a work frame about a located edge, with the levels and the noise the
+    MTF needs (see :func:`_read_esf`)."""
+
+    work: FloatArray  # the work frame it was read from (flattened, outliers clipped)
+    samples: _Samples
+    rise_px: float  # 10-90 % rise (the wide window's width)
+    flat_half: float  # the wide window's flat half-width from the rise, px
+    dark: float
+    bright: float
+    plateau_noise: _PlateauNoise
+    model: _NoiseModel
+    support: float  # the LSF's support as the data show it, px (0: off)
+
+    @property
+    def contrast(self) -> float:
+        """Eq. 2.9 contrast of the plateaus (:func:`_contrast`)."""
+        return _contrast(self.dark, self.bright)
+
+    @property
+    def wide_half_px(self) -> float:
+        """Flat half-width of the wide LSF window: the rise's, or the data's support."""
+        return max(self.flat_half, self.support)
+
+    @property
+    def narrow_half_px(self) -> float:
+        """Flat half-width of the narrow LSF window on the core."""
+        return max(NARROW_RISES * self.rise_px + NARROW_EXTRA_PX, NARROW_MIN_PX)
+
+    def without_outliers(self, u: FloatArray, work: FloatArray, bin_width_px: float) -> _Esf:
+        """Everything read off the ESF again from ``work`` (the outliers clipped), the noise
+        per level kept: a hot pixel's spike in a plateau bin crosses 10 % far from the edge
+        (the rise, and every window from it, read 34 px for 100 hot pixels in a 1 px edge)
+        and moves the plateau levels."""
+        samples, rise, flat_half = _esf_and_rise(u, work, bin_width_px,
+                                                 _coarse_rise(u, work, bin_width_px))
+        dark, bright = _plateau_levels(samples)
+        model = _NoiseModel(dark, bright, self.model.var_dark, self.model.var_bright)
+        return _Esf(work, samples, rise, flat_half, dark, bright, self.plateau_noise, model,
+                    _support(samples, model))
+
+
+def _read_esf(
+    roi: _Roi, edge: _Edge, work: FloatArray, bin_width_px: float, *, check_usable: bool = False
+) -> _Esf:
+    """Step 3: the ESF projected onto the edge normal and binned, its plateau levels, the
+    pixel noise per level (row differences on the plateaus: shot noise makes the bright side
+    noisier) and the LSF's support as the data show it (a halo or flare around a sharp core:
+    the 10-90 % rise sees only the core). ``check_usable``: first refuse a step lost in the
+    noise or an edge too near the pixel axis (:func:`_refuse_unusable_edge`)."""
+    samples, rise, flat_half = _esf_and_rise(edge.u, work, bin_width_px, edge.rise_px)
+    dark, bright = _plateau_levels(samples)  # u runs from the dark side to the bright side
+    if check_usable:
+        _refuse_unusable_edge(roi, edge, dark, bright)
+    plateau_noise = _plateau_noise(roi.row_diff, edge.u, flat_half, roi.noise, roi.code_step)
     model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
-    # The wide window also covers the LSF's support as the data show it (a halo or flare
-    # around a sharp core: the 10-90 % rise sees only the core).
-    support = _support(samples, model)
-    # Shading: planes through the plateaus beyond that support; where significant the ROI is
-    # flattened and everything the shading distorted is read again - the edge (its gradient
-    # pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise and
-    # the support - and the planes refitted nearer the edge from that narrower support.
-    raw_work = work
+    return _Esf(work, samples, rise, flat_half, dark, bright, plateau_noise, model,
+                _support(samples, model))
+
+
+def _refuse_unusable_edge(roi: _Roi, edge: _Edge, dark: float, bright: float) -> None:
+    """Refuse a step lost in the noise, an edge within :data:`MIN_ANGLE_DEG` of the pixel
+    axis and one too short for its angle to span a phase cycle (or the structure that caused
+    it: :func:`structure_refusal`)."""
+    step_abs = abs(bright - dark)
+    if step_abs <= MIN_STEP_NOISE_RATIO * roi.noise / math.sqrt(max(1, roi.n_rows)):
+        raise roi.refusal([f"no edge: ESF step {step_abs:.3g} is lost in the noise "
+                           f"{roi.noise:.3g}"])
+    angle, shift = edge.angle_deg, roi.n_rows * abs(edge.fit.slope)
+    if angle < MIN_ANGLE_DEG:
+        raise roi.refusal([f"edge {angle:.2f} deg from the pixel axis (< {MIN_ANGLE_DEG:g} "
+                           "deg): too few sample phases; tilt the edge 2-10 deg"])
+    if shift < 1.0:
+        raise roi.refusal([f"edge too short for its angle: {roi.n_rows} px at {angle:.2f} deg "
+                           f"shifts {shift:.2f} px (< 1 px, one phase cycle)"])
+
+
+def _correct_shading(
+    roi: _Roi, edge: _Edge, esf: _Esf, fit_order: int, bin_width_px: float
+) -> tuple[_Edge, _Esf, str | None]:
+    """Step 4: planes through the plateaus beyond the LSF's support; where significant the
+    ROI is flattened and everything the shading distorted is read again - the edge (its
+    gradient pulled the centroids), the rise (a tilted plateau widens it), the ESF, the noise
+    and the support - and the planes refitted nearer the edge from that narrower support.
+    Returns the edge, the ESF and the warning (None: no significant shading)."""
     shading: Shading | None = None
     flattened: Shading | None = None
     for _ in range(SHADING_PASSES):
-        shading = fit_shading(raw_work, u, r_mid, float(coeffs[-1]),
-                              max(flat_half, support) + PLATEAU_MARGIN_PX,
-                              plateau_noise.var_dark, plateau_noise.var_bright)
+        shading = fit_shading(roi.work, edge.u, roi.r_mid, float(edge.coeffs[-1]),
+                              esf.wide_half_px + PLATEAU_MARGIN_PX,
+                              esf.plateau_noise.var_dark, esf.plateau_noise.var_bright)
         if shading is None or not shading.significant or not shading.correctable:
             break
         flattened = shading
-        work = flatten(raw_work, shading)
-        coeffs, u, rise, half_window, fit = _locate_edge(
-            work, polarity * np.diff(work, axis=1), coeffs, half_window, fit_order, r_mid,
-            polarity, bin_width_px, transposed)
-        slope, rms = fit.slope, fit.rms_px
-        angle = math.degrees(math.atan(abs(slope)))
-        samples, rise_guess, flat_half = _esf_and_rise(u, work, bin_width_px, rise)
-        dark, bright = _plateau_levels(samples)
-        contrast = _contrast(dark, bright)
-        plateau_noise = _plateau_noise(row_diff, u, flat_half, noise, code_step)
-        model = _NoiseModel(dark, bright, plateau_noise.var_dark, plateau_noise.var_bright)
-        support = _support(samples, model)
+        work = flatten(roi.work, shading)
+        edge = _locate_edge(work, edge.polarity * np.diff(work, axis=1), edge.coeffs,
+                            edge.half_window, fit_order, roi.r_mid, edge.polarity, bin_width_px,
+                            roi.transposed)
+        esf = _read_esf(roi, edge, work, bin_width_px)
     if flattened is not None:
-        warnings.append(f"{flattened.describe()}; flattened by them (the MTF takes the "
-                        "shading for illumination, not for the lens)")
-    elif shading is not None and shading.significant:
-        warnings.append(f"{shading.describe()}: too strong to flatten (the step falls to "
-                        f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
-                        "centre); the MTF at low frequency may read low - use a smaller ROI "
-                        "or a flat-fielded image")
-    located = work
-    work, n_outliers = _clip_outliers(u, work, samples, model, bin_width_px)
-    structure, clipping = _quality_gate(work, u, flat_half, model, rms, code_step, raw_work)
+        return edge, esf, (f"{flattened.describe()}; flattened by them (the MTF takes the "
+                           "shading for illumination, not for the lens)")
+    if shading is not None and shading.significant:
+        return edge, esf, (f"{shading.describe()}: too strong to flatten (the step falls to "
+                           f"{100 * shading.min_step_fraction:.0f} % of its value at the edge "
+                           "centre); the MTF at low frequency may read low - use a smaller "
+                           "ROI or a flat-fielded image")
+    return edge, esf, None
+
+
+@dataclass(frozen=True)
+class _Outliers:
+    """Pixels more than :data:`OUTLIER_SIGMAS` noise sigmas off the ESF, clipped to it."""
+
+    count: int
+    warning: str | None  # many, taken for compression or sensor structure (else None)
+
+
+def _clip_outliers_and_check(
+    roi: _Roi, edge: _Edge, esf: _Esf, fit_order: int, bin_width_px: float
+) -> tuple[_Esf, _Outliers]:
+    """Step 5: the pixels off the ESF clipped, and the refusals that need the whole reading
+    (:func:`quality_gate`: other structure, a bright side clipped below full scale;
+    :func:`stray_pixels`: many pixels off the ESF from a second edge or a bend); the ESF
+    read again without the outliers where there were any."""
+    located = esf.work
+    work, n_outliers = _clip_outliers(edge.u, located, esf.samples, esf.model, bin_width_px)
+    structure, clipping = quality_gate(work, edge.u, esf.flat_half, esf.model,
+                                        edge.fit.rms_px, roi.code_step, roi.work)
     stray_warning = None
     if not structure and n_outliers > OUTLIER_REFUSE_FRACTION * work.size:
-        at = _polyval(coeffs, np.arange(n_rows, dtype=np.float64) - r_mid)
-        cents = _row_centroids(polarity * np.diff(located, axis=1), at, half_window)
-        # rows whose window the ROI cuts: their centroids lean inwards, which reads as a bow
-        cents[(at - half_window < 0.0) | (at + half_window > located.shape[1] - 1.0)] = np.nan
-        refusal, stray_warning = _stray_pixels(img, noise, n_outliers, work.size, cents,
-                                               fit_order, rms)
+        refusal, stray_warning = stray_pixels(roi.img, roi.noise, n_outliers, work.size,
+                                               _stray_centroids(roi, edge, located), fit_order,
+                                               edge.fit.rms_px)
         if refusal is not None:
             raise SfrRefused([refusal] + clipping)
     if structure:
-        raise _refusal(structure, img, noise, also=clipping)
+        raise roi.refusal(structure, also=clipping)
     if clipping:
         raise SfrRefused(clipping)
     if n_outliers:
-        # Everything read off the ESF before, again without them: a hot pixel's spike in a
-        # plateau bin crosses 10 % far from the edge (the rise, and every window from it,
-        # read 34 px for 100 hot pixels in a 1 px edge) and moves the plateau levels.
-        samples, rise_guess, flat_half = _esf_and_rise(
-            u, work, bin_width_px, _coarse_rise(u, work, bin_width_px))
-        dark, bright = _plateau_levels(samples)
-        contrast = _contrast(dark, bright)
-        model = _NoiseModel(dark, bright, model.var_dark, model.var_bright)
-        support = _support(samples, model)
-    narrow_half = max(NARROW_RISES * rise_guess + NARROW_EXTRA_PX, NARROW_MIN_PX)
-    wide_half = max(flat_half, support)
-    spec = _mtf_from_samples(samples, wide_half, model, narrow_half_px=narrow_half,
-                             rise_px=rise_guess)
-    mtf, lsf_w, truncated = spec.mtf, spec.lsf, spec.truncated
-    if (n_outliers or truncated
-            or float(np.ptp(samples.esf)) > ESF_SPAN_OF_STEP * abs(bright - dark)):
-        # The marks a second edge leaves (a corner's short side, a bar's far edge near the
-        # ROI's end): its pixels clipped off the ESF, or the ESF cut short or reaching past
-        # its plateaus. Where the ROI does hold two edges, it is refused as what it is.
-        found = find_two_edges(img, noise)
+        esf = esf.without_outliers(edge.u, work, bin_width_px)
+    else:
+        esf = replace(esf, work=work)
+    return esf, _Outliers(n_outliers, stray_warning)
+
+
+def _stray_centroids(roi: _Roi, edge: _Edge, located: FloatArray) -> FloatArray:
+    """Per-row edge centroids on ``located`` (the frame the edge was found on) for the bend
+    test, NaN on the rows whose window the ROI cuts: their centroids lean inwards, which
+    reads as a bow."""
+    at = _polyval(edge.coeffs, np.arange(roi.n_rows, dtype=np.float64) - roi.r_mid)
+    cents = _row_centroids(edge.polarity * np.diff(located, axis=1), at, edge.half_window)
+    cut = (at - edge.half_window < 0.0) | (at + edge.half_window > located.shape[1] - 1.0)
+    cents[cut] = np.nan
+    return np.asarray(cents, dtype=np.float64)
+
+
+def _refuse_second_edge(roi: _Roi, esf: _Esf, free: _Spectrum, n_outliers: int) -> None:
+    """Step 6 (after the model-free MTF, :func:`_mtf_from_samples`): refuse an ROI holding
+    a second edge. The marks one leaves (a corner's short side, a bar's far edge near the
+    ROI's end): its pixels clipped off the ESF, or the ESF cut short or reaching past its
+    plateaus; a second step of the same sign leaves none of them: the ESF reads it as one wide
+    edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently), so it is
+    always looked for."""
+    if (n_outliers or free.truncated
+            or float(np.ptp(esf.samples.esf)) > ESF_SPAN_OF_STEP * abs(esf.bright - esf.dark)):
+        found = find_two_edges(roi.img, roi.noise)
         if found is not None:
             raise SfrRefused([found.reason()])
-    # A second step of the same sign leaves none of those marks: the ESF reads it as one wide
-    # edge (two equal steps 8 px apart read an MTF50 of 0.04 cycles/px, silently).
-    second = find_second_edge(img, noise)
+    second = find_second_edge(roi.img, roi.noise)
     if second is not None:
         raise SfrRefused([second.reason()])
-    ca, sa = 1.0 / math.hypot(1.0, slope), abs(slope) / math.hypot(1.0, slope)
-    choice = _choose_estimator(method, spec, samples, model, ca, sa, rise_guess)
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """The MTF's uncertainty and its MTF50 (see :func:`_read_mtf50`, :func:`_bootstrap`)."""
+
+    mtf_sigma: FloatArray | None
+    mtf50: float | None
+    mtf50_sigma: float | None
+    method: str  # "analytic" or "bootstrap"
+
+
+def _read_mtf50(choice: _Choice) -> _Reading:
+    """Step 8: MTF50 and the analytic uncertainty of the chosen spectrum."""
     spec = choice.spec
-    mtf = spec.mtf
-    mtf_sigma = spec.sigma
     if choice.mtf50 is not None:  # already read off this very spectrum
         mtf50, mtf50_sigma = choice.mtf50
     else:
-        mtf50 = _mtf50(freqs, mtf)
-        mtf50_sigma = _mtf50_sigma(freqs, mtf, mtf_sigma, mtf50)
-    uncertainty = "analytic"
-    if bootstrap > 0:
-        rng = np.random.default_rng(seed)
-        curves = np.empty((bootstrap, freqs.size))
-        m50s = []
-        for b in range(bootstrap):
-            pick = rng.integers(0, n_rows, n_rows)
-            pb = _esf_samples(u[pick], work[pick], bin_width_px, flat_half)
-            sb = _mtf_from_samples(pb, wide_half, model, narrow_half_px=narrow_half,
-                                   rise_px=rise_guess)
-            mb = sb.mtf
-            if choice.decision is not None and choice.decision.accepted:
-                fb = _model_fit(sb, pb, model, ca, sa, rise_guess)
-                if fb is not None:
-                    mb = fb.mtf(freqs)
-            curves[b] = mb
-            m50 = _mtf50(freqs, mb)
-            if m50 is not None:
-                m50s.append(m50)
-        mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if bootstrap > 1 else
-                               np.zeros(freqs.size), dtype=np.float64)
-        mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
-        uncertainty = "bootstrap"
+        mtf50 = _mtf50(FREQS_CYCLES_PER_PX, spec.mtf)
+        mtf50_sigma = _mtf50_sigma(FREQS_CYCLES_PER_PX, spec.mtf, spec.sigma, mtf50)
+    return _Reading(spec.sigma, mtf50, mtf50_sigma, "analytic")
 
-    # 5. Warnings.
+
+def _bootstrap(
+    roi: _Roi, edge: _Edge, esf: _Esf, choice: _Choice, mtf50: float | None, resamples: int,
+    seed: int, bin_width_px: float,
+) -> _Reading:
+    """Step 8 on request: the uncertainty from ``resamples`` bootstraps over rows (the edge
+    fit kept; the LSF model refitted where the chosen reading is the model's), MTF50 as read
+    (``mtf50``)."""
+    freqs = FREQS_CYCLES_PER_PX
+    rng = np.random.default_rng(seed)
+    curves = np.empty((resamples, freqs.size))
+    m50s = []
+    for b in range(resamples):
+        pick = rng.integers(0, roi.n_rows, roi.n_rows)
+        pb = _esf_samples(edge.u[pick], esf.work[pick], bin_width_px, esf.flat_half)
+        sb = _mtf_from_samples(pb, esf.wide_half_px, esf.model,
+                               narrow_half_px=esf.narrow_half_px, rise_px=esf.rise_px)
+        mb = sb.mtf
+        if choice.decision is not None and choice.decision.accepted:
+            fb = _model_fit(sb, pb, esf.model, *edge.direction_cosines, esf.rise_px)
+            if fb is not None:
+                mb = fb.mtf(freqs)
+        curves[b] = mb
+        m50 = _mtf50(freqs, mb)
+        if m50 is not None:
+            m50s.append(m50)
+    mtf_sigma = np.asarray(curves.std(axis=0, ddof=1) if resamples > 1 else
+                           np.zeros(freqs.size), dtype=np.float64)
+    mtf50_sigma = float(np.std(m50s, ddof=1)) if len(m50s) > 1 else None
+    return _Reading(mtf_sigma, mtf50, mtf50_sigma, "bootstrap")
+
+
+def _warnings(
+    roi: _Roi, edge: _Edge, esf: _Esf, truncated: bool, outliers: _Outliers,
+    mtf50: float | None, choice: _Choice,
+) -> list[str]:
+    """Step 9: what makes the reading less reliable without refusing it, in report order:
+    the ROI's (:func:`_roi_warnings`), then the reading's (:func:`_reading_warnings`)."""
+    return (_roi_warnings(roi, edge, esf)
+            + _reading_warnings(edge, truncated, outliers, mtf50, choice))
+
+
+def _roi_warnings(roi: _Roi, edge: _Edge, esf: _Esf) -> list[str]:
+    """Warnings about the ROI as taken: the edge's angle and length, clipping, contrast and
+    the pixel lattice's sampling of the ESF."""
+    angle, n_rows, clipped = edge.angle_deg, roi.n_rows, roi.clipped
+    warnings = []
     if angle < WARN_ANGLE_DEG:
         warnings.append(f"edge only {angle:.2f} deg from the pixel axis (2-10 deg recommended)")
     if n_rows < WARN_EDGE_ROWS:
         warnings.append(f"short edge: {n_rows} px along it (>= {WARN_EDGE_ROWS} px recommended); "
                         "expect more noise in the MTF")
     if clipped > 0:
-        warnings.append(f"{100 * clipped:.2f} % of the pixels clipped (0 or {top:g})")
+        warnings.append(f"{100 * clipped:.2f} % of the pixels clipped (0 or {roi.top:g})")
+    contrast = esf.contrast
     if math.isfinite(contrast) and contrast < LOW_CONTRAST:
         warnings.append(f"low contrast {contrast:.2f} (< {LOW_CONTRAST:g}): noisy, and sensitive "
                         "to any offset or non-linearity")
-    if samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
-        warnings.append(f"{100 * samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
+    if esf.samples.empty_core_fraction > EMPTY_BIN_WARN_FRACTION:
+        warnings.append(f"{100 * esf.samples.empty_core_fraction:.0f} % of the 1/4-px ESF bins "
                         f"near the edge are empty: at {angle:.1f} deg the pixel centres fall on "
                         "a coarse lattice (e.g. 45 deg, atan 1/2), which alone samples the ESF; "
                         "MTF near Nyquist less reliable (aliasing)")
-    if stray_warning is not None:
-        warnings.append(stray_warning)
-    elif n_outliers:
-        warnings.append(f"{n_outliers} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas off "
-                        "the edge profile clipped to it (hot or dead pixels, dust?)")
+    return warnings
+
+
+def _reading_warnings(
+    edge: _Edge, truncated: bool, outliers: _Outliers, mtf50: float | None, choice: _Choice
+) -> list[str]:
+    """Warnings about the reading: pixels off the ESF, a truncated ESF, a poor edge fit, no
+    MTF50, a rejected LSF model."""
+    warnings = []
+    if outliers.warning is not None:
+        warnings.append(outliers.warning)
+    elif outliers.count:
+        warnings.append(f"{outliers.count} pixel(s) more than {OUTLIER_SIGMAS:g} noise sigmas "
+                        "off the edge profile clipped to it (hot or dead pixels, dust?)")
     if truncated:
         warnings.append("ESF truncated: the ROI is narrow for this blur (widen it across the "
                         "edge); the MTF at low frequency may be off")
-    if rms > FIT_RMS_WARN_PX:
-        warnings.append(f"edge fit RMS {rms:.2f} px: edge bent or noisy (try fit_order 2)")
+    if edge.fit.rms_px > FIT_RMS_WARN_PX:
+        warnings.append(f"edge fit RMS {edge.fit.rms_px:.2f} px: edge bent or noisy "
+                        "(try fit_order 2)")
     if mtf50 is None:
         warnings.append("MTF stays above 0.5 up to 1 cycle/px: MTF50 not defined")
     if choice.warning:
         warnings.append(choice.warning)
+    return warnings
 
-    # 6. The normal in the ROI's own frame (work frame normal is (cos, sin) = (1, -slope)).
-    theta_work = math.atan2(-slope * polarity, polarity)
+
+def _normal_theta(edge: _Edge, transposed: bool) -> float:
+    """The edge normal (dark to bright) in the ROI's own frame, rad; in the work frame it is
+    ``(cos, sin) = (1, -slope)`` times the polarity."""
+    theta_work = math.atan2(-edge.fit.slope * edge.polarity, edge.polarity)
     if transposed:
-        theta = math.atan2(math.cos(theta_work), math.sin(theta_work))
-    else:
-        theta = theta_work
+        return math.atan2(math.cos(theta_work), math.sin(theta_work))
+    return theta_work
+
+
+def _result(
+    roi: _Roi, edge: _Edge, esf: _Esf, free: _Spectrum, choice: _Choice, reading: _Reading,
+    warnings: list[str],
+) -> SfrResult:
+    """Step 10: the :class:`SfrResult` of the pipeline's steps."""
+    freqs = FREQS_CYCLES_PER_PX.copy()
+    mtf = choice.spec.mtf
+    noise = esf.plateau_noise
     return SfrResult(
         freqs_cycles_per_px=freqs,
         mtf=mtf,
-        mtf_sigma=mtf_sigma,
-        uncertainty_method=uncertainty,
-        mtf50_cycles_per_px=mtf50,
-        mtf50_sigma=mtf50_sigma,
+        mtf_sigma=reading.mtf_sigma,
+        uncertainty_method=reading.method,
+        mtf50_cycles_per_px=reading.mtf50,
+        mtf50_sigma=reading.mtf50_sigma,
         mtf_nyquist=float(np.interp(NYQUIST_CYCLES_PER_PX, freqs, mtf)),
-        edge_angle_deg=angle,
-        normal_theta_rad=theta,
-        direction="vertical" if transposed else "horizontal",
-        dark=dark,
-        bright=bright,
-        contrast=float(contrast),
-        noise_sigma=noise,
-        noise_dark_sigma=math.sqrt(plateau_noise.var_dark),
-        noise_bright_sigma=math.sqrt(plateau_noise.var_bright),
-        noise_dark_measured=plateau_noise.measured_dark,
-        noise_bright_measured=plateau_noise.measured_bright,
-        noise_rounding_sigma=math.sqrt(plateau_noise.rounding_var),
-        noise_rounding_floor=plateau_noise.floored(),
-        clipped_fraction=clipped,
-        edge_rows=n_rows,
-        fit=fit,
-        esf_u_px=samples.u,
-        esf=samples.esf,
-        lsf=lsf_w,
+        edge_angle_deg=edge.angle_deg,
+        normal_theta_rad=_normal_theta(edge, roi.transposed),
+        direction="vertical" if roi.transposed else "horizontal",
+        dark=esf.dark,
+        bright=esf.bright,
+        contrast=float(esf.contrast),
+        noise_sigma=roi.noise,
+        noise_dark_sigma=math.sqrt(noise.var_dark),
+        noise_bright_sigma=math.sqrt(noise.var_bright),
+        noise_dark_measured=noise.measured_dark,
+        noise_bright_measured=noise.measured_bright,
+        noise_rounding_sigma=math.sqrt(noise.rounding_var),
+        noise_rounding_floor=noise.floored(),
+        clipped_fraction=roi.clipped,
+        edge_rows=roi.n_rows,
+        fit=edge.fit,
+        esf_u_px=esf.samples.u,
+        esf=esf.samples.esf,
+        lsf=free.lsf,
         warnings=tuple(warnings),
-        lsf_windows=spec.windows,
+        lsf_windows=choice.spec.windows,
         estimator=choice.estimator,
         estimator_reason=choice.reason,
         lsf_model=choice.model_summary(),
@@ -1620,10 +1841,10 @@ def measure_sfr(
 def _locate_edge(
     work: FloatArray, deriv: FloatArray, coeffs: FloatArray, half_window: float,
     fit_order: int, r_mid: float, polarity: float, bin_width_px: float, transposed: bool,
-) -> tuple[FloatArray, FloatArray, float, float, EdgeFit]:
-    """:data:`EDGE_PASSES` passes of :func:`_edge_pass` from ``coeffs``: the coefficients,
-    every pixel's distance from the edge, the coarse rise, the window and the fit as
-    reported. Refused when too few rows have a centroid."""
+) -> _Edge:
+    """The edge: :data:`EDGE_PASSES` passes of :func:`_edge_pass` from ``coeffs`` (the
+    coefficients, every pixel's distance from the edge, the coarse rise, the window and the
+    fit as reported). Refused when too few rows have a centroid."""
     rise = float("nan")
     u: FloatArray | None = None
     keep = cents = np.zeros(0)
@@ -1635,8 +1856,8 @@ def _locate_edge(
     if int(keep.sum()) <= fit_order + 1:
         raise SfrRefused(["no edge: too few rows have a derivative centroid"])
     drows = np.arange(work.shape[0], dtype=np.float64) - r_mid
-    return coeffs, u, rise, half_window, _edge_fit_summary(transposed, coeffs, cents, keep,
-                                                           drows)
+    return _Edge(polarity, coeffs, u, rise, half_window,
+                 _edge_fit_summary(transposed, coeffs, cents, keep, drows))
 
 
 def _edge_pass(
@@ -1710,82 +1931,6 @@ def _edge_fit_summary(
     rms = math.sqrt(_mean(residual**2))
     return EdgeFit(transposed, np.asarray(coeffs, dtype=np.float64), slope, rms,
                    int(keep.sum()))
-
-
-def _quality_gate(
-    work: FloatArray, u: FloatArray, core_half_px: float, noise: _NoiseModel, rms_px: float,
-    code_step: float, codes: FloatArray | None = None,
-) -> tuple[list[str], list[str]]:
-    """Why the ROI holds no clean, unclipped straight edge (both empty when it does): its
-    structure - the ESF's far side not brighter than its near side (other structure decided
-    the polarity), an edge fit far worse than a straight edge gives - and its clipping: a
-    bright plateau clipped on one code below full scale (read on ``codes``, the ROI before any
-    flattening, default ``work``). Pixels off the ESF are judged by :func:`_stray_pixels`."""
-    reasons = []
-    if not noise.bright > noise.dark:
-        reasons.append(f"no single edge: the ESF's bright side ({noise.bright:.4g}) is not "
-                       f"brighter than its dark side ({noise.dark:.4g}); other structure in "
-                       "the ROI?")
-    if rms_px > FIT_RMS_REFUSE_PX:
-        reasons.append(f"edge fit RMS {rms_px:.2f} px (> {FIT_RMS_REFUSE_PX:g} px): not one "
-                       "straight edge: other structure in the ROI (a second edge crossing it?)")
-    clipping = []
-    bright = (work if codes is None else codes)[u > core_half_px]
-    if bright.size >= 30 and code_step > 0:
-        top = float(bright.max())
-        at_top = float(np.mean(bright == top))
-        sd_dark, sd_bright = math.sqrt(noise.var_dark), math.sqrt(noise.var_bright)
-        floor = math.sqrt(code_step * code_step / 12.0)  # the rounding floor of the variances
-        if (at_top >= CLIPPED_AT_CODE_FRACTION and sd_dark >= 0.3 * code_step
-                and sd_bright <= max(CLIPPED_NOISE_RATIO * sd_dark, floor)):
-            clipping.append(f"bright side clipped at code {top:g} below full scale: "
-                            f"{100 * at_top:.0f} % of its pixels on that code, noise "
-                            f"{sd_bright:.2f} against {sd_dark:.2f} on the dark side (saturated "
-                            "sensor: lower the exposure or gain)")
-    return reasons, clipping
-
-
-def _stray_pixels(
-    img: FloatArray, noise: float, n_outliers: int, n_pixels: int, cents: FloatArray,
-    fit_order: int, rms_px: float = 0.0,
-) -> tuple[str | None, str | None]:
-    """More than :data:`OUTLIER_REFUSE_FRACTION` of the pixels off the ESF: the refusal when a
-    second edge (:func:`find_two_edges`, :func:`find_second_edge`, :func:`find_other_edge`)
-    or, on a straight fit, a
-    bent edge (:func:`~benchlab.analysis.sfr.robust.edge_bow`) put them there, naming which;
-    else the warning that they were taken for compression or sensor structure (clipped to
-    the limit, the edge read; :mod:`benchlab.analysis.sfr.robust`). Returns (refusal,
-    warning), one of them None. An edge fit scattering more than :data:`FIT_RMS_WARN_PX` (an
-    edge crossing only a corner of the ROI, or no single edge) is refused too: the stray pixels
-    are then not the edge's own structure."""
-    found = (find_two_edges(img, noise) or find_second_edge(img, noise)
-             or find_other_edge(img, noise))
-    if found is not None:
-        return found.reason(), None
-    if rms_px > FIT_RMS_WARN_PX:
-        return (f"not one clean edge across the ROI: the per-row edge positions scatter "
-                f"{rms_px:.2f} px RMS about the fit (> {FIT_RMS_WARN_PX:g} px) and "
-                f"{100 * n_outliers / n_pixels:.1f} % of the pixels lie off the edge profile; "
-                "does the edge cross the ROI from one side to the opposite one?"), None
-    if fit_order == 1:
-        bow, bow_sigma = edge_bow(np.arange(cents.size, dtype=np.float64), cents)
-        if is_bent(bow, bow_sigma):
-            return bent_reason(bow, int(np.count_nonzero(np.isfinite(cents)))), None
-    share = 100.0 * n_outliers / n_pixels
-    return None, (f"{share:.1f} % of the pixels more than {OUTLIER_SIGMAS:g} noise sigmas off "
-                  "the edge profile, with no second edge and no bend: taken for compression "
-                  "or sensor structure (JPEG blocks, fixed pattern) and clipped to that limit; "
-                  "the MTF's 1-sigma holds the pixel noise only")
-
-
-def _refusal(reasons: list[str], img: FloatArray, noise: float,
-             also: list[str] | None = None) -> SfrRefused:
-    """The refusal of an ROI whose structure may be the cause (no step, an edge near the
-    pixel axis, no centroids, not one straight edge): where the ROI holds two edges - a bar
-    or a line, a corner (:func:`~benchlab.analysis.sfr.structure.find_two_edges`) - that is
-    the reason, said in place of ``reasons``, its symptoms; ``also`` (other causes) is kept."""
-    found = find_two_edges(img, noise) or find_second_edge(img, noise)
-    return SfrRefused(([found.reason()] if found is not None else reasons) + (also or []))
 
 
 def _work_u(

@@ -28,6 +28,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars.roi import MAD_TO_SIGMA
+
 FloatArray = npt.NDArray[np.float64]
 
 #: A bow (sagitta of the per-row edge positions over the ROI) from this many px ...
@@ -77,7 +79,7 @@ def edge_bow(rows: npt.ArrayLike, centroids: npt.ArrayLike) -> tuple[float, floa
             y - (coef[0] + coef[1] * t + coef[2] * (t * t - float(np.mean(tk * tk)))),
             dtype=np.float64)
         res = res_all[keep]
-        scale = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+        scale = MAD_TO_SIGMA * float(np.median(np.abs(res - np.median(res))))
         new_keep = keep & (np.abs(res_all) <= max(_ROW_OUTLIER_SIGMAS * scale, 1e-9))
         if int(new_keep.sum()) < 6 or np.array_equal(new_keep, keep):
             break

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars.roi import MAD_TO_SIGMA
 from benchlab.analysis.quantiles import median
 
 FloatArray = npt.NDArray[np.float64]
@@ -142,7 +143,7 @@ def _plane(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Pla
         res = z - plane.at(drow, dcol)
         limit = OUTLIER_SIGMAS * np.sqrt(var)
         if i == 0:  # the first plane leans towards the outliers: the clean pixels' spread
-            limit = max(limit, OUTLIER_SIGMAS * 1.4826 * float(median(np.abs(res))))
+            limit = max(limit, OUTLIER_SIGMAS * MAD_TO_SIGMA * float(median(np.abs(res))))
         keep = np.abs(res) <= limit
         if bool(keep.all()) or int(np.count_nonzero(keep)) < MIN_PLATEAU_PIXELS:
             break
