@@ -69,8 +69,6 @@ FLAT_WARNING = "single-valued ROI: one gray level, no bars"
 TINY_CONTRAST_WARNING = (f"pixel values span less than {MIN_CONTRAST:g}: their squares "
                          "underflow float64, no bar profile (rescale the data)")
 ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
-#: Normal-consistency factor of the median absolute deviation.
-MAD_TO_SIGMA = 1.4826
 
 
 @dataclass(slots=True)

@@ -41,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
+from benchlab.analysis.noise import robust_sigma
 
 #: Quantisation noise variance, DN^2.
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
@@ -483,11 +484,6 @@ def photon_transfer(
     )
 
 
-def _robust_sigma(values: FloatArray) -> float:
-    med = np.median(values)
-    return float(1.4826 * np.median(np.abs(values - med)))
-
-
 def defect_mask(dark_mean: FloatArray, bright_mean: FloatArray, temporal_sd_dn: float
                 ) -> npt.NDArray[np.bool_]:
     """Pixels far (``DEFECT_SIGMAS`` robust sigmas, at least 2 DN and 5 temporal sd of the mean)
@@ -495,7 +491,7 @@ def defect_mask(dark_mean: FloatArray, bright_mean: FloatArray, temporal_sd_dn: 
     bad = np.zeros(dark_mean.shape, dtype=bool)
     for img in (dark_mean, bright_mean - dark_mean):
         dev = np.abs(img - np.median(img))
-        bad |= dev > max(DEFECT_SIGMAS * _robust_sigma(img), 2.0, 5.0 * temporal_sd_dn)
+        bad |= dev > max(DEFECT_SIGMAS * robust_sigma(img), 2.0, 5.0 * temporal_sd_dn)
     return bad
 
 

@@ -74,7 +74,8 @@ import numpy.typing as npt
 
 from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bin_profiles
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
-from benchlab.analysis.bars.roi import MAD_TO_SIGMA, detect_code_step, infer_max_code
+from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
+from benchlab.analysis.noise import MAD_TO_SIGMA
 from benchlab.analysis.quantiles import median, percentiles
 from benchlab.analysis.sfr.refusals import (
     FIT_RMS_WARN_PX,

@@ -28,7 +28,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars.roi import MAD_TO_SIGMA
+from benchlab.analysis.noise import MAD_TO_SIGMA
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.bars.roi import MAD_TO_SIGMA
+from benchlab.analysis.noise import MAD_TO_SIGMA
 from benchlab.analysis.quantiles import median
 
 FloatArray = npt.NDArray[np.float64]
