@@ -54,6 +54,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.knownbars import ThreeBarReading, fit_three_bars
 from benchlab.analysis.bars.projection import project_roi
 from benchlab.analysis.bars.result import ModulationResult
@@ -70,7 +71,6 @@ from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
 from benchlab.analysis.quantiles import percentile, percentiles
 
 Polarity = Literal["positive", "negative"]
-FloatArray = npt.NDArray[np.float64]
 
 #: Relative darkness against the local ground above which a pixel belongs to a bar.
 BAR_CONTRAST = 0.3

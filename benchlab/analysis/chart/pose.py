@@ -18,8 +18,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import (
     ROI_END_MARGIN_PX,
     Box,
@@ -29,8 +29,6 @@ from benchlab.analysis.chart.layout import (
     usaf_bar_group,
 )
 from benchlab.analysis.mtf.frequency import px_per_period
-
-FloatArray = npt.NDArray[np.float64]
 
 Point = tuple[float, float]
 

@@ -52,13 +52,13 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.knownbars import ThreeBarReading, fit_three_bars
 from benchlab.analysis.bars.model import edge_response
 from benchlab.analysis.bars.projection import across_coordinate
 from benchlab.analysis.bars.result import eq29_modulation
 from benchlab.analysis.sfr.measure import SfrResult
 
-FloatArray = npt.NDArray[np.float64]
 #: An optics transfer: real gain at frequencies (cycles/px, any sign; even).
 Transfer = Callable[[FloatArray], FloatArray]
 

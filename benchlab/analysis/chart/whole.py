@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.finder import (
     LIT_FRACTION,
     MAGNIFICATION_TOLERANCE,
@@ -58,8 +59,6 @@ from benchlab.analysis.chart.whole_layout import WHOLE_CHART_GROUPS, whole_chart
 from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
 from benchlab.analysis.quantiles import percentile
 from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Widest bar (px, at its pyramid level) the closing of one level restores the ground over.
 LEVEL_MAX_BAR_PX = 6.0

@@ -35,9 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.sfr.measure import difference_noise_sigma
-
-FloatArray = npt.NDArray[np.float64]
 
 #: A frame whose edge moved more than this (px, at either end of the edge) is refused ...
 MAX_SHIFT_PX = 0.1

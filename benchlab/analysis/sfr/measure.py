@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bin_profiles
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
@@ -98,8 +99,6 @@ from benchlab.analysis.sfr.structure import (
     find_second_edge,
     find_two_edges,
 )
-
-FloatArray = npt.NDArray[np.float64]
 
 #: ESF bin width, px: ISO 12233's 4x oversampling.
 BIN_WIDTH_PX = 0.25

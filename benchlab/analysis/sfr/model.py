@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import chdtrc, ndtr
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
 
 MAX_COMPONENTS = 3
 #: Another component is tried only when the chi-square of the last fit exceeds its degrees of

@@ -15,12 +15,10 @@ import math
 from typing import Protocol
 
 import numpy as np
-import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.sfr.robust import bent_reason, edge_bow, is_bent
 from benchlab.analysis.sfr.structure import find_other_edge, find_second_edge, find_two_edges
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Pixels further than this many noise sigmas from the ESF are clipped to it (hot, dead, dust).
 OUTLIER_SIGMAS = 5.0

@@ -30,8 +30,6 @@ import numpy.typing as npt
 
 from benchlab.analysis.noise import MAD_TO_SIGMA
 
-FloatArray = npt.NDArray[np.float64]
-
 #: A bow (sagitta of the per-row edge positions over the ROI) from this many px ...
 BENT_MIN_PX = 0.5
 #: ... and this many of its standard errors is a bent edge.

@@ -28,10 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.noise import MAD_TO_SIGMA
 from benchlab.analysis.quantiles import median
-
-FloatArray = npt.NDArray[np.float64]
 
 #: Chi-square drop (2 degrees of freedom: the two slopes) above which a plateau's plane is
 #: taken as shading rather than noise: p = exp(-20 / 2) = 4.5e-5 per plateau.

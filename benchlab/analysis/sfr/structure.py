@@ -48,7 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from benchlab.analysis.arrays import FloatArray
+
 BoolArray = npt.NDArray[np.bool_]
 
 #: A strong pixel's gradient is at least this fraction of the peak ...
