@@ -26,10 +26,11 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
 if TYPE_CHECKING:
     from benchlab.protocols.characterise.params import CharacteriseParams
     from benchlab.protocols.depth.params import DepthParams
+    from benchlab.protocols.fov.params import FovParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth", "fov")
 __all__ = ["CAMERA_SPEC", "EXPOSURE_RANGE_MS", "FRAME_SHAPE_PX", "GAIN_RANGE", "ParamsError",
            "camera_exposure_ms", "camera_gain", "load_params", "parse_params"]
 _ELEMENT_RE = re.compile(r"^G(-?\d)E([1-6])$")
@@ -105,7 +106,8 @@ class RadiometryParams:
 
 #: (A string: the characterisation's parameters are imported only where they are used, so an
 #: MTF re-analysis never loads them.)
-Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams | DepthParams"
+Params: TypeAlias = ("MtfParams | RadiometryParams | CharacteriseParams | DepthParams | "
+                     "FovParams")
 
 
 class _Checker(TableChecker):
@@ -318,6 +320,10 @@ def parse_params(
         from benchlab.protocols.depth.params import check_depth
 
         params = check_depth(checker, limits)
+    elif procedure == "fov":
+        from benchlab.protocols.fov.params import check_fov
+
+        params = check_fov(checker, limits)
     else:
         params = (_check_mtf(checker) if procedure == "mtf"
                   else _check_radiometry(checker, limits))
@@ -357,6 +363,10 @@ def params_to_dict(params: Params) -> dict[str, Any]:
 
         if isinstance(params, DepthParams):
             return depth_to_dict(params)
+        from benchlab.protocols.fov.params import FovParams, fov_to_dict
+
+        if isinstance(params, FovParams):
+            return fov_to_dict(params)
         from benchlab.protocols.characterise.params import characterise_to_dict
 
         return characterise_to_dict(params)

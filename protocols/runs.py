@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
     from benchlab.protocols.depth.steps import DepthProcedure
+    from benchlab.protocols.fov.steps import FovProcedure
     from benchlab.protocols.mtf.steps import MtfProcedure
     from benchlab.protocols.radiometry import RadiometryProcedure
 
@@ -62,7 +63,7 @@ def check_estimator(name: str | None) -> None:
 
 
 AnyProcedure: TypeAlias = ("MtfProcedure | RadiometryProcedure | CharacteriseProcedure | "
-                           "DepthProcedure")
+                           "DepthProcedure | FovProcedure")
 
 
 def make_procedure(params: Params) -> AnyProcedure:
@@ -85,6 +86,12 @@ def make_procedure(params: Params) -> AnyProcedure:
         from benchlab.protocols.depth.steps import DepthProcedure
 
         return DepthProcedure(params)
+    from benchlab.protocols.fov.params import FovParams
+
+    if isinstance(params, FovParams):
+        from benchlab.protocols.fov.steps import FovProcedure
+
+        return FovProcedure(params)
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
 
     return CharacteriseProcedure(params)
@@ -99,9 +106,10 @@ def _resolve_params(
         return load_params(procedure, params, limits), source
     from benchlab.protocols.characterise.params import CharacteriseParams
     from benchlab.protocols.depth.params import DepthParams
+    from benchlab.protocols.fov.params import FovParams
 
     expected = {"mtf": MtfParams, "characterise": CharacteriseParams,
-                "depth": DepthParams}.get(procedure, RadiometryParams)
+                "depth": DepthParams, "fov": FovParams}.get(procedure, RadiometryParams)
     if not isinstance(params, expected):
         raise ParamsError("<params>", [f"procedure: {type(params).__name__} given for "
                                        f"{procedure!r}"])

@@ -9,7 +9,7 @@ __all__ = ["PROCEDURES", "UsageError", "non_negative_int", "positive_float", "po
 
 #: The procedures ``run`` and the TUI offer: benchlab.protocols.params.PROCEDURES, written out
 #: so that building the parser imports no numpy (a test keeps the two equal).
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth", "fov")
 
 
 def _whole_number(text: str, minimum: int) -> int:

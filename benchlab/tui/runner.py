@@ -31,16 +31,18 @@ from benchlab.tui.widgets import ModeBar
 if TYPE_CHECKING:
     from benchlab.protocols.engine import Runner
 
-PROCEDURES = ("mtf", "radiometry", "characterise", "depth")
+PROCEDURES = ("mtf", "radiometry", "characterise", "depth", "fov")
 #: Title of the checklist panel per procedure.
 CHECKLIST_TITLES = {"mtf": "checklist (Table 4.10 steps)",
                     "radiometry": "positions (section 4.4)",
                     "characterise": "sweeps (EMVA 1288)",
-                    "depth": "through focus (section 2.2.4)"}
+                    "depth": "through focus (section 2.2.4)",
+                    "fov": "distances (field of view)"}
 #: The status line's name of each procedure.
 PROCEDURE_LABELS = {"mtf": "MTF (Table 4.10)", "radiometry": "Radiometry (section 4.4)",
                     "characterise": "Camera characterisation (EMVA 1288)",
-                    "depth": "Depth of field (section 2.2.4)"}
+                    "depth": "Depth of field (section 2.2.4)",
+                    "fov": "Field of view (Tables 3.1, 4.14)"}
 ORIENTATION_SHORT = {"sagittal": "S", "tangential": "T"}
 #: Room kept for the checklist's vertical scrollbar (a long procedure scrolls).
 STEPS_SCROLLBAR_CHARS = 2
