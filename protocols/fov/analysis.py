@@ -148,29 +148,29 @@ def analyze_fov(session: Session, params: FovParams
     fov = fig.field_of_view(fit, disc)
     dov, azimuth = fig.direction_of_view(fit)
     pupil = fig.entrance_pupil(fit)
-    f_par = fig.delta(lambda v: float(v[0]), fit.params[2:3], fit.covariance[2:3, 2:3])
+    f_par = fig.paraxial_focal_length(fit)
     radius = fig.Figure(disc.radius_px * PIXEL_MM, (disc.radius_px - fig.Z95 * disc.sigma[2])
                         * PIXEL_MM, (disc.radius_px + fig.Z95 * disc.sigma[2]) * PIXEL_MM)
-    fov_row = _fig("full_fov_deg", fov, "deg", 3)
+    fov_row = _fig("full_fov_deg", fov, "deg", 4)
     fov_row["design"] = f">= {params.design_fov_min_deg:g}"
     fov_row["verdict"] = fov_verdict(fov, params.design_fov_min_deg)
-    dov_row = _fig("direction_of_view_deg", dov, "deg", 4)
+    dov_row = _fig("direction_of_view_deg", dov, "deg", 5)
     dov_row["verdict"] = f"tilt azimuth {azimuth:.1f} deg"
-    fov_rows = [fov_row, dov_row, _fig("entrance_pupil_mm", pupil, "mm", 4),
-                _fig("paraxial_focal_length_mm", f_par, "mm", 5),
-                _fig("disc_radius_mm", radius, "mm", 5)]
+    fov_rows = [fov_row, dov_row, _fig("entrance_pupil_mm", pupil, "mm", 5),
+                _fig("paraxial_focal_length_mm", f_par, "mm", 6),
+                _fig("disc_radius_mm", radius, "mm", 6)]
     edge_deg = fov.value / 2.0
     design = dict(design_field_points())
     angles = sorted(set(design) | set(_grid(params.distortion_step_deg, edge_deg)))
     mapping, distortion = [], []
     for a in angles:
         h = fig.image_height(fit, a)
-        value, ci = h.rounded(5)
+        value, ci = h.rounded(6)  # 1 nm: well below the interval's width
         d_mm = design.get(a)
         mapping.append({
             "field_angle_deg": a, "image_height_mm": value, "image_height_mm_ci95": ci,
             "design_image_height_mm": d_mm,
-            "difference_mm": None if d_mm is None else _r(h.value - d_mm, 5),
+            "difference_mm": None if d_mm is None else _r(h.value - d_mm, 6),
             "verdict": "" if d_mm is None else (
                 height_verdict(h, d_mm, params.height_tolerance_mm) if a <= edge_deg
                 else "beyond the measured field")})
@@ -178,10 +178,10 @@ def analyze_fov(session: Session, params: FovParams
             rect = fig.local_distortion(fit, a, "rectilinear")
             equi = fig.local_distortion(fit, a, "equidistant")
             distortion.append({"field_angle_deg": a, "image_height_mm": value,
-                               "rectilinear_pct": rect.rounded(3)[0],
-                               "rectilinear_pct_ci95": rect.rounded(3)[1],
-                               "equidistant_pct": equi.rounded(3)[0],
-                               "equidistant_pct_ci95": equi.rounded(3)[1]})
+                               "rectilinear_pct": rect.rounded(5)[0],
+                               "rectilinear_pct_ci95": rect.rounded(5)[1],
+                               "equidistant_pct": equi.rounded(5)[0],
+                               "equidistant_pct_ci95": equi.rounded(5)[1]})
     tables: dict[str, list[dict[str, Any]]] = {
         "field_of_view": fov_rows, "image_height_mapping": mapping, "distortion": distortion,
         "fov_dots": dot_rows}

@@ -26,7 +26,7 @@ import numpy.typing as npt
 from scipy.optimize import brentq
 
 from benchlab.analysis.fov.disc import Disc
-from benchlab.analysis.fov.fit import Fit
+from benchlab.analysis.fov.fit import A1, Fit
 from benchlab.analysis.fov.model import PIXEL_MM, poly_height_mm
 
 FloatArray = npt.NDArray[np.float64]
@@ -83,21 +83,22 @@ def edge_angle_rad(coeffs: FloatArray, height_mm: float, limit_rad: float = 1.5)
 
 def field_of_view(fit: Fit, disc: Disc) -> Figure:
     """Full field of view, degrees (module docstring)."""
-    x = np.concatenate([fit.params[2:5], [disc.radius_px]])
-    cov = np.zeros((4, 4))
-    cov[:3, :3] = fit.covariance[2:5, 2:5]
-    cov[3, 3] = disc.covariance[2, 2]
+    x = np.concatenate([fit.params[A1:], [disc.radius_px]])
+    n = len(x)
+    cov = np.zeros((n, n))
+    cov[:-1, :-1] = fit.covariance[A1:, A1:]
+    cov[-1, -1] = disc.covariance[2, 2]
 
     def fov(v: FloatArray) -> float:
-        return 2.0 * math.degrees(edge_angle_rad(v[:3], v[3] * PIXEL_MM))
+        return 2.0 * math.degrees(edge_angle_rad(v[:-1], v[-1] * PIXEL_MM))
     return delta(fov, x, cov)
 
 
 def direction_of_view(fit: Fit) -> tuple[Figure, float]:
     """Direction of view (degrees, module docstring) and the tilt's azimuth (degrees, from
     +col towards +row)."""
-    w = fit.params[6:8]
-    c = fit.covariance[6:8, 6:8]
+    w = fit.params[3:5]
+    c = fit.covariance[3:5, 3:5]
     ci = np.linalg.inv(c)
     r_hat = float(np.hypot(*w))
     reach = r_hat + 6.0 * math.sqrt(float(np.max(np.linalg.eigvalsh(c))))
@@ -117,14 +118,14 @@ def direction_of_view(fit: Fit) -> tuple[Figure, float]:
 
 def entrance_pupil(fit: Fit) -> Figure:
     """Entrance pupil behind the front reference, mm."""
-    return delta(lambda v: float(v[0]), fit.params[5:6], fit.covariance[5:6, 5:6])
+    return delta(lambda v: float(v[0]), fit.params[2:3], fit.covariance[2:3, 2:3])
 
 
 def image_height(fit: Fit, angle_deg: float) -> Figure:
     """``h`` at a field angle, mm."""
     t = math.radians(angle_deg)
-    return delta(lambda v: float(poly_height_mm(v)(np.array([t]))[0]), fit.params[2:5],
-                 fit.covariance[2:5, 2:5])
+    return delta(lambda v: float(poly_height_mm(v)(np.array([t]))[0]), fit.params[A1:],
+                 fit.covariance[A1:, A1:])
 
 
 def local_distortion(fit: Fit, angle_deg: float, model: str) -> Figure:
@@ -136,4 +137,9 @@ def local_distortion(fit: Fit, angle_deg: float, model: str) -> Figure:
     def dist(v: FloatArray) -> float:
         h = float(poly_height_mm(v)(np.array([t]))[0])
         return 100.0 * (h - v[0] * ideal) / (v[0] * ideal)
-    return delta(dist, fit.params[2:5], fit.covariance[2:5, 2:5])
+    return delta(dist, fit.params[A1:], fit.covariance[A1:, A1:])
+
+
+def paraxial_focal_length(fit: Fit) -> Figure:
+    """The mapping's slope at 0 (``a1``), mm."""
+    return delta(lambda v: float(v[0]), fit.params[A1:A1 + 1], fit.covariance[A1:A1 + 1, A1:A1 + 1])
