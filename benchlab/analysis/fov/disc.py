@@ -71,7 +71,7 @@ def _first_guess(img: FloatArray) -> tuple[float, float, float, float, float]:
         raise DiscNotFoundError("the lit disc runs off the frame: its edge cannot be traced "
                                 "all round")
     inside = img[biggest]
-    bright = float(np.percentile(inside, 90))
+    bright = float(np.median(inside[inside > (bright + dark) / 2.0]))  # the glass, not the dots
     return float(cols.mean()), float(rows.mean()), float(np.sqrt(biggest.sum() / np.pi)), \
         bright, dark
 

@@ -51,7 +51,12 @@ def detect(frame: npt.ArrayLike, disc: Disc, margin_px: float
     rows, cols = np.indices(img.shape)
     rho = np.hypot(cols - disc.centre_col, rows - disc.centre_row)
     usable = rho <= disc.radius_px - margin_px
-    dark = (img < (disc.bright + disc.dark) / 2.0) & (rho <= disc.radius_px)
+    half = (disc.bright + disc.dark) / 2.0
+    lit = img[usable & (img > half)]
+    # this frame's own glass level: a level off by d adds d x the window to every dot's
+    # weights, pulling its centroid towards the window's centre
+    bright = float(np.median(lit)) if lit.size else disc.bright
+    dark = (img < half) & (rho <= disc.radius_px)
     labels, n = ndimage.label(dark, structure=np.ones((3, 3), dtype=bool))
     if n == 0:
         return np.zeros((0, 2)), np.zeros(0)
@@ -70,7 +75,7 @@ def detect(frame: npt.ArrayLike, disc: Disc, margin_px: float
         if area < 2:
             continue  # noise
         window = ndimage.binary_dilation(own, iterations=2)
-        wgt = (disc.bright - img[r0:r1, c0:c1]) * window
+        wgt = (bright - img[r0:r1, c0:c1]) * window
         total = float(wgt.sum())
         if total <= 0:
             continue

@@ -101,9 +101,12 @@ def direction_of_view(fit: Fit) -> tuple[Figure, float]:
     c = fit.covariance[3:5, 3:5]
     ci = np.linalg.inv(c)
     r_hat = float(np.hypot(*w))
-    reach = r_hat + 6.0 * math.sqrt(float(np.max(np.linalg.eigvalsh(c))))
-    radii = np.linspace(0.0, reach, 1201)
-    ang = np.linspace(0.0, 2.0 * np.pi, 721)
+    sig = math.sqrt(float(np.max(np.linalg.eigvalsh(c))))
+    radii = np.linspace(max(r_hat - 8.0 * sig, 0.0), r_hat + 8.0 * sig, 1601)
+    # the circles near the fitted w only: around its azimuth when it is far from 0
+    az0 = math.atan2(float(w[1]), float(w[0]))
+    half = math.pi if r_hat < 10.0 * sig else 10.0 * sig / r_hat
+    ang = az0 + np.linspace(-half, half, 721)
     d = np.stack([np.cos(ang), np.sin(ang)], axis=1)  # (a, 2)
     diff = radii[:, None, None] * d[None, :, :] - w[None, None, :]
     m2 = np.einsum("rai,ij,raj->ra", diff, ci, diff).min(axis=1)
