@@ -257,9 +257,9 @@ class SimWorld:
             return np.full((state.height, state.width), rate)
         if spec[0] == "dots":
             offset = bench.get("object_offset_mm")
-            distance = (self.dots.default_distance_mm if offset is None else
-                        float(offset) + float(bench.get("stage_position_mm") or 0.0))
-            return self.dots.render(distance, state.height, state.width).copy()
+            at_mm = (self.dots.default_distance_mm if offset is None else
+                     float(offset) + float(bench.get("stage_position_mm") or 0.0))
+            return self.dots.render(at_mm, state.height, state.width).copy()
         if spec[0] == "led":
             return self.led.render(
                 self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width

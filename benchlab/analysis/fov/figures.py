@@ -102,11 +102,11 @@ def direction_of_view(fit: Fit) -> tuple[Figure, float]:
     ci = np.linalg.inv(c)
     r_hat = float(np.hypot(*w))
     sig = math.sqrt(float(np.max(np.linalg.eigvalsh(c))))
-    radii = np.linspace(max(r_hat - 8.0 * sig, 0.0), r_hat + 8.0 * sig, 1601)
+    radii = np.linspace(max(r_hat - 8.0 * sig, 0.0), r_hat + 8.0 * sig, 801)
     # the circles near the fitted w only: around its azimuth when it is far from 0
     az0 = math.atan2(float(w[1]), float(w[0]))
     half = math.pi if r_hat < 10.0 * sig else 10.0 * sig / r_hat
-    ang = az0 + np.linspace(-half, half, 721)
+    ang = az0 + np.linspace(-half, half, 361)
     d = np.stack([np.cos(ang), np.sin(ang)], axis=1)  # (a, 2)
     diff = radii[:, None, None] * d[None, :, :] - w[None, None, :]
     m2 = np.einsum("rai,ij,raj->ra", diff, ci, diff).min(axis=1)

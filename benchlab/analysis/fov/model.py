@@ -45,7 +45,7 @@ class Pose:
     offset_y_mm: float = 0.0
 
 
-def chart_points_mm(ij: FloatArray, pitch_mm: float, distance_mm: FloatArray,
+def chart_points_mm(ij: FloatArray, pitch_mm: float, distance_mm: float | FloatArray,
                     pose: Pose) -> FloatArray:
     """World coordinates ``(n, 3)`` of grid dots ``ij`` (column index, row index) at object
     distances ``distance_mm`` (one per dot, or one for all)."""
