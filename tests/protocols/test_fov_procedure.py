@@ -57,6 +57,13 @@ def test_default_run_measures_the_forward_view_against_the_truth(tmp_path: Path)
     assert summary["frames_per_distance"] == 2 and summary["stage_travel_mm"] == 20.0
     saved = [e for e in events(out.session_path) if e["kind"] == "frame_saved"]
     assert len(saved) == 6
+    from benchlab.report.render import render_report
+
+    html = render_report(out.session_path)
+    section = html[html.index("<section id='fov'>"):]
+    section = section[:section.index("</section>")]
+    assert section.count("data:image/svg+xml") == 1  # the mapping and distortion plot
+    assert "meets Table 3.1 (&gt;= 40 deg)" in section
 
 
 def bad(data: dict[str, Any]) -> dict[str, Any]:
