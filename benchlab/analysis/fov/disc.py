@@ -22,12 +22,12 @@ from scipy.optimize import least_squares
 
 FloatArray = npt.NDArray[np.float64]
 #: Systematic floor on the radius (px), added in quadrature: the half-level crossing read by
-#: bilinear interpolation of a 1.5 px soft edge sits ~0.04 px inside the true one on the
-#: simulated bench, far above the fit's statistical 0.001 px.
-EDGE_SYSTEMATIC_PX = 0.05
-#: The same for the centre (px): ~0.002 px off on the simulated bench, against a statistical
-#: 0.0015 px; it sets the direction of view's interval (0.003 px is 0.0003 deg).
-CENTRE_SYSTEMATIC_PX = 0.003
+#: bilinear interpolation of a 1.5 px soft edge; on the simulated bench the radius comes out
+#: within ~0.01 px (`benchlab benchmark fov`), far above the fit's statistical 0.001 px.
+EDGE_SYSTEMATIC_PX = 0.01
+#: The same for the centre (px): within ~0.002 px on the simulated bench, against a
+#: statistical 0.0015 px; it sets the direction of view's interval (0.002 px is 0.0002 deg).
+CENTRE_SYSTEMATIC_PX = 0.002
 
 
 class DiscNotFoundError(ValueError):
