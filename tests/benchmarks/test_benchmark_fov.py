@@ -66,3 +66,11 @@ def test_summary_says_bias_rmse_coverage_and_the_target(tmp_path: Path) -> None:
         "distances_mm": [15.0, 25.0, 35.0], "stage_travel_mm": 20.0}}, "all": s})
     assert "2 frames at each of [15.0, 25.0, 35.0] mm, stage travel 20 mm" in text
     assert "entrance_pupil_mm" in text and " NO " in text
+
+
+def test_an_unknown_variant_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    from benchlab.cli.main import main
+
+    assert main(["benchmark", "fov", "--variants", "nominal,bent"]) == 2
+    err = capsys.readouterr().err
+    assert "benchlab: error: --variants: unknown bent; known: nominal, no-distortion" in err
