@@ -17,10 +17,10 @@ The image centre is tied to the disc's centre (its fitted value and covariance e
 prior): a tilt and a shifted centre move every dot alike, and the disc's centre is where the
 thesis puts the optical axis (section 4.3.3).
 
-Uncertainty: the centroid noise ``s`` is estimated from the residuals (both coordinates
-alike); the covariance is ``s^2 (J^T J)^-1`` of the weighted problem (dots by ``1 / s``, the
-prior by its own covariance). Figures derived from the parameters get their intervals by the
-delta method (:mod:`.figures`).
+Uncertainty: the centroid noise ``s`` is estimated from the residuals, per distance (both
+coordinates alike); the covariance is ``(J^T J)^-1`` of the weighted problem (dots by
+``1 / s``, the prior by its own covariance). Figures derived from the parameters get their
+intervals by the delta method (:mod:`.figures`).
 """
 
 from __future__ import annotations
@@ -50,7 +50,8 @@ class FitError(ValueError):
 
 @dataclass(frozen=True)
 class Fit:
-    """The fitted parameters (:data:`NAMES`), their covariance, the centroid noise (px), the
+    """The fitted parameters (:data:`NAMES`), their covariance, the centroid noise (px, RMS
+    over the distances), the
     residual RMS per distance (px) and how many dots entered."""
 
     params: FloatArray
@@ -118,17 +119,23 @@ def fit_views(views: Sequence[tuple[float, Dots]], disc: Disc, pitch_mm: float,
     prior_c = np.array([disc.centre_col, disc.centre_row])
     prior_w = np.linalg.cholesky(np.linalg.inv(disc.covariance[:2, :2])).T
 
-    def residuals(p: FloatArray, s: float) -> FloatArray:
-        dots = ((predict(p, ij, dist, pitch_mm) - xy) / s).ravel()
+    def residuals(p: FloatArray, s: FloatArray) -> FloatArray:
+        dots = ((predict(p, ij, dist, pitch_mm) - xy) / s[:, None]).ravel()
         return np.concatenate([dots, prior_w @ (p[:2] - prior_c)])
 
     p = _start(views, disc, pitch_mm)
-    s = 1.0
+    # the centroid noise per distance (dots differ in size and number between distances):
+    # one pooled value would under-weight the quieter distance's dots
+    s = np.ones(len(ij))
+    share = len(p) / len(ij)
     for _ in range(2):  # the noise from the residuals, then the weighted fit again
         sol = least_squares(residuals, p, args=(s,), method="lm", x_scale="jac")
         p = sol.x
         r = (predict(p, ij, dist, pitch_mm) - xy)
-        s = max(float(np.sqrt((r ** 2).sum() / max(r.size - len(p), 1))), 1e-4)
+        for d, _v in views:
+            sel = dist == d
+            dof = max(2 * int(sel.sum()) - share * int(sel.sum()), 1.0)
+            s[sel] = max(float(np.sqrt((r[sel] ** 2).sum() / dof)), 1e-4)
     sol = least_squares(residuals, p, args=(s,), method="lm", x_scale="jac")
     p = sol.x
     jac = sol.jac
@@ -138,4 +145,5 @@ def fit_views(views: Sequence[tuple[float, Dots]], disc: Disc, pitch_mm: float,
     for d, _ in views:
         sel = dist == d
         rms.append(float(np.sqrt((r[sel] ** 2).sum(axis=1).mean())))
-    return Fit(p, cov, s, tuple(rms), len(ij))
+    noise = float(np.sqrt(np.mean(s ** 2)))
+    return Fit(p, cov, noise, tuple(rms), len(ij))
