@@ -152,9 +152,9 @@ def run_procedure(
     ----------
     bench : benchlab.bench.Bench
         From :func:`open_bench`.
-    procedure : {"mtf", "radiometry", "characterise", "depth"}
-        Table 4.10 MTF, section 4.4 relative radiometry, the camera characterisation, or depth
-        of field through focus.
+    procedure : {"mtf", "radiometry", "characterise", "depth", "fov"}
+        Table 4.10 MTF, section 4.4 relative radiometry, the camera characterisation, depth
+        of field through focus, or the forward view's field of view and mapping.
     params : path-like or benchlab.protocols.params.Params, optional
         The procedure's parameter TOML file (or parameters already loaded); default the
         packaged ones. Checked in full, bench limits included, before any folder is made or

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 #: The procedures' names, as the command line and the API take them.
-ProcedureName = Literal["mtf", "radiometry", "characterise", "depth"]
+ProcedureName = Literal["mtf", "radiometry", "characterise", "depth", "fov"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,9 @@ REGISTRY: dict[str, ProcedureEntry] = {e.name: e for e in (
     ProcedureEntry("depth", "Depth of field (section 2.2.4)", "through focus (section 2.2.4)",
                    f"{_P}.depth.params:DepthParams", f"{_P}.depth.params:check_depth",
                    f"{_P}.depth.params:depth_to_dict", f"{_P}.depth.steps:DepthProcedure"),
+    ProcedureEntry("fov", "Field of view (Tables 3.1, 4.14)", "distances (field of view)",
+                   f"{_P}.fov.params:FovParams", f"{_P}.fov.params:check_fov",
+                   f"{_P}.fov.params:fov_to_dict", f"{_P}.fov.steps:FovProcedure"),
 )}
 
 #: The procedures in the order the interfaces offer them.

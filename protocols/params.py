@@ -27,6 +27,7 @@ from benchlab.protocols.camera_limits import (  # the driver's limits: one sourc
 if TYPE_CHECKING:
     from benchlab.protocols.characterise.params import CharacteriseParams
     from benchlab.protocols.depth.params import DepthParams
+    from benchlab.protocols.fov.params import FovParams
 
 __all__ = ["BenchLimits", "ParamsError"]  # defined in benchlab.checks, re-exported here
 
@@ -106,7 +107,8 @@ class RadiometryParams:
 
 #: (A string: the characterisation's parameters are imported only where they are used, so an
 #: MTF re-analysis never loads them.)
-Params: TypeAlias = "MtfParams | RadiometryParams | CharacteriseParams | DepthParams"
+Params: TypeAlias = ("MtfParams | RadiometryParams | CharacteriseParams | DepthParams | "
+                     "FovParams")
 
 
 class _Checker(TableChecker):

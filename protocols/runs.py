@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from benchlab.bench import Bench
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
     from benchlab.protocols.depth.steps import DepthProcedure
+    from benchlab.protocols.fov.steps import FovProcedure
     from benchlab.protocols.mtf.steps import MtfProcedure
     from benchlab.protocols.radiometry import RadiometryProcedure
 
@@ -63,7 +64,7 @@ def check_estimator(name: str | None) -> None:
 
 
 AnyProcedure: TypeAlias = ("MtfProcedure | RadiometryProcedure | CharacteriseProcedure | "
-                           "DepthProcedure")
+                           "DepthProcedure | FovProcedure")
 
 
 def make_procedure(params: Params) -> AnyProcedure:

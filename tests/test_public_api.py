@@ -175,7 +175,7 @@ def test_missing_frame_names_it_and_lists_the_frames(
 def test_unknown_procedure_is_refused_before_anything_is_made(bench: Bench,
                                                                tmp_path: Path) -> None:
     with pytest.raises(UsageError, match=r"^run_procedure: unknown procedure 'mft'; choose "
-                                         r"mtf, radiometry, characterise, depth$"):
+                                         r"mtf, radiometry, characterise, depth, fov$"):
         benchlab.run_procedure(bench, "mft", out=tmp_path / "s", answer=lambda p: True)
     assert not (tmp_path / "s").exists()
 

@@ -39,6 +39,7 @@ COMMAND_MODULES = (
     "benchlab.cli.runs.verify",  # verify, units, unit, lot, certificate (acceptance per unit)
     "benchlab.cli.devices.doctor",  # doctor (guided bring-up)
     "benchlab.cli.runs.depth",  # benchmark depth (run depth is in cli.procedures)
+    "benchlab.cli.runs.fov",  # benchmark fov (run fov is in cli.procedures)
 )
 #: Top-level command -> the module (of COMMAND_MODULES) that registers it. A command line
 #: naming one of these builds only that module's parsers: the full parser (every module

@@ -475,6 +475,12 @@ def _depth(ctx: ReportContext) -> str:
     return depth_section(ctx.tables, ctx.session.meta.get("params") or {})
 
 
+def _fov(ctx: ReportContext) -> str:
+    from benchlab.report.fov import fov_section
+
+    return fov_section(ctx.tables)
+
+
 def _unwrapped(ctx: ReportContext) -> str:
     from benchlab.report.unwrap import render_unwrap_section  # after benchlab unwrap SESSION
 
@@ -500,6 +506,7 @@ SECTIONS: list[Section] = [
     Section("Camera characterisation (EMVA 1288)", _characterise, ("characterise",),
             "characterisation"),
     Section("Through focus: curves, DOF, field curvature", _depth, ("depth",), "depth"),
+    Section("Field of view: image-height mapping and distortion", _fov, ("fov",), "fov"),
     Section("Unwrapped radial view (thesis 5.2)", _unwrapped, anchor="unwrapped"),
     Section("Parameters", _parameters, anchor="parameters"),
 ]

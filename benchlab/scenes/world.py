@@ -13,7 +13,10 @@ Targets (the set-ups of Table 4.10 and section 4.4):
   ``state.bench`` (``led_current_ma``, ``stage_position_mm``) at each exposure;
 - ``"flat"`` - uniform illumination (diffuser, lens off) lit by the LED: every pixel gets
   ``flat_e_per_ms_per_ma`` x the LED current (camera characterisation, EMVA 1288 set-up);
-- ``"dark"`` - nothing lit (lens cap on).
+- ``"dark"`` - nothing lit (lens cap on);
+- ``"dots"`` - the forward view with the dot-grid chart of ``benchlab run fov``
+  (:class:`DotGridScene`, :attr:`SimWorld.dots`), carried by the stage: its object distance is
+  ``object_offset_mm`` + the stage position.
 
 ``state.bench["target"]``, when present, overrides the mounted target for that exposure, so a
 bench assembly can keep the target in the state it already passes to the camera.
@@ -32,6 +35,7 @@ import numpy.typing as npt
 from benchlab.analysis.chart.layout import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
+from benchlab.scenes.dots import DotGridScene
 from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.focus import ThroughFocusLens, defocused_radial, scenes_at
 from benchlab.scenes.led import LedScene
@@ -40,7 +44,7 @@ from benchlab.scenes.usaf import UsafScene
 
 FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark")
+TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark", "dots")
 
 
 def parse_target(target: object) -> Target:
@@ -56,7 +60,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "edge", "led", "flat", "dark"):
+        if spec in ("usaf", "edge", "led", "flat", "dark", "dots"):
             return (spec,)
         if spec == "card":
             return ("card", None)
@@ -140,6 +144,8 @@ class SimWorld:
         self._lock = threading.Lock()
         self._target = self._checked(target)
         self.through_focus = through_focus
+        #: The dot-grid chart and its lens (``benchlab run fov`` sets its parameters').
+        self.dots = DotGridScene()
 
     @property
     def target(self) -> Target:
@@ -249,6 +255,11 @@ class SimWorld:
         if spec[0] == "flat":
             rate = self.flat_e_per_ms_per_ma * self.led_current_ma(bench)
             return np.full((state.height, state.width), rate)
+        if spec[0] == "dots":
+            offset = bench.get("object_offset_mm")
+            at_mm = (self.dots.default_distance_mm if offset is None else
+                     float(offset) + float(bench.get("stage_position_mm") or 0.0))
+            return self.dots.render(at_mm, state.height, state.width).copy()
         if spec[0] == "led":
             return self.led.render(
                 self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width

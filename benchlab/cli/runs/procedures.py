@@ -487,14 +487,16 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     """Add ``run``, ``resume``, ``report`` and ``benchmark report``."""
     run = commands.add_parser(
         "run", help="run a procedure (Table 4.10 MTF, section 4.4 radiometry, the camera "
-        "characterisation or depth of field through focus)",
+        "characterisation, depth of field through focus or the field of view)",
         description="Run a measurement procedure into a new session folder, with a progress "
         "bar. Manual steps are prompts; --yes answers them (unattended simulated runs).",
     )
     run.add_argument("procedure", choices=PROCEDURES,
                      help="mtf: the Table 4.10 MTF test; radiometry: section 4.4 relative "
                      "radiometry; characterise: EMVA 1288 photon transfer of the camera; depth: "
-                     "MTF through focus on the stage (best focus, depth of field)")
+                     "MTF through focus on the stage (best focus, depth of field); fov: field "
+                     "of view, direction of view, entrance pupil and image-height mapping of "
+                     "the forward view from a dot-grid chart at several stage distances")
     run.add_argument("--simulate", action="store_true", help="use the simulated bench")
     run.add_argument("--config", help="bench configuration TOML (ports, ceilings, travel; "
                      "default: the user's, see `benchlab config show`)")
