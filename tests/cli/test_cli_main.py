@@ -106,7 +106,7 @@ def test_the_command_line_offers_every_procedure() -> None:
     from benchlab.cli.main import build_parser
     from benchlab.procedures import PROCEDURES as DEFINED
 
-    assert DEFINED == ("mtf", "radiometry", "characterise", "depth")
+    assert DEFINED == ("mtf", "radiometry", "characterise", "depth", "fov")
     parsers = dict(_all_parsers(build_parser()))
     tui_help = parsers["benchlab tui"].format_help()
     run_help = parsers["benchlab run"].format_help()

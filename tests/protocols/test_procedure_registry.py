@@ -16,7 +16,7 @@ from benchlab.protocols.runs import make_procedure
 
 
 def test_names_are_the_literal_type_and_the_order_offered() -> None:
-    assert PROCEDURES == ("mtf", "radiometry", "characterise", "depth")
+    assert PROCEDURES == ("mtf", "radiometry", "characterise", "depth", "fov")
     assert set(get_args(ProcedureName)) == set(REGISTRY)
 
 
