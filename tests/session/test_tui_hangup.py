@@ -147,10 +147,15 @@ def _running(pid: int) -> bool:
     return state != "Z"
 
 
+#: This test's own tmux server: killing its last session ends that server, which must not take
+#: down the sessions of tmux tests running beside it in other workers.
+TMUX_SOCKET = f"benchlab-hangup-{os.getpid()}"
+
+
 def _tmux(*args: str) -> str:
     assert TMUX is not None
-    return subprocess.run([TMUX, *args], capture_output=True, text=True, timeout=30,
-                          check=False).stdout
+    return subprocess.run([TMUX, "-L", TMUX_SOCKET, *args], capture_output=True, text=True,
+                          timeout=30, check=False).stdout
 
 
 @pytest.mark.skipif(TMUX is None, reason="needs tmux")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -13,6 +14,8 @@ from pathlib import Path
 import pytest
 
 TMUX = shutil.which("tmux")
+#: This module's own tmux server, apart from other tmux tests running in parallel workers.
+TMUX_SOCKET = f"benchlab-tui-{os.getpid()}"
 BENCHLAB = Path(sys.executable).with_name("benchlab")
 
 pytestmark = pytest.mark.skipif(
@@ -23,7 +26,8 @@ pytestmark = pytest.mark.skipif(
 def _tmux(*args: str) -> str:
     assert TMUX is not None
     return subprocess.run(
-        [TMUX, *args], capture_output=True, text=True, timeout=30, check=False
+        [TMUX, "-L", TMUX_SOCKET, *args], capture_output=True, text=True, timeout=30,
+        check=False
     ).stdout
 
 
@@ -44,7 +48,8 @@ def _wait_for_screen(session: str, predicate, timeout_s: float = 60.0) -> str:  
 
 def _alive(session: str) -> bool:
     assert TMUX is not None
-    return subprocess.run([TMUX, "has-session", "-t", session], capture_output=True,
+    return subprocess.run([TMUX, "-L", TMUX_SOCKET, "has-session", "-t", session],
+                          capture_output=True,
                           timeout=30, check=False).returncode == 0
 
 
