@@ -137,6 +137,7 @@ def test_the_journal_keeps_the_spec_hash_and_identical_verdicts_store_once(
 
 
 # ---- the schema is what the procedures write ---------------------------------------------------
+@pytest.mark.slow
 def test_the_schema_holds_every_column_the_procedures_write(tmp_path: Path) -> None:
     """Simulated MTF, radiometry and characterisation runs: every table and column they
     write is in the schema, with the kind its values have."""

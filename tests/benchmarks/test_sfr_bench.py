@@ -30,6 +30,7 @@ def test_every_edge_follows_the_scene_truth_to_nyquist(check: BenchCheck) -> Non
     assert check.edge_tables_cpu_ms > 0.0
 
 
+@pytest.mark.slow
 def test_bars_read_what_the_edges_predict(check: BenchCheck) -> None:
     """Within the target, but for the set at 2.09 px per period on the pixel axis, which the
     docs (analysis/mtf.md) give up to 0.040 over seeds."""

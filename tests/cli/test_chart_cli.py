@@ -92,6 +92,7 @@ def test_analyze_chart_measures_every_found_element(posed_frame: Path,
     assert rows["G1E5S"]["result"]["estimator"] == "profilefit"
 
 
+@pytest.mark.slow
 def test_no_chart_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     flat = tmp_path / "flat.tiff"
     assert main(["snap", "--simulate", "--exposure-ms", "10", "--gain", "1", "--scene", "flat",

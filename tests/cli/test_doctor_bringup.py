@@ -67,6 +67,7 @@ def _traffic(cassette: Path) -> dict[tuple[str, str], bytes]:
     return {key: b"".join(chunks).replace(keepalive, b"") for key, chunks in parts.items()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_each_first_day_fault_is_named_and_the_run_replays(
     fault: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

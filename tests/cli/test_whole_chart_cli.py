@@ -55,6 +55,7 @@ def test_analyze_reads_the_elements_of_a_microscope_jpeg(
     assert "--magnification applies with --chart only" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_the_simulated_bench_shows_the_whole_chart_and_find_chart_finds_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

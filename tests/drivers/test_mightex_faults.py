@@ -175,6 +175,7 @@ def test_open_unplugged_camera_is_not_found() -> None:
         MightexCamera.open(backend=SimCameraBackend([sim]))
 
 
+@pytest.mark.slow
 def test_wake_up_retries_a_silent_camera_and_lists_a_dead_one() -> None:
     sim = SimulatedCamera(noise=False)
     backend = SimCameraBackend([sim])

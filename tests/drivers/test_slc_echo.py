@@ -42,6 +42,7 @@ def _ask(port: serial.Serial, line: bytes) -> bytes:
 
 
 # ---- the simulator's wire format -----------------------------------------------------------
+@pytest.mark.slow
 def test_simulator_echo_wire_format_and_it_persists_across_opens(sim: SimulatedSlc) -> None:
     with serial.Serial(sim.port, 9600, timeout=0.3) as port:  # a terminal program
         assert _ask(port, b"?MODE 1") == b"#0 \r\n"  # echo off: the reply alone

@@ -80,6 +80,7 @@ def test_argument_out_of_range_reply(sim: SimulatedSlc) -> None:
     assert _all_dark(sim)
 
 
+@pytest.mark.slow
 def test_silence_is_a_timeout_error(sim: SimulatedSlc) -> None:
     with SlcController(sim.port, ceilings_ma=CEILINGS, timeout_s=1.0) as c:
         sim.faults.no_reply = 1

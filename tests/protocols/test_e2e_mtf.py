@@ -49,6 +49,7 @@ def test_every_table_4_10_step_ran_once_and_frames_are_lossless(full_run: RunOut
     assert devices["camera"]["serial"] and devices["led"]["serial"] and devices["stage"]["serial"]
 
 
+@pytest.mark.slow
 def test_radial_view_against_truth(full_run: RunOutcome) -> None:
     """Every radial reading below Nyquist within 0.03 of the scene's truth; above Nyquist never
     a number. The rings (tangential) image at Eq. 4.1's 17.5, the spokes (sagittal) at object /

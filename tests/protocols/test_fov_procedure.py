@@ -24,6 +24,7 @@ def _truth(tables: dict[str, Any]) -> dict[tuple[str, Any], float]:
     return {(t["table"], t["key"]): t["value"] for t in tables["simulator_truth"]}
 
 
+@pytest.mark.slow
 def test_default_run_measures_the_forward_view_against_the_truth(tmp_path: Path) -> None:
     out = run_sim("fov", tmp_path)
     tables = tables_of(out.results_path)
@@ -130,6 +131,7 @@ def test_frames_with_too_few_dots_are_set_aside(tmp_path: Path) -> None:
     assert any(e["kind"] == "frames_rejected" for e in events(path))
 
 
+@pytest.mark.slow
 def test_abort_leaves_the_bench_safe_and_resume_repeats_nothing(tmp_path: Path) -> None:
     abort = threading.Event()
 

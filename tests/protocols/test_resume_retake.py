@@ -102,6 +102,7 @@ def test_retake_of_a_completed_session_in_a_real_process(
         "frames/position-18__measurement.tiff": "superseded by retake r1: fibre bumped"}
 
 
+@pytest.mark.slow
 def test_the_new_take_is_analysed_and_recorded(
         retaken: tuple[Path, dict[str, str], subprocess.CompletedProcess[str]]) -> None:
     path, _, _ = retaken

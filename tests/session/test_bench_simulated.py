@@ -126,6 +126,7 @@ def test_radiometry_without_a_stage_prompts_the_operator(tmp_path: Path) -> None
     assert sum(e["kind"] == "prompt" for e in events(outcome.session_path)) == 4
 
 
+@pytest.mark.slow
 def test_in_process_simulators_may_answer_late_on_a_loaded_cpu() -> None:
     """A simulator thread starved for 1.5 s (a busy CPU, issue 30) delays its reply past a real
     device's 1 s; the simulated bench waits for it instead of failing the step."""

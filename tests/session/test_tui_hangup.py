@@ -105,6 +105,7 @@ def _open_screen(tmp_path: Path, led: SimulatedSlc, stage: SimulatedAptStage, na
     return proc, master, screen
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SCREENS))
 def test_closing_the_terminal_ends_the_tui(
     tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage, name: str
@@ -118,6 +119,7 @@ def test_closing_the_terminal_ends_the_tui(
     assert _all_off(sim_led) and _stage_still(sim_stage)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("times", [1, 2], ids=["once", "again-during-shutdown"])
 def test_sigterm_on_the_live_screen_ends_the_tui(
     tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage, times: int
@@ -158,6 +160,7 @@ def _tmux(*args: str) -> str:
                           timeout=30, check=False).stdout
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(TMUX is None, reason="needs tmux")
 def test_tmux_kill_session_mid_radiometry_ends_the_tui(
     tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage
@@ -209,6 +212,7 @@ def test_tmux_kill_session_mid_radiometry_ends_the_tui(
     _assert_interrupted(sessions, signal.SIGHUP)
 
 
+@pytest.mark.slow
 def test_the_watchdog_makes_the_bench_safe_when_the_quit_hangs(
     tmp_path: Path, sim_led: SimulatedSlc, sim_stage: SimulatedAptStage
 ) -> None:

@@ -23,6 +23,7 @@ simulated_irradiance_mw_per_mm2 = [22.48, 19.40, 14.34]
 """
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_abort_key_leaves_leds_off_and_stage_stopped_then_retry_completes(
     tmp_path: Path,
@@ -83,6 +84,7 @@ async def test_abort_key_leaves_leds_off_and_stage_stopped_then_retry_completes(
         assert table.row_count == 3
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_quit_mid_run_stops_workers_and_leaves_the_bench_safe(tmp_path: Path) -> None:
     app = make_app(tmp_path, radiometry=PARAMS)

@@ -44,6 +44,7 @@ async def _answer(pilot: object, text: str) -> None:
     await pilot.press("enter")  # type: ignore[attr-defined]
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_run_with_unit_and_spec_shows_the_verdicts(tmp_path: Path) -> None:
     spec = tmp_path / "spec.toml"

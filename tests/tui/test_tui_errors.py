@@ -41,6 +41,7 @@ async def test_bad_parameter_file_lists_every_problem_and_starts_nothing(tmp_pat
         assert app.screen is run
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_device_fault_mid_run_shows_a_dialog_and_retry_completes(tmp_path: Path) -> None:
     app = make_app(tmp_path, radiometry=RADIOMETRY_PARAMS)

@@ -7,6 +7,7 @@ import pytest
 from benchlab.tui.bench_rate import focus_aid_rate
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_focus_aid_rate_counts_readings_of_the_whole_chart() -> None:
     r = await focus_aid_rate(1.0, (100, 30))

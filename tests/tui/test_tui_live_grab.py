@@ -42,6 +42,7 @@ async def test_live_view_reads_one_camera_frame_per_refresh(tmp_path: Path) -> N
         assert camera.frames_sent > 0 and app.bench.camera.discarded_frames == 0
 
 
+@pytest.mark.slow
 def test_measurement_frames_are_still_exposed_after_the_request(tmp_path: Path) -> None:
     with Bench.open(BenchConfig.load(None, simulate=True), simulate=True,
                     time_scale=20.0) as bench:

@@ -44,6 +44,7 @@ def test_frame_rgb_scales_codes_and_outlines_the_roi() -> None:
     assert frame_rgb(np.full((2, 2), 300.0), None, 255.0).max() == 255  # clipped, no wrap
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 @pytest.mark.parametrize("protocol, introducer", [("sixel", "\x1bP"), ("kitty", "\x1b_G")])
 async def test_live_view_sends_real_pixels(tmp_path: Path, protocol: str, introducer: str,

@@ -145,6 +145,7 @@ async def test_focus_figure_before_mount_and_after_dismiss_the_run_completes(
         assert shown.row_count == len(forward_rows)
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_a_failing_display_update_does_not_fail_the_step(
     tmp_path: Path, caplog: pytest.LogCaptureFixture,

@@ -240,6 +240,7 @@ async def test_image_canvases_encode_once_per_new_frame(
         assert out.index(f"a=d,d=I,i={old_id}") > out.index("a=p,")
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_live_side_panel_lags_the_frame_rate(tmp_path: Path) -> None:
     app = BenchlabApp(simulate=True, sessions_dir=tmp_path / "s")

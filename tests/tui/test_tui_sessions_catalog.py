@@ -23,6 +23,7 @@ def _set_modulation(session: Path, element: str, value: float) -> None:
     path.write_text(json.dumps(rows))
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_catalogue_listing_filter_sort_and_trend(tmp_path: Path) -> None:
     source = real_session(tmp_path / "source")

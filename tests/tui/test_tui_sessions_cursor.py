@@ -16,6 +16,7 @@ from benchlab.tui import services
 from benchlab.tui.sessions import SessionsScreen
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_actions_follow_the_cursor_not_the_opened_session(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

@@ -48,6 +48,7 @@ def test_flat_rois_are_not_resolved(index: int) -> None:
     assert any("no bar pattern above the noise" in w for w in r.warnings)
 
 
+@pytest.mark.slow
 def test_the_significance_rule_is_what_rejects_them(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(histogram, "MIN_FUNDAMENTAL_Z", 0.0)
     called = []

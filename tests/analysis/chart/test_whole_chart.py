@@ -57,6 +57,7 @@ def test_the_whole_chart_holds_groups_minus_2_to_7_in_nested_quarter_size_layers
         assert r1 < l2 or r2 < l1 or b1 < t2 or b2 < t1, (a.label, b.label)
 
 
+@pytest.mark.slow
 def test_a_microscope_view_of_groups_4_to_7_rotated_is_found_and_named() -> None:
     """The issue's captures: groups 4-7 under a microscope (image 4x the object), where the
     forward view's finder (groups 0-3, 0.5-2x of 16.3) says "no chart found"."""
@@ -97,6 +98,7 @@ def test_the_coarse_groups_from_afar_at_45_deg() -> None:
     assert {-1, 0, 1, 2} <= set(fit.groups_found)
 
 
+@pytest.mark.slow
 def test_without_a_hint_a_negative_chart_is_found_and_the_ambiguity_said() -> None:
     """Self-similar every two groups: without a magnification the groups are named for the
     forward view's 16.3 (4^3 x 0.25 = 16), and a warning says so."""

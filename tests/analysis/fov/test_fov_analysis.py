@@ -52,6 +52,7 @@ def analysed() -> dict[str, tuple[DotGridScene, Fit, Disc]]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(LENSES))
 def test_figures_within_the_targets_and_covered(
         analysed: dict[str, tuple[DotGridScene, Fit, Disc]], name: str) -> None:
@@ -71,6 +72,7 @@ def test_figures_within_the_targets_and_covered(
         assert abs(fig.image_height(fit, a).value - true) < 0.001, a  # target 0.01 mm
 
 
+@pytest.mark.slow
 def test_the_disc_is_found_without_its_dots(
         analysed: dict[str, tuple[DotGridScene, Fit, Disc]]) -> None:
     scene, _, disc = analysed["equidistant"]

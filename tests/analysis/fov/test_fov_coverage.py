@@ -18,6 +18,7 @@ SEEDS = 40
 NOISE_PX = 0.03
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("lens", [FovLens(), FovLens(barrel=0.0, tilt_deg=2.0,
                                                       entrance_pupil_mm=4.0)],
                          ids=["equidistant", "rectilinear-tilted"])
