@@ -45,7 +45,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import CubicSpline
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -159,6 +158,10 @@ def resample(table: RayTraceTable, step_mm: float = GRID_STEP_MM) -> ResampledTa
     n = max(2, int(math.floor((hi - lo) / step_mm)) + 1)
     rho: FloatArray = lo + step_mm * np.arange(n, dtype=np.float64)
     rho[-1] = min(rho[-1], hi)
+    # here: scipy.interpolate costs ~0.5 s CPU to import, and the scenes import this module
+    # for every simulated run and re-analysis that never builds a spline
+    from scipy.interpolate import CubicSpline
+
     z = np.empty((table.n_depths, n))
     for i in range(table.n_depths):
         z[i] = CubicSpline(table.image_radius_mm[i], table.object_z_mm[i])(rho)
