@@ -253,6 +253,11 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
+#: zlib level of saved frames: level 1 compresses a 1280 x 1024 frame in a third of the CPU of
+#: the default 6 for ~10 % more bytes (the pixels are the same: lossless either way).
+ZLIB_LEVEL = 1
+
+
 def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> bytes:
     """Encode a 2-D uint8/uint16 frame and its metadata as lossless TIFF bytes."""
     arr = np.asarray(pixels)
@@ -271,7 +276,8 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
 
     buf = io.BytesIO()
     tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
-                     metadata=imagej, software=SOFTWARE, compression="zlib")
+                     metadata=imagej, software=SOFTWARE, compression="zlib",
+                     compressionargs={"level": ZLIB_LEVEL})
     return buf.getvalue()
 
 

@@ -24,13 +24,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import ndtr
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, RadialLayout
 from benchlab.analysis.sfr.target import DEFAULT_SQUARES, EdgeSpec, SlantedSquare, edge_specs
 from benchlab.drivers.sensor import PIXEL_PITCH_UM, AcquisitionState
-from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile
+from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, saturated_ndtr
 from benchlab.scenes.printed import TwoLevelPrint
 from benchlab.synthetic.edges import edge_truth_mtf, pixel_integrated_step
 
@@ -165,7 +164,7 @@ def _render(scene: EdgeScene, height: int, width: int) -> FloatArray:
     cr, cc = scene.circles.centre_rc
     radius = np.hypot(rows - cr, cols - cc)
     edge = math.hypot(scene.disc_edge_sigma_px, scene.defocus_px)
-    disc = ndtr((scene.circles.disc_radius_px - radius) / edge)
+    disc = saturated_ndtr((scene.circles.disc_radius_px - radius) / edge)
     img = scene.bright_rate * disc - _darkening(scene, height, width)
     np.maximum(img, 0.0, out=img)
     img.setflags(write=False)

@@ -27,6 +27,22 @@ from benchlab.analysis.arrays import FloatArray
 PIXEL_APERTURE_VAR_PX2 = 1.0 / 12.0
 #: Widths below this are treated as this (avoids 0/0 in the closed forms).
 _MIN_SIGMA_PX = 1e-6
+#: ``ndtr`` is exactly 1.0 in float64 from z = 8.3 up and exactly 0.0 from z = -38.5 down
+#: (margins kept): :func:`saturated_ndtr` evaluates it only between.
+NDTR_ONE_Z = 9.0
+NDTR_ZERO_Z = -40.0
+
+
+def saturated_ndtr(z: FloatArray) -> FloatArray:
+    """``scipy.special.ndtr(z)`` bit for bit, evaluated only where it is neither exactly 1 nor
+    exactly 0: a field stop's blurred rim is a thin annulus of a frame, and the full-frame
+    ``ndtr`` was a quarter of rendering a simulated chart."""
+    z = np.asarray(z, dtype=np.float64)
+    out = np.where(z >= NDTR_ONE_Z, 1.0, 0.0)
+    band = (z > NDTR_ZERO_Z) & (z < NDTR_ONE_Z)
+    band |= np.isnan(z)
+    out[band] = ndtr(z[band])
+    return np.asarray(out, dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from benchlab.analysis.chart.layout import (
 )
 from benchlab.analysis.chart.pose import ChartPose, PosedBarSet, posed_bar_set
 from benchlab.drivers.sensor import AcquisitionState, rate_for_dn8
-from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect
+from benchlab.scenes.optics import FORWARD_BLUR, BlurProfile, box_blurred_rect, saturated_ndtr
 from benchlab.scenes.printed import TwoLevelPrint
 
 
@@ -254,7 +254,7 @@ class UsafScene(TwoLevelPrint):
         cr, cc = self.circles.centre_rc
         radius = np.hypot(rows - cr, cols - cc)
         edge = math.hypot(self.disc_edge_sigma_px, self.defocus_px)
-        return ndtr((self.circles.disc_radius_px - radius) / edge)
+        return saturated_ndtr((self.circles.disc_radius_px - radius) / edge)
 
 
 @functools.lru_cache(maxsize=8)

@@ -153,6 +153,9 @@ MAX_GRID_POINTS = 1 << 14
 #: A defocus row's disc gain is computed only where its Gaussian part is above e^-this
 #: (1e-20); beyond, the gain is set to 0 (it changes a tabulated pattern by < 1e-20).
 GAUSS_CUTOFF = 46.0
+#: ``exp(x)`` is exactly 0 in float64 below x = -745.2; columns whose exponent is below this
+#: (a margin for the rounding of the limit) are left at 0 without being evaluated.
+EXP_UNDERFLOW = -750.0
 
 
 def three_bar_pattern(
@@ -212,6 +215,21 @@ def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> F
     return jinc(x)
 
 
+def gaussian_gain(rates: FloatArray, freqs2: FloatArray) -> FloatArray:
+    """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending), bit for bit, without
+    evaluating the exponentials that underflow to 0: a wide Gaussian's gain vanishes after a
+    small share of the columns, and the exponentials were most of a tabulation's cost."""
+    gain = np.zeros((rates.size, freqs2.size))
+    with np.errstate(divide="ignore"):
+        limit = np.where(rates < 0, EXP_UNDERFLOW / np.where(rates < 0, rates, -1.0), np.inf)
+    cols = np.searchsorted(freqs2, limit, side="right")
+    for row, (rate, k) in enumerate(zip(rates, cols, strict=True)):
+        # the same products and exponentials as the whole outer product, on the columns before
+        # the underflow (each a contiguous run, so numpy's vector loop computes them alike)
+        np.exp(rate * freqs2[:k], out=gain[row, :k])
+    return gain
+
+
 class _Blurred:
     """Bars (intervals of a 1-D coordinate) seen through the pixel footprint and a Gaussian of
     many widths, fast: the sharp pattern (footprint alone, closed form) is tabulated once on a
@@ -256,7 +274,7 @@ class _Blurred:
         share = (np.zeros_like(sigmas) if disc_shares is None
                  else np.asarray(disc_shares, dtype=np.float64))
         gauss_var = sigmas * sigmas * (1.0 - share)
-        gain = np.exp(np.outer((-2.0 * math.pi**2) * gauss_var, self.freqs2))
+        gain = gaussian_gain((-2.0 * math.pi**2) * gauss_var, self.freqs2)
         disc = np.flatnonzero(share > 0)
         if disc.size:
             self._apply_disc(gain, disc, 2.0 * sigmas[disc] * np.sqrt(share[disc]),

@@ -44,7 +44,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from benchlab.analysis.arrays import FloatArray
 
@@ -158,6 +157,10 @@ def resample(table: RayTraceTable, step_mm: float = GRID_STEP_MM) -> ResampledTa
     n = max(2, int(math.floor((hi - lo) / step_mm)) + 1)
     rho: FloatArray = lo + step_mm * np.arange(n, dtype=np.float64)
     rho[-1] = min(rho[-1], hi)
+    # here: scipy.interpolate costs 0.2-0.5 s CPU to import, and the scenes import this module
+    # for every simulated run and depth re-analysis, which build no spline
+    from scipy.interpolate import CubicSpline
+
     z = np.empty((table.n_depths, n))
     for i in range(table.n_depths):
         z[i] = CubicSpline(table.image_radius_mm[i], table.object_z_mm[i])(rho)

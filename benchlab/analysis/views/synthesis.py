@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import CubicSpline
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.views.raytrace import (
@@ -136,6 +135,10 @@ def cylinder_map(
             w = (r - radii[k]) / (radii[k + 1] - radii[k])
             z = (1.0 - w) * res.z_mm[k] + w * res.z_mm[k + 1]
         else:  # follows curved lines of sight; exact (not-a-knot) for straight ones
+            # here: scipy.interpolate costs 0.2-0.5 s CPU to import, and the scenes import
+            # this module for every simulated run and depth re-analysis
+            from scipy.interpolate import CubicSpline
+
             z = np.asarray(CubicSpline(radii, res.z_mm, axis=0)(r), dtype=np.float64)
     steps = np.diff(z)
     if not (np.all(steps > 0) or np.all(steps < 0)):
