@@ -140,7 +140,7 @@ def _print_notes(doc: Mapping[str, Any], out: TextIO) -> None:
 
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
-    from benchlab.protocols import RunAborted, StepFailed
+    from benchlab.protocols import RunAborted, RunInterrupted, StepFailed
     from benchlab.protocols.runs import check_estimator, resume_run, start_run
 
     progress = _Progress(sys.stderr)
@@ -192,7 +192,7 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
         progress.line(f"benchlab: {exc}")
         if runner is not None:
             progress.line("bench left safe; " + _continue_with(runner.session, args, retake))
-        return 1
+        return exc.exit_status if isinstance(exc, RunInterrupted) else 1
     except KeyboardInterrupt:
         if runner is not None:
             progress.line("interrupted; bench left safe; "
