@@ -265,6 +265,9 @@ class Runner:
         self._retake_reason = retake_reason
         self._previous_status = previous_status
         self._redo: set[str] = set()
+        #: Why the last attempt to make the bench safe failed ("" when the devices confirmed
+        #: it): what a caller says about safety once ``run()`` has raised.
+        self.unsafe = ""
 
     # -- state ------------------------------------------------------------------------------
     def completed(self) -> set[str]:
@@ -356,7 +359,7 @@ class Runner:
             raise
         finally:
             if all_done:
-                self.bench.safe_state()
+                self._safe_state_after(None)
             else:
                 self._safe_state_after(sys.exc_info()[1])
                 record_in_catalogue(self.session.path)  # the catalogue shows why it stopped
@@ -436,10 +439,12 @@ class Runner:
         try:
             self.bench.safe_state()
         except BenchlabError as safe_exc:
+            self.unsafe = str(safe_exc)
             if exc is None:
                 raise
             exc.add_note(str(safe_exc))
             return str(safe_exc)
+        self.unsafe = ""
         return ""
 
     def _run_step(self, step: Step) -> None:
