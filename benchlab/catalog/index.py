@@ -15,6 +15,7 @@ always stores the newest state of the folder.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -237,6 +238,10 @@ class Catalog:
             conn.execute(f"DELETE FROM {table} WHERE {key} = ?", (session_id,))
 
     def _store(self, conn: sqlite3.Connection, r: SessionRecord) -> None:
+        if not (_is_text(r.id) and _is_text(r.path)):
+            # A folder name that is not UTF-8 (from another system): SQLite holds text only,
+            # so its bytes are stored escaped (bad\xffname) - listed, never a crash (issue 38).
+            r = dataclasses.replace(r, id=_sql_text(r.id), path=_sql_text(r.path))
         self._delete(conn, r.id)
         latest = r.latest
         conn.execute(
@@ -495,6 +500,20 @@ def _session_dict(row: sqlite3.Row) -> dict[str, Any]:
     out["devices"] = json.loads(out.pop("devices_json") or "{}")
     out.pop("needs_reindex", None)  # the catalogue's own bookkeeping
     return out
+
+
+def _is_text(text: str) -> bool:
+    """Whether ``text`` encodes as UTF-8 (a file name's undecodable bytes do not)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+def _sql_text(name: str) -> str:
+    """A file name as UTF-8 text: undecodable bytes written as backslash-x escapes."""
+    return os.fsencode(name).decode("utf-8", "backslashreplace")
 
 
 def _read_only(root: Path, path: Path) -> bool:

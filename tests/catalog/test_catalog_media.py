@@ -110,3 +110,14 @@ def test_a_rebuild_that_fails_leaves_no_catalogue_to_trust(
     assert sorted(p.name for p in root.iterdir() if not p.is_dir()) == []  # nothing left
     monkeypatch.setattr(index, "migrate", real_migrate)  # space again
     assert len(_listed(capsys, "--root", str(root))) == 40
+
+
+def test_a_folder_name_that_is_not_utf8_is_listed(
+        source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A session folder copied from another system with a Latin-1 name: listed with its byte
+    escaped; before, the catalogue crashed with UnicodeEncodeError (or listed nothing)."""
+    root = tmp_path / "root"
+    copy_session(source, root / os.fsdecode(b"lens-\xe9t\xe9"))
+    assert _listed(capsys, "--root", str(root)) == ["lens-\\xe9t\\xe9"]
+    assert main(["sessions", "reindex", "--root", str(root)]) == 0
+    assert "1 sessions indexed" in capsys.readouterr().out
