@@ -603,6 +603,15 @@ def open_simulated(
             timeout_s=SIM_REPLY_TIMEOUT_S,
         ))
         bench.stage.set_velocity_mm_s(cfg.stage.velocity_mm_s)
+    from benchlab.drivers.trace import replay
+
+    if replay.active():
+        # A cassette is replayed: its camera answers (the recorded frames), as its LED
+        # controller and stage do in place of the simulators above. A simulated camera would
+        # image a world whose LED the replayed controller never lights (issue 38).
+        bench.camera = stack.enter_context(
+            MightexCamera.open(serial=cfg.camera.serial, pid=cfg.camera.pid))
+        return
     cam_kwargs: dict[str, Any] = {"pid": cfg.camera.pid} if cfg.camera.pid else {}
     bench.sim_camera = SimulatedCamera(
         bench.world, serial=cfg.camera.serial or SIM_CAMERA_SERIAL, seed=seed, noise=noise,

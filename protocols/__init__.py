@@ -38,8 +38,9 @@ Everything the ``benchlab run / resume / analyze SESSION`` commands do is these 
   checked against the bench (LED current ceiling, stage travel) before anything moves; to check
   a file before opening any device: ``load_params("radiometry", path, config.limits())``.
 * ``runner.run()`` starts at the first incomplete step. It raises ``RunAborted`` (abort set or a
-  prompt declined) or ``StepFailed`` (``.step``, ``.cause``); the bench is already safe (LEDs
-  off, stage stopped) and the session resumable. **Retry** a failed step = call
+  prompt declined; its subclass ``RunInterrupted`` when a stop signal arrived during a step,
+  whatever the step raised after it) or ``StepFailed`` (``.step``, ``.cause``); the bench is
+  already safe (LEDs off, stage stopped) and the session resumable. **Retry** a failed step = call
   ``runner.run()`` again. ``KeyboardInterrupt`` propagates after the bench is made safe.
 * ``estimator``: ``None`` = the parameter file's (default ``"auto"``: forward view with the
   analysis library's default fit, radial view with histogram peaks, whose bars run obliquely
@@ -75,7 +76,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from benchlab.protocols.engine import RunAborted, Runner, RunOutcome, Step, StepFailed
+from benchlab.protocols.engine import (
+    RunAborted,
+    RunInterrupted,
+    Runner,
+    RunOutcome,
+    Step,
+    StepFailed,
+)
 from benchlab.protocols.params import (
     MtfParams,
     Params,
@@ -91,6 +99,7 @@ __all__ = [
     "ParamsError",
     "RadiometryParams",
     "RunAborted",
+    "RunInterrupted",
     "RunOutcome",
     "Runner",
     "Step",

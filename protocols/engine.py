@@ -45,6 +45,26 @@ class RunAborted(BenchlabError):
     session_path: Path | None = None
 
 
+class RunInterrupted(RunAborted):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP) arrived during a step. Whatever the step raised
+    afterwards - a dark frame once the signal switched the LED off, a stopped move - is the
+    consequence of the interruption, never the step's own failure: status "interrupted", and
+    ``resume`` runs the step again."""
+
+    def __init__(self, step: Step, signum: int, consequence: BaseException) -> None:
+        self.step = step
+        self.signum = int(signum)
+        #: What the step raised after the signal (journalled as ``consequence``).
+        self.consequence = consequence
+        super().__init__(f"interrupted by {signal_name(signum)} during step {step.id} "
+                         f"({step.title})")
+
+    @property
+    def exit_status(self) -> int:
+        """``128 + signal number``, as for a process ended by the signal."""
+        return 128 + self.signum
+
+
 class StepFailed(BenchlabError):
     """A step raised; the session stays resumable and ``run()`` again retries the step."""
 
@@ -245,6 +265,9 @@ class Runner:
         self._retake_reason = retake_reason
         self._previous_status = previous_status
         self._redo: set[str] = set()
+        #: Why the last attempt to make the bench safe failed ("" when the devices confirmed
+        #: it): what a caller says about safety once ``run()`` has raised.
+        self.unsafe = ""
 
     # -- state ------------------------------------------------------------------------------
     def completed(self) -> set[str]:
@@ -322,7 +345,7 @@ class Runner:
         except RunAborted as exc:
             exc.session_path = self.session.path
             stop_signal = received()  # the UI aborted the run because the process is stopping
-            if stop_signal is not None:
+            if stop_signal is not None and not isinstance(exc, RunInterrupted):  # (journalled)
                 self.session.log_event("interrupted", reason=signal_name(stop_signal))
             self._stopped("aborted" if stop_signal is None else "interrupted")
             raise
@@ -336,7 +359,7 @@ class Runner:
             raise
         finally:
             if all_done:
-                self.bench.safe_state()
+                self._safe_state_after(None)
             else:
                 self._safe_state_after(sys.exc_info()[1])
                 record_in_catalogue(self.session.path)  # the catalogue shows why it stopped
@@ -387,6 +410,9 @@ class Runner:
         except RunAborted:
             raise
         except Exception as exc:
+            stopped = self._stopped_during(step, exc, "")
+            if stopped is not None:
+                raise stopped from exc
             log.info("restoring step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             self.session.log_event("step_failed", step=step.id,
                                    error=f"restoring: {type(exc).__name__}: {exc}")
@@ -413,10 +439,12 @@ class Runner:
         try:
             self.bench.safe_state()
         except BenchlabError as safe_exc:
+            self.unsafe = str(safe_exc)
             if exc is None:
                 raise
             exc.add_note(str(safe_exc))
             return str(safe_exc)
+        self.unsafe = ""
         return ""
 
     def _run_step(self, step: Step) -> None:
@@ -430,14 +458,39 @@ class Runner:
             self.session.log_event("aborted", step=step.id, message=str(exc))
             raise
         except Exception as exc:
-            log.info("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             unsafe = self._safe_state_after(exc)
+            stopped = self._stopped_during(step, exc, unsafe)
+            if stopped is not None:
+                raise stopped from exc
+            log.info("step %s failed: %s: %s", step.id, type(exc).__name__, exc)
             extra: dict[str, Any] = {"safe_state": unsafe} if unsafe else {}
             self.session.log_event(
                 "step_failed", step=step.id, error=f"{type(exc).__name__}: {exc}", **extra
             )
             raise StepFailed(step, exc, unsafe) from exc
         self.session.mark_step_completed(step.id)
+
+    def _stopped_during(self, step: Step, exc: Exception, unsafe: str) -> RunAborted | None:
+        """If the run was being stopped when ``step`` raised ``exc`` - a stop signal arrived,
+        or the abort key was pressed - journal ``exc`` as the consequence of that and return
+        the exception to raise instead of a failure; else None (the step itself failed).
+
+        A stop signal switches the LEDs off and stops the stage at once (drivers.shutdown)
+        while the step goes on, so its next frame check or move fails for that reason alone
+        (issue 38: a SIGTERM journalled as ``step_failed: FrameContentError``)."""
+        consequence = f"{type(exc).__name__}: {exc}"
+        extra: dict[str, Any] = {"safe_state": unsafe} if unsafe else {}
+        stop_signal = received()
+        if stop_signal is not None:
+            log.info("step %s interrupted by %s, then: %s", step.id, signal_name(stop_signal),
+                     consequence)
+            self.session.log_event("interrupted", step=step.id, reason=signal_name(stop_signal),
+                                   consequence=consequence, **extra)
+            return RunInterrupted(step, stop_signal, exc)
+        if self.abort.is_set():
+            self.session.log_event("aborted", step=step.id, consequence=consequence, **extra)
+            return RunAborted(f"aborted during step {step.id}")
+        return None
 
     def _restore(self, done: set[str]) -> None:
         """Re-establish what completed steps left behind (a resume in a new process)."""

@@ -15,9 +15,11 @@ always stores the newest state of the folder.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
+import os
 import sqlite3
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -102,10 +104,12 @@ def _connect(path: Path) -> sqlite3.Connection:
 class Catalog:
     """An open catalogue of the sessions under ``root``. Use :meth:`open`; close when done."""
 
-    def __init__(self, root: Path, conn: sqlite3.Connection) -> None:
+    def __init__(self, root: Path, conn: sqlite3.Connection, *, in_memory: bool = False) -> None:
         self.root = Path(root)
         self.path = self.root / CATALOG_FILE
         self.conn = conn
+        #: Built in memory (the folder cannot be written): what is recorded is not kept.
+        self.in_memory = in_memory
 
     # ------------------------------------------------------------------ open / rebuild
     @classmethod
@@ -113,34 +117,42 @@ class Catalog:
         """Open (creating, migrating or rebuilding as needed) the catalogue of ``root``.
 
         A catalogue that is missing, not a database, or of a newer schema is replaced by one
-        rebuilt from the session folders; an older schema is migrated in place.
+        rebuilt from the session folders; an older schema is migrated in place. A rebuild is
+        built beside the file and moved into place only once complete, so one that fails (a
+        full disk) leaves no half-built catalogue to be trusted later: the next open rebuilds.
+        Where the catalogue cannot be written (read-only media), it is built in memory from
+        the folders for this use only (:attr:`in_memory`): reads still work.
         """
         root = Path(root)
         root.mkdir(parents=True, exist_ok=True)
         path = root / CATALOG_FILE
-        fresh = not path.exists()
+        if _read_only(root, path):
+            log.info("%s: read-only; reading the session folders into memory", path)
+            return cls._in_memory(root)
         try:
-            conn = _connect(path)
+            if not path.exists():
+                _build(root, path)
             try:
-                migrate(conn)
-            except BaseException:
-                conn.close()
-                raise
-        except (sqlite3.DatabaseError, CatalogSchemaError) as exc:
-            log.warning("%s: %s; rebuilding it from the session folders", path, exc)
-            try:
+                conn = _open_migrated(path)
+            except (sqlite3.DatabaseError, CatalogSchemaError) as exc:
+                log.warning("%s: %s; rebuilding it from the session folders", path, exc)
                 _remove_catalog_files(path)
-                conn = _connect(path)
-                migrate(conn)
-            except (sqlite3.Error, OSError) as again:
-                raise CatalogError(f"{path}: cannot open or rebuild the catalogue ({again})") \
-                    from exc
-            fresh = True
+                _build(root, path)
+                conn = _open_migrated(path)
+        except (sqlite3.Error, OSError) as exc:
+            raise CatalogError(f"{path}: cannot open or rebuild the catalogue ({exc})") from exc
         catalog = cls(root, conn)
-        if fresh:
-            catalog.reindex()
-        else:
-            catalog._reindex_marked()
+        catalog._reindex_marked()
+        return catalog
+
+    @classmethod
+    def _in_memory(cls, root: Path) -> Catalog:
+        """A catalogue of ``root`` built from its folders in memory (nothing written)."""
+        conn = sqlite3.connect(":memory:", isolation_level=None)
+        conn.row_factory = sqlite3.Row
+        migrate(conn)
+        catalog = cls(root, conn, in_memory=True)
+        catalog.reindex()
         return catalog
 
     def _reindex_marked(self) -> int:
@@ -178,7 +190,8 @@ class Catalog:
         try:
             yield self.conn
         except BaseException:
-            self.conn.execute("ROLLBACK")
+            if self.conn.in_transaction:  # SQLite rolls back by itself on a full disk
+                self.conn.execute("ROLLBACK")
             raise
         self.conn.execute("COMMIT")
 
@@ -225,6 +238,10 @@ class Catalog:
             conn.execute(f"DELETE FROM {table} WHERE {key} = ?", (session_id,))
 
     def _store(self, conn: sqlite3.Connection, r: SessionRecord) -> None:
+        if not (_is_text(r.id) and _is_text(r.path)):
+            # A folder name that is not UTF-8 (from another system): SQLite holds text only,
+            # so its bytes are stored escaped (bad\xffname) - listed, never a crash (issue 38).
+            r = dataclasses.replace(r, id=_sql_text(r.id), path=_sql_text(r.path))
         self._delete(conn, r.id)
         latest = r.latest
         conn.execute(
@@ -485,6 +502,59 @@ def _session_dict(row: sqlite3.Row) -> dict[str, Any]:
     return out
 
 
+def _is_text(text: str) -> bool:
+    """Whether ``text`` encodes as UTF-8 (a file name's undecodable bytes do not)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+def _sql_text(name: str) -> str:
+    """A file name as UTF-8 text: undecodable bytes written as backslash-x escapes."""
+    return os.fsencode(name).decode("utf-8", "backslashreplace")
+
+
+def _read_only(root: Path, path: Path) -> bool:
+    """Whether the catalogue cannot be written here (read-only media or permissions)."""
+    return not os.access(root, os.W_OK) or (path.exists() and not os.access(path, os.W_OK))
+
+
+def _open_migrated(path: Path) -> sqlite3.Connection:
+    conn = _connect(path)
+    try:
+        migrate(conn)
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def _build(root: Path, path: Path) -> None:
+    """Build the catalogue of ``root`` in a file beside ``path`` and move it to ``path`` only
+    once complete; on any failure nothing is left behind (issue 38: a rebuild that failed on
+    a full disk left an empty catalogue that was trusted afterwards)."""
+    building = path.with_name(f".{path.name}.{os.getpid()}.building")
+    _remove_catalog_files(building)
+    try:
+        conn = _connect(building)
+        try:
+            migrate(conn)
+            Catalog(root, conn).reindex()
+        finally:
+            conn.close()  # the last connection: its WAL is folded into the file and removed
+        try:
+            os.link(building, path)  # never replaces one another process built meanwhile
+        except FileExistsError:
+            pass
+        except OSError:  # no hard links on this file system (FAT): the next best
+            if not path.exists():
+                os.replace(building, path)
+    finally:
+        _remove_catalog_files(building)
+
+
 def _remove_catalog_files(path: Path) -> None:
     for suffix in ("", "-wal", "-shm", "-journal"):
         Path(f"{path}{suffix}").unlink(missing_ok=True)
@@ -505,6 +575,8 @@ def session_recorder() -> Iterator[Callable[[str | Path], bool]]:
             root = folder.resolve().parent
             if root not in catalogs:
                 catalogs[root] = Catalog.open(root)
+            if catalogs[root].in_memory:  # read-only media: no catalogue file to update
+                return False
             catalogs[root].record(folder)
             return True
         except Exception as exc:  # noqa: BLE001 - the folders stay the truth; reindex repairs
@@ -529,6 +601,8 @@ def record_session(session_path: str | Path) -> bool:
         return False
     try:
         with Catalog.open(folder.resolve().parent) as catalog:
+            if catalog.in_memory:  # read-only media: there is no catalogue file to update
+                return False
             catalog.record(folder)
         return True
     except Exception as exc:  # noqa: BLE001 - the folders stay the truth; reindex repairs

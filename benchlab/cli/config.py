@@ -116,6 +116,20 @@ def sessions_in_force(option: str | Path | None, option_name: str = "--out") -> 
     return FolderSetting(DEFAULT_SESSIONS, "default (./sessions)")
 
 
+#: ``--root`` of the commands that read the sessions folder (list, units, lot, ...).
+SESSIONS_ROOT_HELP = ("sessions folder (default: where `run` puts new sessions - [paths] "
+                      "sessions of the user's bench.toml, else ./sessions)")
+
+
+def sessions_root(option: str | Path | None) -> Path:
+    """The sessions folder a reading command uses: ``--root``, else the folder ``run`` writes
+    new sessions to (:func:`sessions_in_force`); an error naming it when it does not exist."""
+    setting = sessions_in_force(option, "--root")
+    if not setting.value.is_dir():
+        raise BenchlabError(f"{setting.value}: no such sessions folder (from {setting.source})")
+    return setting.value
+
+
 def _cmd_init(args: argparse.Namespace) -> int:
     from benchlab.cli.output import check_output, write_output
 

@@ -214,7 +214,7 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"benchlab: error: {exc}", file=sys.stderr)
             return 2
         except BenchlabError as exc:
-            print(f"benchlab: error: {_replay_reason() or exc}", file=sys.stderr)
+            print(f"benchlab: error: {_replay_reason(exc) or exc}", file=sys.stderr)
             return 1
         except BrokenPipeError:  # `benchlab ... | head`: the reader left; nothing to say
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -237,11 +237,11 @@ def _main(argv: Sequence[str] | None) -> int:
                 replay.stop()
 
 
-def _replay_reason() -> str | None:
-    """While a cassette is replayed, a serial device that dropped the line says why."""
+def _replay_reason(exc: BaseException) -> str | None:
+    """While a cassette is replayed: the divergence behind ``exc``, if any."""
     from benchlab.drivers.trace import replay
 
-    return replay.divergence() if replay.active() else None
+    return replay.divergence_behind(exc)
 
 
 def _setup_logging(level: str) -> None:

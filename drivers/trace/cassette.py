@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import json
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,8 +62,18 @@ def load(path: str | Path) -> list[Exchange]:
     try:
         with open_text(path, "r") as fh:
             lines = fh.read().splitlines()
-    except OSError as exc:
-        raise CassetteError(f"{path}: cannot read the cassette: {exc}") from exc
+    except FileNotFoundError:
+        raise CassetteError(f"{path}: no such cassette") from None
+    except EOFError:  # a .gz file cut short (a copy that did not finish, a full disk)
+        raise CassetteError(f"{path}: damaged cassette: the compressed data ends early "
+                            "(truncated file)") from None
+    except (OSError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
+        raise CassetteError(f"{path}: cannot read the cassette: "
+                            f"{getattr(exc, 'strerror', None) or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CassetteError(f"{path}: damaged cassette: byte 0x{exc.object[exc.start]:02x} at "
+                            f"offset {exc.start} is not text (cassettes are ASCII JSON "
+                            "lines)") from None
     if not lines:
         raise CassetteError(f"{path}: empty file, not a cassette")
     for i, text in enumerate(lines, 1):
@@ -70,6 +81,8 @@ def load(path: str | Path) -> list[Exchange]:
             item = json.loads(text)
         except json.JSONDecodeError as exc:
             raise CassetteError(f"{path}: line {i} is not JSON: {exc}") from None
+        if not isinstance(item, dict):
+            raise CassetteError(f"{path}: line {i} is not a JSON object")
         if i == 1:
             if item.get("cassette") != CASSETTE_VERSION:
                 raise CassetteError(f"{path}: line 1 is not a version-{CASSETTE_VERSION} "

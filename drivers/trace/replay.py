@@ -131,3 +131,20 @@ def divergence() -> str | None:
         if dev.diverged is not None:
             return dev.diverged
     return None
+
+
+def divergence_behind(exc: BaseException) -> str | None:
+    """While a cassette is replayed: the divergence that ``exc`` is a consequence of - a
+    serial device that dropped the line, or a :class:`ReplayDivergedError` among its causes
+    (a step failure wraps it) - else None. What goes wrong after a divergence says nothing
+    about the devices or the measurement: the divergence is the one thing to report."""
+    if _exchanges is None:
+        return None
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, ReplayDivergedError):
+            return str(cause)
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return divergence()

@@ -18,18 +18,18 @@ pytestmark = pytest.mark.timeout(60)
 
 
 def test_led_on_then_off_on_exit(capsys: pytest.CaptureFixture[str]) -> None:
-    rc = main(["led", "--simulate", "--channel", "2", "--current-ma", "50", "--on",
+    rc = main(["led", "--simulate", "--channel", "1", "--current-ma", "40", "--on",
                "--for-s", "0"])
     out = capsys.readouterr().out
     assert rc == 0
-    assert "led channel 2 on at 50 mA (ceiling 100 mA)" in out
-    assert out.strip().endswith("led channel 2 off")
+    assert "led channel 1 on at 40 mA (ceiling 50 mA)" in out  # the simulated bench's ceiling
+    assert out.strip().endswith("led channel 1 off")
 
 
 def test_led_over_ceiling_is_an_error(capsys: pytest.CaptureFixture[str]) -> None:
-    rc = main(["led", "--simulate", "--current-ma", "150", "--on", "--for-s", "0"])
+    rc = main(["led", "--simulate", "--current-ma", "60", "--on", "--for-s", "0"])
     assert rc == 1
-    assert "exceeds the ceiling 100.0 mA; nothing sent" in capsys.readouterr().err
+    assert "exceeds the ceiling 50.0 mA; nothing sent" in capsys.readouterr().err
 
 
 def test_led_current_between_the_controllers_steps_is_an_error(
@@ -39,12 +39,14 @@ def test_led_current_between_the_controllers_steps_is_an_error(
     sim = SimulatedSlc(module="SLC-CA04-MU")  # 5 mA steps
     port = sim.start()
     try:
-        rc = main(["led", "--port", port, "--current-ma", "3", "--on", "--for-s", "0"])
+        rc = main(["led", "--port", port, "--ceiling-ma", "100", "--current-ma", "3", "--on",
+                   "--for-s", "0"])
         assert rc == 1 and sim.channel_output_ma(1) == 0.0
         assert capsys.readouterr().err.startswith(
             "benchlab: error: LED channel 1: 3 mA cannot be set, the LED controller drives 5 mA"
             " steps (nearest: 0 or 5 mA); nothing sent")
-        assert main(["led", "--port", port, "--current-ma", "5", "--on", "--for-s", "0"]) == 0
+        assert main(["led", "--port", port, "--ceiling-ma", "100", "--current-ma", "5", "--on",
+                     "--for-s", "0"]) == 0
         assert "led channel 1 on at 5 mA" in capsys.readouterr().out
     finally:
         sim.stop()
@@ -62,7 +64,9 @@ def test_stage_commands(capsys: pytest.CaptureFixture[str]) -> None:
     assert "position 32.0000 mm" in capsys.readouterr().out
     assert main(["stage", "--simulate", "home"]) == 0
     assert "homed yes" in capsys.readouterr().out
-    assert main(["stage", "--simulate", "move", "30"]) == 1  # default travel is a Z825's 0..25
+    assert main(["stage", "--simulate", "move", "55"]) == 1  # the simulated bench's 0..50
+    assert "outside travel [0.0, 50.0] mm; nothing sent" in capsys.readouterr().err
+    assert main(["stage", "--simulate", "--travel-mm", "0", "25", "move", "30"]) == 1
     assert "outside travel [0.0, 25.0] mm; nothing sent" in capsys.readouterr().err
 
 

@@ -103,7 +103,8 @@ def _expected_status(sig: signal.Signals) -> int:
 # ---- benchlab led ----------------------------------------------------------------------------
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: s.name)
 def test_led_switches_off_on_every_stop_signal(led: SimulatedSlc, sig: signal.Signals) -> None:
-    proc = _benchlab("led", "--port", led.port, "--channel", "2", "--current-ma", "50", "--on",
+    proc = _benchlab("led", "--port", led.port, "--channel", "2", "--ceiling-ma", "100",
+                     "--current-ma", "50", "--on",
                      stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     assert proc.stdout is not None
     assert "on at 50 mA" in proc.stdout.readline()

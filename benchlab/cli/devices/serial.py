@@ -17,37 +17,39 @@ from collections.abc import Iterator
 from typing import Any
 
 from benchlab.cli import UsageError, positive_float, positive_int
+from benchlab.cli.devices.limits import StageLimits, led_limits, stage_limits
 from benchlab.drivers import shutdown
 from benchlab.drivers.apt.protocol import Z8_COUNTS_PER_MM
 from benchlab.drivers.errors import BenchlabError, DeviceError
 
-DEFAULT_CEILING_MA = 100.0
 CLI_SIM_TIME_SCALE = 20.0  # one-shot --simulate commands should not make people wait
 APT_USB_IDS = {(0x0403, 0xFAF0)}  # Thorlabs APT cubes (FTDI with Thorlabs PID)
 
 
 # ---- helpers ---------------------------------------------------------------------------------
 @contextlib.contextmanager
-def _port_for(args: argparse.Namespace, kind: str) -> Iterator[str]:
-    """Yield the port to use: a fresh simulator's pty with --simulate, else --port."""
+def _port_for(args: argparse.Namespace, kind: str, port: str | None,
+              stage: StageLimits | None = None) -> Iterator[str]:
+    """Yield the port to use: a fresh simulator's pty with --simulate, else ``port`` (--port,
+    else the bench file's)."""
     from benchlab.drivers.apt.sim import SimulatedAptStage
     from benchlab.drivers.slc.sim import SimulatedSlc
     if not args.simulate:
-        if not args.port:
-            raise BenchlabError(f"{kind}: give --port PATH (or --simulate)")
-        yield args.port
+        if not port:
+            raise BenchlabError(f"{kind}: give --port PATH, a bench file with [{kind}] port "
+                                "(--config), or --simulate")
+        yield port
         return
     sim: SimulatedSlc | SimulatedAptStage
-    if kind == "led":
+    if stage is None:
         sim = SimulatedSlc()
     else:
-        lo, hi = args.travel_mm
-        sim = SimulatedAptStage(travel_mm=(lo, hi), counts_per_mm=args.counts_per_mm,
+        sim = SimulatedAptStage(travel_mm=stage.travel_mm, counts_per_mm=stage.counts_per_mm,
                                 time_scale=CLI_SIM_TIME_SCALE, homed=True)
-    port = sim.start()
-    print(f"(simulated {kind} on {port})", file=sys.stderr)
+    sim_port = sim.start()
+    print(f"(simulated {kind} on {sim_port})", file=sys.stderr)
     try:
-        yield port
+        yield sim_port
     finally:
         sim.stop()
 
@@ -70,38 +72,43 @@ def _wait_for_interrupt(hold_s: float | None) -> None:
 # ---- led -------------------------------------------------------------------------------------
 def _cmd_led(args: argparse.Namespace) -> int:
     from benchlab.drivers.slc.controller import SlcController
-    ceilings = {args.channel: args.ceiling_ma}
     if args.on and args.current_ma is None:  # before the controller is opened
         raise UsageError("led --on needs --current-ma")
-    with _port_for(args, "led") as port, SlcController(port, ceilings_ma=ceilings) as slc:
+    limits = led_limits(args)  # the bench file's ceiling, before anything is sent
+    channel = limits.channel
+    ceilings = {} if limits.ceiling_ma is None else {channel: limits.ceiling_ma}
+    with (_port_for(args, "led", limits.port) as port,
+          SlcController(port, ceilings_ma=ceilings) as slc):
         if args.off:
-            slc.off(args.channel)
-            print(f"led channel {args.channel} off")
+            slc.off(channel)
+            print(f"led channel {channel} off")
             return 0
-        slc.on(args.channel, args.current_ma)
-        imax_ma, iset_ma = slc.get_current(args.channel)
+        slc.on(channel, args.current_ma)
+        imax_ma, iset_ma = slc.get_current(channel)
         held = "until Ctrl-C" if args.for_s is None else f"for {args.for_s:g} s"
         try:  # the stop-signal hook switches off at once; close() verifies
-            print(f"led channel {args.channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
+            print(f"led channel {channel} on at {iset_ma:g} mA (ceiling {imax_ma:g} mA), "
                   f"held {held}; all channels switch off on exit", flush=True)
             _wait_for_interrupt(args.for_s)
         except shutdown.Stopped as exc:
             if exc.signum != signal.SIGINT:  # Ctrl-C ends the hold; TERM / HUP stop the command
                 raise
-    print(f"led channel {args.channel} off")
+    print(f"led channel {channel} off")
     return 0
 
 
 # ---- stage -----------------------------------------------------------------------------------
 def _cmd_stage(args: argparse.Namespace) -> int:
     from benchlab.drivers.apt.stage import AptStage
-    lo, hi = args.travel_mm
     if args.action == "move" and args.position_mm is None:  # before the stage is opened
         raise UsageError("stage move needs a position in mm")
-    with _port_for(args, "stage") as port, AptStage(
-        port, counts_per_mm=args.counts_per_mm, travel_mm=(lo, hi),
-        allow_unhomed=args.allow_unhomed,
+    limits = stage_limits(args)  # the bench file's travel, before anything is sent
+    with _port_for(args, "stage", limits.port, limits) as port, AptStage(
+        port, counts_per_mm=limits.counts_per_mm, travel_mm=limits.travel_mm,
+        allow_unhomed=args.allow_unhomed, completion_tolerance_counts=limits.tolerance_counts,
     ) as stage:
+        if limits.velocity_mm_s is not None and args.action in ("home", "move"):
+            stage.set_velocity_mm_s(limits.velocity_mm_s)
         if args.action == "home":
             stage.home()
         elif args.action == "move":
@@ -254,13 +261,20 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     led = commands.add_parser(
         "led", help="switch an LED channel of the Mightex SLC on or off",
         description="Switch one SLC channel on (held until Ctrl-C or --for-s, then every "
-                    "channel is switched off) or off.")
-    led.add_argument("--port", help="serial port of the SLC (e.g. /dev/ttyUSB0)")
+                    "channel is switched off) or off. The current is checked against the bench "
+                    "file's ceiling for the channel before anything is sent; a channel without "
+                    "a ceiling is never lit.")
+    led.add_argument("--port", help="serial port of the SLC (default: the bench file's "
+                     "[led] port), e.g. /dev/ttyUSB0")
     led.add_argument("--simulate", action="store_true", help="use a built-in simulated SLC")
-    led.add_argument("--channel", type=int, default=1, help="channel, 1-based (default 1)")
+    led.add_argument("--config", help="bench file whose [led.ceiling_ma] bounds the current "
+                     "(default: the user's bench.toml; with --simulate the simulated bench's)")
+    led.add_argument("--channel", type=int, default=None,
+                     help="channel, 1-based (default: the bench file's [led] channel, else 1)")
     led.add_argument("--current-ma", type=float, help="working current in mA (with --on)")
-    led.add_argument("--ceiling-ma", type=float, default=DEFAULT_CEILING_MA,
-                     help=f"refuse currents above this (default {DEFAULT_CEILING_MA:g} mA)")
+    led.add_argument("--ceiling-ma", type=float, default=None,
+                     help="refuse currents above this; default the bench file's ceiling for "
+                     "the channel, and never above it (needed when no bench file gives one)")
     led.add_argument("--for-s", type=float, help="with --on: hold this long, then switch off")
     onoff = led.add_mutually_exclusive_group(required=True)
     onoff.add_argument("--on", action="store_true", help="switch on at --current-ma")
@@ -273,12 +287,21 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                     "KDC101/TDC001 stage with a Z8 actuator. Prints the final position.")
     stage.add_argument("action", choices=["home", "move", "where", "identify"])
     stage.add_argument("position_mm", nargs="?", type=float, help="target for move, in mm")
-    stage.add_argument("--port", help="serial port of the cube (e.g. /dev/ttyUSB1)")
+    stage.add_argument("--port", help="serial port of the cube (default: the bench file's "
+                       "[stage] port), e.g. /dev/ttyUSB1")
     stage.add_argument("--simulate", action="store_true",
                        help="use a built-in simulated stage (starts homed)")
     stage.add_argument("--relative", action="store_true", help="move by MM instead of to MM")
     stage.add_argument("--allow-unhomed", action="store_true", help="allow moves before homing")
-    _add_stage_geometry(stage, 25.0)
+    stage.add_argument("--config", help="bench file whose [stage] travel, scale and velocity "
+                       "apply (default: the user's bench.toml; with --simulate the simulated "
+                       "bench's)")
+    stage.add_argument("--travel-mm", nargs=2, type=float, metavar=("LOW", "HIGH"),
+                       default=None, help="soft travel limits, inside the bench file's "
+                       "(default: the bench file's, else 0 25)")
+    stage.add_argument("--counts-per-mm", type=float, default=None,
+                       help=f"encoder counts per mm (default: the bench file's, else Z8: "
+                       f"{Z8_COUNTS_PER_MM}; alternative 34304)")
     stage.set_defaults(func=_cmd_stage)
 
     sim = commands.add_parser(

@@ -140,7 +140,7 @@ def _print_notes(doc: Mapping[str, Any], out: TextIO) -> None:
 
 def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
     from benchlab.bench import Bench, BenchConfig
-    from benchlab.protocols import RunAborted, StepFailed
+    from benchlab.protocols import RunAborted, RunInterrupted, StepFailed
     from benchlab.protocols.runs import check_estimator, resume_run, start_run
 
     progress = _Progress(sys.stderr)
@@ -189,15 +189,30 @@ def _run_or_resume(args: argparse.Namespace, resume: bool) -> int:
             progress.line(f"session: {runner.session.path}")
             outcome = runner.run()
     except (StepFailed, RunAborted) as exc:
-        progress.line(f"benchlab: {exc}")
+        from benchlab.drivers.trace import replay
+
+        diverged = replay.divergence_behind(exc)
+        if diverged is not None:  # not a measurement failure: the replay stopped matching
+            step = f" (step {exc.step.id})" if isinstance(exc, StepFailed) else ""
+            progress.line(f"benchlab: error: {diverged}{step}")
+        elif isinstance(exc, StepFailed):  # safety is said once, on the line below
+            progress.line(f"benchlab: step {exc.step.id} ({exc.step.title}) failed: "
+                          f"{exc.cause}")
+        else:
+            progress.line(f"benchlab: {exc}")
         if runner is not None:
-            progress.line("bench left safe; " + _continue_with(runner.session, args, retake))
-        return 1
-    except KeyboardInterrupt:
-        if runner is not None:
-            progress.line("interrupted; bench left safe; "
+            progress.line(_safety(runner.unsafe, diverged) + "; "
                           + _continue_with(runner.session, args, retake))
-        raise
+        return exc.exit_status if isinstance(exc, RunInterrupted) else 1
+    except KeyboardInterrupt as exc:
+        if runner is None:
+            raise
+        from benchlab.drivers import shutdown
+
+        progress.line(f"benchlab: interrupted ({shutdown.interrupt_reason(exc)}); "
+                      + _safety(runner.unsafe, None) + "; "
+                      + _continue_with(runner.session, args, retake))
+        return shutdown.exit_status(exc)
     elapsed = time.perf_counter() - t0
     _print_tables(outcome.tables, sys.stdout)
     _print_notes(outcome.summary, sys.stdout)
@@ -231,6 +246,18 @@ def _retake_arg(args: argparse.Namespace) -> list[str]:
             raise UsageError("--reason: only with --retake (it says why steps are retaken)")
         return []
     return text.split(",")
+
+
+def _safety(unsafe: str, diverged: str | None) -> str:
+    """The one statement on safety after a run stopped, from the devices' read-back: the
+    safe state confirmed, or why not."""
+    if diverged is not None:
+        return ("safe state not confirmed: the replayed devices stop answering where the "
+                "replay diverged (no real device was driven)")
+    if unsafe:
+        why = unsafe.removeprefix("could not reach the safe state: ")
+        return f"bench NOT confirmed safe ({why}); check the LEDs and the stage by hand"
+    return "bench left safe (confirmed by the devices' read-back)"
 
 
 def _continue_with(session: Session, args: argparse.Namespace, retake: list[str]) -> str:

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import positive_int
+from benchlab.cli.config import SESSIONS_ROOT_HELP, sessions_root
 from benchlab.cli.output import add_output_option, check_output, forced, write_output
 
 if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
@@ -89,12 +90,9 @@ def _write_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str], target: s
 
 
 def _open(args: argparse.Namespace) -> Catalog:
-    from benchlab.catalog.index import Catalog, CatalogError
+    from benchlab.catalog.index import Catalog
 
-    root = Path(args.root)
-    if not root.is_dir():
-        raise CatalogError(f"{root}: no such sessions folder (--root)")
-    return Catalog.open(root)
+    return Catalog.open(sessions_root(args.root))
 
 
 def _filters(args: argparse.Namespace) -> dict[str, Any]:
@@ -243,7 +241,7 @@ def benchmark_catalog_command(args: argparse.Namespace) -> int:
 
 
 def _add_filters(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    p.add_argument("--root", default=None, help=SESSIONS_ROOT_HELP)
     p.add_argument("--procedure", help="only this procedure (mtf, radiometry)")
     p.add_argument("--since", metavar="DATE", help="only sessions started on or after DATE "
                    "(YYYY-MM-DD or ISO time, UTC)")
@@ -262,7 +260,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     sub = top.add_subparsers(dest="sessions_command", metavar="WHAT", required=True)
     r = sub.add_parser("reindex", help="rebuild the catalogue from the session folders",
                        description="Rebuild every catalogue row from the session folders.")
-    r.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    r.add_argument("--root", default=None, help=SESSIONS_ROOT_HELP)
     r.set_defaults(func=reindex_command)
 
     ls = sub.add_parser("list", help="sessions matching filters, newest first",
@@ -283,7 +281,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     sh = sub.add_parser("show", help="one session: devices, results versions, key figures",
                         description="Show one catalogued session and its latest figures.")
     sh.add_argument("id", help="session id (its folder name)")
-    sh.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    sh.add_argument("--root", default=None, help=SESSIONS_ROOT_HELP)
     sh.add_argument("--json", action="store_true", help="print one JSON object")
     sh.set_defaults(func=show_command)
 

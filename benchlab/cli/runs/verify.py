@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
+from benchlab.cli.config import SESSIONS_ROOT_HELP, sessions_root
 from benchlab.cli.output import add_output_option, check_output, forced, write_output
 
 if TYPE_CHECKING:
@@ -148,12 +149,9 @@ def _print_unit(record: dict[str, Any]) -> None:
 
 
 def units_command(args: argparse.Namespace) -> int:
-    from benchlab.catalog.index import Catalog, CatalogError
+    from benchlab.catalog.index import Catalog
 
-    root = Path(args.root)
-    if not root.is_dir():
-        raise CatalogError(f"{root}: no such sessions folder (--root)")
-    with Catalog.open(root) as catalog:
+    with Catalog.open(sessions_root(args.root)) as catalog:
         units = catalog.units(lot=args.lot)
     if args.json:
         print(json.dumps(units))
@@ -202,12 +200,10 @@ def unit_command(args: argparse.Namespace) -> int:
 def lot_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.lot import lot_statistics
     from benchlab.acceptance.verify import check_sessions, group_units, verify_unit
-    from benchlab.catalog.index import Catalog, CatalogError
+    from benchlab.catalog.index import Catalog
 
     spec = _load_spec(args.spec)
-    root = Path(args.root)
-    if not root.is_dir():
-        raise CatalogError(f"{root}: no such sessions folder (--root)")
+    root = sessions_root(args.root)
     if args.html:  # before any work
         check_output(args.html, force=forced(args), option="--html")
     with Catalog.open(root) as catalog:
@@ -328,7 +324,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "units", help="list units under test with their latest verdict per spec",
         description="List the units (sessions' serial numbers) under a sessions folder, with "
         "their lot and the latest stored verdict per spec (from the catalogue).")
-    u.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    u.add_argument("--root", default=None, help=SESSIONS_ROOT_HELP)
     u.add_argument("--lot", help="only the units of this lot")
     u.add_argument("--json", action="store_true", help="print JSON")
     u.set_defaults(func=units_command)
@@ -351,7 +347,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "distributions, Cpk with its interval and drift flags (individuals control chart).")
     lot.add_argument("lot", metavar="LOT")
     lot.add_argument("--spec", required=True, metavar="FILE", help="spec file (TOML)")
-    lot.add_argument("--root", default="sessions", help="sessions folder (default sessions)")
+    lot.add_argument("--root", default=None, help=SESSIONS_ROOT_HELP)
     lot.add_argument("--json", action="store_true", help="print JSON")
     add_output_option(lot, "--html", metavar="FILE", help="also write an HTML lot report with "
                       "a control chart per limited quantity")
