@@ -30,8 +30,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import Orientation
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.scenes.card import CardScene
@@ -42,7 +42,6 @@ from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 
-FloatArray = npt.NDArray[np.float64]
 Target = tuple[Any, ...]
 TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark", "dots")
 

@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.bars.extremes import honest_reading
 from benchlab.analysis.bars.model import edge_response
 from benchlab.analysis.bars.projection import across_coordinate
@@ -82,8 +83,6 @@ from benchlab.analysis.bars.result import (
 )
 from benchlab.analysis.bars.roi import PreparedROI, prepare_roi
 from benchlab.analysis.mtf.jinc import jinc
-
-FloatArray = npt.NDArray[np.float64]
 
 NAME = "knownbars"
 #: Significance of the bar depth (over its standard error) for "resolved".
