@@ -9,7 +9,7 @@ go. This sits below both users: ``benchlab.bench`` (bench files) and ``benchlab.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -153,6 +153,28 @@ class TableChecker:
         return tuple(out) if ok else default
 
     _get = get  # the name procedure checks use
+
+    def number_table(self, dotted: str, names: Collection[str], what: str
+                     ) -> dict[str, float]:
+        """An optional table of numbers whose keys must be among ``names`` (e.g. a simulated
+        lens's parameters): ``{}`` when absent; each bad key or value is reported."""
+        found, table = self.get(dotted, {})
+        out: dict[str, float] = {}
+        if not found:
+            return out
+        if not isinstance(table, Mapping):
+            self.fail(dotted, f"must be a table of {what}")
+            return out
+        for key, value in table.items():
+            self.seen.add(f"{dotted}.{key}")
+            if key not in names:
+                self.fail(f"{dotted}.{key}",
+                          f"unknown parameter; known: {', '.join(sorted(names))}")
+            elif isinstance(value, bool) or not isinstance(value, int | float):
+                self.fail(f"{dotted}.{key}", f"must be a number, got {value!r}")
+            else:
+                out[str(key)] = float(value)
+        return out
 
     def unknown_keys(self) -> None:
         """Flag keys nobody read (typos would otherwise be silently ignored)."""

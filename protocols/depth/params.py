@@ -312,22 +312,7 @@ def _positive(c: Any, key: str, value: Any) -> float | None:
 def _simulator(c: Any) -> dict[str, float]:
     from benchlab.scenes.focus import ThroughFocusLens
 
-    found, sim = c.get("simulator", {})
-    out: dict[str, float] = {}
-    if not found:
-        return out
-    if not isinstance(sim, Mapping):
-        c.fail("simulator", "must be a table of lens values")
-        return out
-    names = set(ThroughFocusLens().to_dict())
-    for key, value in sim.items():
-        c.seen.add(f"simulator.{key}")
-        if key not in names:
-            c.fail(f"simulator.{key}", f"unknown parameter; known: {', '.join(sorted(names))}")
-        elif isinstance(value, bool) or not isinstance(value, int | float):
-            c.fail(f"simulator.{key}", f"must be a number, got {value!r}")
-        else:
-            out[str(key)] = float(value)
+    out = c.number_table("simulator", set(ThroughFocusLens().to_dict()), "lens values")
     try:
         ThroughFocusLens.from_mapping(out)
     except ValueError as exc:

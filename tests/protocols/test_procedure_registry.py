@@ -59,3 +59,15 @@ def test_the_registry_imports_nothing_heavy() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(("procedure", "known"), [("depth", "best_focus_mm"),
+                                                  ("fov", "barrel")])
+def test_a_simulated_lens_table_names_each_bad_key_and_value(procedure: str, known: str) -> None:
+    raw = {**params_to_dict(load_params(procedure)),
+           "simulator": {"nope": 1.0, known: "x"}}
+    with pytest.raises(ParamsError) as err:
+        parse_params(procedure, raw)
+    text = str(err.value)
+    assert "simulator.nope: unknown parameter; known:" in text
+    assert f"simulator.{known}: must be a number, got 'x'" in text
