@@ -199,16 +199,11 @@ def _alternate(first: list[_Edge], second: list[_Edge], theta: float) -> bool:
     return all(a[1] != b[1] for a, b in zip(marks, marks[1:], strict=False))
 
 
-def find_two_edges(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | None:
-    """A bar or line, bars, or a corner in the ROI (and little else), else None.
-
-    Parameters
-    ----------
-    pixels : array_like, shape (rows, cols)
-        The ROI (either orientation).
-    noise_sigma : float
-        The pixel noise (gray levels); 0 for noise-free data.
-    """
+def _strong_pixels(pixels: npt.ArrayLike, noise_sigma: float
+                   ) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.intp]] | None:
+    """The ROI's Sobel gradients ``(gx, gy, |g|^2 flattened)`` and the flat indices of its
+    strong pixels (above :data:`STRONG_OF_PEAK` of the peak gradient and the noise floor), or
+    None: too small an ROI, no gradient, or too few strong pixels for two edges."""
     img = np.asarray(pixels, dtype=np.float64)
     if img.ndim != 2 or min(img.shape) < MIN_EDGE_PX + 2:
         return None
@@ -222,6 +217,23 @@ def find_two_edges(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | None
     sel = np.flatnonzero(mag2 >= max(STRONG_OF_PEAK**2 * peak2, floor * floor))
     if sel.size < 2 * MIN_EDGE_PX:
         return None
+    return gx, gy, mag2, sel
+
+
+def find_two_edges(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | None:
+    """A bar or line, bars, or a corner in the ROI (and little else), else None.
+
+    Parameters
+    ----------
+    pixels : array_like, shape (rows, cols)
+        The ROI (either orientation).
+    noise_sigma : float
+        The pixel noise (gray levels); 0 for noise-free data.
+    """
+    strong = _strong_pixels(pixels, noise_sigma)
+    if strong is None:
+        return None
+    gx, gy, mag2, sel = strong
     sgx, sgy = gx.ravel()[sel], gy.ravel()[sel]
     w = np.sqrt(mag2[sel])
     # One edge (however noisy): its gradients all lie within SECTOR_DEG of their vector sum.
@@ -288,19 +300,10 @@ def find_second_edge(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | No
     and sensor structure beside one edge stay below the strong pixels' threshold (30 % of the
     peak gradient), so they are not named. Parameters as :func:`find_two_edges`.
     """
-    img = np.asarray(pixels, dtype=np.float64)
-    if img.ndim != 2 or min(img.shape) < MIN_EDGE_PX + 2:
+    strong = _strong_pixels(pixels, noise_sigma)
+    if strong is None:
         return None
-    gx, gy = _sobel(img)
-    mag2 = (gx * gx + gy * gy).ravel()
-    rank = min(PEAK_RANK, mag2.size)
-    peak2 = float(np.partition(mag2, mag2.size - rank)[mag2.size - rank])
-    if not peak2 > 0.0:
-        return None
-    floor = STRONG_SIGMAS * SOBEL_NOISE_GAIN * max(noise_sigma, 0.0)
-    sel = np.flatnonzero(mag2 >= max(STRONG_OF_PEAK**2 * peak2, floor * floor))
-    if sel.size < 2 * MIN_EDGE_PX:
-        return None
+    gx, gy, mag2, sel = strong
     theta = np.arctan2(gy.ravel()[sel], gx.ravel()[sel])
     w = np.sqrt(mag2[sel])
     r_i, c_i = np.divmod(sel, gx.shape[1])
@@ -341,19 +344,10 @@ def find_other_edge(pixels: npt.ArrayLike, noise_sigma: float) -> TwoEdges | Non
     lie off the edge profile, to tell a second edge from compression or sensor structure
     (whose gradients stay below the strong pixels' threshold, 30 % of the peak).
     """
-    img = np.asarray(pixels, dtype=np.float64)
-    if img.ndim != 2 or min(img.shape) < MIN_EDGE_PX + 2:
+    strong = _strong_pixels(pixels, noise_sigma)
+    if strong is None:
         return None
-    gx, gy = _sobel(img)
-    mag2 = (gx * gx + gy * gy).ravel()
-    rank = min(PEAK_RANK, mag2.size)
-    peak2 = float(np.partition(mag2, mag2.size - rank)[mag2.size - rank])
-    if not peak2 > 0.0:
-        return None
-    floor = STRONG_SIGMAS * SOBEL_NOISE_GAIN * max(noise_sigma, 0.0)
-    sel = np.flatnonzero(mag2 >= max(STRONG_OF_PEAK**2 * peak2, floor * floor))
-    if sel.size < 2 * MIN_EDGE_PX:
-        return None
+    gx, gy, mag2, sel = strong
     theta = np.arctan2(gy.ravel()[sel], gx.ravel()[sel])
     w = np.sqrt(mag2[sel])
     r_i, c_i = np.divmod(sel, gx.shape[1])
