@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
 from acceptance_sessions import limit, make_session, spec
 from headless_browser import chromium, console_errors, needs_chromium
 
@@ -14,6 +15,7 @@ from benchlab.cli.main import main
 pytestmark = needs_chromium
 
 
+@pytest.mark.slow
 def test_certificate_renders_in_chromium_and_prints_to_pdf(tmp_path: Path) -> None:
     s = make_session(tmp_path / "root", "s1", serial="SN-42", lot="L1")
     path = spec(tmp_path, limit(0.55), limit(max_=0.7, ident="G1E5-max",

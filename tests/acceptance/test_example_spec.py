@@ -49,6 +49,7 @@ def with_camera_limits(text: str) -> str:
     return head + "\n".join(line[2:] if line.startswith("# ") else "" for line in lines) + "\n"
 
 
+@pytest.mark.slow
 def test_the_example_spec_passes_an_mtf_session_as_the_readme_shows(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -42,6 +42,7 @@ def test_bars_read_what_the_edges_predict(check: BenchCheck) -> None:
         assert off <= (0.040 if at_two_px else BARS_PREDICTED_TOL), r
 
 
+@pytest.mark.slow
 def test_the_table_gives_the_verdicts(check: BenchCheck) -> None:
     text = format_bench_check([check])
     worst = max(r["max_err"] for r in check.edge_rows)

@@ -54,6 +54,7 @@ def test_characterise_tables_fit_80_columns_with_one_footnote(
     assert any("dark e-/s" in h for h in heads) and any("PRNU %" in h for h in heads)
 
 
+@pytest.mark.slow
 def test_sessions_list_fits_80_columns_and_wide_keeps_every_column(
         characterised: tuple[Path, str], monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:

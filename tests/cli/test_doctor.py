@@ -66,6 +66,7 @@ def test_lf_cr_replies_pass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert _doctor(tmp_path, "--inject", "led-lf-cr")[0] == 0
 
 
+@pytest.mark.slow
 def test_learned_facts_go_into_the_bench_file_after_a_backup(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

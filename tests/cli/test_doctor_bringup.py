@@ -146,6 +146,7 @@ def test_a_replay_that_diverges_says_where_and_still_writes_the_report(
     assert again.is_file() and "| 8 stage scale | ok |" in again.read_text(encoding="utf-8")
 
 
+@pytest.mark.slow
 def test_the_facts_settled_go_into_the_bench_file_and_the_next_run_passes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

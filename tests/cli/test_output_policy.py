@@ -175,6 +175,7 @@ def test_a_link_into_a_session_is_refused(bench: Bench, tmp_path: Path,
     assert (bench.session / "session.json").read_bytes() == before
 
 
+@pytest.mark.slow
 def test_default_outputs_are_not_replaced_either(bench: Bench, tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str]) -> None:

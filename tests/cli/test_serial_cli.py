@@ -57,6 +57,7 @@ def test_led_needs_port_or_simulate(capsys: pytest.CaptureFixture[str]) -> None:
     assert "--port" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_stage_commands(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["stage", "--simulate", "where"]) == 0
     assert "position 0.0000 mm, homed yes" in capsys.readouterr().out

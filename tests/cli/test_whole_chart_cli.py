@@ -27,6 +27,7 @@ def scope_jpeg(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_find_chart_names_the_groups_of_a_microscope_jpeg(
     scope_jpeg: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -40,6 +41,7 @@ def test_find_chart_names_the_groups_of_a_microscope_jpeg(
     assert doc["pose"]["rotation_deg"] == pytest.approx(23.0, abs=0.2)
 
 
+@pytest.mark.slow
 def test_analyze_reads_the_elements_of_a_microscope_jpeg(
     scope_jpeg: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -49,6 +49,7 @@ def _wait(cond: Any, seconds: float = 5.0) -> None:
         time.sleep(0.005)
 
 
+@pytest.mark.slow
 def test_difference_6_keepalive_on_a_timer_even_without_updates(sim: SimulatedAptStage) -> None:
     with _open(sim) as st:
         st.keepalive_period_s = 0.05

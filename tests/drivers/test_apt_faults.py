@@ -54,6 +54,7 @@ def _open(sim: SimulatedAptStage, **kw) -> AptStage:
     return AptStage(sim.port, timeout_s=0.5, updates=False, **kw).open()
 
 
+@pytest.mark.slow
 def test_no_reply_names_the_request(sim: SimulatedAptStage) -> None:
     with _open(sim) as st:
         sim.faults.no_reply = 1
@@ -320,6 +321,7 @@ def test_reply_late_but_within_timeout_is_the_answer(sim: SimulatedAptStage) -> 
         assert time.monotonic() - t0 >= 0.2  # the fault really delayed it
 
 
+@pytest.mark.slow
 def test_reply_after_the_timeout_is_not_taken_for_a_later_request(
     sim: SimulatedAptStage, clock: ManualClock
 ) -> None:
@@ -332,6 +334,7 @@ def test_reply_after_the_timeout_is_not_taken_for_a_later_request(
         assert st.position_mm == pytest.approx(10.0, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_a_late_reply_is_not_taken_for_the_next_request_of_its_kind(
     sim: SimulatedAptStage, clock: ManualClock
 ) -> None:

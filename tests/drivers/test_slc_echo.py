@@ -60,6 +60,7 @@ def test_simulator_echo_wire_format_and_it_persists_across_opens(sim: SimulatedS
         assert _ask(port, b"RESET") == b"RESET\n\r>## \r\n"  # a reset ends echo (B.4)
 
 
+@pytest.mark.slow
 def test_simulator_faults_switch_echo_on_and_keep_it_on(sim: SimulatedSlc) -> None:
     sim.faults.echo_on_at = "?mode"
     sim.faults.echooff_ignored = 1

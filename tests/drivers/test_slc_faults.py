@@ -208,6 +208,7 @@ def test_simulator_busy_with_a_late_reply_answers_later_commands_in_order(
         assert (first, ser.read_until(b"\r\n")) == (b"#1 \r\n", b"#0 \r\n")
 
 
+@pytest.mark.slow
 def test_reply_later_than_the_next_commands_wait_is_not_taken_for_its_reply(
     sim: SimulatedSlc,
 ) -> None:

@@ -30,6 +30,7 @@ def _sim_bench() -> Any:
     return Bench.open(BenchConfig.load(None, simulate=True), simulate=True, time_scale=20.0)
 
 
+@pytest.mark.slow
 def test_driver_names_the_lost_move_and_the_stage_finishes_it_alone() -> None:
     with SimulatedAptStage(travel_mm=(0.0, 50.0), homed=True, time_scale=20.0) as sim:
         sim.faults.drop_at_mm = 20.0

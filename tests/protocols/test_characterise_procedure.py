@@ -76,6 +76,7 @@ def test_sweep_is_log_spaced_near_dark_and_dense_at_saturation() -> None:
     assert len(near) == 12 and max(b - a for a, b in zip(near, near[1:], strict=False)) < 1.5
 
 
+@pytest.mark.slow
 def test_calibration_written_beside_a_bench_copy_and_led_left_off(run: Any) -> None:
     session = Path(run.session_path)
     calib_dir = session.parent / "calibration"

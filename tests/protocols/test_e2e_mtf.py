@@ -83,6 +83,7 @@ def test_radial_view_against_truth(full_run: RunOutcome) -> None:
         assert by_f[f]["tangential_modulation"] < by_f[f]["sagittal_modulation"]
 
 
+@pytest.mark.slow
 def test_forward_view_against_truth(full_run: RunOutcome) -> None:
     usaf = UsafScene()
     rows = {r["element"]: r for r in _rows(full_run, "table_4_11")}

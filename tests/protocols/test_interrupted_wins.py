@@ -64,6 +64,7 @@ def _signal_then_grab(bench: Bench, abort: threading.Event) -> None:
     signal.raise_signal(signal.SIGTERM)  # the handler runs before this returns
 
 
+@pytest.mark.slow
 def test_a_step_failing_after_a_stop_signal_is_interrupted_and_resumes(tmp_path: Path) -> None:
     abort = threading.Event()
     with shutdown.handling_signals(on_signal=lambda signum: abort.set()):  # as the TUI does

@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
 from headless_browser import chromium, console_errors, needs_chromium
 from sim_runs import MTF_SMALL, run_sim
 
@@ -14,6 +15,7 @@ from benchlab.report.render import write_report
 pytestmark = needs_chromium
 
 
+@pytest.mark.slow
 def test_report_loads_in_chromium_with_a_panel_per_roi(tmp_path: Path) -> None:
     outcome = run_sim("mtf", tmp_path, MTF_SMALL)
     page = write_report(outcome.session_path)

@@ -129,6 +129,7 @@ def held(killed_session: Path, tmp_path: Path) -> Iterator[tuple[Path, int]]:
     proc.wait()
 
 
+@pytest.mark.slow
 def test_second_writer_is_refused_naming_the_holder(
     held: tuple[Path, int], capsys: pytest.CaptureFixture[str]
 ) -> None:

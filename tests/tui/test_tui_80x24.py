@@ -43,6 +43,7 @@ async def _checklist(pilot: Pilot[None], screen: RunScreen, n: int) -> None:
     await pilot.pause()
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_every_procedures_checklist_is_readable_at_80x24(tmp_path: Path) -> None:
     app = make_app(tmp_path, mtf=MTF_PARAMS, radiometry=RADIOMETRY_PARAMS, depth=DEPTH_PARAMS)

@@ -18,6 +18,7 @@ def _panel(screen: DevicesScreen, wid: str) -> str:
     return str(screen.query_one(f"#{wid}", Static).render())
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_devices_panel_shows_state_and_controls_the_bench(tmp_path: Path) -> None:
     app = make_app(tmp_path)

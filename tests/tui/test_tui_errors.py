@@ -21,6 +21,7 @@ frequencies_lp_per_mm = [1, "two"]
 """
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_bad_parameter_file_lists_every_problem_and_starts_nothing(tmp_path: Path) -> None:
     app = make_app(tmp_path, mtf=BAD_MTF)

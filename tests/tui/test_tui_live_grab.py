@@ -19,6 +19,7 @@ from benchlab.protocols import start_run
 from benchlab.tui import services
 
 
+@pytest.mark.slow
 @pytest.mark.asyncio
 async def test_live_view_reads_one_camera_frame_per_refresh(tmp_path: Path) -> None:
     app = make_app(tmp_path)

@@ -58,6 +58,7 @@ def test_the_significance_rule_is_what_rejects_them(monkeypatch: pytest.MonkeyPa
     assert all(called)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", [834, 1118, 29])
 def test_small_rois_with_real_bars_stay_resolved(index: int) -> None:
     """5 x 5 ROIs whose geometry smears the phase bins: the significance uses the least of the

@@ -180,6 +180,7 @@ def test_tui_says_read_only_in_plain_words(tmp_path: Path) -> None:
 
 
 # ---- session.json with wrong types ----------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("field,value", [("params", "not a table"), ("procedure", 7),
                                          ("status", ["running"]), ("started_at", None)])
 def test_session_json_with_wrong_types(

@@ -92,6 +92,7 @@ def test_at_ten_times_the_microscope_scale_a_few_elements_of_groups_6_and_7() ->
     assert {"G6E1", "G7E5", "G7E6"} <= {e.label[:4] for e in fit.found}
 
 
+@pytest.mark.slow
 def test_the_coarse_groups_from_afar_at_45_deg() -> None:
     fit = find_whole_chart(_frame(10.0, 45.0, shape=(768, 1024)), magnification=8.0)
     assert fit.implied_magnification == pytest.approx(10.0, rel=0.01)

@@ -82,6 +82,7 @@ def test_the_disc_is_found_without_its_dots(
     assert disc.radius_px == pytest.approx(scene.circles.disc_radius_px, abs=0.1)
 
 
+@pytest.mark.slow
 def test_distortion_against_both_models_matches_the_lens(
         analysed: dict[str, tuple[DotGridScene, Fit, Disc]]) -> None:
     _, fit, _ = analysed["rectilinear-tilted-pupil"]  # h = f tan(theta)
