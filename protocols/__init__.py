@@ -74,7 +74,7 @@ same tables are written as CSV + JSON under ``SESSION/results/vN/`` (``Session.w
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from benchlab.protocols.engine import (
     RunAborted,
@@ -92,6 +92,9 @@ from benchlab.protocols.params import (
     load_params,
     parse_params,
 )
+
+if TYPE_CHECKING:  # the real signatures, for mypy and readers
+    from benchlab.protocols.runs import reanalyze, resume_run, start_run
 
 __all__ = [
     "MtfParams",
@@ -112,22 +115,11 @@ __all__ = [
 ]
 
 
-def start_run(procedure: str, **kwargs: Any) -> Runner:
-    """Create a session and a runner for a fresh run (see the module docstring)."""
-    from benchlab.protocols.runs import start_run as _start
+def __getattr__(name: str) -> object:
+    """``start_run``, ``resume_run`` and ``reanalyze`` from :mod:`benchlab.protocols.runs`,
+    imported on first use (it opens the bench layer: ``benchlab --help`` never needs it)."""
+    if name in ("start_run", "resume_run", "reanalyze"):
+        from benchlab.protocols import runs
 
-    return _start(procedure, **kwargs)
-
-
-def resume_run(session_path: Any, **kwargs: Any) -> Runner:
-    """Reopen an interrupted session and return a runner that continues it."""
-    from benchlab.protocols.runs import resume_run as _resume
-
-    return _resume(session_path, **kwargs)
-
-
-def reanalyze(session_path: Any, estimator: str | None = None) -> Any:
-    """Re-analyse a session's saved frames into a new results version; returns its folder."""
-    from benchlab.protocols.runs import reanalyze as _reanalyze
-
-    return _reanalyze(session_path, estimator=estimator)
+        return getattr(runs, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

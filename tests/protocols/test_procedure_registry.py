@@ -71,3 +71,18 @@ def test_a_simulated_lens_table_names_each_bad_key_and_value(procedure: str, kno
     text = str(err.value)
     assert "simulator.nope: unknown parameter; known:" in text
     assert f"simulator.{known}: must be a number, got 'x'" in text
+
+
+def test_the_package_entry_points_are_the_typed_functions() -> None:
+    import inspect
+
+    import benchlab.protocols as protocols
+    from benchlab.protocols import runs
+
+    for name in ("start_run", "resume_run", "reanalyze"):
+        assert getattr(protocols, name) is getattr(runs, name)
+    params = inspect.signature(protocols.start_run).parameters
+    assert {"bench", "params", "root", "prompt", "abort"} <= set(params)
+    assert not any(p.kind is p.VAR_KEYWORD for p in params.values())  # no **kwargs: Any
+    with pytest.raises(AttributeError, match="no attribute 'start_runs'"):
+        protocols.start_runs  # noqa: B018
