@@ -17,7 +17,8 @@ from benchlab.cli.main import main
 
 #: fault -> (exit status, text of its one report line, checks that must not have been run)
 FAULTS: dict[str, tuple[int, str, tuple[str, ...]]] = {
-    "camera-pid": (1, "set [camera] pid = 0x0528 (written to the bench file) and add the udev "
+    "camera-pid": (1, "set [camera] pid = 0x0528 (in your bench file; `benchlab doctor --config "
+                      "FILE` writes it) and add the udev "
                       'rule line SUBSYSTEM=="usb", ATTR{idVendor}=="04b4", '
                       'ATTR{idProduct}=="0528"', ()),
     "camera-trailer-swapped": (1, "trailer gives the line count first (1024, 1280): not the "
@@ -165,6 +166,8 @@ def test_the_facts_settled_go_into_the_bench_file_and_the_next_run_passes(
         assert line in text
     report = (tmp_path / "bringup-report.md").read_text(encoding="utf-8")
     assert report.count("| FAIL |") == 4
+    assert "set [camera] pid = 0x0528 (written to the bench file)" in report
+    assert "in your bench file;" not in report  # only said when nothing is written
     capsys.readouterr()
     assert main(run) == 0, capsys.readouterr().out  # the same camera, now as the file says
 

@@ -111,8 +111,16 @@ class Doctor:
     #: The step running now (the report names it when the run is interrupted).
     current_step: str | None = None
     stage_time_scale: float = 1.0
+    #: Whether what is learned goes into a bench file (``--config`` given, not a replay).
+    writes_bench_file: bool = False
     #: The camera opened with the profile that fits, when the configured one did not.
     _fitted: Any = field(default=None, init=False, repr=False)
+
+    @property
+    def learned_note(self) -> str:
+        """How a learned fact reaches the bench file, for the report's "what to do" lines."""
+        return ("(written to the bench file)" if self.writes_bench_file
+                else "(in your bench file; `benchlab doctor --config FILE` writes it)")
 
     def add(self, step: str, status: str, detail: str, todo: str = "") -> None:
         self.checks.append(Check(step, status, detail, todo))
@@ -364,7 +372,7 @@ class Doctor:
             return None
         self.add(step, "FAIL", f"no camera at PID 0x{pid:04X}, but this device is on the bus: "
                  f"{found[0].describe()}; the checks go on with it",
-                 f"set [camera] pid = 0x{found[0].pid:04X} (written to the bench file) and add "
+                 f"set [camera] pid = 0x{found[0].pid:04X} {self.learned_note} and add "
                  f"the udev rule line {udev_rule_line(found[0].vid, found[0].pid)}")
         return found[0].pid
 
@@ -410,7 +418,7 @@ class Doctor:
         cam.use_profile(replace(cam.spec, trailer_order=other))
         self.add("3 frame trailer order", "FAIL", f"a full {w}x{h} frame's trailer gives the "
                  f"line count first ({h}, {w}): not the {assumed} order assumed",
-                 f'set [camera] trailer_order = "{other}" (written to the bench file)')
+                 f'set [camera] trailer_order = "{other}" {self.learned_note}')
         return cam.grab(fresh=fresh)
 
     def check_exposure(self, cam: Any, lit: bool, stack: contextlib.ExitStack) -> Any:
@@ -570,7 +578,7 @@ class Doctor:
                          f"profile {name} fits (frame period {period:g} ms)")
                 self._region(other)
                 self._fitted = other
-                return f'set [camera] model = "{name}" (written to the bench file)'
+                return f'set [camera] model = "{name}" {self.learned_note}'
             other.close()
         return "no known profile fits: report the camera model and firmware"
 
@@ -605,7 +613,7 @@ class Doctor:
             return
         if problems:
             self.add(step, "FAIL", "; ".join(problems), f"set [camera] bit_depths = {good} "
-                     "(written to the bench file): runs then refuse the others")
+                     f"{self.learned_note}: runs then refuse the others")
         else:
             scaled = ", ".join(f"{b}-bit {means[b]:.0f}" for b in good)
             self.add(step, "ok", f"{len(good)} depths plausible, 8-bit again after them "
@@ -969,7 +977,8 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
              f"; replaying {replayed}"))
     ask, measure = _prompts(args.yes)
     doctor = Doctor(config, simulate, ask, measure, inject, outside=outside,
-                    stage_time_scale=SIM_STAGE_TIME_SCALE if simulate else 1.0)
+                    stage_time_scale=SIM_STAGE_TIME_SCALE if simulate else 1.0,
+                    writes_bench_file=bool(args.config) and not replayed)
     summary = RunSummary(config.source, simulate, {k: INJECTIONS[k] for k in inject},
                          doctor.learned, str(cassette) if cassette else None,
                          replayed_from=replayed)
