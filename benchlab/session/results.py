@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import errno
+import hashlib
 import io
 import json
 import os
@@ -203,11 +204,14 @@ class SessionResults(SessionRetakes):
             for name, folder in (extra_dirs or {}).items():
                 _check_name("folder name", name)
                 os.replace(folder, tmp / name)  # same file system: a rename
+            files_sha256: dict[str, str] = {}
             for table, rows in tables.items():
                 plain_rows = [_plain(dict(r)) for r in rows]
                 stem = result_file_stem(table)
-                write(tmp / f"{stem}.json", json_rows_text(plain_rows))
-                write(tmp / f"{stem}.csv", _csv_text(plain_rows))
+                for name, text in ((f"{stem}.json", json_rows_text(plain_rows)),
+                                   (f"{stem}.csv", _csv_text(plain_rows))):
+                    write(tmp / name, text)
+                    files_sha256[name] = hashlib.sha256(text.encode("utf-8")).hexdigest()
             self.matched_version = None
             same = {
                 "estimator": estimator,
@@ -215,6 +219,8 @@ class SessionResults(SessionRetakes):
                 "tables": sorted(tables),
                 "table_files": {t: result_file_stem(t) for t in sorted(tables)},
                 "frames_sha256": self.frames(),
+                # The tables certify themselves: read_results refuses a file that changed.
+                "files_sha256": dict(sorted(files_sha256.items())),
                 "summary": _plain(summary),
                 **(self._partial or {"partial": False}),
             }
@@ -318,14 +324,18 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
     """
     tables: dict[str, Any] = {}
     summary: dict[str, Any] = {}
+    read_bytes: dict[str, bytes] = {}
     for p in sorted(Path(folder).glob("*.json")):
         label = _LABEL_OF_FILE.get(p.stem, p.stem)
         if p.stem != "summary" and ((only is not None and label not in only) or label in skip):
             continue
         try:
-            data = json.loads(p.read_text(encoding="utf-8"))
+            raw = p.read_bytes()
+            data = json.loads(raw.decode("utf-8"))
         except (OSError, ValueError) as exc:
             raise SessionError(f"{p}: unreadable results file ({exc})") from exc
+        if p.stem != "summary":
+            read_bytes[p.name] = raw
         if p.stem == "summary":
             if not isinstance(data, dict):
                 raise SessionError(f"{p}: not a results summary (a JSON object expected, "
@@ -333,6 +343,7 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
             summary = data
         else:
             tables[label] = data
+    _check_files_sha256(Path(folder), summary, read_bytes)
     listed = summary.get("tables")
     named = summary.get("table_files")
     files: dict[str, Any] = named if isinstance(named, dict) else {}
@@ -348,6 +359,30 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
             raise SessionError(f"{path}: not a table (a JSON list of row objects expected, "
                                f"found {_json_kind(rows)})")
     return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
+
+
+def _check_files_sha256(folder: Path, summary: Mapping[str, Any],
+                        read: Mapping[str, bytes]) -> None:
+    """Refuse a table file whose bytes are not those its version wrote (``files_sha256`` of
+    ``summary.json``; versions written before it existed have none and are taken as they are).
+
+    Raises
+    ------
+    SessionError
+        Naming the file that changed.
+    """
+    recorded = summary.get("files_sha256")
+    if not isinstance(recorded, Mapping):
+        return
+    for name, raw in read.items():
+        want = recorded.get(name)
+        if want is None:
+            raise SessionError(f"{folder / name}: not written with this results version "
+                               "(summary.json records no such file)")
+        if hashlib.sha256(raw).hexdigest() != want:
+            raise SessionError(f"{folder / name}: changed since it was written (its sha256 is "
+                               "not the one summary.json records); results are never edited: "
+                               f"run benchlab analyze {folder.parent.parent} for a new version")
 
 
 def _table_labels(summary: Mapping[str, Any]) -> list[str]:

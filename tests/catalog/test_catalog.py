@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from many_sessions_helpers import copy_session, real_session
+from sim_runs import reseal_results
 
 import benchlab.session as session_mod
 import benchlab.session.results as session_results
@@ -35,6 +36,7 @@ def _set_modulation(session: Path, element: str, value: float) -> None:
         if row["element"] == element:
             row["sagittal_modulation"] = value
     path.write_text(json.dumps(rows))
+    reseal_results(path.parent)
 
 
 def _unlike_any_reanalysis(session: Path) -> None:
@@ -45,6 +47,7 @@ def _unlike_any_reanalysis(session: Path) -> None:
         rows = json.loads(path.read_text())
         rows[0]["sagittal_modulation"] = 0.5
         path.write_text(json.dumps(rows))
+        reseal_results(version)
 
 
 @pytest.mark.slow

@@ -11,6 +11,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 import pytest
 from many_sessions_helpers import copy_session, real_session
+from sim_runs import reseal_results
 
 from benchlab.catalog.index import CATALOG_FILE, Catalog
 from benchlab.catalog.schema import migrate
@@ -29,6 +30,7 @@ def _edit_g2e1(session: Path, **changes: Any) -> None:
         if row["element"] == "G2E1":
             row.update(changes)
     path.write_text(json.dumps(rows))
+    reseal_results(path.parent)
 
 
 @pytest.fixture

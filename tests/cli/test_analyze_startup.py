@@ -18,7 +18,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-from sim_runs import MTF_SMALL, run_sim
+from sim_runs import MTF_SMALL, reseal_results, run_sim
 
 import benchlab.analysis.chart.finder as chart_finder
 import benchlab.analysis.chart.morphology as morphology
@@ -214,6 +214,7 @@ def test_the_catalogue_reads_only_the_tables_it_takes_figures_from(
     copy = Path(shutil.copytree(small_mtf, tmp_path / small_mtf.name))
     (copy / "results" / "v1" / "extra_table.json").write_text(
         '[{"name": "gain", "value": 0.42}]', encoding="utf-8")
+    reseal_results(copy / "results" / "v1")  # as if written with the version
     record = read_session_record(copy)
     assert any(f.view == "extra_table" and f.quantity == "value" and f.value == 0.42
                for f in record.figures), record.figures

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from many_sessions_helpers import copy_session, real_session
+from sim_runs import reseal_results
 
 from benchlab.cli.main import main
 from benchlab.session import SessionError, read_results
@@ -34,6 +35,7 @@ def test_a_row_without_a_key_the_report_needs(
     s = copy_session(source, tmp_path / "s")
     table = s / "results" / "v1" / "forward_view_modulation.json"
     table.write_text('[{"element": "G1E5"}]')
+    reseal_results(table.parent)
     err = _report_fails(s, capsys)
     assert f"{table}: row 1 has no 'image_lp_per_mm'" in err
 
@@ -47,6 +49,7 @@ def test_a_value_of_the_wrong_kind_names_the_section(
     rows = json.loads(table.read_text())
     rows[0]["object_lp_per_mm"] = "two"
     table.write_text(json.dumps(rows))
+    reseal_results(table.parent)
     err = _report_fails(s, capsys)
     assert str(s / "results" / "v1") in err and "cannot be drawn" in err
 
@@ -69,6 +72,7 @@ def test_a_listed_table_missing_or_not_rows(
         (v1 / "radial_view_modulation.json").unlink()
     else:
         (v1 / "averaged_mtf_vs_monte_carlo.json").write_text(content)
+        reseal_results(v1)
     with pytest.raises(SessionError) as exc:
         read_results(v1)
     assert expected in str(exc.value)

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 from many_sessions_helpers import copy_session, real_session
+from sim_runs import reseal_results
 
 from benchlab.protocols.mtf.analysis import _monte_carlo_rows
 from benchlab.protocols.params import MtfParams
@@ -103,6 +104,7 @@ def test_report_of_old_results_with_an_unresolved_t(source: Path, tmp_path: Path
     row["averaged_modulation"] = row["sagittal_modulation"] / 2
     row["verdict"] = "between the 80% and 50% thresholds (0.27 .. 0.45)"
     (latest / "averaged_mtf_vs_monte_carlo.json").write_text(json.dumps(t415))
+    reseal_results(latest)
     text = render_report(s)
     verdict = text[text.index("id='verdict'"):]
     first = re.findall(r"<li class='verdict'>(.*?)</li>", verdict)[0]

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from many_sessions_helpers import copy_session, real_session
+from sim_runs import reseal_results
 from test_tui_helpers import make_app, wait_until
 from textual.widgets import DataTable, Input, Static
 
@@ -21,6 +22,7 @@ def _set_modulation(session: Path, element: str, value: float) -> None:
         if row["element"] == element:
             row["sagittal_modulation"] = value
     path.write_text(json.dumps(rows))
+    reseal_results(path.parent)
 
 
 @pytest.mark.slow
