@@ -148,6 +148,17 @@ class StepContext:
             self.check_abort()  # stopped by the abort key: an abort, not a fault
             raise
 
+    def home_stage(self) -> None:
+        """Home the stage when the bench has one (a resumed run may meet a fresh stage); the
+        abort key stops it and is an abort, not a fault."""
+        if not self.bench.has_stage:
+            return
+        try:
+            self.bench.home_stage(abort=self.runner.abort)
+        except DeviceError:
+            self.check_abort()  # stopped by the abort key or a quit: an abort, not a fault
+            raise
+
     def ask(self, message: str) -> None:
         """Ask the operator to do something; declining aborts the run."""
         self.check_abort()

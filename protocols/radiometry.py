@@ -27,7 +27,7 @@ from benchlab.analysis.radiometry import (
     radiometry_table,
     reading_mask,
 )
-from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.params import RadiometryParams, position_step_id
 
@@ -162,12 +162,7 @@ class RadiometryProcedure:
         """Camera settings, LED mounted, stage homed (a resumed run may meet a fresh stage)."""
         ctx.bench.configure_camera(bits=self.params.bits)
         ctx.bench.mount(LED_TARGET)
-        if ctx.bench.has_stage:
-            try:
-                ctx.bench.home_stage(abort=ctx.runner.abort)
-            except DeviceError:
-                ctx.check_abort()  # stopped by the abort key or a quit: an abort, not a fault
-                raise
+        ctx.home_stage()
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")

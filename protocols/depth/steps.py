@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchlab.drivers.errors import DeviceError
 from benchlab.protocols.depth.params import DepthParams, Segment
 from benchlab.protocols.engine import Step, StepContext
 
@@ -109,12 +108,7 @@ class DepthProcedure:
         world = getattr(ctx.bench, "world", None)
         if world is not None:  # the view's lens (a world left by another depth run: replaced)
             world.through_focus = self.params.lens()
-        if ctx.bench.has_stage:
-            try:
-                ctx.bench.home_stage(abort=ctx.runner.abort)
-            except DeviceError:
-                ctx.check_abort()
-                raise
+        ctx.home_stage()
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")

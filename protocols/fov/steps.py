@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchlab.drivers.errors import BenchlabError, DeviceError
+from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.fov.params import FovParams, position_step_id
 
@@ -82,12 +82,7 @@ class FovProcedure:
             from benchlab.scenes.dots import DotGridScene
 
             world.dots = DotGridScene(chart=self.params.chart(), lens=self.params.lens())
-        if ctx.bench.has_stage:
-            try:
-                ctx.bench.home_stage(abort=ctx.runner.abort)
-            except DeviceError:
-                ctx.check_abort()
-                raise
+        ctx.home_stage()
 
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")
