@@ -292,19 +292,7 @@ def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
         for orientation in ("sagittal", "tangential"):
             posed = scene.bar_set(g, e, orientation)  # type: ignore[arg-type]
             sig_r, sig_c = scene.sigmas_px(posed)
-            for centre, half_len, half_w in posed.bars():
-                reach = half_len + 6.0 * max(sig_r, sig_c) + 2.0
-                r0 = max(int(np.floor(centre[0] - reach)), 0)
-                r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
-                c0 = max(int(np.floor(centre[1] - reach)), 0)
-                c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
-                if r0 >= r1 or c0 >= c1:
-                    continue
-                rows = np.arange(r0, r1, dtype=np.float64)[:, None]
-                cols = np.arange(c0, c1, dtype=np.float64)[None, :]
-                bar_sum[r0:r1, c0:c1] += _rotated_bar(
-                    rows, cols, centre, half_len, half_w, posed.theta_deg, sig_r, sig_c
-                )
+            _add_bars(bar_sum, posed, sig_r, sig_c)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
     img = scene._compose(bar_sum, rows, cols)
@@ -332,6 +320,24 @@ def _smoothed_step(t: FloatArray, sigma: float, p: float, q: float) -> FloatArra
     return (s * s / (p * q)) * (
         _f2((t + a) / s) - _f2((t + b) / s) - _f2((t - b) / s) + _f2((t - a) / s)
     )
+
+
+def _add_bars(bar_sum: FloatArray, posed: PosedBarSet, sig_r: float, sig_c: float) -> None:
+    """Add a posed bar set's blurred bars (0..1 coverage) into ``bar_sum``, each only over
+    the pixels its blur reaches."""
+    height, width = bar_sum.shape
+    for centre, half_len, half_w in posed.bars():
+        reach = half_len + 6.0 * max(sig_r, sig_c) + 2.0
+        r0 = max(int(np.floor(centre[0] - reach)), 0)
+        r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
+        c0 = max(int(np.floor(centre[1] - reach)), 0)
+        c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        rows = np.arange(r0, r1, dtype=np.float64)[:, None]
+        cols = np.arange(c0, c1, dtype=np.float64)[None, :]
+        bar_sum[r0:r1, c0:c1] += _rotated_bar(
+            rows, cols, centre, half_len, half_w, posed.theta_deg, sig_r, sig_c)
 
 
 def _rotated_bar(
@@ -447,16 +453,5 @@ def render_chart_image(
     for g, e in layout.elements:
         for orientation in ("sagittal", "tangential"):
             posed = posed_bar_set(layout, pose, g, e, orientation)  # type: ignore[arg-type]
-            for centre, half_len, half_w in posed.bars():
-                reach = half_len + 6.0 * blur_px + 2.0
-                r0 = max(int(np.floor(centre[0] - reach)), 0)
-                r1 = min(int(np.ceil(centre[0] + reach)) + 1, height)
-                c0 = max(int(np.floor(centre[1] - reach)), 0)
-                c1 = min(int(np.ceil(centre[1] + reach)) + 1, width)
-                if r0 >= r1 or c0 >= c1:
-                    continue
-                rows = np.arange(r0, r1, dtype=np.float64)[:, None]
-                cols = np.arange(c0, c1, dtype=np.float64)[None, :]
-                bar_sum[r0:r1, c0:c1] += _rotated_bar(
-                    rows, cols, centre, half_len, half_w, posed.theta_deg, blur_px, blur_px)
+            _add_bars(bar_sum, posed, blur_px, blur_px)
     return np.asarray(bright - (bright - dark) * np.clip(bar_sum, 0.0, 1.0), dtype=np.float64)
