@@ -1,10 +1,11 @@
 """The terminal UI's signal matrix (issue 38): screen x way of ending x trial.
 
 Starts ``benchlab --simulate`` in a pseudo-terminal that is its controlling terminal, opens a
-screen (Devices, Live, Sessions, or Run mid-radiometry), then either closes the terminal (the
-master side: the kernel hangs up the session, SIGHUP) or sends SIGTERM, and measures how long
-the process takes to end and with which status. On the Run screen it also reads the session's
-journal: status ``interrupted`` with the signal's name. Optionally keeps the cores busy.
+screen (Devices, Live, Sessions, the radiometry's set-up prompt unanswered, or Run
+mid-radiometry), then either closes the terminal (the master side: the kernel hangs up the
+session, SIGHUP) or sends SIGTERM, and measures how long
+the process takes to end and with which status. On the prompt and Run screens it also reads the
+session's journal: status ``interrupted`` with the signal's name. Optionally keeps the cores busy.
 
     python tools/tui_signal_matrix.py [--trials 20] [--busy 2] [--screens live,run]
 
@@ -29,7 +30,9 @@ from pathlib import Path
 
 DEADLINE_S = 5.0
 #: screen -> the keys that open it (and start the radiometry on the Run screen).
-SCREENS = {"devices": b"", "live": b"2", "sessions": b"4", "run": b"3p"}
+SCREENS = {"devices": b"", "live": b"2", "sessions": b"4", "prompt": b"3p", "run": b"3p"}
+#: Screens whose case starts the radiometry, so the journal must say interrupted.
+RUNS = ("prompt", "run")
 RADIOMETRY = Path(__file__).resolve().parents[1] / "fixtures" / "params" / "radiometry-small.toml"
 
 
@@ -75,6 +78,13 @@ def trial(screen: str, how: str) -> tuple[float, int | None, str]:
         for key in SCREENS[screen]:
             os.write(master, bytes([key]))
             time.sleep(1.0)
+        if screen == "prompt":  # the set-up prompt on screen, not answered
+            os.write(master, b"s")
+            while time.monotonic() < deadline and not any(
+                    e["kind"] == "prompt" for e in _journal(sessions)):
+                _drain(master, buf)
+                time.sleep(0.1)
+            time.sleep(0.5)  # the dialog composed
         if screen == "run":
             os.write(master, b"s")
             while time.monotonic() < deadline and not any(
@@ -100,7 +110,7 @@ def trial(screen: str, how: str) -> tuple[float, int | None, str]:
         if how != "SIGHUP":
             os.close(master)
         note = ""
-        if screen == "run":
+        if screen in RUNS:
             journal = _journal(sessions)
             reasons = [e.get("reason") for e in journal if e["kind"] == "interrupted"]
             last = " > ".join(e["kind"] for e in journal[-3:])
@@ -126,7 +136,7 @@ def main() -> int:
                 want = 128 + getattr(signal, how)
                 results = [trial(screen, how) for _ in range(args.trials)]
                 ok = [r for r in results if r[0] < DEADLINE_S and r[1] == want
-                      and (screen != "run" or r[2] == f"interrupted {how}")]
+                      and (screen not in RUNS or r[2] == f"interrupted {how}")]
                 bad += len(results) - len(ok)
                 times = sorted(r[0] for r in results)
                 notes = sorted({r[2] for r in results if r[2]})
