@@ -70,6 +70,8 @@ LOG_LEVELS = ("debug", "info", "warning", "error")
 #: taking a core from the frame loads and the forward view's thread; the analysis's linear
 #: algebra is a few dozen points (least squares), which gains nothing from them.
 ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Where ``benchlab --append`` (for ``--trace-io``) lands.
+APPEND_TRACE_DEST = "append_trace"
 #: Top-level options that take a value as the next word (``--log-level info``).
 _OPTIONS_WITH_VALUE = ("--log-level", "--trace-io", "--replay")
 
@@ -115,10 +117,15 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         help="log messages from this level up to stderr (default warning)")
     parser.add_argument("--trace-io", metavar="FILE", action=OutputFile,
                         help="record every device exchange to FILE, a cassette (.gz: "
-                             f"compressed) that --replay plays back; {FORCE_NOTE}")
+                             f"compressed) that --replay plays back; {FORCE_NOTE}, and added "
+                             "to only with --append")
     parser.add_argument("--force", action="store_true", dest=GLOBAL_FORCE_DEST,
                         help="let --trace-io replace an existing file (sub-commands that "
                              "write files take their own --force)")
+    parser.add_argument("--append", action="store_true", dest=APPEND_TRACE_DEST,
+                        help="let --trace-io add this command's exchanges to the end of an "
+                             "existing cassette (same format: .gz or not); any other file "
+                             "is refused")
     parser.add_argument("--replay", metavar="FILE",
                         help="answer the drivers with the bytes recorded in the cassette FILE "
                              "instead of devices (no hardware, no simulator)")
@@ -147,7 +154,7 @@ def plain_os_error(exc: OSError) -> str:
 
 #: Options that belong to ``benchlab`` itself, not to the terminal UI.
 _TOP_LEVEL_OPTIONS = {"-h", "--help", "--version", "--log-level", "--trace-io", "--replay",
-                      "--force"}
+                      "--force", "--append"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -189,16 +196,15 @@ def _main(argv: Sequence[str] | None) -> int:
         parser.print_help()
         return 2
     _setup_logging(args.log_level)
-    if args.trace_io:
+    if args.trace_io or getattr(args, APPEND_TRACE_DEST):
         from benchlab.drivers.trace import io_trace
 
         try:
-            check_output(args.trace_io, force=forced(args), option="--trace-io")
+            after = _trace_io_target(args)
         except UsageError as exc:
             print(f"benchlab: error: {exc}", file=sys.stderr)
             return 2
-
-        io_trace.start(args.trace_io)
+        io_trace.start(args.trace_io, after=after)
     if args.replay:
         from benchlab.drivers.trace import replay
 
@@ -235,6 +241,37 @@ def _main(argv: Sequence[str] | None) -> int:
                 from benchlab.drivers.trace import replay
 
                 replay.stop()
+
+
+def _trace_io_target(args: argparse.Namespace) -> int | None:
+    """Check ``--trace-io FILE`` against the output policy: None to write a new cassette, or
+    (``--append`` onto an existing cassette) the number of its last event.
+
+    Raises
+    ------
+    UsageError
+        ``--append`` without ``--trace-io`` or with ``--force``; a file inside a session; an
+        existing file without ``--append`` / ``--force``; ``--append`` onto a file that is not a
+        whole cassette of the same format (named, with what is wrong with it).
+    """
+    from benchlab.drivers.trace.cassette import CassetteError, last_event_number
+
+    append = bool(getattr(args, APPEND_TRACE_DEST))
+    if not args.trace_io:
+        raise UsageError("--append adds to the cassette of --trace-io FILE; give --trace-io")
+    if append and forced(args):
+        raise UsageError("--append and --force: give one (--append adds to the cassette, "
+                         "--force replaces it)")
+    target = check_output(args.trace_io, force=forced(args) or append, option="--trace-io")
+    if not append or not target.exists():
+        return None
+    try:
+        return last_event_number(target)
+    except CassetteError as exc:
+        why = str(exc).removeprefix(f"{target}: ")
+        raise UsageError(f"--trace-io {target}: not a cassette of this format ({why}); "
+                         "--append adds only to a cassette recorded by --trace-io under a "
+                         "name of the same kind (.gz or not); nothing written") from None
 
 
 def _replay_reason(exc: BaseException) -> str | None:

@@ -58,7 +58,26 @@ def show(data: bytes) -> str:
 
 def load(path: str | Path) -> list[Exchange]:
     """Every exchange of a cassette, in order; :class:`CassetteError` names a bad line."""
+    return _read(path)[0]
+
+
+def last_event_number(path: str | Path) -> int:
+    """The number of the last event (exchange or note) of the cassette ``path``, after
+    checking every line of it as :func:`load` does: what ``--append`` numbers on from.
+
+    Raises
+    ------
+    CassetteError
+        Naming the file when it is not a whole cassette (a frame, a session file, a
+        truncated gzip, a cassette of another version).
+    """
+    return _read(path)[1]
+
+
+def _read(path: str | Path) -> tuple[list[Exchange], int]:
+    """Every exchange of a cassette and the number of its last event (0: none)."""
     out: list[Exchange] = []
+    last = 0
     try:
         with open_text(path, "r") as fh:
             lines = fh.read().splitlines()
@@ -89,9 +108,11 @@ def load(path: str | Path) -> list[Exchange]:
                                     "cassette header (record one with --trace-io)")
             continue
         if "note" in item:
+            last = max(last, _number(item))
             continue
         try:
             n, device = int(item["n"]), str(item["dev"])
+            last = max(last, n)
             if "open" in item:
                 out.append(Exchange(n, device, "open", opened=dict(item["open"])))
                 continue
@@ -109,4 +130,10 @@ def load(path: str | Path) -> list[Exchange]:
         except (KeyError, ValueError, TypeError) as exc:
             raise CassetteError(f"{path}: line {i}: bad exchange ({exc})") from None
         out.append(Exchange(n, device, direction, data, ep))
-    return out
+    return out, last
+
+
+def _number(item: dict[str, object]) -> int:
+    """A note line's event number (0 when it has none: notes are free text)."""
+    n = item.get("n")
+    return n if isinstance(n, int) and not isinstance(n, bool) else 0

@@ -15,6 +15,11 @@ header; then one line per event, in the order they happened::
 (with their ASCII in ``text``), long ones (frames) in base64. A read that timed out is an
 event too: replay must time out in the same place. ``note`` lines are free text. Off by
 default; recording then costs one ``None`` check.
+
+``benchlab --append --trace-io FILE`` adds a recording to an existing cassette: a ``note``
+line ``recording appended ...`` starts it and its exchanges are numbered on from the file's
+last one (a gzip cassette gets a new gzip member, which readers join), so an exchange number
+names one exchange of the whole file.
 """
 
 from __future__ import annotations
@@ -47,15 +52,28 @@ def open_text(path: str | Path, mode: str) -> TextIO:
     return cast(TextIO, open(path, mode, encoding="ascii", buffering=1))  # noqa: SIM115
 
 
-def start(path: str | Path) -> None:
-    """Write a new cassette to ``path`` from now on (line-buffered, so a crash keeps it)."""
+def start(path: str | Path, *, after: int | None = None) -> None:
+    """Write a new cassette to ``path`` from now on (line-buffered, so a crash keeps it).
+
+    Parameters
+    ----------
+    path
+        The cassette file.
+    after
+        Append to the existing cassette ``path`` whose last event is number ``after`` (the
+        caller has checked it is a cassette: :func:`benchlab.drivers.trace.cassette.
+        last_event_number`); None writes a new file.
+    """
     global _out, _t0, _n
     stop()
-    fh = open_text(path, "w")
+    now = time.strftime("%Y-%m-%d %H:%M:%S %z")
+    fh = open_text(path, "w" if after is None else "a")
     with _lock:
-        _out, _t0, _n = fh, time.monotonic(), 0
-        fh.write(json.dumps({"cassette": CASSETTE_VERSION,
-                             "started": time.strftime("%Y-%m-%d %H:%M:%S %z")}) + "\n")
+        _out, _t0, _n = fh, time.monotonic(), after or 0
+        if after is None:
+            fh.write(json.dumps({"cassette": CASSETTE_VERSION, "started": now}) + "\n")
+    if after is not None:
+        note("cassette", f"recording appended {now}")
 
 
 def stop() -> None:
