@@ -2,8 +2,10 @@
 
 Rendered from ``verdicts/v<N>.json`` (never from a second verification), so what is filed is
 what was decided: unit and lot, spec name, revision and the sha256 of its file, decision rule
-and coverage, every limit's row (reading, interval, limit, margin, verdict and why), the
-sessions with their results version and every frame's sha256, and the software version.
+and coverage, every limit's row (reading, interval, limit, margin, verdict and why), readings
+of the unit's sessions that disagree beyond their uncertainties, the sessions with their
+results version, the sha256 of every file of those results versions (the numbers certified)
+and of every frame (what they were measured from), and the software version.
 Nothing is fetched from outside the page; the print style sheet fits A4 portrait. The same
 text is drawn as an A4 PDF by :mod:`benchlab.acceptance.certificate_pdf`.
 """
@@ -15,10 +17,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from benchlab.acceptance.agreement import Disagreement
 from benchlab.acceptance.spec import describe_limit
 from benchlab.report.html import esc, local_time
 
 SHA_KEY = "Spec file sha256"
+#: Said where a verdict record predates the results hashes (benchlab 0.2.0).
+NO_RESULTS_HASHES = "not recorded (a verdict stored before the results hashes were recorded)"
 MARGIN_NOTE = ("Margin: how far the reading lies inside the limit (negative: outside), in the "
                "quantity's unit.")
 SIGNATURES = ("Inspected by, date", "Approved by, date")
@@ -91,6 +96,11 @@ class CertificateContent:
     sessions: tuple[tuple[str, str, str, str, str], ...]
     #: (session, frame, sha256)
     frames: tuple[tuple[str, str, str], ...]
+    #: (session, results file ``results/v<N>/<file>``, sha256)
+    results: tuple[tuple[str, str, str], ...] = ()
+    #: One line per reading of another session of the unit that disagrees with the one
+    #: that decided (:mod:`benchlab.acceptance.agreement`).
+    disagreements: tuple[str, ...] = ()
 
 
 def certificate_content(record: Mapping[str, Any], session_id: str = "") -> CertificateContent:
@@ -132,17 +142,27 @@ def certificate_content(record: Mapping[str, Any], session_id: str = "") -> Cert
             column=str(r["column"]), reading=_num(r.get("reading")), interval=interval,
             limit=_limit(r), margin=_num(r.get("margin")), rule=str(r.get("rule", "")),
             verdict=str(r["verdict"]), why=why))
-    sessions, frames = [], []
+    sessions, frames, results = [], [], []
     for s in record.get("sessions", []):
         sessions.append((str(s["id"]), str(s.get("procedure", "")), local_time(s.get("started_at")),
                          f"v{s.get('results_version')}{' (partial)' if s.get('partial') else ''}",
                          str(s.get("software_version", ""))))
         frames += [(str(s["id"]), str(name), str(digest))
                    for name, digest in sorted((s.get("frames_sha256") or {}).items())]
+        if s.get("results_version") is None:
+            continue
+        folder = f"results/v{s['results_version']}"
+        hashes = s.get("results_sha256")
+        results += ([(str(s["id"]), f"{folder}/{name}", str(digest))
+                     for name, digest in sorted(hashes.items())] if hashes
+                    else [(str(s["id"]), folder, NO_RESULTS_HASHES)])
     return CertificateContent(
         title=f"Acceptance certificate - {serial}", verdict=str(record["verdict"]),
         record_name=record_name, identity=identity, coverage=float(spec.get("coverage", 0.95)),
-        rule=_rule_text(spec), limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames))
+        rule=_rule_text(spec), limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames),
+        results=tuple(results),
+        disagreements=tuple(Disagreement.from_dict(d).text()
+                            for d in record.get("disagreements") or []))
 
 
 def _badge(verdict: str, css: str = "verdict") -> str:
@@ -170,9 +190,16 @@ def render_certificate(record: Mapping[str, Any], session_id: str = "") -> str:
                              f"{esc(r.why)}</td></tr>")
     sessions_html = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in s) + "</tr>"
                             for s in c.sessions)
-    frames_html = "".join(f"<tr><td>{esc(sid)}</td><td>{esc(name)}</td>"
-                          f"<td class='hash'>{esc(digest)}</td></tr>"
-                          for sid, name, digest in c.frames)
+    frames_html, results_html = (
+        "".join(f"<tr><td>{esc(sid)}</td><td>{esc(name)}</td>"
+                f"<td class='hash'>{esc(digest)}</td></tr>" for sid, name, digest in rows)
+        for rows in (c.frames, c.results))
+    disagree_html = (
+        "<h2>Sessions that disagree</h2><ul id='disagreements'>"
+        + "".join(f"<li>{esc(d)}</li>" for d in c.disagreements)
+        + "</ul><p class='notes'>Readings of the unit's sessions that differ beyond their "
+        "uncertainties (E<sub>n</sub> &gt; 1, ISO 13528): such a row is never a pass.</p>"
+        if c.disagreements else "")
     kv_html = "".join(
         f"<tr><th>{esc(k)}</th><td>"
         + (f"<span class='hash'>{esc(v)}</span>" if k == SHA_KEY else esc(v)) + "</td></tr>"
@@ -192,9 +219,13 @@ def render_certificate(record: Mapping[str, Any], session_id: str = "") -> str:
 <th>margin</th><th>rule</th><th>verdict</th></tr></thead>
 <tbody>{''.join(rows_html)}</tbody></table>
 <p class="notes">{MARGIN_NOTE} {esc(c.rule)}.</p>
+{disagree_html}
 <h2>Sessions</h2>
 <table id="sessions"><thead><tr><th>session</th><th>procedure</th><th>started</th>
 <th>results</th><th>acquired with</th></tr></thead><tbody>{sessions_html}</tbody></table>
+<h2>Results (sha256 of the files certified)</h2>
+<table id="results"><thead><tr><th>session</th><th>file</th><th>sha256</th></tr></thead>
+<tbody>{results_html}</tbody></table>
 <h2>Frames (sha256 at acquisition)</h2>
 <table id="frames"><thead><tr><th>session</th><th>frame</th><th>sha256</th></tr></thead>
 <tbody>{frames_html}</tbody></table>

@@ -211,13 +211,22 @@ def _layout(c: CertificateContent) -> list[list[_Text | _Rule]]:
     pages.y_in += 0.05
     pages.paragraph(f"{MARGIN_NOTE} {c.rule}.")
 
+    if c.disagreements:
+        pages.heading("Sessions that disagree")
+        for text in c.disagreements:
+            pages.line(text, mono=True)
+        pages.paragraph("Readings of the unit's sessions that differ beyond their "
+                        "uncertainties (E_n > 1, ISO 13528): such a row is never a pass.")
+
     pages.heading("Sessions")
     _table(pages, ("session", "procedure", "started", "results", "acquired with"),
            (30, 13, 26, 14, 28), c.sessions)
-    pages.heading("Frames (sha256 at acquisition)")
-    session_width = min(26, max([len("session"), *(len(f[0]) for f in c.frames)]))
-    _table(pages, ("session", "frame", "sha256"),
-           (session_width, COLUMNS - session_width - 64 - 2 * GAP, 64), c.frames)
+    for title, what, hashes in (("Results (sha256 of the files certified)", "file", c.results),
+                                ("Frames (sha256 at acquisition)", "frame", c.frames)):
+        pages.heading(title)
+        session_width = min(26, max([len("session"), *(len(f[0]) for f in hashes)]))
+        _table(pages, ("session", what, "sha256"),
+               (session_width, COLUMNS - session_width - 64 - 2 * GAP, 64), hashes)
 
     if not pages.fits(0.7):
         pages.new_page()

@@ -42,6 +42,7 @@ def record_of(unit: UnitResult, software_version: str) -> dict[str, Any]:
         "limits": unit.limit_verdicts(),
         "sessions": [s.identity() for s in unit.sessions],
         "rows": [v.as_dict() for v in unit.verdicts],
+        "disagreements": [d.as_dict() for d in unit.disagreements],
     }
 
 

@@ -3,18 +3,26 @@
 Sessions of the same unit (the same serial number, ``sample`` in ``session.json``) are
 verified together: a spec may limit an MTF table and a camera table, measured in two
 sessions. Each limit reads its table from the newest of the unit's sessions that has it.
-A session without a serial number is a unit of its own.
+When an older session of the unit read the same quantity and the two readings disagree
+beyond their uncertainties (:mod:`benchlab.acceptance.agreement`), the row says so, naming
+both sessions and readings, and is never a pass: the start time does not settle which
+session is right. A session without a serial number is a unit of its own.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from benchlab.acceptance.agreement import Disagreement, disagreement
 from benchlab.acceptance.decide import (
+    INDETERMINATE,
+    PASS,
+    Reading,
     Verdict,
     combine,
     decide,
@@ -46,13 +54,15 @@ class SessionResults:
     partial: bool
     tables: dict[str, list[dict[str, Any]]]
     frames_sha256: dict[str, str]
+    #: sha256 of each file of the results version (its ``files_sha256``), checked on reading.
+    results_sha256: dict[str, str] = field(default_factory=dict)
 
     def identity(self) -> dict[str, Any]:
         return {"path": str(self.path), "id": self.path.name, "procedure": self.procedure,
                 "status": self.status, "started_at": self.started_at,
                 "results_version": self.results_version, "partial": self.partial,
                 "software_version": self.software_version,
-                "frames_sha256": self.frames_sha256}
+                "frames_sha256": self.frames_sha256, "results_sha256": self.results_sha256}
 
 
 def read_session(path: str | Path) -> SessionResults:
@@ -72,6 +82,7 @@ def read_session(path: str | Path) -> SessionResults:
         raw, summary = read_results(latest, skip=("table_sfr_curves",))
         tables = {k: v for k, v in raw.items() if isinstance(v, list)}
     frames = summary.get("frames_sha256")
+    files = summary.get("files_sha256")
     return SessionResults(
         path=session.path, serial=str(meta.get("sample") or ""), lot=str(meta.get("lot") or ""),
         procedure=session.procedure, status=session.status,
@@ -79,7 +90,8 @@ def read_session(path: str | Path) -> SessionResults:
         software_version=str(meta.get("software_version") or ""),
         results_version=int(latest.name[1:]) if latest is not None else None,
         partial=bool(summary.get("partial", False)), tables=tables,
-        frames_sha256=dict(frames) if isinstance(frames, dict) else {})
+        frames_sha256=dict(frames) if isinstance(frames, dict) else {},
+        results_sha256=dict(files) if isinstance(files, dict) else {})
 
 
 def table_of(results: SessionResults, name: str) -> list[dict[str, Any]] | None:
@@ -117,6 +129,8 @@ class UnitResult:
     spec: Spec
     sessions: list[SessionResults]
     verdicts: list[Verdict] = field(default_factory=list)
+    #: Readings of other sessions of the unit that disagree with the deciding one.
+    disagreements: list[Disagreement] = field(default_factory=list)
 
     @property
     def verdict(self) -> str:
@@ -158,10 +172,48 @@ def verify_unit(sessions: Sequence[SessionResults], spec: Spec) -> UnitResult:
                                              f"{limit.column!r}"))
                 break
             reading = reading_of(row, limit, spec.coverage)
-            unit.verdicts.append(decide(reading, limit, rule, table=limit.table,
-                                        row=row_label(row, limit, index, len(matched) > 1),
-                                        partial=source.partial))
+            label = row_label(row, limit, index, len(matched) > 1)
+            verdict = decide(reading, limit, rule, table=limit.table, row=label,
+                             partial=source.partial)
+            found = [d for other in ordered if other is not source
+                     if (d := _disagreement(limit, spec.coverage, label, row, reading, source,
+                                            other)) is not None]
+            unit.disagreements += found
+            unit.verdicts.append(_flag_disagreements(verdict, found))
     return unit
+
+
+def _row_key(row: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
+    """What names a row across sessions: its key columns' values."""
+    return tuple((c, _cell(row[c])) for c in KEY_COLUMNS if c in row)
+
+
+def _disagreement(limit: Limit, coverage: float, label: str, row: Mapping[str, Any],
+                  reading: Reading, source: SessionResults, other: SessionResults
+                  ) -> Disagreement | None:
+    """``other``'s reading of the same table, row and column, if it disagrees with
+    ``reading`` (``source``'s) beyond their uncertainties."""
+    rows = table_of(other, limit.table) or []
+    key = _row_key(row)
+    same = [r for r in rows if row_matches(r, limit.where) and _row_key(r) == key
+            and limit.column in r]
+    if len(same) != 1:  # not measured there, or no one row to compare with
+        return None
+    return disagreement(reading, reading_of(same[0], limit, coverage), limit_id=limit.id,
+                        table=limit.table, row=label, column=limit.column,
+                        decided_session=source.path.name, other_session=other.path.name)
+
+
+def _flag_disagreements(verdict: Verdict, found: Sequence[Disagreement]) -> Verdict:
+    """The row's verdict with the disagreements in its notes; never a pass with one."""
+    if not found:
+        return verdict
+    notes = [*verdict.notes, *(d.text() for d in found)]
+    if verdict.verdict == PASS:
+        notes.append("sessions of the unit disagree: never a pass (find which is wrong; "
+                     "verify the right one alone, or relabel the other with benchlab unit)")
+        return dataclasses.replace(verdict, verdict=INDETERMINATE, notes=notes)
+    return dataclasses.replace(verdict, notes=notes)
 
 
 def group_units(sessions: Iterable[SessionResults]) -> list[list[SessionResults]]:

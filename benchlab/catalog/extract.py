@@ -68,6 +68,8 @@ class VerdictRow:
     spec_sha256: str
     decision_rule: str
     verdict: str
+    #: Readings that disagree with another session of the unit (the record's list).
+    disagreements: int = 0
 
 
 @dataclass
@@ -173,7 +175,7 @@ def verdicts_of(folder: Path) -> Iterator[VerdictRow]:
             yield VerdictRow(version, str(doc.get("created_at", "")), str(unit["serial"]),
                              str(unit["lot"]), str(spec["name"]), str(spec.get("revision", "")),
                              str(spec.get("sha256", "")), str(spec.get("decision_rule", "")),
-                             str(doc["verdict"]))
+                             str(doc["verdict"]), len(doc.get("disagreements") or []))
         except (OSError, ValueError, KeyError, TypeError):
             continue
 

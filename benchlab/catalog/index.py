@@ -267,9 +267,11 @@ class Catalog:
         )
         conn.executemany(
             "INSERT INTO verdicts (session_id, version, created_at, serial, lot, spec_name,"
-            " spec_revision, spec_sha256, decision_rule, verdict) VALUES (?,?,?,?,?,?,?,?,?,?)",
+            " spec_revision, spec_sha256, decision_rule, verdict, disagreements)"
+            " VALUES (?,?,?,?,?,?,?,?,?,?,?)",
             [(r.id, v.version, v.created_at, v.serial, v.lot, v.spec_name, v.spec_revision,
-              v.spec_sha256, v.decision_rule, v.verdict) for v in r.verdicts],
+              v.spec_sha256, v.decision_rule, v.verdict, v.disagreements)
+             for v in r.verdicts],
         )
 
     # ------------------------------------------------------------------ reading
@@ -345,7 +347,8 @@ class Catalog:
     def units(self, *, lot: str | None = None) -> list[dict[str, Any]]:
         """Units under test (sessions' serial numbers, ``sample``): lot, sessions, the newest
         session, and the latest stored verdict per spec (``verdicts``: spec name ->
-        ``{verdict, revision, created_at, session_id, version}``), by serial number."""
+        ``{verdict, revision, created_at, session_id, version, disagreements}``; the last: how
+        many of its readings disagree with another session of the unit), by serial number."""
         self.refresh_running()
         args: list[Any] = []
         where = "WHERE s.sample != ''"
@@ -363,12 +366,13 @@ class Catalog:
                                      "started_at": row[5]})
         for row in self.conn.execute(
                 "SELECT s.sample, v.spec_name, v.spec_revision, v.verdict, v.created_at, "
-                "v.session_id, v.version FROM verdicts v JOIN sessions s ON s.id = v.session_id "
+                "v.session_id, v.version, v.disagreements FROM verdicts v "
+                "JOIN sessions s ON s.id = v.session_id "
                 "ORDER BY v.created_at, v.version"):  # the session's serial now (relabelled)
             if row[0] in units:  # later rows win: the latest verdict per spec
                 units[row[0]]["verdicts"][row[1]] = {
                     "revision": row[2], "verdict": row[3], "created_at": row[4],
-                    "session_id": row[5], "version": row[6]}
+                    "session_id": row[5], "version": row[6], "disagreements": row[7]}
         return list(units.values())
 
     def figure_keys(self) -> list[tuple[str, str, str, str]]:

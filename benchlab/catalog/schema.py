@@ -129,7 +129,13 @@ CREATE INDEX verdicts_by_unit ON verdicts(serial, spec_name, created_at);
 CREATE INDEX sessions_by_lot ON sessions(lot, started_at);
 """
 
-MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4, _V5, _V6)
+#: v7: how many readings of a stored verdict disagree with another session of the unit
+#: beyond their uncertainties (issue 38); verdicts stored before were never checked: 0.
+_V7 = """
+ALTER TABLE verdicts ADD COLUMN disagreements INTEGER NOT NULL DEFAULT 0;
+"""
+
+MIGRATIONS: tuple[str, ...] = (_V1, _V2, _V3, _V4, _V5, _V6, _V7)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

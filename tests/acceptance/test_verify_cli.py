@@ -108,8 +108,9 @@ def test_sessions_of_one_serial_are_one_unit(tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     root = tmp_path / "root"
     mtf = make_session(root, "mtf", serial="SN7")
-    cam = make_session(root, "cam", serial="SN7", modulation=0.1, gain=0.205,
+    cam = make_session(root, "cam", serial="SN7", modulation=None, gain=0.205,
                        started="2000-01-01T00:00:00+00:00")  # older: the MTF comes from `mtf`
+    # (a reading of its own that disagreed with `mtf` would be flagged: test_sessions_disagree)
     path = spec(tmp_path, limit(0.55), limit(max_=0.21, ident="gain", table="characterisation",
                                               column="system_gain_dn_per_e", where="{}"))
     assert main(["verify", str(mtf), str(cam), "--spec", str(path), "--json"]) == 0

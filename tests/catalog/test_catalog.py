@@ -199,7 +199,7 @@ def test_older_schema_is_migrated_keeping_its_rows(source: Path, tmp_path: Path)
                  "('old', '/gone', 'mtf', 'completed', 'then')")
     conn.close()
     with Catalog.open(root) as cat:
-        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 6
+        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 7
         (row,) = cat.sessions()
         assert row["id"] == "old" and row["sample"] == ""  # kept; not rebuilt
         cat.record(root / "s0")

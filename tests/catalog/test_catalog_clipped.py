@@ -76,5 +76,5 @@ def test_v4_catalogue_rows_without_text_are_reread(clipped_root: Path, tmp_path:
     conn.close()
     with Catalog.open(root) as cat:
         (point,) = cat.trend(view="radiometry", element="18mm", quantity="measured_normalised")
-        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == 6
+        assert cat.conn.execute("PRAGMA user_version").fetchone()[0] == 7
     assert (point.value, point.text) == (None, "clipped")

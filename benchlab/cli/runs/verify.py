@@ -142,6 +142,9 @@ def _print_unit(record: dict[str, Any]) -> None:
     print(f"spec {spec['name']}{' rev ' + spec['revision'] if spec['revision'] else ''}  "
           f"rule {spec['decision_rule']}  coverage {spec['coverage']:.0%}")
     print(verdict_table(record["rows"]))
+    if record.get("disagreements"):
+        print(f"sessions of this unit disagree beyond their uncertainties on "
+              f"{len(record['disagreements'])} reading(s): see the notes")
     for item in record.get("stored", []):
         print(f"stored: {item['file']}" if item["new"] else
               f"identical to {item['file']}: no new version written")
@@ -162,12 +165,20 @@ def units_command(args: argparse.Namespace) -> int:
     specs = sorted({name for u in units for name in u["verdicts"]})
     header = ["serial", "lot", "sessions", *specs]
     cells = [[u["serial"], u["lot"] or "-", str(len(u["sessions"])),
-              *(u["verdicts"][n]["verdict"] if n in u["verdicts"] else "-" for n in specs)]
+              *(_unit_verdict(u["verdicts"][n]) if n in u["verdicts"] else "-" for n in specs)]
              for u in units]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(header)]
     for line in [header, *cells]:
         print("  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    if any(v.get("disagreements") for u in units for v in u["verdicts"].values()):
+        print("* sessions of the unit disagree beyond their uncertainties: the verdict's notes "
+              "name them (benchlab certificate SESSION)")
     return 0
+
+
+def _unit_verdict(verdict: dict[str, Any]) -> str:
+    """A unit's stored verdict for ``units``: marked ``*`` when its sessions disagree."""
+    return verdict["verdict"] + ("*" if verdict.get("disagreements") else "")
 
 
 def unit_command(args: argparse.Namespace) -> int:
