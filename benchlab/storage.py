@@ -43,6 +43,19 @@ METADATA_VERSION = 1
 SOFTWARE = "benchlab"
 
 
+def printable_name(name: str | os.PathLike[str]) -> str:
+    """A file or folder name as text that encodes as UTF-8: bytes that are not UTF-8 (a
+    folder named on another system; Python keeps them as surrogate escapes) are shown as
+    backslash-x escapes, ``bad\\xffname``. Text that is UTF-8 already is returned as it is.
+    For catalogues, pages and certificates, which hold UTF-8 text only."""
+    text = os.fspath(name)
+    try:
+        raw = text.encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError:  # a lone surrogate that stands for no byte
+        raw = text.encode("utf-8", "backslashreplace")
+    return raw.decode("utf-8", "backslashreplace")
+
+
 def _current_umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -20,6 +20,7 @@ from typing import Any
 from benchlab.acceptance.agreement import Disagreement
 from benchlab.acceptance.spec import describe_limit
 from benchlab.report.html import esc, local_time
+from benchlab.storage import printable_name
 
 SHA_KEY = "Spec file sha256"
 #: Said where a verdict record predates the results hashes (benchlab 0.2.0).
@@ -118,6 +119,7 @@ def certificate_content(record: Mapping[str, Any], session_id: str = "") -> Cert
     CertificateContent
         Every line of the certificate as text; numbers formatted, limits with their sign.
     """
+    session_id = printable_name(session_id)  # the page is UTF-8 text only
     unit, spec = record["unit"], record["spec"]
     serial = unit.get("serial") or "(no serial number)"
     record_name = f"{session_id} verdicts/v{record.get('version', '?')}.json"
@@ -144,24 +146,25 @@ def certificate_content(record: Mapping[str, Any], session_id: str = "") -> Cert
             verdict=str(r["verdict"]), why=why))
     sessions, frames, results = [], [], []
     for s in record.get("sessions", []):
-        sessions.append((str(s["id"]), str(s.get("procedure", "")), local_time(s.get("started_at")),
+        sid = printable_name(str(s["id"]))
+        sessions.append((sid, str(s.get("procedure", "")), local_time(s.get("started_at")),
                          f"v{s.get('results_version')}{' (partial)' if s.get('partial') else ''}",
                          str(s.get("software_version", ""))))
-        frames += [(str(s["id"]), str(name), str(digest))
+        frames += [(sid, str(name), str(digest))
                    for name, digest in sorted((s.get("frames_sha256") or {}).items())]
         if s.get("results_version") is None:
             continue
         folder = f"results/v{s['results_version']}"
         hashes = s.get("results_sha256")
-        results += ([(str(s["id"]), f"{folder}/{name}", str(digest))
+        results += ([(sid, f"{folder}/{name}", str(digest))
                      for name, digest in sorted(hashes.items())] if hashes
-                    else [(str(s["id"]), folder, NO_RESULTS_HASHES)])
+                    else [(sid, folder, NO_RESULTS_HASHES)])
     return CertificateContent(
         title=f"Acceptance certificate - {serial}", verdict=str(record["verdict"]),
         record_name=record_name, identity=identity, coverage=float(spec.get("coverage", 0.95)),
         rule=_rule_text(spec), limits=tuple(limits), sessions=tuple(sessions), frames=tuple(frames),
         results=tuple(results),
-        disagreements=tuple(Disagreement.from_dict(d).text()
+        disagreements=tuple(printable_name(Disagreement.from_dict(d).text())
                             for d in record.get("disagreements") or []))
 
 

@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 from benchlab.catalog.extract import SessionRecord, is_session_folder, read_session_record
 from benchlab.catalog.schema import SCHEMA_VERSION, CatalogSchemaError, migrate
 from benchlab.drivers.errors import BenchlabError, UsageError
+from benchlab.storage import printable_name
 
 CATALOG_FILE = "catalog.sqlite"
 #: How long a writer waits for another process's transaction before giving up.
@@ -241,7 +242,7 @@ class Catalog:
         if not (_is_text(r.id) and _is_text(r.path)):
             # A folder name that is not UTF-8 (from another system): SQLite holds text only,
             # so its bytes are stored escaped (bad\xffname) - listed, never a crash (issue 38).
-            r = dataclasses.replace(r, id=_sql_text(r.id), path=_sql_text(r.path))
+            r = dataclasses.replace(r, id=printable_name(r.id), path=printable_name(r.path))
         self._delete(conn, r.id)
         latest = r.latest
         conn.execute(
@@ -330,6 +331,7 @@ class Catalog:
     def show(self, session_id: str) -> dict[str, Any]:
         """One session with its results versions and the figures of its latest version."""
         self.refresh_running()
+        session_id = printable_name(session_id)  # a name that is not UTF-8 is stored escaped
         row = self.conn.execute("SELECT * FROM sessions WHERE id = ?", (session_id,)).fetchone()
         if row is None:
             raise CatalogError(f"no session {session_id!r} in {self.path} "
@@ -515,9 +517,17 @@ def _is_text(text: str) -> bool:
     return True
 
 
-def _sql_text(name: str) -> str:
-    """A file name as UTF-8 text: undecodable bytes written as backslash-x escapes."""
-    return os.fsencode(name).decode("utf-8", "backslashreplace")
+def session_folder(path: str) -> Path:
+    """The folder of a catalogue row's ``path``: a folder whose name is not UTF-8 is stored
+    escaped (:func:`~benchlab.storage.printable_name`), and found again among its parent's
+    folders by that escaped name."""
+    folder = Path(path)
+    if folder.exists() or not folder.parent.is_dir():
+        return folder
+    for child in folder.parent.iterdir():
+        if child.name != folder.name and printable_name(child.name) == folder.name:
+            return child
+    return folder
 
 
 def _read_only(root: Path, path: Path) -> bool:

@@ -11,11 +11,14 @@ Each command group lives in its own module, in ``devices/`` (the instruments), `
 from __future__ import annotations
 
 import argparse
+import codecs
+import contextlib
 import errno
 import importlib
+import io
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from benchlab.cli import UsageError
 from benchlab.cli.output import FORCE_NOTE, GLOBAL_FORCE_DEST, OutputFile, check_output, forced
@@ -184,7 +187,48 @@ def main(argv: Sequence[str] | None = None) -> int:
     return status
 
 
+#: The error handler of the command's output: a character the terminal's encoding cannot
+#: take (a folder name's byte that is not UTF-8) is printed escaped, never a traceback.
+PRINTABLE_ERRORS = "benchlab.printable"
+
+
+def _escape_unencodable(exc: UnicodeError) -> tuple[str, int]:
+    """A file name's undecodable byte (Python's surrogate escape U+DC80-U+DCFF) as ``\\xNN``,
+    as :func:`benchlab.storage.printable_name` shows it; anything else as ``\\uNNNN``."""
+    if not isinstance(exc, UnicodeEncodeError):
+        raise exc
+    text = exc.object[exc.start:exc.end]
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if 0xDC80 <= ord(c) <= 0xDCFF
+                   else c.encode("ascii", "backslashreplace").decode("ascii")
+                   for c in text), exc.end
+
+
+codecs.register_error(PRINTABLE_ERRORS, _escape_unencodable)
+
+
+@contextlib.contextmanager
+def _printable_output() -> Iterator[None]:
+    """stdout and stderr escape what they cannot encode while a command runs (the streams
+    are restored after: tests capture them)."""
+    changed = []
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors in ("strict",
+                                                                       "backslashreplace"):
+            changed.append((stream, stream.errors))
+            stream.reconfigure(errors=PRINTABLE_ERRORS)
+    try:
+        yield
+    finally:
+        for stream, errors in changed:
+            stream.reconfigure(errors=errors)
+
+
 def _main(argv: Sequence[str] | None) -> int:
+    with _printable_output():
+        return _run(argv)
+
+
+def _run(argv: Sequence[str] | None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     first = args_list[0].split("=", 1)[0] if args_list else ""
     if not args_list or (first.startswith("-") and first not in _TOP_LEVEL_OPTIONS):

@@ -18,7 +18,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-esc = html.escape
+from benchlab.storage import printable_name
+
+
+def esc(text: str, quote: bool = True) -> str:
+    """``text`` escaped for HTML, and as UTF-8 text: a folder name that is not UTF-8 is shown
+    with backslash-x escapes (:func:`~benchlab.storage.printable_name`), never a page that
+    cannot be written."""
+    return html.escape(printable_name(text), quote)
+
 
 #: Resolution of the matplotlib plots (pixels per inch): labels of 9-10 pt stay legible.
 PLOT_DPI = 100

@@ -135,9 +135,11 @@ def verify_command(args: argparse.Namespace) -> int:
 
 
 def _print_unit(record: dict[str, Any]) -> None:
+    from benchlab.storage import printable_name
+
     spec = record["spec"]
     unit = record["unit"]
-    names = ", ".join(s["id"] for s in record["sessions"])
+    names = ", ".join(printable_name(s["id"]) for s in record["sessions"])
     print(f"unit {unit['serial'] or '(no serial)'}  lot {unit['lot'] or '-'}  sessions {names}")
     print(f"spec {spec['name']}{' rev ' + spec['revision'] if spec['revision'] else ''}  "
           f"rule {spec['decision_rule']}  coverage {spec['coverage']:.0%}")
@@ -146,8 +148,9 @@ def _print_unit(record: dict[str, Any]) -> None:
         print(f"sessions of this unit disagree beyond their uncertainties on "
               f"{len(record['disagreements'])} reading(s): see the notes")
     for item in record.get("stored", []):
-        print(f"stored: {item['file']}" if item["new"] else
-              f"identical to {item['file']}: no new version written")
+        file = printable_name(item["file"])
+        print(f"stored: {file}" if item["new"] else
+              f"identical to {file}: no new version written")
     print(f"unit verdict: {record['verdict'].upper()}\n")
 
 
@@ -211,14 +214,15 @@ def unit_command(args: argparse.Namespace) -> int:
 def lot_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.lot import lot_statistics
     from benchlab.acceptance.verify import check_sessions, group_units, verify_unit
-    from benchlab.catalog.index import Catalog
+    from benchlab.catalog.index import Catalog, session_folder
 
     spec = _load_spec(args.spec)
     root = sessions_root(args.root)
     if args.html:  # before any work
         check_output(args.html, force=forced(args), option="--html")
     with Catalog.open(root) as catalog:
-        paths = [s["path"] for s in catalog.sessions(lot=args.lot, descending=False)]
+        paths = [session_folder(s["path"])
+                 for s in catalog.sessions(lot=args.lot, descending=False)]
     if not paths:
         raise UsageError(f"no session of lot {args.lot!r} under {root}")
     units = [verify_unit(g, spec) for g in group_units(check_sessions(paths))]
@@ -267,6 +271,7 @@ def certificate_command(args: argparse.Namespace) -> int:
     from benchlab.acceptance.certificate import render_certificate
     from benchlab.acceptance.certificate_pdf import certificate_pdf
     from benchlab.acceptance.store import read_verdict
+    from benchlab.storage import printable_name
 
     pdf = args.pdf or (args.out is not None and Path(args.out).suffix.lower() == ".pdf")
     if args.pdf and args.out and Path(args.out).suffix.lower() in (".html", ".htm"):
@@ -283,7 +288,8 @@ def certificate_command(args: argparse.Namespace) -> int:
     else:
         write_output(out, render_certificate(record, session_id=folder.name),
                      force=forced(args), option=option)
-    print(f"certificate: {out}  (unit {record['unit']['serial'] or '-'}: {record['verdict']})")
+    print(f"certificate: {printable_name(out)}  (unit {record['unit']['serial'] or '-'}: "
+          f"{record['verdict']})")
     return 0
 
 
