@@ -13,6 +13,7 @@ the JSON in the ImageDescription tag; :func:`load_frame_tiff` reads both.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import io
@@ -20,7 +21,7 @@ import json
 import logging
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -54,6 +55,19 @@ def printable_name(name: str | os.PathLike[str]) -> str:
     except UnicodeEncodeError:  # a lone surrogate that stands for no byte
         raw = text.encode("utf-8", "backslashreplace")
     return raw.decode("utf-8", "backslashreplace")
+
+
+@contextlib.contextmanager
+def naming(path: str | os.PathLike[str]) -> Iterator[None]:
+    """Errors of the writes inside name ``path``: ``write()`` and ``fsync()`` on a full disk
+    (ENOSPC), over a size limit (EFBIG) or on a failing device (EIO) raise an ``OSError``
+    without a file name, so the user would read "No space left on device" and not where."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is not None or exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror, os.fspath(path)) from exc
 
 
 def _current_umask() -> int:
@@ -110,7 +124,7 @@ def atomic_write_bytes(
     tmp = Path(tmp_name)
     try:
         os.fchmod(fd, _FILE_MODE)
-        with os.fdopen(fd, "wb") as fh:
+        with naming(target), os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             if durable:
@@ -138,8 +152,9 @@ def write_new_file(path: str | os.PathLike[str], data: bytes) -> Path:
     fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _FILE_MODE)
     try:
         view = memoryview(data)
-        while view:
-            view = view[os.write(fd, view):]
+        with naming(target):
+            while view:
+                view = view[os.write(fd, view):]
     finally:
         os.close(fd)
     return target

@@ -150,7 +150,8 @@ def plain_os_error(exc: OSError) -> str:
     hint = {errno.EACCES: " (no permission to write there?)",
             errno.EROFS: " (read-only file system)",
             errno.EEXIST: " (already exists; nothing was overwritten)",
-            errno.ENOSPC: " (disk full)"}.get(exc.errno or 0, "")
+            errno.ENOSPC: " (disk full)",
+            errno.EFBIG: " (over the file size limit: ulimit -f)"}.get(exc.errno or 0, "")
     name = exc.filename if exc.filename is not None else ""
     return f"{name}: {what.lower()}{hint}" if name else f"{what}{hint}"
 

@@ -103,13 +103,24 @@ class Session(SessionResults):
             "finished_at": None,
             "status": "running",
         }
-        (folder / FRAMES_DIR).mkdir()
-        (folder / RESULTS_DIR).mkdir()
-        atomic_write_text(folder / EVENTS_FILE, "", overwrite=False)
         session = cls(folder, meta)
-        session.hold()  # before session.json exists, so nobody ever sees it running unowned
-        atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
-        session.log_event("session_created", procedure=procedure)
+        try:
+            (folder / FRAMES_DIR).mkdir()
+            (folder / RESULTS_DIR).mkdir()
+            atomic_write_text(folder / EVENTS_FILE, "", overwrite=False)
+            session.hold()  # before session.json exists, so nobody ever sees it running unowned
+            atomic_write_json(folder / SESSION_FILE, meta, overwrite=False)
+            session.log_event("session_created", procedure=procedure)
+        except OSError as exc:
+            # A full disk (or a size limit) while the folder is made: it holds nothing
+            # acquired yet, and a folder without a readable session file would be a stub
+            # that neither `sessions list` nor `resume` can read. It goes.
+            session.release()
+            shutil.rmtree(folder, ignore_errors=True)
+            what = exc.strerror or str(exc)
+            raise SessionError(f"{exc.filename or folder}: cannot create the session "
+                               f"({what.lower()}); nothing was acquired and the folder "
+                               f"{folder} was removed") from exc
         return session
 
     @classmethod

@@ -18,6 +18,7 @@ from benchlab.session.layout import (
     _now_iso,
     _plain,
 )
+from benchlab.storage import naming
 
 
 class SessionJournal(SessionFolder):
@@ -51,7 +52,7 @@ class SessionJournal(SessionFolder):
         """
         record = {"time": _now_iso(), "kind": kind, **_plain(data)}
         line = json.dumps(record, allow_nan=False) + "\n"
-        with self._lock:
+        with self._lock, naming(self.events_path):  # a full disk names the journal
             fd = os.open(self.events_path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
             try:
                 torn = self._torn_tail_length(fd)
