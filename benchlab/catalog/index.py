@@ -522,8 +522,8 @@ def session_folder(path: str) -> Path:
     escaped (:func:`~benchlab.storage.printable_name`), and found again among its parent's
     folders by that escaped name."""
     folder = Path(path)
-    if folder.exists() or not folder.parent.is_dir():
-        return folder
+    if "\\x" not in folder.name or folder.exists() or not folder.parent.is_dir():
+        return folder  # no escape in the name (no file system call: listings are long)
     for child in folder.parent.iterdir():
         if child.name != folder.name and printable_name(child.name) == folder.name:
             return child

@@ -665,7 +665,7 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
                      descending: bool = True) -> list[SessionSummary]:
     """Sessions from the catalogue (rebuilt from the folders if missing), those whose id,
     sample, procedure, status or operator contain ``text`` (any case)."""
-    from benchlab.catalog.index import Catalog
+    from benchlab.catalog.index import Catalog, session_folder
 
     if not root.is_dir():
         return []
@@ -675,7 +675,8 @@ def catalog_sessions(root: Path, text: str = "", sort: str = "started_at",
     keys = ("id", "sample", "procedure", "status", "operator")
     return [
         SessionSummary(
-            path=root / r["id"], procedure=r["procedure"], status=r["status"],
+            path=session_folder(str(root / r["id"])), procedure=r["procedure"],
+            status=r["status"],
             started_at=str(r["started_at"])[:19].replace("T", " "), operator=r["operator"],
             steps_done=-1, result_versions=r["results_version"] or 0, error=r["error"],
             sample=r["sample"], unreadable_version=r.get("unreadable_version"),

@@ -54,6 +54,11 @@ def test_list_reindex_and_show(root: Path, capsys: pytest.CaptureFixture[str]) -
         first = capsys.readouterr().out.splitlines()[0]
         assert first.split() == ["id", SHOWN]
     assert session_folder(str(root / SHOWN)) == root / os.fsdecode(RAW)
+    # the terminal UI's sessions screen opens the folder itself, not the escaped name
+    from benchlab.tui.services import catalog_sessions
+
+    paths = {s.path.name: s.path for s in catalog_sessions(root)}
+    assert paths[os.fsdecode(RAW)] == root / os.fsdecode(RAW)
 
 
 def test_verify_lot_and_certificate(root: Path, tmp_path: Path,
