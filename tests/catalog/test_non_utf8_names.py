@@ -71,10 +71,17 @@ def test_verify_lot_and_certificate(root: Path, tmp_path: Path,
     assert main(["lot", "L1", "--spec", str(path), "--root", str(root), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["units"] == 2 and result["verdicts"]["pass"] == 2
-    for extra in ([], ["--pdf"]):
-        assert main(["certificate", str(bad), *extra]) == 0
+    assert main(["certificate", str(bad)]) == 0
+    assert f"certificate: {root}/{SHOWN}/certificate-v1.html" in capsys.readouterr().out
     page = (bad / "certificate-v1.html").read_text(encoding="utf-8")
     assert f"{SHOWN} verdicts/v1.json" in page
+
+
+@pytest.mark.slow
+def test_pdf_certificate(root: Path, tmp_path: Path) -> None:
+    bad = root / os.fsdecode(RAW)
+    assert main(["verify", str(bad), "--spec", str(spec(tmp_path, limit(0.55)))]) == 0
+    assert main(["certificate", str(bad), "--pdf"]) == 0
     assert (bad / "certificate-v1.pdf").read_bytes().startswith(b"%PDF-")
 
 

@@ -46,6 +46,7 @@ def test_an_existing_cassette_is_refused_without_append_or_force(
     assert _digest(cassette) == before
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["bench.jsonl", "bench.jsonl.gz"])
 def test_append_adds_a_numbered_recording_to_a_cassette(
         tmp_path: Path, name: str, capsys: pytest.CaptureFixture[str]) -> None:
