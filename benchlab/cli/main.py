@@ -230,10 +230,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def _run(argv: Sequence[str] | None) -> int:
-    args_list = list(sys.argv[1:] if argv is None else argv)
-    first = args_list[0].split("=", 1)[0] if args_list else ""
-    if not args_list or (first.startswith("-") and first not in _TOP_LEVEL_OPTIONS):
-        args_list = ["tui", *args_list]  # `benchlab --simulate --sessions DIR` is the TUI
+    args_list = with_tui(list(sys.argv[1:] if argv is None else argv))
     parser = build_parser(command_of(args_list))
     args = parser.parse_args(args_list)
     func = getattr(args, "func", None)
@@ -317,6 +314,19 @@ def _trace_io_target(args: argparse.Namespace) -> int | None:
         raise UsageError(f"--trace-io {target}: not a cassette of this format ({why}); "
                          "--append adds only to a cassette recorded by --trace-io under a "
                          "name of the same kind (.gz or not); nothing written") from None
+
+
+def with_tui(argv: list[str]) -> list[str]:
+    """``argv`` with the ``tui`` command where the terminal UI is meant: no command, or an
+    option of the UI's right after ``benchlab``'s own (``benchlab --simulate``, ``benchlab
+    --append --trace-io bench.jsonl --simulate``)."""
+    i = 0
+    while i < len(argv) and (name := argv[i].split("=", 1)[0]) in _TOP_LEVEL_OPTIONS:
+        i += 2 if name in _OPTIONS_WITH_VALUE and "=" not in argv[i] else 1
+    rest = argv[i:]
+    if not argv or (rest and rest[0].startswith("-")):
+        return [*argv[:i], "tui", *rest]
+    return argv
 
 
 def _replay_reason(exc: BaseException) -> str | None:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from acceptance_sessions import make_session
 
-from benchlab.cli.main import main
+from benchlab.cli.main import build_parser, main, with_tui
 from benchlab.drivers.trace import io_trace
 from benchlab.drivers.trace.cassette import last_event_number, load
 
@@ -99,3 +99,21 @@ def test_append_is_refused_onto_anything_but_a_cassette_of_its_format(
         assert f"--trace-io {target}: is part of the " in capsys.readouterr().err
     assert {p: _digest(p) for p in before} == before
     assert not (tmp_path / "c.tiff").exists()  # refused before the command ran
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    (["--append", "--trace-io", "c.jsonl", "--simulate"],
+     ["--append", "--trace-io", "c.jsonl", "tui", "--simulate"]),
+    (["--trace-io=c.jsonl.gz", "--force", "--simulate", "--sessions", "s"],
+     ["--trace-io=c.jsonl.gz", "--force", "tui", "--simulate", "--sessions", "s"]),
+    (["--simulate"], ["tui", "--simulate"]), ([], ["tui"]),
+    (["--trace-io", "c.jsonl", "snap", "x.tiff"], ["--trace-io", "c.jsonl", "snap", "x.tiff"]),
+    (["--help"], ["--help"]), (["--log-level", "info"], ["--log-level", "info"]),
+])
+def test_the_terminal_ui_is_recorded_too(argv: list[str], expected: list[str]) -> None:
+    """``benchlab --append --trace-io FILE --simulate`` records the terminal UI's exchanges
+    (before, the UI's options after ``--trace-io FILE`` were refused as unknown)."""
+    assert with_tui(argv) == expected
+    if "tui" in expected:
+        args = build_parser().parse_args(expected)
+        assert args.command == "tui" and args.simulate == ("--simulate" in argv)
