@@ -46,8 +46,8 @@ class ProcedureEntry:
 _P = "benchlab.protocols"
 REGISTRY: dict[str, ProcedureEntry] = {e.name: e for e in (
     ProcedureEntry("mtf", "MTF (Table 4.10)", "checklist (Table 4.10 steps)",
-                   f"{_P}.params:MtfParams", f"{_P}.params:check_mtf",
-                   f"{_P}.params:mtf_to_dict", f"{_P}.mtf.steps:MtfProcedure"),
+                   f"{_P}.mtf.params:MtfParams", f"{_P}.mtf.params:check_mtf",
+                   f"{_P}.mtf.params:mtf_to_dict", f"{_P}.mtf.steps:MtfProcedure"),
     ProcedureEntry("radiometry", "Radiometry (section 4.4)", "positions (section 4.4)",
                    f"{_P}.params:RadiometryParams", f"{_P}.params:check_radiometry",
                    f"{_P}.params:radiometry_to_dict",

@@ -20,7 +20,6 @@ from benchlab.protocols.engine import (
 )
 from benchlab.protocols.params import (
     BenchLimits,
-    MtfParams,
     Params,
     ParamsError,
     RadiometryParams,
@@ -283,7 +282,7 @@ def _prefetch_frames(session: Session) -> None:
         params = session_params(session)
     except (ParamsError, SessionError):
         return
-    if isinstance(params, MtfParams):
+    if entry_of(params).name == "mtf":
         session.prefetch_frames(FRAME_LOAD_THREADS)
 
 

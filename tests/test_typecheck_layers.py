@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 PROBE = '''\
 from benchlab.drivers.mightex.camera import MightexCamera
-from benchlab.protocols.params import UsafElement
+from benchlab.protocols.mtf.params import UsafElement
 
 
 def right() -> None:

@@ -77,7 +77,6 @@ from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bi
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
 from benchlab.analysis.noise import MAD_TO_SIGMA
-from benchlab.analysis.quantiles import median, percentiles
 from benchlab.analysis.sfr.refusals import (
     FIT_RMS_WARN_PX,
     OUTLIER_REFUSE_FRACTION,
@@ -468,7 +467,7 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
     if row_diff.size == 0:
         return 0.0
     d = row_diff.ravel()
-    mad = float(median(np.abs(d - median(d))))
+    mad = float(np.median(np.abs(d - np.median(d))))
     return MAD_TO_SIGMA * mad / math.sqrt(2.0)
 
 
@@ -1407,7 +1406,7 @@ def _prepare_roi(
     d_flat = row_diff.ravel()  # finite: checked above
     mad = _finite_median(np.abs(d_flat - _finite_median(d_flat)))
     noise = MAD_TO_SIGMA * mad / math.sqrt(2.0)
-    p02, p98 = percentiles(work, [2.0, 98.0])
+    p02, p98 = np.percentile(work, [2.0, 98.0])
     spread = float(p98 - p02)
     if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
         raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "
