@@ -67,7 +67,18 @@ REGISTRY: dict[str, ProcedureEntry] = {e.name: e for e in (
 )}
 
 #: The procedures in the order the interfaces offer them.
-PROCEDURES: tuple[str, ...] = tuple(REGISTRY)
+PROCEDURES: tuple[ProcedureName, ...] = tuple(e.name for e in REGISTRY.values())
+
+
+def procedure_name(name: str) -> ProcedureName:
+    """``name`` as a :data:`ProcedureName` (a string from the command line or a file).
+
+    Raises
+    ------
+    KeyError
+        Naming the unknown procedure and the known ones (as :func:`entry`).
+    """
+    return entry(name).name
 
 
 def entry(name: str) -> ProcedureEntry:

@@ -419,7 +419,9 @@ def make_runner(
 ) -> Runner:
     """A runner for a fresh run, or for resuming the session at ``resume``; ``sample`` and
     ``lot``: the unit's serial number and lot, stored in session.json."""
+    from benchlab.procedures import procedure_name
     from benchlab.protocols import load_params, resume_run, start_run
+    from benchlab.protocols.runs import check_estimator
 
     if resume is not None:
         return resume_run(
@@ -427,9 +429,9 @@ def make_runner(
             on_result=on_result,
         )
     return start_run(
-        procedure, bench=bench, params=load_params(procedure, params), root=root,
-        operator=operator, prompt=prompt, progress=progress, abort=abort, on_result=on_result,
-        estimator=estimator, sample=sample, lot=lot,
+        procedure_name(procedure), bench=bench, params=load_params(procedure, params),
+        root=root, operator=operator, prompt=prompt, progress=progress, abort=abort,
+        on_result=on_result, estimator=check_estimator(estimator), sample=sample, lot=lot,
     )
 
 
@@ -585,8 +587,9 @@ def table_rows(data: Any) -> tuple[list[str], list[Mapping[str, Any]]]:
 def reanalyse(path: Path, estimator: str | None) -> Path:
     """A new results version from the saved frames (frames are never modified)."""
     from benchlab.protocols import reanalyze
+    from benchlab.protocols.runs import check_estimator
 
-    return Path(reanalyze(path, estimator=estimator))
+    return Path(reanalyze(path, estimator=check_estimator(estimator)))
 
 
 def write_report(path: Path) -> Path:
