@@ -10,7 +10,7 @@ from __future__ import annotations
 import errno
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -379,17 +379,6 @@ def read_focus(tracker: ChartTracker, pixels: npt.NDArray[Any]
 
 
 # -- procedures ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ChecklistStep:
-    """A step as the checklist shows it before a run exists."""
-
-    id: str
-    title: str
-    table_step: str
-    kind: str = ""
-    info: Mapping[str, Any] = field(default_factory=dict)
 
 
 def procedure_checklist(procedure: str, params_file: Path | None) -> list[Step]:
