@@ -11,7 +11,9 @@ import pytest
 from benchlab.analysis.bars.estimators import ESTIMATORS, EstimatorChoice, EstimatorName
 from benchlab.analysis.bars.roi import ORIENTATION_AXIS, BarOrientation
 from benchlab.analysis.chart.layout import Orientation
+from benchlab.analysis.sfr.measure import METHODS, SfrMethod
 from benchlab.cli.frames.analysis import ORIENTATION_CHOICES
+from benchlab.cli.frames.chart import CHART_KINDS, ChartKind
 from benchlab.procedures import PROCEDURES, REGISTRY, ProcedureName, procedure_name
 from benchlab.protocols.runs import UnknownEstimatorError, check_estimator
 
@@ -29,6 +31,8 @@ def test_each_alias_names_exactly_what_the_registry_defines() -> None:
     assert set(get_args(BarOrientation)) == set(ORIENTATION_AXIS) == set(ORIENTATION_CHOICES)
     assert set(get_args(Orientation)) < set(get_args(BarOrientation))
     assert get_args(ProcedureName) == PROCEDURES == tuple(REGISTRY)
+    assert get_args(SfrMethod) == METHODS
+    assert get_args(ChartKind) == CHART_KINDS
 
 
 def test_a_string_becomes_a_procedure_name_only_if_it_is_one() -> None:

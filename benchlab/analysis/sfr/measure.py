@@ -67,7 +67,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -1143,8 +1143,10 @@ def _mtf50(freqs: FloatArray, mtf: FloatArray) -> float | None:
     return linear + root
 
 
+#: ``method`` of :func:`measure_sfr` (and ``benchlab sfr --method``).
+SfrMethod = Literal["auto", "free", "model"]
 #: ``method`` values of :func:`measure_sfr`.
-METHODS = ("auto", "free", "model")
+METHODS: tuple[SfrMethod, ...] = ("auto", "free", "model")
 #: ``auto``: the model-free reading stands where its own +-1.96 sigma already meets the
 #: issue's accuracy (MTF within AUTO_MTF_TOL at every f <= Nyquist, MTF50 within
 #: AUTO_MTF50_REL_TOL); elsewhere (low SNR, short edges) the LSF model is tried.
@@ -1278,7 +1280,7 @@ def measure_sfr(
     bootstrap: int = 0,
     seed: int = 0,
     bin_width_px: float = BIN_WIDTH_PX,
-    method: str = "auto",
+    method: SfrMethod = "auto",
 ) -> SfrResult:
     """Slanted-edge SFR (sine-wave MTF along the edge normal) of one ROI holding one edge.
 

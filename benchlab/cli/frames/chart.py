@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from benchlab.cli import positive_int
 from benchlab.cli.output import (
@@ -22,7 +22,9 @@ if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab
     from benchlab.analysis.bars.result import ModulationResult
     from benchlab.analysis.chart.finder import ChartFit
 
-CHART_KINDS = ("usaf",)
+#: What ``--chart`` takes.
+ChartKind = Literal["usaf"]
+CHART_KINDS: tuple[ChartKind, ...] = ("usaf",)
 
 
 class ChartNotFound(BenchlabError):
