@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -17,6 +19,7 @@ def test_vulture_finds_no_unused_name() -> None:
     assert done.stdout == ""
 
 
+@pytest.mark.slow
 def test_without_the_whitelist_the_kept_names_are_reported() -> None:
     """The check reads the package: without tools/vulture_whitelist.py the names kept there
     (here one used only by the tests, one named only in the procedure registry) are found."""
