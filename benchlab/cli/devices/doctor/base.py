@@ -90,6 +90,7 @@ class DoctorBase:
 
     @property
     def _channel(self) -> int:
+        """The LED channel the bench file names (1 without an ``[led]`` section)."""
         return self.config.led.channel if self.config.led is not None else 1
 
     def _ask(self, question: str) -> bool:
