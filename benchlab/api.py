@@ -22,10 +22,13 @@ import numpy.typing as npt
 from benchlab.drivers.errors import UsageError
 
 if TYPE_CHECKING:
+    from benchlab.analysis.bars.estimators import EstimatorChoice
     from benchlab.analysis.bars.result import ModulationResult
+    from benchlab.analysis.bars.roi import BarOrientation
     from benchlab.analysis.chart.reading import ChartReading
     from benchlab.analysis.sfr.measure import SfrResult
     from benchlab.bench import Bench
+    from benchlab.procedures import ProcedureName
     from benchlab.protocols.engine import RunOutcome, Step
     from benchlab.protocols.params import Params
     from benchlab.session import Session
@@ -138,7 +141,7 @@ def _prompter(answer: Callable[[Prompt], bool] | None) -> Callable[[Step, str], 
 
 def run_procedure(
     bench: Bench,
-    procedure: str,
+    procedure: ProcedureName,
     *,
     params: Params | PathLike | None = None,
     out: PathLike = "sessions",
@@ -248,8 +251,8 @@ def open_session(path: PathLike) -> Session:
 def measure_bars(
     roi: npt.ArrayLike,
     *,
-    orientation: str | None = None,
-    estimator: str | None = None,
+    orientation: BarOrientation | None = None,
+    estimator: EstimatorChoice | None = None,
     freq_cycles_per_px: float | None = None,
 ) -> ModulationResult:
     """Eq. 2.9 bar modulation of one ROI holding bars (a square-wave target).

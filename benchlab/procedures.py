@@ -46,8 +46,8 @@ class ProcedureEntry:
 _P = "benchlab.protocols"
 REGISTRY: dict[str, ProcedureEntry] = {e.name: e for e in (
     ProcedureEntry("mtf", "MTF (Table 4.10)", "checklist (Table 4.10 steps)",
-                   f"{_P}.params:MtfParams", f"{_P}.params:check_mtf",
-                   f"{_P}.params:mtf_to_dict", f"{_P}.mtf.steps:MtfProcedure"),
+                   f"{_P}.mtf.params:MtfParams", f"{_P}.mtf.params:check_mtf",
+                   f"{_P}.mtf.params:mtf_to_dict", f"{_P}.mtf.steps:MtfProcedure"),
     ProcedureEntry("radiometry", "Radiometry (section 4.4)", "positions (section 4.4)",
                    f"{_P}.params:RadiometryParams", f"{_P}.params:check_radiometry",
                    f"{_P}.params:radiometry_to_dict",
@@ -67,7 +67,18 @@ REGISTRY: dict[str, ProcedureEntry] = {e.name: e for e in (
 )}
 
 #: The procedures in the order the interfaces offer them.
-PROCEDURES: tuple[str, ...] = tuple(REGISTRY)
+PROCEDURES: tuple[ProcedureName, ...] = tuple(e.name for e in REGISTRY.values())
+
+
+def procedure_name(name: str) -> ProcedureName:
+    """``name`` as a :data:`ProcedureName` (a string from the command line or a file).
+
+    Raises
+    ------
+    KeyError
+        Naming the unknown procedure and the known ones (as :func:`entry`).
+    """
+    return entry(name).name
 
 
 def entry(name: str) -> ProcedureEntry:

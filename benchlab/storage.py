@@ -5,7 +5,8 @@ temporary file in the same folder, flushed and fsync'd, then renamed over the ta
 crash leaves either the old file or the new one, never half of either.
 
 Frames are lossless (zlib) ImageJ TIFFs, so Fiji/ImageJ opens them calibrated: pixel size in
-um (5.2 um sensor pitch times any binning), display range of the bit depth, Software
+um (the frame's ``pixel_size_um``, which the camera driver records: its profile's pitch times
+any binning; storage copies it and computes none), display range of the bit depth, Software
 "benchlab". The full acquisition metadata is JSON in the ImageJ ``Info`` property (Fiji: Image >
 Show Info), so a frame is self-describing without any sidecar. Frames written before that kept
 the JSON in the ImageDescription tag; :func:`load_frame_tiff` reads both.
@@ -19,6 +20,7 @@ import hashlib
 import io
 import json
 import logging
+import math
 import os
 import tempfile
 from collections.abc import Iterator, Mapping
@@ -29,8 +31,6 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
-from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
-from benchlab.tiff_strips import decode_frame
 
 if TYPE_CHECKING:
     import tifffile
@@ -294,28 +294,47 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     if arr.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"frame dtype must be uint8 or uint16, got {arr.dtype}")
     meta = {"format": METADATA_FORMAT, "version": METADATA_VERSION, **dict(metadata)}
+    size_um = pixel_size_um(meta)
     info = json.dumps(meta, allow_nan=False, default=json_default)
-    x_um, y_um = pixel_size_um(meta)
-    imagej: dict[str, Any] = {"axes": "YX", "unit": "um", "Info": info}
+    imagej: dict[str, Any] = {"axes": "YX", "Info": info}
+    resolution = None
+    if size_um is not None:  # calibrated in Fiji: pixels per um
+        imagej["unit"] = "um"
+        resolution = (1.0 / size_um[0], 1.0 / size_um[1])
     bits = meta.get("bits")
     if isinstance(bits, int) and 8 <= bits <= 16:
         imagej.update(min=0.0, max=float(2**bits - 1))  # Fiji's display range: the bit depth
     import tifffile  # here: reading a frame back does not need it (start-up, issue 11)
 
     buf = io.BytesIO()
-    tifffile.imwrite(buf, arr, imagej=True, resolution=(1.0 / x_um, 1.0 / y_um),
+    tifffile.imwrite(buf, arr, imagej=True, resolution=resolution,
                      metadata=imagej, software=SOFTWARE, compression="zlib",
                      compressionargs={"level": ZLIB_LEVEL})
     return buf.getvalue()
 
 
-def pixel_size_um(metadata: Mapping[str, Any]) -> tuple[float, float]:
-    """Pixel size ``(x, y)`` in um on the sensor: the pitch times the camera's binning
-    (vertical, from its ``bin_code``)."""
-    from benchlab.drivers.mightex.protocol import BIN_ROWS  # here: a re-analysis never needs it
+def pixel_size_um(metadata: Mapping[str, Any]) -> tuple[float, float] | None:
+    """Pixel size ``(x, y)`` in um on the sensor as the camera driver recorded it in the frame's
+    metadata (``pixel_size_um``: the profile's pitch times the binning), or None when the
+    metadata does not say (the frame is then written without a calibration, never a guessed
+    one).
 
-    rows = BIN_ROWS.get(int(metadata.get("bin_code") or 0), 1)
-    return PIXEL_PITCH_UM, PIXEL_PITCH_UM * rows
+    Raises
+    ------
+    ValueError
+        ``pixel_size_um`` is not two positive finite numbers.
+    """
+    size = metadata.get("pixel_size_um")
+    if size is None:
+        return None
+    try:
+        x_um, y_um = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise ValueError(f"frame metadata pixel_size_um must be [x, y] in um, got {size!r}"
+                         ) from None
+    if not (math.isfinite(x_um) and math.isfinite(y_um) and x_um > 0 and y_um > 0):
+        raise ValueError(f"frame metadata pixel_size_um must be positive, got {size!r}")
+    return x_um, y_um
 
 
 def save_frame_tiff(
@@ -453,16 +472,11 @@ def load_frame_tiff(path: str | os.PathLike[str], data: bytes | None = None
     try:
         if data is None:
             data = p.read_bytes()
-        # benchlab's own layout without tifffile (same pixels and text); anything else with it
-        fast = decode_frame(data)
-        if fast is not None:
-            pixels, description = fast
-        else:
-            import tifffile
+        import tifffile
 
-            with tifffile.TiffFile(tifffile.FileHandle(io.BytesIO(data), name=p.name)) as tif:
-                pixels = tif.pages.first.asarray()
-                description = _metadata_text(tif)
+        with tifffile.TiffFile(tifffile.FileHandle(io.BytesIO(data), name=p.name)) as tif:
+            pixels = tif.pages.first.asarray()
+            description = _metadata_text(tif)
     except FileNotFoundError as exc:
         raise FrameFileError(f"{p}: no such frame file") from exc
     except Exception as exc:  # tifffile raises several types for corrupt data

@@ -16,19 +16,19 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+# The simulated MT9M001's sensor constants and geometry, read from the production descriptions
+# of its sensor and of the camera (:data:`benchlab.drivers.mightex.profile.BENCH_CAMERA`).
+from benchlab.drivers.mightex.characteristics import (  # noqa: F401 (the simulator's sensor)
+    ADC_BITS,
+    DN12_PER_E,
+    FULL_WELL_E,
+    READ_NOISE_E,
+)
 from benchlab.drivers.mightex.profile import (  # noqa: F401 (the simulator's geometry)
     PIXEL_PITCH_UM,
     SENSOR_HEIGHT_PX,
     SENSOR_WIDTH_PX,
 )
-
-#: Sensor constants of the simulated MT9M001 (MCE-B013-U). The geometry is the camera
-#: profile's (:data:`benchlab.drivers.mightex.profile.BENCH_CAMERA`), read from there.
-FULL_WELL_E = 20000.0
-READ_NOISE_E = 8.0
-ADC_BITS = 12
-#: Digital numbers (12-bit) per electron at unity gain: full well maps to full scale.
-DN12_PER_E = (2**ADC_BITS - 1) / FULL_WELL_E
 
 
 @dataclass(frozen=True)

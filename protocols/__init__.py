@@ -84,8 +84,8 @@ from benchlab.protocols.engine import (
     Step,
     StepFailed,
 )
+from benchlab.protocols.mtf.params import MtfParams
 from benchlab.protocols.params import (
-    MtfParams,
     Params,
     ParamsError,
     RadiometryParams,

@@ -23,11 +23,14 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from benchlab.catalog.index import session_recorder
 from benchlab.drivers.errors import BenchlabError
 from benchlab.session import SESSION_FILE, Session
+
+if TYPE_CHECKING:
+    from benchlab.analysis.bars.estimators import EstimatorChoice
 
 Outcome = Literal["analysed", "skipped", "failed"]
 #: How long to try reaching a dask scheduler before giving up.
@@ -91,7 +94,8 @@ def _acquisition_pending(session: Session) -> list[str]:
     return [s.id for s in steps if s.kind != "analysis" and s.id not in done]
 
 
-def analyse_one(path: str, estimator: str | None = None, catalogue: bool = True) -> BatchItem:
+def analyse_one(path: str, estimator: EstimatorChoice | None = None, catalogue: bool = True
+                ) -> BatchItem:
     """Re-analyse one session in this process (the worker's task; never raises).
 
     ``catalogue=False``: the parent records the session in the catalogue (local pool)."""
@@ -178,7 +182,7 @@ def run_batch(
     """
     from benchlab.protocols.runs import check_estimator
 
-    check_estimator(estimator)
+    checked = check_estimator(estimator)
     # A session named twice is analysed once (two workers would race for one folder): named
     # by the folder it resolves to, so ROOT/s, ROOT/./s, a symlink to it and --all ROOT's s
     # are one session. The first spelling given is the one reported.
@@ -199,7 +203,7 @@ def run_batch(
     in_parent = scheduler is None
     with _executor(n_jobs, scheduler) as (executor, label), session_recorder() as record:
         report.executor = label
-        futures = {executor.submit(analyse_one, p, estimator, not in_parent): p for p in paths}
+        futures = {executor.submit(analyse_one, p, checked, not in_parent): p for p in paths}
         for fut in cf.as_completed(futures):
             p = futures[fut]
             try:

@@ -22,7 +22,6 @@ import numpy.typing as npt
 from benchlab.analysis.bars.roi import saturation_code
 from benchlab.analysis.radiometry import (
     clipped_in_mask,
-    led_mask,
     mean_in_mask,
     radiometry_table,
     reading_mask,
@@ -37,15 +36,6 @@ if TYPE_CHECKING:
 LED_TARGET = "led"
 MASK_FRAME = "mask"
 MEASUREMENT_FRAME = "measurement"
-
-
-def mask_of(mask_frame: npt.NDArray[Any], threshold_fraction: float) -> npt.NDArray[np.bool_]:
-    """Where the LED is: pixels of the high-gain frame above ``threshold_fraction`` of the way
-    from its median (the dark background) to its peak; the largest blob only. (It only
-    locates the LED: the reading's own mask is :func:`reading_mask_of`.)"""
-    img = np.asarray(mask_frame, dtype=np.float64)
-    background, peak = float(np.median(img)), float(img.max())
-    return led_mask(img, threshold=background + threshold_fraction * (peak - background))
 
 
 def reading_mask_of(mask_frame: npt.NDArray[Any], measurement_frame: npt.NDArray[Any],

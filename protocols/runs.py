@@ -5,11 +5,11 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING, TypeAlias, cast
 
 import benchlab
 from benchlab.drivers.errors import BenchlabError, UsageError
-from benchlab.procedures import entry, entry_of
+from benchlab.procedures import ProcedureName, entry, entry_of
 from benchlab.protocols.engine import (
     ProgressFn,
     PromptFn,
@@ -20,7 +20,6 @@ from benchlab.protocols.engine import (
 )
 from benchlab.protocols.params import (
     BenchLimits,
-    MtfParams,
     Params,
     ParamsError,
     RadiometryParams,
@@ -31,6 +30,7 @@ from benchlab.protocols.params import (
 from benchlab.session import FRAME_LOAD_THREADS, Session, SessionError
 
 if TYPE_CHECKING:
+    from benchlab.analysis.bars.estimators import EstimatorChoice
     from benchlab.bench import Bench
     from benchlab.protocols.characterise.steps import CharacteriseProcedure
     from benchlab.protocols.depth.steps import DepthProcedure
@@ -54,13 +54,15 @@ class UnknownEstimatorError(UsageError):
     """An estimator name that the analysis library does not know."""
 
 
-def check_estimator(name: str | None) -> None:
-    """Refuse an unknown estimator before anything runs."""
+def check_estimator(name: str | None) -> EstimatorChoice | None:
+    """Refuse an unknown estimator before anything runs; ``name`` typed as a known one (a
+    command line's or a file's string becomes an :data:`EstimatorChoice` here)."""
     from benchlab.analysis.bars.estimators import ESTIMATORS
 
     if name is not None and name != "auto" and name not in ESTIMATORS:
         raise UnknownEstimatorError(
             f"unknown estimator {name!r}; choose auto, {', '.join(sorted(ESTIMATORS))}")
+    return cast("EstimatorChoice | None", name)
 
 
 AnyProcedure: TypeAlias = ("MtfProcedure | RadiometryProcedure | CharacteriseProcedure | "
@@ -104,7 +106,7 @@ def _resolve_params(
 
 
 def start_run(
-    procedure: str,
+    procedure: ProcedureName,
     *,
     bench: Bench,
     params: Params | str | Path | None = None,
@@ -116,7 +118,7 @@ def start_run(
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,
     on_result: ResultFn | None = None,
-    estimator: str | None = None,
+    estimator: EstimatorChoice | None = None,
 ) -> Runner:
     """Validate everything, create the session folder, return a runner (nothing moved yet)."""
     check_estimator(estimator)
@@ -203,7 +205,7 @@ def resume_run(
     progress: ProgressFn | None = None,
     abort: threading.Event | None = None,
     on_result: ResultFn | None = None,
-    estimator: str | None = None,
+    estimator: EstimatorChoice | None = None,
     retake: Sequence[str] = (),
     retake_reason: str = "",
 ) -> Runner:
@@ -237,7 +239,7 @@ def resume_run(
                   retake_reason=retake_reason, previous_status=previous if steps else None)
 
 
-def reanalyze(session_path: str | Path | Session, estimator: str | None = None, *,
+def reanalyze(session_path: str | Path | Session, estimator: EstimatorChoice | None = None, *,
               catalogue: bool = True, new_version: bool = False) -> Path:
     """Analyse a session's saved frames again into a new results version - or, when an
     existing version has the same frames, settings, software version and byte-identical
@@ -283,7 +285,7 @@ def _prefetch_frames(session: Session) -> None:
         params = session_params(session)
     except (ParamsError, SessionError):
         return
-    if isinstance(params, MtfParams):
+    if entry_of(params).name == "mtf":
         session.prefetch_frames(FRAME_LOAD_THREADS)
 
 

@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 PROBE = '''\
 from benchlab.drivers.mightex.camera import MightexCamera
-from benchlab.protocols.params import UsafElement
+from benchlab.protocols.mtf.params import UsafElement
 
 
 def right() -> None:
@@ -58,3 +58,41 @@ def test_wrong_cross_layer_call_is_a_type_error(tmp_path: Path) -> None:
     assert 'Unexpected keyword argument "nonexistent" for "open" of "MightexCamera"' in text
     assert 'Argument "serial" to "open" of "MightexCamera" has incompatible type "int"' in text
     assert 'Argument 1 to "parse" of "UsafElement" has incompatible type "int"' in text
+
+
+TYPO_PROBE = '''\
+import numpy as np
+
+import benchlab
+from benchlab.protocols.runs import reanalyze
+
+
+def right(bench: benchlab.Bench) -> None:
+    benchlab.run_procedure(bench, "mtf")
+    benchlab.measure_bars(np.zeros((8, 8)), orientation="sagittal", estimator="auto")
+    reanalyze("s", estimator="histogram")
+
+
+def typos(bench: benchlab.Bench) -> None:
+    benchlab.run_procedure(bench, "mft")
+    benchlab.measure_bars(np.zeros((8, 8)), orientation="sagital")
+    benchlab.measure_bars(np.zeros((8, 8)), estimator="histgram")
+    reanalyze("s", estimator="sine")
+'''
+
+
+@pytest.mark.slow
+def test_a_mistyped_option_string_is_a_type_error(tmp_path: Path) -> None:
+    """Procedure, orientation and estimator names are ``Literal`` types (issue 42)."""
+    probe = tmp_path / "probe_typos.py"
+    probe.write_text(TYPO_PROBE, encoding="utf-8")
+    stdout, stderr, status = api.run([
+        "--config-file", str(ROOT / "pyproject.toml"),
+        "--cache-dir", str(ROOT / ".mypy_cache"),
+        "--no-error-summary", "--hide-error-context", "--show-error-codes",
+        str(probe),
+    ])
+    errors = [line for line in stdout.splitlines() if ": error:" in line]
+    assert status == 1, stdout + stderr
+    assert sorted({int(line.split(":")[1]) for line in errors}) == [14, 15, 16, 17], stdout
+    assert all("[arg-type]" in line for line in errors), stdout

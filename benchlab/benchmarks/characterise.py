@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from benchlab.drivers.mightex.sim_sensor import SensorTruth
+from benchlab.procedures import ProcedureName
 
 #: The issue's tolerances: relative (fraction) or absolute percentage points ("pp").
 TOLERANCES: dict[str, tuple[str, float]] = {
@@ -88,7 +89,7 @@ def format_figures(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def _run(procedure: str, root: Path, *, params: Any = None, config: Any = None,
+def _run(procedure: ProcedureName, root: Path, *, params: Any = None, config: Any = None,
          truth: SensorTruth | None = None) -> Any:
     from benchlab.bench import Bench, BenchConfig
     from benchlab.protocols.runs import start_run

@@ -215,11 +215,6 @@ class Catalog:
                 n += 1
         return n
 
-    def forget(self, session_id: str) -> None:
-        """Drop a session's rows (its folder is gone)."""
-        with self._write() as conn:
-            self._delete(conn, session_id)
-
     def reindex(self) -> int:
         """Rebuild every row from the session folders; returns the number of sessions."""
         folders = sorted(p for p in self.root.iterdir() if p.is_dir() and is_session_folder(p))

@@ -16,11 +16,16 @@ with :func:`add_output_option` and written with :func:`write_output` (or checked
 
 ``tests/cli/test_output_policy.py`` walks every parser and fails on an option that looks like
 an output file but was not added here.
+
+What a command prints on stdout as its result - a table, or one JSON document with ``--json`` -
+and the exit code its outcome gives go through :func:`print_outcome`.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -129,3 +134,28 @@ def write_output(path: str | Path, data: bytes | str, *, force: bool, option: st
     except FileExistsError:  # created meanwhile: the link refused it
         raise UsageError(f"{option} {target}: already exists; nothing written (add --force to "
                          "replace it)") from None
+
+
+def print_outcome(as_json: bool, payload: Callable[[], Any], text: Callable[[], str | None], *,
+                  status: int = 0, **json_options: Any) -> int:
+    """Print a command's result and return its exit code.
+
+    Parameters
+    ----------
+    as_json
+        ``--json`` was given: ``payload()`` is printed as one JSON document
+        (``json.dumps(payload(), **json_options)``), nothing else.
+    payload, text
+        The result as data, and as text for a person: ``text()`` returns what to print, or
+        prints several parts itself and returns None. Only the one asked for is computed.
+    status
+        The exit code the outcome gives (0 ok; a check that failed: 1, ...).
+    """
+    if as_json:
+        print(json.dumps(payload(), **json_options))
+    else:
+        shown = text()
+        if shown is not None:
+            print(shown)
+    return status
+

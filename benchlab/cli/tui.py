@@ -75,7 +75,7 @@ def run_tui(args: argparse.Namespace) -> int:
     image_protocol = choose_image_protocol(getattr(args, "image", None))
     from benchlab.tui.app import BenchlabApp
 
-    params = {name: path for name in PROCEDURES
+    params: dict[str, Path] = {name: path for name in PROCEDURES
               if (path := getattr(args, f"{name}_params")) is not None}
     app = BenchlabApp(
         simulate=args.simulate,

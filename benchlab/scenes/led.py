@@ -140,10 +140,6 @@ class LedScene:
         per_dn8 = float(rate_for_dn8(1.0, exposure_ms, gain))
         return float(np.minimum(img[m] / per_dn8, 255.0).mean())
 
-    def spot_fraction(self, position_mm: float, height: int, width: int) -> FloatArray:
-        """The spot's shape, 0..1 (1 on the plateau), read-only."""
-        return _shape(self, position_mm, height, width)
-
     def render(self, position_mm: float, current_ma: float, height: int, width: int) -> FloatArray:
         """Cached, read-only electron-rate image."""
         return _render(self, position_mm, current_ma, height, width)

@@ -197,10 +197,6 @@ class SessionFrames(SessionJournal):
     def _rejected(self) -> dict[str, str]:
         return self._set_aside()[0]
 
-    def _adopted(self) -> frozenset[str]:
-        """Frames a retake made current (:meth:`adopt_retake`)."""
-        return self._set_aside()[1]
-
     def _set_aside(self) -> tuple[dict[str, str], frozenset[str]]:
         """``(rejected file -> reason, adopted files)``: a retake's adoption rejects the takes
         it supersedes and adopts its own in one journal line. Kept up to date with the

@@ -10,7 +10,7 @@ from __future__ import annotations
 import errno
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -381,17 +381,6 @@ def read_focus(tracker: ChartTracker, pixels: npt.NDArray[Any]
 # -- procedures ------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class ChecklistStep:
-    """A step as the checklist shows it before a run exists."""
-
-    id: str
-    title: str
-    table_step: str
-    kind: str = ""
-    info: Mapping[str, Any] = field(default_factory=dict)
-
-
 def procedure_checklist(procedure: str, params_file: Path | None) -> list[Step]:
     """The steps a run of ``procedure`` would take with these parameters (validated)."""
     from benchlab.protocols import load_params
@@ -419,7 +408,9 @@ def make_runner(
 ) -> Runner:
     """A runner for a fresh run, or for resuming the session at ``resume``; ``sample`` and
     ``lot``: the unit's serial number and lot, stored in session.json."""
+    from benchlab.procedures import procedure_name
     from benchlab.protocols import load_params, resume_run, start_run
+    from benchlab.protocols.runs import check_estimator
 
     if resume is not None:
         return resume_run(
@@ -427,9 +418,9 @@ def make_runner(
             on_result=on_result,
         )
     return start_run(
-        procedure, bench=bench, params=load_params(procedure, params), root=root,
-        operator=operator, prompt=prompt, progress=progress, abort=abort, on_result=on_result,
-        estimator=estimator, sample=sample, lot=lot,
+        procedure_name(procedure), bench=bench, params=load_params(procedure, params),
+        root=root, operator=operator, prompt=prompt, progress=progress, abort=abort,
+        on_result=on_result, estimator=check_estimator(estimator), sample=sample, lot=lot,
     )
 
 
@@ -585,8 +576,9 @@ def table_rows(data: Any) -> tuple[list[str], list[Mapping[str, Any]]]:
 def reanalyse(path: Path, estimator: str | None) -> Path:
     """A new results version from the saved frames (frames are never modified)."""
     from benchlab.protocols import reanalyze
+    from benchlab.protocols.runs import check_estimator
 
-    return Path(reanalyze(path, estimator=estimator))
+    return Path(reanalyze(path, estimator=check_estimator(estimator)))
 
 
 def write_report(path: Path) -> Path:

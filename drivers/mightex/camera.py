@@ -184,6 +184,10 @@ class FrameMeta:
     x_start: int
     y_start: int
     received_utc: str
+    #: A pixel's size on the sensor ``(x, y)``, um: the profile's pitch times the binning
+    #: (:meth:`~benchlab.drivers.mightex.profile.CameraSpec.pixel_size_um`); storage copies it
+    #: into the TIFF's calibration.
+    pixel_size_um: tuple[float, float]
     #: What the host set; ``exposure_ms`` / ``gain`` are the trailer's (the frame's truth).
     set_exposure_ms: float = 0.0
     set_gain: float = 0.0
@@ -775,6 +779,7 @@ class MightexCamera(Camera[FrameMeta]):
             trigger_occurred=bool(t.trigger_occurred),
             trigger_count=t.trigger_count, x_start=t.x_start, y_start=t.y_start,
             received_utc=datetime.now(UTC).isoformat(timespec="milliseconds"),
+            pixel_size_um=self._spec.pixel_size_um(t.bin_code),
             set_exposure_ms=self.exposure_ms, set_gain=self.gain,
         )
         return Frame(pixels, meta)

@@ -38,6 +38,9 @@ BUFFER_FULL_POLICIES = ("drop_new", "overwrite_oldest")
 TRAILER_ORDERS = ("row_column", "column_row")
 #: Timestamp units the vendor guide gives: 1 ms in its text, 0.1 ms in its worked example.
 TIMESTAMP_UNITS_MS = (1.0, 0.1)
+#: Bin code -> rows combined into one (CGN-B013 CCD table; binning is vertical only). The
+#: MT9M001 CMOS models use code 0 (no binning) only.
+BIN_ROWS = {0x00: 1, 0x81: 2, 0x82: 3, 0x83: 4, 0x03: 4}
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,11 @@ class CameraSpec:
             raise SettingOutOfRangeError(
                 f"camera profile {self.model}: timestamp_unit_ms {self.timestamp_unit_ms!r} is "
                 f"not one of {', '.join(map(str, TIMESTAMP_UNITS_MS))}")
+
+    def pixel_size_um(self, bin_code: int) -> tuple[float, float]:
+        """A pixel's size on the sensor ``(x, y)``, um: the pitch, times the rows a bin code
+        combines (:data:`BIN_ROWS`; vertical binning only) in y."""
+        return self.pixel_pitch_um, self.pixel_pitch_um * BIN_ROWS.get(int(bin_code), 1)
 
     @property
     def exposure_max_ms(self) -> float:

@@ -60,11 +60,6 @@ MODE_NAMES = {v: k for k, v in MODES.items()}
 _RANGE_SLACK = 1e-9
 
 
-#: Bin code -> rows combined into one (CGN-B013 CCD table; binning is vertical only). The
-#: MT9M001 CMOS models use code 0 (no binning) only.
-BIN_ROWS = {0x00: 1, 0x81: 2, 0x82: 3, 0x83: 4, 0x03: 4}
-
-
 # --------------------------------------------------------------------------- settings -> raw
 
 

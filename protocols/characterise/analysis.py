@@ -25,7 +25,7 @@ from benchlab.analysis.camera.photon_transfer import (
     response_curve,
     spatial_nonuniformity,
 )
-from benchlab.drivers.mightex.sim_sensor import SensorTruth
+from benchlab.drivers.mightex.characteristics import SensorCharacteristics
 from benchlab.protocols.characterise.params import CharacteriseParams
 from benchlab.protocols.characterise.truth import truth_for
 from benchlab.protocols.engine import frames_of
@@ -118,7 +118,7 @@ def analyze_characterise(
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
     """Tables and summary of a characterisation session (see the module docstring)."""
     sim = simulator_truth_record(session)
-    truth = SensorTruth.from_mapping(sim["truth"]) if sim is not None else None
+    truth = SensorCharacteristics.from_mapping(sim["truth"]) if sim is not None else None
     currents = {ev.get("step"): ev for ev in session.events()
                 if ev.get("kind") == CURRENTS_EVENT}  # the last per step (a resume repeats it)
     rows: list[dict[str, Any]] = []

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from benchlab.checks import CAMERA_BIT_DEPTHS
-from benchlab.drivers.mightex.sim_sensor import SensorTruth
+from benchlab.drivers.mightex.characteristics import SensorCharacteristics
 from benchlab.protocols.camera_limits import EXPOSURE_RANGE_MS as _EXPOSURE_RANGE_MS
 from benchlab.protocols.camera_limits import GAIN_RANGE as _GAIN_RANGE
 
@@ -58,9 +58,9 @@ class CharacteriseParams:
         """Every (gain, bits) pair measured, in order."""
         return [(g, b) for g in self.gains for b in self.bits]
 
-    def sensor_truth(self) -> SensorTruth:
+    def sensor_truth(self) -> SensorCharacteristics:
         """The simulated sensor's truth from ``[simulator]`` (simulated bench only)."""
-        return SensorTruth.from_mapping(self.simulator)
+        return SensorCharacteristics.from_mapping(self.simulator)
 
 
 def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
@@ -131,7 +131,7 @@ def check_characterise(c: Any, limits: Any = None) -> CharacteriseParams:
                 else:
                     simulator[str(key)] = value
             try:
-                SensorTruth.from_mapping(simulator)
+                SensorCharacteristics.from_mapping(simulator)
             except ValueError as exc:
                 c.fail("simulator", str(exc))
     return CharacteriseParams(

@@ -21,7 +21,7 @@ from benchlab.analysis.camera.photon_transfer import (
     QUANTISATION_VAR_DN2,
     linearity_deviation,
 )
-from benchlab.drivers.mightex.sim_sensor import SensorTruth
+from benchlab.drivers.mightex.characteristics import SensorCharacteristics
 
 _Z, _W = np.polynomial.hermite_e.hermegauss(21)
 _W = _W / _W.sum()
@@ -38,7 +38,7 @@ def _clipped(mu: Any, sd: Any, ceiling: float) -> tuple[Any, Any]:
     return mean, ex2 - mean**2
 
 
-def expected_signal(truth: SensorTruth, gain: float, electrons: Any) -> tuple[Any, Any]:
+def expected_signal(truth: SensorCharacteristics, gain: float, electrons: Any) -> tuple[Any, Any]:
     """Expected pixel mean (12-bit DN, offset included) and temporal variance for mean light
     ``electrons`` (dark electrons included), averaged over the PRNU spread."""
     e0 = np.asarray(electrons, dtype=np.float64)
@@ -58,7 +58,7 @@ def expected_signal(truth: SensorTruth, gain: float, electrons: Any) -> tuple[An
 
 
 def truth_for(
-    truth: SensorTruth, *, gain: float, bits: int, width: int, height: int,
+    truth: SensorCharacteristics, *, gain: float, bits: int, width: int, height: int,
     exposures_ms: Sequence[float] = (), light_e: Sequence[float] = (),
 ) -> dict[str, Any]:
     """The truth of one configuration in the result keys (DN at the frame's bit depth).

@@ -42,7 +42,8 @@ from benchlab.protocols.mtf.edges import (
     edge_parts_of,
     edge_parts_tables,
 )
-from benchlab.protocols.params import MtfParams, Roi, UsafElement
+from benchlab.protocols.mtf.params import MtfParams, UsafElement
+from benchlab.protocols.params import Roi
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:

@@ -379,18 +379,10 @@ class EdgeParts(NamedTuple):
     curves: list[SimulatedCurve]
 
 
-def edge_parts(pixels: npt.NDArray[Any], centre_rc: tuple[float, float],
-               simulated_mtf_file: str = "", *, full_scale: float | None = None) -> EdgeParts:
-    """The forward frame's edges measured, their two tables and the simulated curves: all
-    but the comparison with the bars, so a re-analysis computes them beside the bar ROIs.
-    ``full_scale``: as for :func:`measure_edges`."""
-    return edge_parts_of(measure_edges(pixels, full_scale=full_scale), centre_rc,
-                         simulated_mtf_file)
-
-
 def edge_parts_of(measured: list[tuple[EdgeSpec, SfrResult | str]],
                   centre_rc: tuple[float, float], simulated_mtf_file: str = "") -> EdgeParts:
-    """:func:`edge_parts` from the edges already measured (:func:`measure_edges`, which
+    """The forward frame's edge tables and the simulated curves - all but the comparison
+    with the bars - from the edges already measured (:func:`measure_edges`, which
     needs no centre: a re-analysis measures them while the forward view's bar sets are
     read on another thread)."""
     from benchlab.protocols.mtf.curves import load_curves  # the simulated curves' loader
@@ -421,7 +413,7 @@ def edge_parts_tables(
     parts: EdgeParts, t411: Sequence[dict[str, Any]], centre_rc: tuple[float, float],
     setups: Mapping[tuple[str, str], Any] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
-    """:func:`forward_edge_tables` from :func:`edge_parts` already computed (a re-analysis
+    """:func:`forward_edge_tables` from :func:`edge_parts_of` already computed (a re-analysis
     measures the edges beside the bar ROIs, then compares them with the bars' Table 4.11);
     ``setups``: as for :func:`edge_vs_bars`."""
     return {"table_sfr_edges": parts.rows, "table_sfr_curves": parts.curve_rows,

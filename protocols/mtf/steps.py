@@ -30,7 +30,7 @@ from benchlab.protocols.mtf.analysis import (
     analyze_radial_frame,
     radial_step_id,
 )
-from benchlab.protocols.params import MtfParams
+from benchlab.protocols.mtf.params import MtfParams
 
 if TYPE_CHECKING:
     from benchlab.session import Session

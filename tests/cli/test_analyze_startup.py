@@ -1,7 +1,6 @@
-"""Start-up of ``benchlab analyze SESSION`` (issue 11): it imports neither OpenCV nor tifffile,
-its results are byte for byte those of the OpenCV morphology and the tifffile reader it
-replaced, each frame is hashed once, and the garbage-collector settings of a command run
-in-process are left as they were."""
+"""Start-up of ``benchlab analyze SESSION`` (issue 11): it imports no OpenCV nor SciPy, its
+results are byte for byte those of the OpenCV morphology it replaced, each frame is hashed
+once, and the garbage-collector settings of a command run in-process are left as they were."""
 
 from __future__ import annotations
 
@@ -29,7 +28,7 @@ from benchlab.protocols.runs import reanalyze
 from benchlab.session import Session
 
 #: Imported by ``analyze SESSION`` before issue 11's start-up work, or never needed by it.
-NOT_IMPORTED = ("cv2", "tifffile", "scipy", "skimage", "matplotlib", "textual")
+NOT_IMPORTED = ("cv2", "scipy", "skimage", "matplotlib", "textual")
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +41,7 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 @pytest.mark.slow
-def test_analyze_session_imports_no_opencv_nor_tifffile(small_mtf: Path, tmp_path: Path) -> None:
+def test_analyze_session_imports_no_opencv_nor_scipy(small_mtf: Path, tmp_path: Path) -> None:
     path = _copy(small_mtf, tmp_path)
     code = ("import sys, json; from benchlab.cli.main import main; "
             f"status = main(['analyze', {str(path)!r}]); "
@@ -55,10 +54,9 @@ def test_analyze_session_imports_no_opencv_nor_tifffile(small_mtf: Path, tmp_pat
     assert status == 0 and sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
     heavy = sorted({m.split(".")[0] for m in loaded} & set(NOT_IMPORTED))
     assert heavy == []
-    assert "numpy.ma" not in loaded  # 7-12 ms: benchlab.analysis.quantiles, not numpy's
-    # ... while the code that used them ran: the chart finder, the hole fill, frame loads
+    # ... while the code that used them ran: the chart finder, the hole fill, the bar model
     for used in ("benchlab.analysis.chart.finder", "benchlab.analysis.chart.morphology",
-                 "benchlab.analysis.geometry", "benchlab.tiff_strips"):
+                 "benchlab.analysis.geometry", "benchlab.analysis.bars.model"):
         assert used in loaded, used
 
 
@@ -93,7 +91,7 @@ def _opencv_fill(mask: np.ndarray) -> np.ndarray:
     return filled
 
 
-def test_results_are_those_of_opencv_and_tifffile(small_mtf: Path, tmp_path: Path,
+def test_results_are_those_of_opencv(small_mtf: Path, tmp_path: Path,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     path = _copy(small_mtf, tmp_path)
     now = reanalyze(path, new_version=True)  # written, to compare the files of both
@@ -101,7 +99,6 @@ def test_results_are_those_of_opencv_and_tifffile(small_mtf: Path, tmp_path: Pat
         m.setattr(chart_finder, "box_close", _opencv_close)
         m.setattr(chart_finder, "label_components", _opencv_labels)
         m.setattr(morphology, "fill_holes", _opencv_fill)
-        m.setattr(storage, "decode_frame", lambda data: None)  # every frame via tifffile
         before = reanalyze(path, new_version=True)
     assert (now.name, before.name) == ("v2", "v3")
     ours, theirs = _files(now), _files(before)

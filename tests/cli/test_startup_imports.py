@@ -83,7 +83,7 @@ def test_each_procedure_is_made_on_demand() -> None:
 
 def test_the_bar_model_does_not_import_scipy_special() -> None:
     loaded = _modules_after("import benchlab.analysis.bars.model")
-    assert "scipy.special" not in loaded and "benchlab.analysis.normal_cdf" in loaded
+    assert "scipy.special" not in loaded  # imported where an edge is blurred (s > 0) only
 
 
 def test_startup_benchmark_environments(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -18,7 +18,8 @@ from benchlab.drivers.mightex.sim_sensor import SensorModel
 from benchlab.drivers.sensor import AcquisitionState
 from benchlab.protocols.mtf.analysis import analyze_mtf
 from benchlab.protocols.mtf.edges import edge_tables
-from benchlab.protocols.params import MtfParams, load_params
+from benchlab.protocols.mtf.params import MtfParams
+from benchlab.protocols.params import load_params
 from benchlab.scenes.world import SimWorld
 from benchlab.session import Session
 from benchlab.synthetic.edges import synthetic_edge

@@ -13,7 +13,7 @@ from many_sessions_helpers import copy_session, real_session
 from sim_runs import reseal_results
 
 from benchlab.protocols.mtf.analysis import _monte_carlo_rows
-from benchlab.protocols.params import MtfParams
+from benchlab.protocols.mtf.params import MtfParams
 from benchlab.report.mtf import verdict_section
 from benchlab.report.render import render_report
 from benchlab.report.tables import TABLE_VIEWS, format_table

@@ -1,4 +1,4 @@
-"""Frames open calibrated in Fiji/ImageJ: ImageJ metadata, 5.2 um pixels (x binning), Software
+"""Frames open calibrated in Fiji/ImageJ: ImageJ metadata, the driver's pixel size, Software
 benchlab, and the full acquisition metadata still read back by benchlab (old frames too)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import tifffile
 from benchlab.storage import FrameFileError, load_frame_tiff, save_frame_tiff
 
 META = {"exposure_ms": 300.0, "gain": 1.0, "bits": 12, "bin_code": 0, "camera_serial": "SIM-1",
-        "bench": {"target": ["radial", 4.0, "sagittal"]}}
+        "pixel_size_um": [5.2, 5.2], "bench": {"target": ["radial", 4.0, "sagittal"]}}
 
 
 def _frame() -> np.ndarray:
@@ -47,7 +47,9 @@ def test_frame_carries_imagej_calibration(tmp_path: Path) -> None:
 
 
 def test_binning_scales_the_pixel_size(tmp_path: Path) -> None:
-    path = save_frame_tiff(tmp_path / "b.tiff", _frame()[:32], {**META, "bin_code": 0x81})
+    """The driver's pixel size of a 1:2 row-binned frame (storage copies it)."""
+    path = save_frame_tiff(tmp_path / "b.tiff", _frame()[:32],
+                           {**META, "bin_code": 0x81, "pixel_size_um": [5.2, 10.4]})
     with tifffile.TiffFile(path) as tif:
         page = tif.pages.first
         assert _um_per_px(page.tags["XResolution"]) == pytest.approx(5.2)

@@ -23,6 +23,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Literal, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -843,6 +844,10 @@ ESTIMATORS: dict[str, Callable[..., ModulationResult]] = {n: _public(n) for n in
 DEFAULT_ESTIMATOR = "profilefit"
 #: The name that asks for the default.
 AUTO = "auto"
+#: The estimators' names (the keys of :data:`ESTIMATORS`; a test keeps the two equal).
+EstimatorName = Literal["profilefit", "profilefit-fast", "histogram", "sinefit", "variance"]
+#: What an ``estimator`` option takes: a name, or ``"auto"`` for :data:`DEFAULT_ESTIMATOR`.
+EstimatorChoice: TypeAlias = EstimatorName | Literal["auto"]
 
 
 def resolve_estimator(name: str | None) -> str:

@@ -23,7 +23,6 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
-from benchlab.analysis.normal_cdf import ndtr
 
 #: Below this footprint side (px) a box is treated as a delta (first-order exact).
 _THIN_BOX_PX = 1e-3
@@ -34,6 +33,8 @@ def _phi1(x: FloatArray, s: float) -> FloatArray:
     """Integral of the Gaussian CDF ``Phi(x / s)`` (``max(x, 0)`` at ``s = 0``)."""
     if s <= 0:
         return np.maximum(x, 0.0)
+    from scipy.special import ndtr  # here: a re-analysis never blurs an edge (start-up)
+
     z = x / s
     return x * ndtr(z) + s * _INV_SQRT_2PI * np.exp(-0.5 * z * z)
 
@@ -43,6 +44,8 @@ def _phi2(x: FloatArray, s: float) -> FloatArray:
     if s <= 0:
         xp = np.maximum(x, 0.0)
         return 0.5 * xp * xp
+    from scipy.special import ndtr  # here, as in _phi1
+
     z = x / s
     return 0.5 * ((x * x + s * s) * ndtr(z) + x * s * _INV_SQRT_2PI * np.exp(-0.5 * z * z))
 

@@ -62,7 +62,6 @@ from benchlab.analysis.bars.result import (
     unresolved,
 )
 from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI, quiet_noise_sigma
-from benchlab.analysis.quantiles import percentiles
 
 NAME = "profilefit"
 FAST_NAME = "profilefit-fast"
@@ -1034,7 +1033,7 @@ def _censored(
     for c in np.flatnonzero((n_clip > 0) & ~bad):
         members = flat_cell == c
         x = out[members]
-        m, q16 = (float(v) for v in percentiles(x, [50.0, 15.87]))
+        m, q16 = (float(v) for v in np.percentile(x, [50.0, 15.87]))
         s = max(m - q16, 1e-9)
         a = (top - m) / s
         upper = max(0.5 * math.erfc(a / math.sqrt(2.0)), 1e-12)  # 1 - Phi(a)

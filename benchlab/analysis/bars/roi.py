@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -68,7 +68,12 @@ FLAT_WARNING = "single-valued ROI: one gray level, no bars"
 #: The warning of a ROI whose pixel values span less than :data:`MIN_CONTRAST`.
 TINY_CONTRAST_WARNING = (f"pixel values span less than {MIN_CONTRAST:g}: their squares "
                          "underflow float64, no bar profile (rescale the data)")
-ORIENTATION_AXIS = {"horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
+#: The directions the intensity of bars may vary in, as the API and the command line take them
+#: (sagittal = horizontal, tangential = vertical: the thesis's forward-view convention).
+BarOrientation = Literal["horizontal", "vertical", "sagittal", "tangential"]
+#: Orientation -> the array axis the intensity varies along.
+ORIENTATION_AXIS: dict[BarOrientation, int] = {
+    "horizontal": 1, "vertical": 0, "sagittal": 1, "tangential": 0}
 
 
 @dataclass(slots=True)

@@ -68,7 +68,6 @@ from benchlab.analysis.chart.pose import (
     posed_bar_set_roi,
 )
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
-from benchlab.analysis.quantiles import percentile, percentiles
 
 Polarity = Literal["positive", "negative"]
 
@@ -389,7 +388,7 @@ def find_chart(
     sub = img[r0:r1, c0:c1]
     best: tuple[tuple[int, float], Polarity, ChartPose, int, float, _Lit, int] | None = None
     for pol in (("positive", "negative") if polarity is None else (polarity,)):
-        top = 0.0 if pol == "positive" else float(percentile(sub[::2, ::2], 99.9))
+        top = 0.0 if pol == "positive" else float(np.percentile(sub[::2, ::2], 99.9))
         work = sub if pol == "positive" else top - sub
         darkness, ground = _darkness(work, kernel)
         cands = _candidates(darkness, (r0, c0))
@@ -454,7 +453,7 @@ def _search_window(img: npt.NDArray[np.float32], pad_px: int) -> Box:
     if hb < 4 or wb < 4:
         return (0, 0, h, w)
     blocks = _block_max(img, step)
-    floor, level = percentiles(blocks, (5.0, 99.0))
+    floor, level = np.percentile(blocks, (5.0, 99.0))
     lit = blocks > floor + LIT_FRACTION * (level - floor)
     if not lit.any():
         return (0, 0, h, w)
@@ -492,7 +491,7 @@ def _darkness(
 
 def _high_level(ground: npt.NDArray[Any]) -> float:
     """The lit level: 99th percentile of the (smooth) ground, from every 4th pixel."""
-    return float(percentile(ground[::4, ::4], 99.0))
+    return float(np.percentile(ground[::4, ::4], 99.0))
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ estimator that read the bars:
    x pixel transfer is not 0 (``sinc`` has a negative lobe to 2 cycles/px), and the pixel
    values of a fine set depend on it: so the footprint is applied exactly at the bars' own angle
    (step 2) and only the optics is extrapolated.
-2. **The set imaged** (:func:`render_set`): three bars ``w`` wide at ``u = -2w, 0, 2w`` and
+2. **The set imaged** (``_render``): three bars ``w`` wide at ``u = -2w, 0, 2w`` and
    ``5 w`` long, each edge integrated over the pixel footprint at the bars' angle in closed form
    (:func:`benchlab.analysis.bars.model.edge_response`), tabulated every :data:`GRID_STEP_PX`,
    blurred through its spectrum by the optics across the bars (and, for the bar ends, by the
@@ -239,34 +239,19 @@ def _cubic(table: FloatArray, x: FloatArray) -> FloatArray:
 def bar_profile(u_px: npt.ArrayLike, bar_width_px: float, theta_deg: float,
                 optics: Transfer) -> FloatArray:
     """The three bars' fraction (0-1) across them at ``u_px`` (px from the middle bar's centre):
-    pixel footprint at ``theta_deg`` and ``optics`` (see :func:`render_set`)."""
+    pixel footprint at ``theta_deg`` and ``optics`` (as the set is imaged)."""
     w = float(bar_width_px)
     u = np.asarray(u_px, dtype=np.float64)
     bars = [(c - 0.5 * w, c + 0.5 * w) for c in (-2.0 * w, 0.0, 2.0 * w)]
     return _imaged(u.ravel(), bars, math.radians(theta_deg), optics).reshape(u.shape)
 
 
-def render_set(setup: ReadingSetup, across: Transfer, along: Transfer, *, ground: float,
-               bars: float) -> FloatArray:
-    """The noise-free ROI of a three-bar set (float levels, ``setup.shape``).
-
-    Parameters
-    ----------
-    setup : ReadingSetup
-        The ROI and set geometry (the ROI the real set was read from).
-    across, along : Transfer
-        The optics across the bars (their direction of intensity variation) and along them (the
-        bar ends), without the pixel footprint (:func:`optics_from_edge`).
-    ground, bars : float
-        Levels of the ground and of a sharp bar (``bars < ground`` for dark bars).
-    """
-    return _render(setup, across, along, ground=ground, bars=bars)[0]
-
-
 def _render(setup: ReadingSetup, across: Transfer, along: Transfer, *, ground: float,
             bars: float) -> tuple[FloatArray, float]:
-    """:func:`render_set` and the image's Eq. 2.9 contrast (:func:`eq29_of_image`, signed for
-    dark bars) from the same tabulation."""
+    """The noise-free ROI of a three-bar set (float levels, ``setup.shape``; ``across`` /
+    ``along``: the optics across the bars and along them, without the pixel footprint;
+    ``ground`` / ``bars``: the levels of the ground and of a sharp bar) and the image's Eq. 2.9
+    contrast (:func:`eq29_of_image`, signed for dark bars) from the same tabulation."""
     theta = math.radians(setup.theta_deg)
     centre = setup.centre_in_roi
     u = across_coordinate(setup.shape, theta, centre)

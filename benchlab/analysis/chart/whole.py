@@ -57,7 +57,6 @@ from benchlab.analysis.chart.finder import (
 from benchlab.analysis.chart.pose import ChartPose, posed_bar_set
 from benchlab.analysis.chart.whole_layout import WHOLE_CHART_GROUPS, whole_chart_layout
 from benchlab.analysis.mtf.frequency import FORWARD_MAGNIFICATION
-from benchlab.analysis.quantiles import percentile
 from benchlab.drivers.mightex.profile import PIXEL_PITCH_UM
 
 #: Widest bar (px, at its pyramid level) the closing of one level restores the ground over.
@@ -260,7 +259,7 @@ def _pyramid_candidates(img: npt.NDArray[np.float32], pol: Polarity
                         ) -> tuple[_Candidates, _Lit]:
     """Three-bar sets at every scale (see the module docstring) and the lit field (the
     coarsest level's ground, which every bar fits under)."""
-    top = 0.0 if pol == "positive" else float(percentile(img[::2, ::2], 99.9))
+    top = 0.0 if pol == "positive" else float(np.percentile(img[::2, ::2], 99.9))
     work_full = img if pol == "positive" else top - img
     kernel = 2 * math.ceil(LEVEL_MAX_BAR_PX) + 3
     h, w = img.shape

@@ -15,7 +15,7 @@ import numpy as np
 
 from benchlab.analysis.bars.result import ModulationResult
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
-from benchlab.analysis.thesis_data import optional_float, read_table
+from benchlab.analysis.thesis_data import read_table
 
 Value = float | ModulationResult | None
 
@@ -265,8 +265,3 @@ def compare_with_simulated(
     m = _value(measured)
     return {"measured": m, "simulated": sim, "difference": m - sim}
 
-
-def optional_modulation(text: str | None) -> float:
-    """A table cell as a modulation: empty / N/A -> 0."""
-    v = optional_float(text)
-    return 0.0 if v is None else v

@@ -3,8 +3,7 @@
 The defocus family of :mod:`benchlab.analysis.bars.knownbars` multiplies a pattern's spectrum by
 ``jinc(2 pi R f)`` on every frequency of its tabulation grid (a few million values for a whole
 chart). ``scipy.special.j1`` did that, but importing ``scipy.special`` costs ~0.2 s of CPU, most
-of what ``benchlab analyze SESSION`` spent beyond its start-up target (issue 11); the bar model's
-normal CDF left scipy for the same reason (:mod:`benchlab.analysis.normal_cdf`).
+of what ``benchlab analyze SESSION`` spent beyond its start-up target (issue 11).
 
 Two evaluations:
 

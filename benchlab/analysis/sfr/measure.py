@@ -67,7 +67,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -77,7 +77,6 @@ from benchlab.analysis.bars.projection import across_coordinate, bin_profile, bi
 from benchlab.analysis.bars.result import NYQUIST_CYCLES_PER_PX
 from benchlab.analysis.bars.roi import detect_code_step, infer_max_code
 from benchlab.analysis.noise import MAD_TO_SIGMA
-from benchlab.analysis.quantiles import median, percentiles
 from benchlab.analysis.sfr.refusals import (
     FIT_RMS_WARN_PX,
     OUTLIER_REFUSE_FRACTION,
@@ -468,7 +467,7 @@ def difference_noise_sigma(row_diff: FloatArray) -> float:
     if row_diff.size == 0:
         return 0.0
     d = row_diff.ravel()
-    mad = float(median(np.abs(d - median(d))))
+    mad = float(np.median(np.abs(d - np.median(d))))
     return MAD_TO_SIGMA * mad / math.sqrt(2.0)
 
 
@@ -1144,8 +1143,10 @@ def _mtf50(freqs: FloatArray, mtf: FloatArray) -> float | None:
     return linear + root
 
 
+#: ``method`` of :func:`measure_sfr` (and ``benchlab sfr --method``).
+SfrMethod = Literal["auto", "free", "model"]
 #: ``method`` values of :func:`measure_sfr`.
-METHODS = ("auto", "free", "model")
+METHODS: tuple[SfrMethod, ...] = ("auto", "free", "model")
 #: ``auto``: the model-free reading stands where its own +-1.96 sigma already meets the
 #: issue's accuracy (MTF within AUTO_MTF_TOL at every f <= Nyquist, MTF50 within
 #: AUTO_MTF50_REL_TOL); elsewhere (low SNR, short edges) the LSF model is tried.
@@ -1279,7 +1280,7 @@ def measure_sfr(
     bootstrap: int = 0,
     seed: int = 0,
     bin_width_px: float = BIN_WIDTH_PX,
-    method: str = "auto",
+    method: SfrMethod = "auto",
 ) -> SfrResult:
     """Slanted-edge SFR (sine-wave MTF along the edge normal) of one ROI holding one edge.
 
@@ -1407,7 +1408,7 @@ def _prepare_roi(
     d_flat = row_diff.ravel()  # finite: checked above
     mad = _finite_median(np.abs(d_flat - _finite_median(d_flat)))
     noise = MAD_TO_SIGMA * mad / math.sqrt(2.0)
-    p02, p98 = percentiles(work, [2.0, 98.0])
+    p02, p98 = np.percentile(work, [2.0, 98.0])
     spread = float(p98 - p02)
     if spread <= NOISE_SPREAD_RATIO * noise or spread == 0.0:
         raise SfrRefused([f"no edge: the gray-level spread {spread:.3g} is within "

@@ -30,7 +30,6 @@ import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.noise import MAD_TO_SIGMA
-from benchlab.analysis.quantiles import median
 
 #: Chi-square drop (2 degrees of freedom: the two slopes) above which a plateau's plane is
 #: taken as shading rather than noise: p = exp(-20 / 2) = 4.5e-5 per plateau.
@@ -142,7 +141,7 @@ def _plane(drow: FloatArray, dcol: FloatArray, z: FloatArray, var: float) -> Pla
         res = z - plane.at(drow, dcol)
         limit = OUTLIER_SIGMAS * np.sqrt(var)
         if i == 0:  # the first plane leans towards the outliers: the clean pixels' spread
-            limit = max(limit, OUTLIER_SIGMAS * MAD_TO_SIGMA * float(median(np.abs(res))))
+            limit = max(limit, OUTLIER_SIGMAS * MAD_TO_SIGMA * float(np.median(np.abs(res))))
         keep = np.abs(res) <= limit
         if bool(keep.all()) or int(np.count_nonzero(keep)) < MIN_PLATEAU_PIXELS:
             break

@@ -119,10 +119,6 @@ class RayTraceTable:
         hi = min(float(r[-1]) for r in self.image_radius_mm)
         return lo, hi
 
-    @property
-    def object_radius_range_mm(self) -> tuple[float, float]:
-        return float(self.object_radius_mm[0]), float(self.object_radius_mm[-1])
-
     @cached_property
     def resampled(self) -> ResampledTable:
         """The pre-processed table (uniform image-radius grid, spline per depth)."""

@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from benchlab.analysis.sfr.measure import SfrMethod
 from benchlab.benchmarks.sfr.edges import (
     _F_CHECK,
     ANGLE_RANGE_DEG,
@@ -88,7 +89,7 @@ def _case(name: str, rng: np.random.Generator, snr: float) -> tuple[np.ndarray, 
 
 
 def run_defects(
-    cases: int = 20, seed: int = 6, methods: tuple[str, ...] = ("free", "auto"),
+    cases: int = 20, seed: int = 6, methods: tuple[SfrMethod, ...] = ("free", "auto"),
     snrs: tuple[float, ...] = DEFECT_SNRS,
 ) -> list[NonGaussianBucket]:
     """Per defect, SNR and method (each method reads the same ROIs): the shares within the

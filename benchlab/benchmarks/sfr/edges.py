@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from benchlab.analysis.sfr.measure import SfrRefused, measure_sfr
+from benchlab.analysis.sfr.measure import SfrMethod, SfrRefused, measure_sfr
 from benchlab.synthetic.edges import edge_truth_mtf, edge_truth_mtf50, synthetic_edge
 
 SIGMAS_PX = (0.3, 0.6, 1.0, 2.0, 3.0)
@@ -67,7 +67,7 @@ class Bucket:
     mtf_err_p95: float
     mtf_coverage: float  # share of |MTF - truth| <= 1.96 sigma, over cases x f in (0, Nyquist]
     mtf50_coverage: float  # the same for MTF50
-    method: str = "free"  # the measure_sfr method scored
+    method: SfrMethod = "free"  # the measure_sfr method scored
     model_used: float = 0.0  # share of the readings made by the LSF model
     both_within: float = math.nan  # fraction within both tolerances at once (a case passes)
     cpu_ms_median: float = math.nan  # CPU ms per measure_sfr call on this bucket's cases
@@ -186,7 +186,7 @@ def iter_cases(
 def run_accuracy(
     cases_per_cell: int = 20, seed: int = 0, rows: int = ROI_SHAPE[0],
     sigmas_px: tuple[float, ...] = SIGMAS_PX, snrs: tuple[float, ...] = SNRS, frames: int = 1,
-    method: str = "free", timing_repeats: int = 1,
+    method: SfrMethod = "free", timing_repeats: int = 1,
 ) -> list[Bucket]:
     """Score every (sigma, SNR) bucket over ``cases_per_cell`` cases per bit depth, on edges
     ``rows`` long, each the mean of ``frames`` frames, read by ``method`` (see
@@ -248,7 +248,7 @@ def run_accuracy(
 
 def run_speed(
     repeats: int = 200, bootstrap: int = 0, seed: int = 1, rows: int = ROI_SHAPE[0],
-    method: str = "auto", snr: float = 100.0, sigma_px: float = 1.0,
+    method: SfrMethod = "auto", snr: float = 100.0, sigma_px: float = 1.0,
 ) -> tuple[float, float, float]:
     """(min, median) wall-clock and median CPU milliseconds per ``rows`` x 100 ROI (12-bit,
     5 deg, sigma 1, SNR 100 unless given). CPU time is what the machine's other jobs do not
@@ -278,7 +278,8 @@ def floor_shortfall(sigma_px: float, snr: float, rows: int) -> tuple[float, floa
     return nf.mtf_nyquist_sd / (MTF_TOL / 1.96), nf.mtf50_rel_sd / (MTF50_TOL / 1.96)
 
 
-def frames_needed_by_floor(sigma_px: float, snr: float, rows: int, method: str = "free") -> int:
+def frames_needed_by_floor(sigma_px: float, snr: float, rows: int,
+                           method: SfrMethod = "free") -> int:
     """Fewest frames (noise / sqrt N) that bring the floor (the model-free one for method
     free, else the LSF model's, :func:`model_floor`) within what both criteria need: a lower
     bound; the estimator itself may need more (:func:`run_frames` measures it)."""
@@ -425,7 +426,7 @@ class FramesNeed:
 
 def run_frames(
     cases_per_cell: int = 20, seed: int = 5, snr: float = 20.0, rows: int = ROI_SHAPE[0],
-    sigmas_px: tuple[float, ...] = SIGMAS_PX, max_tries: int = 4, method: str = "free",
+    sigmas_px: tuple[float, ...] = SIGMAS_PX, max_tries: int = 4, method: SfrMethod = "free",
 ) -> list[FramesNeed]:
     """Per blur, the fewest frames of a ``rows``-row edge at ``snr`` that, averaged, pass both
     criteria: tried from the floor's bound up (x1, x1.5, x2, x3)."""
@@ -527,7 +528,7 @@ class NonGaussianBucket:
 
     name: str
     snr: float
-    method: str
+    method: SfrMethod
     cases: int
     mtf_within: float  # share with MTF within MTF_TOL to Nyquist
     mtf50_within: float  # share with MTF50 within MTF50_TOL
@@ -543,7 +544,7 @@ def _truth_mtf50(truth: np.ndarray) -> float:
 
 
 def run_non_gaussian(
-    cases: int = 20, seed: int = 4, methods: tuple[str, ...] = ("free", "auto"),
+    cases: int = 20, seed: int = 4, methods: tuple[SfrMethod, ...] = ("free", "auto"),
     snrs: tuple[float, ...] = NON_GAUSSIAN_SNRS,
 ) -> list[NonGaussianBucket]:
     """Per non-Gaussian LSF, SNR and method (each method reads the same edges): the shares
@@ -567,7 +568,7 @@ def run_non_gaussian(
 
 def score_cases(
     name: str, snr: float, cases: Iterable[tuple[np.ndarray, np.ndarray, float]],
-    methods: tuple[str, ...],
+    methods: tuple[SfrMethod, ...],
 ) -> list[NonGaussianBucket]:
     """One :class:`NonGaussianBucket` per method from ``(image, truth MTF on _F_CHECK, truth
     MTF50)`` cases, each read by every method (a refusal counts as a miss)."""
@@ -695,7 +696,7 @@ MIN_ROWS_LENGTHS = (100, 150, 200, 250, 300, 400, 500)
 
 def run_min_rows(
     cases_per_cell: int = 25, seed: int = 9, snr: float = 20.0,
-    lengths: tuple[int, ...] = MIN_ROWS_LENGTHS, method: str = "auto",
+    lengths: tuple[int, ...] = MIN_ROWS_LENGTHS, method: SfrMethod = "auto",
     sigmas_px: tuple[float, ...] = SIGMAS_PX,
 ) -> list[tuple[float, int | None, Bucket]]:
     """Per blur, the shortest edge (rows along it, from ``lengths``) read by ``method`` that

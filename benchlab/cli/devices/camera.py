@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import array
-import json
 import statistics
 import sys
 import time
@@ -16,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
-from benchlab.cli.output import session_part
+from benchlab.cli.output import print_outcome, session_part
 from benchlab.drivers.errors import BenchlabError, DeviceNotFoundError
 
 if TYPE_CHECKING:  # the driver stack (numpy, pyusb) is imported by the commands that use it
@@ -95,24 +94,27 @@ def cameras_elsewhere(backend: Any, pid: int | None) -> tuple[list[dict[str, Any
 
 def _cmd_devices(args: argparse.Namespace) -> int:
     rows, notes = list_devices(args.simulate, args.pid)
-    if args.json:
-        print(json.dumps(rows, indent=2, default=str))
-    elif not rows:
-        print("no devices found")
-    else:
-        header = ("KIND", "MODEL", "SERIAL", "FIRMWARE", "WHERE")
-        table = [header] + [
-            (str(r.get("kind", "")), str(r.get("model", "")), str(r.get("serial", "")),
-             str(r.get("firmware", "")), str(r.get("port", "")) + (
-                 f"  ({r['error']})" if r.get("error") else ""))
-            for r in rows
-        ]
-        widths = [max(len(row[i]) for row in table) for i in range(len(header))]
-        for row in table:
-            print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
+    status = print_outcome(args.json, lambda: rows, lambda: _devices_table(rows), indent=2,
+                           default=str)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
-    return 0
+    return status
+
+
+def _devices_table(rows: list[dict[str, Any]]) -> str:
+    """One line per device, in aligned columns."""
+    if not rows:
+        return "no devices found"
+    header = ("KIND", "MODEL", "SERIAL", "FIRMWARE", "WHERE")
+    table = [header] + [
+        (str(r.get("kind", "")), str(r.get("model", "")), str(r.get("serial", "")),
+         str(r.get("firmware", "")), str(r.get("port", "")) + (
+             f"  ({r['error']})" if r.get("error") else ""))
+        for r in rows
+    ]
+    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip()
+                     for row in table)
 
 
 # --------------------------------------------------------------------------- snap
@@ -258,18 +260,20 @@ def benchmark_camera(frames: int = 200, decode_repeats: int = 40) -> list[dict[s
 
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     rows = benchmark_camera(args.frames)
-    if args.json:
-        print(json.dumps(rows, indent=2))
-        return 0
+    return print_outcome(args.json, lambda: rows, lambda: _benchmark_text(rows, args.frames),
+                         indent=2)
+
+
+def _benchmark_text(rows: list[dict[str, Any]], frames: int) -> None:
+    """The camera benchmark's table (printed)."""
     print(f"camera: simulated MCE-B013-U through pyusb + benchlab driver, "
-          f"{rows[0]['width']}x{rows[0]['height']}, {args.frames} frames per row")
+          f"{rows[0]['width']}x{rows[0]['height']}, {frames} frames per row")
     print(f"{'bits':>4}  {'fps end-to-end':>14}  {'decode ms':>9}  {'copy ms':>7}  "
           f"{'decode/copy':>11}")
     for r in rows:
         print(f"{r['bits']:>4}  {r['fps']:>14.1f}  {r['decode_ms']:>9.3f}  {r['copy_ms']:>7.3f}  "
               f"{r['decode_over_copy']:>11.2f}")
     print("targets: >= 60 fps at 8-bit full frame; decode <= 3x a plain copy of the same bytes")
-    return 0
 
 
 # --------------------------------------------------------------------------- registry

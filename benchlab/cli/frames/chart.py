@@ -4,20 +4,27 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from benchlab.cli import positive_int
-from benchlab.cli.output import add_output_option, check_output, forced, write_output
+from benchlab.cli.output import (
+    add_output_option,
+    check_output,
+    forced,
+    print_outcome,
+    write_output,
+)
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy / OpenCV are imported by the commands (fast `benchlab --help`)
     from benchlab.analysis.bars.result import ModulationResult
     from benchlab.analysis.chart.finder import ChartFit
 
-CHART_KINDS = ("usaf",)
+#: What ``--chart`` takes.
+ChartKind = Literal["usaf"]
+CHART_KINDS: tuple[ChartKind, ...] = ("usaf",)
 
 
 class ChartNotFound(BenchlabError):
@@ -136,11 +143,8 @@ def _find_chart_command(args: argparse.Namespace) -> int:
                          option="--plot")
         except OSError as exc:
             raise BenchlabError(f"cannot write {args.plot}: {exc.strerror or exc}") from exc
-    if args.json:
-        print(json.dumps({"frame": str(path), **fit.to_dict()}, allow_nan=False))
-    else:
-        print(format_elements(fit))
-    return 0
+    return print_outcome(args.json, lambda: {"frame": str(path), **fit.to_dict()},
+                         lambda: format_elements(fit), allow_nan=False)
 
 
 # --------------------------------------------------------------------------- analyze --chart
@@ -243,14 +247,13 @@ def analyze_chart_command(args: argparse.Namespace) -> int:
         rows = measure_chart(pixels, fit, args.estimator)
     except ValueError as exc:
         raise AnalysisInputError(f"{path}: {exc}") from exc
-    if args.json:
+    def payload() -> dict[str, Any]:
         summary = {k: v for k, v in fit.to_dict().items() if k != "elements"}
         rejected = [{"label": e.label, "reason": e.reason} for e in fit.rejected]
-        print(json.dumps({"image": str(path), "chart": summary, "rows": rows,
-                          "rejected": rejected}, allow_nan=False))
-    else:
-        print(format_table_411(fit, rows))
-    return 0
+        return {"image": str(path), "chart": summary, "rows": rows, "rejected": rejected}
+
+    return print_outcome(args.json, payload, lambda: format_table_411(fit, rows),
+                         allow_nan=False)
 
 
 # --------------------------------------------------------------------------- benchmark

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import io
-import json
 import math
 import sys
 import time
@@ -18,7 +17,7 @@ from benchlab.cli.frames.analysis import (
     read_image_and_metadata,
     roi_values,
 )
-from benchlab.cli.output import add_output_option, check_output, write_output
+from benchlab.cli.output import add_output_option, check_output, print_outcome, write_output
 from benchlab.drivers.errors import BenchlabError
 
 #: Frequencies (cycles/px) listed in the text output.
@@ -414,28 +413,33 @@ def sfr_command(args: argparse.Namespace) -> int:
               args.force)
     n_frames = 1 if frames_check is None else frames_check.frames
     shift = None if frames_check is None else round(frames_check.max_shift_px, 4)
-    if args.json:
-        payload = result.to_dict()
-        payload.update({
+
+    def payload() -> dict[str, Any]:
+        out = result.to_dict()
+        out.update({
             "image": str(path), "images": [str(p) for p in paths], "roi": list(roi),
             "frames": n_frames, "frames_max_shift_px": shift,
             "bootstrap_resamples": args.bootstrap,
             "mtf50_lp_per_mm": None if result.mtf50_cycles_per_px is None
             else _lp_per_mm(result.mtf50_cycles_per_px),
-            "freqs_lp_per_mm": [round(_lp_per_mm(f), 4) for f in payload["freqs_cycles_per_px"]],
+            "freqs_lp_per_mm": [round(_lp_per_mm(f), 4) for f in out["freqs_cycles_per_px"]],
             "plot": str(plot) if plot is not None else None,
             "mtf_at": _at_freqs(result, freqs),
         })
-        print(json.dumps(payload, allow_nan=False))
-        return 0
-    print(_text(result, _images_text(paths, pages), roi, _at_freqs(result, freqs),
-                args.bootstrap))
-    if frames_check is not None:
-        print(f"frames             {n_frames} averaged (noise / {n_frames ** 0.5:.2f}); the edge "
-              f"moved at most {frames_check.max_shift_px:.3f} px between them")
-    if plot is not None:
-        print(f"plot: {plot}")
-    return 0
+        return out
+
+    def text() -> str:
+        lines = [_text(result, _images_text(paths, pages), roi, _at_freqs(result, freqs),
+                       args.bootstrap)]
+        if frames_check is not None:
+            lines.append(f"frames             {n_frames} averaged (noise / "
+                         f"{n_frames ** 0.5:.2f}); the edge moved at most "
+                         f"{frames_check.max_shift_px:.3f} px between them")
+        if plot is not None:
+            lines.append(f"plot: {plot}")
+        return "\n".join(lines)
+
+    return print_outcome(args.json, payload, text, allow_nan=False)
 
 
 def _parse_rows(text: str) -> tuple[int, ...]:

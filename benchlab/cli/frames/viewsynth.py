@@ -8,12 +8,11 @@ The work is in :mod:`benchlab.radial_views` (files and sessions) and
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
 
-from benchlab.cli.output import add_output_option, check_output
+from benchlab.cli.output import add_output_option, check_output, print_outcome
 from benchlab.drivers.errors import BenchlabError
 
 DEPTH_HELP = ("assumed distance of the object from the endoscope axis, mm (default 19.88, the "
@@ -68,11 +67,10 @@ def _table(args: argparse.Namespace) -> Any:
     return load_table(Path(args.table) if args.table else None)
 
 
-def _print(info: dict[str, Any], as_json: bool, lines: list[str]) -> None:
-    if as_json:
-        print(json.dumps(info, indent=2, default=str))
-    else:
-        print("\n".join(lines))
+def _outcome(info: dict[str, Any], as_json: bool, lines: list[str]) -> int:
+    """``info`` as JSON (``--json``), else ``lines``; exit code 0."""
+    return print_outcome(as_json, lambda: info, lambda: "\n".join(lines), indent=2,
+                         default=str)
 
 
 def unwrap_command(args: argparse.Namespace) -> int:
@@ -100,14 +98,13 @@ def unwrap_command(args: argparse.Namespace) -> int:
         lines = [f"{r['step_id']}__{r['frame']}: {r['cols']}x{r['rows']} px, "
                  f"{100 * r['valid_fraction']:.1f} % valid" for r in info["unwrap"]]
         lines.append(f"results: {version}  (frames untouched)")
-        _print(info, args.json, lines)
-        return 0
+        return _outcome(info, args.json, lines)
     if args.out:
         check_output(args.out, force=args.overwrite, option="--out")
     info = rv.unwrap_file(target, out=args.out, overwrite=args.overwrite,
                           **common)  # type: ignore[arg-type]
     rows, cols = info["frame_shape"]
-    _print(info, args.json, [
+    return _outcome(info, args.json, [
         f"unwrapped {target} -> {info['out']}",
         f"object radius {info['object_radius_mm']:g} mm"
         + (" (EXTRAPOLATED beyond the table)" if info["extrapolated"] else "")
@@ -118,7 +115,6 @@ def unwrap_command(args: argparse.Namespace) -> int:
         "frame or the table: 0 in the view, 0 in the mask page)",
         f"table {info['table_source']} sha256 {info['table_sha256'][:16]}",
     ])
-    return 0
 
 
 def perspective_command(args: argparse.Namespace) -> int:
@@ -132,22 +128,23 @@ def perspective_command(args: argparse.Namespace) -> int:
         interpolation=args.interpolation, allow_extrapolation=args.allow_extrapolation,
         overwrite=args.overwrite,
     )
-    _print(info, args.json, [
+    return _outcome(info, args.json, [
         f"perspective {args.frame} -> {info['out']}",
         f"viewpoint z {info['viewpoint_z_mm']:.4f} mm, yaw {args.yaw_deg:g}, pitch "
         f"{args.pitch_deg:g}, fov {args.fov_deg:g} deg, cylinder {info['object_radius_mm']:g} mm",
         f"valid {100 * info['valid_fraction']:.1f} %",
     ])
-    return 0
 
 
 def viewpoint_command(args: argparse.Namespace) -> int:
     from benchlab import radial_views as rv
 
     info = rv.viewpoint_report(_table(args), step_mm=args.step_mm)
-    if args.json:
-        print(json.dumps(info, indent=2))
-        return 0
+    return print_outcome(args.json, lambda: info, lambda: _viewpoint_text(info), indent=2)
+
+
+def _viewpoint_text(info: dict[str, Any]) -> None:
+    """The viewpoint report as a table (printed)."""
     lo, hi = info["operational_image_radius_mm"]
     print(f"table {info['table']} (sha256 {info['table_sha256'][:16]})")
     print(f"effective viewpoint z = {info['effective_viewpoint_z_mm']:.4f} mm; SVP spread "
@@ -158,7 +155,6 @@ def viewpoint_command(args: argparse.Namespace) -> int:
         print(f"{r['image_radius_mm']:>15.3f} {r['viewpoint_z_mm']:>15.4f} "
               f"{r['spread_um']:>10.1f} {r['line_residual_um']:>11.2f}  "
               f"{'yes' if r['curved'] else ''}")
-    return 0
 
 
 def calibrate_radial_command(args: argparse.Namespace) -> int:
@@ -184,20 +180,17 @@ def calibrate_radial_command(args: argparse.Namespace) -> int:
             f"(max {cmp['max_axial_um']:.1f}), {cmp['rms_image_radius_um']:.2f} um image radius; "
             f"magnification {cmp['magnification_calibrated']:.3f} vs "
             f"{cmp['magnification_reference']:.3f} ({cmp['magnification_error_pct']:+.2f} %)")
-    _print(info, args.json, lines)
-    return 0
+    return _outcome(info, args.json, lines)
 
 
 def benchmark_command(args: argparse.Namespace) -> int:
     from benchlab.benchmarks.viewsynth import format_figures, run_benchmark
 
     figs, raw = run_benchmark(quick=args.quick)
-    if args.json:
-        print(json.dumps({"figures": [f.__dict__ for f in figs], **raw}, indent=2, default=str))
-    else:
-        print(format_figures(figs))
-        print("(times: min and median of repeats on a shared machine)")
-    return 0 if all(f.ok is not False for f in figs) else 1
+    return print_outcome(
+        args.json, lambda: {"figures": [f.__dict__ for f in figs], **raw},
+        lambda: format_figures(figs) + "\n(times: min and median of repeats on a shared machine)",
+        status=0 if all(f.ok is not False for f in figs) else 1, indent=2, default=str)
 
 
 def _view_options(p: argparse.ArgumentParser) -> None:

@@ -6,7 +6,8 @@ import pytest
 
 from benchlab.analysis.mtf.frequency import azimuthal_image_frequency_lp_per_mm
 from benchlab.protocols.mtf.analysis import radial_image_lp_per_mm
-from benchlab.protocols.params import MtfParams, parse_params
+from benchlab.protocols.mtf.params import MtfParams
+from benchlab.protocols.params import parse_params
 
 
 def test_azimuthal_frequency_is_object_over_image_radius() -> None:

@@ -1,0 +1,41 @@
+"""`benchlab.cli.output.print_outcome`: a command's result as a table or one JSON document,
+and the exit code its outcome gives (issue 42: one helper instead of a copy per command)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchlab.cli.output import print_outcome
+
+
+def _never() -> object:
+    raise AssertionError("only the form asked for is computed")
+
+
+def test_json_prints_the_payload_alone_with_the_options_given(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    status = print_outcome(True, lambda: {"b": 1.5, "a": [1]}, _never, status=3, indent=2)  # type: ignore[arg-type]
+    out = capsys.readouterr().out
+    assert status == 3
+    assert out == json.dumps({"b": 1.5, "a": [1]}, indent=2) + "\n"
+
+
+def test_text_prints_what_text_returns_or_what_it_printed_itself(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert print_outcome(False, _never, lambda: "a table") == 0
+    assert capsys.readouterr().out == "a table\n"
+
+    def printed() -> None:
+        print("part 1")
+        print("part 2")
+
+    assert print_outcome(False, _never, printed, status=1) == 1
+    assert capsys.readouterr().out == "part 1\npart 2\n"
+
+
+def test_json_options_reach_json_dumps(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(ValueError, match="Out of range float"):
+        print_outcome(True, lambda: {"x": float("nan")}, _never, allow_nan=False)  # type: ignore[arg-type]
+    assert capsys.readouterr().out == ""
