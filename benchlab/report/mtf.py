@@ -191,8 +191,8 @@ def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
 def _share_of(row: dict[str, Any]) -> tuple[float, float] | None:
     """A Table 4.15 row's averaged lens share and its 1 sigma, when its verdict is on it."""
     v = row.get("averaged_lens_share")
-    if not isinstance(v, int | float) or isinstance(v, bool):
-        return None
+    if not isinstance(v, int | float) or isinstance(v, bool) or average_of(row)[0] is None:
+        return None  # no share, or a half not resolved (no average at all)
     return float(v), float(row.get("averaged_lens_share_uncertainty") or 0.0)
 
 

@@ -814,18 +814,19 @@ def _monte_carlo_rows(
             "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s if s_ok else None,
             "tangential_modulation": t if t_ok else None,
         }
-        row.update({"sagittal_lens_share": s_share if s_ok else None,
-                    "tangential_lens_share": t_share if t_ok else None,
-                    "averaged_lens_share": None, "averaged_lens_share_uncertainty": None,
-                    "verdict_basis": VERDICT_ON_SHARE if shares else VERDICT_ON_READING})
+        lens: dict[str, Any] = {
+            "sagittal_lens_share": s_share if s_ok else None,
+            "tangential_lens_share": t_share if t_ok else None,
+            "averaged_lens_share": None, "averaged_lens_share_uncertainty": None,
+            "verdict_basis": VERDICT_ON_SHARE if shares else VERDICT_ON_READING}
         if s_ok and t_ok:
             avg = averaged_mtf(s, t)
             row["averaged_modulation"] = round(avg.average, 6)
             placed = avg.average
             if shares:  # the lens alone against the lens's prediction
                 placed = averaged_mtf(s_share, t_share).average
-                row["averaged_lens_share"] = round(placed, 6)
-                row["averaged_lens_share_uncertainty"] = round(
+                lens["averaged_lens_share"] = round(placed, 6)
+                lens["averaged_lens_share_uncertainty"] = round(
                     0.5 * math.hypot(s_u or 0.0, t_u or 0.0), 6)
             verdict = monte_carlo_band(placed, mc)[1]
             if s_bound or t_bound:
@@ -844,7 +845,7 @@ def _monte_carlo_rows(
         out.append({
             **row, **mc.columns(), "verdict": verdict,
             "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
-            "sagittal_resolved": s_ok, "tangential_resolved": t_ok,
+            "sagittal_resolved": s_ok, "tangential_resolved": t_ok, **lens,
         })
     return out
 
