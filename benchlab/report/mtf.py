@@ -15,7 +15,7 @@ import numpy as np
 from benchlab.analysis.mtf.compare import SimulatedCurve
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
 from benchlab.analysis.mtf.simulated_ctf import extended_mtf, simulated_ctf
-from benchlab.report.html import esc, figure_img
+from benchlab.report.html import caption, esc, figure_img
 from benchlab.report.tables import html_table
 from benchlab.table_4_15 import average_of, fmt_reading, reading, verdict_rows
 
@@ -185,7 +185,12 @@ def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
             "the value with the stated probability. A reading that is not resolved has no "
             "number: its row has no average and no verdict (the average is at least half the "
             "other reading).</p>"
-            + html_table(shown, cols) + _bands_figure(rows))
+            + html_table(shown, cols)
+            + caption("each row's averaged lens share (black, 1 sigma; the verdict's basis), "
+                      "its sagittal and tangential halves and the measured average (grey, lens "
+                      "and target) with the Monte Carlo thresholds (grey band, labelled by the "
+                      "probability that a built objective exceeds them).")
+            + _bands_figure(rows))
 
 
 def _share_of(row: dict[str, Any]) -> tuple[float, float] | None:

@@ -22,6 +22,7 @@ import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 from benchlab.report.html import (
     annotated_image,
+    caption,
     display_8bit,
     downsample,
     enlarge,
@@ -224,7 +225,7 @@ def _target_text(view: str, t: dict[str, Any] | None) -> str:
 def _ctf_caption(targets: dict[str, Any]) -> str:
     """What the bar-contrast plot compares, with each target's contrast and its source."""
     known = [_target_text(v, targets.get(v)) for v in ("forward", "radial")]
-    return ("<p class='note'>Compared: <b>the lens's share of the bar contrast</b> (black "
+    return ("<p class='note caption'>Compared: <b>the lens's share of the bar contrast</b> (black "
             "points: the measured Eq. 2.9 contrast divided by the target's own contrast, "
             "1 sigma with both uncertainties propagated) <b>with the simulated lens</b> "
             "(lines: the sine-wave MTF of the Table 4.14 field points converted to square-wave "
@@ -359,13 +360,16 @@ def _radiometry_figure(ctx: ReportContext) -> str:
     ax.plot(pos, values("simulated_normalised"), "s--", label="simulated irradiance")
     ax.plot(pos, values("measured_normalised"), "o-", label="measured mean gray")
     ax.set_xlabel("LED field position (mm)")
-    ax.set_ylabel("normalised to maximum")
+    ax.set_ylabel("irradiance, mean gray (normalised to maximum)")
     ax.set_ylim(0, 1.1)
     ax.set_title("Relative radiometry (fig. 4.21)")
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    return figure_img(fig, "radiometric fall-off")
+    return caption("the measured mean gray level in the LED mask (circles) with the simulated "
+                   "irradiance (squares, Table 4.16), each normalised to its largest value, at "
+                   "each LED field position; a clipped position is a gap, not a point.") + \
+        figure_img(fig, "radiometric fall-off")
 
 
 @dataclass(frozen=True)
