@@ -30,7 +30,7 @@ def _display_points(ax: Any) -> np.ndarray:
         xy = ax.transData.transform(np.column_stack([x, y]))
         if ln.get_linestyle() not in ("None", "none", "") and len(xy) > 1:
             t = np.linspace(0.0, 1.0, 12)[:, None]
-            xy = np.concatenate([a + t * (b - a) for a, b in zip(xy[:-1], xy[1:])])
+            xy = np.concatenate([a + t * (b - a) for a, b in zip(xy[:-1], xy[1:], strict=True)])
         pts.append(xy)
     for c in ax.collections:
         if not isinstance(c, Collection) or not c.get_visible():

@@ -116,7 +116,8 @@ def share_columns(orient: str, row: dict[str, Any], target: TargetContrast) -> d
     only for a resolved reading)."""
     m = row.get(f"{orient}_modulation")
     ok = m is not None and row.get(f"{orient}_resolved") is not False
-    share, u = lens_share(float(m) if ok and m is not None else None, row.get(f"{orient}_uncertainty"), target)
+    reading = float(m) if ok and m is not None else None
+    share, u = lens_share(reading, row.get(f"{orient}_uncertainty"), target)
     return {f"{orient}_target_contrast": _r(target.value),
             f"{orient}_target_contrast_uncertainty": _r(target.uncertainty),
             f"{orient}_lens_share": _r(share), f"{orient}_lens_share_uncertainty": _r(u)}
