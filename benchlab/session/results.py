@@ -358,7 +358,8 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise SessionError(f"{path}: not a table (a JSON list of row objects expected, "
                                f"found {_json_kind(rows)})")
-    return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
+    # In label order, as the thesis numbers them; the simulator's truth after what was measured.
+    return dict(sorted(tables.items(), key=lambda t: (t[0] == "simulator_truth", t[0]))), summary
 
 
 def _check_files_sha256(folder: Path, summary: Mapping[str, Any],
