@@ -532,9 +532,10 @@ def analyze_mtf(
     tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
     tables.update(edges)  # slanted-edge MTF where a clean edge exists (issue 16)
     if session.meta.get("devices", {}).get("simulated"):
-        from benchlab.protocols.mtf.truth import truth_rows  # the simulated bench's scenes
+        from benchlab.protocols.mtf.truth import journalled_levels, truth_rows  # the scenes
 
-        tables["simulator_truth"] = truth_rows(params, t411, t412)
+        tables["simulator_truth"] = truth_rows(params, t411, t412,
+                                               journalled_levels(session.events()))
     summary = {
         "procedure": "mtf",
         "estimator": est,

@@ -33,6 +33,8 @@ from benchlab.analysis.mtf.compare import SimulatedCurve
 from benchlab.analysis.mtf.simulated_ctf import simulated_ctf
 from benchlab.protocols.target_contrast import TargetSetting
 
+#: The journal event that keeps a simulated target's printed levels (its truth's contrast).
+SIMULATED_TARGET_EVENT = "simulated_target"
 #: A target's contrast is read only where the simulated lens passes at least this share of a
 #: square wave (CTF) at every field point: the reading is then the target's within 1 %.
 REFERENCE_MIN_CTF = 0.99

@@ -13,6 +13,7 @@ from typing import Any
 
 from benchlab.analysis.chart.layout import Orientation
 from benchlab.analysis.geometry import roi_centroid
+from benchlab.protocols.mtf.targets import SIMULATED_TARGET_EVENT
 from benchlab.protocols.params import MtfParams
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
@@ -20,12 +21,17 @@ from benchlab.scenes.usaf import UsafScene
 ORIENTATIONS: tuple[Orientation, ...] = ("sagittal", "tangential")
 
 
-def truth_rows(params: MtfParams, t411: list[dict[str, Any]],
-               t412: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def truth_rows(params: MtfParams, t411: list[dict[str, Any]], t412: list[dict[str, Any]],
+               levels: dict[str, tuple[float, float]] | None = None) -> list[dict[str, Any]]:
     """One row per measured bar set and orientation: ``view``, ``pattern``, ``orientation``,
     ``image_lp_per_mm``, ``target_contrast``, ``modulation`` (Eq. 2.9, noise-free) and
-    ``lens_share``."""
+    ``lens_share``. ``levels``: the printed ``(dark_dn8, bright_dn8)`` per view the session
+    journalled (:func:`journalled_levels`; else the scenes' defaults)."""
+    levels = levels or {}
     usaf = UsafScene()
+    if "forward" in levels:
+        usaf = dataclasses.replace(usaf, dark_dn8=levels["forward"][0],
+                                   bright_dn8=levels["forward"][1])
     rows: list[dict[str, Any]] = []
     elements = {el.name: el for el in params.forward_elements}
     for r in t411:
@@ -35,6 +41,9 @@ def truth_rows(params: MtfParams, t411: list[dict[str, Any]],
             rows.append(_row("forward", el.name, orient, r[f"{orient}_image_lp_per_mm"],
                              usaf.contrast, m))
     template = RadialScene(1.0, "sagittal", object_radius_mm=params.radial_object_radius_mm)
+    if "radial" in levels:
+        template = dataclasses.replace(template, dark_dn8=levels["radial"][0],
+                                       bright_dn8=levels["radial"][1])
     at = roi_centroid(params.radial_roi)
     for r in t412:
         f = float(r["object_lp_per_mm"])
@@ -43,6 +52,15 @@ def truth_rows(params: MtfParams, t411: list[dict[str, Any]],
             rows.append(_row("radial", f"{f:g} lp/mm", orient, scene.image_lp_per_mm,
                              scene.contrast, scene.truth_modulation(at)))
     return rows
+
+
+def journalled_levels(events: list[dict[str, Any]]) -> dict[str, tuple[float, float]]:
+    """The last printed levels journalled per view (``simulated_target`` events)."""
+    out: dict[str, tuple[float, float]] = {}
+    for e in events:
+        if e.get("kind") == SIMULATED_TARGET_EVENT:
+            out[str(e["view"])] = (float(e["dark_dn8"]), float(e["bright_dn8"]))
+    return out
 
 
 def _row(view: str, pattern: str, orient: str, f: float, target: float,
