@@ -85,7 +85,8 @@ def test_open_session_reads_the_tables_with_their_types(
     assert session.status == "completed" and session.procedure == "mtf"
     assert session.tables() == ["forward_view_modulation", "radial_view_modulation",
                                 "image_heights_field_points", "averaged_mtf_vs_monte_carlo",
-                                "table_sfr_curves", "table_sfr_edges", "table_sfr_vs_bars"]
+                                "table_sfr_curves", "table_sfr_edges", "table_sfr_vs_bars",
+                                "simulator_truth"]  # the simulated bench's, after the rest
     rows = session.table("forward_view_modulation")
     assert [r["element"] for r in rows] == ["G1E5", "G2E1"]
     first = rows[0]

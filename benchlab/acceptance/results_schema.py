@@ -27,6 +27,11 @@ def _columns(number: tuple[str, ...] = (), text: tuple[str, ...] = (),
     return {name: kind for kind, names in kinds.items() for name in names}
 
 
+#: The MTF test's target contrast and the lens's share (measured / target), each with its
+#: 1-sigma uncertainty, beside each orientation's reading (Tables 4.11 and 4.12).
+_LENS_SHARE = tuple(f"{o}_{k}" for o in ("sagittal", "tangential") for k in (
+    "target_contrast", "target_contrast_uncertainty", "lens_share", "lens_share_uncertainty"))
+
 #: table file name -> column -> kind (None: the columns vary; only the name is checked).
 RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
     "forward_view_modulation": _columns(
@@ -34,9 +39,9 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
             "sagittal_bright", "sagittal_modulation", "sagittal_uncertainty",
             "sagittal_image_lp_per_mm", "tangential_dark", "tangential_bright",
             "tangential_modulation", "tangential_uncertainty",
-            "tangential_image_lp_per_mm"),
+            "tangential_image_lp_per_mm", *_LENS_SHARE),
         text=("element", "sagittal_warnings", "sagittal_estimator",
-            "tangential_warnings", "tangential_estimator"),
+            "tangential_warnings", "tangential_estimator", "target_contrast_source"),
         bool=("aliased", "sagittal_resolved", "sagittal_aliased", "tangential_resolved",
             "tangential_aliased"),
         list=("sagittal_roi", "tangential_roi"),
@@ -45,8 +50,9 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
         number=("object_lp_per_mm", "image_lp_per_mm", "sagittal_image_lp_per_mm",
             "tangential_image_lp_per_mm", "sagittal_dark", "sagittal_bright",
             "sagittal_modulation", "sagittal_uncertainty", "tangential_dark",
-            "tangential_bright", "tangential_modulation", "tangential_uncertainty"),
-        text=("sagittal_warnings", "tangential_warnings"),
+            "tangential_bright", "tangential_modulation", "tangential_uncertainty",
+            *_LENS_SHARE),
+        text=("sagittal_warnings", "tangential_warnings", "target_contrast_source"),
         bool=("aliased", "sagittal_aliased", "tangential_aliased", "sagittal_resolved",
             "tangential_resolved"),
     ),
@@ -58,8 +64,10 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
     "averaged_mtf_vs_monte_carlo": _columns(
         number=("mc_freq_lp_per_mm", "measured_freq_lp_per_mm", "sagittal_modulation",
             "tangential_modulation", "averaged_modulation", "p90", "p80", "p50", "p20",
-            "p10", "sagittal_freq_lp_per_mm", "tangential_freq_lp_per_mm"),
-        text=("view", "verdict"),
+            "p10", "sagittal_freq_lp_per_mm", "tangential_freq_lp_per_mm",
+            "sagittal_lens_share", "tangential_lens_share", "averaged_lens_share",
+            "averaged_lens_share_uncertainty"),
+        text=("view", "verdict", "verdict_basis"),
         bool=("sagittal_resolved", "tangential_resolved"),
     ),
     "table_sfr_edges": _columns(
@@ -151,3 +159,11 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
     ),
     "viewpoint": None,
 }
+
+#: The MTF test's simulator truth (simulated bench only): per bar set, the target's own
+#: contrast, the noise-free imaged contrast and the lens's share (kept apart from the other
+#: procedures' truth columns above).
+_mtf_truth = RESULTS_SCHEMA["simulator_truth"]
+assert _mtf_truth is not None
+_mtf_truth.update(_columns(number=("image_lp_per_mm", "target_contrast", "modulation",
+                                   "lens_share")))

@@ -13,7 +13,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from benchlab.report.html import figure_img  # noqa: E402
+from benchlab.report.html import caption, figure_img  # noqa: E402
 
 Rows = Sequence[Mapping[str, Any]]
 
@@ -110,9 +110,18 @@ def characterise_html(tables: Mapping[str, Rows], summary: Mapping[str, Any]) ->
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
         out.append(f"<h3>Warnings</h3><ul class='warnings'>{items}</ul>")
     if curve:
-        out.append("<h3>Photon transfer</h3>" + photon_transfer_figure(curve, results))
-        out.append("<h3>Linearity deviation</h3>" + linearity_figure(curve))
-        out.append("<h3>Dark signal</h3>" + dark_signal_figure(curve))
+        out.append("<h3>Photon transfer</h3>" + caption(
+            "each exposure step's temporal variance (DN^2, dark subtracted) with its signal "
+            "above dark (DN), per gain and bit depth: filled points are in the fit whose slope "
+            "is the system gain K (line); the dotted line marks saturation. Open points at the "
+            "foot: steps with no variance above dark.") + photon_transfer_figure(curve, results))
+        out.append("<h3>Linearity deviation</h3>" + caption(
+            "each step's signal with the straight line fitted over 5-95 % of saturation, as the "
+            "deviation in % of that line, per gain and bit depth.") + linearity_figure(curve))
+        out.append("<h3>Dark signal</h3>" + caption(
+            "the dark mean (left, DN) and the dark temporal variance (right, DN^2) with the "
+            "exposure time: the first's slope is the dark current, the second's intercept the "
+            "read noise squared.") + dark_signal_figure(curve))
     out.append("<p class='note'>EMVA 1288 linear model: K is the slope of temporal variance "
                "against signal up to 70 % of saturation; saturation is the step of peak "
                "variance; linearity error over 5-95 % of saturation; DSNU / PRNU from averaged "

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from benchlab.analysis.focus.through_focus import FocusFitError, fit_through_focus
-from benchlab.report.html import esc, figure_img
+from benchlab.report.html import caption, esc, figure_img
 
 _COLOURS = {"sagittal": "tab:blue", "tangential": "tab:red"}
 
@@ -54,7 +54,7 @@ def _curves_figure(curves: Sequence[Mapping[str, Any]], dof: Sequence[Mapping[st
         ax.set_xlabel("object distance (mm)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    axes[0][0].set_ylabel(f"MTF at {freq:g} lp/mm")
+    axes[0][0].set_ylabel(f"MTF at {freq:g} lp/mm (0-1)")
     fig.tight_layout()
     return figure_img(fig, f"through-focus curves, {criterion}")
 
@@ -132,6 +132,11 @@ def _curvature_figure(dof: Sequence[Mapping[str, Any]], criterion: str,
     return figure_img(fig, "best focus against image height")
 
 
+_CURVATURE_CAPTION = caption(
+    "each field point's best-focus distance (95 % interval) with its image height, sagittal "
+    "against tangential: a slope is field curvature, a gap between the two astigmatism.")
+
+
 def depth_section(tables: Mapping[str, Any], params: Mapping[str, Any]) -> str:
     """The section's HTML (empty without a ``depth_of_field`` table)."""
     dof = tables.get("depth_of_field") or []
@@ -142,12 +147,14 @@ def depth_section(tables: Mapping[str, Any], params: Mapping[str, Any]) -> str:
     min_mtf = float(analysis.get("min_mtf", 0.05))
     half = analysis.get("design_half_range_mm")
     if all(r.get("view") == "radial" for r in dof):
-        return ("<p class='note'>Points: the rolled bar pattern's modulation (Eq. 2.9) in each "
+        return (caption("each field point's bar modulation through focus with the threshold "
+                        "(where it crosses: the DOF ends).")
+                + "<p class='note'>Points: the rolled bar pattern's modulation (Eq. 2.9) in each "
                 "field point's ROI at each distance from the side wall; dashed: the threshold; "
                 "bands: the DOF; dotted: best focus (the peak of the fundamental's fit in the "
                 "object radius). Blue sagittal, red tangential.</p>"
                 + _radial_curves_figure(curves, dof)
-                + "<h3>Field curvature and astigmatism</h3>"
+                + "<h3>Field curvature and astigmatism</h3>" + _CURVATURE_CAPTION
                 + _curvature_figure(dof, dof[0]["criterion"], float(half) if half else None))
     out = ["<p class='note'>Points: the slanted edges' MTF at the criterion's frequency at each "
            "object distance (both segments); lines: the through-focus fit (degree-4 polynomial "
@@ -155,7 +162,11 @@ def depth_section(tables: Mapping[str, Any], params: Mapping[str, Any]) -> str:
            "sagittal (near-vertical edges), red tangential.</p>"]
     criteria = list(dict.fromkeys(r["criterion"] for r in dof))
     for crit in criteria:
-        out.append(f"<h3>{esc(crit)}</h3>" + _curves_figure(curves, dof, crit, min_mtf))
-    out.append("<h3>Field curvature and astigmatism</h3>"
+        out.append(f"<h3>{esc(crit)}</h3>"
+                   + caption(f"each field point's MTF at the criterion's frequency through "
+                             f"focus with the threshold of {crit} (where it crosses: the DOF "
+                             "ends).")
+                   + _curves_figure(curves, dof, crit, min_mtf))
+    out.append("<h3>Field curvature and astigmatism</h3>" + _CURVATURE_CAPTION
                + _curvature_figure(dof, criteria[0], float(half) if half else None))
     return "".join(out)

@@ -78,6 +78,12 @@ def enlarge(image_u8: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint
     return np.repeat(np.repeat(image_u8, factor, axis=0), factor, axis=1)
 
 
+def caption(compared: str) -> str:
+    """A figure's caption, placed just above it: what is compared with what (plain text,
+    escaped), starting "Compared: " so that a reader (and the report's browser test) finds it."""
+    return f"<p class='note caption'>Compared: {esc(compared)}</p>"
+
+
 def figure_img(fig: Any, alt: str) -> str:
     """A matplotlib figure as an embedded SVG ``<img>``.
 

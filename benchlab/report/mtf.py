@@ -8,107 +8,39 @@ an axis; the two quantities are never drawn as one.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from benchlab.analysis.mtf.coltman import mtf_to_ctf, signed_mtf
 from benchlab.analysis.mtf.compare import SimulatedCurve
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm
-from benchlab.report.html import esc, figure_img
+from benchlab.analysis.mtf.simulated_ctf import extended_mtf, simulated_ctf
+from benchlab.report.html import caption, esc, figure_img
 from benchlab.report.tables import html_table
 from benchlab.table_4_15 import average_of, fmt_reading, reading, verdict_rows
 
 MC_LEVELS = (("p90", "90 %"), ("p80", "80 %"), ("p50", "50 %"), ("p20", "20 %"),
              ("p10", "10 %"))
 
-#: Marker styles: a measured value, a reading that is not resolved, an aliased one.
+#: Marker styles: the lens's share of a reading (measured / target contrast), a reading whose
+#: target contrast is unknown, a reading that is not resolved, an aliased one.
 MARKERS = {
-    "resolved": dict(fmt="o", color="k", label="measured CTF (Eq. 2.9), 1 sigma"),
+    "share": dict(fmt="o", color="k",
+                  label="lens share (measured / target), 1 sigma"),
+    "resolved": dict(fmt="s", color="#555", mfc="none",
+                     label="measured CTF, target unknown, 1 sigma"),
     "unresolved": dict(marker="v", color="#c0392b", ls="none", mfc="none",
                        label="not resolved (no bar contrast found)"),
     "aliased": dict(marker="x", color="#8e44ad", ls="none", label="aliased (above Nyquist)"),
 }
+#: The raw readings beside their shares: small and grey, so the correction shows.
+RAW_STYLE = dict(marker=".", color="#999", ls="none", ms=4,
+                 label="measured CTF (lens and target)")
 
 
 #: Drawing order: measured points above the simulated curves.
 CURVE_ZORDER = 2
 POINT_ZORDER = 4
-
-#: A curve whose last value is below this has ended where the response has vanished.
-TAIL_VANISHED = 0.01
-#: Coltman's series is summed until its harmonics reach a frequency where the MTF is below
-#: this (the terms alternate in sign: stopping while they are large overshoots 1).
-SERIES_MTF_FLOOR = 1e-6
-#: ... but with no more than this many odd harmonics (a tail that never vanishes).
-MAX_HARMONIC = 20001
-
-
-def extended_mtf(curve: SimulatedCurve) -> tuple[Callable[[Any], Any], bool]:
-    """The real OTF of a simulated curve for any f >= 0, and whether its tail was
-    extrapolated.
-
-    The exported modulus is given the sign of each lobe (:func:`~benchlab.analysis.mtf.
-    coltman.signed_mtf`: past a zero the contrast is reversed). Coltman's series at f needs
-    the MTF at 3f, 5f, ...; a curve that ends while the response is still clearly above 0 (a
-    Zemax export cut at Nyquist) is continued with a Gaussian, ``ln MTF = c - a f^2``,
-    fitted to the last third of its last lobe."""
-    mtf_at, extrapolated, _ = _extended(curve)
-    return mtf_at, extrapolated
-
-
-def _extended(curve: SimulatedCurve) -> tuple[Callable[[Any], Any], bool, float]:
-    """:func:`extended_mtf` and the frequency past which its response is below
-    :data:`SERIES_MTF_FLOOR` (the curve's end when not extrapolated)."""
-    f = np.asarray(curve.freqs_lp_per_mm, dtype=np.float64)
-    m = signed_mtf(f, np.asarray(curve.mtf, dtype=np.float64))
-    plain = (lambda x: np.interp(x, f, m, right=0.0)), False, float(f[-1])
-    if abs(m[-1]) <= TAIL_VANISHED or f.size < 3:
-        return plain
-    zeros = np.flatnonzero(m == 0.0)
-    lobe = slice(int(zeros[-1]) + 1 if zeros.size else 0, None)
-    fl, ml = f[lobe], np.abs(m[lobe])
-    tail = slice(2 * fl.size // 3, None)
-    ok = ml[tail] > 0
-    if fl.size < 3 or ok.sum() < 2:
-        return plain
-    slope, _ = np.polyfit(fl[tail][ok] ** 2, np.log(ml[tail][ok]), 1)
-    a = max(-float(slope), 1e-12)
-    c = math.log(abs(float(m[-1]))) + a * float(f[-1]) ** 2  # continuous at the last point
-    sign = math.copysign(1.0, float(m[-1]))
-
-    def mtf_at(x: Any) -> Any:
-        xa = np.asarray(x, dtype=np.float64)
-        return np.where(xa <= f[-1], np.interp(xa, f, m), sign * np.exp(c - a * xa**2))
-
-    support = math.sqrt(max(c - math.log(SERIES_MTF_FLOOR), 0.0) / a)
-    return mtf_at, True, max(support, float(f[-1]))
-
-
-def _harmonics_needed(support_lp_per_mm: float, freqs_lp_per_mm: np.ndarray) -> int:
-    """The odd harmonic past which every term of the series at the lowest frequency lies
-    beyond the response (at most :data:`MAX_HARMONIC`)."""
-    positive = freqs_lp_per_mm[freqs_lp_per_mm > 0]
-    if positive.size == 0:
-        return 1
-    k = min(MAX_HARMONIC, math.ceil(support_lp_per_mm / float(positive.min())) + 2)
-    return k if k % 2 else k + 1
-
-
-def simulated_ctf(curve: SimulatedCurve, freqs_lp_per_mm: np.ndarray) -> np.ndarray:
-    """Square-wave response (CTF) of a simulated sine-wave MTF curve, by Coltman's forward
-    series, summed until the harmonics reach the end of the response (see
-    :func:`extended_mtf` for the sign of each lobe and for curves that end early).
-
-    A blurred square wave stays between its levels, so no CTF exceeds 1; the shipped curves,
-    sampled every 2 lp/mm, come to at most 1.002 (the export's own rounding), held at 1. A
-    contrast reversal (negative CTF) is drawn as 0."""
-    grid = np.asarray(freqs_lp_per_mm, dtype=np.float64)
-    mtf_at, _, support = _extended(curve)
-    k = _harmonics_needed(support, grid)
-    return np.clip(mtf_to_ctf(mtf_at, grid, max_harmonic=k), 0.0, 1.0)
 
 
 def _state(row: dict[str, Any], orient: str) -> str:
@@ -121,7 +53,9 @@ def _state(row: dict[str, Any], orient: str) -> str:
 
 
 def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCurve]) -> str:
-    """2 x 2 plot (view x orientation) of measured CTF with the simulated curves as CTF."""
+    """2 x 2 plot (view x orientation): the lens's share of each bar reading (measured /
+    target contrast) against the simulated lens's curves as CTF; a reading whose target
+    contrast is unknown is drawn as measured, with its own marker."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -134,6 +68,8 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
     fig, axes = plt.subplots(2, 2, figsize=(11, 11), sharey=True)
     nyq = nyquist_lp_per_mm()
     grid = np.linspace(1.0, 1.25 * nyq, 160)
+    shares = any(r.get(f"{o}_lens_share") is not None for t in ("table_4_11", "table_4_12")
+                 for r in tables.get(t, []) for o in ("sagittal", "tangential"))
     for i, (view, table) in enumerate((("forward", "table_4_11"), ("radial", "table_4_12"))):
         rows = tables.get(table, [])
         for j, (orient, d) in enumerate((("sagittal", "S"), ("tangential", "T"))):
@@ -148,25 +84,13 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
                         label=f"simulated CTF {c.field_angle_deg:g} deg"
                         + (" (nearest)" if used else "")
                         + (", MTF tail extrapolated" if extrapolated else ""))
-            for state, style in MARKERS.items():
-                pts = [r for r in rows if _state(r, orient) == state]
-                if not pts:
-                    continue
-                xs = [float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"]))
-                      for r in pts]
-                if state == "resolved":
-                    ys = [float(r[f"{orient}_modulation"]) for r in pts]
-                    es = [float(r.get(f"{orient}_uncertainty") or 0.0) for r in pts]
-                    ax.errorbar(xs, ys, yerr=es, ms=5, zorder=POINT_ZORDER,
-                                **style)  # type: ignore[arg-type]
-                else:
-                    ax.plot(xs, [0.02] * len(xs), ms=8, zorder=POINT_ZORDER,
-                            **style)  # type: ignore[arg-type]
+            _draw_points(ax, rows, orient)
             ax.axvline(nyq, color="r", lw=0.8, ls="--", label=f"Nyquist {nyq:.2f} lp/mm",
                        zorder=CURVE_ZORDER)
             ax.set_title(f"{view} view, {orient}", fontsize=11)
             ax.set_xlabel("image frequency (lp/mm)", fontsize=10)
-            ax.set_ylabel("square-wave contrast (CTF)", fontsize=10)
+            ax.set_ylabel("lens share of the bar contrast (CTF)" if shares else
+                          "square-wave contrast (CTF)", fontsize=10)
             ax.set_ylim(0, 1.05)
             ax.set_xlim(0, grid[-1])
             ax.grid(alpha=0.3)
@@ -174,7 +98,37 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
                       frameon=False)
     # Fixed margins: a tight-layout pass costs more than drawing the plots.
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.17, top=0.97, hspace=0.62, wspace=0.06)
-    return figure_img(fig, "measured and simulated CTF")
+    return figure_img(fig, "lens share of the bar contrast and the simulated lens CTF")
+
+
+def _point_state(row: dict[str, Any], orient: str) -> str:
+    state = _state(row, orient)
+    if state == "resolved" and row.get(f"{orient}_lens_share") is not None:
+        return "share"
+    return state
+
+
+def _draw_points(ax: Any, rows: list[dict[str, Any]], orient: str) -> None:
+    """One panel's readings: the lens's shares with their error bars, the raw readings they
+    come from, and the readings with no number (at the foot of the axis)."""
+    for state, style in MARKERS.items():
+        pts = [r for r in rows if _point_state(r, orient) == state]
+        if not pts:
+            continue
+        xs = [float(r.get(f"{orient}_image_lp_per_mm", r["image_lp_per_mm"])) for r in pts]
+        if state in ("share", "resolved"):
+            key = "lens_share" if state == "share" else "modulation"
+            ukey = "lens_share_uncertainty" if state == "share" else "uncertainty"
+            ys = [float(r[f"{orient}_{key}"]) for r in pts]
+            es = [float(r.get(f"{orient}_{ukey}") or 0.0) for r in pts]
+            if state == "share":
+                ax.plot(xs, [float(r[f"{orient}_modulation"]) for r in pts],
+                        zorder=POINT_ZORDER, **RAW_STYLE)  # type: ignore[arg-type]
+            ax.errorbar(xs, ys, yerr=es, ms=5, zorder=POINT_ZORDER + 1,
+                        **style)  # type: ignore[arg-type]
+        else:
+            ax.plot(xs, [0.02] * len(xs), ms=8, zorder=POINT_ZORDER,
+                    **style)  # type: ignore[arg-type]
 
 
 def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
@@ -203,6 +157,11 @@ def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
                     "compare with care)")
         avg, _ = average_of(r)
         avg_text = f"averaged {avg:.3f}" if avg is not None else "no average"
+        lens = _share_of(r)
+        if lens is not None:
+            avg_text = (f"lens share averaged {lens[0]:.3f} +- {lens[1]:.3f} (S "
+                        f"{float(r['sagittal_lens_share']):.3f}, T "
+                        f"{float(r['tangential_lens_share']):.3f}); measured {avg_text}")
         lines.append(f"<li class='verdict'><b>{esc(str(r['view']))} view, {mc_f:g} lp/mm</b>: "
                      f"{avg_text} (S {fmt_reading(reading(r, 'sagittal'))}, T "
                      f"{fmt_reading(reading(r, 'tangential'))}) - "
@@ -213,14 +172,53 @@ def verdict_section(rows: list[dict[str, Any]], partial: str = "") -> str:
             ("measured_freq_lp_per_mm", "T lp/mm", ".2f"),
             ("sagittal_modulation", "S", ".3f"), ("tangential_modulation", "T", ".3f"),
             ("averaged_modulation", "avg", ".3f"),
+            *(((k, h, ".3f") for k, h in (("sagittal_lens_share", "S share"),
+                                          ("tangential_lens_share", "T share"),
+                                          ("averaged_lens_share", "avg share"),
+                                          ("averaged_lens_share_uncertainty", "+-")))
+              if any("averaged_lens_share" in r for r in rows) else ()),
             *((k, f"{p} exceed", ".2f") for k, p in MC_LEVELS if any(k in r for r in rows)),
             ("verdict", "verdict", ""))
     return ("<ul class='headline'>" + "".join(lines) + "</ul>"
+            + f"<p class='note'>{esc(verdict_basis_note(rows))}</p>"
             + "<p class='note'>Monte Carlo columns: the averaged MTF of a built objective exceeds "
             "the value with the stated probability. A reading that is not resolved has no "
             "number: its row has no average and no verdict (the average is at least half the "
             "other reading).</p>"
-            + html_table(shown, cols) + _bands_figure(rows))
+            + html_table(shown, cols)
+            + caption("each row's averaged lens share (black, 1 sigma; the verdict's basis), "
+                      "its sagittal and tangential halves and the measured average (grey, lens "
+                      "and target) with the Monte Carlo thresholds (grey band, labelled by the "
+                      "probability that a built objective exceeds them).")
+            + _bands_figure(rows))
+
+
+def _share_of(row: dict[str, Any]) -> tuple[float, float] | None:
+    """A Table 4.15 row's averaged lens share and its 1 sigma, when its verdict is on it."""
+    v = row.get("averaged_lens_share")
+    if not isinstance(v, int | float) or isinstance(v, bool) or average_of(row)[0] is None:
+        return None  # no share, or a half not resolved (no average at all)
+    return float(v), float(row.get("averaged_lens_share_uncertainty") or 0.0)
+
+
+def verdict_basis_note(rows: list[dict[str, Any]]) -> str:
+    """What Table 4.15's verdicts place among the Monte Carlo thresholds, in words."""
+    on_share = [r for r in rows if _share_of(r) is not None]
+    if on_share and len(on_share) == len(rows):
+        return ("Verdicts use the lens's share: the averaged (Eq. 4.2) measured contrast "
+                "divided by the target's own contrast, the lens alone, as the Monte Carlo "
+                "thresholds are (the 'avg' column is as measured, lens and target together).")
+    if on_share:
+        return ("Verdicts use the lens's share (measured / target contrast) where the "
+                "target's contrast is known, else the measured contrast (see each row's "
+                "'verdict on').")
+    return ("Verdicts use the measured contrast: the target's own contrast is unknown (results "
+            "without it, or not measured), so the lens and the target are judged together and "
+            "the lens looks worse than it is by the target's contrast.")
+
+
+#: Height (inches) of the band under the Monte Carlo plot that holds its legend.
+LEGEND_IN = 0.8
 
 
 def _bands_figure(rows: list[dict[str, Any]]) -> str:
@@ -229,7 +227,10 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 0.9 + 0.7 * len(rows)))
+    # The legend sits under the axes (its own band of LEGEND_IN inches): never on a marker.
+    height_in = 0.9 + 0.7 * len(rows) + LEGEND_IN
+    fig, ax = plt.subplots(figsize=(7, height_in))
+    right = 1.0
     seen: set[str] = set()
 
     def once(label: str) -> str | None:  # one legend entry per kind of marker
@@ -247,7 +248,15 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
                 ax.plot([v, v], [i - 0.25, i + 0.25], color="#555", lw=1)
                 ax.text(v, i + (0.3 if n % 2 == 0 else -0.45), p, ha="center", fontsize=8)
         avg, missing = average_of(r)
-        if avg is not None:
+        share = _share_of(r)
+        if share is not None:  # the verdict's basis, with its 1 sigma; the raw average in grey
+            right = max(right, share[0] + share[1])
+            ax.errorbar(share[0], i, xerr=share[1], fmt="D", color="k", ms=7,
+                        label=once("lens share, averaged (verdict), 1 sigma"))
+            if avg is not None:
+                ax.plot(avg, i, "D", color="#999", mfc="none", ms=6,
+                        label=once("measured average (lens and target)"))
+        elif avg is not None:
             ax.plot(avg, i, "D", color="k", ms=7, label=once("measured average"))
         else:  # no measured average: its lower bound, open, with an arrow to the right
             halves = [reading(r, o) or 0.0 for o in ("sagittal", "tangential")]
@@ -259,6 +268,9 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
             ax.text(0.01, i + 0.3, missing, fontsize=8, color="#c0392b")
         for orient, mark, color in (("sagittal", ">", "#1f5fbf"), ("tangential", "^", "#c0392b")):
             value = reading(r, orient)
+            if value is not None and share is not None:
+                value = float(r[f"{orient}_lens_share"])
+                right = max(right, value)
             if value is not None:
                 ax.plot(value, i, mark, color=color, ms=6, label=once(orient))
             else:  # not resolved: an open marker at the left edge, never a measured 0
@@ -267,9 +279,11 @@ def _bands_figure(rows: list[dict[str, Any]]) -> str:
     ax.set_yticks(range(len(rows)))
     ax.set_yticklabels([f"{r['view']} {float(r['mc_freq_lp_per_mm']):g} lp/mm" for r in rows])
     ax.set_ylim(-0.6, len(rows) - 0.3)
-    ax.set_xlim(0, 1)
-    ax.set_xlabel("averaged MTF (Eq. 4.2)")
+    ax.set_xlim(0, max(1.0, right + 0.03))
+    ax.set_xlabel("averaged MTF (Eq. 4.2): lens share where the target contrast is known")
     ax.grid(alpha=0.3, axis="x")
-    ax.legend(fontsize=8, loc="lower right")
-    fig.subplots_adjust(left=0.22, right=0.97, bottom=0.6 / (0.9 + 0.7 * len(rows)), top=0.95)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.5 / (0.7 * len(rows) + 0.1)),
+              ncol=2, frameon=False)
+    fig.subplots_adjust(left=0.22, right=0.97, bottom=(0.6 + LEGEND_IN) / height_in,
+                        top=1.0 - 0.2 / height_in)
     return figure_img(fig, "Monte Carlo bands with the measurement")

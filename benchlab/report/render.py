@@ -22,6 +22,7 @@ import numpy.typing as npt
 from benchlab.drivers.errors import BenchlabError
 from benchlab.report.html import (
     annotated_image,
+    caption,
     display_8bit,
     downsample,
     enlarge,
@@ -205,16 +206,36 @@ def _ctf(ctx: ReportContext) -> str:
         curves, note = [], f"<p class='note'>No simulated curves: {esc(str(exc))}</p>"
     else:
         note = ""
-    return ("<p class='note'>Compared: the measured bar contrast (points: Eq. 2.9, the "
-            "square-wave response, CTF, with 1-sigma uncertainty) with the simulated lens "
-            "(lines: the sine-wave MTF of the Table 4.14 field points converted to CTF with "
-            "Coltman's series, each lobe past a zero with its reversed sign, never above 1; "
-            "solid where a test's nearest field point). The points are the lens and the "
-            "target together: they are not divided by the printed patterns' or the chart's own "
-            "contrast, which the curves take as 1, so a target of contrast below 1 puts every "
-            "point below its curve by that factor. Triangles: not resolved; crosses: aliased "
-            "(above Nyquist) - neither is a measured 0. Legends under each panel.</p>"
+    return (_ctf_caption(ctx.summary.get("target_contrast") or {})
             + note + ctf_figure(ctx.tables, curves))
+
+
+def _target_text(view: str, t: dict[str, Any] | None) -> str:
+    """One view's target contrast in words: value, 1 sigma and source."""
+    if not t or t.get("value") is None or isinstance(t.get("value"), list) and \
+            None in t["value"]:
+        why = (t or {}).get("source") or "not recorded (results from before 0.2.0)"
+        return f"{view}: unknown ({why})"
+    v = t["value"]
+    shown = (f"{v:.3f}" if not isinstance(v, list) else
+             "per pattern " + ", ".join(f"{x:.3f}" for x in v))
+    return f"{view}: {shown} +- {float(t.get('uncertainty') or 0.0):.3f}, {t.get('source')}"
+
+
+def _ctf_caption(targets: dict[str, Any]) -> str:
+    """What the bar-contrast plot compares, with each target's contrast and its source."""
+    known = [_target_text(v, targets.get(v)) for v in ("forward", "radial")]
+    return ("<p class='note caption'>Compared: <b>the lens's share of the bar contrast</b> (black "
+            "points: the measured Eq. 2.9 contrast divided by the target's own contrast, "
+            "1 sigma with both uncertainties propagated) <b>with the simulated lens</b> "
+            "(lines: the sine-wave MTF of the Table 4.14 field points converted to square-wave "
+            "contrast, CTF, with Coltman's series, each lobe past a zero with its reversed "
+            "sign, never above 1; solid where a test's nearest field point). Grey dots: the "
+            "readings as measured (lens and target together). Target contrast - "
+            + esc("; ".join(known)) + ". Where a target's contrast is unknown the reading is "
+            "drawn as measured (open squares) and lies below its curve by that contrast. "
+            "Triangles: not resolved; crosses: aliased (above Nyquist) - neither is a measured "
+            "0. Legends under each panel.</p>")
 
 
 def _verdict(ctx: ReportContext) -> str:
@@ -339,13 +360,16 @@ def _radiometry_figure(ctx: ReportContext) -> str:
     ax.plot(pos, values("simulated_normalised"), "s--", label="simulated irradiance")
     ax.plot(pos, values("measured_normalised"), "o-", label="measured mean gray")
     ax.set_xlabel("LED field position (mm)")
-    ax.set_ylabel("normalised to maximum")
+    ax.set_ylabel("irradiance, mean gray (normalised to maximum)")
     ax.set_ylim(0, 1.1)
     ax.set_title("Relative radiometry (fig. 4.21)")
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    return figure_img(fig, "radiometric fall-off")
+    return caption("the measured mean gray level in the LED mask (circles) with the simulated "
+                   "irradiance (squares, Table 4.16), each normalised to its largest value, at "
+                   "each LED field position; a clipped position is a gap, not a point.") + \
+        figure_img(fig, "radiometric fall-off")
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from benchlab.analysis.mtf.frequency import nyquist_lp_per_mm  # noqa: E402
-from benchlab.report.html import figure_img  # noqa: E402
+from benchlab.report.html import caption, figure_img  # noqa: E402
 from benchlab.report.tables import Column, html_table  # noqa: E402
 
 Rows = Sequence[Mapping[str, Any]]
@@ -91,7 +91,7 @@ def _figure(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> Figure:
         ax.set_ylim(0, 1.05)
         ax.set_title(f"forward view, {orientation}: sine-wave MTF")
         ax.set_xlabel("image frequency (lp/mm)")
-        ax.set_ylabel("MTF")
+        ax.set_ylabel("MTF (sine-wave, 0-1)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
@@ -143,7 +143,10 @@ def render_sfr_section(tables: Mapping[str, Rows], simulated: Sequence[Any]) -> 
         "(bars vs edge, or the edge vs the simulation) by more than 0.05. "
         f"{html.escape(summary)}.</p>"
     )
-    out.append(figure_img(_figure(tables, simulated), "slanted-edge MTF against simulated MTF "
+    out.append(caption("the MTF of each slanted edge with the simulated lens MTF at the field "
+                       "points and with the bars converted to sine-wave MTF, per view and "
+                       "orientation.")
+               + figure_img(_figure(tables, simulated), "slanted-edge MTF against simulated MTF "
                           "and Coltman-converted bars"))
     out.append("<h3>Edges</h3>" + html_table(edges, EDGE_COLUMNS))
     if checks:

@@ -24,6 +24,14 @@ _S_T = tuple(
     for col in ((f"{o}_dark", f"{short} dark", ".1f"), (f"{o}_bright", f"{short} bright", ".1f"),
                 (f"{o}_modulation", f"{short} mod.", ".3f"))
 )
+#: The target's own contrast and the lens's share (measured / target) with its 1 sigma.
+_SHARE = tuple(
+    col
+    for o, short in (("sagittal", "S"), ("tangential", "T"))
+    for col in ((f"{o}_target_contrast", f"{short} target", ".3f"),
+                (f"{o}_lens_share", f"{short} share", ".3f"),
+                (f"{o}_lens_share_uncertainty", f"{short} share +-", ".3f"))
+)
 #: Aliasing per orientation (Table 4.12's spokes and rings image at different frequencies).
 _ALIASED = (("sagittal_aliased", "S aliased", ""), ("tangential_aliased", "T aliased", ""))
 
@@ -35,18 +43,25 @@ _DEPTH: tuple[Column, ...] = (
     ("image_height_mm", "height mm", ".3f"),
 )
 
+#: The MTF test's simulator truth: each bar set's target contrast, imaged contrast, lens share.
+_MTF_TRUTH: tuple[Column, ...] = (
+    ("view", "view", ""), ("pattern", "pattern", ""),
+    ("image_lp_per_mm", "image lp/mm", ".2f"), ("target_contrast", "target", ".3f"),
+    ("modulation", "imaged", ".3f"), ("lens_share", "lens share", ".3f"),
+)
+
 TABLE_VIEWS: dict[str, TableView] = {
     "table_4_11": TableView(
         "Table 4.11 - forward view (USAF 1951), modulation (Eq. 2.9); by default each found set "
         "read by the chart reading (knownbars: its geometry fixed by the found chart)",
         (("element", "element", ""), ("image_lp_per_mm", "image lp/mm", ".3f"), *_S_T,
-         *_ALIASED),
+         *_SHARE, *_ALIASED),
     ),
     "table_4_12": TableView(
         "Table 4.12 - radial view, modulation (Eq. 2.9); image lp/mm by Eq. 4.1 (rings, T), "
         "S lp/mm by object / image radius (spokes)",
         (("object_lp_per_mm", "object lp/mm", "g"), ("image_lp_per_mm", "image lp/mm", ".2f"),
-         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, *_ALIASED),
+         ("sagittal_image_lp_per_mm", "S lp/mm", ".2f"), *_S_T, *_SHARE, *_ALIASED),
     ),
     "table_4_13": TableView(
         "Tables 4.13-4.14 - image height and nearest simulated field point",
@@ -56,12 +71,15 @@ TABLE_VIEWS: dict[str, TableView] = {
          ("nearest_field_height_mm", "field mm", ".2f")),
     ),
     "table_4_15": TableView(
-        "Table 4.15 - averaged MTF (Eq. 4.2) against the Monte Carlo prediction",
+        "Table 4.15 - averaged MTF (Eq. 4.2) against the Monte Carlo prediction; the verdict "
+        "places the lens share (measured / target contrast) where it is known",
         (("view", "view", ""), ("mc_freq_lp_per_mm", "MC lp/mm", "g"),
          ("sagittal_freq_lp_per_mm", "S lp/mm", ".3f"),
          ("measured_freq_lp_per_mm", "T lp/mm", ".3f"),
          ("sagittal_modulation", "S", ".3f"), ("tangential_modulation", "T", ".3f"),
-         ("averaged_modulation", "avg", ".3f"), ("p90", "90%>", ".2f"), ("p50", "50%>", ".2f"),
+         ("averaged_modulation", "avg", ".3f"), ("averaged_lens_share", "avg share", ".3f"),
+         ("averaged_lens_share_uncertainty", "+-", ".3f"),
+         ("p90", "90%>", ".2f"), ("p50", "50%>", ".2f"),
          ("p10", "10%>", ".2f"), ("verdict", "verdict", "")),
     ),
     "table_4_16": TableView(
@@ -80,7 +98,8 @@ TABLE_VIEWS: dict[str, TableView] = {
         ("linearity_error_min_pct", "LE min %", "+.3f"),
         ("linearity_error_max_pct", "LE max %", "+.3f"),
         ("dark_current_e_per_s", "dark e-/s", ".1f"), ("dsnu_dn", "DSNU DN", ".3f"),
-        ("prnu_pct", "PRNU %", ".3f"), *(_DEPTH if name == "simulator_truth" else ())))
+        ("prnu_pct", "PRNU %", ".3f"),
+        *((*_DEPTH, *_MTF_TRUTH) if name == "simulator_truth" else ())))
         for name, title in (
         ("characterisation", "Camera characterisation (EMVA 1288 photon transfer)"),
         ("simulator_truth", "Simulator truth (same keys)"))},

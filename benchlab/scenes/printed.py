@@ -16,6 +16,12 @@ class TwoLevelPrint:
     reference_gain: float
 
     @property
+    def contrast(self) -> float:
+        """The target's own contrast: Eq. 2.9 of its two printed levels, what a perfect lens
+        would read (the simulated bench's truth of ``[targets]`` in the MTF test)."""
+        return (self.bright_dn8 - self.dark_dn8) / (self.bright_dn8 + self.dark_dn8)
+
+    @property
     def dark_rate(self) -> float:
         """Electron rate (e-/ms) of the dark level (bars, chrome)."""
         return float(rate_for_dn8(self.dark_dn8, self.reference_exposure_ms, self.reference_gain))

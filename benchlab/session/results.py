@@ -10,7 +10,7 @@ import io
 import json
 import os
 import shutil
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -358,7 +358,7 @@ def read_results(folder: str | os.PathLike[str], only: Collection[str] | None = 
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise SessionError(f"{path}: not a table (a JSON list of row objects expected, "
                                f"found {_json_kind(rows)})")
-    return dict(sorted(tables.items())), summary  # in label order, as the thesis numbers them
+    return {label: tables[label] for label in in_table_order(tables)}, summary
 
 
 def _check_files_sha256(folder: Path, summary: Mapping[str, Any],
@@ -385,10 +385,17 @@ def _check_files_sha256(folder: Path, summary: Mapping[str, Any],
                                f"run benchlab analyze {folder.parent.parent} for a new version")
 
 
+def in_table_order(labels: Iterable[str]) -> list[str]:
+    """Table labels in label order, as the thesis numbers them, with the simulator's truth
+    after what was measured (``simulator_truth`` sorts before ``table_4_11``)."""
+    return sorted(labels, key=lambda label: (label == "simulator_truth", label))
+
+
 def _table_labels(summary: Mapping[str, Any]) -> list[str]:
     """The table labels a results ``summary.json`` lists."""
     listed = summary.get("tables")
-    return [t for t in listed if isinstance(t, str)] if isinstance(listed, list) else []
+    return in_table_order(t for t in listed if isinstance(t, str)) if isinstance(listed, list) \
+        else []
 
 
 def _table_names(summary: Mapping[str, Any]) -> list[str]:

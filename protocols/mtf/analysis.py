@@ -6,6 +6,7 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 
 from __future__ import annotations
 
+import math
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -43,12 +44,22 @@ from benchlab.protocols.mtf.edges import (
     edge_parts_tables,
 )
 from benchlab.protocols.mtf.params import MtfParams, UsafElement
+from benchlab.protocols.mtf.targets import (
+    REFERENCE_MIN_CTF,
+    ReferenceReading,
+    TargetContrast,
+    certificate,
+    from_reference,
+    lowest_ctf,
+    share_columns,
+)
 from benchlab.protocols.params import Roi
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
     from benchlab.analysis.chart.finder import ChartFit, FoundElement
     from benchlab.analysis.chart.reading import SetReading
+    from benchlab.analysis.mtf.compare import SimulatedCurve
     from benchlab.session import Session
 
 FORWARD_STEP = "forward"
@@ -199,6 +210,7 @@ def analyze_forward_frame(
     offset = fit.offset_px if fit is not None else (0, 0)
     chart_info = _chart_info(fit)
     readings = _chart_readings(pixels, fit) if fit is not None and reads_chart(estimator) else None
+    target = forward_target_contrast(pixels, params, fit, readings, est)
     nyq = nyquist_lp_per_mm()
     rows = []
     for el in params.forward_elements:
@@ -243,8 +255,85 @@ def analyze_forward_frame(
             rows.append({"view": "forward", "element": el.name, "orientation": orient,
                          "image_lp_per_mm": f_img, "aliased": f_img > nyq, "roi": list(roi),
                          "estimator": used, "chart_offset_px": list(offset), "chart": chart_info,
-                         "reading_setup": setup, **cells})
+                         "reading_setup": setup, "target_contrast": target.to_dict(), **cells})
     return rows
+
+
+def _curves(params: MtfParams) -> list[SimulatedCurve] | str:
+    """The simulated lens curves, or why there are none."""
+    from benchlab.protocols.mtf.curves import load_curves
+
+    try:
+        return load_curves(params.simulated_mtf_file or None)
+    except (OSError, ValueError) as exc:
+        return f"no simulated curves ({exc})"
+
+
+def _reference_readings(view: str, candidates: list[tuple[str, float | None, float, float]],
+                        curves: list[SimulatedCurve]) -> list[ReferenceReading] | str:
+    """The readings ``(orientation, modulation or None, uncertainty, image lp/mm)`` of one
+    candidate reference set where the lens passes >= :data:`REFERENCE_MIN_CTF` in each
+    orientation, or why the set cannot serve."""
+    out = []
+    for orient, m, u, f in candidates:
+        ctf = lowest_ctf(curves, view, orient[0].upper(), f)
+        if ctf is None:
+            return f"no simulated {view} {orient} curve"
+        if ctf < REFERENCE_MIN_CTF:
+            return (f"the simulated lens passes only {ctf:.3f} of the bar contrast at "
+                    f"{f:.1f} lp/mm ({orient}), below {REFERENCE_MIN_CTF}")
+        if m is not None:
+            out.append(ReferenceReading(orient, m, u, ctf))
+    return out
+
+
+def forward_target_contrast(
+    pixels: npt.NDArray[Any], params: MtfParams, fit: ChartFit | None,
+    readings: dict[str, SetReading] | None, est: str,
+) -> TargetContrast:
+    """The USAF chart's own contrast: the certificate's, or measured on its coarsest found
+    element (both orientations, read the way the sets are read: the chart reading, else the
+    named estimator) where the simulated lens passes >= 0.99 of the bar contrast."""
+    setting = params.targets.usaf
+    if setting.values is not None:
+        return certificate(setting)
+    if fit is None:
+        return TargetContrast(None, None, "not measured: chart not found")
+    curves = _curves(params)
+    if isinstance(curves, str):
+        return TargetContrast(None, None, f"not measured: {curves}")
+    by_element: dict[tuple[int, int], list[FoundElement]] = {}
+    for e in fit.found:
+        by_element.setdefault((e.posed.group, e.posed.element), []).append(e)
+    why = "no element of the chart found"
+    for (g, el), sets in sorted(by_element.items(),
+                                key=lambda kv: kv[1][0].posed.image_lp_per_mm):
+        cands: list[tuple[str, float | None, float, float]] = []
+        for e in sorted(sets, key=lambda e: e.posed.orientation):
+            res = _reference_result(pixels, e, readings, est)
+            ok = res is not None and res.measurable and res.resolved
+            cands.append((e.posed.orientation, float(res.modulation) if ok and res else None,
+                          float(res.uncertainty or 0.0) if ok and res else 0.0,
+                          e.posed.image_lp_per_mm))
+        got = _reference_readings("forward", cands, curves)
+        if isinstance(got, str):
+            why = got
+            break  # finer elements pass even less
+        if got:
+            return from_reference(got, f"USAF G{g}E{el} at {sets[0].posed.image_lp_per_mm:.1f} "
+                                  "lp/mm")
+        why = f"G{g}E{el} not read"
+    return TargetContrast(None, None, f"not measured: {why}")
+
+
+def _reference_result(pixels: npt.NDArray[Any], e: FoundElement,
+                      readings: dict[str, SetReading] | None, est: str) -> ModulationResult | None:
+    if readings is not None and e.label in readings and e.unmeasurable is None:
+        return readings[e.label].result
+    if e.generic_unreliable is not None or not _inside(e.measurement_roi, pixels.shape):
+        return None
+    return _measure(pixels, e.measurement_roi, estimator=resolve_estimator(est),
+                    **e.estimator_priors())
 
 
 def _reading_setup(placed: FoundElement, roi: Roi, reading: SetReading,
@@ -443,6 +532,11 @@ def analyze_mtf(
     t415 = _monte_carlo_rows(t411, t412, params)
     tables = {"table_4_11": t411, "table_4_12": t412, "table_4_13": t413, "table_4_15": t415}
     tables.update(edges)  # slanted-edge MTF where a clean edge exists (issue 16)
+    if session.meta.get("devices", {}).get("simulated"):
+        from benchlab.protocols.mtf.truth import journalled_levels, truth_rows  # the scenes
+
+        tables["simulator_truth"] = truth_rows(params, t411, t412,
+                                               journalled_levels(session.events()))
     summary = {
         "procedure": "mtf",
         "estimator": est,
@@ -454,8 +548,21 @@ def analyze_mtf(
         "chart": next(iter(per.values()))["chart"] if per else None,
         "nyquist_lp_per_mm": nyq,
         "frames_analysed": (forward is not None) + len(radial),
+        "target_contrast": {"forward": _target_summary(t411), "radial": _target_summary(t412)},
+        "table_4_15_basis": sorted({str(r["verdict_basis"]) for r in t415}),
     }
     return tables, summary, est
+
+
+def _target_summary(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """A view's target contrast in brief: its value (a list when the patterns differ), 1-sigma
+    uncertainty and source; None without rows."""
+    if not rows:
+        return None
+    values = [r.get("sagittal_target_contrast") for r in rows]
+    return {"value": values[0] if len(set(values)) == 1 else values,
+            "uncertainty": rows[0].get("sagittal_target_contrast_uncertainty"),
+            "source": rows[0].get("target_contrast_source")}
 
 
 def _forward_estimator(per: dict[tuple[str, str], dict[str, Any]], est: str) -> str:
@@ -570,6 +677,10 @@ def _forward_rows(forward: npt.NDArray[Any], params: MtfParams, est: str) -> _Fo
             row[f"{orient}_image_lp_per_mm"] = r["image_lp_per_mm"]
             row[f"{orient}_aliased"] = r["aliased"]
             row[f"{orient}_roi"] = r["roi"]
+        target = _target_of(t)
+        for orient in ORIENTATIONS:
+            row.update(share_columns(orient, row, target))
+        row["target_contrast_source"] = target.source
         t411.append(row)
     return per, t411
 
@@ -601,7 +712,45 @@ def _radial_rows(radial: dict[tuple[float, str], npt.NDArray[Any]], params: MtfP
             if r.get("lower_bound"):
                 row[f"{orient}_lower_bound"] = True
         t412.append(row)
+    measured = None if params.targets.radial.values is not None else \
+        radial_target_contrast(t412, params)
+    for i, row in enumerate(t412):
+        target = measured if measured is not None else certificate(params.targets.radial, i)
+        for orient in ORIENTATIONS:
+            row.update(share_columns(orient, row, target))
+        row["target_contrast_source"] = target.source
     return t412
+
+
+def _target_of(row: dict[str, Any]) -> TargetContrast:
+    t = row.get("target_contrast") or {}
+    return TargetContrast(t.get("value"), t.get("uncertainty"),
+                          str(t.get("source", "not measured")))
+
+
+def radial_target_contrast(t412: list[dict[str, Any]], params: MtfParams) -> TargetContrast:
+    """The printed radial patterns' own contrast, measured on the lowest-frequency pattern
+    (both rolls) where the simulated lens passes >= 0.99 of the bar contrast."""
+    curves = _curves(params)
+    if isinstance(curves, str):
+        return TargetContrast(None, None, f"not measured: {curves}")
+    why = "no radial frame"
+    for row in sorted(t412, key=lambda r: float(r["object_lp_per_mm"])):
+        cands: list[tuple[str, float | None, float, float]] = []
+        for orient in ORIENTATIONS:
+            m = row.get(f"{orient}_modulation")
+            ok = m is not None and row.get(f"{orient}_resolved") is not False
+            cands.append((orient, float(m) if ok and m is not None else None,
+                          float(row.get(f"{orient}_uncertainty") or 0.0) if ok else 0.0,
+                          float(row[f"{orient}_image_lp_per_mm"])))
+        got = _reference_readings("radial", cands, curves)
+        if isinstance(got, str):
+            why = got
+            break
+        if got:
+            return from_reference(got, f"the {float(row['object_lp_per_mm']):g} lp/mm pattern")
+        why = f"the {float(row['object_lp_per_mm']):g} lp/mm pattern not read"
+    return TargetContrast(None, None, f"not measured: {why}")
 
 
 def _height_row(view: str, test: str, roi: Roi, centre: tuple[float, float]) -> dict[str, Any]:
@@ -635,7 +784,7 @@ def _monte_carlo_rows(
     """
     # (frequency, modulation, resolved) per view and orientation; aliased readings are no
     # readings. A not-resolved one stays (it is the finding at its frequency) but is never a 0.
-    measured: dict[tuple[str, str], list[tuple[float, float, bool, bool]]] = {}
+    measured: dict[tuple[str, str], list[_Pick]] = {}
     for view, table in (("forward", t411), ("radial", t412)):
         for r in table:
             for orient in ORIENTATIONS:
@@ -645,7 +794,9 @@ def _monte_carlo_rows(
                     continue
                 resolved = bool(r.get(f"{orient}_resolved", float(m) != 0.0))
                 bound = bool(r.get(f"{orient}_lower_bound"))
-                measured.setdefault((view, orient), []).append((f, float(m), resolved, bound))
+                measured.setdefault((view, orient), []).append(
+                    _Pick(f, float(m), resolved, bound, r.get(f"{orient}_lens_share"),
+                          r.get(f"{orient}_lens_share_uncertainty")))
     source = params.monte_carlo_file or thesis_fixture_path("table_4_15_monte_carlo")
     out = []
     for mc in load_monte_carlo_table(source):
@@ -658,16 +809,28 @@ def _monte_carlo_rows(
                     picks.append(pick)
         if len(picks) < 2:
             continue  # nothing measured near this prediction's frequency in one orientation
-        (f_s, s, s_ok, s_bound), (f_t, t, t_ok, t_bound) = picks
+        (f_s, s, s_ok, s_bound, s_share, s_u), (f_t, t, t_ok, t_bound, t_share, t_u) = picks
+        shares = s_ok and t_ok and s_share is not None and t_share is not None
         row: dict[str, Any] = {
             "view": mc.view, "mc_freq_lp_per_mm": mc.freq_lp_per_mm,
             "measured_freq_lp_per_mm": f_t, "sagittal_modulation": s if s_ok else None,
             "tangential_modulation": t if t_ok else None,
         }
+        lens: dict[str, Any] = {
+            "sagittal_lens_share": s_share if s_ok else None,
+            "tangential_lens_share": t_share if t_ok else None,
+            "averaged_lens_share": None, "averaged_lens_share_uncertainty": None,
+            "verdict_basis": VERDICT_ON_SHARE if shares else VERDICT_ON_READING}
         if s_ok and t_ok:
             avg = averaged_mtf(s, t)
             row["averaged_modulation"] = round(avg.average, 6)
-            verdict = monte_carlo_band(avg.average, mc)[1]
+            placed = avg.average
+            if shares:  # the lens alone against the lens's prediction
+                placed = averaged_mtf(s_share, t_share).average
+                lens["averaged_lens_share"] = round(placed, 6)
+                lens["averaged_lens_share_uncertainty"] = round(
+                    0.5 * math.hypot(s_u or 0.0, t_u or 0.0), 6)
+            verdict = monte_carlo_band(placed, mc)[1]
             if s_bound or t_bound:
                 # A half read as a lower bound (clipped): so is the average, and the verdict
                 # places the bound - the true average is there or higher.
@@ -684,9 +847,26 @@ def _monte_carlo_rows(
         out.append({
             **row, **mc.columns(), "verdict": verdict,
             "sagittal_freq_lp_per_mm": f_s, "tangential_freq_lp_per_mm": f_t,
-            "sagittal_resolved": s_ok, "tangential_resolved": t_ok,
+            "sagittal_resolved": s_ok, "tangential_resolved": t_ok, **lens,
         })
     return out
+
+
+#: Table 4.15's ``verdict_basis``: what its verdict places among the Monte Carlo thresholds.
+VERDICT_ON_SHARE = "lens share (measured / target contrast)"
+VERDICT_ON_READING = "measured contrast (target contrast unknown: lens and target together)"
+
+
+class _Pick(NamedTuple):
+    """A reading a Table 4.15 row may pair: frequency, modulation, resolved, lower bound, and
+    the lens's share with its uncertainty (None without a target contrast)."""
+
+    freq_lp_per_mm: float
+    modulation: float
+    resolved: bool
+    lower_bound: bool
+    lens_share: float | None
+    lens_share_uncertainty: float | None
 
 
 def unresolved_note(sagittal_resolved: bool, tangential_resolved: bool) -> str:

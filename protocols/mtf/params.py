@@ -18,6 +18,7 @@ from benchlab.protocols.camera_limits import (
     camera_gain,
 )
 from benchlab.protocols.params import Roi
+from benchlab.protocols.target_contrast import TargetSettings, check_targets, targets_to_dict
 
 if TYPE_CHECKING:
     from benchlab.protocols.params import _Checker
@@ -65,6 +66,8 @@ class MtfParams:
     estimator: str = ""
     monte_carlo_file: str = ""
     simulated_mtf_file: str = ""
+    #: How the chart's and the radial patterns' own contrast is known ([targets]).
+    targets: TargetSettings = field(default_factory=TargetSettings)
     raw: Mapping[str, Any] = field(default_factory=dict)
 
 
@@ -142,7 +145,7 @@ def check_mtf(c: _Checker, limits: BenchLimits | None = None) -> MtfParams:
         radial_object_radius_mm=rad_obj_r,
         radial_frequencies_lp_per_mm=freqs, radial_roi=radial_roi, fov_threshold_dn=fov,
         estimator=estimator, monte_carlo_file=mc_file, simulated_mtf_file=sim_file,
-        raw=c.data,
+        targets=check_targets(c, len(freqs)), raw=c.data,
     )
 
 
@@ -172,4 +175,5 @@ def mtf_to_dict(params: MtfParams) -> dict[str, Any]:
                      "fov_threshold_dn": params.fov_threshold_dn,
                      "monte_carlo_file": params.monte_carlo_file,
                      "simulated_mtf_file": params.simulated_mtf_file},
+        "targets": targets_to_dict(params.targets),
     }

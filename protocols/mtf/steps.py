@@ -31,12 +31,23 @@ from benchlab.protocols.mtf.analysis import (
     radial_step_id,
 )
 from benchlab.protocols.mtf.params import MtfParams
+from benchlab.protocols.mtf.targets import SIMULATED_TARGET_EVENT
 
 if TYPE_CHECKING:
     from benchlab.session import Session
 
 FORWARD_TARGET = "usaf"
 DARK_TARGET = "dark"
+
+
+def _record_simulated_levels(ctx: StepContext, view: str, target: Any) -> None:
+    """On the simulated bench, journal the mounted target's printed levels (8-bit codes of its
+    dark and bright print): the ``simulator_truth`` of the analysis is computed with them."""
+    world = getattr(ctx.bench, "world", None)
+    scene = world.scene_for(target) if world is not None else None
+    if scene is not None and hasattr(scene, "dark_dn8") and hasattr(scene, "bright_dn8"):
+        ctx.session.log_event(SIMULATED_TARGET_EVENT, step=ctx.step.id, view=view,
+                              dark_dn8=float(scene.dark_dn8), bright_dn8=float(scene.bright_dn8))
 
 
 def _fmt(f: float) -> str:
@@ -120,6 +131,7 @@ class MtfProcedure:
     def _setup(self, ctx: StepContext) -> None:
         ctx.ask(ctx.step.prompt or "")
         ctx.bench.mount(FORWARD_TARGET)
+        _record_simulated_levels(ctx, "forward", FORWARD_TARGET)
         settings = self._configure(ctx)
         ctx.session.log_event("camera_configured", step=ctx.step.id, settings=settings,
                               lossless="TIFF (zlib), never JPEG")
@@ -163,6 +175,8 @@ class MtfProcedure:
             if ask:
                 ctx.ask(ctx.step.prompt or "")
             ctx.bench.mount(target)
+            if ask:
+                _record_simulated_levels(ctx, "radial", target)
 
         return action
 

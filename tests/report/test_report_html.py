@@ -48,7 +48,7 @@ def test_mtf_report_is_self_contained_with_tables_plots_and_frames(tmp_path: Pat
     plots = re.findall(r"data:image/svg\+xml;base64,([^']*)'", text)
     assert len(plots) == 3  # plots: vectors, their labels kept as text (sharp at any zoom)
     ctf_svg = base64.b64decode(plots[0]).decode("utf-8")
-    assert "<text" in ctf_svg and "square-wave contrast (CTF)" in ctf_svg
+    assert "<text" in ctf_svg and "lens share of the bar contrast (CTF)" in ctf_svg
     assert "Slanted-edge MTF" in text and "bar readings compared" in text
     visible = re.sub(r"base64,[^']*'", "", text)
     assert not re.search(r"\bnan\b", visible, re.IGNORECASE)  # N/A, never NaN
