@@ -94,8 +94,13 @@ def _acquisition_pending(session: Session) -> list[str]:
 def analyse_one(path: str, estimator: str | None = None, catalogue: bool = True) -> BatchItem:
     """Re-analyse one session in this process (the worker's task; never raises).
 
-    ``catalogue=False``: the parent records the session in the catalogue (local pool)."""
+    ``catalogue=False``: the parent records the session in the catalogue (local pool). The
+    process is taken for a batch worker: its analyses run on one thread from now on
+    (:mod:`benchlab.analysis.threads`; the other cores have workers of their own)."""
+    from benchlab.analysis.threads import use_one_thread
     from benchlab.protocols.runs import reanalyze
+
+    use_one_thread()
 
     t0 = time.perf_counter()
     cpu0 = time.process_time()
