@@ -17,13 +17,15 @@ the same pixels and text, and a damaged file fails as it always did.
 from __future__ import annotations
 
 import struct
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
+from isal import isal_zlib
 from isal.isal_zlib import decompress as inflate
-from isal.isal_zlib import error as IsalError
 
+#: What a damaged zlib strip raises (a class: isal's stubs type it as an instance).
+_INFLATE_ERROR = cast("type[Exception]", isal_zlib.error)
 #: Returned for a file outside the layout decoded here (read it with tifffile instead).
 NOT_HANDLED = None
 
@@ -108,7 +110,7 @@ def decode_frame(data: bytes) -> tuple[npt.NDArray[Any], str] | None:
         return NOT_HANDLED
     try:
         return _decode(data, "<" if data[:2] == b"II" else ">")
-    except (ValueError, struct.error, IsalError, UnicodeDecodeError):
+    except (ValueError, struct.error, _INFLATE_ERROR, UnicodeDecodeError):
         return NOT_HANDLED  # damaged: tifffile reads it, or names what is wrong
 
 
