@@ -94,13 +94,18 @@ def _acquisition_pending(session: Session) -> list[str]:
 def analyse_one(path: str, estimator: str | None = None, catalogue: bool = True) -> BatchItem:
     """Re-analyse one session in this process (the worker's task; never raises).
 
-    ``catalogue=False``: the parent records the session in the catalogue (local pool). The
-    process is taken for a batch worker: its analyses run on one thread from now on
-    (:mod:`benchlab.analysis.threads`; the other cores have workers of their own)."""
-    from benchlab.analysis.threads import use_one_thread
-    from benchlab.protocols.runs import reanalyze
+    ``catalogue=False``: the parent records the session in the catalogue (local pool). A batch
+    worker has a core to itself at most (the others have workers of their own), so the
+    session is analysed on this thread alone (:func:`benchlab.analysis.threads.one_thread_only`).
+    """
+    from benchlab.analysis.threads import one_thread_only
 
-    use_one_thread()
+    with one_thread_only():
+        return _analyse_one(path, estimator, catalogue)
+
+
+def _analyse_one(path: str, estimator: str | None, catalogue: bool) -> BatchItem:
+    from benchlab.protocols.runs import reanalyze
 
     t0 = time.perf_counter()
     cpu0 = time.process_time()

@@ -9,23 +9,31 @@ a pure function of its frame, so the numbers are the same either way.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 _T = TypeVar("_T")
-_single = False
+_local = threading.local()
 
 
-def use_one_thread(on: bool = True) -> None:
-    """From now on (in this process) every analysis runs on the calling thread alone."""
-    global _single
-    _single = on
+@contextmanager
+def one_thread_only() -> Iterator[None]:
+    """Within the block, what this thread analyses runs on this thread alone (other threads
+    of the process, e.g. a dask worker's other tasks, are not affected)."""
+    before = one_thread()
+    _local.single = True
+    try:
+        yield
+    finally:
+        _local.single = before
 
 
 def one_thread() -> bool:
-    """Whether :func:`use_one_thread` is in force."""
-    return _single
+    """Whether this thread is inside :func:`one_thread_only`."""
+    return bool(getattr(_local, "single", False))
 
 
 class InlineExecutor(Executor):
@@ -41,8 +49,8 @@ class InlineExecutor(Executor):
 
 
 def thread_pool(max_workers: int, thread_name_prefix: str = "") -> Executor:
-    """A :class:`ThreadPoolExecutor`, or an :class:`InlineExecutor` under
-    :func:`use_one_thread`."""
-    if _single:
+    """A :class:`ThreadPoolExecutor`, or an :class:`InlineExecutor` inside
+    :func:`one_thread_only`."""
+    if one_thread():
         return InlineExecutor()
     return ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix=thread_name_prefix)
