@@ -43,7 +43,7 @@ class InlineExecutor(Executor):
         fut: Future[_T] = Future()
         try:
             fut.set_result(fn(*args, **kwargs))
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+        except Exception as exc:  # handed on through the future (an interrupt is not: it stops)
             fut.set_exception(exc)
         return fut
 
