@@ -98,7 +98,17 @@ def analyse_one(path: str, estimator: EstimatorChoice | None = None, catalogue: 
                 ) -> BatchItem:
     """Re-analyse one session in this process (the worker's task; never raises).
 
-    ``catalogue=False``: the parent records the session in the catalogue (local pool)."""
+    ``catalogue=False``: the parent records the session in the catalogue (local pool). A batch
+    worker has a core to itself at most (the others have workers of their own), so the
+    session is analysed on this thread alone (:func:`benchlab.analysis.threads.one_thread_only`).
+    """
+    from benchlab.analysis.threads import one_thread_only
+
+    with one_thread_only():
+        return _analyse_one(path, estimator, catalogue)
+
+
+def _analyse_one(path: str, estimator: EstimatorChoice | None, catalogue: bool) -> BatchItem:
     from benchlab.protocols.runs import reanalyze
 
     t0 = time.perf_counter()

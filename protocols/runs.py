@@ -278,8 +278,11 @@ def _prefetch_frames(session: Session) -> None:
     """Start loading an MTF session's frames (its 15 frames are all analysed) on threads, so
     the inflating overlaps the import of the analysis (``make_procedure``) and the checks that
     follow. Other procedures load their frames themselves (a characterisation has hundreds).
-    Parameters that do not parse start nothing: the error comes where it always did."""
-    if session.prefetching:
+    Parameters that do not parse start nothing: the error comes where it always did. Nor does
+    a batch worker (:func:`benchlab.analysis.threads.one_thread`: its siblings have the cores)."""
+    from benchlab.analysis.threads import one_thread
+
+    if session.prefetching or one_thread():
         return
     try:
         params = session_params(session)

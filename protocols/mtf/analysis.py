@@ -7,7 +7,7 @@ re-analysis of unchanged frames with the same estimator reproduces the run's tab
 from __future__ import annotations
 
 import math
-from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
+from concurrent.futures import CancelledError, Executor, Future
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -36,6 +36,7 @@ from benchlab.analysis.sfr.measure import SfrResult, full_scale_of_frame
 from benchlab.analysis.sfr.target import EdgeSpec, edge_specs
 from benchlab.analysis.sfr.target_edges import measure_edge
 from benchlab.analysis.thesis_data import thesis_fixture_path
+from benchlab.analysis.threads import thread_pool
 from benchlab.protocols.mtf.edges import (
     chart_boxes,
     chart_pose_of,
@@ -590,7 +591,7 @@ def _collect(keys: list[tuple[float, str]],
 
 
 def _submit_radial_loads(session: Session, keys: list[tuple[float, str]],
-                         pool: ThreadPoolExecutor) -> list[Future[npt.NDArray[Any] | None]]:
+                         pool: Executor) -> list[Future[npt.NDArray[Any] | None]]:
     """Start loading every radial frame on ``pool`` (one job per key, in order)."""
     return [pool.submit(_load, session, radial_step_id(f, o), RADIAL_FRAME) for f, o in keys]
 
@@ -618,8 +619,8 @@ def _with_forward_thread(session: Session, params: MtfParams, est: str) -> _Radi
     # estimate is a pure function of its frame, so the numbers are those of one thread. A
     # failure is raised as before (the forward frame's first).
     frame_ready: Future[_Frame | None] = Future()
-    with ThreadPoolExecutor(max_workers=1) as forward_pool, \
-            ThreadPoolExecutor(max_workers=LOAD_THREADS) as pool:
+    # (in a batch worker both run on this thread, in this order: benchlab.analysis.threads)
+    with thread_pool(1) as forward_pool, thread_pool(LOAD_THREADS) as pool:
         forward_job = forward_pool.submit(_forward_view, session, params, est, frame_ready)
         radial_jobs = _submit_radial_loads(session, radial_keys, pool)
         try:

@@ -43,6 +43,11 @@ def _copy(src: Path, dst: Path) -> Path:
 @pytest.mark.slow
 def test_analyze_session_imports_no_opencv_nor_scipy(small_mtf: Path, tmp_path: Path) -> None:
     path = _copy(small_mtf, tmp_path)
+    # As a real bench writes it: the simulated bench's truth (simulator_truth, rendered from the
+    # scenes, which need SciPy) is not part of a real session's analysis.
+    meta = json.loads((path / "session.json").read_text(encoding="utf-8"))
+    meta["devices"]["simulated"] = False
+    (path / "session.json").write_text(json.dumps(meta), encoding="utf-8")
     code = ("import sys, json; from benchlab.cli.main import main; "
             f"status = main(['analyze', {str(path)!r}]); "
             "print(json.dumps([status, sorted(sys.modules)]))")
@@ -50,8 +55,11 @@ def test_analyze_session_imports_no_opencv_nor_scipy(small_mtf: Path, tmp_path: 
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, timeout=120)
     status, loaded = json.loads(done.stdout.strip().splitlines()[-1])
-    # the run's own results again, byte for byte: the re-analysis matched v1, added none
-    assert status == 0 and sorted(p.name for p in (path / "results").iterdir()) == ["v1"]
+    # the run's own results again, byte for byte, less the simulator's truth
+    assert status == 0 and sorted(p.name for p in (path / "results").iterdir()) == ["v1", "v2"]
+    v1, v2 = _files(path / "results" / "v1"), _files(path / "results" / "v2")
+    assert sorted(set(v1) - set(v2)) == ["simulator_truth.csv", "simulator_truth.json"]
+    assert all(v1[name] == v2[name] for name in v2 if name != "summary.json")
     heavy = sorted({m.split(".")[0] for m in loaded} & set(NOT_IMPORTED))
     assert heavy == []
     # ... while the code that used them ran: the chart finder, the hole fill, the bar model

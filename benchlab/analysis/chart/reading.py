@@ -38,6 +38,7 @@ import numpy.typing as npt
 from benchlab.analysis.bars.knownbars import ThreeBarReading
 from benchlab.analysis.bars.result import ModulationResult
 from benchlab.analysis.chart.finder import ChartFit, FoundElement
+from benchlab.analysis.threads import one_thread
 
 #: A set's own blur counts as pinned down when its allowed range is at most this wide (px).
 WELL_DETERMINED_PX = 0.1
@@ -156,7 +157,7 @@ def read_chart_details(
         return SetReading(first[k].result if prior is None
                           else first[k].with_blur_prior(prior).result, prior)
 
-    if workers == 1 or len(found) < 2:
+    if workers == 1 or len(found) < 2 or one_thread():
         first = [own(el) for el in found]
         return [with_prior(k) for k in range(len(found))]
     from concurrent.futures import ThreadPoolExecutor

@@ -133,8 +133,8 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
     w = fit._grid()
     vals = coefs @ np.vander(w, coefs.shape[1], increasing=True).T  # rows x grid
     inside = np.abs(w) <= 1.0
-    idx_in = np.flatnonzero(inside)
-    k = idx_in[np.argmax(vals[:, idx_in], axis=1)]
+    idx_in = np.flatnonzero(inside)  # one run of the ascending grid: searched as a view
+    k = idx_in[0] + np.argmax(vals[:, idx_in[0]:idx_in[-1] + 1], axis=1)
     rows = np.arange(coefs.shape[0])
     # parabolic refinement of the grid maximum
     k0 = np.clip(k, 1, w.size - 2)
@@ -159,12 +159,12 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
     idx = np.arange(w.size)
     # larger vergence = nearer: the near end is the first grid point below past the peak
     up = below & (idx[None, :] > k[:, None])
-    has_up = ok & up.any(axis=1)
     j = np.argmax(up, axis=1)
+    has_up = ok & up[rows, j]  # argmax finds a True wherever a row has one
     u_near = _cross(w, vals, rows, j - 1, j, lt, fit)
     dn = below & (idx[None, :] < k[:, None])
-    has_dn = ok & dn.any(axis=1)
     i = w.size - 1 - np.argmax(dn[:, ::-1], axis=1)
+    has_dn = ok & dn[rows, i]
     u_far = _cross(w, vals, rows, i, i + 1, lt, fit)
     with np.errstate(divide="ignore", invalid="ignore"):
         out[:, 2] = np.where(has_up & (u_near > 0), 1.0 / u_near, np.nan)
