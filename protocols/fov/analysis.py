@@ -14,6 +14,8 @@ maximum is the disc without its dots); the dots are found and identified per dis
   edge;
 - ``distortion``: local distortion (% of image height) against ``f tan theta`` and ``f theta``;
 - ``fov_dots``: per distance the dots found, identified and the fit's residual;
+- the radial view's rows of ``field_of_view`` and ``image_height_mapping`` (``view``
+  "radial") and ``radial_rings`` (:mod:`.radial_analysis`) when the run took radial frames;
 - ``simulator_truth`` (simulated bench only, :mod:`.truth`): the same figures from the
   simulator's exact mapping.
 """
@@ -168,7 +170,8 @@ def analyze_fov(session: Session, params: FovParams
         value, ci = h.rounded(6)  # 1 nm: well below the interval's width
         d_mm = design.get(a)
         mapping.append({
-            "field_angle_deg": a, "image_height_mm": value, "image_height_mm_ci95": ci,
+            "view": "forward", "field_angle_deg": a, "axial_position_mm": None,
+            "image_height_mm": value, "image_height_mm_ci95": ci,
             "design_image_height_mm": d_mm,
             "difference_mm": None if d_mm is None else _r(h.value - d_mm, 6),
             "verdict": "" if d_mm is None else (
@@ -185,10 +188,21 @@ def analyze_fov(session: Session, params: FovParams
     tables: dict[str, list[dict[str, Any]]] = {
         "field_of_view": fov_rows, "image_height_mapping": mapping, "distortion": distortion,
         "fov_dots": dot_rows}
+    radial_summary: dict[str, Any] = {}
+    radial_angles: list[float] = []
+    if params.radial is not None:
+        from benchlab.protocols.fov.radial_analysis import analyze_radial
+
+        extra, radial_summary, radial_warnings = analyze_radial(session, params.radial,
+                                                                params.height_tolerance_mm)
+        warnings += radial_warnings
+        for name, rows in extra.items():
+            tables[name] = tables.get(name, []) + rows
+        radial_angles = [r["field_angle_deg"] for r in extra.get("image_height_mapping", [])]
     if session.meta.get("devices", {}).get("simulated"):
         from benchlab.protocols.fov.truth import truth_rows
 
-        tables["simulator_truth"] = truth_rows(params, angles)
+        tables["simulator_truth"] = truth_rows(params, angles, radial_angles)
     summary = {"procedure": "fov", "distances_mm": list(params.distances_mm),
                "frames_per_distance": params.frames,
                "stage_travel_mm": params.stage_travel_mm,
@@ -196,7 +210,7 @@ def analyze_fov(session: Session, params: FovParams
                "centroid_noise_px": round(fit.noise_px, 4), "dots_fitted": fit.dots,
                "interval_method": "delta method on the fit's covariance (direction of view: "
                                   "profile of the tilt's 2-D region)",
-               "warnings": warnings}
+               **radial_summary, "warnings": warnings}
     return tables, summary
 
 
