@@ -1,8 +1,8 @@
 """The tables of ``benchlab run fov`` from a session's frames.
 
-Per distance the frames are averaged; the forward disc is found once, on the pixelwise maximum
-of the distances' averages (the dots move between distances, the field stop does not, so the
-maximum is the disc without its dots); the dots are found and identified per distance
+Per distance the frames are averaged; the forward disc is found on each distance's average and
+the discs pooled, their spread giving the covariance (:func:`benchlab.analysis.fov.disc.
+pooled_disc`); the dots are found and identified per distance
 (:mod:`benchlab.analysis.fov.dots`) and one geometry is fitted to all of them
 (:mod:`benchlab.analysis.fov.fit`). Tables:
 
@@ -30,7 +30,7 @@ import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov import figures as fig
-from benchlab.analysis.fov.disc import Disc, find_disc
+from benchlab.analysis.fov.disc import Disc, find_disc, pooled_disc
 from benchlab.analysis.fov.dots import Dots, detect, identify
 from benchlab.analysis.fov.fit import fit_views
 from benchlab.analysis.fov.model import PIXEL_MM
@@ -123,7 +123,7 @@ def analyze_fov(session: Session, params: FovParams
         raise BenchlabError(f"{session.path}: {len(avgs)} distance(s) taken; the fit needs two "
                             "at least")
     try:
-        disc = find_disc(np.max(np.stack(list(avgs.values())), axis=0))
+        disc = pooled_disc([find_disc(img) for img in avgs.values()])
     except ValueError as exc:
         raise BenchlabError(f"{session.path}: forward disc: {exc}") from exc
     views: list[tuple[float, Dots]] = []

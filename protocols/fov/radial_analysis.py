@@ -1,7 +1,7 @@
 """The radial view's rows of ``benchlab run fov``'s tables, from the ring tube's frames.
 
-Per position the frames are averaged; the annulus is found once, on the pixelwise maximum of
-the positions' averages (:mod:`benchlab.analysis.fov.annulus`); each position's azimuthal
+Per position the frames are averaged; the annulus is found on each position's average and the
+annuli pooled (:mod:`benchlab.analysis.fov.annulus`); each position's azimuthal
 profile against the brightest profile gives its rings (:mod:`benchlab.analysis.fov.rings`),
 counted from the fiducial ring; the rings' axial positions (ring 0 at the position, the others
 a pitch apart) and image radii give the mapping (:mod:`benchlab.analysis.fov.radial`). Rows:
@@ -26,7 +26,7 @@ from scipy import ndimage
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov import radial as rad
-from benchlab.analysis.fov.annulus import Annulus, find_annulus
+from benchlab.analysis.fov.annulus import Annulus, find_annulus, pooled_annulus
 from benchlab.analysis.fov.figures import Z95, Figure
 from benchlab.analysis.fov.model import PIXEL_MM
 from benchlab.analysis.fov.rings import BIN_PX, Rings, find_rings, profile, spacing_gap
@@ -121,7 +121,7 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
     from benchlab.analysis.fov.annulus import AnnulusNotFoundError
 
     try:
-        annulus = find_annulus(np.max(np.stack(list(avgs.values())), axis=0))
+        annulus = pooled_annulus([find_annulus(img) for img in avgs.values()])
     except AnnulusNotFoundError as exc:
         raise BenchlabError(f"{session.path}: radial annulus: {exc}") from exc
     profiles = {p: profile(img, annulus, plan.margin_px) for p, img in avgs.items()}

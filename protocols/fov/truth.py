@@ -3,7 +3,8 @@ mapping (:class:`benchlab.scenes.dots.DotGridScene`).
 
 Rows ``{"table", "key", "value"}``: ``field_of_view`` rows keyed by quantity (the
 ``field_of_view`` table's ``quantity``), ``image_height_mapping`` / ``distortion_rectilinear``
-/ ``distortion_equidistant`` rows keyed by field angle (deg). The truth distortion is against
+/ ``distortion_equidistant`` rows keyed by field angle (deg, as text: ``"12.5"``, so the
+column holds one kind). The truth distortion is against
 the simulator's paraxial focal length, ``f`` (its mapping's slope at 0). The radial view's
 rows (:func:`radial_truth_rows`): ``field_of_view`` keyed by its ``radial_*`` quantities and
 ``radial_image_height_mapping`` keyed by field angle.
@@ -44,11 +45,11 @@ def truth_rows(params: FovParams, angles_deg: Sequence[float],
     for a in angles_deg:
         t = math.radians(a)
         hv = float(h(np.array([t]))[0])
-        rows.append({"table": "image_height_mapping", "key": a, "value": hv})
+        rows.append({"table": "image_height_mapping", "key": f"{a:g}", "value": hv})
         if a > 0:
-            rows.append({"table": "distortion_rectilinear", "key": a,
+            rows.append({"table": "distortion_rectilinear", "key": f"{a:g}",
                          "value": 100.0 * (hv - f * math.tan(t)) / (f * math.tan(t))})
-            rows.append({"table": "distortion_equidistant", "key": a,
+            rows.append({"table": "distortion_equidistant", "key": f"{a:g}",
                          "value": 100.0 * (hv - f * t) / (f * t)})
     if params.radial is not None:
         rows += radial_truth_rows(params.radial, radial_angles_deg)
@@ -82,5 +83,5 @@ def radial_truth_rows(plan: RadialPlan, angles_deg: Sequence[float]) -> list[dic
         z = plan.viewpoint_z_mm + plan.tube_radius_mm * math.tan(math.radians(-a))
         h = float(scene.image_radius_mm(np.array([z]))[0])
         if math.isfinite(h):
-            rows.append({"table": "radial_image_height_mapping", "key": a, "value": h})
+            rows.append({"table": "radial_image_height_mapping", "key": f"{a:g}", "value": h})
     return rows

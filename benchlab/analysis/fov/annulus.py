@@ -2,9 +2,8 @@
 
 In the radial set-up (the ring tube, the forward disc dark) the lit annulus is bounded by two
 circles about the optical axis; their radii are the image heights of the radial field's two
-ends on the wall (issue 41). The rings move between stage positions and the annulus does not,
-so the edges are read on the pixelwise maximum of the positions' frames (the annulus without
-its rings).
+ends on the wall (issue 41). Each position's frame gives one annulus (a ring next to an edge
+shifts that position's edge); :func:`pooled_annulus` combines them.
 
 First guess: the dark hole inside the lit annulus (its centroid and equivalent radius); then
 on 360 rays the innermost rising crossing of the half level (the inner edge) and, where the
@@ -16,6 +15,7 @@ residual variance.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +24,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
+from benchlab.analysis.fov.pooled import pooled
 
 
 class AnnulusNotFoundError(ValueError):
@@ -141,3 +142,12 @@ def _fit(pin: FloatArray, pout: FloatArray, start: FloatArray
     s2 = float(r @ r) / max(len(r) - 4, 1)
     cov = np.linalg.inv(sol.jac.T @ sol.jac) * s2
     return sol.x, cov, r[:len(pin)], r[len(pin):]
+
+
+def pooled_annulus(annuli: Sequence[Annulus]) -> Annulus:
+    """One annulus from those of several positions' frames, its covariance from their spread
+    (:func:`benchlab.analysis.fov.pooled.pooled`)."""
+    x, cov = pooled(np.array([[a.centre_col, a.centre_row, a.inner_px, a.outer_px]
+                              for a in annuli]), np.array([a.covariance for a in annuli]))
+    return Annulus(float(x[0]), float(x[1]), float(x[2]), float(x[3]), cov,
+                   float(np.mean([a.bright for a in annuli])), sum(a.edge_points for a in annuli))

@@ -13,6 +13,7 @@ covariance of ``(col, row, radius)`` is the Gauss-Newton one scaled by the resid
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,14 +22,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
-
-#: Systematic floor on the radius (px), added in quadrature: the half-level crossing read by
-#: bilinear interpolation of a 1.5 px soft edge; on the simulated bench the radius comes out
-#: within ~0.01 px (`benchlab benchmark fov`), far above the fit's statistical 0.001 px.
-EDGE_SYSTEMATIC_PX = 0.01
-#: The same for the centre (px): within ~0.002 px on the simulated bench, against a
-#: statistical 0.0015 px; it sets the direction of view's interval (0.002 px is 0.0002 deg).
-CENTRE_SYSTEMATIC_PX = 0.002
+from benchlab.analysis.fov.pooled import pooled
 
 
 class DiscNotFoundError(ValueError):
@@ -137,8 +131,14 @@ def find_disc(frame: npt.ArrayLike, rays: int = 720) -> Disc:
             break
         p = p[keep]
         x, cov, r = _circle_fit(p, tuple(x))
-    cov = cov.copy()
-    cov[2, 2] += EDGE_SYSTEMATIC_PX ** 2
-    cov[0, 0] += CENTRE_SYSTEMATIC_PX ** 2
-    cov[1, 1] += CENTRE_SYSTEMATIC_PX ** 2
     return Disc(float(x[0]), float(x[1]), float(x[2]), cov, bright, dark, len(p))
+
+
+def pooled_disc(discs: Sequence[Disc]) -> Disc:
+    """One disc from the discs of several positions' frames, its covariance from their spread
+    (:func:`benchlab.analysis.fov.pooled.pooled`)."""
+    x, cov = pooled(np.array([[d.centre_col, d.centre_row, d.radius_px] for d in discs]),
+                    np.array([d.covariance for d in discs]))
+    return Disc(float(x[0]), float(x[1]), float(x[2]), cov,
+                float(np.mean([d.bright for d in discs])), float(np.mean([d.dark for d in discs])),
+                sum(d.edge_points for d in discs))
