@@ -40,10 +40,10 @@ class RingTube:
     """The ring tube's drawing (module docstring)."""
 
     radius_mm: float = REFERENCE_OBJECT_RADIUS_MM
-    pitch_mm: float = 2.0
+    pitch_mm: float = 4.0
     ring_mm: float = 0.3
     fiducial_scale: float = 3.0
-    half_count: int = 12
+    half_count: int = 6
 
     def __post_init__(self) -> None:
         if not 0 < self.ring_mm * self.fiducial_scale < self.pitch_mm - self.ring_mm:

@@ -38,7 +38,7 @@ class FovParams:
 
     exposure_ms: float = 300.0
     gain: float = 1.0
-    bits: int = 8
+    bits: int = 12
     frames: int = 2
     distances_mm: tuple[float, ...] = (15.0, 25.0, 35.0)
     #: Object distance (lens front to chart) with the stage at 0: stage = distance - offset.

@@ -1,10 +1,13 @@
 """The radial view's rows of ``benchlab run fov``'s tables, from the ring tube's frames.
 
 Per position the frames are averaged; the annulus is found on each position's average and the
-annuli pooled (:mod:`benchlab.analysis.fov.annulus`); each position's azimuthal
+median taken (:mod:`benchlab.analysis.fov.annulus`); each position's azimuthal
 profile against the brightest profile gives its rings (:mod:`benchlab.analysis.fov.rings`),
 counted from the fiducial ring; the rings' axial positions (ring 0 at the position, the others
-a pitch apart) and image radii give the mapping (:mod:`benchlab.analysis.fov.radial`). Rows:
+a pitch apart) and image radii give the mapping (:mod:`benchlab.analysis.fov.radial`; the
+wide ring names the others but is not fitted); the mapping predicts every ring at every
+position, and each edge of the annulus is read again on the positions where no ring is near it
+(:func:`clean_positions`). Rows:
 
 - ``field_of_view``: ``radial_field_start_mm`` / ``radial_field_end_mm`` (axial position of
   the field's ends on the wall), ``radial_field_start_deg`` / ``radial_field_end_deg`` (their
@@ -26,7 +29,13 @@ from scipy import ndimage
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov import radial as rad
-from benchlab.analysis.fov.annulus import Annulus, find_annulus, pooled_annulus
+from benchlab.analysis.fov.annulus import (
+    Annulus,
+    AnnulusNotFoundError,
+    find_annulus,
+    median_annulus,
+    refine_annulus,
+)
 from benchlab.analysis.fov.figures import Z95, Figure
 from benchlab.analysis.fov.model import PIXEL_MM
 from benchlab.analysis.fov.rings import BIN_PX, Rings, find_rings, profile, spacing_gap
@@ -118,10 +127,8 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
     avgs = _averages(session, plan)
     if not avgs:
         return {}, {}, [f"{session.path}: no radial frames; the radial view is not measured"]
-    from benchlab.analysis.fov.annulus import AnnulusNotFoundError
-
     try:
-        annulus = pooled_annulus([find_annulus(img) for img in avgs.values()])
+        annulus = median_annulus([find_annulus(img) for img in avgs.values()])
     except AnnulusNotFoundError as exc:
         raise BenchlabError(f"{session.path}: radial annulus: {exc}") from exc
     profiles = {p: profile(img, annulus, plan.margin_px) for p, img in avgs.items()}
@@ -143,12 +150,19 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
     zs, rhos, where = [], [], []
     for p, rings in found.items():
         k = rings.indices(sign)
-        zs += list(p + k * plan.pitch_mm)
-        rhos += list(rings.radius_px * PIXEL_MM)
-        where += [p] * len(k)
+        plain = k != 0  # the wide ring names the others; its wider image's centre is less sure
+        zs += list(p + k[plain] * plan.pitch_mm)
+        rhos += list(rings.radius_px[plain] * PIXEL_MM)
+        where += [p] * int(plain.sum())
     try:
         fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm)
-    except rad.RadialFitError as exc:
+        inner, outer = clean_positions(fit, annulus, plan, list(avgs))
+        if not inner or not outer:
+            raise AnnulusNotFoundError(
+                f"a ring is next to the {'inner' if not inner else 'outer'} edge at every "
+                "position; take more positions between two rings (radial.positions_mm)")
+        annulus = refine_annulus([avgs[p] for p in inner], [avgs[p] for p in outer], annulus)
+    except (rad.RadialFitError, AnnulusNotFoundError) as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
     resid = np.array(rhos) - np.array([fit.height_mm(z) for z in zs])
     for p, rings in found.items():
@@ -199,6 +213,28 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
                "radial_tube_radius_mm": plan.tube_radius_mm}
     return ({"field_of_view": fov_rows, "image_height_mapping": mapping,
              "radial_rings": ring_rows}, summary, warnings)
+
+
+def clean_positions(fit: rad.RadialFit, annulus: Annulus, plan: RadialPlan,
+                    positions: list[float]) -> tuple[list[float], list[float]]:
+    """The positions with no ring near the inner edge, and those with none near the outer
+    (the fitted mapping predicts every ring, those beyond the edges too): a ring's image,
+    widened by 6 px of blur, must stay off the edge's profile (12 px on the lit side, 4.5 px of
+    soft edge on the dark side; :mod:`benchlab.analysis.fov.edges`)."""
+    inner, outer = [], []
+    k = np.arange(-plan.half_count, plan.half_count + 1, dtype=np.float64)
+    for p in positions:
+        z = p + k * plan.pitch_mm
+        rho = np.array([fit.height_mm(v) for v in z]) / PIXEL_MM
+        slope = np.abs([fit.height_mm(v + 0.01) - fit.height_mm(v - 0.01) for v in z]) / 0.02
+        half = 0.5 * plan.ring_mm * np.where(k == 0, plan.fiducial_scale, 1.0) * slope / PIXEL_MM
+        lo, hi = rho - half - 6.0, rho + half + 6.0
+        # inner edge: lit outside it (larger radius)
+        if not np.any((lo < annulus.inner_px + 12.0) & (hi > annulus.inner_px - 4.5)):
+            inner.append(p)
+        if not np.any((hi > annulus.outer_px - 12.0) & (lo < annulus.outer_px + 4.5)):
+            outer.append(p)
+    return inner, outer
 
 
 def _radius_row(name: str, annulus: Annulus, which: int) -> dict[str, Any]:

@@ -34,14 +34,14 @@ class RadialPlan:
     (the thesis's z: the effective viewpoint at -6.4 mm) at each step; the stage goes to
     ``position - object_offset_mm``."""
 
-    positions_mm: tuple[float, ...] = (12.0, 12.5, 13.0, 13.5)
+    positions_mm: tuple[float, ...] = (12.0, 12.5, 13.0, 13.5, 14.0, 14.5, 15.0, 15.5)
     object_offset_mm: float = 12.0
     tube_radius_mm: float = REFERENCE_OBJECT_RADIUS_MM
-    pitch_mm: float = 2.0
+    pitch_mm: float = 4.0
     ring_mm: float = 0.3
     fiducial_scale: float = 3.0
-    half_count: int = 12
-    min_rings: int = 6
+    half_count: int = 6
+    min_rings: int = 4
     margin_px: float = 6.0
     viewpoint_z_mm: float = THESIS_VIEWPOINT_Z_MM
     design_fov_min_deg: float = DESIGN_RADIAL_FOV_MIN_DEG

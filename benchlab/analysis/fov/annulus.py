@@ -2,8 +2,9 @@
 
 In the radial set-up (the ring tube, the forward disc dark) the lit annulus is bounded by two
 circles about the optical axis; their radii are the image heights of the radial field's two
-ends on the wall (issue 41). Each position's frame gives one annulus (a ring next to an edge
-shifts that position's edge); :func:`pooled_annulus` combines them.
+ends on the wall (issue 41). Each position's frame gives one annulus (:func:`find_annulus`; a
+ring next to an edge shifts that position's edge); their median is the first estimate, and
+:func:`refine_annulus` reads each edge again on the positions where no ring is near it.
 
 First guess: the dark hole inside the lit annulus (its centroid and equivalent radius); then
 on 360 rays the innermost rising crossing of the half level (the inner edge) and, where the
@@ -24,7 +25,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
-from benchlab.analysis.fov.pooled import pooled
+from benchlab.analysis.fov.edges import clean_edge_points
 
 
 class AnnulusNotFoundError(ValueError):
@@ -144,10 +145,47 @@ def _fit(pin: FloatArray, pout: FloatArray, start: FloatArray
     return sol.x, cov, r[:len(pin)], r[len(pin):]
 
 
-def pooled_annulus(annuli: Sequence[Annulus]) -> Annulus:
-    """One annulus from those of several positions' frames, its covariance from their spread
-    (:func:`benchlab.analysis.fov.pooled.pooled`)."""
-    x, cov = pooled(np.array([[a.centre_col, a.centre_row, a.inner_px, a.outer_px]
-                              for a in annuli]), np.array([a.covariance for a in annuli]))
+def refine_annulus(inner_frames: Sequence[FloatArray], outer_frames: Sequence[FloatArray],
+                   annulus: Annulus, rays: int = 360) -> Annulus:
+    """The annulus again from the inner edge of ``inner_frames`` and the outer edge of
+    ``outer_frames`` (the positions where no ring is near that edge), one centre for both
+    (:func:`benchlab.analysis.fov.edges.clean_edge_points`); the covariance is the fit's,
+    from the points' scatter.
+
+    Raises
+    ------
+    AnnulusNotFoundError
+        Fewer than 20 edge points on either edge.
+    """
+    centre = (annulus.centre_col, annulus.centre_row)
+    none = np.empty((0, 2))
+    pin = [clean_edge_points(np.asarray(f, dtype=np.float64), centre, annulus.inner_px, rays,
+                             False, none, 0.0) for f in inner_frames]
+    pout = [clean_edge_points(np.asarray(f, dtype=np.float64), centre, annulus.outer_px, rays,
+                              True, none, 0.0) for f in outer_frames]
+    pts_in = np.concatenate(pin) if pin else none
+    pts_out = np.concatenate(pout) if pout else none
+    if len(pts_in) < 20 or len(pts_out) < 20:
+        raise AnnulusNotFoundError(f"only {len(pts_in)} inner and {len(pts_out)} outer edge "
+                                   "points clear of the rings (20 each needed)")
+    keep_in = np.ones(len(pts_in), dtype=bool)
+    keep_out = np.ones(len(pts_out), dtype=bool)
+    p = np.array([*centre, annulus.inner_px, annulus.outer_px])
+    for _ in range(3):
+        p, cov, res_in, res_out = _fit(pts_in[keep_in], pts_out[keep_out], p)
+        r_in = np.hypot(pts_in[:, 0] - p[0], pts_in[:, 1] - p[1]) - p[2]
+        r_out = np.hypot(pts_out[:, 0] - p[0], pts_out[:, 1] - p[1]) - p[3]
+        mad = 1.4826 * float(np.median(np.abs(np.concatenate([res_in, res_out])))) + 1e-6
+        keep_in, keep_out = np.abs(r_in) <= 4.0 * mad, np.abs(r_out) <= 4.0 * mad
+    return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, annulus.bright,
+                   int(keep_in.sum() + keep_out.sum()))
+
+
+def median_annulus(annuli: Sequence[Annulus]) -> Annulus:
+    """The positions' annuli's median (a first estimate a ring next to an edge cannot move;
+    its covariance is the median one)."""
+    x = np.median(np.array([[a.centre_col, a.centre_row, a.inner_px, a.outer_px]
+                            for a in annuli]), axis=0)
+    cov = np.median(np.array([a.covariance for a in annuli]), axis=0)
     return Annulus(float(x[0]), float(x[1]), float(x[2]), float(x[3]), cov,
-                   float(np.mean([a.bright for a in annuli])), sum(a.edge_points for a in annuli))
+                   float(np.median([a.bright for a in annuli])), annuli[0].edge_points)

@@ -22,7 +22,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
-from benchlab.analysis.fov.pooled import pooled
+from benchlab.analysis.fov.edges import clean_edge_points
 
 
 class DiscNotFoundError(ValueError):
@@ -122,7 +122,15 @@ def find_disc(frame: npt.ArrayLike, rays: int = 720) -> Disc:
     if len(pts) < 20:
         raise DiscNotFoundError(f"the disc's edge was traced on only {len(pts)} of {rays} rays")
     p = np.asarray(pts)
-    x, cov, r = _circle_fit(p, (c0, r0, rad0))
+    x, cov, n = robust_circle(p, (c0, r0, rad0))
+    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, bright, dark, n)
+
+
+def robust_circle(p: FloatArray, start: tuple[float, float, float]
+                  ) -> tuple[FloatArray, FloatArray, int]:
+    """A circle fitted to edge points, outliers (4 robust standard deviations) dropped:
+    ``(col, row, radius)``, its covariance, the points kept."""
+    x, cov, r = _circle_fit(p, start)
     for _ in range(5):  # dots on the edge: drop the outliers and fit again
         med = float(np.median(r))
         mad = 1.4826 * float(np.median(np.abs(r - med)))
@@ -130,15 +138,26 @@ def find_disc(frame: npt.ArrayLike, rays: int = 720) -> Disc:
         if keep.all():
             break
         p = p[keep]
-        x, cov, r = _circle_fit(p, tuple(x))
-    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, bright, dark, len(p))
+        x, cov, r = _circle_fit(p, (float(x[0]), float(x[1]), float(x[2])))
+    return x, cov, len(p)
 
 
-def pooled_disc(discs: Sequence[Disc]) -> Disc:
-    """One disc from the discs of several positions' frames, its covariance from their spread
-    (:func:`benchlab.analysis.fov.pooled.pooled`)."""
-    x, cov = pooled(np.array([[d.centre_col, d.centre_row, d.radius_px] for d in discs]),
-                    np.array([d.covariance for d in discs]))
-    return Disc(float(x[0]), float(x[1]), float(x[2]), cov,
-                float(np.mean([d.bright for d in discs])), float(np.mean([d.dark for d in discs])),
-                sum(d.edge_points for d in discs))
+def refine_disc(frames: Sequence[FloatArray], disc: Disc, blockers: Sequence[FloatArray],
+                block_px: float, rays: int = 720) -> Disc:
+    """The disc again from every frame's edge where no dot is near it (``blockers[k]``: the
+    dots' image positions in ``frames[k]``; :func:`benchlab.analysis.fov.edges.
+    clean_edge_points`); the covariance is the fit's, from the points' scatter.
+
+    Raises
+    ------
+    DiscNotFoundError
+        Fewer than 20 clean edge points.
+    """
+    pts = np.concatenate([
+        clean_edge_points(np.asarray(f, dtype=np.float64), (disc.centre_col, disc.centre_row),
+                          disc.radius_px, rays, True, b, block_px)
+        for f, b in zip(frames, blockers, strict=True)])
+    if len(pts) < 20:
+        raise DiscNotFoundError(f"only {len(pts)} edge points of the disc clear of the dots")
+    x, cov, n = robust_circle(pts, (disc.centre_col, disc.centre_row, disc.radius_px))
+    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, disc.bright, disc.dark, n)

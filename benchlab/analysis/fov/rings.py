@@ -109,9 +109,10 @@ def find_rings(prof: Profile, baseline: FloatArray, min_depth: float = 0.15) -> 
 
 def _fitted_centre(prof: Profile, dark: FloatArray, lo: int, hi: int, centroid: float,
                    width_px: float) -> float:
-    """The ring's centre from a fit of a blurred box (the ring's image) to its bins, each
-    weighted by its pixel count. A plain darkening-weighted centroid is biased by ~0.01 px:
-    the number of pixel centres per bin of radius fluctuates around a circle, and a centroid
+    """The ring's centre from a fit of a blurred box (the ring's image; the blur may change
+    linearly across it) to its bins, each weighted by its pixel count. A plain
+    darkening-weighted centroid is biased by ~0.01 px: the number of pixel centres per bin
+    of radius fluctuates around a circle, and a centroid
     that weights every bin alike follows the fluctuation; a fit weighted by the count does
     not."""
     pad = int(round(4.0 / BIN_PX))
@@ -121,13 +122,14 @@ def _fitted_centre(prof: Profile, dark: FloatArray, lo: int, hi: int, centroid: 
     wt = np.sqrt(prof.count[a:b + 1])
 
     def res(p: FloatArray) -> FloatArray:
-        depth, c, half, s, base = p
-        s = abs(s) + 1e-3
-        model = base + depth * (ndtr((r - c + half) / s) - ndtr((r - c - half) / s))
+        depth, c, half, s, base, slope = p
+        # the blur may change across the ring (it does with image height)
+        sig = np.abs(s + slope * (r - c)) + 1e-3
+        model = base + depth * (ndtr((r - c + half) / sig) - ndtr((r - c - half) / sig))
         return np.asarray((model - y) * wt)
 
     start = np.array([float(dark[lo:hi + 1].max()), centroid, max(width_px / 2.0, 0.5), 1.0,
-                      0.0])
+                      0.0, 0.0])
     sol = least_squares(res, start, method="lm")
     c = float(sol.x[1])
     return c if abs(c - centroid) < 2.0 else centroid
