@@ -3,7 +3,7 @@
 Per distance the frames are averaged; the forward disc is found first on the pixelwise maximum
 of the distances' averages (the dots move between distances, the field stop does not), then,
 once the geometry is fitted, again on every distance's average where no predicted dot is near
-the edge (:func:`benchlab.analysis.fov.disc.refine_disc`), and the geometry fitted again; the
+the edge (:func:`benchlab.analysis.fov.fit.fit_with_clean_disc`), and the geometry fitted again; the
 dots are found and identified per distance
 (:mod:`benchlab.analysis.fov.dots`) and one geometry is fitted to all of them
 (:mod:`benchlab.analysis.fov.fit`). Tables:
@@ -32,9 +32,9 @@ import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov import figures as fig
-from benchlab.analysis.fov.disc import Disc, find_disc, refine_disc
+from benchlab.analysis.fov.disc import Disc, find_disc
 from benchlab.analysis.fov.dots import Dots, detect, identify
-from benchlab.analysis.fov.fit import A1, Fit, fit_views, predict
+from benchlab.analysis.fov.fit import fit_with_clean_disc
 from benchlab.analysis.fov.model import PIXEL_MM
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.errors import BenchlabError
@@ -142,11 +142,8 @@ def analyze_fov(session: Session, params: FovParams
         raise BenchlabError(f"{session.path}: dots identified at {len(views)} distance(s); the "
                             f"fit needs two at least ({'; '.join(warnings)})")
     try:
-        fit = fit_views(views, disc, params.pitch_mm, params.min_dots)
-        # the edge again on every distance's frame, clear of the dots the fit predicts there
-        disc = refine_disc(list(avgs.values()), disc,
-                           [_dots_at(fit, params, z) for z in avgs], _block_px(fit, params))
-        fit = fit_views(views, disc, params.pitch_mm, params.min_dots)
+        disc, fit = fit_with_clean_disc(avgs, views, disc, params.pitch_mm, params.dot_mm,
+                                        params.half_count, params.min_dots)
     except ValueError as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
     for (z, v), rms in zip(views, fit.rms_px, strict=True):
@@ -218,21 +215,6 @@ def analyze_fov(session: Session, params: FovParams
                                   "profile of the tilt's 2-D region)",
                **radial_summary, "warnings": warnings}
     return tables, summary
-
-
-def _dots_at(fit: Fit, params: FovParams, distance_mm: float) -> FloatArray:
-    """Where the fit puts every dot of the chart at a distance (image ``(col, row)``)."""
-    k = np.arange(-params.half_count, params.half_count + 1, dtype=np.float64)
-    i, j = np.meshgrid(k, k)
-    ij = np.stack([i.ravel(), j.ravel()], axis=1)
-    return predict(fit.params, ij, np.full(len(ij), distance_mm), params.pitch_mm)
-
-
-def _block_px(fit: Fit, params: FovParams) -> float:
-    """How near a dot may come to an edge profile: a dot's half size at the nearest distance
-    (paraxial scale; a barrel lens is smaller off axis), plus 3 px of blur."""
-    scale_px_per_mm = float(fit.params[A1]) / min(params.distances_mm) / PIXEL_MM
-    return 0.5 * params.dot_mm * scale_px_per_mm + 3.0
 
 
 def _grid(step_deg: float, edge_deg: float) -> list[float]:

@@ -143,10 +143,11 @@ def robust_circle(p: FloatArray, start: tuple[float, float, float]
 
 
 def refine_disc(frames: Sequence[FloatArray], disc: Disc, blockers: Sequence[FloatArray],
-                block_px: float, rays: int = 720) -> Disc:
+                block_px: Sequence[float], rays: int = 720) -> Disc:
     """The disc again from every frame's edge where no dot is near it (``blockers[k]``: the
     dots' image positions in ``frames[k]``; :func:`benchlab.analysis.fov.edges.
-    clean_edge_points`); the covariance is the fit's, from the points' scatter.
+    clean_edge_points`; ``block_px[k]`` how near a ray may pass one in that frame); the
+    covariance is the fit's, from the points' scatter.
 
     Raises
     ------
@@ -155,8 +156,8 @@ def refine_disc(frames: Sequence[FloatArray], disc: Disc, blockers: Sequence[Flo
     """
     pts = np.concatenate([
         clean_edge_points(np.asarray(f, dtype=np.float64), (disc.centre_col, disc.centre_row),
-                          disc.radius_px, rays, True, b, block_px)
-        for f, b in zip(frames, blockers, strict=True)])
+                          disc.radius_px, rays, True, b, px)
+        for f, b, px in zip(frames, blockers, block_px, strict=True)])
     if len(pts) < 20:
         raise DiscNotFoundError(f"only {len(pts)} edge points of the disc clear of the dots")
     x, cov, n = robust_circle(pts, (disc.centre_col, disc.centre_row, disc.radius_px))
