@@ -82,7 +82,8 @@ def find_annulus(frame: npt.ArrayLike, rays: int = 360) -> Annulus:
     c0, r0, rin0, rout0, dark = _first_guess(img)
     h, w = img.shape
     az = np.linspace(0.0, 2.0 * np.pi, rays, endpoint=False)
-    inner, outer = [], []
+    inner: list[tuple[float, float]] = []
+    outer: list[tuple[float, float]] = []
     for guess, is_inner, store in ((rin0, True, inner), (rout0, False, outer)):
         radii = guess + np.arange(-25.0, 25.0 + 1e-9, 0.25)
         cols = c0 + np.cos(az)[:, None] * radii[None, :]

@@ -86,7 +86,8 @@ def fit_mapping(z_mm: Sequence[float] | FloatArray, rho_mm: Sequence[float] | Fl
     r = rho - a @ coeffs
     s2 = float(r @ r) / (len(z) - DEGREE - 1)
     cov = s2 * np.linalg.inv(a.T @ a)
-    return RadialFit(coeffs, cov, mid, half, math.sqrt(s2), (lo, hi), len(z), radius_mm,
+    return RadialFit(np.asarray(coeffs, dtype=np.float64), np.asarray(cov, dtype=np.float64),
+                     mid, half, math.sqrt(s2), (lo, hi), len(z), radius_mm,
                      viewpoint_z_mm)
 
 
