@@ -155,7 +155,7 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
         rhos += list(rings.radius_px[plain] * PIXEL_MM)
         where += [p] * int(plain.sum())
     try:
-        fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm)
+        fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm, plan.ring_mm)
         inner, outer = clean_positions(fit, annulus, plan, list(avgs))
         if not inner or not outer:
             raise AnnulusNotFoundError(
@@ -164,7 +164,9 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
         annulus = refine_annulus([avgs[p] for p in inner], [avgs[p] for p in outer], annulus)
     except (rad.RadialFitError, AnnulusNotFoundError) as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
-    resid = np.array(rhos) - np.array([fit.height_mm(z) for z in zs])
+    half = plan.ring_mm / 2.0
+    resid = np.array(rhos) - np.array([(fit.height_mm(z - half) + fit.height_mm(z + half)) / 2
+                                       for z in zs])
     for p, rings in found.items():
         sel = np.array(where) == p
         ring_rows.append({"position_mm": p, "rings_found": len(rings.radius_px),
