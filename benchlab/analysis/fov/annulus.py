@@ -71,7 +71,7 @@ def _first_guess(img: FloatArray) -> tuple[float, float, float, float, float]:
 
 
 def find_annulus(frame: npt.ArrayLike, rays: int = 360) -> Annulus:
-    """The radial annulus of a (ring-free) frame (module docstring).
+    """The radial annulus of one frame (module docstring; a ring next to an edge pulls it).
 
     Raises
     ------
@@ -110,20 +110,25 @@ def find_annulus(frame: npt.ArrayLike, rays: int = 360) -> Annulus:
                                    "of the annulus found (20 each needed)")
     pts_in = np.array([(c0 + r * np.cos(a), r0 + r * np.sin(a)) for a, r in inner])
     pts_out = np.array([(c0 + r * np.cos(a), r0 + r * np.sin(a)) for a, r in outer])
+    p, cov, n = _robust_fit(pts_in, pts_out, np.array([c0, r0, rin0, rout0]))
+    bright = float(np.median(img[_ring_mask(img.shape, p)]))
+    return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, bright, n)
+
+
+def _robust_fit(pts_in: FloatArray, pts_out: FloatArray, start: FloatArray
+                ) -> tuple[FloatArray, FloatArray, int]:
+    """One centre and two radii fitted to both edges' points, points beyond 4 robust standard
+    deviations dropped: ``(col, row, inner, outer)``, its covariance, the points kept."""
     keep_in = np.ones(len(pts_in), dtype=bool)
     keep_out = np.ones(len(pts_out), dtype=bool)
-    p = np.array([c0, r0, rin0, rout0])
+    p = start
     for _ in range(3):
         p, cov, res_in, res_out = _fit(pts_in[keep_in], pts_out[keep_out], p)
-        r_all_in = np.hypot(pts_in[:, 0] - p[0], pts_in[:, 1] - p[1]) - p[2]
-        r_all_out = np.hypot(pts_out[:, 0] - p[0], pts_out[:, 1] - p[1]) - p[3]
+        r_in = np.hypot(pts_in[:, 0] - p[0], pts_in[:, 1] - p[1]) - p[2]
+        r_out = np.hypot(pts_out[:, 0] - p[0], pts_out[:, 1] - p[1]) - p[3]
         mad = 1.4826 * float(np.median(np.abs(np.concatenate([res_in, res_out])))) + 1e-6
-        keep_in = np.abs(r_all_in) <= 4.0 * mad
-        keep_out = np.abs(r_all_out) <= 4.0 * mad
-    ring = _ring_mask(img.shape, p)
-    bright = float(np.median(img[ring]))
-    return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, bright,
-                   int(keep_in.sum() + keep_out.sum()))
+        keep_in, keep_out = np.abs(r_in) <= 4.0 * mad, np.abs(r_out) <= 4.0 * mad
+    return p, cov, int(keep_in.sum() + keep_out.sum())
 
 
 def _ring_mask(shape: tuple[int, ...], p: FloatArray) -> npt.NDArray[np.bool_]:
@@ -169,17 +174,9 @@ def refine_annulus(inner_frames: Sequence[FloatArray], outer_frames: Sequence[Fl
     if len(pts_in) < 20 or len(pts_out) < 20:
         raise AnnulusNotFoundError(f"only {len(pts_in)} inner and {len(pts_out)} outer edge "
                                    "points clear of the rings (20 each needed)")
-    keep_in = np.ones(len(pts_in), dtype=bool)
-    keep_out = np.ones(len(pts_out), dtype=bool)
-    p = np.array([*centre, annulus.inner_px, annulus.outer_px])
-    for _ in range(3):
-        p, cov, res_in, res_out = _fit(pts_in[keep_in], pts_out[keep_out], p)
-        r_in = np.hypot(pts_in[:, 0] - p[0], pts_in[:, 1] - p[1]) - p[2]
-        r_out = np.hypot(pts_out[:, 0] - p[0], pts_out[:, 1] - p[1]) - p[3]
-        mad = 1.4826 * float(np.median(np.abs(np.concatenate([res_in, res_out])))) + 1e-6
-        keep_in, keep_out = np.abs(r_in) <= 4.0 * mad, np.abs(r_out) <= 4.0 * mad
-    return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, annulus.bright,
-                   int(keep_in.sum() + keep_out.sum()))
+    p, cov, n = _robust_fit(pts_in, pts_out,
+                            np.array([*centre, annulus.inner_px, annulus.outer_px]))
+    return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, annulus.bright, n)
 
 
 def median_annulus(annuli: Sequence[Annulus]) -> Annulus:

@@ -47,7 +47,7 @@ def test_rings_mapping_and_field_ends_match_the_tube() -> None:
         assert np.abs(rings.radius_px - true).max() < 0.01
         zs += list(z[k != 0])
         rhos += list(rings.radius_px[k != 0] * PIXEL_MM)
-    fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm)
+    fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm, plan.ring_mm)
     inner, outer = clean_positions(fit, first, plan, list(frames))
     assert inner and outer and len(inner) < len(frames) and len(outer) < len(frames)
     annulus = refine_annulus([frames[p] for p in inner], [frames[p] for p in outer], first)
@@ -90,6 +90,19 @@ def test_a_tube_without_its_wide_ring_is_refused() -> None:
 def test_a_dark_frame_has_no_annulus() -> None:
     with pytest.raises(AnnulusNotFoundError, match="no lit annulus"):
         find_annulus(np.random.default_rng(0).normal(3.0, 1.0, (1024, 1280)))
+
+
+def test_a_ring_is_fitted_as_the_midpoint_of_its_edges() -> None:
+    # a curved mapping: a ring 1 mm wide images 0.01 * 1 / 8 = 1.25 um inside rho(z)
+    def rho(z: np.ndarray) -> np.ndarray:
+        return 3.0 - 0.05 * z - 0.01 * z ** 2 / 2.0
+
+    z = np.linspace(0.0, 10.0, 40)
+    seen = (rho(z - 0.5) + rho(z + 0.5)) / 2.0
+    exact = rad.fit_mapping(z, seen, 19.88, -6.4, ring_mm=1.0)
+    naive = rad.fit_mapping(z, seen, 19.88, -6.4)
+    assert exact.height_mm(5.0) == pytest.approx(float(rho(np.array(5.0))), abs=1e-12)
+    assert naive.height_mm(5.0) - float(rho(np.array(5.0))) == pytest.approx(-0.01 / 8, rel=1e-6)
 
 
 def test_radial_angles_are_multiples_of_the_step_inside_the_field() -> None:
