@@ -142,10 +142,13 @@ def analyze_fov(session: Session, params: FovParams
         raise BenchlabError(f"{session.path}: dots identified at {len(views)} distance(s); the "
                             f"fit needs two at least ({'; '.join(warnings)})")
     try:
-        disc, fit = fit_with_clean_disc(avgs, views, disc, params.pitch_mm, params.dot_mm,
-                                        params.half_count, params.min_dots)
+        disc, fit, edge_note = fit_with_clean_disc(avgs, views, disc, params.pitch_mm,
+                                                   params.dot_mm, params.half_count,
+                                                   params.min_dots)
     except ValueError as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
+    if edge_note:
+        warnings.append(edge_note)
     for (z, v), rms in zip(views, fit.rms_px, strict=True):
         dot_rows.append({"distance_mm": z, "dots_found": v.found,
                          "dots_identified": len(v.ij), "rms_px": _r(rms, 4), "note": ""})

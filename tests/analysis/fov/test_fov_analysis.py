@@ -49,8 +49,9 @@ def analysed() -> dict[str, tuple[DotGridScene, Fit, Disc]]:
         disc = find_disc(np.max(np.stack(list(frames.values())), axis=0))
         views = [(d, identify(*detect(img, disc, 12.0))) for d, img in frames.items()]
         chart = scene.chart
-        disc, fit = fit_with_clean_disc(frames, views, disc, chart.pitch_mm, chart.dot_mm,
-                                        chart.half_count)
+        disc, fit, note = fit_with_clean_disc(frames, views, disc, chart.pitch_mm,
+                                              chart.dot_mm, chart.half_count)
+        assert note == ""  # the edge read clear of the dots
         out[name] = (scene, fit, disc)
     return out
 
