@@ -313,6 +313,9 @@ sweep_exposures  # unused function (protocols/characterise/steps.py)
 simulated_curves_toml  # unused function (protocols/mtf/curves.py)
 forward_edge_tables  # unused function (protocols/mtf/edges.py)
 
+# Part of a returned record (the rings found in a frame) that callers may read.
+_.area_px  # unused variable (benchlab/analysis/fov/rings.py)
+
 # Read by tuple unpacking (Table 4.15's pick of a reading), which vulture does not see.
 _.lens_share_uncertainty  # unused variable (protocols/mtf/analysis.py)
 

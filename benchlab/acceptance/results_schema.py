@@ -119,8 +119,8 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
             "dark_current_e_per_s", "dsnu_dn", "prnu_pct", "hot_pixels",
             "linearity_error_min_pct", "linearity_error_max_pct", "freq_lp_per_mm",
             "threshold", "image_height_mm", "best_focus_mm", "near_mm", "far_mm",
-            "dof_mm"),
-        text=("view", "field_point", "orientation", "criterion", "pattern"),
+            "dof_mm", "value"),
+        text=("view", "field_point", "orientation", "criterion", "pattern", "table", "key"),
         list=("linearity_error_pct",),
     ),
     "depth_of_field": _columns(
@@ -153,6 +153,29 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
         text=("edge",),
     ),
     "depth_chart": None,
+    "field_of_view": _columns(
+        number=("value",),
+        text=("quantity", "unit", "design", "verdict"),
+        list=("value_ci95",),
+    ),
+    "image_height_mapping": _columns(
+        number=("field_angle_deg", "axial_position_mm", "image_height_mm",
+            "design_image_height_mm", "difference_mm"),
+        text=("view", "verdict"),
+        list=("image_height_mm_ci95",),
+    ),
+    "distortion": _columns(
+        number=("field_angle_deg", "image_height_mm", "rectilinear_pct", "equidistant_pct"),
+        list=("rectilinear_pct_ci95", "equidistant_pct_ci95"),
+    ),
+    "fov_dots": _columns(
+        number=("distance_mm", "dots_found", "dots_identified", "rms_px"),
+        text=("note",),
+    ),
+    "radial_rings": _columns(
+        number=("position_mm", "rings_found", "rings_used", "rms_um"),
+        text=("note",),
+    ),
     "unwrap": _columns(
         number=("rows", "cols", "valid_fraction"),
         text=("step_id", "frame", "file"),

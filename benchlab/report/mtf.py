@@ -52,10 +52,13 @@ def _state(row: dict[str, Any], orient: str) -> str:
     return "resolved" if resolved else "unresolved"
 
 
-def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCurve]) -> str:
+def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCurve],
+               fields: dict[str, set[float]] | None = None) -> str:
     """2 x 2 plot (view x orientation): the lens's share of each bar reading (measured /
     target contrast) against the simulated lens's curves as CTF; a reading whose target
-    contrast is unknown is drawn as measured, with its own marker."""
+    contrast is unknown is drawn as measured, with its own marker. ``fields``: the field points
+    drawn solid per view (default: ``table_4_13``'s nearest in image height;
+    :mod:`benchlab.report.field_choice` picks them through a measured mapping)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -64,6 +67,8 @@ def ctf_figure(tables: dict[str, list[dict[str, Any]]], curves: list[SimulatedCu
     fields_used: dict[str, set[float]] = {"forward": set(), "radial": set()}
     for r in tables.get("table_4_13", []):
         fields_used.setdefault(r["view"], set()).add(float(r["nearest_field_deg"]))
+    if fields is not None:
+        fields_used = fields
     # Each panel's legend sits under its axes: never on a measured point.
     fig, axes = plt.subplots(2, 2, figsize=(11, 11), sharey=True)
     nyq = nyquist_lp_per_mm()

@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.drivers.errors import BenchlabError
+from benchlab.report.field_choice import FieldChoice, choose_fields
 from benchlab.report.html import (
     annotated_image,
     caption,
@@ -199,6 +200,7 @@ def _ctf(ctx: ReportContext) -> str:
     from benchlab.protocols.mtf.curves import load_curves
     from benchlab.report.mtf import ctf_figure
 
+    choice = choose_fields(ctx.session, ctx.tables)
     curves_file = str(ctx.session.params.get("analysis", {}).get("simulated_mtf_file", ""))
     try:
         curves = load_curves(curves_file or None)
@@ -207,7 +209,12 @@ def _ctf(ctx: ReportContext) -> str:
     else:
         note = ""
     return (_ctf_caption(ctx.summary.get("target_contrast") or {})
-            + note + ctf_figure(ctx.tables, curves))
+            + note + _field_choice_note(choice) + ctf_figure(ctx.tables, curves, choice.fields))
+
+
+def _field_choice_note(choice: FieldChoice) -> str:
+    """Which mapping picked the solid curves (the measured one when an fov session exists)."""
+    return "<p class='note'>" + "<br>".join(esc(line) for line in choice.lines) + "</p>"
 
 
 def _target_text(view: str, t: dict[str, Any] | None) -> str:

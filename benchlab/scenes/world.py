@@ -16,7 +16,10 @@ Targets (the set-ups of Table 4.10 and section 4.4):
 - ``"dark"`` - nothing lit (lens cap on);
 - ``"dots"`` - the forward view with the dot-grid chart of ``benchlab run fov``
   (:class:`DotGridScene`, :attr:`SimWorld.dots`), carried by the stage: its object distance is
-  ``object_offset_mm`` + the stage position.
+  ``object_offset_mm`` + the stage position;
+- ``"rings"`` - the radial view with the ring tube of ``benchlab run fov``
+  (:class:`RingTubeScene`, :attr:`SimWorld.rings`), carried by the stage: ring 0's axial
+  position is ``object_offset_mm`` + the stage position.
 
 ``state.bench["target"]``, when present, overrides the mounted target for that exposure, so a
 bench assembly can keep the target in the state it already passes to the camera.
@@ -40,10 +43,11 @@ from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.focus import ThroughFocusLens, defocused_radial, scenes_at
 from benchlab.scenes.led import LedScene
 from benchlab.scenes.radial import RadialScene
+from benchlab.scenes.rings import RingTubeScene
 from benchlab.scenes.usaf import UsafScene
 
 Target = tuple[Any, ...]
-TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark", "dots")
+TARGET_KINDS = ("usaf", "edge", "radial", "card", "led", "flat", "dark", "dots", "rings")
 
 
 def parse_target(target: object) -> Target:
@@ -59,7 +63,7 @@ def parse_target(target: object) -> Target:
     if isinstance(spec, str) and ":" in spec:
         spec = spec.split(":")
     if isinstance(spec, str):
-        if spec in ("usaf", "edge", "led", "flat", "dark", "dots"):
+        if spec in ("usaf", "edge", "led", "flat", "dark", "dots", "rings"):
             return (spec,)
         if spec == "card":
             return ("card", None)
@@ -145,6 +149,8 @@ class SimWorld:
         self.through_focus = through_focus
         #: The dot-grid chart and its lens (``benchlab run fov`` sets its parameters').
         self.dots = DotGridScene()
+        #: The ring tube of ``benchlab run fov``'s radial view (its parameters set it).
+        self.rings = RingTubeScene()
 
     @property
     def target(self) -> Target:
@@ -259,6 +265,8 @@ class SimWorld:
             at_mm = (self.dots.default_distance_mm if offset is None else
                      float(offset) + float(bench.get("stage_position_mm") or 0.0))
             return self.dots.render(at_mm, state.height, state.width).copy()
+        if spec[0] == "rings":
+            return self.rings(state)
         if spec[0] == "led":
             return self.led.render(
                 self.stage_position_mm(bench), self.led_current_ma(bench), state.height, state.width

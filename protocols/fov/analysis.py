@@ -1,8 +1,10 @@
 """The tables of ``benchlab run fov`` from a session's frames.
 
-Per distance the frames are averaged; the forward disc is found once, on the pixelwise maximum
-of the distances' averages (the dots move between distances, the field stop does not, so the
-maximum is the disc without its dots); the dots are found and identified per distance
+Per distance the frames are averaged; the forward disc is found first on the pixelwise maximum
+of the distances' averages (the dots move between distances, the field stop does not), then,
+once the geometry is fitted, again on every distance's average where no predicted dot is near
+the edge (:func:`benchlab.analysis.fov.fit.fit_with_clean_disc`), and the geometry fitted again; the
+dots are found and identified per distance
 (:mod:`benchlab.analysis.fov.dots`) and one geometry is fitted to all of them
 (:mod:`benchlab.analysis.fov.fit`). Tables:
 
@@ -14,6 +16,8 @@ maximum is the disc without its dots); the dots are found and identified per dis
   edge;
 - ``distortion``: local distortion (% of image height) against ``f tan theta`` and ``f theta``;
 - ``fov_dots``: per distance the dots found, identified and the fit's residual;
+- the radial view's rows of ``field_of_view`` and ``image_height_mapping`` (``view``
+  "radial") and ``radial_rings`` (:mod:`.radial_analysis`) when the run took radial frames;
 - ``simulator_truth`` (simulated bench only, :mod:`.truth`): the same figures from the
   simulator's exact mapping.
 """
@@ -30,7 +34,7 @@ from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov import figures as fig
 from benchlab.analysis.fov.disc import Disc, find_disc
 from benchlab.analysis.fov.dots import Dots, detect, identify
-from benchlab.analysis.fov.fit import fit_views
+from benchlab.analysis.fov.fit import fit_with_clean_disc
 from benchlab.analysis.fov.model import PIXEL_MM
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.errors import BenchlabError
@@ -138,9 +142,13 @@ def analyze_fov(session: Session, params: FovParams
         raise BenchlabError(f"{session.path}: dots identified at {len(views)} distance(s); the "
                             f"fit needs two at least ({'; '.join(warnings)})")
     try:
-        fit = fit_views(views, disc, params.pitch_mm, params.min_dots)
+        disc, fit, edge_note = fit_with_clean_disc(avgs, views, disc, params.pitch_mm,
+                                                   params.dot_mm, params.half_count,
+                                                   params.min_dots)
     except ValueError as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
+    if edge_note:
+        warnings.append(edge_note)
     for (z, v), rms in zip(views, fit.rms_px, strict=True):
         dot_rows.append({"distance_mm": z, "dots_found": v.found,
                          "dots_identified": len(v.ij), "rms_px": _r(rms, 4), "note": ""})
@@ -168,7 +176,8 @@ def analyze_fov(session: Session, params: FovParams
         value, ci = h.rounded(6)  # 1 nm: well below the interval's width
         d_mm = design.get(a)
         mapping.append({
-            "field_angle_deg": a, "image_height_mm": value, "image_height_mm_ci95": ci,
+            "view": "forward", "field_angle_deg": a, "axial_position_mm": None,
+            "image_height_mm": value, "image_height_mm_ci95": ci,
             "design_image_height_mm": d_mm,
             "difference_mm": None if d_mm is None else _r(h.value - d_mm, 6),
             "verdict": "" if d_mm is None else (
@@ -185,10 +194,21 @@ def analyze_fov(session: Session, params: FovParams
     tables: dict[str, list[dict[str, Any]]] = {
         "field_of_view": fov_rows, "image_height_mapping": mapping, "distortion": distortion,
         "fov_dots": dot_rows}
+    radial_summary: dict[str, Any] = {}
+    radial_angles: list[float] = []
+    if params.radial is not None:
+        from benchlab.protocols.fov.radial_analysis import analyze_radial
+
+        extra, radial_summary, radial_warnings = analyze_radial(session, params.radial,
+                                                                params.height_tolerance_mm)
+        warnings += radial_warnings
+        for name, rows in extra.items():
+            tables[name] = tables.get(name, []) + rows
+        radial_angles = [r["field_angle_deg"] for r in extra.get("image_height_mapping", [])]
     if session.meta.get("devices", {}).get("simulated"):
         from benchlab.protocols.fov.truth import truth_rows
 
-        tables["simulator_truth"] = truth_rows(params, angles)
+        tables["simulator_truth"] = truth_rows(params, angles, radial_angles)
     summary = {"procedure": "fov", "distances_mm": list(params.distances_mm),
                "frames_per_distance": params.frames,
                "stage_travel_mm": params.stage_travel_mm,
@@ -196,7 +216,7 @@ def analyze_fov(session: Session, params: FovParams
                "centroid_noise_px": round(fit.noise_px, 4), "dots_fitted": fit.dots,
                "interval_method": "delta method on the fit's covariance (direction of view: "
                                   "profile of the tilt's 2-D region)",
-               "warnings": warnings}
+               **radial_summary, "warnings": warnings}
     return tables, summary
 
 

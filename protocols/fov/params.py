@@ -23,6 +23,7 @@ from benchlab.protocols.camera_limits import (
     camera_exposure_ms,
     camera_gain,
 )
+from benchlab.protocols.fov.radial_params import RadialPlan, check_radial, radial_to_dict
 
 #: Table 3.1 / section 3.2: the forward view's full field of view is at least 40 deg.
 DESIGN_FOV_MIN_DEG = 40.0
@@ -37,7 +38,7 @@ class FovParams:
 
     exposure_ms: float = 300.0
     gain: float = 1.0
-    bits: int = 8
+    bits: int = 12
     frames: int = 2
     distances_mm: tuple[float, ...] = (15.0, 25.0, 35.0)
     #: Object distance (lens front to chart) with the stage at 0: stage = distance - offset.
@@ -53,6 +54,8 @@ class FovParams:
     height_tolerance_mm: float = 0.01
     distortion_step_deg: float = 2.5
     simulator: Mapping[str, Any] = field(default_factory=dict)
+    #: The radial view's plan (None: ``radial.enabled = false``, the forward view only).
+    radial: RadialPlan | None = field(default_factory=RadialPlan)
     raw: Mapping[str, Any] = field(default_factory=dict)
 
     def stage_mm(self, distance_mm: float) -> float:
@@ -70,9 +73,11 @@ class FovParams:
 
     @property
     def stage_travel_mm(self) -> float:
-        """Total stage travel of a run (from the first distance's position)."""
+        """Total stage travel of a run (from the first distance's position; the radial
+        positions follow after a homing)."""
         s = [self.stage_mm(d) for d in self.distances_mm]
-        return sum(abs(b - a) for a, b in zip(s, s[1:], strict=False))
+        forward = sum(abs(b - a) for a, b in zip(s, s[1:], strict=False))
+        return forward + (self.radial.stage_travel_mm if self.radial is not None else 0.0)
 
 
 def position_step_id(distance_mm: float) -> str:
@@ -102,6 +107,7 @@ def check_fov(c: Any, limits: Any = None) -> FovParams:
                    lo_open=True)
     step = c.number("analysis.distortion_step_deg", d.distortion_step_deg, 0.1, 45.0)
     simulator = _simulator(c)
+    radial = check_radial(c, limits)
     if len(dist) < 2:
         c.fail("positions.distances_mm", f"{list(dist)}: the pupil and the tilt need the chart "
                "at two distances at least")
@@ -129,7 +135,7 @@ def check_fov(c: Any, limits: Any = None) -> FovParams:
         object_offset_mm=offset, pitch_mm=pitch, dot_mm=dot, fiducial_scale=fid,
         half_count=half, min_dots=min_dots, edge_margin_px=margin,
         design_focal_length_mm=f_design, design_fov_min_deg=fov_min, height_tolerance_mm=tol,
-        distortion_step_deg=step, simulator=simulator, raw=c.data,
+        distortion_step_deg=step, simulator=simulator, radial=radial, raw=c.data,
     )
 
 
@@ -171,7 +177,8 @@ def _simulator(c: Any) -> dict[str, float]:
 
 def fov_to_dict(p: FovParams) -> dict[str, Any]:
     """The effective parameters in the file's layout (what a session records)."""
-    return {
+    radial = radial_to_dict(p.radial)
+    out: dict[str, Any] = {
         "procedure": "fov",
         "camera": {"exposure_ms": p.exposure_ms, "gain": p.gain, "bits": p.bits,
                    "frames": p.frames},
@@ -183,6 +190,9 @@ def fov_to_dict(p: FovParams) -> dict[str, Any]:
                      "design_focal_length_mm": p.design_focal_length_mm,
                      "design_fov_min_deg": p.design_fov_min_deg,
                      "height_tolerance_mm": p.height_tolerance_mm,
-                     "distortion_step_deg": p.distortion_step_deg},
+                     "distortion_step_deg": p.distortion_step_deg,
+                     **radial["analysis"]},
         "simulator": dict(p.simulator),
+        "radial": radial["radial"],
     }
+    return out

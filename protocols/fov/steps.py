@@ -8,7 +8,12 @@ Steps (ids in brackets):
    is ``d`` mm from the lens's front with the stage at ``d - object_offset_mm`` (manual).
 3. per distance ``d`` [distance-d]: move the stage, take ``frames`` frames (averaged by the
    analysis); the live view gets the number of dots found.
-4. [analysis]: ``field_of_view``, ``image_height_mapping``, ``distortion`` (:mod:`.analysis`).
+4. [radial-mount] the radial set-up: the forward view capped, the ring tube on the carriage,
+   coaxial, its wide ring at ``object_offset_mm`` (the thesis's axial z) with the stage at 0;
+   the stage homed (manual; absent with ``radial.enabled = false``).
+5. per position ``p`` [radial-p]: move the stage to ``p - object_offset_mm``, take ``frames``
+   frames; the live view gets the number of rings identified.
+6. [analysis]: ``field_of_view``, ``image_height_mapping``, ``distortion`` (:mod:`.analysis`).
 
 Every distance is its own journalled step, so a run killed mid-way resumes at the first
 distance not taken; a resumed run re-mounts (replays ``mount``'s restore) and re-homes first.
@@ -24,11 +29,13 @@ import numpy as np
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.fov.params import FovParams, position_step_id
+from benchlab.protocols.fov.radial_params import radial_step_id
 
 if TYPE_CHECKING:
     from benchlab.session import Session
 
 TARGET = "dots"
+TUBE = "rings"
 SOURCE = "issue 41 (Tables 3.1, 4.14)"
 
 
@@ -70,8 +77,30 @@ class FovProcedure:
                 SOURCE, self._position(z),
                 info={"distance_mm": z, "stage_mm": p.stage_mm(z)},
             ))
+        steps += self._radial_steps()
         steps.append(Step("analysis", "Analyse: field of view, mapping, distortion", "analysis",
                           SOURCE, self._analysis))
+        return steps
+
+    def _radial_steps(self) -> list[Step]:
+        plan = self.params.radial
+        if plan is None:
+            return []
+        first = plan.positions_mm[0]
+        steps = [Step(
+            "radial-mount", "Mount the ring tube on the carriage", "manual", SOURCE,
+            self._mount_tube(ask=True),
+            prompt=(f"Radial set-up: cap the forward view; mount the ring tube "
+                    f"({plan.tube_radius_mm:g} mm radius) on the stage carriage, coaxial with the "
+                    f"prototype, so its wide ring is at z = {first:g} mm (the thesis's axial "
+                    f"coordinate) with the stage at {plan.stage_mm(first):g} mm."),
+            restore=self._mount_tube(ask=False),
+            info={"object_offset_mm": plan.object_offset_mm})]
+        for p in plan.positions_mm:
+            steps.append(Step(
+                radial_step_id(p), f"Wide ring at z = {p:g} mm: {self.params.frames} frames",
+                "acquire", SOURCE, self._radial_position(p),
+                info={"position_mm": p, "stage_mm": plan.stage_mm(p)}))
         return steps
 
     # -- actions ------------------------------------------------------------------------------
@@ -82,6 +111,10 @@ class FovProcedure:
             from benchlab.scenes.dots import DotGridScene
 
             world.dots = DotGridScene(chart=self.params.chart(), lens=self.params.lens())
+            if self.params.radial is not None:
+                from benchlab.scenes.rings import RingTubeScene
+
+                world.rings = RingTubeScene(tube=self.params.radial.tube())
         ctx.home_stage()
 
     def _setup(self, ctx: StepContext) -> None:
@@ -121,6 +154,45 @@ class FovProcedure:
                 raise FrameContentError(f"chart at {z:g} mm: {exc}; the frames are set aside "
                                         "and a retry takes new ones") from exc
             ctx.report({"distance_mm": z, "dots_identified": found})
+
+        return action
+
+    def _mount_tube(self, ask: bool) -> Any:
+        def action(ctx: StepContext) -> None:
+            assert self.params.radial is not None
+            if ask:
+                ctx.ask(ctx.step.prompt or "")
+            ctx.bench.mount(TUBE)
+            ctx.bench.carry_target(self.params.radial.object_offset_mm)
+            ctx.home_stage()
+
+        return action
+
+    def _radial_position(self, p: float) -> Any:
+        def action(ctx: StepContext) -> None:
+            plan = self.params.radial
+            assert plan is not None
+            stage = plan.stage_mm(p)
+            if ctx.bench.has_stage:
+                ctx.move_stage_mm(stage)
+            else:  # no stage: the operator slides the tube (the carriage offset is the position)
+                ctx.ask(f"Slide the tube so its wide ring is at z = {p:g} mm.")
+                ctx.bench.carry_target(p)
+            extra = {"position_mm": p, "stage_mm": stage,
+                     "object_offset_mm": plan.object_offset_mm}
+            names = [frame_name(k) for k in range(self.params.frames)]
+            frames = [ctx.acquire(n, exposure_ms=self.params.exposure_ms, gain=self.params.gain,
+                                  extra=extra) for n in names]
+            from benchlab.protocols.fov.radial_analysis import count_rings
+
+            avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
+            try:
+                found = count_rings(avg, plan)
+            except ValueError as exc:  # the frames, not the bench: a retry takes new ones
+                ctx.reject_frames(tuple(names), str(exc))
+                raise FrameContentError(f"tube at {p:g} mm: {exc}; the frames are set aside "
+                                        "and a retry takes new ones") from exc
+            ctx.report({"position_mm": p, "rings_identified": found})
 
         return action
 

@@ -58,6 +58,13 @@ TYPOS = {
                     "not a number"),
     "thesis label, unknown column": (limit(0.5, table="table_4_11", column="modulation"),
                                      "field 'column': table_4_11 has no column 'modulation'"),
+    "fov verdict is text": (limit(15.0, table="field_of_view", column="verdict",
+                                  where='{ quantity = "radial_fov_deg" }'),
+                            "field 'column': field_of_view.verdict holds text, not a number"),
+    "fov mapping unknown column": (limit(2.0, table="image_height_mapping",
+                                         column="image_height", where='{ view = "radial" }'),
+                                   "field 'column': image_height_mapping has no column "
+                                   "'image_height' (did you mean 'image_height_mm'?)"),
     "number where on text": (limit(0.5, table="characterisation", column="read_noise_e",
                                    where='{ gain = "1" }'),
                              "field 'where.gain': characterisation.gain holds number; "
@@ -136,15 +143,32 @@ def test_the_journal_keeps_the_spec_hash_and_identical_verdicts_store_once(
     assert (stored / "verdicts" / "v3.json").is_file()
 
 
+def test_limits_may_name_the_field_of_view_tables(tmp_path: Path) -> None:
+    from benchlab.acceptance.spec import load_spec
+
+    path = spec(tmp_path,
+                limit(15.0, ident="radial-fov", table="field_of_view", column="value",
+                      where='{ quantity = "radial_fov_deg" }'),
+                limit(2.6, 2.7, ident="radial-26", table="image_height_mapping",
+                      column="image_height_mm", where='{ view = "radial", field_angle_deg = -26 }'),
+                limit(None, 0.5, ident="rings", table="radial_rings", column="rms_um",
+                      where="{ position_mm = 12.0 }"),
+                limit(-8.0, ident="barrel", table="distortion", column="rectilinear_pct",
+                      where="{ field_angle_deg = 25.0 }"))
+    assert [lim.id for lim in load_spec(path).limits] == ["radial-fov", "radial-26", "rings",
+                                                         "barrel"]
+
+
 # ---- the schema is what the procedures write ---------------------------------------------------
 @pytest.mark.slow
 def test_the_schema_holds_every_column_the_procedures_write(tmp_path: Path) -> None:
-    """Simulated MTF, radiometry and characterisation runs: every table and column they
-    write is in the schema, with the kind its values have."""
+    """Simulated MTF, radiometry, characterisation and field-of-view runs: every table and
+    column they write is in the schema, with the kind its values have."""
     kinds = {bool: "bool", int: "number", float: "number", str: "text", list: "list"}
     seen: set[str] = set()
     for procedure, params in (("mtf", MTF_SMALL), ("radiometry", RAD_SMALL),
-                              ("characterise", FIXTURES / "characterise-small.toml")):
+                              ("characterise", FIXTURES / "characterise-small.toml"),
+                              ("fov", FIXTURES / "fov-small.toml")):
         session = run_sim(procedure, tmp_path, params).session_path
         latest = Session.open(session).latest_results()
         assert latest is not None
@@ -160,7 +184,9 @@ def test_the_schema_holds_every_column_the_procedures_write(tmp_path: Path) -> N
                     assert column in columns, (name, column)
                     if value is not None:
                         assert kinds[type(value)] == columns[column], (name, column, value)
-    assert len(seen) >= 11  # the MTF tables, radiometry, characterisation and its two others
+    # the MTF tables, radiometry, characterisation and its two others, the five fov tables
+    assert len(seen) >= 16
+    assert {"field_of_view", "image_height_mapping", "radial_rings"} <= seen
 
 
 def test_the_results_page_names_every_table_of_the_schema() -> None:

@@ -28,17 +28,20 @@ def _results(tmp_path: Path, fov: float, lo: float, hi: float) -> Path:
             {"field_angle_deg": 12.0, "image_height_mm": 0.593,
              "image_height_mm_ci95": [0.592, 0.594]},
             {"field_angle_deg": 30.0, "image_height_mm": 1.5,  # beyond the edge: not judged
-             "image_height_mm_ci95": [1.4, 1.6]}],
+             "image_height_mm_ci95": [1.4, 1.6]},
+            {"view": "radial", "field_angle_deg": -40.0, "image_height_mm": 2.4383,
+             "image_height_mm_ci95": [2.4382, 2.4384]}],
         distortion=[{"field_angle_deg": 12.0, "rectilinear_pct": -1.4,
                      "rectilinear_pct_ci95": [-1.5, -1.3], "equidistant_pct": 0.0,
                      "equidistant_pct_ci95": [-0.1, 0.1]}],
         simulator_truth=[
             {"table": "field_of_view", "key": "full_fov_deg", "value": 52.6},
             {"table": "field_of_view", "key": "entrance_pupil_mm", "value": 2.0},
-            {"table": "image_height_mapping", "key": 12.0, "value": 0.5927},
-            {"table": "image_height_mapping", "key": 30.0, "value": 1.5},
-            {"table": "distortion_rectilinear", "key": 12.0, "value": -1.467},
-            {"table": "distortion_equidistant", "key": 12.0, "value": 0.0}])
+            {"table": "image_height_mapping", "key": "12", "value": 0.5927},
+            {"table": "image_height_mapping", "key": "30", "value": 1.5},
+            {"table": "distortion_rectilinear", "key": "12", "value": -1.467},
+            {"table": "distortion_equidistant", "key": "12", "value": 0.0},
+            {"table": "radial_image_height_mapping", "key": "-40", "value": 2.4381}])
 
 
 def test_figures_are_compared_with_the_truth(tmp_path: Path) -> None:
@@ -50,6 +53,9 @@ def test_figures_are_compared_with_the_truth(tmp_path: Path) -> None:
     assert by[("image_height_mm", 12.0)]["covered"] is True
     assert ("image_height_mm", 30.0) not in by and ("image_height_mm", 0.0) not in by
     assert by[("distortion_rectilinear_pct", 12.0)]["covered"] is True
+    # the radial view's heights against the ring tube's truth (negative angles)
+    assert by[("radial_image_height_mm", -40.0)]["error"] == pytest.approx(0.0002)
+    assert by[("radial_image_height_mm", -40.0)]["covered"] is False
 
 
 def test_summary_says_bias_rmse_coverage_and_the_target(tmp_path: Path) -> None:

@@ -25,7 +25,7 @@ def _truth(tables: dict[str, Any]) -> dict[tuple[str, Any], float]:
 
 
 @pytest.mark.slow
-def test_default_run_measures_the_forward_view_against_the_truth(tmp_path: Path) -> None:
+def test_default_run_measures_both_views_against_the_truth(tmp_path: Path) -> None:
     out = run_sim("fov", tmp_path)
     tables = tables_of(out.results_path)
     for name in ("field_of_view", "image_height_mapping", "distortion", "fov_dots"):
@@ -39,32 +39,55 @@ def test_default_run_measures_the_forward_view_against_the_truth(tmp_path: Path)
         assert abs(fov[name]["value"] - truth[("field_of_view", name)]) <= target, name
     assert fov["full_fov_deg"]["value"] == pytest.approx(52.64, abs=0.05)
     assert fov["full_fov_deg"]["verdict"] == "meets Table 3.1 (>= 40 deg)"
-    design = {r["field_angle_deg"]: r for r in tables["image_height_mapping"]
-              if r["design_image_height_mm"] is not None}
+    forward = [r for r in tables["image_height_mapping"] if r["view"] == "forward"]
+    design = {r["field_angle_deg"]: r for r in forward if r["design_image_height_mm"] is not None}
     assert sorted(design) == [0.0, 12.0, 16.0, 25.0]  # Table 4.14's forward field points
     # the default lens is f theta with f = 2.83 mm: Table 4.14 within 0.01 mm at every point
     assert all(r["verdict"].startswith("agrees with Table 4.14") for r in design.values())
     assert design[12.0]["difference_mm"] == pytest.approx(0.5927 - 0.6, abs=1e-3)
-    for r in tables["image_height_mapping"]:
+    for r in forward:
         assert abs(r["image_height_mm"] - truth[("image_height_mapping",
-                                                 r["field_angle_deg"])]) <= 0.01
+                                                 f"{r['field_angle_deg']:g}")]) <= 0.01
     rect = {r["field_angle_deg"]: r["rectilinear_pct"] for r in tables["distortion"]}
-    assert rect[25.0] == pytest.approx(truth[("distortion_rectilinear", 25.0)], abs=0.05)
+    assert rect[25.0] == pytest.approx(truth[("distortion_rectilinear", "25")], abs=0.05)
     assert rect[25.0] == pytest.approx(-6.43, abs=0.05)  # barrel against f tan(theta)
     dots = tables["fov_dots"]
     assert [d["distance_mm"] for d in dots] == [15.0, 25.0, 35.0]
     assert all(d["dots_identified"] > 150 for d in dots)
+    # the radial view: the field's ends on the wall within 0.2 mm, every mapped height within
+    # 0.01 mm, Table 3.1's 15 deg met, Table 4.14's radial points judged
+    for name in ("radial_field_start_mm", "radial_field_end_mm"):
+        assert abs(fov[name]["value"] - truth[("field_of_view", name)]) <= 0.2, name
+    assert fov["radial_field_start_mm"]["value"] == pytest.approx(3.27, abs=0.05)
+    assert fov["radial_field_end_mm"]["value"] == pytest.approx(25.11, abs=0.05)
+    assert fov["radial_fov_deg"]["value"] == pytest.approx(31.8, abs=0.1)
+    assert fov["radial_fov_deg"]["verdict"] == "meets Table 3.1 (>= 15 deg)"
+    radial = [r for r in tables["image_height_mapping"] if r["view"] == "radial"]
+    for r in radial:
+        if r["image_height_mm"] is not None:
+            assert abs(r["image_height_mm"] - truth[("radial_image_height_mapping",
+                                                     f"{r['field_angle_deg']:g}")]) <= 0.01
+    rdesign = {r["field_angle_deg"]: r for r in radial if r["design_image_height_mm"] is not None}
+    assert sorted(rdesign) == [-49.0, -40.0, -30.0, -26.0]  # Table 4.14's radial points
+    # the modelled ray-trace table images -26 deg at 2.83 mm, not the design's 2.66 mm
+    assert rdesign[-26.0]["verdict"].startswith("differs from Table 4.14 by +0.17")
+    assert rdesign[-26.0]["difference_mm"] == pytest.approx(2.8325 - 2.66, abs=1e-3)
+    assert rdesign[-26.0]["axial_position_mm"] == pytest.approx(3.296, abs=1e-3)
+    rings = tables["radial_rings"]
+    assert len(rings) == 8 and all(r["rings_used"] >= 4 for r in rings)
     summary = out.summary["summary"]
-    assert summary["frames_per_distance"] == 2 and summary["stage_travel_mm"] == 20.0
+    assert summary["frames_per_distance"] == 2 and summary["stage_travel_mm"] == 23.5
     saved = [e for e in events(out.session_path) if e["kind"] == "frame_saved"]
-    assert len(saved) == 6
+    assert len(saved) == 6 + 16
     from benchlab.report.render import render_report
 
     html = render_report(out.session_path)
     section = html[html.index("<section id='fov'>"):]
     section = section[:section.index("</section>")]
-    assert section.count("data:image/svg+xml") == 1  # the mapping and distortion plot
+    assert section.count("data:image/svg+xml") == 2  # the forward plot and the radial one
     assert "meets Table 3.1 (&gt;= 40 deg)" in section
+    assert "meets Table 3.1 (&gt;= 15 deg)" in section
+    assert "-26 deg: differs from Table 4.14 by +0.17" in section
 
 
 def bad(data: dict[str, Any]) -> dict[str, Any]:
@@ -91,6 +114,18 @@ def bad(data: dict[str, Any]) -> dict[str, Any]:
     ({"positions.distances_mm": [265.0, 300.0], "positions.object_offset_mm": 260.0},
      "at 300 mm the dots are 1.8 px apart"),
     ({"chart.dot_mm": 1.2}, "chart.dot_mm: 1.2 mm dots on a 1 mm pitch touch each other"),
+    ({"radial.positions_mm": [12.0, 70.0]},
+     "radial.positions_mm[1]: 70 mm needs the stage at 58 mm (radial.object_offset_mm 12), "
+     "outside its travel 0..50 mm"),
+    ({"radial.half_count": 2},
+     "radial.half_count: at 12 mm the tube's rings span 4..20 mm, short of the radial field "
+     "3.3..25.1 mm"),
+    ({"radial.positions_mm": [23.0, 23.5], "radial.object_offset_mm": 20.0},
+     "radial.positions_mm[0]: the fiducial ring at 23 mm is not well inside the radial field"),
+    ({"radial.pitch_mm": 0.5, "radial.ring_mm": 0.1, "radial.half_count": 50},
+     "radial.pitch_mm: rings 0.5 mm apart are 5.3 px apart in the image; 8 px at least"),
+    ({"radial.fiducial_scale": 5.0, "radial.ring_mm": 0.7},
+     "radial.fiducial_scale: a 3.5 mm fiducial ring touches its neighbours on a 4 mm pitch"),
 ])
 def test_bad_plans_are_refused_with_the_reason(data: dict[str, Any], message: str) -> None:
     limits = BenchConfig.load(None, simulate=True).limits()
@@ -154,7 +189,7 @@ def test_abort_leaves_the_bench_safe_and_resume_repeats_nothing(tmp_path: Path) 
     done = Counter(e["step_id"] for e in evs if e["kind"] == "step_completed")
     assert max(done.values()) == 1 and {"distance-18", "distance-30", "analysis"} <= set(done)
     saved = Counter(e["file"] for e in evs if e["kind"] == "frame_saved")
-    assert len(saved) == 2 and max(saved.values()) == 1
+    assert len(saved) == 2 + 8 and max(saved.values()) == 1  # two distances, eight tube steps
     assert {k: v for k, v in Session.open(path).frames().items() if k in before} == before
     tables = tables_of(out.results_path)
     truth = _truth(tables)

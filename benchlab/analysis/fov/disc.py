@@ -13,6 +13,7 @@ covariance of ``(col, row, radius)`` is the Gauss-Newton one scaled by the resid
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,14 +22,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
-
-#: Systematic floor on the radius (px), added in quadrature: the half-level crossing read by
-#: bilinear interpolation of a 1.5 px soft edge; on the simulated bench the radius comes out
-#: within ~0.01 px (`benchlab benchmark fov`), far above the fit's statistical 0.001 px.
-EDGE_SYSTEMATIC_PX = 0.01
-#: The same for the centre (px): within ~0.002 px on the simulated bench, against a
-#: statistical 0.0015 px; it sets the direction of view's interval (0.002 px is 0.0002 deg).
-CENTRE_SYSTEMATIC_PX = 0.002
+from benchlab.analysis.fov.edges import clean_edge_points
 
 
 class DiscNotFoundError(ValueError):
@@ -128,7 +122,15 @@ def find_disc(frame: npt.ArrayLike, rays: int = 720) -> Disc:
     if len(pts) < 20:
         raise DiscNotFoundError(f"the disc's edge was traced on only {len(pts)} of {rays} rays")
     p = np.asarray(pts)
-    x, cov, r = _circle_fit(p, (c0, r0, rad0))
+    x, cov, n = robust_circle(p, (c0, r0, rad0))
+    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, bright, dark, n)
+
+
+def robust_circle(p: FloatArray, start: tuple[float, float, float]
+                  ) -> tuple[FloatArray, FloatArray, int]:
+    """A circle fitted to edge points, outliers (4 robust standard deviations) dropped:
+    ``(col, row, radius)``, its covariance, the points kept."""
+    x, cov, r = _circle_fit(p, start)
     for _ in range(5):  # dots on the edge: drop the outliers and fit again
         med = float(np.median(r))
         mad = 1.4826 * float(np.median(np.abs(r - med)))
@@ -136,9 +138,27 @@ def find_disc(frame: npt.ArrayLike, rays: int = 720) -> Disc:
         if keep.all():
             break
         p = p[keep]
-        x, cov, r = _circle_fit(p, tuple(x))
-    cov = cov.copy()
-    cov[2, 2] += EDGE_SYSTEMATIC_PX ** 2
-    cov[0, 0] += CENTRE_SYSTEMATIC_PX ** 2
-    cov[1, 1] += CENTRE_SYSTEMATIC_PX ** 2
-    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, bright, dark, len(p))
+        x, cov, r = _circle_fit(p, (float(x[0]), float(x[1]), float(x[2])))
+    return x, cov, len(p)
+
+
+def refine_disc(frames: Sequence[FloatArray], disc: Disc, blockers: Sequence[FloatArray],
+                block_px: Sequence[float], rays: int = 720) -> Disc:
+    """The disc again from every frame's edge where no dot is near it (``blockers[k]``: the
+    dots' image positions in ``frames[k]``; :func:`benchlab.analysis.fov.edges.
+    clean_edge_points`; ``block_px[k]`` how near a ray may pass one in that frame); the
+    covariance is the fit's, from the points' scatter.
+
+    Raises
+    ------
+    DiscNotFoundError
+        Fewer than 20 clean edge points.
+    """
+    pts = np.concatenate([
+        clean_edge_points(np.asarray(f, dtype=np.float64), (disc.centre_col, disc.centre_row),
+                          disc.radius_px, rays, True, b, px)
+        for f, b, px in zip(frames, blockers, block_px, strict=True)])
+    if len(pts) < 20:
+        raise DiscNotFoundError(f"only {len(pts)} edge points of the disc clear of the dots")
+    x, cov, n = robust_circle(pts, (disc.centre_col, disc.centre_row, disc.radius_px))
+    return Disc(float(x[0]), float(x[1]), float(x[2]), cov, disc.bright, disc.dark, n)

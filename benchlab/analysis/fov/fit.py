@@ -25,14 +25,14 @@ intervals by the delta method (:mod:`.figures`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
-from benchlab.analysis.fov.disc import Disc
+from benchlab.analysis.fov.disc import Disc, DiscNotFoundError, refine_disc
 from benchlab.analysis.fov.dots import Dots
 from benchlab.analysis.fov.model import PIXEL_MM, Pose, chart_points_mm, poly_height_mm, project
 
@@ -146,3 +146,32 @@ def fit_views(views: Sequence[tuple[float, Dots]], disc: Disc, pitch_mm: float,
         rms.append(float(np.sqrt((r[sel] ** 2).sum(axis=1).mean())))
     noise = float(np.sqrt(np.mean(s ** 2)))
     return Fit(p, cov, noise, tuple(rms), len(ij))
+
+
+def fit_with_clean_disc(frames: Mapping[float, FloatArray], views: Sequence[tuple[float, Dots]],
+                        disc: Disc, pitch_mm: float, dot_mm: float, half_count: int,
+                        min_dots: int = 20) -> tuple[Disc, Fit, str]:
+    """Fit, read the disc's edge again on every distance's frame clear of the dots the fit
+    predicts there (:func:`benchlab.analysis.fov.disc.refine_disc`; a ray is skipped within a
+    dot's half size at that distance, paraxial scale, plus 3 px of blur), and fit again
+    with that disc: ``(disc, fit, "")``. Where the dots crowd the edge so that too few rays
+    are clear (a strong barrel squeezes them radially), the first disc and fit are kept and
+    the third value says so.
+
+    Raises
+    ------
+    FitError
+        As :func:`fit_views`.
+    """
+    fit = fit_views(views, disc, pitch_mm, min_dots)
+    k = np.arange(-half_count, half_count + 1, dtype=np.float64)
+    i, j = np.meshgrid(k, k)
+    ij = np.stack([i.ravel(), j.ravel()], axis=1)
+    dots = [predict(fit.params, ij, np.full(len(ij), d), pitch_mm) for d in frames]
+    block_px = [0.5 * dot_mm * float(fit.params[A1]) / d / PIXEL_MM + 3.0 for d in frames]
+    try:
+        clean = refine_disc(list(frames.values()), disc, dots, block_px)
+    except DiscNotFoundError as exc:
+        return disc, fit, (f"disc edge read on the maximum of the frames ({exc}): it may be "
+                           "biased by ~0.01 px, beyond its interval")
+    return clean, fit_views(views, clean, pitch_mm, min_dots), ""

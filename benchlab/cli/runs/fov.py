@@ -37,9 +37,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         description="Run the field-of-view procedure on the simulated bench for every seed and "
         "lens variant (nominal, no-distortion, strong-barrel, tilted, shifted-pupil) and compare "
         "the full field of view, direction of view, entrance pupil, focal length, image height "
-        "and local distortion with the simulator's exact mapping: bias, RMSE, largest error "
-        "against the issue's targets, and 95 % interval coverage. Each run takes about 8 s, so "
-        "the default 20 seeds x 5 variants take about 15 minutes; --quick 3 seeds.",
+        "and local distortion, and the radial view's field start and end on the wall, field "
+        "of view and image heights, with the simulator's exact mappings: bias, RMSE, largest "
+        "error against the issue's targets, and 95 % interval coverage. Each run takes 10-20 s, "
+        "so the default 20 seeds x 5 variants take 20-30 minutes; --quick 3 seeds.",
     )
     bf.add_argument("--seeds", type=positive_int, default=20, help="seeds per variant (20)")
     bf.add_argument("--variants", help="comma-separated subset of the variants")

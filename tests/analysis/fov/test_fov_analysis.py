@@ -12,7 +12,7 @@ import pytest
 from benchlab.analysis.fov import figures as fig
 from benchlab.analysis.fov.disc import Disc, DiscNotFoundError, find_disc
 from benchlab.analysis.fov.dots import DotsError, detect, identify
-from benchlab.analysis.fov.fit import Fit, FitError, fit_views
+from benchlab.analysis.fov.fit import Fit, FitError, fit_views, fit_with_clean_disc
 from benchlab.analysis.fov.model import PIXEL_MM
 from benchlab.drivers.sensor import rate_for_dn8
 from benchlab.scenes.dots import DotChart, DotGridScene, FovLens
@@ -48,7 +48,11 @@ def analysed() -> dict[str, tuple[DotGridScene, Fit, Disc]]:
         frames = _frames(scene, seed=3)
         disc = find_disc(np.max(np.stack(list(frames.values())), axis=0))
         views = [(d, identify(*detect(img, disc, 12.0))) for d, img in frames.items()]
-        out[name] = (scene, fit_views(views, disc, scene.chart.pitch_mm), disc)
+        chart = scene.chart
+        disc, fit, note = fit_with_clean_disc(frames, views, disc, chart.pitch_mm,
+                                              chart.dot_mm, chart.half_count)
+        assert note == ""  # the edge read clear of the dots
+        out[name] = (scene, fit, disc)
     return out
 
 
@@ -77,9 +81,11 @@ def test_the_disc_is_found_without_its_dots(
         analysed: dict[str, tuple[DotGridScene, Fit, Disc]]) -> None:
     scene, _, disc = analysed["equidistant"]
     cr, cc = scene.circles.centre_rc
-    assert disc.centre_col == pytest.approx(cc, abs=0.02)
-    assert disc.centre_row == pytest.approx(cr, abs=0.02)
-    assert disc.radius_px == pytest.approx(scene.circles.disc_radius_px, abs=0.1)
+    assert disc.centre_col == pytest.approx(cc, abs=0.01)
+    assert disc.centre_row == pytest.approx(cr, abs=0.01)
+    assert disc.radius_px == pytest.approx(scene.circles.disc_radius_px, abs=0.01)
+    sig = disc.sigma  # the edge read clear of the dots: no bias, the interval covers
+    assert abs(disc.radius_px - scene.circles.disc_radius_px) <= 3.0 * sig[2]
 
 
 @pytest.mark.slow
