@@ -44,16 +44,14 @@ from benchlab.protocols.mtf.edges import (
     edge_parts_tables,
 )
 from benchlab.protocols.mtf.params import MtfParams, UsafElement
-from benchlab.protocols.mtf.targets import (
-    REFERENCE_MIN_CTF,
+from benchlab.protocols.mtf.targets import REFERENCE_MIN_CTF, lowest_ctf, share_columns
+from benchlab.protocols.params import Roi
+from benchlab.protocols.target_contrast import (
     ReferenceReading,
     TargetContrast,
     certificate,
     from_reference,
-    lowest_ctf,
-    share_columns,
 )
-from benchlab.protocols.params import Roi
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
