@@ -117,10 +117,12 @@ class ReferenceReading:
     lens_ctf: float
 
 
-def from_reference(readings: Sequence[ReferenceReading], what: str) -> TargetContrast:
+def from_reference(readings: Sequence[ReferenceReading], what: str,
+                   where: str | None = None) -> TargetContrast:
     """A target's contrast from its reference set's readings: each divided by the lens's CTF
     there, with the correction's size added to its uncertainty (the curves are the design, not
-    this lens), combined by inverse variance."""
+    this lens), combined by inverse variance. ``where`` says how the readings were chosen (by
+    default: where the simulated lens passes >= its lowest CTF)."""
     if not readings:
         return TargetContrast(None, None, f"not measured: {what} gave no reading")
     est = []
@@ -131,10 +133,9 @@ def from_reference(readings: Sequence[ReferenceReading], what: str) -> TargetCon
     w = [1.0 / u**2 for _, u in est]
     value = sum(wi * t for wi, (t, _) in zip(w, est, strict=True)) / sum(w)
     lens = min(r.lens_ctf for r in readings)
-    parts = " and ".join(r.orientation for r in readings)
-    return TargetContrast(value, 1.0 / math.sqrt(sum(w)),
-                          f"measured: {what} ({parts}), where the simulated lens passes "
-                          f">= {lens:.3f} of the bar contrast")
+    parts = " and ".join(dict.fromkeys(r.orientation for r in readings))
+    where = where or f"where the simulated lens passes >= {lens:.3f} of the bar contrast"
+    return TargetContrast(value, 1.0 / math.sqrt(sum(w)), f"measured: {what} ({parts}), {where}")
 
 
 def lens_share(modulation: float | None, uncertainty: float | None,
