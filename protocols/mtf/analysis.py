@@ -417,9 +417,14 @@ def analyze_radial_frame(
     f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
     res = _measure(pixels, params.radial_roi, estimator=est,
                    freq_cycles_per_px=cycles_per_px(f_img), orientation=None)
+    # a live reading's target: the certificate's; a measured one comes with the analysis
+    setting, freqs = params.targets.radial, params.radial_frequencies_lp_per_mm
+    target = (certificate(setting, freqs.index(freq_lp_per_mm))
+              if setting.values is not None and freq_lp_per_mm in freqs else
+              TargetContrast(None, None, "measured by the analysis (lowest-frequency pattern)"))
     return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
             "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
-            "roi": list(params.radial_roi), **_cells(res)}
+            "roi": list(params.radial_roi), "target_contrast": target.to_dict(), **_cells(res)}
 
 
 def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple[
