@@ -97,3 +97,20 @@ def test_a_certificate_value_sets_the_share_and_the_truth_carries_the_scene_cont
     assert row["near_mm"] == pytest.approx(truth["near_mm"], abs=0.1)
     assert row["far_mm"] == pytest.approx(truth["far_mm"], abs=0.1)
     assert READING_BASIS.startswith("reading")  # the basis named when no contrast is known
+
+
+def test_targets_are_read_as_in_the_mtf_test_and_kept_in_the_session() -> None:
+    from benchlab.protocols.params import ParamsError, params_to_dict, parse_params
+
+    data = {"procedure": "depth", "sweep": {"view": "radial"},
+            "radial": {"frequencies_lp_per_mm": [2.0, 3.0]},
+            "targets": {"radial_contrast": [0.8, 0.78], "radial_contrast_uncertainty": 0.01,
+                        "usaf_contrast": 0.95}}
+    p = parse_params("depth", data, "t.toml")
+    assert p.targets.radial == TargetSetting((0.8, 0.78), 0.01)
+    assert p.targets.usaf == TargetSetting((0.95,), 0.0)
+    assert parse_params("depth", params_to_dict(p), "snapshot").targets == p.targets
+    bad = {**data, "targets": {"radial_contrast": [0.8]}}
+    with pytest.raises(ParamsError,
+                       match=r"(?s)t\.toml.*targets\.radial_contrast: has 1 values for 2"):
+        parse_params("depth", bad, "t.toml")
