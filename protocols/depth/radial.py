@@ -168,8 +168,8 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
                 rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
                              "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
                              "far_mm_ci95": [None, None], "dof_mm": None, "peak_mtf": None,
-                             "peak_lens_share": None, "n_points": len(good), "verdict": "not measured",
-                             "note": str(exc)})
+                             "peak_lens_share": None, "n_points": len(good),
+                             "verdict": "not measured", "note": str(exc)})
                 continue
             est = with_model_term(est, seed + 2)
             draws[(pattern, box)] = est.best_focus_draws - wall
@@ -209,8 +209,8 @@ def _targets(readings: Sequence[Position], params: DepthParams
         series = []
         for orient in params.radial_orientations:
             for i in range(len(params.radial_rois)):
-                pts = [(z, rr[i].modulation, rr[i].sigma) for p, z, _, rr in readings
-                       if p == (f0, orient) and i < len(rr) and rr[i] is not None]
+                pts = [(z, r.modulation, r.sigma) for p, z, _, rr in readings
+                       if p == (f0, orient) and i < len(rr) and (r := rr[i]) is not None]
                 series.append((orient, pts))
         measured = target_contrast(setting, series, f"the {f0:g} lp/mm pattern")
     return {p: measured if measured is not None else
