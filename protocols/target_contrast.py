@@ -1,11 +1,17 @@
-"""The ``[targets]`` parameters of the MTF test: how each target's own contrast is known
-(measured on the bench, or entered from its certificate). The analysis that uses them:
-:mod:`benchlab.protocols.mtf.targets`. Kept outside the procedure package so that the generic
-parameter loader can read them.
+"""A target's own contrast, shared by the procedures that read bars (MTF, depth of field): the
+``[targets]`` parameters (measured on the bench, or entered from the target's certificate), the
+:class:`TargetContrast` a procedure records with its source, a contrast from reference readings
+(:func:`from_reference`) and the lens's share of a reading (:func:`lens_share`). Pure
+arithmetic, kept outside the procedure packages so that the generic parameter loader and every
+procedure can use it. How each procedure picks its reference readings:
+:mod:`benchlab.protocols.mtf.targets` (where the simulated lens passes >= 0.99) and
+:mod:`benchlab.protocols.depth.targets` (the plateau at best focus).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,3 +83,73 @@ def targets_to_dict(settings: TargetSettings) -> dict[str, Any]:
         if s.values is not None:
             out[f"{name}_contrast_uncertainty"] = s.uncertainty
     return out
+
+
+@dataclass(frozen=True)
+class TargetContrast:
+    """A target's contrast (Eq. 2.9 of the target itself) with its 1-sigma uncertainty and
+    where it comes from; ``value`` None when unknown (``source`` then says why)."""
+
+    value: float | None
+    uncertainty: float | None
+    source: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"value": rounded(self.value), "uncertainty": rounded(self.uncertainty),
+                "source": self.source}
+
+
+def certificate(setting: TargetSetting, index: int = 0) -> TargetContrast:
+    """The certificate's value for a target (``index``: the radial pattern's place)."""
+    assert setting.values is not None
+    v = setting.values[index] if len(setting.values) > 1 else setting.values[0]
+    return TargetContrast(v, setting.uncertainty, "certificate (parameters [targets])")
+
+
+@dataclass(frozen=True)
+class ReferenceReading:
+    """One reading of a target's reference set: ``modulation`` with its 1-sigma uncertainty,
+    where the simulated lens passes ``lens_ctf`` of a square wave."""
+
+    orientation: str
+    modulation: float
+    uncertainty: float
+    lens_ctf: float
+
+
+def from_reference(readings: Sequence[ReferenceReading], what: str,
+                   where: str | None = None) -> TargetContrast:
+    """A target's contrast from its reference set's readings: each divided by the lens's CTF
+    there, with the correction's size added to its uncertainty (the curves are the design, not
+    this lens), combined by inverse variance. ``where`` says how the readings were chosen (by
+    default: where the simulated lens passes >= its lowest CTF)."""
+    if not readings:
+        return TargetContrast(None, None, f"not measured: {what} gave no reading")
+    est = []
+    for r in readings:
+        t = r.modulation / r.lens_ctf
+        u = math.hypot(r.uncertainty, t - r.modulation) / r.lens_ctf
+        est.append((t, max(u, 1e-6)))
+    w = [1.0 / u**2 for _, u in est]
+    value = sum(wi * t for wi, (t, _) in zip(w, est, strict=True)) / sum(w)
+    lens = min(r.lens_ctf for r in readings)
+    parts = " and ".join(dict.fromkeys(r.orientation for r in readings))
+    where = where or f"where the simulated lens passes >= {lens:.3f} of the bar contrast"
+    return TargetContrast(value, 1.0 / math.sqrt(sum(w)), f"measured: {what} ({parts}), {where}")
+
+
+def lens_share(modulation: float | None, uncertainty: float | None,
+               target: TargetContrast) -> tuple[float | None, float | None]:
+    """``measured / target`` with its propagated 1-sigma uncertainty; None without a reading
+    or a target contrast."""
+    if modulation is None or target.value is None:
+        return None, None
+    share = modulation / target.value
+    rel = math.hypot((uncertainty or 0.0) / target.value,
+                     share * (target.uncertainty or 0.0) / target.value)
+    return share, rel
+
+
+def rounded(v: float | None) -> float | None:
+    """A table's figure: 6 decimals (None stays None)."""
+    return None if v is None else round(float(v), 6)

@@ -125,14 +125,15 @@ RESULTS_SCHEMA: dict[str, dict[str, str] | None] = {
     ),
     "depth_of_field": _columns(
         number=("freq_lp_per_mm", "threshold", "image_height_mm", "best_focus_mm",
-            "near_mm", "far_mm", "dof_mm", "peak_mtf", "n_points"),
+            "near_mm", "far_mm", "dof_mm", "peak_mtf", "n_points", "reading_threshold",
+            "target_contrast", "target_contrast_uncertainty", "peak_lens_share"),
         text=("view", "field_point", "orientation", "criterion", "verdict", "note",
-            "pattern"),
+            "pattern", "threshold_on", "target_contrast_source"),
         list=("best_focus_mm_ci95", "near_mm_ci95", "far_mm_ci95"),
     ),
     "depth_curves": _columns(
         number=("distance_mm", "segment", "freq_lp_per_mm", "mtf", "mtf_sigma",
-            "mtf50_lp_per_mm", "modulation", "fundamental", "modulation_sigma"),
+            "mtf50_lp_per_mm", "modulation", "fundamental", "modulation_sigma", "lens_share"),
         text=("edge", "orientation", "status", "pattern", "field_point"),
     ),
     "depth_field_curvature": _columns(

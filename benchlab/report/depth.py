@@ -59,26 +59,34 @@ def _curves_figure(curves: Sequence[Mapping[str, Any]], dof: Sequence[Mapping[st
     return figure_img(fig, f"through-focus curves, {criterion}")
 
 
+def _on_share(dof: Sequence[Mapping[str, Any]]) -> bool:
+    """Whether the radial DOF was bounded on the lens's share (every row's target contrast
+    known) rather than on the reading."""
+    return all(str(r.get("threshold_on", "")).startswith("lens share") for r in dof)
+
+
 def _radial_curves_figure(curves: Sequence[Mapping[str, Any]],
                           dof: Sequence[Mapping[str, Any]]) -> str:
-    """The radial view: per field point (ROI), the bar modulation (Eq. 2.9) against the wall
-    distance for S and T, the threshold, the DOF band and the best focus. The points are joined,
-    not refitted: the analysis fits the fundamental in the object radius, a curve of another
-    quantity."""
+    """The radial view: per field point (ROI), the lens's share of the print's contrast (or,
+    with the target contrast unknown, the bar modulation, Eq. 2.9) against the wall distance for
+    S and T - what the threshold bounds -, the threshold, the DOF band and the best focus. The
+    points are joined, not refitted: the analysis fits the fundamental in the object radius, a
+    curve of another quantity."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    key = "lens_share" if _on_share(dof) else "modulation"
     points = sorted({r["field_point"] for r in dof})
     fig, axes = plt.subplots(1, len(points), figsize=(4.2 * len(points), 3.6), sharey=True,
                              squeeze=False)
     for ax, fp in zip(axes[0], points, strict=True):
         for r in (x for x in dof if x["field_point"] == fp):
-            pts = sorted((c["distance_mm"], c["modulation"]) for c in curves
+            pts = sorted((c["distance_mm"], c[key]) for c in curves
                          if c.get("field_point") == fp and c["orientation"] == r["orientation"]
                          and c.get("pattern") == r.get("pattern")
-                         and c["modulation"] is not None)
+                         and c.get(key) is not None)
             if not pts:
                 continue
             colour = _COLOURS.get(r["orientation"], "k")
@@ -95,7 +103,8 @@ def _radial_curves_figure(curves: Sequence[Mapping[str, Any]],
         ax.set_xlabel("distance from the side wall (mm)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    axes[0][0].set_ylabel("bar modulation (Eq. 2.9)")
+    axes[0][0].set_ylabel("lens share (Eq. 2.9 / target contrast)" if key == "lens_share"
+                          else "bar modulation (Eq. 2.9)")
     fig.tight_layout()
     return figure_img(fig, "radial through-focus curves")
 
@@ -147,9 +156,16 @@ def depth_section(tables: Mapping[str, Any], params: Mapping[str, Any]) -> str:
     min_mtf = float(analysis.get("min_mtf", 0.05))
     half = analysis.get("design_half_range_mm")
     if all(r.get("view") == "radial" for r in dof):
+        shown = ("the lens's share of the print's contrast (its modulation, Eq. 2.9, over the "
+                 "pattern's own contrast, "
+                 + " / ".join(f"{v:.3f}" for v in sorted({float(r["target_contrast"])
+                                                          for r in dof}))
+                 + f", {dof[0].get('target_contrast_source')})" if _on_share(dof) else
+                 "modulation (Eq. 2.9) - the print's own contrast unknown: lens and print "
+                 "together -")
         return (caption("each field point's bar modulation through focus with the threshold "
                         "(where it crosses: the DOF ends).")
-                + "<p class='note'>Points: the rolled bar pattern's modulation (Eq. 2.9) in each "
+                + f"<p class='note'>Points: the rolled bar pattern's {shown} in each "
                 "field point's ROI at each distance from the side wall; dashed: the threshold; "
                 "bands: the DOF; dotted: best focus (the peak of the fundamental's fit in the "
                 "object radius). Blue sagittal, red tangential.</p>"

@@ -318,9 +318,12 @@ class RunScreen(BenchScreen):
             plot = self.query_one("#ctf-plot", CtfPlot)
             f = float(data["image_lp_per_mm"])
             resolved = data.get("resolved") is not False
+            tc = data.get("target_contrast")  # the reading's target: {value, source, ...}
+            target = tc.get("value") if isinstance(tc, Mapping) else None
             plot.add_point(str(data.get("view", "forward")), PlotPoint(
                 f, float(data["modulation"]) if resolved else None,
-                str(data.get("orientation", "")), bool(data.get("aliased", f > plot.nyquist))))
+                str(data.get("orientation", "")), bool(data.get("aliased", f > plot.nyquist)),
+                float(target) if target is not None else None))
 
     def _show_table(self) -> None:
         if not self._tables:

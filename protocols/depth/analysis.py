@@ -14,7 +14,9 @@ Tables (``SESSION/results/vN/<name>.csv`` + ``.json``):
 - ``depth_overlap``: distances taken in two segments, the same edge's MTF in each, and their
   difference in units of its 1-sigma (the segments cross-checked);
 - ``depth_chart``: per distance, every found bar set's modulation at its image frequency there
-  (with the magnification the found pose gives);
+  (with the magnification the found pose gives), the chart's own contrast and the lens's share
+  (modulation / target contrast, :func:`chart_target_contrast`; the edges' MTF needs no such
+  share: the SFR divides by the edge's own step);
 - ``simulator_truth`` (simulated bench only): the ``depth_of_field`` keys from the scene's
   closed form (:mod:`benchlab.protocols.depth.truth`).
 """
@@ -45,6 +47,8 @@ from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.protocols.depth.params import DESIGN_RANGE_MM, DepthParams
 from benchlab.protocols.depth.readings import PositionReading, read_position
 from benchlab.protocols.depth.steps import frame_name, position_step_id
+from benchlab.protocols.depth.targets import target_contrast
+from benchlab.protocols.target_contrast import TargetContrast, lens_share, rounded
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -217,6 +221,9 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
               "magnification": _r(ChartLayout().magnification / r.scale, 3) if r.scale
               else None, **row}
              for z, seg, r in readings for row in r.chart]
+    target = chart_target_contrast(chart, params)
+    for row in chart:
+        row.update(_share_cells(row, target))
     within = [abs(o["z_score"]) <= 2 for o in overlap if o["z_score"] is not None]
     summary = {
         "procedure": "depth", "view": VIEW, "positions": len(readings),
@@ -229,11 +236,48 @@ def analyze_readings(readings: Sequence[tuple[float, int, PositionReading]],
                    "table_4_4_range_mm": list(DESIGN_RANGE_MM)},
         "overlap_within_2_sigma": (round(sum(within) / len(within), 3) if within else None),
         "chart_not_found_at_mm": [z for z, _, r in readings if r.scale is None],
+        "target_contrast": {"forward": target.to_dict()},
     }
     tables = {"depth_of_field": rows, "depth_astigmatism": astig,
               "depth_field_curvature": curvature, "depth_curves": curves,
               "depth_overlap": overlap, "depth_chart": chart}
     return tables, summary
+
+
+def _sigma(row: dict[str, Any]) -> float:
+    """A bar reading's 1-sigma from its 95 % interval."""
+    ci = row.get("modulation_ci95") or [None, None]
+    return (ci[1] - ci[0]) / 3.92 if None not in ci else math.nan
+
+
+def chart_target_contrast(chart: Sequence[dict[str, Any]], params: DepthParams
+                          ) -> TargetContrast:
+    """The USAF chart's own contrast (:mod:`benchlab.protocols.depth.targets`): the
+    certificate's, or measured on the plateau through focus of the coarsest element read (its
+    object frequency ~ image lp/mm x distance, as the magnification goes as 1 / distance)."""
+    setting = params.targets.usaf
+    if setting.values is not None or not chart:
+        return (target_contrast(setting, [], "") if setting.values is not None else
+                TargetContrast(None, None, "not measured: no bar set read (analysis.read_chart)"))
+    by_element: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for row in chart:
+        if row["modulation"] is not None:
+            by_element[row["element"]].append(row)
+    if not by_element:
+        return TargetContrast(None, None, "not measured: no bar set read")
+    coarsest = min(by_element, key=lambda el: float(np.median(
+        [r["image_lp_per_mm"] * r["distance_mm"] for r in by_element[el]])))
+    series = [(o, [(r["distance_mm"], r["modulation"], _sigma(r)) for r in by_element[coarsest]
+                   if r["orientation"] == o]) for o in ("sagittal", "tangential")]
+    return target_contrast(setting, [s for s in series if s[1]], f"USAF {coarsest}")
+
+
+def _share_cells(row: dict[str, Any], target: TargetContrast) -> dict[str, Any]:
+    share, u = lens_share(row["modulation"], _sigma(row) if row["modulation"] is not None
+                          else None, target)
+    return {"target_contrast": rounded(target.value),
+            "target_contrast_uncertainty": rounded(target.uncertainty),
+            "lens_share": _r(share, 4), "lens_share_uncertainty": _r(u, 4)}
 
 
 def _square(label: str) -> str:

@@ -27,6 +27,7 @@ from benchlab.protocols.camera_limits import (
     camera_gain,
 )
 from benchlab.protocols.depth.radial_rois import DEFAULT_FIELD_ROIS, roi_problem
+from benchlab.protocols.target_contrast import TargetSettings, check_targets, targets_to_dict
 
 #: Nyquist of the camera (its profile's pitch), lp/mm: a criterion above it is refused.
 NYQUIST_LP_PER_MM = nyquist_lp_per_mm()
@@ -89,6 +90,9 @@ class DepthParams:
     #: Radial view: the field points (ROIs ``(row0, col0, row1, col1)`` at several image
     #: heights; :mod:`benchlab.protocols.depth.radial_rois`).
     radial_rois: tuple[tuple[int, int, int, int], ...] = DEFAULT_FIELD_ROIS
+    #: How the chart's and the radial patterns' own contrast is known ([targets], as in the
+    #: MTF test; :mod:`benchlab.protocols.depth.targets`).
+    targets: TargetSettings = field(default_factory=TargetSettings)
     simulator: Mapping[str, Any] = field(default_factory=dict)
     raw: Mapping[str, Any] = field(default_factory=dict)
 
@@ -218,7 +222,8 @@ def check_depth(c: Any, limits: Any = None) -> DepthParams:
         criteria=criteria, min_mtf=min_mtf, read_chart=bool(read_chart),
         design_half_range_mm=half, radial_frequencies_lp_per_mm=rad_f,
         radial_orientations=rad_o, radial_threshold=rad_t, wall_radius_mm=wall,
-        radial_rois=rois, simulator=simulator, raw=c.data,
+        radial_rois=rois, targets=check_targets(c, len(rad_f)), simulator=simulator,
+        raw=c.data,
     )
 
 
@@ -343,6 +348,7 @@ def depth_to_dict(p: DepthParams) -> dict[str, Any]:
                    "orientations": list(p.radial_orientations),
                    "threshold": p.radial_threshold, "wall_radius_mm": p.wall_radius_mm,
                    "rois": [list(b) for b in p.radial_rois]},
+        "targets": targets_to_dict(p.targets),
         "simulator": dict(p.simulator),
     }
     if p.view == "forward":  # the radial view's DOF is bounded by radial.threshold

@@ -7,7 +7,9 @@ gives them (Table 4.4: 2-11 mm; Table 4.1: +-5 mm or larger).
 
 Per pattern and field point two curves are fitted: the fundamental (sine-wave) modulation, whose
 peak is **best focus** (the Eq. 2.9 modulation is flat near focus), and the Eq. 2.9 modulation,
-whose crossings of ``radial.threshold`` are the **DOF ends**. Both are fitted as polynomials in
+whose crossings of ``radial.threshold`` are the **DOF ends**: the threshold bounds the lens's
+share of the print's contrast (reading / target contrast, :mod:`benchlab.protocols.depth.targets`)
+when that is known (``threshold_on``), else the reading itself. Both are fitted as polynomials in
 the object radius ``R``, not in its vergence ``1/R`` as the forward view's edges are: a
 pattern of fixed *object* frequency is blurred, in object mm, by the image blur (linear in
 ``|1/R - u_b|``) times the object mm per pixel (``R / rho`` around the circle), so its blur is
@@ -47,6 +49,8 @@ from benchlab.protocols.depth.radial_rois import (
 )
 from benchlab.protocols.depth.radial_truth import truth_rows
 from benchlab.protocols.depth.steps import frame_name, position_step_id
+from benchlab.protocols.depth.targets import target_contrast
+from benchlab.protocols.target_contrast import TargetContrast, lens_share, rounded
 
 if TYPE_CHECKING:
     from benchlab.session import Session
@@ -91,7 +95,7 @@ def _seed(*parts: str) -> int:
 
 
 def _row(base: dict[str, Any], est: FocusEstimate, n_points: int, note: str,
-         params: DepthParams) -> dict[str, Any]:
+         params: DepthParams, target: TargetContrast, threshold: float) -> dict[str, Any]:
     from benchlab.protocols.depth.analysis import verdict
 
     wall = params.wall_radius_mm
@@ -108,8 +112,10 @@ def _row(base: dict[str, Any], est: FocusEstimate, n_points: int, note: str,
             "near_mm": _r(near), "near_mm_ci95": [_r(w(v)) for v in est.near_ci95],
             "far_mm": _r(far), "far_mm_ci95": [_r(w(v)) for v in est.far_ci95],
             "dof_mm": _r(far - near) if near is not None and far is not None else None,
-            "peak_mtf": _r(est.peak_mtf, 4), "n_points": n_points,
-            "verdict": verdict(est, params.radial_threshold, params.design_half_range_mm),
+            "peak_mtf": _r(est.peak_mtf, 4),
+            "peak_lens_share": _r(lens_share(est.peak_mtf, None, target)[0], 4),
+            "n_points": n_points,
+            "verdict": verdict(est, threshold, params.design_half_range_mm),
             "note": "; ".join(notes)}
 
 
@@ -123,9 +129,15 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
     boxes: tuple[Box, ...] = params.radial_rois
     curves, rows = [], []
     draws: dict[tuple[Pattern, Box], npt.NDArray[np.float64]] = {}
+    targets = _targets(readings, params)
     for pattern in params.patterns:
         assert pattern is not None
         pts = [(z, seg, r) for p, z, seg, r in readings if p == pattern]
+        target = targets[pattern]
+        # the DOF is the lens's (thesis section 2.2.4): its share of the print's contrast
+        # crosses radial.threshold where the reading crosses threshold x target contrast
+        on_share = target.value is not None
+        reading_thr = thr * target.value if target.value is not None else thr
         for i, box in enumerate(boxes):
             name = roi_name(box)
             for z, seg, rr in pts:
@@ -133,6 +145,8 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
                 curves.append({"distance_mm": z, "segment": seg, "pattern": _label(pattern),
                                "field_point": name, "orientation": pattern[1],
                                "modulation": _r(r.modulation, 4) if r else None,
+                               "lens_share": _r(lens_share(r.modulation if r else None, None,
+                                                           target)[0], 4),
                                "fundamental": _r(r.fundamental, 4) if r else None,
                                "modulation_sigma": _r(r.sigma, 4) if r else None,
                                "status": "ok" if r else "not resolved"})
@@ -140,21 +154,26 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
             base = {"view": "radial", "field_point": name, "pattern": _label(pattern),
                     "orientation": pattern[1], "criterion": f"modulation>={thr:g}",
                     "freq_lp_per_mm": pattern[0], "threshold": thr,
+                    "threshold_on": SHARE_BASIS if on_share else READING_BASIS,
+                    "reading_threshold": _r(reading_thr, 4),
+                    "target_contrast": rounded(target.value),
+                    "target_contrast_uncertainty": rounded(target.uncertainty),
+                    "target_contrast_source": target.source,
                     "image_height_mm": _r(roi_height_mm(box), 4)}
             seed = _seed(_label(pattern), pattern[1], name)
             try:
                 est, n, note = estimate([(z, r) for z, r in good if r is not None], params,
-                                         seed)
+                                        seed, reading_thr)
             except FocusFitError as exc:
                 rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
                              "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,
                              "far_mm_ci95": [None, None], "dof_mm": None, "peak_mtf": None,
-                             "n_points": len(good), "verdict": "not measured",
-                             "note": str(exc)})
+                             "peak_lens_share": None, "n_points": len(good),
+                             "verdict": "not measured", "note": str(exc)})
                 continue
             est = with_model_term(est, seed + 2)
             draws[(pattern, box)] = est.best_focus_draws - wall
-            rows.append(_row(base, est, n, note, params))
+            rows.append(_row(base, est, n, note, params, target, reading_thr))
     return ({"depth_of_field": rows, "depth_astigmatism": _astigmatism(draws, params),
              "depth_field_curvature": _curvature(draws, params), "depth_curves": curves},
             {"procedure": "depth", "view": "radial", "positions": len(readings),
@@ -166,8 +185,37 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
              "segments": len(params.segments()), "estimator": ESTIMATOR,
              "best_focus_from": "fundamental modulation", "ends_from": "Eq. 2.9 modulation",
              "wall_radius_mm": wall,
+             "target_contrast": {_label(p) + " " + p[1]: targets[p].to_dict()
+                                 for p in params.patterns if p},
              "design": {"half_range_mm": params.design_half_range_mm,
                         "table_4_4_range_mm": [2.0, 11.0]}})
+
+
+#: ``threshold_on`` of a radial row: what ``radial.threshold`` bounds.
+SHARE_BASIS = "lens share (reading / target contrast)"
+READING_BASIS = "reading (target contrast unknown: lens and print together)"
+
+
+def _targets(readings: Sequence[Position], params: DepthParams
+             ) -> dict[Pattern, TargetContrast]:
+    """Each pattern's own contrast (:mod:`benchlab.protocols.depth.targets`): the certificate's,
+    or measured on the lowest-frequency pattern's plateaus (every field point, both rolls) and
+    taken for every pattern (printed alike, as in the MTF test)."""
+    setting = params.targets.radial
+    freqs = params.radial_frequencies_lp_per_mm
+    measured = None
+    if setting.values is None:
+        f0 = min(freqs)
+        series = []
+        for orient in params.radial_orientations:
+            for i in range(len(params.radial_rois)):
+                pts = [(z, r.modulation, r.sigma) for p, z, _, rr in readings
+                       if p == (f0, orient) and i < len(rr) and (r := rr[i]) is not None]
+                series.append((orient, pts))
+        measured = target_contrast(setting, series, f"the {f0:g} lp/mm pattern")
+    return {p: measured if measured is not None else
+            target_contrast(setting, [], "", freqs.index(p[0]))
+            for p in params.patterns if p is not None}
 
 
 def _astigmatism(draws: dict[tuple[Pattern, Box], npt.NDArray[np.float64]],

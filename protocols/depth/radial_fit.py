@@ -55,11 +55,12 @@ def in_radius(fit: ThroughFocusFit, threshold: float, seed: int) -> FocusEstimat
                          best_focus_draws=1.0 / e.best_focus_draws)
 
 
-def estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, seed: int
-              ) -> tuple[FocusEstimate, int, str]:
+def estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, seed: int,
+             threshold: float | None = None) -> tuple[FocusEstimate, int, str]:
     """Best focus from the fundamental, ends (and peak) from the Eq. 2.9 modulation; object
-    radii (mm from the axis). Raises FocusFitError when best focus cannot be fitted."""
-    thr = params.radial_threshold
+    radii (mm from the axis). ``threshold``: the reading's (default ``radial.threshold``).
+    Raises FocusFitError when best focus cannot be fitted."""
+    thr = params.radial_threshold if threshold is None else threshold
     # fitted in the object radius R (module docstring): handed to the fit as 1 / R, whose
     # "vergence" is then R
     inverse = [1.0 / z for z, _ in pts]

@@ -13,8 +13,9 @@ for rings), both changing with the object radius.
   constant). Not where the Eq. 2.9 modulation peaks: near focus that is flat at the print's
   full contrast, a plateau with no maximum to find. For spokes the magnification term shifts
   it by < 0.01 mm from the lens's best-focus radius; for rings (blur table 1.6 px) by ~0.17 mm.
-* **DOF ends**: where the Eq. 2.9 modulation (:meth:`RadialScene.truth_modulation` there)
-  crosses ``radial.threshold``, by root bracketing.
+* **DOF ends**: where the lens's share of the print's contrast (the Eq. 2.9 modulation,
+  :meth:`RadialScene.truth_modulation` there, over the scene's own ``contrast``) crosses
+  ``radial.threshold``, by root bracketing. The rows give that ``target_contrast``.
 
 Searched over the ray-trace table's object radii (2-11 mm from the wall), to 1e-6 mm.
 """
@@ -88,13 +89,15 @@ def truth_rows(params: DepthParams) -> list[dict[str, Any]]:
             template = RadialScene(pattern[0], "sagittal" if pattern[1] == "sagittal"
                                    else "tangential")
             template = dataclasses.replace(template, reference_rc=box_centroid(box))
-            t = truth_focus(template, lens, thr, bounds)
+            # the threshold bounds the lens's share: the reading crosses thr x the print's
+            t = truth_focus(template, lens, thr * template.contrast, bounds)
             near, far = t["near"], t["far"]
             assert t["best"] is not None
             rows.append({"view": "radial", "field_point": roi_name(box),
                          "pattern": _pattern_label(pattern), "orientation": pattern[1],
                          "criterion": f"modulation>={thr:g}", "freq_lp_per_mm": pattern[0],
-                         "threshold": thr, "image_height_mm": round(roi_height_mm(box), 4),
+                         "threshold": thr, "target_contrast": round(template.contrast, 6),
+                         "image_height_mm": round(roi_height_mm(box), 4),
                          "best_focus_mm": round(t["best"] - wall, 4),
                          "near_mm": None if near is None else round(near - wall, 4),
                          "far_mm": None if far is None else round(far - wall, 4),

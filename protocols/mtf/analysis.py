@@ -45,16 +45,14 @@ from benchlab.protocols.mtf.edges import (
     edge_parts_tables,
 )
 from benchlab.protocols.mtf.params import MtfParams, UsafElement
-from benchlab.protocols.mtf.targets import (
-    REFERENCE_MIN_CTF,
+from benchlab.protocols.mtf.targets import REFERENCE_MIN_CTF, lowest_ctf, share_columns
+from benchlab.protocols.params import Roi
+from benchlab.protocols.target_contrast import (
     ReferenceReading,
     TargetContrast,
     certificate,
     from_reference,
-    lowest_ctf,
-    share_columns,
 )
-from benchlab.protocols.params import Roi
 from benchlab.session import FRAME_LOAD_THREADS
 
 if TYPE_CHECKING:
@@ -420,9 +418,14 @@ def analyze_radial_frame(
     f_img = radial_image_lp_per_mm(freq_lp_per_mm, orientation, params, centre)
     res = _measure(pixels, params.radial_roi, estimator=est,
                    freq_cycles_per_px=cycles_per_px(f_img), orientation=None)
+    # a live reading's target: the certificate's; a measured one comes with the analysis
+    setting, freqs = params.targets.radial, params.radial_frequencies_lp_per_mm
+    target = (certificate(setting, freqs.index(freq_lp_per_mm))
+              if setting.values is not None and freq_lp_per_mm in freqs else
+              TargetContrast(None, None, "measured by the analysis (lowest-frequency pattern)"))
     return {"view": "radial", "freq_lp_per_mm": freq_lp_per_mm, "orientation": orientation,
             "image_lp_per_mm": f_img, "aliased": f_img > nyquist_lp_per_mm(),
-            "roi": list(params.radial_roi), **_cells(res)}
+            "roi": list(params.radial_roi), "target_contrast": target.to_dict(), **_cells(res)}
 
 
 def _centre(radial_frames: list[npt.NDArray[Any]], threshold_dn: float) -> tuple[

@@ -22,43 +22,20 @@ one reading, so its share's uncertainty is overstated there (conservative).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from benchlab.analysis.mtf.compare import SimulatedCurve
 from benchlab.analysis.mtf.simulated_ctf import simulated_ctf
-from benchlab.protocols.target_contrast import TargetSetting
+from benchlab.protocols.target_contrast import TargetContrast, lens_share, rounded
 
 #: The journal event that keeps a simulated target's printed levels (its truth's contrast).
 SIMULATED_TARGET_EVENT = "simulated_target"
 #: A target's contrast is read only where the simulated lens passes at least this share of a
 #: square wave (CTF) at every field point: the reading is then the target's within 1 %.
 REFERENCE_MIN_CTF = 0.99
-
-
-@dataclass(frozen=True)
-class TargetContrast:
-    """A target's contrast (Eq. 2.9 of the target itself) with its 1-sigma uncertainty and
-    where it comes from; ``value`` None when unknown (``source`` then says why)."""
-
-    value: float | None
-    uncertainty: float | None
-    source: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"value": _r(self.value), "uncertainty": _r(self.uncertainty),
-                "source": self.source}
-
-
-def certificate(setting: TargetSetting, index: int = 0) -> TargetContrast:
-    """The certificate's value for a target (``index``: the radial pattern's place)."""
-    assert setting.values is not None
-    v = setting.values[index] if len(setting.values) > 1 else setting.values[0]
-    return TargetContrast(v, setting.uncertainty, "certificate (parameters [targets])")
 
 
 def lowest_ctf(curves: Sequence[SimulatedCurve], view: str, direction: str,
@@ -70,49 +47,6 @@ def lowest_ctf(curves: Sequence[SimulatedCurve], view: str, direction: str,
     return min(ctfs) if ctfs else None
 
 
-@dataclass(frozen=True)
-class ReferenceReading:
-    """One reading of a target's reference set: ``modulation`` with its 1-sigma uncertainty,
-    where the simulated lens passes ``lens_ctf`` of a square wave."""
-
-    orientation: str
-    modulation: float
-    uncertainty: float
-    lens_ctf: float
-
-
-def from_reference(readings: Sequence[ReferenceReading], what: str) -> TargetContrast:
-    """A target's contrast from its reference set's readings: each divided by the lens's CTF
-    there, with the correction's size added to its uncertainty (the curves are the design, not
-    this lens), combined by inverse variance."""
-    if not readings:
-        return TargetContrast(None, None, f"not measured: {what} gave no reading")
-    est = []
-    for r in readings:
-        t = r.modulation / r.lens_ctf
-        u = math.hypot(r.uncertainty, t - r.modulation) / r.lens_ctf
-        est.append((t, max(u, 1e-6)))
-    w = [1.0 / u**2 for _, u in est]
-    value = sum(wi * t for wi, (t, _) in zip(w, est, strict=True)) / sum(w)
-    lens = min(r.lens_ctf for r in readings)
-    parts = " and ".join(r.orientation for r in readings)
-    return TargetContrast(value, 1.0 / math.sqrt(sum(w)),
-                          f"measured: {what} ({parts}), where the simulated lens passes "
-                          f">= {lens:.3f} of the bar contrast")
-
-
-def lens_share(modulation: float | None, uncertainty: float | None,
-               target: TargetContrast) -> tuple[float | None, float | None]:
-    """``measured / target`` with its propagated 1-sigma uncertainty; None without a reading
-    or a target contrast."""
-    if modulation is None or target.value is None:
-        return None, None
-    share = modulation / target.value
-    rel = math.hypot((uncertainty or 0.0) / target.value,
-                     share * (target.uncertainty or 0.0) / target.value)
-    return share, rel
-
-
 def share_columns(orient: str, row: dict[str, Any], target: TargetContrast) -> dict[str, Any]:
     """A table row's target contrast and lens share columns for one orientation (the share
     only for a resolved reading)."""
@@ -120,10 +54,6 @@ def share_columns(orient: str, row: dict[str, Any], target: TargetContrast) -> d
     ok = m is not None and row.get(f"{orient}_resolved") is not False
     reading = float(m) if ok and m is not None else None
     share, u = lens_share(reading, row.get(f"{orient}_uncertainty"), target)
-    return {f"{orient}_target_contrast": _r(target.value),
-            f"{orient}_target_contrast_uncertainty": _r(target.uncertainty),
-            f"{orient}_lens_share": _r(share), f"{orient}_lens_share_uncertainty": _r(u)}
-
-
-def _r(v: float | None) -> float | None:
-    return None if v is None else round(float(v), 6)
+    return {f"{orient}_target_contrast": rounded(target.value),
+            f"{orient}_target_contrast_uncertainty": rounded(target.uncertainty),
+            f"{orient}_lens_share": rounded(share), f"{orient}_lens_share_uncertainty": rounded(u)}

@@ -48,6 +48,22 @@ def test_small_run_writes_the_tables_and_the_truth(tmp_path: Path) -> None:
     overlap = tables["depth_overlap"]
     assert {o["distance_mm"] for o in overlap} == {60.0, 62.0}
     assert out.summary["summary"]["segments"] == 2
+    assert out.summary["summary"]["target_contrast"]["forward"]["value"] is None  # no bars read
+    # the chart's own contrast, measured on its coarsest set's plateau through focus: the
+    # simulated print's (its two levels), and every bar reading's lens share beside it
+    from benchlab.protocols.depth.analysis import analyze_depth
+    from benchlab.protocols.depth.params import DepthParams
+    from benchlab.scenes.usaf import UsafScene
+
+    bars = DepthParams(frames=1, near_mm=52.0, far_mm=68.0, step_mm=2.0, segment_mm=10.0,
+                       overlap_mm=2.0, read_chart=True)
+    with_bars, summary = analyze_depth(Session.open(out.session_path), bars)
+    target = summary["target_contrast"]["forward"]
+    assert target["value"] == pytest.approx(UsafScene().contrast, abs=0.01), target
+    assert target["source"].startswith("measured: USAF G")
+    read = [c for c in with_bars["depth_chart"] if c["modulation"] is not None]
+    assert read and all(c["lens_share"] == pytest.approx(c["modulation"] / target["value"],
+                                                         abs=1e-3) for c in read)
     from benchlab.benchmarks.depth import astig_signs, compare, curvature_checks, summarise
 
     fig = summarise(compare(out.results_path))["best_focus_mm"]

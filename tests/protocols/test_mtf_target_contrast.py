@@ -24,8 +24,8 @@ from benchlab.checks import ParamsError
 from benchlab.protocols import start_run
 from benchlab.protocols.mtf.analysis import VERDICT_ON_SHARE, _reference_readings, analyze_mtf
 from benchlab.protocols.mtf.params import mtf_to_dict
-from benchlab.protocols.mtf.targets import TargetContrast, lens_share
 from benchlab.protocols.params import load_params, parse_params
+from benchlab.protocols.target_contrast import TargetContrast, lens_share
 from benchlab.scenes.radial import RadialScene
 from benchlab.scenes.usaf import UsafScene
 from benchlab.session import Session, read_results

@@ -48,6 +48,25 @@ def test_a_radial_session_gets_its_curves_per_field_point() -> None:
     assert "design DOF: +-5 mm" in svgs[1]
 
 
+@pytest.mark.slow
+def test_with_the_prints_contrast_known_the_figure_draws_the_lens_share() -> None:
+    share = {"threshold_on": "lens share (reading / target contrast)", "target_contrast": 0.81,
+             "target_contrast_source": "measured: the 2 lp/mm pattern (sagittal)"}
+    dof = [{**_dof("r330c895", "sagittal", 1.7962, 6.0), **share}]
+    curves = [{**c, "lens_share": round(c["modulation"] / 0.81, 4)}
+              for c in _curves("r330c895", "sagittal", 0.8)]
+    html = depth_section({"depth_of_field": dof, "depth_curves": curves},
+                         {"analysis": {"design_half_range_mm": 5.0}})
+    assert "the lens's share of the print's contrast" in html and "0.810" in html
+    svg = base64.b64decode(re.findall(r"data:image/svg\+xml;base64,([^']+)", html)[0]).decode()
+    assert "lens share (Eq. 2.9 / target contrast)" in svg
+    # raw rows (no threshold_on) keep the reading's axis
+    raw = depth_section({"depth_of_field": [_dof("r330c895", "sagittal", 1.7962, 6.0)],
+                         "depth_curves": curves}, {"analysis": {}})
+    raw_svg = base64.b64decode(re.findall(r"data:image/svg\+xml;base64,([^']+)", raw)[0])
+    assert b"bar modulation (Eq. 2.9)" in raw_svg and b"lens share" not in raw_svg
+
+
 def test_intervals_print_as_numbers_or_na() -> None:
     assert cell([5.979, 5.995], "") == "[5.979, 5.995]"
     assert cell([None, 8.4], "") == "[N/A, 8.4]"

@@ -52,6 +52,9 @@ async def test_run_screen_is_readable_at_80x24_and_plots_the_readings(tmp_path: 
         lines = text.plain.splitlines()
         assert len(lines) == 8 and lines[0].startswith("1.0")
         assert "s" in text.plain and "t" in text.plain  # the S and T readings
+        # the radial patterns' contrast is measured by the analysis, not known live: raw readings
+        assert all(p.target_contrast is None for p in plot.points)
+        assert "CTF" in str(plot.render()).splitlines()[0]
         assert any(0x2800 < ord(ch) <= 0x28FF for ch in text.plain)  # the simulated band
         # The final table puts the modulations where 80 columns show them.
         svg = app.export_screenshot()

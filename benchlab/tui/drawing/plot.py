@@ -3,14 +3,17 @@ over the simulated optics' CTF band (best and worst field point), in braille dot
 
 Square-wave contrast against square-wave contrast: the simulated sine-wave MTF curves are
 converted with Coltman's series (:func:`benchlab.report.mtf.simulated_ctf`) before they share the
-axes with the bar readings.
+axes with the bar readings. Lens against lens: the curves are the lens alone, so when every
+reading of the view comes with its target's own contrast the plot draws the lens's share
+(reading / target contrast) and its legend says so (``share M/0.81``); otherwise the raw
+readings (legend ``CTF``: the lens and the print together).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from rich.text import Text
 from textual.widgets import Static
@@ -29,6 +32,21 @@ class PlotPoint:
     modulation: float | None  # None when not resolved
     orientation: str
     aliased: bool
+    #: The target's own contrast (None: unknown while the run goes on).
+    target_contrast: float | None = None
+
+
+def lens_shares(points: Sequence[PlotPoint]) -> tuple[list[PlotPoint], float | None]:
+    """The points as the plot draws them: each reading divided by its target's contrast when
+    every point has one (and that contrast, the first when they differ), else unchanged
+    (None)."""
+    targets = [p.target_contrast for p in points]
+    if not points or any(t is None or t <= 0 for t in targets):
+        return list(points), None
+    shown = [replace(p, modulation=None if p.modulation is None
+                     else p.modulation / p.target_contrast)  # type: ignore[operator]
+             for p in points]
+    return shown, targets[0]
 
 
 def render_plot(
@@ -114,7 +132,8 @@ def _interp(f: float, xs: Sequence[float], ys: Sequence[float]) -> float | None:
 
 
 class CtfPlot(Static):
-    """Measured bar contrast of the running test over the simulated CTF band of its view."""
+    """Measured bar contrast of the running test (the lens's share when the targets' contrast
+    is known: :func:`lens_shares`) over the simulated CTF band of its view."""
 
     DEFAULT_CSS = """
     CtfPlot { height: 8; padding: 0 0; }
@@ -153,18 +172,21 @@ class CtfPlot(Static):
             return
         width = max(self.size.width, 12)
         height = max(self.size.height - 1, 4)  # one line of legend
+        shown, target = lens_shares(self.points)
         legend = Text(f"{self.view} ", style="bold", no_wrap=True, overflow="crop")
+        if target is not None:  # first: the basis must survive a narrow panel's crop
+            legend.append(f"share M/{target:.2f} ", style="bold")
         legend.append("s", style=MARKS["sagittal"][1])
         legend.append(" ")
         legend.append("t", style=MARKS["tangential"][1])
-        legend.append(" CTF ")
+        legend.append(" CTF " if target is None else " ")
         legend.append("x", style=UNRESOLVED[1])
         legend.append(" unres. ")
         legend.append("\u28ff", style="green")
         legend.append(" sim. \u253c Nyq.")
         legend.truncate(width)
         legend.append("\n")
-        legend.append(render_plot(self.points, self.curves.get(self.view, []), width, height,
+        legend.append(render_plot(shown, self.curves.get(self.view, []), width, height,
                                   self.x_max, self.nyquist))
         self.update(legend)
 
