@@ -611,6 +611,14 @@ def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     if sharp is None or not 0.0 < sharp.modulation <= 1.0:
         return r
     m, (lo, hi) = sharp.modulation, sharp.interval
+    # The samples lie within the imaged profile's range: their contrast (held 2 standard errors
+    # inwards) is the least the bars can have. The posterior gives the patterns reaching it (a
+    # full dark and a full bright pixel at once, e.g. edges on pixel boundaries) no volume at
+    # 3 px, so the interval reaches down to it.
+    levels, se = found
+    floor_lo, floor_hi = float(levels.min()) + 2.0 * se, float(levels.max()) - 2.0 * se
+    if floor_hi > floor_lo and floor_lo + floor_hi > 0.0:
+        lo = min(lo, eq29_modulation(floor_lo, floor_hi))
     lo, hi = max(0.0, min(lo, m)), min(1.0, max(hi, m))
     sd = (hi - lo) / (2.0 * 1.96)
     sd_model = math.sqrt(max(sd * sd - sharp.sd_noise**2, 0.0))
