@@ -24,7 +24,6 @@ the interval says so.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
 
