@@ -3,37 +3,21 @@ structure and the ground are not noise, and the element reads its contrast."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import numpy.typing as npt
 import pytest
 
 from benchlab.analysis.bars.estimators import estimate_modulation
+from benchlab.synthetic.threebar import element_with_ground
 
 #: Ground and bar levels (8-bit): contrast (180 - 20) / 200 = 0.8, as a real G5E4.
 GROUND, BAR = 180.0, 20.0
 NOISE = 3.0
 
 
-def _element(theta_deg: float, seed: int, bar_width_px: float = 4.0, size: int = 26,
-             supersample: int = 8) -> npt.NDArray[np.uint8]:
-    """Three bars ``w`` wide and ``5 w`` long on a ground, centred in a ``size`` px square,
-    the intensity varying at ``theta_deg`` from the column axis; pixel-integrated, Gaussian
-    noise of :data:`NOISE`, 8-bit codes."""
-    s, w = supersample, bar_width_px
-    yy, xx = (np.mgrid[0:size * s, 0:size * s] + 0.5) / s
-    cy, cx = size / 2 + 0.3, size / 2 + 0.1
-    th = math.radians(theta_deg)
-    u = (xx - cx) * math.cos(th) + (yy - cy) * math.sin(th)
-    v = -(xx - cx) * math.sin(th) + (yy - cy) * math.cos(th)
-    bars = np.zeros_like(u)
-    for c in (-2.0 * w, 0.0, 2.0 * w):
-        bars += (np.clip((0.5 * w - np.abs(u - c)) * s + 0.5, 0.0, 1.0)
-                 * np.clip((2.5 * w - np.abs(v)) * s + 0.5, 0.0, 1.0))
-    pix = (GROUND - (GROUND - BAR) * bars).reshape(size, s, size, s).mean(axis=(1, 3))
-    noisy = pix + np.random.default_rng(seed).normal(0.0, NOISE, pix.shape)
-    return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+def _element(theta_deg: float, seed: int) -> npt.NDArray[np.uint8]:
+    return element_with_ground(4.0, theta_deg, GROUND, BAR, 26, NOISE,
+                               np.random.default_rng(seed))
 
 
 @pytest.mark.parametrize("theta_deg", [0.0, 3.0, 10.0, 20.0, 30.0, 45.0])
