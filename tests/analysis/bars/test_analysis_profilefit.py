@@ -166,10 +166,7 @@ def test_levels_between_sampled_phases() -> None:
                             noise_sigma=1.0, phase=phase)
         r = estimate_modulation(roi, freq_cycles_per_px=1 / 3, orientation="horizontal")
         assert r.interval[0] <= case.truth <= r.interval[1]
-        # Three phases cannot pin the duty: at phase 0 the samples 100/40/160 are sharp bars
-        # of duty 0.45 (0.625), 0.5 (0.600) or 0.55 (0.714); the reading is their posterior
-        # mean (0.689), the limits benchmark's minimum-error choice (issue 37).
-        assert r.modulation == pytest.approx(case.truth, abs=0.1)
+        assert r.modulation == pytest.approx(case.truth, abs=0.08)
         assert r.diagnostics.uncertainty_model is not None
         assert r.diagnostics.uncertainty_model > 0.05
 

@@ -41,7 +41,7 @@ def test_sharp_bars_at_a_whole_4px_period_read_their_contrast(
     tifffile.imwrite(path, np.tile(np.asarray(row, dtype=dtype), (40, 13))[:, :50])
     doc = _analyze(path, capsys, "--freq", FREQ_4PX_LP_MM, "--orientation", "horizontal")
     assert doc["resolved"] is True and doc["lower_bound"] is False
-    assert doc["modulation"] == pytest.approx(truth, abs=0.005)
+    assert doc["modulation"] == pytest.approx(truth, abs=0.0005)
     low, high = doc["interval"]  # type: ignore[misc]
     assert low <= truth <= high
     assert doc["diagnostics"]["clipped_fraction"] == 0.0  # type: ignore[index]
