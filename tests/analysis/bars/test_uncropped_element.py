@@ -33,3 +33,20 @@ def test_an_uncropped_element_reads_resolved_and_its_noise_is_the_pixels(
     assert r.interval[0] <= 0.8 <= r.interval[1]
     assert NOISE * 0.8 <= r.diagnostics.noise_sigma <= 3.0 * NOISE
     assert any("off the bar pattern" in w for w in r.warnings)
+
+
+@pytest.mark.slow
+def test_uncropped_elements_at_any_angle_read_their_contrast() -> None:
+    # 56 seeded ROIs at 0-45 deg, each with and without the frequency: 110 of 112 readings
+    # within 0.02 of 0.8 holding it in their interval (the two others: one ROI whose noisy
+    # ground piles 5 pixels on its top code, taken for saturation: a bound, not a value).
+    good = 0
+    for theta in (0.0, 3.0, 7.0, 15.0, 20.0, 30.0, 40.0, 45.0):
+        for k in range(7):
+            roi = _element(theta, seed=k * 7 + int(theta))
+            for freq in (None, 1.0 / 8.0):
+                r = estimate_modulation(roi, freq_cycles_per_px=freq)
+                good += (r.resolved and not r.lower_bound and abs(r.modulation - 0.8) <= 0.02
+                         and r.interval[0] <= 0.8 <= r.interval[1]
+                         and r.diagnostics.noise_sigma <= 3.0 * NOISE)
+    assert good >= 108
