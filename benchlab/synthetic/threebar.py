@@ -220,3 +220,30 @@ def render_three_bars(
     top = (1 << bits) - 1
     codes = np.clip(np.round(levels * top), 0, top).astype(np.uint16)
     return SyntheticSet(codes, centre, w, theta_deg, truth, float(top))
+
+
+def element_with_ground(
+    bar_width_px: float, theta_deg: float, ground: float, bar: float, size_px: int,
+    noise_sigma: float, rng: np.random.Generator, supersample: int = 8,
+    centre_offset_px: tuple[float, float] = (0.3, 0.1),
+) -> npt.NDArray[np.uint8]:
+    """A whole three-bar element with its ground: an 8-bit ``size_px`` square ROI, the set
+    (three bars ``w`` wide and ``5 w`` long, level ``bar``, on ``ground``) centred in it, the
+    intensity varying at ``theta_deg`` from the column axis; sharp, pixel-integrated
+    (``supersample`` x ``supersample`` subsamples per px), Gaussian noise of
+    ``noise_sigma`` gray levels. With ``w >= 2`` px some pixels lie wholly on a bar and on
+    a space: the truth is ``eq29_modulation(bar, ground)``. The uncropped ROI of issue 37
+    (point 6), unlike :func:`render_three_bars`' cropped one."""
+    s, w = supersample, float(bar_width_px)
+    yy, xx = (np.mgrid[0:size_px * s, 0:size_px * s] + 0.5) / s
+    cy, cx = size_px / 2 + centre_offset_px[0], size_px / 2 + centre_offset_px[1]
+    th = math.radians(theta_deg)
+    u = (xx - cx) * math.cos(th) + (yy - cy) * math.sin(th)
+    v = -(xx - cx) * math.sin(th) + (yy - cy) * math.cos(th)
+    bars = np.zeros_like(u)
+    for c in (-2.0 * w, 0.0, 2.0 * w):
+        bars += (np.clip((0.5 * w - np.abs(u - c)) * s + 0.5, 0.0, 1.0)
+                 * np.clip((2.5 * w - np.abs(v)) * s + 0.5, 0.0, 1.0))
+    pix = (ground - (ground - bar) * bars).reshape(size_px, s, size_px, s).mean(axis=(1, 3))
+    noisy = pix + rng.normal(0.0, noise_sigma, pix.shape)
+    return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)

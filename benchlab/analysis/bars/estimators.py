@@ -28,6 +28,7 @@ from typing import Literal, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.bars import wholeperiod
 from benchlab.analysis.bars.extremes import honest_reading
 from benchlab.analysis.bars.geometry import measure_geometry
 from benchlab.analysis.bars.histogram import histogram_peak, manual_peaks
@@ -559,12 +560,10 @@ def _profilefit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
 
 #: Whole periods (px) at which axis-aligned lines sample only this many bar phases: the bars'
 #: blur cannot be told from their contrast (:func:`_integer_period`).
-INTEGER_PERIODS_PX = (3, 4, 5)
+INTEGER_PERIODS_PX = wholeperiod.PERIODS_PX
 #: ... when the phases drift by less than this (cycles) across the ROI (48.08 lp/mm at 5.2 um
 #: is 3.9997 px per period).
 PHASE_DRIFT_CYCLES = 0.01
-#: At this whole period the fit's reading is kept, the sharp bars' range joining its interval.
-FIT_KEPT_PERIOD_PX = 3
 
 
 def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float64], float] | None:
@@ -588,77 +587,17 @@ def _phase_levels(prep: PreparedROI, period: int) -> tuple[npt.NDArray[np.float6
     return levels, line_sd / math.sqrt(n // period)
 
 
-#: Duty cycles and phases (per period) tried by :func:`_sharp_levels`, and the weight of the
-#: prior holding the duty near 0.5 (in noise variances; it decides only where the samples
-#: cannot, e.g. three phases at 3 px per period).
-_SHARP_DUTIES = np.linspace(0.2, 0.8, 61)
-_SHARP_PHASES = np.linspace(0.0, 1.0, 240, endpoint=False)
-SHARP_DUTY_PRIOR_SD = 0.1
-#: Relative model term of the sharp reading (bars not quite sharp: PSF sigma up to ~0.2 px).
-SHARP_MODEL_REL_SD = 0.01
-
-
-def _coverage(period: int, duty: npt.NDArray[np.float64], phase: npt.NDArray[np.float64]
-              ) -> npt.NDArray[np.float64]:
-    """Bright fraction of pixels ``0..period-1`` (unit width, centred on whole coordinates)
-    under sharp bars of ``duty`` starting at ``phase`` periods; shape (duties, phases, pixels)."""
-    x = np.arange(period, dtype=np.float64)
-    start = phase[None, :, None] * period
-    width = duty[:, None, None] * period
-    cover = np.zeros((duty.size, phase.size, period))
-    for shift in (-1.0, 0.0, 1.0):  # the bars of the neighbouring periods
-        lo = np.maximum(x - 0.5, start + shift * period)
-        hi = np.minimum(x + 0.5, start + shift * period + width)
-        cover += np.clip(hi - lo, 0.0, None)
-    return np.minimum(cover, 1.0)
-
-
-def _sharp_levels(levels: npt.NDArray[np.float64], se: float
-                  ) -> tuple[float, float, float, float] | None:
-    """Dark and bright levels of the sharp bars (pixel-integrated, duty 0.2-0.8, any phase)
-    that best give the phase ``levels`` sampled at a whole period, a duty prior deciding where
-    they cannot, and the least and largest contrast of the sharp bars of duty 0.3-0.7 that give
-    them within two standard errors (``se``: of one level). The levels are the pattern's
-    extremes as a pixel sees them at the best phase (a bar narrower than a pixel never shows
-    its level: the truth's definition). ``None`` when no bars fit."""
-    period = levels.size
-    cover = _coverage(period, _SHARP_DUTIES, _SHARP_PHASES)
-    mean_c = cover.mean(axis=2)
-    dc = cover - mean_c[..., None]
-    dy = levels - levels.mean()
-    var_c = (dc * dc).sum(axis=2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = np.where(var_c > 0, (dc * dy).sum(axis=2) / var_c, 0.0)
-    resid = ((dy - slope[..., None] * dc) ** 2).sum(axis=2)
-    se2 = max(se, 1e-12) ** 2
-    prior = ((_SHARP_DUTIES[:, None] - 0.5) / SHARP_DUTY_PRIOR_SD) ** 2 * se2
-    ok = slope > 0
-    cost = np.where(ok, resid + prior, np.inf)
-    i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
-    if not np.isfinite(cost[i, j]):
-        return None
-    width = _SHARP_DUTIES[:, None] * period
-    dark = levels.mean() - slope * mean_c + np.maximum(0.0, 1.0 - (period - width)) * slope
-    bright = levels.mean() - slope * mean_c + np.minimum(width, 1.0) * slope
-    with np.errstate(divide="ignore", invalid="ignore"):
-        contrast = (bright - dark) / (bright + dark)
-    near = (ok & (resid <= float(resid[ok].min()) + 4.0 * se2) & (bright + dark > 0)
-            & (np.abs(_SHARP_DUTIES[:, None] - 0.5) <= 2.0 * SHARP_DUTY_PRIOR_SD + 1e-9))
-    near[i, j] = True
-    return (float(dark[i, j]), float(bright[i, j]), float(contrast[near].min()),
-            float(contrast[near].max()))
-
-
 def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     """``r``, or on axis-aligned bars of a given whole period of 3-5 px the contrast of the
-    sharp bars that give the phase levels sampled (:func:`_phase_levels`,
-    :func:`_sharp_levels`), the interval reaching the fit's.
+    imaged bars that give the phase levels sampled, modelled on the pixel grid
+    (:func:`_phase_levels`, :func:`.wholeperiod.whole_period_reading`).
 
     Lines at a whole period sample the same few bar phases: sharp bars and blurred ones of
-    higher contrast give the same samples, and the fit picks one (issue 37: the row
-    ``80 50 170 200`` repeated, sharp bars of levels 50 and 200, read 0.700 for 0.600). The
-    sharp reading is the lower end of what the samples allow; the fit's reading (blurred
-    bars) stays in the interval."""
+    higher contrast give the same samples, and the fit on a fine phase grid reads them as a
+    smooth wave (issue 37: the row ``80 50 170 200`` repeated, sharp bars of levels 50 and
+    200, read 0.700 for 0.600). The reading is that of bars as sharp as the pixels (PSF sigma
+    up to 0.25 px), its interval the spread of the bars that give the samples; the fit's
+    (blurred) reading is named in a warning."""
     f = prep.freq_cycles_per_px
     if not r.resolved or r.lower_bound or not f or not prep.orientation_given:
         return r
@@ -669,38 +608,29 @@ def _integer_period(prep: PreparedROI, r: ModulationResult) -> ModulationResult:
     found = _phase_levels(prep, period)
     if found is None:
         return r
+    sharp = wholeperiod.whole_period_reading(*found)
+    if sharp is None or not 0.0 < sharp.modulation <= 1.0:
+        return r
+    m, (lo, hi) = sharp.modulation, sharp.interval
+    # The samples lie within the imaged profile's range: their contrast (held 2 standard errors
+    # inwards) is the least the bars can have. The posterior gives the patterns reaching it (a
+    # full dark and a full bright pixel at once, e.g. edges on pixel boundaries) no volume at
+    # 3 px, so the interval reaches down to it.
     levels, se = found
-    sharp = _sharp_levels(levels, se)
-    if sharp is None:
-        return r
-    dark, bright, m_least, m_most = sharp
-    if bright <= dark or dark + bright <= 0.0:
-        return r
-    m = min(eq29_modulation(dark, bright), 1.0)
-    # Noise, and a model term for bars not quite sharp (as the profile fit's).
-    sd = math.hypot(2.0 * se * math.hypot(bright, dark) / (dark + bright) ** 2,
-                    SHARP_MODEL_REL_SD * m)
-    d = r.diagnostics
-    lo = min(m - 1.96 * sd, m_least - 1.96 * sd, r.interval[0])
-    hi = max(m + 1.96 * sd, m_most + 1.96 * sd, r.interval[1])
-    if period == FIT_KEPT_PERIOD_PX:
-        # Three phases do not pin the sharp bars' duty either (limits benchmark, duty
-        # 0.4-0.6: the sharp reading RMSE 0.10, the fit's 0.06): the fit's reading, the
-        # sharp bars' range in its interval.
-        m, dark, bright = r.modulation, float(r.dark or 0.0), float(r.bright or 0.0)
-        sd = r.diagnostics.uncertainty_noise or sd
-        note = (f"whole period of 3 px on axis-aligned bars: the lines sample 3 bar phases, "
-                f"which pin neither the blur nor the duty; sharp bars would read "
-                f"{m_least:.3f}-{m_most:.3f}, in the interval")
-    else:
-        note = (f"whole period of {period} px on axis-aligned bars: the lines sample {period} "
-                "bar phases, which cannot tell sharp bars from blurred ones; the reading is "
-                f"that of sharp bars, the fit's {r.modulation:.3f} (blurred) in the interval")
-    sd_model = max(0.0, (max(hi - m, m - lo) / 1.96) ** 2 - sd**2) ** 0.5
+    floor_lo, floor_hi = float(levels.min()) + 2.0 * se, float(levels.max()) - 2.0 * se
+    if floor_hi > floor_lo and floor_lo + floor_hi > 0.0:
+        lo = min(lo, eq29_modulation(floor_lo, floor_hi))
+    lo, hi = max(0.0, min(lo, m)), min(1.0, max(hi, m))
+    sd = (hi - lo) / (2.0 * 1.96)
+    sd_model = math.sqrt(max(sd * sd - sharp.sd_noise**2, 0.0))
+    note = (f"whole period of {period} px on axis-aligned bars: the lines sample {period} bar "
+            "phases, which cannot tell sharp bars from blurred ones; the reading is that of "
+            f"bars as sharp as the pixels (PSF sigma <= {wholeperiod.SIGMA_MAX_PX:g} px), the "
+            f"fit's {r.modulation:.3f} that of blurred ones")
     return r.with_updates(
-        dark=dark, bright=bright, modulation=m, uncertainty=math.hypot(sd, sd_model),
-        interval=(max(0.0, lo), min(1.0, hi)),
-        diagnostics=replace(d, uncertainty_noise=sd, uncertainty_model=sd_model),
+        dark=sharp.dark, bright=sharp.bright, modulation=m, uncertainty=sd, interval=(lo, hi),
+        diagnostics=replace(r.diagnostics, uncertainty_noise=sharp.sd_noise,
+                            uncertainty_model=sd_model),
         warnings=(*r.warnings, note))
 
 

@@ -62,6 +62,7 @@ from benchlab.analysis.bars.result import (
     unresolved,
 )
 from benchlab.analysis.bars.roi import TINY_CONTRAST_WARNING, PreparedROI, quiet_noise_sigma
+from benchlab.analysis.noise import robust_sigma
 
 NAME = "profilefit"
 FAST_NAME = "profilefit-fast"
@@ -115,6 +116,15 @@ ALIAS_RAYLEIGH_STEPS = 2.5
 #: A fit residual over this many times the pixel noise (neighbour differences along the
 #: bars) is the model's misfit: warned about, the pixel noise reported.
 MISFIT_RATIO = 4.0
+#: A misfit ROI is refitted without the pixels off the pattern (:func:`_trimmed`): rounds,
+#: the least distance (pixel noise sigmas) of a pixel left out, the largest share left out.
+TRIM_ROUNDS = 12
+TRIM_SIGMAS = 5.0
+TRIM_MAX_SHARE = 0.5
+#: Trimmed only where the residual's rms exceeds this share of the data's span too.
+TRIM_SPAN_SHARE = 0.1
+#: ... and the relative periods scanned on the pixels kept.
+TRIM_FREQ_SCAN = (0.96, 0.97, 0.98, 0.99, 1.01, 1.02, 1.03, 1.04)
 #: ... never judged against a pixel noise below this (gray units): noise-free data leave a
 #: model residual of a fraction of a code.
 MISFIT_MIN_NOISE = 0.5
@@ -128,6 +138,9 @@ PLAIN_SPAN_SIGMAS = 20.0
 #: Blur starts (PSF sigma per period): all tried at once, the best one starts the fit.
 _SIGMA_STARTS = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.36, 0.45)
 _GRID_N = 256
+#: Phase variance (cycles^2) within every bin up to which the bins are exact: each holds
+#: pixels of one phase (lines across axis-aligned bars), no binning error.
+EXACT_BIN_PHASE_VAR = 1e-10
 _GRID = np.linspace(0.0, 1.0, _GRID_N, endpoint=False)
 _TWO_PI = 2.0 * math.pi
 
@@ -540,18 +553,23 @@ DENSE_PIXELS_PER_BIN = 200.0
 
 def _model_sd(
     modulation: float, max_gap_cycles: float, n_bins: int, rel_sd: float | None = None,
-    n_pixels: int | None = None,
+    n_pixels: int | None = None, exact_bins: bool = False,
 ) -> float:
     """Model and sampling-phase uncertainty of the contrast (1 sigma): a relative model term,
     and a term growing with the largest gap between filled phase bins (where the model alone
     says what the profile does between samples). With ``n_pixels`` fitted, beyond
     ``DENSE_PIXELS_PER_BIN`` pixels per bin the whole term shrinks as 1/sqrt(pixels per bin):
     every phase is then sampled many times over and the model's misfit averages out (on the
-    analysis benchmark the 200 x 200 ROIs' intervals covered 99 % without it)."""
+    analysis benchmark the 200 x 200 ROIs' intervals covered 99 % without it). The binning
+    term ``0.5 / n_bins^2`` (a bin averages the profile over its width) is left out with
+    ``exact_bins``, where each bin holds pixels of one phase (issue 37: near-Nyquist bars in
+    10-14 px ROIs, 10-14 filled bins, covered 100 % with it, 96-98 % without). The fast
+    variant keeps it: its shorter series leaves a misfit the term covers (without it its
+    ROIs of <= 640 px covered 92 % on the analysis benchmark)."""
     phase_term = sampling_phase_sd(modulation, max_gap_cycles)
     rel = MODEL_REL_SD if rel_sd is None else rel_sd
     bins = max(n_bins, 1)
-    sd = math.hypot(rel * modulation, phase_term) + 0.5 / bins**2
+    sd = math.hypot(rel * modulation, phase_term) + (0.0 if exact_bins else 0.5 / bins**2)
     if n_pixels:
         sd *= min(1.0, math.sqrt(DENSE_PIXELS_PER_BIN * bins / n_pixels))
     return sd
@@ -628,6 +646,17 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
         if better is None:
             break
         fit = better
+    quiet = quiet_noise_sigma(img)
+    pixel_noise = prep.noise_sigma if quiet is None else max(
+        min(prep.noise_sigma, quiet), prep.quantisation_sd, MISFIT_MIN_NOISE)
+    n_off = 0
+    if not prep.noise_given and prep.n_pixels >= PRIORS_RULE_PIXELS:
+        fit, n_off = _trimmed(prep, fit, fast, clipped, pixel_noise, (fix_theta, fix_freq))
+        if n_off:
+            warnings.append(
+                f"{n_off} of {prep.n_pixels} pixels ({100.0 * n_off / prep.n_pixels:.0f} %) "
+                f"lie more than {TRIM_SIGMAS:g} noise sigmas off the bar pattern (ground or bar "
+                "ends around a finite bar set?): left out of the fit")
     geom, params, jtj, fitter, n_lin = fit.geom, fit.params, fit.jtj, fit.fitter, fit.n_lin
     f, theta, n, n_f, wb = geom.freq_cycles_per_px, geom.theta_rad, fit.n, fit.n_f, fit.wb
     span = abs((cols - 1) * math.cos(theta)) + abs((rows - 1) * math.sin(theta)) + 1.0
@@ -653,9 +682,10 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     if prep.noise_given:
         noise = prep.noise_sigma
     reported_noise = noise
-    quiet = quiet_noise_sigma(img)
-    pixel_noise = prep.noise_sigma if quiet is None else max(
-        min(prep.noise_sigma, quiet), prep.quantisation_sd, MISFIT_MIN_NOISE)
+    if n_off:
+        # The pixels kept still hold the pattern's edges against the ground: the residuals'
+        # robust scale is the pixels' noise (the interval keeps the whole residual).
+        reported_noise = min(noise, max(robust_sigma(fit.resid), prep.quantisation_sd))
     if not prep.noise_given and n >= PRIORS_RULE_PIXELS and noise > MISFIT_RATIO * pixel_noise:
         # The residual is the model's misfit, not the pixels' noise (issue 37: 40 DN for 3 on
         # a 26 px ROI over a three-bar element and its ground); the interval keeps it.
@@ -710,7 +740,8 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
     # Largest gap between the filled bins' phases, around the period (they are ascending).
     max_gap = max(float(np.diff(wb).max()) if wb.size > 1 else 0.0, float(wb[0] + 1.0 - wb[-1]))
     sd_model = _model_sd(modulation, max_gap, n_f,
-                         MODEL_REL_SD_FAST if fast else None, n_pixels=n)
+                         MODEL_REL_SD_FAST if fast else None, n_pixels=n,
+                         exact_bins=fit.exact_bins and not fast)
     sd = math.hypot(sd_noise, sd_model)
     diag = prep.diagnostics_with(**fields, uncertainty_noise=sd_noise,
                                  uncertainty_model=sd_model)
@@ -725,6 +756,84 @@ def profile_fit(prep: PreparedROI, fast: bool = False) -> ModulationResult:
             resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental),
             at_bins, (data_lo, data_hi), sd_noise, max_gap, f)
     return resolved(name, dark, bright, modulation, diag, sd, warnings, fundamental)
+
+
+def _trimmed(
+    prep: PreparedROI, fit: _Fitted, fast: bool, clipped: npt.NDArray[np.bool_] | None,
+    pixel_noise: float, fixed: tuple[bool, bool],
+) -> tuple[_Fitted, int]:
+    """``fit``, or where its residual is the model's misfit (over :data:`MISFIT_RATIO` x the
+    pixel noise) the fit without the pixels off the bar pattern, and how many were left out.
+
+    An ROI over a finite bar set holds ground beyond the bar ends and the outer bars, where
+    the periodic pattern predicts bars (issue 37: a 26 px ROI over a three-bar element of
+    contrast 0.8 read 0.5, its residual 10 x the pixel noise). Pixels more than twice the
+    residual's rms off the fit are left out and the pattern refitted, until none lie further
+    off than that or :data:`TRIM_SIGMAS` pixel noise sigmas; the bars themselves, a majority
+    of the pixels at each phase, pull the fit back to them round by round. The ground also
+    pulls the spectral period of a few bars (1-3 %): unless the frequency is fixed, the
+    period is then scanned (:data:`TRIM_FREQ_SCAN`), the rounds rerun at each, and the
+    period that leaves the fewest pixels off the pattern kept. At most
+    :data:`TRIM_MAX_SHARE` of the pixels go; unless the pixels kept then fit, nothing does."""
+    rms = math.sqrt(fit.resid_ss / max(fit.n - 6, 1))
+    span = float(prep.vmax - prep.vmin)
+    if clipped is not None or rms <= max(MISFIT_RATIO * pixel_noise, TRIM_SPAN_SHARE * span):
+        # Sharp bars leave a misfit of a few % of the data's span at their edges; ground in
+        # the ROI tens of % (the three-bar element: 25 %). Censored fits are left alone.
+        return fit, 0
+
+    def fits(f: _Fitted) -> bool:
+        return math.sqrt(f.resid_ss / max(f.n - 6, 1)) <= MISFIT_RATIO * pixel_noise
+
+    start = fit
+    fit, exclude = _trim_rounds(prep, fit, fast, clipped, pixel_noise)
+    if not exclude.any():
+        return start, 0
+    if not fixed[1]:
+        # Of the periods whose pixels kept fit (residual within MISFIT_RATIO pixel noise
+        # sigmas), the one that leaves the fewest off the pattern (then the least residual).
+        score = (0 if fits(fit) else 1, int(exclude.sum()), fit.resid_ss / fit.n)
+        for scale in TRIM_FREQ_SCAN:
+            geom = replace(start.geom, freq_cycles_per_px=start.geom.freq_cycles_per_px * scale)
+            other = _fit_at(prep, geom, fast, clipped)
+            if isinstance(other, str):
+                continue
+            fit2, exclude2 = _trim_rounds(prep, other, fast, clipped, pixel_noise)
+            score2 = (0 if fits(fit2) else 1, int(exclude2.sum()), fit2.resid_ss / fit2.n)
+            if exclude2.any() and score2 < score:
+                fit, exclude, score = fit2, exclude2, score2
+    if not fits(fit):
+        # Leaving pixels out did not make the rest fit: not a bar set on a ground but a
+        # pattern the model misses (e.g. sharp bars with shading); the misfit is reported.
+        return start, 0
+    return fit, int(exclude.sum())
+
+
+def _trim_rounds(
+    prep: PreparedROI, fit: _Fitted, fast: bool, clipped: npt.NDArray[np.bool_] | None,
+    pixel_noise: float,
+) -> tuple[_Fitted, npt.NDArray[np.bool_]]:
+    """The rounds of :func:`_trimmed` at ``fit``'s geometry: the fit and the pixels left out
+    (flat)."""
+    n_all = prep.n_pixels
+    exclude = np.zeros(n_all, dtype=bool)
+    rms = math.sqrt(fit.resid_ss / max(fit.n - 6, 1))
+    for _ in range(TRIM_ROUNDS):
+        threshold = max(2.0 * rms, TRIM_SIGMAS * pixel_noise)
+        off = np.abs(fit.resid) > threshold
+        if not off.any():
+            break
+        idx = np.flatnonzero(fit.keep) if fit.keep is not None else np.arange(n_all)
+        trial = exclude.copy()
+        trial[idx[off]] = True
+        if int(trial.sum()) > TRIM_MAX_SHARE * n_all:
+            break
+        other = _fit_at(prep, fit.geom, fast, clipped, trial.reshape(prep.pixels.shape))
+        if isinstance(other, str):
+            break
+        fit, exclude = other, trial
+        rms = math.sqrt(fit.resid_ss / max(fit.n - 6, 1))
+    return fit, exclude
 
 
 def _alternation_bound(
@@ -799,12 +908,15 @@ class _Fitted:
     at_grid: npt.NDArray[np.intp]  # each fitted pixel's place on the grid (0.._GRID_N)
     u_px: FloatArray  # across- and along-bar coordinates (px) of the fitted pixels
     v_px: FloatArray
+    exact_bins: bool = False  # every phase bin holds pixels of a single phase
 
 
 def _fit_at(
-    prep: PreparedROI, geom: BarGeometry, fast: bool, clipped: npt.NDArray[np.bool_] | None
+    prep: PreparedROI, geom: BarGeometry, fast: bool, clipped: npt.NDArray[np.bool_] | None,
+    exclude: npt.NDArray[np.bool_] | None = None,
 ) -> _Fitted | str:
-    """Bin the ROI on the bar phase of ``geom`` and fit the model (a reason when it cannot)."""
+    """Bin the ROI on the bar phase of ``geom`` and fit the model (a reason when it cannot);
+    pixels flagged in ``exclude`` (the ROI's shape) are left out."""
     img = prep.pixels
     rows, cols = img.shape
     n = img.size
@@ -832,6 +944,11 @@ def _fit_at(
         vals, keep, n_bad = _censored(img, clipped, w, n_bins, float(prep.max_code or 0.0))
         if int(keep.sum()) < 4:
             return "every bar phase saturated: no bar profile"
+    if exclude is not None:
+        keep = ~exclude if keep is None else keep & ~exclude
+        if int(keep.sum()) < 4:
+            return "too few pixels on the bar pattern"
+    if keep is not None:
         vals, w_fit, u_fit, v_fit = vals[keep], w[keep], u[keep], v[keep]
         n = int(vals.size)
         n_bins = int(min(n_bins, max(8, n // 6)))
@@ -893,6 +1010,7 @@ def _fit_at(
         grid_s=grid_s, at_grid=at_grid,
         u_px=(u_px if keep is None else u_px[keep]).ravel(),
         v_px=(v_px if keep is None else v_px[keep]).ravel(),
+        exact_bins=bool(float(w_var.max()) <= EXACT_BIN_PHASE_VAR),
     )
 
 

@@ -16,6 +16,9 @@ to show (issue 37), each bucket seeded and scored against the exact truth of
   a value within 0.03 or a lower bound.
 - *bar structure vs noise*: small ROIs of slightly rotated sharp bars: the noise the estimator
   reports over the true per-pixel noise (it must not take the bars for noise).
+- *element with its ground*: an uncropped ROI over a whole three-bar element (bars 3-5 px
+  wide, contrast 0.5-0.9, 0-45 deg, 8-bit) with 3 px of ground around it, half of them with
+  the frequency given (:func:`benchlab.synthetic.threebar.element_with_ground`).
 
 Columns: ``n``; values, bounds and "not resolved"; RMSE, the share within 0.02 and the 95 %
 interval coverage of the values; ``ok`` = the answer the bucket expects (a value within 0.03
@@ -34,6 +37,7 @@ import numpy.typing as npt
 from benchlab.analysis.bars.estimators import estimate_modulation
 from benchlab.analysis.bars.result import ModulationResult, eq29_modulation
 from benchlab.synthetic.bars import BarCase, render
+from benchlab.synthetic.threebar import element_with_ground
 
 #: A value within this of the truth (and an interval holding it) is right.
 VALUE_TOL = 0.03
@@ -43,7 +47,8 @@ BOUND_TOL = 0.01
 FALSE_ONE_TRUTH = 0.9
 BUCKETS = ("near-Nyquist narrow ROI", "period 2.0-2.1 px, freq", "period 2.0-2.1 px, blind",
            "integer period 3 px, sharp", "integer period 4 px, sharp",
-           "integer period 5 px, sharp", "two-code", "over-exposed", "bar structure vs noise")
+           "integer period 5 px, sharp", "two-code", "over-exposed", "bar structure vs noise",
+           "element with its ground")
 
 
 @dataclass(frozen=True)
@@ -51,12 +56,14 @@ class LimitCase:
     """One case: its bucket, how to make the ROI, the truth, what the call is given."""
 
     bucket: str
-    bar: BarCase | None  # None: ``codes`` holds the ROI (two-code cases)
+    bar: BarCase | None  # None: ``codes`` holds the ROI (two-code cases) or ``element`` does
     codes: tuple[tuple[int, ...], ...] | None
     truth: float
     freq: float | None
     orientation: str | None
     noise: float  # true per-pixel noise (gray units of the stored codes)
+    #: A three-bar element on its ground: bar width (px), angle (deg), ground and bar levels.
+    element: tuple[float, float, float, float] | None = None
 
 
 def _noise_for(bar: BarCase, snr: float) -> BarCase:
@@ -83,7 +90,8 @@ def _axis_case(rng: np.random.Generator, bucket: str, period: float, across: int
 
 def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
     """``per_bucket`` seeded cases in every bucket of :data:`BUCKETS` (in that order; half as
-    many in each whole-period bucket)."""
+    many in each whole-period bucket and the element bucket, drawn last so the others keep
+    their cases)."""
     rng = np.random.default_rng(seed)
     out: list[LimitCase] = []
     for i in range(per_bucket):
@@ -151,11 +159,24 @@ def limit_cases(seed: int = 0, per_bucket: int = 60) -> list[LimitCase]:
                       angle_deg=float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.5, 4.0)))
         out.append(LimitCase(BUCKETS[8], bar, None, bar.truth, bar.freq_cycles_per_px, None,
                              bar.noise_sigma))
+    for i in range(per_bucket // 2):
+        w = float(rng.uniform(3.0, 5.0))
+        ground = float(rng.uniform(120.0, 230.0))
+        m = float(rng.uniform(0.5, 0.9))
+        bar_level = ground * (1.0 - m) / (1.0 + m)
+        noise = float(rng.uniform(1.0, 4.0))
+        out.append(LimitCase(BUCKETS[9], None, None, eq29_modulation(bar_level, ground),
+                             1.0 / (2.0 * w) if i % 2 else None, None, noise,
+                             (w, float(rng.uniform(0.0, 45.0)), ground, bar_level)))
     return out
 
 
 def roi_of(case: LimitCase, seed: int) -> npt.NDArray[np.generic]:
     """The case's ROI (codes as a camera stores them)."""
+    if case.element is not None:
+        w, theta, ground, bar = case.element
+        return element_with_ground(w, theta, ground, bar, math.ceil(5.0 * w) + 6, case.noise,
+                                   np.random.default_rng(seed))
     if case.codes is not None:
         top = max(max(r) for r in case.codes)
         return np.asarray(case.codes, dtype=np.uint8 if top <= 255 else np.uint16)
@@ -223,7 +244,7 @@ def format_limits(outcomes: list[LimitOutcome]) -> str:
             f"{sum(not o.result.resolved for o in got):>5} {rmse:>6} {within:>6} {cov:>5} "
             f"{sum(o.ok for o in got):>4} {sum(o.false_one for o in got):>7} "
             f"{'-' if math.isnan(over) else f'{over:+.3f}':>11}")
-        if bucket == BUCKETS[8]:
+        if bucket in (BUCKETS[8], BUCKETS[9]):
             ratio = np.array([o.result.diagnostics.noise_sigma / o.case.noise for o in got
                               if o.case.noise > 0])
             lines.append(f"{'':<30} reported / true noise: median {np.median(ratio):.2f}, "

@@ -491,10 +491,11 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
                    help="only the extremes bucket (no noise, no blur, dark level 0, clipping, "
                         "one-period and 1-px-wide ROIs, float TIFFs, 8-bit data in 16 bits)")
     b.add_argument("--limits-only", action="store_true",
-                   help="only the limits buckets of the default estimator, 60 ROIs each "
+                   help="only the limits buckets of the default estimator, 30-60 ROIs each "
                         "(near-Nyquist bars in narrow ROIs, 2.0-2.1 px with and without the "
                         "frequency, sharp bars at 3-5 px periods, two-code patterns, "
-                        "over-exposed bars, bar structure vs noise)")
+                        "over-exposed bars, bar structure vs noise, a three-bar element with "
+                        "its ground)")
     b.add_argument(
         "--worst", type=positive_int, metavar="N",
         help="also list each estimator's N largest errors with the case parameters",

@@ -41,7 +41,7 @@ def test_sharp_bars_at_a_whole_4px_period_read_their_contrast(
     tifffile.imwrite(path, np.tile(np.asarray(row, dtype=dtype), (40, 13))[:, :50])
     doc = _analyze(path, capsys, "--freq", FREQ_4PX_LP_MM, "--orientation", "horizontal")
     assert doc["resolved"] is True and doc["lower_bound"] is False
-    assert doc["modulation"] == pytest.approx(truth, abs=0.005)
+    assert doc["modulation"] == pytest.approx(truth, abs=0.0005)
     low, high = doc["interval"]  # type: ignore[misc]
     assert low <= truth <= high
     assert doc["diagnostics"]["clipped_fraction"] == 0.0  # type: ignore[index]
@@ -166,7 +166,10 @@ def test_the_noise_reported_is_the_pixels_not_the_bar_structure(angle: float) ->
     assert q is not None and 2.0 <= q <= 6.0
     r = estimate_modulation(roi, freq_cycles_per_px=1 / 5.0)
     assert r.diagnostics.noise_sigma <= 7.0
-    assert any("holds more than a bar pattern" in w for w in r.warnings)
+    # Said why: the ground left out of the fit, or (where that does not make the rest fit)
+    # the misfit named.
+    assert any("off the bar pattern" in w or "holds more than a bar pattern" in w
+               for w in r.warnings)
 
 
 def test_periodic_bars_give_no_misfit_warning() -> None:
