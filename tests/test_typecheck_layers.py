@@ -37,19 +37,23 @@ def test_layout_symlinks_point_at_top_level_folders() -> None:
         assert link.resolve() == (ROOT / name).resolve()
 
 
-@pytest.mark.slow
-def test_wrong_cross_layer_call_is_a_type_error(tmp_path: Path) -> None:
-    probe = tmp_path / "probe_cross_layer.py"
-    probe.write_text(PROBE, encoding="utf-8")
-    # The project's own configuration (mypy_path, per-module ignores); a shared cache keeps
-    # repeat runs fast.
+def _mypy(probe: Path) -> tuple[str, str, int, list[str]]:
+    """mypy on one probe file with the project's own configuration (mypy_path, per-module
+    ignores); a shared cache keeps repeat runs fast. Returns stdout, stderr, status, errors."""
     stdout, stderr, status = api.run([
         "--config-file", str(ROOT / "pyproject.toml"),
         "--cache-dir", str(ROOT / ".mypy_cache"),
         "--no-error-summary", "--hide-error-context", "--show-error-codes",
         str(probe),
     ])
-    errors = [line for line in stdout.splitlines() if ": error:" in line]
+    return stdout, stderr, status, [line for line in stdout.splitlines() if ": error:" in line]
+
+
+@pytest.mark.slow
+def test_wrong_cross_layer_call_is_a_type_error(tmp_path: Path) -> None:
+    probe = tmp_path / "probe_cross_layer.py"
+    probe.write_text(PROBE, encoding="utf-8")
+    stdout, stderr, status, errors = _mypy(probe)
     lines = sorted({int(line.split(":")[1]) for line in errors})
     assert status == 1, stdout + stderr
     # Only the three wrong arguments in wrong(); right() type-checks.
@@ -86,13 +90,7 @@ def test_a_mistyped_option_string_is_a_type_error(tmp_path: Path) -> None:
     """Procedure, orientation and estimator names are ``Literal`` types (issue 42)."""
     probe = tmp_path / "probe_typos.py"
     probe.write_text(TYPO_PROBE, encoding="utf-8")
-    stdout, stderr, status = api.run([
-        "--config-file", str(ROOT / "pyproject.toml"),
-        "--cache-dir", str(ROOT / ".mypy_cache"),
-        "--no-error-summary", "--hide-error-context", "--show-error-codes",
-        str(probe),
-    ])
-    errors = [line for line in stdout.splitlines() if ": error:" in line]
+    stdout, stderr, status, errors = _mypy(probe)
     assert status == 1, stdout + stderr
     assert sorted({int(line.split(":")[1]) for line in errors}) == [14, 15, 16, 17], stdout
     assert all("[arg-type]" in line for line in errors), stdout
