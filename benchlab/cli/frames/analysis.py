@@ -7,7 +7,6 @@ procedures layer (:func:`benchlab.cli.runs.procedures.analyze_session_command`).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
+from benchlab.cli.output import print_outcome
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:  # numpy is imported by the commands that use it (fast --help)
@@ -271,21 +271,25 @@ def analyze_command(args: argparse.Namespace) -> int:
             }
     except ValueError as exc:
         raise AnalysisInputError(f"{target}: {exc}") from exc
-    if args.json:
-        payload: dict[str, Any]
+
+    def payload() -> dict[str, Any]:
+        data: dict[str, Any]
         if len(results) == 1:
-            payload = next(iter(results.values())).to_dict()
+            data = next(iter(results.values())).to_dict()
         else:
-            payload = {"estimators": {k: r.to_dict() for k, r in results.items()}}
-        payload.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq,
-                        "linearised": linearised})
-        print(json.dumps(payload, allow_nan=False))
-        return 0
-    print("\n\n".join(_format_result(r, target, roi) for r in results.values()))
-    if linearised is not None:
-        print(f"linearised with {linearised['file']} (v{linearised['version']}, gain "
-              f"{linearised['gain']:g}, {linearised['bits']}-bit curve)")
-    return 0
+            data = {"estimators": {k: r.to_dict() for k, r in results.items()}}
+        data.update({"image": str(target), "roi": list(roi), "freq_lp_per_mm": args.freq,
+                     "linearised": linearised})
+        return data
+
+    def text() -> str:
+        shown = "\n\n".join(_format_result(r, target, roi) for r in results.values())
+        if linearised is not None:
+            shown += (f"\nlinearised with {linearised['file']} (v{linearised['version']}, gain "
+                      f"{linearised['gain']:g}, {linearised['bits']}-bit curve)")
+        return shown
+
+    return print_outcome(args.json, payload, text, allow_nan=False)
 
 
 def _linearise(pixels: npt.NDArray[Any], target: Path, calib: Path

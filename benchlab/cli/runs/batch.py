@@ -7,12 +7,15 @@ is given; one session keeps the single-session path and output.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.cli import UsageError, positive_int
+from benchlab.cli.output import print_outcome
+
+if TYPE_CHECKING:  # the batch (and its executors) is imported when a batch runs
+    from benchlab.protocols.batch import BatchReport
 
 #: Above this many sessions the summary lists only the skipped and failed ones (--json: all).
 MAX_LISTED_ANALYSED = 50
@@ -68,7 +71,7 @@ def batch_command(args: argparse.Namespace) -> int:
     import gc
 
     gc.enable()  # a batch runs long: collect cycles (the analyze program starts without)
-    from benchlab.protocols.batch import find_sessions, run_batch, summary_rows
+    from benchlab.protocols.batch import find_sessions, run_batch
 
     used = [f"--{o}" for o in _IMAGE_OPTIONS if getattr(args, o, None) is not None]
     if getattr(args, "all_estimators", False):
@@ -81,32 +84,37 @@ def batch_command(args: argparse.Namespace) -> int:
         targets += find_sessions(args.all_root)
     report = run_batch(targets, estimator=args.estimator, jobs=args.jobs,
                        scheduler=args.scheduler, progress=_Bar(sys.stderr))
-    if args.json:
-        print(json.dumps({
-            "seconds": report.seconds, "jobs": report.jobs, "executor": report.executor,
-            "analysed": report.count("analysed"), "skipped": report.count("skipped"),
-            "failed": report.count("failed"),
-            "sessions": [vars(i) for i in report.items],
-        }))
-        return 1 if report.failed else 0
+    return print_outcome(args.json, lambda: {
+        "seconds": report.seconds, "jobs": report.jobs, "executor": report.executor,
+        "analysed": report.count("analysed"), "skipped": report.count("skipped"),
+        "failed": report.count("failed"),
+        "sessions": [vars(i) for i in report.items],
+    }, lambda: _summary_text(report), status=1 if report.failed else 0)
+
+
+def _summary_text(report: BatchReport) -> str:
+    """The batch for a person: a line per session (beyond :data:`MAX_LISTED_ANALYSED`
+    sessions only those skipped or failed), then the counts and the time."""
+    from benchlab.protocols.batch import summary_rows
+
     rows = list(summary_rows(report))
     n = len(report.items)
     if n > MAX_LISTED_ANALYSED:  # every failure and skip, but not 10,000 "analysed" lines
         rows = [r for r in rows if r[1] != "analysed"]
+    lines: list[str] = []
     if rows:
         width = max(len(r[0]) for r in rows)
-        print(f"{'session':<{width}}  {'outcome':<8}  detail")
-        for name, outcome, detail in rows:
-            print(f"{name:<{width}}  {outcome:<8}  {detail}")
+        lines.append(f"{'session':<{width}}  {'outcome':<8}  detail")
+        lines += [f"{name:<{width}}  {outcome:<8}  {detail}" for name, outcome, detail in rows]
     analysed = report.count("analysed")
     # Only what is true: the frames of the sessions analysed were verified; a failed one may
     # have failed precisely because its frames changed.
     verified = ("" if not analysed else " (frames of the session analysed verified unchanged)"
                 if analysed == 1 else f" (frames of the {analysed} analysed verified unchanged)")
-    print(f"\n{n} sessions: {analysed} analysed, {report.count('skipped')} "
-          f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
-          f"{report.executor}{verified}")
-    return 1 if report.failed else 0
+    lines.append(f"\n{n} sessions: {analysed} analysed, {report.count('skipped')} "
+                 f"skipped, {report.count('failed')} failed; {report.seconds:.1f} s on "
+                 f"{report.executor}{verified}")
+    return "\n".join(lines)
 
 
 def benchmark_batch_command(args: argparse.Namespace) -> int:

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from benchlab.cli import PROCEDURES, positive_int
-from benchlab.cli.output import add_output_option
+from benchlab.cli.output import add_output_option, print_outcome
 from benchlab.drivers.errors import BenchlabError
 
 if TYPE_CHECKING:
@@ -413,28 +413,27 @@ def _print_reanalysis(args: argparse.Namespace, out: Path, elapsed: float,
     partial = bool(summary.get("partial"))
     note = (f"session {summary.get('session_status')}: {summary.get('steps_done')} of "
             f"{summary.get('steps_total')} steps done; tables are partial") if partial else ""
-    if as_json:
-        import json
 
-        print(json.dumps({"results": str(out), "tables": tables, "seconds": elapsed,
-                          "partial": partial,
-                          "matched_version": matched_version(summary, started)}))
+    def text() -> None:
+        _print_tables(tables, sys.stdout, partial=partial)
+        _print_notes(summary, sys.stdout)
+        notes = chart_notes(summary)
+        if notes:
+            print("\n" + "\n".join(notes))
         if partial:
-            print(f"benchlab: note: {note}", file=sys.stderr)
-        return 0
-    _print_tables(tables, sys.stdout, partial=partial)
-    _print_notes(summary, sys.stdout)
-    notes = chart_notes(summary)
-    if notes:
-        print("\n" + "\n".join(notes))
-    if partial:
-        print(f"\nbenchlab: note: {note}")
-    print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
-    matched = matched_version(summary, started)
-    if matched is not None:
-        print(f"identical to v{matched} (same frames, settings, software version and results): "
-              "no new version written")
-    return 0
+            print(f"\nbenchlab: note: {note}")
+        print(f"\nresults: {out}  (frames verified unchanged; {elapsed:.2f} s)")
+        matched = matched_version(summary, started)
+        if matched is not None:
+            print(f"identical to v{matched} (same frames, settings, software version and "
+                  "results): no new version written")
+
+    status = print_outcome(as_json, lambda: {
+        "results": str(out), "tables": tables, "seconds": elapsed, "partial": partial,
+        "matched_version": matched_version(summary, started)}, text)
+    if as_json and partial:  # the JSON document says it; the note is for a person
+        print(f"benchlab: note: {note}", file=sys.stderr)
+    return status
 
 
 def report_command(args: argparse.Namespace) -> int:

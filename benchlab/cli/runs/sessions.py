@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
 import sys
 import time
 from collections.abc import Sequence
@@ -18,7 +17,13 @@ from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import positive_int
 from benchlab.cli.config import SESSIONS_ROOT_HELP, sessions_root
-from benchlab.cli.output import add_output_option, check_output, forced, write_output
+from benchlab.cli.output import (
+    add_output_option,
+    check_output,
+    forced,
+    print_outcome,
+    write_output,
+)
 
 if TYPE_CHECKING:  # the catalogue (numpy, tifffile) is imported by the commands that use it
     from benchlab.catalog.index import Catalog, TrendPoint
@@ -120,41 +125,43 @@ def list_command(args: argparse.Namespace) -> int:
     for row in rows:  # a newest version that cannot be read is said, never hidden
         bad = row.get("unreadable_version")
         row["problem"] = f"v{bad} unreadable" if bad else ("error" if row.get("error") else "")
-    if args.json:
-        print(json.dumps(rows))
-    elif args.csv:
-        _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv, forced(args))
-    else:
+
+    def text() -> str | None:
+        if args.csv:
+            _write_csv(rows, (*LIST_COLUMNS, "problem", "error"), args.csv, forced(args))
+            return None
         columns = LIST_COLUMNS if args.wide else NARROW_LIST_COLUMNS
         if any(r["problem"] for r in rows):
             columns = (*columns, "problem")
-        print(_table(rows, columns, wide=args.wide,
-                     headers=None if args.wide else NARROW_HEADERS) if rows
-              else "no sessions match")
-        for row in rows:
-            if row.get("error"):
-                print(f"{row['id']}: {row['problem'] or 'error'}: {row['error']}")
-    return 0
+        lines = [_table(rows, columns, wide=args.wide,
+                        headers=None if args.wide else NARROW_HEADERS) if rows
+                 else "no sessions match"]
+        lines += [f"{row['id']}: {row['problem'] or 'error'}: {row['error']}"
+                  for row in rows if row.get("error")]
+        return "\n".join(lines)
+
+    return print_outcome(args.json, lambda: rows, text)
 
 
 def show_command(args: argparse.Namespace) -> int:
     with _open(args) as catalog:
         info = catalog.show(args.id)
-    if args.json:
-        print(json.dumps(info))
-        return 0
-    for key in ("id", "path", "procedure", "status", "sample", "operator", "serials",
-                "started_at", "finished_at", "software_version", "report", "error"):
-        if info.get(key):
-            print(f"{key:<17} {info[key]}")
-    print("\nresults versions")
-    print(_table(info["results"], ("version", "estimator", "created_at")))
+    return print_outcome(args.json, lambda: info, lambda: _show_text(info))
+
+
+def _show_text(info: dict[str, Any]) -> str:
+    """``sessions show`` for a person: the session's fields, its results versions, and the
+    key figures of its latest version."""
+    lines = [f"{key:<17} {info[key]}" for key in (
+        "id", "path", "procedure", "status", "sample", "operator", "serials", "started_at",
+        "finished_at", "software_version", "report", "error") if info.get(key)]
+    lines += ["\nresults versions", _table(info["results"], ("version", "estimator", "created_at"))]
     if info["figures"]:
-        print(f"\nfigures of v{info['results_version']}")
         figures = [_shown(f) for f in info["figures"]]
-        print(_table(figures, ("view", "element", "orientation", "freq_lp_per_mm",
-                               "quantity", "value", "text")))
-    return 0
+        lines += [f"\nfigures of v{info['results_version']}",
+                  _table(figures, ("view", "element", "orientation", "freq_lp_per_mm",
+                                   "quantity", "value", "text"))]
+    return "\n".join(lines)
 
 
 def _plot(points: Sequence[TrendPoint], title: str, quantity: str, target: Path,
@@ -219,17 +226,19 @@ def trend_command(args: argparse.Namespace) -> int:
     what = " ".join(x for x in (args.view, args.element or "",
                                 f"{args.freq:g} lp/mm" if args.freq else "",
                                 args.orientation or "", args.quantity) if x)
-    if args.json:
-        print(json.dumps(rows))
-    elif args.csv:
-        _write_csv(rows, TREND_COLUMNS, args.csv, forced(args))
-    else:
-        print(_table(shown, TREND_COLUMNS) if rows else f"no session has {what}")
+
+    def text() -> str | None:
+        if args.csv:
+            _write_csv(rows, TREND_COLUMNS, args.csv, forced(args))
+            return None
+        return _table(shown, TREND_COLUMNS) if rows else f"no session has {what}"
+
+    status = print_outcome(args.json, lambda: rows, text)
     if points and args.plot != "":
         _plot(points, f"{what} across {len({p.session_id for p in points})} sessions",
               args.quantity, Path(args.plot), forced(args))
         print(f"plot: {Path(args.plot).absolute()}", file=sys.stderr)  # default: the cwd
-    return 0
+    return status
 
 
 def benchmark_catalog_command(args: argparse.Namespace) -> int:

@@ -9,14 +9,19 @@ error (a malformed spec among them).
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from benchlab.cli import UsageError, positive_int
 from benchlab.cli.config import SESSIONS_ROOT_HELP, sessions_root
-from benchlab.cli.output import add_output_option, check_output, forced, write_output
+from benchlab.cli.output import (
+    add_output_option,
+    check_output,
+    forced,
+    print_outcome,
+    write_output,
+)
 
 if TYPE_CHECKING:
     from benchlab.acceptance.spec import Spec
@@ -126,12 +131,13 @@ def verify_command(args: argparse.Namespace) -> int:
             if len(versions) == 1:  # the version each session's file holds
                 record["version"] = versions.pop()
         records.append(record)
-    if args.json:
-        print(json.dumps(records if len(records) > 1 else records[0], indent=1))
-    else:
+
+    def text() -> None:
         for record in records:
             _print_unit(record)
-    return worst_status([u.verdict for u in units])
+
+    return print_outcome(args.json, lambda: records if len(records) > 1 else records[0], text,
+                         status=worst_status([u.verdict for u in units]), indent=1)
 
 
 def _print_unit(record: dict[str, Any]) -> None:
@@ -159,24 +165,25 @@ def units_command(args: argparse.Namespace) -> int:
 
     with Catalog.open(sessions_root(args.root)) as catalog:
         units = catalog.units(lot=args.lot)
-    if args.json:
-        print(json.dumps(units))
-        return 0
+    return print_outcome(args.json, lambda: units, lambda: _units_text(units))
+
+
+def _units_text(units: Sequence[dict[str, Any]]) -> str:
+    """``units`` for a person: one line per unit, its latest verdict per spec."""
     if not units:
-        print("no units (sessions carry a serial number with run --serial)")
-        return 0
+        return "no units (sessions carry a serial number with run --serial)"
     specs = sorted({name for u in units for name in u["verdicts"]})
     header = ["serial", "lot", "sessions", *specs]
     cells = [[u["serial"], u["lot"] or "-", str(len(u["sessions"])),
               *(_unit_verdict(u["verdicts"][n]) if n in u["verdicts"] else "-" for n in specs)]
              for u in units]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(header)]
-    for line in [header, *cells]:
-        print("  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    lines = ["  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip()
+             for line in [header, *cells]]
     if any(v.get("disagreements") for u in units for v in u["verdicts"].values()):
-        print("* sessions of the unit disagree beyond their uncertainties: the verdict's notes "
-              "name them (benchlab certificate SESSION)")
-    return 0
+        lines.append("* sessions of the unit disagree beyond their uncertainties: the verdict's "
+                     "notes name them (benchlab certificate SESSION)")
+    return "\n".join(lines)
 
 
 def _unit_verdict(verdict: dict[str, Any]) -> str:
@@ -232,13 +239,8 @@ def lot_command(args: argparse.Namespace) -> int:
         from benchlab.acceptance.lot_report import render_lot_report
 
         write_output(args.html, render_lot_report(result), force=forced(args), option="--html")
-    if args.json:
-        print(json.dumps(result))
-        return 0
-    print(_lot_text(result))
-    if args.html:
-        print(f"report: {args.html}")
-    return 0
+    return print_outcome(args.json, lambda: result, lambda: _lot_text(result) + (
+        f"\nreport: {args.html}" if args.html else ""))
 
 
 def _lot_text(result: dict[str, Any]) -> str:
