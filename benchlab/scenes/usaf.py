@@ -120,11 +120,16 @@ class UsafScene(TwoLevelPrint):
 
     def __call__(self, state: AcquisitionState) -> FloatArray:
         """Electron-rate image (e-/ms) for the camera simulator (a fresh copy each call)."""
+        return self.rendered(state).copy()
+
+    def rendered(self, state: AcquisitionState) -> FloatArray:
+        """:meth:`__call__`'s image, cached and read-only (for a caller that composes it into
+        a new array anyway)."""
         scene = self
         defocus = (state.bench or {}).get("defocus_px")
         if defocus is not None and float(defocus) != self.defocus_px:
             scene = dataclasses.replace(self, defocus_px=abs(float(defocus)))
-        return _render(scene, state.height, state.width).copy()
+        return _render(scene, state.height, state.width)
 
     def render(self, height: int, width: int) -> FloatArray:
         """The cached, read-only electron-rate image of a ``height x width`` frame."""
@@ -147,12 +152,20 @@ class UsafScene(TwoLevelPrint):
             value -= (self.bright_rate - self.dark_rate) * fy * fx
         return float(value)
 
-    def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray) -> FloatArray:
-        """Pixel values from the summed blurred bars (the general, posed form)."""
-        disc = self._disc(rows, cols)
+    def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray,
+                 disc: FloatArray | None = None) -> FloatArray:
+        """Pixel values from the summed blurred bars (the general, posed form); ``disc``: the
+        lit disc at (rows, cols) if already known. A ``bar_sum`` of the image's shape is
+        overwritten (it becomes the image)."""
+        if disc is None:
+            disc = self._disc(rows, cols)
         depth = self.bright_rate - self.dark_rate
         if self.negative:
             img = disc * (self.dark_rate + depth * bar_sum)
+        elif bar_sum.shape == np.broadcast_shapes(disc.shape, bar_sum.shape):
+            # the same two operations in place (a full frame: no 10 MB temporaries)
+            img = np.multiply(bar_sum, depth, out=bar_sum)
+            np.subtract(self.bright_rate * disc, img, out=img)
         else:
             img = self.bright_rate * disc - depth * bar_sum
         if self.vignetting:
@@ -261,9 +274,7 @@ class UsafScene(TwoLevelPrint):
 def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     if not scene.nominal:
         return _render_posed(scene, height, width)
-    rows = np.arange(height, dtype=np.float64)[:, None]
-    cols = np.arange(width, dtype=np.float64)[None, :]
-    img = scene.bright_rate * scene._disc(rows, cols)
+    img = scene.bright_rate * _frame_disc(scene, height, width)
     depth = scene.bright_rate - scene.dark_rate
     for g, e in scene.layout.elements:
         for orientation in ("sagittal", "tangential"):
@@ -285,6 +296,25 @@ def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     return img
 
 
+def _frame_disc(scene: UsafScene, height: int, width: int) -> FloatArray:
+    """The lit disc over a whole frame, read-only: the same for every chart pose and defocus
+    of a sweep (only the disc's own geometry and edge enter), so computed once."""
+    return _frame_disc_of(type(scene), scene.circles, scene.disc_edge_sigma_px,
+                          scene.defocus_px, scene.full_field, height, width)
+
+
+@functools.lru_cache(maxsize=4)
+def _frame_disc_of(kind: type[UsafScene], circles: RadialLayout, disc_edge_sigma_px: float,
+                   defocus_px: float, full_field: bool, height: int, width: int) -> FloatArray:
+    probe = UsafScene(circles=circles, disc_edge_sigma_px=disc_edge_sigma_px,
+                      defocus_px=defocus_px, full_field=full_field)
+    rows = np.arange(height, dtype=np.float64)[:, None]
+    cols = np.arange(width, dtype=np.float64)[None, :]
+    disc = np.asarray(kind._disc(probe, rows, cols), dtype=np.float64)
+    disc.setflags(write=False)
+    return disc
+
+
 def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
     """Render at any pose / polarity / vignetting: sum the blurred bars, then compose."""
     bar_sum = np.zeros((height, width))
@@ -295,7 +325,7 @@ def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
             _add_bars(bar_sum, posed, sig_r, sig_c)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
-    img = scene._compose(bar_sum, rows, cols)
+    img = scene._compose(bar_sum, rows, cols, _frame_disc(scene, height, width))
     np.maximum(img, 0.0, out=img)
     img.setflags(write=False)
     return img
