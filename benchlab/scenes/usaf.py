@@ -153,21 +153,20 @@ class UsafScene(TwoLevelPrint):
         return float(value)
 
     def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray,
-                 disc: FloatArray | None = None) -> FloatArray:
-        """Pixel values from the summed blurred bars (the general, posed form); ``disc``: the
-        lit disc at (rows, cols) if already known. A ``bar_sum`` of the image's shape is
-        overwritten (it becomes the image)."""
-        if disc is None:
-            disc = self._disc(rows, cols)
+                 lit: FloatArray | None = None) -> FloatArray:
+        """Pixel values from the summed blurred bars (the general, posed form). ``lit``: the
+        lit disc times ``bright_rate`` at (rows, cols), when known; a positive chart then
+        overwrites ``bar_sum`` (it becomes the image, with no full-frame temporaries)."""
         depth = self.bright_rate - self.dark_rate
-        if self.negative:
-            img = disc * (self.dark_rate + depth * bar_sum)
-        elif bar_sum.shape == np.broadcast_shapes(disc.shape, bar_sum.shape):
-            # the same two operations in place (a full frame: no 10 MB temporaries)
+        if lit is not None and not self.negative:
             img = np.multiply(bar_sum, depth, out=bar_sum)
-            np.subtract(self.bright_rate * disc, img, out=img)
+            np.subtract(lit, img, out=img)
         else:
-            img = self.bright_rate * disc - depth * bar_sum
+            disc = self._disc(rows, cols)
+            if self.negative:
+                img = disc * (self.dark_rate + depth * bar_sum)
+            else:
+                img = self.bright_rate * disc - depth * bar_sum
         if self.vignetting:
             cr, cc = self.circles.centre_rc
             rho2 = ((rows - cr) ** 2 + (cols - cc) ** 2) / self.circles.disc_radius_px**2
@@ -274,7 +273,7 @@ class UsafScene(TwoLevelPrint):
 def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     if not scene.nominal:
         return _render_posed(scene, height, width)
-    img = scene.bright_rate * _frame_disc(scene, height, width)
+    img = _frame_lit(scene, height, width).copy()
     depth = scene.bright_rate - scene.dark_rate
     for g, e in scene.layout.elements:
         for orientation in ("sagittal", "tangential"):
@@ -296,23 +295,24 @@ def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     return img
 
 
-def _frame_disc(scene: UsafScene, height: int, width: int) -> FloatArray:
-    """The lit disc over a whole frame, read-only: the same for every chart pose and defocus
-    of a sweep (only the disc's own geometry and edge enter), so computed once."""
-    return _frame_disc_of(type(scene), scene.circles, scene.disc_edge_sigma_px,
-                          scene.defocus_px, scene.full_field, height, width)
+def _frame_lit(scene: UsafScene, height: int, width: int) -> FloatArray:
+    """``bright_rate`` times the lit disc over a whole frame, read-only: the same for every
+    chart pose and defocus of a sweep (only the disc's own geometry and edge enter), so
+    computed once."""
+    return _frame_lit_of(scene.circles, scene.disc_edge_sigma_px, scene.defocus_px,
+                         scene.full_field, scene.bright_rate, height, width)
 
 
 @functools.lru_cache(maxsize=4)
-def _frame_disc_of(kind: type[UsafScene], circles: RadialLayout, disc_edge_sigma_px: float,
-                   defocus_px: float, full_field: bool, height: int, width: int) -> FloatArray:
+def _frame_lit_of(circles: RadialLayout, disc_edge_sigma_px: float, defocus_px: float,
+                  full_field: bool, bright_rate: float, height: int, width: int) -> FloatArray:
     probe = UsafScene(circles=circles, disc_edge_sigma_px=disc_edge_sigma_px,
                       defocus_px=defocus_px, full_field=full_field)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
-    disc = np.asarray(kind._disc(probe, rows, cols), dtype=np.float64)
-    disc.setflags(write=False)
-    return disc
+    lit = np.asarray(bright_rate * probe._disc(rows, cols), dtype=np.float64)
+    lit.setflags(write=False)
+    return lit
 
 
 def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
@@ -325,7 +325,7 @@ def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
             _add_bars(bar_sum, posed, sig_r, sig_c)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
-    img = scene._compose(bar_sum, rows, cols, _frame_disc(scene, height, width))
+    img = scene._compose(bar_sum, rows, cols, _frame_lit(scene, height, width))
     np.maximum(img, 0.0, out=img)
     img.setflags(write=False)
     return img
@@ -388,8 +388,15 @@ def _rotated_bar(
     t = math.radians(theta_deg)
     ct, st = math.cos(t), math.sin(t)
     dy, dx = rows - centre[0], cols - centre[1]
-    across = dx * ct + dy * st
-    along = -dx * st + dy * ct
+    if ct == 1.0 and st == 0.0:
+        # An unrotated bar: ``across`` is ``dx`` and ``along`` is ``dy`` (x * 1.0 is x; the
+        # other axis times 0.0 can change only the sign of a zero, which the steps' shift by
+        # the half width removes), so each factor is evaluated along its own axis and the
+        # product broadcasts: the same values from a row and a column instead of a patch.
+        across, along = dx, dy
+    else:
+        across = dx * ct + dy * st
+        along = -dx * st + dy * ct
     sig_across = math.sqrt((sig_c * ct) ** 2 + (sig_r * st) ** 2)
     sig_along = math.sqrt((sig_c * st) ** 2 + (sig_r * ct) ** 2)
     p, q = max(abs(ct), abs(st)), min(abs(ct), abs(st))
