@@ -120,11 +120,16 @@ class UsafScene(TwoLevelPrint):
 
     def __call__(self, state: AcquisitionState) -> FloatArray:
         """Electron-rate image (e-/ms) for the camera simulator (a fresh copy each call)."""
+        return self.rendered(state).copy()
+
+    def rendered(self, state: AcquisitionState) -> FloatArray:
+        """:meth:`__call__`'s image, cached and read-only (for a caller that composes it into
+        a new array anyway)."""
         scene = self
         defocus = (state.bench or {}).get("defocus_px")
         if defocus is not None and float(defocus) != self.defocus_px:
             scene = dataclasses.replace(self, defocus_px=abs(float(defocus)))
-        return _render(scene, state.height, state.width).copy()
+        return _render(scene, state.height, state.width)
 
     def render(self, height: int, width: int) -> FloatArray:
         """The cached, read-only electron-rate image of a ``height x width`` frame."""
@@ -147,14 +152,21 @@ class UsafScene(TwoLevelPrint):
             value -= (self.bright_rate - self.dark_rate) * fy * fx
         return float(value)
 
-    def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray) -> FloatArray:
-        """Pixel values from the summed blurred bars (the general, posed form)."""
-        disc = self._disc(rows, cols)
+    def _compose(self, bar_sum: FloatArray, rows: FloatArray, cols: FloatArray,
+                 lit: FloatArray | None = None) -> FloatArray:
+        """Pixel values from the summed blurred bars (the general, posed form). ``lit``: the
+        lit disc times ``bright_rate`` at (rows, cols), when known; a positive chart then
+        overwrites ``bar_sum`` (it becomes the image, with no full-frame temporaries)."""
         depth = self.bright_rate - self.dark_rate
-        if self.negative:
-            img = disc * (self.dark_rate + depth * bar_sum)
+        if lit is not None and not self.negative:
+            img = np.multiply(bar_sum, depth, out=bar_sum)
+            np.subtract(lit, img, out=img)
         else:
-            img = self.bright_rate * disc - depth * bar_sum
+            disc = self._disc(rows, cols)
+            if self.negative:
+                img = disc * (self.dark_rate + depth * bar_sum)
+            else:
+                img = self.bright_rate * disc - depth * bar_sum
         if self.vignetting:
             cr, cc = self.circles.centre_rc
             rho2 = ((rows - cr) ** 2 + (cols - cc) ** 2) / self.circles.disc_radius_px**2
@@ -261,9 +273,7 @@ class UsafScene(TwoLevelPrint):
 def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     if not scene.nominal:
         return _render_posed(scene, height, width)
-    rows = np.arange(height, dtype=np.float64)[:, None]
-    cols = np.arange(width, dtype=np.float64)[None, :]
-    img = scene.bright_rate * scene._disc(rows, cols)
+    img = _frame_lit(scene, height, width).copy()
     depth = scene.bright_rate - scene.dark_rate
     for g, e in scene.layout.elements:
         for orientation in ("sagittal", "tangential"):
@@ -285,6 +295,26 @@ def _render(scene: UsafScene, height: int, width: int) -> FloatArray:
     return img
 
 
+def _frame_lit(scene: UsafScene, height: int, width: int) -> FloatArray:
+    """``bright_rate`` times the lit disc over a whole frame, read-only: the same for every
+    chart pose and defocus of a sweep (only the disc's own geometry and edge enter), so
+    computed once."""
+    return _frame_lit_of(scene.circles, scene.disc_edge_sigma_px, scene.defocus_px,
+                         scene.full_field, scene.bright_rate, height, width)
+
+
+@functools.lru_cache(maxsize=4)
+def _frame_lit_of(circles: RadialLayout, disc_edge_sigma_px: float, defocus_px: float,
+                  full_field: bool, bright_rate: float, height: int, width: int) -> FloatArray:
+    probe = UsafScene(circles=circles, disc_edge_sigma_px=disc_edge_sigma_px,
+                      defocus_px=defocus_px, full_field=full_field)
+    rows = np.arange(height, dtype=np.float64)[:, None]
+    cols = np.arange(width, dtype=np.float64)[None, :]
+    lit = np.asarray(bright_rate * probe._disc(rows, cols), dtype=np.float64)
+    lit.setflags(write=False)
+    return lit
+
+
 def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
     """Render at any pose / polarity / vignetting: sum the blurred bars, then compose."""
     bar_sum = np.zeros((height, width))
@@ -295,7 +325,7 @@ def _render_posed(scene: UsafScene, height: int, width: int) -> FloatArray:
             _add_bars(bar_sum, posed, sig_r, sig_c)
     rows = np.arange(height, dtype=np.float64)[:, None]
     cols = np.arange(width, dtype=np.float64)[None, :]
-    img = scene._compose(bar_sum, rows, cols)
+    img = scene._compose(bar_sum, rows, cols, _frame_lit(scene, height, width))
     np.maximum(img, 0.0, out=img)
     img.setflags(write=False)
     return img
@@ -358,8 +388,15 @@ def _rotated_bar(
     t = math.radians(theta_deg)
     ct, st = math.cos(t), math.sin(t)
     dy, dx = rows - centre[0], cols - centre[1]
-    across = dx * ct + dy * st
-    along = -dx * st + dy * ct
+    if ct == 1.0 and st == 0.0:
+        # An unrotated bar: ``across`` is ``dx`` and ``along`` is ``dy`` (x * 1.0 is x; the
+        # other axis times 0.0 can change only the sign of a zero, which the steps' shift by
+        # the half width removes), so each factor is evaluated along its own axis and the
+        # product broadcasts: the same values from a row and a column instead of a patch.
+        across, along = dx, dy
+    else:
+        across = dx * ct + dy * st
+        along = -dx * st + dy * ct
     sig_across = math.sqrt((sig_c * ct) ** 2 + (sig_r * st) ** 2)
     sig_along = math.sqrt((sig_c * st) ** 2 + (sig_r * ct) ** 2)
     p, q = max(abs(ct), abs(st)), min(abs(ct), abs(st))

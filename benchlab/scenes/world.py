@@ -282,14 +282,17 @@ class SimWorld:
         elif distance is not None and spec[0] == "radial":
             assert self.through_focus is not None and isinstance(scene, RadialScene)
             scene = defocused_radial(scene, self.through_focus, distance)
-        img = scene(state)
         if spec[0] == "usaf":  # the slanted-edge target shares the forward view with the chart
             # Composed as transmissions multiply (``chart x (1 - darkening / bright)``): where
             # a chart bar (or a moved chart) overlaps a square the light passes both chromes,
             # not subtracted twice and clamped at 0 (fake clipping); on clear glass it is
             # exactly the chart minus the squares.
-            img -= edges.darkening(state) * (img / edges.bright_rate)
-        return img
+            assert isinstance(scene, UsafScene)
+            chart = scene.rendered(state)  # cached: composed into one new array, no copy
+            img = np.divide(chart, edges.bright_rate)
+            np.multiply(edges.darkening(state), img, out=img)
+            return np.subtract(chart, img, out=img)
+        return scene(state)
 
     def object_distance_mm(self, bench: Mapping[str, Any]) -> float | None:
         """Object distance of a stage-carried forward target (None: not carried, or no

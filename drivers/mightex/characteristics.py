@@ -124,17 +124,21 @@ class SensorCharacteristics:
         u = np.clip(e / self.full_well_e - knee, 0.0, None) / (1.0 - knee)
         return np.clip(1.0 - 2.0 * self.compression_at_full_well * u / (1.0 - knee), 0.0, None)
 
-    def output_variance_e2(self, electrons: Any) -> Any:
+    def output_variance_e2(self, electrons: Any, out: Any = None) -> Any:
         """Temporal variance at the output, in electrons^2 before the gain: shot + read noise,
         scaled through the compression. With compression on, a pixel at full well holds exactly
-        the full well (the excess spills), so only the read noise remains."""
+        the full well (the excess spills), so only the read noise remains. ``out``: an array
+        of the result's shape to write it into (returned)."""
         e = np.asarray(electrons, dtype=np.float64)
-        var = e + self.read_noise_e**2
         if self.compression_at_full_well == 0:
-            return var
+            return np.add(e, self.read_noise_e**2, out=out)
         held = np.minimum(e, self.full_well_e)
         var = (held + self.read_noise_e**2) * self.response_slope(held) ** 2
-        return np.where(e >= self.full_well_e, self.read_noise_e**2, var)
+        result = np.where(e >= self.full_well_e, self.read_noise_e**2, var)
+        if out is None:
+            return result
+        np.copyto(out, result)
+        return out
 
     def ceiling_dn12(self, gain: float) -> float:
         """The code a saturated pixel reads (12-bit): full well or ADC range, lower first."""

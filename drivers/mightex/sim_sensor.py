@@ -47,6 +47,11 @@ def _freeze(value: Any) -> Any:
     return value
 
 
+def _is_scalar(value: Any, equal_to: float) -> bool:
+    """True when a map is the uniform scalar ``equal_to`` (an identity of its operation)."""
+    return bool(np.ndim(value) == 0 and float(value) == equal_to)
+
+
 class SensorModel:
     """Turns a scene into frame bytes for one camera (holds the caches and the noise bank).
 
@@ -75,6 +80,8 @@ class SensorModel:
         self._sigma: npt.NDArray[np.float32] | None = None  # DN12
         self._ceiling = float(ADC_MAX_DN12)
         self._exact: npt.NDArray[np.uint16] | None = None  # noise-free DN12 when noise is off
+        self._mean_half: Any = None  # float64 DN12 + 0.5 (the noise-free frame's source)
+        self._buffers: dict[str, Any] = {}
         self._work: dict[int, tuple[npt.NDArray[np.float32], npt.NDArray[np.uint16]]] = {}
         self.scene_calls = 0
 
@@ -102,6 +109,19 @@ class SensorModel:
             self._bank = self.rng.standard_normal(size, dtype=np.float32)
         return self._bank
 
+    def _buffer(self, name: str, shape: tuple[int, ...], dtype: type = np.float64) -> Any:
+        """A work array kept between states (its contents are overwritten by the caller)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape != shape or buf.dtype != dtype:
+            buf = self._buffers[name] = np.empty(shape, dtype)
+        return buf
+
+    def _single(self, name: str, values: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+        """``values.astype(np.float32).ravel()`` into a kept array (the same conversion)."""
+        out = self._buffer(name, (values.size,), np.float32)
+        np.copyto(out, values.ravel(), casting="unsafe")
+        return out
+
     def _prepare(self, scene: Scene, state: AcquisitionState) -> None:
         key = (id(scene), state.exposure_ms, state.gain, state.width, state.height,
                _freeze(state.bench))
@@ -118,26 +138,42 @@ class SensorModel:
         if self._maps_key != maps_key:
             self._maps, self._maps_key = t.maps(state.height, state.width), maps_key
         offset, sensitivity, dark_e_per_s = self._maps
-        electrons = np.clip(rate * state.exposure_ms, 0.0, None) * sensitivity
+        # The plain expressions' operations in the same order (so the same bits), written
+        # into arrays kept from one state to the next: a fresh 10 MB array costs its page
+        # faults again at every stage position.
+        shape = rate.shape
+        electrons = np.multiply(rate, state.exposure_ms, out=self._buffer("electrons", shape))
+        np.clip(electrons, 0.0, None, out=electrons)
+        if not _is_scalar(sensitivity, 1.0):  # x * 1.0 is x, bit for bit
+            np.multiply(electrons, sensitivity, out=electrons)
         if np.any(dark_e_per_s):
-            electrons = electrons + dark_e_per_s * (state.exposure_ms / 1e3)
+            np.add(electrons, dark_e_per_s * (state.exposure_ms / 1e3), out=electrons)
         dn_per_e = t.dn12_per_e * state.gain
         # Pixels saturate at the full well (before gain) or the ADC range, whichever first.
         self._ceiling = t.ceiling_dn12(state.gain)
         held = np.minimum(electrons, t.full_well_e) if t.compression_at_full_well else electrons
-        mean = offset + t.response_e(held) * dn_per_e
-        self._exact = np.clip(np.floor(mean + 0.5), 0, self._ceiling).astype(np.uint16).ravel()
-        self._mean = np.broadcast_to(mean + 0.5, rate.shape).astype(np.float32).ravel()
-        sigma = np.sqrt(t.output_variance_e2(electrons)) * dn_per_e
-        self._sigma = np.broadcast_to(sigma, rate.shape).astype(np.float32).ravel()
+        mean = np.multiply(t.response_e(held), dn_per_e, out=self._buffer("mean", shape))
+        if not _is_scalar(offset, 0.0):  # 0.0 + x differs from x only in the sign of a zero,
+            np.add(offset, mean, out=mean)  # which the + 0.5 below removes
+        np.add(mean, 0.5, out=mean)  # DN12 + 0.5: truncation rounds
+        self._mean_half = mean
+        self._exact = None  # the noise-free frame, when asked for (render_dn12)
+        self._mean = self._single("mean32", mean)
+        sigma = t.output_variance_e2(electrons, out=self._buffer("sigma", shape))
+        np.sqrt(sigma, out=sigma)
+        np.multiply(sigma, dn_per_e, out=sigma)
+        self._sigma = self._single("sigma32", sigma)
         self._key = key
 
     def render_dn12(self, scene: Scene, state: AcquisitionState) -> npt.NDArray[np.uint16]:
         """One frame as 12-bit codes (flat uint16 view into a reused work buffer)."""
         self._prepare(scene, state)
-        assert self._mean is not None and self._sigma is not None and self._exact is not None
+        assert self._mean is not None and self._sigma is not None
         n = state.width * state.height
         if not self.noise:
+            if self._exact is None:
+                exact = np.floor(self._mean_half)
+                self._exact = np.clip(exact, 0, self._ceiling, out=exact).astype(np.uint16).ravel()
             return self._exact
         if n not in self._work:
             self._work = {n: (np.empty(n, np.float32), np.empty(n, np.uint16))}
