@@ -138,6 +138,8 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
         # crosses radial.threshold where the reading crosses threshold x target contrast
         on_share = target.value is not None
         reading_thr = thr * target.value if target.value is not None else thr
+        # the contrast's own 1 sigma moves that crossing: drawn into the ends' intervals
+        reading_sd = thr * (target.uncertainty or 0.0) if on_share else 0.0
         for i, box in enumerate(boxes):
             name = roi_name(box)
             for z, seg, rr in pts:
@@ -163,7 +165,7 @@ def analyze_radial(readings: Sequence[Position], params: DepthParams
             seed = _seed(_label(pattern), pattern[1], name)
             try:
                 est, n, note = estimate([(z, r) for z, r in good if r is not None], params,
-                                        seed, reading_thr)
+                                        seed, reading_thr, reading_sd)
             except FocusFitError as exc:
                 rows.append({**base, "best_focus_mm": None, "best_focus_mm_ci95": [None, None],
                              "near_mm": None, "near_mm_ci95": [None, None], "far_mm": None,

@@ -35,10 +35,11 @@ MIN_FUNDAMENTAL = 0.01
 MODEL_SD_MM = 0.004
 
 
-def in_radius(fit: ThroughFocusFit, threshold: float, seed: int) -> FocusEstimate:
+def in_radius(fit: ThroughFocusFit, threshold: float, seed: int,
+              threshold_sd: float = 0.0) -> FocusEstimate:
     """:func:`focus_estimate` of a fit made on ``1 / R``, back in the object radius ``R`` (the
     order flips: the fit's near end is the far end)."""
-    e = focus_estimate(fit, threshold, seed=seed)
+    e = focus_estimate(fit, threshold, seed=seed, threshold_sd=threshold_sd)
 
     def inv(v: float | None) -> float | None:
         return None if v is None else (math.inf if v == 0 else 1.0 / v)
@@ -56,10 +57,12 @@ def in_radius(fit: ThroughFocusFit, threshold: float, seed: int) -> FocusEstimat
 
 
 def estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, seed: int,
-             threshold: float | None = None) -> tuple[FocusEstimate, int, str]:
+             threshold: float | None = None, threshold_sd: float = 0.0
+             ) -> tuple[FocusEstimate, int, str]:
     """Best focus from the fundamental, ends (and peak) from the Eq. 2.9 modulation; object
-    radii (mm from the axis). ``threshold``: the reading's (default ``radial.threshold``).
-    Raises FocusFitError when best focus cannot be fitted."""
+    radii (mm from the axis). ``threshold``: the reading's (default ``radial.threshold``);
+    ``threshold_sd`` its own 1-sigma (threshold x the target contrast's), drawn into the ends'
+    intervals. Raises FocusFitError when best focus cannot be fitted."""
     thr = params.radial_threshold if threshold is None else threshold
     # fitted in the object radius R (module docstring): handed to the fit as 1 / R, whose
     # "vergence" is then R
@@ -79,7 +82,7 @@ def estimate(pts: Sequence[tuple[float, RadialReading]], params: DepthParams, se
                                     far_mm=None, far_ci95=(None, None), near_extrapolated=False,
                                     far_extrapolated=False),
                 fund.n_points, f"Eq. 2.9 modulation fit: {exc}")
-    ends = in_radius(mod, thr, seed + 1)
+    ends = in_radius(mod, thr, seed + 1, threshold_sd)
     return (dataclasses.replace(ends, best_focus_mm=best.best_focus_mm,
                                 best_focus_ci95=best.best_focus_ci95,
                                 best_focus_draws=best.best_focus_draws),

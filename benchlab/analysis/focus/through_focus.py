@@ -23,7 +23,8 @@ the threshold on either side (searched to 50 % of the fitted range beyond it: fu
 reported as not reached). Their 95 % intervals are the 2.5 / 97.5 % points over draws of the
 coefficients from the fit's multivariate Student-t (``n - degree - 1`` degrees of freedom),
 each draw's curve evaluated on a fine vergence grid; an end undefined in more than 2.5 % of
-the draws gets no interval (None).
+the draws gets no interval (None). A threshold known only to +- its own 1-sigma is drawn with
+the coefficients (one threshold per draw), so the ends' intervals carry both.
 
 Pure numpy; no I/O.
 """
@@ -126,10 +127,11 @@ class ThroughFocusFit:
         return np.asarray(self.coef + z / np.sqrt(chi)[:, None])
 
 
-def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
-                ) -> FloatArray:
+def _quantities(coefs: FloatArray, fit: ThroughFocusFit,
+                threshold: float | FloatArray | None) -> FloatArray:
     """Per coefficient row: best focus (mm), peak MTF, near and far ends (mm) at
-    ``threshold`` (NaN: undefined). The peak is searched inside the fitted range only."""
+    ``threshold`` (NaN: undefined), one number or one per row. The peak is searched inside the
+    fitted range only."""
     w = fit._grid()
     vals = coefs @ np.vander(w, coefs.shape[1], increasing=True).T  # rows x grid
     inside = np.abs(w) <= 1.0
@@ -153,9 +155,16 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
     out[:, 1] = np.where(at_edge, np.nan, np.exp(peak))
     if threshold is None:
         return out
-    lt = math.log(threshold)
+    lt: float | FloatArray
+    if isinstance(threshold, float | int):
+        lt = math.log(threshold)
+        below = vals < lt
+    else:
+        # a threshold per row (drawn with the coefficients): one <= 0 is never crossed
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lt = np.log(np.asarray(threshold, dtype=np.float64))
+        below = vals < lt[:, None]
     ok = ~at_edge & (peak >= lt)
-    below = vals < lt
     idx = np.arange(w.size)
     # larger vergence = nearer: the near end is the first grid point below past the peak
     up = below & (idx[None, :] > k[:, None])
@@ -173,8 +182,10 @@ def _quantities(coefs: FloatArray, fit: ThroughFocusFit, threshold: float | None
 
 
 def _cross(w: FloatArray, v: FloatArray, rows: npt.NDArray[np.intp], i: npt.NDArray[np.intp],
-           j: npt.NDArray[np.intp], level: float, fit: ThroughFocusFit) -> FloatArray:
-    """Vergence where each row's curve crosses ``level`` between grid points i and j."""
+           j: npt.NDArray[np.intp], level: float | FloatArray, fit: ThroughFocusFit
+           ) -> FloatArray:
+    """Vergence where each row's curve crosses ``level`` (one, or one per row) between grid
+    points i and j."""
     i = np.clip(i, 0, w.size - 1)
     j = np.clip(j, 0, w.size - 1)
     vi, vj = v[rows, i], v[rows, j]
@@ -278,11 +289,23 @@ def _interval(values: FloatArray) -> tuple[float | None, float | None]:
 
 
 def focus_estimate(fit: ThroughFocusFit, threshold: float, *, draws: int = DRAWS,
-                   seed: int = 0) -> FocusEstimate:
-    """Best focus and DOF at ``threshold`` with 95 % intervals (module docstring)."""
+                   seed: int = 0, threshold_sd: float = 0.0) -> FocusEstimate:
+    """Best focus and DOF at ``threshold`` with 95 % intervals (module docstring).
+
+    ``threshold_sd``: the threshold's own 1-sigma (e.g. a threshold on a share of a target
+    contrast known to +- its sigma). Each coefficient draw then finds its ends at its own
+    threshold, drawn from a normal about ``threshold`` (an own random stream, so the
+    coefficient draws are those of ``threshold_sd = 0``): the ends' intervals carry both. A
+    drawn threshold <= 0 or above the draw's peak leaves that draw's end undefined.
+    """
     if not 0.0 < threshold < 1.0:
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
-    q = _quantities(fit.draws(draws, seed), fit, threshold)
+    if not (threshold_sd >= 0.0 and math.isfinite(threshold_sd)):
+        raise ValueError(f"threshold_sd must be finite and >= 0, got {threshold_sd}")
+    level: float | FloatArray = threshold
+    if threshold_sd > 0.0:
+        level = np.random.default_rng([seed, 1]).normal(threshold, threshold_sd, draws)
+    q = _quantities(fit.draws(draws, seed), fit, level)
     near, far = fit.ends_mm(threshold)
     lo_z, hi_z = fit.distance_range_mm
     return FocusEstimate(
