@@ -9,7 +9,8 @@ Per pattern and field point two curves are fitted: the fundamental (sine-wave) m
 peak is **best focus** (the Eq. 2.9 modulation is flat near focus), and the Eq. 2.9 modulation,
 whose crossings of ``radial.threshold`` are the **DOF ends**: the threshold bounds the lens's
 share of the print's contrast (reading / target contrast, :mod:`benchlab.protocols.depth.targets`)
-when that is known (``threshold_on``), else the reading itself. Both are fitted as polynomials in
+when that is known (``threshold_on``), else the reading itself; the contrast's 1 sigma is drawn
+with the fit's coefficients, so the ends' intervals carry it. Both are fitted as polynomials in
 the object radius ``R``, not in its vergence ``1/R`` as the forward view's edges are: a
 pattern of fixed *object* frequency is blurred, in object mm, by the image blur (linear in
 ``|1/R - u_b|``) times the object mm per pixel (``R / rho`` around the circle), so its blur is
