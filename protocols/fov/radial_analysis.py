@@ -38,7 +38,14 @@ from benchlab.analysis.fov.annulus import (
 )
 from benchlab.analysis.fov.figures import Z95, Figure
 from benchlab.analysis.fov.model import PIXEL_MM
-from benchlab.analysis.fov.rings import BIN_PX, Rings, find_rings, profile, spacing_gap
+from benchlab.analysis.fov.rings import (
+    BIN_PX,
+    RING_CENTRE_SYSTEMATIC_PX,
+    Rings,
+    find_rings,
+    profile,
+    spacing_gap,
+)
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.fov.radial_params import RadialPlan, radial_step_id
@@ -155,7 +162,7 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
         rhos += list(rings.radius_px[plain] * PIXEL_MM)
         where += [p] * int(plain.sum())
     try:
-        fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm, plan.ring_mm)
+        fit = fit_rings(zs, rhos, plan)
         inner, outer = clean_positions(fit, annulus, plan, list(avgs))
         if not inner or not outer:
             raise AnnulusNotFoundError(
@@ -215,6 +222,20 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
                "radial_tube_radius_mm": plan.tube_radius_mm}
     return ({"field_of_view": fov_rows, "image_height_mapping": mapping,
              "radial_rings": ring_rows}, summary, warnings)
+
+
+def fit_rings(z_mm: list[float], rho_mm: list[float], plan: RadialPlan) -> rad.RadialFit:
+    """The mapping through the rings (``z``, ``rho`` mm): each ring fitted as its edges'
+    midpoint, the ring-centre estimator's modelling error in the interval
+    (:data:`benchlab.analysis.fov.rings.RING_CENTRE_SYSTEMATIC_PX`).
+
+    Raises
+    ------
+    benchlab.analysis.fov.radial.RadialFitError
+        Too few rings.
+    """
+    return rad.fit_mapping(z_mm, rho_mm, plan.tube_radius_mm, plan.viewpoint_z_mm,
+                           plan.ring_mm, RING_CENTRE_SYSTEMATIC_PX * PIXEL_MM)
 
 
 def clean_positions(fit: rad.RadialFit, annulus: Annulus, plan: RadialPlan,
