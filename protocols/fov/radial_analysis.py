@@ -96,13 +96,13 @@ def count_rings(frame: FloatArray, plan: RadialPlan) -> int:
     return len(rings_of(prof, envelope, plan).radius_px)
 
 
-def _averages(session: Session, plan: RadialPlan) -> dict[float, FloatArray]:
+def _frames(session: Session, plan: RadialPlan) -> dict[float, list[FloatArray]]:
     out = {}
     for p in plan.positions_mm:
         frames = session.step_frames(radial_step_id(p))
         if frames:
-            stack = [session.load_frame(radial_step_id(p), n)[0] for n in sorted(frames)]
-            out[p] = np.mean(np.stack(stack).astype(np.float64), axis=0)
+            out[p] = [np.asarray(session.load_frame(radial_step_id(p), n)[0], dtype=np.float64)
+                      for n in sorted(frames)]
     return out
 
 
@@ -131,7 +131,8 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
     BenchlabError
         No annulus, rings at fewer than two positions, or too few for the mapping.
     """
-    avgs = _averages(session, plan)
+    frames = _frames(session, plan)
+    avgs = {p: np.mean(np.stack(fs), axis=0) for p, fs in frames.items()}
     if not avgs:
         return {}, {}, [f"{session.path}: no radial frames; the radial view is not measured"]
     try:
@@ -168,7 +169,11 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
             raise AnnulusNotFoundError(
                 f"a ring is next to the {'inner' if not inner else 'outer'} edge at every "
                 "position; take more positions between two rings (radial.positions_mm)")
-        annulus = refine_annulus([avgs[p] for p in inner], [avgs[p] for p in outer], annulus)
+        # the edges on each frame, not on the positions' averages: the dark side is clipped
+        # at 0, and an average of two clipped frames is 0 only where both are, so its median
+        # sits half a code up, and the half level with it (the outer edge moved 0.0003 px in)
+        annulus = refine_annulus([f for p in inner for f in frames[p]],
+                                 [f for p in outer for f in frames[p]], annulus)
     except (rad.RadialFitError, AnnulusNotFoundError) as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
     half = plan.ring_mm / 2.0
