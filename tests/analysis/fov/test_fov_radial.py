@@ -151,3 +151,23 @@ def test_intervals_hold_the_methods_own_error_on_noise_free_renders() -> None:
     for which, true_px in ((2, c.annulus_inner_radius_px), (3, c.annulus_outer_radius_px)):
         px = annulus.inner_px if which == 2 else annulus.outer_px
         assert abs(px - true_px) <= 1.96 * annulus.sigma[which], (which, px - true_px)
+
+
+def test_a_clipped_dark_side_does_not_move_the_edge() -> None:
+    # A camera clips its dark side at 0: the noise there is 0 on most pixels and a few codes
+    # on the rest. Its median pixel is the level (0); the median of interpolated samples,
+    # which mix clipped pixels, sits above it and pulled the edge towards the light.
+    from scipy.special import ndtr
+
+    from benchlab.analysis.fov.edges import clean_edge_points
+
+    rows, cols = np.mgrid[0:240, 0:240].astype(np.float64)
+    r = np.hypot(rows - 120.3, cols - 119.6)
+    clean = 3000.0 * ndtr((90.0 - r) / 1.5)  # lit inside, dark 0 outside
+    clipped = np.where(np.random.default_rng(1).random(r.shape) < 0.4, 6.0, 0.0)
+    noisy = clean + np.where(r > 95.0, clipped, 0.0)  # only where the dark level is read
+    none = np.empty((0, 2))
+    want = clean_edge_points(clean, (119.6, 120.3), 90.0, 180, True, none, 0.0)
+    got = clean_edge_points(noisy, (119.6, 120.3), 90.0, 180, True, none, 0.0)
+    assert len(got) == len(want) == 180
+    assert np.abs(got - want).max() < 1e-4  # it was 0.0036 px
