@@ -38,7 +38,14 @@ from benchlab.analysis.fov.annulus import (
 )
 from benchlab.analysis.fov.figures import Z95, Figure
 from benchlab.analysis.fov.model import PIXEL_MM
-from benchlab.analysis.fov.rings import BIN_PX, Rings, find_rings, profile, spacing_gap
+from benchlab.analysis.fov.rings import (
+    BIN_PX,
+    RING_CENTRE_SYSTEMATIC_PX,
+    Rings,
+    find_rings,
+    profile,
+    spacing_gap,
+)
 from benchlab.analysis.thesis_data import read_table, thesis_fixture_path
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.fov.radial_params import RadialPlan, radial_step_id
@@ -89,13 +96,13 @@ def count_rings(frame: FloatArray, plan: RadialPlan) -> int:
     return len(rings_of(prof, envelope, plan).radius_px)
 
 
-def _averages(session: Session, plan: RadialPlan) -> dict[float, FloatArray]:
+def _frames(session: Session, plan: RadialPlan) -> dict[float, list[FloatArray]]:
     out = {}
     for p in plan.positions_mm:
         frames = session.step_frames(radial_step_id(p))
         if frames:
-            stack = [session.load_frame(radial_step_id(p), n)[0] for n in sorted(frames)]
-            out[p] = np.mean(np.stack(stack).astype(np.float64), axis=0)
+            out[p] = [np.asarray(session.load_frame(radial_step_id(p), n)[0], dtype=np.float64)
+                      for n in sorted(frames)]
     return out
 
 
@@ -124,7 +131,8 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
     BenchlabError
         No annulus, rings at fewer than two positions, or too few for the mapping.
     """
-    avgs = _averages(session, plan)
+    frames = _frames(session, plan)
+    avgs = {p: np.mean(np.stack(fs), axis=0) for p, fs in frames.items()}
     if not avgs:
         return {}, {}, [f"{session.path}: no radial frames; the radial view is not measured"]
     try:
@@ -155,13 +163,17 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
         rhos += list(rings.radius_px[plain] * PIXEL_MM)
         where += [p] * int(plain.sum())
     try:
-        fit = rad.fit_mapping(zs, rhos, plan.tube_radius_mm, plan.viewpoint_z_mm, plan.ring_mm)
+        fit = fit_rings(zs, rhos, plan)
         inner, outer = clean_positions(fit, annulus, plan, list(avgs))
         if not inner or not outer:
             raise AnnulusNotFoundError(
                 f"a ring is next to the {'inner' if not inner else 'outer'} edge at every "
                 "position; take more positions between two rings (radial.positions_mm)")
-        annulus = refine_annulus([avgs[p] for p in inner], [avgs[p] for p in outer], annulus)
+        # the edges on each frame, not on the positions' averages: the dark side is clipped
+        # at 0, and an average of two clipped frames is 0 only where both are, so its median
+        # sits half a code up, and the half level with it (the outer edge moved 0.0003 px in)
+        annulus = refine_annulus([f for p in inner for f in frames[p]],
+                                 [f for p in outer for f in frames[p]], annulus)
     except (rad.RadialFitError, AnnulusNotFoundError) as exc:
         raise BenchlabError(f"{session.path}: {exc}") from exc
     half = plan.ring_mm / 2.0
@@ -215,6 +227,20 @@ def analyze_radial(session: Session, plan: RadialPlan, height_tolerance_mm: floa
                "radial_tube_radius_mm": plan.tube_radius_mm}
     return ({"field_of_view": fov_rows, "image_height_mapping": mapping,
              "radial_rings": ring_rows}, summary, warnings)
+
+
+def fit_rings(z_mm: list[float], rho_mm: list[float], plan: RadialPlan) -> rad.RadialFit:
+    """The mapping through the rings (``z``, ``rho`` mm): each ring fitted as its edges'
+    midpoint, the ring-centre estimator's modelling error in the interval
+    (:data:`benchlab.analysis.fov.rings.RING_CENTRE_SYSTEMATIC_PX`).
+
+    Raises
+    ------
+    benchlab.analysis.fov.radial.RadialFitError
+        Too few rings.
+    """
+    return rad.fit_mapping(z_mm, rho_mm, plan.tube_radius_mm, plan.viewpoint_z_mm,
+                           plan.ring_mm, RING_CENTRE_SYSTEMATIC_PX * PIXEL_MM)
 
 
 def clean_positions(fit: rad.RadialFit, annulus: Annulus, plan: RadialPlan,

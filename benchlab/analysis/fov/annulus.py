@@ -26,6 +26,14 @@ from scipy.optimize import least_squares
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov.edges import clean_edge_points
+from benchlab.analysis.fov.figures import Z95
+
+#: The edge reading's modelling error on each radius (px, a 95 % bound): on noise-free renders
+#: of the default tube the refined inner and outer radii are 0.00040 and 0.00028 px inside
+#: the scene's (the half-level crossing read by bilinear interpolation along rays across a
+#: curved soft edge), as large as the radii's statistical sigma (~0.0005 px), which the
+#: points' scatter cannot show; refined radii carry this bound, rounded up, in quadrature.
+ANNULUS_EDGE_SYSTEMATIC_PX = 0.0005
 
 
 class AnnulusNotFoundError(ValueError):
@@ -156,7 +164,7 @@ def refine_annulus(inner_frames: Sequence[FloatArray], outer_frames: Sequence[Fl
     """The annulus again from the inner edge of ``inner_frames`` and the outer edge of
     ``outer_frames`` (the positions where no ring is near that edge), one centre for both
     (:func:`benchlab.analysis.fov.edges.clean_edge_points`); the covariance is the fit's,
-    from the points' scatter.
+    from the points' scatter, with :data:`ANNULUS_EDGE_SYSTEMATIC_PX` on each radius.
 
     Raises
     ------
@@ -176,6 +184,9 @@ def refine_annulus(inner_frames: Sequence[FloatArray], outer_frames: Sequence[Fl
                                    "points clear of the rings (20 each needed)")
     p, cov, n = _robust_fit(pts_in, pts_out,
                             np.array([*centre, annulus.inner_px, annulus.outer_px]))
+    cov = cov.copy()
+    cov[2, 2] += (ANNULUS_EDGE_SYSTEMATIC_PX / Z95) ** 2
+    cov[3, 3] += (ANNULUS_EDGE_SYSTEMATIC_PX / Z95) ** 2
     return Annulus(float(p[0]), float(p[1]), float(p[2]), float(p[3]), cov, annulus.bright, n)
 
 

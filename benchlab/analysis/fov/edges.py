@@ -7,8 +7,9 @@ pixelwise maximum of the frames instead (which hides them) biases it the other w
 maximum of noisy frames is brightest where the light is, which moves the crossing by ~0.01 px,
 far beyond its statistical error over hundreds of rays. So once the target's geometry is
 fitted, every dot or ring is predicted in every frame, and the edge is read on each frame's
-rays that pass no predicted feature (``blockers``), each with its own levels: the mean of the
-lit side and the median of the dark side 6-12 px from the edge. Those points are
+rays that pass no predicted feature (``blockers``), each with its own lit level (the mean of
+the lit side 6-12 px from the edge) and the frame's dark level (the median of the dark side's
+pixels 6-12 px from the edge on every ray: the dark side is clipped at 0). Those points are
 unbiased, and independent from frame to frame. The level windows are 6-12 px from the edge:
 at 4 px a soft edge (sigma 1.5 px) has not reached its levels, which moves the crossing by
 ~0.004 px.
@@ -55,8 +56,16 @@ def clean_edge_points(frame: FloatArray, centre_cr: tuple[float, float], radius_
                                    [rows[idx].ravel(), cols[idx].ravel()], order=1,
                                    mode="nearest").reshape(len(idx), len(offs))
     lit = prof[:, (offs >= -12.0) & (offs <= -6.0)].mean(axis=1)
-    # the median: the dark side is often clipped at 0, where a mean would sit above it
-    dark = np.median(prof[:, (offs >= 6.0) & (offs <= 12.0)], axis=1)
+    # the dark side is often clipped at 0, where a mean sits above the level, and so does the
+    # median of interpolated samples (each mixes clipped pixels) or of a ray's few pixels: on
+    # the ring tube's frames that raised the half level by ~0.3 code and moved the annulus's
+    # edges by 0.0004 px towards the light. So the dark level is the median of the pixels
+    # themselves (nearest, not interpolated) on every ray of the frame at once.
+    band = (offs >= 6.0) & (offs <= 12.0)
+    raw = ndimage.map_coordinates(np.asarray(frame, dtype=np.float64),
+                                  [rows[idx][:, band].ravel(), cols[idx][:, band].ravel()],
+                                  order=0, mode="nearest")
+    dark = np.full(len(idx), float(np.median(raw)) if raw.size else 0.0)
     pts = []
     for n, k in enumerate(idx):
         p, half = prof[n], (lit[n] + dark[n]) / 2.0

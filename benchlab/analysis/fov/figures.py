@@ -47,6 +47,13 @@ class Figure:
         return (self.high - self.low) / (2.0 * Z95)
 
     def rounded(self, digits: int) -> tuple[float, list[float]]:
+        """The value and interval rounded to ``digits`` decimals, or to more where the
+        interval is narrow: the step is kept at most a tenth of its half-width, or rounding
+        the ends moves them by a good part of it and the stored interval no longer covers what
+        the computed one does (the radial view's are nanometres wide)."""
+        half = (self.high - self.low) / 2.0
+        if half > 0 and math.isfinite(half):
+            digits = max(digits, min(math.ceil(-math.log10(half / 10.0)), 12))
         return round(self.value, digits), [round(self.low, digits), round(self.high, digits)]
 
 

@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.fov.annulus import Annulus
-from benchlab.analysis.fov.figures import Figure, delta
+from benchlab.analysis.fov.figures import Z95, Figure, delta
 from benchlab.analysis.fov.model import PIXEL_MM
 
 #: Degree of the mapping's polynomial in axial position.
@@ -66,11 +66,17 @@ class RadialFit:
 
 
 def fit_mapping(z_mm: Sequence[float] | FloatArray, rho_mm: Sequence[float] | FloatArray,
-                radius_mm: float, viewpoint_z_mm: float, ring_mm: float = 0.0) -> RadialFit:
+                radius_mm: float, viewpoint_z_mm: float, ring_mm: float = 0.0,
+                systematic_mm: float = 0.0) -> RadialFit:
     """Fit ``rho(z)`` (module docstring). A ring's measured radius is the midpoint of its
     edges' images, ``(rho(z - w/2) + rho(z + w/2)) / 2`` for a ring ``ring_mm`` wide - not
     ``rho(z)``, by ``rho'' w^2 / 8`` (~0.0007 px with the default tube, more than the
     rings' noise) - so each point is fitted as that midpoint.
+
+    ``systematic_mm`` is a bound (95 %) on an error of the rings' radii that is smooth along
+    the field, which the residuals cannot show (the polynomial follows it): it is added to the
+    constant term's variance as ``(systematic_mm / 1.96)^2``, so every height's 95 % interval
+    carries it in quadrature, and every figure read from the mapping its share.
 
     Raises
     ------
@@ -90,6 +96,7 @@ def fit_mapping(z_mm: Sequence[float] | FloatArray, rho_mm: Sequence[float] | Fl
     r = rho - a @ coeffs
     s2 = float(r @ r) / (len(z) - DEGREE - 1)
     cov = s2 * np.linalg.inv(a.T @ a)
+    cov[0, 0] += (systematic_mm / Z95) ** 2
     return RadialFit(np.asarray(coeffs, dtype=np.float64), np.asarray(cov, dtype=np.float64),
                      mid, half, math.sqrt(s2), (lo, hi), len(z), radius_mm,
                      viewpoint_z_mm)

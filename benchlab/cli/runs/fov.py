@@ -39,8 +39,10 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
         "the full field of view, direction of view, entrance pupil, focal length, image height "
         "and local distortion, and the radial view's field start and end on the wall, field "
         "of view and image heights, with the simulator's exact mappings: bias, RMSE, largest "
-        "error against the issue's targets, and 95 % interval coverage. Each run takes 10-20 s, "
-        "so the default 20 seeds x 5 variants take 20-30 minutes; --quick 3 seeds.",
+        "error against the issue's targets, and 95 % interval coverage. Each variant takes its "
+        "own seeds, so the radial view (the same in every variant) is scored over seeds x "
+        "variants independent runs. Each run takes 10-20 s, so the default 20 seeds x 5 "
+        "variants take 20-35 minutes; --quick 3 seeds.",
     )
     bf.add_argument("--seeds", type=positive_int, default=20, help="seeds per variant (20)")
     bf.add_argument("--variants", help="comma-separated subset of the variants")

@@ -135,3 +135,13 @@ def test_one_distance_or_too_few_dots_is_refused() -> None:
 def test_a_dark_frame_has_no_disc() -> None:
     with pytest.raises(DiscNotFoundError):
         find_disc(np.random.default_rng(0).normal(3.0, 1.0, (1024, 1280)))
+
+
+def test_rounding_keeps_a_narrow_interval_covering_what_it_covered() -> None:
+    # a radial image height: its interval 3.2 nm wide, the table's 6 decimals are 1 nm
+    f = fig.Figure(2.8324962, 2.8324946, 2.8324978)
+    value, (low, high) = f.rounded(6)
+    assert low <= 2.8324948 <= high  # inside the computed interval, so inside the stored one
+    assert (value, low, high) == (2.8324962, 2.8324946, 2.8324978)  # 7 decimals: 0.1 nm
+    # a wide interval keeps the digits asked for
+    assert fig.Figure(52.61234, 52.5, 52.7).rounded(4) == (52.6123, [52.5, 52.7])
