@@ -265,12 +265,21 @@ def saturation_code(
     raw: npt.NDArray[np.generic], code_step: float, top: Any = None
 ) -> float | None:
     """The code ``raw`` saturates at: the integer dtype's top code (:func:`infer_max_code`) or,
-    lower, a plateau at the maximum (:func:`detect_plateau`; any data); ``None`` when neither.
-    ``top``: ``raw.max()`` if already known."""
+    lower, a plateau at the maximum (:func:`detect_plateau`; 16-bit words and float data);
+    ``None`` when neither. ``top``: ``raw.max()`` if already known.
+
+    8-bit data clip at 255 only: the dtype pins the bit depth, whose full scale is the one
+    code a camera's 8-bit output saturates at (issue 37: a noisy ground of 180 +- 3 with 5
+    pixels on its top code 188 was called clipped, and the element read a bound 0.53 for
+    0.8). A 16-bit word holds 10- to 16-bit codes and some sensors saturate below full scale
+    (a plateau at 3000), so there the data's plateau is the evidence; a camera's own
+    saturation code, where known, is passed as ``max_code`` to :func:`prepare_roi`."""
     values = raw.ravel()
     if top is None:
         top = values.max()
     code = infer_max_code(raw, code_step, float(top)) if raw.dtype.kind in "ui" else None
+    if raw.dtype == np.uint8:
+        return code
     plateau = detect_plateau(values, code_step, top)
     if plateau is not None and (code is None or plateau < code):
         code = plateau
