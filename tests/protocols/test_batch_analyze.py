@@ -156,3 +156,14 @@ def test_benchmark_batch_prints_its_figures_and_the_flush_policies(
     # one file-system flush per version instead of one fsync per file (and folder)
     assert calls["flush syncfs (default)"] < calls["flush per-version"] < calls["flush per-file"]
     assert list(tmp_path.iterdir()) == []  # the fabricated sessions are removed
+
+
+def test_benchmark_batch_fsync_repeats_zero_skips_the_comparison() -> None:
+    """``--fsync-repeats 0`` is what the help offers to skip the flush comparison."""
+    from benchlab.cli.main import build_parser
+
+    args = build_parser().parse_args(["benchmark", "batch", "--fsync-repeats", "0"])
+    assert args.fsync_repeats == 0
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["benchmark", "batch", "--fsync-repeats", "-1"])
+    assert exc.value.code == 2

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from benchlab.cli import UsageError, positive_int
+from benchlab.cli import UsageError, non_negative_int, positive_int
 from benchlab.cli.output import print_outcome
 
 if TYPE_CHECKING:  # the batch (and its executors) is imported when a batch runs
@@ -158,7 +158,7 @@ def register(commands: argparse._SubParsersAction, benchmarks: argparse._SubPars
     b.add_argument("--workdir", metavar="DIR", help="where to fabricate (default: temp folder)")
     b.add_argument("--copy-frames", action="store_true",
                    help="copy the frames instead of hard-linking them")
-    b.add_argument("--fsync-repeats", type=positive_int, default=20, metavar="N",
+    b.add_argument("--fsync-repeats", type=non_negative_int, default=20, metavar="N",
                    help="re-analyses per fsync policy for the comparison (0: skip)")
     b.set_defaults(func=benchmark_batch_command)
 
