@@ -21,6 +21,7 @@ distance not taken; a resumed run re-mounts (replays ``mount``'s restore) and re
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -146,13 +147,8 @@ class FovProcedure:
                       for n in names]
             from benchlab.protocols.fov.analysis import count_dots
 
-            avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
-            try:
-                found = count_dots(avg, p)
-            except ValueError as exc:  # the frames, not the bench: a retry takes new ones
-                ctx.reject_frames(tuple(names), str(exc))
-                raise FrameContentError(f"chart at {z:g} mm: {exc}; the frames are set aside "
-                                        "and a retry takes new ones") from exc
+            found = _count_on_average(ctx, names, frames, lambda avg: count_dots(avg, p),
+                                      f"chart at {z:g} mm")
             ctx.report({"distance_mm": z, "dots_identified": found})
 
         return action
@@ -185,13 +181,8 @@ class FovProcedure:
                                   extra=extra) for n in names]
             from benchlab.protocols.fov.radial_analysis import count_rings
 
-            avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
-            try:
-                found = count_rings(avg, plan)
-            except ValueError as exc:  # the frames, not the bench: a retry takes new ones
-                ctx.reject_frames(tuple(names), str(exc))
-                raise FrameContentError(f"tube at {p:g} mm: {exc}; the frames are set aside "
-                                        "and a retry takes new ones") from exc
+            found = _count_on_average(ctx, names, frames, lambda avg: count_rings(avg, plan),
+                                      f"tube at {p:g} mm")
             ctx.report({"position_mm": p, "rings_identified": found})
 
         return action
@@ -204,3 +195,16 @@ class FovProcedure:
 
         tables, summary = analyze_fov(session, self.params)
         return Path(session.write_results(tables, summary=summary, estimator="dot-grid-fit"))
+
+
+def _count_on_average(ctx: StepContext, names: list[str], frames: list[Any],
+                      count: Callable[[Any], int], where: str) -> int:
+    """``count`` on the mean of one position's frames; a failure sets those frames aside
+    (the frames, not the bench: a retry takes new ones) and fails the step naming ``where``."""
+    avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
+    try:
+        return count(avg)
+    except ValueError as exc:
+        ctx.reject_frames(tuple(names), str(exc))
+        raise FrameContentError(f"{where}: {exc}; the frames are set aside and a retry takes "
+                                "new ones") from exc
