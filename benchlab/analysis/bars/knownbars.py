@@ -215,14 +215,19 @@ def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> F
 
 
 def gaussian_gain(rates: FloatArray, freqs2: FloatArray) -> FloatArray:
-    """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending), bit for bit, without
-    evaluating the exponentials that underflow to 0: a wide Gaussian's gain vanishes after a
-    small share of the columns, and the exponentials were most of a tabulation's cost."""
+    """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending and finite), bit for
+    bit, without evaluating the exponentials that underflow to 0 (a wide Gaussian's gain
+    vanishes after a small share of the columns) nor those of a rate of 0 (``exp(+-0) == 1``
+    exactly: the sharp row and every pure-disc row, whose Gaussian part has no variance): the
+    exponentials were most of a tabulation's cost."""
     gain = np.zeros((rates.size, freqs2.size))
     with np.errstate(divide="ignore"):
         limit = np.where(rates < 0, EXP_UNDERFLOW / np.where(rates < 0, rates, -1.0), np.inf)
     cols = np.searchsorted(freqs2, limit, side="right")
     for row, (rate, k) in enumerate(zip(rates, cols, strict=True)):
+        if rate == 0.0:
+            gain[row] = 1.0
+            continue
         # the same products and exponentials as the whole outer product, on the columns before
         # the underflow (each a contiguous run, so numpy's vector loop computes them alike)
         np.exp(rate * freqs2[:k], out=gain[row, :k])
@@ -298,7 +303,14 @@ class _Blurred:
         cols = np.searchsorted(self.freqs2, limit, side="right")
         whole = cols >= k_all
         if whole.any():
-            gain[rows[whole]] *= jinc((2.0 * math.pi) * np.outer(radius[whole], freqs))
+            # a row without Gaussian part has a gain of exactly 1 (:func:`gaussian_gain`): its
+            # product with the disc's gain is that gain, unmultiplied
+            pure = whole & (gauss_var == 0.0)
+            mixed = whole & ~pure
+            if pure.any():
+                gain[rows[pure]] = jinc((2.0 * math.pi) * np.outer(radius[pure], freqs))
+            if mixed.any():
+                gain[rows[mixed]] *= jinc((2.0 * math.pi) * np.outer(radius[mixed], freqs))
         part = np.flatnonzero(~whole)
         if part.size:
             counts = cols[part]
@@ -352,20 +364,35 @@ class _Batch:
             return np.where(total > 0, sign * (space - bar) / total, np.nan)
 
 
+@dataclass(frozen=True)
+class _Normal:
+    """The data ``y`` (n,), the base columns (n, kb) and the products of the two that every
+    batch of fits of a set shares (computed once: the same products each time)."""
+
+    base: FloatArray
+    y: FloatArray
+    gram: FloatArray
+    rhs: FloatArray
+
+    @classmethod
+    def of(cls, base: FloatArray, y: FloatArray) -> _Normal:
+        return cls(base, y, base.T @ base, base.T @ y)
+
+
 def _solve_batch(
-    base: FloatArray, extra: list[FloatArray], y: FloatArray, ridge: FloatArray | None,
-    p_bar: FloatArray, p_space: FloatArray,
+    normal: _Normal, cols: FloatArray, ridge: FloatArray | None, p_bar: FloatArray,
+    p_space: FloatArray,
 ) -> _Batch:
-    """Least squares of ``y`` on the ``base`` columns (n, kb) plus, per blur, the ``extra``
-    columns (each (m, n)); ``ridge``: prior precision per coefficient in units of the noise
+    """Least squares of ``normal.y`` on the base columns (n, kb) plus, per blur, the columns
+    ``cols`` (m, ke, n); ``ridge``: prior precision per coefficient in units of the noise
     variance (0 = free)."""
-    m = extra[0].shape[0]
+    base, y = normal.base, normal.y
+    m, ke = cols.shape[:2]
     kb = base.shape[1]
-    k = kb + len(extra)
-    cols = np.stack(extra, axis=1)  # (m, ke, n): the per-blur columns
+    k = kb + ke
     # the normal matrices by blocks: the base columns' block is the same for every blur
     gram = np.empty((m, k, k))
-    gram[:, :kb, :kb] = base.T @ base
+    gram[:, :kb, :kb] = normal.gram
     cross = cols @ base  # (m, ke, kb)
     gram[:, kb:, :kb] = cross
     gram[:, :kb, kb:] = cross.transpose(0, 2, 1)
@@ -377,11 +404,17 @@ def _solve_batch(
     except np.linalg.LinAlgError:
         inv = np.linalg.pinv(gram)
     rhs = np.empty((m, k))
-    rhs[:, :kb] = base.T @ y
+    rhs[:, :kb] = normal.rhs
     rhs[:, kb:] = cols @ y
     coef = (inv @ rhs[:, :, None])[:, :, 0]
-    fitted = coef[:, :kb] @ base.T + (coef[:, kb:, None] * cols).sum(axis=1)
-    resid = y[None, :] - fitted
+    # the per-blur columns' part summed first (in column order), then added to the base
+    # columns' part, as ``base_part + (coef * cols).sum(axis=1)``; in place
+    part = cols[:, 0] * coef[:, kb, None]
+    for j in range(1, ke):
+        part += cols[:, j] * coef[:, kb + j, None]
+    resid = coef[:, :kb] @ base.T
+    resid += part
+    np.subtract(y[None, :], resid, out=resid)
     rss = np.einsum("mn,mn->m", resid, resid)
     penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
     return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
@@ -572,6 +605,7 @@ def fit_three_bars(
     # The tabulated patterns (MBs per set) served only the fits; the reading keeps the state
     # for a later blur prior, which needs the fits alone.
     state.t_across = state.t_along = state.t_along_shape = None
+    state.along_samples = None
     state.prep = prep if noise_floor == 0.0 else None
     return state.conclude(blur_prior_px)
 
@@ -590,6 +624,9 @@ class _FitState:
         patterns serve again (the grid reaches several px beyond any shift); ``noise_floor``:
         the least noise the priors' scale assumes (:func:`fit_three_bars`)."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        # a refit at other u shares the data and base columns (and their products)
+        self.normal = (reuse.normal if reuse is not None and reuse.base is base
+                       and reuse.y is y else _Normal.of(base, y))
         self.dark_bars = dark_bars
         #: The ROI, for :func:`~benchlab.analysis.bars.extremes.honest_reading` (None: a
         #: noise-free stand-in read with a noise floor, whose extremes are not its frame's).
@@ -627,16 +664,28 @@ class _FitState:
         t_across = (reuse.t_across if reuse is not None and reuse.t_across is not None
                     else self.across.tables(self.sig_all, self.share_all))
         self.t_across: FloatArray | None = t_across
-        self.p_pix, self.s_pix = self.across.sample_and_slope(t_across)
+        p_pix, s_pix = self.across.sample_and_slope(t_across)
+        #: The per-blur columns of the fits, (blurs, 2, pixels): the pattern's slope (the
+        #: shift) and the pattern (the bar depth); :attr:`s_pix` and :attr:`p_pix` views of it.
+        self.sp_pix = np.stack([s_pix, p_pix], axis=1)
+        self.s_pix, self.p_pix = self.sp_pix[:, 0], self.sp_pix[:, 1]
+        del p_pix, s_pix
         self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
         self.t_along: FloatArray | None = reuse.t_along if reuse is not None else (
             self.along.tables(self.sigmas) if self.along is not None else None)
+        # the bar ends at the pixels (None: out of reach, a factor of 1) and at the middle
+        a_pix: FloatArray | None
         if self.along is not None and self.t_along is not None:
-            t_along = self.t_along
-            a_pix = self.along.sample(t_along)
-            a_mid = self.along.sample(t_along, np.zeros(1))[:, 0]
+            if reuse is not None and reuse.along_samples is not None:
+                a_pix, a_mid = reuse.along_samples  # the same tables at the same v
+            else:
+                a_pix = self.along.sample(self.t_along)
+                a_mid = self.along.sample(self.t_along, np.zeros(1))[:, 0]
         else:
-            a_pix, a_mid = np.ones((self.sigmas.size, n)), np.ones(self.sigmas.size)
+            a_pix, a_mid = None, np.ones(self.sigmas.size)
+        #: What :attr:`t_along` gives at the pixels and at the middle (for a refit; released
+        #: with the tables).
+        self.along_samples = None if a_pix is None else (a_pix, a_mid)
         every = np.arange(self.sigmas.size)
         # the priors' scale: a free fit on a coarse blur grid gives noise, ground and depth
         coarse = every[::4]
@@ -658,7 +707,7 @@ class _FitState:
         if self.along is not None:
             self.along_fits = self._fit(np.full_like(every, i_u), every, a_pix, a_mid, self.ridge)
             i_v = int(np.argmin(self.along_fits.cost))
-        self.a_best = (a_pix[i_v], float(a_mid[i_v]))
+        self.a_best = (None if a_pix is None else a_pix[i_v], float(a_mid[i_v]))
         rows = np.arange(self.sig_all.size)
         self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
         self._score(quantum_sd)
@@ -667,7 +716,7 @@ class _FitState:
         self.t_along_shape: FloatArray | None = None
         self.along_group = (0, 0)
         best_group = next(g for g in self.groups if g[0] <= self.best_row < g[1])
-        if self.along is not None and self.share_all[self.best_row] > 0:
+        if a_pix is not None and self.along is not None and self.share_all[self.best_row] > 0:
             lo, hi = best_group
             self.t_along_shape = (
                 reuse.t_along_shape if reuse is not None and reuse.along_group == best_group
@@ -686,7 +735,8 @@ class _FitState:
                 self.a_best = (a_pix[i_v], float(a_mid[i_v]))
                 self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
                 self._score(quantum_sd)
-        self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
+        self.misfit_rms = self._misfit(self.best_row, u, None if a_pix is None else a_pix[i_v],
+                                       quantum_sd)
 
     def _score(self, quantum_sd: float) -> None:
         """Noise, chi-square scale, allowed blurs and the best row of :attr:`fits`."""
@@ -710,12 +760,15 @@ class _FitState:
                 self.shape_price = np.where(wrong, np.inf, self.shape_price)
         self.best_row = int(np.argmin(chi2 + self.shape_price))
 
-    def _misfit(self, row: int, u: FloatArray, a: FloatArray, quantum_sd: float) -> float:
+    def _misfit(self, row: int, u: FloatArray, a: FloatArray | None, quantum_sd: float
+                ) -> float:
         """RMS of the residuals' structure beyond the noise at fit ``row`` (0 when not
         significant): the residual variance minus the white noise's, the latter from
         successive differences of the residuals in order of ``u`` (a misfit is smooth in ``u``
-        and cancels there; noise does not). A term that does not shrink with pixel count."""
-        design = np.column_stack([self.base, self.s_pix[row] * a, self.p_pix[row] * a])
+        and cancels there; noise does not). A term that does not shrink with pixel count.
+        ``a``: the bar ends' factor at the pixels (None: 1)."""
+        design = np.column_stack([self.base, self.s_pix[row], self.p_pix[row]] if a is None
+                                 else [self.base, self.s_pix[row] * a, self.p_pix[row] * a])
         resid = self.y - design @ self.fits.coef[row]
         n = resid.size
         dof = n - _n_params(self.base) - 1
@@ -739,14 +792,23 @@ class _FitState:
         return float(np.clip(-c / depth, -0.5 * self.w, 0.5 * self.w))
 
     def _fit(
-        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray,
+        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray | None,
         a_mid: FloatArray, ridge: FloatArray | None,
     ) -> _Batch:
-        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``."""
-        a = a_pix[i_v]
+        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``
+        (``a_pix`` None: no bar ends, a factor of 1)."""
         probe = self.p_probe[i_u] * a_mid[i_v][:, None]
-        return _solve_batch(self.base, [self.s_pix[i_u] * a, self.p_pix[i_u] * a], self.y,
-                            ridge, probe[:, 0], 0.5 * (probe[:, 1] + probe[:, 2]))
+        # the columns times the bar ends' factor, each product as ``s_pix[i_u] * a_pix[i_v]``
+        # (a blur repeated over every fit broadcast instead of gathered: the same products)
+        if a_pix is None:
+            cols = self.sp_pix[i_u]
+        elif np.all(i_u == i_u[0]) and not np.all(i_v == i_v[0]):
+            cols = self.sp_pix[i_u[0]] * a_pix[i_v][:, None, :]
+        else:
+            cols = self.sp_pix[i_u]
+            cols *= a_pix[i_v[0]] if np.all(i_v == i_v[0]) else a_pix[i_v][:, None, :]
+        return _solve_batch(self.normal, cols, ridge, probe[:, 0],
+                            0.5 * (probe[:, 1] + probe[:, 2]))
 
     def _fit_at(self, sigma: float, disc_share: float) -> _Batch:
         """One fit at an off-grid blur across the bars (the along-bar blur at its best)."""
@@ -754,8 +816,11 @@ class _FitState:
         a_pix, a_mid = self.a_best
         probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
         p_pix, s_pix = self.across.sample_and_slope(table)
-        return _solve_batch(self.base, [s_pix * a_pix, p_pix * a_pix], self.y, self.ridge,
-                            np.array([probe[0]]), np.array([0.5 * (probe[1] + probe[2])]))
+        cols = np.stack([s_pix, p_pix], axis=1)
+        if a_pix is not None:
+            cols *= a_pix
+        return _solve_batch(self.normal, cols, self.ridge, np.array([probe[0]]),
+                            np.array([0.5 * (probe[1] + probe[2])]))
 
     def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
         """The reading at the blur the fits (and the prior) favour, with its interval."""
