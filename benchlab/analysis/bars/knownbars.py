@@ -214,19 +214,23 @@ def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> F
     return jinc(x)
 
 
-def gaussian_gain(rates: FloatArray, freqs2: FloatArray) -> FloatArray:
+def gaussian_gain(rates: FloatArray, freqs2: FloatArray,
+                  stop: npt.NDArray[np.intp] | None = None) -> FloatArray:
     """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending and finite), bit for
     bit, without evaluating the exponentials that underflow to 0 (a wide Gaussian's gain
     vanishes after a small share of the columns) nor those of a rate of 0 (``exp(+-0) == 1``
     exactly: the sharp row and every pure-disc row, whose Gaussian part has no variance): the
-    exponentials were most of a tabulation's cost."""
+    exponentials were most of a tabulation's cost. ``stop`` (per row): the columns from which
+    the caller needs no value, left 0 (a defocus row's beyond its Gaussian cutoff)."""
     gain = np.zeros((rates.size, freqs2.size))
     with np.errstate(divide="ignore"):
         limit = np.where(rates < 0, EXP_UNDERFLOW / np.where(rates < 0, rates, -1.0), np.inf)
     cols = np.searchsorted(freqs2, limit, side="right")
+    if stop is not None:
+        cols = np.minimum(cols, stop)
     for row, (rate, k) in enumerate(zip(rates, cols, strict=True)):
         if rate == 0.0:
-            gain[row] = 1.0
+            gain[row, :k] = 1.0
             continue
         # the same products and exponentials as the whole outer product, on the columns before
         # the underflow (each a contiguous run, so numpy's vector loop computes them alike)
@@ -257,6 +261,8 @@ class _Blurred:
         self.spectrum = np.fft.rfft(sharp)
         freqs = np.fft.rfftfreq(n, self.step)
         self.freqs2 = freqs * freqs
+        # the defocus gain's frequencies, as sqrt(freqs2) (not always freqs to the last bit)
+        self.freqs = np.sqrt(self.freqs2)
         self.n = n
         self.idx, self.frac = self._weights(pos)
 
@@ -278,33 +284,47 @@ class _Blurred:
         share = (np.zeros_like(sigmas) if disc_shares is None
                  else np.asarray(disc_shares, dtype=np.float64))
         gauss_var = sigmas * sigmas * (1.0 - share)
-        gain = gaussian_gain((-2.0 * math.pi**2) * gauss_var, self.freqs2)
         disc = np.flatnonzero(share > 0)
+        stop = None
+        if disc.size:
+            # a defocus row's gain is needed only up to its Gaussian cutoff (0 beyond), a pure
+            # disc's not at all (the disc's gain alone)
+            disc_cols = self._disc_cutoff(gauss_var[disc])
+            stop = np.full(sigmas.size, self.freqs2.size)
+            stop[disc] = np.where(gauss_var[disc] == 0.0, 0, disc_cols)
+        gain = gaussian_gain((-2.0 * math.pi**2) * gauss_var, self.freqs2, stop)
         if disc.size:
             self._apply_disc(gain, disc, 2.0 * sigmas[disc] * np.sqrt(share[disc]),
-                             gauss_var[disc])
+                             gauss_var[disc], disc_cols)
         # the spectrum times a real gain, without a complex copy of the gain
         spec = np.empty(gain.shape, dtype=np.complex128)
         np.multiply(gain, self.spectrum.real, out=spec.real)
         np.multiply(gain, self.spectrum.imag, out=spec.imag)
         return np.fft.irfft(spec, n=self.n, axis=1)
 
-    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
-                    gauss_var: FloatArray) -> None:
-        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
-        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
-        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``: beyond, the product is below
-        1e-20 and set to 0. That leaves a partly Gaussian row a few per cent of its columns."""
-        k_all = self.freqs2.size
-        freqs = np.sqrt(self.freqs2)
+    def _disc_cutoff(self, gauss_var: FloatArray) -> npt.NDArray[np.intp]:
+        """Per defocus row (its Gaussian part of variance ``gauss_var``), the first column
+        where that part is below ``e^-GAUSS_CUTOFF`` (the number of columns when none)."""
         with np.errstate(divide="ignore"):
             limit = np.where(gauss_var > 0, GAUSS_CUTOFF / (2.0 * math.pi**2 * gauss_var),
                              np.inf)
-        cols = np.searchsorted(self.freqs2, limit, side="right")
+        return np.searchsorted(self.freqs2, limit, side="right")
+
+    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
+                    gauss_var: FloatArray, cols: npt.NDArray[np.intp]) -> None:
+        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
+        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
+        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``, before the row's ``cols``
+        (:meth:`_disc_cutoff`): beyond, the product is below 1e-20 and 0 (:func:`gaussian_gain`
+        left it 0 there). That leaves a partly Gaussian row a few per cent of its columns. A
+        row without Gaussian part is assigned the disc's gain (its Gaussian gain, 1, was not
+        tabulated)."""
+        k_all = self.freqs2.size
+        freqs = self.freqs
         whole = cols >= k_all
         if whole.any():
-            # a row without Gaussian part has a gain of exactly 1 (:func:`gaussian_gain`): its
-            # product with the disc's gain is that gain, unmultiplied
+            # a row without Gaussian part has a gain of exactly 1: its product with the disc's
+            # gain is that gain, unmultiplied
             pure = whole & (gauss_var == 0.0)
             mixed = whole & ~pure
             if pure.any():
@@ -318,8 +338,6 @@ class _Blurred:
             col = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
             at = (rows[part][row_of], col)
             gain[at] *= jinc((2.0 * math.pi) * radius[part][row_of] * freqs[col])
-            for r, k in zip(rows[part], counts, strict=True):
-                gain[r, k:] = 0.0
 
     def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
         """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
