@@ -65,7 +65,10 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -155,6 +158,13 @@ GAUSS_CUTOFF = 46.0
 #: ``exp(x)`` is exactly 0 in float64 below x = -745.2; columns whose exponent is below this
 #: (a margin for the rounding of the limit) are left at 0 without being evaluated.
 EXP_UNDERFLOW = -750.0
+#: The patterns of recent fits tabulated at their pixels are kept (at most this many bytes,
+#: the least recently used dropped first; a set's entry above the second figure not kept) for
+#: a fit at the same geometry: a set imaged at the setup its chart reading used
+#: (:func:`benchlab.analysis.chart.threebar.predict_reading`, read with ``reuse_tabulation``)
+#: skips the tabulation, about half of the fit of a small set.
+TABULATION_CACHE_BYTES = 4 << 20
+TABULATION_ENTRY_MAX_BYTES = 512 << 10
 
 
 def three_bar_pattern(
@@ -440,6 +450,99 @@ def _solve_batch(
 
 
 @dataclass(frozen=True)
+class _Tabulation:
+    """A set's patterns tabulated and read at its pixels (what the first fit takes from the
+    tables): the tabulations across and along the bars, the per-blur columns (blurs, 2,
+    pixels; :attr:`_FitState.sp_pix`), the pattern at the probes (bar centre, spaces), and the
+    along-bar pattern at the pixels and at the middle (None: the bar ends out of reach).
+    Read-only once kept: fits share it."""
+
+    across: _Blurred
+    along: _Blurred | None
+    sp_pix: FloatArray
+    p_probe: FloatArray
+    along_samples: tuple[FloatArray, FloatArray] | None
+
+    @property
+    def arrays(self) -> list[npt.NDArray[Any]]:
+        out: list[npt.NDArray[Any]] = [self.sp_pix, self.p_probe]
+        out += list(self.along_samples or ())
+        for b in (self.across, self.along):
+            if b is not None:
+                out += [b.spectrum, b.freqs2, b.freqs, b.idx, b.frac]
+        return out
+
+    @property
+    def nbytes(self) -> int:
+        return sum(int(a.nbytes) for a in self.arrays)
+
+
+class _Tabulations:
+    """A bounded store of :class:`_Tabulation` by the exact inputs of the tabulation (least
+    recently used dropped first; thread-safe: the chart reading reads sets on threads)."""
+
+    def __init__(self, max_bytes: int, entry_max_bytes: int) -> None:
+        self.max_bytes, self.entry_max_bytes = max_bytes, entry_max_bytes
+        self._entries: OrderedDict[tuple[object, ...], tuple[_Tabulation, int]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple[object, ...]) -> _Tabulation | None:
+        with self._lock:
+            hit = self._entries.get(key)
+            if hit is None:
+                return None
+            self._entries.move_to_end(key)
+            return hit[0]
+
+    def put(self, key: tuple[object, ...], tab: _Tabulation) -> None:
+        size = tab.nbytes + sum(len(k) for k in key if isinstance(k, bytes))
+        if size > min(self.entry_max_bytes, self.max_bytes):
+            return
+        for a in tab.arrays:
+            a.flags.writeable = False
+        with self._lock:
+            old = self._entries.pop(key, None)
+            if old is not None:
+                self._bytes -= old[1]
+            self._entries[key] = (tab, size)
+            self._bytes += size
+            while self._bytes > self.max_bytes:
+                _, (_, dropped) = self._entries.popitem(last=False)
+                self._bytes -= dropped
+
+    def clear(self) -> None:
+        with self._lock:
+            self._entries.clear()
+            self._bytes = 0
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held (the entries' arrays and keys)."""
+        return self._bytes
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+
+_TABULATIONS = _Tabulations(TABULATION_CACHE_BYTES, TABULATION_ENTRY_MAX_BYTES)
+
+
+def clear_tabulations() -> None:
+    """Drop the kept tabulations (:data:`TABULATION_CACHE_BYTES`)."""
+    _TABULATIONS.clear()
+
+
+def _tabulation_key(u: FloatArray, v: FloatArray, bar_width_px: float, theta: float
+                    ) -> tuple[object, ...]:
+    """Every input of a set's tabulation at its pixels: the pixels' coordinates (exactly),
+    the bar width and angle, and the constants of the blur family and grid."""
+    return (bar_width_px, theta, u.tobytes(), v.tobytes(), SIGMA_GRID, DISC_SHARES,
+            DISC_SIGMA_GRID, DISC_MIN_SIGMA_PX, MAX_SIGMA_WIDTHS, MAX_SIGMA_BOUNDS_PX,
+            GRID_STEP_PX, MAX_GRID_POINTS, GAUSS_CUTOFF, EXP_UNDERFLOW)
+
+
+@dataclass(frozen=True)
 class ThreeBarReading:
     """:func:`fit_three_bars`'s answer: the reading, and the across-bar blur behind it.
 
@@ -546,6 +649,7 @@ def fit_three_bars(
     shift_prior_px: float = SHIFT_PRIOR_PX,
     dark_bars: bool | None = None,
     noise_floor: float = 0.0,
+    reuse_tabulation: bool = False,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow.
 
@@ -553,7 +657,13 @@ def fit_three_bars(
     it is taken as at least the codes' rounding. A noise-free image (e.g. a set imaged through
     a measured transfer: :mod:`benchlab.analysis.chart.threebar`) read with the noise of the
     frame it stands for weighs its blurs against a blur prior as that frame's reading did;
-    without it, its chi-square would rest on the model's numerical misfit alone."""
+    without it, its chi-square would rest on the model's numerical misfit alone.
+
+    ``reuse_tabulation``: the blurred patterns at the pixels are taken from a recent fit at the
+    same geometry (the same pixel coordinates, bar width and angle) where one is kept
+    (:data:`TABULATION_CACHE_BYTES`): the same computation from the same inputs, so the same
+    reading; e.g. a set imaged at the setup its chart reading read it with. Every fit keeps
+    its own for such a later fit."""
     try:
         bar_width_px, theta_deg = float(bar_width_px), float(theta_deg)
         row, col = (float(v) for v in centre_rc)
@@ -610,8 +720,10 @@ def fit_three_bars(
         return ThreeBarReading(honest_reading(prep, r) if noise_floor == 0.0 else r)
     base = np.stack(base_cols, axis=1)
     quantum_sd = max(prep.quantisation_sd, float(noise_floor))
+    key = _tabulation_key(u, v, bar_width_px, theta)
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
-                      warnings, dark_bars=dark_bars, noise_floor=noise_floor)
+                      warnings, dark_bars=dark_bars, noise_floor=noise_floor,
+                      tabulations=_TABULATIONS, tabulation_key=key, look_up=reuse_tabulation)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a
     # second-order bias (0.012 at 0.06 px on 2.3 px periods), so a fitted shift is applied to
     # the coordinates and the fit repeated once.
@@ -636,14 +748,17 @@ class _FitState:
         self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
         theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
         warnings: list[str], reuse: _FitState | None = None, dark_bars: bool | None = None,
-        noise_floor: float = 0.0,
+        noise_floor: float = 0.0, tabulations: _Tabulations | None = None,
+        tabulation_key: tuple[object, ...] = (), look_up: bool = False,
     ) -> None:
         """``reuse``: a state of the same set at other ``u`` (a shift applied), whose tabulated
         patterns serve again (the grid reaches several px beyond any shift); ``noise_floor``:
-        the least noise the priors' scale assumes (:func:`fit_three_bars`)."""
+        the least noise the priors' scale assumes (:func:`fit_three_bars`); ``tabulations``:
+        where the patterns at the pixels are kept (by ``tabulation_key``, every input of the
+        tabulation), and first looked up given ``look_up``; without ``reuse``."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
         # a refit at other u shares the data and base columns (and their products)
-        self.normal = (reuse.normal if reuse is not None and reuse.base is base
+        self.normal: _Normal = (reuse.normal if reuse is not None and reuse.base is base
                        and reuse.y is y else _Normal.of(base, y))
         self.dark_bars = dark_bars
         #: The ROI, for :func:`~benchlab.analysis.bars.extremes.honest_reading` (None: a
@@ -653,18 +768,6 @@ class _FitState:
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
                         MAX_SIGMA_BOUNDS_PX[1])
-        if reuse is None:
-            self.across = _Blurred(
-                u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta, max_sigma)
-            # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
-            # when the ROI comes within their reach (the ROI trims the ends by a fraction of a
-            # px)
-            foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
-            near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
-            self.along = (_Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends
-                          else None)
-        else:
-            self.across, self.along = reuse.across.moved(u), reuse.along
         self.sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
         # across the bars the family holds defocus too: the disc's share of the PSF's variance
         # at DISC_SHARES, each on a coarser grid of the equivalent sigma (rows after the
@@ -679,31 +782,40 @@ class _FitState:
             share_rows.append(np.full(coarse_sigmas.size, share))
             self.groups.append((start, start + coarse_sigmas.size))
         self.sig_all, self.share_all = np.concatenate(sig_rows), np.concatenate(share_rows)
-        t_across = (reuse.t_across if reuse is not None and reuse.t_across is not None
-                    else self.across.tables(self.sig_all, self.share_all))
-        self.t_across: FloatArray | None = t_across
-        p_pix, s_pix = self.across.sample_and_slope(t_across)
+        self.t_across: FloatArray | None = None
+        self.t_along: FloatArray | None = None
+        self.across: _Blurred
+        self.along: _Blurred | None
+        if reuse is not None:
+            # the same tables (and, along the bars, the same v), read at the shifted u
+            self.across, self.along = reuse.across.moved(u), reuse.along
+            t_across = (reuse.t_across if reuse.t_across is not None
+                        else self.across.tables(self.sig_all, self.share_all))
+            self.t_across = t_across
+            p_pix, s_pix = self.across.sample_and_slope(t_across)
+            sp_pix = np.stack([s_pix, p_pix], axis=1)
+            p_probe = reuse.p_probe
+            along_samples = reuse.along_samples
+        else:
+            hit = (tabulations.get(tabulation_key) if tabulations is not None and look_up
+                   else None)
+            if hit is None:
+                hit = self._tabulate(u, v, theta, max_sigma)
+                if tabulations is not None:
+                    tabulations.put(tabulation_key, hit)
+            self.across, self.along = hit.across, hit.along
+            sp_pix, p_probe, along_samples = hit.sp_pix, hit.p_probe, hit.along_samples
         #: The per-blur columns of the fits, (blurs, 2, pixels): the pattern's slope (the
         #: shift) and the pattern (the bar depth); :attr:`s_pix` and :attr:`p_pix` views of it.
-        self.sp_pix = np.stack([s_pix, p_pix], axis=1)
-        self.s_pix, self.p_pix = self.sp_pix[:, 0], self.sp_pix[:, 1]
-        del p_pix, s_pix
-        self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
-        self.t_along: FloatArray | None = reuse.t_along if reuse is not None else (
-            self.along.tables(self.sigmas) if self.along is not None else None)
-        # the bar ends at the pixels (None: out of reach, a factor of 1) and at the middle
+        self.sp_pix = sp_pix
+        self.s_pix, self.p_pix = sp_pix[:, 0], sp_pix[:, 1]
+        self.p_probe: FloatArray = p_probe
+        #: The along-bar tables at the pixels and at the middle (None: the bar ends out of
+        #: reach, a factor of 1).
+        self.along_samples: tuple[FloatArray, FloatArray] | None = along_samples
         a_pix: FloatArray | None
-        if self.along is not None and self.t_along is not None:
-            if reuse is not None and reuse.along_samples is not None:
-                a_pix, a_mid = reuse.along_samples  # the same tables at the same v
-            else:
-                a_pix = self.along.sample(self.t_along)
-                a_mid = self.along.sample(self.t_along, np.zeros(1))[:, 0]
-        else:
-            a_pix, a_mid = None, np.ones(self.sigmas.size)
-        #: What :attr:`t_along` gives at the pixels and at the middle (for a refit; released
-        #: with the tables).
-        self.along_samples = None if a_pix is None else (a_pix, a_mid)
+        a_pix, a_mid = along_samples if along_samples is not None else (
+            None, np.ones(self.sigmas.size))
         every = np.arange(self.sigmas.size)
         # the priors' scale: a free fit on a coarse blur grid gives noise, ground and depth
         coarse = every[::4]
@@ -755,6 +867,30 @@ class _FitState:
                 self._score(quantum_sd)
         self.misfit_rms = self._misfit(self.best_row, u, None if a_pix is None else a_pix[i_v],
                                        quantum_sd)
+
+    def _tabulate(self, u: FloatArray, v: FloatArray, theta: float, max_sigma: float
+                  ) -> _Tabulation:
+        """The patterns across (every row of :attr:`sig_all`) and along the bars (the
+        Gaussian rows) tabulated and read at the pixels; the table across kept as
+        :attr:`t_across` for a refit."""
+        w = self.w
+        across = _Blurred(
+            u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta, max_sigma)
+        # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
+        # when the ROI comes within their reach (the ROI trims the ends by a fraction of a px)
+        foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
+        near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
+        along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
+        t_across = across.tables(self.sig_all, self.share_all)
+        self.t_across = t_across
+        p_pix, s_pix = across.sample_and_slope(t_across)
+        p_probe = across.sample(t_across, np.array([0.0, -w, w]))
+        along_samples = None
+        if along is not None:
+            t_along = along.tables(self.sigmas)
+            along_samples = (along.sample(t_along), along.sample(t_along, np.zeros(1))[:, 0])
+        return _Tabulation(across, along, np.stack([s_pix, p_pix], axis=1), p_probe,
+                           along_samples)
 
     def _score(self, quantum_sd: float) -> None:
         """Noise, chi-square scale, allowed blurs and the best row of :attr:`fits`."""

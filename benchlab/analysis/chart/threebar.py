@@ -329,9 +329,11 @@ def predict_reading(setup: ReadingSetup, across: Transfer, along: Transfer, *,
         ground = 1.0 + contrast if setup.ground_level is None else setup.ground_level
         bars = ground / ratio
     image, eq29 = _render(setup, across, along, ground=ground, bars=bars)
+    # at the chart reading's geometry: its tabulated patterns serve again where still kept
     reading = fit_three_bars(image, centre_rc=setup.centre_in_roi,
                              bar_width_px=setup.bar_width_px, theta_deg=setup.theta_deg,
-                             dark_bars=setup.dark_bars, noise_floor=setup.noise_sigma)
+                             dark_bars=setup.dark_bars, noise_floor=setup.noise_sigma,
+                             reuse_tabulation=True)
     if setup.blur_prior_px is not None:
         reading = reading.with_blur_prior(setup.blur_prior_px)
     return Prediction(reading, image, eq29)
