@@ -954,13 +954,17 @@ class _FitState:
         probe = self.p_probe[i_u] * a_mid[i_v][:, None]
         # the columns times the bar ends' factor, each product as ``s_pix[i_u] * a_pix[i_v]``
         # (a blur repeated over every fit broadcast instead of gathered: the same products)
+        one_v = bool(np.all(i_v == i_v[0]))
+        every_u = np.array_equal(i_u, np.arange(self.sp_pix.shape[0]))
         if a_pix is None:
-            cols = self.sp_pix[i_u]
-        elif np.all(i_u == i_u[0]) and not np.all(i_v == i_v[0]):
+            cols = self.sp_pix if every_u else self.sp_pix[i_u]  # read, never written
+        elif np.all(i_u == i_u[0]) and not one_v:
             cols = self.sp_pix[i_u[0]] * a_pix[i_v][:, None, :]
+        elif one_v and every_u:
+            cols = self.sp_pix * a_pix[i_v[0]]  # every row: no gathered copy first
         else:
             cols = self.sp_pix[i_u]
-            cols *= a_pix[i_v[0]] if np.all(i_v == i_v[0]) else a_pix[i_v][:, None, :]
+            cols *= a_pix[i_v[0]] if one_v else a_pix[i_v][:, None, :]
         return _solve_batch(self.normal, cols, ridge, probe[:, 0],
                             0.5 * (probe[:, 1] + probe[:, 2]))
 
