@@ -57,8 +57,14 @@ Pixels at the saturation code are censored: they are left out of the fit (the mo
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
 is not significant above the noise, is "not resolved" with the reason.
 
-Why one module of ~860 lines: the model, its linear solve, the blur search and the interval share
-one design matrix and its cached columns, and none of them is used apart from the others.
+The blurred patterns tabulated at a set's pixels are kept a while (bounded:
+:data:`TABULATION_CACHE_BYTES`) for a later fit at the same geometry that asks for them
+(``reuse_tabulation``: a set imaged through a measured transfer at the setup its chart reading
+used, :func:`benchlab.analysis.chart.threebar.predict_reading`): the same computation from the
+same inputs, skipped.
+
+Why one module of ~1100 lines: the model, its linear solve, the blur search and the interval
+share one design matrix and its cached columns, and none of them is used apart from the others.
 """
 
 from __future__ import annotations
