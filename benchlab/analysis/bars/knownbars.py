@@ -765,7 +765,7 @@ class _FitState:
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
         # a refit at other u shares the data and base columns (and their products)
         self.normal: _Normal = (reuse.normal if reuse is not None and reuse.base is base
-                       and reuse.y is y else _Normal.of(base, y))
+                                and reuse.y is y else _Normal.of(base, y))
         self.dark_bars = dark_bars
         #: The ROI, for :func:`~benchlab.analysis.bars.extremes.honest_reading` (None: a
         #: noise-free stand-in read with a noise floor, whose extremes are not its frame's).

@@ -27,7 +27,8 @@ estimator that read the bars:
 3. **Read** (:func:`predict_reading`) by :func:`benchlab.analysis.bars.knownbars.fit_three_bars` at
    the setup the real set was read with (:class:`ReadingSetup`: ROI, centre, bar width and
    angle, polarity; the same pixels, so the patterns that reading tabulated serve again where
-   still kept: ``reuse_tabulation``), then, where the chart reading gave the real set a blur prior from the
+   still kept: ``reuse_tabulation``), then, where the chart reading gave the real set a blur
+   prior from the
    chart's other sets (:func:`benchlab.analysis.chart.reading.read_chart_details`), concluded
    under that prior (:meth:`benchlab.analysis.bars.knownbars.ThreeBarReading.with_blur_prior`): the
    chart reading's own path for that set. The image is noise-free, but read with the real
