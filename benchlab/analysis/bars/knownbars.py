@@ -57,15 +57,24 @@ Pixels at the saturation code are censored: they are left out of the fit (the mo
 level beyond the top code), with a warning; a set with too few pixels left, or whose bar depth
 is not significant above the noise, is "not resolved" with the reason.
 
-Why one module of ~860 lines: the model, its linear solve, the blur search and the interval share
-one design matrix and its cached columns, and none of them is used apart from the others.
+The blurred patterns tabulated at a set's pixels are kept a while (bounded:
+:data:`TABULATION_CACHE_BYTES`) for a later fit at the same geometry that asks for them
+(``reuse_tabulation``: a set imaged through a measured transfer at the setup its chart reading
+used, :func:`benchlab.analysis.chart.threebar.predict_reading`): the same computation from the
+same inputs, skipped.
+
+Why one module of ~1100 lines: the model, its linear solve, the blur search and the interval
+share one design matrix and its cached columns, and none of them is used apart from the others.
 """
 
 from __future__ import annotations
 
 import copy
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -155,6 +164,13 @@ GAUSS_CUTOFF = 46.0
 #: ``exp(x)`` is exactly 0 in float64 below x = -745.2; columns whose exponent is below this
 #: (a margin for the rounding of the limit) are left at 0 without being evaluated.
 EXP_UNDERFLOW = -750.0
+#: The patterns of recent fits tabulated at their pixels are kept (at most this many bytes,
+#: the least recently used dropped first; a set's entry above the second figure not kept) for
+#: a fit at the same geometry: a set imaged at the setup its chart reading used
+#: (:func:`benchlab.analysis.chart.threebar.predict_reading`, read with ``reuse_tabulation``)
+#: skips the tabulation, about half of the fit of a small set.
+TABULATION_CACHE_BYTES = 4 << 20
+TABULATION_ENTRY_MAX_BYTES = 512 << 10
 
 
 def three_bar_pattern(
@@ -214,15 +230,24 @@ def disc_gain(radius_px: npt.ArrayLike, freqs_cycles_per_px: npt.ArrayLike) -> F
     return jinc(x)
 
 
-def gaussian_gain(rates: FloatArray, freqs2: FloatArray) -> FloatArray:
-    """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending), bit for bit, without
-    evaluating the exponentials that underflow to 0: a wide Gaussian's gain vanishes after a
-    small share of the columns, and the exponentials were most of a tabulation's cost."""
+def gaussian_gain(rates: FloatArray, freqs2: FloatArray,
+                  stop: npt.NDArray[np.intp] | None = None) -> FloatArray:
+    """``exp(outer(rates, freqs2))`` (rates <= 0, ``freqs2`` ascending and finite), bit for
+    bit, without evaluating the exponentials that underflow to 0 (a wide Gaussian's gain
+    vanishes after a small share of the columns) nor those of a rate of 0 (``exp(+-0) == 1``
+    exactly: the sharp row and every pure-disc row, whose Gaussian part has no variance): the
+    exponentials were most of a tabulation's cost. ``stop`` (per row): the columns from which
+    the caller needs no value, left 0 (a defocus row's beyond its Gaussian cutoff)."""
     gain = np.zeros((rates.size, freqs2.size))
     with np.errstate(divide="ignore"):
         limit = np.where(rates < 0, EXP_UNDERFLOW / np.where(rates < 0, rates, -1.0), np.inf)
     cols = np.searchsorted(freqs2, limit, side="right")
+    if stop is not None:
+        cols = np.minimum(cols, stop)
     for row, (rate, k) in enumerate(zip(rates, cols, strict=True)):
+        if rate == 0.0:
+            gain[row, :k] = 1.0
+            continue
         # the same products and exponentials as the whole outer product, on the columns before
         # the underflow (each a contiguous run, so numpy's vector loop computes them alike)
         np.exp(rate * freqs2[:k], out=gain[row, :k])
@@ -252,6 +277,8 @@ class _Blurred:
         self.spectrum = np.fft.rfft(sharp)
         freqs = np.fft.rfftfreq(n, self.step)
         self.freqs2 = freqs * freqs
+        # the defocus gain's frequencies, as sqrt(freqs2) (not always freqs to the last bit)
+        self.freqs = np.sqrt(self.freqs2)
         self.n = n
         self.idx, self.frac = self._weights(pos)
 
@@ -273,32 +300,53 @@ class _Blurred:
         share = (np.zeros_like(sigmas) if disc_shares is None
                  else np.asarray(disc_shares, dtype=np.float64))
         gauss_var = sigmas * sigmas * (1.0 - share)
-        gain = gaussian_gain((-2.0 * math.pi**2) * gauss_var, self.freqs2)
         disc = np.flatnonzero(share > 0)
+        stop = None
+        if disc.size:
+            # a defocus row's gain is needed only up to its Gaussian cutoff (0 beyond), a pure
+            # disc's not at all (the disc's gain alone)
+            disc_cols = self._disc_cutoff(gauss_var[disc])
+            stop = np.full(sigmas.size, self.freqs2.size)
+            stop[disc] = np.where(gauss_var[disc] == 0.0, 0, disc_cols)
+        gain = gaussian_gain((-2.0 * math.pi**2) * gauss_var, self.freqs2, stop)
         if disc.size:
             self._apply_disc(gain, disc, 2.0 * sigmas[disc] * np.sqrt(share[disc]),
-                             gauss_var[disc])
+                             gauss_var[disc], disc_cols)
         # the spectrum times a real gain, without a complex copy of the gain
         spec = np.empty(gain.shape, dtype=np.complex128)
         np.multiply(gain, self.spectrum.real, out=spec.real)
         np.multiply(gain, self.spectrum.imag, out=spec.imag)
         return np.fft.irfft(spec, n=self.n, axis=1)
 
-    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
-                    gauss_var: FloatArray) -> None:
-        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
-        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
-        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``: beyond, the product is below
-        1e-20 and set to 0. That leaves a partly Gaussian row a few per cent of its columns."""
-        k_all = self.freqs2.size
-        freqs = np.sqrt(self.freqs2)
+    def _disc_cutoff(self, gauss_var: FloatArray) -> npt.NDArray[np.intp]:
+        """Per defocus row (its Gaussian part of variance ``gauss_var``), the first column
+        where that part is below ``e^-GAUSS_CUTOFF`` (the number of columns when none)."""
         with np.errstate(divide="ignore"):
             limit = np.where(gauss_var > 0, GAUSS_CUTOFF / (2.0 * math.pi**2 * gauss_var),
                              np.inf)
-        cols = np.searchsorted(self.freqs2, limit, side="right")
+        return np.searchsorted(self.freqs2, limit, side="right")
+
+    def _apply_disc(self, gain: FloatArray, rows: npt.NDArray[np.intp], radius: FloatArray,
+                    gauss_var: FloatArray, cols: npt.NDArray[np.intp]) -> None:
+        """Multiply ``gain``'s ``rows`` by a uniform disc's gain (:func:`disc_gain`; its line
+        spread has a variance of ``R^2 / 4``), in place. Only where the row's Gaussian part
+        (of variance ``gauss_var``) is above ``e^-GAUSS_CUTOFF``, before the row's ``cols``
+        (:meth:`_disc_cutoff`): beyond, the product is below 1e-20 and 0 (:func:`gaussian_gain`
+        left it 0 there). That leaves a partly Gaussian row a few per cent of its columns. A
+        row without Gaussian part is assigned the disc's gain (its Gaussian gain, 1, was not
+        tabulated)."""
+        k_all = self.freqs2.size
+        freqs = self.freqs
         whole = cols >= k_all
         if whole.any():
-            gain[rows[whole]] *= jinc((2.0 * math.pi) * np.outer(radius[whole], freqs))
+            # a row without Gaussian part has a gain of exactly 1: its product with the disc's
+            # gain is that gain, unmultiplied
+            pure = whole & (gauss_var == 0.0)
+            mixed = whole & ~pure
+            if pure.any():
+                gain[rows[pure]] = jinc((2.0 * math.pi) * np.outer(radius[pure], freqs))
+            if mixed.any():
+                gain[rows[mixed]] *= jinc((2.0 * math.pi) * np.outer(radius[mixed], freqs))
         part = np.flatnonzero(~whole)
         if part.size:
             counts = cols[part]
@@ -306,8 +354,6 @@ class _Blurred:
             col = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
             at = (rows[part][row_of], col)
             gain[at] *= jinc((2.0 * math.pi) * radius[part][row_of] * freqs[col])
-            for r, k in zip(rows[part], counts, strict=True):
-                gain[r, k:] = 0.0
 
     def sample(self, tables: FloatArray, pos: FloatArray | None = None) -> FloatArray:
         """Each table's pattern at ``pos`` (default the pixels'): (blurs, positions)."""
@@ -352,20 +398,35 @@ class _Batch:
             return np.where(total > 0, sign * (space - bar) / total, np.nan)
 
 
+@dataclass(frozen=True)
+class _Normal:
+    """The data ``y`` (n,), the base columns (n, kb) and the products of the two that every
+    batch of fits of a set shares (computed once: the same products each time)."""
+
+    base: FloatArray
+    y: FloatArray
+    gram: FloatArray
+    rhs: FloatArray
+
+    @classmethod
+    def of(cls, base: FloatArray, y: FloatArray) -> _Normal:
+        return cls(base, y, base.T @ base, base.T @ y)
+
+
 def _solve_batch(
-    base: FloatArray, extra: list[FloatArray], y: FloatArray, ridge: FloatArray | None,
-    p_bar: FloatArray, p_space: FloatArray,
+    normal: _Normal, cols: FloatArray, ridge: FloatArray | None, p_bar: FloatArray,
+    p_space: FloatArray,
 ) -> _Batch:
-    """Least squares of ``y`` on the ``base`` columns (n, kb) plus, per blur, the ``extra``
-    columns (each (m, n)); ``ridge``: prior precision per coefficient in units of the noise
+    """Least squares of ``normal.y`` on the base columns (n, kb) plus, per blur, the columns
+    ``cols`` (m, ke, n); ``ridge``: prior precision per coefficient in units of the noise
     variance (0 = free)."""
-    m = extra[0].shape[0]
+    base, y = normal.base, normal.y
+    m, ke = cols.shape[:2]
     kb = base.shape[1]
-    k = kb + len(extra)
-    cols = np.stack(extra, axis=1)  # (m, ke, n): the per-blur columns
+    k = kb + ke
     # the normal matrices by blocks: the base columns' block is the same for every blur
     gram = np.empty((m, k, k))
-    gram[:, :kb, :kb] = base.T @ base
+    gram[:, :kb, :kb] = normal.gram
     cross = cols @ base  # (m, ke, kb)
     gram[:, kb:, :kb] = cross
     gram[:, :kb, kb:] = cross.transpose(0, 2, 1)
@@ -377,15 +438,114 @@ def _solve_batch(
     except np.linalg.LinAlgError:
         inv = np.linalg.pinv(gram)
     rhs = np.empty((m, k))
-    rhs[:, :kb] = base.T @ y
+    rhs[:, :kb] = normal.rhs
     rhs[:, kb:] = cols @ y
     coef = (inv @ rhs[:, :, None])[:, :, 0]
-    fitted = coef[:, :kb] @ base.T + (coef[:, kb:, None] * cols).sum(axis=1)
-    resid = y[None, :] - fitted
+    # the per-blur columns' part summed first (in column order), then added to the base
+    # columns' part, as ``base_part + (coef * cols).sum(axis=1)``; in place
+    part = cols[:, 0] * coef[:, kb, None]
+    for j in range(1, ke):
+        part += cols[:, j] * coef[:, kb + j, None]
+    resid = coef[:, :kb] @ base.T
+    resid += part
+    np.subtract(y[None, :], resid, out=resid)
     rss = np.einsum("mn,mn->m", resid, resid)
     penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
     return _Batch(np.asarray(coef, dtype=np.float64), rss + penalty, penalty,
                   np.asarray(inv, dtype=np.float64), p_bar, p_space)
+
+
+@dataclass(frozen=True)
+class _Tabulation:
+    """A set's patterns tabulated and read at its pixels (what the first fit takes from the
+    tables): the tabulations across and along the bars, the per-blur columns (blurs, 2,
+    pixels; :attr:`_FitState.sp_pix`), the pattern at the probes (bar centre, spaces), and the
+    along-bar pattern at the pixels and at the middle (None: the bar ends out of reach).
+    Read-only once kept: fits share it."""
+
+    across: _Blurred
+    along: _Blurred | None
+    sp_pix: FloatArray
+    p_probe: FloatArray
+    along_samples: tuple[FloatArray, FloatArray] | None
+
+    @property
+    def arrays(self) -> list[npt.NDArray[Any]]:
+        out: list[npt.NDArray[Any]] = [self.sp_pix, self.p_probe]
+        out += list(self.along_samples or ())
+        for b in (self.across, self.along):
+            if b is not None:
+                out += [b.spectrum, b.freqs2, b.freqs, b.idx, b.frac]
+        return out
+
+    @property
+    def nbytes(self) -> int:
+        return sum(int(a.nbytes) for a in self.arrays)
+
+
+class _Tabulations:
+    """A bounded store of :class:`_Tabulation` by the exact inputs of the tabulation (least
+    recently used dropped first; thread-safe: the chart reading reads sets on threads)."""
+
+    def __init__(self, max_bytes: int, entry_max_bytes: int) -> None:
+        self.max_bytes, self.entry_max_bytes = max_bytes, entry_max_bytes
+        self._entries: OrderedDict[tuple[object, ...], tuple[_Tabulation, int]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple[object, ...]) -> _Tabulation | None:
+        with self._lock:
+            hit = self._entries.get(key)
+            if hit is None:
+                return None
+            self._entries.move_to_end(key)
+            return hit[0]
+
+    def put(self, key: tuple[object, ...], tab: _Tabulation) -> None:
+        size = tab.nbytes + sum(len(k) for k in key if isinstance(k, bytes))
+        if size > min(self.entry_max_bytes, self.max_bytes):
+            return
+        for a in tab.arrays:
+            a.flags.writeable = False
+        with self._lock:
+            old = self._entries.pop(key, None)
+            if old is not None:
+                self._bytes -= old[1]
+            self._entries[key] = (tab, size)
+            self._bytes += size
+            while self._bytes > self.max_bytes:
+                _, (_, dropped) = self._entries.popitem(last=False)
+                self._bytes -= dropped
+
+    def clear(self) -> None:
+        with self._lock:
+            self._entries.clear()
+            self._bytes = 0
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held (the entries' arrays and keys)."""
+        return self._bytes
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+
+_TABULATIONS = _Tabulations(TABULATION_CACHE_BYTES, TABULATION_ENTRY_MAX_BYTES)
+
+
+def clear_tabulations() -> None:
+    """Drop the kept tabulations (:data:`TABULATION_CACHE_BYTES`)."""
+    _TABULATIONS.clear()
+
+
+def _tabulation_key(u: FloatArray, v: FloatArray, bar_width_px: float, theta: float
+                    ) -> tuple[object, ...]:
+    """Every input of a set's tabulation at its pixels: the pixels' coordinates (exactly),
+    the bar width and angle, and the constants of the blur family and grid."""
+    return (bar_width_px, theta, u.tobytes(), v.tobytes(), SIGMA_GRID, DISC_SHARES,
+            DISC_SIGMA_GRID, DISC_MIN_SIGMA_PX, MAX_SIGMA_WIDTHS, MAX_SIGMA_BOUNDS_PX,
+            GRID_STEP_PX, MAX_GRID_POINTS, GAUSS_CUTOFF, EXP_UNDERFLOW)
 
 
 @dataclass(frozen=True)
@@ -495,6 +655,7 @@ def fit_three_bars(
     shift_prior_px: float = SHIFT_PRIOR_PX,
     dark_bars: bool | None = None,
     noise_floor: float = 0.0,
+    reuse_tabulation: bool = False,
 ) -> ThreeBarReading:
     """:func:`read_three_bars` with the blur it used and the blurs the pixels allow.
 
@@ -502,7 +663,13 @@ def fit_three_bars(
     it is taken as at least the codes' rounding. A noise-free image (e.g. a set imaged through
     a measured transfer: :mod:`benchlab.analysis.chart.threebar`) read with the noise of the
     frame it stands for weighs its blurs against a blur prior as that frame's reading did;
-    without it, its chi-square would rest on the model's numerical misfit alone."""
+    without it, its chi-square would rest on the model's numerical misfit alone.
+
+    ``reuse_tabulation``: the blurred patterns at the pixels are taken from a recent fit at the
+    same geometry (the same pixel coordinates, bar width and angle) where one is kept
+    (:data:`TABULATION_CACHE_BYTES`): the same computation from the same inputs, so the same
+    reading; e.g. a set imaged at the setup its chart reading read it with. Every fit keeps
+    its own for such a later fit."""
     try:
         bar_width_px, theta_deg = float(bar_width_px), float(theta_deg)
         row, col = (float(v) for v in centre_rc)
@@ -559,8 +726,10 @@ def fit_three_bars(
         return ThreeBarReading(honest_reading(prep, r) if noise_floor == 0.0 else r)
     base = np.stack(base_cols, axis=1)
     quantum_sd = max(prep.quantisation_sd, float(noise_floor))
+    key = _tabulation_key(u, v, bar_width_px, theta)
     state = _FitState(base, u, v, y, bar_width_px, theta, shift_prior_px, quantum_sd, diag,
-                      warnings, dark_bars=dark_bars, noise_floor=noise_floor)
+                      warnings, dark_bars=dark_bars, noise_floor=noise_floor,
+                      tabulations=_TABULATIONS, tabulation_key=key, look_up=reuse_tabulation)
     # The shift column is a first-order term: a shift of a few hundredths of a px leaves a
     # second-order bias (0.012 at 0.06 px on 2.3 px periods), so a fitted shift is applied to
     # the coordinates and the fit repeated once.
@@ -572,6 +741,7 @@ def fit_three_bars(
     # The tabulated patterns (MBs per set) served only the fits; the reading keeps the state
     # for a later blur prior, which needs the fits alone.
     state.t_across = state.t_along = state.t_along_shape = None
+    state.along_samples = None
     state.prep = prep if noise_floor == 0.0 else None
     return state.conclude(blur_prior_px)
 
@@ -584,12 +754,18 @@ class _FitState:
         self, base: FloatArray, u: FloatArray, v: FloatArray, y: FloatArray, w: float,
         theta: float, shift_prior_px: float, quantum_sd: float, diag: Diagnostics,
         warnings: list[str], reuse: _FitState | None = None, dark_bars: bool | None = None,
-        noise_floor: float = 0.0,
+        noise_floor: float = 0.0, tabulations: _Tabulations | None = None,
+        tabulation_key: tuple[object, ...] = (), look_up: bool = False,
     ) -> None:
         """``reuse``: a state of the same set at other ``u`` (a shift applied), whose tabulated
         patterns serve again (the grid reaches several px beyond any shift); ``noise_floor``:
-        the least noise the priors' scale assumes (:func:`fit_three_bars`)."""
+        the least noise the priors' scale assumes (:func:`fit_three_bars`); ``tabulations``:
+        where the patterns at the pixels are kept (by ``tabulation_key``, every input of the
+        tabulation), and first looked up given ``look_up``; without ``reuse``."""
         self.base, self.y, self.w, self.diag, self.warnings = base, y, w, diag, warnings
+        # a refit at other u shares the data and base columns (and their products)
+        self.normal: _Normal = (reuse.normal if reuse is not None and reuse.base is base
+                                and reuse.y is y else _Normal.of(base, y))
         self.dark_bars = dark_bars
         #: The ROI, for :func:`~benchlab.analysis.bars.extremes.honest_reading` (None: a
         #: noise-free stand-in read with a noise floor, whose extremes are not its frame's).
@@ -598,18 +774,6 @@ class _FitState:
         n = y.size
         max_sigma = min(max(MAX_SIGMA_BOUNDS_PX[0], MAX_SIGMA_WIDTHS * w),
                         MAX_SIGMA_BOUNDS_PX[1])
-        if reuse is None:
-            self.across = _Blurred(
-                u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta, max_sigma)
-            # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
-            # when the ROI comes within their reach (the ROI trims the ends by a fraction of a
-            # px)
-            foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
-            near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
-            self.along = (_Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends
-                          else None)
-        else:
-            self.across, self.along = reuse.across.moved(u), reuse.along
         self.sigmas = max_sigma * np.linspace(0.0, 1.0, SIGMA_GRID) ** 2
         # across the bars the family holds defocus too: the disc's share of the PSF's variance
         # at DISC_SHARES, each on a coarser grid of the equivalent sigma (rows after the
@@ -624,19 +788,40 @@ class _FitState:
             share_rows.append(np.full(coarse_sigmas.size, share))
             self.groups.append((start, start + coarse_sigmas.size))
         self.sig_all, self.share_all = np.concatenate(sig_rows), np.concatenate(share_rows)
-        t_across = (reuse.t_across if reuse is not None and reuse.t_across is not None
-                    else self.across.tables(self.sig_all, self.share_all))
-        self.t_across: FloatArray | None = t_across
-        self.p_pix, self.s_pix = self.across.sample_and_slope(t_across)
-        self.p_probe = self.across.sample(t_across, np.array([0.0, -w, w]))
-        self.t_along: FloatArray | None = reuse.t_along if reuse is not None else (
-            self.along.tables(self.sigmas) if self.along is not None else None)
-        if self.along is not None and self.t_along is not None:
-            t_along = self.t_along
-            a_pix = self.along.sample(t_along)
-            a_mid = self.along.sample(t_along, np.zeros(1))[:, 0]
+        self.t_across: FloatArray | None = None
+        self.t_along: FloatArray | None = None
+        self.across: _Blurred
+        self.along: _Blurred | None
+        if reuse is not None:
+            # the same tables (and, along the bars, the same v), read at the shifted u
+            self.across, self.along = reuse.across.moved(u), reuse.along
+            t_across = (reuse.t_across if reuse.t_across is not None
+                        else self.across.tables(self.sig_all, self.share_all))
+            self.t_across = t_across
+            p_pix, s_pix = self.across.sample_and_slope(t_across)
+            sp_pix = np.stack([s_pix, p_pix], axis=1)
+            p_probe = reuse.p_probe
+            along_samples = reuse.along_samples
         else:
-            a_pix, a_mid = np.ones((self.sigmas.size, n)), np.ones(self.sigmas.size)
+            hit = (tabulations.get(tabulation_key) if tabulations is not None and look_up
+                   else None)
+            if hit is None:
+                hit = self._tabulate(u, v, theta, max_sigma)
+                if tabulations is not None:
+                    tabulations.put(tabulation_key, hit)
+            self.across, self.along = hit.across, hit.along
+            sp_pix, p_probe, along_samples = hit.sp_pix, hit.p_probe, hit.along_samples
+        #: The per-blur columns of the fits, (blurs, 2, pixels): the pattern's slope (the
+        #: shift) and the pattern (the bar depth); :attr:`s_pix` and :attr:`p_pix` views of it.
+        self.sp_pix = sp_pix
+        self.s_pix, self.p_pix = sp_pix[:, 0], sp_pix[:, 1]
+        self.p_probe: FloatArray = p_probe
+        #: The along-bar tables at the pixels and at the middle (None: the bar ends out of
+        #: reach, a factor of 1).
+        self.along_samples: tuple[FloatArray, FloatArray] | None = along_samples
+        a_pix: FloatArray | None
+        a_pix, a_mid = along_samples if along_samples is not None else (
+            None, np.ones(self.sigmas.size))
         every = np.arange(self.sigmas.size)
         # the priors' scale: a free fit on a coarse blur grid gives noise, ground and depth
         coarse = every[::4]
@@ -658,7 +843,7 @@ class _FitState:
         if self.along is not None:
             self.along_fits = self._fit(np.full_like(every, i_u), every, a_pix, a_mid, self.ridge)
             i_v = int(np.argmin(self.along_fits.cost))
-        self.a_best = (a_pix[i_v], float(a_mid[i_v]))
+        self.a_best = (None if a_pix is None else a_pix[i_v], float(a_mid[i_v]))
         rows = np.arange(self.sig_all.size)
         self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
         self._score(quantum_sd)
@@ -667,7 +852,7 @@ class _FitState:
         self.t_along_shape: FloatArray | None = None
         self.along_group = (0, 0)
         best_group = next(g for g in self.groups if g[0] <= self.best_row < g[1])
-        if self.along is not None and self.share_all[self.best_row] > 0:
+        if a_pix is not None and self.along is not None and self.share_all[self.best_row] > 0:
             lo, hi = best_group
             self.t_along_shape = (
                 reuse.t_along_shape if reuse is not None and reuse.along_group == best_group
@@ -686,7 +871,32 @@ class _FitState:
                 self.a_best = (a_pix[i_v], float(a_mid[i_v]))
                 self.fits = self._fit(rows, np.full_like(rows, i_v), a_pix, a_mid, self.ridge)
                 self._score(quantum_sd)
-        self.misfit_rms = self._misfit(self.best_row, u, a_pix[i_v], quantum_sd)
+        self.misfit_rms = self._misfit(self.best_row, u, None if a_pix is None else a_pix[i_v],
+                                       quantum_sd)
+
+    def _tabulate(self, u: FloatArray, v: FloatArray, theta: float, max_sigma: float
+                  ) -> _Tabulation:
+        """The patterns across (every row of :attr:`sig_all`) and along the bars (the
+        Gaussian rows) tabulated and read at the pixels; the table across kept as
+        :attr:`t_across` for a refit."""
+        w = self.w
+        across = _Blurred(
+            u, [(c - 0.5 * w, c + 0.5 * w) for c in (-2 * w, 0.0, 2 * w)], theta, max_sigma)
+        # the bar ends (at v = +-2.5 w), blurred along the bars by their own PSF width: only
+        # when the ROI comes within their reach (the ROI trims the ends by a fraction of a px)
+        foot = 0.5 * (abs(math.cos(theta)) + abs(math.sin(theta)))
+        near_ends = float(np.abs(v).max()) + foot + 4.0 * max_sigma > 2.5 * w
+        along = _Blurred(v, [(-2.5 * w, 2.5 * w)], theta, max_sigma) if near_ends else None
+        t_across = across.tables(self.sig_all, self.share_all)
+        self.t_across = t_across
+        p_pix, s_pix = across.sample_and_slope(t_across)
+        p_probe = across.sample(t_across, np.array([0.0, -w, w]))
+        along_samples = None
+        if along is not None:
+            t_along = along.tables(self.sigmas)
+            along_samples = (along.sample(t_along), along.sample(t_along, np.zeros(1))[:, 0])
+        return _Tabulation(across, along, np.stack([s_pix, p_pix], axis=1), p_probe,
+                           along_samples)
 
     def _score(self, quantum_sd: float) -> None:
         """Noise, chi-square scale, allowed blurs and the best row of :attr:`fits`."""
@@ -710,12 +920,15 @@ class _FitState:
                 self.shape_price = np.where(wrong, np.inf, self.shape_price)
         self.best_row = int(np.argmin(chi2 + self.shape_price))
 
-    def _misfit(self, row: int, u: FloatArray, a: FloatArray, quantum_sd: float) -> float:
+    def _misfit(self, row: int, u: FloatArray, a: FloatArray | None, quantum_sd: float
+                ) -> float:
         """RMS of the residuals' structure beyond the noise at fit ``row`` (0 when not
         significant): the residual variance minus the white noise's, the latter from
         successive differences of the residuals in order of ``u`` (a misfit is smooth in ``u``
-        and cancels there; noise does not). A term that does not shrink with pixel count."""
-        design = np.column_stack([self.base, self.s_pix[row] * a, self.p_pix[row] * a])
+        and cancels there; noise does not). A term that does not shrink with pixel count.
+        ``a``: the bar ends' factor at the pixels (None: 1)."""
+        design = np.column_stack([self.base, self.s_pix[row], self.p_pix[row]] if a is None
+                                 else [self.base, self.s_pix[row] * a, self.p_pix[row] * a])
         resid = self.y - design @ self.fits.coef[row]
         n = resid.size
         dof = n - _n_params(self.base) - 1
@@ -739,14 +952,27 @@ class _FitState:
         return float(np.clip(-c / depth, -0.5 * self.w, 0.5 * self.w))
 
     def _fit(
-        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray,
+        self, i_u: npt.NDArray[np.intp], i_v: npt.NDArray[np.intp], a_pix: FloatArray | None,
         a_mid: FloatArray, ridge: FloatArray | None,
     ) -> _Batch:
-        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``."""
-        a = a_pix[i_v]
+        """Fits at the across-bar blurs ``sigmas[i_u]`` with the along-bar ones ``[i_v]``
+        (``a_pix`` None: no bar ends, a factor of 1)."""
         probe = self.p_probe[i_u] * a_mid[i_v][:, None]
-        return _solve_batch(self.base, [self.s_pix[i_u] * a, self.p_pix[i_u] * a], self.y,
-                            ridge, probe[:, 0], 0.5 * (probe[:, 1] + probe[:, 2]))
+        # the columns times the bar ends' factor, each product as ``s_pix[i_u] * a_pix[i_v]``
+        # (a blur repeated over every fit broadcast instead of gathered: the same products)
+        one_v = bool(np.all(i_v == i_v[0]))
+        every_u = np.array_equal(i_u, np.arange(self.sp_pix.shape[0]))
+        if a_pix is None:
+            cols = self.sp_pix if every_u else self.sp_pix[i_u]  # read, never written
+        elif np.all(i_u == i_u[0]) and not one_v:
+            cols = self.sp_pix[i_u[0]] * a_pix[i_v][:, None, :]
+        elif one_v and every_u:
+            cols = self.sp_pix * a_pix[i_v[0]]  # every row: no gathered copy first
+        else:
+            cols = self.sp_pix[i_u]
+            cols *= a_pix[i_v[0]] if one_v else a_pix[i_v][:, None, :]
+        return _solve_batch(self.normal, cols, ridge, probe[:, 0],
+                            0.5 * (probe[:, 1] + probe[:, 2]))
 
     def _fit_at(self, sigma: float, disc_share: float) -> _Batch:
         """One fit at an off-grid blur across the bars (the along-bar blur at its best)."""
@@ -754,8 +980,11 @@ class _FitState:
         a_pix, a_mid = self.a_best
         probe = self.across.sample(table, np.array([0.0, -self.w, self.w]))[0] * a_mid
         p_pix, s_pix = self.across.sample_and_slope(table)
-        return _solve_batch(self.base, [s_pix * a_pix, p_pix * a_pix], self.y, self.ridge,
-                            np.array([probe[0]]), np.array([0.5 * (probe[1] + probe[2])]))
+        cols = np.stack([s_pix, p_pix], axis=1)
+        if a_pix is not None:
+            cols *= a_pix
+        return _solve_batch(self.normal, cols, self.ridge, np.array([probe[0]]),
+                            np.array([0.5 * (probe[1] + probe[2])]))
 
     def conclude(self, blur_prior_px: tuple[float, float] | None) -> ThreeBarReading:
         """The reading at the blur the fits (and the prior) favour, with its interval."""

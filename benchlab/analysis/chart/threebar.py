@@ -26,7 +26,9 @@ estimator that read the bars:
    ROI that was read, with the bar and ground levels giving the chart's own contrast.
 3. **Read** (:func:`predict_reading`) by :func:`benchlab.analysis.bars.knownbars.fit_three_bars` at
    the setup the real set was read with (:class:`ReadingSetup`: ROI, centre, bar width and
-   angle, polarity), then, where the chart reading gave the real set a blur prior from the
+   angle, polarity; the same pixels, so the patterns that reading tabulated serve again where
+   still kept: ``reuse_tabulation``), then, where the chart reading gave the real set a blur
+   prior from the
    chart's other sets (:func:`benchlab.analysis.chart.reading.read_chart_details`), concluded
    under that prior (:meth:`benchlab.analysis.bars.knownbars.ThreeBarReading.with_blur_prior`): the
    chart reading's own path for that set. The image is noise-free, but read with the real
@@ -329,9 +331,11 @@ def predict_reading(setup: ReadingSetup, across: Transfer, along: Transfer, *,
         ground = 1.0 + contrast if setup.ground_level is None else setup.ground_level
         bars = ground / ratio
     image, eq29 = _render(setup, across, along, ground=ground, bars=bars)
+    # at the chart reading's geometry: its tabulated patterns serve again where still kept
     reading = fit_three_bars(image, centre_rc=setup.centre_in_roi,
                              bar_width_px=setup.bar_width_px, theta_deg=setup.theta_deg,
-                             dark_bars=setup.dark_bars, noise_floor=setup.noise_sigma)
+                             dark_bars=setup.dark_bars, noise_floor=setup.noise_sigma,
+                             reuse_tabulation=True)
     if setup.blur_prior_px is not None:
         reading = reading.with_blur_prior(setup.blur_prior_px)
     return Prediction(reading, image, eq29)

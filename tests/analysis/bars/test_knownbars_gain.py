@@ -35,6 +35,12 @@ def test_the_tabulated_patterns_are_those_of_the_whole_exponential(
     sigmas = 1.7 * np.linspace(0.0, 1.0, 32) ** 2
     shares = np.r_[np.zeros(26), np.full(6, 0.5)]
     fast = blurred.tables(sigmas, shares)
-    monkeypatch.setattr(knownbars, "gaussian_gain",
-                        lambda rates, freqs2: np.exp(np.outer(rates, freqs2)))
+    def whole(rates: np.ndarray, freqs2: np.ndarray, stop: np.ndarray | None = None
+              ) -> np.ndarray:
+        gain = np.exp(np.outer(rates, freqs2))
+        if stop is not None:  # the columns the caller needs no value of: 0
+            gain[np.arange(freqs2.size)[None, :] >= stop[:, None]] = 0.0
+        return gain
+
+    monkeypatch.setattr(knownbars, "gaussian_gain", whole)
     assert blurred.tables(sigmas, shares).tobytes() == fast.tobytes()

@@ -53,9 +53,11 @@ def _reference_sample_and_slope(self: Any, tables: Any) -> Any:
     return left + self.frac * (right - left), (right - left) / self.step
 
 
-def _reference_solve_batch(base: Any, extra: Any, y: Any, ridge: Any, p_bar: Any,
+def _reference_solve_batch(normal: Any, cols: Any, ridge: Any, p_bar: Any,
                            p_space: Any) -> Any:
     """``_solve_batch`` as it was: the full (blurs, pixels, columns) design matrices."""
+    base, y = normal.base, normal.y
+    extra = [cols[:, j] for j in range(cols.shape[1])]
     m, n = extra[0].shape
     kb_ = base.shape[1]
     k = kb_ + len(extra)
