@@ -325,3 +325,8 @@ _.lens_share_uncertainty  # unused variable (protocols/mtf/analysis.py)
 certificate_figures  # unused function (benchlab/acceptance/certificate_pdf.py)
 _.half_width_mm  # unused property (benchlab/scenes/dots.py)
 fourier_gains  # unused function (benchlab/analysis/bars/model.py)
+
+# The known-bar fit's tabulation store (issue 39): its arrays are made read-only through the
+# numpy flag (an assignment vulture takes for an unused attribute); tests empty the store.
+_.writeable  # unused attribute (benchlab/analysis/bars/knownbars.py)
+clear_tabulations  # unused function (benchlab/analysis/bars/knownbars.py)

@@ -179,22 +179,10 @@ def jinc(x: npt.ArrayLike) -> FloatArray:
     return out.reshape(xa.shape)
 
 
-def _hermite(x: FloatArray, value: FloatArray, slope: FloatArray) -> FloatArray:
-    """Cubic Hermite interpolation in the table (``slope`` already times the step)."""
-    s = x * (1.0 / TABLE_STEP)
-    i = s.astype(np.intp)
-    t = s - i
-    f0, f1 = value.take(i), value.take(i + 1)
-    d0, d1 = slope.take(i), slope.take(i + 1)
-    df = f1 - f0
-    return np.asarray(f0 + t * (d0 + t * ((3.0 * df - 2.0 * d0 - d1)
-                                          + t * (d0 + d1 - 2.0 * df))), dtype=np.float64)
-
-
 def _cubic_table() -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`_hermite`'s polynomial coefficients per table interval, ``f0, d0`` and the
-    ``t^2`` and ``t^3`` ones, computed by its own expressions on the table (elementwise, so the
-    same bits as computing them per value)."""
+    """The cubic Hermite polynomial's coefficients per table interval, ``f0, d0`` and the
+    ``t^2`` and ``t^3`` ones, computed by the per-value interpolation's own expressions on the
+    table (elementwise, so the same bits as computing them per value)."""
     global _cubic
     if _cubic is None:
         value, slope = _jinc_table()
@@ -205,9 +193,9 @@ def _cubic_table() -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
 
 
 def _hermite_fast(x: FloatArray) -> FloatArray:
-    """:func:`_hermite` bit for bit (the same products and sums in the same order), its
-    per-interval coefficients gathered from :func:`_cubic_table` instead of formed per value;
-    indices beyond the table are clipped (those values are not :func:`_hermite`'s)."""
+    """The per-value cubic Hermite interpolation bit for bit (the same products and sums in
+    the same order), its per-interval coefficients gathered from :func:`_cubic_table` instead
+    of formed per value; indices beyond the table are clipped (the caller overwrites those)."""
     f0, d0, c2, c3 = _cubic_table()
     s = x * (1.0 / TABLE_STEP)
     i = s.astype(np.intp)

@@ -28,7 +28,7 @@ def _plain_jinc(x: Any) -> Any:
     flat = xa.ravel()
     out = np.empty_like(flat)
     inside = flat < jinc_mod.TABLE_MAX_X
-    out[inside] = jinc_mod._hermite(flat[inside], value, slope)
+    out[inside] = _hermite(flat[inside], value, slope)
     far = flat[~inside]
     out[~inside] = 2.0 * jinc_mod._hankel(far, 1, terms=4) / far
     return out.reshape(xa.shape)
@@ -255,3 +255,16 @@ def test_a_predicted_reading_after_its_chart_reading_is_the_one_read_alone() -> 
     assert _bits(after.reading) == _bits(alone.reading)
     assert after.image.tobytes() == alone.image.tobytes()
     kb.clear_tabulations()
+
+
+def _hermite(x, value, slope):  # type: ignore[no-untyped-def]
+    """The per-value cubic Hermite interpolation jinc used before its coefficients were
+    tabulated per interval (``slope`` already times the step)."""
+    s = x * (1.0 / jinc_mod.TABLE_STEP)
+    i = s.astype(np.intp)
+    t = s - i
+    f0, f1 = value.take(i), value.take(i + 1)
+    d0, d1 = slope.take(i), slope.take(i + 1)
+    df = f1 - f0
+    return np.asarray(f0 + t * (d0 + t * ((3.0 * df - 2.0 * d0 - d1)
+                                          + t * (d0 + d1 - 2.0 * df))), dtype=np.float64)
