@@ -62,5 +62,6 @@ def test_profile_values_at_any_points_are_the_per_point_values() -> None:
         rows = cr + rng.normal(0, 20, 17)
         cols = cc + rng.normal(0, 20, 17)
         got = scene._profile_values(bars, rows, cols)
-        want = [scene._profile_value(bars, float(r), float(c)) for r, c in zip(rows, cols)]
+        want = [scene._profile_value(bars, float(r), float(c)) for r, c in zip(rows, cols,
+                                                                            strict=True)]
         assert got.tobytes() == np.array(want).tobytes()
