@@ -49,6 +49,7 @@ from benchlab.storage import (
     atomic_write_text,
     make_staging_dir,
     sha256_file,
+    zlib_strips,
 )
 
 if TYPE_CHECKING:
@@ -131,10 +132,13 @@ def encode_view_tiff(view: npt.NDArray[Any], valid: npt.NDArray[np.bool_],
     doc = {"format": VIEW_FORMAT, "version": VIEW_FORMAT_VERSION, **dict(meta)}
     buf = io.BytesIO()
     with tifffile.TiffWriter(buf) as tif:
-        tif.write(view, description=json.dumps(doc, allow_nan=False), metadata=None,
-                  compression="zlib")
-        tif.write((valid.astype(np.uint8) * 255), description="valid mask (255 = raw pixel)",
-                  metadata=None, compression="zlib")
+        # zlib_strips: Python's zlib, as tifffile deflates without imagecodecs (same bytes)
+        for page, description in ((np.asarray(view), json.dumps(doc, allow_nan=False)),
+                                  (valid.astype(np.uint8) * 255,
+                                   "valid mask (255 = raw pixel)")):
+            strips, rows = zlib_strips(page)
+            tif.write(strips, shape=page.shape, dtype=page.dtype, rowsperstrip=rows,
+                      description=description, metadata=None, compression="zlib")
     return buf.getvalue()
 
 

@@ -286,6 +286,37 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
 ZLIB_LEVEL = 1
 
 
+#: Bytes of uncompressed rows per zlib strip: tifffile's default (~256 KB per strip).
+STRIP_BYTES = 262144
+
+
+def zlib_strips(pixels: npt.NDArray[Any], level: int | None = None
+                ) -> tuple[Iterator[bytes], int]:
+    """A 2-D array's TIFF strips compressed by Python's :mod:`zlib`, and the rows per strip:
+    for ``tifffile`` to write as they are (``data=`` the strips, with ``shape``, ``dtype``,
+    ``rowsperstrip`` and ``compression="zlib"``).
+
+    What ``compression="zlib"`` gives with tifffile's own codec, byte for byte (same strips of
+    ``STRIP_BYTES // row bytes`` rows, each ``zlib.compress(rows, level)``, default level 6),
+    whichever codec tifffile would pick itself: with ``imagecodecs`` installed (read for its
+    faster inflate) tifffile deflates with libdeflate, whose streams differ, so a frame written
+    today would no longer be the bytes of the same frame written before."""
+    import zlib
+
+    arr = np.ascontiguousarray(pixels)
+    if arr.ndim != 2:
+        raise ValueError(f"strips of a 2-D array, got shape {arr.shape}")
+    height = arr.shape[0]
+    rows = min(max(STRIP_BYTES // max(arr.shape[1] * arr.itemsize, 1), 1), max(height, 1))
+    lvl = 6 if level is None else level
+
+    def strips() -> Iterator[bytes]:
+        for r0 in range(0, height, rows):
+            yield zlib.compress(arr[r0:r0 + rows].tobytes(), lvl)
+
+    return strips(), rows
+
+
 def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> bytes:
     """Encode a 2-D uint8/uint16 frame and its metadata as lossless TIFF bytes."""
     arr = np.asarray(pixels)
@@ -307,9 +338,10 @@ def encode_frame_tiff(pixels: npt.NDArray[Any], metadata: Mapping[str, Any]) -> 
     import tifffile  # here: reading a frame back does not need it (start-up, issue 11)
 
     buf = io.BytesIO()
-    tifffile.imwrite(buf, arr, imagej=True, resolution=resolution,
-                     metadata=imagej, software=SOFTWARE, compression="zlib",
-                     compressionargs={"level": ZLIB_LEVEL})
+    strips, rows = zlib_strips(arr, ZLIB_LEVEL)
+    tifffile.imwrite(buf, strips, shape=arr.shape, dtype=arr.dtype, rowsperstrip=rows,
+                     imagej=True, resolution=resolution, metadata=imagej, software=SOFTWARE,
+                     compression="zlib")
     return buf.getvalue()
 
 

@@ -35,7 +35,7 @@ import numpy.typing as npt
 from benchlab.analysis.arrays import FloatArray
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC, BarGroup
 from benchlab.analysis.chart.pose import ChartPose, PosedBarSet
-from benchlab.analysis.sfr.target import SlantedSquare, scaled_squares
+from benchlab.analysis.sfr.target import SlantedSquare, edge_spec, scaled_squares
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.scenes.edge import EdgeScene
 from benchlab.scenes.optics import BlurProfile
@@ -176,11 +176,12 @@ class DefocusedEdgeScene(EdgeScene):
 
     def truth_mtf_at(self, label: str, freqs_cycles_per_px: npt.ArrayLike) -> FloatArray:
         """Analytic MTF of the edge ``label`` (e.g. ``"E0L"``) of this scene."""
-        for edge in self.edges():
-            if edge.label == label:
-                sigma = self.side_sigma_px(edge.square, edge.normal_theta_rad)
-                return edge_truth_mtf(freqs_cycles_per_px, sigma, edge.normal_theta_rad)
-        raise KeyError(f"no edge {label!r} on the target")
+        try:
+            edge = edge_spec(label, self.squares)  # that edge alone, not all of them
+        except KeyError:
+            raise KeyError(f"no edge {label!r} on the target") from None
+        sigma = self.side_sigma_px(edge.square, edge.normal_theta_rad)
+        return edge_truth_mtf(freqs_cycles_per_px, sigma, edge.normal_theta_rad)
 
 
 def scenes_at(lens: ThroughFocusLens, distance_mm: float, usaf: UsafScene,
@@ -189,10 +190,16 @@ def scenes_at(lens: ThroughFocusLens, distance_mm: float, usaf: UsafScene,
     scale = lens.scale_at(distance_mm)
     fields_u = {f.name: getattr(usaf, f.name) for f in dataclasses.fields(UsafScene)}
     fields_u["pose"] = ChartPose(scale=scale)
-    fields_e = {f.name: getattr(edges, f.name) for f in dataclasses.fields(EdgeScene)}
-    fields_e["squares"] = scaled_squares(scale, edges.squares)
     return (DefocusedUsafScene(**fields_u, lens=lens, distance_mm=float(distance_mm)),
-            DefocusedEdgeScene(**fields_e, lens=lens, distance_mm=float(distance_mm)))
+            edges_at(lens, distance_mm, edges))
+
+
+def edges_at(lens: ThroughFocusLens, distance_mm: float, edges: EdgeScene
+             ) -> DefocusedEdgeScene:
+    """:func:`scenes_at`'s edge target alone (the simulator's truth needs no chart)."""
+    fields_e = {f.name: getattr(edges, f.name) for f in dataclasses.fields(EdgeScene)}
+    fields_e["squares"] = scaled_squares(lens.scale_at(distance_mm), edges.squares)
+    return DefocusedEdgeScene(**fields_e, lens=lens, distance_mm=float(distance_mm))
 
 
 #: The radial view's lens (Table 4.4: EFL 3.52 mm, entrance pupil radius 0.84 mm; best focus

@@ -107,9 +107,11 @@ def _box_gauss_antiderivative(t: FloatArray, sigma: float) -> FloatArray:
     return sigma * (z * ndtr(z) + np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))
 
 
-def box_blurred_rect(x: FloatArray, a: float, b: float, sigma: float) -> FloatArray:
+def box_blurred_rect(x: FloatArray, a: float | FloatArray, b: float | FloatArray,
+                     sigma: float) -> FloatArray:
     """Value at pixel centres ``x`` of the indicator of ``[a, b]`` blurred by a Gaussian of width
-    ``sigma`` and integrated over a 1-px pixel aperture (exact closed form).
+    ``sigma`` and integrated over a 1-px pixel aperture (exact closed form). Arrays ``a``, ``b``
+    broadcast against ``x`` (several intervals at once, each value as for scalar ends).
     """
     s = max(float(sigma), _MIN_SIGMA_PX)
     x = np.asarray(x, dtype=np.float64)

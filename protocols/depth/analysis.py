@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import mean_of_frames
 from benchlab.analysis.chart.layout import ChartLayout
 from benchlab.analysis.focus.criteria import mtf_threshold
 from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
@@ -114,7 +115,7 @@ def read_session(session: Session, params: DepthParams
             if not set(names) <= set(frames):
                 continue
             stack = [session.load_frame(sid, n)[0] for n in names]
-            avg = np.mean(np.stack(stack).astype(np.float64), axis=0)
+            avg = mean_of_frames(stack)
             reading = read_position(avg, params.frequencies_lp_per_mm, full_scale=full_scale,
                                     read_bars=params.read_chart)
             if reading.scale is None:

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from benchlab.analysis.arrays import mean_of_frames
 from benchlab.analysis.chart.layout import Box
 from benchlab.analysis.focus.field import astigmatic_difference, field_curvature
 from benchlab.analysis.focus.through_focus import (
@@ -81,7 +82,7 @@ def read_radial(session: Session, params: DepthParams) -> list[Position]:
                 if not set(names) <= set(frames):
                     continue
                 stack = [session.load_frame(sid, n)[0] for n in names]
-                avg = np.mean(np.stack(stack).astype(np.float64), axis=0)
+                avg = mean_of_frames(stack)
                 out.append((pattern, z, seg.index,
                             read_rois(avg, params.radial_rois, 2.0 ** params.bits - 1)))
     return out

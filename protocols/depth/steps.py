@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from benchlab.analysis.arrays import mean_of_frames
 from benchlab.protocols.depth.params import DepthParams, Segment
 from benchlab.protocols.engine import Step, StepContext
 
@@ -140,7 +141,7 @@ class DepthProcedure:
             if ctx.runner.on_result is not None and pattern is None:
                 from benchlab.protocols.depth.analysis import position_summary
 
-                avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
+                avg = mean_of_frames(frames)
                 ctx.report({"distance_mm": z, **position_summary(avg, p, z)})
 
         return action

@@ -21,25 +21,21 @@ import numpy as np
 
 from benchlab.analysis.chart.layout import IMAGE_CENTRE_RC
 from benchlab.analysis.focus.criteria import Criterion, mtf_threshold
+from benchlab.analysis.sfr.target import edge_spec
 from benchlab.drivers.sensor import PIXEL_PITCH_UM
 from benchlab.protocols.depth.params import DepthParams
 from benchlab.scenes.edge import EdgeScene
-from benchlab.scenes.focus import DefocusedEdgeScene, ThroughFocusLens, scenes_at
-from benchlab.scenes.usaf import UsafScene
+from benchlab.scenes.focus import DefocusedEdgeScene, ThroughFocusLens, edges_at
 
-_USAF = UsafScene()
 _EDGES = EdgeScene()
 
 
 def edge_scene_at(lens: ThroughFocusLens, distance_mm: float) -> DefocusedEdgeScene:
-    return scenes_at(lens, distance_mm, _USAF, _EDGES)[1]
+    return edges_at(lens, distance_mm, _EDGES)
 
 
 def _edge(scene: DefocusedEdgeScene, label: str) -> Any:
-    for e in scene.edges():
-        if e.label == label:
-            return e
-    raise KeyError(label)
+    return edge_spec(label, scene.squares)
 
 
 def truth_mtf(lens: ThroughFocusLens, label: str, freq_lp_per_mm: float,

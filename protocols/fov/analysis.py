@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchlab.analysis.arrays import FloatArray
+from benchlab.analysis.arrays import mean_of_frames
 from benchlab.analysis.fov import figures as fig
 from benchlab.analysis.fov.disc import Disc, find_disc
 from benchlab.analysis.fov.dots import Dots, detect, identify
@@ -86,7 +87,7 @@ def _averages(session: Session, params: FovParams) -> dict[float, FloatArray]:
         if not frames:
             continue
         stack = [session.load_frame(position_step_id(z), n)[0] for n in sorted(frames)]
-        out[z] = np.mean(np.stack(stack).astype(np.float64), axis=0)
+        out[z] = mean_of_frames(stack)
     return out
 
 

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from benchlab.analysis.arrays import mean_of_frames
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import Step, StepContext
 from benchlab.protocols.fov.params import FovParams, position_step_id
@@ -201,7 +202,7 @@ def _count_on_average(ctx: StepContext, names: list[str], frames: list[Any],
                       count: Callable[[Any], int], where: str) -> int:
     """``count`` on the mean of one position's frames; a failure sets those frames aside
     (the frames, not the bench: a retry takes new ones) and fails the step naming ``where``."""
-    avg = np.mean(np.stack(frames).astype(np.float64), axis=0)
+    avg = mean_of_frames(frames)
     try:
         return count(avg)
     except ValueError as exc:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -45,5 +44,9 @@ def sharpness(pixels: npt.NDArray[Any], roi: tuple[int, int, int, int] | None = 
         arr = arr[r0:r1, c0:c1]
     if arr.size < 9:
         raise ValueError("sharpness needs at least 3 x 3 pixels")
+    # here: OpenCV costs ~50 ms to import, and the depth analysis imports this package for
+    # its through-focus modules without ever asking for a sharpness figure
+    import cv2
+
     lap = cv2.Laplacian(arr.astype(np.float32), cv2.CV_32F, ksize=3)
     return float(np.var(lap, dtype=np.float64))

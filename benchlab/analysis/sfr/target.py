@@ -95,27 +95,43 @@ _SIDES = (("R", 0.0), ("B", 90.0), ("L", 180.0), ("T", 270.0))
 
 def edge_specs(squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES) -> list[EdgeSpec]:
     """Every side of every square as an :class:`EdgeSpec` (R, B, L, T per square)."""
-    out = []
+    return [_side_spec(sq, name, base) for sq in squares for name, base in _SIDES]
+
+
+def edge_spec(label: str, squares: tuple[SlantedSquare, ...] = DEFAULT_SQUARES) -> EdgeSpec:
+    """The :class:`EdgeSpec` of one side (``label``, e.g. ``"E0L"``): ``edge_specs``' entry,
+    computed alone (the simulator's truth asks for one edge at many distances).
+
+    Raises
+    ------
+    KeyError
+        No side of ``squares`` has that label.
+    """
     for sq in squares:
-        half = sq.side_px / 2.0
-        along_half = max(half - CORNER_MARGIN_PX, 1.0)
-        across = min(ACROSS_HALF_WIDTH_PX, half - 4.0)
         for name, base in _SIDES:
-            theta = math.radians(sq.rotation_deg + base)
-            n = (math.cos(theta), math.sin(theta))  # (x, y) = (col, row)
-            t = (-n[1], n[0])
-            mid = (sq.centre_rc[0] + half * n[1], sq.centre_rc[1] + half * n[0])
-            rows, cols = [], []
-            for sa in (-along_half, along_half):
-                for sn in (-across, across):
-                    rows.append(mid[0] + sa * t[1] + sn * n[1])
-                    cols.append(mid[1] + sa * t[0] + sn * n[0])
-            roi = (math.ceil(min(rows)), math.ceil(min(cols)),
-                   math.floor(max(rows)) + 1, math.floor(max(cols)) + 1)
-            orientation: Orientation = "sagittal" if abs(n[0]) >= abs(n[1]) else "tangential"
-            wrapped = math.atan2(n[1], n[0])
-            out.append(EdgeSpec(f"{sq.label}{name}", sq, wrapped, mid, roi, orientation))
-    return out
+            if f"{sq.label}{name}" == label:
+                return _side_spec(sq, name, base)
+    raise KeyError(label)
+
+
+def _side_spec(sq: SlantedSquare, name: str, base: float) -> EdgeSpec:
+    half = sq.side_px / 2.0
+    along_half = max(half - CORNER_MARGIN_PX, 1.0)
+    across = min(ACROSS_HALF_WIDTH_PX, half - 4.0)
+    theta = math.radians(sq.rotation_deg + base)
+    n = (math.cos(theta), math.sin(theta))  # (x, y) = (col, row)
+    t = (-n[1], n[0])
+    mid = (sq.centre_rc[0] + half * n[1], sq.centre_rc[1] + half * n[0])
+    rows, cols = [], []
+    for sa in (-along_half, along_half):
+        for sn in (-across, across):
+            rows.append(mid[0] + sa * t[1] + sn * n[1])
+            cols.append(mid[1] + sa * t[0] + sn * n[0])
+    roi = (math.ceil(min(rows)), math.ceil(min(cols)),
+           math.floor(max(rows)) + 1, math.floor(max(cols)) + 1)
+    orientation: Orientation = "sagittal" if abs(n[0]) >= abs(n[1]) else "tangential"
+    wrapped = math.atan2(n[1], n[0])
+    return EdgeSpec(f"{sq.label}{name}", sq, wrapped, mid, roi, orientation)
 
 
 def scaled_squares(
