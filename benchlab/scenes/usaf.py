@@ -135,26 +135,9 @@ class UsafScene(TwoLevelPrint):
         """The cached, read-only electron-rate image of a ``height x width`` frame."""
         return _render(self, height, width)
 
-    def _profile_value(self, bars: BarGroup, row: float, col: float) -> float:
-        """Noise-free pixel value (e-/ms) a pixel centred at (row, col) would read."""
-        if not self.nominal:
-            posed = self.bar_set(bars.group, bars.element, bars.orientation)
-            r, c = np.array([[row]]), np.array([[col]])
-            return float(self._compose(self._set_sum(posed, r, c), r, c)[0, 0])
-        sig_r, sig_c = self.sigmas_px(bars)
-        disc = self._disc(np.array([row]), np.array([col]))[0]
-        value = self.bright_rate * disc
-        r = np.array([row])
-        c = np.array([col])
-        for top, left, bottom, right in bars.bars:
-            fy = box_blurred_rect(r, top, bottom, sig_r)[0]
-            fx = box_blurred_rect(c, left, right, sig_c)[0]
-            value -= (self.bright_rate - self.dark_rate) * fy * fx
-        return float(value)
-
     def _profile_values(self, bars: BarGroup, rows: FloatArray, cols: FloatArray
                         ) -> FloatArray:
-        """:meth:`_profile_value` of a nominal chart at several pixel centres (``rows``,
+        """The noise-free value (e-/ms) of a nominal chart at several pixel centres (``rows``,
         ``cols``: 1-D) at once: each point's value by the same operations in the same order
         (elementwise over points, and over the bars for their blurred profiles), in a few
         array calls instead of a dozen per point."""
@@ -226,7 +209,7 @@ class UsafScene(TwoLevelPrint):
         bars = self.bar_group(group, element, orientation)
         cr, cc = bars.centre_rc
         w = bars.bar_width_px
-        # the centre, then the spaces either side: three _profile_value calls in one
+        # the centre, then the spaces either side, in one call
         if orientation == "sagittal":
             rows, cols = [cr, cr, cr], [cc, cc - w, cc + w]
         else:

@@ -1,6 +1,6 @@
 """The nominal chart's truth levels (the MTF session's ``simulator_truth``) read the centre and
 the two spaces of a bar set in one array call (:meth:`UsafScene._profile_values`): the values
-of the plain per-point :meth:`UsafScene._profile_value`, bit for bit (issue 39)."""
+of the plain per-point evaluation it replaced, bit for bit (issue 39)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,23 @@ import dataclasses
 
 import numpy as np
 
-from benchlab.scenes.optics import BlurProfile
+from benchlab.scenes.optics import BlurProfile, box_blurred_rect
 from benchlab.scenes.usaf import UsafScene
+
+
+def _profile_value(scene: UsafScene, bars, row: float, col: float) -> float:  # type: ignore[no-untyped-def]
+    """A nominal chart's noise-free value (e-/ms) at one pixel centre, as the scene computed
+    it point by point before issue 39."""
+    assert scene.nominal
+    sig_r, sig_c = scene.sigmas_px(bars)
+    disc = scene._disc(np.array([row]), np.array([col]))[0]
+    value = scene.bright_rate * disc
+    r, c = np.array([row]), np.array([col])
+    for top, left, bottom, right in bars.bars:
+        fy = box_blurred_rect(r, top, bottom, sig_r)[0]
+        fx = box_blurred_rect(c, left, right, sig_c)[0]
+        value -= (scene.bright_rate - scene.dark_rate) * fy * fx
+    return float(value)
 
 
 def _plain_levels(scene: UsafScene, group: int, element: int, orientation: str
@@ -18,13 +33,13 @@ def _plain_levels(scene: UsafScene, group: int, element: int, orientation: str
     bars = scene.bar_group(group, element, orientation)  # type: ignore[arg-type]
     cr, cc = bars.centre_rc
     w = bars.bar_width_px
-    dark = scene._profile_value(bars, cr, cc)
+    dark = _profile_value(scene, bars, cr, cc)
     if orientation == "sagittal":
-        bright = 0.5 * (scene._profile_value(bars, cr, cc - w)
-                        + scene._profile_value(bars, cr, cc + w))
+        bright = 0.5 * (_profile_value(scene, bars, cr, cc - w)
+                        + _profile_value(scene, bars, cr, cc + w))
     else:
-        bright = 0.5 * (scene._profile_value(bars, cr - w, cc)
-                        + scene._profile_value(bars, cr + w, cc))
+        bright = 0.5 * (_profile_value(scene, bars, cr - w, cc)
+                        + _profile_value(scene, bars, cr + w, cc))
     return dark, bright
 
 
@@ -62,6 +77,6 @@ def test_profile_values_at_any_points_are_the_per_point_values() -> None:
         rows = cr + rng.normal(0, 20, 17)
         cols = cc + rng.normal(0, 20, 17)
         got = scene._profile_values(bars, rows, cols)
-        want = [scene._profile_value(bars, float(r), float(c)) for r, c in zip(rows, cols,
+        want = [_profile_value(scene, bars, float(r), float(c)) for r, c in zip(rows, cols,
                                                                             strict=True)]
         assert got.tobytes() == np.array(want).tobytes()
