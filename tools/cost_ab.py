@@ -2,11 +2,14 @@
 
 Usage::
 
-    python tools/cost_ab.py --against /path/to/previous/checkout [--rounds 5] [--sessions 64]
+    python tools/cost_ab.py --against /path/to/previous/checkout [--against-python PY]
+                            [--rounds 5] [--sessions 64]
 
-Both checkouts run with this interpreter (the same environment): the other one through
-``PYTHONPATH``. Each round runs every job once per checkout, the order reversed every other
-round (neither always runs first on a warm disk cache), and prints the medians and their ratio:
+This checkout runs with this interpreter, the other with ``--against-python`` (its own
+environment: a dependency added since, such as ``imagecodecs``, would otherwise speed up the
+other checkout too), both through ``PYTHONPATH``. Each round runs every job once per
+checkout, the order reversed every other round (neither always runs first on a warm disk
+cache), and prints the medians and their ratio:
 
 * **batch**: ``benchlab analyze --all`` over N copies of one simulated MTF session (frames
   hard-linked, as ``benchlab benchmark batch`` makes them), the CPU of the whole process tree
@@ -37,9 +40,9 @@ CLI = "import sys; from benchlab.cli.main import main; sys.exit(main())"
 TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def _tree_cpu_s(argv: list[str], env: dict[str, str]) -> float:
+def _tree_cpu_s(python: str, argv: list[str], env: dict[str, str]) -> float:
     """CPU seconds of ``argv`` and every process it starts (its own session)."""
-    proc = subprocess.Popen([sys.executable, "-c", CLI, *argv], env=env, cwd="/tmp",
+    proc = subprocess.Popen([python, "-c", CLI, *argv], env=env, cwd="/tmp",
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)
     seen: dict[int, float] = {}
@@ -66,8 +69,8 @@ def _env(checkout: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(checkout)}
 
 
-def _session(root: Path, env: dict[str, str], kind: str) -> Path:
-    subprocess.run([sys.executable, "-c", CLI, "run", kind, "--simulate", "--yes", "--out",
+def _session(python: str, root: Path, env: dict[str, str], kind: str) -> Path:
+    subprocess.run([python, "-c", CLI, "run", kind, "--simulate", "--yes", "--out",
                     str(root)], env=env, check=True, capture_output=True, cwd="/tmp")
     return sorted(p for p in root.iterdir() if p.is_dir())[-1]
 
@@ -85,6 +88,8 @@ def _same_csvs(a: Path, b: Path) -> None:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--against", required=True, type=Path, help="the other checkout")
+    p.add_argument("--against-python", default=sys.executable,
+                   help="the other checkout's interpreter (default: this one)")
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--sessions", type=int, default=64, help="copies re-analysed per batch")
     p.add_argument("--jobs", type=int, default=2)
@@ -94,10 +99,11 @@ def main() -> int:
     from benchlab.benchmarks.batch import fabricate
 
     checkouts = {"this": HERE, "other": args.against.resolve()}
+    pythons = {"this": sys.executable, "other": args.against_python}
     cpu: dict[tuple[str, str], list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="cost-ab-") as tmp:
         root = Path(tmp)
-        source = _session(root / "source", _env(checkouts["other"]), "mtf")
+        source = _session(pythons["other"], root / "source", _env(checkouts["other"]), "mtf")
         copies = fabricate(source, root / "batch", args.sessions)
         depth_results: dict[str, Path] = {}
         for round_ in range(args.rounds):
@@ -105,8 +111,8 @@ def main() -> int:
             for name in order:
                 env = _env(checkouts[name])
                 if "batch" not in args.skip:
-                    s = _tree_cpu_s(["analyze", "--all", str(root / "batch"), "--jobs",
-                                     str(args.jobs)], env)
+                    s = _tree_cpu_s(pythons[name], ["analyze", "--all", str(root / "batch"),
+                                                    "--jobs", str(args.jobs)], env)
                     cpu.setdefault(("batch, CPU s per session", name), []).append(
                         s / args.sessions)
                     grown = [c for c in copies if (c / "results" / "v2").exists()]
@@ -115,8 +121,8 @@ def main() -> int:
                                          "its results differ from the first")
                 if "depth" not in args.skip:
                     out = root / f"depth-{name}-{round_}"
-                    s = _tree_cpu_s(["run", "depth", "--simulate", "--yes", "--out", str(out)],
-                                    env)
+                    s = _tree_cpu_s(pythons[name], ["run", "depth", "--simulate", "--yes",
+                                                    "--out", str(out)], env)
                     cpu.setdefault(("run depth, CPU s", name), []).append(s)
                     results = next(out.glob("*/results/v1"))
                     if name in depth_results:
