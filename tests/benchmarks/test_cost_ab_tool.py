@@ -4,6 +4,7 @@ results comparison that stops it."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import sys
 from pathlib import Path
 
@@ -42,7 +43,7 @@ def test_results_comparison_names_the_first_differing_csv(tmp_path: Path) -> Non
     b.mkdir()
     for folder in (a, b):
         (folder / "depth_chart.csv").write_text("x,y\n1,0.5\n")
-        (folder / "summary.json").write_text('{"created_at": "%s"}' % folder.name)
+        (folder / "summary.json").write_text(json.dumps({"created_at": folder.name}))
     tool._same_csvs(a, b)  # JSON timestamps differ; the CSVs are equal
     (b / "depth_curves.csv").write_text("z\n")
     with pytest.raises(SystemExit, match="different CSV files"):
