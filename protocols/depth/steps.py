@@ -24,8 +24,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from benchlab.analysis.arrays import mean_of_frames
 from benchlab.protocols.depth.params import DepthParams, Segment
 from benchlab.protocols.engine import Step, StepContext

@@ -30,8 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from benchlab.analysis.arrays import FloatArray
-from benchlab.analysis.arrays import mean_of_frames
+from benchlab.analysis.arrays import FloatArray, mean_of_frames
 from benchlab.analysis.fov import figures as fig
 from benchlab.analysis.fov.disc import Disc, find_disc
 from benchlab.analysis.fov.dots import Dots, detect, identify

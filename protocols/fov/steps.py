@@ -25,8 +25,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from benchlab.analysis.arrays import mean_of_frames
 from benchlab.drivers.errors import BenchlabError
 from benchlab.protocols.engine import Step, StepContext
