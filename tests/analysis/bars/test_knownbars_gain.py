@@ -24,6 +24,12 @@ def test_gaussian_gain_is_the_whole_exponential_bit_for_bit(seed: int) -> None:
     assert gaussian_gain(rates, freqs2).tobytes() == whole.tobytes()
     # and it skipped work: wide blurs vanish long before the last column
     assert (whole == 0.0).mean() > 0.1
+    # rows stopped early (a defocus row's cutoff): the same values before, 0 from there on
+    stop = rng.integers(0, freqs2.size + 1, sigmas.size)
+    cut = gaussian_gain(rates, freqs2, stop)
+    before = np.arange(freqs2.size)[None, :] < stop[:, None]
+    assert cut[before].tobytes() == whole[before].tobytes()
+    assert not cut[~before].any()
 
 
 def test_the_tabulated_patterns_are_those_of_the_whole_exponential(

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from benchlab.analysis.bars import knownbars as kb
-from benchlab.analysis.bars.knownbars import fit_three_bars, gaussian_gain, three_bar_pattern
+from benchlab.analysis.bars.knownbars import fit_three_bars, three_bar_pattern
 from benchlab.analysis.bars.projection import across_coordinate
 from benchlab.analysis.chart.threebar import ReadingSetup, predict_reading
 from benchlab.analysis.mtf import jinc as jinc_mod
@@ -83,23 +83,6 @@ def _plain_solve(base: Any, extra: Any, y: Any, ridge: Any) -> tuple[Any, Any, A
     rss = np.einsum("mn,mn->m", resid, resid)
     penalty = (coef * coef) @ ridge if ridge is not None else np.zeros(m)
     return coef, rss + penalty, inv
-
-
-@pytest.mark.parametrize("seed", range(8))
-def test_gaussian_gain_skips_zero_rates_and_stops_bit_for_bit(seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    n = int(rng.choice([256, 2048, 8192]))
-    freqs2 = np.fft.rfftfreq(n, rng.uniform(0.005, 0.03)) ** 2
-    sigmas = np.concatenate([[0.0], rng.uniform(0.0, 4.0, 40)])
-    share = rng.choice([0.0, 0.5, 1.0], sigmas.size)
-    rates = (-2.0 * math.pi**2) * (sigmas * sigmas * (1.0 - share))
-    whole = np.exp(np.outer(rates, freqs2))
-    assert gaussian_gain(rates, freqs2).tobytes() == whole.tobytes()
-    stop = rng.integers(0, freqs2.size + 1, sigmas.size)
-    cut = gaussian_gain(rates, freqs2, stop)
-    before = np.arange(freqs2.size)[None, :] < stop[:, None]
-    assert cut[before].tobytes() == whole[before].tobytes()
-    assert not cut[~before].any()
 
 
 def test_jinc_is_the_per_value_hermite_bit_for_bit() -> None:
